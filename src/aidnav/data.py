@@ -1,0 +1,127 @@
+"""In-memory containers shared by every package: IMU samples, GNSS fixes, trajectories.
+
+Plain numpy arrays in aidnav's conventions (``CONVENTIONS.md``): SI units, radians, body RFU,
+nav ENU. Files in other units and frames are converted by :mod:`aidnav.io` before they get here.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass
+class ImuData:
+    """IMU increments.
+
+    time : (N,) sample times t_k [s] (strictly increasing); sample k covers (t_{k-1}, t_k].
+    dtheta : (N, 3) angle increments [rad], body RFU.
+    dv : (N, 3) velocity increments (integrated specific force) [m/s], body RFU.
+    t0 : start time of the first interval [s] (t_0 - Δt by default).
+    events : human-readable notes about the data (gaps, dropped lines, ...), never silently dropped.
+    """
+
+    time: np.ndarray
+    dtheta: np.ndarray
+    dv: np.ndarray
+    t0: float | None = None
+    events: list[str] = field(default_factory=list)
+
+    def __post_init__(self):
+        self.time = np.ascontiguousarray(self.time, dtype=float)
+        self.dtheta = np.ascontiguousarray(self.dtheta, dtype=float).reshape(-1, 3)
+        self.dv = np.ascontiguousarray(self.dv, dtype=float).reshape(-1, 3)
+        if not (len(self.time) == len(self.dtheta) == len(self.dv)):
+            raise ValueError("ImuData: time, dtheta and dv must have the same length")
+        if self.t0 is None and len(self.time) > 1:
+            self.t0 = float(self.time[0] - (self.time[1] - self.time[0]))
+
+    def __len__(self) -> int:
+        return len(self.time)
+
+    @property
+    def rate_hz(self) -> float:
+        """Median sample rate [Hz]."""
+        return float(1.0 / np.median(np.diff(self.time)))
+
+    def slice(self, start: float, stop: float) -> ImuData:
+        """Samples with start <= time < stop."""
+        m = (self.time >= start) & (self.time < stop)
+        idx = np.flatnonzero(m)
+        t0 = self.time[idx[0] - 1] if len(idx) and idx[0] > 0 else None
+        return ImuData(self.time[m], self.dtheta[m], self.dv[m], t0=t0)
+
+
+@dataclass
+class GnssData:
+    """GNSS position (and optional velocity) fixes of the antenna.
+
+    time : (M,) [s]; lat, lon : (M,) [rad]; height : (M,) ellipsoidal [m].
+    vel : (M, 3) ENU velocity [m/s] or None.
+    std_pos : (M, 3) 1σ ENU position [m]; std_vel : (M, 3) 1σ ENU velocity [m/s] or None.
+    quality : (M,) integer quality flag (RTKLIB Q: 1 fix, 2 float, 5 single; 0 unknown) or None.
+    """
+
+    time: np.ndarray
+    lat: np.ndarray
+    lon: np.ndarray
+    height: np.ndarray
+    vel: np.ndarray | None = None
+    std_pos: np.ndarray | None = None
+    std_vel: np.ndarray | None = None
+    quality: np.ndarray | None = None
+    events: list[str] = field(default_factory=list)
+
+    def __post_init__(self):
+        self.time = np.ascontiguousarray(self.time, dtype=float)
+        self.lat = np.ascontiguousarray(self.lat, dtype=float)
+        self.lon = np.ascontiguousarray(self.lon, dtype=float)
+        self.height = np.ascontiguousarray(self.height, dtype=float)
+        m = len(self.time)
+        if self.vel is not None:
+            self.vel = np.ascontiguousarray(self.vel, dtype=float).reshape(m, 3)
+        if self.std_pos is not None:
+            self.std_pos = np.ascontiguousarray(self.std_pos, dtype=float).reshape(m, 3)
+        if self.std_vel is not None:
+            self.std_vel = np.ascontiguousarray(self.std_vel, dtype=float).reshape(m, 3)
+
+    def __len__(self) -> int:
+        return len(self.time)
+
+    def subset(self, mask: np.ndarray) -> GnssData:
+        """Fixes where ``mask`` is True."""
+        def pick(a):
+            return None if a is None else a[mask]
+
+        return GnssData(self.time[mask], self.lat[mask], self.lon[mask], self.height[mask],
+                        pick(self.vel), pick(self.std_pos), pick(self.std_vel), pick(self.quality))
+
+
+@dataclass
+class Trajectory:
+    """Navigation solution or truth (of the IMU, not the antenna).
+
+    time : (N,) [s]; lat, lon : (N,) [rad]; height : (N,) ellipsoidal [m]; vel : (N, 3) ENU [m/s];
+    rph : (N, 3) roll, pitch, heading [rad] (heading in [0, 2π)).
+    std_pos : (N, 3) 1σ ENU position [m]; std_vel : (N, 3) 1σ ENU velocity [m/s];
+    std_att : (N, 3) 1σ roll, pitch, heading [rad] (all optional).
+    extra : further per-epoch columns keyed by their interchange name with units
+    (e.g. ``"gyro_bias_x_deg_h"``).
+    The interchange writer turns std_* into the ``<column>_std`` columns of CONVENTIONS
+    (``lat_deg_std``, ``lon_deg_std``, ``height_m_std``, ``ve_std`` ... ``heading_deg_std``).
+    """
+
+    time: np.ndarray
+    lat: np.ndarray
+    lon: np.ndarray
+    height: np.ndarray
+    vel: np.ndarray
+    rph: np.ndarray
+    std_pos: np.ndarray | None = None
+    std_vel: np.ndarray | None = None
+    std_att: np.ndarray | None = None
+    extra: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(self.time)

@@ -41,6 +41,23 @@ def simulate(
         console.print(f"wrote {p}")
 
 
+@app.command()
+def evaluate(
+    estimate: Path = typer.Argument(..., help="estimated trajectory (interchange CSV/Parquet or .pos)"),
+    truth: Path = typer.Option(..., "--truth", help="reference trajectory (interchange or RTKLIB .pos)"),
+    out: Path | None = typer.Option(None, "-o", "--out", help="directory for errors.json/.csv and figures"),
+):
+    """Errors of an estimate against a reference: table of RMS/95%/max; JSON, CSV and figures with -o."""
+    from aidnav.analysis.evaluate import evaluate_files
+
+    try:
+        _, written = evaluate_files(estimate, truth, out_dir=out, console=console)
+    except (OSError, ValueError) as e:
+        _fail(str(e))
+    for p in written:
+        console.print(f"wrote {p}")
+
+
 def main():  # pragma: no cover
     app()
 

@@ -150,7 +150,9 @@ def lla_difference_enu(lat, lon, h, lat_ref, lon_ref, h_ref):
     """Small differences of geodetic positions as local metres [dE, dN, dU] (curvilinear, for errors).
 
     Uses the radii at the reference latitude: dE = dλ (R_N+h) cos L, dN = dL (R_M+h), dU = dh.
-    Accurate to ~1e-6 relative for differences below a few km; use :func:`lla_to_enu` beyond that.
+    The neglected curvature terms are ~ d²·tan(L)/(2R) for a horizontal difference d (0.09 mm at
+    10 m, 9 cm at 1 km at 45°), i.e. ~1e-6 relative only below ~10 m; use :func:`lla_to_enu` where
+    that matters.
     """
     rm, rn = radii(np.asarray(lat_ref, dtype=float))
     dlon = (np.asarray(lon) - lon_ref + np.pi) % (2 * np.pi) - np.pi

@@ -1,0 +1,119 @@
+"""Configuration of the loosely coupled filter (pydantic; units in every key name).
+
+Every section forbids unknown keys, so a typo gives an error that names the key. Defaults suit a
+consumer-grade MEMS IMU with a 1-10 Hz GNSS receiver (what ``aidnav process`` assumes without
+``--config``; it prints what it assumed).
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
+DEG = np.pi / 180.0
+DEG_H = DEG / 3600.0
+UG = 9.80665e-6
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class ImuNoise(_Strict):
+    """IMU noise and sensor-error model of the filter (boundary units)."""
+
+    arw_deg_sqrt_h: float = Field(0.3, gt=0, description="angle random walk [deg/sqrt(h)]")
+    vrw_m_s_sqrt_h: float = Field(0.1, gt=0, description="velocity random walk [m/s/sqrt(h)]")
+    gyro_bias_sigma_deg_h: float = Field(100.0, ge=0, description="initial/steady gyro bias 1σ [deg/h]")
+    accel_bias_sigma_ug: float = Field(5000.0, ge=0, description="initial/steady accel bias 1σ [µg]")
+    gyro_bias_tau_s: float = Field(3600.0, description="gyro bias correlation time [s]; <=0: random walk")
+    accel_bias_tau_s: float = Field(3600.0, description="accel bias correlation time [s]; <=0: random walk")
+    gyro_bias_rw_deg_h_sqrt_h: float = Field(
+        0.0, ge=0, description="gyro bias random-walk [deg/h/sqrt(h)], used when gyro_bias_tau_s <= 0")
+    accel_bias_rw_ug_sqrt_h: float = Field(
+        0.0, ge=0, description="accel bias random-walk [µg/sqrt(h)], used when accel_bias_tau_s <= 0")
+    scale_factors: bool = Field(False, description="estimate gyro and accel scale factors (21 states)")
+    gyro_sf_sigma_ppm: float = Field(1000.0, ge=0)
+    accel_sf_sigma_ppm: float = Field(1000.0, ge=0)
+    sf_tau_s: float = Field(0.0, description="scale-factor correlation time [s]; <=0: random constant")
+    time_offset_s: float = Field(0.0, description="added to IMU time stamps (IMU clock → GNSS time)")
+    mounting_rph_deg: tuple[float, float, float] = Field(
+        (0.0, 0.0, 0.0), description="IMU body → vehicle frame rotation as roll, pitch, heading [deg] "
+        "(C_b^v = C(r,p,h)^T); used by the non-holonomic constraint")
+
+
+class GnssAiding(_Strict):
+    """How GNSS fixes are used."""
+
+    lever_arm_m: tuple[float, float, float] = Field((0.0, 0.0, 0.0), description="IMU→antenna, body RFU [m]")
+    use: Literal["both", "position", "velocity"] = "both"
+    pos_std_scale: float = Field(1.0, gt=0, description="multiplies the receiver's σ")
+    vel_std_scale: float = Field(1.0, gt=0)
+    min_pos_std_m: float = Field(0.05, gt=0, description="floor on position σ [m]")
+    min_vel_std_m_s: float = Field(0.02, gt=0, description="floor on velocity σ [m/s]")
+    default_pos_std_m: tuple[float, float, float] = (1.0, 1.0, 2.0)
+    default_vel_std_m_s: tuple[float, float, float] = (0.1, 0.1, 0.2)
+    float_std_factor: float = Field(2.0, gt=0, description="σ multiplier for RTK-float epochs (Q = 2)")
+    single_std_factor: float = Field(5.0, gt=0, description="σ multiplier for single epochs (Q = 5)")
+    height_offset_m: float = Field(0.0, description="added to GNSS heights (e.g. MSL → ellipsoidal)")
+    gate_probability: float = Field(0.9999, gt=0, le=1, description="chi-square gate; 1 disables")
+    max_consecutive_rejections: int = Field(10, ge=1, description="then the next fix is accepted")
+
+
+class Initialisation(_Strict):
+    """Initial state: given, or automatic (static coarse alignment + heading from GNSS course)."""
+
+    mode: Literal["auto", "given"] = "auto"
+    lat_deg: float | None = None
+    lon_deg: float | None = None
+    height_m: float | None = None
+    velocity_m_s: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    roll_deg: float | None = None
+    pitch_deg: float | None = None
+    heading_deg: float | None = None
+    position_sigma_m: tuple[float, float, float] = (1.0, 1.0, 2.0)
+    velocity_sigma_m_s: tuple[float, float, float] = (0.1, 0.1, 0.1)
+    attitude_sigma_deg: tuple[float, float, float] = (2.0, 2.0, 10.0)
+    static_window_s: float = Field(20.0, gt=0, description="window of the static coarse alignment [s]")
+    course_min_speed_m_s: float = Field(3.0, gt=0, description="speed for heading from GNSS course")
+    course_heading_sigma_deg: float = Field(5.0, gt=0)
+
+
+class Constraints(_Strict):
+    """Vehicle aids: zero-velocity updates and the non-holonomic constraint (cars)."""
+
+    zupt: bool = True
+    zupt_sigma_m_s: float = Field(0.02, gt=0)
+    zaru_sigma_deg_s: float = Field(0.0, ge=0, description="zero angular rate update σ; 0 = off")
+    static_gnss_speed_m_s: float = Field(0.1, gt=0, description="GNSS speed below which it may be static")
+    static_gyro_std_deg_s: float = Field(5.0, gt=0, description="gyro std over 1 s below which static")
+    static_accel_std_m_s2: float = Field(0.5, gt=0, description="accel std over 1 s below which static")
+    nhc: bool = False
+    nhc_sigma_m_s: float = Field(0.1, gt=0)
+    nhc_min_speed_m_s: float = Field(1.0, ge=0)
+    nhc_lever_arm_m: tuple[float, float, float] = Field(
+        (0.0, 0.0, 0.0), description="IMU → constrained point (rear axle), body RFU [m]")
+
+
+class FilterSettings(_Strict):
+    states: Literal[15, 21] | None = None  # derived from imu.scale_factors when None
+    prop_dt_s: float = Field(1.0, gt=0, description="max covariance propagation interval [s]")
+    output_rate_hz: float | None = Field(None, description="output rate; None = every IMU sample")
+
+
+class LooseConfig(_Strict):
+    """Full configuration of ``aidnav process``."""
+
+    imu: ImuNoise = ImuNoise()
+    gnss: GnssAiding = GnssAiding()
+    init: Initialisation = Initialisation()
+    constraints: Constraints = Constraints()
+    filter: FilterSettings = FilterSettings()
+
+    @property
+    def nstate(self) -> int:
+        if self.filter.states is not None:
+            return self.filter.states
+        return 21 if self.imu.scale_factors else 15

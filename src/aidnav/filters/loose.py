@@ -1,0 +1,621 @@
+"""Loosely coupled GNSS/INS: closed-loop error-state Kalman filter and RTS smoother.
+
+Frames and units: n = ENU, b = RFU (IMU), position (lat, lon [rad], h [m]), velocity ENU [m/s],
+attitude q_b^n; times keep the input's scale (GPS seconds of week for GNSS-timed logs).
+
+Structure: one numba kernel runs the whole forward pass (strapdown at the IMU rate; covariance
+propagated at *nodes*: every ``prop_dt`` seconds and at every GNSS epoch; updates at nodes), using the
+core of :mod:`aidnav.filters.kalman`, the model of :mod:`aidnav.filters.ins_errors` and the
+measurement functions of :mod:`aidnav.filters.measurements`. The smoother is a backward RTS pass
+over the nodes (memory O(nodes·n²), not O(IMU samples·n²)), whose corrections are interpolated
+between nodes and applied to the forward trajectory.
+
+Closed-loop feedback after each update (φ̂, δv̂, δp̂, bias residuals ε̂, ∇̂, scale-factor residuals):
+C_b^n ← (I + [φ̂×]) C_b^n (as q ← q(φ̂) ⊗ q), v ← v − δv̂, p ← p − δp̂, b̂ ← b̂ + ε̂; the error
+state is then zero.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numba import njit
+
+from aidnav.nav.earth import OMEGA_IE, radii
+from aidnav.nav.rotations import dcm_from_quat, quat_from_rotvec, quat_mult, quat_normalize
+from aidnav.nav.strapdown import strapdown_step
+
+from .ins_errors import fill_model, noise_count
+from .kalman import discretize, rts_gain, update
+from .measurements import gnss_position, gnss_velocity, nonholonomic, zero_velocity
+
+# indices into the float parameter vector of the kernel
+P_LEVER = 0  # 3: IMU -> antenna lever arm, body [m]
+P_TAU = 3  # 4: tau gyro bias, accel bias, gyro SF, accel SF [s]
+P_GATE_POS = 7
+P_GATE_VEL = 8
+P_USE_POS = 9
+P_USE_VEL = 10
+P_PROP_DT = 11
+P_NHC_SIG = 12  # <= 0: off
+P_NHC_MIN_SPEED = 13
+P_NHC_LEVER = 14  # 3
+P_CBV = 17  # 9: IMU body -> vehicle rotation, row-major
+P_ZUPT_SIG = 26  # <= 0: off
+P_MAX_REJECT = 27
+P_POS_STD_SCALE = 28
+P_VEL_STD_SCALE = 29
+P_ZARU_SIG = 30  # zero angular rate update sigma [rad/s], <= 0 off
+N_PARAMS = 31
+
+
+@njit(cache=True)
+def _apply_correction(st, bias, dx, nstate):
+    """Closed-loop feedback of an error estimate dx into the strapdown state and the sensor errors."""
+    q = quat_mult(quat_from_rotvec(dx[0:3]), st[6:10])
+    st[6:10] = quat_normalize(q)
+    st[3] -= dx[3]
+    st[4] -= dx[4]
+    st[5] -= dx[5]
+    st[0] -= dx[6]
+    st[1] -= dx[7]
+    st[2] -= dx[8]
+    for i in range(nstate - 9):
+        bias[i] += dx[9 + i]
+
+
+@njit(cache=True)
+def _loose_kernel(imu_t, dth, dvel, t0, st0, bias0, P0, q_psd, par,
+                  g_t, g_lat, g_lon, g_h, g_vel, g_spos, g_svel, g_use,
+                  static, reset_idx, reset_heading, reset_sigma, out_every, smooth):
+    n_imu = imu_t.shape[0]
+    n = P0.shape[0]
+    m = noise_count(n)
+    nb = n - 9
+    M = g_t.shape[0]
+    st = st0.copy()
+    bias = bias0.copy()  # [bg(3), ba(3), sg(3), sa(3)] as far as the state has them
+    P = P0.copy()
+    x = np.zeros(n)
+    F = np.zeros((n, n))
+    G = np.zeros((n, m))
+    Phi = np.zeros((n, n))
+    Qd = np.zeros((n, n))
+    H3 = np.zeros((3, n))
+    H2 = np.zeros((2, n))
+    z3 = np.zeros(3)
+    z2 = np.zeros(2)
+    R3 = np.zeros((3, 3))
+    R2 = np.zeros((2, 2))
+    innov = np.zeros(3)
+    sdiag = np.zeros(3)
+    lever = par[P_LEVER:P_LEVER + 3].copy()
+    nhc_lever = par[P_NHC_LEVER:P_NHC_LEVER + 3].copy()
+    Cbv = par[P_CBV:P_CBV + 9].copy().reshape(3, 3)
+    prop_dt = par[P_PROP_DT]
+    # outputs
+    n_out = (n_imu + out_every - 1) // out_every
+    out_idx = np.empty(n_out, np.int64)
+    out_st = np.empty((n_out, 10))
+    out_bias = np.empty((n_out, max(nb, 1)))
+    out_pdiag = np.empty((n_out, n))
+    out_node = np.empty(n_out, np.int64)  # index of the last node at or before the sample
+    # nodes
+    max_nodes = M + int((imu_t[-1] - t0) / prop_dt) + 3 + n_imu // max(1, int(prop_dt * 1000.0))
+    if max_nodes > n_imu + 1:
+        max_nodes = n_imu + 1
+    node_idx = np.empty(max_nodes, np.int64)
+    ns = max_nodes if smooth else 1
+    S_post = np.zeros((ns, n, n))
+    S_prior = np.zeros((ns, n, n))
+    S_phi = np.zeros((ns, n, n))
+    S_dx = np.zeros((ns, n))
+    # records
+    rec_pos = np.full(M, -1, np.int8)
+    rec_vel = np.full(M, -1, np.int8)
+    rec_pos_innov = np.full((M, 3), np.nan)
+    rec_pos_s = np.full((M, 3), np.nan)
+    rec_vel_innov = np.full((M, 3), np.nan)
+    rec_vel_s = np.full((M, 3), np.nan)
+    rec_pos_nis = np.full(M, np.nan)
+    rec_vel_nis = np.full(M, np.nan)
+    n_nhc = 0
+    n_zupt = 0
+    n_nhc_rej = 0
+    # state of the loop
+    gi = 0
+    while gi < M and g_t[gi] <= t0:
+        gi += 1
+    T = 0.0
+    fn_sum = np.zeros(3)
+    wb_sum = np.zeros(3)
+    fb_sum = np.zeros(3)
+    C_sum = np.zeros((3, 3))
+    n_sum = 0
+    dth_prev = np.zeros(3)
+    dv_prev = np.zeros(3)
+    dthc = np.zeros(3)
+    dvc = np.zeros(3)
+    tp = t0
+    kn = 0
+    oi = 0
+    n_rej_pos = 0
+    last_w = np.zeros(3)
+    for k in range(n_imu):
+        dt = imu_t[k] - tp
+        tp = imu_t[k]
+        for i in range(3):
+            dthc[i] = dth[k, i] - bias[i] * dt
+            dvc[i] = dvel[k, i] - bias[3 + i] * dt
+        if nb >= 12:
+            for i in range(3):
+                dthc[i] -= bias[6 + i] * dth[k, i]
+                dvc[i] -= bias[9 + i] * dvel[k, i]
+        C = dcm_from_quat(st[6:10])
+        C_sum += C
+        fn_sum += C @ dvc
+        wb_sum += dthc
+        fb_sum += dvc
+        T += dt
+        n_sum += 1
+        strapdown_step(st, dthc, dvc, dth_prev, dv_prev, dt)
+        dth_prev[:] = dthc
+        dv_prev[:] = dvc
+        if k == reset_idx:
+            # heading (re)initialisation: keep roll and pitch, set heading, reset its covariance
+            Cn = dcm_from_quat(st[6:10])
+            from_h = np.arctan2(Cn[0, 1], Cn[1, 1])
+            dpsi = -(reset_heading - from_h)  # rotation about Up by yaw = -heading change
+            qz = np.array([np.cos(0.5 * dpsi), 0.0, 0.0, np.sin(0.5 * dpsi)])
+            st[6:10] = quat_normalize(quat_mult(qz, st[6:10]))
+            for j in range(n):
+                P[2, j] = 0.0
+                P[j, 2] = 0.0
+            P[2, 2] = reset_sigma * reset_sigma
+        is_node = T >= prop_dt - 1e-9 or (gi < M and g_t[gi] <= imu_t[k]) or k == n_imu - 1
+        if is_node and T > 0.0:
+            C = dcm_from_quat(st[6:10])
+            wb = wb_sum / T
+            fb = fb_sum / T
+            last_w[:] = wb
+            # sensor errors act through the mean C_b^n of the interval (the body turns within it)
+            fill_model(F, G, st[0], st[2], st[3:6], fn_sum / T, C_sum / n_sum, wb, fb,
+                       par[P_TAU], par[P_TAU + 1], par[P_TAU + 2], par[P_TAU + 3])
+            discretize(F, G, q_psd, T, Phi, Qd)
+            P[:, :] = Phi @ P @ Phi.T + Qd
+            P[:, :] = 0.5 * (P + P.T)
+            if smooth:
+                S_phi[kn] = Phi
+                S_prior[kn] = P
+            x[:] = 0.0
+            # ---- GNSS updates for fixes in (t_{k-1}, t_k]
+            while gi < M and g_t[gi] <= imu_t[k]:
+                if g_use[gi]:
+                    dt_back = imu_t[k] - g_t[gi]
+                    if par[P_USE_POS] > 0:
+                        gnss_position(st, C, lever, g_lat[gi], g_lon[gi], g_h[gi], dt_back, H3, z3)
+                        R3[:, :] = 0.0
+                        for i in range(3):
+                            R3[i, i] = (g_spos[gi, i] * par[P_POS_STD_SCALE]) ** 2
+                        gate = par[P_GATE_POS]
+                        if n_rej_pos >= par[P_MAX_REJECT]:
+                            gate = 0.0
+                        ok, nis = update(x, P, H3, R3, z3, gate, innov, sdiag)
+                        rec_pos[gi] = 1 if ok else 0
+                        rec_pos_nis[gi] = nis
+                        rec_pos_innov[gi] = innov
+                        rec_pos_s[gi] = sdiag
+                        n_rej_pos = 0 if ok else n_rej_pos + 1
+                    if par[P_USE_VEL] > 0 and not np.isnan(g_vel[gi, 0]):
+                        sl = np.sin(st[0])
+                        cl = np.cos(st[0])
+                        rm, rn = radii(st[0])
+                        w_in = np.array([-st[4] / (rm + st[2]), OMEGA_IE * cl + st[3] / (rn + st[2]),
+                                         OMEGA_IE * sl + st[3] * sl / cl / (rn + st[2])])
+                        gnss_velocity(st, C, lever, wb, w_in, g_vel[gi], H3, z3)
+                        R3[:, :] = 0.0
+                        for i in range(3):
+                            R3[i, i] = (g_svel[gi, i] * par[P_VEL_STD_SCALE]) ** 2
+                        ok, nis = update(x, P, H3, R3, z3, par[P_GATE_VEL], innov, sdiag)
+                        rec_vel[gi] = 1 if ok else 0
+                        rec_vel_nis[gi] = nis
+                        rec_vel_innov[gi] = innov
+                        rec_vel_s[gi] = sdiag
+                gi += 1
+            # ---- vehicle constraints
+            if static[k] and par[P_ZUPT_SIG] > 0:
+                zero_velocity(st, H3, z3)
+                R3[:, :] = 0.0
+                for i in range(3):
+                    R3[i, i] = par[P_ZUPT_SIG] ** 2
+                update(x, P, H3, R3, z3, 0.0, innov, sdiag)
+                n_zupt += 1
+                if par[P_ZARU_SIG] > 0:
+                    # zero angular rate: measured rate minus Earth rate in body = gyro bias residual
+                    wie_b = C.T @ np.array([0.0, OMEGA_IE * np.cos(st[0]), OMEGA_IE * np.sin(st[0])])
+                    for i in range(3):
+                        H3[i, :] = 0.0
+                        H3[i, 9 + i] = 1.0
+                        z3[i] = wb[i] - wie_b[i]
+                        R3[i, i] = par[P_ZARU_SIG] ** 2
+                    update(x, P, H3, R3, z3, 0.0, innov, sdiag)
+            elif par[P_NHC_SIG] > 0:
+                sp = np.sqrt(st[3] ** 2 + st[4] ** 2)
+                if sp > par[P_NHC_MIN_SPEED]:
+                    w_nb = wb - C.T @ np.array([0.0, OMEGA_IE * np.cos(st[0]), OMEGA_IE * np.sin(st[0])])
+                    nonholonomic(st, C, Cbv, w_nb, nhc_lever, H2, z2)
+                    R2[0, 0] = par[P_NHC_SIG] ** 2
+                    R2[1, 1] = par[P_NHC_SIG] ** 2
+                    ok, nis = update(x, P, H2, R2, z2, 0.0 if par[P_GATE_VEL] <= 0 else 25.0, innov, sdiag)
+                    if ok:
+                        n_nhc += 1
+                    else:
+                        n_nhc_rej += 1
+            _apply_correction(st, bias, x, n)
+            node_idx[kn] = k
+            if smooth:
+                S_post[kn] = P
+                S_dx[kn] = x
+            kn += 1
+            T = 0.0
+            fn_sum[:] = 0.0
+            wb_sum[:] = 0.0
+            fb_sum[:] = 0.0
+            C_sum[:, :] = 0.0
+            n_sum = 0
+        if k % out_every == 0:
+            out_idx[oi] = k
+            out_st[oi] = st
+            for i in range(nb):
+                out_bias[oi, i] = bias[i]
+            for i in range(n):
+                out_pdiag[oi, i] = P[i, i]
+            out_node[oi] = kn - 1
+            oi += 1
+    counts = np.array([n_zupt, n_nhc, n_nhc_rej, kn])
+    return (out_idx[:oi], out_st[:oi], out_bias[:oi], out_pdiag[:oi], out_node[:oi],
+            node_idx[:kn], S_post[:kn], S_prior[:kn], S_phi[:kn], S_dx[:kn],
+            rec_pos, rec_vel, rec_pos_innov, rec_pos_s, rec_vel_innov, rec_vel_s,
+            rec_pos_nis, rec_vel_nis, counts, st, bias, P)
+
+
+@njit(cache=True)
+def _rts_kernel(S_post, S_prior, S_phi, S_dx):
+    """Backward RTS pass over nodes of a closed-loop filter.
+
+    Returns ds (K, n): smoothed error of the post-update nominal at each node, and Ps (K, n, n).
+    Recursion: ds_k = A_k (ds_{k+1} + dx_{k+1}),  Ps_k = P⁺_k + A_k (Ps_{k+1} − P⁻_{k+1}) A_kᵀ.
+    """
+    K = S_post.shape[0]
+    n = S_post.shape[1]
+    ds = np.zeros((K, n))
+    Ps = np.empty((K, n, n))
+    Ps[K - 1] = S_post[K - 1]
+    for k in range(K - 2, -1, -1):
+        A = rts_gain(S_post[k], S_phi[k + 1], S_prior[k + 1])
+        ds[k] = A @ (ds[k + 1] + S_dx[k + 1])
+        Pk = S_post[k] + A @ (Ps[k + 1] - S_prior[k + 1]) @ A.T
+        Ps[k] = 0.5 * (Pk + Pk.T)
+    return ds, Ps
+
+
+@njit(cache=True)
+def _smooth_outputs(out_idx, out_st, out_bias, out_node, node_idx, ds, S_dx, nstate):
+    """Apply the smoothed corrections to the forward outputs (linear in time between nodes)."""
+    n_out = out_idx.shape[0]
+    K = node_idx.shape[0]
+    st = np.empty(10)
+    dx = np.empty(nstate)
+    b = np.empty(max(nstate - 9, 1))
+    res_st = out_st.copy()
+    res_b = out_bias.copy()
+    for o in range(n_out):
+        j = out_node[o]
+        k = out_idx[o]
+        if j < 0:
+            dx[:] = ds[0] + S_dx[0]
+        elif j >= K - 1:
+            dx[:] = ds[K - 1]
+        else:
+            k0 = node_idx[j]
+            k1 = node_idx[j + 1]
+            a = (k - k0) / (k1 - k0) if k1 > k0 else 0.0
+            dx[:] = (1.0 - a) * ds[j] + a * (ds[j + 1] + S_dx[j + 1])
+            if k == k0:
+                dx[:] = ds[j]
+        st[:] = out_st[o]
+        for i in range(nstate - 9):
+            b[i] = out_bias[o, i]
+        _apply_correction(st, b, dx, nstate)
+        res_st[o] = st
+        for i in range(nstate - 9):
+            res_b[o, i] = b[i]
+    return res_st, res_b
+
+
+@dataclass
+class LooseResult:
+    """Output of :func:`run_loose` (arrays in aidnav conventions; see module doc)."""
+
+    time: np.ndarray  # (N,) output times [s]
+    state: np.ndarray  # (N, 10) lat, lon, h, vE, vN, vU, q
+    bias: np.ndarray  # (N, nb) gyro bias [rad/s], accel bias [m/s²], (gyro SF, accel SF [-])
+    pdiag: np.ndarray  # (N, n) covariance diagonal (forward, or smoothed when smoothed)
+    node_time: np.ndarray
+    records: dict = field(default_factory=dict)
+    counts: dict = field(default_factory=dict)
+    smoothed: bool = False
+    final_P: np.ndarray | None = None
+    forward_state: np.ndarray | None = None
+    forward_pdiag: np.ndarray | None = None
+
+
+# ----------------------------------------------------------------------------------- driver
+def static_flags(imu, gnss, cfg, window_s: float = 1.0) -> np.ndarray:
+    """Per-IMU-sample static detection: low gyro and accel spread over ``window_s`` and, where GNSS
+    velocity exists, GNSS speed below ``cfg.constraints.static_gnss_speed_m_s``."""
+    c = cfg.constraints
+    dt = np.diff(np.concatenate([[imu.t0], imu.time]))
+    dt[dt <= 0] = np.nan
+    w = imu.dtheta / dt[:, None]
+    f = imu.dv / dt[:, None]
+    n = max(2, int(round(window_s * imu.rate_hz)))
+
+    def rolling_std(a):
+        a = np.nan_to_num(a)
+        cs = np.cumsum(np.vstack([np.zeros((1, a.shape[1])), a]), axis=0)
+        cs2 = np.cumsum(np.vstack([np.zeros((1, a.shape[1])), a * a]), axis=0)
+        idx = np.arange(1, len(a) + 1)
+        lo = np.maximum(idx - n, 0)
+        cnt = (idx - lo)[:, None]
+        mean = (cs[idx] - cs[lo]) / cnt
+        var = (cs2[idx] - cs2[lo]) / cnt - mean**2
+        return np.sqrt(np.maximum(var, 0.0)).max(axis=1)
+
+    ok = (rolling_std(w) < c.static_gyro_std_deg_s * np.pi / 180) & (rolling_std(f) < c.static_accel_std_m_s2)
+    if gnss is not None and gnss.vel is not None and len(gnss) > 0:
+        sp = np.hypot(gnss.vel[:, 0], gnss.vel[:, 1])
+        j = np.clip(np.searchsorted(gnss.time, imu.time), 0, len(gnss) - 1)
+        jp = np.clip(j - 1, 0, len(gnss) - 1)
+        near = (np.abs(gnss.time[j] - imu.time) < 1.0) | (np.abs(gnss.time[jp] - imu.time) < 1.0)
+        ok &= near & (np.maximum(sp[j], sp[jp]) < c.static_gnss_speed_m_s)
+    else:
+        ok &= False
+    return ok
+
+
+def process_noise(cfg, nstate: int) -> np.ndarray:
+    """Continuous process-noise PSD vector q (SI units) from the configuration."""
+    from .config import DEG, DEG_H, UG
+
+    im = cfg.imu
+    arw = im.arw_deg_sqrt_h * DEG / 60.0
+    vrw = im.vrw_m_s_sqrt_h / 60.0
+
+    def bias_q(sigma, tau, rw):
+        return 2.0 * sigma**2 / tau if tau > 0 else rw**2
+
+    qg = bias_q(im.gyro_bias_sigma_deg_h * DEG_H, im.gyro_bias_tau_s, im.gyro_bias_rw_deg_h_sqrt_h * DEG_H / 60)
+    qa = bias_q(im.accel_bias_sigma_ug * UG, im.accel_bias_tau_s, im.accel_bias_rw_ug_sqrt_h * UG / 60)
+    q = [arw**2] * 3 + [vrw**2] * 3 + [qg] * 3 + [qa] * 3
+    if nstate == 21:
+        qs = 2.0 * (1e-6) ** 2 / im.sf_tau_s if im.sf_tau_s > 0 else 0.0
+        q += [qs * im.gyro_sf_sigma_ppm**2] * 3 + [qs * im.accel_sf_sigma_ppm**2] * 3
+    return np.array(q, dtype=float)
+
+
+def initial_covariance(cfg, nstate: int, lat: float, h: float, att_sigma_rad) -> np.ndarray:
+    """Diagonal P0 from the configuration (position σ converted from metres to δL, δλ, δh)."""
+    from .config import DEG_H, UG
+
+    rm, rn = radii(lat)
+    ps = cfg.init.position_sigma_m
+    d = np.zeros(nstate)
+    d[0:3] = np.asarray(att_sigma_rad) ** 2
+    d[3:6] = np.asarray(cfg.init.velocity_sigma_m_s) ** 2
+    d[6] = (ps[1] / (rm + h)) ** 2
+    d[7] = (ps[0] / ((rn + h) * np.cos(lat))) ** 2
+    d[8] = ps[2] ** 2
+    d[9:12] = (cfg.imu.gyro_bias_sigma_deg_h * DEG_H) ** 2
+    d[12:15] = (cfg.imu.accel_bias_sigma_ug * UG) ** 2
+    if nstate == 21:
+        d[15:18] = (cfg.imu.gyro_sf_sigma_ppm * 1e-6) ** 2
+        d[18:21] = (cfg.imu.accel_sf_sigma_ppm * 1e-6) ** 2
+    return np.diag(d)
+
+
+def gnss_arrays(gnss, cfg):
+    """GNSS fixes as kernel arrays with σ floors, quality factors and the height offset applied."""
+    g = cfg.gnss
+    m = len(gnss)
+    spos = (np.tile(g.default_pos_std_m, (m, 1)) if gnss.std_pos is None else gnss.std_pos.copy())
+    svel = (np.tile(g.default_vel_std_m_s, (m, 1)) if gnss.std_vel is None else gnss.std_vel.copy())
+    if gnss.quality is not None:
+        fac = np.where(gnss.quality == 2, g.float_std_factor, np.where(gnss.quality >= 4, g.single_std_factor, 1.0))
+        spos *= fac[:, None]
+        svel *= fac[:, None]
+    spos = np.maximum(spos, g.min_pos_std_m)
+    svel = np.maximum(svel, g.min_vel_std_m_s)
+    vel = gnss.vel if gnss.vel is not None else np.full((m, 3), np.nan)
+    return (gnss.time, gnss.lat, gnss.lon, gnss.height + g.height_offset_m,
+            np.ascontiguousarray(vel), np.ascontiguousarray(spos), np.ascontiguousarray(svel))
+
+
+def course_alignment(gnss, cfg, t_start: float):
+    """First GNSS epoch after ``t_start`` with horizontal speed above the threshold: (time, course [rad])."""
+    if gnss.vel is None:
+        ve = np.gradient(gnss.lon, gnss.time) * 6378137.0 * np.cos(gnss.lat)
+        vn = np.gradient(gnss.lat, gnss.time) * 6378137.0
+    else:
+        ve, vn = gnss.vel[:, 0], gnss.vel[:, 1]
+    sp = np.hypot(ve, vn)
+    idx = np.flatnonzero((sp > cfg.init.course_min_speed_m_s) & (gnss.time > t_start))
+    if len(idx) == 0:
+        return None
+    i = idx[0]
+    return float(gnss.time[i]), float(np.arctan2(ve[i], vn[i]) % (2 * np.pi))
+
+
+def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: list | None = None):
+    """Loosely coupled GNSS/INS over whole logs.
+
+    Parameters
+    ----------
+    imu : :class:`aidnav.data.ImuData` (increments, body RFU, time on the GNSS scale after any
+        configured offset). gnss : :class:`aidnav.data.GnssData` (antenna fixes).
+    cfg : :class:`aidnav.filters.config.LooseConfig` (defaults: consumer MEMS).
+    withheld : optional bool mask over the GNSS fixes that must not be used (simulated outages).
+    smooth : run the RTS smoother as well (the result then holds the smoothed solution; the forward
+        solution stays in ``forward_state``/``forward_pdiag``).
+    events : list to which notable events are appended (initialisation, heading alignment, ...).
+    """
+    from aidnav.nav.rotations import quat_from_euler
+
+    from .config import DEG, LooseConfig
+
+    cfg = cfg or LooseConfig()
+    events = events if events is not None else []
+    nstate = cfg.nstate
+    nb = nstate - 9
+    t_imu = imu.time + cfg.imu.time_offset_s
+    g_t, g_lat, g_lon, g_h, g_vel, g_spos, g_svel = gnss_arrays(gnss, cfg)
+    use = np.ones(len(gnss), dtype=np.bool_) if withheld is None else ~np.asarray(withheld, bool)
+    ini = cfg.init
+    # ---- initial state
+    if ini.mode == "given":
+        missing = [k for k in ("lat_deg", "lon_deg", "height_m", "roll_deg", "pitch_deg", "heading_deg")
+                   if getattr(ini, k) is None]
+        if missing:
+            raise ValueError(f"init.mode = given needs init.{', init.'.join(missing)}")
+        t0 = float(imu.t0 + cfg.imu.time_offset_s)
+        lat0, lon0, h0 = ini.lat_deg * DEG, ini.lon_deg * DEG, ini.height_m
+        v0 = np.array(ini.velocity_m_s, float)
+        rph = np.array([ini.roll_deg, ini.pitch_deg, ini.heading_deg]) * DEG
+        att_sig = np.array(ini.attitude_sigma_deg) * DEG
+        reset_idx, reset_heading = -1, 0.0
+        k0 = 0
+    else:
+        # start at the first GNSS fix inside the IMU span
+        first = np.flatnonzero(use & (g_t >= t_imu[0]))
+        if len(first) == 0:
+            raise ValueError("no GNSS fix inside the IMU time span: cannot initialise")
+        i0 = first[0]
+        k0 = int(np.searchsorted(t_imu, g_t[i0], side="right"))
+        if k0 > 0:
+            events.append(f"initialisation at the first GNSS fix t={g_t[i0]:.3f}: {k0} IMU samples before it "
+                          "are not used")
+        t0 = float(g_t[i0]) if k0 == 0 else float(t_imu[k0 - 1])
+        lat0, lon0, h0 = g_lat[i0], g_lon[i0], g_h[i0]
+        v0 = np.nan_to_num(g_vel[i0]) if not np.isnan(g_vel[i0, 0]) else np.zeros(3)
+        # static coarse alignment: roll/pitch from the mean specific force over the static window
+        win = (t_imu >= t_imu[k0]) & (t_imu < t_imu[k0] + ini.static_window_s)
+        dtw = np.diff(np.concatenate([[imu.t0], imu.time]))[win]
+        f = imu.dv[win].sum(axis=0) / dtw.sum()
+        roll = np.arctan2(-f[0], f[2])
+        pitch = np.arctan2(f[1], np.hypot(f[0], f[2]))
+        heading = 0.0 if ini.heading_deg is None else ini.heading_deg * DEG
+        if ini.roll_deg is not None:
+            roll = ini.roll_deg * DEG
+        if ini.pitch_deg is not None:
+            pitch = ini.pitch_deg * DEG
+        rph = np.array([roll, pitch, heading])
+        att_sig = np.array(ini.attitude_sigma_deg) * DEG
+        events.append(f"coarse alignment over {ini.static_window_s:g} s: roll {np.degrees(roll):.2f} deg, "
+                      f"pitch {np.degrees(pitch):.2f} deg (mean specific force {f / 9.80665} g)")
+        reset_idx, reset_heading = -1, 0.0
+        if ini.heading_deg is None:
+            ca = course_alignment(gnss.subset(use), cfg, t0)
+            if ca is None:
+                events.append("heading never aligned: no GNSS speed above init.course_min_speed_m_s")
+            else:
+                tca, course = ca
+                mount_h = cfg.imu.mounting_rph_deg[2] * DEG
+                # vehicle heading = course; IMU heading = vehicle heading + mounting heading
+                reset_heading = (course + mount_h) % (2 * np.pi)
+                reset_idx = int(np.searchsorted(t_imu[k0:], tca, side="left"))
+                events.append(f"heading from GNSS course at t={tca:.3f}: {np.degrees(reset_heading):.2f} deg")
+            att_sig[2] = np.pi  # unknown until the course alignment
+    q0 = quat_from_euler(rph[0], rph[1], rph[2])
+    st0 = np.array([lat0, lon0, h0, v0[0], v0[1], v0[2], *q0], float)
+    P0 = initial_covariance(cfg, nstate, lat0, h0, att_sig)
+    q_psd = process_noise(cfg, nstate)
+    par = np.zeros(N_PARAMS)
+    par[P_LEVER:P_LEVER + 3] = cfg.gnss.lever_arm_m
+    taus = [cfg.imu.gyro_bias_tau_s, cfg.imu.accel_bias_tau_s, cfg.imu.sf_tau_s, cfg.imu.sf_tau_s]
+    par[P_TAU:P_TAU + 4] = taus
+    from scipy.stats import chi2
+
+    gp = cfg.gnss.gate_probability
+    par[P_GATE_POS] = chi2.ppf(gp, 3) if gp < 1 else 0.0
+    par[P_GATE_VEL] = chi2.ppf(gp, 3) if gp < 1 else 0.0
+    par[P_USE_POS] = cfg.gnss.use in ("both", "position")
+    par[P_USE_VEL] = cfg.gnss.use in ("both", "velocity")
+    par[P_PROP_DT] = cfg.filter.prop_dt_s
+    c = cfg.constraints
+    par[P_NHC_SIG] = c.nhc_sigma_m_s if c.nhc else 0.0
+    par[P_NHC_MIN_SPEED] = c.nhc_min_speed_m_s
+    par[P_NHC_LEVER:P_NHC_LEVER + 3] = c.nhc_lever_arm_m
+    from aidnav.nav.rotations import dcm_from_euler
+
+    mr = np.array(cfg.imu.mounting_rph_deg) * DEG
+    par[P_CBV:P_CBV + 9] = dcm_from_euler(mr[0], mr[1], mr[2]).T.ravel()
+    par[P_ZUPT_SIG] = c.zupt_sigma_m_s if c.zupt else 0.0
+    par[P_MAX_REJECT] = cfg.gnss.max_consecutive_rejections
+    par[P_POS_STD_SCALE] = cfg.gnss.pos_std_scale
+    par[P_VEL_STD_SCALE] = cfg.gnss.vel_std_scale
+    par[P_ZARU_SIG] = c.zaru_sigma_deg_s * DEG
+    static = static_flags(imu, gnss, cfg) if c.zupt else np.zeros(len(imu), np.bool_)
+    out_every = 1
+    if cfg.filter.output_rate_hz:
+        out_every = max(1, int(round(imu.rate_hz / cfg.filter.output_rate_hz)))
+    bias0 = np.zeros(nb)
+    r = _loose_kernel(t_imu[k0:], imu.dtheta[k0:], imu.dv[k0:], t0, st0, bias0, P0, q_psd, par,
+                      g_t, g_lat, g_lon, g_h, g_vel, g_spos, g_svel, use,
+                      static[k0:], reset_idx, reset_heading, ini.course_heading_sigma_deg * DEG,
+                      out_every, smooth)
+    (out_idx, out_st, out_bias, out_pdiag, out_node, node_idx, S_post, S_prior, S_phi, S_dx,
+     rec_pos, rec_vel, rpi, rps, rvi, rvs, rpn, rvn, counts, st_end, bias_end, P_end) = r
+    records = dict(pos_status=rec_pos, vel_status=rec_vel, pos_innov=rpi, pos_s=rps, vel_innov=rvi,
+                   vel_s=rvs, pos_nis=rpn, vel_nis=rvn)
+    cnt = dict(zupt_updates=int(counts[0]), nhc_updates=int(counts[1]), nhc_rejected=int(counts[2]),
+               nodes=int(counts[3]), static_samples=int(static[k0:].sum()), imu_samples_used=len(imu) - k0,
+               imu_samples_skipped=k0)
+    res = LooseResult(time=t_imu[k0:][out_idx], state=out_st, bias=out_bias, pdiag=out_pdiag,
+                      node_time=t_imu[k0:][node_idx], records=records, counts=cnt, final_P=P_end)
+    if smooth and len(node_idx) > 1:
+        ds, Ps = _rts_kernel(S_post, S_prior, S_phi, S_dx)
+        sm_st, sm_b = _smooth_outputs(out_idx, out_st, out_bias, out_node, node_idx, ds, S_dx, nstate)
+        res.forward_state, res.forward_pdiag = out_st, out_pdiag
+        res.state, res.bias = sm_st, sm_b
+        pd = np.einsum("kii->ki", Ps)
+        res.pdiag = pd[np.clip(out_node, 0, len(node_idx) - 1)]
+        res.smoothed = True
+        res.counts["smoother_memory_mb"] = (S_post.nbytes + S_prior.nbytes + S_phi.nbytes + Ps.nbytes) / 1e6
+    return res
+
+
+def to_trajectory(res: LooseResult):
+    """LooseResult → :class:`aidnav.data.Trajectory` with σ columns and bias columns."""
+    from aidnav.data import Trajectory
+    from aidnav.nav.rotations import quat_to_euler_batch
+
+    s = res.state
+    lat, h = s[:, 0], s[:, 2]
+    rm, rn = radii(lat)
+    pd = np.sqrt(np.maximum(res.pdiag, 0.0))
+    std_pos = np.column_stack([pd[:, 7] * (rn + h) * np.cos(lat), pd[:, 6] * (rm + h), pd[:, 8]])
+    rph = quat_to_euler_batch(np.ascontiguousarray(s[:, 6:10]))
+    hd = rph[:, 2]
+    # φ (E, N, U) → roll/pitch/heading σ (diagonal approximation about the current heading)
+    sr = np.sqrt((np.cos(hd) * pd[:, 1]) ** 2 + (np.sin(hd) * pd[:, 0]) ** 2)
+    sp = np.sqrt((np.sin(hd) * pd[:, 1]) ** 2 + (np.cos(hd) * pd[:, 0]) ** 2)
+    std_att = np.column_stack([sr, sp, pd[:, 2]])
+    extra = {}
+    names = ["gyro_bias_{}_deg_h", "accel_bias_{}_ug", "gyro_sf_{}_ppm", "accel_sf_{}_ppm"]
+    scale = [180 / np.pi * 3600, 1 / 9.80665e-6, 1e6, 1e6]
+    for j in range(res.bias.shape[1] // 3):
+        for i, ax in enumerate("xyz"):
+            extra[names[j].format(ax)] = res.bias[:, 3 * j + i] * scale[j]
+    return Trajectory(time=res.time, lat=lat, lon=s[:, 1], height=h, vel=s[:, 3:6], rph=rph,
+                      std_pos=std_pos, std_vel=pd[:, 3:6], std_att=std_att, extra=extra)

@@ -1,0 +1,468 @@
+"""Readers and writers of aidnav's interchange files (``CONVENTIONS.md``, "Interchange files").
+
+CSV (comma-separated, one header line, ``#`` comment lines allowed before it) or Parquet with the same
+columns, chosen by the file extension (``.csv``; ``.parquet`` / ``.pq``). Column order does not matter
+when reading; names do, and they carry the units:
+
+* IMU: ``time`` [s] and either rates ``gyro_{x,y,z}_rad_s`` [rad/s], ``accel_{x,y,z}_m_s2`` [m/s^2]
+  or increments ``dtheta_{x,y,z}_rad`` [rad], ``dv_{x,y,z}_m_s`` [m/s]; body frame RFU.
+* GNSS: ``time`` [s], ``lat_deg``, ``lon_deg`` [deg], ``height_m`` [m]; optional ``ve, vn, vu``
+  [m/s ENU], ``std_e_m, std_n_m, std_u_m`` [m], ``std_ve, std_vn, std_vu`` [m/s], ``quality`` [-].
+* Trajectory: ``time, lat_deg, lon_deg, height_m, ve, vn, vu, roll_deg, pitch_deg, heading_deg``,
+  optional standard deviations ``<column>_std`` in the unit of their column (``lat_deg_std`` [deg of
+  latitude] ...), any further columns (units in their names) kept in ``Trajectory.extra``.
+
+Inside aidnav angles are radians and positions/velocities SI (``aidnav.data``); the conversion
+happens here. CSV numbers are written at full float64 precision (shortest round-trip ``repr``) and
+read back exactly.
+
+Bad input raises :class:`aidnav.io.errors.DataError` naming the file, the line (for Parquet: the
+1-based row) and the problem: empty file, missing columns, wrong number of fields on a line,
+non-numeric value, NaN/inf, time not strictly increasing.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pyarrow as pa
+import pyarrow.csv as pacsv
+import pyarrow.parquet as pq
+
+from aidnav.data import GnssData, ImuData, Trajectory
+from aidnav.io.errors import DataError
+from aidnav.nav.earth import radii
+
+__all__ = ["read_imu", "write_imu", "read_gnss", "write_gnss", "read_trajectory", "write_trajectory",
+           "read_table", "IMU_RATE_COLUMNS", "IMU_INCREMENT_COLUMNS", "GNSS_COLUMNS", "TRAJECTORY_COLUMNS"]
+
+IMU_RATE_COLUMNS = ["gyro_x_rad_s", "gyro_y_rad_s", "gyro_z_rad_s", "accel_x_m_s2", "accel_y_m_s2",
+                    "accel_z_m_s2"]
+IMU_INCREMENT_COLUMNS = ["dtheta_x_rad", "dtheta_y_rad", "dtheta_z_rad", "dv_x_m_s", "dv_y_m_s", "dv_z_m_s"]
+GNSS_COLUMNS = ["time", "lat_deg", "lon_deg", "height_m"]
+GNSS_VEL_COLUMNS = ["ve", "vn", "vu"]
+GNSS_STD_POS_COLUMNS = ["std_e_m", "std_n_m", "std_u_m"]
+GNSS_STD_VEL_COLUMNS = ["std_ve", "std_vn", "std_vu"]
+TRAJECTORY_COLUMNS = ["time", "lat_deg", "lon_deg", "height_m", "ve", "vn", "vu", "roll_deg", "pitch_deg",
+                      "heading_deg"]
+_TRAJ_STD_POS = ["lat_deg_std", "lon_deg_std", "height_m_std"]
+_TRAJ_STD_VEL = ["ve_std", "vn_std", "vu_std"]
+_TRAJ_STD_ATT = ["roll_deg_std", "pitch_deg_std", "heading_deg_std"]
+_META_KEY = b"aidnav"
+_T0_RE = re.compile(r"^#\s*t0_s\s*[=:]\s*(\S+)")
+_CSV_EXT = (".csv",)
+_PARQUET_EXT = (".parquet", ".pq")
+
+
+# ============================================================================================ tables
+class _Table:
+    """Numeric columns of a file with the map from row index to file line (for messages)."""
+
+    def __init__(self, path: Path, cols: dict[str, np.ndarray], first_line: int, kind: str,
+                 meta: dict | None = None):
+        self.path = path
+        self.cols = cols
+        self.first_line = first_line  # file line (CSV) or row number (Parquet) of row 0
+        self.kind = kind
+        self.meta = meta or {}
+
+    def line(self, i: int) -> int:
+        return self.first_line + int(i)
+
+    def __len__(self) -> int:
+        return len(next(iter(self.cols.values()))) if self.cols else 0
+
+    def fail(self, i: int | None, problem: str):
+        raise DataError(self.path, None if i is None else self.line(i), problem)
+
+    def require(self, names: list[str], what: str):
+        missing = [c for c in names if c not in self.cols]
+        if missing:
+            raise DataError(self.path, self.first_line - 1 if self.kind == "csv" else None,
+                            f"missing {what} column(s): {', '.join(missing)} "
+                            f"(have: {', '.join(self.cols) or 'none'})")
+
+    def has_all(self, names: list[str], what: str) -> bool:
+        """True if all ``names`` are present, False if none; DataError if only some are."""
+        present = [c for c in names if c in self.cols]
+        if not present:
+            return False
+        if len(present) != len(names):
+            self.require(names, what)
+        return True
+
+    def finite(self, names: list[str]):
+        for c in names:
+            bad = ~np.isfinite(self.cols[c])
+            if bad.any():
+                i = int(np.argmax(bad))
+                v = self.cols[c][i]
+                self.fail(i, f"column {c}: {'missing value or NaN' if np.isnan(v) else v} "
+                             "(values must be finite numbers)")
+
+    def increasing_time(self):
+        t = self.cols["time"]
+        d = np.diff(t)
+        bad = ~(d > 0)
+        if bad.any():
+            i = int(np.argmax(bad)) + 1
+            kind = "duplicate time" if d[i - 1] == 0 else "time goes backwards"
+            self.fail(i, f"time not strictly increasing ({kind}): {t[i]!r} s after {t[i - 1]!r} s "
+                         f"at line {self.line(i - 1)}")
+
+    def get(self, names: list[str]) -> np.ndarray:
+        return np.column_stack([self.cols[c] for c in names])
+
+
+def _kind(path: Path) -> str:
+    name = path.name.lower()
+    if name.endswith(_CSV_EXT):
+        return "csv"
+    if name.endswith(_PARQUET_EXT):
+        return "parquet"
+    raise DataError(path, None, f"unknown file type '{path.suffix}' (use .csv or .parquet)")
+
+
+def _read_bytes(path: Path) -> bytes:
+    try:
+        return path.read_bytes()
+    except OSError as e:
+        raise DataError(path, None, f"cannot read file: {e.strerror or e}") from None
+
+
+def _line_stats(body: bytes):
+    """Per line of ``body``: start, end (excluding the newline), comma count, non-blank flag."""
+    a = np.frombuffer(body, dtype=np.uint8)
+    nl = np.flatnonzero(a == 10)
+    ends = nl if (len(a) and a[-1] == 10) else np.append(nl, len(a))
+    starts = np.concatenate([[0], nl + 1])[: len(ends)]
+    nlines = len(ends)
+    # line index of every comma / blank character (searchsorted over the newline positions)
+    commas = np.bincount(np.searchsorted(nl, np.flatnonzero(a == 44)), minlength=nlines)[:nlines]
+    blank_pos = np.flatnonzero((a == 32) | (a == 9) | (a == 13))
+    nblank = np.bincount(np.searchsorted(nl, blank_pos), minlength=nlines)[:nlines]
+    nonblank = (ends - starts - nblank) > 0
+    return starts, ends, commas, nonblank
+
+
+def _read_csv(path: Path) -> _Table:
+    raw = _read_bytes(path)
+    # comment lines and the header
+    pos, line_no, comments = 0, 0, []
+    header = None
+    while pos < len(raw):
+        nxt = raw.find(b"\n", pos)
+        nxt = len(raw) if nxt < 0 else nxt
+        text = raw[pos:nxt].decode("utf-8", errors="replace").strip()
+        line_no += 1
+        pos = nxt + 1
+        if text.startswith("#"):
+            comments.append(text)
+            continue
+        if not text:
+            continue
+        header = text
+        break
+    if header is None:
+        raise DataError(path, None, "empty file (no header line)")
+    header_line = line_no
+    names = [h.strip() for h in header.split(",")]
+    if any(not n for n in names):
+        raise DataError(path, header_line, f"empty column name in the header: {header!r}")
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise DataError(path, header_line, f"duplicate column(s) in the header: {', '.join(dup)}")
+    body = raw[min(pos, len(raw)):]
+    starts, ends, commas, nonblank = _line_stats(body)
+    # drop trailing blank lines
+    keep = len(ends)
+    while keep > 0 and not nonblank[keep - 1]:
+        keep -= 1
+    if keep == 0:
+        raise DataError(path, header_line, "no data lines after the header")
+    commas, nonblank = commas[:keep], nonblank[:keep]
+    first = header_line + 1
+    if not nonblank.all():
+        i = int(np.argmin(nonblank))
+        raise DataError(path, first + i, "blank line inside the data")
+    bad = commas != len(names) - 1
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise DataError(path, first + i, f"wrong number of fields: {commas[i] + 1} "
+                                         f"(the header has {len(names)})")
+    body = body[: ends[keep - 1]]
+    ropts = pacsv.ReadOptions(column_names=names, use_threads=True)
+    copts = pacsv.ConvertOptions(column_types={n: pa.float64() for n in names})
+    try:
+        tbl = pacsv.read_csv(io.BytesIO(body), read_options=ropts, convert_options=copts)
+        cols = {n: tbl.column(n).to_numpy(zero_copy_only=False).astype(float, copy=False) for n in names}
+    except pa.ArrowInvalid:
+        tbl = pacsv.read_csv(io.BytesIO(body), read_options=ropts,
+                             convert_options=pacsv.ConvertOptions(column_types={n: pa.string() for n in names},
+                                                                  strings_can_be_null=False))
+        cols = {}
+        for n in names:
+            s = pd.Series(tbl.column(n).to_numpy(zero_copy_only=False), dtype=object).str.strip()
+            num = pd.to_numeric(s, errors="coerce").to_numpy(dtype=float)
+            lit_nan = s.str.lower().isin(["nan", "+nan", "-nan"]).to_numpy()
+            badv = np.isnan(num) & ~lit_nan & (s != "").to_numpy()
+            if badv.any():
+                i = int(np.argmax(badv))
+                raise DataError(path, first + i, f"column {n}: non-numeric value {s.iloc[i]!r}") from None
+            cols[n] = num
+    meta = {}
+    for c in comments:
+        m = _T0_RE.match(c)
+        if m:
+            try:
+                meta["t0_s"] = float(m.group(1))
+            except ValueError:
+                pass
+    return _Table(path, cols, first, "csv", meta)
+
+
+def _read_parquet(path: Path) -> _Table:
+    try:
+        tbl = pq.read_table(path)
+    except (OSError, pa.ArrowException) as e:
+        raise DataError(path, None, f"cannot read Parquet file: {e}") from None
+    if tbl.num_rows == 0:
+        raise DataError(path, None, "empty file (no rows)")
+    cols = {}
+    for n in tbl.column_names:
+        col = tbl.column(n)
+        if pa.types.is_integer(col.type) or pa.types.is_floating(col.type):
+            cols[n] = col.to_numpy(zero_copy_only=False).astype(float)
+        else:
+            s = pd.Series(col.to_numpy(zero_copy_only=False), dtype=object)
+            num = pd.to_numeric(s, errors="coerce").to_numpy(dtype=float)
+            badv = np.isnan(num) & s.notna().to_numpy()
+            if badv.any():
+                i = int(np.argmax(badv))
+                raise DataError(path, i + 1, f"column {n}: non-numeric value {s.iloc[i]!r}")
+            cols[n] = num
+    meta = {}
+    md = tbl.schema.metadata or {}
+    if _META_KEY in md:
+        try:
+            meta = json.loads(md[_META_KEY])
+        except ValueError:
+            meta = {}
+    return _Table(path, cols, 1, "parquet", meta)
+
+
+def read_table(path) -> tuple[dict[str, np.ndarray], dict]:
+    """Numeric columns of an interchange CSV/Parquet file as float arrays, plus its metadata.
+
+    Checks the file structure only (fields per line, numeric values); the typed readers check columns.
+    """
+    t = _open(path)
+    return t.cols, t.meta
+
+
+def _open(path) -> _Table:
+    path = Path(path)
+    return _read_csv(path) if _kind(path) == "csv" else _read_parquet(path)
+
+
+def _write(df: pd.DataFrame, path, comments: list[str], meta: dict) -> Path:
+    path = Path(path)
+    kind = _kind(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if kind == "csv":
+        with open(path, "w", encoding="utf-8", newline="") as f:
+            for c in comments:
+                f.write(f"# {c}\n")
+            df.to_csv(f, index=False, lineterminator="\n")  # floats as repr: shortest exact round trip
+    else:
+        tbl = pa.Table.from_pandas(df, preserve_index=False)
+        md = dict(tbl.schema.metadata or {})
+        md[_META_KEY] = json.dumps(meta).encode()
+        pq.write_table(tbl.replace_schema_metadata(md), path)
+    return path
+
+
+# =============================================================================================== IMU
+def read_imu(path) -> ImuData:
+    """Read IMU samples (body frame RFU) from an interchange CSV/Parquet file.
+
+    Increment columns ``dtheta_*_rad`` [rad], ``dv_*_m_s`` [m/s] are taken as they are; rate columns
+    ``gyro_*_rad_s`` [rad/s], ``accel_*_m_s2`` [m/s^2] are converted to increments over
+    (t_{k-1}, t_k]: Δθ_k = ω_k·(t_k − t_{k-1}) (the first interval takes the length of the second).
+    ``t0`` (start of the first interval) comes from a ``# t0_s = ...`` comment / Parquet metadata when
+    present, otherwise t_0 − (t_1 − t_0). Returns :class:`aidnav.data.ImuData` (time [s]).
+    """
+    t = _open(path)
+    t.require(["time"], "time")
+    has_inc = t.has_all(IMU_INCREMENT_COLUMNS, "IMU increment")
+    has_rate = t.has_all(IMU_RATE_COLUMNS, "IMU rate")
+    if not has_inc and not has_rate:
+        raise DataError(t.path, t.first_line - 1 if t.kind == "csv" else None,
+                        "missing IMU columns: need either rates " + ", ".join(IMU_RATE_COLUMNS)
+                        + " or increments " + ", ".join(IMU_INCREMENT_COLUMNS)
+                        + f" (have: {', '.join(t.cols)})")
+    used = IMU_INCREMENT_COLUMNS if has_inc else IMU_RATE_COLUMNS
+    t.finite(["time", *used])
+    t.increasing_time()
+    time = t.cols["time"]
+    events = []
+    if has_inc:
+        x = t.get(IMU_INCREMENT_COLUMNS)
+        if has_rate:
+            events.append("file has both rate and increment columns; the increments were used")
+    else:
+        if len(time) < 2:
+            t.fail(0, "rates need at least two samples to form increments")
+        dt = np.diff(time, prepend=time[0] - (time[1] - time[0]))
+        x = t.get(IMU_RATE_COLUMNS) * dt[:, None]
+        events.append("rates converted to increments (rate × Δt over (t_{k-1}, t_k])")
+    t0 = t.meta.get("t0_s")
+    if t0 is not None and not t0 < time[0]:
+        t0 = None
+    if t0 is None and has_rate:
+        t0 = float(time[0] - (time[1] - time[0]))
+    return ImuData(time=time, dtheta=x[:, :3], dv=x[:, 3:], t0=t0, events=events)
+
+
+def write_imu(imu: ImuData, path) -> Path:
+    """Write IMU increments (time [s], Δθ [rad], Δv [m/s], body RFU) to ``path`` (.csv or .parquet).
+
+    The start of the first interval ``imu.t0`` [s] is kept in a ``# t0_s = ...`` comment (CSV) or the
+    file metadata (Parquet).
+    """
+    df = pd.DataFrame({"time": imu.time})
+    for j, c in enumerate(IMU_INCREMENT_COLUMNS[:3]):
+        df[c] = imu.dtheta[:, j]
+    for j, c in enumerate(IMU_INCREMENT_COLUMNS[3:]):
+        df[c] = imu.dv[:, j]
+    comments = ["aidnav IMU increments over (t_{k-1}, t_k], body frame RFU; time [s], dtheta [rad], dv [m/s]"]
+    meta = {}
+    if imu.t0 is not None:
+        comments.append(f"t0_s = {float(imu.t0)!r}")
+        meta["t0_s"] = float(imu.t0)
+    return _write(df, path, comments, meta)
+
+
+# ============================================================================================== GNSS
+def read_gnss(path) -> GnssData:
+    """Read GNSS fixes: time [s], lat/lon [deg → rad], height [m]; optional ENU velocity [m/s],
+    1σ ENU position [m] / velocity [m/s] and ``quality``. Returns :class:`aidnav.data.GnssData`."""
+    t = _open(path)
+    t.require(GNSS_COLUMNS, "GNSS")
+    has_v = t.has_all(GNSS_VEL_COLUMNS, "GNSS velocity")
+    has_sp = t.has_all(GNSS_STD_POS_COLUMNS, "GNSS position std")
+    has_sv = t.has_all(GNSS_STD_VEL_COLUMNS, "GNSS velocity std")
+    used = GNSS_COLUMNS + (GNSS_VEL_COLUMNS if has_v else []) + (GNSS_STD_POS_COLUMNS if has_sp else []) \
+        + (GNSS_STD_VEL_COLUMNS if has_sv else [])
+    t.finite(used)
+    t.increasing_time()
+    quality = None
+    if "quality" in t.cols:
+        q = t.cols["quality"]
+        quality = np.where(np.isfinite(q), q, 0).astype(np.int64)
+    return GnssData(time=t.cols["time"], lat=np.radians(t.cols["lat_deg"]), lon=np.radians(t.cols["lon_deg"]),
+                    height=t.cols["height_m"], vel=t.get(GNSS_VEL_COLUMNS) if has_v else None,
+                    std_pos=t.get(GNSS_STD_POS_COLUMNS) if has_sp else None,
+                    std_vel=t.get(GNSS_STD_VEL_COLUMNS) if has_sv else None, quality=quality)
+
+
+def write_gnss(gnss: GnssData, path) -> Path:
+    """Write GNSS fixes (time [s], lat/lon [deg], height [m], optional ENU velocity [m/s], 1σ ENU
+    position [m] / velocity [m/s], quality) to ``path`` (.csv or .parquet)."""
+    df = pd.DataFrame({"time": gnss.time, "lat_deg": np.degrees(gnss.lat), "lon_deg": np.degrees(gnss.lon),
+                       "height_m": gnss.height})
+    for arr, names in ((gnss.vel, GNSS_VEL_COLUMNS), (gnss.std_pos, GNSS_STD_POS_COLUMNS),
+                       (gnss.std_vel, GNSS_STD_VEL_COLUMNS)):
+        if arr is not None:
+            for j, c in enumerate(names):
+                df[c] = arr[:, j]
+    if gnss.quality is not None:
+        df["quality"] = np.asarray(gnss.quality, dtype=np.int64)
+    comments = ["aidnav GNSS fixes; time [s], lat/lon [deg], height [m] ellipsoidal, velocity ENU [m/s], "
+                "std ENU [m], [m/s]"]
+    return _write(df, path, comments, {})
+
+
+# ======================================================================================== trajectory
+def _pos_std_scale(lat, h):
+    """Metres per radian of latitude (north) and of longitude (east) at (lat [rad], h [m])."""
+    rm, rn = radii(np.asarray(lat, dtype=float))
+    return rm + h, (rn + h) * np.cos(lat)
+
+
+def read_trajectory(path) -> Trajectory:
+    """Read a trajectory (truth or estimate).
+
+    Columns ``time`` [s], ``lat_deg, lon_deg`` [deg → rad], ``height_m`` [m], ``ve, vn, vu`` [m/s ENU],
+    ``roll_deg, pitch_deg, heading_deg`` [deg → rad; heading wrapped to [0, 2π)]. Optional standard
+    deviations: ``lat_deg_std, lon_deg_std`` [deg] → ``std_pos`` E/N [m] (via R_N, R_M),
+    ``height_m_std`` → U [m] (``std_e_m, std_n_m, std_u_m`` [m] are accepted too); ``ve_std ...`` →
+    ``std_vel`` [m/s]; ``roll_deg_std ...`` → ``std_att`` [rad]. Other columns → ``extra`` as read.
+    """
+    t = _open(path)
+    t.require(TRAJECTORY_COLUMNS, "trajectory")
+    has_sp = t.has_all(_TRAJ_STD_POS, "position std")
+    has_sp_m = (not has_sp) and t.has_all(GNSS_STD_POS_COLUMNS, "position std")
+    has_sv = t.has_all(_TRAJ_STD_VEL, "velocity std")
+    has_sa = t.has_all(_TRAJ_STD_ATT, "attitude std")
+    std_cols = (_TRAJ_STD_POS if has_sp else []) + (GNSS_STD_POS_COLUMNS if has_sp_m else []) \
+        + (_TRAJ_STD_VEL if has_sv else []) + (_TRAJ_STD_ATT if has_sa else [])
+    t.finite(TRAJECTORY_COLUMNS + std_cols)
+    t.increasing_time()
+    c = t.cols
+    lat, lon, h = np.radians(c["lat_deg"]), np.radians(c["lon_deg"]), c["height_m"]
+    heading = np.mod(np.radians(c["heading_deg"]), 2 * np.pi)
+    heading[heading >= 2 * np.pi] = 0.0
+    rph = np.column_stack([np.radians(c["roll_deg"]), np.radians(c["pitch_deg"]), heading])
+    std_pos = std_vel = std_att = None
+    if has_sp:
+        sn, se = _pos_std_scale(lat, h)
+        std_pos = np.column_stack([np.radians(c["lon_deg_std"]) * se, np.radians(c["lat_deg_std"]) * sn,
+                                   c["height_m_std"]])
+    elif has_sp_m:
+        std_pos = t.get(GNSS_STD_POS_COLUMNS)
+    if has_sv:
+        std_vel = t.get(_TRAJ_STD_VEL)
+    if has_sa:
+        std_att = np.radians(t.get(_TRAJ_STD_ATT))
+    known = set(TRAJECTORY_COLUMNS) | set(std_cols)
+    extra = {k: v for k, v in c.items() if k not in known}
+    return Trajectory(time=c["time"], lat=lat, lon=lon, height=h, vel=t.get(["ve", "vn", "vu"]), rph=rph,
+                      std_pos=std_pos, std_vel=std_vel, std_att=std_att, extra=extra)
+
+
+def write_trajectory(traj: Trajectory, path) -> Path:
+    """Write a trajectory (``CONVENTIONS.md`` trajectory columns, degrees at the boundary) to ``path``.
+
+    ``std_pos`` E/N/U [m] becomes ``lon_deg_std, lat_deg_std`` [deg] and ``height_m_std`` [m];
+    ``std_vel`` → ``ve_std, vn_std, vu_std`` [m/s]; ``std_att`` → ``roll_deg_std ...`` [deg];
+    ``extra`` columns are appended as they are (their names carry their units).
+    """
+    heading = np.mod(np.degrees(traj.rph[:, 2]), 360.0)
+    heading[heading >= 360.0] = 0.0
+    df = pd.DataFrame({
+        "time": traj.time, "lat_deg": np.degrees(traj.lat), "lon_deg": np.degrees(traj.lon),
+        "height_m": traj.height, "ve": traj.vel[:, 0], "vn": traj.vel[:, 1], "vu": traj.vel[:, 2],
+        "roll_deg": np.degrees(traj.rph[:, 0]), "pitch_deg": np.degrees(traj.rph[:, 1]), "heading_deg": heading,
+    })
+    if traj.std_pos is not None:
+        sn, se = _pos_std_scale(traj.lat, traj.height)
+        df["lat_deg_std"] = np.degrees(traj.std_pos[:, 1] / sn)
+        df["lon_deg_std"] = np.degrees(traj.std_pos[:, 0] / se)
+        df["height_m_std"] = traj.std_pos[:, 2]
+    if traj.std_vel is not None:
+        for j, c in enumerate(_TRAJ_STD_VEL):
+            df[c] = traj.std_vel[:, j]
+    if traj.std_att is not None:
+        for j, c in enumerate(_TRAJ_STD_ATT):
+            df[c] = np.degrees(traj.std_att[:, j])
+    for k, v in traj.extra.items():
+        df[k] = np.asarray(v)
+    comments = ["aidnav trajectory; time [s], lat/lon [deg], height [m] ellipsoidal, velocity ENU [m/s], "
+                "roll/pitch/heading [deg] (heading clockwise from North)"]
+    return _write(df, path, comments, {})

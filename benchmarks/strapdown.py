@@ -82,15 +82,23 @@ def main() -> None:
     empty = np.empty(0)
 
     rows = [
-        ("strapdown.mechanize (height held)", TARGET_MECH,
-         best_time(lambda: strapdown.mechanize(time_s, dth, dv, st0, 0.0, hold_h, hold_vu), args.repeat)),
-        ("strapdown.mechanize (free vertical)", TARGET_MECH,
-         best_time(lambda: strapdown.mechanize(time_s, dth, dv, st0, 0.0, empty, empty), args.repeat)),
+        (
+            "strapdown.mechanize (height held)",
+            TARGET_MECH,
+            best_time(lambda: strapdown.mechanize(time_s, dth, dv, st0, 0.0, hold_h, hold_vu), args.repeat),
+        ),
+        (
+            "strapdown.mechanize (free vertical)",
+            TARGET_MECH,
+            best_time(lambda: strapdown.mechanize(time_s, dth, dv, st0, 0.0, empty, empty), args.repeat),
+        ),
         ("motion.generate (truth + IMU)", TARGET_GEN, best_time(gen, args.repeat)),
     ]
 
-    print(f"aidnav strapdown benchmark: {n:,} IMU samples (100 Hz figure-8), best of {args.repeat}, "
-          f"1 thread, {platform.processor() or platform.machine()}, numpy {np.__version__}")
+    print(
+        f"aidnav strapdown benchmark: {n:,} IMU samples (100 Hz figure-8), best of {args.repeat}, "
+        f"1 thread, {platform.processor() or platform.machine()}, numpy {np.__version__}"
+    )
     hdr = f"{'kernel':<38} {'best time [s]':>13} {'samples/s':>14} {'target':>12}  verdict"
     print(hdr)
     print("-" * len(hdr))

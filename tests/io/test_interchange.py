@@ -33,13 +33,14 @@ def _traj(n=300, seed=1, std=True):
     rng = np.random.default_rng(seed)
     lat = np.radians(40.0) + np.cumsum(rng.normal(size=n)) * 1e-7
     lon = np.radians(116.0) + np.cumsum(rng.normal(size=n)) * 1e-7
-    rph = np.column_stack([rng.uniform(-0.5, 0.5, n), rng.uniform(-0.3, 0.3, n), rng.uniform(0, 2 * np.pi, n)])
+    rph = np.column_stack([rng.uniform(-0.5, 0.5, n), rng.uniform(-0.3, 0.3, n),
+                           rng.uniform(0, 2 * np.pi, n)])
     kw = {}
     if std:
         kw = dict(std_pos=rng.uniform(0.1, 5, (n, 3)), std_vel=rng.uniform(0.01, 1, (n, 3)),
                   std_att=rng.uniform(1e-5, 1e-2, (n, 3)), extra={"gyro_bias_x_deg_h": rng.normal(size=n)})
-    return Trajectory(np.arange(n) * 0.1 + 1 / 3, lat, lon, 7000 + rng.normal(size=n) / 7, rng.normal(size=(n, 3)) * 100,
-                      rph, **kw)
+    return Trajectory(np.arange(n) * 0.1 + 1 / 3, lat, lon, 7000 + rng.normal(size=n) / 7,
+                      rng.normal(size=(n, 3)) * 100, rph, **kw)
 
 
 @pytest.mark.parametrize("ext", EXTS)
@@ -162,7 +163,8 @@ def test_large_csv_round_trip_fast(tmp_path):
 
     n = 100_000
     rng = np.random.default_rng(5)
-    imu = ImuData(np.arange(1, n + 1) * 0.01, rng.normal(size=(n, 3)) * 1e-5, rng.normal(size=(n, 3)) * 0.1, t0=0.0)
+    imu = ImuData(np.arange(1, n + 1) * 0.01, rng.normal(size=(n, 3)) * 1e-5, rng.normal(size=(n, 3)) * 0.1,
+                  t0=0.0)
     p = write_imu(imu, tmp_path / "big.csv")
     t0 = time.perf_counter()
     back = read_imu(p)
@@ -250,7 +252,8 @@ def test_nan_inf_empty(tmp_path, bad):
     assert e.line == 5 and "dv_z_m_s" in e.problem and "finite" in e.problem
 
 
-@pytest.mark.parametrize("times, line, word", [([1, 2, 2, 3], 5, "duplicate"), ([1, 2, 3, 2.5], 6, "backwards")])
+@pytest.mark.parametrize("times, line, word",
+                         [([1, 2, 2, 3], 5, "duplicate"), ([1, 2, 3, 2.5], 6, "backwards")])
 def test_time_not_increasing(tmp_path, times, line, word):
     p = _imu_csv(tmp_path, [ROW.format(t=t) for t in times])
     e = _err(read_imu, p)
@@ -267,7 +270,8 @@ def test_blank_line_inside_and_trailing(tmp_path):
 
 def test_crlf_line_endings(tmp_path):
     p = tmp_path / "crlf.csv"
-    p.write_bytes(("# c\r\n" + IMU_HEADER + "\r\n" + ROW.format(t=1) + "\r\n" + ROW.format(t=2) + "\r\n").encode())
+    text = "# c\r\n" + IMU_HEADER + "\r\n" + ROW.format(t=1) + "\r\n" + ROW.format(t=2) + "\r\n"
+    p.write_bytes(text.encode())
     imu = read_imu(p)
     np.testing.assert_array_equal(imu.time, [1.0, 2.0])
     assert imu.dv[0, 2] == 0.098

@@ -133,7 +133,8 @@ def test_real_drive_log_time_span_and_mapping(data_dir):
     assert len(imu) == 54859  # 54,860 lines, the first skipped
     assert np.all(np.diff(imu.time) > 0) and 95 < imu.rate_hz < 105
     gnss = read_pos(d / "gnss_1934_sf.pos")
-    # tag log start 19:34:21.854 GPST; the first lines arrived 131 ms later; GNSS runs 19:34:18.499-19:43:27.499
+    # tag log start 19:34:21.854 GPST, the first lines arrived 131 ms later;
+    # GNSS epochs 19:34:18.499-19:43:27.499
     assert imu.time[0] - 243261.854 == pytest.approx(0.14, abs=0.03)
     assert 3.0 < imu.time[0] - gnss.time[0] < 4.0  # IMU starts 3.5 s after the first fix
     assert 2.5 < imu.time[-1] - gnss.time[-1] < 3.5  # and ends 3.1 s after the last one

@@ -142,8 +142,9 @@ def enu_cases(points):
     m = 60
     olat = np.concatenate([[89.9999, -89.9999, 0.0, 0.0], np.degrees(np.arcsin(rng.uniform(-1, 1, m)))])
     olon = np.concatenate([[0.0, 123.0, 0.0, -179.9], rng.uniform(-180, 180, m)])
-    oh = np.concatenate([[-1000.0, 0.0, GEO_H, 100.0], rng.uniform(-1000, 4e7, m // 2),
-                         rng.uniform(-1000, 1e4, m - m // 2)])
+    oh = np.concatenate(
+        [[-1000.0, 0.0, GEO_H, 100.0], rng.uniform(-1000, 4e7, m // 2), rng.uniform(-1000, 1e4, m - m // 2)]
+    )
     # each origin gets a slice of the targets (all targets are used)
     idx = np.array_split(np.arange(lat.size), olat.size)
     return [(olat[i], olon[i], oh[i], lat[j], lon[j], h[j]) for i, j in enumerate(idx)]
@@ -272,11 +273,19 @@ def test_earth_rate_n():
 def test_transport_rate_known_answers():
     rm0, rn0 = earth.radii(0.0)
     # eastward at the equator: rotation about North at vE / (R_N + h)
-    assert np.allclose(earth.transport_rate_n(0.0, 1000.0, np.array([100.0, 0.0, 0.0])),
-                       [0.0, 100.0 / (rn0 + 1000.0), 0.0], rtol=1e-15, atol=1e-22)
+    assert np.allclose(
+        earth.transport_rate_n(0.0, 1000.0, np.array([100.0, 0.0, 0.0])),
+        [0.0, 100.0 / (rn0 + 1000.0), 0.0],
+        rtol=1e-15,
+        atol=1e-22,
+    )
     # northward: rotation about West at vN / (R_M + h)
-    assert np.allclose(earth.transport_rate_n(0.0, 0.0, np.array([0.0, 50.0, 3.0])),
-                       [-50.0 / rm0, 0.0, 0.0], rtol=1e-15, atol=1e-22)
+    assert np.allclose(
+        earth.transport_rate_n(0.0, 0.0, np.array([0.0, 50.0, 3.0])),
+        [-50.0 / rm0, 0.0, 0.0],
+        rtol=1e-15,
+        atol=1e-22,
+    )
     # 45°: vertical component vE tan L / (R_N + h) equals the north one
     w = earth.transport_rate_n(np.pi / 4, 0.0, np.array([200.0, 0.0, 0.0]))
     assert w[2] == pytest.approx(w[1], rel=1e-14)
@@ -320,7 +329,8 @@ def test_dcm_ecef_to_enu():
         pn = np.array(earth.lla_to_ecef(lat + d, lon, 0.0)) - np.array(earth.lla_to_ecef(lat - d, lon, 0.0))
         assert np.allclose(c[1], pn / np.linalg.norm(pn), atol=1e-7)
         if abs(lat) < 1.5:
-            pe = np.array(earth.lla_to_ecef(lat, lon + d, 0.0)) - np.array(earth.lla_to_ecef(lat, lon - d, 0.0))
+            pe = np.array(earth.lla_to_ecef(lat, lon + d, 0.0))
+            pe -= np.array(earth.lla_to_ecef(lat, lon - d, 0.0))
             assert np.allclose(c[0], pe / np.linalg.norm(pe), atol=1e-7)
     # against pymap3d's ENU axes
     for lat, lon in zip(lats[:10], lons[:10], strict=True):

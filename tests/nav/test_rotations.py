@@ -88,8 +88,11 @@ def wrap(a):
 def test_heading_90_sends_forward_to_east():
     c = ro.dcm_from_euler(0.0, 0.0, PI / 2)
     assert np.allclose(c @ [0.0, 1.0, 0.0], [1.0, 0.0, 0.0], atol=1e-15)
-    assert np.allclose(ro.quat_rotate(ro.quat_from_euler(0.0, 0.0, PI / 2), np.array([0.0, 1.0, 0.0])),
-                       [1.0, 0.0, 0.0], atol=1e-15)
+    assert np.allclose(
+        ro.quat_rotate(ro.quat_from_euler(0.0, 0.0, PI / 2), np.array([0.0, 1.0, 0.0])),
+        [1.0, 0.0, 0.0],
+        atol=1e-15,
+    )
     # heading is clockwise from North: 45° → forward to North-East
     c = ro.dcm_from_euler(0.0, 0.0, PI / 4)
     assert np.allclose(c @ [0.0, 1.0, 0.0], [np.sqrt(0.5), np.sqrt(0.5), 0.0], atol=1e-15)
@@ -322,7 +325,10 @@ def test_quat_update_right_multiplies(q, rv):
 
 # ---------------------------------------------------------------------------- attitude error
 @PROPS
-@given(st.lists(quats(), min_size=1, max_size=5), st.lists(rotvecs(st.floats(0.0, 1.0)), min_size=5, max_size=5))
+@given(
+    st.lists(quats(), min_size=1, max_size=5),
+    st.lists(rotvecs(st.floats(0.0, 1.0)), min_size=5, max_size=5),
+)
 def test_attitude_error_sign_convention(qs, phis):
     """C_est = exp(-[φ×]) C_true  ⇒  attitude_error_batch(q_est, q_true) = φ (exact rotation vector)."""
     n = len(qs)

@@ -42,8 +42,8 @@ def test_simulate_to_dir_writes_everything(tmp_path, short_yaml):
     out = tmp_path / "out"
     written = simulate_to_dir(short_yaml, out, fmt="both", console=_console())
     names = sorted(p.name for p in written)
-    assert names == sorted(["truth.csv", "imu.csv", "gnss.csv", "truth.parquet", "imu.parquet", "gnss.parquet",
-                            "run.json", "trajectory.png"])
+    assert names == sorted(["truth.csv", "imu.csv", "gnss.csv", "truth.parquet", "imu.parquet",
+                            "gnss.parquet", "run.json", "trajectory.png"])
     for p in written:
         assert p.exists() and p.stat().st_size > 0
     assert (out / "trajectory.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

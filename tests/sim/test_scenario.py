@@ -174,7 +174,8 @@ sensors: {gnss: {sigma_pos_m: [1, 2]}}
 def test_climb_options(tmp_path):
     msg = _error(tmp_path, HEAD + "segments:\n  - {type: climb, duration_s: 100}\n")
     assert "flight_path_deg or vertical_speed_m_s" in msg
-    msg = _error(tmp_path, HEAD + "segments:\n  - {type: climb, duration_s: 100, flight_path_deg: 2, pull_s: 60}\n")
+    msg = _error(tmp_path, HEAD + "segments:\n"
+                 "  - {type: climb, duration_s: 100, flight_path_deg: 2, pull_s: 60}\n")
     assert "pull_s" in msg
 
 
@@ -199,3 +200,21 @@ def test_parse_dict_and_no_segments():
                           "segments": [{"type": "static", "duration_s": 2}]})
     assert isinstance(scn, Scenario)
     assert issubclass(ScenarioError, ValueError)
+
+
+def test_imu_overrides_per_axis_and_bias_sign(tmp_path):
+    scn = load_scenario(_write(tmp_path, HEAD + """segments: [{type: straight, duration_s: 10}]
+sensors:
+  imu: {grade: tactical, gyro_bias_deg_h: [1, -2, 3], bias_mode: fixed, arw_deg_sqrt_h: 0.01}
+""", "ok.yaml"))
+    assert scn.sensors.imu.gyro_bias_deg_h == (1.0, -2.0, 3.0)
+    assert scn.sensors.imu.arw_deg_sqrt_h == 0.01
+    msg = _error(tmp_path, HEAD + """segments: [{type: straight, duration_s: 10}]
+sensors: {imu: {gyro_bias_deg_h: -1}}
+""")
+    assert "sensors.imu" in msg and "gyro_bias_deg_h" in msg and "bias_mode: fixed" in msg
+    msg = _error(tmp_path, HEAD + """segments: [{type: straight, duration_s: 10}]
+sensors: {imu: {arw_deg_sqrt_h: -1}}
+""")
+    assert "sensors.imu.arw_deg_sqrt_h: input should be greater than or equal to 0" in msg
+    assert "constrained" not in msg and "tuple" not in msg

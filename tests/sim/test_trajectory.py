@@ -16,8 +16,10 @@ EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 # Table 3 (seed 004): (name, start, end) of every leg
 TABLE3 = {
     "none": [("AB", 0, 400), ("U", 400, 600), ("CD", 600, 1000)],
-    "s_turns": [("lead_in", 0, 100), ("S", 100, 800), ("AB", 800, 1200), ("U", 1200, 1400), ("CD", 1400, 1800)],
-    "o_circle": [("lead_in", 0, 100), ("O", 100, 500), ("AB", 500, 900), ("U", 900, 1100), ("CD", 1100, 1500)],
+    "s_turns": [("lead_in", 0, 100), ("S", 100, 800), ("AB", 800, 1200), ("U", 1200, 1400),
+                ("CD", 1400, 1800)],
+    "o_circle": [("lead_in", 0, 100), ("O", 100, 500), ("AB", 500, 900), ("U", 900, 1100),
+                 ("CD", 1100, 1500)],
     "figure8": [("lead_in", 0, 100), ("8", 100, 1000), ("AB", 1000, 1400), ("U", 1400, 1600),
                 ("CD", 1600, 2000)],
     "climb": [("climb", 0, 500), ("AB", 500, 900), ("U", 900, 1100), ("CD", 1100, 1500)],
@@ -176,7 +178,8 @@ def test_imu_increments_mechanize_back_to_truth():
 
     scn = parse_scenario({
         "initial": {"lat_deg": 40, "lon_deg": 116, "height_m": 1000, "speed_m_s": 80, "heading_deg": 40},
-        "segments": [{"type": "straight", "duration_s": 10}, {"type": "turn", "angle_deg": 90, "duration_s": 30},
+        "segments": [{"type": "straight", "duration_s": 10},
+                     {"type": "turn", "angle_deg": 90, "duration_s": 30},
                      {"type": "climb", "duration_s": 40, "flight_path_deg": 5, "angle_deg": -30},
                      {"type": "accelerate", "duration_s": 10, "accel_m_s2": 2}],
     })
@@ -196,7 +199,8 @@ def test_accelerate_and_radius_turn():
     scn = parse_scenario({
         "initial": {"lat_deg": 10, "lon_deg": 20, "speed_m_s": 0, "heading_deg": 0},
         "transition_s": 2,
-        "segments": [{"type": "static", "duration_s": 5}, {"type": "accelerate", "duration_s": 10, "to_speed_m_s": 20},
+        "segments": [{"type": "static", "duration_s": 5},
+                     {"type": "accelerate", "duration_s": 10, "to_speed_m_s": 20},
                      {"type": "turn", "angle_deg": -90, "radius_m": 200, "name": "t"},
                      {"type": "accelerate", "duration_s": 10, "accel_m_s2": -2}],
     })
@@ -217,7 +221,8 @@ def test_accelerate_and_radius_turn():
 def test_motion_errors():
     base = {"initial": {"lat_deg": 0, "lon_deg": 0, "speed_m_s": 0}}
     with pytest.raises(ScenarioError, match=r"segments\.0: turn: needs a speed > 0"):
-        generate_truth(parse_scenario({**base, "segments": [{"type": "turn", "angle_deg": 90, "duration_s": 9}]}))
+        generate_truth(parse_scenario({**base, "segments": [
+            {"type": "turn", "angle_deg": 90, "duration_s": 9}]}))
     with pytest.raises(ScenarioError, match="segments.1.*negative"):
         generate_truth(parse_scenario({**base, "segments": [
             {"type": "static", "duration_s": 1}, {"type": "accelerate", "duration_s": 5, "accel_m_s2": -1}]}))

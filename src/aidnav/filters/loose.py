@@ -559,7 +559,7 @@ def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: 
     from aidnav.nav.rotations import dcm_from_euler
 
     mr = np.array(cfg.imu.mounting_rph_deg) * DEG
-    par[P_CBV:P_CBV + 9] = dcm_from_euler(mr[0], mr[1], mr[2]).T.ravel()
+    par[P_CBV:P_CBV + 9] = dcm_from_euler(mr[0], mr[1], mr[2]).ravel()
     par[P_ZUPT_SIG] = c.zupt_sigma_m_s if c.zupt else 0.0
     par[P_MAX_REJECT] = cfg.gnss.max_consecutive_rejections
     par[P_POS_STD_SCALE] = cfg.gnss.pos_std_scale

@@ -202,9 +202,8 @@ def _read_csv(path: Path) -> _Table:
         tbl = pacsv.read_csv(io.BytesIO(body), read_options=ropts, convert_options=copts)
         cols = {n: tbl.column(n).to_numpy(zero_copy_only=False).astype(float, copy=False) for n in names}
     except pa.ArrowInvalid:
-        tbl = pacsv.read_csv(io.BytesIO(body), read_options=ropts,
-                             convert_options=pacsv.ConvertOptions(column_types={n: pa.string() for n in names},
-                                                                  strings_can_be_null=False))
+        sopts = pacsv.ConvertOptions(column_types={n: pa.string() for n in names}, strings_can_be_null=False)
+        tbl = pacsv.read_csv(io.BytesIO(body), read_options=ropts, convert_options=sopts)
         cols = {}
         for n in names:
             s = pd.Series(tbl.column(n).to_numpy(zero_copy_only=False), dtype=object).str.strip()
@@ -448,7 +447,8 @@ def write_trajectory(traj: Trajectory, path) -> Path:
     df = pd.DataFrame({
         "time": traj.time, "lat_deg": np.degrees(traj.lat), "lon_deg": np.degrees(traj.lon),
         "height_m": traj.height, "ve": traj.vel[:, 0], "vn": traj.vel[:, 1], "vu": traj.vel[:, 2],
-        "roll_deg": np.degrees(traj.rph[:, 0]), "pitch_deg": np.degrees(traj.rph[:, 1]), "heading_deg": heading,
+        "roll_deg": np.degrees(traj.rph[:, 0]), "pitch_deg": np.degrees(traj.rph[:, 1]),
+        "heading_deg": heading,
     })
     if traj.std_pos is not None:
         sn, se = _pos_std_scale(traj.lat, traj.height)

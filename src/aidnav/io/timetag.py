@@ -25,11 +25,11 @@ wait for the logger's next write. The logger writes on its ~15.6 ms timer tick, 
 close to uniform on [L0, L0 + 16 ms] with a few stalls (up to 35 ms on the drive log, 100 ms on the
 walk log). Measured residuals of the fit below (arrival minus fitted line, ms, both logs):
 
-* drive ``imu_1934.csv`` (54,858 lines): min −1.3, 0.1 % −0.6, 1 % 0.0, 5 % 0.9, median 7.9,
+* drive ``imu_1934.csv`` (54,859 lines): min −1.3, 0.1 % −0.6, 1 % 0.0, 5 % 0.9, median 7.9,
   95 % 15.0, 99 % 16.0, max 34.4; clock drift +13.2 ppm (IMU clock slow against the logger clock);
   the 1 % quantile of ten consecutive 55-s windows stays within ±0.2 ms of the line, so a straight
   line (offset + drift) is adequate.
-* walk ``imu_1730.csv`` (20,454 lines): min −2, 1 % 0, median 8, 99 % 16, max 99; drift ≈ 0 ppm.
+* walk ``imu_1730.csv`` (20,455 lines): min −2, 1 % 0, median 8, 99 % 16, max 99; drift ≈ 0 ppm.
 
 A least-squares line therefore passes through the *middle* of the latency band (about 8 ms late:
 the mean latency, not the delay of the data) and is pulled by the stalls. The right estimator for
@@ -41,7 +41,8 @@ The estimated offset still contains the minimum transport latency L0 (a 45-byte 
 takes 4 ms) and any delay inside the IMU before it prints the line: neither is observable from the
 tag. Compared with the GNSS velocity (turn rate and acceleration cross-correlated with the gyro and
 accelerometer), the IMU data of the drive set appear 0.10–0.13 s *later* on this mapping than the
-GNSS motion; the data's author configures ``imu_t_off = -0.125 s`` for it. Such an offset belongs
+GNSS motion (gyro yaw rate vs GNSS course rate: 0.105 s; accelerometer vs GNSS velocity
+differences: 0.135 s); the data's author configures ``imu_t_off = -0.125 s`` for it. Such an offset belongs
 to the configuration or to a filter state (``time_offset_s`` of the IMU reader), not to this fit.
 
 Times here are GPST seconds counted like Unix time (see :mod:`aidnav.io.gpstime`); readers convert to
@@ -107,7 +108,7 @@ class TimeTag:
 
     @property
     def tick_quantum_ms(self) -> float:
-        """Median non-zero spacing of the record ticks [ms] (the logger's write period, ~15.6 ms on Windows)."""
+        """Median non-zero spacing of the record ticks [ms]: the logger's write period (~15.6 ms)."""
         d = np.diff(self.tick_ms)
         d = d[d > 0]
         return float(np.median(d)) if len(d) else float("nan")
@@ -219,8 +220,9 @@ class ClockFit:
                 f"sow {sow:.4f} s, drift {self.drift_ppm:+.2f} ppm; arrival − fit [ms]: "
                 f"min {r.get('min', np.nan):.2f}, p1 {r.get('p1', np.nan):.2f}, "
                 f"median {r.get('median', np.nan):.2f}, p99 {r.get('p99', np.nan):.2f}, "
-                f"max {r.get('max', np.nan):.2f}; least-squares line {r.get('mean_ls_offset', np.nan):.2f} ms "
-                f"later; {r.get('n_late', 0)} late arrivals, {r.get('n_early', 0)} early (< −2 ms)")
+                f"max {r.get('max', np.nan):.2f}; least-squares line "
+                f"{r.get('mean_ls_offset', np.nan):.2f} ms later; {r.get('n_late', 0)} late arrivals, "
+                f"{r.get('n_early', 0)} early (< −2 ms)")
 
 
 def _quantile_line(xc: np.ndarray, y: np.ndarray, q: float, b0: float, half_width: float):

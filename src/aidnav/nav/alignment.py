@@ -56,7 +56,8 @@ def _mean_and_se(t, inc, t_prev, n_blocks):
         return mean, np.full(3, np.nan)
     edges = np.linspace(0, n, n_blocks + 1).astype(int)
     tb = np.r_[t_prev, t]
-    means = np.array([inc[a:b].sum(axis=0) / (tb[b] - tb[a]) for a, b in zip(edges[:-1], edges[1:], strict=True)])
+    means = np.array([inc[a:b].sum(axis=0) / (tb[b] - tb[a])
+                      for a, b in zip(edges[:-1], edges[1:], strict=True)])
     return mean, means.std(axis=0, ddof=1) / np.sqrt(n_blocks)
 
 

@@ -12,7 +12,7 @@ the coning and sculling corrections, i.e. the classic "one-sample + previous-cyc
   q_k = q(-ω_in T) ⊗ q_{k-1} ⊗ q(φ_b).
 * velocity: Δv_sf^b = Δv_k + ½ Δθ_k × Δv_k (rotation) + (Δθ_{k-1} × Δv_k + Δv_{k-1} × Δθ_k)/12
   (sculling); v_k = v_{k-1} + (I - ½[ω_in T ×]) C_b^n(k-1) Δv_sf^b + (g^n - (2ω_ie + ω_en) × v) T.
-* position: trapezoidal velocity, radii at the start of the interval.
+* position: trapezoidal velocity, radii and cos L at the mid-interval latitude and height.
 
 The state vector used by the kernels is a float64 array of 10 numbers
 ``[lat, lon, h, vE, vN, vU, q0, q1, q2, q3]`` (``STATE_*`` indices below).

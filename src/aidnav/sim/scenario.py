@@ -159,7 +159,8 @@ class ClimbSegment(_Segment):
         if (self.flight_path_deg is None) == (self.vertical_speed_m_s is None):
             raise ValueError("give exactly one of flight_path_deg or vertical_speed_m_s")
         if self.pull_s is not None and 2 * self.pull_s > self.duration_s:
-            raise ValueError(f"pull_s = {self.pull_s} s is more than half of duration_s = {self.duration_s} s")
+            raise ValueError(f"pull_s = {self.pull_s} s is more than half of "
+                             f"duration_s = {self.duration_s} s")
         return self
 
     @property
@@ -225,31 +226,49 @@ _SEGMENT_TYPES: dict[str, type[BaseModel]] = {
 
 
 # --------------------------------------------------------------------------------------------- sensors
+Vec3 = tuple[float, float, float]
+NonNegVec3 = tuple[NonNegative, NonNegative, NonNegative]
+PosVec3 = tuple[Positive, Positive, Positive]
+_Err = NonNegative | NonNegVec3 | None  # one value for the three axes, or [x, y, z]
+
+
 class ImuConfig(_Model):
     """IMU error settings. ``grade`` picks a preset (see :mod:`aidnav.sim.imu`); any value given
-    here overrides the preset. Units at this boundary (``CONVENTIONS.md``):
+    here overrides the preset, either one value for all three axes or ``[x, y, z]`` (body RFU).
+    Units at this boundary (``CONVENTIONS.md``):
 
     gyro_bias_deg_h [deg/h], arw_deg_sqrt_h [deg/√h], accel_bias_ug [μg], vrw_m_s_sqrt_h [m/s/√h],
     gyro_bias_instability_deg_h [deg/h], accel_bias_instability_ug [μg], bias_corr_time_s [s],
     gyro_scale_ppm / accel_scale_ppm [ppm], misalignment_arcsec [arcsec],
     gyro_quant_rad [rad] / accel_quant_m_s [m/s] (increment quantisation, 0 = none).
-    ``perfect: true`` gives error-free increments.
+    ``bias_mode``: "random" (turn-on biases drawn with the given σ, default of the IMU model) or
+    "fixed" (the biases are the given values). ``perfect: true`` gives error-free increments.
     """
 
     grade: str = "tactical"
-    gyro_bias_deg_h: NonNegative | None = None
-    arw_deg_sqrt_h: NonNegative | None = None
-    accel_bias_ug: NonNegative | None = None
-    vrw_m_s_sqrt_h: NonNegative | None = None
-    gyro_bias_instability_deg_h: NonNegative | None = None
-    accel_bias_instability_ug: NonNegative | None = None
-    bias_corr_time_s: Positive | None = None
-    gyro_scale_ppm: NonNegative | None = None
-    accel_scale_ppm: NonNegative | None = None
-    misalignment_arcsec: NonNegative | None = None
+    gyro_bias_deg_h: float | Vec3 | None = None  # 1σ (random) or signed value (fixed)
+    arw_deg_sqrt_h: _Err = None
+    accel_bias_ug: float | Vec3 | None = None
+    vrw_m_s_sqrt_h: _Err = None
+    gyro_bias_instability_deg_h: _Err = None
+    accel_bias_instability_ug: _Err = None
+    bias_corr_time_s: Positive | PosVec3 | None = None
+    gyro_scale_ppm: _Err = None
+    accel_scale_ppm: _Err = None
+    misalignment_arcsec: _Err = None
     gyro_quant_rad: NonNegative | None = None
     accel_quant_m_s: NonNegative | None = None
+    bias_mode: Literal["random", "fixed"] | None = None
     perfect: bool = False
+
+    @model_validator(mode="after")
+    def _bias_sign(self):
+        if self.bias_mode != "fixed":
+            for k in ("gyro_bias_deg_h", "accel_bias_ug"):
+                v = getattr(self, k)
+                if v is not None and min(v if isinstance(v, tuple) else (v,)) < 0:
+                    raise ValueError(f"{k} is a standard deviation (>= 0) unless bias_mode: fixed")
+        return self
 
 
 class Outage(_Model):
@@ -257,10 +276,6 @@ class Outage(_Model):
 
     start_s: NonNegative
     duration_s: Positive
-
-
-Vec3 = tuple[float, float, float]
-NonNegVec3 = tuple[NonNegative, NonNegative, NonNegative]
 
 
 class GnssConfig(_Model):
@@ -343,7 +358,8 @@ def _expected_keys(loc: tuple) -> list[str] | None:
         cand = [a for a in (ann, *args) if isinstance(a, type) and issubclass(a, BaseModel)]
         if not cand and isinstance(nxt, int):  # list[Model]
             for a in args:
-                cand += [b for b in getattr(a, "__args__", ()) if isinstance(b, type) and issubclass(b, BaseModel)]
+                cand += [b for b in getattr(a, "__args__", ())
+                         if isinstance(b, type) and issubclass(b, BaseModel)]
         model = cand[0] if cand else None
         i += 1
     if isinstance(model, type) and issubclass(model, BaseModel):
@@ -351,19 +367,34 @@ def _expected_keys(loc: tuple) -> list[str] | None:
     return None
 
 
-def _clean_loc(loc: tuple) -> tuple:
-    """Drop the discriminator tag pydantic inserts after a segment index."""
+def _clean_loc(loc: tuple) -> tuple[tuple, str | None]:
+    """Drop the tags pydantic inserts in a location: the segment type after a segment index, and the
+    member of a scalar-or-[x, y, z] union ("constrained-float", "tuple[...]"). Returns the cleaned
+    location and the union member tag (None if there was none)."""
     out = []
+    member = None
     skip = False
     for j, item in enumerate(loc):
         if skip:
             skip = False
             continue
+        if isinstance(item, str) and ("[" in item or item in ("float", "constrained-float", "int")):
+            member = item
+            continue
         out.append(item)
         if j >= 1 and loc[j - 1] == "segments" and isinstance(item, int) and j + 1 < len(loc) \
                 and loc[j + 1] in _SEGMENT_TYPES:
             skip = True
-    return tuple(out)
+    return tuple(out), member
+
+
+def _value_at(data, loc: tuple):
+    for item in loc:
+        try:
+            data = data[item]
+        except (KeyError, IndexError, TypeError):
+            return None
+    return data
 
 
 def _yaml_line(root, loc: tuple) -> int | None:
@@ -389,31 +420,50 @@ def _yaml_line(root, loc: tuple) -> int | None:
     return line
 
 
-def _format_errors(err: ValidationError, where: str, root=None) -> str:
-    lines = []
+def _format_one(e: dict, loc: tuple, where: str, root) -> str:
+    path = ".".join(str(x) for x in loc) or "(top level)"
+    msg = e["msg"]
+    if msg.startswith("Value error, "):
+        msg = msg[len("Value error, "):]
+    elif msg:
+        msg = msg[0].lower() + msg[1:]
+    if e["type"] == "extra_forbidden":
+        keys = _expected_keys(tuple(e["loc"])[:-1])
+        msg = f"unknown key '{loc[-1]}'" + (f" (expected one of: {', '.join(keys)})" if keys else "")
+    elif e["type"] == "missing" and loc and isinstance(loc[-1], int):
+        msg = f"missing value {loc[-1]} (too few values in the list)"
+    elif e["type"] == "missing":
+        msg = "field required"
+    elif e["type"] == "union_tag_invalid":
+        msg = (f"unknown segment type {e['input'].get('type')!r} "
+               f"(expected one of: {', '.join(_SEGMENT_TYPES)})")
+    elif e["type"] == "union_tag_not_found":
+        msg = f"segment has no 'type' key (expected one of: {', '.join(_SEGMENT_TYPES)})"
+    line = _yaml_line(root, loc) if root is not None else None
+    at = f"{where}:{line}" if line is not None else where
+    return f"{at}: {path}: {msg}"
+
+
+def _format_errors(err: ValidationError, where: str, root=None, data=None) -> str:
+    """One line per problem: ``file[:line]: key.path: message``."""
+    lines: list[str] = []
+    other_branch: dict[tuple, list[str]] = {}
+    reported: set[tuple] = set()
     for e in err.errors():
-        loc = _clean_loc(tuple(e["loc"]))
-        path = ".".join(str(x) for x in loc) or "(top level)"
-        msg = e["msg"]
-        if msg.startswith("Value error, "):
-            msg = msg[len("Value error, "):]
-        elif msg:
-            msg = msg[0].lower() + msg[1:]
-        if e["type"] == "extra_forbidden":
-            keys = _expected_keys(tuple(e["loc"])[:-1])
-            msg = f"unknown key '{loc[-1]}'" + (f" (expected one of: {', '.join(keys)})" if keys else "")
-        elif e["type"] == "missing" and loc and isinstance(loc[-1], int):
-            msg = f"missing value {loc[-1]} (too few values in the list)"
-        elif e["type"] == "missing":
-            msg = "field required"
-        elif e["type"] == "union_tag_invalid":
-            msg = (f"unknown segment type {e['input'].get('type')!r} "
-                   f"(expected one of: {', '.join(_SEGMENT_TYPES)})")
-        elif e["type"] == "union_tag_not_found":
-            msg = f"segment has no 'type' key (expected one of: {', '.join(_SEGMENT_TYPES)})"
-        line = _yaml_line(root, loc) if root is not None else None
-        at = f"{where}:{line}" if line is not None else where
-        lines.append(f"{at}: {path}: {msg}")
+        loc, member = _clean_loc(tuple(e["loc"]))
+        text = _format_one(e, loc, where, root)
+        if member is not None:
+            # a scalar-or-[x, y, z] value: report the branch that matches what was written
+            field_loc = loc[:-1] if isinstance(loc[-1], int) else loc
+            if member.startswith("tuple") != isinstance(_value_at(data, field_loc), list):
+                other_branch.setdefault(field_loc, []).append(text)
+                continue
+            reported.add(field_loc)
+        if text not in lines:
+            lines.append(text)
+    for field_loc, texts in other_branch.items():
+        if field_loc not in reported:
+            lines.extend(t for t in texts if t not in lines)
     return "\n".join(lines)
 
 
@@ -424,7 +474,7 @@ def parse_scenario(data: dict, where: str = "<scenario>", root=None) -> Scenario
     try:
         scn = Scenario.model_validate(data)
     except ValidationError as e:
-        raise ScenarioError(_format_errors(e, where, root)) from None
+        raise ScenarioError(_format_errors(e, where, root, data)) from None
     scn._source = where
     return scn
 

@@ -166,7 +166,8 @@ def process_logs(imu_path, gnss_path, config_path=None, out_path="out/trajectory
     notes: list[str] = []
     if config_path is None:
         cfg = LooseConfig()
-        notes.append("no --config: defaults for a consumer MEMS IMU (ARW 0.3 deg/sqrt(h), VRW 0.1 m/s/sqrt(h), "
+        notes.append("no --config: defaults for a consumer MEMS IMU (ARW 0.3 deg/sqrt(h), "
+                     "VRW 0.1 m/s/sqrt(h), "
                      "gyro bias 100 deg/h, accel bias 5 mg), no lever arm, automatic alignment "
                      "(static roll/pitch, heading from GNSS course), ZUPT on, NHC off")
     else:
@@ -224,7 +225,8 @@ def process_logs(imu_path, gnss_path, config_path=None, out_path="out/trajectory
 
 def format_summary(s: dict) -> str:
     """Human-readable summary text."""
-    lines = [f"aidnav process: {s['imu']} + {s['gnss']}", f"output: {s['output']} (smoothed: {s['smoothed']})",
+    lines = [f"aidnav process: {s['imu']} + {s['gnss']}",
+             f"output: {s['output']} (smoothed: {s['smoothed']})",
              f"IMU samples {s['imu_samples']} at {s['imu_rate_hz']:.1f} Hz; GNSS fixes {s['gnss_fixes']}, "
              f"withheld {s['gnss_withheld']}",
              f"GNSS position accepted {s['gnss_position_accepted']}, rejected {s['gnss_position_rejected']}; "

@@ -7,11 +7,10 @@ rate without allocation-heavy Python objects.
 
 Discretisation (``discretize``): Φ = I + F T + (F T)²/2 and, with Q = G diag(q) Gᵀ,
 Qd = Q T + (F Q + Q Fᵀ) T²/2 + (F² Q + 2 F Q Fᵀ + Q F²ᵀ) T³/6, the Taylor series of the exact
-integral ∫ Φ(s) Q Φ(s)ᵀ ds to third order. (The popular trapezoid ½(Φ Q Φᵀ + Q) T is only second
-order: it overstates the velocity noise that attitude noise induces through [f×] by 50 % at
-T = 1 s, which measurably degraded heading on ``sim_w1_pyins``.) The series is accurate when ‖F‖ T ≪ 1: for INS error models ‖F‖ is of the order of the
-Schuler frequency and 1/τ of the Markov states (≤ 1e-2 s⁻¹ typical; up to 1 s⁻¹ for flexure states),
-so at T ≤ 1 s the truncation is below 1e-3 relative for navigation states. :func:`van_loan` (scipy
+integral ∫ Φ(s) Q Φ(s)ᵀ ds to third order (the common trapezoid ½(Φ Q Φᵀ + Q) T is second order).
+The series is accurate when ‖F‖ T ≪ 1: for INS error models ‖F‖ is of the order of the Schuler
+frequency and 1/τ of the Markov states (≤ 1e-2 s⁻¹ typical; up to 1 s⁻¹ for flexure states), so at
+T ≤ 1 s the truncation is below 1e-3 relative for navigation states. :func:`van_loan` (scipy
 ``expm``, exact for a piecewise-constant F) is the reference used in the tests.
 
 Update: Joseph form P = (I − K H) P (I − K H)ᵀ + K R Kᵀ, then symmetrised; the innovation

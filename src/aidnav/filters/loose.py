@@ -396,7 +396,8 @@ def process_noise(cfg, nstate: int) -> np.ndarray:
     def bias_q(sigma, tau, rw):
         return 2.0 * sigma**2 / tau if tau > 0 else rw**2
 
-    qg = bias_q(im.gyro_bias_sigma_deg_h * DEG_H, im.gyro_bias_tau_s, im.gyro_bias_rw_deg_h_sqrt_h * DEG_H / 60)
+    qg = bias_q(im.gyro_bias_sigma_deg_h * DEG_H, im.gyro_bias_tau_s,
+                im.gyro_bias_rw_deg_h_sqrt_h * DEG_H / 60)
     qa = bias_q(im.accel_bias_sigma_ug * UG, im.accel_bias_tau_s, im.accel_bias_rw_ug_sqrt_h * UG / 60)
     q = [arw**2] * 3 + [vrw**2] * 3 + [qg] * 3 + [qa] * 3
     if nstate == 21:
@@ -432,7 +433,8 @@ def gnss_arrays(gnss, cfg):
     spos = (np.tile(g.default_pos_std_m, (m, 1)) if gnss.std_pos is None else gnss.std_pos.copy())
     svel = (np.tile(g.default_vel_std_m_s, (m, 1)) if gnss.std_vel is None else gnss.std_vel.copy())
     if gnss.quality is not None:
-        fac = np.where(gnss.quality == 2, g.float_std_factor, np.where(gnss.quality >= 4, g.single_std_factor, 1.0))
+        fac = np.where(gnss.quality == 2, g.float_std_factor,
+                       np.where(gnss.quality >= 4, g.single_std_factor, 1.0))
         spos *= fac[:, None]
         svel *= fac[:, None]
     spos = np.maximum(spos, g.min_pos_std_m)

@@ -30,6 +30,12 @@ class ImuNoise(_Strict):
     accel_bias_sigma_ug: float = Field(5000.0, ge=0, description="initial/steady accel bias 1σ [µg]")
     gyro_bias_tau_s: float = Field(3600.0, description="gyro bias correlation time [s]; <=0: random walk")
     accel_bias_tau_s: float = Field(3600.0, description="accel bias correlation time [s]; <=0: random walk")
+    gyro_bias_instability_deg_h: float | None = Field(
+        None, ge=0, description="steady-state σ of the Gauss-Markov bias driving noise [deg/h] "
+        "(q = 2σ²/τ); None: gyro_bias_sigma_deg_h")
+    accel_bias_instability_ug: float | None = Field(
+        None, ge=0,
+        description="steady-state σ of the Gauss-Markov accel bias [µg]; None: accel_bias_sigma_ug")
     gyro_bias_rw_deg_h_sqrt_h: float = Field(
         0.0, ge=0, description="gyro bias random-walk [deg/h/sqrt(h)], used when gyro_bias_tau_s <= 0")
     accel_bias_rw_ug_sqrt_h: float = Field(

@@ -396,9 +396,11 @@ def process_noise(cfg, nstate: int) -> np.ndarray:
     def bias_q(sigma, tau, rw):
         return 2.0 * sigma**2 / tau if tau > 0 else rw**2
 
-    qg = bias_q(im.gyro_bias_sigma_deg_h * DEG_H, im.gyro_bias_tau_s,
-                im.gyro_bias_rw_deg_h_sqrt_h * DEG_H / 60)
-    qa = bias_q(im.accel_bias_sigma_ug * UG, im.accel_bias_tau_s, im.accel_bias_rw_ug_sqrt_h * UG / 60)
+    sg = im.gyro_bias_instability_deg_h
+    sg = im.gyro_bias_sigma_deg_h if sg is None else sg
+    sa = im.accel_bias_sigma_ug if im.accel_bias_instability_ug is None else im.accel_bias_instability_ug
+    qg = bias_q(sg * DEG_H, im.gyro_bias_tau_s, im.gyro_bias_rw_deg_h_sqrt_h * DEG_H / 60)
+    qa = bias_q(sa * UG, im.accel_bias_tau_s, im.accel_bias_rw_ug_sqrt_h * UG / 60)
     q = [arw**2] * 3 + [vrw**2] * 3 + [qg] * 3 + [qa] * 3
     if nstate == 21:
         qs = 2.0 * (1e-6) ** 2 / im.sf_tau_s if im.sf_tau_s > 0 else 0.0

@@ -1,0 +1,89 @@
+"""Filter configuration matched to a simulated sensor set (the "truth model = filter model" case).
+
+Used by Monte Carlo studies and tests: the loosely coupled filter is given the noise model of the
+simulated IMU (:class:`aidnav.sim.imu.ImuSpec`, SI units) and GNSS receiver
+(:class:`aidnav.sim.gnss.GnssSpec`), and an initial state drawn around the truth.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .config import DEG, DEG_H, UG, LooseConfig
+
+
+def loose_config_from_specs(imu_spec, gnss_spec=None, *, init_rph_deg=None, init_lla_deg_m=None,
+                            init_vel=None, position_sigma_m=(1.0, 1.0, 1.0),
+                            velocity_sigma_m_s=(0.1, 0.1, 0.1),
+                            attitude_sigma_deg=(0.1, 0.1, 1.0), states: int = 15, prop_dt_s: float = 1.0,
+                            floor_bias: bool = True, **overrides) -> LooseConfig:
+    """LooseConfig whose noise model matches ``imu_spec`` (SI) and ``gnss_spec``.
+
+    The filter's bias state models the sum of the turn-on constant and the Gauss-Markov instability:
+    initial σ² = σ_const² + σ_GM², driving noise q = 2σ_GM²/τ (τ = the spec's; a random constant when
+    there is no instability). ``init_*`` give the filter's initial state (``mode = given``); the σ's its
+    initial covariance (position ENU [m], velocity [m/s], roll/pitch/heading [deg]). ``floor_bias``
+    keeps a tiny positive bias σ so that P stays positive definite for an error-free IMU.
+    ``overrides``: section dicts merged into the configuration (e.g. ``constraints={"zupt": False}``).
+    """
+    gb = float(np.max(imu_spec.gyro_bias))
+    ab = float(np.max(imu_spec.accel_bias))
+    gi = float(np.max(imu_spec.gyro_bias_instability))
+    ai = float(np.max(imu_spec.accel_bias_instability))
+    tau_g = float(np.min(imu_spec.gyro_bias_tau))
+    tau_a = float(np.min(imu_spec.accel_bias_tau))
+    arw = float(np.max(imu_spec.gyro_arw))
+    vrw = float(np.max(imu_spec.accel_vrw))
+    tiny_g, tiny_a = (1e-4 * DEG_H, 1e-3 * UG) if floor_bias else (0.0, 0.0)
+    imu = dict(
+        arw_deg_sqrt_h=max(arw / DEG * 60.0, 1e-6),
+        vrw_m_s_sqrt_h=max(vrw * 60.0, 1e-6),
+        gyro_bias_sigma_deg_h=max(np.hypot(gb, gi), tiny_g) / DEG_H,
+        accel_bias_sigma_ug=max(np.hypot(ab, ai), tiny_a) / UG,
+        gyro_bias_instability_deg_h=gi / DEG_H,
+        accel_bias_instability_ug=ai / UG,
+        gyro_bias_tau_s=tau_g if (gi > 0 and np.isfinite(tau_g)) else 0.0,
+        accel_bias_tau_s=tau_a if (ai > 0 and np.isfinite(tau_a)) else 0.0,
+        scale_factors=states == 21,
+        gyro_sf_sigma_ppm=max(float(np.max(imu_spec.gyro_scale)) * 1e6, 1e-3),
+        accel_sf_sigma_ppm=max(float(np.max(imu_spec.accel_scale)) * 1e6, 1e-3),
+    )
+    gnss = {}
+    if gnss_spec is not None:
+        gnss = dict(lever_arm_m=tuple(float(x) for x in gnss_spec.lever_arm_b),
+                    use="both" if gnss_spec.velocity else "position",
+                    min_pos_std_m=1e-3, min_vel_std_m_s=1e-4, gate_probability=1.0)
+    init = dict(position_sigma_m=tuple(position_sigma_m), velocity_sigma_m_s=tuple(velocity_sigma_m_s),
+                attitude_sigma_deg=tuple(attitude_sigma_deg))
+    if init_rph_deg is not None:
+        lat, lon, h = init_lla_deg_m
+        init.update(mode="given", lat_deg=lat, lon_deg=lon, height_m=h,
+                    velocity_m_s=tuple(float(v) for v in init_vel), roll_deg=init_rph_deg[0],
+                    pitch_deg=init_rph_deg[1], heading_deg=init_rph_deg[2])
+    cfg = dict(imu=imu, gnss=gnss, init=init, constraints=dict(zupt=False, nhc=False),
+               filter=dict(states=states, prop_dt_s=prop_dt_s))
+    for k, v in overrides.items():
+        cfg.setdefault(k, {}).update(v)
+    return LooseConfig.model_validate(cfg)
+
+
+def perturbed_initial_state(truth, rng, position_sigma_m=(1.0, 1.0, 1.0), velocity_sigma_m_s=(0.1, 0.1, 0.1),
+                            attitude_sigma_deg=(0.1, 0.1, 1.0), index: int = 0):
+    """Initial (lla_deg_m, vel, rph_deg) drawn around the truth at ``index`` with the given 1σ's.
+
+    The attitude error is applied as a misalignment φ in n (C_est = (I − [φ×]) C_true), so the filter's
+    error state starts exactly as drawn.
+    """
+    from aidnav.nav.earth import radii
+    from aidnav.nav.rotations import dcm_from_euler, dcm_from_rotvec, euler_from_dcm
+
+    lat, lon, h = truth.lat[index], truth.lon[index], truth.height[index]
+    rm, rn = radii(lat)
+    dp = rng.normal(0.0, position_sigma_m)
+    dv = rng.normal(0.0, velocity_sigma_m_s)
+    phi = rng.normal(0.0, np.radians(attitude_sigma_deg))
+    lla = (np.degrees(lat + dp[1] / (rm + h)), np.degrees(lon + dp[0] / ((rn + h) * np.cos(lat))), h + dp[2])
+    vel = truth.vel[index] + dv
+    C = dcm_from_rotvec(-phi) @ dcm_from_euler(*truth.rph[index])
+    rph = np.degrees(euler_from_dcm(C))
+    return lla, vel, rph

@@ -58,6 +58,28 @@ def evaluate(
         console.print(f"wrote {p}")
 
 
+@app.command()
+def process(
+    imu: Path = typer.Option(..., "--imu", help="IMU log: interchange CSV/Parquet or raw rtklibexplorer CSV"),
+    gnss: Path = typer.Option(..., "--gnss", help="GNSS fixes: RTKLIB .pos or interchange CSV/Parquet"),
+    config: Path | None = typer.Option(None, "--config", help="filter configuration YAML"),
+    out: Path = typer.Option(Path("out/trajectory.csv"), "-o", "--out", help="output .csv or .parquet"),
+    smooth: bool = typer.Option(False, "--smooth", help="run the RTS smoother as well"),
+    outage: list[str] = typer.Option([], "--outage",
+                                     help="simulated GNSS outage START:LENGTH[:PERIOD] [s after the first fix]"),
+):
+    """Loosely coupled GNSS/INS on logs: trajectory with σ columns plus a JSON/text summary."""
+    from aidnav.io.errors import DataError
+    from aidnav.process import ConfigError, format_summary, process_logs
+
+    try:
+        with console.status("aidnav process: reading, filtering" + (", smoothing" if smooth else "")):
+            s = process_logs(imu, gnss, config, out, smooth=smooth, outages=outage, console=console)
+    except (DataError, ConfigError, ValueError) as e:
+        _fail(str(e))
+    console.print(format_summary(s))
+
+
 def main():  # pragma: no cover
     app()
 

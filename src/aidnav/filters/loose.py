@@ -428,6 +428,35 @@ def initial_covariance(cfg, nstate: int, lat: float, h: float, att_sigma_rad) ->
     return np.diag(d)
 
 
+def bridge_gaps(imu, events: list, factor: float = 5.0):
+    """Increments ready for the kernel, with IMU time gaps (interval > ``factor`` × median) bridged.
+
+    A sample after a gap either already spans the gap (e.g. rates × Δt from a reader: |Δv|/Δt ≈ g)
+    or only covers one nominal interval (a sensor that dropped samples: |Δv|/Δt_nominal ≈ g). In the
+    second case its increments are scaled to the gap length (the rates are held over the gap), so
+    gravity and the specific force stay balanced. Each gap and the decision go into ``events``.
+    Returns (dtheta, dv), copies only when something was changed.
+    """
+    dt = np.diff(np.concatenate([[imu.t0], imu.time]))
+    med = float(np.median(dt))
+    gaps = np.flatnonzero(dt > factor * med)
+    if len(gaps) == 0:
+        return imu.dtheta, imu.dv
+    dth, dv = imu.dtheta.copy(), imu.dv.copy()
+    for k in gaps:
+        f_span = np.linalg.norm(dv[k]) / dt[k]
+        f_nom = np.linalg.norm(dv[k]) / med
+        if abs(f_span - 9.8) < abs(f_nom - 9.8):
+            how = "its increments already span the gap"
+        else:
+            dth[k] *= dt[k] / med
+            dv[k] *= dt[k] / med
+            how = "its increments covered one nominal interval: scaled to the gap (rates held)"
+        events.append(f"IMU gap of {dt[k]:.3f} s before t={imu.time[k]:.3f} ({dt[k] / med:.0f} nominal "
+                      f"intervals); {how}; the covariance is propagated over the gap")
+    return dth, dv
+
+
 def gnss_arrays(gnss, cfg):
     """GNSS fixes as kernel arrays with σ floors, quality factors and the height offset applied."""
     g = cfg.gnss
@@ -540,6 +569,7 @@ def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: 
                 reset_idx = int(np.searchsorted(t_imu[k0:], tca, side="left"))
                 events.append(f"heading from GNSS course at t={tca:.3f}: {np.degrees(reset_heading):.2f} deg")
             att_sig[2] = np.pi  # unknown until the course alignment
+    dth_in, dv_in = bridge_gaps(imu, events)
     q0 = quat_from_euler(rph[0], rph[1], rph[2])
     st0 = np.array([lat0, lon0, h0, v0[0], v0[1], v0[2], *q0], float)
     P0 = initial_covariance(cfg, nstate, lat0, h0, att_sig)
@@ -574,7 +604,7 @@ def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: 
     if cfg.filter.output_rate_hz:
         out_every = max(1, int(round(imu.rate_hz / cfg.filter.output_rate_hz)))
     bias0 = np.zeros(nb)
-    r = _loose_kernel(t_imu[k0:], imu.dtheta[k0:], imu.dv[k0:], t0, st0, bias0, P0, q_psd, par,
+    r = _loose_kernel(t_imu[k0:], dth_in[k0:], dv_in[k0:], t0, st0, bias0, P0, q_psd, par,
                       g_t, g_lat, g_lon, g_h, g_vel, g_spos, g_svel, use,
                       static[k0:], reset_idx, reset_heading, ini.course_heading_sigma_deg * DEG,
                       out_every, smooth)

@@ -65,8 +65,8 @@ def process(
     config: Path | None = typer.Option(None, "--config", help="filter configuration YAML"),
     out: Path = typer.Option(Path("out/trajectory.csv"), "-o", "--out", help="output .csv or .parquet"),
     smooth: bool = typer.Option(False, "--smooth", help="run the RTS smoother as well"),
-    outage: list[str] = typer.Option([], "--outage",
-                                     help="simulated GNSS outage START:LENGTH[:PERIOD] [s after the first fix]"),
+    outage: list[str] = typer.Option(
+        [], "--outage", help="simulated GNSS outage START:LENGTH[:PERIOD] [s after the first fix]"),
 ):
     """Loosely coupled GNSS/INS on logs: trajectory with σ columns plus a JSON/text summary."""
     from aidnav.io.errors import DataError

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit
-from scipy.linalg import expm
 
 
 @njit(cache=True)
@@ -117,6 +116,8 @@ def rts_gain(P_post, Phi, P_prior_next):
 
 def van_loan(F: np.ndarray, G: np.ndarray, q: np.ndarray, T: float) -> tuple[np.ndarray, np.ndarray]:
     """Exact Φ and Qd for constant F, G, diag PSD q over T (Van Loan 1978, via scipy expm)."""
+    from scipy.linalg import expm
+
     n = F.shape[0]
     GQG = (G * q) @ G.T
     M = np.zeros((2 * n, 2 * n))

@@ -68,7 +68,7 @@ def _apply_correction(st, bias, dx, nstate):
 @njit(cache=True)
 def _loose_kernel(imu_t, dth, dvel, t0, st0, bias0, P0, q_psd, par,
                   g_t, g_lat, g_lon, g_h, g_vel, g_spos, g_svel, g_use,
-                  static, reset_idx, reset_heading, reset_sigma, out_every, smooth):
+                  static, reset_idx, reset_heading, reset_sigma, out_every, smooth, cov_idx):
     n_imu = imu_t.shape[0]
     n = P0.shape[0]
     m = noise_count(n)
@@ -120,6 +120,9 @@ def _loose_kernel(imu_t, dth, dvel, t0, st0, bias0, P0, q_psd, par,
     rec_vel_s = np.full((M, 3), np.nan)
     rec_pos_nis = np.full(M, np.nan)
     rec_vel_nis = np.full(M, np.nan)
+    # full covariance at the requested samples (cov_idx: sorted sample indices)
+    cov_out = np.zeros((cov_idx.shape[0], n, n))
+    ci = 0
     n_nhc = 0
     n_zupt = 0
     n_nhc_rej = 0
@@ -273,11 +276,14 @@ def _loose_kernel(imu_t, dth, dvel, t0, st0, bias0, P0, q_psd, par,
                 out_pdiag[oi, i] = P[i, i]
             out_node[oi] = kn - 1
             oi += 1
+        while ci < cov_idx.shape[0] and cov_idx[ci] == k:
+            cov_out[ci] = P
+            ci += 1
     counts = np.array([n_zupt, n_nhc, n_nhc_rej, kn])
     return (out_idx[:oi], out_st[:oi], out_bias[:oi], out_pdiag[:oi], out_node[:oi],
             node_idx[:kn], S_post[:kn], S_prior[:kn], S_phi[:kn], S_dx[:kn],
             rec_pos, rec_vel, rec_pos_innov, rec_pos_s, rec_vel_innov, rec_vel_s,
-            rec_pos_nis, rec_vel_nis, counts, st, bias, P)
+            rec_pos_nis, rec_vel_nis, counts, st, bias, P, cov_out)
 
 
 @njit(cache=True)
@@ -349,6 +355,8 @@ class LooseResult:
     final_P: np.ndarray | None = None
     forward_state: np.ndarray | None = None
     forward_pdiag: np.ndarray | None = None
+    cov_time: np.ndarray | None = None  # (K,) sample times of ``cov`` (only with ``cov_times``)
+    cov: np.ndarray | None = None  # (K, n, n) forward covariance at ``cov_time``
 
 
 # ----------------------------------------------------------------------------------- driver
@@ -490,7 +498,8 @@ def course_alignment(gnss, cfg, t_start: float):
     return float(gnss.time[i]), float(np.arctan2(ve[i], vn[i]) % (2 * np.pi))
 
 
-def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: list | None = None):
+def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: list | None = None,
+              cov_times=None):
     """Loosely coupled GNSS/INS over whole logs.
 
     Parameters
@@ -502,6 +511,11 @@ def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: 
     smooth : run the RTS smoother as well (the result then holds the smoothed solution; the forward
         solution stays in ``forward_state``/``forward_pdiag``).
     events : list to which notable events are appended (initialisation, heading alignment, ...).
+    cov_times : optional times [s] (input time scale) at which to keep the full forward covariance
+        P (n×n, error state of :mod:`aidnav.filters.ins_errors`): for each, the first IMU sample at or
+        after it; P is the one the filter holds there after that sample's updates (covariance is
+        propagated at nodes only, so ask for node times, e.g. GNSS epochs). Returned in
+        ``LooseResult.cov_time`` / ``LooseResult.cov``; times outside the processed span are dropped.
     """
     from aidnav.nav.rotations import quat_from_euler
 
@@ -578,11 +592,11 @@ def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: 
     par[P_LEVER:P_LEVER + 3] = cfg.gnss.lever_arm_m
     taus = [cfg.imu.gyro_bias_tau_s, cfg.imu.accel_bias_tau_s, cfg.imu.sf_tau_s, cfg.imu.sf_tau_s]
     par[P_TAU:P_TAU + 4] = taus
-    from scipy.stats import chi2
+    from scipy.special import chdtri  # chi-square quantile (scipy.stats costs 1 s of start-up)
 
     gp = cfg.gnss.gate_probability
-    par[P_GATE_POS] = chi2.ppf(gp, 3) if gp < 1 else 0.0
-    par[P_GATE_VEL] = chi2.ppf(gp, 3) if gp < 1 else 0.0
+    par[P_GATE_POS] = chdtri(3, 1.0 - gp) if gp < 1 else 0.0
+    par[P_GATE_VEL] = par[P_GATE_POS]
     par[P_USE_POS] = cfg.gnss.use in ("both", "position")
     par[P_USE_VEL] = cfg.gnss.use in ("both", "velocity")
     par[P_PROP_DT] = cfg.filter.prop_dt_s
@@ -604,12 +618,17 @@ def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: 
     if cfg.filter.output_rate_hz:
         out_every = max(1, int(round(imu.rate_hz / cfg.filter.output_rate_hz)))
     bias0 = np.zeros(nb)
+    cov_idx = np.zeros(0, np.int64)
+    if cov_times is not None:
+        ct = np.sort(np.atleast_1d(np.asarray(cov_times, float)))
+        cov_idx = np.searchsorted(t_imu[k0:], ct, side="left").astype(np.int64)
+        cov_idx = cov_idx[cov_idx < len(t_imu) - k0]
     r = _loose_kernel(t_imu[k0:], dth_in[k0:], dv_in[k0:], t0, st0, bias0, P0, q_psd, par,
                       g_t, g_lat, g_lon, g_h, g_vel, g_spos, g_svel, use,
                       static[k0:], reset_idx, reset_heading, ini.course_heading_sigma_deg * DEG,
-                      out_every, smooth)
+                      out_every, smooth, cov_idx)
     (out_idx, out_st, out_bias, out_pdiag, out_node, node_idx, S_post, S_prior, S_phi, S_dx,
-     rec_pos, rec_vel, rpi, rps, rvi, rvs, rpn, rvn, counts, st_end, bias_end, P_end) = r
+     rec_pos, rec_vel, rpi, rps, rvi, rvs, rpn, rvn, counts, st_end, bias_end, P_end, cov_out) = r
     records = dict(pos_status=rec_pos, vel_status=rec_vel, pos_innov=rpi, pos_s=rps, vel_innov=rvi,
                    vel_s=rvs, pos_nis=rpn, vel_nis=rvn)
     cnt = dict(zupt_updates=int(counts[0]), nhc_updates=int(counts[1]), nhc_rejected=int(counts[2]),
@@ -617,6 +636,8 @@ def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: 
                imu_samples_skipped=k0)
     res = LooseResult(time=t_imu[k0:][out_idx], state=out_st, bias=out_bias, pdiag=out_pdiag,
                       node_time=t_imu[k0:][node_idx], records=records, counts=cnt, final_P=P_end)
+    if cov_times is not None:
+        res.cov_time, res.cov = t_imu[k0:][cov_idx], cov_out
     if smooth and len(node_idx) > 1:
         ds, Ps = _rts_kernel(S_post, S_prior, S_phi, S_dx)
         sm_st, sm_b = _smooth_outputs(out_idx, out_st, out_bias, out_node, node_idx, ds, S_dx, nstate)

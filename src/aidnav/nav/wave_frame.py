@@ -32,6 +32,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .earth import dcm_ecef_to_enu
+
 #: Seed-002 frames → ours: v_ENU = P v_NWU, v_RFU = P v_FLU, C_b^n = P C_I^B Pᵀ.
 P_SEED = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
 
@@ -180,11 +182,7 @@ def enu_rotation_between(lat_from, lon_from, lat_to, lon_to):
     takes the two as parallel (flat Earth), which errs by the great-circle angle between them
     (≈ 0.09° per 10 km)."""
 
-    def c_en(lat, lon):
-        sl, cl, so, co = np.sin(lat), np.cos(lat), np.sin(lon), np.cos(lon)
-        return np.array([[-so, co, 0.0], [-sl * co, -sl * so, cl], [cl * co, cl * so, sl]])
-
-    return c_en(lat_to, lon_to) @ c_en(lat_from, lon_from).T
+    return dcm_ecef_to_enu(float(lat_to), float(lon_to)) @ dcm_ecef_to_enu(float(lat_from), float(lon_from)).T
 
 
 __all__ = ["P_SEED", "wave_vectors", "wave_dcm", "wave_dcm_derivatives", "wave_params_from_dcm",

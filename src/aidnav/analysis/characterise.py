@@ -1,0 +1,935 @@
+"""IMU noise characterisation: Allan deviation of a static log → fitted noise terms → filter settings.
+
+Frames and units. Input increments Δθ [rad], Δv [m/s] (body RFU, :class:`aidnav.data.ImuData`) or rates
+[rad/s], [m/s²] on arrays. Inside, everything is SI; the results are given back in the boundary units of
+``CONVENTIONS.md``: ARW [deg/√h], VRW [m/s/√h], gyro bias instability [deg/h], accelerometer bias
+instability [µg], rate random walk [deg/h/√h], acceleration random walk [µg/√h], correlation times [s],
+quantisation noise coefficient Q [rad] / [m/s] (IEEE 952: σ² = 3Q²/τ²; quantum = √12·Q).
+
+Uniform sampling. The Allan deviation needs uniform samples. Increments with their own Δt (jittered time
+stamps) are put on a uniform grid of the median interval by **cumulative-sum interpolation**: the
+cumulative angle (velocity) at the sample times is interpolated linearly (constant rate within each
+interval, as the increment model says) to the grid points and differenced, so no angle is lost or
+counted twice. Averaging mixes neighbouring samples, which lowers the ADEV at the first few τ; when a log
+is resampled the fit therefore starts at τ ≥ 8 grid intervals (and says so). A gap (an interval longer
+than 1.5 × the median) is never bridged: the longest gap-free part is analysed and the gap reported.
+
+Model. Per axis, the Allan variance is fitted with the sum of the standard terms (IEEE Std 952-1997,
+Annex C; El-Sheimy, Hou & Niu, "Analysis and modeling of inertial sensors using Allan variance", IEEE
+Trans. Instrum. Meas. 57(1), 2008, Table I):
+
+    σ²(τ) = 3Q²/τ²                    quantisation (slope −1 in ADEV)
+          + N²/τ                      white rate noise: ARW / VRW N (slope −1/2)
+          + σ_GM² g(τ/T)              bias instability as a first-order Gauss-Markov process (σ_GM, T)
+          + K²τ/3                     rate / acceleration random walk K (slope +1/2)
+
+    g(x) = (2/x)·[1 − (3 − 4e^{−x} + e^{−2x})/(2x)]   (El-Sheimy 2008, "correlated noise", with the
+    driving density q_c² = 2σ_GM²/T). g rises as 2x/3 (RRW-like) for τ ≪ T, falls as 2/x (white-like)
+    for τ ≫ T and peaks at x = 1.8926 where √g = 0.6174.
+
+Bias instability ↔ Gauss-Markov. The filter (``imu:`` section) and the simulator (:mod:`aidnav.sim.imu`)
+model the bias instability as a first-order Gauss-Markov process (σ_GM, T); data sheets quote the
+IEEE 952 bias instability B, defined by the flicker floor of the ADEV, σ_floor = √(2 ln 2/π)·B =
+0.6643·B. This module fits (σ_GM, T) directly and reports B as the flicker floor that has the same
+height as the GM's ADEV peak, at τ = 1.8926·T:
+
+    B = 0.6174/0.6643 · σ_GM = 0.9294 · σ_GM,      σ_GM = 1.0760 · B,   T = τ_floor / 1.8926.
+
+The same rule converts a data-sheet B and the τ of its ADEV minimum into filter settings.
+
+Confidence intervals come from the number of clusters: each overlapping Allan variance has a chi-square
+distribution whose equivalent degrees of freedom ν follow from the number of samples N, the cluster size
+m = τ·f_s and the noise type that dominates at that τ (Greenhall's EDF, ``allantools.edf_greenhall``;
+the noise type is read from the local slope of the fitted model). The fit is a weighted least-squares
+fit of ln σ̂²(τ) with the exact mean ψ(ν/2) − ln(ν/2) and variance ψ'(ν/2) of ln(χ²_ν/ν) (a Gaussian
+approximation of the chi-square likelihood), over log-parameters; the parameter covariance is the
+inverse Fisher matrix, inflated by the reduced χ² when that exceeds 1 (model misfit, correlated
+estimates), and the 95% intervals are symmetric in the log-parameters.
+
+Which terms are reported. Every subset of {Q, GM, K} with N is fitted and the one with the lowest BIC
+(χ² + k ln n) is kept; a Gauss-Markov term only counts when its ADEV peak (1.8926·T) lies inside the
+fitted τ range (otherwise it cannot be told from white noise or a random walk). A term of the chosen
+model whose 95% interval spans more than a factor ``MAX_CI_RATIO`` (in deviation units) is "not
+resolved". A term that is not resolved is never given a value: it gets an upper bound from the ADEV's
+99.5% upper limits (the term alone cannot exceed the total at any τ; for the bias instability the bound
+is on the flicker floor B).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from itertools import product
+from pathlib import Path
+
+import numpy as np
+
+from aidnav.data import ImuData
+from aidnav.nav.earth import G0
+
+# ------------------------------------------------------------------------------------------ constants
+DEG = math.pi / 180.0
+DEG_H = DEG / 3600.0  #: 1 deg/h in rad/s
+DEG_SQRT_H = DEG / 60.0  #: 1 deg/√h in rad/√s
+UG = G0 * 1e-6  #: 1 µg in m/s²
+M_S_SQRT_H = 1.0 / 60.0  #: 1 m/s/√h in m/s/√s
+DEG_H_SQRT_H = DEG_H / 60.0  #: 1 deg/h/√h in rad/s/√s
+UG_SQRT_H = UG / 60.0  #: 1 µg/√h in m/s²/√s
+
+GM_PEAK_X = 1.8926178354517893  #: τ of the Gauss-Markov ADEV peak / T
+GM_PEAK_ADEV = 0.6173642831444415  #: peak ADEV of a Gauss-Markov process / σ_GM
+FLICKER_ADEV = math.sqrt(2.0 * math.log(2.0) / math.pi)  #: ADEV of a flicker floor / B (0.6643)
+B_PER_GM_SIGMA = GM_PEAK_ADEV / FLICKER_ADEV  #: IEEE 952 bias instability B per σ_GM (0.9294)
+
+CI_PROB = 0.95  #: two-sided probability of the reported intervals
+MAX_CI_RATIO = 10.0  #: a term whose 95% interval spans more than this factor is "not resolved"
+RESAMPLED_MIN_M = 8  #: first cluster size fitted when the log was resampled onto a uniform grid
+AXES = ("gyro_x", "gyro_y", "gyro_z", "accel_x", "accel_y", "accel_z")
+
+__all__ = ["characterise_imu", "characterise_rates", "fit_allan", "Characterisation", "AxisFit",
+           "TermEstimate", "NotStaticError", "static_check", "uniform_rates", "imu_section", "imu_yaml",
+           "noise_dict", "characterise_file", "gm_avar", "B_PER_GM_SIGMA", "GM_PEAK_X", "FLICKER_ADEV"]
+
+
+class NotStaticError(ValueError):
+    """The log (or the chosen part) moves: the message names when and by how much."""
+
+
+# ----------------------------------------------------------------------------------- model pieces
+def _gm_shape(x: np.ndarray) -> np.ndarray:
+    """Allan variance of a unit-σ first-order Gauss-Markov process at τ = x·T (a series below x = 0.05)."""
+    x = np.asarray(x, dtype=float)
+    out = np.empty_like(x)
+    s = x < 0.05
+    xs = x[s]
+    out[s] = 2.0 * (xs / 3.0 - xs**2 / 4.0 + 7.0 * xs**3 / 60.0 - xs**4 / 24.0)
+    xl = x[~s]
+    out[~s] = (2.0 / xl) * (1.0 - (3.0 - 4.0 * np.exp(-xl) + np.exp(-2.0 * xl)) / (2.0 * xl))
+    return out
+
+
+def gm_avar(tau, sigma: float, t_corr: float) -> np.ndarray:
+    """Allan variance of a first-order Gauss-Markov rate error with stationary σ and correlation time T.
+
+    tau [s], sigma [u], t_corr [s] → σ²(τ) [u²] (El-Sheimy et al. 2008, correlated noise)."""
+    return sigma**2 * _gm_shape(np.asarray(tau, float) / t_corr)
+
+
+_TERM_NPAR = {"Q": 1, "N": 1, "GM": 2, "K": 1}
+_TERM_ORDER = ("Q", "N", "GM", "K")
+
+
+def _model_parts(p: np.ndarray, active: tuple, tau: np.ndarray) -> dict:
+    parts = {}
+    i = 0
+    for t in _TERM_ORDER:
+        if t not in active:
+            continue
+        if t == "Q":
+            parts[t] = 3.0 * np.exp(p[i]) / tau**2
+        elif t == "N":
+            parts[t] = np.exp(p[i]) / tau
+        elif t == "GM":
+            parts[t] = np.exp(p[i]) * _gm_shape(tau / np.exp(p[i + 1]))
+        else:
+            parts[t] = np.exp(p[i]) * tau / 3.0
+        i += _TERM_NPAR[t]
+    return parts
+
+
+def _model(p, active, tau) -> np.ndarray:
+    return sum(_model_parts(p, active, tau).values())
+
+
+def _alpha_from_slope(mu: np.ndarray) -> np.ndarray:
+    """Power-law noise type α (S_y ∝ f^α) nearest to a local Allan-variance slope μ = −1 − α."""
+    return np.clip(np.rint(-1.0 - mu), -2, 2).astype(int)
+
+
+_EDF_CACHE: dict = {}
+
+
+def _edf(alpha: int, m: int, n_phase: int) -> float:
+    key = (int(alpha), int(m), int(n_phase))
+    v = _EDF_CACHE.get(key)
+    if v is None:
+        import allantools
+
+        a = int(alpha)
+        if a > 0:  # phase noise: Greenhall's unmodified-variance case needs α ≤ 0 there; use white FM
+            a = 0
+        v = float(allantools.edf_greenhall(alpha=a, d=2, m=int(m), N=int(n_phase), overlapping=True))
+        if len(_EDF_CACHE) > 100_000:
+            _EDF_CACHE.clear()
+        _EDF_CACHE[key] = v
+    return v
+
+
+def _logchi2_moments(nu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and standard deviation of ln(χ²_ν/ν)."""
+    from scipy.special import digamma, polygamma
+
+    h = 0.5 * np.asarray(nu, float)
+    return digamma(h) - np.log(h), np.sqrt(polygamma(1, h))
+
+
+# --------------------------------------------------------------------------------------- results
+@dataclass
+class TermEstimate:
+    """One noise term of one axis, SI units (see :class:`AxisFit` for which).
+
+    status : "fitted" (value with a 95% interval [lo, hi]), "not resolved" (in the best model but its
+    interval spans more than ``MAX_CI_RATIO``; no value is reported, ``upper`` bounds it) or
+    "not detected" (not in the best model; ``upper`` bounds it). ``note`` says why in words.
+    """
+
+    status: str
+    value: float | None = None
+    lo: float | None = None
+    hi: float | None = None
+    upper: float | None = None
+    note: str = ""
+
+    @property
+    def fitted(self) -> bool:
+        return self.status == "fitted"
+
+    def covers(self, truth: float) -> bool:
+        """True if ``truth`` lies in the reported interval ([lo, hi], or [0, upper] when not fitted)."""
+        if self.fitted:
+            return self.lo <= truth <= self.hi
+        return self.upper is not None and truth <= self.upper
+
+    def scaled(self, f: float) -> dict:
+        """JSON-ready dict with every number divided by ``f`` (SI → boundary units)."""
+        d = {"status": self.status}
+        if self.value is not None:
+            d.update(value=self.value / f, ci95=[self.lo / f, self.hi / f])
+        if self.upper is not None:
+            d["upper_bound"] = self.upper / f
+        if self.note:
+            d["note"] = self.note
+        return d
+
+
+@dataclass
+class AxisFit:
+    """Allan deviation and fitted noise terms of one axis.
+
+    taus [s]; adev, adev_lo, adev_hi [u] (95% chi-square interval); edf : equivalent degrees of freedom;
+    alpha : noise type used for the EDF; used : τ included in the fit. u = rad/s (gyro) or m/s² (accel).
+    terms (SI): ``white`` N [u·√s] (ARW rad/√s, VRW m/s/√s); ``quantisation`` Q [u·s] (rad, m/s);
+    ``gm_sigma`` [u] and ``gm_tau`` [s]; ``bias_instability`` B = 0.9294 σ_GM [u]; ``rrw`` K [u/√s].
+    model : the terms of the chosen model ("Q", "N", "GM", "K"); params : its log-parameters
+    (ln Q², ln N², ln σ², ln T, ln K² in that order, those present); chi2, dof : of the fit.
+    """
+
+    axis: str
+    taus: np.ndarray
+    adev: np.ndarray
+    adev_lo: np.ndarray
+    adev_hi: np.ndarray
+    edf: np.ndarray
+    alpha: np.ndarray
+    used: np.ndarray
+    terms: dict[str, TermEstimate]
+    model: tuple
+    params: np.ndarray
+    chi2: float
+    dof: int
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def sensor(self) -> str:
+        return self.axis.split("_")[0]
+
+    def model_adev(self, taus=None, term: str | None = None) -> np.ndarray:
+        """ADEV of the fitted model (or of one of its terms "Q", "N", "GM", "K") at ``taus`` [s]."""
+        tau = self.taus if taus is None else np.asarray(taus, float)
+        parts = _model_parts(self.params, self.model, tau)
+        if term is None:
+            return np.sqrt(sum(parts.values()))
+        return np.sqrt(parts[term]) if term in parts else np.full(tau.shape, np.nan)
+
+
+@dataclass
+class Characterisation:
+    """Result of :func:`characterise_rates` / :func:`characterise_imu`.
+
+    axes : the six :class:`AxisFit` (gyro x, y, z [rad/s], accel x, y, z [m/s²]); fs_hz : uniform
+    sample rate analysed; n_samples; duration_s; span_s : (start, end) of the analysed part on the
+    input's time scale [s]; resampled : the log was put on a uniform grid; static : result of
+    :func:`static_check`; notes : what was done and found, in words (gaps, resampling, short log).
+    """
+
+    axes: list[AxisFit]
+    fs_hz: float
+    n_samples: int
+    duration_s: float
+    span_s: tuple[float, float]
+    resampled: bool
+    static: dict
+    notes: list[str] = field(default_factory=list)
+
+    def axis(self, name: str) -> AxisFit:
+        return self.axes[AXES.index(name)]
+
+
+# ------------------------------------------------------------------------------------------ fitting
+def _columns(active, tau, t_corr) -> np.ndarray:
+    """Unit-coefficient Allan variance of each active term (columns, in _TERM_ORDER)."""
+    cols = []
+    for t in _TERM_ORDER:
+        if t in active:
+            cols.append({"Q": lambda: 3.0 / tau**2, "N": lambda: 1.0 / tau,
+                         "GM": lambda: _gm_shape(tau / t_corr), "K": lambda: tau / 3.0}[t]())
+    return np.column_stack(cols)
+
+
+def _irls(active, tau, y, sd, t_corr, iters: int = 6):
+    """Non-negative coefficients of the active terms for a fixed T: iteratively reweighted NNLS on the
+    linear scale (weights from the current model), a fast stand-in for the log-scale fit. Returns
+    (coefficients, log-scale χ²)."""
+    from scipy.optimize import nnls
+
+    A = _columns(active, tau, t_corr)
+    target = np.exp(y)
+    mdl = target.copy()
+    c = np.zeros(A.shape[1])
+    for _ in range(iters):
+        w = 1.0 / (sd * mdl)
+        cs = np.maximum(np.max(A * w[:, None], axis=0), 1e-300)
+        c, _ = nnls(A * w[:, None] / cs, target * w)
+        c = c / cs
+        new = A @ c
+        if not np.all(new > 0):
+            return c, np.inf
+        mdl = new
+    return c, float(np.sum(((y - np.log(mdl)) / sd) ** 2))
+
+
+def _params_from(active, c, t_corr) -> np.ndarray | None:
+    p = []
+    i = 0
+    for t in _TERM_ORDER:
+        if t not in active:
+            continue
+        if c[i] <= 0:
+            return None
+        p.append(math.log(c[i]))
+        if t == "GM":
+            p.append(math.log(t_corr))
+        i += 1
+    return np.array(p)
+
+
+def _jac(p, active, tau, sd) -> np.ndarray:
+    """Jacobian of the normalised log residuals (y − ln M)/sd with respect to the log-parameters."""
+    parts = _model_parts(p, active, tau)
+    mdl = sum(parts.values())
+    cols = []
+    for t in _TERM_ORDER:
+        if t not in active:
+            continue
+        cols.append(parts[t] / mdl)
+        if t == "GM":
+            i_t = (1 if "Q" in active else 0) + 2
+            x = tau / math.exp(p[i_t])
+            h = 1e-4
+            dg = (_gm_shape(x * (1 + h)) - _gm_shape(x * (1 - h))) / (2 * h)  # x·g'(x)
+            cols.append(-parts[t] * dg / np.maximum(_gm_shape(x), 1e-300) / mdl)
+    return -np.column_stack(cols) / sd[:, None]
+
+
+def _fit_subset(active, tau, y, sd, tau_lo, tau_hi):
+    """Best log-scale fit of one subset of terms: IRLS start (grid over T for the Gauss-Markov), then
+    Levenberg-Marquardt on the log-parameters. Returns (params, χ², jacobian) or None."""
+    from scipy.optimize import least_squares
+
+    if "GM" in active:
+        grid = np.exp(np.linspace(math.log(tau_lo / GM_PEAK_X), math.log(tau_hi / GM_PEAK_X), 25))
+    else:
+        grid = [1.0]
+    best = None
+    for tc in grid:
+        c, x2 = _irls(active, tau, y, sd, tc)
+        if best is None or x2 < best[1]:
+            best = (c, x2, tc)
+    if best is None or not np.isfinite(best[1]):
+        return None
+    p0 = _params_from(active, best[0], best[2])
+    if p0 is None:  # a term went to zero: this subset is a smaller one
+        return None
+    try:
+        r = least_squares(lambda p: (y - np.log(_model(p, active, tau))) / sd, p0,
+                          jac=lambda p: _jac(p, active, tau, sd), method="lm", max_nfev=200)
+    except (ValueError, FloatingPointError):
+        return None
+    if not np.all(np.isfinite(r.fun)):
+        return None
+    return r.x, 2.0 * float(r.cost), r.jac
+
+
+def _upper_bounds(tau, adev_hi) -> dict:
+    """Upper bounds of each term alone from the ADEV's upper limits (SI)."""
+    return {"quantisation": float(np.min(adev_hi * tau / math.sqrt(3.0))),
+            "white": float(np.min(adev_hi * np.sqrt(tau))),
+            "bias_instability": float(np.min(adev_hi) / FLICKER_ADEV),
+            "gm_sigma": float(np.min(adev_hi) / FLICKER_ADEV / B_PER_GM_SIGMA),
+            "rrw": float(np.min(adev_hi * np.sqrt(3.0 / tau)))}
+
+
+def fit_allan(taus, adev, n_samples: int, fs: float, axis: str = "gyro_x", min_m: int = 1) -> AxisFit:
+    """Fit the noise model of the module docstring to one axis's overlapping Allan deviation.
+
+    Parameters
+    ----------
+    taus : (M,) averaging times [s] (multiples of 1/fs; octave spacing recommended).
+    adev : (M,) overlapping ADEV [u] (u = rad/s or m/s²; any consistent unit works).
+    n_samples : number of rate samples behind the ADEV (the EDF needs it); fs : their rate [Hz].
+    axis : label (one of ``AXES``: its prefix decides the sensor in reports).
+    min_m : smallest cluster size fitted (τ below min_m/fs are shown but not fitted).
+
+    Returns an :class:`AxisFit` with terms in [u·√s] (white), [u·s] (quantisation Q), [u] (σ_GM, B),
+    [s] (T), [u/√s] (random walk K), 95% intervals, and notes on what could not be resolved.
+    """
+    from scipy.stats import chi2 as chi2_dist
+
+    tau = np.asarray(taus, float)
+    adev = np.asarray(adev, float)
+    m = np.rint(tau * fs).astype(int)
+    n_phase = int(n_samples) + 1
+    ok = np.isfinite(adev) & (adev > 0) & (m >= 1) & (n_phase - 2 * m >= 1)
+    used = ok & (m >= min_m)
+    notes: list[str] = []
+    if used.sum() < 3:
+        raise ValueError(f"{axis}: fewer than 3 usable Allan deviation points (log too short or constant)")
+    avar = adev**2
+    tu, au = tau[used], avar[used]
+    tau_lo, tau_hi = float(tu[0]), float(tu[-1])
+
+    def edfs(alpha_all):
+        return np.array([_edf(a, mm, n_phase) for a, mm in zip(alpha_all, m, strict=True)])
+
+    # EDFs: noise type from the local slope of a preliminary fit of all terms (white FM to start)
+    alpha = np.zeros(len(tau), int)
+    nu = edfs(alpha)
+    full = ("Q", "N", "GM", "K")
+    for _ in range(2):
+        b, sd = _logchi2_moments(nu[used])
+        y = np.log(au) - b
+        fr = _fit_subset(full, tu, y, sd, tau_lo, tau_hi)
+        if fr is None:
+            fr = _fit_subset(("Q", "N", "K"), tu, y, sd, tau_lo, tau_hi)
+            act = ("Q", "N", "K")
+        else:
+            act = full
+        if fr is None:
+            break
+        h = 0.05
+        mu = (np.log(_model(fr[0], act, tau * math.exp(h)))
+              - np.log(_model(fr[0], act, tau * math.exp(-h)))) / (2 * h)
+        alpha = _alpha_from_slope(mu)
+        nu = edfs(alpha)
+    b, sd = _logchi2_moments(nu[used])
+    y = np.log(au) - b
+    n_pts = len(tu)
+
+    best = None
+    for q_on, gm_on, k_on in product((False, True), repeat=3):
+        active = tuple(t for t, on in zip(_TERM_ORDER, (q_on, True, gm_on, k_on), strict=True) if on)
+        k = sum(_TERM_NPAR[t] for t in active)
+        if k >= n_pts:
+            continue
+        fr = _fit_subset(active, tu, y, sd, tau_lo, tau_hi)
+        if fr is None:
+            continue
+        px, chi2, jac = fr
+        if "GM" in active:
+            i_t = (1 if "Q" in active else 0) + 2
+            t_peak = math.exp(px[i_t]) * GM_PEAK_X
+            if not (tau_lo <= t_peak <= tau_hi):
+                continue
+        bic = chi2 + k * math.log(n_pts)
+        if best is None or bic < best[0]:
+            best = (bic, active, px, chi2, k, jac)
+    if best is None:
+        raise ValueError(f"{axis}: the noise model could not be fitted")
+    _, active, px, chi2, k, jac = best
+    dof = n_pts - k
+    try:
+        cov = np.linalg.inv(jac.T @ jac)
+    except np.linalg.LinAlgError:
+        cov = np.linalg.pinv(jac.T @ jac)
+    infl = max(1.0, chi2 / dof) if dof > 0 else 1.0
+    cov = cov * infl
+    if infl > 1.5:
+        notes.append(f"{axis}: the model fits the ADEV with reduced chi-square {chi2 / dof:.2f}; intervals "
+                     "widened by its square root")
+    z = float(chi2_dist.ppf(CI_PROB, 1) ** 0.5)
+    se = np.sqrt(np.maximum(np.diag(cov), 0.0))
+
+    # ADEV intervals (95%) and the 99.5% upper limits used for bounds
+    lo_q = chi2_dist.ppf(0.5 * (1 + CI_PROB), nu)
+    hi_q = chi2_dist.ppf(0.5 * (1 - CI_PROB), nu)
+    adev_lo = adev * np.sqrt(nu / lo_q)
+    adev_hi = adev * np.sqrt(nu / hi_q)
+    adev_up = adev * np.sqrt(nu / chi2_dist.ppf(0.005, nu))
+    ub = _upper_bounds(tau[ok], adev_up[ok])
+
+    def est(i, power, scale=1.0):
+        """Term from log-parameter i: value = scale·exp(p)^power (power 0.5 for a deviation)."""
+        v = scale * math.exp(power * px[i])
+        f = math.exp(power * z * se[i])
+        return v, v / f, v * f
+
+    terms: dict[str, TermEstimate] = {}
+    idx = {}
+    i = 0
+    for t in _TERM_ORDER:
+        if t in active:
+            idx[t] = i
+            i += _TERM_NPAR[t]
+    for t, name in (("Q", "quantisation"), ("N", "white"), ("K", "rrw")):
+        if t in idx:
+            v, lo, hi = est(idx[t], 0.5)
+            if hi / lo > MAX_CI_RATIO:
+                terms[name] = TermEstimate("not resolved", upper=ub[name],
+                                           note=f"95% interval spans a factor {hi / lo:.3g}")
+            else:
+                terms[name] = TermEstimate("fitted", v, lo, hi)
+        else:
+            terms[name] = TermEstimate("not detected", upper=ub[name], note=_why_not(t, tau_lo, tau_hi))
+    if "GM" in idx:
+        i_s, i_t = idx["GM"], idx["GM"] + 1
+        s, slo, shi = est(i_s, 0.5)
+        tc, tlo, thi = est(i_t, 1.0)
+        if shi / slo > MAX_CI_RATIO or thi / tlo > MAX_CI_RATIO:
+            note = (f"Gauss-Markov σ and T not resolved (95% intervals span factors {shi / slo:.3g} and "
+                    f"{thi / tlo:.3g})")
+            for name in ("gm_sigma", "bias_instability"):
+                terms[name] = TermEstimate("not resolved", upper=ub[name], note=note)
+            terms["gm_tau"] = TermEstimate("not resolved", note=note)
+        else:
+            terms["gm_sigma"] = TermEstimate("fitted", s, slo, shi)
+            terms["gm_tau"] = TermEstimate("fitted", tc, tlo, thi)
+            terms["bias_instability"] = TermEstimate("fitted", B_PER_GM_SIGMA * s, B_PER_GM_SIGMA * slo,
+                                                     B_PER_GM_SIGMA * shi)
+    else:
+        note = _why_not("GM", tau_lo, tau_hi)
+        for name in ("gm_sigma", "bias_instability"):
+            terms[name] = TermEstimate("not detected", upper=ub[name], note=note)
+        terms["gm_tau"] = TermEstimate("not detected", note=note)
+    return AxisFit(axis=axis, taus=tau, adev=adev, adev_lo=adev_lo, adev_hi=adev_hi, edf=nu, alpha=alpha,
+                   used=used, terms=terms, model=active, params=np.array(px), chi2=chi2, dof=dof,
+                   notes=notes)
+
+
+def _why_not(term: str, tau_lo: float, tau_hi: float) -> str:
+    if term == "Q":
+        return f"no slope −1 at the shortest τ (from {tau_lo:g} s): quantisation below the white noise"
+    if term == "GM":
+        return (f"no bias-instability bump whose peak lies inside the fitted τ range {tau_lo:g}-{tau_hi:.4g} s: "
+                "hidden by the other terms or needs a longer log (the peak is at 1.89 T)")
+    if term == "K":
+        return f"no slope +1/2 up to τ = {tau_hi:.4g} s: random walk too small to see in this log"
+    return "not in the best model"
+
+
+# ---------------------------------------------------------------------------- data preparation
+def uniform_rates(imu: ImuData, max_gap_ratio: float = 1.5, jitter_tol: float = 1e-3):
+    """Uniformly sampled rates from increments with their own intervals.
+
+    Returns (rates (M, 6) [rad/s, m/s²] over uniform intervals of dt, dt [s], t_start [s], resampled
+    (bool), notes). Gaps (intervals > ``max_gap_ratio`` × median): the longest gap-free part is used and
+    the gaps reported in ``notes``. Jitter (any interval off the median by more than ``jitter_tol``
+    relative): increments are averaged onto the uniform grid by cumulative-sum interpolation.
+    """
+    t = np.asarray(imu.time, float)
+    if len(t) < 3:
+        raise ValueError("characterise: need at least 3 IMU samples")
+    t0 = imu.t0 if imu.t0 is not None else 2 * t[0] - t[1]
+    edges = np.concatenate(([t0], t))
+    dt = np.diff(edges)
+    if np.any(dt <= 0):
+        raise ValueError("characterise: sample times are not strictly increasing")
+    med = float(np.median(dt))
+    inc = np.concatenate((imu.dtheta, imu.dv), axis=1)
+    notes: list[str] = []
+    gap = dt > max_gap_ratio * med
+    if gap.any():
+        # segments between gaps: a gap interval k starts a new segment at k + 1 (the sample over the gap
+        # itself is dropped: its increment spans the gap)
+        starts = np.r_[0, np.flatnonzero(gap) + 1]
+        ends = np.r_[np.flatnonzero(gap), len(t)]
+        lens = ends - starts
+        j = int(np.argmax(lens))
+        a, b = int(starts[j]), int(ends[j])
+        big = np.flatnonzero(gap)
+        worst = big[np.argmax(dt[big])]
+        notes.append(f"{len(big)} gap(s) in the log (intervals longer than {max_gap_ratio:g} x the median "
+                     f"{med:.6g} s; the longest {dt[worst]:.6g} s ending at t = {t[worst]:.3f} s): analysed "
+                     f"the longest gap-free part t = {edges[a]:.3f}-{t[b - 1]:.3f} s "
+                     f"({100.0 * (b - a) / len(t):.1f}% of the samples); gaps are never bridged")
+        edges = edges[a:b + 1]
+        inc = inc[a:b]
+        dt = dt[a:b]
+        if len(dt) < 3:
+            raise ValueError("characterise: no gap-free part with at least 3 samples")
+        med = float(np.median(dt))
+    rel = np.max(np.abs(dt - med)) / med
+    if rel <= jitter_tol:
+        return inc / dt[:, None], med, float(edges[0]), False, notes
+    # cumulative-sum interpolation onto the uniform grid t_start + j·med (mean rate removed first, for
+    # precision of the running sums; added back after)
+    span = edges[-1] - edges[0]
+    mean_rate = inc.sum(axis=0) / span
+    cum = np.vstack((np.zeros((1, 6)), np.cumsum(inc - mean_rate * dt[:, None], axis=0)))
+    n = int(np.floor(span / med + 1e-9))
+    grid = edges[0] + med * np.arange(n + 1)
+    cg = np.column_stack([np.interp(grid, edges, cum[:, c]) for c in range(6)])
+    rates = np.diff(cg, axis=0) / med + mean_rate
+    notes.append(f"time stamps jitter by up to {100 * rel:.2g}% of the median interval {med:.6g} s: "
+                 f"increments averaged onto a uniform {1 / med:.6g} Hz grid by cumulative-sum "
+                 f"interpolation; the fit starts at tau = {RESAMPLED_MIN_M} intervals (resampling lowers "
+                 "the first few points)")
+    return rates, med, float(edges[0]), True, notes
+
+
+def static_check(rates, fs: float, t_start: float = 0.0, window_s: float = 1.0,
+                 gyro_tol_deg_s: float = 0.05, accel_tol_m_s2: float = 0.05, std_ratio: float = 4.0,
+                 max_disturbed_fraction: float = 0.01) -> dict:
+    """Is a log static? From window means and window variances of the gyros and accelerometers.
+
+    rates : (M, 6) gyro [rad/s] and accel [m/s²] rates, uniform at ``fs`` [Hz]; t_start [s] of sample 0's
+    interval. Windows of ``window_s`` (at least 10 samples). A window **moves** when the mean of any axis
+    departs from the log's median window mean by more than max(tolerance, 8 × the robust spread of the
+    window means) (tolerances: gyro ``gyro_tol_deg_s`` [deg/s], accel ``accel_tol_m_s2`` [m/s²]: turning
+    or tilting); it is **disturbed** when the standard deviation inside the window of any axis exceeds
+    ``std_ratio`` × the median window's (vibration, handling). The log is static when no window moves
+    and at most ``max_disturbed_fraction`` of the windows are disturbed.
+
+    Returns dict: static (bool), windows (count), moving / disturbed (counts), moving_spans_s /
+    disturbed_spans_s (up to 10 [start, end] spans on the input time scale), max_gyro_dev_deg_s,
+    max_accel_dev_m_s2, message (str, empty when static).
+    """
+    y = np.asarray(rates, float)
+    w = max(10, int(round(window_s * fs)))
+    nw = len(y) // w
+    if nw < 3:
+        return {"static": True, "windows": nw, "moving": 0, "disturbed": 0, "moving_spans_s": [],
+                "disturbed_spans_s": [], "max_gyro_dev_deg_s": 0.0, "max_accel_dev_m_s2": 0.0,
+                "message": "", "note": "log too short for the static check (fewer than 3 windows)"}
+    blk = y[:nw * w].reshape(nw, w, y.shape[1])
+    mean = blk.mean(axis=1)
+    std = blk.std(axis=1)
+    med = np.median(mean, axis=0)
+    dev = np.abs(mean - med)
+    mad = 1.4826 * np.median(dev, axis=0)
+    tol = np.r_[np.full(3, gyro_tol_deg_s * DEG), np.full(3, accel_tol_m_s2)]
+    moving = np.any(dev > np.maximum(tol, 8.0 * mad), axis=1)
+    floor = np.r_[np.full(3, 1e-3 * DEG), np.full(3, 1e-3)]
+    sref = np.maximum(np.median(std, axis=0), floor / std_ratio)
+    disturbed = np.any(std > std_ratio * sref, axis=1)
+    wdt = w / fs
+
+    def spans(mask):
+        idx = np.flatnonzero(mask)
+        out = []
+        if len(idx):
+            br = np.flatnonzero(np.diff(idx) > 1)
+            for s_, e_ in zip(np.r_[idx[0], idx[br + 1]], np.r_[idx[br], idx[-1]], strict=True):
+                out.append([t_start + s_ * wdt, t_start + (e_ + 1) * wdt])
+        return out
+
+    ms, ds = spans(moving), spans(disturbed)
+    static = (not moving.any()) and disturbed.mean() <= max_disturbed_fraction
+    res = {"static": bool(static), "windows": int(nw), "moving": int(moving.sum()),
+           "disturbed": int(disturbed.sum()), "moving_spans_s": ms[:10], "disturbed_spans_s": ds[:10],
+           "max_gyro_dev_deg_s": float(dev[:, :3].max() / DEG), "max_accel_dev_m_s2": float(dev[:, 3:].max()),
+           "message": ""}
+    if not static:
+        parts = []
+        if moving.any():
+            parts.append(f"it moves in {moving.sum()} of {nw} windows of {wdt:g} s (window means depart from "
+                         f"the median by up to {res['max_gyro_dev_deg_s']:.3g} deg/s gyro, "
+                         f"{res['max_accel_dev_m_s2']:.3g} m/s2 accel; first spans "
+                         + ", ".join(f"{a:.1f}-{b:.1f} s" for a, b in ms[:3]) + ")")
+        if disturbed.mean() > max_disturbed_fraction:
+            parts.append(f"{disturbed.sum()} of {nw} windows are disturbed (in-window spread above "
+                         f"{std_ratio:g} x the typical; first spans "
+                         + ", ".join(f"{a:.1f}-{b:.1f} s" for a, b in ds[:3]) + ")")
+        res["message"] = ("the log is not static: " + "; ".join(parts)
+                          + ". Allan analysis needs a static log: choose a static part with --static START:END")
+    return res
+
+
+# ------------------------------------------------------------------------------------------ drivers
+def characterise_rates(rates, fs: float, t_start: float = 0.0, min_m: int = 1, check_static: bool = True,
+                       notes: list[str] | None = None, resampled: bool = False) -> Characterisation:
+    """Characterise uniformly sampled rates (the Python API on arrays).
+
+    rates : (M, 6) gyro x, y, z [rad/s] then accel x, y, z [m/s²], body frame, uniform at ``fs`` [Hz]
+    (sample k is the average over (t_start + k/fs, t_start + (k+1)/fs]).
+    min_m : smallest cluster size fitted. check_static : raise :class:`NotStaticError` when
+    :func:`static_check` says the log moves.
+    Returns a :class:`Characterisation` (ADEV at octave-spaced τ = 2^j/fs and the fitted terms, SI).
+    """
+    from aidnav.analysis.allan import allan_deviation
+
+    y = np.asarray(rates, float)
+    if y.ndim != 2 or y.shape[1] != 6:
+        raise ValueError(f"characterise_rates: rates must be (M, 6), got {y.shape}")
+    if not np.all(np.isfinite(y)):
+        raise ValueError("characterise_rates: rates contain NaN or inf")
+    notes = list(notes or [])
+    n = len(y)
+    dur = n / fs
+    if n < 64:
+        raise ValueError(f"characterise: only {n} samples ({dur:.3g} s); need at least 64")
+    st = static_check(y, fs, t_start)
+    if check_static and not st["static"]:
+        raise NotStaticError(st["message"])
+    if st.get("note"):
+        notes.append(st["note"])
+    if st["disturbed"] and st["static"]:
+        notes.append(f"{st['disturbed']} of {st['windows']} one-second windows are disturbed (vibration or "
+                     "handling); kept")
+    taus, adev, _, _ = allan_deviation(y, fs, taus="octave")
+    axes = [fit_allan(taus, adev[:, c], n, fs, axis=AXES[c], min_m=min_m) for c in range(6)]
+    for a in axes:
+        notes += a.notes
+    notes.append(f"{dur:.6g} s of data: terms whose Allan signature lies beyond tau ~ {taus[-1]:.4g} s "
+                 "(the longest tau with two clusters) cannot be seen")
+    return Characterisation(axes=axes, fs_hz=float(fs), n_samples=n, duration_s=dur,
+                            span_s=(float(t_start), float(t_start + dur)), resampled=resampled, static=st,
+                            notes=notes)
+
+
+def characterise_imu(imu: ImuData, static: tuple[float | None, float | None] | None = None,
+                     check_static: bool = True) -> Characterisation:
+    """Characterise an IMU log (increments with their own Δt; rates, any rate, jitter and gaps allowed).
+
+    static : (start, end) [s] after the log's first time stamp (either None = open) to analyse only that
+    part. Gaps → the longest gap-free part (reported); jitter → cumulative-sum resampling (reported).
+    """
+    notes = list(imu.events)
+    if static is not None:
+        a, b = static
+        base = float(imu.time[0])
+        lo = base + (a or 0.0)
+        hi = base + b if b is not None else np.inf
+        m = (imu.time > lo) & (imu.time <= hi)
+        if m.sum() < 3:
+            raise ValueError(f"--static {a}:{b}: fewer than 3 samples in that part of the log")
+        idx = np.flatnonzero(m)
+        t0 = imu.time[idx[0] - 1] if idx[0] > 0 else imu.t0
+        imu = ImuData(imu.time[m], imu.dtheta[m], imu.dv[m], t0=t0)
+        notes.append(f"static part {a or 0:g}-{'end' if b is None else f'{b:g}'} s after the first sample "
+                     "analysed")
+    rates, dt, t_start, resampled, n2 = uniform_rates(imu)
+    notes += n2
+    return characterise_rates(rates, 1.0 / dt, t_start=t_start, min_m=RESAMPLED_MIN_M if resampled else 1,
+                              check_static=check_static, notes=notes, resampled=resampled)
+
+
+# ------------------------------------------------------------------------------------------ outputs
+_UNITS = {
+    "gyro": {"white": ("arw_deg_sqrt_h", DEG_SQRT_H), "quantisation": ("quantisation_rad", 1.0),
+             "bias_instability": ("bias_instability_deg_h", DEG_H), "gm_sigma": ("gm_sigma_deg_h", DEG_H),
+             "gm_tau": ("gm_tau_s", 1.0), "rrw": ("rrw_deg_h_sqrt_h", DEG_H_SQRT_H)},
+    "accel": {"white": ("vrw_m_s_sqrt_h", M_S_SQRT_H), "quantisation": ("quantisation_m_s", 1.0),
+              "bias_instability": ("bias_instability_ug", UG), "gm_sigma": ("gm_sigma_ug", UG),
+              "gm_tau": ("gm_tau_s", 1.0), "rrw": ("accel_rw_ug_sqrt_h", UG_SQRT_H)},
+}
+_ADEV_UNIT = {"gyro": ("deg_h", DEG_H), "accel": ("ug", UG)}
+
+
+def noise_dict(ch: Characterisation) -> dict:
+    """noise.json content: per axis, every term in the boundary units of CONVENTIONS with its status and
+    95% interval, plus the ADEV table (deg/h for gyros, µg for accelerometers) and the notes."""
+    axes = {}
+    for a in ch.axes:
+        units = _UNITS[a.sensor]
+        d = {units[k][0]: a.terms[k].scaled(units[k][1]) for k in
+             ("white", "quantisation", "bias_instability", "gm_sigma", "gm_tau", "rrw")}
+        un, f = _ADEV_UNIT[a.sensor]
+        d["model"] = list(a.model)
+        d["fit"] = {"chi2": a.chi2, "dof": a.dof}
+        d["allan"] = {"tau_s": a.taus.tolist(), f"adev_{un}": (a.adev / f).tolist(),
+                      f"adev_lo_{un}": (a.adev_lo / f).tolist(), f"adev_hi_{un}": (a.adev_hi / f).tolist(),
+                      "edf": a.edf.tolist(), "fitted": a.used.tolist()}
+        axes[a.axis] = d
+    return {
+        "samples": ch.n_samples, "rate_hz": ch.fs_hz, "duration_s": ch.duration_s, "span_s": list(ch.span_s),
+        "resampled": ch.resampled, "static_check": ch.static,
+        "conventions": {
+            "ci": "95% two-sided; from chi-square EDF (Greenhall) of each Allan variance",
+            "bias_instability": "IEEE 952 B (flicker floor sigma = 0.6643 B) equivalent of the fitted "
+                                "Gauss-Markov: B = 0.9294 gm_sigma; gm_tau = tau_peak / 1.8926",
+            "quantisation": "IEEE 952 Q (AVAR = 3 Q^2 / tau^2); quantum = sqrt(12) Q",
+            "status": "fitted | not resolved | not detected (then only upper_bound)",
+        },
+        "axes": axes, "notes": ch.notes,
+    }
+
+
+def _grade_units(grade: str) -> dict:
+    from aidnav.sim.imu import ImuSpec
+
+    u = ImuSpec.grade(grade).to_units()
+    return {k: (float(np.max(v)) if isinstance(v, list) else v) for k, v in u.items()}
+
+
+def auto_grade(ch: Characterisation) -> str:
+    """The preset (navigation, tactical, mems, consumer) whose ARW and VRW are nearest (in log) to the fit."""
+    best, dist = "mems", np.inf
+    arw = [a.terms["white"].value for a in ch.axes[:3] if a.terms["white"].fitted]
+    vrw = [a.terms["white"].value for a in ch.axes[3:] if a.terms["white"].fitted]
+    for g in ("navigation", "tactical", "mems", "consumer"):
+        u = _grade_units(g)
+        d = 0.0
+        if arw:
+            d += abs(math.log(max(arw) / DEG_SQRT_H / u["arw_deg_sqrt_h"]))
+        if vrw:
+            d += abs(math.log(max(vrw) / M_S_SQRT_H / u["vrw_m_s_sqrt_h"]))
+        if d < dist:
+            best, dist = g, d
+    return best
+
+
+def _fmt(x: float) -> str:
+    return f"{x:.4g}"
+
+
+def imu_section(ch: Characterisation, grade: str | None = None) -> tuple[dict, dict]:
+    """The ``imu:`` section of an ``aidnav process`` configuration from a characterisation.
+
+    One value per triad (the filter's keys are scalars): the largest axis value of each noise density
+    and σ (conservative), the shortest correlation time. A triad whose Gauss-Markov and random walk are
+    both fitted gets one Gauss-Markov bias with the same T and the driving noise of both,
+    σ² = σ_GM² + K²T/2 (the filter has one bias process per sensor). The turn-on bias (run-to-run) cannot
+    be seen in one static log: its σ is the grade default, combined with the fitted σ as √(σ_b² + σ²).
+    Terms the log does not resolve take the grade default (``grade``; None = :func:`auto_grade`).
+
+    Returns (values, comments): dicts keyed by the configuration key; comments say each value's source.
+    """
+    grade = grade or auto_grade(ch)
+    gu = _grade_units(grade)
+    vals: dict = {}
+    com: dict = {}
+    for sensor, axes in (("gyro", ch.axes[:3]), ("accel", ch.axes[3:])):
+        g = sensor == "gyro"
+        wkey, wdef, wunit = (("arw_deg_sqrt_h", gu["arw_deg_sqrt_h"], DEG_SQRT_H) if g
+                             else ("vrw_m_s_sqrt_h", gu["vrw_m_s_sqrt_h"], M_S_SQRT_H))
+        bunit, bname = (DEG_H, "deg/h") if g else (UG, "ug")
+        rwunit, rwname = (DEG_H_SQRT_H, "deg/h/sqrt(h)") if g else (UG_SQRT_H, "ug/sqrt(h)")
+        white = [a.terms["white"] for a in axes]
+        if all(t.fitted for t in white):
+            vals[wkey] = max(t.value for t in white) / wunit
+            com[wkey] = "fitted (largest axis): " + ", ".join(
+                f"{a.axis[-1]} {_fmt(t.value / wunit)} [{_fmt(t.lo / wunit)}, {_fmt(t.hi / wunit)}]"
+                for a, t in zip(axes, white, strict=True))
+        else:
+            vals[wkey] = wdef
+            com[wkey] = f"grade default ({grade}): the white noise is not resolved on every axis"
+        p = "gyro" if g else "accel"
+        ikey, tkey, rkey, skey = ((f"{p}_bias_instability_deg_h", f"{p}_bias_tau_s", f"{p}_bias_rw_deg_h_sqrt_h",
+                                   f"{p}_bias_sigma_deg_h") if g else
+                                  (f"{p}_bias_instability_ug", f"{p}_bias_tau_s", f"{p}_bias_rw_ug_sqrt_h",
+                                   f"{p}_bias_sigma_ug"))
+        gm_ok = all(a.terms["gm_sigma"].fitted for a in axes)
+        rw_ok = all(a.terms["rrw"].fitted for a in axes)
+        sig = max(a.terms["gm_sigma"].value for a in axes) if gm_ok else None
+        tau = min(a.terms["gm_tau"].value for a in axes) if gm_ok else None
+        kk = max(a.terms["rrw"].value for a in axes) if rw_ok else None
+        gm_list = ", ".join(
+            f"{a.axis[-1]} {_fmt(a.terms['gm_sigma'].value / bunit)} {bname} / "
+            f"{_fmt(a.terms['gm_tau'].value)} s" for a in axes) if gm_ok else ""
+        if gm_ok and rw_ok:
+            s_eff = math.sqrt(sig**2 + kk**2 * tau / 2.0)
+            vals[ikey], vals[tkey], vals[rkey] = s_eff / bunit, tau, kk / rwunit
+            com[ikey] = (f"fitted Gauss-Markov sigma {_fmt(sig / bunit)} (largest axis; {gm_list}) merged with "
+                         f"the fitted random walk: sqrt(sigma^2 + K^2 T/2)")
+            com[tkey] = "fitted Gauss-Markov correlation time (shortest axis)"
+            com[rkey] = (f"fitted random walk (largest axis); used by the filter only when {tkey} <= 0, here "
+                         "merged into the Gauss-Markov above")
+        elif gm_ok:
+            vals[ikey], vals[tkey], vals[rkey] = sig / bunit, tau, 0.0
+            com[ikey] = f"fitted Gauss-Markov sigma (largest axis; {gm_list})"
+            com[tkey] = "fitted Gauss-Markov correlation time (shortest axis)"
+            com[rkey] = "no random walk fitted (" + axes[0].terms["rrw"].status + "); unused while tau > 0"
+        elif rw_ok:
+            vals[ikey], vals[tkey], vals[rkey] = 0.0, 0.0, kk / rwunit
+            com[ikey] = "no Gauss-Markov bias instability fitted: bias modelled as a random walk"
+            com[tkey] = "0: random-walk bias"
+            com[rkey] = "fitted random walk (largest axis): " + ", ".join(
+                f"{a.axis[-1]} {_fmt(a.terms['rrw'].value / rwunit)}" for a in axes)
+        else:
+            di = gu["gyro_bias_instability_deg_h" if g else "accel_bias_instability_ug"]
+            dt_ = gu["gyro_bias_corr_time_s" if g else "accel_bias_corr_time_s"]
+            vals[ikey], vals[tkey], vals[rkey] = di, dt_, 0.0
+            bound = max(a.terms["bias_instability"].upper or 0.0 for a in axes) / bunit
+            com[ikey] = (f"grade default ({grade}): the log is too short (or too noisy) to resolve the bias "
+                         f"instability; it bounds the flicker floor B below {_fmt(bound)} {bname}")
+            com[tkey] = f"grade default ({grade})"
+            com[rkey] = "not resolved; unused while tau > 0"
+        tb = gu["gyro_bias_deg_h" if g else "accel_bias_ug"]
+        vals[skey] = math.hypot(tb, vals[ikey])
+        com[skey] = (f"turn-on bias {_fmt(tb)} {bname}: grade default ({grade}), one static log cannot show "
+                     f"the run-to-run bias; combined with the instability above as sqrt(b^2 + sigma^2)")
+    order = ["arw_deg_sqrt_h", "vrw_m_s_sqrt_h", "gyro_bias_sigma_deg_h", "accel_bias_sigma_ug",
+             "gyro_bias_instability_deg_h", "accel_bias_instability_ug", "gyro_bias_tau_s", "accel_bias_tau_s",
+             "gyro_bias_rw_deg_h_sqrt_h", "accel_bias_rw_ug_sqrt_h"]
+    return {k: float(vals[k]) for k in order}, {k: com[k] for k in order}
+
+
+def imu_yaml(ch: Characterisation, grade: str | None = None, source: str = "") -> str:
+    """YAML text of the ``imu:`` section with each number's source in a comment (see :func:`imu_section`)."""
+    vals, com = imu_section(ch, grade)
+    head = [f"# imu: section for `aidnav process`, from `aidnav characterise` of {source or 'a static log'}",
+            f"# ({ch.n_samples} samples at {ch.fs_hz:.6g} Hz, {ch.duration_s:.6g} s). Values per axis in "
+            "brackets are 95% intervals.",
+            "# One value per triad: the largest axis noise and sigma, the shortest correlation time."]
+    lines = ["imu:"]
+    for k, v in vals.items():
+        lines.append(f"  {k}: {v!r}  # {com[k]}")
+    return "\n".join(head + lines) + "\n"
+
+
+def characterise_file(imu_path, out_dir, static: str | None = None, grade: str | None = None) -> tuple:
+    """``aidnav characterise``: read any IMU log, characterise it, write allan.png, noise.json, imu.yaml.
+
+    static : "START:END" seconds after the first sample (either may be empty). Returns
+    (Characterisation, list of written paths). Raises :class:`NotStaticError` / ValueError with a clear
+    message for a moving log, bad option or unusable data.
+    """
+    from aidnav.process import read_imu_any
+    from aidnav.report.allan_plot import plot_allan
+
+    rng = None
+    if static:
+        parts = static.split(":")
+        try:
+            if len(parts) != 2:
+                raise ValueError
+            rng = (float(parts[0]) if parts[0].strip() else None, float(parts[1]) if parts[1].strip() else None)
+        except ValueError:
+            raise ValueError(f"--static {static!r}: expected START:END in seconds after the first sample"
+                             ) from None
+        if rng[0] is not None and rng[1] is not None and rng[1] <= rng[0]:
+            raise ValueError(f"--static {static!r}: END must be after START")
+    imu = read_imu_any(imu_path)
+    ch = characterise_imu(imu, static=rng)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    nd = noise_dict(ch)
+    nd["imu"] = str(imu_path)
+    nd["grade_for_defaults"] = grade or auto_grade(ch)
+    p_json = out / "noise.json"
+    p_json.write_text(json.dumps(nd, indent=2))
+    p_yaml = out / "imu.yaml"
+    p_yaml.write_text(imu_yaml(ch, nd["grade_for_defaults"], source=str(imu_path)))
+    p_png = plot_allan(ch, out / "allan.png", title=f"Allan deviation: {Path(imu_path).name}")
+    return ch, [p_png, p_json, p_yaml]

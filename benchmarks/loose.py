@@ -1,0 +1,92 @@
+"""Benchmark of the loosely coupled filter (issue 12): IMU samples per second and peak memory.
+
+Prints, for ``sim_w1_pyins`` (one hour, 360,000 samples at 100 Hz) and the rtklibexplorer drive log:
+* the forward filter alone (data in memory, compiled code warm): samples/s, best of 5;
+* forward filter + RTS smoother: samples/s, best of 5;
+* the whole ``aidnav process`` command end to end (start-up, reading, filter, smoother, writing
+  Parquet) as a fresh process: wall time and peak resident memory (best of 3).
+Targets (issue 12): filter >= 600,000 samples/s on sim_w1; end to end < 3 s on sim_w1 (KF-GINS ~6 s
+without smoother) and < 2 s on the drive log; peak memory < 300 MB.
+
+Run: ``python benchmarks/loose.py`` (needs ../shared/data or $AIDNAV_DATA).
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = Path(os.environ.get("AIDNAV_DATA", ROOT.parent / "shared" / "data"))
+
+CASES = {
+    "sim_w1_pyins": dict(imu="imu.parquet", gnss="gnss.csv", config="sim_w1_pyins.yaml", extra=[]),
+    "rtklibexplorer_drive_0708": dict(imu="imu_1934.csv", gnss="gnss_1934_sf.pos",
+                                      config="rtklibexplorer_drive_0708.yaml",
+                                      extra=["--outage", "40:15:45"]),
+}
+
+
+# the child prints its own peak resident set size [KiB] when it exits
+PEAK_WRAPPER = ("import atexit, resource, sys; atexit.register(lambda: print('peak_kib', "
+                "resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, file=sys.stderr)); "
+                "from aidnav.cli import app; app()")
+
+
+def best_of(fn, n):
+    best = float("inf")
+    for _ in range(n):
+        t = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t)
+    return best
+
+
+def main():
+    if not DATA.is_dir():
+        print(f"data folder {DATA} not found: set AIDNAV_DATA")
+        return 2
+    from aidnav.filters.loose import run_loose
+    from aidnav.process import load_config, read_gnss_any, read_imu_any
+
+    rows = []
+    for name, c in CASES.items():
+        d = DATA / name
+        cfg = load_config(ROOT / "examples" / c["config"])
+        imu = read_imu_any(d / c["imu"])
+        gnss = read_gnss_any(d / c["gnss"], cfg.gnss.height_offset_m)
+        run_loose(imu, gnss, cfg, smooth=True)  # warm-up (loads the compiled kernels)
+        n = len(imu)
+        t_f = best_of(lambda: run_loose(imu, gnss, cfg), 5)  # noqa: B023
+        t_s = best_of(lambda: run_loose(imu, gnss, cfg, smooth=True), 5)  # noqa: B023
+        walls, peaks = [], []
+        with tempfile.TemporaryDirectory() as tmp:
+            for _ in range(3):
+                cmd = [sys.executable, "-c", PEAK_WRAPPER, "process",
+                       "--imu", str(d / c["imu"]), "--gnss", str(d / c["gnss"]), "--config",
+                       str(ROOT / "examples" / c["config"]), "-o", str(Path(tmp) / "out.parquet"), "--smooth",
+                       *c["extra"]]
+                t = time.perf_counter()
+                p = subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                                   text=True)
+                walls.append(time.perf_counter() - t)
+                peaks.append(float(p.stderr.strip().splitlines()[-1].split()[-1]) / 1024)
+        rows.append((name, n, n / t_f, n / t_s, min(walls), max(peaks)))
+    print(f"{'data set':28s} {'IMU samples':>11s} {'filter /s':>12s} {'filt+smooth /s':>15s} "
+          f"{'end-to-end s':>13s} {'peak MB':>8s}")
+    for r in rows:
+        print(f"{r[0]:28s} {r[1]:11d} {r[2]:12,.0f} {r[3]:15,.0f} {r[4]:13.2f} {r[5]:8.0f}")
+    print("targets: filter >= 600,000/s (sim_w1); end to end < 3 s (sim_w1), < 2 s (drive); peak < 300 MB")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

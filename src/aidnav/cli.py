@@ -77,7 +77,7 @@ def process(
             s = process_logs(imu, gnss, config, out, smooth=smooth, outages=outage, console=console)
     except (DataError, ConfigError, ValueError) as e:
         _fail(str(e))
-    console.print(format_summary(s))
+    console.print(format_summary(s), markup=False, highlight=False, soft_wrap=True)
 
 
 def main():  # pragma: no cover

@@ -1,0 +1,695 @@
+"""Satcom on the move (seed 003, patent CN104064869): MEMS-INS/GPS navigation, dual-quaternion antenna
+control, servo model and pointing error (SPEC.md §4).
+
+Frames and units (``CONVENTIONS.md``): n = ENU, b = body RFU, antenna frame v (y_v beam, z_v on the
+azimuth-axis side); position (lat, lon [rad], h [m]), velocity ENU [m/s], attitude q_b^n (Hamilton,
+scalar first); angles in radians inside, degrees only where a name says ``_deg``. Times in seconds on the
+input's scale.
+
+What is here, in the order of the patent's system (its Fig. 3):
+
+* **Navigation** (SPEC §4.1). :func:`run_nav8`: strapdown (:func:`aidnav.nav.strapdown.strapdown_step`)
+  at the IMU ("interrupt") rate and the patent's **8-state Kalman filter** (Qin, Zhang & Wang, 2nd ed.)
+  x = [δv_E, δv_N, φ_E, φ_N, ε_x, ε_y, ∇_x, ∇_y] with the GPS velocity difference z = v_INS − v_GPS (E, N)
+  as measurement. The dynamics are the rows and columns of the common 15-state ENU model
+  (:func:`aidnav.filters.ins_errors.fill_model`, SPEC §6) restricted to these states (φ_U dropped); the
+  filter is the one Kalman core (:mod:`aidnav.filters.kalman`: ``discretize``, ``predict``, ``update``).
+  Only the level attitude (and the E/N velocity, the x/y sensor biases) is corrected; heading comes from
+  the initial alignment and gyro integration. The correction convention is that of CONVENTIONS:
+  C_b^n(computed) = (I − [φ×]) C_b^n(true), corrected by q ← q(φ̂) ⊗ q. Outside the filter, position,
+  height and vertical velocity are taken from each GPS fix (the 8 states have no position; a free
+  vertical channel diverges); ``use_filter=False`` gives the same mechanisation without the Kalman
+  correction ("free INS" for the attitude). :func:`run_loose_nav` runs the 15-state loosely coupled
+  filter (:func:`aidnav.filters.loose.run_loose`) instead and recovers the same per-interrupt quantities.
+  Both return a :class:`NavRun`: the navigation quaternion after each interrupt, the rotation vector
+  ΔΘ of that interrupt (body relative to the ideal platform: q_pre = q_prev ⊗ q(ΔΘ), i.e.
+  ΔΘ ≈ ∫(ω_ib^b − C_n^b ω_in^n)dt) and whether a filter correction was applied.
+* **Dual-quaternion control** (SPEC §4.2, claims 1–2). :func:`dual_quaternion_track`: the antenna-control
+  quaternion starts equal to the navigation quaternion and receives the **same** ΔΘ every interrupt;
+  then, for each Euler angle k (patent element order: 1 pitch, 2 roll, 3 heading), d_k = angle_k(q_ant) −
+  angle_k(q_nav) wrapped to (−π, π], and a command angular rate of sign +sign(d_k) and magnitude w_k is
+  applied. The sign rules a–f only make sense if the command rotates the antenna's *virtual platform*
+  (SPEC §4.4 erratum 2): a positive platform rate decreases the antenna's angle, so |d_k| decreases.
+  The patent's (Qin/PSINS) heading is the yaw angle, counter-clockwise positive; aidnav's heading is
+  clockwise, so the third element is computed on yaw ψ = −heading (with aidnav's heading the rules a/b read
+  with the opposite sign; the behaviour, |d| decreasing, is the same). The command is applied as Euler-angle
+  rates (each angle of q_ant moves by exactly −sign(d_k)·min(w_k·dt, |d_k|), which is the exact form of the
+  patent's "first element ↔ pitch, second ↔ roll, third ↔ heading" rotation vector); the equivalent
+  rotation vector of every interrupt is returned. Magnitude (claim 2, SPEC §4.2): |d_k|/T_f ≤ w_k ≤ w_max,
+  latched at each filter correction (w_k = min(w_max, margin·|d_k|/T_f)); between corrections
+  w_k = min(w_max, max(latched, |d_k|/T_f)) so that a difference moved between pitch and roll by a turn is
+  still closed; when |d_k|/T_f > w_max the bound w_max wins (the patent is silent; SPEC §4.4 erratum 3).
+  No step overshoots (min(w_k·dt, |d_k|)). Per axis the antenna's Euler angles never move by more than
+  w_max·dt per interrupt beyond the gyro-propagated motion (the total rotation is ≤ √3·w_max·dt).
+  Servo commands are computed from q_ant only (:func:`servo_commands`).
+* **Servo angles** (SPEC §4.3): :func:`aidnav.nav.geo_pointing.servo_angles_rad` /
+  :func:`aidnav.nav.geo_pointing.servo_angles` (re-exported here).
+* **Servo and pointing model**: :func:`servo_track` (each axis a second-order loop, natural frequency
+  ω_n = 2π·bandwidth and damping ζ, with command-rate feed-forward, acceleration and rate limits),
+  :func:`beam_errors` (angle between the servo's beam and the true line of sight, with the true attitude
+  and position; polarization mismatch) and :func:`signal_loss_db` (Gaussian-beam pointing loss
+  12·(θ/θ_3dB)² dB plus polarization mismatch loss −20·log10|cos Δp|).
+* :func:`reference_chase`: the reference chase run of SPEC §4.5.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numba import njit
+
+from aidnav.filters.ins_errors import fill_model
+from aidnav.filters.kalman import discretize, predict, update
+from aidnav.nav.geo_pointing import beam_body, geo_sat_ecef, servo_angles, servo_angles_rad, wrap_pol
+from aidnav.nav.rotations import (
+    dcm_from_euler,
+    dcm_from_quat,
+    euler_from_quat,
+    quat_conj,
+    quat_from_euler,
+    quat_from_rotvec,
+    quat_mult,
+    quat_normalize,
+    rotvec_from_quat,
+)
+from aidnav.nav.strapdown import strapdown_step
+
+__all__ = [
+    "Nav8Config", "NavRun", "run_nav8", "run_loose_nav", "dual_quaternion_track", "DualResult",
+    "servo_commands", "ServoAxis", "default_servo_axes", "servo_track", "ServoResult", "beam_errors",
+    "signal_loss_db", "reference_chase", "servo_angles", "NAV8_STATES", "quat_angle_between",
+]
+
+DEG = np.pi / 180.0
+DEG_H = DEG / 3600.0
+UG = 9.80665e-6
+
+#: the 8 states of the patent's filter and their indices in the 15-state model of ins_errors
+NAV8_STATES = ("dvE", "dvN", "phiE", "phiN", "eps_x", "eps_y", "nabla_x", "nabla_y")
+_IDX15 = np.array([3, 4, 0, 1, 9, 10, 12, 13], dtype=np.int64)
+
+
+# ============================================================================================ navigation
+@dataclass
+class Nav8Config:
+    """Settings of the patent's 8-state filter (boundary units in the names).
+
+    The IMU noise model drives the 15-state process model (white gyro/accelerometer noise, first-order
+    Gauss-Markov bias driving noise q = 2σ²/τ); only its 8-state part is used.
+    """
+
+    arw_deg_sqrt_h: float = 0.3
+    vrw_m_s_sqrt_h: float = 0.1
+    gyro_bias_sigma_deg_h: float = 10.0  #: initial σ of ε_x, ε_y
+    accel_bias_sigma_ug: float = 1000.0  #: initial σ of ∇_x, ∇_y
+    gyro_bias_instability_deg_h: float = 5.0
+    accel_bias_instability_ug: float = 100.0
+    bias_tau_s: float = 300.0
+    vel_sigma_m_s: float = 0.1  #: GPS velocity 1σ (E, N) [m/s]
+    init_vel_sigma_m_s: float = 0.2
+    init_level_sigma_deg: float = 1.0  #: initial σ of φ_E, φ_N
+    reset_position: bool = True  #: take lat, lon, h, v_U from each GPS fix (outside the filter)
+
+    def q_psd(self) -> np.ndarray:
+        """Continuous PSD of the 12 noise inputs of the 15-state model (SI units)."""
+        arw = self.arw_deg_sqrt_h * DEG / 60.0
+        vrw = self.vrw_m_s_sqrt_h / 60.0
+        qg = 2.0 * (self.gyro_bias_instability_deg_h * DEG_H) ** 2 / self.bias_tau_s
+        qa = 2.0 * (self.accel_bias_instability_ug * UG) ** 2 / self.bias_tau_s
+        return np.array([arw**2] * 3 + [vrw**2] * 3 + [qg] * 3 + [qa] * 3, float)
+
+    def p0(self) -> np.ndarray:
+        d = [self.init_vel_sigma_m_s**2] * 2 + [(self.init_level_sigma_deg * DEG) ** 2] * 2 \
+            + [(self.gyro_bias_sigma_deg_h * DEG_H) ** 2] * 2 + [(self.accel_bias_sigma_ug * UG) ** 2] * 2
+        return np.diag(np.array(d, float))
+
+
+@dataclass
+class NavRun:
+    """Navigation output at every IMU interrupt (input to :func:`dual_quaternion_track`).
+
+    time (N,) [s]; state (N, 10) [lat, lon, h, vE, vN, vU, q_b^n] after the interrupt (and after any filter
+    correction); dtheta (N, 3) ΔΘ of the interrupt [rad] (body, relative to the ideal platform); dt (N,)
+    interrupt periods [s]; corrected (N,) bool: a filter correction was applied at that interrupt;
+    q0 (4,) the navigation quaternion before the first interrupt; t0 [s] its time. filter_time (M,),
+    filter_x (M, n): the estimated error at each filter epoch (before feedback); bias (N, k) the sensor
+    bias estimates [gyro rad/s, accel m/s²]; label: which filter.
+    """
+
+    time: np.ndarray
+    state: np.ndarray
+    dtheta: np.ndarray
+    dt: np.ndarray
+    corrected: np.ndarray
+    q0: np.ndarray
+    t0: float
+    filter_time: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    filter_x: np.ndarray = field(default_factory=lambda: np.zeros((0, 8)))
+    bias: np.ndarray | None = None
+    label: str = ""
+
+
+@njit(cache=True)
+def _nav8_kernel(imu_t, dth, dvel, t0, st0, P0, q_psd, tau, g_t, g_lat, g_lon, g_h, g_vel, r_vel,
+                 use_filter, reset_pos):
+    n_imu = imu_t.shape[0]
+    M = g_t.shape[0]
+    st = st0.copy()
+    P = P0.copy()
+    x = np.zeros(8)
+    F15 = np.zeros((15, 15))
+    G15 = np.zeros((15, 12))
+    F8 = np.zeros((8, 8))
+    G8 = np.zeros((8, 12))
+    Phi = np.zeros((8, 8))
+    Qd = np.zeros((8, 8))
+    H = np.zeros((2, 8))
+    H[0, 0] = 1.0
+    H[1, 1] = 1.0
+    R = np.zeros((2, 2))
+    R[0, 0] = r_vel * r_vel
+    R[1, 1] = r_vel * r_vel
+    z = np.zeros(2)
+    innov = np.zeros(2)
+    sdiag = np.zeros(2)
+    bg = np.zeros(3)
+    ba = np.zeros(3)
+    out_st = np.empty((n_imu, 10))
+    out_dth = np.empty((n_imu, 3))
+    out_dt = np.empty(n_imu)
+    out_bias = np.empty((n_imu, 6))
+    corr = np.zeros(n_imu, np.bool_)
+    rec_t = np.full(M, np.nan)
+    rec_x = np.full((M, 8), np.nan)
+    rec_p = np.full((M, 8), np.nan)
+    dthc = np.zeros(3)
+    dvc = np.zeros(3)
+    dth_prev = np.zeros(3)
+    dv_prev = np.zeros(3)
+    C_sum = np.zeros((3, 3))
+    fn_sum = np.zeros(3)
+    wb_sum = np.zeros(3)
+    fb_sum = np.zeros(3)
+    T = 0.0
+    n_sum = 0
+    gi = 0
+    while gi < M and g_t[gi] <= t0 + 1e-9:
+        gi += 1
+    tp = t0
+    for k in range(n_imu):
+        dt = imu_t[k] - tp
+        tp = imu_t[k]
+        for i in range(3):
+            dthc[i] = dth[k, i] - bg[i] * dt
+            dvc[i] = dvel[k, i] - ba[i] * dt
+        C = dcm_from_quat(st[6:10])
+        C_sum += C
+        fn_sum += C @ dvc
+        wb_sum += dthc
+        fb_sum += dvc
+        T += dt
+        n_sum += 1
+        q_prev = st[6:10].copy()
+        strapdown_step(st, dthc, dvc, dth_prev, dv_prev, dt)
+        dth_prev[:] = dthc
+        dv_prev[:] = dvc
+        # ΔΘ of this interrupt: q_pre = q_prev ⊗ q(ΔΘ) (body rotation relative to the ideal platform)
+        out_dth[k] = rotvec_from_quat(quat_mult(quat_conj(q_prev), st[6:10]))
+        out_dt[k] = dt
+        while gi < M and g_t[gi] <= imu_t[k] + 1e-9:
+            if use_filter:
+                if T > 0.0:
+                    fill_model(F15, G15, st[0], st[2], st[3:6], fn_sum / T, C_sum / n_sum, wb_sum / T,
+                               fb_sum / T, tau, tau, 0.0, 0.0)
+                    for i in range(8):
+                        for j in range(8):
+                            F8[i, j] = F15[_IDX15[i], _IDX15[j]]
+                        for j in range(12):
+                            G8[i, j] = G15[_IDX15[i], j]
+                    discretize(F8, G8, q_psd, T, Phi, Qd)
+                    predict(x, P, Phi, Qd)
+                z[0] = st[3] - g_vel[gi, 0]
+                z[1] = st[4] - g_vel[gi, 1]
+                update(x, P, H, R, z, 0.0, innov, sdiag)
+                rec_t[gi] = imu_t[k]
+                for i in range(8):
+                    rec_x[gi, i] = x[i]
+                    rec_p[gi, i] = P[i, i]
+                # closed-loop feedback (CONVENTIONS): C_b^n ← (I + [φ̂×]) C_b^n as q ← q(φ̂) ⊗ q
+                phi = np.array([x[2], x[3], 0.0])
+                st[6:10] = quat_normalize(quat_mult(quat_from_rotvec(phi), st[6:10]))
+                st[3] -= x[0]
+                st[4] -= x[1]
+                bg[0] += x[4]
+                bg[1] += x[5]
+                ba[0] += x[6]
+                ba[1] += x[7]
+                x[:] = 0.0
+                corr[k] = True
+                T = 0.0
+                n_sum = 0
+                C_sum[:, :] = 0.0
+                fn_sum[:] = 0.0
+                wb_sum[:] = 0.0
+                fb_sum[:] = 0.0
+            if reset_pos:
+                st[0] = g_lat[gi]
+                st[1] = g_lon[gi]
+                st[2] = g_h[gi]
+                if not np.isnan(g_vel[gi, 2]):
+                    st[5] = g_vel[gi, 2]
+            gi += 1
+        out_st[k] = st
+        out_bias[k, 0:3] = bg
+        out_bias[k, 3:6] = ba
+    return out_st, out_dth, out_dt, corr, out_bias, rec_t, rec_x, rec_p
+
+
+def _init_state(lat, lon, h, vel, rph):
+    q0 = quat_from_euler(float(rph[0]), float(rph[1]), float(rph[2]))
+    return np.array([lat, lon, h, vel[0], vel[1], vel[2], *q0], float)
+
+
+def run_nav8(imu, gnss, lat: float, lon: float, h: float, vel, rph, cfg: Nav8Config | None = None,
+             use_filter: bool = True) -> NavRun:
+    """MEMS INS + GPS with the patent's 8-state velocity-matching filter (SPEC §4.1).
+
+    imu : :class:`aidnav.data.ImuData` (increments, body RFU); gnss : :class:`aidnav.data.GnssData` with
+    velocity (the filter period T_f is the GPS interval). Initial state at ``imu.t0``: lat, lon [rad],
+    h [m], vel ENU [m/s] (3,), rph = (roll, pitch, heading) [rad] (from the initial alignment).
+    ``use_filter=False``: no Kalman correction (position, height and v_U still follow GPS when
+    ``cfg.reset_position``), i.e. free-INS attitude. Returns a :class:`NavRun`.
+    """
+    cfg = cfg or Nav8Config()
+    if gnss.vel is None:
+        raise ValueError("run_nav8: the 8-state filter needs GPS velocity")
+    st0 = _init_state(lat, lon, h, np.asarray(vel, float), rph)
+    r = _nav8_kernel(imu.time, imu.dtheta, imu.dv, float(imu.t0), st0, cfg.p0(), cfg.q_psd(),
+                     float(cfg.bias_tau_s), gnss.time, gnss.lat, gnss.lon, gnss.height,
+                     np.ascontiguousarray(gnss.vel), float(cfg.vel_sigma_m_s), bool(use_filter),
+                     bool(cfg.reset_position))
+    out_st, out_dth, out_dt, corr, bias, rec_t, rec_x, _rec_p = r
+    ok = ~np.isnan(rec_t)
+    return NavRun(time=imu.time.copy(), state=out_st, dtheta=out_dth, dt=out_dt, corrected=corr,
+                  q0=st0[6:10].copy(), t0=float(imu.t0), filter_time=rec_t[ok], filter_x=rec_x[ok],
+                  bias=bias, label="8-state" if use_filter else "free INS")
+
+
+@njit(cache=True)
+def _replay_increments(imu_t, dth, dvel, t0, st0, states, bias, nb):
+    """ΔΘ of every interrupt of a closed-loop run: replay one strapdown step from the previous output
+    with the same bias-compensated increments, q_pre = q_prev ⊗ q(ΔΘ)."""
+    n = imu_t.shape[0]
+    out = np.empty((n, 3))
+    dts = np.empty(n)
+    st = st0.copy()
+    b = np.zeros(nb)
+    dthc = np.zeros(3)
+    dvc = np.zeros(3)
+    dth_prev = np.zeros(3)
+    dv_prev = np.zeros(3)
+    tp = t0
+    for k in range(n):
+        dt = imu_t[k] - tp
+        tp = imu_t[k]
+        for i in range(3):
+            dthc[i] = dth[k, i] - b[i] * dt
+            dvc[i] = dvel[k, i] - b[3 + i] * dt
+        if nb >= 12:
+            for i in range(3):
+                dthc[i] -= b[6 + i] * dth[k, i]
+                dvc[i] -= b[9 + i] * dvel[k, i]
+        q_prev = st[6:10].copy()
+        strapdown_step(st, dthc, dvc, dth_prev, dv_prev, dt)
+        out[k] = rotvec_from_quat(quat_mult(quat_conj(q_prev), st[6:10]))
+        dts[k] = dt
+        dth_prev[:] = dthc
+        dv_prev[:] = dvc
+        st[:] = states[k]
+        for i in range(nb):
+            b[i] = bias[k, i]
+    return out, dts
+
+
+def run_loose_nav(imu, gnss, lat: float, lon: float, h: float, vel, rph, cfg=None) -> NavRun:
+    """The 15-state loosely coupled filter (:func:`aidnav.filters.loose.run_loose`) as the navigation of
+    the antenna controller: same initial state as :func:`run_nav8` (given mode), corrections at the
+    filter nodes (every GPS fix and ``cfg.filter.prop_dt_s``); full attitude (heading too) is corrected.
+
+    ``cfg`` : :class:`aidnav.filters.config.LooseConfig` or None (consumer MEMS defaults); its
+    ``init`` section is overwritten with the given state. Returns a :class:`NavRun` whose ΔΘ are
+    recovered by replaying each interrupt's strapdown step (exact: the same kernel and inputs).
+    """
+    from aidnav.filters.config import LooseConfig
+    from aidnav.filters.loose import run_loose
+
+    cfg = (cfg or LooseConfig()).model_copy(deep=True)
+    ini = cfg.init
+    ini.mode = "given"
+    ini.lat_deg, ini.lon_deg, ini.height_m = float(np.degrees(lat)), float(np.degrees(lon)), float(h)
+    ini.velocity_m_s = tuple(float(v) for v in vel)
+    ini.roll_deg, ini.pitch_deg, ini.heading_deg = (float(np.degrees(a)) for a in rph)
+    cfg.filter.output_rate_hz = None
+    if cfg.imu.time_offset_s != 0.0:
+        raise ValueError("run_loose_nav: use IMU data already on the GNSS time scale (time_offset_s = 0)")
+    res = run_loose(imu, gnss, cfg)
+    if len(res.time) != len(imu):
+        raise RuntimeError("run_loose_nav: expected an output at every IMU sample")
+    # the initial state exactly as run_loose builds it (degrees round trip included)
+    st0 = _init_state(ini.lat_deg * DEG, ini.lon_deg * DEG, ini.height_m, np.array(ini.velocity_m_s),
+                      np.array([ini.roll_deg, ini.pitch_deg, ini.heading_deg]) * DEG)
+    nb = res.bias.shape[1]
+    dth, dts = _replay_increments(imu.time, imu.dtheta, imu.dv, float(imu.t0), st0,
+                                  np.ascontiguousarray(res.state), np.ascontiguousarray(res.bias), nb)
+    corrected = np.isin(res.time, res.node_time)
+    return NavRun(time=res.time, state=res.state, dtheta=dth, dt=dts, corrected=corrected, q0=st0[6:10].copy(),
+                  t0=float(imu.t0), bias=res.bias, label=f"{cfg.nstate}-state loose")
+
+
+# ============================================================================= dual-quaternion control
+@njit(cache=True)
+def quat_angle_between(p, q):
+    """Rotation angle [rad] between two unit quaternions (sign-insensitive)."""
+    r = quat_mult(quat_conj(p), q)
+    s = np.sqrt(r[1] * r[1] + r[2] * r[2] + r[3] * r[3])
+    return 2.0 * np.arctan2(s, abs(r[0]))
+
+
+@njit(cache=True)
+def _wrap_pi(a):
+    r = (a + np.pi) % (2.0 * np.pi) - np.pi
+    if r == -np.pi:
+        r = np.pi
+    return r
+
+
+@njit(cache=True)
+def _patent_angles(q):
+    """(pitch, roll, yaw) [rad] of q_b^n in the patent's element order; yaw = −heading (CCW positive)."""
+    r, p, h = euler_from_quat(q)
+    return p, r, -h
+
+
+@njit(cache=True)
+def _dual_kernel(q0, dtheta, dts, q_nav, corrected, t_f, w_max, margin):
+    n = dtheta.shape[0]
+    q_ant = q0.copy()
+    w_lat = np.zeros(3)
+    out_q = np.empty((n, 4))
+    out_d = np.empty((n, 3))  # differences after the command [pitch, roll, yaw]
+    out_step = np.zeros((n, 3))  # Euler step applied by the command [pitch, roll, yaw] (platform sense +)
+    out_rot = np.zeros((n, 3))  # equivalent rotation vector of the command, body frame
+    out_w = np.empty((n, 3))
+    for k in range(n):
+        # 1. the same ΔΘ as the navigation quaternion (gyro-propagated motion)
+        q_ant = quat_normalize(quat_mult(q_ant, quat_from_rotvec(dtheta[k])))
+        pa, ra, ya = _patent_angles(q_ant)
+        pn, rn, yn = _patent_angles(q_nav[k])
+        d = np.array([_wrap_pi(pa - pn), _wrap_pi(ra - rn), _wrap_pi(ya - yn)])
+        # 2. latch the command magnitude at a filter correction: |d|/T_f ≤ w ≤ w_max (w_max wins)
+        if corrected[k]:
+            for i in range(3):
+                w_lat[i] = min(w_max, margin * abs(d[i]) / t_f)
+        dt = dts[k]
+        step = np.zeros(3)
+        moved = False
+        for i in range(3):
+            ad = abs(d[i])
+            w = min(w_max, max(w_lat[i], ad / t_f))
+            out_w[k, i] = w
+            if ad > 0.0:
+                # sign +sign(d) in the platform sense: the antenna's angle decreases by the step
+                step[i] = np.sign(d[i]) * min(w * dt, ad)
+                moved = True
+        if moved:
+            q_new = quat_from_euler(ra - step[1], pa - step[0], -(ya - step[2]))
+            # keep the quaternion sign continuous
+            if q_new[0] * q_ant[0] + q_new[1] * q_ant[1] + q_new[2] * q_ant[2] + q_new[3] * q_ant[3] < 0:
+                q_new = -q_new
+            out_rot[k] = rotvec_from_quat(quat_mult(quat_conj(q_ant), q_new))
+            q_ant = q_new
+            for i in range(3):
+                d[i] -= step[i]
+        out_step[k] = step
+        out_q[k] = q_ant
+        out_d[k] = d
+    return out_q, out_d, out_step, out_rot, out_w
+
+
+@dataclass
+class DualResult:
+    """Output of :func:`dual_quaternion_track` (per interrupt).
+
+    q_ant (N, 4) antenna-control quaternion; diff (N, 3) Euler differences q_ant − q_nav after the command,
+    patent order [pitch, roll, yaw=−heading] [rad]; step (N, 3) Euler change applied by the command (platform
+    sense, + = the antenna angle decreased) [rad]; cmd_rotvec (N, 3) the command as a body-frame rotation
+    vector [rad]; w (N, 3) command rate magnitudes [rad/s].
+    """
+
+    q_ant: np.ndarray
+    diff: np.ndarray
+    step: np.ndarray
+    cmd_rotvec: np.ndarray
+    w: np.ndarray
+
+
+def dual_quaternion_track(nav: NavRun, t_f: float = 1.0, w_max: float = 0.5 * DEG, margin: float = 1.0) -> DualResult:
+    """Antenna-control quaternion chasing the navigation quaternion (SPEC §4.2, claims 1–2).
+
+    nav : :class:`NavRun`; t_f : filter period T_f [s]; w_max : largest pointing-error rate the antenna
+    tolerates [rad/s]; margin (≥ 1) : the latched rate is margin·|d|/T_f (the patent asks for "at least"
+    |d|/T_f; 1 closes a difference exactly in T_f). See the module docstring for the rules.
+    """
+    if margin < 1.0:
+        raise ValueError("margin must be >= 1 (the rate is at least |d|/T_f)")
+    if not (t_f > 0 and w_max > 0):
+        raise ValueError("t_f and w_max must be > 0")
+    q_nav = np.ascontiguousarray(nav.state[:, 6:10])
+    r = _dual_kernel(np.asarray(nav.q0, float), np.ascontiguousarray(nav.dtheta), np.ascontiguousarray(nav.dt),
+                     q_nav, np.ascontiguousarray(nav.corrected, dtype=np.bool_), float(t_f), float(w_max),
+                     float(margin))
+    return DualResult(*r)
+
+
+@njit(cache=True)
+def _servo_cmd_kernel(lat, lon, h, q, sat, horizontal):
+    n = q.shape[0]
+    out = np.empty((n, 3))
+    for k in range(n):
+        az, el, pol = servo_angles_rad(lat[k], lon[k], h[k], dcm_from_quat(q[k]), sat, horizontal)
+        out[k, 0], out[k, 1], out[k, 2] = az, el, pol
+    return out
+
+
+def servo_commands(state: np.ndarray, q: np.ndarray, sat_lon: float, horizontal: bool = False,
+                   radius: float | None = None) -> np.ndarray:
+    """Servo (az, el, pol) commands [rad] (N, 3) from the navigation position ``state[:, 0:3]`` and the
+    attitude quaternions ``q`` (N, 4): pass the antenna-control quaternion (dual-quaternion control) or the
+    navigation quaternion (direct pointing). ``sat_lon`` [rad]; ``radius`` [m] default R_GEO."""
+    sat = geo_sat_ecef(sat_lon) if radius is None else geo_sat_ecef(sat_lon, radius)
+    return _servo_cmd_kernel(np.ascontiguousarray(state[:, 0]), np.ascontiguousarray(state[:, 1]),
+                             np.ascontiguousarray(state[:, 2]), np.ascontiguousarray(q), sat, bool(horizontal))
+
+
+# ========================================================================================= servo model
+@dataclass
+class ServoAxis:
+    """One servo axis: rate limit [deg/s], acceleration limit [deg/s²], loop bandwidth (natural frequency
+    ω_n = 2π·bandwidth_hz) and damping ζ of the second-order response."""
+
+    rate_max_deg_s: float = 60.0
+    accel_max_deg_s2: float = 200.0
+    bandwidth_hz: float = 4.0
+    damping: float = 0.8
+
+
+def default_servo_axes() -> tuple[ServoAxis, ServoAxis, ServoAxis]:
+    """Azimuth, elevation and polarization axes of a typical mechanically steered Ku-band terminal."""
+    return (ServoAxis(60.0, 200.0, 4.0, 0.8), ServoAxis(40.0, 150.0, 4.0, 0.8), ServoAxis(30.0, 100.0, 3.0, 0.8))
+
+
+@njit(cache=True)
+def _wrapdiff(a, mode):
+    if mode == 1:
+        return (a + np.pi) % (2.0 * np.pi) - np.pi
+    if mode == 2:
+        return (a + 0.5 * np.pi) % np.pi - 0.5 * np.pi
+    return a
+
+
+@njit(cache=True)
+def _servo_kernel(dts, cmd, theta0, rate_max, acc_max, wn, zeta, mode, n_sub):
+    n, m = cmd.shape
+    th = theta0.copy()
+    om = np.zeros(m)
+    prev = theta0.copy()
+    out_th = np.empty((n, m))
+    out_om = np.empty((n, m))
+    out_acc = np.empty((n, m))  # largest |applied acceleration| within the interval
+    out_dem = np.empty((n, m))  # largest |demanded acceleration| within the interval (before limits)
+    n_sat = np.zeros(m, np.int64)
+    for k in range(n):
+        dt = dts[k]
+        hs = dt / n_sub
+        for i in range(m):
+            dc = _wrapdiff(cmd[k, i] - prev[i], mode[i])
+            wc = dc / dt  # command rate (first-order hold over the interrupt)
+            amax = 0.0
+            dmax = 0.0
+            for j in range(n_sub):
+                c = prev[i] + wc * (j + 1) * hs
+                e = _wrapdiff(c - th[i], mode[i])
+                ad = wn[i] * wn[i] * e + 2.0 * zeta[i] * wn[i] * (wc - om[i])
+                a = min(acc_max[i], max(-acc_max[i], ad))
+                if a != ad:
+                    n_sat[i] += 1
+                om_new = min(rate_max[i], max(-rate_max[i], om[i] + a * hs))
+                aa = abs(om_new - om[i]) / hs
+                if aa > amax:
+                    amax = aa
+                if abs(ad) > dmax:
+                    dmax = abs(ad)
+                th[i] += om_new * hs
+                om[i] = om_new
+            if mode[i] == 1:
+                th[i] = th[i] % (2.0 * np.pi)
+            elif mode[i] == 2:
+                th[i] = (th[i] + 0.5 * np.pi) % np.pi - 0.5 * np.pi
+            prev[i] = cmd[k, i]
+            out_th[k, i] = th[i]
+            out_om[k, i] = om[i]
+            out_acc[k, i] = amax
+            out_dem[k, i] = dmax
+    return out_th, out_om, out_acc, out_dem, n_sat
+
+
+@dataclass
+class ServoResult:
+    """Servo response (per interrupt): angle (N, 3) [rad], rate (N, 3) [rad/s], accel (N, 3) largest applied
+    |acceleration| in the interval [rad/s²], demand (N, 3) largest demanded |acceleration| before the limit
+    [rad/s²], saturated_fraction (3,) share of sub-steps at the acceleration limit."""
+
+    angle: np.ndarray
+    rate: np.ndarray
+    accel: np.ndarray
+    demand: np.ndarray
+    saturated_fraction: np.ndarray
+
+
+def servo_track(dts: np.ndarray, cmd: np.ndarray, axes=None, theta0=None, n_sub: int = 4) -> ServoResult:
+    """Second-order, rate- and acceleration-limited servos following the commands (az, el, pol) [rad].
+
+    Each axis: θ̈ = ω_n² e + 2ζω_n(ω_c − θ̇) with e the (wrapped) error to the command (linearly
+    interpolated over each interrupt, ω_c its rate), |θ̈| ≤ accel_max, |θ̇| ≤ rate_max; semi-implicit Euler
+    with ``n_sub`` sub-steps per interrupt. Azimuth wraps modulo 2π, polarization modulo π, elevation not.
+    dts (N,) interrupt periods [s]; cmd (N, 3) [rad]; theta0 (3,) initial angles (default: the first
+    command, at rest). The limits are never exceeded (up to rounding).
+    """
+    axes = axes or default_servo_axes()
+    cmd = np.ascontiguousarray(cmd, dtype=float)
+    m = cmd.shape[1]
+    if len(axes) != m:
+        raise ValueError(f"servo_track: {m} command columns but {len(axes)} axes")
+    rate = np.array([a.rate_max_deg_s for a in axes]) * DEG
+    acc = np.array([a.accel_max_deg_s2 for a in axes]) * DEG
+    wn = np.array([2 * np.pi * a.bandwidth_hz for a in axes])
+    zeta = np.array([a.damping for a in axes], float)
+    mode = np.array([1, 0, 2][:m] if m == 3 else [0] * m, dtype=np.int64)
+    th0 = cmd[0].copy() if theta0 is None else np.asarray(theta0, float).copy()
+    th, om, aa, dem, n_sat = _servo_kernel(np.ascontiguousarray(dts, float), cmd, th0, rate, acc, wn, zeta, mode,
+                                           int(n_sub))
+    return ServoResult(th, om, aa, dem, n_sat / (len(cmd) * n_sub))
+
+
+@njit(cache=True)
+def _beam_kernel(lat, lon, h, rph, ant, sat, horizontal):
+    n = lat.shape[0]
+    err = np.empty(n)
+    perr = np.empty(n)
+    for k in range(n):
+        C = dcm_from_euler(rph[k, 0], rph[k, 1], rph[k, 2])
+        az, el, pol = servo_angles_rad(lat[k], lon[k], h[k], C, sat, horizontal)
+        b = beam_body(ant[k, 0], ant[k, 1])
+        los = beam_body(az, el)
+        cx = b[1] * los[2] - b[2] * los[1]
+        cy = b[2] * los[0] - b[0] * los[2]
+        cz = b[0] * los[1] - b[1] * los[0]
+        err[k] = np.arctan2(np.sqrt(cx * cx + cy * cy + cz * cz), b @ los)
+        perr[k] = wrap_pol(ant[k, 2] - pol)
+    return err, perr
+
+
+def beam_errors(truth_lat, truth_lon, truth_h, truth_rph, ant: np.ndarray, sat_lon: float,
+                horizontal: bool = False, radius: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Pointing error [rad] = angle between the antenna beam (servo angles ``ant`` (N, 3) [az, el, pol] in
+    the body frame) and the **true** line of sight (true position (rad, rad, m) and attitude rph [rad]),
+    and the polarization mismatch [rad] in (−π/2, π/2] against the true required polarization."""
+    sat = geo_sat_ecef(sat_lon) if radius is None else geo_sat_ecef(sat_lon, radius)
+    return _beam_kernel(np.ascontiguousarray(truth_lat, float), np.ascontiguousarray(truth_lon, float),
+                        np.ascontiguousarray(truth_h, float), np.ascontiguousarray(truth_rph, float),
+                        np.ascontiguousarray(ant, float), sat, bool(horizontal))
+
+
+def signal_loss_db(pointing_error, beamwidth_3db, pol_error=None):
+    """Received-signal loss [dB, ≥ 0] for a pointing error [rad] and a full half-power beamwidth θ_3dB [rad]:
+    Gaussian-beam approximation 12·(θ/θ_3dB)² (3 dB at θ = θ_3dB/2), plus the polarization mismatch loss
+    −20·log10|cos Δp| of a linearly polarized link when ``pol_error`` [rad] is given."""
+    loss = 12.0 * (np.asarray(pointing_error, float) / beamwidth_3db) ** 2
+    if pol_error is not None:
+        c = np.maximum(np.abs(np.cos(np.asarray(pol_error, float))), 1e-12)
+        loss = loss - 20.0 * np.log10(c)
+    return loss
+
+
+# ====================================================================================== reference chase
+def reference_chase(heading_deg: float = 100.0, yaw_rate_deg_s: float = 5.0, dt: float = 0.01, t_f: float = 1.0,
+                    w_max_deg_s: float = 0.5, correction_rph_deg=(0.3, -0.5, 2.0), t_correction: float = 1.0,
+                    duration: float = 8.0, margin: float = 1.0) -> dict:
+    """The reference chase run of SPEC §4.5.
+
+    A level vehicle at ``heading_deg`` yaws at ``yaw_rate_deg_s`` (heading increasing); every interrupt
+    (``dt``) both quaternions get the same ΔΘ; at ``t_correction`` the navigation quaternion is corrected by
+    (roll, pitch, heading) = ``correction_rph_deg`` (a filter correction). Returns arrays (time, nav and
+    antenna Euler angles, differences [deg]) and the metrics: ``close_time_s`` (per axis: time after the
+    correction at which the difference first reaches 0), ``max_step_deg`` (per axis: largest Euler change of
+    the antenna per interrupt beyond the gyro-propagated motion), ``max_rot_deg`` (largest total command
+    rotation per interrupt) and ``identity_before_rad`` (largest angle between q_ant and q_nav before the
+    correction).
+    """
+    n = int(round(duration / dt))
+    t = (np.arange(n) + 1) * dt
+    dth = np.zeros((n, 3))
+    dth[:, 2] = -yaw_rate_deg_s * DEG * dt  # heading (clockwise) increases: rotation about body z is negative
+    q0 = quat_from_euler(0.0, 0.0, heading_deg * DEG)
+    q = q0.copy()
+    state = np.zeros((n, 10))
+    corrected = np.zeros(n, bool)
+    kc = int(round(t_correction / dt)) - 1
+    for k in range(n):
+        q = quat_normalize(quat_mult(q, quat_from_rotvec(dth[k])))
+        if k == kc:
+            r, p, hd = euler_from_quat(q)
+            c = np.asarray(correction_rph_deg, float) * DEG
+            q = quat_from_euler(r + c[0], p + c[1], hd + c[2])
+            corrected[k] = True
+        state[k, 6:10] = q
+    nav = NavRun(time=t, state=state, dtheta=dth, dt=np.full(n, dt), corrected=corrected, q0=q0, t0=0.0,
+                 label="chase")
+    res = dual_quaternion_track(nav, t_f=t_f, w_max=w_max_deg_s * DEG, margin=margin)
+    diff = np.degrees(res.diff)  # pitch, roll, yaw(=-heading)
+    close = []
+    for i in range(3):
+        after = np.flatnonzero((np.abs(diff[:, i]) < 1e-9) & (np.arange(n) >= kc))
+        close.append(float(t[after[0]] - t[kc]) if len(after) else float("nan"))
+    ident = max((quat_angle_between(res.q_ant[k], state[k, 6:10]) for k in range(kc)), default=0.0)
+    rot = np.degrees(np.linalg.norm(res.cmd_rotvec, axis=1))
+    eul_nav = np.degrees(np.array([euler_from_quat(state[k, 6:10]) for k in range(n)]))
+    eul_ant = np.degrees(np.array([euler_from_quat(res.q_ant[k]) for k in range(n)]))
+    return {"time": t, "t_correction": float(t[kc]), "nav_rph_deg": eul_nav, "ant_rph_deg": eul_ant,
+            "diff_deg": diff, "step_deg": np.degrees(res.step),
+            "close_time_s": {"pitch": close[0], "roll": close[1], "heading": close[2]},
+            "max_step_deg": {"pitch": float(np.abs(np.degrees(res.step[:, 0])).max()),
+                             "roll": float(np.abs(np.degrees(res.step[:, 1])).max()),
+                             "heading": float(np.abs(np.degrees(res.step[:, 2])).max())},
+            "max_rot_deg": float(rot.max()), "identity_before_rad": float(ident)}

@@ -80,6 +80,44 @@ def process(
     console.print(format_summary(s), markup=False, highlight=False, soft_wrap=True)
 
 
+satcom_app = typer.Typer(no_args_is_help=True, help="Satcom on the move (seed 003): antenna servo angles.")
+app.add_typer(satcom_app, name="satcom")
+
+
+@satcom_app.command("point")
+def satcom_point(
+    lat: float = typer.Option(..., "--lat", help="vehicle geodetic latitude [deg]"),
+    lon: float = typer.Option(..., "--lon", help="vehicle longitude [deg, east +]"),
+    height: float = typer.Option(0.0, "--height", help="ellipsoidal height [m]"),
+    roll: float = typer.Option(0.0, "--roll", help="roll [deg], right wing down +"),
+    pitch: float = typer.Option(0.0, "--pitch", help="pitch [deg], nose up +"),
+    heading: float = typer.Option(0.0, "--heading", help="heading [deg], clockwise from true North"),
+    sat_lon: float = typer.Option(..., "--sat-lon", help="GEO satellite longitude [deg, east +]"),
+    polarization: str = typer.Option("vertical", "--polarization", help="vertical or horizontal"),
+    as_json: bool = typer.Option(False, "--json", help="print a JSON object instead of a table"),
+):
+    """Servo azimuth, elevation and polarization [deg] of a satcom antenna on a vehicle (SPEC 4.3)."""
+    import json
+
+    from rich.table import Table
+
+    from aidnav.nav.geo_pointing import servo_angles
+
+    try:
+        r = servo_angles(lat, lon, height, roll, pitch, heading, sat_lon, polarization=polarization)
+    except ValueError as e:
+        _fail(str(e))
+    if as_json:
+        typer.echo(json.dumps(r))
+        return
+    tab = Table(title=f"GEO {sat_lon:g} deg, {polarization}")
+    tab.add_column("angle")
+    tab.add_column("deg", justify="right")
+    for k in ("azimuth_deg", "elevation_deg", "polarization_deg"):
+        tab.add_row(k.removesuffix("_deg"), f"{r[k]:.4f}")
+    console.print(tab)
+
+
 def main():  # pragma: no cover
     app()
 

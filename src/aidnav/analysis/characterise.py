@@ -371,6 +371,75 @@ def _fit_subset(active, tau, y, sd, tau_lo, tau_hi):
     return r.x, 2.0 * float(r.cost), r.jac
 
 
+def _full_jac(c, u, tau, sd):
+    """Jacobian of (y − ln M)/sd for M = A(T) c (c = Q², N², σ², K² on the linear scale, u = ln T)."""
+    A = _columns(_TERM_ORDER, tau, math.exp(u))
+    mdl = A @ c
+    x = tau / math.exp(u)
+    h = 1e-4
+    xdg = (_gm_shape(x * (1 + h)) - _gm_shape(x * (1 - h))) / (2 * h)  # x·g'(x) = −∂g/∂ln T
+    J = np.column_stack((A, -c[2] * xdg))
+    return -J / (mdl * sd)[:, None], mdl
+
+
+def _fit_full(tau, y, sd, tau_lo, tau_hi, t_fixed: float | None = None):
+    """Fit all four terms (Q, N, GM, K) with non-negative linear coefficients c = (Q², N², σ², K²) and
+    ln T bounded so that the Gauss-Markov ADEV peak lies in [tau_lo, tau_hi].
+
+    Returns dict(c, u (ln T), cov (5×5 over c and u; T fixed: 4×4 over c), chi2, at_bound (T on a bound)).
+    """
+    from scipy.optimize import least_squares
+
+    u_lo = math.log(tau_lo / GM_PEAK_X)
+    u_hi = math.log(tau_hi / GM_PEAK_X)
+    grid = [math.log(t_fixed)] if t_fixed is not None else np.linspace(u_lo, u_hi, 25)
+    best = None
+    for u in grid:
+        c, x2 = _irls(_TERM_ORDER, tau, y, sd, math.exp(u))
+        if best is None or x2 < best[1]:
+            best = (c, x2, u)
+    c0, _, u0 = best
+    # scale: each coefficient relative to the largest value it could take alone
+    A0 = _columns(_TERM_ORDER, tau, math.exp(u0))
+    scale = np.min(np.exp(y)[:, None] / A0, axis=0) * 4.0
+    scale = np.maximum(scale, 1e-300)
+    if t_fixed is None:
+        def fun(v):
+            c = v[:4] * scale
+            return (y - np.log(np.maximum(_columns(_TERM_ORDER, tau, math.exp(v[4])) @ c, 1e-300))) / sd
+
+        def jac(v):
+            J, _ = _full_jac(v[:4] * scale, v[4], tau, sd)
+            return J * np.r_[scale, 1.0]
+
+        v0 = np.r_[c0 / scale, u0]
+        lb = np.r_[np.zeros(4), u_lo]
+        ub = np.r_[np.full(4, np.inf), u_hi]
+    else:
+        def fun(v):
+            return (y - np.log(np.maximum(A0 @ (v * scale), 1e-300))) / sd
+
+        def jac(v):
+            J, _ = _full_jac(v * scale, u0, tau, sd)
+            return J[:, :4] * scale
+
+        v0 = c0 / scale
+        lb, ub = np.zeros(4), np.full(4, np.inf)
+    v0 = np.clip(v0, lb, ub)
+    r = least_squares(fun, v0, jac=jac, bounds=(lb, ub), method="trf", max_nfev=200, x_scale=1.0)
+    v = r.x
+    c = v[:4] * scale
+    u = float(v[4]) if t_fixed is None else u0
+    J, _ = _full_jac(c, u, tau, sd)
+    if t_fixed is not None:
+        J = J[:, :4]
+    # a coefficient at zero with a zero column leaves JᵀJ singular: pinv gives it no information
+    F = J.T @ J
+    cov = np.linalg.pinv(F, rcond=1e-12)
+    tb = t_fixed is None and (abs(u - u_lo) < 1e-3 or abs(u - u_hi) < 1e-3)
+    return {"c": c, "u": u, "cov": cov, "chi2": float(np.sum(r.fun**2)), "at_bound": bool(tb)}
+
+
 def _upper_bounds(tau, adev_hi) -> dict:
     """Upper bounds of each term alone from the ADEV's upper limits (SI)."""
     return {"quantisation": float(np.min(adev_hi * tau / math.sqrt(3.0))),

@@ -431,11 +431,12 @@ def _fit_full(tau, y, sd, tau_lo, tau_hi, t_fixed: float | None = None):
     c = v[:4] * scale
     u = float(v[4]) if t_fixed is None else u0
     J, _ = _full_jac(c, u, tau, sd)
+    d = np.r_[scale, 1.0]
     if t_fixed is not None:
-        J = J[:, :4]
-    # a coefficient at zero with a zero column leaves JᵀJ singular: pinv gives it no information
-    F = J.T @ J
-    cov = np.linalg.pinv(F, rcond=1e-12)
+        J, d = J[:, :4], scale
+    # covariance in the scaled coordinates (well conditioned), then back
+    Js = J * d
+    cov = np.linalg.pinv(Js.T @ Js, rcond=1e-12) * np.outer(d, d)
     tb = t_fixed is None and (abs(u - u_lo) < 1e-3 or abs(u - u_hi) < 1e-3)
     return {"c": c, "u": u, "cov": cov, "chi2": float(np.sum(r.fun**2)), "at_bound": bool(tb)}
 

@@ -47,8 +47,8 @@ def simdir(tmp_path_factory):
 def test_process_then_evaluate(simdir):
     out = simdir / "est.csv"
     r = runner.invoke(app, ["process", "--imu", str(simdir / "sim/imu.csv"), "--gnss",
-                            str(simdir / "sim/gnss.csv"), "--config", str(simdir / "cfg.yaml"), "-o", str(out),
-                            "--outage", "80:10", "--smooth"])
+                            str(simdir / "sim/gnss.csv"), "--config", str(simdir / "cfg.yaml"), "-o",
+                            str(out), "--outage", "80:10", "--smooth"])
     assert r.exit_code == 0, r.output
     summary = json.loads((simdir / "est_summary.json").read_text())
     assert summary["gnss_withheld"] == 10
@@ -101,7 +101,8 @@ def test_bad_config_names_the_key(simdir, tmp_path):
     cfg = tmp_path / "c.yaml"
     cfg.write_text("imu: {arw_deg_per_sqrt_h: 0.1}\n")
     r = runner.invoke(app, ["process", "--imu", str(simdir / "sim/imu.csv"), "--gnss",
-                            str(simdir / "sim/gnss.csv"), "--config", str(cfg), "-o", str(tmp_path / "o.csv")])
+                            str(simdir / "sim/gnss.csv"), "--config", str(cfg), "-o",
+                            str(tmp_path / "o.csv")])
     assert r.exit_code == 2
     assert "imu.arw_deg_per_sqrt_h" in r.output
 
@@ -113,8 +114,8 @@ def test_gnss_outlier_is_rejected_and_reported(simdir, tmp_path):
     g.lat[70] += 1000.0 / 6.37e6  # 1 km north
     write_gnss(g, tmp_path / "g.csv")
     out = tmp_path / "o.csv"
-    r = runner.invoke(app, ["process", "--imu", str(simdir / "sim/imu.csv"), "--gnss", str(tmp_path / "g.csv"),
-                            "--config", str(simdir / "cfg.yaml"), "-o", str(out)])
+    r = runner.invoke(app, ["process", "--imu", str(simdir / "sim/imu.csv"), "--gnss",
+                            str(tmp_path / "g.csv"), "--config", str(simdir / "cfg.yaml"), "-o", str(out)])
     assert r.exit_code == 0, r.output
     s = json.loads((tmp_path / "o_summary.json").read_text())
     assert s["gnss_position_rejected"] >= 1

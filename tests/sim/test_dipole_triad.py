@@ -71,8 +71,8 @@ def test_steering_ambiguity_and_tilt_period():
     for phi, th, g, eta in _random_params(rng, 20):
         np.testing.assert_allclose(steering_vector(phi, th, g, eta),
                                    -steering_vector(phi + np.pi, -th, -g, -eta), atol=1e-15)
-        np.testing.assert_allclose(steering_vector(phi, th, g, eta), -steering_vector(phi, th, g + np.pi, eta),
-                                   atol=1e-15)
+        np.testing.assert_allclose(steering_vector(phi, th, g, eta),
+                                   -steering_vector(phi, th, g + np.pi, eta), atol=1e-15)
         p = wave_params_from_dcm(wave_dcm(phi, th, g + np.pi))
         np.testing.assert_allclose(p, (phi, th, g), atol=1e-12)
 

@@ -41,7 +41,6 @@ from aidnav.nav.rotations import dcm_from_euler, euler_from_dcm, rotvec_from_dcm
 from aidnav.nav.wave_frame import (
     P_SEED,
     base_wave_dcm,
-    steering_derivatives,
     steering_vector,
     wave_dcm,
     wave_params_from_dcm,

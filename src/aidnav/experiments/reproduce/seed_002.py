@@ -157,7 +157,8 @@ def seed_flight(rate_hz: float = 100.0, fix_period: float = 5.0, n_fixes: int = 
         bearing[j], elev[j], _, b2l[j] = base_geometry(*base, tr[k, 1], tr[k, 2], tr[k, 3])
         wave[j] = wave_params_for_attitude(C_true[j], bearing[j], elev[j], TX_TILT, b2l[j])
     return SeedFlight(time, tr[:, 1].copy(), tr[:, 2].copy(), tr[:, 3].copy(),
-                      np.ascontiguousarray(tr[:, 4:7]), rph, imu, fix_idx, C_true, bearing, elev, b2l, wave, base)
+                      np.ascontiguousarray(tr[:, 4:7]), rph, imu, fix_idx, C_true, bearing, elev, b2l, wave,
+                      base)
 
 
 # ============================================================================ estimation helpers

@@ -60,10 +60,10 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import dataclass, field
-from itertools import product
 from pathlib import Path
 
 import numpy as np
+from numba import njit
 
 from aidnav.data import ImuData
 from aidnav.nav.earth import G0
@@ -116,30 +116,11 @@ def gm_avar(tau, sigma: float, t_corr: float) -> np.ndarray:
     return sigma**2 * _gm_shape(np.asarray(tau, float) / t_corr)
 
 
-_TERM_NPAR = {"Q": 1, "N": 1, "GM": 2, "K": 1}
-_TERM_ORDER = ("Q", "N", "GM", "K")
-
-
-def _model_parts(p: np.ndarray, active: tuple, tau: np.ndarray) -> dict:
-    parts = {}
-    i = 0
-    for t in _TERM_ORDER:
-        if t not in active:
-            continue
-        if t == "Q":
-            parts[t] = 3.0 * np.exp(p[i]) / tau**2
-        elif t == "N":
-            parts[t] = np.exp(p[i]) / tau
-        elif t == "GM":
-            parts[t] = np.exp(p[i]) * _gm_shape(tau / np.exp(p[i + 1]))
-        else:
-            parts[t] = np.exp(p[i]) * tau / 3.0
-        i += _TERM_NPAR[t]
-    return parts
-
-
-def _model(p, active, tau) -> np.ndarray:
-    return sum(_model_parts(p, active, tau).values())
+def model_avar(tau, coef, t_corr: float) -> np.ndarray:
+    """Allan variance of the four-term model: coef = (Q², N², σ_GM², K²) [SI], t_corr = T [s]."""
+    tau = np.asarray(tau, float)
+    q2, n2, s2, k2 = coef
+    return 3.0 * q2 / tau**2 + n2 / tau + s2 * _gm_shape(tau / t_corr) + k2 * tau / 3.0
 
 
 def _alpha_from_slope(mu: np.ndarray) -> np.ndarray:
@@ -151,14 +132,13 @@ _EDF_CACHE: dict = {}
 
 
 def _edf(alpha: int, m: int, n_phase: int) -> float:
+    """Greenhall's EDF of the overlapping Allan variance (phase noise types use the white-FM value)."""
     key = (int(alpha), int(m), int(n_phase))
     v = _EDF_CACHE.get(key)
     if v is None:
         import allantools
 
-        a = int(alpha)
-        if a > 0:  # phase noise: Greenhall's unmodified-variance case needs α ≤ 0 there; use white FM
-            a = 0
+        a = min(int(alpha), 0)
         v = float(allantools.edf_greenhall(alpha=a, d=2, m=int(m), N=int(n_phase), overlapping=True))
         if len(_EDF_CACHE) > 100_000:
             _EDF_CACHE.clear()
@@ -166,12 +146,145 @@ def _edf(alpha: int, m: int, n_phase: int) -> float:
     return v
 
 
-def _logchi2_moments(nu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Mean and standard deviation of ln(χ²_ν/ν)."""
-    from scipy.special import digamma, polygamma
+# ------------------------------------------------------------------ maximum-likelihood kernels (numba)
+# The Allan variances a_j are independent Gamma variables with mean M_j(θ) and shape ν_j/2 (ν_j·a_j/M_j ~
+# χ²_ν). −2 log L = Σ ν_j (a_j/M_j + ln M_j) + const; the deviance D = Σ ν_j (a_j/M_j − 1 − ln(a_j/M_j)).
+# For a fixed T the model is linear in c = (Q², N², σ², K²) ≥ 0: a Gamma GLM with identity link, solved by
+# Fisher scoring (iteratively reweighted least squares, weights ν/(2M²)) with an exact non-negative least
+# squares step (all active sets of the ≤ 4 columns enumerated).
+@njit(cache=True)
+def _gm_shape_nb(x):
+    if x < 0.05:
+        return 2.0 * (x / 3.0 - x * x / 4.0 + 7.0 * x**3 / 60.0 - x**4 / 24.0)
+    return (2.0 / x) * (1.0 - (3.0 - 4.0 * np.exp(-x) + np.exp(-2.0 * x)) / (2.0 * x))
 
-    h = 0.5 * np.asarray(nu, float)
-    return digamma(h) - np.log(h), np.sqrt(polygamma(1, h))
+
+@njit(cache=True)
+def _columns_nb(tau, u):
+    n = tau.shape[0]
+    A = np.empty((n, 4))
+    T = np.exp(u)
+    for j in range(n):
+        A[j, 0] = 3.0 / tau[j] ** 2
+        A[j, 1] = 1.0 / tau[j]
+        A[j, 2] = _gm_shape_nb(tau[j] / T)
+        A[j, 3] = tau[j] / 3.0
+    return A
+
+
+@njit(cache=True)
+def _nnls_enum(A, b, free):
+    """min ||A c − b|| over c ≥ 0 with c_i = 0 where not free[i] (k ≤ 4: every active set is tried)."""
+    k = A.shape[1]
+    best = np.zeros(k)
+    best_r = np.sum(b * b)
+    for mask in range(1, 1 << k):
+        ok = True
+        for i in range(k):
+            if (mask >> i) & 1 and not free[i]:
+                ok = False
+        if not ok:
+            continue
+        idx = np.array([i for i in range(k) if (mask >> i) & 1])
+        As = A[:, idx]
+        G = As.T @ As
+        if np.linalg.cond(G) > 1e14:
+            continue
+        cs = np.linalg.solve(G, As.T @ b)
+        if np.any(cs < 0.0):
+            continue
+        r = b - As @ cs
+        rr = np.sum(r * r)
+        if rr < best_r:
+            best_r = rr
+            best[:] = 0.0
+            best[idx] = cs
+    return best
+
+
+@njit(cache=True)
+def _glm_nb(A, a, nu, fix_idx, fix_val, c0, iters):
+    """Gamma-GLM fit for fixed columns A (n, 4); term ``fix_idx`` (−1: none) fixed at ``fix_val``.
+    Returns (deviance, c)."""
+    n, k = A.shape
+    free = np.ones(k, np.bool_)
+    off = np.zeros(n)
+    if fix_idx >= 0:
+        free[fix_idx] = False
+        off = A[:, fix_idx] * fix_val
+    c = c0.copy()
+    if fix_idx >= 0:
+        c[fix_idx] = 0.0
+    M = off + A @ c
+    for j in range(n):
+        if not M[j] > 0.0:
+            M[j] = a[j]
+    scale = np.empty(k)
+    dev_old = np.inf
+    for _ in range(iters):
+        w = np.sqrt(0.5 * nu) / M
+        Aw = A * w[:, None]
+        for i in range(k):
+            scale[i] = max(np.max(np.abs(Aw[:, i])), 1e-300)
+        cs = _nnls_enum(Aw / scale, (a - off) * w, free)
+        c_new = cs / scale
+        M_new = off + A @ c_new
+        for j in range(n):
+            M_new[j] = max(M_new[j], 1e-300)
+        dev = 0.0
+        for j in range(n):
+            r = a[j] / M_new[j]
+            dev += nu[j] * (r - 1.0 - np.log(r))
+        if dev > dev_old - 1e-10 * (1.0 + dev_old):
+            if dev < dev_old:
+                c = c_new
+                M = M_new
+                dev_old = dev
+            break
+        c = c_new
+        M = M_new
+        dev_old = dev
+    if fix_idx >= 0:
+        c[fix_idx] = fix_val
+    return dev_old, c
+
+
+@njit(cache=True)
+def _profile_u_nb(tau, a, nu, fix_idx, fix_val, u_lo, u_hi, ngrid, c0):
+    """min over T (grid, then golden section around the best grid point) and the free coefficients.
+    Returns (deviance, u, c)."""
+    best_d = np.inf
+    best_u = u_lo
+    best_c = c0.copy()
+    step = (u_hi - u_lo) / (ngrid - 1)
+    for g in range(ngrid):
+        u = u_lo + g * step
+        d, c = _glm_nb(_columns_nb(tau, u), a, nu, fix_idx, fix_val, c0, 50)
+        if d < best_d:
+            best_d, best_u, best_c = d, u, c
+    lo = max(u_lo, best_u - step)
+    hi = min(u_hi, best_u + step)
+    gr = 0.6180339887498949
+    x1 = hi - gr * (hi - lo)
+    x2 = lo + gr * (hi - lo)
+    d1, c1 = _glm_nb(_columns_nb(tau, x1), a, nu, fix_idx, fix_val, best_c, 50)
+    d2, c2 = _glm_nb(_columns_nb(tau, x2), a, nu, fix_idx, fix_val, best_c, 50)
+    for _ in range(30):
+        if hi - lo < 1e-4:
+            break
+        if d1 < d2:
+            hi, x2, d2, c2 = x2, x1, d1, c1
+            x1 = hi - gr * (hi - lo)
+            d1, c1 = _glm_nb(_columns_nb(tau, x1), a, nu, fix_idx, fix_val, c1, 50)
+        else:
+            lo, x1, d1, c1 = x1, x2, d2, c2
+            x2 = lo + gr * (hi - lo)
+            d2, c2 = _glm_nb(_columns_nb(tau, x2), a, nu, fix_idx, fix_val, c2, 50)
+    if d1 < best_d:
+        best_d, best_u, best_c = d1, x1, c1
+    if d2 < best_d:
+        best_d, best_u, best_c = d2, x2, c2
+    return best_d, best_u, best_c
 
 
 # --------------------------------------------------------------------------------------- results
@@ -179,9 +292,9 @@ def _logchi2_moments(nu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 class TermEstimate:
     """One noise term of one axis, SI units (see :class:`AxisFit` for which).
 
-    status : "fitted" (value with a 95% interval [lo, hi]), "not resolved" (in the best model but its
-    interval spans more than ``MAX_CI_RATIO``; no value is reported, ``upper`` bounds it) or
-    "not detected" (not in the best model; ``upper`` bounds it). ``note`` says why in words.
+    status : "fitted" (value with a 95% interval [lo, hi]) or "not resolved" (the data do not support a
+    value: its interval reaches zero, or spans more than ``MAX_CI_RATIO``; only ``upper``, the upper
+    end of the interval, is reported). ``note`` says why in words.
     """
 
     status: str
@@ -196,7 +309,7 @@ class TermEstimate:
         return self.status == "fitted"
 
     def covers(self, truth: float) -> bool:
-        """True if ``truth`` lies in the reported interval ([lo, hi], or [0, upper] when not fitted)."""
+        """True if ``truth`` lies in the reported interval ([lo, hi], or [0, upper] when not resolved)."""
         if self.fitted:
             return self.lo <= truth <= self.hi
         return self.upper is not None and truth <= self.upper
@@ -221,8 +334,8 @@ class AxisFit:
     alpha : noise type used for the EDF; used : τ included in the fit. u = rad/s (gyro) or m/s² (accel).
     terms (SI): ``white`` N [u·√s] (ARW rad/√s, VRW m/s/√s); ``quantisation`` Q [u·s] (rad, m/s);
     ``gm_sigma`` [u] and ``gm_tau`` [s]; ``bias_instability`` B = 0.9294 σ_GM [u]; ``rrw`` K [u/√s].
-    model : the terms of the chosen model ("Q", "N", "GM", "K"); params : its log-parameters
-    (ln Q², ln N², ln σ², ln T, ln K² in that order, those present); chi2, dof : of the fit.
+    coef : maximum-likelihood (Q², N², σ_GM², K²) [SI]; t_corr : T [s]; deviance, dof, dispersion : of
+    the fit (dispersion = max(1, Pearson χ²/dof) scales the profile threshold).
     """
 
     axis: str
@@ -234,10 +347,11 @@ class AxisFit:
     alpha: np.ndarray
     used: np.ndarray
     terms: dict[str, TermEstimate]
-    model: tuple
-    params: np.ndarray
-    chi2: float
+    coef: np.ndarray
+    t_corr: float
+    deviance: float
     dof: int
+    dispersion: float
     notes: list[str] = field(default_factory=list)
 
     @property
@@ -245,12 +359,13 @@ class AxisFit:
         return self.axis.split("_")[0]
 
     def model_adev(self, taus=None, term: str | None = None) -> np.ndarray:
-        """ADEV of the fitted model (or of one of its terms "Q", "N", "GM", "K") at ``taus`` [s]."""
+        """ADEV of the fitted model (or of one term "Q", "N", "GM", "K") at ``taus`` [s] (default: self.taus)."""
         tau = self.taus if taus is None else np.asarray(taus, float)
-        parts = _model_parts(self.params, self.model, tau)
-        if term is None:
-            return np.sqrt(sum(parts.values()))
-        return np.sqrt(parts[term]) if term in parts else np.full(tau.shape, np.nan)
+        c = np.array(self.coef, float)
+        if term is not None:
+            keep = np.array([t == term for t in _TERM_ORDER], float)
+            c = c * keep
+        return np.sqrt(model_avar(tau, c, self.t_corr))
 
 
 @dataclass
@@ -277,177 +392,81 @@ class Characterisation:
 
 
 # ------------------------------------------------------------------------------------------ fitting
-def _columns(active, tau, t_corr) -> np.ndarray:
-    """Unit-coefficient Allan variance of each active term (columns, in _TERM_ORDER)."""
-    cols = []
-    for t in _TERM_ORDER:
-        if t in active:
-            cols.append({"Q": lambda: 3.0 / tau**2, "N": lambda: 1.0 / tau,
-                         "GM": lambda: _gm_shape(tau / t_corr), "K": lambda: tau / 3.0}[t]())
-    return np.column_stack(cols)
+_TERM_ORDER = ("Q", "N", "GM", "K")
+_NGRID = 41
 
 
-def _irls(active, tau, y, sd, t_corr, iters: int = 6):
-    """Non-negative coefficients of the active terms for a fixed T: iteratively reweighted NNLS on the
-    linear scale (weights from the current model), a fast stand-in for the log-scale fit. Returns
-    (coefficients, log-scale χ²)."""
-    from scipy.optimize import nnls
+class _Profile:
+    """Profile deviance of one axis: D(ψ) = min over the other parameters with one of them fixed."""
 
-    A = _columns(active, tau, t_corr)
-    target = np.exp(y)
-    mdl = target.copy()
-    c = np.zeros(A.shape[1])
-    for _ in range(iters):
-        w = 1.0 / (sd * mdl)
-        cs = np.maximum(np.max(A * w[:, None], axis=0), 1e-300)
-        c, _ = nnls(A * w[:, None] / cs, target * w)
-        c = c / cs
-        new = A @ c
-        if not np.all(new > 0):
-            return c, np.inf
-        mdl = new
-    return c, float(np.sum(((y - np.log(mdl)) / sd) ** 2))
+    def __init__(self, tau, a, nu):
+        self.tau, self.a, self.nu = tau, a, nu
+        self.u_lo = math.log(tau[0] / GM_PEAK_X)
+        self.u_hi = math.log(tau[-1] / GM_PEAK_X)
+        self.c0 = np.zeros(4)
+
+    def best(self, fix_idx=-1, fix_val=0.0):
+        return _profile_u_nb(self.tau, self.a, self.nu, fix_idx, float(fix_val), self.u_lo, self.u_hi, _NGRID,
+                             self.c0)
+
+    def at_u(self, u):
+        return _glm_nb(_columns_nb(self.tau, float(u)), self.a, self.nu, -1, 0.0, self.c0, 50)
 
 
-def _params_from(active, c, t_corr) -> np.ndarray | None:
-    p = []
-    i = 0
-    for t in _TERM_ORDER:
-        if t not in active:
-            continue
-        if c[i] <= 0:
-            return None
-        p.append(math.log(c[i]))
-        if t == "GM":
-            p.append(math.log(t_corr))
-        i += 1
-    return np.array(p)
+def _interval(prof: _Profile, idx: int, c_hat: float, d_min: float, crit: float, cap: float):
+    """Profile-likelihood interval (lo, hi) of coefficient ``idx``: where D − D_min = crit."""
+    from scipy.optimize import brentq
 
+    def f(v):
+        return prof.best(idx, v)[0] - d_min - crit
 
-def _jac(p, active, tau, sd) -> np.ndarray:
-    """Jacobian of the normalised log residuals (y − ln M)/sd with respect to the log-parameters."""
-    parts = _model_parts(p, active, tau)
-    mdl = sum(parts.values())
-    cols = []
-    for t in _TERM_ORDER:
-        if t not in active:
-            continue
-        cols.append(parts[t] / mdl)
-        if t == "GM":
-            i_t = (1 if "Q" in active else 0) + 2
-            x = tau / math.exp(p[i_t])
-            h = 1e-4
-            dg = (_gm_shape(x * (1 + h)) - _gm_shape(x * (1 - h))) / (2 * h)  # x·g'(x)
-            cols.append(-parts[t] * dg / np.maximum(_gm_shape(x), 1e-300) / mdl)
-    return -np.column_stack(cols) / sd[:, None]
-
-
-def _fit_subset(active, tau, y, sd, tau_lo, tau_hi):
-    """Best log-scale fit of one subset of terms: IRLS start (grid over T for the Gauss-Markov), then
-    Levenberg-Marquardt on the log-parameters. Returns (params, χ², jacobian) or None."""
-    from scipy.optimize import least_squares
-
-    if "GM" in active:
-        grid = np.exp(np.linspace(math.log(tau_lo / GM_PEAK_X), math.log(tau_hi / GM_PEAK_X), 25))
+    # upper end: expand from the estimate (or from a tiny value when the estimate is zero)
+    start = c_hat if c_hat > 0 else cap * 1e-12
+    hi_b = start * 2.0
+    hi = None
+    while hi_b < cap * 10.0:
+        if f(hi_b) > 0:
+            lo_b = start if c_hat > 0 else 0.0
+            hi = brentq(f, lo_b, hi_b, xtol=1e-6 * hi_b, rtol=1e-6)
+            break
+        start, hi_b = hi_b, hi_b * 4.0
+    if hi is None:
+        hi = np.inf
+    if c_hat <= 0 or f(0.0) <= 0:
+        lo = 0.0
     else:
-        grid = [1.0]
-    best = None
-    for tc in grid:
-        c, x2 = _irls(active, tau, y, sd, tc)
-        if best is None or x2 < best[1]:
-            best = (c, x2, tc)
-    if best is None or not np.isfinite(best[1]):
-        return None
-    p0 = _params_from(active, best[0], best[2])
-    if p0 is None:  # a term went to zero: this subset is a smaller one
-        return None
-    try:
-        r = least_squares(lambda p: (y - np.log(_model(p, active, tau))) / sd, p0,
-                          jac=lambda p: _jac(p, active, tau, sd), method="lm", max_nfev=200)
-    except (ValueError, FloatingPointError):
-        return None
-    if not np.all(np.isfinite(r.fun)):
-        return None
-    return r.x, 2.0 * float(r.cost), r.jac
+        lo = brentq(f, 0.0, c_hat, xtol=1e-9 * c_hat, rtol=1e-6)
+    return lo, hi
 
 
-def _full_jac(c, u, tau, sd):
-    """Jacobian of (y − ln M)/sd for M = A(T) c (c = Q², N², σ², K² on the linear scale, u = ln T)."""
-    A = _columns(_TERM_ORDER, tau, math.exp(u))
-    mdl = A @ c
-    x = tau / math.exp(u)
-    h = 1e-4
-    xdg = (_gm_shape(x * (1 + h)) - _gm_shape(x * (1 - h))) / (2 * h)  # x·g'(x) = −∂g/∂ln T
-    J = np.column_stack((A, -c[2] * xdg))
-    return -J / (mdl * sd)[:, None], mdl
+def _u_interval(prof: _Profile, d_min: float, crit: float):
+    """Profile interval of u = ln T over the grid range (None at an end that reaches the range end)."""
+    from scipy.optimize import brentq
+
+    us = np.linspace(prof.u_lo, prof.u_hi, 4 * _NGRID)
+    d = np.array([prof.at_u(u)[0] for u in us]) - d_min - crit
+    inside = d <= 0
+    if not inside.any():
+        return None, None
+    i0, i1 = np.flatnonzero(inside)[[0, -1]]
+
+    def g(u):
+        return prof.at_u(u)[0] - d_min - crit
+
+    lo = None if i0 == 0 else brentq(g, us[i0 - 1], us[i0], xtol=1e-5)
+    hi = None if i1 == len(us) - 1 else brentq(g, us[i1], us[i1 + 1], xtol=1e-5)
+    return lo, hi
 
 
-def _fit_full(tau, y, sd, tau_lo, tau_hi, t_fixed: float | None = None):
-    """Fit all four terms (Q, N, GM, K) with non-negative linear coefficients c = (Q², N², σ², K²) and
-    ln T bounded so that the Gauss-Markov ADEV peak lies in [tau_lo, tau_hi].
-
-    Returns dict(c, u (ln T), cov (5×5 over c and u; T fixed: 4×4 over c), chi2, at_bound (T on a bound)).
-    """
-    from scipy.optimize import least_squares
-
-    u_lo = math.log(tau_lo / GM_PEAK_X)
-    u_hi = math.log(tau_hi / GM_PEAK_X)
-    grid = [math.log(t_fixed)] if t_fixed is not None else np.linspace(u_lo, u_hi, 25)
-    best = None
-    for u in grid:
-        c, x2 = _irls(_TERM_ORDER, tau, y, sd, math.exp(u))
-        if best is None or x2 < best[1]:
-            best = (c, x2, u)
-    c0, _, u0 = best
-    # scale: each coefficient relative to the largest value it could take alone
-    A0 = _columns(_TERM_ORDER, tau, math.exp(u0))
-    scale = np.min(np.exp(y)[:, None] / A0, axis=0) * 4.0
-    scale = np.maximum(scale, 1e-300)
-    if t_fixed is None:
-        def fun(v):
-            c = v[:4] * scale
-            return (y - np.log(np.maximum(_columns(_TERM_ORDER, tau, math.exp(v[4])) @ c, 1e-300))) / sd
-
-        def jac(v):
-            J, _ = _full_jac(v[:4] * scale, v[4], tau, sd)
-            return J * np.r_[scale, 1.0]
-
-        v0 = np.r_[c0 / scale, u0]
-        lb = np.r_[np.zeros(4), u_lo]
-        ub = np.r_[np.full(4, np.inf), u_hi]
-    else:
-        def fun(v):
-            return (y - np.log(np.maximum(A0 @ (v * scale), 1e-300))) / sd
-
-        def jac(v):
-            J, _ = _full_jac(v * scale, u0, tau, sd)
-            return J[:, :4] * scale
-
-        v0 = c0 / scale
-        lb, ub = np.zeros(4), np.full(4, np.inf)
-    v0 = np.clip(v0, lb, ub)
-    r = least_squares(fun, v0, jac=jac, bounds=(lb, ub), method="trf", max_nfev=200, x_scale=1.0)
-    v = r.x
-    c = v[:4] * scale
-    u = float(v[4]) if t_fixed is None else u0
-    J, _ = _full_jac(c, u, tau, sd)
-    d = np.r_[scale, 1.0]
-    if t_fixed is not None:
-        J, d = J[:, :4], scale
-    # covariance in the scaled coordinates (well conditioned), then back
-    Js = J * d
-    cov = np.linalg.pinv(Js.T @ Js, rcond=1e-12) * np.outer(d, d)
-    tb = t_fixed is None and (abs(u - u_lo) < 1e-3 or abs(u - u_hi) < 1e-3)
-    return {"c": c, "u": u, "cov": cov, "chi2": float(np.sum(r.fun**2)), "at_bound": bool(tb)}
-
-
-def _upper_bounds(tau, adev_hi) -> dict:
-    """Upper bounds of each term alone from the ADEV's upper limits (SI)."""
-    return {"quantisation": float(np.min(adev_hi * tau / math.sqrt(3.0))),
-            "white": float(np.min(adev_hi * np.sqrt(tau))),
-            "bias_instability": float(np.min(adev_hi) / FLICKER_ADEV),
-            "gm_sigma": float(np.min(adev_hi) / FLICKER_ADEV / B_PER_GM_SIGMA),
-            "rrw": float(np.min(adev_hi * np.sqrt(3.0 / tau)))}
+def _why_not(term: str, tau_lo: float, tau_hi: float) -> str:
+    if term == "Q":
+        return f"no slope −1 at the shortest τ (from {tau_lo:g} s): quantisation below the white noise"
+    if term == "GM":
+        return (f"no bias-instability bump resolved with its peak inside the fitted τ range {tau_lo:g}-"
+                f"{tau_hi:.4g} s: hidden by the other terms or needs a longer log (the peak is at 1.89 T)")
+    if term == "K":
+        return f"no slope +1/2 resolved up to τ = {tau_hi:.4g} s: random walk too small to see in this log"
+    return "white noise not resolved"
 
 
 def fit_allan(taus, adev, n_samples: int, fs: float, axis: str = "gyro_x", min_m: int = 1) -> AxisFit:
@@ -461,6 +480,11 @@ def fit_allan(taus, adev, n_samples: int, fs: float, axis: str = "gyro_x", min_m
     axis : label (one of ``AXES``: its prefix decides the sensor in reports).
     min_m : smallest cluster size fitted (τ below min_m/fs are shown but not fitted).
 
+    Method: maximum likelihood with each Allan variance a chi-square variable of Greenhall's EDF
+    (noise type from the local slope of a first fit), all four terms at once (Q², N², σ², K² ≥ 0, T with
+    its ADEV peak inside the fitted τ range); 95% profile-likelihood intervals (deviance rise
+    χ²₁(0.95) = 3.84, times the dispersion when the fit is worse than its EDFs allow).
+
     Returns an :class:`AxisFit` with terms in [u·√s] (white), [u·s] (quantisation Q), [u] (σ_GM, B),
     [s] (T), [u/√s] (random walk K), 95% intervals, and notes on what could not be resolved.
     """
@@ -473,138 +497,83 @@ def fit_allan(taus, adev, n_samples: int, fs: float, axis: str = "gyro_x", min_m
     ok = np.isfinite(adev) & (adev > 0) & (m >= 1) & (n_phase - 2 * m >= 1)
     used = ok & (m >= min_m)
     notes: list[str] = []
-    if used.sum() < 3:
-        raise ValueError(f"{axis}: fewer than 3 usable Allan deviation points (log too short or constant)")
+    if used.sum() < 5:
+        raise ValueError(f"{axis}: fewer than 5 usable Allan deviation points (log too short or constant)")
     avar = adev**2
     tu, au = tau[used], avar[used]
     tau_lo, tau_hi = float(tu[0]), float(tu[-1])
 
     def edfs(alpha_all):
-        return np.array([_edf(a, mm, n_phase) for a, mm in zip(alpha_all, m, strict=True)])
+        return np.array([_edf(a, mm, n_phase) if mm >= 1 and n_phase - 2 * mm >= 1 else np.nan
+                         for a, mm in zip(alpha_all, m, strict=True)])
 
-    # EDFs: noise type from the local slope of a preliminary fit of all terms (white FM to start)
+    # EDFs: noise type from the local slope of a first fit (white FM to start), twice
     alpha = np.zeros(len(tau), int)
     nu = edfs(alpha)
-    full = ("Q", "N", "GM", "K")
     for _ in range(2):
-        b, sd = _logchi2_moments(nu[used])
-        y = np.log(au) - b
-        fr = _fit_subset(full, tu, y, sd, tau_lo, tau_hi)
-        if fr is None:
-            fr = _fit_subset(("Q", "N", "K"), tu, y, sd, tau_lo, tau_hi)
-            act = ("Q", "N", "K")
-        else:
-            act = full
-        if fr is None:
-            break
+        prof = _Profile(tu, au, nu[used])
+        d_min, u_hat, c_hat = prof.best()
         h = 0.05
-        mu = (np.log(_model(fr[0], act, tau * math.exp(h)))
-              - np.log(_model(fr[0], act, tau * math.exp(-h)))) / (2 * h)
+        mu = (np.log(model_avar(tau * math.exp(h), c_hat, math.exp(u_hat)))
+              - np.log(model_avar(tau * math.exp(-h), c_hat, math.exp(u_hat)))) / (2 * h)
         alpha = _alpha_from_slope(mu)
         nu = edfs(alpha)
-    b, sd = _logchi2_moments(nu[used])
-    y = np.log(au) - b
-    n_pts = len(tu)
+    prof = _Profile(tu, au, nu[used])
+    d_min, u_hat, c_hat = prof.best()
+    mdl = model_avar(tu, c_hat, math.exp(u_hat))
+    n_free = int(np.sum(c_hat > 0)) + (1 if c_hat[2] > 0 else 0)
+    dof = max(1, len(tu) - n_free)
+    pearson = float(np.sum(0.5 * nu[used] * (au / mdl - 1.0) ** 2))
+    disp = max(1.0, pearson / dof)
+    if disp > 2.0:
+        notes.append(f"{axis}: the model fits the Allan variance with dispersion {disp:.2f} (Pearson chi-square "
+                     "per degree of freedom); intervals widened accordingly")
+    crit = float(chi2_dist.ppf(CI_PROB, 1)) * disp
 
-    best = None
-    for q_on, gm_on, k_on in product((False, True), repeat=3):
-        active = tuple(t for t, on in zip(_TERM_ORDER, (q_on, True, gm_on, k_on), strict=True) if on)
-        k = sum(_TERM_NPAR[t] for t in active)
-        if k >= n_pts:
-            continue
-        fr = _fit_subset(active, tu, y, sd, tau_lo, tau_hi)
-        if fr is None:
-            continue
-        px, chi2, jac = fr
-        if "GM" in active:
-            i_t = (1 if "Q" in active else 0) + 2
-            t_peak = math.exp(px[i_t]) * GM_PEAK_X
-            if not (tau_lo <= t_peak <= tau_hi):
-                continue
-        bic = chi2 + k * math.log(n_pts)
-        if best is None or bic < best[0]:
-            best = (bic, active, px, chi2, k, jac)
-    if best is None:
-        raise ValueError(f"{axis}: the noise model could not be fitted")
-    _, active, px, chi2, k, jac = best
-    dof = n_pts - k
-    try:
-        cov = np.linalg.inv(jac.T @ jac)
-    except np.linalg.LinAlgError:
-        cov = np.linalg.pinv(jac.T @ jac)
-    infl = max(1.0, chi2 / dof) if dof > 0 else 1.0
-    cov = cov * infl
-    if infl > 1.5:
-        notes.append(f"{axis}: the model fits the ADEV with reduced chi-square {chi2 / dof:.2f}; intervals "
-                     "widened by its square root")
-    z = float(chi2_dist.ppf(CI_PROB, 1) ** 0.5)
-    se = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    # ADEV intervals (95%)
+    nn = np.where(np.isfinite(nu), nu, 1.0)
+    adev_lo = adev * np.sqrt(nn / chi2_dist.ppf(0.5 * (1 + CI_PROB), nn))
+    adev_hi = adev * np.sqrt(nn / chi2_dist.ppf(0.5 * (1 - CI_PROB), nn))
 
-    # ADEV intervals (95%) and the 99.5% upper limits used for bounds
-    lo_q = chi2_dist.ppf(0.5 * (1 + CI_PROB), nu)
-    hi_q = chi2_dist.ppf(0.5 * (1 - CI_PROB), nu)
-    adev_lo = adev * np.sqrt(nu / lo_q)
-    adev_hi = adev * np.sqrt(nu / hi_q)
-    adev_up = adev * np.sqrt(nu / chi2_dist.ppf(0.005, nu))
-    ub = _upper_bounds(tau[ok], adev_up[ok])
-
-    def est(i, power, scale=1.0):
-        """Term from log-parameter i: value = scale·exp(p)^power (power 0.5 for a deviation)."""
-        v = scale * math.exp(power * px[i])
-        f = math.exp(power * z * se[i])
-        return v, v / f, v * f
-
+    caps = np.min(au[:, None] / _columns_nb(tu, u_hat), axis=0)  # each term alone ≤ the data
+    caps[2] = float(np.max(au)) / 0.38
     terms: dict[str, TermEstimate] = {}
-    idx = {}
-    i = 0
-    for t in _TERM_ORDER:
-        if t in active:
-            idx[t] = i
-            i += _TERM_NPAR[t]
-    for t, name in (("Q", "quantisation"), ("N", "white"), ("K", "rrw")):
-        if t in idx:
-            v, lo, hi = est(idx[t], 0.5)
-            if hi / lo > MAX_CI_RATIO:
-                terms[name] = TermEstimate("not resolved", upper=ub[name],
-                                           note=f"95% interval spans a factor {hi / lo:.3g}")
-            else:
-                terms[name] = TermEstimate("fitted", v, lo, hi)
+    ivals = {}
+    for idx, name in ((0, "quantisation"), (1, "white"), (2, "gm_sigma"), (3, "rrw")):
+        lo2, hi2 = _interval(prof, idx, float(c_hat[idx]), d_min, crit, float(caps[idx]))
+        ivals[name] = (lo2, hi2)
+        v, lo, hi = math.sqrt(max(c_hat[idx], 0.0)), math.sqrt(lo2), math.sqrt(hi2)
+        if lo > 0 and hi / lo <= MAX_CI_RATIO:
+            terms[name] = TermEstimate("fitted", v, lo, hi)
+        elif lo > 0:
+            terms[name] = TermEstimate("not resolved", upper=hi,
+                                       note=f"95% interval spans a factor {hi / lo:.3g}")
         else:
-            terms[name] = TermEstimate("not detected", upper=ub[name], note=_why_not(t, tau_lo, tau_hi))
-    if "GM" in idx:
-        i_s, i_t = idx["GM"], idx["GM"] + 1
-        s, slo, shi = est(i_s, 0.5)
-        tc, tlo, thi = est(i_t, 1.0)
-        if shi / slo > MAX_CI_RATIO or thi / tlo > MAX_CI_RATIO:
-            note = (f"Gauss-Markov σ and T not resolved (95% intervals span factors {shi / slo:.3g} and "
-                    f"{thi / tlo:.3g})")
-            for name in ("gm_sigma", "bias_instability"):
-                terms[name] = TermEstimate("not resolved", upper=ub[name], note=note)
+            t = _TERM_ORDER[idx]
+            terms[name] = TermEstimate("not resolved", upper=hi, note=_why_not(t, tau_lo, tau_hi))
+    gm = terms["gm_sigma"]
+    if gm.fitted:
+        ulo, uhi = _u_interval(prof, d_min, crit)
+        if ulo is None or uhi is None or math.exp(uhi - ulo) > MAX_CI_RATIO**2:
+            span = "reaches the end of the fitted τ range" if (ulo is None or uhi is None) else \
+                f"spans a factor {math.exp(uhi - ulo):.3g}"
+            note = f"Gauss-Markov correlation time not resolved (its 95% interval {span})"
+            terms["gm_sigma"] = TermEstimate("not resolved", upper=gm.hi, note=note)
             terms["gm_tau"] = TermEstimate("not resolved", note=note)
         else:
-            terms["gm_sigma"] = TermEstimate("fitted", s, slo, shi)
-            terms["gm_tau"] = TermEstimate("fitted", tc, tlo, thi)
-            terms["bias_instability"] = TermEstimate("fitted", B_PER_GM_SIGMA * s, B_PER_GM_SIGMA * slo,
-                                                     B_PER_GM_SIGMA * shi)
+            terms["gm_tau"] = TermEstimate("fitted", math.exp(u_hat), math.exp(ulo), math.exp(uhi))
     else:
-        note = _why_not("GM", tau_lo, tau_hi)
-        for name in ("gm_sigma", "bias_instability"):
-            terms[name] = TermEstimate("not detected", upper=ub[name], note=note)
-        terms["gm_tau"] = TermEstimate("not detected", note=note)
+        terms["gm_tau"] = TermEstimate("not resolved", note=gm.note)
+    g2 = terms["gm_sigma"]
+    if g2.fitted:
+        terms["bias_instability"] = TermEstimate("fitted", B_PER_GM_SIGMA * g2.value, B_PER_GM_SIGMA * g2.lo,
+                                                 B_PER_GM_SIGMA * g2.hi)
+    else:
+        terms["bias_instability"] = TermEstimate(
+            "not resolved", upper=None if g2.upper is None else B_PER_GM_SIGMA * g2.upper, note=g2.note)
     return AxisFit(axis=axis, taus=tau, adev=adev, adev_lo=adev_lo, adev_hi=adev_hi, edf=nu, alpha=alpha,
-                   used=used, terms=terms, model=active, params=np.array(px), chi2=chi2, dof=dof,
-                   notes=notes)
-
-
-def _why_not(term: str, tau_lo: float, tau_hi: float) -> str:
-    if term == "Q":
-        return f"no slope −1 at the shortest τ (from {tau_lo:g} s): quantisation below the white noise"
-    if term == "GM":
-        return (f"no bias-instability bump whose peak lies inside the fitted τ range {tau_lo:g}-{tau_hi:.4g} s: "
-                "hidden by the other terms or needs a longer log (the peak is at 1.89 T)")
-    if term == "K":
-        return f"no slope +1/2 up to τ = {tau_hi:.4g} s: random walk too small to see in this log"
-    return "not in the best model"
+                   used=used, terms=terms, coef=np.array(c_hat, float), t_corr=math.exp(u_hat),
+                   deviance=float(d_min), dof=dof, dispersion=disp, notes=notes)
 
 
 # ---------------------------------------------------------------------------- data preparation

@@ -189,13 +189,14 @@ def ml_estimate(R, eta, start=None, gtol=1e-9, maxiter=200) -> MLResult:
 
 
 # ============================================================================ Cramér–Rao bounds
-def _rho(snr):
-    return float(snr)
+def _factor(snr, n):
+    """(1+ρ)/(2Nρ²) written as (1/ρ + 1/ρ²)/(2N), so that ρ = ∞ (noise-free) gives 0."""
+    r = 1.0 / float(snr)
+    return (r + r * r) / (2.0 * n)
 
 
 def crb_eq7(phi, theta, gamma, eta, snr, n):
     """Seed eq. (7): CRB(φ, θ, γ) = (1+ρ)/(2Nρ²)·C [rad²], ρ = P/σ² (linear), N snapshots. 3×3."""
-    rho = _rho(snr)
     se2, ce2 = np.sin(eta) ** 2, np.cos(eta) ** 2
     sg, cg = np.sin(gamma), np.cos(gamma)
     st, ct = np.sin(theta), np.cos(theta)
@@ -207,7 +208,7 @@ def crb_eq7(phi, theta, gamma, eta, snr, n):
     c23 = (1 - 2 * se2) * sg * cg * st / (se2 * ce2 * ct)
     c33 = 1 / np.cos(2 * eta) ** 2 + sg**2 * t2 / se2 + cg**2 * t2 / ce2
     C = np.array([[c11, c12, c13], [c12, c22, c23], [c13, c23, c33]])
-    return (1 + rho) / (2 * n * rho**2) * C
+    return _factor(snr, n) * C
 
 
 def _dA_complex_step(phi, theta, gamma, eta, h=1e-30):
@@ -229,8 +230,7 @@ def crb_numerical(phi, theta, gamma, eta, snr, n, power=1.0):
     ∂A by complex step (independent of eq. 7 and of the analytic derivatives). Returns the 3×3 block of
     FIM⁻¹ (P and σ² are nuisance parameters).
     """
-    rho = _rho(snr)
-    s2 = power / rho
+    s2 = power / float(snr)
     A = steering_vector(phi, theta, gamma, eta)
     D = _dA_complex_step(phi, theta, gamma, eta)
     R = power * np.outer(A, A.conj()) + s2 * np.eye(3)
@@ -256,8 +256,7 @@ def crb_rotation_vector(phi, theta, gamma, eta, snr, n):
 
 def cvae_bound(eta, snr, n):
     """(1+ρ)/(2Nρ²)·diag(1/cos²2η, 1/sin²η, 1/cos²η) [rad²] (SPEC §3.5; no leading N·)."""
-    rho = _rho(snr)
-    return (1 + rho) / (2 * n * rho**2) * np.diag([1 / np.cos(2 * eta) ** 2, 1 / np.sin(eta) ** 2,
+    return _factor(snr, n) * np.diag([1 / np.cos(2 * eta) ** 2, 1 / np.sin(eta) ** 2,
                                                     1 / np.cos(eta) ** 2])
 
 
@@ -367,7 +366,7 @@ def estimate_attitude(R, n, eta, bearing, elevation, tx_tilt, method="ml", prior
     elif method == "closed_form":
         phi, theta, gamma = (float(x) for x in closed_form_covariance(R, eta))
         pw, s2 = power_noise(steering_vector(phi, theta, gamma, eta), R)
-        snr = pw / s2
+        snr = pw / s2 if s2 > 0 else np.inf
     else:
         raise ValueError(f"method must be 'ml' or 'closed_form', got {method!r}")
     gamma, C, flipped = resolve_line_of_sight(phi, theta, gamma, bearing, elevation, tx_tilt, prior,

@@ -43,7 +43,7 @@ and ``scenario.…``. A path that does not exist fails before any computation, n
 
 Statistics (computed per run from the per-epoch errors; column names carry units):
 ``<metric>_<window>_<quantity>_<unit>`` (error std / RMS / mean / max|e| over a window),
-``converge_<name>_s`` (first epoch after which |error| — or the filter σ with ``on: sigma`` — stays at or
+``converge_<name>_s`` (first epoch after which |error| — or the filter σ with ``of: sigma`` — stays at or
 below ``below`` until the end, or for ``hold_s``), ``nees_<block>_mean``. Quantities: the estimator's
 states (``pos_e``, ``vel_u``, ``att_n``, …) and ``pos_h`` (horizontal), ``pos_3d``, ``vel_h``,
 ``heading`` (= ``att_u``, the misalignment about Up, which is the heading error for small angles).
@@ -135,13 +135,13 @@ class WindowSpec(_Strict):
 
 
 class ConvergenceSpec(_Strict):
-    """Time [s since the start] of the first epoch after which |error| (``on: error``) or the filter σ
-    (``on: sigma``) of ``quantity`` stays <= ``below`` (in the quantity's unit: m, m/s, deg) until the
+    """Time [s since the start] of the first epoch after which |error| (``of: error``) or the filter σ
+    (``of: sigma``) of ``quantity`` stays <= ``below`` (in the quantity's unit: m, m/s, deg) until the
     end (``hold_s`` None) or for at least ``hold_s`` seconds. NaN when it never does."""
 
     quantity: str
     below: Positive
-    on: Literal["error", "sigma"] = "error"
+    of: Literal["error", "sigma"] = "error"
     hold_s: Positive | None = None
 
 

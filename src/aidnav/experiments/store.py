@@ -264,7 +264,7 @@ def run_statistics(t: np.ndarray, err: np.ndarray, sig: np.ndarray, nees: np.nda
         if c.quantity not in available_quantities(tuple(states)):
             continue
         e, s = cache[c.quantity] if c.quantity in cache else _quantity(c.quantity, err, sig, states)
-        cols[f"converge_{cname}_s"] = _convergence(t, e if c.on == "error" else s, c.below, c.hold_s)
+        cols[f"converge_{cname}_s"] = _convergence(t, e if c.of == "error" else s, c.below, c.hold_s)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         for j, b in enumerate(blocks):

@@ -517,6 +517,7 @@ def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: 
         propagated at nodes only, so ask for node times, e.g. GNSS epochs). Returned in
         ``LooseResult.cov_time`` / ``LooseResult.cov``; times outside the processed span are dropped.
     """
+    from aidnav.data import ImuData
     from aidnav.nav.rotations import quat_from_euler
 
     from .config import DEG, LooseConfig
@@ -555,23 +556,43 @@ def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: 
         t0 = float(g_t[i0]) if k0 == 0 else float(t_imu[k0 - 1])
         lat0, lon0, h0 = g_lat[i0], g_lon[i0], g_h[i0]
         v0 = np.nan_to_num(g_vel[i0]) if not np.isnan(g_vel[i0, 0]) else np.zeros(3)
-        # static coarse alignment: roll/pitch from the mean specific force over the static window
-        win = (t_imu >= t_imu[k0]) & (t_imu < t_imu[k0] + ini.static_window_s)
-        dtw = np.diff(np.concatenate([[imu.t0], imu.time]))[win]
-        f = imu.dv[win].sum(axis=0) / dtw.sum()
-        roll = np.arctan2(-f[0], f[2])
-        pitch = np.arctan2(f[1], np.hypot(f[0], f[2]))
-        heading = 0.0 if ini.heading_deg is None else ini.heading_deg * DEG
+        # static coarse alignment (aidnav.nav.alignment): roll/pitch from the mean specific force over
+        # the static window; heading by gyrocompassing where the gyro grade resolves the Earth rate
+        from aidnav.nav.alignment import coarse_align_static
+
+        t_a = t_imu[k0]
+        win_imu = ImuData(t_imu, imu.dtheta, imu.dv, t0=imu.t0 + cfg.imu.time_offset_s)
+        gb = cfg.imu.gyro_bias_sigma_deg_h * DEG / 3600.0
+        roll, pitch, gc_heading, ainfo = coarse_align_static(win_imu, lat0, t_a, t_a + ini.static_window_s,
+                                                             height=h0, gyro_bias_std=gb)
+        heading = 0.0
+        att_sig = np.array(ini.attitude_sigma_deg) * DEG
+        if abs(ainfo["f_norm"] - ainfo["gravity"]) > 0.02 * ainfo["gravity"]:
+            # not static, not even unaccelerated: in-motion start, level from zero with a wide sigma
+            events.append(f"in-motion start: mean specific force {ainfo['f_norm']:.3f} m/s^2 is not gravity "
+                          f"({ainfo['gravity']:.3f}); roll and pitch start at 0 with sigma 10 deg")
+            roll, pitch, gc_heading = 0.0, 0.0, None
+            att_sig[0:2] = np.maximum(att_sig[0:2], 10.0 * DEG)
+        if ini.heading_deg is not None:
+            heading = ini.heading_deg * DEG
+        elif gc_heading is not None:
+            heading = gc_heading
         if ini.roll_deg is not None:
             roll = ini.roll_deg * DEG
         if ini.pitch_deg is not None:
             pitch = ini.pitch_deg * DEG
         rph = np.array([roll, pitch, heading])
-        att_sig = np.array(ini.attitude_sigma_deg) * DEG
+        f = ainfo["mean_f"] / 9.80665
         events.append(f"coarse alignment over {ini.static_window_s:g} s: roll {np.degrees(roll):.2f} deg, "
-                      f"pitch {np.degrees(pitch):.2f} deg (mean specific force {f / 9.80665} g)")
+                      f"pitch {np.degrees(pitch):.2f} deg (mean specific force {np.round(f, 4)} g)")
+        if ini.heading_deg is None and gc_heading is not None:
+            events.append(f"heading by gyrocompassing: {np.degrees(gc_heading):.2f} deg "
+                          f"(sigma {np.degrees(ainfo['heading_std']):.2f} deg)")
+            att_sig[2] = max(att_sig[2], ainfo["heading_std"])
+        elif ini.heading_deg is None:
+            events.append(f"no gyrocompass heading ({ainfo['heading_reason']}): heading from GNSS course")
         reset_idx, reset_heading = -1, 0.0
-        if ini.heading_deg is None:
+        if ini.heading_deg is None and gc_heading is None:
             ca = course_alignment(gnss.subset(use), cfg, t0)
             if ca is None:
                 events.append("heading never aligned: no GNSS speed above init.course_min_speed_m_s")

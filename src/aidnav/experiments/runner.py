@@ -1,0 +1,471 @@
+"""Monte Carlo campaigns: every run of every sweep point, serially, on local processes or on Dask.
+
+:func:`run_experiment` is the library function behind ``aidnav run EXPERIMENT.yaml -o DIR``:
+
+1. the experiment is read and **every** sweep point validated (:mod:`aidnav.experiments.config`)
+   before anything is computed;
+2. the runs already on disk (``DIR/runs``, see :mod:`aidnav.experiments.store`) are skipped: an
+   interrupted campaign resumes where it stopped;
+3. the remaining runs are computed — in this process (``workers=1``), on a local Dask cluster
+   (``workers > 1``; ``backend="processes"`` uses a ``concurrent.futures`` process pool instead) or on
+   an existing Dask scheduler (``scheduler="tcp://host:8786"``) — each result is written to ``DIR/runs``
+   as it arrives (a rich progress bar shows the ETA);
+4. when all runs exist, they are merged into ``runs.parquet``, ``epochs.parquet``, ``consistency.json``
+   and ``trajectories.parquet``, and ``manifest.json`` is written.
+
+Reproducibility: run k of every sweep point uses the random stream
+``numpy.random.SeedSequence(base_seed).spawn(k + 1)[k]`` (= ``SeedSequence(base_seed, spawn_key=(k,))``),
+whose three children drive the IMU errors, the GNSS noise and the estimators (each estimator gets a fresh
+generator from the third child: the same initial-state draw for every estimator). Runs are independent
+and deterministic, and the tables are merged in a fixed order, so results are bit-identical serially,
+on local processes or on a Dask cluster. Sweep points share the streams (common random numbers), so
+differences between points are not blurred by different draws.
+
+Work per run: the truth trajectory and the noise-free GNSS fixes depend only on the sweep point's
+motion and receiver settings: each worker process generates them once per point (and keeps the last
+few), and a run only redraws the sensor errors (:func:`aidnav.sim.imu.corrupt_imu`, GNSS noise) before
+running the estimators (numba kernels).
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+import sys
+import time
+from collections import OrderedDict
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from . import store
+from .config import ExperimentPlan, build_scenario, load_experiment
+from .estimators import get_estimator, state_blocks, state_unit
+
+__all__ = ["run_experiment", "run_task", "RunTask", "CampaignResult", "CampaignInterrupted", "GnssTemplate",
+           "point_truth", "simulate_run"]
+
+_THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
+
+
+class CampaignInterrupted(RuntimeError):
+    """The campaign stopped before all runs were computed (Ctrl-C); the finished runs are on disk."""
+
+
+@dataclass(frozen=True)
+class RunTask:
+    """One run to compute: sweep point ``key``/``index``, its canonical document, run number."""
+
+    key: str
+    point: int
+    run: int
+    doc: dict
+
+
+@dataclass
+class CampaignResult:
+    """What :func:`run_experiment` did.
+
+    complete : all runs exist and the tables were written. computed / reused : runs computed now / found
+    on disk. total : runs of the campaign. wall_s : wall time of this call [s]. paths : files written.
+    consistency : NEES checks (consistency.json) when complete. timings : breakdown (manifest).
+    """
+
+    out_dir: Path
+    complete: bool
+    computed: int
+    reused: int
+    total: int
+    wall_s: float
+    paths: list[Path] = field(default_factory=list)
+    consistency: list[dict] = field(default_factory=list)
+    timings: dict = field(default_factory=dict)
+
+
+# ----------------------------------------------------------------------------- per-process caches
+@dataclass
+class _Context:
+    key: str
+    base_seed: int
+    scenario: object
+    imu_spec: object
+    gnss_spec: object
+    estimators: list
+    sim_key: str
+    gnss_key: str
+
+
+_CONTEXTS: OrderedDict[str, _Context] = OrderedDict()
+_TRUTH: OrderedDict[str, tuple] = OrderedDict()
+_GNSS: OrderedDict[tuple, GnssTemplate] = OrderedDict()
+_CACHE_SIZE = 3
+
+
+def _cached(cache: OrderedDict, key, make):
+    if key in cache:
+        cache.move_to_end(key)
+        return cache[key]
+    val = make()
+    cache[key] = val
+    while len(cache) > _CACHE_SIZE:
+        cache.popitem(last=False)
+    return val
+
+
+def _context(key: str, doc: dict) -> _Context:
+    def make():
+        import hashlib
+        import importlib
+        import json
+
+        from aidnav.sim.gnss import GnssSpec
+        from aidnav.sim.imu import ImuSpec
+
+        from .config import Experiment
+
+        for mod in doc.get("imports", []):
+            importlib.import_module(mod)
+        exp = Experiment.model_validate(doc)
+        scn = build_scenario(exp, exp.name)
+        ests = []
+        for entry in doc["estimators"]:
+            et = get_estimator(entry["type"])
+            cfg = et.config_model.model_validate({k: v for k, v in entry.items() if k not in ("name", "type")})
+            ests.append((entry["name"], et, cfg))
+        sim_key = hashlib.sha256(json.dumps(doc["scenario"], sort_keys=True).encode()).hexdigest()
+        gnss_key = json.dumps(doc["sensors"]["gnss"], sort_keys=True)
+        return _Context(key, int(doc["base_seed"]), scn, ImuSpec.from_config(exp.sensors.imu),
+                        GnssSpec.from_config(exp.sensors.gnss), ests, sim_key, gnss_key)
+
+    return _cached(_CONTEXTS, key, make)
+
+
+def _truth(ctx: _Context):
+    from aidnav.sim.trajectory import generate_truth
+
+    return _cached(_TRUTH, ctx.sim_key, lambda: generate_truth(ctx.scenario))
+
+
+@dataclass
+class GnssTemplate:
+    """Noise-free GNSS fixes of one trajectory and receiver (generated once per sweep point), to which
+    each run adds its noise exactly as :func:`aidnav.sim.gnss.simulate_gnss` does (same draws: position
+    then velocity unit normals for every tag, before outages are removed).
+
+    base : fixes simulated with zero σ (antenna lat/lon [rad], height [m], ENU velocity [m/s]);
+    keep : (M_all,) which of all tags survive outages and latency; spec : the receiver.
+    """
+
+    base: object
+    keep: np.ndarray
+    spec: object
+
+    @classmethod
+    def build(cls, truth, spec) -> GnssTemplate:
+        from aidnav.sim.gnss import simulate_gnss
+
+        spec0 = replace(spec, sigma_pos_enu=np.zeros(3), sigma_vel_enu=np.zeros(3))
+        base = simulate_gnss(truth, spec0, np.random.default_rng(0))
+        t = np.asarray(truth.time, dtype=float)
+        n_tags = int(np.floor((t[-1] - t[0]) * spec.rate_hz + 1e-9))
+        tags = t[0] + np.arange(1, n_tags + 1) / spec.rate_hz
+        tags = tags[tags <= t[-1] + 1e-9]
+        return cls(base=base, keep=np.isin(tags, base.time), spec=spec)
+
+    def draw(self, rng: np.random.Generator):
+        """Noisy fixes (:class:`aidnav.data.GnssData`) with the noise drawn from ``rng``."""
+        from aidnav.data import GnssData
+        from aidnav.nav.earth import radii
+
+        m_all = len(self.keep)
+        zp = rng.standard_normal((m_all, 3))[self.keep]
+        zv = rng.standard_normal((m_all, 3))[self.keep]
+        b, sp = self.base, self.spec.sigma_pos_enu
+        m = len(b.time)
+        ne = zp * sp
+        rm, rn = radii(b.lat)
+        lat = b.lat + ne[:, 1] / (rm + b.height)
+        lon = b.lon + ne[:, 0] / ((rn + b.height) * np.cos(b.lat))
+        lon = (lon + np.pi) % (2 * np.pi) - np.pi
+        h = b.height + ne[:, 2]
+        vel = std_vel = None
+        if self.spec.velocity:
+            vel = b.vel + zv * self.spec.sigma_vel_enu
+            std_vel = np.tile(self.spec.sigma_vel_enu, (m, 1))
+        return GnssData(b.time.copy(), lat, lon, h, vel, np.tile(sp, (m, 1)), std_vel, None, list(b.events))
+
+
+def _gnss_template(ctx: _Context, truth) -> GnssTemplate:
+    return _cached(_GNSS, (ctx.sim_key, ctx.gnss_key), lambda: GnssTemplate.build(truth, ctx.gnss_spec))
+
+
+def point_truth(point):
+    """Truth trajectory of a sweep point (cached per process)."""
+    return _truth(_context(point.key, point.doc))[0]
+
+
+# ----------------------------------------------------------------------------------- one run
+def _streams(base_seed: int, run: int):
+    ss = np.random.SeedSequence(base_seed, spawn_key=(run,))
+    return ss.spawn(3)
+
+
+def simulate_run(ctx: _Context, run: int):
+    """The :class:`aidnav.sim.run.SimulationResult` of run ``run`` of a point (and the estimator stream)."""
+    from aidnav.sim.imu import corrupt_imu
+    from aidnav.sim.run import SimulationResult
+
+    truth, imu_true, segments = _truth(ctx)
+    tmpl = _gnss_template(ctx, truth)
+    s_imu, s_gnss, s_est = _streams(ctx.base_seed, run)
+    imu, realised = corrupt_imu(imu_true, ctx.imu_spec, np.random.default_rng(s_imu))
+    gnss = tmpl.draw(np.random.default_rng(s_gnss))
+    return SimulationResult(ctx.scenario, ctx.base_seed, truth, imu_true, imu, gnss, segments, realised), s_est
+
+
+def _process(out, name: str) -> dict:
+    """EstimatorOutput → boundary-unit arrays and NEES per block."""
+    from aidnav.analysis.consistency import nees
+
+    out.check(name)
+    blocks = state_blocks(out.states)
+    n_ep = len(out.time)
+    nv = np.full((n_ep, len(blocks)), np.nan)
+    for j, idx in enumerate(blocks.values()):
+        with np.errstate(all="ignore"):
+            try:
+                nv[:, j] = nees(out.error[:, idx], out.block_cov(idx))
+            except np.linalg.LinAlgError:
+                var = out.variances()[:, idx]
+                nv[:, j] = np.sum(out.error[:, idx] ** 2 / np.where(var > 0, var, np.nan), axis=1)
+    fac = np.array([state_unit(s)[1] for s in out.states])
+    sig = np.sqrt(np.maximum(out.variances(), 0.0))
+    return {"time": np.asarray(out.time, float), "error": out.error * fac, "sigma": sig * fac, "nees": nv,
+            "states": list(out.states), "blocks": list(blocks), "info": dict(out.info)}
+
+
+def run_task(task: RunTask) -> dict:
+    """Compute one run (in whatever process): simulate the sensors, run every estimator, return the
+    per-epoch arrays (see :func:`aidnav.experiments.store.save_run`) and a timing breakdown [s]."""
+    for v in _THREAD_VARS:
+        os.environ.setdefault(v, "1")
+    t0 = time.perf_counter()
+    ctx = _context(task.key, task.doc)
+    truth = _truth(ctx)[0]
+    _gnss_template(ctx, truth)
+    t1 = time.perf_counter()
+    sim, s_est = simulate_run(ctx, task.run)
+    t2 = time.perf_counter()
+    res, t_est, t_err = {}, {}, 0.0
+    for name, et, cfg in ctx.estimators:
+        a = time.perf_counter()
+        out = et.fn(sim, cfg, np.random.default_rng(s_est))
+        b = time.perf_counter()
+        res[name] = _process(out, name)
+        t_est[name] = b - a
+        t_err += time.perf_counter() - b
+    timing = {"setup_s": t1 - t0, "sim_s": t2 - t1, "estimators_s": t_est, "errors_s": t_err,
+              "total_s": time.perf_counter() - t0}
+    return {"key": task.key, "point": task.point, "run": task.run, "imu_samples": len(sim.imu),
+            "timing": timing, "estimators": res}
+
+
+# ----------------------------------------------------------------------------------- backends
+def _serial(tasks, on_result):
+    for t in tasks:
+        on_result(run_task(t))
+
+
+def _processes(tasks, on_result, workers: int):
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    ex = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
+    futs = [ex.submit(run_task, t) for t in tasks]
+    try:
+        for f in as_completed(futs):
+            on_result(f.result())
+    except BaseException:
+        for f in futs:
+            f.cancel()
+        ex.shutdown(wait=False, cancel_futures=True)
+        raise
+    ex.shutdown(wait=True)
+
+
+def _dask(tasks, on_result, workers: int, scheduler: str | None, info: dict):
+    import logging
+
+    from distributed import Client, LocalCluster, as_completed
+
+    cluster = None
+    if scheduler:
+        client = Client(scheduler)
+        info["scheduler"] = scheduler
+    else:
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                               dashboard_address=None, silence_logs=logging.ERROR)
+        client = Client(cluster)
+        info["scheduler"] = "LocalCluster"
+    info["dask_workers"] = len(client.scheduler_info().get("workers", {}))
+    futs = []
+    try:
+        futs = [client.submit(run_task, t, pure=False) for t in tasks]
+        for f in as_completed(futs):
+            on_result(f.result())
+    except BaseException:
+        client.cancel(futs)
+        raise
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+# ----------------------------------------------------------------------------------- campaign
+def _host() -> dict:
+    return {"node": platform.node(), "platform": platform.platform(), "python": sys.version.split()[0],
+            "cpus": os.cpu_count(), "machine": platform.machine()}
+
+
+def _versions() -> dict:
+    import numba
+
+    return {"aidnav": store.package_version(), "numpy": np.__version__, "numba": numba.__version__}
+
+
+def run_experiment(experiment, out_dir, *, workers: int = 1, scheduler: str | None = None,
+                   backend: str | None = None, max_runs: int | None = None, console=None,
+                   progress: bool = True) -> CampaignResult:
+    """Run (or resume) a campaign into ``out_dir`` (see the module docstring).
+
+    Parameters
+    ----------
+    experiment : path of an experiment YAML, or an :class:`~aidnav.experiments.config.ExperimentPlan`.
+    out_dir : campaign directory (created).
+    workers : processes (> 1: a Dask ``LocalCluster`` with that many single-threaded workers, or a process
+        pool with ``backend="processes"``).
+    scheduler : address of an existing Dask scheduler (its workers need aidnav installed).
+    backend : "serial", "processes" or "dask"; default serial for one worker, else dask.
+    max_runs : compute at most this many new runs, then stop without merging (a campaign cut short on
+        purpose; rerun to complete it).
+    console : rich console for the progress bar and messages; progress : show the bar.
+
+    Raises :class:`~aidnav.experiments.config.ExperimentError` (before computing anything) for a bad
+    experiment and :class:`CampaignInterrupted` on Ctrl-C (finished runs stay on disk).
+    """
+    from rich.console import Console
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    t_start = time.perf_counter()
+    plan = experiment if isinstance(experiment, ExperimentPlan) else load_experiment(experiment)
+    console = console or Console(stderr=True)
+    if backend is None:
+        backend = "dask" if (scheduler or workers > 1) else "serial"
+    if backend not in ("serial", "processes", "dask"):
+        raise ValueError(f"backend must be serial, processes or dask (got {backend!r})")
+    if workers < 1:
+        raise ValueError("workers must be >= 1")
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+
+    tasks = [RunTask(p.key, p.index, k, p.doc) for p in plan.points for k in range(plan.runs)]
+    done = store.existing_runs(out, plan)
+    todo = [t for t in tasks if (t.key, t.run) not in done]
+    if max_runs is not None:
+        todo = todo[:max(0, int(max_runs))]
+    n_total, n_reused = len(tasks), len(tasks) - len([t for t in tasks if (t.key, t.run) not in done])
+    if n_reused:
+        console.print(f"{out}: {n_reused} of {n_total} runs already on disk, {n_total - n_reused} to compute")
+
+    for v in _THREAD_VARS:  # single-threaded BLAS in the workers (inherited by spawned processes)
+        os.environ.setdefault(v, "1")
+    agg = {"setup_s": 0.0, "sim_s": 0.0, "errors_s": 0.0, "estimators_s": {}, "worker_total_s": 0.0,
+           "imu_samples": 0}
+    info = {"kind": backend, "workers": workers if backend != "serial" else 1}
+    computed = 0
+
+    cols = [TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+            TextColumn("ETA"), TimeRemainingColumn()]
+    t_comp = time.perf_counter()
+    with Progress(*cols, console=console, disable=not progress or not todo, transient=False) as bar:
+        task_id = bar.add_task(f"{plan.experiment.name}: runs", total=n_total, completed=n_reused)
+
+        def on_result(res):
+            nonlocal computed
+            store.save_run(out, res)
+            computed += 1
+            tm = res["timing"]
+            for k in ("setup_s", "sim_s", "errors_s"):
+                agg[k] += tm[k]
+            agg["worker_total_s"] += tm["total_s"]
+            for k, v in tm["estimators_s"].items():
+                agg["estimators_s"][k] = agg["estimators_s"].get(k, 0.0) + v
+            agg["imu_samples"] += res["imu_samples"]
+            bar.advance(task_id)
+
+        try:
+            if not todo:
+                pass
+            elif backend == "serial":
+                _serial(todo, on_result)
+            elif backend == "processes":
+                _processes(todo, on_result, workers)
+            else:
+                _dask(todo, on_result, workers, scheduler, info)
+        except KeyboardInterrupt:
+            raise CampaignInterrupted(f"interrupted: {n_reused + computed} of {n_total} runs are in {out / 'runs'}; "
+                                      "run the same command again to resume") from None
+    t_compute = time.perf_counter() - t_comp
+
+    complete = n_reused + computed == n_total
+    timings = {"compute_wall_s": t_compute, "computed_runs": computed, "reused_runs": n_reused,
+               "per_run_sums": agg,
+               "runs_per_s": computed / t_compute if computed and t_compute > 0 else None,
+               "imu_samples_per_s": agg["imu_samples"] / t_compute if computed and t_compute > 0 else None}
+    result = CampaignResult(out, complete, computed, n_reused, n_total, 0.0, timings=timings)
+    if not complete:
+        result.wall_s = time.perf_counter() - t_start
+        console.print(f"stopped after {computed} new runs: {n_reused + computed} of {n_total} on disk; "
+                      "rerun to complete")
+        return result
+
+    t_m = time.perf_counter()
+    merged = store.merge_campaign(plan, out)
+    merged["paths"].append(store.write_trajectories(out, plan, point_truth))
+    timings["merge_s"] = time.perf_counter() - t_m
+    result.wall_s = time.perf_counter() - t_start
+    timings["wall_s"] = result.wall_s
+    manifest = {
+        "experiment": {"name": plan.experiment.name, "description": plan.experiment.description,
+                       "source": plan.source, "text": plan.text, "document": plan.doc},
+        "versions": _versions(),
+        "aidnav_version": store.package_version(),
+        "runs": plan.runs,
+        "seeds": {"base_seed": plan.base_seed,
+                  "scheme": "run k: numpy.random.SeedSequence(base_seed).spawn(k + 1)[k] "
+                            "(= SeedSequence(base_seed, spawn_key=(k,))); its spawn(3) children drive the "
+                            "IMU errors, the GNSS noise and the estimators; the same for every sweep point",
+                  "spawn_keys": list(range(plan.runs))},
+        "points": [{"index": p.index, "label": p.label, "values": p.values, "key": p.key,
+                    "run_dir": str(store.run_path(out, p.key, 0).parent.relative_to(out)),
+                    "duration_s": p.duration_s, "segments": p.segments} for p in plan.points],
+        "estimators": [{"name": e["name"], "type": e["type"]} for e in plan.doc["estimators"]],
+        "timings": timings,
+        "backend": info,
+        "host": _host(),
+        "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        "files": [p.name for p in merged["paths"]] + ["manifest.json"],
+    }
+    merged["paths"].append(store.write_json(out / "manifest.json", manifest))
+    result.paths = merged["paths"]
+    result.consistency = merged["consistency"]
+    return result

@@ -118,6 +118,68 @@ def satcom_point(
     console.print(tab)
 
 
+@app.command("run")
+def run_experiment_cmd(
+    experiment: Path = typer.Argument(..., help="experiment YAML (see aidnav.experiments.config)"),
+    out: Path = typer.Option(..., "-o", "--out", help="campaign directory (what is already there is reused)"),
+    workers: int = typer.Option(1, "--workers", min=1, help="worker processes (> 1: a local Dask cluster)"),
+    scheduler: str | None = typer.Option(None, "--scheduler", help="address of an existing Dask scheduler"),
+    no_dask: bool = typer.Option(False, "--no-dask", help="with --workers > 1: a process pool instead of Dask"),
+    max_runs: int | None = typer.Option(None, "--max-runs", min=0,
+                                        help="compute at most this many runs, then stop (rerun to resume)"),
+):
+    """Monte Carlo campaign of an experiment file: runs.parquet, epochs.parquet, manifest.json in DIR."""
+    from aidnav.experiments.config import ExperimentError
+    from aidnav.experiments.runner import CampaignInterrupted, format_result, run_experiment
+
+    if scheduler and workers > 1:
+        _fail("give --workers or --scheduler, not both")
+    try:
+        res = run_experiment(experiment, out, workers=workers, scheduler=scheduler, max_runs=max_runs,
+                             backend="processes" if no_dask and workers > 1 and not scheduler else None,
+                             console=console)
+    except ExperimentError as e:
+        _fail(str(e))
+    except CampaignInterrupted as e:
+        _fail(str(e), 130)
+    console.print(format_result(res), markup=False, highlight=False, soft_wrap=True)
+
+
+@app.command("report")
+def report_cmd(directory: Path = typer.Argument(..., help="campaign directory written by `aidnav run`")):
+    """Self-contained HTML report of a campaign: DIR/report.html (and DIR/statistics.json)."""
+    from aidnav.experiments.report import ReportError, write_report
+
+    try:
+        path = write_report(directory)
+    except ReportError as e:
+        _fail(str(e))
+    console.print(f"wrote {path}")
+
+
+@app.command("reproduce")
+def reproduce_cmd(
+    seed: str = typer.Argument(..., help="seed to reproduce: 000, 001, 002, 003, 004 or all"),
+    out: Path = typer.Option(..., "-o", "--out", help="output directory (all: one sub-directory per seed)"),
+    runs: int | None = typer.Option(None, "--runs", min=1, help="Monte Carlo runs (default: the seed's)"),
+):
+    """Reproduce a seed's tables and figures; DIR/summary.json. Exit status 2 if it cannot be yet."""
+    from aidnav.experiments.reproduce import reproduce, resolve_seeds
+
+    try:
+        resolve_seeds(seed)
+    except ValueError as e:
+        _fail(str(e))
+    outcomes = reproduce(seed, out, runs=runs, console=console)
+    for o in outcomes:
+        if o.ok:
+            console.print(f"seed {o.seed}: done; {o.summary or o.out_dir}")
+        else:
+            console.print(f"[bold red]seed {o.seed}[/]: cannot be reproduced yet: {o.reason}")
+    if not all(o.ok for o in outcomes):
+        raise typer.Exit(2)
+
+
 def main():  # pragma: no cover
     app()
 

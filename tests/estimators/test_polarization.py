@@ -143,7 +143,8 @@ def test_ml_monte_carlo_attains_crb():
 
 
 # ----------------------------------------------------------------------------------- CRB
-@pytest.mark.parametrize("p", [(30 * D, 20 * D, 15 * D, 27 * D), (1.0, -0.7, -1.2, -0.3), (2.5, 0.3, 0.4, 0.6),
+@pytest.mark.parametrize("p", [(30 * D, 20 * D, 15 * D, 27 * D), (1.0, -0.7, -1.2, -0.3),
+                               (2.5, 0.3, 0.4, 0.6),
                                (-2.0, 1.2, 1.5, 0.1)])
 @pytest.mark.parametrize("snr", [0.5, 10.0, 1000.0])
 def test_crb_eq7_equals_numerical_fim(p, snr):

@@ -27,7 +27,13 @@ from scipy.linalg import expm
 
 from aidnav.filters.ins_errors import fill_model, noise_count
 from aidnav.nav.earth import E2, OMEGA_IE, gravity, radii
-from aidnav.nav.rotations import dcm_from_euler, dcm_from_quat, dcm_from_rotvec, quat_from_dcm, rotvec_from_dcm
+from aidnav.nav.rotations import (
+    dcm_from_euler,
+    dcm_from_quat,
+    dcm_from_rotvec,
+    quat_from_dcm,
+    rotvec_from_dcm,
+)
 from aidnav.nav.strapdown import make_state, strapdown_step
 
 H = 2000.0

@@ -12,8 +12,14 @@ import pytest
 from aidnav.analysis.errors import error_statistics, trajectory_errors
 from aidnav.filters.loose import LooseResult, run_loose, to_trajectory
 from aidnav.nav.rotations import dcm_from_euler, dcm_from_quat
-from aidnav.process import (load_config, outage_windows, parse_outage, read_gnss_any, read_imu_any,
-                            score_outages)
+from aidnav.process import (
+    load_config,
+    outage_windows,
+    parse_outage,
+    read_gnss_any,
+    read_imu_any,
+    score_outages,
+)
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 

@@ -70,8 +70,9 @@ def test_los_frames_against_independent_enu():
     np.testing.assert_allclose(los_body(lat, lon, h, C, sat), C.T @ np.array([e, n, u]), atol=1e-4)
 
 
-@pytest.mark.parametrize("lat, lon, sat_lon", [(39.9, 116.4, 110.5), (30.0, 100.0, 120.0), (45.0, 10.0, -20.0),
-                                               (60.0, -5.0, 28.2), (-33.0, 151.0, 160.0), (5.0, 0.0, 50.0)])
+@pytest.mark.parametrize("lat, lon, sat_lon", [(39.9, 116.4, 110.5), (30.0, 100.0, 120.0),
+                                               (45.0, 10.0, -20.0), (60.0, -5.0, 28.2), (-33.0, 151.0, 160.0),
+                                               (5.0, 0.0, 50.0)])
 def test_level_az_el_against_independent_lla_to_enu(lat, lon, sat_lon):
     """Level vehicle heading North: servo az = azimuth of the LOS from North, el = its elevation (ENU)."""
     h = 120.0
@@ -110,8 +111,8 @@ def test_sub_satellite_longitude_points_south_with_textbook_elevation():
     assert r["elevation_deg"] == pytest.approx(90.0, abs=1e-9)
 
 
-@pytest.mark.parametrize("lat, lon, sat_lon", [(39.9, 116.4, 110.5), (30.0, 100.0, 120.0), (45.0, 10.0, -20.0),
-                                               (20.0, -80.0, -101.0), (50.0, 8.0, 19.2)])
+@pytest.mark.parametrize("lat, lon, sat_lon", [(39.9, 116.4, 110.5), (30.0, 100.0, 120.0),
+                                               (45.0, 10.0, -20.0), (20.0, -80.0, -101.0), (50.0, 8.0, 19.2)])
 def test_level_against_textbook_formulas(lat, lon, sat_lon):
     r = servo_angles(lat, lon, 0.0, 0.0, 0.0, 0.0, sat_lon)
     az_t, el_t, pol_t = _textbook(lat, lon, sat_lon)
@@ -201,7 +202,7 @@ def _geometry(rng, el_body_deg):
 
 
 def _f(lat, lon, h, Cbn, sat, phi=np.zeros(3), dP=np.zeros(3)):
-    """Nonlinear (az, el) with the computed attitude (I − [φ×])C (as an exact rotation) and position P + δP."""
+    """Nonlinear (az, el) with the computed attitude (I − [φ×])C (an exact rotation), position P + δP."""
     C = dcm_from_rotvec(-np.asarray(phi)) @ Cbn
     return np.array(pointing_az_el(lat + dP[0], lon + dP[1], h + dP[2], C, sat))
 
@@ -231,7 +232,8 @@ def test_jacobians_against_finite_differences(el_body):
             d = _f(lat, lon, h, Cbn, sat, dP=e) - _f(lat, lon, h, Cbn, sat, dP=-e)
             d[0] = _wrap(d[0])
             fd = d / (2 * steps[j])
-            np.testing.assert_allclose(Hpos[:, j], fd, rtol=1e-4, atol=1e-6 * np.abs(Hpos[:, j]).max() + 1e-18)
+            tol = 1e-6 * np.abs(Hpos[:, j]).max() + 1e-18
+            np.testing.assert_allclose(Hpos[:, j], fd, rtol=1e-4, atol=tol)
 
 
 def test_jacobian_A_and_seed000_form():

@@ -40,7 +40,8 @@ What is here, in the order of the patent's system (its Fig. 3):
   w_k = min(w_max, max(latched, |d_k|/T_f)) so that a difference moved between pitch and roll by a turn is
   still closed; when |d_k|/T_f > w_max the bound w_max wins (the patent is silent; SPEC §4.4 erratum 3).
   No step overshoots (min(w_k·dt, |d_k|)). Per axis the antenna's Euler angles never move by more than
-  w_max·dt per interrupt beyond the gyro-propagated motion (the total rotation is ≤ √3·w_max·dt).
+  w_max·dt per interrupt beyond the gyro-propagated motion; the total rotation of one interrupt is
+  ≤ √(3 + 2|sin θ|)·w_max·dt at pitch θ (√3·w_max·dt when level: the Euler axes are then orthogonal).
   Servo commands are computed from q_ant only (:func:`servo_commands`).
 * **Servo angles** (SPEC §4.3): :func:`aidnav.nav.geo_pointing.servo_angles_rad` /
   :func:`aidnav.nav.geo_pointing.servo_angles` (re-exported here).
@@ -79,6 +80,7 @@ __all__ = [
     "Nav8Config", "NavRun", "run_nav8", "run_loose_nav", "dual_quaternion_track", "DualResult",
     "servo_commands", "ServoAxis", "default_servo_axes", "servo_track", "ServoResult", "beam_errors",
     "signal_loss_db", "reference_chase", "servo_angles", "NAV8_STATES", "quat_angle_between",
+    "quat_angles_between",
 ]
 
 DEG = np.pi / 180.0
@@ -363,8 +365,8 @@ def run_loose_nav(imu, gnss, lat: float, lon: float, h: float, vel, rph, cfg=Non
     dth, dts = _replay_increments(imu.time, imu.dtheta, imu.dv, float(imu.t0), st0,
                                   np.ascontiguousarray(res.state), np.ascontiguousarray(res.bias), nb)
     corrected = np.isin(res.time, res.node_time)
-    return NavRun(time=res.time, state=res.state, dtheta=dth, dt=dts, corrected=corrected, q0=st0[6:10].copy(),
-                  t0=float(imu.t0), bias=res.bias, label=f"{cfg.nstate}-state loose")
+    return NavRun(time=res.time, state=res.state, dtheta=dth, dt=dts, corrected=corrected,
+                  q0=st0[6:10].copy(), t0=float(imu.t0), bias=res.bias, label=f"{cfg.nstate}-state loose")
 
 
 # ============================================================================= dual-quaternion control
@@ -374,6 +376,16 @@ def quat_angle_between(p, q):
     r = quat_mult(quat_conj(p), q)
     s = np.sqrt(r[1] * r[1] + r[2] * r[2] + r[3] * r[3])
     return 2.0 * np.arctan2(s, abs(r[0]))
+
+
+@njit(cache=True)
+def quat_angles_between(p, q):
+    """Rotation angles [rad] (N,) between the rows of two (N, 4) quaternion arrays."""
+    n = p.shape[0]
+    out = np.empty(n)
+    for k in range(n):
+        out[k] = quat_angle_between(p[k], q[k])
+    return out
 
 
 @njit(cache=True)
@@ -454,7 +466,8 @@ class DualResult:
     w: np.ndarray
 
 
-def dual_quaternion_track(nav: NavRun, t_f: float = 1.0, w_max: float = 0.5 * DEG, margin: float = 1.0) -> DualResult:
+def dual_quaternion_track(nav: NavRun, t_f: float = 1.0, w_max: float = 0.5 * DEG,
+                          margin: float = 1.0) -> DualResult:
     """Antenna-control quaternion chasing the navigation quaternion (SPEC §4.2, claims 1–2).
 
     nav : :class:`NavRun`; t_f : filter period T_f [s]; w_max : largest pointing-error rate the antenna
@@ -466,9 +479,9 @@ def dual_quaternion_track(nav: NavRun, t_f: float = 1.0, w_max: float = 0.5 * DE
     if not (t_f > 0 and w_max > 0):
         raise ValueError("t_f and w_max must be > 0")
     q_nav = np.ascontiguousarray(nav.state[:, 6:10])
-    r = _dual_kernel(np.asarray(nav.q0, float), np.ascontiguousarray(nav.dtheta), np.ascontiguousarray(nav.dt),
-                     q_nav, np.ascontiguousarray(nav.corrected, dtype=np.bool_), float(t_f), float(w_max),
-                     float(margin))
+    r = _dual_kernel(np.asarray(nav.q0, float), np.ascontiguousarray(nav.dtheta),
+                     np.ascontiguousarray(nav.dt), q_nav, np.ascontiguousarray(nav.corrected, dtype=np.bool_),
+                     float(t_f), float(w_max), float(margin))
     return DualResult(*r)
 
 
@@ -489,7 +502,8 @@ def servo_commands(state: np.ndarray, q: np.ndarray, sat_lon: float, horizontal:
     navigation quaternion (direct pointing). ``sat_lon`` [rad]; ``radius`` [m] default R_GEO."""
     sat = geo_sat_ecef(sat_lon) if radius is None else geo_sat_ecef(sat_lon, radius)
     return _servo_cmd_kernel(np.ascontiguousarray(state[:, 0]), np.ascontiguousarray(state[:, 1]),
-                             np.ascontiguousarray(state[:, 2]), np.ascontiguousarray(q), sat, bool(horizontal))
+                             np.ascontiguousarray(state[:, 2]), np.ascontiguousarray(q), sat,
+                             bool(horizontal))
 
 
 # ========================================================================================= servo model
@@ -506,7 +520,8 @@ class ServoAxis:
 
 def default_servo_axes() -> tuple[ServoAxis, ServoAxis, ServoAxis]:
     """Azimuth, elevation and polarization axes of a typical mechanically steered Ku-band terminal."""
-    return (ServoAxis(60.0, 200.0, 4.0, 0.8), ServoAxis(40.0, 150.0, 4.0, 0.8), ServoAxis(30.0, 100.0, 3.0, 0.8))
+    return (ServoAxis(60.0, 200.0, 4.0, 0.8), ServoAxis(40.0, 150.0, 4.0, 0.8),
+            ServoAxis(30.0, 100.0, 3.0, 0.8))
 
 
 @njit(cache=True)
@@ -597,8 +612,8 @@ def servo_track(dts: np.ndarray, cmd: np.ndarray, axes=None, theta0=None, n_sub:
     zeta = np.array([a.damping for a in axes], float)
     mode = np.array([1, 0, 2][:m] if m == 3 else [0] * m, dtype=np.int64)
     th0 = cmd[0].copy() if theta0 is None else np.asarray(theta0, float).copy()
-    th, om, aa, dem, n_sat = _servo_kernel(np.ascontiguousarray(dts, float), cmd, th0, rate, acc, wn, zeta, mode,
-                                           int(n_sub))
+    th, om, aa, dem, n_sat = _servo_kernel(np.ascontiguousarray(dts, float), cmd, th0, rate, acc, wn, zeta,
+                                           mode, int(n_sub))
     return ServoResult(th, om, aa, dem, n_sat / (len(cmd) * n_sub))
 
 
@@ -643,9 +658,9 @@ def signal_loss_db(pointing_error, beamwidth_3db, pol_error=None):
 
 
 # ====================================================================================== reference chase
-def reference_chase(heading_deg: float = 100.0, yaw_rate_deg_s: float = 5.0, dt: float = 0.01, t_f: float = 1.0,
-                    w_max_deg_s: float = 0.5, correction_rph_deg=(0.3, -0.5, 2.0), t_correction: float = 1.0,
-                    duration: float = 8.0, margin: float = 1.0) -> dict:
+def reference_chase(heading_deg: float = 100.0, yaw_rate_deg_s: float = 5.0, dt: float = 0.01,
+                    t_f: float = 1.0, w_max_deg_s: float = 0.5, correction_rph_deg=(0.3, -0.5, 2.0),
+                    t_correction: float = 1.0, duration: float = 8.0, margin: float = 1.0) -> dict:
     """The reference chase run of SPEC §4.5.
 
     A level vehicle at ``heading_deg`` yaws at ``yaw_rate_deg_s`` (heading increasing); every interrupt

@@ -505,7 +505,7 @@ def build_scenario(exp: Experiment, name: str = "experiment", where: str | None 
     return scn
 
 
-def _check_point(exp: Experiment, doc: dict, where: str) -> tuple[Scenario, list[dict], float]:
+def _check_point(exp: Experiment, doc: dict, where: str, root=None) -> tuple[Scenario, list[dict], float]:
     """Checks that need more than the schema (before any computation): flyable motion, sensor specs,
     estimator configurations, statistics windows and quantities."""
     from aidnav.sim.gnss import GnssSpec
@@ -543,7 +543,7 @@ def _check_point(exp: Experiment, doc: dict, where: str) -> tuple[Scenario, list
 
                 m = _model_at(tuple(raw[3:]), LooseConfig) if entry["type"] == "loose" else None
                 return list(m.model_fields) if m is not None else None
-            raise ExperimentError(_format_validation(e, where, None, None, prefix=("estimators", i, "config"),
+            raise ExperimentError(_format_validation(e, where, root, None, prefix=("estimators", i, "config"),
                                                      expected=expected)) from None
         except ValueError as e:
             raise ExperimentError(f"{where}: estimators.{i} ({entry['name']}): {e}") from None
@@ -627,6 +627,13 @@ def parse_experiment(data, where: str = "<experiment>", root=None, base_dir=None
         data["sensors"] = _deep_merge(scn.sensors.model_dump(exclude_unset=True), over)
         root = None if root is None else root  # lines still valid for keys other than scenario
     exp, doc = _validate_doc(data, where, root)
+    # problems of the base experiment are reported as such (not as a sweep point's), unless the sweep
+    # changes what is wrong (then every point is checked below)
+    try:
+        base_check = _check_point(exp, doc, where, root)
+        base_error = None
+    except ExperimentError as e:
+        base_check, base_error = None, e
     points: list[SweepPoint] = []
     for i, (values, sets) in enumerate(_sweep_points(doc, where)):
         pdoc = copy.deepcopy(doc)
@@ -639,7 +646,15 @@ def parse_experiment(data, where: str = "<experiment>", root=None, base_dir=None
         pexp, pcanon = _validate_doc(pdoc_valid, pwhere) if values else (exp, doc)
         pcanon = copy.deepcopy(pcanon)
         pcanon["sweep"] = {}
-        scn, table, duration = _check_point(pexp, pcanon, pwhere)
+        if not values and base_check is not None:
+            scn, table, duration = base_check
+        else:
+            try:
+                scn, table, duration = _check_point(pexp, pcanon, pwhere)
+            except ExperimentError:
+                if base_error is not None:
+                    raise base_error from None
+                raise
         points.append(SweepPoint(index=i, values=values, label=label, doc=pcanon, experiment=pexp, scenario=scn,
                                  segments=table, duration_s=duration, key=_point_key(pcanon)))
     keys = [p.key for p in points]

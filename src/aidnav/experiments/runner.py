@@ -44,7 +44,7 @@ from .config import ExperimentPlan, build_scenario, load_experiment
 from .estimators import get_estimator, state_blocks, state_unit
 
 __all__ = ["run_experiment", "run_task", "RunTask", "CampaignResult", "CampaignInterrupted", "GnssTemplate",
-           "point_truth", "simulate_run"]
+           "point_truth", "simulate_run", "format_result"]
 
 _THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
 
@@ -305,7 +305,7 @@ def _dask(tasks, on_result, workers: int, scheduler: str | None, info: dict):
         info["scheduler"] = scheduler
     else:
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                               dashboard_address=None, silence_logs=logging.ERROR)
+                               dashboard_address=":0", silence_logs=logging.ERROR)
         client = Client(cluster)
         info["scheduler"] = "LocalCluster"
     info["dask_workers"] = len(client.scheduler_info().get("workers", {}))
@@ -469,3 +469,24 @@ def run_experiment(experiment, out_dir, *, workers: int = 1, scheduler: str | No
     result.paths = merged["paths"]
     result.consistency = merged["consistency"]
     return result
+
+
+def format_result(res: CampaignResult) -> str:
+    """Plain-text summary of a campaign for the console: runs, timings, NEES verdicts, files."""
+    lines = []
+    tm = res.timings
+    if not res.complete:
+        lines.append(f"{res.out_dir}: {res.reused + res.computed} of {res.total} runs on disk "
+                     f"({res.computed} computed now); run again to complete")
+        return "\n".join(lines)
+    rate = tm.get("runs_per_s")
+    sps = tm.get("imu_samples_per_s")
+    lines.append(f"{res.out_dir}: {res.total} runs ({res.computed} computed, {res.reused} reused) in "
+                 f"{res.wall_s:.1f} s" + (f"; {rate:.2f} runs/s, {sps:,.0f} IMU samples/s" if rate else ""))
+    for c in res.consistency:
+        flag = "consistent" if c.get("consistent") else f"INCONSISTENT ({c['verdict']})"
+        lines.append(f"  NEES {c['block']:<4} {c['estimator']:<12} {c['label']}: mean {c['mean']:.3g} "
+                     f"(band {c['band'][0]:.3g}-{c['band'][1]:.3g}), {flag}")
+    for p in res.paths:
+        lines.append(f"wrote {p}")
+    return "\n".join(lines)

@@ -68,7 +68,7 @@ def _apply_correction(st, bias, dx, nstate):
 @njit(cache=True)
 def _loose_kernel(imu_t, dth, dvel, t0, st0, bias0, P0, q_psd, par,
                   g_t, g_lat, g_lon, g_h, g_vel, g_spos, g_svel, g_use,
-                  static, reset_idx, reset_heading, reset_sigma, out_every, smooth, cov_idx):
+                  static, reset_idx, reset_heading, reset_sigma, reset_nav, out_every, smooth, cov_idx):
     n_imu = imu_t.shape[0]
     n = P0.shape[0]
     m = noise_count(n)
@@ -126,6 +126,7 @@ def _loose_kernel(imu_t, dth, dvel, t0, st0, bias0, P0, q_psd, par,
     n_nhc = 0
     n_zupt = 0
     n_nhc_rej = 0
+    reset_node = -1
     # state of the loop
     gi = 0
     while gi < M and g_t[gi] <= t0:
@@ -144,6 +145,7 @@ def _loose_kernel(imu_t, dth, dvel, t0, st0, bias0, P0, q_psd, par,
     kn = 0
     oi = 0
     n_rej_pos = 0
+    n_rej_vel = 0
     last_w = np.zeros(3)
     for k in range(n_imu):
         dt = imu_t[k] - tp
@@ -166,6 +168,7 @@ def _loose_kernel(imu_t, dth, dvel, t0, st0, bias0, P0, q_psd, par,
         dth_prev[:] = dthc
         dv_prev[:] = dvc
         if k == reset_idx:
+            reset_node = kn  # the next node is the first one after the re-initialisation
             # heading (re)initialisation: keep roll and pitch, set heading, reset its covariance
             Cn = dcm_from_quat(st[6:10])
             from_h = np.arctan2(Cn[0, 1], Cn[1, 1])
@@ -176,6 +179,25 @@ def _loose_kernel(imu_t, dth, dvel, t0, st0, bias0, P0, q_psd, par,
                 P[2, j] = 0.0
                 P[j, 2] = 0.0
             P[2, 2] = reset_sigma * reset_sigma
+            dvr = np.sqrt((st[3] - reset_nav[0]) ** 2 + (st[4] - reset_nav[1]) ** 2)
+            if not np.isnan(reset_nav[0]) and dvr > 3.0 * np.sqrt(P[3, 3] + P[4, 4] + reset_nav[6] ** 2):
+                # the velocity and position integrated with the unknown heading are re-initialised
+                # from the GNSS fix that gave the course (antenna → IMU with the new attitude)
+                l_n = dcm_from_quat(st[6:10]) @ lever
+                rm, rn = radii(reset_nav[3])
+                st[0] = reset_nav[3] - l_n[1] / (rm + reset_nav[5])
+                st[1] = reset_nav[4] - l_n[0] / ((rn + reset_nav[5]) * np.cos(reset_nav[3]))
+                st[2] = reset_nav[5] - l_n[2]
+                st[3], st[4], st[5] = reset_nav[0], reset_nav[1], reset_nav[2]
+                for i in range(3, 9):
+                    for j in range(n):
+                        P[i, j] = 0.0
+                        P[j, i] = 0.0
+                for i in range(3):
+                    P[3 + i, 3 + i] = reset_nav[6 + i] ** 2
+                P[6, 6] = (reset_nav[10] / (rm + reset_nav[5])) ** 2
+                P[7, 7] = (reset_nav[9] / ((rn + reset_nav[5]) * np.cos(reset_nav[3]))) ** 2
+                P[8, 8] = reset_nav[11] ** 2
         is_node = T >= prop_dt - 1e-9 or (gi < M and g_t[gi] <= imu_t[k]) or k == n_imu - 1
         if is_node and T > 0.0:
             C = dcm_from_quat(st[6:10])
@@ -216,11 +238,18 @@ def _loose_kernel(imu_t, dth, dvel, t0, st0, bias0, P0, q_psd, par,
                         rm, rn = radii(st[0])
                         w_in = np.array([-st[4] / (rm + st[2]), OMEGA_IE * cl + st[3] / (rn + st[2]),
                                          OMEGA_IE * sl + st[3] * sl / cl / (rn + st[2])])
-                        gnss_velocity(st, C, lever, wb, w_in, g_vel[gi], H3, z3)
+                        # lever-arm rate: the body rate at the fix (last increment), not the mean
+                        # rate since the previous node (up to prop_dt ago: lags in turn transitions)
+                        w_fix = dthc / dt
+                        gnss_velocity(st, C, lever, w_fix, w_in, g_vel[gi], H3, z3)
                         R3[:, :] = 0.0
                         for i in range(3):
                             R3[i, i] = (g_svel[gi, i] * par[P_VEL_STD_SCALE]) ** 2
-                        ok, nis = update(x, P, H3, R3, z3, par[P_GATE_VEL], innov, sdiag)
+                        gate = par[P_GATE_VEL]
+                        if n_rej_vel >= par[P_MAX_REJECT]:
+                            gate = 0.0
+                        ok, nis = update(x, P, H3, R3, z3, gate, innov, sdiag)
+                        n_rej_vel = 0 if ok else n_rej_vel + 1
                         rec_vel[gi] = 1 if ok else 0
                         rec_vel_nis[gi] = nis
                         rec_vel_innov[gi] = innov
@@ -279,7 +308,7 @@ def _loose_kernel(imu_t, dth, dvel, t0, st0, bias0, P0, q_psd, par,
         while ci < cov_idx.shape[0] and cov_idx[ci] == k:
             cov_out[ci] = P
             ci += 1
-    counts = np.array([n_zupt, n_nhc, n_nhc_rej, kn])
+    counts = np.array([n_zupt, n_nhc, n_nhc_rej, kn, reset_node])
     return (out_idx[:oi], out_st[:oi], out_bias[:oi], out_pdiag[:oi], out_node[:oi],
             node_idx[:kn], S_post[:kn], S_prior[:kn], S_phi[:kn], S_dx[:kn],
             rec_pos, rec_vel, rec_pos_innov, rec_pos_s, rec_vel_innov, rec_vel_s,
@@ -287,11 +316,13 @@ def _loose_kernel(imu_t, dth, dvel, t0, st0, bias0, P0, q_psd, par,
 
 
 @njit(cache=True)
-def _rts_kernel(S_post, S_prior, S_phi, S_dx):
+def _rts_kernel(S_post, S_prior, S_phi, S_dx, brk):
     """Backward RTS pass over nodes of a closed-loop filter.
 
     Returns ds (K, n): smoothed error of the post-update nominal at each node, and Ps (K, n, n).
     Recursion: ds_k = A_k (ds_{k+1} + dx_{k+1}),  Ps_k = P⁺_k + A_k (Ps_{k+1} − P⁻_{k+1}) A_kᵀ.
+    ``brk``: index of the first node after a state re-initialisation (heading alignment), or −1;
+    no information is passed backwards across it (the states before it are not linearly related).
     """
     K = S_post.shape[0]
     n = S_post.shape[1]
@@ -299,6 +330,10 @@ def _rts_kernel(S_post, S_prior, S_phi, S_dx):
     Ps = np.empty((K, n, n))
     Ps[K - 1] = S_post[K - 1]
     for k in range(K - 2, -1, -1):
+        if k + 1 == brk:
+            ds[k] = 0.0
+            Ps[k] = S_post[k]
+            continue
         A = rts_gain(S_post[k], S_phi[k + 1], S_prior[k + 1])
         ds[k] = A @ (ds[k + 1] + S_dx[k + 1])
         Pk = S_post[k] + A @ (Ps[k + 1] - S_prior[k + 1]) @ A.T
@@ -484,7 +519,10 @@ def gnss_arrays(gnss, cfg):
 
 
 def course_alignment(gnss, cfg, t_start: float):
-    """First GNSS epoch after ``t_start`` with horizontal speed above the threshold: (time, course [rad])."""
+    """First GNSS epoch after ``t_start`` with horizontal speed above the threshold.
+
+    Returns (time, course [rad], index of the fix) or None.
+    """
     if gnss.vel is None:
         ve = np.gradient(gnss.lon, gnss.time) * 6378137.0 * np.cos(gnss.lat)
         vn = np.gradient(gnss.lat, gnss.time) * 6378137.0
@@ -495,7 +533,7 @@ def course_alignment(gnss, cfg, t_start: float):
     if len(idx) == 0:
         return None
     i = idx[0]
-    return float(gnss.time[i]), float(np.arctan2(ve[i], vn[i]) % (2 * np.pi))
+    return float(gnss.time[i]), float(np.arctan2(ve[i], vn[i]) % (2 * np.pi)), int(i)
 
 
 def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: list | None = None,
@@ -542,6 +580,7 @@ def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: 
         rph = np.array([ini.roll_deg, ini.pitch_deg, ini.heading_deg]) * DEG
         att_sig = np.array(ini.attitude_sigma_deg) * DEG
         reset_idx, reset_heading = -1, 0.0
+        reset_nav = np.full(12, np.nan)
         k0 = 0
     else:
         # start at the first GNSS fix inside the IMU span
@@ -567,10 +606,13 @@ def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: 
                                                              height=h0, gyro_bias_std=gb)
         heading = 0.0
         att_sig = np.array(ini.attitude_sigma_deg) * DEG
-        if abs(ainfo["f_norm"] - ainfo["gravity"]) > 0.02 * ainfo["gravity"]:
-            # not static, not even unaccelerated: in-motion start, level from zero with a wide sigma
-            events.append(f"in-motion start: mean specific force {ainfo['f_norm']:.3f} m/s^2 is not gravity "
-                          f"({ainfo['gravity']:.3f}); roll and pitch start at 0 with sigma 10 deg")
+        gw = use & (g_t >= t_a) & (g_t < t_a + ini.static_window_s)
+        moving = bool(np.any(np.hypot(g_vel[gw, 0], g_vel[gw, 1]) > cfg.constraints.static_gnss_speed_m_s))
+        if moving or abs(ainfo["f_norm"] - ainfo["gravity"]) > 0.02 * ainfo["gravity"]:
+            # not static: in-motion start, level from zero with a wide sigma (the filter converges)
+            events.append(f"in-motion start (GNSS speed above {cfg.constraints.static_gnss_speed_m_s} m/s or "
+                          f"mean specific force {ainfo['f_norm']:.3f} m/s^2 not gravity "
+                          f"{ainfo['gravity']:.3f}): roll and pitch start at 0 with sigma 10 deg")
             roll, pitch, gc_heading = 0.0, 0.0, None
             att_sig[0:2] = np.maximum(att_sig[0:2], 10.0 * DEG)
         if ini.heading_deg is not None:
@@ -592,12 +634,17 @@ def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: 
         elif ini.heading_deg is None:
             events.append(f"no gyrocompass heading ({ainfo['heading_reason']}): heading from GNSS course")
         reset_idx, reset_heading = -1, 0.0
+        reset_nav = np.full(12, np.nan)
         if ini.heading_deg is None and gc_heading is None:
             ca = course_alignment(gnss.subset(use), cfg, t0)
             if ca is None:
                 events.append("heading never aligned: no GNSS speed above init.course_min_speed_m_s")
             else:
-                tca, course = ca
+                tca, course, ica = ca
+                ica = np.flatnonzero(use)[ica]
+                vel_g = g_vel[ica] if not np.isnan(g_vel[ica, 0]) else np.zeros(3)
+                svel = g_svel[ica] if not np.isnan(g_vel[ica, 0]) else np.full(3, 1.0)
+                reset_nav = np.array([*vel_g, g_lat[ica], g_lon[ica], g_h[ica], *svel, *g_spos[ica]])
                 mount_h = cfg.imu.mounting_rph_deg[2] * DEG
                 # vehicle heading = course; IMU heading = vehicle heading + mounting heading
                 reset_heading = (course + mount_h) % (2 * np.pi)
@@ -646,7 +693,7 @@ def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: 
         cov_idx = cov_idx[cov_idx < len(t_imu) - k0]
     r = _loose_kernel(t_imu[k0:], dth_in[k0:], dv_in[k0:], t0, st0, bias0, P0, q_psd, par,
                       g_t, g_lat, g_lon, g_h, g_vel, g_spos, g_svel, use,
-                      static[k0:], reset_idx, reset_heading, ini.course_heading_sigma_deg * DEG,
+                      static[k0:], reset_idx, reset_heading, ini.course_heading_sigma_deg * DEG, reset_nav,
                       out_every, smooth, cov_idx)
     (out_idx, out_st, out_bias, out_pdiag, out_node, node_idx, S_post, S_prior, S_phi, S_dx,
      rec_pos, rec_vel, rpi, rps, rvi, rvs, rpn, rvn, counts, st_end, bias_end, P_end, cov_out) = r
@@ -660,7 +707,7 @@ def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: 
     if cov_times is not None:
         res.cov_time, res.cov = t_imu[k0:][cov_idx], cov_out
     if smooth and len(node_idx) > 1:
-        ds, Ps = _rts_kernel(S_post, S_prior, S_phi, S_dx)
+        ds, Ps = _rts_kernel(S_post, S_prior, S_phi, S_dx, int(counts[4]))
         sm_st, sm_b = _smooth_outputs(out_idx, out_st, out_bias, out_node, node_idx, ds, S_dx, nstate)
         res.forward_state, res.forward_pdiag = out_st, out_pdiag
         res.state, res.bias = sm_st, sm_b

@@ -1,4 +1,4 @@
-"""Pointing geometry of a geostationary (GEO) satellite: line of sight, antenna az/el, Jacobians, servo angles.
+"""Pointing geometry of a GEO satellite: line of sight, antenna az/el, Jacobians, servo angles.
 
 One module serves seed 000 (SAPV aiding: antenna az/el as a measurement of the attitude) and seed 003
 (satcom on the move: servo azimuth, elevation and polarization). ``SPEC.md`` §1.1 and §4.3.
@@ -20,9 +20,9 @@ and lines of sight in metres.
   A = ∂(az, el)/∂r_b = [[Δy/s², −Δx/s², 0], [−ΔxΔz/(ρ²s), −ΔyΔz/(ρ²s), s/ρ²]];
   attitude error φ with C_b^n(computed) = (I − [φ×]) C_b^n(true): ∂r_b/∂φ = −C_n^b [r_n×];
   position error δP = [δL, δλ, δh] (computed − true): ∂r_b/∂δP = C_n^b (C_e^n B + [r_n×] D), with
-  B = ∂r_e/∂P = −C_n^e diag-like [[0, (R_N+h)cosL, 0], [R_M+h, 0, 0], [0, 0, 1]] (exact: R_M + h *is*
-  ∂|p|/∂L along North) and D = [[−1, 0, 0], [0, cosL, 0], [0, sinL, 0]] (the rotation of the ENU frame,
-  C_e^n(P + δP) = (I − [DδP ×]) C_e^n(P) to first order).
+  B = ∂r_e/∂P = −C_n^e M with M = [[0, (R_N+h)cosL, 0], [R_M+h, 0, 0], [0, 0, 1]] (exact: the North
+  component of ∂p/∂L *is* R_M + h) and D = [[−1, 0, 0], [0, cosL, 0], [0, sinL, 0]] (the rotation of the
+  ENU frame, C_e^n(P + δP) = (I − [DδP ×]) C_e^n(P) to first order).
   Hence δ[az, el] = −A C_n^b [r_n×] φ + A C_n^b (C_e^n B + [r_n×] D) δP (SPEC §1.1 eq. 23).
 * Servo polarization (SPEC §4.3): the satellite's "vertical" E-field at the antenna is
   p = k − (k·l) l (k = Earth spin axis, l = r_e/|r_e|); pol = atan2((z_v × p)·y_v, z_v·p), the angle from
@@ -38,8 +38,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .earth import A as WGS84_A
 from .earth import R_GEO, dcm_ecef_to_enu, lla_to_ecef, radii
+from .earth import A as WGS84_A
 from .rotations import dcm_from_euler
 
 __all__ = [
@@ -183,8 +183,7 @@ def polarization_from_body(az, el, p_b):
     for antenna angles (az, el): atan2((z_v × p)·y_v, z_v·p), not reduced (SPEC §4.3)."""
     sa, ca = np.sin(az), np.cos(az)
     se, ce = np.sin(el), np.cos(el)
-    # C_v^b = R3(-az) R1(el); columns x_v, y_v, z_v
-    y_v = np.array([sa * ce, ca * ce, se])
+    # C_v^b = R3(-az) R1(el); columns x_v, y_v = [sa·ce, ca·ce, se] (the beam), z_v
     z_v = np.array([-sa * se, -ca * se, ce])
     x_v = np.array([ca, -sa, 0.0])  # = y_v × z_v
     return np.arctan2(x_v[0] * p_b[0] + x_v[1] * p_b[1] + x_v[2] * p_b[2],

@@ -1,0 +1,91 @@
+"""Containers of GPS ephemerides and raw observations (shared by io.rinex, sim.gnss_raw, estimators.dgps
+and filters.tight).
+
+Times are GPS seconds from the start of a reference week (:mod:`aidnav.nav.gnss_sat`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from aidnav.nav.gnss_sat import E_PRN, E_TOC, E_TOE, LAMBDA_L1
+
+SECONDS_PER_WEEK = 604800
+
+__all__ = ["GpsEphemerides", "GnssObservations"]
+
+
+@dataclass
+class GpsEphemerides:
+    """GPS broadcast ephemerides.
+
+    table : (K, N_EPH) records (columns of :mod:`aidnav.nav.gnss_sat`; toe, toc in seconds from the start
+    of ``ref_week``). ref_week : GPS week of the time scale. iono_alpha, iono_beta : Klobuchar
+    coefficients (4,) or None when the file has none. events : notes.
+    """
+
+    table: np.ndarray
+    ref_week: int
+    iono_alpha: np.ndarray | None = None
+    iono_beta: np.ndarray | None = None
+    events: list[str] = field(default_factory=list)
+
+    @property
+    def prns(self) -> np.ndarray:
+        return np.unique(self.table[:, E_PRN].astype(int))
+
+    def to_week(self, ref_week: int) -> GpsEphemerides:
+        """The same records with toe/toc counted from the start of ``ref_week``."""
+        t = self.table.copy()
+        shift = (self.ref_week - int(ref_week)) * SECONDS_PER_WEEK
+        t[:, E_TOE] += shift
+        t[:, E_TOC] += shift
+        return GpsEphemerides(t, int(ref_week), self.iono_alpha, self.iono_beta, list(self.events))
+
+
+@dataclass
+class GnssObservations:
+    """GPS observations of one receiver.
+
+    time : (T,) receiver time tags [s from the start of ``ref_week``] (include the receiver clock offset).
+    prn : (S,) satellite numbers. code1 : (T, S) L1 C/A pseudorange [m] (NaN = none); doppler1 : (T, S)
+    L1 Doppler [Hz]; cn0 : (T, S) L1 C/N0 [dB-Hz]; code2 : (T, S) L2 pseudorange [m] or None;
+    code2_type : its RINEX code (e.g. "C2L"). approx_ecef : header position [m] or None.
+    """
+
+    time: np.ndarray
+    ref_week: int
+    prn: np.ndarray
+    code1: np.ndarray
+    doppler1: np.ndarray
+    cn0: np.ndarray
+    code2: np.ndarray | None = None
+    code2_type: str | None = None
+    approx_ecef: np.ndarray | None = None
+    events: list[str] = field(default_factory=list)
+
+    def __len__(self) -> int:
+        return len(self.time)
+
+    def range_rate(self) -> np.ndarray:
+        """Pseudorange rate [m/s] = −λ_L1 · Doppler (T, S)."""
+        return -LAMBDA_L1 * self.doppler1
+
+    def subset_sats(self, prns) -> GnssObservations:
+        """Only the satellites ``prns`` (in that order; missing ones are all-NaN columns)."""
+        idx = [int(np.flatnonzero(self.prn == p)[0]) if p in self.prn else -1 for p in prns]
+
+        def pick(a):
+            if a is None:
+                return None
+            out = np.full((a.shape[0], len(idx)), np.nan)
+            for k, i in enumerate(idx):
+                if i >= 0:
+                    out[:, k] = a[:, i]
+            return out
+
+        return GnssObservations(self.time, self.ref_week, np.asarray(prns, int), pick(self.code1),
+                                pick(self.doppler1), pick(self.cn0), pick(self.code2), self.code2_type,
+                                self.approx_ecef, list(self.events))

@@ -1,0 +1,131 @@
+"""Reproduction dispatcher and summary.json helper."""
+
+from __future__ import annotations
+
+import json
+import sys
+import types
+
+import pytest
+from typer.testing import CliRunner
+
+from aidnav.cli import app
+from aidnav.experiments import reproduce as rp
+from aidnav.experiments.reproduce.summary import (
+    SummaryError,
+    Target,
+    evaluate_target,
+    summary_row,
+    summary_table,
+    write_summary,
+)
+
+PKG = "aidnav.experiments.reproduce"
+
+
+@pytest.fixture
+def fake_seed(monkeypatch):
+    """Install a fake module for a seed: fake_seed("001", run_function)."""
+    def install(seed, fn):
+        mod = types.ModuleType(f"{PKG}.seed_{seed}")
+        if fn is not None:
+            mod.run = fn
+        monkeypatch.setitem(sys.modules, f"{PKG}.seed_{seed}", mod)
+        return mod
+
+    return install
+
+
+def test_resolve_seeds():
+    assert rp.resolve_seeds("all") == ["000", "001", "002", "003", "004"]
+    assert rp.resolve_seeds("4") == ["004"] and rp.resolve_seeds("seed_002") == ["002"]
+    with pytest.raises(ValueError, match="unknown seed"):
+        rp.resolve_seeds("007")
+
+
+def test_missing_module(monkeypatch, tmp_path):
+    monkeypatch.setitem(sys.modules, f"{PKG}.seed_002", None)  # as if it did not exist
+    with pytest.raises(rp.SeedUnavailable, match="seed 002"):
+        rp.run_seed("002", tmp_path)
+
+
+def test_not_implemented_removes_summary(fake_seed, tmp_path):
+    def run(out_dir, runs=None, console=None):
+        write_summary(out_dir, seed="001", title="t", runs=1, base_seed=1, tables=[])
+        raise NotImplementedError("Table 2 needs the tight filter")
+
+    fake_seed("001", run)
+    with pytest.raises(rp.SeedUnavailable, match="Table 2 needs the tight filter"):
+        rp.run_seed("001", tmp_path)
+    assert not (tmp_path / "summary.json").exists()
+    fake_seed("001", None)
+    with pytest.raises(rp.SeedUnavailable, match="no run"):
+        rp.run_seed("001", tmp_path)
+
+
+def test_cli_reproduce_exit_2(fake_seed, tmp_path):
+    def run(out_dir, runs=None, console=None):
+        raise NotImplementedError
+
+    fake_seed("003", run)
+    r = CliRunner().invoke(app, ["reproduce", "003", "-o", str(tmp_path / "o")])
+    assert r.exit_code == 2
+    assert "seed 003" in r.output and "cannot be reproduced yet" in r.output
+    assert not (tmp_path / "o" / "summary.json").exists()
+    r = CliRunner().invoke(app, ["reproduce", "9", "-o", str(tmp_path / "o")])
+    assert r.exit_code == 2 and "unknown seed" in r.output
+
+
+def test_reproduce_all_dispatches(fake_seed, tmp_path):
+    seen = {}
+
+    def ok(seed):
+        def run(out_dir, runs=None, console=None):
+            seen[seed] = (out_dir, runs)
+            rows = [summary_row("heading std", "deg", ours=0.21, paper=0.2483, target="ours <= 1.2 * paper")]
+            write_summary(out_dir, seed=seed, title="x", runs=runs or 1, base_seed=1,
+                          tables=[summary_table("Table 4", "c", rows)])
+        return run
+
+    for s in rp.SEEDS:
+        fake_seed(s, ok(s) if s != "002" else None)
+    outs = rp.reproduce("all", tmp_path, runs=5)
+    assert [o.ok for o in outs] == [True, True, False, True, True]
+    assert seen["004"] == (tmp_path / "seed_004", 5)
+    assert json.loads((tmp_path / "seed_004" / "summary.json").read_text())["tables"][0]["rows"][0]["holds"] is True
+    r = CliRunner().invoke(app, ["reproduce", "all", "-o", str(tmp_path / "b")])
+    assert r.exit_code == 2 and "seed 002" in r.output and "seed 004: done" in r.output
+    one = rp.reproduce("004", tmp_path / "single")
+    assert one[0].ok and one[0].summary == tmp_path / "single" / "summary.json"
+
+
+def test_summary_rows_compute_holds():
+    r = summary_row("heading std, none", "deg", ours=0.21, paper=0.2483, target="none / figure8 >= 5",
+                    values={"none": 0.21, "figure8": 0.03})
+    assert r == {"quantity": "heading std, none", "unit": "deg", "paper": 0.2483, "ours": 0.21,
+                 "target": "none / figure8 >= 5", "holds": True}
+    assert summary_row("x", "m", ours=2.0, paper=1.0, target="abs(ours - paper) <= 0.1 * paper")["holds"] is False
+    assert summary_row("x", "m", ours=2.0)["holds"] is None
+    assert summary_row("x", "m", ours=2.0, target=Target("ours is even", lambda o, p: o % 2 == 0))["holds"] is True
+    assert summary_row("x", "m", ours=float("nan"), paper=1.0, target="ours < paper") == {
+        "quantity": "x", "unit": "m", "paper": 1.0, "ours": None, "target": "ours < paper", "holds": False}
+    for bad in ("ours <", "__import__('os')", "ours.real > 1", "ours + 1", "unknown > 1", "paper < 1"):
+        with pytest.raises(SummaryError):
+            evaluate_target(bad, 1.0, None)
+
+
+def test_write_summary_schema(tmp_path):
+    rows = [summary_row("q", "deg", ours=1.0, paper=None, target="ours < 2")]
+    p = write_summary(tmp_path, seed="004", title="T", runs=10, base_seed=1,
+                      tables=[summary_table("Table 4", "cap", rows)], figures=["f.png"], notes=["n"],
+                      aidnav_version="9.9")
+    d = json.loads(p.read_text())
+    assert d == {"seed": "004", "title": "T", "aidnav_version": "9.9", "runs": 10, "base_seed": 1,
+                 "tables": [{"name": "Table 4", "caption": "cap", "rows": [
+                     {"quantity": "q", "unit": "deg", "paper": None, "ours": 1.0, "target": "ours < 2",
+                      "holds": True}]}], "figures": ["f.png"], "notes": ["n"]}
+    typed = dict(rows[0], target=None, holds=True)
+    with pytest.raises(SummaryError, match="holds without a target"):
+        write_summary(tmp_path / "x", seed="004", title="T", runs=1, base_seed=1,
+                      tables=[summary_table("t", "c", [typed])])
+    assert not (tmp_path / "x" / "summary.json").exists()

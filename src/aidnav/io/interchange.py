@@ -29,7 +29,6 @@ import re
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 import pyarrow as pa
 import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
@@ -206,6 +205,8 @@ def _read_csv(path: Path) -> _Table:
         tbl = pacsv.read_csv(io.BytesIO(body), read_options=ropts, convert_options=sopts)
         cols = {}
         for n in names:
+            import pandas as pd  # only for columns that are not plain numbers
+
             s = pd.Series(tbl.column(n).to_numpy(zero_copy_only=False), dtype=object).str.strip()
             num = pd.to_numeric(s, errors="coerce").to_numpy(dtype=float)
             lit_nan = s.str.lower().isin(["nan", "+nan", "-nan"]).to_numpy()
@@ -238,6 +239,8 @@ def _read_parquet(path: Path) -> _Table:
         if pa.types.is_integer(col.type) or pa.types.is_floating(col.type):
             cols[n] = col.to_numpy(zero_copy_only=False).astype(float)
         else:
+            import pandas as pd  # only for columns that are not plain numbers
+
             s = pd.Series(col.to_numpy(zero_copy_only=False), dtype=object)
             num = pd.to_numeric(s, errors="coerce").to_numpy(dtype=float)
             badv = np.isnan(num) & s.notna().to_numpy()
@@ -269,17 +272,21 @@ def _open(path) -> _Table:
     return _read_csv(path) if _kind(path) == "csv" else _read_parquet(path)
 
 
-def _write(df: pd.DataFrame, path, comments: list[str], meta: dict) -> Path:
+def _write(cols: dict, path, comments: list[str], meta: dict) -> Path:
+    """Write named 1-D columns: CSV via pandas (floats as repr, exact round trip) or Parquet via pyarrow
+    (no pandas on that path: it is the fast one)."""
     path = Path(path)
     kind = _kind(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     if kind == "csv":
+        import pandas as pd
+
         with open(path, "w", encoding="utf-8", newline="") as f:
             for c in comments:
                 f.write(f"# {c}\n")
-            df.to_csv(f, index=False, lineterminator="\n")  # floats as repr: shortest exact round trip
+            pd.DataFrame(cols).to_csv(f, index=False, lineterminator="\n")  # shortest exact round trip
     else:
-        tbl = pa.Table.from_pandas(df, preserve_index=False)
+        tbl = pa.table({k: np.ascontiguousarray(v) for k, v in cols.items()})
         md = dict(tbl.schema.metadata or {})
         md[_META_KEY] = json.dumps(meta).encode()
         pq.write_table(tbl.replace_schema_metadata(md), path)
@@ -334,7 +341,7 @@ def write_imu(imu: ImuData, path) -> Path:
     The start of the first interval ``imu.t0`` [s] is kept in a ``# t0_s = ...`` comment (CSV) or the
     file metadata (Parquet).
     """
-    df = pd.DataFrame({"time": imu.time})
+    df = {"time": imu.time}
     for j, c in enumerate(IMU_INCREMENT_COLUMNS[:3]):
         df[c] = imu.dtheta[:, j]
     for j, c in enumerate(IMU_INCREMENT_COLUMNS[3:]):
@@ -373,8 +380,8 @@ def read_gnss(path) -> GnssData:
 def write_gnss(gnss: GnssData, path) -> Path:
     """Write GNSS fixes (time [s], lat/lon [deg], height [m], optional ENU velocity [m/s], 1σ ENU
     position [m] / velocity [m/s], quality) to ``path`` (.csv or .parquet)."""
-    df = pd.DataFrame({"time": gnss.time, "lat_deg": np.degrees(gnss.lat), "lon_deg": np.degrees(gnss.lon),
-                       "height_m": gnss.height})
+    df = {"time": gnss.time, "lat_deg": np.degrees(gnss.lat), "lon_deg": np.degrees(gnss.lon),
+          "height_m": gnss.height}
     for arr, names in ((gnss.vel, GNSS_VEL_COLUMNS), (gnss.std_pos, GNSS_STD_POS_COLUMNS),
                        (gnss.std_vel, GNSS_STD_VEL_COLUMNS)):
         if arr is not None:
@@ -444,12 +451,12 @@ def write_trajectory(traj: Trajectory, path) -> Path:
     """
     heading = np.mod(np.degrees(traj.rph[:, 2]), 360.0)
     heading[heading >= 360.0] = 0.0
-    df = pd.DataFrame({
+    df = {
         "time": traj.time, "lat_deg": np.degrees(traj.lat), "lon_deg": np.degrees(traj.lon),
         "height_m": traj.height, "ve": traj.vel[:, 0], "vn": traj.vel[:, 1], "vu": traj.vel[:, 2],
         "roll_deg": np.degrees(traj.rph[:, 0]), "pitch_deg": np.degrees(traj.rph[:, 1]),
         "heading_deg": heading,
-    })
+    }
     if traj.std_pos is not None:
         sn, se = _pos_std_scale(traj.lat, traj.height)
         df["lat_deg_std"] = np.degrees(traj.std_pos[:, 1] / sn)

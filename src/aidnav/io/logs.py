@@ -11,7 +11,6 @@ import io
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
 from aidnav.data import ImuData
 from aidnav.io.errors import DataError
@@ -143,10 +142,18 @@ def read_rtklibexplorer_imu(path, tag_path=None, axes: str = "RFU", mounting=Non
         raise DataError(path, None, "no readable IMU lines")
     cols = list(range(N_FIELDS))
     text = buf[byte_keep].tobytes()
+    import pyarrow as pa
+    import pyarrow.csv as pacsv
+
     try:
-        arr = pd.read_csv(io.BytesIO(text), header=None, names=cols, dtype=np.float64,
-                          engine="c").to_numpy()
-    except ValueError:  # a field that is not a number: find it line by line (slow path)
+        tbl = pacsv.read_csv(io.BytesIO(text),
+                             read_options=pacsv.ReadOptions(autogenerate_column_names=True),
+                             convert_options=pacsv.ConvertOptions(
+                                 column_types={f"f{i}": pa.float64() for i in cols}))
+        arr = np.column_stack([tbl.column(i).to_numpy() for i in cols])
+    except (pa.ArrowInvalid, ValueError):  # a field that is not a number: find it (slow path, pandas)
+        import pandas as pd
+
         raw = pd.read_csv(io.BytesIO(text), header=None, names=cols, dtype=str, engine="c",
                           keep_default_na=False)
         arr = np.column_stack([pd.to_numeric(raw[c].str.strip(), errors="coerce").to_numpy(float)

@@ -70,9 +70,9 @@ def test_discretize_matches_van_loan_with_taylor_error_bounds(seed):
         # symmetric Qd
         assert np.allclose(Qd, Qd.T, rtol=0, atol=1e-15 * np.abs(Qd).max())
     # convergence orders: halving T divides the Φ error by 2³ and the Qd error by 2⁴ (third-order Qd)
-    for a, b in zip(errs_phi[:-1], errs_phi[1:]):
+    for a, b in zip(errs_phi[:-1], errs_phi[1:], strict=True):
         assert np.log2(a / b) == pytest.approx(3.0, abs=0.15)
-    for a, b in zip(errs_qd[:-1], errs_qd[1:]):
+    for a, b in zip(errs_qd[:-1], errs_qd[1:], strict=True):
         assert np.log2(a / b) == pytest.approx(4.0, abs=0.15)
 
 
@@ -256,14 +256,14 @@ def _batch_smoother(m0, P0, Phi, Qd, H, R, ys):
     mean = np.zeros(N * n)
     cov = np.zeros((N * n, N * n))
     Phis = [np.eye(n)]
-    for k in range(1, N):
+    for _ in range(1, N):
         Phis.append(Phi @ Phis[-1])
     for k in range(N):
         mean[k * n:(k + 1) * n] = Phis[k] @ m0
     # Cov(x_j, x_k) for j <= k: Φ^(k-j) Cov(x_j)
     Pk = P0.copy()
     marg = [P0]
-    for k in range(1, N):
+    for _ in range(1, N):
         Pk = Phi @ Pk @ Phi.T + Qd
         marg.append(Pk)
     for j in range(N):
@@ -349,7 +349,7 @@ def test_closed_loop_rts_kernel_equals_batch_smoother(cv_problem):
         S_post[k] = P
         S_dx[k] = dx
         nominal[k] = xn
-    ds, Ps = _rts_kernel(S_post, S_prior, S_phi, S_dx)
+    ds, Ps = _rts_kernel(S_post, S_prior, S_phi, S_dx, -1)  # -1: no re-initialisation break
     smoothed = nominal - ds
     assert np.allclose(smoothed, c["ms"], rtol=0, atol=1e-8 * np.abs(c["ms"]).max())
     assert np.allclose(Ps, c["Ps"], rtol=0, atol=1e-9 * np.abs(c["Ps"]).max())

@@ -57,8 +57,8 @@ def day_run(loose_error_state, position_error_m):
     truth, imu_true, _ = generate_truth(_day_scenario())
     assert truth.time[-1] == pytest.approx(DAY)
     t1 = time.perf_counter()
-    spec = ImuSpec.from_units(gyro_bias_deg_h=1.0, arw_deg_sqrt_h=0.1, accel_bias_ug=100.0, vrw_m_s_sqrt_h=0.03,
-                              bias_corr_time_s=np.inf)
+    spec = ImuSpec.from_units(gyro_bias_deg_h=1.0, arw_deg_sqrt_h=0.1, accel_bias_ug=100.0,
+                              vrw_m_s_sqrt_h=0.03, bias_corr_time_s=np.inf)
     gs = GnssSpec(rate_hz=1.0, sigma_pos_enu=[0.5, 0.5, 1.0], sigma_vel_enu=[0.05, 0.05, 0.1])
     s_imu, s_gnss, s_init = np.random.SeedSequence(86400).spawn(3)
     imu, realised = corrupt_imu(imu_true, spec, np.random.default_rng(s_imu))
@@ -95,7 +95,8 @@ def test_final_covariance_symmetric_positive_definite(day_run):
 def test_nees_in_band_over_the_last_hours(day_run):
     eps = nees(day_run["err"], day_run["res"].cov)
     lo, hi = chi2_band(15, 1, 1.0 - 0.05 / len(LAST_EPOCHS))
-    print(f"\nNEES over the last 4 h: {np.round(eps, 1)} (mean {eps.mean():.2f}); per-epoch band [{lo:.2f}, {hi:.2f}]")
+    print(f"\nNEES over the last 4 h: {np.round(eps, 1)} (mean {eps.mean():.2f}); "
+          f"per-epoch band [{lo:.2f}, {hi:.2f}]")
     assert np.all((eps > lo) & (eps < hi))
 
 

@@ -4,22 +4,25 @@ simulated data whose error model the filter knows exactly ("truth model = filter
 (a) Monte Carlo consistency: 100 runs of a 20-minute maneuvering flight (turns, accelerations, a
     climb, S-turns, circle, figure-8) with a tactical IMU (constant biases 1 deg/h, 100 µg; ARW
     0.1 deg/√h; VRW 0.03 m/s/√h; no Gauss-Markov, scale factor, misalignment or quantisation) and
-    1 Hz GNSS position + velocity. One truth for all runs; per run new IMU errors, GNSS noise and
-    initial errors (``SeedSequence(BASE).spawn(100)``, each spawning IMU / GNSS / initial streams).
+    1 Hz GNSS position + velocity of an antenna 2.9 m from the IMU. One truth for all runs; per run
+    new IMU errors, GNSS noise and initial errors (``SeedSequence(BASE).spawn(100)``, each spawning
+    IMU / GNSS / initial streams).
     * NEES of the 15-state error at 6 epochs 180 s apart: the 100-run average ε̄ at one epoch is
       χ²(1500)/100 for a consistent filter (runs are independent); each epoch is held to its
       two-sided band at 1 − 0.05/6 (Bonferroni: a consistent filter fails any of the 6 with
       probability ≤ 5 %, whatever the correlation between epochs).
     * RMS error vs the filter's 1σ, per attitude/velocity/position component, pooled over the 6
       epochs: ratio √(Σe²/Σσ²) within [0.8, 1.2]. For one epoch 100·ratio² ~ χ²(100) and
-      P(ratio ∉ [0.8, 1.2]) = 0.42 %; pooling correlated epochs does not widen the spread, so the 9
-      components fail together with probability ≤ 3.8 %.
+      P(ratio ∉ [0.8, 1.2]) = 0.42 %; the σ-weighted pool of (correlated) epochs is less dispersed
+      than one epoch (convex order), so a consistent filter fails one of the 9 components with
+      probability of the order of 9 × 0.42 % ≈ 4 % or less.
     * NIS of all position and velocity fixes (1179 epochs × 100 runs each): innovations of a
       consistent filter are white, so the grand average is χ²(3·N)/N with N = 117 900 independent
-      values; band at 1 − 0.01/2 each (family 1 %).
+      values; band at 1 − 0.01/2 each (family 1 %). (This is what caught the lever-arm velocity
+      using the mean body rate since the previous node: velocity NIS 3.11 against [2.98, 3.02].)
 (b) MEMS grade (10 deg/h, 1 mg, 0.3 deg/√h, 0.1 m/s/√h; constants + noise), car at 15 m/s with a 90°
-    turn, initial heading 10° off: heading unobservable before the turn (σ stays > 5°), after the
-    turn within 3σ and below 1° for the next 80 s.
+    turn, initial heading 10° off (5 runs): heading unobservable before the turn (σ stays > 3°; the
+    error may even grow), after the turn below 1° and within 3.5σ for the next 80 s.
 (c) Bad input: a fix 1 km off is rejected by the chi-square gate and the run is unchanged
     otherwise; an IMU gap of 10 s is bridged (event 'gap'), and the position error is back under
     a bound once GNSS resumes.
@@ -49,6 +52,7 @@ from aidnav.sim.trajectory import generate_truth
 BASE_SEED = 20261125
 N_RUNS = 100
 NEES_EPOCHS = np.arange(180.0, 1081.0, 180.0)  # 6 epochs [s]
+LEVER_ARM = [0.8, 2.5, 1.2]  # IMU → antenna, body RFU [m]: the lever-arm terms are part of the test
 
 TACTICAL = dict(gyro_bias_deg_h=1.0, arw_deg_sqrt_h=0.1, accel_bias_ug=100.0, vrw_m_s_sqrt_h=0.03,
                 bias_corr_time_s=np.inf)
@@ -61,7 +65,8 @@ def flight_scenario(rate_hz=50.0):
     return parse_scenario(dict(
         name="mc-flight", seed=1, imu_rate_hz=rate_hz,
         initial=dict(lat_deg=30.0, lon_deg=114.0, height_m=1000.0, speed_m_s=100.0, heading_deg=0.0),
-        segments=[dict(type="straight", duration_s=60), dict(type="accelerate", duration_s=30, to_speed_m_s=150),
+        segments=[dict(type="straight", duration_s=60),
+                  dict(type="accelerate", duration_s=30, to_speed_m_s=150),
                   dict(type="turn", angle_deg=90, rate_deg_s=3), dict(type="straight", duration_s=60),
                   dict(type="s_turns", duration_s=240, amplitude_deg=45, n_cycles=2),
                   dict(type="climb", duration_s=60, flight_path_deg=5, angle_deg=-90),
@@ -89,7 +94,8 @@ def monte_carlo(loose_error_state):
     t_start = time.perf_counter()
     truth, imu_true, _ = generate_truth(flight_scenario())
     imu_spec = ImuSpec.from_units(**TACTICAL)
-    gnss_spec = GnssSpec(rate_hz=1.0, sigma_pos_enu=[0.5, 0.5, 1.0], sigma_vel_enu=[0.05, 0.05, 0.1])
+    gnss_spec = GnssSpec(rate_hz=1.0, sigma_pos_enu=[0.5, 0.5, 1.0], sigma_vel_enu=[0.05, 0.05, 0.1],
+                         lever_arm_b=LEVER_ARM)
     K = len(NEES_EPOCHS)
     err = np.zeros((N_RUNS, K, 15))
     cov = np.zeros((N_RUNS, K, 15, 15))
@@ -114,8 +120,9 @@ def test_monte_carlo_nees_in_bonferroni_band(monte_carlo):
     mean = eps.mean(axis=0)
     K = len(NEES_EPOCHS)
     lo, hi = chi2_band(15, N_RUNS, 1.0 - 0.05 / K)
+    lo95, hi95 = chi2_band(15, N_RUNS)
     print(f"\nMC ({monte_carlo['seconds']:.1f} s): mean NEES at {NEES_EPOCHS} s = {np.round(mean, 2)}; "
-          f"band [{lo:.2f}, {hi:.2f}] (95 % band [{chi2_band(15, N_RUNS)[0]:.2f}, {chi2_band(15, N_RUNS)[1]:.2f}])")
+          f"band [{lo:.2f}, {hi:.2f}] (one-epoch 95 % band [{lo95:.2f}, {hi95:.2f}])")
     assert np.all((mean > lo) & (mean < hi)), (mean, lo, hi)
 
 
@@ -127,8 +134,8 @@ def test_monte_carlo_rms_matches_filter_sigma(monte_carlo):
     p_out = chi2.cdf(0.8**2 * N_RUNS, N_RUNS) + chi2.sf(1.2**2 * N_RUNS, N_RUNS)
     assert p_out < 0.005
     names = ["φE", "φN", "φU", "vE", "vN", "vU", "L", "λ", "h"]
-    print("\nRMS/σ: " + ", ".join(f"{n} {x:.3f}" for n, x in zip(names, ratio)))
-    assert np.all((ratio > 0.8) & (ratio < 1.2)), dict(zip(names, ratio))
+    print("\nRMS/σ: " + ", ".join(f"{n} {x:.3f}" for n, x in zip(names, ratio, strict=True)))
+    assert np.all((ratio > 0.8) & (ratio < 1.2)), dict(zip(names, ratio, strict=True))
 
 
 def test_monte_carlo_nis_white_and_consistent(monte_carlo):
@@ -159,7 +166,8 @@ def test_mems_heading_converges_after_turn(seed):
     s_imu, s_gnss, s_init = np.random.SeedSequence([BASE_SEED, seed]).spawn(3)
     imu, _ = corrupt_imu(imu_true, spec, np.random.default_rng(s_imu))
     gnss = simulate_gnss(truth, gs, np.random.default_rng(s_gnss))
-    lla, vel, rph = perturbed_initial_state(truth, np.random.default_rng(s_init), attitude_sigma_deg=(0.5, 0.5, 0.0))
+    lla, vel, rph = perturbed_initial_state(truth, np.random.default_rng(s_init),
+                                            attitude_sigma_deg=(0.5, 0.5, 0.0))
     rph = np.array(rph)
     rph[2] += 10.0  # 10° initial heading error
     cfg = loose_config_from_specs(spec, gs, init_rph_deg=rph, init_lla_deg_m=lla, init_vel=vel,
@@ -175,12 +183,18 @@ def test_mems_heading_converges_after_turn(seed):
     before = (t > 30.0) & (t < 89.0)
     after = t >= 110.0  # 10 s after the turn
     print(f"\nseed {seed}: heading σ before the turn {head_sig[before].min():.2f}°, error at 89 s "
-          f"{head_err[np.searchsorted(t, 89.0)]:.2f}°; after: max |err| {np.abs(head_err[after]).max():.3f}°, "
-          f"max |err|/σ {np.max(np.abs(head_err[after]) / head_sig[after]):.2f}")
-    assert head_sig[before].min() > 5.0  # unobservable without a turn or acceleration
-    assert np.all(np.abs(head_err[after]) < 3.0 * head_sig[after])
-    assert np.abs(head_err[after]).max() < 1.0
+          f"{head_err[np.searchsorted(t, 89.0)]:.2f}°; after: max |err| "
+          f"{np.abs(head_err[after]).max():.3f}°, max |err|/σ "
+          f"{np.max(np.abs(head_err[after]) / head_sig[after]):.2f}, max σ {head_sig[after].max():.3f}°")
+    # before the turn the filter knows it does not know the heading (no turn, no acceleration)
+    assert head_sig[before].min() > 3.0
+    # after the turn: σ ≤ 0.29° (measured) and the error within 3.5σ and 1° over the next 80 s. The
+    # error is smooth (correlated over tens of seconds: ~4 independent looks per run), so a consistent
+    # filter crosses 3.5σ (4.7e-4 per look) in one of the 5 runs with probability ≈ 1 %; 200 runs of
+    # this set-up gave max |err| 0.84° and max |err|/σ 3.4, crossing 3σ in 2 % of the runs.
     assert head_sig[after].max() < 0.5
+    assert np.all(np.abs(head_err[after]) < 3.5 * head_sig[after])
+    assert np.abs(head_err[after]).max() < 1.0
 
 
 # ------------------------------------------------------------------------------- (c) bad input
@@ -189,7 +203,8 @@ def short_flight():
         name="short", seed=1, imu_rate_hz=50.0,
         initial=dict(lat_deg=30.0, lon_deg=114.0, height_m=1000.0, speed_m_s=100.0, heading_deg=45.0),
         segments=[dict(type="straight", duration_s=60), dict(type="turn", angle_deg=90, rate_deg_s=3),
-                  dict(type="straight", duration_s=60), dict(type="s_turns", duration_s=120, amplitude_deg=30),
+                  dict(type="straight", duration_s=60),
+                  dict(type="s_turns", duration_s=120, amplitude_deg=30),
                   dict(type="straight", duration_s=60)]))
 
 

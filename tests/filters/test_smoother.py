@@ -97,7 +97,8 @@ def test_smoother_much_better_than_forward_over_outage(smoother_runs):
     f, s = smoother_runs["rms_fwd"], smoother_runs["rms_sm"]
     print(f"\nposition RMS over the outage: forward {f.mean():.2f} m, smoothed {s.mean():.2f} m "
           f"(ratio of means {s.mean() / f.mean():.3f}, worst run {np.max(s / f):.2f}); σ at mid-outage "
-          f"forward {smoother_runs['sig_fwd'].mean(0).round(2)} m, smoothed {smoother_runs['sig'].mean(0).round(2)} m")
+          f"forward {smoother_runs['sig_fwd'].mean(0).round(2)} m, "
+          f"smoothed {smoother_runs['sig'].mean(0).round(2)} m")
     assert np.all(s < f)
     assert s.mean() < 0.25 * f.mean()
 
@@ -109,8 +110,8 @@ def test_smoothed_errors_consistent_with_smoothed_sigma(smoother_runs):
     inside = (np.abs(z) < 2.0).sum(axis=0)
     z2 = (z**2).sum(axis=0)
     lo, hi = chi2.ppf(alpha / 2, N_RUNS), chi2.isf(alpha / 2, N_RUNS)
-    print(f"\n|z| < 2: {inside} of {N_RUNS} (binomial lower bound {k_min:.0f}); Σz²/R = {(z2 / N_RUNS).round(2)} "
-          f"(band [{lo / N_RUNS:.2f}, {hi / N_RUNS:.2f}])")
+    print(f"\n|z| < 2: {inside} of {N_RUNS} (binomial lower bound {k_min:.0f}); "
+          f"Σz²/R = {(z2 / N_RUNS).round(2)} (band [{lo / N_RUNS:.2f}, {hi / N_RUNS:.2f}])")
     assert np.all(inside >= k_min)
     assert np.all((z2 > lo) & (z2 < hi))
 

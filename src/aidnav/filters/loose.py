@@ -68,7 +68,8 @@ def _apply_correction(st, bias, dx, nstate):
 @njit(cache=True)
 def _loose_kernel(imu_t, dth, dvel, t0, st0, bias0, P0, q_psd, par,
                   g_t, g_lat, g_lon, g_h, g_vel, g_spos, g_svel, g_use,
-                  static, reset_idx, reset_heading, reset_sigma, reset_nav, out_every, smooth, cov_idx):
+                  static, gap_var, reset_idx, reset_heading, reset_sigma, reset_nav, out_every, smooth,
+                  cov_idx):
     n_imu = imu_t.shape[0]
     n = P0.shape[0]
     m = noise_count(n)
@@ -137,6 +138,8 @@ def _loose_kernel(imu_t, dth, dvel, t0, st0, bias0, P0, q_psd, par,
     fb_sum = np.zeros(3)
     C_sum = np.zeros((3, 3))
     n_sum = 0
+    gap_phi = 0.0
+    gap_v = 0.0
     dth_prev = np.zeros(3)
     dv_prev = np.zeros(3)
     dthc = np.zeros(3)
@@ -164,6 +167,8 @@ def _loose_kernel(imu_t, dth, dvel, t0, st0, bias0, P0, q_psd, par,
         fb_sum += dvc
         T += dt
         n_sum += 1
+        gap_phi += gap_var[k, 0]
+        gap_v += gap_var[k, 1]
         strapdown_step(st, dthc, dvc, dth_prev, dv_prev, dt)
         dth_prev[:] = dthc
         dv_prev[:] = dvc
@@ -209,6 +214,12 @@ def _loose_kernel(imu_t, dth, dvel, t0, st0, bias0, P0, q_psd, par,
                        par[P_TAU], par[P_TAU + 1], par[P_TAU + 2], par[P_TAU + 3])
             discretize(F, G, q_psd, T, Phi, Qd)
             P[:, :] = Phi @ P @ Phi.T + Qd
+            if gap_phi > 0.0:
+                for i in range(3):
+                    P[i, i] += gap_phi
+                    P[3 + i, 3 + i] += gap_v
+                gap_phi = 0.0
+                gap_v = 0.0
             P[:, :] = 0.5 * (P + P.T)
             if smooth:
                 S_phi[kn] = Phi
@@ -471,33 +482,52 @@ def initial_covariance(cfg, nstate: int, lat: float, h: float, att_sigma_rad) ->
     return np.diag(d)
 
 
-def bridge_gaps(imu, events: list, factor: float = 5.0):
+def bridge_gaps(imu, events: list, factor: float = 5.0, window_s: float = 1.0):
     """Increments ready for the kernel, with IMU time gaps (interval > ``factor`` × median) bridged.
 
     A sample after a gap either already spans the gap (e.g. rates × Δt from a reader: |Δv|/Δt ≈ g)
     or only covers one nominal interval (a sensor that dropped samples: |Δv|/Δt_nominal ≈ g). In the
-    second case its increments are scaled to the gap length (the rates are held over the gap), so
-    gravity and the specific force stay balanced. Each gap and the decision go into ``events``.
-    Returns (dtheta, dv), copies only when something was changed.
+    second case the gap is bridged by holding the mean rates of the ``window_s`` before it (holding one
+    sample's rates would scale its white noise by the gap length instead of its square root).
+    Either way the motion during the gap is unknown: the returned ``gap_var`` (N, 2) holds, for the
+    sample after each gap, the variance added to each attitude axis [rad²] and each velocity axis
+    [(m/s)²] by holding the rates: (σ_ω T)² and (σ_f T)² with σ the spread of the rates in the window
+    before the gap (floors 0.1 deg/s and 0.05 m/s²). Each gap and the decision go into ``events``.
+    Returns (dtheta, dv, gap_var); the arrays are copies only when something was changed.
     """
     dt = np.diff(np.concatenate([[imu.t0], imu.time]))
     med = float(np.median(dt))
     gaps = np.flatnonzero(dt > factor * med)
+    gap_var = np.zeros((len(imu), 2))
     if len(gaps) == 0:
-        return imu.dtheta, imu.dv
+        return imu.dtheta, imu.dv, gap_var
     dth, dv = imu.dtheta.copy(), imu.dv.copy()
+    nwin = max(2, int(round(window_s / med)))
     for k in gaps:
-        f_span = np.linalg.norm(dv[k]) / dt[k]
+        T = dt[k]
+        lo = max(0, k - nwin)
+        if k - lo >= 2:
+            w = imu.dtheta[lo:k] / dt[lo:k, None]
+            f = imu.dv[lo:k] / dt[lo:k, None]
+            w_mean, f_mean = w.mean(axis=0), f.mean(axis=0)
+            s_w = max(float(np.sqrt(np.mean(np.var(w, axis=0)))), np.radians(0.1))
+            s_f = max(float(np.sqrt(np.mean(np.var(f, axis=0)))), 0.05)
+        else:
+            w_mean, f_mean = imu.dtheta[k] / med, imu.dv[k] / med
+            s_w, s_f = np.radians(1.0), 0.5
+        f_span = np.linalg.norm(dv[k]) / T
         f_nom = np.linalg.norm(dv[k]) / med
         if abs(f_span - 9.8) < abs(f_nom - 9.8):
             how = "its increments already span the gap"
         else:
-            dth[k] *= dt[k] / med
-            dv[k] *= dt[k] / med
-            how = "its increments covered one nominal interval: scaled to the gap (rates held)"
-        events.append(f"IMU gap of {dt[k]:.3f} s before t={imu.time[k]:.3f} ({dt[k] / med:.0f} nominal "
-                      f"intervals); {how}; the covariance is propagated over the gap")
-    return dth, dv
+            dth[k] = w_mean * T
+            dv[k] = f_mean * T
+            how = f"bridged with the mean rates of the {nwin * med:.2f} s before it"
+        gap_var[k] = [(s_w * T) ** 2, (s_f * T) ** 2]
+        events.append(f"IMU gap of {T:.3f} s before t={imu.time[k]:.3f} ({T / med:.0f} nominal intervals); "
+                      f"{how}; attitude/velocity variance inflated by ({np.degrees(s_w * T):.2f} deg)^2, "
+                      f"({s_f * T:.2f} m/s)^2 for the unknown motion")
+    return dth, dv, gap_var
 
 
 def gnss_arrays(gnss, cfg):
@@ -651,7 +681,7 @@ def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: 
                 reset_idx = int(np.searchsorted(t_imu[k0:], tca, side="left"))
                 events.append(f"heading from GNSS course at t={tca:.3f}: {np.degrees(reset_heading):.2f} deg")
             att_sig[2] = np.pi  # unknown until the course alignment
-    dth_in, dv_in = bridge_gaps(imu, events)
+    dth_in, dv_in, gap_var = bridge_gaps(imu, events)
     q0 = quat_from_euler(rph[0], rph[1], rph[2])
     st0 = np.array([lat0, lon0, h0, v0[0], v0[1], v0[2], *q0], float)
     P0 = initial_covariance(cfg, nstate, lat0, h0, att_sig)
@@ -689,12 +719,13 @@ def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: 
     cov_idx = np.zeros(0, np.int64)
     if cov_times is not None:
         ct = np.sort(np.atleast_1d(np.asarray(cov_times, float)))
-        cov_idx = np.searchsorted(t_imu[k0:], ct, side="left").astype(np.int64)
+        # first sample at or after each time (1 µs tolerance for times computed as k·dt)
+        cov_idx = np.searchsorted(t_imu[k0:], ct - 1e-6, side="left").astype(np.int64)
         cov_idx = cov_idx[cov_idx < len(t_imu) - k0]
     r = _loose_kernel(t_imu[k0:], dth_in[k0:], dv_in[k0:], t0, st0, bias0, P0, q_psd, par,
                       g_t, g_lat, g_lon, g_h, g_vel, g_spos, g_svel, use,
-                      static[k0:], reset_idx, reset_heading, ini.course_heading_sigma_deg * DEG, reset_nav,
-                      out_every, smooth, cov_idx)
+                      static[k0:], gap_var[k0:], reset_idx, reset_heading,
+                      ini.course_heading_sigma_deg * DEG, reset_nav, out_every, smooth, cov_idx)
     (out_idx, out_st, out_bias, out_pdiag, out_node, node_idx, S_post, S_prior, S_phi, S_dx,
      rec_pos, rec_vel, rpi, rps, rvi, rvs, rpn, rvn, counts, st_end, bias_end, P_end, cov_out) = r
     records = dict(pos_status=rec_pos, vel_status=rec_vel, pos_innov=rpi, pos_s=rps, vel_innov=rvi,

@@ -120,3 +120,17 @@ def test_gnss_outlier_is_rejected_and_reported(simdir, tmp_path):
     s = json.loads((tmp_path / "o_summary.json").read_text())
     assert s["gnss_position_rejected"] >= 1
     assert g.time[70] in s["rejected_fix_times"]
+
+
+def test_nan_gnss_fix_is_skipped_and_reported(simdir):
+    from aidnav.filters.loose import run_loose
+    from aidnav.io.interchange import read_gnss, read_imu
+    from aidnav.process import load_config
+
+    g = read_gnss(simdir / "sim/gnss.csv")
+    g.lat[60] = np.nan
+    events: list[str] = []
+    r = run_loose(read_imu(simdir / "sim/imu.csv"), g, load_config(simdir / "cfg.yaml"), events=events)
+    assert any("NaN/inf" in e for e in events), events
+    assert r.records["pos_status"][60] == -1
+    assert np.all(np.isfinite(r.state))

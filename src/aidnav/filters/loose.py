@@ -597,6 +597,12 @@ def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: 
     t_imu = imu.time + cfg.imu.time_offset_s
     g_t, g_lat, g_lon, g_h, g_vel, g_spos, g_svel = gnss_arrays(gnss, cfg)
     use = np.ones(len(gnss), dtype=np.bool_) if withheld is None else ~np.asarray(withheld, bool)
+    finite = np.isfinite(g_lat) & np.isfinite(g_lon) & np.isfinite(g_h) & np.all(np.isfinite(g_spos), axis=1)
+    if not finite.all():
+        bad_t = g_t[~finite]
+        events.append(f"{int((~finite).sum())} GNSS fixes with NaN/inf position or sigma not used "
+                      f"(first at t={bad_t[0]:.3f})")
+        use &= finite
     ini = cfg.init
     # ---- initial state
     if ini.mode == "given":

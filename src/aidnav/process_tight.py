@@ -28,8 +28,14 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
     cfg = cfg or TightConfig()
     events = events if events is not None else []
     iono = cfg.gnss.iono
-    sp = spp_series(obs, eph, sigma0=cfg.gnss.code_sigma_m, iono=iono, mask_deg=cfg.gnss.mask_deg,
-                    iono_window_s=cfg.gnss.iono_window_s)
+    sp = spp_series(
+        obs,
+        eph,
+        sigma0=cfg.gnss.code_sigma_m,
+        iono=iono,
+        mask_deg=cfg.gnss.mask_deg,
+        iono_window_s=cfg.gnss.iono_window_s,
+    )
     t_imu = imu.time + cfg.imu.time_offset_s
     ok = np.isfinite(sp["lat"]) & (sp["time"] >= t_imu[0])
     if not ok.any():
@@ -54,21 +60,35 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
             m = np.abs(g.time - g.time[i]) <= 1.0
             ve, vn = np.nanmean(g.vel[m, 0]), np.nanmean(g.vel[m, 1])
             course = np.arctan2(ve, vn) % (2 * np.pi)
-            heading_reset = (float(g.time[i]), float((course + cfg.imu.mounting_rph_deg[2] * DEG) % (2 * np.pi)))
-            events.append(f"heading from the SPP course at t={g.time[i]:.2f}: {np.degrees(heading_reset[1]):.1f} deg")
+            heading_reset = (
+                float(g.time[i]),
+                float((course + cfg.imu.mounting_rph_deg[2] * DEG) % (2 * np.pi)),
+            )
+            events.append(
+                f"heading from the SPP course at t={g.time[i]:.2f}: {np.degrees(heading_reset[1]):.1f} deg"
+            )
         else:
             events.append("heading never aligned: no SPP speed above init.course_min_speed_m_s")
     lc = LooseConfig(imu=cfg.imu, constraints=cfg.constraints, init=cfg.init)
     static = static_flags(imu, g, lc) if cfg.constraints.zupt else None
-    init_state = (float(t_imu[np.searchsorted(t_imu, sp["time"][i0]) - 1]), sp["lat"][i0], sp["lon"][i0],
-                  sp["h"][i0], np.zeros(3), np.array([roll, pitch, heading]))
+    init_state = (
+        float(t_imu[np.searchsorted(t_imu, sp["time"][i0]) - 1]),
+        sp["lat"][i0],
+        sp["lon"][i0],
+        sp["h"][i0],
+        np.zeros(3),
+        np.array([roll, pitch, heading]),
+    )
     if static is None or not static[np.searchsorted(t_imu, sp["time"][i0])]:
         v0 = sp["vel_enu"][i0]
         init_state = init_state[:4] + (np.nan_to_num(v0),) + init_state[5:]
-    events.append(f"start at t={init_state[0]:.3f} from SPP; roll {np.degrees(roll):.2f}, pitch "
-                  f"{np.degrees(pitch):.2f} deg from the mean specific force over {ini.static_window_s:g} s")
-    res = run_tight(imu, obs, eph, cfg, init_state=init_state, static=static, heading_reset=heading_reset,
-                    events=events)
+    events.append(
+        f"start at t={init_state[0]:.3f} from SPP; roll {np.degrees(roll):.2f}, pitch "
+        f"{np.degrees(pitch):.2f} deg from the mean specific force over {ini.static_window_s:g} s"
+    )
+    res = run_tight(
+        imu, obs, eph, cfg, init_state=init_state, static=static, heading_reset=heading_reset, events=events
+    )
     return res, sp
 
 
@@ -85,10 +105,19 @@ def compare_with_reference(time, lat, lon, h, ref: GnssData, quality: int | None
     la = np.interp(tr, time, lat)
     lo = np.interp(tr, time, np.unwrap(lon))
     hh = np.interp(tr, time, h)
-    e, n, u = lla_difference_enu(la, lo, hh, ref.lat[sel][inside], ref.lon[sel][inside], ref.height[sel][inside])
+    e, n, u = lla_difference_enu(
+        la, lo, hh, ref.lat[sel][inside], ref.lon[sel][inside], ref.height[sel][inside]
+    )
     d = np.column_stack([e, n, u])
     d = d[np.all(np.isfinite(d), axis=1)]
     hz = np.hypot(d[:, 0], d[:, 1])
-    return {"diff_enu": d, "n": len(d), "mean": d.mean(0), "std": d.std(0), "rms": np.sqrt((d**2).mean(0)),
-            "horizontal_rms": float(np.sqrt((hz**2).mean())), "horizontal_p95": float(np.percentile(hz, 95)),
-            "vertical_rms": float(np.sqrt((d[:, 2] ** 2).mean()))}
+    return {
+        "diff_enu": d,
+        "n": len(d),
+        "mean": d.mean(0),
+        "std": d.std(0),
+        "rms": np.sqrt((d**2).mean(0)),
+        "horizontal_rms": float(np.sqrt((hz**2).mean())),
+        "horizontal_p95": float(np.percentile(hz, 95)),
+        "vertical_rms": float(np.sqrt((d[:, 2] ** 2).mean())),
+    }

@@ -56,8 +56,18 @@ from aidnav.nav.gnss_sat import (
     tropo_delay,
 )
 
-__all__ = ["elevation_sigma", "satellites_from_pseudoranges", "SppResult", "spp", "spp_velocity",
-           "RelativeSolution", "relative_position", "range_az_el", "dead_reckon", "spp_series"]
+__all__ = [
+    "elevation_sigma",
+    "satellites_from_pseudoranges",
+    "SppResult",
+    "spp",
+    "spp_velocity",
+    "RelativeSolution",
+    "relative_position",
+    "range_az_el",
+    "dead_reckon",
+    "spp_series",
+]
 
 _ZERO4 = np.zeros(4)
 
@@ -97,13 +107,20 @@ def satellites_from_pseudoranges(eph_table, prns, t_rx, pr, use_tgd: bool = True
     pr (S,) [m] (NaN = no measurement). Returns (pos (S, 3) ECEF of transmit time [m], vel (S, 3) [m/s],
     clk (S,) c·dt_s [m], clk_rate (S,) c·ḋt_s [m/s]); NaN where no measurement or no ephemeris.
     """
-    return _satellites(np.ascontiguousarray(eph_table, float), np.asarray(prns, np.int64), float(t_rx),
-                       np.asarray(pr, float), bool(use_tgd), float(max_age_s))
+    return _satellites(
+        np.ascontiguousarray(eph_table, float),
+        np.asarray(prns, np.int64),
+        float(t_rx),
+        np.asarray(pr, float),
+        bool(use_tgd),
+        float(max_age_s),
+    )
 
 
 @njit(cache=True)
-def _wls(sat_pos, pr_corr, sigma0, x0, alpha, beta, use_iono, use_tropo, humidity, mask, t_sow, use,
-         max_iter):
+def _wls(
+    sat_pos, pr_corr, sigma0, x0, alpha, beta, use_iono, use_tropo, humidity, mask, t_sow, use, max_iter
+):
     """Weighted Gauss-Newton SPP core. Returns (x, Q, v, el, az, sig, used, iters, ok)."""
     s = sat_pos.shape[0]
     x = x0.copy()
@@ -222,9 +239,24 @@ def _dop_from_geometry(el, az, used):
     return dop(u)
 
 
-def spp(sat_pos, sat_clk, pr, prns=None, t_sow: float = 0.0, x0=None, sigma0: float = 1.0,
-        iono_alpha=None, iono_beta=None, tropo: bool = True, humidity: float = 0.7, mask_deg: float = 10.0,
-        p_fa: float = 1e-3, max_exclusions: int = 2, max_iter: int = 12, exclude=None) -> SppResult:
+def spp(
+    sat_pos,
+    sat_clk,
+    pr,
+    prns=None,
+    t_sow: float = 0.0,
+    x0=None,
+    sigma0: float = 1.0,
+    iono_alpha=None,
+    iono_beta=None,
+    tropo: bool = True,
+    humidity: float = 0.7,
+    mask_deg: float = 10.0,
+    p_fa: float = 1e-3,
+    max_exclusions: int = 2,
+    max_iter: int = 12,
+    exclude=None,
+) -> SppResult:
     """Single-point position of one epoch by iterated weighted least squares with a residual check.
 
     sat_pos (S, 3) satellite ECEF at transmit time [m] and sat_clk (S,) c·dt_s [m]
@@ -249,9 +281,21 @@ def spp(sat_pos, sat_clk, pr, prns=None, t_sow: float = 0.0, x0=None, sigma0: fl
     excluded: list = []
     status = "ok"
     while True:
-        x, Q, v, el, az, sig, used, iters, ok = _wls(sat_pos, pr_corr, float(sigma0), start, alpha, beta,
-                                                     use_iono, bool(tropo), float(humidity),
-                                                     np.radians(mask_deg), float(t_sow), use, max_iter)
+        x, Q, v, el, az, sig, used, iters, ok = _wls(
+            sat_pos,
+            pr_corr,
+            float(sigma0),
+            start,
+            alpha,
+            beta,
+            use_iono,
+            bool(tropo),
+            float(humidity),
+            np.radians(mask_deg),
+            float(t_sow),
+            use,
+            max_iter,
+        )
         n = int(used.sum())
         if n < 4:
             status = "too few satellites"
@@ -292,9 +336,23 @@ def spp(sat_pos, sat_clk, pr, prns=None, t_sow: float = 0.0, x0=None, sigma0: fl
         C = dcm_ecef_to_enu(lat, lon)
         cov_enu = C @ Q[:3, :3] @ C.T
     d = _dop_from_geometry(el, az, used) if used.sum() >= 4 else _dop_from_geometry(el, az, used & False)
-    res = SppResult(ecef=x[:3].copy(), lat=float(lat), lon=float(lon), h=float(h), clock_m=float(x[3]), cov=Q,
-                    cov_enu=cov_enu, dop=d, residuals=np.where(used, v, np.nan), elevation=el, azimuth=az,
-                    used=used, excluded=excluded, status=status, iterations=int(iters))
+    res = SppResult(
+        ecef=x[:3].copy(),
+        lat=float(lat),
+        lon=float(lon),
+        h=float(h),
+        clock_m=float(x[3]),
+        cov=Q,
+        cov_enu=cov_enu,
+        dop=d,
+        residuals=np.where(used, v, np.nan),
+        elevation=el,
+        azimuth=az,
+        used=used,
+        excluded=excluded,
+        status=status,
+        iterations=int(iters),
+    )
     if status not in ("too few satellites", "no convergence", "no redundancy: unchecked"):
         res.test_stat, res.threshold = T, thr
     return res
@@ -367,10 +425,23 @@ def range_az_el(enu):
     return r, az, el
 
 
-def relative_position(base_ecef, sat_pos_b, pr_b, sat_pos_k, pr_k, sigma0: float = 1.0,
-                      iterate: bool = True, tropo_difference: bool = False, humidity: float = 0.7,
-                      mask_deg: float = 5.0, x0=None, max_iter: int = 20, tol_m: float = 1e-7,
-                      sigma0_base: float | None = None, weighting: str = "elevation") -> RelativeSolution:
+def relative_position(
+    base_ecef,
+    sat_pos_b,
+    pr_b,
+    sat_pos_k,
+    pr_k,
+    sigma0: float = 1.0,
+    iterate: bool = True,
+    tropo_difference: bool = False,
+    humidity: float = 0.7,
+    mask_deg: float = 5.0,
+    x0=None,
+    max_iter: int = 20,
+    tol_m: float = 1e-7,
+    sigma0_base: float | None = None,
+    weighting: str = "elevation",
+) -> RelativeSolution:
     """Relative position of the rover in the base's ENU frame from pseudorange single differences.
 
     base_ecef (3,) the (roughly known) base position [m]; sat_pos_b, sat_pos_k (S, 3) satellite ECEF at
@@ -451,14 +522,33 @@ def relative_position(base_ecef, sat_pos_b, pr_b, sat_pos_k, pr_k, sigma0: float
     from aidnav.nav.gnss_sat import dop
 
     d = dop(-np.asarray([H[j, :3] for j in np.flatnonzero(use)])) if ok else dop(np.zeros((0, 3)))
-    return RelativeSolution(enu=x[:3].copy(), clock_m=float(x[3]), cov=Q, range_m=float(r), azimuth=float(az),
-                            elevation=float(el), residuals=np.where(use, v, np.nan), used=use, iterations=n_it,
-                            dop=d, ok=bool(ok))
+    return RelativeSolution(
+        enu=x[:3].copy(),
+        clock_m=float(x[3]),
+        cov=Q,
+        range_m=float(r),
+        azimuth=float(az),
+        elevation=float(el),
+        residuals=np.where(use, v, np.nan),
+        used=use,
+        iterations=n_it,
+        dop=d,
+        ok=bool(ok),
+    )
 
 
 # ----------------------------------------------------------------------------------- dead reckoning
-def dead_reckon(time, vel_enu_rover, lat_rover, lon_rover, base_lat, base_lon, dx0, rotate: bool = True,
-                method: str = "euler"):
+def dead_reckon(
+    time,
+    vel_enu_rover,
+    lat_rover,
+    lon_rover,
+    base_lat,
+    base_lon,
+    dx0,
+    rotate: bool = True,
+    method: str = "euler",
+):
     """Relative position of the rover in the base's ENU frame by integrating its velocity (seed eqs. 6–7).
 
     time (N,) [s]; vel_enu_rover (N, 3) rover velocity in its own ENU frame [m/s]; lat_rover, lon_rover
@@ -473,9 +563,13 @@ def dead_reckon(time, vel_enu_rover, lat_rover, lon_rover, base_lat, base_lon, d
         la, lo = np.asarray(lat_rover, float), np.asarray(lon_rover, float)
         sl, cl, so, co = np.sin(la), np.cos(la), np.sin(lo), np.cos(lo)
         # C_{n_K}^e v (columns of C_e^n transposed)
-        ve = np.column_stack([-so * v[:, 0] - sl * co * v[:, 1] + cl * co * v[:, 2],
-                              co * v[:, 0] - sl * so * v[:, 1] + cl * so * v[:, 2],
-                              cl * v[:, 1] + sl * v[:, 2]])
+        ve = np.column_stack(
+            [
+                -so * v[:, 0] - sl * co * v[:, 1] + cl * co * v[:, 2],
+                co * v[:, 0] - sl * so * v[:, 1] + cl * so * v[:, 2],
+                cl * v[:, 1] + sl * v[:, 2],
+            ]
+        )
         v = ve @ dcm_ecef_to_enu(float(base_lat), float(base_lon)).T
     dt = np.diff(t)
     if method == "euler":
@@ -491,8 +585,17 @@ def dead_reckon(time, vel_enu_rover, lat_rover, lon_rover, base_lat, base_lon, d
 
 
 # --------------------------------------------------------------------------------------- batch SPP
-def spp_series(obs, eph, sigma0: float = 1.0, iono: str = "klobuchar", mask_deg: float = 10.0,
-               p_fa: float = 1e-3, velocity: bool = True, iono_window_s: float = 60.0, x0=None):
+def spp_series(
+    obs,
+    eph,
+    sigma0: float = 1.0,
+    iono: str = "klobuchar",
+    mask_deg: float = 10.0,
+    p_fa: float = 1e-3,
+    velocity: bool = True,
+    iono_window_s: float = 60.0,
+    x0=None,
+):
     """SPP (and Doppler velocity) for every epoch of :class:`aidnav.io.rinex.GnssObservations`.
 
     iono : "klobuchar" (header coefficients; none when the file has none), "none", or "dual": L1
@@ -529,8 +632,9 @@ def spp_series(obs, eph, sigma0: float = 1.0, iono: str = "klobuchar", mask_deg:
         alpha, beta = eph.iono_alpha, eph.iono_beta
     use_tgd = iono != "dual"
     rate_all = obs.range_rate()
-    out = {k: np.full(T, np.nan) for k in ("lat", "lon", "h", "clock_m", "clock_drift", "pdop", "hdop",
-                                           "vdop")}
+    out = {
+        k: np.full(T, np.nan) for k in ("lat", "lon", "h", "clock_m", "clock_drift", "pdop", "hdop", "vdop")
+    }
     out["time"] = obs.time
     out["ecef"] = np.full((T, 3), np.nan)
     out["vel_enu"] = np.full((T, 3), np.nan)
@@ -540,10 +644,22 @@ def spp_series(obs, eph, sigma0: float = 1.0, iono: str = "klobuchar", mask_deg:
     out["residuals"] = np.full((T, S), np.nan)
     xprev = None if x0 is None else np.asarray(x0, float)
     for k in range(T):
-        pos, vel, clk, clk_rate = satellites_from_pseudoranges(eph.table, obs.prn, obs.time[k], pr_all[k],
-                                                               use_tgd=use_tgd)
-        r = spp(pos, clk, pr_all[k], prns=obs.prn, t_sow=obs.time[k], x0=xprev, sigma0=sigma0,
-                iono_alpha=alpha, iono_beta=beta, mask_deg=mask_deg, p_fa=p_fa)
+        pos, vel, clk, clk_rate = satellites_from_pseudoranges(
+            eph.table, obs.prn, obs.time[k], pr_all[k], use_tgd=use_tgd
+        )
+        r = spp(
+            pos,
+            clk,
+            pr_all[k],
+            prns=obs.prn,
+            t_sow=obs.time[k],
+            x0=xprev,
+            sigma0=sigma0,
+            iono_alpha=alpha,
+            iono_beta=beta,
+            mask_deg=mask_deg,
+            p_fa=p_fa,
+        )
         out["status"].append(r.status)
         out["excluded"].append(r.excluded)
         if not r.valid:

@@ -61,8 +61,14 @@ from .kalman import discretize, update, update_scalar
 from .loose import _apply_correction
 from .measurements import gnss_position, gnss_velocity, zero_velocity
 
-__all__ = ["RawGnssAiding", "TightConfig", "TightResult", "run_tight", "tight_nav_covariance_m",
-           "to_trajectory"]
+__all__ = [
+    "RawGnssAiding",
+    "TightConfig",
+    "TightResult",
+    "run_tight",
+    "tight_nav_covariance_m",
+    "to_trajectory",
+]
 
 # float parameters of the kernel
 T_LEVER = 0  # 3
@@ -74,7 +80,8 @@ T_USE_IONO, T_USE_TROPO, T_HUMID = 13, 14, 15
 T_ZUPT_SIG, T_CLOCK_JUMP, T_NNAV = 16, 17, 18
 T_CLK_SIG_B, T_CLK_SIG_D = 19, 20
 T_MAX_REJECT = 21
-N_TPAR = 22
+T_CODE_MIN = 22
+N_TPAR = 23
 N_NOISE = 14  # 12 INS noise inputs of ins_errors (15-state) + clock bias + clock drift
 
 
@@ -90,6 +97,12 @@ class RawGnssAiding(_Strict):
     rate_sigma_m_s: float = Field(0.1, gt=0, description="zenith pseudorange-rate σ [m/s]")
     mask_deg: float = Field(10.0, description="elevation mask [deg]")
     use_rate: bool = True
+    code_min_sats: int = Field(
+        1,
+        ge=1,
+        description="use pseudoranges only at epochs with at least this many "
+        "satellites (above the mask); 99 = rate (Doppler) updates only",
+    )
     gate_probability: float = Field(0.9999, gt=0, le=1, description="per-satellite χ²(1) gate; 1 disables")
     max_consecutive_rejections: int = Field(20, ge=1, description="then the next epoch is not gated")
     iono: Literal["klobuchar", "none", "dual"] = "klobuchar"
@@ -98,7 +111,9 @@ class RawGnssAiding(_Strict):
     humidity: float = Field(0.7, ge=0, le=1)
     clock_h0: float = Field(2e-19, ge=0, description="white-frequency Allan coefficient h0 [s]")
     clock_hm2: float = Field(2e-20, ge=0, description="random-walk-frequency Allan coefficient h-2 [1/s]")
-    clock_tau_s: float = Field(0.0, description="drift correlation time τ_f [s] (seed: Markov); <= 0 random walk")
+    clock_tau_s: float = Field(
+        0.0, description="drift correlation time τ_f [s] (seed: Markov); <= 0 random walk"
+    )
     clock_bias_sigma_m: float = Field(30.0, gt=0, description="σ of the initial clock bias [m]")
     clock_drift_sigma_m_s: float = Field(1.0, gt=0, description="σ of the initial clock drift [m/s]")
     clock_jump_m: float = Field(1.0e4, gt=0, description="median residual that re-initialises the clock [m]")
@@ -132,9 +147,32 @@ def _build_model(F, G, F15, G15, nnav, tau_f):
 
 
 @njit(cache=True)
-def _tight_kernel(imu_t, dth, dvel, t0, st0, bias0, clk0, P0, q_psd, par, g_t, sat_pos, sat_vel, sat_clk,
-                  sat_clk_rate, pr, rate, ion_ab, ion_dual, static, reset_idx, reset_heading, reset_sigma,
-                  out_every):
+def _tight_kernel(
+    imu_t,
+    dth,
+    dvel,
+    t0,
+    st0,
+    bias0,
+    clk0,
+    P0,
+    q_psd,
+    par,
+    g_t,
+    sat_pos,
+    sat_vel,
+    sat_clk,
+    sat_clk_rate,
+    pr,
+    rate,
+    ion_ab,
+    ion_dual,
+    static,
+    reset_idx,
+    reset_heading,
+    reset_sigma,
+    out_every,
+):
     n_imu = imu_t.shape[0]
     n = P0.shape[0]
     nnav = int(par[T_NNAV])
@@ -160,7 +198,7 @@ def _tight_kernel(imu_t, dth, dvel, t0, st0, bias0, clk0, P0, q_psd, par, g_t, s
     innov3 = np.zeros(3)
     sdiag3 = np.zeros(3)
     h = np.zeros(n)
-    lever = par[T_LEVER:T_LEVER + 3].copy()
+    lever = par[T_LEVER : T_LEVER + 3].copy()
     alpha = ion_ab[:4].copy()
     beta = ion_ab[4:].copy()
     ib = n - 2
@@ -240,8 +278,21 @@ def _tight_kernel(imu_t, dth, dvel, t0, st0, bias0, clk0, P0, q_psd, par, g_t, s
             C = dcm_from_quat(st[6:10])
             wb = wb_sum / T
             fb = fb_sum / T
-            fill_model(F15, G15, st[0], st[2], st[3:6], fn_sum / T, C_sum / n_sum, wb, fb,
-                       par[T_TAU_G], par[T_TAU_A], 0.0, 0.0)
+            fill_model(
+                F15,
+                G15,
+                st[0],
+                st[2],
+                st[3:6],
+                fn_sum / T,
+                C_sum / n_sum,
+                wb,
+                fb,
+                par[T_TAU_G],
+                par[T_TAU_A],
+                0.0,
+                0.0,
+            )
             _build_model(F, G, F15, G15, nnav, par[T_TAU_F])
             discretize(F, G, q_psd, T, Phi, Qd)
             P[:, :] = Phi @ P @ Phi.T + Qd
@@ -255,8 +306,13 @@ def _tight_kernel(imu_t, dth, dvel, t0, st0, bias0, clk0, P0, q_psd, par, g_t, s
                 l_n = C @ lever
                 rm, rn = radii(lat)
                 sl, cl = np.sin(lat), np.cos(lat)
-                w_in = np.array([-st[4] / (rm + hh), OMEGA_IE * cl + st[3] / (rn + hh),
-                                 OMEGA_IE * sl + st[3] * sl / cl / (rn + hh)])
+                w_in = np.array(
+                    [
+                        -st[4] / (rm + hh),
+                        OMEGA_IE * cl + st[3] / (rn + hh),
+                        OMEGA_IE * sl + st[3] * sl / cl / (rn + hh),
+                    ]
+                )
                 # antenna position / velocity blocks (15 columns) from the loosely coupled measurements
                 gnss_position(st, C, lever, lat, lon, hh, 0.0, H3p, z3)
                 gnss_velocity(st, C, lever, wb, w_in, st[3:6], H3v, z3)
@@ -276,8 +332,11 @@ def _tight_kernel(imu_t, dth, dvel, t0, st0, bias0, clk0, P0, q_psd, par, g_t, s
                     rho, e = geo_range(sat_pos[gi, j], ra)
                     res[j] = pr[gi, j] + sat_clk[gi, j] - rho
                     if np.isfinite(rate[gi, j]):
-                        res_r[j] = rate[gi, j] + sat_clk_rate[gi, j] - geo_range_rate(sat_pos[gi, j],
-                                                                                     sat_vel[gi, j], ra, va, e)
+                        res_r[j] = (
+                            rate[gi, j]
+                            + sat_clk_rate[gi, j]
+                            - geo_range_rate(sat_pos[gi, j], sat_vel[gi, j], ra, va, e)
+                        )
                 okr = np.isfinite(res)
                 if okr.sum() > 0:
                     med = np.median(res[okr])
@@ -300,6 +359,14 @@ def _tight_kernel(imu_t, dth, dvel, t0, st0, bias0, clk0, P0, q_psd, par, g_t, s
                 gate_pr = par[T_GATE_PR] if n_rej_run < par[T_MAX_REJECT] else 0.0
                 gate_rate = par[T_GATE_RATE] if n_rej_run < par[T_MAX_REJECT] else 0.0
                 n_rej_epoch = 0
+                n_vis = 0
+                for j in range(S):
+                    if np.isfinite(pr[gi, j]) and np.isfinite(sat_pos[gi, j, 0]):
+                        _, e = geo_range(sat_pos[gi, j], ra)
+                        _, el, _ = az_el(e, lat, lon)
+                        if el >= par[T_MASK]:
+                            n_vis += 1
+                use_code = n_vis >= par[T_CODE_MIN]
                 for j in range(S):
                     if not (np.isfinite(pr[gi, j]) and np.isfinite(sat_pos[gi, j, 0])):
                         continue
@@ -324,13 +391,14 @@ def _tight_kernel(imu_t, dth, dvel, t0, st0, bias0, clk0, P0, q_psd, par, g_t, s
                     for c in range(nnav):
                         h[c] = en[0] * H3p[0, c] + en[1] * H3p[1, c] + en[2] * H3p[2, c]
                     h[ib] = 1.0
-                    ok, nu, s = update_scalar(x, P, h, par[T_SIG_CODE] ** 2 * mfac, z, gate_pr)
-                    rec_pr_innov[gi, j] = nu
-                    rec_pr_s[gi, j] = s
-                    if ok:
-                        rec_npr[gi] += 1
-                    else:
-                        n_rej_epoch += 1
+                    if use_code:
+                        ok, nu, s = update_scalar(x, P, h, par[T_SIG_CODE] ** 2 * mfac, z, gate_pr)
+                        rec_pr_innov[gi, j] = nu
+                        rec_pr_s[gi, j] = s
+                        if ok:
+                            rec_npr[gi] += 1
+                        else:
+                            n_rej_epoch += 1
                     if par[T_USE_RATE] > 0 and np.isfinite(rate[gi, j]):
                         rr = geo_range_rate(sat_pos[gi, j], sat_vel[gi, j], ra, va, e)
                         zr = rate[gi, j] + sat_clk_rate[gi, j] - (rr + clk[1])
@@ -385,9 +453,28 @@ def _tight_kernel(imu_t, dth, dvel, t0, st0, bias0, clk0, P0, q_psd, par, g_t, s
                 out_pdiag[oi, i] = P[i, i]
             oi += 1
     counts = np.array([n_zupt, n_jumps])
-    return (out_idx[:oi], out_st[:oi], out_bias[:oi], out_clk[:oi], out_pdiag[:oi], rec_time, rec_navail,
-            rec_npr, rec_nrate, rec_nrej, rec_pr_innov, rec_pr_s, rec_rate_innov, rec_rate_s, rec_el, rec_Pnav,
-            rec_clk, rec_state, counts, P)
+    return (
+        out_idx[:oi],
+        out_st[:oi],
+        out_bias[:oi],
+        out_clk[:oi],
+        out_pdiag[:oi],
+        rec_time,
+        rec_navail,
+        rec_npr,
+        rec_nrate,
+        rec_nrej,
+        rec_pr_innov,
+        rec_pr_s,
+        rec_rate_innov,
+        rec_rate_s,
+        rec_el,
+        rec_Pnav,
+        rec_clk,
+        rec_state,
+        counts,
+        P,
+    )
 
 
 @dataclass
@@ -450,8 +537,9 @@ def _satellite_arrays(obs, eph, use_tgd, max_age):
     scr = np.full((M, S), np.nan)
     prn = np.asarray(obs.prn, np.int64)
     for k in range(M):
-        sp[k], sv[k], sc[k], scr[k] = _satellites(eph.table, prn, float(obs.time[k]), obs.code1[k], use_tgd,
-                                                  float(max_age))
+        sp[k], sv[k], sc[k], scr[k] = _satellites(
+            eph.table, prn, float(obs.time[k]), obs.code1[k], use_tgd, float(max_age)
+        )
     return sp, sv, sc, scr
 
 
@@ -474,8 +562,17 @@ def _dual_iono(obs, window_s):
     return out
 
 
-def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, static=None,
-              heading_reset=None, events: list | None = None, output_rate_hz: float | None = None) -> TightResult:
+def run_tight(
+    imu,
+    obs,
+    eph,
+    cfg: TightConfig | None = None,
+    init_state=None,
+    static=None,
+    heading_reset=None,
+    events: list | None = None,
+    output_rate_hz: float | None = None,
+) -> TightResult:
     """Tightly coupled GNSS/INS over whole logs.
 
     imu : :class:`aidnav.data.ImuData` (increments, body RFU; time on the GNSS scale: GPS seconds on the
@@ -503,13 +600,21 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     t_imu = imu.time + cfg.imu.time_offset_s
     if init_state is None:
         ini = cfg.init
-        missing = [k for k in ("lat_deg", "lon_deg", "height_m", "roll_deg", "pitch_deg", "heading_deg")
-                   if getattr(ini, k) is None]
+        missing = [
+            k
+            for k in ("lat_deg", "lon_deg", "height_m", "roll_deg", "pitch_deg", "heading_deg")
+            if getattr(ini, k) is None
+        ]
         if missing:
             raise ValueError("run_tight needs init_state or init.mode = given with " + ", ".join(missing))
-        init_state = (float(imu.t0 + cfg.imu.time_offset_s), ini.lat_deg * DEG, ini.lon_deg * DEG, ini.height_m,
-                      np.array(ini.velocity_m_s, float),
-                      np.array([ini.roll_deg, ini.pitch_deg, ini.heading_deg]) * DEG)
+        init_state = (
+            float(imu.t0 + cfg.imu.time_offset_s),
+            ini.lat_deg * DEG,
+            ini.lon_deg * DEG,
+            ini.height_m,
+            np.array(ini.velocity_m_s, float),
+            np.array([ini.roll_deg, ini.pitch_deg, ini.heading_deg]) * DEG,
+        )
     t0, lat0, lon0, h0, v0, rph0 = init_state
     k0 = int(np.searchsorted(t_imu, t0, side="right"))
     q0 = quat_from_euler(rph0[0], rph0[1], rph0[2])
@@ -518,7 +623,7 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     P0 = _initial_P(cfg, lat0, h0, att_sig)
     q = _noise_vector(cfg)
     par = np.zeros(N_TPAR)
-    par[T_LEVER:T_LEVER + 3] = g.lever_arm_m
+    par[T_LEVER : T_LEVER + 3] = g.lever_arm_m
     par[T_TAU_G] = cfg.imu.gyro_bias_tau_s
     par[T_TAU_A] = cfg.imu.accel_bias_tau_s
     par[T_TAU_F] = g.clock_tau_s
@@ -542,6 +647,7 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     par[T_CLK_SIG_B] = g.clock_bias_sigma_m
     par[T_CLK_SIG_D] = g.clock_drift_sigma_m_s
     par[T_MAX_REJECT] = g.max_consecutive_rejections
+    par[T_CODE_MIN] = g.code_min_sats
     ion_ab = np.zeros(8)
     if use_iono:
         ion_ab[:4], ion_ab[4:] = eph.iono_alpha, eph.iono_beta
@@ -561,23 +667,97 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
         reset_heading = float(heading_reset[1])
     from .loose import bridge_gaps
 
-    dth_in, dv_in = bridge_gaps(imu, events)
+    bridged = bridge_gaps(imu, events)  # (dtheta, dv[, gap variances: not used here])
+    dth_in, dv_in = bridged[0], bridged[1]
     out_every = 1
     rate_hz = output_rate_hz or cfg.filter.output_rate_hz
     if rate_hz:
         out_every = max(1, int(round(imu.rate_hz / rate_hz)))
-    r = _tight_kernel(t_imu[k0:], dth_in[k0:], dv_in[k0:], float(t0), st0, np.zeros(max(nnav - 9, 1)),
-                      np.zeros(2), P0, q, par, obs.time, sp, sv, sc, scr, obs.code1, rate, ion_ab, ion_dual,
-                      stat[k0:], reset_idx, reset_heading, cfg.init.course_heading_sigma_deg * DEG, out_every)
-    (out_idx, out_st, out_bias, out_clk, out_pd, rt, rna, rnp, rnr, rnj, rpi, rps, rri, rrs, rel, rP, rclk,
-     rst, counts, P_end) = r
-    epochs = dict(time=rt, n_avail=rna, n_pr=rnp, n_rate=rnr, n_rejected=rnj, pr_innov=rpi, pr_s=rps,
-                  rate_innov=rri, rate_s=rrs, elevation=rel, P_nav=rP, clock=rclk, state=rst, prn=obs.prn)
-    cnt = dict(zupt_updates=int(counts[0]), clock_jumps=int(counts[1]), epochs=int(np.isfinite(rt).sum()),
-               pr_used=int(rnp.sum()), rate_used=int(rnr.sum()), rejected=int(rnj.sum()),
-               imu_samples_skipped=k0)
-    return TightResult(time=t_imu[k0:][out_idx], state=out_st, bias=out_bias[:, :nnav - 9], clock=out_clk,
-                       pdiag=out_pd, epochs=epochs, counts=cnt, events=events, nstate=n, final_P=P_end)
+    r = _tight_kernel(
+        t_imu[k0:],
+        dth_in[k0:],
+        dv_in[k0:],
+        float(t0),
+        st0,
+        np.zeros(max(nnav - 9, 1)),
+        np.zeros(2),
+        P0,
+        q,
+        par,
+        obs.time,
+        sp,
+        sv,
+        sc,
+        scr,
+        obs.code1,
+        rate,
+        ion_ab,
+        ion_dual,
+        stat[k0:],
+        reset_idx,
+        reset_heading,
+        cfg.init.course_heading_sigma_deg * DEG,
+        out_every,
+    )
+    (
+        out_idx,
+        out_st,
+        out_bias,
+        out_clk,
+        out_pd,
+        rt,
+        rna,
+        rnp,
+        rnr,
+        rnj,
+        rpi,
+        rps,
+        rri,
+        rrs,
+        rel,
+        rP,
+        rclk,
+        rst,
+        counts,
+        P_end,
+    ) = r
+    epochs = dict(
+        time=rt,
+        n_avail=rna,
+        n_pr=rnp,
+        n_rate=rnr,
+        n_rejected=rnj,
+        pr_innov=rpi,
+        pr_s=rps,
+        rate_innov=rri,
+        rate_s=rrs,
+        elevation=rel,
+        P_nav=rP,
+        clock=rclk,
+        state=rst,
+        prn=obs.prn,
+    )
+    cnt = dict(
+        zupt_updates=int(counts[0]),
+        clock_jumps=int(counts[1]),
+        epochs=int(np.isfinite(rt).sum()),
+        pr_used=int(rnp.sum()),
+        rate_used=int(rnr.sum()),
+        rejected=int(rnj.sum()),
+        imu_samples_skipped=k0,
+    )
+    return TightResult(
+        time=t_imu[k0:][out_idx],
+        state=out_st,
+        bias=out_bias[:, : nnav - 9],
+        clock=out_clk,
+        pdiag=out_pd,
+        epochs=epochs,
+        counts=cnt,
+        events=events,
+        nstate=n,
+        final_P=P_end,
+    )
 
 
 def tight_nav_covariance_m(P_nav: np.ndarray, lat: float, h: float) -> np.ndarray:
@@ -607,5 +787,15 @@ def to_trajectory(res: TightResult):
         for i, ax in enumerate("xyz"):
             extra[f"gyro_bias_{ax}_deg_h"] = res.bias[:, i] * 180 / np.pi * 3600
             extra[f"accel_bias_{ax}_ug"] = res.bias[:, 3 + i] / 9.80665e-6
-    return Trajectory(time=res.time, lat=lat, lon=s[:, 1], height=h, vel=s[:, 3:6], rph=rph, std_pos=std_pos,
-                      std_vel=pd[:, 3:6], std_att=np.column_stack([sr, sp, pd[:, 2]]), extra=extra)
+    return Trajectory(
+        time=res.time,
+        lat=lat,
+        lon=s[:, 1],
+        height=h,
+        vel=s[:, 3:6],
+        rph=rph,
+        std_pos=std_pos,
+        std_vel=pd[:, 3:6],
+        std_att=np.column_stack([sr, sp, pd[:, 2]]),
+        extra=extra,
+    )

@@ -136,7 +136,9 @@ def read_rinex_nav(path, ref_week: int | None = None) -> GpsEphemerides:
             r[E_FIT] = 4.0 if not np.isfinite(fit) or fit == 0 else fit
             bad = [k for k in range(N_EPH) if k != E_URA and not np.isfinite(r[k])]
             if bad:
-                events.append(f"{path.name}: {sv} record at toc {sow_toc[it]:.0f} has missing fields; dropped")
+                events.append(
+                    f"{path.name}: {sv} record at toc {sow_toc[it]:.0f} has missing fields; dropped"
+                )
                 continue
             rows.append(r)
     if not rows:
@@ -173,7 +175,9 @@ def _epoch_lines(path: Path) -> np.ndarray:
                 y, mo, d, hh, mi = (int(x) for x in line[1:29].split()[:5])
                 sec = line[1:29].split()[5]
                 whole, _, frac = sec.partition(".")
-                out.append(f"{y:04d}-{mo:02d}-{d:02d}T{hh:02d}:{mi:02d}:{int(whole):02d}.{(frac + '0' * 9)[:9]}")
+                out.append(
+                    f"{y:04d}-{mo:02d}-{d:02d}T{hh:02d}:{mi:02d}:{int(whole):02d}.{(frac + '0' * 9)[:9]}"
+                )
     return np.array(out)
 
 
@@ -209,8 +213,10 @@ def read_rinex_obs(path, ref_week: int | None = None) -> GnssObservations:
         if np.all(np.abs((ex - tt).astype(np.int64)) < 2000):
             tt = ex
     else:
-        events.append(f"{path.name}: epoch lines ({len(exact)}) do not match georinex's epochs ({len(tt)}); "
-                      "times from georinex (µs resolution)")
+        events.append(
+            f"{path.name}: epoch lines ({len(exact)}) do not match georinex's epochs ({len(tt)}); "
+            "times from georinex (µs resolution)"
+        )
     week, sow = _dt64_to_week_sow(np.datetime_as_string(tt, unit="ns"))
     week = np.atleast_1d(week)
     sow = np.atleast_1d(sow)
@@ -220,8 +226,10 @@ def read_rinex_obs(path, ref_week: int | None = None) -> GnssObservations:
     if np.any(np.diff(t) <= 0):
         raise DataError(path, None, "epoch times are not strictly increasing")
     prn = np.array([int(str(s)[1:]) for s in obs.sv.values])
+
     def arr(k):
         return None if k is None else np.asarray(obs[k].values, float)
+
     code1 = arr(c1)
     dop = arr(d1) if d1 else np.full_like(code1, np.nan)
     cn0 = arr(s1) if s1 else np.full_like(code1, np.nan)

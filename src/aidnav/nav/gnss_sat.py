@@ -44,9 +44,35 @@ E_SQRTA, E_ECC, E_I0, E_OMEGA0, E_OMEGA, E_M0, E_DN, E_IDOT, E_OMEGADOT = 7, 8, 
 E_CUC, E_CUS, E_CRC, E_CRS, E_CIC, E_CIS = 16, 17, 18, 19, 20, 21
 E_TGD, E_HEALTH, E_IODE, E_URA, E_FIT = 22, 23, 24, 25, 26
 N_EPH = 27
-EPH_COLUMNS = ("prn", "week", "toe", "toc", "af0", "af1", "af2", "sqrtA", "e", "i0", "Omega0", "omega", "M0",
-               "deltaN", "IDOT", "OmegaDot", "Cuc", "Cus", "Crc", "Crs", "Cic", "Cis", "TGD", "health", "IODE",
-               "URA", "fit_h")
+EPH_COLUMNS = (
+    "prn",
+    "week",
+    "toe",
+    "toc",
+    "af0",
+    "af1",
+    "af2",
+    "sqrtA",
+    "e",
+    "i0",
+    "Omega0",
+    "omega",
+    "M0",
+    "deltaN",
+    "IDOT",
+    "OmegaDot",
+    "Cuc",
+    "Cus",
+    "Crc",
+    "Crs",
+    "Cic",
+    "Cis",
+    "TGD",
+    "health",
+    "IODE",
+    "URA",
+    "fit_h",
+)
 #: toe and toc in an ephemeris record are on the reference-week scale of the table (see module doc).
 
 
@@ -194,7 +220,7 @@ def klobuchar(lat, lon, az, el, t_sow, alpha, beta):
         per = 72000.0
     x = 2.0 * np.pi * (t - 50400.0) / per
     if abs(x) < 1.57:
-        delay = f * (5e-9 + amp * (1.0 - x * x / 2.0 + x ** 4 / 24.0))
+        delay = f * (5e-9 + amp * (1.0 - x * x / 2.0 + x**4 / 24.0))
     else:
         delay = f * 5e-9
     return C_LIGHT * delay
@@ -294,9 +320,15 @@ def dop(enu_unit, weights=None) -> dict:
         return inf
     q = np.linalg.inv(n)
     d = np.diag(q)
-    return {"gdop": float(np.sqrt(d.sum())), "pdop": float(np.sqrt(d[:3].sum())),
-            "hdop": float(np.sqrt(d[:2].sum())), "vdop": float(np.sqrt(d[2])), "tdop": float(np.sqrt(d[3])),
-            "edop": float(np.sqrt(d[0])), "ndop": float(np.sqrt(d[1]))}
+    return {
+        "gdop": float(np.sqrt(d.sum())),
+        "pdop": float(np.sqrt(d[:3].sum())),
+        "hdop": float(np.sqrt(d[:2].sum())),
+        "vdop": float(np.sqrt(d[2])),
+        "tdop": float(np.sqrt(d[3])),
+        "edop": float(np.sqrt(d[0])),
+        "ndop": float(np.sqrt(d[1])),
+    }
 
 
 def visible(sat_pos, rx_ecef, mask_deg: float = 5.0):
@@ -316,7 +348,29 @@ def visible(sat_pos, rx_ecef, mask_deg: float = 5.0):
     return vis, az, el
 
 
-__all__ = ["C_LIGHT", "GM_GPS", "OMEGA_E_GPS", "F_REL", "FREQ_L1", "FREQ_L2", "LAMBDA_L1", "N_EPH", "EPH_COLUMNS",
-           "eph_state", "sat_from_pseudorange", "geo_range", "geo_range_rate", "az_el", "klobuchar",
-           "std_atmosphere", "saastamoinen_zenith", "trop_mapping", "tropo_delay", "select_ephemeris",
-           "sat_states", "dop", "visible", "OMEGA_IE"]
+__all__ = [
+    "C_LIGHT",
+    "GM_GPS",
+    "OMEGA_E_GPS",
+    "F_REL",
+    "FREQ_L1",
+    "FREQ_L2",
+    "LAMBDA_L1",
+    "N_EPH",
+    "EPH_COLUMNS",
+    "eph_state",
+    "sat_from_pseudorange",
+    "geo_range",
+    "geo_range_rate",
+    "az_el",
+    "klobuchar",
+    "std_atmosphere",
+    "saastamoinen_zenith",
+    "trop_mapping",
+    "tropo_delay",
+    "select_ephemeris",
+    "sat_states",
+    "dop",
+    "visible",
+    "OMEGA_IE",
+]

@@ -86,6 +86,15 @@ class GnssObservations:
                     out[:, k] = a[:, i]
             return out
 
-        return GnssObservations(self.time, self.ref_week, np.asarray(prns, int), pick(self.code1),
-                                pick(self.doppler1), pick(self.cn0), pick(self.code2), self.code2_type,
-                                self.approx_ecef, list(self.events))
+        return GnssObservations(
+            self.time,
+            self.ref_week,
+            np.asarray(prns, int),
+            pick(self.code1),
+            pick(self.doppler1),
+            pick(self.cn0),
+            pick(self.code2),
+            self.code2_type,
+            self.approx_ecef,
+            list(self.events),
+        )

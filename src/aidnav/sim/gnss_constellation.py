@@ -44,12 +44,30 @@ __all__ = ["SLOTS_24", "nominal_constellation", "visible_satellites"]
 
 #: (plane, slot, RAAN [deg], argument of latitude [deg]) at 1993-07-01 00:00 (SPS PS 2001, Table 3-1)
 SLOTS_24 = (
-    ("A", 1, 272.847, 268.126), ("A", 2, 272.847, 161.786), ("A", 3, 272.847, 11.676), ("A", 4, 272.847, 41.806),
-    ("B", 1, 332.847, 80.956), ("B", 2, 332.847, 173.336), ("B", 3, 332.847, 309.976), ("B", 4, 332.847, 204.376),
-    ("C", 1, 32.847, 111.876), ("C", 2, 32.847, 11.796), ("C", 3, 32.847, 339.666), ("C", 4, 32.847, 241.556),
-    ("D", 1, 92.847, 135.226), ("D", 2, 92.847, 265.446), ("D", 3, 92.847, 35.156), ("D", 4, 92.847, 167.356),
-    ("E", 1, 152.847, 197.046), ("E", 2, 152.847, 302.596), ("E", 3, 152.847, 66.066), ("E", 4, 152.847, 333.686),
-    ("F", 1, 212.847, 238.886), ("F", 2, 212.847, 345.226), ("F", 3, 212.847, 105.206), ("F", 4, 212.847, 135.346),
+    ("A", 1, 272.847, 268.126),
+    ("A", 2, 272.847, 161.786),
+    ("A", 3, 272.847, 11.676),
+    ("A", 4, 272.847, 41.806),
+    ("B", 1, 332.847, 80.956),
+    ("B", 2, 332.847, 173.336),
+    ("B", 3, 332.847, 309.976),
+    ("B", 4, 332.847, 204.376),
+    ("C", 1, 32.847, 111.876),
+    ("C", 2, 32.847, 11.796),
+    ("C", 3, 32.847, 339.666),
+    ("C", 4, 32.847, 241.556),
+    ("D", 1, 92.847, 135.226),
+    ("D", 2, 92.847, 265.446),
+    ("D", 3, 92.847, 35.156),
+    ("D", 4, 92.847, 167.356),
+    ("E", 1, 152.847, 197.046),
+    ("E", 2, 152.847, 302.596),
+    ("E", 3, 152.847, 66.066),
+    ("E", 4, 152.847, 333.686),
+    ("F", 1, 212.847, 238.886),
+    ("F", 2, 212.847, 345.226),
+    ("F", 3, 212.847, 105.206),
+    ("F", 4, 212.847, 135.346),
 )
 _EPOCH_1993 = "1993-07-01T00:00:00"
 _GHA0_DEG = (18 + 36 / 60 + 14.4 / 3600) * 15.0
@@ -68,13 +86,20 @@ def _slots(n_sats: int):
         gaps = np.diff(np.r_[us, us[0] + 360.0])
         i = int(np.argmax(gaps))
         raan = next(r for p, _, r, _ in slots if p == plane)
-        slots.append((plane, 5 + sum(1 for p, *_ in slots[24:] if p == plane), raan,
-                      float((us[i] + gaps[i] / 2) % 360.0)))
+        slots.append(
+            (
+                plane,
+                5 + sum(1 for p, *_ in slots[24:] if p == plane),
+                raan,
+                float((us[i] + gaps[i] / 2) % 360.0),
+            )
+        )
     return slots[:n_sats]
 
 
-def nominal_constellation(week: int, sow: float, n_sats: int = 24, inclination_deg: float = 55.0,
-                          ref_week: int | None = None) -> GpsEphemerides:
+def nominal_constellation(
+    week: int, sow: float, n_sats: int = 24, inclination_deg: float = 55.0, ref_week: int | None = None
+) -> GpsEphemerides:
     """Ephemeris records of the nominal constellation with toe = toc = (week, sow) (GPS time).
 
     n_sats : 1–31 (PRN 1…n in slot order A1…F4, then the extra slots). ref_week : week of the table's
@@ -104,8 +129,13 @@ def nominal_constellation(week: int, sow: float, n_sats: int = 24, inclination_d
         r[E_HEALTH] = 0.0
         r[E_FIT] = 1e6
         rows.append(r)
-    return GpsEphemerides(np.array(rows), ref_week, None, None,
-                          [f"nominal {n_sats}-satellite GPS constellation (SPS PS 2001 slots), toe {week}/{sow:.0f}"])
+    return GpsEphemerides(
+        np.array(rows),
+        ref_week,
+        None,
+        None,
+        [f"nominal {n_sats}-satellite GPS constellation (SPS PS 2001 slots), toe {week}/{sow:.0f}"],
+    )
 
 
 def visible_satellites(eph: GpsEphemerides, t: float, rx_ecef, mask_deg: float = 5.0):

@@ -26,7 +26,8 @@ P = ρ(r_s,true(t_tx), r_a(t)) + c·dt_r − c·dt_s,true(t_tx) + I + T + MP + �
   coefficients ``iono_alpha``/``iono_beta`` evaluated at each receiver's own position and line of sight
   (so its gradient decorrelates base and rover naturally); s_j ~ N(0, ``iono_scale_sigma``²) per
   satellite is the model's error that a user correcting with the same Klobuchar keeps (common to both
-  receivers); g_j is a horizontal gradient (2,) per satellite, σ ``iono_gradient_mm_km`` per axis
+  receivers; ``iono_alpha`` all zero = no ionosphere); g_j is a horizontal gradient (2,) per satellite,
+  σ ``iono_gradient_mm_km`` per axis
   [mm of vertical delay per km], F the Klobuchar obliquity factor and d_r the receiver's horizontal
   offset [km] from the reference point (the base, or the rover's start). Differential ionosphere ≈
   F·|g|·b: 2 mm/km ⇒ 4 cm at 20 km (quiet mid-latitude), 10 mm/km and more in disturbed conditions.
@@ -74,8 +75,15 @@ from aidnav.nav.gnss_sat import (
 )
 from aidnav.nav.gnss_types import GnssObservations, GpsEphemerides
 
-__all__ = ["RawGnssSpec", "RawGnssSim", "simulate_raw_gnss", "clock_noise_psd", "simulate_clock",
-           "limit_satellites"]
+__all__ = [
+    "RawGnssSpec",
+    "RawGnssSim",
+    "simulate_raw_gnss",
+    "clock_noise_psd",
+    "simulate_clock",
+    "static_pseudoranges",
+    "limit_satellites",
+]
 
 # Klobuchar coefficients used as the default "true" ionosphere (a moderate-activity broadcast set)
 DEFAULT_ALPHA = np.array([1.1176e-8, 7.4506e-9, -5.9605e-8, -5.9605e-8])
@@ -115,15 +123,31 @@ class RawGnssSpec:
 
     def perfect(self) -> RawGnssSpec:
         """A copy without any error source except the receiver clocks (noise-free, common-mode-free)."""
-        return RawGnssSpec(rate_hz=self.rate_hz, mask_deg=self.mask_deg, code_sigma_m=0.0, rate_sigma_m_s=0.0,
-                           multipath_sigma_m=0.0, eph_sigma_rac_m=(0.0, 0.0, 0.0), sat_clock_sigma_m=0.0,
-                           sat_clock_drift_sigma_m_s=0.0, iono_alpha=self.iono_alpha, iono_beta=self.iono_beta,
-                           iono_scale_sigma=0.0, iono_gradient_mm_km=0.0, tropo_zenith_sigma_m=0.0,
-                           humidity=self.humidity, tropo_model=self.tropo_model, clock_h0=self.clock_h0, clock_hm2=self.clock_hm2,
-                           clock_bias0_m=self.clock_bias0_m, clock_drift0_m_s=self.clock_drift0_m_s,
-                           base_clock_bias0_m=self.base_clock_bias0_m,
-                           base_clock_drift0_m_s=self.base_clock_drift0_m_s, lever_arm_b=self.lever_arm_b,
-                           sat_windows=list(self.sat_windows))
+        return RawGnssSpec(
+            rate_hz=self.rate_hz,
+            mask_deg=self.mask_deg,
+            code_sigma_m=0.0,
+            rate_sigma_m_s=0.0,
+            multipath_sigma_m=0.0,
+            eph_sigma_rac_m=(0.0, 0.0, 0.0),
+            sat_clock_sigma_m=0.0,
+            sat_clock_drift_sigma_m_s=0.0,
+            iono_alpha=self.iono_alpha,
+            iono_beta=self.iono_beta,
+            iono_scale_sigma=0.0,
+            iono_gradient_mm_km=0.0,
+            tropo_zenith_sigma_m=0.0,
+            humidity=self.humidity,
+            tropo_model=self.tropo_model,
+            clock_h0=self.clock_h0,
+            clock_hm2=self.clock_hm2,
+            clock_bias0_m=self.clock_bias0_m,
+            clock_drift0_m_s=self.clock_drift0_m_s,
+            base_clock_bias0_m=self.base_clock_bias0_m,
+            base_clock_drift0_m_s=self.base_clock_drift0_m_s,
+            lever_arm_b=self.lever_arm_b,
+            sat_windows=list(self.sat_windows),
+        )
 
 
 def clock_noise_psd(h0: float, hm2: float) -> tuple[float, float]:
@@ -147,8 +171,30 @@ def simulate_clock(n: int, dt: float, h0: float, hm2: float, b0: float, d0: floa
 
 
 @njit(cache=True)
-def _raw_kernel(t_gps, rr, vr, eph, eph_err, clk_err, t_clk_ref, clock, alpha, beta, iono_scale, iono_grad,
-                d_km, tropo_res, humidity, mp_unit, mp_sigma, noise, code_sig, rate_sig, mask, use_trop):
+def _raw_kernel(
+    t_gps,
+    rr,
+    vr,
+    eph,
+    eph_err,
+    clk_err,
+    t_clk_ref,
+    clock,
+    alpha,
+    beta,
+    iono_scale,
+    iono_grad,
+    d_km,
+    tropo_res,
+    humidity,
+    mp_unit,
+    mp_sigma,
+    noise,
+    code_sig,
+    rate_sig,
+    mask,
+    use_trop,
+):
     """Pseudoranges and rates; see the module docstring. eph (S, N_EPH) one record per satellite."""
     T = t_gps.shape[0]
     S = eph.shape[0]
@@ -184,11 +230,13 @@ def _raw_kernel(t_gps, rr, vr, eph, eph_err, clk_err, t_clk_ref, clock, alpha, b
             elev[k, j] = el
             azim[k, j] = az
             dt_c = t_gps[k] - tau - t_clk_ref
-            sat_clk = (dts * C_LIGHT + clk_err[j, 0] + clk_err[j, 1] * dt_c)
+            sat_clk = dts * C_LIGHT + clk_err[j, 0] + clk_err[j, 1] * dt_c
             sat_clk_rate = ddts * C_LIGHT + clk_err[j, 1]
             e_sc = el / PI_GPS
             fobl = 1.0 + 16.0 * (0.53 - e_sc) ** 3
-            iono = (1.0 + iono_scale[j]) * klobuchar(lat, lon, az, el, t_gps[k], alpha, beta)
+            iono = 0.0
+            if alpha[0] != 0.0 or alpha[1] != 0.0 or alpha[2] != 0.0 or alpha[3] != 0.0:  # all zero: none
+                iono = (1.0 + iono_scale[j]) * klobuchar(lat, lon, az, el, t_gps[k], alpha, beta)
             iono += fobl * 1e-3 * (iono_grad[j, 0] * d_km[k, 0] + iono_grad[j, 1] * d_km[k, 1])
             s = np.sin(max(el, 0.035))
             mfac = np.sqrt(0.5 + 0.5 / (s * s))
@@ -196,10 +244,21 @@ def _raw_kernel(t_gps, rr, vr, eph, eph_err, clk_err, t_clk_ref, clock, alpha, b
             tro += tropo_res[k] * 1.001 / np.sqrt(0.002001 + s * s)
             ion[k, j] = iono
             trop[k, j] = tro
-            code[k, j] = (rho + clock[k, 0] - sat_clk + iono + tro + mp_sigma * mfac * mp_unit[k, j]
-                          + code_sig * mfac * noise[k, j, 0])
-            rate[k, j] = (geo_range_rate(rs, vs, rr[k], vr[k], e) + clock[k, 1] - sat_clk_rate
-                          + rate_sig * mfac * noise[k, j, 1])
+            code[k, j] = (
+                rho
+                + clock[k, 0]
+                - sat_clk
+                + iono
+                + tro
+                + mp_sigma * mfac * mp_unit[k, j]
+                + code_sig * mfac * noise[k, j, 0]
+            )
+            rate[k, j] = (
+                geo_range_rate(rs, vs, rr[k], vr[k], e)
+                + clock[k, 1]
+                - sat_clk_rate
+                + rate_sig * mfac * noise[k, j, 1]
+            )
     return code, rate, elev, azim, ion, trop
 
 
@@ -220,9 +279,21 @@ class RawGnssSim:
     truth: dict
 
 
-def limit_satellites(obs: GnssObservations, elevation: np.ndarray, windows, t_start: float) -> GnssObservations:
+def limit_satellites(
+    obs: GnssObservations,
+    elevation: np.ndarray,
+    windows,
+    t_start: float,
+    how: str = "highest",
+    azimuth: np.ndarray | None = None,
+    min_elev_deg: float = 15.0,
+) -> GnssObservations:
     """Copy of ``obs`` with at most ``max_sats`` satellites (the highest at each window's start) inside each
-    window (start_s, end_s, max_sats), times relative to ``t_start`` (same scale as ``obs.time``)."""
+    window (start_s, end_s, max_sats), times relative to ``t_start`` (same scale as ``obs.time``).
+
+    how : "highest" (the ``max_sats`` highest at the window start) or "spread" (two satellites above
+    ``min_elev_deg`` whose azimuths differ most, i.e. the best horizontal geometry for a pair; needs
+    ``azimuth``; for max_sats != 2 falls back to "highest")."""
     code, rate, cn0 = obs.code1.copy(), obs.doppler1.copy(), obs.cn0.copy()
     rel = obs.time - t_start
     for start, end, nmax in windows:
@@ -232,16 +303,42 @@ def limit_satellites(obs: GnssObservations, elevation: np.ndarray, windows, t_st
         k0 = int(np.flatnonzero(m)[0])
         el0 = np.where(np.isfinite(code[k0]), elevation[k0], -np.inf)
         keep = np.argsort(-el0)[: int(nmax)]
+        if how == "spread" and int(nmax) == 2 and azimuth is not None:
+            cand = np.flatnonzero(el0 >= np.radians(min_elev_deg))
+            best, pair = -1.0, keep
+            for a in range(len(cand)):
+                for b in range(a + 1, len(cand)):
+                    d = abs((azimuth[k0, cand[a]] - azimuth[k0, cand[b]] + np.pi) % (2 * np.pi) - np.pi)
+                    if d > best:
+                        best, pair = d, np.array([cand[a], cand[b]])
+            keep = pair
         keep = keep[np.isfinite(el0[keep])]
         drop = np.setdiff1d(np.arange(code.shape[1]), keep)
         for a in (code, rate, cn0):
             a[np.ix_(np.flatnonzero(m), drop)] = np.nan
-    return GnssObservations(obs.time, obs.ref_week, obs.prn, code, rate, cn0, None, None, obs.approx_ecef,
-                            list(obs.events) + [f"satellites limited in windows {list(windows)}"])
+    return GnssObservations(
+        obs.time,
+        obs.ref_week,
+        obs.prn,
+        code,
+        rate,
+        cn0,
+        None,
+        None,
+        obs.approx_ecef,
+        list(obs.events) + [f"satellites limited in windows {list(windows)}"],
+    )
 
 
-def simulate_raw_gnss(truth: Trajectory, eph: GpsEphemerides, spec: RawGnssSpec, rng: np.random.Generator,
-                      t0_gps: float, base_lla=None, start_s: float | None = None) -> RawGnssSim:
+def simulate_raw_gnss(
+    truth: Trajectory,
+    eph: GpsEphemerides,
+    spec: RawGnssSpec,
+    rng: np.random.Generator,
+    t0_gps: float,
+    base_lla=None,
+    start_s: float | None = None,
+) -> RawGnssSim:
     """Simulate rover (and base) pseudoranges and rates; see the module docstring.
 
     truth : IMU truth (time [s from its start or any scale], lat/lon [rad], h [m], vel ENU, rph [rad]).
@@ -262,21 +359,33 @@ def simulate_raw_gnss(truth: Trajectory, eph: GpsEphemerides, spec: RawGnssSpec,
     r_sat, r_clk, r_mp, r_noise, r_base = (np.random.default_rng(s) for s in ss.spawn(5))
     # satellite-level error draws (common to base and rover)
     eph_err = r_sat.standard_normal((S, 3)) * np.asarray(spec.eph_sigma_rac_m, float)
-    clk_err = np.column_stack([r_sat.standard_normal(S) * spec.sat_clock_sigma_m,
-                               r_sat.standard_normal(S) * spec.sat_clock_drift_sigma_m_s])
+    clk_err = np.column_stack(
+        [
+            r_sat.standard_normal(S) * spec.sat_clock_sigma_m,
+            r_sat.standard_normal(S) * spec.sat_clock_drift_sigma_m_s,
+        ]
+    )
     iono_scale = r_sat.standard_normal(S) * spec.iono_scale_sigma
     iono_grad = r_sat.standard_normal((S, 2)) * spec.iono_gradient_mm_km
     tropo_xi = r_sat.standard_normal(2)
     # receiver clocks (sampled on the tag grid)
-    clk_k = simulate_clock(T, dt, spec.clock_h0, spec.clock_hm2, spec.clock_bias0_m, spec.clock_drift0_m_s, r_clk)
+    clk_k = simulate_clock(
+        T, dt, spec.clock_h0, spec.clock_hm2, spec.clock_bias0_m, spec.clock_drift0_m_s, r_clk
+    )
     t_rx_k = tags_rel - clk_k[:, 0] / C_LIGHT  # true reception times (truth scale)
     t_rx_k = np.clip(t_rx_k, t[0], t[-1])
     r_e, v_e, lat, lon, h, v_n, c_bn, w_eb = interpolate_truth(truth, t_rx_k)
     lev = np.asarray(spec.lever_arm_b, float)
     sl, cl, so, co = np.sin(lat), np.cos(lat), np.sin(lon), np.cos(lon)
     z = np.zeros_like(lat)
-    c_en = np.stack([np.stack([-so, co, z], -1), np.stack([-sl * co, -sl * so, cl], -1),
-                     np.stack([cl * co, cl * so, sl], -1)], -2)
+    c_en = np.stack(
+        [
+            np.stack([-so, co, z], -1),
+            np.stack([-sl * co, -sl * so, cl], -1),
+            np.stack([cl * co, cl * so, sl], -1),
+        ],
+        -2,
+    )
     c_ne = np.transpose(c_en, (0, 2, 1))
     r_a = r_e + np.einsum("kij,kj->ki", c_ne, c_bn @ lev)
     v_a = v_e + np.einsum("kij,kj->ki", c_ne, np.einsum("kij,kj->ki", c_bn, np.cross(w_eb, lev)))
@@ -315,39 +424,155 @@ def simulate_raw_gnss(truth: Trajectory, eph: GpsEphemerides, spec: RawGnssSpec,
     mask = np.radians(spec.mask_deg)
     alpha = np.asarray(spec.iono_alpha, float)
     beta = np.asarray(spec.iono_beta, float)
-    code, rate, el, az, ion, trop = _raw_kernel(t0_gps + t_rx_k, r_a, v_a, eph.table, eph_err, clk_err, t_clk_ref,
-                                                clk_k, alpha, beta, iono_scale, iono_grad, d_km, dz_k,
-                                                spec.humidity, mp_k, spec.multipath_sigma_m, noise_k,
-                                                spec.code_sigma_m, spec.rate_sigma_m_s, mask, spec.tropo_model)
+    code, rate, el, az, ion, trop = _raw_kernel(
+        t0_gps + t_rx_k,
+        r_a,
+        v_a,
+        eph.table,
+        eph_err,
+        clk_err,
+        t_clk_ref,
+        clk_k,
+        alpha,
+        beta,
+        iono_scale,
+        iono_grad,
+        d_km,
+        dz_k,
+        spec.humidity,
+        mp_k,
+        spec.multipath_sigma_m,
+        noise_k,
+        spec.code_sigma_m,
+        spec.rate_sigma_m_s,
+        mask,
+        spec.tropo_model,
+    )
     prn = eph.table[:, 0].astype(int)
     tags = t0_gps + tags_rel
     dop = -rate / (C_LIGHT / 1575.42e6)
-    rover = GnssObservations(tags, eph.ref_week, prn, code, dop, np.full_like(code, 45.0), None, None, None,
-                             ["simulated rover (aidnav.sim.gnss_raw)"])
+    rover = GnssObservations(
+        tags,
+        eph.ref_week,
+        prn,
+        code,
+        dop,
+        np.full_like(code, 45.0),
+        None,
+        None,
+        None,
+        ["simulated rover (aidnav.sim.gnss_raw)"],
+    )
     if spec.sat_windows:
         rover = limit_satellites(rover, el, spec.sat_windows, t0_gps + t[0])
-    truth_d = {"clock": clk_k, "antenna_ecef": r_a, "antenna_vel_ecef": v_a, "t_receive_gps": t0_gps + t_rx_k,
-               "elevation": el, "azimuth": az, "iono": ion, "tropo": trop, "eph_err_rac": eph_err,
-               "sat_clock_err": clk_err, "iono_scale": iono_scale, "iono_gradient_mm_km": iono_grad,
-               "tropo_residual_rover": dz_k, "tropo_residual_base": dz_b, "tags_rel": tags_rel}
+    truth_d = {
+        "clock": clk_k,
+        "antenna_ecef": r_a,
+        "antenna_vel_ecef": v_a,
+        "t_receive_gps": t0_gps + t_rx_k,
+        "elevation": el,
+        "azimuth": az,
+        "iono": ion,
+        "tropo": trop,
+        "eph_err_rac": eph_err,
+        "sat_clock_err": clk_err,
+        "iono_scale": iono_scale,
+        "iono_gradient_mm_km": iono_grad,
+        "tropo_residual_rover": dz_k,
+        "tropo_residual_base": dz_b,
+        "tags_rel": tags_rel,
+    }
     base = None
     base_ecef = None
     if base_lla is not None:
         base_ecef = np.array(lla_to_ecef(ref_lat, ref_lon, ref_h))
-        clk_b = simulate_clock(T, dt, spec.clock_h0, spec.clock_hm2, spec.base_clock_bias0_m,
-                               spec.base_clock_drift0_m_s, r_base)
+        clk_b = simulate_clock(
+            T, dt, spec.clock_h0, spec.clock_hm2, spec.base_clock_bias0_m, spec.base_clock_drift0_m_s, r_base
+        )
         tb = t0_gps + tags_rel - clk_b[:, 0] / C_LIGHT
         rb = np.tile(base_ecef, (T, 1))
         vb = np.zeros((T, 3))
         mp_b = gm_unit(r_base, T, spec.base_multipath_tau_s)
         noise_b = r_base.standard_normal((T, S, 2))
         code_b, rate_b, el_b, _, ion_b, trop_b = _raw_kernel(
-            tb, rb, vb, eph.table, eph_err, clk_err, t_clk_ref, clk_b, alpha, beta, iono_scale, iono_grad,
-            np.zeros((T, 2)), np.full(T, dz_b), spec.humidity, mp_b, spec.multipath_sigma_m, noise_b,
-            spec.code_sigma_m, spec.rate_sigma_m_s, mask, spec.tropo_model)
-        base = GnssObservations(tags, eph.ref_week, prn, code_b, -rate_b / (C_LIGHT / 1575.42e6),
-                                np.full_like(code_b, 45.0), None, None, base_ecef.copy(),
-                                ["simulated base (aidnav.sim.gnss_raw)"])
-        truth_d.update({"base_clock": clk_b, "base_elevation": el_b, "base_iono": ion_b, "base_tropo": trop_b,
-                        "base_t_receive_gps": tb})
+            tb,
+            rb,
+            vb,
+            eph.table,
+            eph_err,
+            clk_err,
+            t_clk_ref,
+            clk_b,
+            alpha,
+            beta,
+            iono_scale,
+            iono_grad,
+            np.zeros((T, 2)),
+            np.full(T, dz_b),
+            spec.humidity,
+            mp_b,
+            spec.multipath_sigma_m,
+            noise_b,
+            spec.code_sigma_m,
+            spec.rate_sigma_m_s,
+            mask,
+            spec.tropo_model,
+        )
+        base = GnssObservations(
+            tags,
+            eph.ref_week,
+            prn,
+            code_b,
+            -rate_b / (C_LIGHT / 1575.42e6),
+            np.full_like(code_b, 45.0),
+            None,
+            None,
+            base_ecef.copy(),
+            ["simulated base (aidnav.sim.gnss_raw)"],
+        )
+        truth_d.update(
+            {
+                "base_clock": clk_b,
+                "base_elevation": el_b,
+                "base_iono": ion_b,
+                "base_tropo": trop_b,
+                "base_t_receive_gps": tb,
+            }
+        )
     return RawGnssSim(rover, base, eph, base_ecef, truth_d)
+
+
+def static_pseudoranges(
+    eph: GpsEphemerides, t_gps: float, rx_ecef, clock_m: float = 0.0, mask_deg: float = 5.0
+):
+    """Error-free pseudoranges [m] (S,) of a static receiver at ``rx_ecef`` whose clock reads GPS time +
+    clock_m/c,
+    tagged t_gps (receiver time): geometric (Sagnac) range + clock_m − c·dt_s (broadcast clock), no
+    atmosphere; NaN below ``mask_deg``. Also returns the elevations (S,) [rad]. For geometry tests."""
+    S = len(eph.table)
+    rr = np.asarray(rx_ecef, float).reshape(1, 3)
+    code, _, el, _, _, _ = _raw_kernel(
+        np.array([t_gps - clock_m / C_LIGHT]),
+        rr,
+        np.zeros((1, 3)),
+        eph.table,
+        np.zeros((S, 3)),
+        np.zeros((S, 2)),
+        t_gps,
+        np.array([[clock_m, 0.0]]),
+        np.zeros(4),
+        np.zeros(4),
+        np.zeros(S),
+        np.zeros((S, 2)),
+        np.zeros((1, 2)),
+        np.zeros(1),
+        0.0,
+        np.zeros((1, S)),
+        0.0,
+        np.zeros((1, S, 2)),
+        0.0,
+        0.0,
+        np.radians(mask_deg),
+        False,
+    )
+    return code[0], el[0]

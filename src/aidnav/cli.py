@@ -124,7 +124,7 @@ def run_experiment_cmd(
     out: Path = typer.Option(..., "-o", "--out", help="campaign directory (what is already there is reused)"),
     workers: int = typer.Option(1, "--workers", min=1, help="worker processes (> 1: a local Dask cluster)"),
     scheduler: str | None = typer.Option(None, "--scheduler", help="address of an existing Dask scheduler"),
-    no_dask: bool = typer.Option(False, "--no-dask", help="with --workers > 1: a process pool instead of Dask"),
+    no_dask: bool = typer.Option(False, "--no-dask", help="--workers > 1: a process pool instead of Dask"),
     max_runs: int | None = typer.Option(None, "--max-runs", min=0,
                                         help="compute at most this many runs, then stop (rerun to resume)"),
 ):

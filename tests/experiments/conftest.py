@@ -15,7 +15,8 @@ QUICK = REPO / "examples" / "experiment_quick.yaml"
 TINY = {
     "name": "tiny",
     "scenario": {
-        "initial": {"lat_deg": 30.0, "lon_deg": 114.0, "height_m": 500.0, "speed_m_s": 50.0, "heading_deg": 10.0},
+        "initial": {"lat_deg": 30.0, "lon_deg": 114.0, "height_m": 500.0, "speed_m_s": 50.0,
+                    "heading_deg": 10.0},
         "imu_rate_hz": 100,
         "transition_s": 2,
         "segments": [{"type": "straight", "duration_s": 15, "name": "AB"},

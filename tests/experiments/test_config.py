@@ -31,23 +31,28 @@ def no_compute(monkeypatch):
     (lambda d: d["estimators"][0].update(config={"imu": {"arw": 1}}), ["estimators.0.config.imu.arw"]),
     (lambda d: d["scenario"]["segments"][0].update(duration_s="15 min"),
      ["scenario.segments.0.duration_s", "valid number"]),
-    (lambda d: (d["scenario"]["segments"][0].pop("duration_s"), d["scenario"]["segments"][0].update(duration_min=1)),
+    (lambda d: (d["scenario"]["segments"][0].pop("duration_s"),
+                d["scenario"]["segments"][0].update(duration_min=1)),
      ["scenario.segments.0.duration_min", "duration_s"]),
     (lambda d: d["sensors"]["gnss"].update(rate_hz=-1), ["sensors.gnss.rate_hz", "greater than 0"]),
-    (lambda d: (d["sensors"]["imu"].update(grade="militray"), d.update(sweep={})), ["sensors.imu", "militray"]),
+    (lambda d: (d["sensors"]["imu"].update(grade="militray"), d.update(sweep={})),
+     ["sensors.imu", "militray"]),
     (lambda d: d.update(runs=0), ["runs", "greater than or equal to 1"]),
     (lambda d: d.update(sweep={"sensors.imu.grad": ["tactical"]}), ["sweep", "sensors.imu.grad", "'grad'"]),
-    (lambda d: d.update(sweep={"trajectory.maneuver": ["figure8"]}), ["sweep", "trajectory.maneuver", "'maneuver'"]),
+    (lambda d: d.update(sweep={"trajectory.maneuver": ["figure8"]}),
+     ["sweep", "trajectory.maneuver", "'maneuver'"]),
     (lambda d: d.update(sweep={"scenario.segments.EF.duration_s": [1]}), ["sweep", "'EF'", "AB, U, CD"]),
     (lambda d: d.update(sweep={"runs": [1, 2]}), ["sweep", "cannot sweep over 'runs'"]),
     (lambda d: d.update(sweep={"imu.grade": ["tactical", "foo"]}), ["sweep point imu.grade=foo", "'foo'"]),
     (lambda d: d.update(sweep={"imu.grade": []}), ["sweep.imu.grade", "at least 1"]),
     (lambda d: d["estimators"].append({"name": "x", "type": "tight"}), ["estimators.1.type", "'tight'"]),
-    (lambda d: d["statistics"]["windows"].update(EF={"segment": "EF"}), ["statistics.windows.EF.segment", "'EF'"]),
+    (lambda d: d["statistics"]["windows"].update(EF={"segment": "EF"}),
+     ["statistics.windows.EF.segment", "'EF'"]),
     (lambda d: d["statistics"]["quantities"].append("pos_x"), ["statistics.quantities.3", "'pos_x'"]),
     (lambda d: d["scenario"]["segments"].insert(0, {"type": "static", "duration_s": 5}),
      ["scenario.segments.0", "moving"]),
-    (lambda d: d.update(paper=[{"column": "std_XY_pos_h_m", "paper": 1.0}]), ["paper.0.column", "std_XY_pos_h_m"]),
+    (lambda d: d.update(paper=[{"column": "std_XY_pos_h_m", "paper": 1.0}]),
+     ["paper.0.column", "std_XY_pos_h_m"]),
     (lambda d: d.update(paper=[{"column": "std_CD_pos_h_m", "paper": 1.0, "target": "ours < import"}]),
      ["paper.0.target"]),
 ])
@@ -95,7 +100,8 @@ def test_sweep_grid_zip_and_aliases(tiny_doc):
     assert len({p.key for p in plan.points}) == 4
     d["sweep_mode"] = "zip"
     plan = parse_experiment(d)
-    assert [p.label for p in plan.points] == ["imu.grade=tactical, gnss.rate_hz=1", "imu.grade=mems, gnss.rate_hz=5"]
+    assert [p.label for p in plan.points] == ["imu.grade=tactical, gnss.rate_hz=1",
+                                              "imu.grade=mems, gnss.rate_hz=5"]
     d["sweep"]["gnss.rate_hz"] = [1, 2, 5]
     with pytest.raises(ExperimentError, match="equal length"):
         parse_experiment(d)

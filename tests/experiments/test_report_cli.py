@@ -34,8 +34,8 @@ def test_paper_values_and_summary_in_report(tiny_serial, tmp_path):
     shutil.copytree(src, out)
     man = json.loads((out / "manifest.json").read_text())
     man["experiment"]["document"]["paper"] = [
-        {"column": "std_CD_heading_deg", "paper": 1e-6, "point": {"imu.grade": "tactical"}, "estimator": "loose",
-         "quantity": "heading std CD", "unit": "deg", "target": "ours <= 1.5 * paper"},
+        {"column": "std_CD_heading_deg", "paper": 1e-6, "point": {"imu.grade": "tactical"},
+         "estimator": "loose", "quantity": "heading std CD", "unit": "deg", "target": "ours <= 1.5 * paper"},
         {"column": "rms_all_pos_h_m", "paper": None, "point": {}, "estimator": None, "quantity": None,
          "unit": None, "target": None}]
     (out / "manifest.json").write_text(json.dumps(man))

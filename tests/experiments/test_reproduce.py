@@ -92,7 +92,8 @@ def test_reproduce_all_dispatches(fake_seed, tmp_path):
     outs = rp.reproduce("all", tmp_path, runs=5)
     assert [o.ok for o in outs] == [True, True, False, True, True]
     assert seen["004"] == (tmp_path / "seed_004", 5)
-    assert json.loads((tmp_path / "seed_004" / "summary.json").read_text())["tables"][0]["rows"][0]["holds"] is True
+    summ = json.loads((tmp_path / "seed_004" / "summary.json").read_text())
+    assert summ["tables"][0]["rows"][0]["holds"] is True
     r = CliRunner().invoke(app, ["reproduce", "all", "-o", str(tmp_path / "b")])
     assert r.exit_code == 2 and "seed 002" in r.output and "seed 004: done" in r.output
     one = rp.reproduce("004", tmp_path / "single")
@@ -104,9 +105,11 @@ def test_summary_rows_compute_holds():
                     values={"none": 0.21, "figure8": 0.03})
     assert r == {"quantity": "heading std, none", "unit": "deg", "paper": 0.2483, "ours": 0.21,
                  "target": "none / figure8 >= 5", "holds": True}
-    assert summary_row("x", "m", ours=2.0, paper=1.0, target="abs(ours - paper) <= 0.1 * paper")["holds"] is False
+    r = summary_row("x", "m", ours=2.0, paper=1.0, target="abs(ours - paper) <= 0.1 * paper")
+    assert r["holds"] is False
     assert summary_row("x", "m", ours=2.0)["holds"] is None
-    assert summary_row("x", "m", ours=2.0, target=Target("ours is even", lambda o, p: o % 2 == 0))["holds"] is True
+    even = Target("ours is even", lambda o, p: o % 2 == 0)
+    assert summary_row("x", "m", ours=2.0, target=even)["holds"] is True
     assert summary_row("x", "m", ours=float("nan"), paper=1.0, target="ours < paper") == {
         "quantity": "x", "unit": "m", "paper": 1.0, "ours": None, "target": "ours < paper", "holds": False}
     for bad in ("ours <", "__import__('os')", "ours.real > 1", "ours + 1", "unknown > 1", "paper < 1"):

@@ -32,7 +32,8 @@ def test_tiny_campaign_tables(tiny_serial):
     assert runs["run"] == [0, 1, 2, 0, 1, 2]
     assert runs["imu.grade"] == ["tactical"] * 3 + ["mems"] * 3
     assert runs["estimator"] == ["loose"] * 6
-    for c in ("std_AB_pos_h_m", "rms_CD_heading_deg", "rms_last5_vel_h_m_s", "converge_h1_s", "nees_pos_mean"):
+    for c in ("std_AB_pos_h_m", "rms_CD_heading_deg", "rms_last5_vel_h_m_s", "converge_h1_s",
+              "nees_pos_mean"):
         assert c in runs and all(np.isfinite(runs[c])), c
     ep = pq.read_table(out / "epochs.parquet").to_pydict()
     assert set(ep["point"]) == {0, 1}
@@ -171,10 +172,11 @@ def test_gnss_template_matches_simulate_gnss():
 
     scn = parse_scenario({"initial": {"lat_deg": 45, "lon_deg": 179.9999, "speed_m_s": 30, "heading_deg": 80},
                           "imu_rate_hz": 50,
-                          "segments": [{"type": "straight", "duration_s": 10}, {"type": "u_turn", "duration_s": 10}]})
+                          "segments": [{"type": "straight", "duration_s": 10},
+                                       {"type": "u_turn", "duration_s": 10}]})
     truth, _, _ = generate_truth(scn)
-    spec = GnssSpec(rate_hz=5, sigma_pos_enu=[1, 2, 3], sigma_vel_enu=[0.1, 0.2, 0.3], lever_arm_b=[0.3, 1.0, 0.5],
-                    outages=[(3.0, 2.5)], latency_s=0.3)
+    spec = GnssSpec(rate_hz=5, sigma_pos_enu=[1, 2, 3], sigma_vel_enu=[0.1, 0.2, 0.3],
+                    lever_arm_b=[0.3, 1.0, 0.5], outages=[(3.0, 2.5)], latency_s=0.3)
     tmpl = runner.GnssTemplate.build(truth, spec)
     for seed in (1, 2):
         a = simulate_gnss(truth, spec, np.random.default_rng(seed))

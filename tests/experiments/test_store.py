@@ -25,7 +25,8 @@ def test_windows_and_metrics():
     segs = [{"name": "A", "start_s": 0.0, "end_s": 4.0}, {"name": "B", "start_s": 4.0, "end_s": 10.0}]
     stats = StatisticsSpec.model_validate({
         "quantities": ["pos_e", "pos_h"], "metrics": ["std", "rms", "mean", "max"],
-        "windows": {"A": {"segment": "A"}, "last3": {"last_s": 3, "metrics": ["rms"]}, "late": {"start_s": 8}}})
+        "windows": {"A": {"segment": "A"}, "last3": {"last_s": 3, "metrics": ["rms"]},
+                    "late": {"start_s": 8}}})
     states = ("pos_e", "pos_n", "pos_u")
     err = np.zeros((2, 10, 3))
     err[0, :, 0] = np.arange(10.0)  # pos_e = t - 1

@@ -223,7 +223,7 @@ DERIVED_QUANTITIES: dict[str, tuple[tuple[str, ...], str]] = {
 
 
 def quantity_column(q: str) -> str:
-    """Column stem of a quantity with its unit, e.g. ``pos_h`` → ``pos_h_m``, ``heading`` → ``heading_deg``."""
+    """Column stem of a quantity with its unit: ``pos_h`` → ``pos_h_m``, ``heading`` → ``heading_deg``."""
     if q == "heading":
         return "heading_deg"
     unit, _ = est_mod.state_unit(q)
@@ -301,7 +301,8 @@ def _model_at(loc: tuple, root_model: type[BaseModel] | None = None) -> type[Bas
         cand = [a for a in (ann, *args) if isinstance(a, type) and issubclass(a, BaseModel)]
         if not cand:
             for a in args:
-                cand += [b for b in getattr(a, "__args__", ()) if isinstance(b, type) and issubclass(b, BaseModel)]
+                cand += [b for b in getattr(a, "__args__", ())
+                         if isinstance(b, type) and issubclass(b, BaseModel)]
         if not cand:
             return None
         model = cand[0]
@@ -321,7 +322,8 @@ def _value_at(data, loc):
     return data
 
 
-def _format_error(e: dict, prefix: tuple, where: str, root, data, expected=None) -> tuple[str, tuple, str | None]:
+def _format_error(e: dict, prefix: tuple, where: str, root, data,
+                  expected=None) -> tuple[str, tuple, str | None]:
     raw = tuple(prefix) + tuple(e["loc"])
     loc, member = _clean_loc(raw)
     path = ".".join(str(x) for x in loc) or "(top level)"
@@ -416,7 +418,8 @@ def _validate_doc(data: dict, where: str, root=None) -> tuple[Experiment, dict]:
         except ValidationError as e:
             def expected(raw, _m=et.config_model):
                 return ["name", "type", *_m.model_fields] if len(raw) == 2 else None
-            problems.append(_format_validation(e, where, root, data, prefix=("estimators", i), expected=expected))
+            problems.append(_format_validation(e, where, root, data, prefix=("estimators", i),
+                                               expected=expected))
             continue
         doc["estimators"][i] = {"name": entry.name, "type": entry.type, **cfg.model_dump(mode="json")}
     if problems:
@@ -538,10 +541,10 @@ def _check_point(exp: Experiment, doc: dict, where: str, root=None) -> tuple[Sce
         try:
             et.check(cfg, scn)
         except ValidationError as e:
-            def expected(raw):
+            def expected(raw, _type=entry["type"]):
                 from aidnav.filters.config import LooseConfig
 
-                m = _model_at(tuple(raw[3:]), LooseConfig) if entry["type"] == "loose" else None
+                m = _model_at(tuple(raw[3:]), LooseConfig) if _type == "loose" else None
                 return list(m.model_fields) if m is not None else None
             raise ExperimentError(_format_validation(e, where, root, None, prefix=("estimators", i, "config"),
                                                      expected=expected)) from None
@@ -625,7 +628,6 @@ def parse_experiment(data, where: str = "<experiment>", root=None, base_dir=None
         if not isinstance(over, dict):
             raise ExperimentError(f"{where}: sensors: must be a mapping")
         data["sensors"] = _deep_merge(scn.sensors.model_dump(exclude_unset=True), over)
-        root = None if root is None else root  # lines still valid for keys other than scenario
     exp, doc = _validate_doc(data, where, root)
     # problems of the base experiment are reported as such (not as a sweep point's), unless the sweep
     # changes what is wrong (then every point is checked below)
@@ -655,7 +657,8 @@ def parse_experiment(data, where: str = "<experiment>", root=None, base_dir=None
                 if base_error is not None:
                     raise base_error from None
                 raise
-        points.append(SweepPoint(index=i, values=values, label=label, doc=pcanon, experiment=pexp, scenario=scn,
+        points.append(SweepPoint(index=i, values=values, label=label, doc=pcanon, experiment=pexp,
+                                 scenario=scn,
                                  segments=table, duration_s=duration, key=_point_key(pcanon)))
     keys = [p.key for p in points]
     if len(set(keys)) != len(keys):

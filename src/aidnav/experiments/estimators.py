@@ -236,8 +236,10 @@ def loose_filter_config(cfg: LooseEstimatorConfig, imu_spec, gnss_spec, imu_rate
     if cfg.q_scale != 1.0:
         s = math.sqrt(cfg.q_scale)
         im = lcfg.imu
-        gi = im.gyro_bias_sigma_deg_h if im.gyro_bias_instability_deg_h is None else im.gyro_bias_instability_deg_h
-        ai = im.accel_bias_sigma_ug if im.accel_bias_instability_ug is None else im.accel_bias_instability_ug
+        gi = im.gyro_bias_instability_deg_h
+        gi = im.gyro_bias_sigma_deg_h if gi is None else gi
+        ai = im.accel_bias_instability_ug
+        ai = im.accel_bias_sigma_ug if ai is None else ai
         upd = dict(arw_deg_sqrt_h=im.arw_deg_sqrt_h * s, vrw_m_s_sqrt_h=im.vrw_m_s_sqrt_h * s,
                    gyro_bias_instability_deg_h=gi * s, accel_bias_instability_ug=ai * s,
                    gyro_bias_rw_deg_h_sqrt_h=im.gyro_bias_rw_deg_h_sqrt_h * s,

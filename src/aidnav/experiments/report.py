@@ -63,11 +63,21 @@ def _state_cols(ep_cols: list[str]) -> list[str]:
     return [c[:-5] for c in ep_cols if c.endswith("_mean") and not c.startswith("nees_")]
 
 
+def _axis_label(stem: str) -> str:
+    """``pos_e_m`` → ``pos_e [m]``, ``vel_u_m_s`` → ``vel_u [m/s]``."""
+    for unit in ("m_s", "deg", "m", "si"):
+        if stem.endswith("_" + unit):
+            return f"{stem[:-len(unit) - 1]} [{unit.replace('_', '/')}]"
+    return stem
+
+
 def _error_figure(t, ep: dict, stems: list[str], title: str) -> str:
     blocks = _blocks(stems)
     ncol = max(len(v) for v in blocks.values())
-    fig = Figure(figsize=(4.0 * ncol, 0.6 + 2.3 * len(blocks)), layout="constrained")
+    h = 0.9 + 2.2 * len(blocks)
+    fig = Figure(figsize=(4.0 * ncol, h))  # fixed margins: constrained layout doubles the drawing time
     FigureCanvasAgg(fig)
+    fig.subplots_adjust(left=0.065, right=0.99, bottom=0.5 / h, top=1 - 0.45 / h, wspace=0.28, hspace=0.1)
     axes = fig.subplots(len(blocks), ncol, sharex=True, squeeze=False)
     for r, (_, cols) in enumerate(blocks.items()):
         for c in range(ncol):
@@ -78,7 +88,8 @@ def _error_figure(t, ep: dict, stems: list[str], title: str) -> str:
             s = cols[c]
             mean, std, sig = ep[f"{s}_mean"], ep[f"{s}_std"], ep[f"{s}_sigma"]
             if np.any(np.isfinite(sig)):
-                ax.fill_between(t, -3 * sig, 3 * sig, color="tab:orange", alpha=0.18, lw=0, label="filter ±3σ")
+                ax.fill_between(t, -3 * sig, 3 * sig, color="tab:orange", alpha=0.18, lw=0,
+                                label="filter ±3σ")
                 ax.fill_between(t, -sig, sig, color="tab:orange", alpha=0.35, lw=0, label="filter ±1σ")
             if np.any(np.isfinite(std)):
                 ax.plot(t, mean + std, color="tab:blue", lw=0.7, label="MC mean ±1σ")
@@ -87,7 +98,7 @@ def _error_figure(t, ep: dict, stems: list[str], title: str) -> str:
                 ax.plot(t, mean - 3 * std, color="tab:blue", lw=0.7, ls="--")
             ax.plot(t, mean, color="k", lw=0.8, label="MC mean error")
             ax.axhline(0.0, color="0.5", lw=0.4)
-            ax.set_ylabel(s.replace("_", " ", 2).replace("_", "/"), fontsize="small")
+            ax.set_ylabel(_axis_label(s), fontsize="small")
             ax.grid(True, alpha=0.3)
             fin = np.concatenate([x[np.isfinite(x)] for x in (3 * sig, mean + 3 * std, mean - 3 * std)])
             if fin.size:
@@ -102,8 +113,10 @@ def _error_figure(t, ep: dict, stems: list[str], title: str) -> str:
 
 
 def _nees_figure(t, ep: dict, blocks: list[str], dof: dict, runs: int, prob: float, title: str) -> str:
-    fig = Figure(figsize=(9.0, 0.6 + 2.2 * len(blocks)), layout="constrained")
+    h = 0.9 + 2.1 * len(blocks)
+    fig = Figure(figsize=(9.0, h))
     FigureCanvasAgg(fig)
+    fig.subplots_adjust(left=0.09, right=0.98, bottom=0.5 / h, top=1 - 0.45 / h, hspace=0.1)
     axes = fig.subplots(len(blocks), 1, sharex=True, squeeze=False)[:, 0]
     for ax, b in zip(axes, blocks, strict=True):
         m = ep[f"nees_{b}"]
@@ -132,21 +145,27 @@ def _map_figure(traj, points: list[dict]) -> str | None:
     fig = Figure(figsize=(7.0, 6.0), layout="constrained")
     FigureCanvasAgg(fig)
     ax = fig.add_subplot(1, 1, 1)
-    ref = None
-    seen: list[np.ndarray] = []
+    groups: list[tuple[np.ndarray, list[str]]] = []  # distinct trajectories and the points using them
     for p in points:
         m = d["point"] == p["index"]
         if not m.any():
             continue
-        lat, lon, h = np.radians(d["lat_deg"][m]), np.radians(d["lon_deg"][m]), d["height_m"][m]
+        key = np.concatenate([d["lat_deg"][m], d["lon_deg"][m], d["height_m"][m]])
+        for k, labels in groups:
+            if len(k) == len(key) and np.array_equal(k, key):
+                labels.append(p["label"])
+                break
+        else:
+            groups.append((key, [p["label"]]))
+    ref = None
+    for key, labels in groups:
+        lat, lon, h = np.split(key, 3)
+        lat, lon = np.radians(lat), np.radians(lon)
         if ref is None:
             ref = (lat[0], lon[0], h[0])
-        key = np.concatenate([lat, lon, h])
-        if any(len(k) == len(key) and np.array_equal(k, key) for k in seen):
-            continue
-        seen.append(key)
         e, n, _ = lla_to_enu(lat, lon, h, *ref)
-        ax.plot(e / 1000, n / 1000, lw=1.2, label=p["label"] if len(points) > 1 else "truth")
+        label = "truth" if len(groups) == 1 else "; ".join(labels)[:80]
+        ax.plot(e / 1000, n / 1000, lw=1.2, label=label)
         ax.plot(e[0] / 1000, n[0] / 1000, "o", color="tab:green", ms=5)
         ax.plot(e[-1] / 1000, n[-1] / 1000, "s", color="tab:red", ms=5)
     ax.set_aspect("equal", adjustable="datalim")
@@ -154,7 +173,8 @@ def _map_figure(traj, points: list[dict]) -> str | None:
     ax.set_ylabel("North [km]")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize="x-small", loc="best")
-    ax.set_title("Trajectory (o start, □ end)" + ("" if len(seen) > 1 else "; the same for every sweep point"))
+    ax.set_title("Trajectory (o start, □ end)"
+                 + ("" if len(groups) > 1 else "; the same for every sweep point"))
     return _png(fig)
 
 
@@ -212,15 +232,16 @@ def paper_rows(manifest: dict, runs: dict) -> list[dict]:
                 holds = None
                 if pv.get("target"):
                     holds = bool(evaluate_target(pv["target"], ours, pv.get("paper"))) if n else False
-                rows.append({"quantity": pv.get("quantity") or pv["column"], "point": p["label"], "estimator": e,
-                             "column": pv["column"], "unit": pv.get("unit") or "", "paper": pv.get("paper"),
-                             "ours": ours, "ours_std": sd, "runs": n, "target": pv.get("target"), "holds": holds})
+                rows.append({"quantity": pv.get("quantity") or pv["column"], "point": p["label"],
+                             "estimator": e, "column": pv["column"], "unit": pv.get("unit") or "",
+                             "paper": pv.get("paper"), "ours": ours, "ours_std": sd, "runs": n,
+                             "target": pv.get("target"), "holds": holds})
     return rows
 
 
 _CSS = """
-body{font-family:system-ui,-apple-system,Segoe UI,Helvetica,Arial,sans-serif;margin:1.5em auto;max-width:1300px;
-color:#222;padding:0 1em}
+body{font-family:system-ui,-apple-system,Segoe UI,Helvetica,Arial,sans-serif;margin:1.5em auto;
+max-width:1300px;color:#222;padding:0 1em}
 h1{font-size:1.6em}h2{font-size:1.25em;border-bottom:1px solid #ccc;padding-bottom:.2em;margin-top:1.8em}
 h3{font-size:1.05em}
 table{border-collapse:collapse;font-size:.85em;margin:.5em 0}
@@ -280,7 +301,8 @@ def write_report(out_dir, path=None, figures: bool = True) -> Path:
             ["sweep points", len(points)], ["estimators", ", ".join(ests)],
             ["backend", f"{be.get('kind', '?')} ({be.get('workers', 1)} worker(s)"
                         + (f", {be['scheduler']}" if be.get("scheduler") else "") + ")"],
-            ["host", f"{host.get('node', '?')}, {host.get('cpus', '?')} CPUs, Python {host.get('python', '?')}"],
+            ["host", f"{host.get('node', '?')}, {host.get('cpus', '?')} CPUs, "
+                     f"Python {host.get('python', '?')}"],
             ["runs computed / reused", f"{tm.get('computed_runs', '?')} / {tm.get('reused_runs', '?')}"],
             ["wall time", f"{_fmt(tm.get('wall_s'))} s (compute {_fmt(tm.get('compute_wall_s'))} s, "
                           f"merge {_fmt(tm.get('merge_s'))} s)"],
@@ -303,7 +325,8 @@ def write_report(out_dir, path=None, figures: bool = True) -> Path:
     crow = []
     for c in cons:
         ok = c.get("consistent", c.get("verdict") == "consistent")
-        verdict = ("consistent", "good") if ok else (f"INCONSISTENT ({html.escape(str(c['verdict']))})", "bad")
+        verdict = ("consistent", "good") if ok else \
+            (f"INCONSISTENT ({html.escape(str(c['verdict']))})", "bad")
         crow.append([c["label"], c["estimator"], c["block"], c["dof"], _fmt(c["mean"]),
                      f"{_fmt(c['band'][0])} – {_fmt(c['band'][1])}", _fmt(c["fraction_inside"]),
                      _fmt(c.get("fraction_min")), _fmt(c.get("fraction_inside_all_epochs")),
@@ -313,7 +336,8 @@ def write_report(out_dir, path=None, figures: bool = True) -> Path:
                          "verdict"], crow))
 
     # statistics side by side
-    stat_cols = [c for c in run_cols if c not in ("point", "label", "estimator", "run", *doc.get("sweep", {}))]
+    skip = ("point", "label", "estimator", "run", *doc.get("sweep", {}))
+    stat_cols = [c for c in run_cols if c not in skip]
     stats_json = []
     header = ["statistic"] + [f"{p['label']} | {e}" for p in points for e in ests]
     srows = []
@@ -339,7 +363,8 @@ def write_report(out_dir, path=None, figures: bool = True) -> Path:
         parts.append("<h2>Paper values beside ours</h2>")
         rows = []
         for r in prow:
-            holds = "–" if r["holds"] is None else (("holds", "good") if r["holds"] else ("does not hold", "bad"))
+            holds = "–" if r["holds"] is None else \
+                (("holds", "good") if r["holds"] else ("does not hold", "bad"))
             rows.append([r["quantity"], r["point"], r["estimator"], r["unit"], _fmt(r["paper"]),
                          f"{_fmt(r['ours'])} ± {_fmt(r['ours_std'])}", r["target"] or "–", holds])
         parts.append(_table(["quantity", "point", "estimator", "unit", "paper", "ours (mean ± std)", "target",
@@ -390,8 +415,8 @@ def write_report(out_dir, path=None, figures: bool = True) -> Path:
                     if blocks:
                         img = _nees_figure(t, ep, blocks, dof, r_here, prob, f"{p['label']} — {e}: NEES")
                         parts.append(f'<img alt="NEES {html.escape(e)}" src="data:image/png;base64,{img}">')
-    parts.append('<p class="note">Errors are estimate − truth: position ENU [m], velocity ENU [m/s], attitude '
-                 'as the misalignment φ (E, N, U) [deg] with C(est) = (I − [φ×]) C(true). '
+    parts.append('<p class="note">Errors are estimate − truth: position ENU [m], velocity ENU [m/s], '
+                 'attitude as the misalignment φ (E, N, U) [deg] with C(est) = (I − [φ×]) C(true). '
                  'Generated by <code>aidnav report</code>.</p>')
     page = ("<!DOCTYPE html><html><head><meta charset='utf-8'>"
             f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>"
@@ -399,6 +424,6 @@ def write_report(out_dir, path=None, figures: bool = True) -> Path:
     path.write_text(page, encoding="utf-8")
     from .store import write_json
 
-    write_json(out / "statistics.json", {"experiment": manifest["experiment"]["name"], "statistics": stats_json,
-                                         "paper": prow, "consistency": cons})
+    write_json(out / "statistics.json", {"experiment": manifest["experiment"]["name"],
+                                         "statistics": stats_json, "paper": prow, "consistency": cons})
     return path

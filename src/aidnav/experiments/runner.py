@@ -9,7 +9,8 @@
 3. the remaining runs are computed — in this process (``workers=1``), on a local Dask cluster
    (``workers > 1``; ``backend="processes"`` uses a ``concurrent.futures`` process pool instead) or on
    an existing Dask scheduler (``scheduler="tcp://host:8786"``) — each result is written to ``DIR/runs``
-   as it arrives (a rich progress bar shows the ETA);
+   as it arrives (a rich progress bar shows the ETA); with local workers the first run is computed in
+   this process, so that numba's on-disk cache is warm before the workers start;
 4. when all runs exist, they are merged into ``runs.parquet``, ``epochs.parquet``, ``consistency.json``
    and ``trajectories.parquet``, and ``manifest.json`` is written.
 
@@ -131,7 +132,8 @@ def _context(key: str, doc: dict) -> _Context:
         ests = []
         for entry in doc["estimators"]:
             et = get_estimator(entry["type"])
-            cfg = et.config_model.model_validate({k: v for k, v in entry.items() if k not in ("name", "type")})
+            cfg = et.config_model.model_validate({k: v for k, v in entry.items()
+                                                  if k not in ("name", "type")})
             ests.append((entry["name"], et, cfg))
         sim_key = hashlib.sha256(json.dumps(doc["scenario"], sort_keys=True).encode()).hexdigest()
         gnss_key = json.dumps(doc["sensors"]["gnss"], sort_keys=True)
@@ -221,7 +223,8 @@ def simulate_run(ctx: _Context, run: int):
     s_imu, s_gnss, s_est = _streams(ctx.base_seed, run)
     imu, realised = corrupt_imu(imu_true, ctx.imu_spec, np.random.default_rng(s_imu))
     gnss = tmpl.draw(np.random.default_rng(s_gnss))
-    return SimulationResult(ctx.scenario, ctx.base_seed, truth, imu_true, imu, gnss, segments, realised), s_est
+    sim = SimulationResult(ctx.scenario, ctx.base_seed, truth, imu_true, imu, gnss, segments, realised)
+    return sim, s_est
 
 
 def _process(out, name: str) -> dict:
@@ -413,6 +416,11 @@ def run_experiment(experiment, out_dir, *, workers: int = 1, scheduler: str | No
             bar.advance(task_id)
 
         try:
+            if len(todo) > 1 and backend != "serial" and not scheduler:
+                # the first run here: numba compiles (or loads) its kernels once and caches them on disk,
+                # so that the local workers load them instead of each compiling them again
+                on_result(run_task(todo[0]))
+                todo = todo[1:]
             if not todo:
                 pass
             elif backend == "serial":
@@ -422,8 +430,8 @@ def run_experiment(experiment, out_dir, *, workers: int = 1, scheduler: str | No
             else:
                 _dask(todo, on_result, workers, scheduler, info)
         except KeyboardInterrupt:
-            raise CampaignInterrupted(f"interrupted: {n_reused + computed} of {n_total} runs are in {out / 'runs'}; "
-                                      "run the same command again to resume") from None
+            raise CampaignInterrupted(f"interrupted: {n_reused + computed} of {n_total} runs are in "
+                                      f"{out / 'runs'}; run the same command again to resume") from None
     t_compute = time.perf_counter() - t_comp
 
     complete = n_reused + computed == n_total

@@ -6,8 +6,11 @@ Layout of ``DIR``:
   finishes: per estimator the epochs ``time`` [s], the errors (estimate − truth) and the filter's 1σ in
   boundary units (m, m/s, deg; ``<name>.error``, ``<name>.sigma``, columns = its states), the NEES per
   block (``<name>.nees``) and a JSON ``meta`` (point key, run, state names, timings, counters). The point
-  key hashes everything that determines a run's result, so a rerun reuses exactly the runs that are
-  still valid (a resumed, extended or partly edited campaign recomputes nothing else).
+  key hashes everything in the experiment that determines a run's result (motion, sensors, estimators,
+  imports, base seed; not the statistics, the number of runs or the sweep's other points), so a rerun
+  reuses exactly the runs that are still valid (a resumed, extended or partly edited campaign recomputes
+  nothing else). It does not cover the code: after changing the simulation or an estimator, use a new
+  directory.
 * ``runs.parquet`` — one row per (sweep point, estimator, run): ``point``, ``label``, one column per sweep
   path, ``estimator``, ``run``, then the statistics of :func:`statistic_columns`.
 * ``epochs.parquet`` — one row per (sweep point, estimator, epoch): ``time_s``, ``runs`` and per state
@@ -272,7 +275,8 @@ def run_statistics(t: np.ndarray, err: np.ndarray, sig: np.ndarray, nees: np.nda
     return cols
 
 
-def epoch_summary(err: np.ndarray, sig: np.ndarray, nees: np.ndarray, states, blocks) -> dict[str, np.ndarray]:
+def epoch_summary(err: np.ndarray, sig: np.ndarray, nees: np.ndarray, states,
+                  blocks) -> dict[str, np.ndarray]:
     """Per-epoch summaries across runs: ``<state>_<unit>_{mean,std,rms,sigma}`` and ``nees_<block>``.
 
     std uses ddof = 1 (NaN for one run); sigma is the mean of the runs' filter 1σ; rms = √mean(e²).
@@ -391,7 +395,8 @@ def merge_campaign(plan, out_dir) -> dict:
                 consistency.append({"point": p.index, "label": p.label, "estimator": e, **c})
     # runs.parquet
     scols = statistic_columns(stats, all_states)
-    arrays = {"point": pa.array(run_cols["point"], pa.int32()), "label": pa.array(run_cols["label"], pa.string())}
+    arrays = {"point": pa.array(run_cols["point"], pa.int32()),
+              "label": pa.array(run_cols["label"], pa.string())}
     for sp in sweep_paths:
         arrays[sp] = _sweep_column(run_cols[sp])
     arrays["estimator"] = pa.array(run_cols["estimator"], pa.string())

@@ -65,7 +65,8 @@ def _names(node) -> set[str]:
 def _eval(node, env: Mapping[str, float]):
     if isinstance(node, ast.Expression):
         return _eval(node.body, env)
-    if isinstance(node, ast.Constant) and isinstance(node.value, (int, float)) and not isinstance(node.value, bool):
+    if isinstance(node, ast.Constant) and isinstance(node.value, (int, float)) \
+            and not isinstance(node.value, bool):
         return node.value
     if isinstance(node, ast.Name):
         if node.id not in env:

@@ -1,0 +1,126 @@
+"""Monte Carlo campaign throughput: 100 runs of a 30-minute 100 Hz flight, tactical IMU, 1 Hz GNSS,
+15-state loosely coupled filter (:mod:`aidnav.experiments.runner`).
+
+Reports the total wall time of the campaign (validation, runs, writing the run files, merging the
+Parquet tables) serially and with 2 workers (a local process pool and/or a Dask ``LocalCluster``),
+runs/s, and simulated+filtered IMU samples/s overall (runs × 180,000 samples / wall time), with the
+breakdown summed over the runs: truth generation (once per worker), sensor simulation (IMU error
+corruption + GNSS noise), the filter, the error/NEES evaluation, and the merge. The serial case is
+preceded by one warm-up run in the same process (numba compilation or cache load, reported apart);
+the workers of the parallel cases start cold (their start-up is part of the wall time).
+
+Stretch target: >= 3,000,000 samples/s overall.
+
+Run: ``python benchmarks/montecarlo.py [--runs 100] [--workers 2] [--backends serial,processes,dask]
+[--json out.json]``.
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+    os.environ[_var] = "1"
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import platform  # noqa: E402
+import shutil  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+TARGET = 3_000_000
+
+
+def experiment(runs: int) -> dict:
+    """The benchmark campaign: 1800 s at 100 Hz (180,000 IMU samples per run)."""
+    return {
+        "name": "montecarlo_benchmark",
+        "description": "30 min figure-8 flight, tactical IMU, 1 Hz GNSS, 15-state loose filter",
+        "scenario": {
+            "initial": {"lat_deg": 40.0, "lon_deg": 116.0, "height_m": 7000.0, "speed_m_s": 100.0,
+                        "heading_deg": 40.0},
+            "imu_rate_hz": 100,
+            "segments": [{"type": "straight", "duration_s": 300, "name": "lead_in"},
+                         {"type": "figure8", "duration_s": 900, "name": "8"},
+                         {"type": "straight", "duration_s": 300, "name": "AB"},
+                         {"type": "u_turn", "duration_s": 100, "name": "U"},
+                         {"type": "straight", "duration_s": 200, "name": "CD"}],
+        },
+        "sensors": {"imu": {"grade": "tactical"}, "gnss": {"rate_hz": 1}},
+        "estimators": [{"name": "loose15", "type": "loose", "states": 15}],
+        "runs": runs,
+        "base_seed": 1,
+        "statistics": {"quantities": ["pos_h", "vel_h", "att_e", "att_n", "heading"],
+                       "windows": {"AB": {"segment": "AB"}, "CD": {"segment": "CD"},
+                                   "last60": {"last_s": 60, "metrics": ["rms"]}}},
+    }
+
+
+def bench(plan, out: Path, **kw) -> dict:
+    from aidnav.experiments.runner import run_experiment
+
+    shutil.rmtree(out, ignore_errors=True)
+    t0 = time.perf_counter()
+    res = run_experiment(plan, out, progress=False, **kw)
+    wall = time.perf_counter() - t0
+    assert res.complete
+    tm = res.timings
+    s = tm["per_run_sums"]
+    samples = s["imu_samples"]
+    return {"wall_s": wall, "runs": res.computed, "runs_per_s": res.computed / wall, "samples": samples,
+            "samples_per_s": samples / wall, "compute_wall_s": tm["compute_wall_s"], "merge_s": tm["merge_s"],
+            "truth_setup_s": s["setup_s"], "sensor_sim_s": s["sim_s"],
+            "filter_s": sum(s["estimators_s"].values()),
+            "errors_nees_s": s["errors_s"], "worker_total_s": s["worker_total_s"],
+            "filter_samples_per_s": samples / max(sum(s["estimators_s"].values()), 1e-9),
+            "sensor_sim_samples_per_s": samples / max(s["sim_s"], 1e-9)}
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--runs", type=int, default=100)
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--backends", default="serial,processes,dask",
+                    help="comma-separated: serial, processes (process pool), dask (LocalCluster)")
+    ap.add_argument("--json", type=Path, default=None, help="also write the numbers here")
+    args = ap.parse_args()
+
+    from aidnav.experiments import runner
+    from aidnav.experiments.config import parse_experiment
+
+    plan = parse_experiment(experiment(args.runs), "montecarlo_benchmark")
+    p = plan.points[0]
+    t0 = time.perf_counter()
+    runner.run_task(runner.RunTask(p.key, p.index, 0, p.doc))  # numba compile / cache load, truth
+    warm = time.perf_counter() - t0
+    print(f"host {platform.node()}, {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f}; "
+          f"warm-up run (compile/cache load + truth) {warm:.2f} s")
+    results = {"warmup_s": warm, "runs": args.runs, "imu_samples_per_run": 180_000, "cases": {}}
+    tmp = Path(tempfile.mkdtemp(prefix="aidnav_mc_bench_"))
+    try:
+        for b in [x.strip() for x in args.backends.split(",") if x.strip()]:
+            kw = {"backend": b, "workers": 1 if b == "serial" else args.workers}
+            r = bench(plan, tmp / b, **kw)
+            name = b if b == "serial" else f"{b} x{args.workers}"
+            results["cases"][name] = r
+            print(f"\n{name}: {r['runs']} runs in {r['wall_s']:.2f} s = {r['runs_per_s']:.2f} runs/s, "
+                  f"{r['samples_per_s']:,.0f} IMU samples/s overall "
+                  f"({'meets' if r['samples_per_s'] >= TARGET else 'below'} the {TARGET:,} target)")
+            print(f"  summed over runs: filter {r['filter_s']:.2f} s "
+                  f"({r['filter_samples_per_s']:,.0f} samples/s), "
+                  f"sensor simulation {r['sensor_sim_s']:.2f} s "
+                  f"({r['sensor_sim_samples_per_s']:,.0f} samples/s), "
+                  f"errors+NEES {r['errors_nees_s']:.2f} s, truth/setup {r['truth_setup_s']:.2f} s")
+            print(f"  compute wall {r['compute_wall_s']:.2f} s (workers busy {r['worker_total_s']:.2f} s), "
+                  f"merge {r['merge_s']:.2f} s, "
+                  f"other {r['wall_s'] - r['compute_wall_s'] - r['merge_s']:.2f} s")
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    if args.json:
+        args.json.write_text(json.dumps(results, indent=2))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,30 @@
+"""Seed-000 reproduction: a quick smoke run of the whole pipeline (2 short runs) and the summary schema."""
+
+from __future__ import annotations
+
+import json
+
+from aidnav.experiments.reproduce import run_seed, seed_000
+
+
+def test_run_writes_summary(tmp_path):
+    s = run_seed("0", tmp_path, runs=2)  # through the dispatcher, as `aidnav reproduce 000`
+    d = json.loads((tmp_path / "summary.json").read_text())
+    assert d["seed"] == "000" and d["runs"] == 2 and d["base_seed"] == 1
+    assert d == json.loads(json.dumps(s))
+    for f in d["figures"]:
+        assert (tmp_path / f).stat().st_size > 1000
+    names = [t["name"] for t in d["tables"]]
+    assert names == ["Table 1", "Table 2", "SPEC 1.3", "Federated filter", "Eqs. 23-26"]
+    for t in d["tables"]:
+        for r in t["rows"]:
+            assert set(r) == {"quantity", "unit", "paper", "ours", "target", "holds"}
+            assert r["holds"] in (True, False, None)
+            assert (r["holds"] is None) == (r["target"] is None)
+    rows = {r["quantity"]: r for t in d["tables"] for r in t["rows"]}
+    assert all(r["holds"] for r in d["tables"][0]["rows"])  # Table 1: our setting is the seed's
+    assert rows["SINS/GPS: heading error std"]["paper"] == 98.5442
+    assert rows[f"{seed_000.FED}: heading error std"]["paper"] == 2.8714
+    ratio = next(r for r in d["tables"][2]["rows"] if r["quantity"].startswith("heading RMS ratio"))
+    assert ratio["holds"] is True and ratio["ours"] >= 10
+    assert (tmp_path / "statistics.json").exists()

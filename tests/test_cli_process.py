@@ -134,3 +134,18 @@ def test_nan_gnss_fix_is_skipped_and_reported(simdir):
     assert any("NaN/inf" in e for e in events), events
     assert r.records["pos_status"][60] == -1
     assert np.all(np.isfinite(r.state))
+
+
+def test_tight_cli_on_walk_data(data_dir, tmp_path):
+    """`aidnav tight` on the walk set (4 GPS satellites with ephemeris, code only): a solution within
+    the metre-level accuracy such a solution can have (the RTK reference, Q = 1 epochs)."""
+    d = data_dir / "rtklibexplorer_walk_0827"
+    out = tmp_path / "tight.csv"
+    r = runner.invoke(app, ["tight", "--imu", str(d / "imu_1730.csv"), "--obs",
+                            str(d / "rinex_converted/gnss_1730.obs"), "--nav",
+                            str(d / "rinex_converted/gnss_1730.nav"), "--reference", str(d / "gnss_1730_sf.pos"),
+                            "--reference-height-offset", "-21.4", "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    s = json.loads((tmp_path / "tight_summary.json").read_text())
+    assert s["reference"]["epochs"] > 300
+    assert s["reference"]["horizontal_rms_m"] < 15.0

@@ -180,6 +180,31 @@ def reproduce_cmd(
         raise typer.Exit(2)
 
 
+@app.command()
+def tight(
+    imu: Path = typer.Option(..., "--imu", help="IMU log (interchange or raw rtklibexplorer CSV + .tag)"),
+    obs: Path = typer.Option(..., "--obs", help="RINEX observation file"),
+    nav: Path = typer.Option(..., "--nav", help="RINEX navigation file (GPS broadcast ephemerides)"),
+    config: Path | None = typer.Option(None, "--config", help="tight filter configuration YAML"),
+    reference: Path | None = typer.Option(None, "--reference", help="reference solution (.pos, Q=1 used)"),
+    reference_height_offset: float = typer.Option(0.0, help="added to the reference heights [m]"),
+    out: Path = typer.Option(Path("out/tight.csv"), "-o", "--out", help="output .csv or .parquet"),
+):
+    """Tightly coupled GNSS/INS (pseudorange + Doppler) on an IMU log and RINEX files."""
+    import json
+
+    from aidnav.io.errors import DataError
+    from aidnav.process import ConfigError
+    from aidnav.process_tight import process_tight_files
+
+    try:
+        with console.status("aidnav tight: SPP, alignment, tightly coupled filter"):
+            s = process_tight_files(imu, obs, nav, config, out, reference, reference_height_offset)
+    except (DataError, ConfigError, ValueError, OSError) as e:
+        _fail(str(e))
+    console.print(json.dumps(s, indent=2, default=float), markup=False, highlight=False, soft_wrap=True)
+
+
 def main():  # pragma: no cover
     app()
 

@@ -121,3 +121,47 @@ def compare_with_reference(time, lat, lon, h, ref: GnssData, quality: int | None
         "horizontal_p95": float(np.percentile(hz, 95)),
         "vertical_rms": float(np.sqrt((d[:, 2] ** 2).mean())),
     }
+
+
+def process_tight_files(imu_path, obs_path, nav_path, config_path=None, out_path="out/tight.csv",
+                        reference=None, reference_height_offset_m: float = 0.0) -> dict:
+    """File-level job behind ``aidnav tight``: read IMU + RINEX obs/nav (+ optional RTKLIB reference),
+    run :func:`process_tight`, write the trajectory (interchange format) and a JSON summary."""
+    import json
+    from pathlib import Path
+
+    import yaml
+    from pydantic import ValidationError
+
+    from aidnav.filters.tight import TightConfig, to_trajectory
+    from aidnav.io.interchange import write_trajectory
+    from aidnav.io.rinex import read_rinex_nav, read_rinex_obs
+    from aidnav.process import ConfigError, read_gnss_any, read_imu_any
+
+    cfg = TightConfig()
+    if config_path is not None:
+        try:
+            cfg = TightConfig.model_validate(yaml.safe_load(Path(config_path).read_text()) or {})
+        except ValidationError as e:
+            keys = "; ".join(".".join(map(str, er["loc"])) + ": " + er["msg"] for er in e.errors())
+            raise ConfigError(f"{config_path}: invalid configuration: {keys}") from None
+    imu = read_imu_any(imu_path)
+    obs = read_rinex_obs(obs_path)
+    eph = read_rinex_nav(nav_path, ref_week=getattr(obs, "ref_week", None))
+    events: list[str] = []
+    res, _ = process_tight(imu, obs, eph, cfg, events=events)
+    traj = to_trajectory(res)
+    out_path = Path(out_path)
+    write_trajectory(traj, out_path)
+    summary = {"imu": str(imu_path), "obs": str(obs_path), "nav": str(nav_path), "output": str(out_path),
+               "states": cfg.states, "events": imu.events + events}
+    if reference is not None:
+        ref = read_gnss_any(reference, reference_height_offset_m)
+        c = compare_with_reference(traj.time, traj.lat, traj.lon, traj.height, ref)
+        summary["reference"] = {"file": str(reference), "epochs": c["n"],
+                                "horizontal_rms_m": c["horizontal_rms"],
+                                "rms_enu_m": [float(x) for x in c["rms"]],
+                                "mean_enu_m": [float(x) for x in c["mean"]]}
+    summary_path = Path(str(out_path.with_suffix("")) + "_summary.json")
+    summary_path.write_text(json.dumps(summary, indent=2, default=float))
+    return summary

@@ -143,7 +143,8 @@ def test_tight_cli_on_walk_data(data_dir, tmp_path):
     out = tmp_path / "tight.csv"
     r = runner.invoke(app, ["tight", "--imu", str(d / "imu_1730.csv"), "--obs",
                             str(d / "rinex_converted/gnss_1730.obs"), "--nav",
-                            str(d / "rinex_converted/gnss_1730.nav"), "--reference", str(d / "gnss_1730_sf.pos"),
+                            str(d / "rinex_converted/gnss_1730.nav"), "--reference",
+                            str(d / "gnss_1730_sf.pos"),
                             "--reference-height-offset", "-21.4", "-o", str(out)])
     assert r.exit_code == 0, r.output
     s = json.loads((tmp_path / "tight_summary.json").read_text())

@@ -80,6 +80,10 @@ class MasterPosSpec:
 
     sigma_roll_deg, sigma_pitch_deg, sigma_heading_deg [deg]; sigma_vel_m_s [m/s] per ENU axis;
     sigma_horizontal_m (E and N), sigma_vertical_m [m]; rate_hz: output (= filter) rate [Hz].
+    corr_time_s: 0 (default) for white errors, as the seed's "measurement noise" and SPEC §5.1's R;
+    > 0 for first-order Gauss-Markov errors with that correlation time [s] and the same stationary σ
+    (a real POS's errors are slowly varying; used as a sensitivity case, the filter still assumes
+    white noise).
     """
 
     sigma_roll_deg: float = 0.005
@@ -89,6 +93,7 @@ class MasterPosSpec:
     sigma_horizontal_m: float = 0.1
     sigma_vertical_m: float = 0.2
     rate_hz: float = 1.0
+    corr_time_s: float = 0.0
 
     @classmethod
     def for_gnss_baseline(cls, baseline_km: float, **kw) -> MasterPosSpec:
@@ -96,8 +101,8 @@ class MasterPosSpec:
         accuracy is taken equal to the GNSS accuracy (as the seed assumes); the rest as POS/AV610."""
         key = float(baseline_km)
         if key not in GNSS_BASELINE_ACCURACY_M:
-            raise ValueError(f"MasterPosSpec.for_gnss_baseline: baseline {baseline_km} km not in seed Table 7 "
-                             f"({', '.join(f'{k:g}' for k in GNSS_BASELINE_ACCURACY_M)} km)")
+            raise ValueError(f"MasterPosSpec.for_gnss_baseline: baseline {baseline_km} km not in seed "
+                             f"Table 7 ({', '.join(f'{k:g}' for k in GNSS_BASELINE_ACCURACY_M)} km)")
         hor, ver = GNSS_BASELINE_ACCURACY_M[key]
         return cls(sigma_horizontal_m=hor, sigma_vertical_m=ver, **kw)
 
@@ -256,19 +261,26 @@ def lever_arm_acceleration(w, wdot, r):
 def _rates_at_points(dth, dt):
     """ω_ib [rad/s] at the sample points t_0..t_N from increments over (t_{k−1}, t_k] (N, 3).
 
-    Mid-interval rates Δθ_k/Δt averaged at interior points, linearly extrapolated at the ends.
+    The increments are interval means ω̄ = Δθ/Δt; point values are reconstructed from them as from
+    cell averages: fourth order inside, ω(t_k) = (−ω̄_{k−1} + 7ω̄_k + 7ω̄_{k+1} − ω̄_{k+2})/12 (ω̄_k the
+    mean over the interval ending at t_k), third order at and next to the two ends (one-sided
+    (11, −7, 2)/6 and (2, 5, −1)/6). Fewer than three intervals: means and their average.
     """
     n = dth.shape[0]
     w = np.empty((n + 1, 3))
     for i in range(3):
-        if n == 1:
+        if n < 3:
             w[0, i] = dth[0, i] / dt
-            w[1, i] = dth[0, i] / dt
+            w[n, i] = dth[n - 1, i] / dt
+            if n == 2:
+                w[1, i] = 0.5 * (dth[0, i] + dth[1, i]) / dt
             continue
-        for k in range(1, n):
-            w[k, i] = 0.5 * (dth[k - 1, i] + dth[k, i]) / dt
-        w[0, i] = (1.5 * dth[0, i] - 0.5 * dth[1, i]) / dt
-        w[n, i] = (1.5 * dth[n - 1, i] - 0.5 * dth[n - 2, i]) / dt
+        for k in range(2, n - 1):
+            w[k, i] = (-dth[k - 2, i] + 7.0 * dth[k - 1, i] + 7.0 * dth[k, i] - dth[k + 1, i]) / (12.0 * dt)
+        w[0, i] = (11.0 * dth[0, i] - 7.0 * dth[1, i] + 2.0 * dth[2, i]) / (6.0 * dt)
+        w[1, i] = (2.0 * dth[0, i] + 5.0 * dth[1, i] - dth[2, i]) / (6.0 * dt)
+        w[n - 1, i] = (-dth[n - 3, i] + 5.0 * dth[n - 2, i] + 2.0 * dth[n - 1, i]) / (6.0 * dt)
+        w[n, i] = (2.0 * dth[n - 3, i] - 7.0 * dth[n - 2, i] + 11.0 * dth[n - 1, i]) / (6.0 * dt)
     return w
 
 
@@ -278,7 +290,8 @@ def lever_arm_increment(dth, dt, r):
 
     dth (N, 3): body angle increments Δθ = ∫ω_ib dt [rad] over (t_{k−1}, t_k] of a uniform grid ``dt``
     [s]; r (3,) [m] in the same body frame. ∫ω̇ dt = ω(t_k) − ω(t_{k−1}) with ω at the points from
-    :func:`_rates_at_points`, and ∫ω×(ω×r) dt ≈ Δt·ω̄×(ω̄×r) with ω̄ = Δθ/Δt (error O(Δt²)).
+    :func:`_rates_at_points` (fourth order inside), and ∫ω×(ω×r) dt ≈ Δt·ω̄×(ω̄×r) with ω̄ = Δθ/Δt
+    (error O(Δt³) per interval).
     """
     n = dth.shape[0]
     wp = _rates_at_points(dth, dt)
@@ -412,7 +425,8 @@ def _sub_run_kernel(c_m, c_ms, dth_m, dvb, rho, theta):
             _mm(t1, c1, t2)
             rv = rotvec_from_dcm(t2)
             dth_s[j, 0], dth_s[j, 1], dth_s[j, 2] = rv[0], rv[1], rv[2]
-            _rv2dcm(-(rho[0] + 0.5 * (theta[j, 0] + theta[k, 0])), -(rho[1] + 0.5 * (theta[j, 1] + theta[k, 1])),
+            _rv2dcm(-(rho[0] + 0.5 * (theta[j, 0] + theta[k, 0])),
+                    -(rho[1] + 0.5 * (theta[j, 1] + theta[k, 1])),
                     -(rho[2] + 0.5 * (theta[j, 2] + theta[k, 2])), cd)
             for i in range(3):
                 dv_s[j, i] = cd[0, i] * dvb[j, 0] + cd[1, i] * dvb[j, 1] + cd[2, i] * dvb[j, 2]
@@ -544,7 +558,8 @@ def simulate_master_pos(truth: Trajectory, imu: ImuData, spec: MasterPosSpec,
     """Master POS output at ``spec.rate_hz`` (epochs at multiples of the period from the truth start).
 
     truth, imu: master truth and error-free increments on a uniform grid (from ``generate_truth``).
-    Draws, fixed order: (M, 3) attitude, (M, 3) velocity, (M, 3) position unit normals.
+    Draws, fixed order: (M, 3) attitude, (M, 3) velocity, (M, 3) position unit normals (made
+    Gauss-Markov, stationary from the first epoch, when ``spec.corr_time_s`` > 0).
     """
     dt = float(truth.time[1] - truth.time[0])
     ratio = int(round(1.0 / (spec.rate_hz * dt)))
@@ -555,6 +570,12 @@ def simulate_master_pos(truth: Trajectory, imu: ImuData, spec: MasterPosSpec,
     za = rng.standard_normal((m, 3))
     zv = rng.standard_normal((m, 3))
     zp = rng.standard_normal((m, 3))
+    if spec.corr_time_s > 0:
+        a = math.exp(-ratio * dt / spec.corr_time_s)
+        b = math.sqrt(1.0 - a * a)
+        for z in (za, zv, zp):
+            for k in range(1, m):
+                z[k] = a * z[k - 1] + b * z[k]
     rph = truth.rph[idx] + za * spec.att_sigma_rad
     rph[:, 2] = np.mod(rph[:, 2], 2 * np.pi)
     vel = truth.vel[idx] + zv * spec.sigma_vel_m_s
@@ -567,8 +588,9 @@ def simulate_master_pos(truth: Trajectory, imu: ImuData, spec: MasterPosSpec,
                            vel=vel, rph=rph, w_ib=w, spec=spec)
 
 
-def simulate_sub_imu(truth: Trajectory, imu: ImuData, cfg: DistributedPosConfig, rng_flex: np.random.Generator,
-                     rng_imu: np.random.Generator, geometry: SubGeometry | None = None) -> SubImuOutput:
+def simulate_sub_imu(truth: Trajectory, imu: ImuData, cfg: DistributedPosConfig,
+                     rng_flex: np.random.Generator, rng_imu: np.random.Generator,
+                     geometry: SubGeometry | None = None) -> SubImuOutput:
     """Sub-IMU truth and increments for a master truth trajectory and its error-free increments.
 
     ``truth`` must hold the points t_0..t_N of the N intervals of ``imu`` (as ``generate_truth`` gives).

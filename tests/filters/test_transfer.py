@@ -32,15 +32,21 @@ def _bundle(segments):
 @pytest.fixture(scope="module")
 def maneuver():
     """60 s straight, a 360° circle in 240 s (1.5°/s), 300 s straight (AB)."""
-    return _bundle([{"type": "straight", "duration_s": 60.0}, {"type": "o_circle", "duration_s": 240.0, "name": "O"},
-                    {"type": "straight", "duration_s": 300.0, "name": "AB"}])
+    return _bundle(
+        [
+            {"type": "straight", "duration_s": 60.0},
+            {"type": "o_circle", "duration_s": 240.0, "name": "O"},
+            {"type": "straight", "duration_s": 300.0, "name": "AB"},
+        ]
+    )
 
 
 @pytest.fixture(scope="module")
 def straight():
     """600 s straight and level, AB = the last 300 s."""
-    return _bundle([{"type": "straight", "duration_s": 300.0}, {"type": "straight", "duration_s": 300.0,
-                                                                 "name": "AB"}])
+    return _bundle(
+        [{"type": "straight", "duration_s": 300.0}, {"type": "straight", "duration_s": 300.0, "name": "AB"}]
+    )
 
 
 def _runs(bundle, nstate=24, keep_cov=False, runs=RUNS, cfg=None):
@@ -67,9 +73,22 @@ def _model(nstate):
     q = np.zeros(15)
     Cbn = dcm_from_euler(0.15, 0.02, 0.7)
     fl = dp.FlexureSpec()
-    tf.fill_transfer_model(F, G, q, 0.7, 7000.0, np.array([64.0, 76.0, 1.0]), np.array([1.2, -0.9, 9.8]), Cbn,
-                           np.array([0.0, 0.002, 0.015]), np.array([0.1, 0.0, 9.9]), fl.beta, fl.sigma,
-                           (1e-6) ** 2, (3e-4) ** 2)
+    tf.fill_transfer_model(
+        F,
+        G,
+        q,
+        0.7,
+        7000.0,
+        np.array([64.0, 76.0, 1.0]),
+        np.array([1.2, -0.9, 9.8]),
+        Cbn,
+        np.array([0.0, 0.002, 0.015]),
+        np.array([0.1, 0.0, 9.9]),
+        fl.beta,
+        fl.sigma,
+        (1e-6) ** 2,
+        (3e-4) ** 2,
+    )
     return F, G, q, fl
 
 
@@ -78,13 +97,13 @@ def test_transfer_model_structure():
     b = fl.beta
     for j in range(3):
         assert F[tf.THETA + j, tf.THETA_DOT + j] == 1.0
-        assert F[tf.THETA_DOT + j, tf.THETA + j] == pytest.approx(-b[j] ** 2)
+        assert F[tf.THETA_DOT + j, tf.THETA + j] == pytest.approx(-(b[j] ** 2))
         assert F[tf.THETA_DOT + j, tf.THETA_DOT + j] == pytest.approx(-2 * b[j])
         assert q[12 + j] == pytest.approx(4 * b[j] ** 3 * fl.sigma[j] ** 2)
     # ρ constant, flexure decoupled from the INS block, biases random constants
-    assert not F[tf.RHO:tf.RHO + 3].any()
+    assert not F[tf.RHO : tf.RHO + 3].any()
     assert not F[:18, 18:].any() and not F[18:, :18].any()
-    assert not F[tf.BG:tf.BA + 3].any() and not q[6:12].any()
+    assert not F[tf.BG : tf.BA + 3].any() and not q[6:12].any()
     F21, _, q21, _ = _model(21)
     np.testing.assert_allclose(np.diag(F21)[18:21], -1.0 / fl.tau)
     np.testing.assert_allclose(q21[12:15], 2 * fl.sigma**2 / fl.tau)
@@ -123,7 +142,7 @@ def test_mounting_misalignment_within_3sigma(maneuver_runs):
     (at most one with probability 99.8 %); none may be beyond 4σ."""
     z = []
     for run, res, e in maneuver_runs:
-        sig = np.sqrt(res.pdiag[-1, tf.RHO:tf.RHO + 3])
+        sig = np.sqrt(res.pdiag[-1, tf.RHO : tf.RHO + 3])
         z.append(e.rho[-1] / sig)
         # and well determined: ρ_x, ρ_z to < 0.005°, ρ_y (with the 0.15° roll flexure) to < 0.025°
         assert np.all(sig < np.array([0.005, 0.025, 0.005]) * DEG)
@@ -132,7 +151,7 @@ def test_mounting_misalignment_within_3sigma(maneuver_runs):
     z = np.abs(np.array(z))
     assert np.sum(z > 3) <= 1 and np.all(z < 4), z
     assert 0.5 < np.sqrt(np.mean(z**2)) < 1.6
-        # the innovation sequence: NIS of the 6-row update averages 6
+    # the innovation sequence: NIS of the 6-row update averages 6
     nis = np.concatenate([r.nis[1:] for _, r, _ in maneuver_runs])
     lo, hi = chi2_band(6, len(nis), 0.999)
     assert lo < nis.mean() < hi * 1.02  # epochs are nearly independent; 2 % for model approximations
@@ -154,9 +173,9 @@ def test_nees_in_band(maneuver_runs):
 
 
 def test_21_state_variant_runs(maneuver):
-    (run, res, e), = _runs(maneuver, nstate=21, runs=1)
+    ((run, res, e),) = _runs(maneuver, nstate=21, runs=1)
     assert res.pdiag.shape[1] == 21 and np.isnan(res.theta_dot).all()
-    sig = np.sqrt(res.pdiag[-1, tf.RHO:tf.RHO + 3])
+    sig = np.sqrt(res.pdiag[-1, tf.RHO : tf.RHO + 3])
     assert np.all(np.abs(e.rho[-1]) < 3.5 * sig)
 
 
@@ -167,7 +186,9 @@ def test_heading_with_maneuver_much_better_than_without(maneuver_runs, straight)
     man = maneuver_runs[:4]
 
     def stat(runs, kind):
-        return np.mean([tf.segment_statistic(e.time, e.rph, r.segments, ("AB",), kind)[2] for r, _, e in runs])
+        return np.mean(
+            [tf.segment_statistic(e.time, e.rph, r.segments, ("AB",), kind)[2] for r, _, e in runs]
+        )
 
     for kind, factor in (("std", 5.0), ("rms", 20.0)):
         h_man, h_none = stat(man, kind), stat(none_runs, kind)
@@ -211,4 +232,6 @@ def test_seed_004_reproduction_quick(tmp_path):
             if r["target"] is not None:
                 assert r["holds"] == evaluate_target(r["target"], r["ours"], r["paper"])
     t4 = {r["quantity"]: r for r in saved["tables"][0]["rows"]}
-    assert t4["heading none / 8"]["holds"] and t4["heading none / 8"]["paper"] == pytest.approx(0.2483 / 0.0116)
+    assert t4["heading none / 8"]["holds"] and t4["heading none / 8"]["paper"] == pytest.approx(
+        0.2483 / 0.0116
+    )

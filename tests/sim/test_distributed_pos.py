@@ -26,10 +26,17 @@ INI = {"lat_deg": 40.0, "lon_deg": 116.0, "height_m": 7000.0, "speed_m_s": 100.0
 @pytest.fixture(scope="module")
 def turning():
     """Straight 20 s, a 90° right turn in 60 s (0.9°/s at 100 m/s, bank ≈ 9°), straight 20 s."""
-    scn = parse_scenario({"initial": INI, "segments": [
-        {"type": "straight", "duration_s": 20.0},
-        {"type": "turn", "angle_deg": 54.0, "duration_s": 60.0, "name": "turn"},
-        {"type": "straight", "duration_s": 20.0, "name": "AB"}]}, "<turning>")
+    scn = parse_scenario(
+        {
+            "initial": INI,
+            "segments": [
+                {"type": "straight", "duration_s": 20.0},
+                {"type": "turn", "angle_deg": 54.0, "duration_s": 60.0, "name": "turn"},
+                {"type": "straight", "duration_s": 20.0, "name": "AB"},
+            ],
+        },
+        "<turning>",
+    )
     return generate_truth(scn)
 
 
@@ -39,7 +46,7 @@ def test_flexure_transition_is_exact(dt):
     spec = dp.FlexureSpec()
     for beta, sigma, q in zip(spec.beta, spec.sigma, spec.q_eta, strict=True):
         phi, qd = dp.flexure_transition(beta, sigma, dt)
-        A = np.array([[0.0, 1.0], [-beta**2, -2.0 * beta]])
+        A = np.array([[0.0, 1.0], [-(beta**2), -2.0 * beta]])
         np.testing.assert_allclose(phi, expm(A * dt), rtol=1e-12, atol=1e-15)
         phi_vl, qd_vl = van_loan(A, np.array([[0.0], [1.0]]), np.array([q]), dt)
         np.testing.assert_allclose(phi, phi_vl, rtol=1e-10, atol=1e-15)
@@ -91,8 +98,16 @@ def test_flexure_generator_std_and_lag():
             return (1.0 + b * t) * np.exp(-b * t)
 
         r_tau = rho(tau[a])
-        bart = np.sum(rho(u) ** 2 + rho(u + tau[a]) * rho(u - tau[a]) - 4 * r_tau * rho(u) * rho(u + tau[a])
-                      + 2 * r_tau**2 * rho(u) ** 2) * dt / T
+        bart = (
+            np.sum(
+                rho(u) ** 2
+                + rho(u + tau[a]) * rho(u - tau[a])
+                - 4 * r_tau * rho(u) * rho(u + tau[a])
+                + 2 * r_tau**2 * rho(u) ** 2
+            )
+            * dt
+            / T
+        )
         slope = beta[a] ** 2 * tau[a] * math.exp(-beta[a] * tau[a])
         sd_lag = math.sqrt(bart) / slope / tau[a]
         assert 4 * sd_lag < 0.05
@@ -131,7 +146,9 @@ def test_lever_arm_increment_known_rotation():
         return np.stack([a * w * np.cos(w * s), np.full_like(s, c), -d * w * np.sin(w * s)], axis=-1)
 
     def angle(s):  # ∫ω dt from 0
-        return np.stack([a / w * (1 - np.cos(w * s)), b * s + 0.5 * c * s * s, d / w * np.sin(w * s)], axis=-1)
+        return np.stack(
+            [a / w * (1 - np.cos(w * s)), b * s + 0.5 * c * s * s, d / w * np.sin(w * s)], axis=-1
+        )
 
     dth = np.diff(angle(t), axis=0)
     got = dp.lever_arm_increment(dth, dt, r) / dt
@@ -179,12 +196,16 @@ def test_sub_truth_geometry(turning):
         cs = dcm_from_euler(*s.rph[k])
         rel = cm.T @ cs
         alpha = run.sub.rho + run.sub.theta[k]
-        expect = expm(-np.array([[0, -alpha[2], alpha[1]], [alpha[2], 0, -alpha[0]], [-alpha[1], alpha[0], 0]]))
+        expect = expm(
+            -np.array([[0, -alpha[2], alpha[1]], [alpha[2], 0, -alpha[0]], [-alpha[1], alpha[0], 0]])
+        )
         assert np.abs(rel - expect).max() < 2e-6
     # velocity: in the turn the sub (5 m right of the master) is closer to the turn centre
     k = 5000
     assert np.linalg.norm(s.vel[k]) < np.linalg.norm(m.vel[k])
-    assert abs(np.linalg.norm(s.vel[k]) - np.linalg.norm(m.vel[k])) == pytest.approx(5.0 * 0.9 * DEG, rel=0.05)
+    assert abs(np.linalg.norm(s.vel[k]) - np.linalg.norm(m.vel[k])) == pytest.approx(
+        5.0 * 0.9 * DEG, rel=0.05
+    )
 
 
 def test_runs_are_reproducible_and_streams_independent(turning):
@@ -216,8 +237,9 @@ def test_master_output_noise_statistics():
     np.testing.assert_allclose((out.vel - truth.vel[idx]).std(axis=0) / spec.sigma_vel_m_s, 1.0, atol=tol)
     from aidnav.nav.earth import lla_difference_enu
 
-    de, dn, du = lla_difference_enu(out.lat, out.lon, out.height, truth.lat[idx], truth.lon[idx],
-                                    truth.height[idx])
+    de, dn, du = lla_difference_enu(
+        out.lat, out.lon, out.height, truth.lat[idx], truth.lon[idx], truth.height[idx]
+    )
     np.testing.assert_allclose(np.std([de, dn, du], axis=1) / spec.pos_sigma_m, 1.0, atol=tol)
     # Gauss-Markov option: lag-1 correlation e^{−T/τ}, same stationary σ
     gm = dp.simulate_master_pos(truth, imu, dp.MasterPosSpec(corr_time_s=20.0), np.random.default_rng(1))

@@ -41,13 +41,13 @@ covariance algebra) are one numba kernel (:func:`_federated_kernel`), as the loo
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numba import njit
 
 from aidnav.nav.earth import OMEGA_IE, radii
-from aidnav.nav.geo_pointing import az_el_from_body, beam_body
+from aidnav.nav.geo_pointing import az_el_from_body, beam_body, los_enu
 from aidnav.nav.rotations import dcm_from_quat
 from aidnav.nav.strapdown import strapdown_step
 
@@ -57,9 +57,21 @@ from .loose import _apply_correction
 from .measurements import gnss_position, gnss_velocity, sapv_angles
 
 __all__ = ["FederatedConfig", "FederatedResult", "run_federated", "run_centralized", "fuse_information",
-           "spd_inverse", "MODES"]
+           "spd_inverse", "MODES", "SAPV_SKIP_REASONS"]
 
 MODES = {"centralized": 0, "reset": 1, "no_reset": 2}
+
+# FederatedResult.sapv_status codes of SAPV epochs that were not used
+SAPV_UNUSED = -1  #: antenna not tracking (reason flag), or SAPV not used in this run
+SAPV_BAD_INPUT = -2  #: NaN on an epoch flagged as tracking, or an angle outside its range
+SAPV_BELOW_HORIZON = -3  #: the satellite is below the local horizon at the INS position
+#: FederatedResult.counts["sapv_skipped"] keys: why SAPV epochs were skipped
+SAPV_SKIP_REASONS = {
+    "not_tracking": "antenna reports no lock (SapvData.reason != OK)",
+    "nan": "non-finite az/el on an epoch flagged as tracking",
+    "angle_out_of_range": "azimuth outside [0, 2*pi) or elevation outside [-pi/2, pi/2] rad",
+    "below_horizon": "the satellite is below the local horizon at the INS position",
+}
 
 # float parameters of the kernel
 P_PROP_DT = 0
@@ -256,14 +268,19 @@ def _federated_kernel(imu_t, dth, dvel, t0, st0, P0, q_psd, par, mode, beta,
                     u = beam_body(az_m, el_m)
                     th = dthc * (dtb / dt)
                     az_m, el_m = az_el_from_body(u - np.cross(th, u))
-                sapv_angles(st, C, sat, az_m, el_m, par[P_SAPV_POS] > 0, H2, z2)
-                R2[0, 0] = s_sig[0] ** 2
-                R2[1, 1] = s_sig[1] ** 2
-                ok, nis = update(xf[r_sapv], Pf[r_sapv], H2, R2, z2, par[P_GATE_SAPV], innov2, sd2)
-                rec_s[si] = 1 if ok else 0
-                rec_s_nis[si] = nis
-                rec_s_innov[si] = innov2
-                rec_s_s[si] = sd2
+                if los_enu(st[0], st[1], st[2], sat)[2] < 0.0:
+                    # the satellite is below the local horizon at the INS position: the antenna cannot be
+                    # tracking it (wrong satellite longitude / data): skipped, flagged
+                    rec_s[si] = SAPV_BELOW_HORIZON
+                else:
+                    sapv_angles(st, C, sat, az_m, el_m, par[P_SAPV_POS] > 0, H2, z2)
+                    R2[0, 0] = s_sig[0] ** 2
+                    R2[1, 1] = s_sig[1] ** 2
+                    ok, nis = update(xf[r_sapv], Pf[r_sapv], H2, R2, z2, par[P_GATE_SAPV], innov2, sd2)
+                    rec_s[si] = 1 if ok else 0
+                    rec_s_nis[si] = nis
+                    rec_s_innov[si] = innov2
+                    rec_s_s[si] = sd2
             si += 1
         # 3. fusion
         if mode == 0:
@@ -363,7 +380,11 @@ class FederatedResult:
     gps_pos_status, gps_vel_status : (M,) int8 per fix, −1 not used, 0 gated out, 1 used; gps_pos_nis,
     gps_vel_nis : (M,); sapv_status : (S,) int8 likewise; sapv_innov : (S, 2) ν = z − H x [rad];
     sapv_s : (S, 2) diag of its S [rad²]; sapv_nis : (S,) (of the filter that used it); config : the
-    :class:`FederatedConfig`.
+    :class:`FederatedConfig`. sapv_status codes below −1: −2 bad input (NaN angles on an epoch flagged
+    as tracking, azimuth outside [0, 2π) or elevation outside [−π/2, π/2]), −3 satellite below the local
+    horizon at the INS position; those epochs are skipped. counts : ``{"sapv_used", "sapv_gated": int,
+    "sapv_skipped": {reason: int}}`` with the reasons of :data:`SAPV_SKIP_REASONS` (epochs of a run with
+    ``use_sapv=False`` are not counted as skipped).
     """
 
     time: np.ndarray
@@ -382,6 +403,7 @@ class FederatedResult:
     sapv_s: np.ndarray
     sapv_nis: np.ndarray
     config: FederatedConfig
+    counts: dict = field(default_factory=dict)
 
 
 def _empty_gnss():
@@ -439,12 +461,14 @@ def run_federated(imu, gnss, sapv, cfg, fed: FederatedConfig | None = None, *,
     g_use = np.ones(len(g_t), np.bool_)
     if sapv is None or len(sapv) == 0:
         s_t, s_az, s_el = np.zeros(0), np.zeros(0), np.zeros(0)
+        s_skip = np.zeros(0, "<U20")
         s_use = np.zeros(0, np.bool_)
         s_sig = np.ones(2)
         sat = np.array([1.0, 0.0, 0.0])
     else:
         s_t, s_az, s_el = sapv.time, sapv.az, sapv.el
-        s_use = np.ascontiguousarray(sapv.valid)
+        s_skip = _sapv_input_check(sapv)
+        s_use = np.ascontiguousarray(s_skip == "")
         s_sig = np.ascontiguousarray(sapv.sigma, dtype=float)
         sat = np.ascontiguousarray(sapv.sat_ecef, dtype=float)
     par = np.zeros(N_PAR)
@@ -470,10 +494,38 @@ def run_federated(imu, gnss, sapv, cfg, fed: FederatedConfig | None = None, *,
                           arr(s_t), arr(s_az), arr(s_el), s_sig, s_use, sat, keep_cov)
     (node_k, out_st, out_bias, out_pd, out_loc, out_cov, rpos, rvel, rpn, rvn, rs, rsi, rss, rsn) = r
     rph = quat_to_euler_batch(np.ascontiguousarray(out_st[:, 6:10]))
+    skipped = dict.fromkeys(SAPV_SKIP_REASONS, 0)
+    if par[P_USE_SAPV] > 0:
+        rs[(s_skip == "nan") | (s_skip == "angle_out_of_range")] = SAPV_BAD_INPUT
+        for k in ("not_tracking", "nan", "angle_out_of_range"):
+            skipped[k] = int(np.count_nonzero(s_skip == k))
+        skipped["below_horizon"] = int(np.count_nonzero(rs == SAPV_BELOW_HORIZON))
+    counts = {"sapv_used": int(np.count_nonzero(rs == 1)), "sapv_gated": int(np.count_nonzero(rs == 0)),
+              "sapv_skipped": skipped}
     return FederatedResult(time=imu.time[node_k], state=out_st, rph=rph, bias=out_bias, pdiag=out_pd,
                            cov=out_cov if keep_cov else None, local_att_std=out_loc, gps_pos_status=rpos,
                            gps_vel_status=rvel, gps_pos_nis=rpn, gps_vel_nis=rvn, sapv_status=rs,
-                           sapv_innov=rsi, sapv_s=rss, sapv_nis=rsn, config=fed)
+                           sapv_innov=rsi, sapv_s=rss, sapv_nis=rsn, config=fed, counts=counts)
+
+
+def _sapv_input_check(sapv) -> np.ndarray:
+    """(S,) str: why each SAPV epoch cannot be used (a key of :data:`SAPV_SKIP_REASONS`), "" if it can.
+
+    The angles follow :func:`aidnav.nav.geo_pointing.az_el_from_body`: az ∈ [0, 2π), el ∈ [−π/2, π/2]
+    [rad]; anything else is a unit or convention error in the data (e.g. degrees), not a measurement.
+    """
+    from aidnav.sim.sapv import OK
+
+    az, el = np.asarray(sapv.az, float), np.asarray(sapv.el, float)
+    out = np.full(len(az), "", "<U20")
+    finite = np.isfinite(az) & np.isfinite(el)
+    with np.errstate(invalid="ignore"):
+        bad_range = finite & ((az < 0.0) | (az >= 2.0 * np.pi) | (np.abs(el) > 0.5 * np.pi))
+    tracking = np.asarray(sapv.reason) == OK
+    out[tracking & bad_range] = "angle_out_of_range"
+    out[tracking & ~finite] = "nan"
+    out[~tracking] = "not_tracking"
+    return out
 
 
 def run_centralized(imu, gnss, sapv, cfg, *, use_gps: bool = True, use_sapv: bool = True,

@@ -22,7 +22,9 @@ Model of one epoch t_j (:func:`simulate_sapv`):
 * tracking lost → NaN angles and a reason flag (the first that applies, in this order):
   ``BLOCKED`` inside a blockage window (start_s, duration_s) relative to the first truth time;
   ``LOW_ELEVATION`` antenna elevation (body frame: the elevation axis, which is what the antenna can
-  reach; for a level vehicle it is the topocentric elevation) below ``elevation_mask_deg``;
+  reach; for a level vehicle it is the topocentric elevation) below ``elevation_mask_deg``, or the
+  satellite below the local horizon (topocentric elevation < 0, e.g. a GEO longitude on the far side of
+  the Earth: a tilted body could otherwise point "through" the Earth);
   ``BODY_RATE`` body angular rate |ω_nb^b| above ``max_body_rate_deg_s`` (the tracking loop cannot
   follow); ``REACQUIRING`` within ``reacquire_s`` after any loss ends (search and re-lock time).
   Noise is drawn for every epoch before the losses are applied, so the same seed gives the same errors
@@ -228,9 +230,11 @@ def simulate_sapv(truth: Trajectory, spec: SapvSpec, rng: np.random.Generator,
 
     az_t = np.empty(m)
     el_t = np.empty(m)
+    below = np.zeros(m, bool)  # satellite below the local (topocentric) horizon: the Earth is in the way
     for j in range(m):
-        r_b = c_bn[j].T @ los_enu(lat[j], lon[j], h[j], sat)
-        az_t[j], el_t[j] = az_el_from_body(r_b)
+        r_n = los_enu(lat[j], lon[j], h[j], sat)
+        below[j] = r_n[2] < 0.0
+        az_t[j], el_t[j] = az_el_from_body(c_bn[j].T @ r_n)
     # tracking bias: first-order Gauss-Markov, stationary start
     sb = spec.bias_sigma_deg * DEG
     bias = np.zeros((m, 2))
@@ -243,6 +247,7 @@ def simulate_sapv(truth: Trajectory, spec: SapvSpec, rng: np.random.Generator,
             bias[j] = b
     sig = spec.sigma_deg * DEG
     az = np.mod(az_t + bias[:, 0] + sig[0] * white[:, 0], 2.0 * np.pi)
+    az[az >= 2.0 * np.pi] = 0.0  # np.mod of a tiny negative angle rounds to 2π: keep az in [0, 2π)
     el = el_t + bias[:, 1] + sig[1] * white[:, 1]
     # losses
     reason = np.zeros(m, np.int8)
@@ -252,11 +257,12 @@ def simulate_sapv(truth: Trajectory, spec: SapvSpec, rng: np.random.Generator,
         hit = (rel >= s - 1e-9) & (rel < s + d - 1e-9) & (reason == OK)
         reason[hit] = BLOCKED
         events.append(f"SAPV blockage {s:g}-{s + d:g} s after start: {int(hit.sum())} epoch(s) lost")
-    low = (el_t < spec.elevation_mask_deg * DEG) & (reason == OK)
+    low = ((el_t < spec.elevation_mask_deg * DEG) | below) & (reason == OK)
     reason[low] = LOW_ELEVATION
     if low.any():
         events.append(f"SAPV: {int(low.sum())} epoch(s) with the antenna elevation below "
-                      f"{spec.elevation_mask_deg:g} deg")
+                      f"{spec.elevation_mask_deg:g} deg or the satellite below the horizon "
+                      f"({int((below & low).sum())})")
     fast = (_body_rate(truth, times) > spec.max_body_rate_deg_s * DEG) & (reason == OK)
     reason[fast] = BODY_RATE
     if fast.any():

@@ -603,7 +603,7 @@ def spp_series(
     centred window of ``iono_window_s`` seconds per satellite (the combination's noise is ≈ 2.3× the code
     noise; the ionosphere changes little over a minute). Returns a dict of arrays: time, ecef (T, 3),
     lat, lon, h, clock_m, vel_enu (T, 3), clock_drift, n_used, status (list), pdop, excluded (list),
-    residuals (T, S).
+    residuals (T, S), events (list of str: satellites without ephemeris, exclusions, epochs without a fix).
     """
     from aidnav.nav.gnss_sat import FREQ_L1, FREQ_L2
 
@@ -643,10 +643,12 @@ def spp_series(
     out["excluded"] = []
     out["residuals"] = np.full((T, S), np.nan)
     xprev = None if x0 is None else np.asarray(x0, float)
+    no_eph = np.zeros(S, int)
     for k in range(T):
         pos, vel, clk, clk_rate = satellites_from_pseudoranges(
             eph.table, obs.prn, obs.time[k], pr_all[k], use_tgd=use_tgd
         )
+        no_eph += np.isfinite(pr_all[k]) & ~np.all(np.isfinite(pos), axis=1)
         r = spp(
             pos,
             clk,
@@ -675,6 +677,19 @@ def spp_series(
             if np.all(np.isfinite(ve)):
                 out["vel_enu"][k] = dcm_ecef_to_enu(r.lat, r.lon) @ ve
                 out["clock_drift"][k] = drift
+    events = []
+    for j in np.flatnonzero(no_eph):
+        events.append(
+            f"G{int(obs.prn[j]):02d}: {no_eph[j]} epoch(s) with a pseudorange but no usable ephemeris; "
+            "skipped"
+        )
+    excl = [p for ex in out["excluded"] for p in ex]
+    for p in sorted(set(excl), key=int):
+        events.append(f"G{int(p):02d}: excluded by the residual check at {excl.count(p)} epoch(s)")
+    n_bad = sum(st in ("too few satellites", "no convergence") for st in out["status"])
+    if n_bad:
+        events.append(f"{n_bad} epoch(s) without a solution (too few satellites or no convergence)")
+    out["events"] = events
     return out
 
 

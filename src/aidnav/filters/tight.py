@@ -659,6 +659,12 @@ def run_tight(
     else:
         ion_dual = np.full(obs.code1.shape, np.nan)
     sp, sv, sc, scr = _satellite_arrays(obs, eph, use_tgd, g.max_eph_age_s)
+    no_eph = (np.isfinite(obs.code1) & ~np.isfinite(sp[:, :, 0])).sum(axis=0)
+    for j in np.flatnonzero(no_eph):
+        events.append(
+            f"G{int(obs.prn[j]):02d}: {int(no_eph[j])} epoch(s) with a pseudorange but no usable ephemeris; "
+            "skipped"
+        )
     rate = obs.range_rate()
     stat = np.zeros(len(t_imu), np.bool_) if static is None else np.asarray(static, np.bool_)
     reset_idx, reset_heading = -1, 0.0
@@ -737,6 +743,15 @@ def run_tight(
         state=rst,
         prn=obs.prn,
     )
+    if gate > 0:
+        with np.errstate(invalid="ignore"):
+            rej_pr = (rpi**2 > gate * rps).sum(axis=0)
+            rej_rate = (rri**2 > gate * rrs).sum(axis=0)
+        for j in np.flatnonzero(rej_pr + rej_rate):
+            events.append(
+                f"G{int(obs.prn[j]):02d}: {int(rej_pr[j])} pseudorange(s) and {int(rej_rate[j])} rate(s) "
+                "outside the innovation gate (rejected unless the gate was suspended)"
+            )
     cnt = dict(
         zupt_updates=int(counts[0]),
         clock_jumps=int(counts[1]),

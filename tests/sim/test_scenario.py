@@ -62,9 +62,12 @@ def test_examples_start_with_comment_header():
         assert first.startswith("#") and "Table 3" in first
 
 
-def test_packaged_default_equals_example():
-    packaged = ROOT / "src" / "aidnav" / "sim" / "scenarios" / "figure8.yaml"
-    assert packaged.read_bytes() == (EXAMPLES / "figure8.yaml").read_bytes()
+@pytest.mark.parametrize("mode", ["none", "s_turns", "o_circle", "figure8", "climb"])
+def test_packaged_default_equals_example(mode):
+    """The five seed-004 motion modes ship inside the package (reproductions need them when aidnav is
+    installed without its source tree) and are identical to examples/."""
+    packaged = ROOT / "src" / "aidnav" / "sim" / "scenarios" / f"{mode}.yaml"
+    assert packaged.read_bytes() == (EXAMPLES / f"{mode}.yaml").read_bytes()
     from aidnav.sim.run import load_default_scenario
 
     scn = load_default_scenario()

@@ -34,6 +34,7 @@ import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 
 from aidnav.data import GnssData, ImuData, Trajectory
+from aidnav.io._arrow import column_to_f64, f64_to_arrow
 from aidnav.io.errors import DataError
 from aidnav.nav.earth import radii
 
@@ -199,7 +200,7 @@ def _read_csv(path: Path) -> _Table:
     copts = pacsv.ConvertOptions(column_types={n: pa.float64() for n in names})
     try:
         tbl = pacsv.read_csv(io.BytesIO(body), read_options=ropts, convert_options=copts)
-        cols = {n: tbl.column(n).to_numpy(zero_copy_only=False).astype(float, copy=False) for n in names}
+        cols = {n: column_to_f64(tbl.column(n)) for n in names}
     except pa.ArrowInvalid:
         sopts = pacsv.ConvertOptions(column_types={n: pa.string() for n in names}, strings_can_be_null=False)
         tbl = pacsv.read_csv(io.BytesIO(body), read_options=ropts, convert_options=sopts)
@@ -237,7 +238,7 @@ def _read_parquet(path: Path) -> _Table:
     for n in tbl.column_names:
         col = tbl.column(n)
         if pa.types.is_integer(col.type) or pa.types.is_floating(col.type):
-            cols[n] = col.to_numpy(zero_copy_only=False).astype(float)
+            cols[n] = column_to_f64(col)
         else:
             import pandas as pd  # only for columns that are not plain numbers
 
@@ -286,7 +287,7 @@ def _write(cols: dict, path, comments: list[str], meta: dict) -> Path:
                 f.write(f"# {c}\n")
             pd.DataFrame(cols).to_csv(f, index=False, lineterminator="\n")  # shortest exact round trip
     else:
-        tbl = pa.table({k: np.ascontiguousarray(v) for k, v in cols.items()})
+        tbl = pa.Table.from_arrays([f64_to_arrow(v) for v in cols.values()], names=list(cols))
         md = dict(tbl.schema.metadata or {})
         md[_META_KEY] = json.dumps(meta).encode()
         pq.write_table(tbl.replace_schema_metadata(md), path)

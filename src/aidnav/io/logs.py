@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from aidnav.data import ImuData
+from aidnav.io._arrow import column_to_f64
 from aidnav.io.errors import DataError
 from aidnav.io.gpstime import gpst_unix_to_week_sow
 from aidnav.io.timetag import fit_stamp_clock, line_end_offsets, read_timetag
@@ -150,7 +151,7 @@ def read_rtklibexplorer_imu(path, tag_path=None, axes: str = "RFU", mounting=Non
                              read_options=pacsv.ReadOptions(autogenerate_column_names=True),
                              convert_options=pacsv.ConvertOptions(
                                  column_types={f"f{i}": pa.float64() for i in cols}))
-        arr = np.column_stack([tbl.column(i).to_numpy() for i in cols])
+        arr = np.column_stack([column_to_f64(tbl.column(i)) for i in cols])
     except (pa.ArrowInvalid, ValueError):  # a field that is not a number: find it (slow path, pandas)
         import pandas as pd
 

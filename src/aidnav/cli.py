@@ -205,6 +205,64 @@ def tight(
     console.print(json.dumps(s, indent=2, default=float), markup=False, highlight=False, soft_wrap=True)
 
 
+@app.command()
+def characterise(
+    imu_log: Path = typer.Argument(..., help="static IMU log: interchange CSV/Parquet (rates or increments) "
+                                   "or raw rtklibexplorer CSV"),
+    out: Path = typer.Option(Path("characterise"), "-o", "--out", help="output directory"),
+    static: str | None = typer.Option(None, "--static", help="START:END in seconds after the first "
+                                      "sample (either may be empty): the static part to analyse"),
+    grade: str | None = typer.Option(None, "--grade", help="IMU preset for terms the log cannot resolve "
+                                     "(default: the one nearest in ARW/VRW)"),
+):
+    """Allan deviation → fitted IMU noise terms: DIR/allan.png, DIR/noise.json, DIR/imu.yaml."""
+    from aidnav.analysis.characterise import characterise_file, print_characterisation
+
+    try:
+        ch, written = characterise_file(imu_log, out, static=static, grade=grade)
+    except (OSError, ValueError) as e:
+        _fail(str(e))
+    print_characterisation(ch, console)
+    for p in written:
+        console.print(f"wrote {p}")
+
+
+@app.command("design-trajectory")
+def design_trajectory_cmd(
+    heading: float = typer.Option(..., "--heading", help="required heading accuracy on AB, CD [deg, 1σ]"),
+    pitch: float = typer.Option(..., "--pitch", help="required pitch accuracy [deg, 1σ]"),
+    roll: float = typer.Option(..., "--roll", help="required roll accuracy [deg, 1σ]"),
+    grade: str = typer.Option("seed004_sub", "--grade", help="seed004_high|medium|low|sub or sub_arw"),
+    t1: str = typer.Option("0,200,400", "--t1", help="candidate straight legs before AB [s]"),
+    t2: str = typer.Option("100,200,400,600,800", "--t2", help="candidate lengths of AB and CD [s]"),
+    modes: str = typer.Option("none,s_turns,o_circle,figure8,climb", "--modes", help="maneuvers to consider"),
+    legs: str = typer.Option("AB,CD", "--legs", help="imaging legs (segment names)"),
+    baseline_km: float = typer.Option(20.0, "--baseline-km", help="GNSS baseline: 20, 40 or 60 km"),
+    mc_runs: int = typer.Option(3, "--mc-runs", min=0, help="Monte Carlo runs confirming the plan (0: none)"),
+    out: Path = typer.Option(Path("design"), "-o", "--out", help="output directory"),
+):
+    """Recommend maneuver, T1 and the longest T2 meeting an attitude requirement (seed 004 design).
+
+    Exit status 1 when no candidate plan meets the requirement."""
+    from aidnav.experiments.design import design_trajectory, print_design, write_design
+
+    def _list(v):
+        return [x.strip() for x in v.split(",") if x.strip()]
+
+    try:
+        d = design_trajectory({"heading_deg": heading, "pitch_deg": pitch, "roll_deg": roll}, grade=grade,
+                              modes=_list(modes), t1_values=[float(x) for x in _list(t1)],
+                              t2_values=[float(x) for x in _list(t2)], legs=tuple(_list(legs)),
+                              baseline_km=baseline_km, mc_runs=mc_runs)
+    except (ValueError, OSError) as e:
+        _fail(str(e))
+    print_design(d, console)
+    for p in write_design(d, out):
+        console.print(f"wrote {p}")
+    if not d.summary["feasible"]:
+        raise typer.Exit(1)
+
+
 def main():  # pragma: no cover
     app()
 

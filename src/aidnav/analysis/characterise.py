@@ -10,8 +10,9 @@ Uniform sampling. The Allan deviation needs uniform samples. Increments with the
 stamps) are put on a uniform grid of the median interval by **cumulative-sum interpolation**: the
 cumulative angle (velocity) at the sample times is interpolated linearly (constant rate within each
 interval, as the increment model says) to the grid points and differenced, so no angle is lost or
-counted twice. Averaging mixes neighbouring samples, which lowers the ADEV at the first few τ; when a log
-is resampled the fit therefore starts at τ ≥ 8 grid intervals (and says so). A gap (an interval longer
+counted twice. Averaging mixes neighbouring samples, which lowers the Allan variance at m grid intervals
+by about 1/(6m) of its white part; when a log is resampled the fit therefore starts at m = 64 (and says
+so; quantisation is then out of reach). A gap (an interval longer
 than 1.5 × the median) is never bridged: the longest gap-free part is analysed and the gap reported.
 
 Model. Per axis, the Allan variance is fitted with the sum of the standard terms (IEEE Std 952-1997,
@@ -37,22 +38,28 @@ height as the GM's ADEV peak, at τ = 1.8926·T:
 
 The same rule converts a data-sheet B and the τ of its ADEV minimum into filter settings.
 
-Confidence intervals come from the number of clusters: each overlapping Allan variance has a chi-square
-distribution whose equivalent degrees of freedom ν follow from the number of samples N, the cluster size
-m = τ·f_s and the noise type that dominates at that τ (Greenhall's EDF, ``allantools.edf_greenhall``;
-the noise type is read from the local slope of the fitted model). The fit is a weighted least-squares
-fit of ln σ̂²(τ) with the exact mean ψ(ν/2) − ln(ν/2) and variance ψ'(ν/2) of ln(χ²_ν/ν) (a Gaussian
-approximation of the chi-square likelihood), over log-parameters; the parameter covariance is the
-inverse Fisher matrix, inflated by the reduced χ² when that exceeds 1 (model misfit, correlated
-estimates), and the 95% intervals are symmetric in the log-parameters.
+Likelihood and confidence intervals, from the number of clusters. For Gaussian noise each overlapping
+Allan variance is a quadratic form of the phase, so the covariance of the estimates at all τ follows
+exactly from the model and from the number of terms M = N + 1 − 2m behind each (Isserlis' theorem; see
+``_avar_cov_nb``). It gives each estimate's equivalent degrees of freedom ν (within 1% of Greenhall's
+``allantools.edf_greenhall`` for white noise at m ≥ 64) and the correlations between octaves (about 0.5
+for white noise, 0.9 for a random walk), which are large and matter: ignoring them makes the intervals
+several times too narrow. The fit minimises the correlated (whitened) sum of squares of
+(ln σ̂² − E ln(χ²_ν/ν) − ln σ²_model)/sd(ln(χ²_ν/ν)) over Q², N², σ², K² ≥ 0 and ln T (peak of the
+GM between max(10 τ_min, 2 s) and the longest fitted τ), with ν and the correlations re-evaluated at the
+fit three times. τ with fewer than three independent clusters are shown but not fitted. Each term's 95%
+interval is a profile-likelihood interval (rise of the minimum by χ²₁(0.95) = 3.84, times the reduced
+χ² when that exceeds 1). On simulated logs the whitened residuals have unit variance and the minimum at
+the true parameters follows χ²₅ (tests/analysis/test_characterise.py, benchmarks/characterise.py).
 
-Which terms are reported. Every subset of {Q, GM, K} with N is fitted and the one with the lowest BIC
-(χ² + k ln n) is kept; a Gauss-Markov term only counts when its ADEV peak (1.8926·T) lies inside the
-fitted τ range (otherwise it cannot be told from white noise or a random walk). A term of the chosen
-model whose 95% interval spans more than a factor ``MAX_CI_RATIO`` (in deviation units) is "not
-resolved". A term that is not resolved is never given a value: it gets an upper bound from the ADEV's
-99.5% upper limits (the term alone cannot exceed the total at any τ; for the bias instability the bound
-is on the flicker floor B).
+Which terms are reported. All four terms stay in the model (dropping one that the data cannot separate
+from another would bias the other's interval). A term other than the white noise is reported ("fitted",
+with its interval) only when (i) its interval excludes zero and spans at most a factor ``MAX_CI_RATIO``
+in deviation units, and (ii) removing it raises the minimum by more than the ``DETECT_PROB`` = 99% point
+of χ² (1 degree of freedom; 2 for the Gauss-Markov σ and T together). T is reported when its own
+interval is closed and within a factor ``MAX_CI_RATIO``. Otherwise the term is "not resolved": no
+value, only the ends of its interval (an upper bound, or none). The ``imu:`` section then takes the grade
+default for it and says so.
 """
 
 from __future__ import annotations
@@ -84,10 +91,23 @@ B_PER_GM_SIGMA = GM_PEAK_ADEV / FLICKER_ADEV  #: IEEE 952 bias instability B per
 
 CI_PROB = 0.95  #: two-sided probability of the reported intervals
 MAX_CI_RATIO = 10.0  #: a term whose 95% interval spans more than this factor is "not resolved"
-RESAMPLED_MIN_M = 8  #: first cluster size fitted when the log was resampled onto a uniform grid
+#: first cluster size fitted when the log was resampled onto a uniform grid: linear interpolation of the
+#: cumulative sums mixes neighbouring samples and lowers the Allan variance by about 1/(6m) of its white
+#: part at m intervals (0.26% at m = 64, below the scatter of a 2-h log there)
+RESAMPLED_MIN_M = 64
+MIN_CLUSTERS = 3  #: a τ is fitted only when the log holds at least this many independent clusters of it
+#: shortest τ of a Gauss-Markov ADEV peak [s] (and at least 10 × the shortest τ): bias instability is drift
+#: over seconds and longer; a shorter bump is coloured sensor noise, and letting the fit place a bump
+#: anywhere turns chance wiggles of the white-noise region into "bias instability" (look-elsewhere)
+GM_MIN_PEAK_S = 2.0
+#: a term other than the white noise is reported only when dropping it costs more than this quantile of the
+#: likelihood-ratio χ² (1 degree of freedom; 2 for the Gauss-Markov σ and T): fewer false detections than
+#: the 95% intervals alone, and T is not defined without the term
+DETECT_PROB = 0.99
 AXES = ("gyro_x", "gyro_y", "gyro_z", "accel_x", "accel_y", "accel_z")
 
-__all__ = ["characterise_imu", "characterise_rates", "fit_allan", "Characterisation", "AxisFit",
+__all__ = ["characterise_imu", "characterise_rates", "fit_allan", "merge_gm_rw", "print_characterisation",
+            "Characterisation", "AxisFit",
            "TermEstimate", "NotStaticError", "static_check", "uniform_rates", "imu_section", "imu_yaml",
            "noise_dict", "characterise_file", "gm_avar", "B_PER_GM_SIGMA", "GM_PEAK_X", "FLICKER_ADEV"]
 
@@ -97,13 +117,22 @@ class NotStaticError(ValueError):
 
 
 # ----------------------------------------------------------------------------------- model pieces
+#: Taylor coefficients of the unit Gauss-Markov Allan variance g(x) = Σ c_k x^(k+1) (x = τ/T < 0.05, where
+#: the closed form cancels): c_k = (−1)^k (2^(k+3) − 4) / (k+3)!, i.e. 2/3, −1/2, 7/30, −1/12, …
+_GM_SERIES = (2 / 3, -1 / 2, 7 / 30, -1 / 12, 31 / 1260, -1 / 160, 127 / 90720, -17 / 60480, 73 / 1425600,
+              -31 / 3628800)
+
+
 def _gm_shape(x: np.ndarray) -> np.ndarray:
     """Allan variance of a unit-σ first-order Gauss-Markov process at τ = x·T (a series below x = 0.05)."""
     x = np.asarray(x, dtype=float)
     out = np.empty_like(x)
     s = x < 0.05
     xs = x[s]
-    out[s] = 2.0 * (xs / 3.0 - xs**2 / 4.0 + 7.0 * xs**3 / 60.0 - xs**4 / 24.0)
+    acc = np.zeros_like(xs)
+    for c in _GM_SERIES[::-1]:  # Horner: Σ c_k x^(k+1)
+        acc = (acc + c) * xs
+    out[s] = acc
     xl = x[~s]
     out[~s] = (2.0 / xl) * (1.0 - (3.0 - 4.0 * np.exp(-xl) + np.exp(-2.0 * xl)) / (2.0 * xl))
     return out
@@ -123,29 +152,6 @@ def model_avar(tau, coef, t_corr: float) -> np.ndarray:
     return 3.0 * q2 / tau**2 + n2 / tau + s2 * _gm_shape(tau / t_corr) + k2 * tau / 3.0
 
 
-def _alpha_from_slope(mu: np.ndarray) -> np.ndarray:
-    """Power-law noise type α (S_y ∝ f^α) nearest to a local Allan-variance slope μ = −1 − α."""
-    return np.clip(np.rint(-1.0 - mu), -2, 2).astype(int)
-
-
-_EDF_CACHE: dict = {}
-
-
-def _edf(alpha: int, m: int, n_phase: int) -> float:
-    """Greenhall's EDF of the overlapping Allan variance (phase noise types use the white-FM value)."""
-    key = (int(alpha), int(m), int(n_phase))
-    v = _EDF_CACHE.get(key)
-    if v is None:
-        import allantools
-
-        a = min(int(alpha), 0)
-        v = float(allantools.edf_greenhall(alpha=a, d=2, m=int(m), N=int(n_phase), overlapping=True))
-        if len(_EDF_CACHE) > 100_000:
-            _EDF_CACHE.clear()
-        _EDF_CACHE[key] = v
-    return v
-
-
 def _logchi2_moments(nu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Mean and standard deviation of ln(χ²_ν/ν)."""
     from scipy.special import digamma, polygamma
@@ -154,16 +160,18 @@ def _logchi2_moments(nu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return digamma(h) - np.log(h), np.sqrt(polygamma(1, h))
 
 
-# ------------------------------------------------------------------ maximum-likelihood kernels (numba)
-# The Allan variances a_j are independent Gamma variables with mean M_j(θ) and shape ν_j/2 (ν_j·a_j/M_j ~
-# χ²_ν). −2 log L = Σ ν_j (a_j/M_j + ln M_j) + const; the deviance D = Σ ν_j (a_j/M_j − 1 − ln(a_j/M_j)).
-# For a fixed T the model is linear in c = (Q², N², σ², K²) ≥ 0: a Gamma GLM with identity link, solved by
-# Fisher scoring (iteratively reweighted least squares, weights ν/(2M²)) with an exact non-negative least
-# squares step (all active sets of the ≤ 4 columns enumerated).
+# ------------------------------------------------------------------------------ fitting kernels (numba)
+# Objective: ‖L⁻¹ r‖² with r_j = (y_j − ln M_j(θ))/s_j, y_j = ln σ̂²_j − E ln(χ²_ν/ν), s_j = sd ln(χ²_ν/ν),
+# and L the Cholesky factor of the correlation of the estimates. For a fixed T the model M = A c is linear
+# in c = (Q², N², σ², K²) ≥ 0: Gauss-Newton on ln M with an exact non-negative least-squares step (all
+# active sets of the ≤ 4 columns enumerated) and step halving; T by a grid and golden section.
 @njit(cache=True)
 def _gm_shape_nb(x):
     if x < 0.05:
-        return 2.0 * (x / 3.0 - x * x / 4.0 + 7.0 * x**3 / 60.0 - x**4 / 24.0)
+        acc = 0.0
+        for k in range(len(_GM_SERIES) - 1, -1, -1):
+            acc = (acc + _GM_SERIES[k]) * x
+        return acc
     return (2.0 / x) * (1.0 - (3.0 - 4.0 * np.exp(-x) + np.exp(-2.0 * x)) / (2.0 * x))
 
 
@@ -372,6 +380,151 @@ def _profile_u_nb(tau, y, s, Linv, fixed, fixv, u_lo, u_hi, ngrid, c0, u_hint):
     return best_d, best_u, best_c
 
 
+# ------------------------------------------------------- covariance of the Allan variance estimates
+# For Gaussian noise the overlapping Allan variances are quadratic forms of the phase x (the running
+# integral of the rate), so their covariances follow exactly from the model: with the second differences
+# D_m(k) = x_{k+2m} − 2x_{k+m} + x_k and the phase structure function S(h) = E[(x(t+h) − x(t))²],
+#   c₁₂(ℓ) = Cov(D_m₁(k), D_m₂(k+ℓ)) = −½ Σᵢ Σⱼ aᵢ aⱼ S(τ₀(ℓ + j m₂ − i m₁)),  a = (1, −2, 1),
+#   Cov(σ̂²(τ₁), σ̂²(τ₂)) = 2 Σ_ℓ n(ℓ) c₁₂(ℓ)² / (4 τ₁² τ₂² M₁ M₂)   (Isserlis),
+# with M = N + 1 − 2m terms per estimate and n(ℓ) the number of index pairs at lag ℓ. S for the model:
+# white PM (Q) 2Q² (h ≠ 0), white FM N²|h|, Gauss-Markov 2σ²T²(|h|/T − 1 + e^(−|h|/T)); random-walk FM has
+# no stationary phase increments, but second differences filter it (an intrinsic random function of
+# order 1, generalised covariance K²|h|³/12), so it enters as S = −2·K²|h|³/12 = −K²|h|³/6.
+@njit(cache=True)
+def _phase_sf(h, coef, t_corr):
+    a = abs(h)
+    v = coef[1] * a - coef[3] * a * a * a / 6.0
+    if coef[2] > 0.0:
+        x = a / t_corr
+        v += 2.0 * coef[2] * t_corr * t_corr * (x + np.expm1(-x))
+    if a > 0.0:
+        v += 2.0 * coef[0]
+    return v
+
+
+@njit(cache=True)
+def _c12(lag, m1, m2, tau0, coef, t_corr):
+    acoef = (1.0, -2.0, 1.0)
+    v = 0.0
+    for i in range(3):
+        for j in range(3):
+            v += acoef[i] * acoef[j] * _phase_sf(tau0 * (lag + j * m2 - i * m1), coef, t_corr)
+    return -0.5 * v
+
+
+@njit(cache=True)
+def _pair_count(lag, M1, M2):
+    lo = max(0.0, -lag)
+    hi = min(float(M1), M2 - lag)
+    return max(0.0, hi - lo)
+
+
+@njit(cache=True)
+def _quad_lags(a, b, m1, m2, M1, M2, tau0, coef, t_corr, seg_max):
+    """∫ n(ℓ) c₁₂(ℓ)² dℓ over [a, b] (5-point Gauss-Legendre on the smooth pieces between the kinks)."""
+    if b <= a:
+        return 0.0
+    bp = [a, b, 0.0, float(M2 - M1)]
+    for i in range(3):
+        for j in range(3):
+            bp.append(float(i * m1 - j * m2))
+    pts = np.unique(np.minimum(np.maximum(np.array(bp), a), b))
+    xg = np.array([-0.9061798459386640, -0.5384693101056831, 0.0, 0.5384693101056831, 0.9061798459386640])
+    wg = np.array([0.2369268850561891, 0.4786286704993665, 0.5688888888888889, 0.4786286704993665,
+                   0.2369268850561891])
+    s = 0.0
+    for k in range(len(pts) - 1):
+        lo = pts[k]
+        hi = pts[k + 1]
+        if hi - lo <= 0.0:
+            continue
+        # graded sub-segments: seg_max next to both ends (Gauss-Markov transients at the kinks decay on
+        # that scale), doubling towards the middle (the polynomial parts are exact on any segment)
+        sub = [lo, hi]
+        h = seg_max
+        x = lo + h
+        while x < 0.5 * (lo + hi):
+            sub.append(x)
+            sub.append(lo + hi - x)
+            h *= 2.0
+            x += h
+        spts = np.sort(np.array(sub))
+        for q in range(len(spts) - 1):
+            a0 = spts[q]
+            hh = spts[q + 1] - a0
+            if hh <= 0.0:
+                continue
+            for g in range(5):
+                ell = a0 + 0.5 * hh * (xg[g] + 1.0)
+                c = _c12(ell, m1, m2, tau0, coef, t_corr)
+                s += 0.5 * hh * wg[g] * _pair_count(ell, M1, M2) * c * c
+    return s
+
+
+@njit(cache=True)
+def _lag_sum(m1, m2, M1, M2, tau0, coef, t_corr, tail):
+    """Σ_ℓ n(ℓ) c₁₂(ℓ)² over the integer lags where c₁₂ ≠ 0 (plus ``tail`` lags of Gauss-Markov decay).
+    The core |ℓ| ≲ 2(m₁ + m₂), where c₁₂ has kinks at the integers i m₁ − j m₂, is summed exactly when
+    short; longer cores and the smooth exponential tails are integrated (the midpoint rule of the sum)."""
+    lo = max(-2.0 * m2 - tail, -(M1 - 1.0))
+    hi = min(2.0 * m1 + tail, M2 - 1.0)
+    c_lo = max(lo, -2.0 * m2 - 1.0)
+    c_hi = min(hi, 2.0 * m1 + 1.0)
+    seg_max = max(16.0, t_corr / tau0 / 4.0) if coef[2] > 0.0 else 1e18  # pieces are polynomial without GM
+    if c_hi - c_lo > 6000.0:
+        return _quad_lags(lo, hi, m1, m2, M1, M2, tau0, coef, t_corr, seg_max)
+    i_lo = int(np.floor(c_lo))
+    i_hi = int(np.ceil(c_hi))
+    s = 0.0
+    for ell in range(i_lo, i_hi + 1):
+        c = _c12(float(ell), m1, m2, tau0, coef, t_corr)
+        s += _pair_count(float(ell), M1, M2) * c * c
+    s += _quad_lags(lo - 0.5, i_lo - 0.5, m1, m2, M1, M2, tau0, coef, t_corr, seg_max)
+    s += _quad_lags(i_hi + 0.5, hi + 0.5, m1, m2, M1, M2, tau0, coef, t_corr, seg_max)
+    return s
+
+
+@njit(cache=True)
+def _avar_cov_nb(m, n_phase, tau0, coef, t_corr):
+    """Covariance matrix of the overlapping Allan variance estimates at cluster sizes m (model coef, T)."""
+    k = m.shape[0]
+    C = np.zeros((k, k))
+    tail = 12.0 * t_corr / tau0 if coef[2] > 0.0 else 0.0  # e^(−24) of the squared covariance left
+    for p in range(k):
+        for r in range(p, k):
+            m1 = float(m[p])
+            m2 = float(m[r])
+            M1 = n_phase - 2.0 * m1
+            M2 = n_phase - 2.0 * m2
+            t1 = m1 * tau0
+            t2 = m2 * tau0
+            v = 2.0 * _lag_sum(m1, m2, M1, M2, tau0, coef, t_corr, tail) / (4.0 * t1 * t1 * t2 * t2 * M1 * M2)
+            C[p, r] = v
+            C[r, p] = v
+    return C
+
+
+def _estimate_stats(tau, m, n_phase, coef, t_corr):
+    """EDF of each Allan variance estimate and the whitener of their correlation, for the model (coef, T).
+
+    ν_j = 2 σ²(τ_j)² / Var(σ̂²(τ_j)) from the exact covariance (see the comment above); the correlation of
+    the logs is taken as that of the variances (delta method). Returns (ν, L⁻¹)."""
+    tau0 = float(tau[0] / m[0])
+    C = _avar_cov_nb(np.asarray(m, np.float64), float(n_phase), tau0, np.asarray(coef, float), float(t_corr))
+    avar = model_avar(tau, coef, t_corr)
+    var = np.maximum(np.diag(C), 1e-300)
+    nu = 2.0 * avar**2 / var
+    sd = np.sqrt(var)
+    R = C / np.outer(sd, sd)
+    w, V = np.linalg.eigh(0.5 * (R + R.T))
+    w = np.maximum(w, 1e-6)
+    R = (V * w) @ V.T
+    d = np.sqrt(np.diag(R))
+    R = R / np.outer(d, d)
+    L = np.linalg.cholesky(R)
+    return nu, np.ascontiguousarray(np.linalg.inv(L))
+
+
 # --------------------------------------------------------------------------------------- results
 @dataclass
 class TermEstimate:
@@ -419,11 +572,12 @@ class AxisFit:
     """Allan deviation and fitted noise terms of one axis.
 
     taus [s]; adev, adev_lo, adev_hi [u] (95% chi-square interval); edf : equivalent degrees of freedom;
-    alpha : noise type used for the EDF; used : τ included in the fit. u = rad/s (gyro) or m/s² (accel).
+    alpha : power-law noise type of the largest term at each τ (2 quantisation, 0 white, −1 Gauss-Markov,
+    −2 random walk); used : τ included in the fit. u = rad/s (gyro) or m/s² (accel).
     terms (SI): ``white`` N [u·√s] (ARW rad/√s, VRW m/s/√s); ``quantisation`` Q [u·s] (rad, m/s);
     ``gm_sigma`` [u] and ``gm_tau`` [s]; ``bias_instability`` B = 0.9294 σ_GM [u]; ``rrw`` K [u/√s].
     coef : maximum-likelihood (Q², N², σ_GM², K²) [SI]; t_corr : T [s]; deviance, dof, dispersion : of
-    the fit (dispersion = max(1, Pearson χ²/dof) scales the profile threshold).
+    the fit (dispersion = max(1, minimum/dof) scales the profile threshold).
     """
 
     axis: str
@@ -447,7 +601,8 @@ class AxisFit:
         return self.axis.split("_")[0]
 
     def model_adev(self, taus=None, term: str | None = None) -> np.ndarray:
-        """ADEV of the fitted model (or of one term "Q", "N", "GM", "K") at ``taus`` [s] (default: self.taus)."""
+        """ADEV of the fitted model (or of one term "Q", "N", "GM", "K") at ``taus`` [s] (default: the
+        analysed τ)."""
         tau = self.taus if taus is None else np.asarray(taus, float)
         c = np.array(self.coef, float)
         if term is not None:
@@ -492,7 +647,7 @@ class _Profile:
 
     def __init__(self, tau, y, s, Linv, drop=()):
         self.tau, self.y, self.s, self.Linv = tau, y, s, Linv
-        self.u_lo = math.log(tau[0] / GM_PEAK_X)
+        self.u_lo = math.log(min(max(10.0 * tau[0], GM_MIN_PEAK_S), tau[-1]) / GM_PEAK_X)
         self.u_hi = math.log(tau[-1] / GM_PEAK_X)
         self.c0 = np.zeros(4)
         self.u_hint = math.nan
@@ -522,22 +677,6 @@ class _Profile:
     def at_u(self, u):
         fixed, fixv = self._mask(-1, 0.0)
         return _fit_c_nb(_columns_nb(self.tau, float(u)), self.y, self.s, self.Linv, fixed, fixv, self.c0, 60)
-
-
-#: correlation of the log Allan variances at neighbouring octaves by noise type α (measured on simulated
-#: white FM (0.55), flicker-like (0.75) and random-walk FM (0.88) noise, N = 2^17, 300 runs); pairs further
-#: apart get the product of the neighbours' (an exponential kernel on a warped log-τ axis: positive
-#: definite, and an over-estimate at larger lags, i.e. conservative)
-_RHO_OCTAVE = {2: 0.55, 1: 0.55, 0: 0.55, -1: 0.75, -2: 0.88}
-
-
-def _whitener(tau, alpha) -> np.ndarray:
-    d = np.array([-math.log(_RHO_OCTAVE[int(a)]) for a in alpha])
-    step = 0.5 * (d[1:] + d[:-1]) * np.abs(np.diff(np.log2(tau)))
-    pos = np.r_[0.0, np.cumsum(step)]
-    R = np.exp(-np.abs(pos[:, None] - pos[None, :]))
-    L = np.linalg.cholesky(R + 1e-12 * np.eye(len(tau)))
-    return np.ascontiguousarray(np.linalg.inv(L))
 
 
 def _interval(prof: _Profile, idx: int, c_hat: float, d_min: float, crit: float, cap: float):
@@ -609,10 +748,10 @@ def fit_allan(taus, adev, n_samples: int, fs: float, axis: str = "gyro_x", min_m
     axis : label (one of ``AXES``: its prefix decides the sensor in reports).
     min_m : smallest cluster size fitted (τ below min_m/fs are shown but not fitted).
 
-    Method: maximum likelihood with each Allan variance a chi-square variable of Greenhall's EDF
-    (noise type from the local slope of a first fit), all four terms at once (Q², N², σ², K² ≥ 0, T with
-    its ADEV peak inside the fitted τ range); 95% profile-likelihood intervals (deviance rise
-    χ²₁(0.95) = 3.84, times the dispersion when the fit is worse than its EDFs allow).
+    Method (module docstring): all four terms at once (Q², N², σ², K² ≥ 0, T with its ADEV peak inside
+    the fitted τ range) by correlated least squares of the log Allan variances, whose degrees of freedom
+    and correlations follow exactly from the model and the number of clusters; 95% profile-likelihood
+    intervals; a term is reported only when the data support it.
 
     Returns an :class:`AxisFit` with terms in [u·√s] (white), [u·s] (quantisation Q), [u] (σ_GM, B),
     [s] (T), [u/√s] (random walk K), 95% intervals, and notes on what could not be resolved.
@@ -624,7 +763,9 @@ def fit_allan(taus, adev, n_samples: int, fs: float, axis: str = "gyro_x", min_m
     m = np.rint(tau * fs).astype(int)
     n_phase = int(n_samples) + 1
     ok = np.isfinite(adev) & (adev > 0) & (m >= 1) & (n_phase - 2 * m >= 1)
-    used = ok & (m >= min_m)
+    # τ with fewer than MIN_CLUSTERS independent clusters are shown but not fitted: their chi-square has
+    # one or two degrees of freedom, far from the Gaussian log-likelihood used
+    used = ok & (m >= min_m) & (n_samples >= MIN_CLUSTERS * m)
     notes: list[str] = []
     if used.sum() < 5:
         raise ValueError(f"{axis}: fewer than 5 usable Allan deviation points (log too short or constant)")
@@ -632,61 +773,33 @@ def fit_allan(taus, adev, n_samples: int, fs: float, axis: str = "gyro_x", min_m
     tu, au = tau[used], avar[used]
     tau_lo, tau_hi = float(tu[0]), float(tu[-1])
 
-    def edfs(alpha_all):
-        return np.array([_edf(a, mm, n_phase) if mm >= 1 and n_phase - 2 * mm >= 1 else np.nan
-                         for a, mm in zip(alpha_all, m, strict=True)])
-
-    # EDFs: noise type from the local slope of a first fit (white FM to start), twice
-    alpha = np.zeros(len(tau), int)
-    nu = edfs(alpha)
+    # EDFs and correlations of the estimates from the model itself (exact for Gaussian noise, see
+    # _estimate_stats), re-evaluated at the fit three times starting from white noise
+    c_hat, u_hat = np.array([0.0, float(np.min(au * tu)), 0.0, 0.0]), math.log(tu[-1])
     for _ in range(3):
-        b, sd = _logchi2_moments(nu[used])
-        prof = _Profile(tu, np.log(au) - b, sd, _whitener(tu, alpha[used]))
-        d_min, u_hat, c_hat = prof.best()
-        h = 0.05
-        mu = (np.log(model_avar(tau * math.exp(h), c_hat, math.exp(u_hat)))
-              - np.log(model_avar(tau * math.exp(-h), c_hat, math.exp(u_hat)))) / (2 * h)
-        alpha = _alpha_from_slope(mu)
-        nu = edfs(alpha)
-    b, sd = _logchi2_moments(nu[used])
-    full = _Profile(tu, np.log(au) - b, sd, _whitener(tu, alpha[used]))
-    d_full, u_hat, c_hat = full.best()
+        nu, Linv = _estimate_stats(tu, m[used], n_phase, c_hat, math.exp(u_hat))
+        b, sd = _logchi2_moments(nu)
+        full = _Profile(tu, np.log(au) - b, sd, Linv)
+        d_full, u_hat, c_hat = full.best()
     full.u_hint, full.c0 = u_hat, c_hat.copy()
+    nu_all = np.full(len(tau), np.nan)
+    nu_all[ok], _ = _estimate_stats(tau[ok], m[ok], n_phase, c_hat, math.exp(u_hat))
+    parts = np.column_stack([3.0 * c_hat[0] / tau**2, c_hat[1] / tau,
+                             c_hat[2] * _gm_shape(tau / math.exp(u_hat)), c_hat[3] * tau / 3.0])
+    alpha = np.array([(2, 0, -1, -2)[k] for k in np.argmax(parts, axis=1)])
     n_pts = len(tu)
-    disp = max(1.0, d_full / max(1, n_pts - 5))
+    disp = max(1.0, d_full / max(1, n_pts - 5))  # reduced chi-square of the fit, when above 1
     if disp > 2.0:
         notes.append(f"{axis}: the model fits the Allan variance with chi-square {d_full:.3g} for "
                      f"{n_pts - 5} degrees of freedom; intervals widened accordingly")
     crit = float(chi2_dist.ppf(CI_PROB, 1)) * disp
-    # backward elimination: drop the least significant of Q, GM, K while its likelihood-ratio statistic
-    # is below the 95% point (χ²₁ for Q and K, χ²₂ for the two Gauss-Markov parameters)
-    crit_drop = {0: crit, 2: float(chi2_dist.ppf(CI_PROB, 2)) * disp, 3: crit}
-    drop: tuple = ()
+    # every term stays in the model (no selection: dropping a term that the data cannot separate from
+    # another would bias the other's interval); a term is reported when its own interval allows it
     prof, d_min = full, d_full
-    while True:
-        trial = []
-        for i in (0, 2, 3):
-            if i in drop:
-                continue
-            p_i = full.with_drop(drop + (i,))
-            d_i, u_i, c_i = p_i.best()
-            trial.append((d_i - d_min - crit_drop[i], i, p_i, d_i, u_i, c_i))
-        trial.sort(key=lambda x: x[0])
-        if not trial or trial[0][0] >= 0:
-            break
-        _, i, prof, d_min, u_i, c_i = trial[0]
-        drop = drop + (i,)
-        prof.c0 = c_i.copy()
-        if i != 2:
-            u_hat = u_i
-            prof.u_hint = u_i
-        c_hat = c_i
-    d_min, u_hat, c_hat = prof.best()
-    prof.u_hint, prof.c0 = u_hat, c_hat.copy()
-    dof = max(1, n_pts - (4 - len(drop)) - (0 if 2 in drop else 1))
+    dof = max(1, n_pts - int(np.sum(c_hat > 0)) - (1 if c_hat[2] > 0 else 0))
 
     # ADEV intervals (95%)
-    nn = np.where(np.isfinite(nu), nu, 1.0)
+    nn = np.where(ok, nu_all, 1.0)
     adev_lo = adev * np.sqrt(nn / chi2_dist.ppf(0.5 * (1 + CI_PROB), nn))
     adev_hi = adev * np.sqrt(nn / chi2_dist.ppf(0.5 * (1 - CI_PROB), nn))
 
@@ -695,14 +808,13 @@ def fit_allan(taus, adev, n_samples: int, fs: float, axis: str = "gyro_x", min_m
     terms: dict[str, TermEstimate] = {}
     for idx, name in ((0, "quantisation"), (1, "white"), (2, "gm_sigma"), (3, "rrw")):
         t = _TERM_ORDER[idx]
-        if idx in drop:  # not significant: only an upper bound, from the model with every term free
-            _, hi2 = _interval(full, idx, float(full.c0[idx]), d_full, crit, float(caps[idx]))
-            terms[name] = TermEstimate("not resolved", upper=_sqrt_or_none(hi2),
-                                       note="not significant: " + _why_not(t, tau_lo, tau_hi))
-            continue
         lo2, hi2 = _interval(prof, idx, float(c_hat[idx]), d_min, crit, float(caps[idx]))
         v, lo, hi = math.sqrt(max(c_hat[idx], 0.0)), math.sqrt(lo2), _sqrt_or_none(hi2)
-        if lo > 0 and hi is not None and hi / lo <= MAX_CI_RATIO:
+        dof_t = 2 if idx == 2 else 1
+        if idx != 1 and lo > 0 and prof.best(idx, 0.0)[0] - d_min < chi2_dist.ppf(DETECT_PROB, dof_t) * disp:
+            terms[name] = TermEstimate("not resolved", upper=hi, note=f"not significant at {DETECT_PROB:.0%} "
+                                       "(likelihood ratio)" + (" of σ and T together" if idx == 2 else ""))
+        elif lo > 0 and hi is not None and hi / lo <= MAX_CI_RATIO:
             terms[name] = TermEstimate("fitted", v, lo, hi)
         elif lo > 0:
             span = "is open above" if hi is None else f"spans a factor {hi / lo:.3g}"
@@ -712,7 +824,7 @@ def fit_allan(taus, adev, n_samples: int, fs: float, axis: str = "gyro_x", min_m
     gm = terms["gm_sigma"]
     if gm.fitted:
         ulo, uhi = _u_interval(prof, d_min, crit)
-        if ulo is None or uhi is None or math.exp(uhi - ulo) > MAX_CI_RATIO**2:
+        if ulo is None or uhi is None or math.exp(uhi - ulo) > MAX_CI_RATIO:
             span = ("reaches the end of the τ range the log resolves" if (ulo is None or uhi is None)
                     else f"spans a factor {math.exp(uhi - ulo):.3g}")
             terms["gm_tau"] = TermEstimate("not resolved", lo=None if ulo is None else math.exp(ulo),
@@ -726,9 +838,13 @@ def fit_allan(taus, adev, n_samples: int, fs: float, axis: str = "gyro_x", min_m
         terms["bias_instability"] = TermEstimate("fitted", B_PER_GM_SIGMA * gm.value, B_PER_GM_SIGMA * gm.lo,
                                                  B_PER_GM_SIGMA * gm.hi)
     else:
+        floor = float(np.min(adev_hi[used]) / FLICKER_ADEV)  # a flicker floor would be below every limit
+        fu, un = (DEG_H, "deg/h") if axis.startswith("gyro") else (UG, "ug")
         terms["bias_instability"] = TermEstimate(
-            "not resolved", upper=None if gm.upper is None else B_PER_GM_SIGMA * gm.upper, note=gm.note)
-    return AxisFit(axis=axis, taus=tau, adev=adev, adev_lo=adev_lo, adev_hi=adev_hi, edf=nu, alpha=alpha,
+            "not resolved", upper=None if gm.upper is None else B_PER_GM_SIGMA * gm.upper,
+            note=gm.note + f"; a flat flicker floor would be below {floor / fu:.4g} {un} (the ADEV's 95% "
+            "upper limits / 0.6643)")
+    return AxisFit(axis=axis, taus=tau, adev=adev, adev_lo=adev_lo, adev_hi=adev_hi, edf=nn, alpha=alpha,
                    used=used, terms=terms, coef=np.array(c_hat, float), t_corr=math.exp(u_hat),
                    deviance=float(d_min), dof=dof, dispersion=disp, notes=notes)
 
@@ -793,7 +909,7 @@ def uniform_rates(imu: ImuData, max_gap_ratio: float = 1.5, jitter_tol: float = 
     notes.append(f"time stamps jitter by up to {100 * rel:.2g}% of the median interval {med:.6g} s: "
                  f"increments averaged onto a uniform {1 / med:.6g} Hz grid by cumulative-sum "
                  f"interpolation; the fit starts at tau = {RESAMPLED_MIN_M} intervals (resampling lowers "
-                 "the first few points)")
+                 "the shorter ones), so quantisation cannot be resolved")
     return rates, med, float(edges[0]), True, notes
 
 
@@ -861,7 +977,8 @@ def static_check(rates, fs: float, t_start: float = 0.0, window_s: float = 1.0,
                          f"{std_ratio:g} x the typical; first spans "
                          + ", ".join(f"{a:.1f}-{b:.1f} s" for a, b in ds[:3]) + ")")
         res["message"] = ("the log is not static: " + "; ".join(parts)
-                          + ". Allan analysis needs a static log: choose a static part with --static START:END")
+                          + ". Allan analysis needs a static log: choose a static part with "
+                          "--static START:END")
     return res
 
 
@@ -900,8 +1017,10 @@ def characterise_rates(rates, fs: float, t_start: float = 0.0, min_m: int = 1, c
     axes = [fit_allan(taus, adev[:, c], n, fs, axis=AXES[c], min_m=min_m) for c in range(6)]
     for a in axes:
         notes += a.notes
-    notes.append(f"{dur:.6g} s of data: terms whose Allan signature lies beyond tau ~ {taus[-1]:.4g} s "
-                 "(the longest tau with two clusters) cannot be seen")
+    t_fit = max(float(a.taus[a.used][-1]) for a in axes)
+    notes.append(f"{dur:.6g} s of data: terms whose Allan signature lies beyond tau ~ {t_fit:.4g} s (the "
+                 f"longest tau with {MIN_CLUSTERS} independent clusters, the last one fitted) cannot be "
+                 "resolved")
     return Characterisation(axes=axes, fs_hz=float(fs), n_samples=n, duration_s=dur,
                             span_s=(float(t_start), float(t_start + dur)), resampled=resampled, static=st,
                             notes=notes)
@@ -946,30 +1065,44 @@ _UNITS = {
 _ADEV_UNIT = {"gyro": ("deg_h", DEG_H), "accel": ("ug", UG)}
 
 
+def _json_float(x):
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
 def noise_dict(ch: Characterisation) -> dict:
     """noise.json content: per axis, every term in the boundary units of CONVENTIONS with its status and
-    95% interval, plus the ADEV table (deg/h for gyros, µg for accelerometers) and the notes."""
+    95% interval, the maximum-likelihood model (all four terms, resolved or not), the ADEV table (deg/h
+    for gyros, µg for accelerometers, with 95% limits and EDFs) and the notes."""
     axes = {}
     for a in ch.axes:
         units = _UNITS[a.sensor]
         d = {units[k][0]: a.terms[k].scaled(units[k][1]) for k in
              ("white", "quantisation", "bias_instability", "gm_sigma", "gm_tau", "rrw")}
         un, f = _ADEV_UNIT[a.sensor]
-        d["model"] = list(a.model)
-        d["fit"] = {"chi2": a.chi2, "dof": a.dof}
+        q2, n2, s2, k2 = a.coef
+        d["best_fit"] = {units["quantisation"][0]: math.sqrt(q2) / units["quantisation"][1],
+                         units["white"][0]: math.sqrt(n2) / units["white"][1],
+                         units["gm_sigma"][0]: math.sqrt(s2) / units["gm_sigma"][1],
+                         "gm_tau_s": a.t_corr, units["rrw"][0]: math.sqrt(k2) / units["rrw"][1],
+                         "chi2": a.deviance, "dof": a.dof, "dispersion": a.dispersion}
         d["allan"] = {"tau_s": a.taus.tolist(), f"adev_{un}": (a.adev / f).tolist(),
-                      f"adev_lo_{un}": (a.adev_lo / f).tolist(), f"adev_hi_{un}": (a.adev_hi / f).tolist(),
-                      "edf": a.edf.tolist(), "fitted": a.used.tolist()}
+                      f"adev_lo_{un}": [_json_float(v) for v in a.adev_lo / f],
+                      f"adev_hi_{un}": [_json_float(v) for v in a.adev_hi / f],
+                      "edf": [_json_float(v) for v in a.edf], "fitted": a.used.tolist()}
         axes[a.axis] = d
     return {
         "samples": ch.n_samples, "rate_hz": ch.fs_hz, "duration_s": ch.duration_s, "span_s": list(ch.span_s),
         "resampled": ch.resampled, "static_check": ch.static,
         "conventions": {
-            "ci": "95% two-sided; from chi-square EDF (Greenhall) of each Allan variance",
-            "bias_instability": "IEEE 952 B (flicker floor sigma = 0.6643 B) equivalent of the fitted "
-                                "Gauss-Markov: B = 0.9294 gm_sigma; gm_tau = tau_peak / 1.8926",
+            "units": "gyro: deg/sqrt(h), deg/h, deg/h/sqrt(h), rad; accel: m/s/sqrt(h), ug, ug/sqrt(h), m/s",
+            "ci95": "95% profile-likelihood interval; each Allan variance a chi-square variable whose "
+                    "degrees of freedom and correlations follow from the number of clusters and the model",
+            "bias_instability": "IEEE 952 B (flicker floor ADEV = 0.6643 B) with the height of the fitted "
+                                "Gauss-Markov's ADEV peak: B = 0.9294 gm_sigma, peak at tau = 1.8926 gm_tau",
             "quantisation": "IEEE 952 Q (AVAR = 3 Q^2 / tau^2); quantum = sqrt(12) Q",
-            "status": "fitted | not resolved | not detected (then only upper_bound)",
+            "status": "fitted (value, ci95) | not resolved (no value: lower_bound/upper_bound of its "
+                      "interval; upper_bound null = unbounded)",
         },
         "axes": axes, "notes": ch.notes,
     }
@@ -1003,15 +1136,60 @@ def _fmt(x: float) -> str:
     return f"{x:.4g}"
 
 
+def _fitted_max(axes, key, unit):
+    """(largest fitted value [SI] or None, text listing every axis in ``unit``)."""
+    vals, txt = [], []
+    for a in axes:
+        t = a.terms[key]
+        if t.fitted:
+            vals.append(t.value)
+            txt.append(f"{a.axis[-1]} {_fmt(t.value / unit)} [{_fmt(t.lo / unit)}, {_fmt(t.hi / unit)}]")
+        else:
+            ub = "unbounded" if t.upper is None else f"< {_fmt(t.upper / unit)}"
+            txt.append(f"{a.axis[-1]} not resolved ({ub})")
+    return (max(vals) if vals else None), ", ".join(txt)
+
+
+MERGE_HORIZON_S = 3600.0  #: horizon over which a merged bias process keeps the bias variance of GM + RW
+
+
+def merge_gm_rw(sigma: float, t_corr: float, k: float,
+                horizon: float = MERGE_HORIZON_S) -> tuple[float, float]:
+    """One first-order Gauss-Markov (σ_eff, T_eff) for a bias that is a GM (σ, T) plus a random walk K (SI).
+
+    The filter has one bias process per triad. The merged process keeps (i) the driving noise,
+    q = 2σ²/T + K² (the bias drift over short intervals, what the filter needs between fixes), and (ii)
+    the variance of the bias change over ``horizon`` [s], 2σ²(1 − e^(−H/T)) + K²H; with q fixed, the
+    GM's variance over H, q·T_eff·(1 − e^(−H/T_eff)), grows with T_eff, so T_eff is found by bisection
+    and σ_eff² = q·T_eff/2. Returns (σ_eff, T_eff)."""
+    q = 2.0 * sigma**2 / t_corr + k**2
+    want = 2.0 * sigma**2 * (-math.expm1(-horizon / t_corr)) + k**2 * horizon
+
+    def var_h(t):
+        return q * t * (-math.expm1(-horizon / t))
+
+    lo, hi = 1e-9 * horizon, 1e9 * horizon
+    for _ in range(200):
+        mid = math.sqrt(lo * hi)
+        if var_h(mid) < want:
+            lo = mid
+        else:
+            hi = mid
+    t_eff = math.sqrt(lo * hi)
+    return math.sqrt(q * t_eff / 2.0), t_eff
+
+
 def imu_section(ch: Characterisation, grade: str | None = None) -> tuple[dict, dict]:
     """The ``imu:`` section of an ``aidnav process`` configuration from a characterisation.
 
-    One value per triad (the filter's keys are scalars): the largest axis value of each noise density
-    and σ (conservative), the shortest correlation time. A triad whose Gauss-Markov and random walk are
-    both fitted gets one Gauss-Markov bias with the same T and the driving noise of both,
-    σ² = σ_GM² + K²T/2 (the filter has one bias process per sensor). The turn-on bias (run-to-run) cannot
-    be seen in one static log: its σ is the grade default, combined with the fitted σ as √(σ_b² + σ²).
-    Terms the log does not resolve take the grade default (``grade``; None = :func:`auto_grade`).
+    One value per triad (the filter's keys are scalars): the largest fitted axis value of each noise
+    density and σ (conservative) and the shortest fitted correlation time. The filter has one bias process
+    per triad: when both a Gauss-Markov (σ, T) and a random walk K are fitted they are merged into one
+    Gauss-Markov (:func:`merge_gm_rw`: same driving noise and same bias variance after an hour); a random
+    walk alone makes a random-walk bias (tau 0). The turn-on (run-to-run)
+    bias cannot be seen in one static log: its σ is the grade default, combined with the bias
+    instability as √(b² + σ²) for the filter's initial bias σ. Terms the log does not resolve take the grade
+    default (``grade``; None = :func:`auto_grade`), and the comment says so.
 
     Returns (values, comments): dicts keyed by the configuration key; comments say each value's source.
     """
@@ -1019,69 +1197,70 @@ def imu_section(ch: Characterisation, grade: str | None = None) -> tuple[dict, d
     gu = _grade_units(grade)
     vals: dict = {}
     com: dict = {}
-    for sensor, axes in (("gyro", ch.axes[:3]), ("accel", ch.axes[3:])):
-        g = sensor == "gyro"
-        wkey, wdef, wunit = (("arw_deg_sqrt_h", gu["arw_deg_sqrt_h"], DEG_SQRT_H) if g
-                             else ("vrw_m_s_sqrt_h", gu["vrw_m_s_sqrt_h"], M_S_SQRT_H))
-        bunit, bname = (DEG_H, "deg/h") if g else (UG, "ug")
-        rwunit, rwname = (DEG_H_SQRT_H, "deg/h/sqrt(h)") if g else (UG_SQRT_H, "ug/sqrt(h)")
-        white = [a.terms["white"] for a in axes]
-        if all(t.fitted for t in white):
-            vals[wkey] = max(t.value for t in white) / wunit
-            com[wkey] = "fitted (largest axis): " + ", ".join(
-                f"{a.axis[-1]} {_fmt(t.value / wunit)} [{_fmt(t.lo / wunit)}, {_fmt(t.hi / wunit)}]"
-                for a, t in zip(axes, white, strict=True))
-        else:
-            vals[wkey] = wdef
-            com[wkey] = f"grade default ({grade}): the white noise is not resolved on every axis"
+    for g, axes in ((True, ch.axes[:3]), (False, ch.axes[3:])):
         p = "gyro" if g else "accel"
-        ikey, tkey, rkey, skey = ((f"{p}_bias_instability_deg_h", f"{p}_bias_tau_s", f"{p}_bias_rw_deg_h_sqrt_h",
-                                   f"{p}_bias_sigma_deg_h") if g else
-                                  (f"{p}_bias_instability_ug", f"{p}_bias_tau_s", f"{p}_bias_rw_ug_sqrt_h",
-                                   f"{p}_bias_sigma_ug"))
-        gm_ok = all(a.terms["gm_sigma"].fitted for a in axes)
-        rw_ok = all(a.terms["rrw"].fitted for a in axes)
-        sig = max(a.terms["gm_sigma"].value for a in axes) if gm_ok else None
-        tau = min(a.terms["gm_tau"].value for a in axes) if gm_ok else None
-        kk = max(a.terms["rrw"].value for a in axes) if rw_ok else None
-        gm_list = ", ".join(
-            f"{a.axis[-1]} {_fmt(a.terms['gm_sigma'].value / bunit)} {bname} / "
-            f"{_fmt(a.terms['gm_tau'].value)} s" for a in axes) if gm_ok else ""
-        if gm_ok and rw_ok:
-            s_eff = math.sqrt(sig**2 + kk**2 * tau / 2.0)
-            vals[ikey], vals[tkey], vals[rkey] = s_eff / bunit, tau, kk / rwunit
-            com[ikey] = (f"fitted Gauss-Markov sigma {_fmt(sig / bunit)} (largest axis; {gm_list}) merged with "
-                         f"the fitted random walk: sqrt(sigma^2 + K^2 T/2)")
-            com[tkey] = "fitted Gauss-Markov correlation time (shortest axis)"
-            com[rkey] = (f"fitted random walk (largest axis); used by the filter only when {tkey} <= 0, here "
-                         "merged into the Gauss-Markov above")
-        elif gm_ok:
-            vals[ikey], vals[tkey], vals[rkey] = sig / bunit, tau, 0.0
-            com[ikey] = f"fitted Gauss-Markov sigma (largest axis; {gm_list})"
-            com[tkey] = "fitted Gauss-Markov correlation time (shortest axis)"
-            com[rkey] = "no random walk fitted (" + axes[0].terms["rrw"].status + "); unused while tau > 0"
-        elif rw_ok:
-            vals[ikey], vals[tkey], vals[rkey] = 0.0, 0.0, kk / rwunit
-            com[ikey] = "no Gauss-Markov bias instability fitted: bias modelled as a random walk"
-            com[tkey] = "0: random-walk bias"
-            com[rkey] = "fitted random walk (largest axis): " + ", ".join(
-                f"{a.axis[-1]} {_fmt(a.terms['rrw'].value / rwunit)}" for a in axes)
+        wkey, wunit = ("arw_deg_sqrt_h", DEG_SQRT_H) if g else ("vrw_m_s_sqrt_h", M_S_SQRT_H)
+        bunit, bname, bsuf = (DEG_H, "deg/h", "deg_h") if g else (UG, "ug", "ug")
+        rwunit, rwsuf = (DEG_H_SQRT_H, "deg_h_sqrt_h") if g else (UG_SQRT_H, "ug_sqrt_h")
+        ikey, tkey = f"{p}_bias_instability_{bsuf}", f"{p}_bias_tau_s"
+        rkey, skey = f"{p}_bias_rw_{rwsuf}", f"{p}_bias_sigma_{bsuf}"
+
+        w, wtxt = _fitted_max(axes, "white", wunit)
+        if w is not None:
+            vals[wkey], com[wkey] = w / wunit, f"fitted, largest axis: {wtxt}"
         else:
-            di = gu["gyro_bias_instability_deg_h" if g else "accel_bias_instability_ug"]
-            dt_ = gu["gyro_bias_corr_time_s" if g else "accel_bias_corr_time_s"]
-            vals[ikey], vals[tkey], vals[rkey] = di, dt_, 0.0
-            bound = max(a.terms["bias_instability"].upper or 0.0 for a in axes) / bunit
+            vals[wkey] = gu[wkey]
+            com[wkey] = f"grade default ({grade}): not resolved on any axis ({wtxt})"
+
+        sig, stxt = _fitted_max(axes, "gm_sigma", bunit)
+        tau, ttxt = _fitted_max(axes, "gm_tau", 1.0)
+        taus = [a.terms["gm_tau"].value for a in axes if a.terms["gm_tau"].fitted]
+        tau = min(taus) if taus else None
+        kk, ktxt = _fitted_max(axes, "rrw", rwunit)
+        t_def = gu[f"{p}_bias_corr_time_s"]
+        if sig is not None:
+            t_use = tau if tau is not None else t_def
+            t_src = (f"fitted, shortest axis: {ttxt}" if tau is not None else
+                     f"grade default ({grade}): the log does not resolve T ({ttxt})")
+            if kk is not None:
+                s_eff, t_eff = merge_gm_rw(sig, t_use, kk)
+                vals[ikey] = s_eff / bunit
+                com[ikey] = (f"fitted Gauss-Markov sigma {_fmt(sig / bunit)} {bname}, T {_fmt(t_use)} s "
+                             f"({stxt}) merged with the fitted random walk into one Gauss-Markov (same "
+                             f"driving noise, same bias variance after {MERGE_HORIZON_S:g} s)")
+                vals[rkey] = kk / rwunit
+                com[rkey] = (f"fitted ({ktxt}); the filter uses it only when {tkey} <= 0: here merged into "
+                             "the Gauss-Markov above")
+                t_use, t_src = t_eff, f"merged Gauss-Markov correlation time (fitted T: {t_src})"
+            else:
+                vals[ikey] = sig / bunit
+                com[ikey] = f"fitted Gauss-Markov sigma, largest axis: {stxt}"
+                vals[rkey] = 0.0
+                com[rkey] = f"random walk not resolved ({ktxt}); unused while {tkey} > 0"
+            vals[tkey], com[tkey] = t_use, t_src
+        elif kk is not None:
+            vals[ikey], vals[tkey], vals[rkey] = 0.0, 0.0, kk / rwunit
+            com[ikey] = f"Gauss-Markov bias instability not resolved ({stxt}): the bias is a random walk"
+            com[tkey] = "0: random-walk bias"
+            com[rkey] = f"fitted, largest axis: {ktxt}"
+        else:
+            vals[ikey] = gu[f"{p}_bias_instability_{bsuf}"]
+            vals[tkey] = t_def
+            vals[rkey] = 0.0
+            ubs = [a.terms["bias_instability"].upper for a in axes]
+            bound = ("B below " + _fmt(max(ubs) / bunit) + f" {bname} (95%)") if None not in ubs else \
+                "no upper bound on B"
             com[ikey] = (f"grade default ({grade}): the log is too short (or too noisy) to resolve the bias "
-                         f"instability; it bounds the flicker floor B below {_fmt(bound)} {bname}")
+                         f"instability ({stxt}; {bound})")
             com[tkey] = f"grade default ({grade})"
-            com[rkey] = "not resolved; unused while tau > 0"
-        tb = gu["gyro_bias_deg_h" if g else "accel_bias_ug"]
+            com[rkey] = f"random walk not resolved ({ktxt}); unused while {tkey} > 0"
+        tb = gu[f"{p}_bias_{bsuf}"]
         vals[skey] = math.hypot(tb, vals[ikey])
         com[skey] = (f"turn-on bias {_fmt(tb)} {bname}: grade default ({grade}), one static log cannot show "
-                     f"the run-to-run bias; combined with the instability above as sqrt(b^2 + sigma^2)")
+                     "the run-to-run bias; combined with the instability above as sqrt(b^2 + sigma^2)")
     order = ["arw_deg_sqrt_h", "vrw_m_s_sqrt_h", "gyro_bias_sigma_deg_h", "accel_bias_sigma_ug",
-             "gyro_bias_instability_deg_h", "accel_bias_instability_ug", "gyro_bias_tau_s", "accel_bias_tau_s",
-             "gyro_bias_rw_deg_h_sqrt_h", "accel_bias_rw_ug_sqrt_h"]
+             "gyro_bias_instability_deg_h", "accel_bias_instability_ug", "gyro_bias_tau_s",
+             "accel_bias_tau_s", "gyro_bias_rw_deg_h_sqrt_h", "accel_bias_rw_ug_sqrt_h"]
     return {k: float(vals[k]) for k in order}, {k: com[k] for k in order}
 
 
@@ -1114,7 +1293,7 @@ def characterise_file(imu_path, out_dir, static: str | None = None, grade: str |
         try:
             if len(parts) != 2:
                 raise ValueError
-            rng = (float(parts[0]) if parts[0].strip() else None, float(parts[1]) if parts[1].strip() else None)
+            rng = tuple(float(x) if x.strip() else None for x in parts)
         except ValueError:
             raise ValueError(f"--static {static!r}: expected START:END in seconds after the first sample"
                              ) from None
@@ -1128,8 +1307,39 @@ def characterise_file(imu_path, out_dir, static: str | None = None, grade: str |
     nd["imu"] = str(imu_path)
     nd["grade_for_defaults"] = grade or auto_grade(ch)
     p_json = out / "noise.json"
-    p_json.write_text(json.dumps(nd, indent=2))
+    p_json.write_text(json.dumps(nd, indent=2, allow_nan=False))
     p_yaml = out / "imu.yaml"
     p_yaml.write_text(imu_yaml(ch, nd["grade_for_defaults"], source=str(imu_path)))
     p_png = plot_allan(ch, out / "allan.png", title=f"Allan deviation: {Path(imu_path).name}")
     return ch, [p_png, p_json, p_yaml]
+
+
+def print_characterisation(ch: Characterisation, console=None) -> None:
+    """A rich table of the fitted terms per axis (boundary units) and the notes."""
+    from rich.console import Console
+    from rich.table import Table
+
+    console = console or Console()
+    tab = Table(title=f"IMU noise ({ch.n_samples} samples at {ch.fs_hz:.6g} Hz, {ch.duration_s:.6g} s; "
+                      "95% intervals)")
+    cols = (("white", "ARW deg/√h | VRW m/s/√h"), ("bias_instability", "bias instab. deg/h | µg"),
+            ("gm_tau", "GM T s"), ("rrw", "RRW deg/h/√h | µg/√h"), ("quantisation", "Q rad | m/s"))
+    tab.add_column("axis")
+    for _, name in cols:
+        tab.add_column(name)
+    for a in ch.axes:
+        units = _UNITS[a.sensor]
+        row = [a.axis]
+        for key, _ in cols:
+            t = a.terms[key]
+            f = units[key][1]
+            if t.fitted:
+                row.append(f"{t.value / f:.4g} [{t.lo / f:.3g}, {t.hi / f:.3g}]")
+            elif t.upper is not None:
+                row.append(f"n.r. (< {t.upper / f:.3g})")
+            else:
+                row.append("n.r.")
+        tab.add_row(*row)
+    console.print(tab)
+    for n in ch.notes:
+        console.print(f"note: {n}")

@@ -914,14 +914,14 @@ def uniform_rates(imu: ImuData, max_gap_ratio: float = 1.5, jitter_tol: float = 
 
 
 def static_check(rates, fs: float, t_start: float = 0.0, window_s: float = 1.0,
-                 gyro_tol_deg_s: float = 0.05, accel_tol_m_s2: float = 0.05, std_ratio: float = 4.0,
+                 gyro_tol_deg_s: float = 0.05, accel_tol_m_s2: float = 0.1, std_ratio: float = 4.0,
                  max_disturbed_fraction: float = 0.01) -> dict:
     """Is a log static? From window means and window variances of the gyros and accelerometers.
 
     rates : (M, 6) gyro [rad/s] and accel [m/s²] rates, uniform at ``fs`` [Hz]; t_start [s] of sample 0's
     interval. Windows of ``window_s`` (at least 10 samples). A window **moves** when the mean of any axis
     departs from the log's median window mean by more than max(tolerance, 8 × the robust spread of the
-    window means) (tolerances: gyro ``gyro_tol_deg_s`` [deg/s], accel ``accel_tol_m_s2`` [m/s²]: turning
+    window means, 6 × the white-noise scatter of a window mean) (tolerances: gyro ``gyro_tol_deg_s`` [deg/s], accel ``accel_tol_m_s2`` [m/s²]: turning
     or tilting); it is **disturbed** when the standard deviation inside the window of any axis exceeds
     ``std_ratio`` × the median window's (vibration, handling). The log is static when no window moves
     and at most ``max_disturbed_fraction`` of the windows are disturbed.
@@ -944,9 +944,11 @@ def static_check(rates, fs: float, t_start: float = 0.0, window_s: float = 1.0,
     dev = np.abs(mean - med)
     mad = 1.4826 * np.median(dev, axis=0)
     tol = np.r_[np.full(3, gyro_tol_deg_s * DEG), np.full(3, accel_tol_m_s2)]
-    moving = np.any(dev > np.maximum(tol, 8.0 * mad), axis=1)
     floor = np.r_[np.full(3, 1e-3 * DEG), np.full(3, 1e-3)]
     sref = np.maximum(np.median(std, axis=0), floor / std_ratio)
+    # a window mean of white noise with the log's typical in-window spread scatters by sref/√w: a
+    # vibrating (but parked) vehicle is not "moving" because of that scatter (6σ)
+    moving = np.any(dev > np.maximum(np.maximum(tol, 8.0 * mad), 6.0 * sref / np.sqrt(w)), axis=1)
     disturbed = np.any(std > std_ratio * sref, axis=1)
     wdt = w / fs
 

@@ -784,33 +784,12 @@ def tight_nav_covariance_m(P_nav: np.ndarray, lat: float, h: float) -> np.ndarra
 
 
 def to_trajectory(res: TightResult):
-    """TightResult → :class:`aidnav.data.Trajectory` (σ columns, bias and clock columns)."""
-    from aidnav.data import Trajectory
-    from aidnav.nav.rotations import quat_to_euler_batch
+    """TightResult → :class:`aidnav.data.Trajectory` (σ columns, bias and clock columns); the navigation
+    part is the loosely coupled filter's conversion (same state layout for the first 9 + 6 states)."""
+    from .loose import LooseResult
+    from .loose import to_trajectory as nav_trajectory
 
-    s = res.state
-    lat, h = s[:, 0], s[:, 2]
-    rm, rn = radii(lat)
-    pd = np.sqrt(np.maximum(res.pdiag, 0.0))
-    std_pos = np.column_stack([pd[:, 7] * (rn + h) * np.cos(lat), pd[:, 6] * (rm + h), pd[:, 8]])
-    rph = quat_to_euler_batch(np.ascontiguousarray(s[:, 6:10]))
-    hd = rph[:, 2]
-    sr = np.sqrt((np.cos(hd) * pd[:, 1]) ** 2 + (np.sin(hd) * pd[:, 0]) ** 2)
-    sp = np.sqrt((np.sin(hd) * pd[:, 1]) ** 2 + (np.cos(hd) * pd[:, 0]) ** 2)
-    extra = {"clock_bias_m": res.clock[:, 0], "clock_drift_m_s": res.clock[:, 1]}
-    if res.bias.shape[1] >= 6:
-        for i, ax in enumerate("xyz"):
-            extra[f"gyro_bias_{ax}_deg_h"] = res.bias[:, i] * 180 / np.pi * 3600
-            extra[f"accel_bias_{ax}_ug"] = res.bias[:, 3 + i] / 9.80665e-6
-    return Trajectory(
-        time=res.time,
-        lat=lat,
-        lon=s[:, 1],
-        height=h,
-        vel=s[:, 3:6],
-        rph=rph,
-        std_pos=std_pos,
-        std_vel=pd[:, 3:6],
-        std_att=np.column_stack([sr, sp, pd[:, 2]]),
-        extra=extra,
-    )
+    bias = res.bias[:, :6] if res.bias.shape[1] >= 6 else res.bias[:, :0]
+    traj = nav_trajectory(LooseResult(res.time, res.state, bias, res.pdiag, res.time))
+    traj.extra.update({"clock_bias_m": res.clock[:, 0], "clock_drift_m_s": res.clock[:, 1]})
+    return traj

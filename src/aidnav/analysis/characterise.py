@@ -921,7 +921,8 @@ def static_check(rates, fs: float, t_start: float = 0.0, window_s: float = 1.0,
     rates : (M, 6) gyro [rad/s] and accel [m/s²] rates, uniform at ``fs`` [Hz]; t_start [s] of sample 0's
     interval. Windows of ``window_s`` (at least 10 samples). A window **moves** when the mean of any axis
     departs from the log's median window mean by more than max(tolerance, 8 × the robust spread of the
-    window means, 6 × the white-noise scatter of a window mean) (tolerances: gyro ``gyro_tol_deg_s`` [deg/s], accel ``accel_tol_m_s2`` [m/s²]: turning
+    window means, 6 × the white-noise scatter of a window mean) (tolerances: gyro ``gyro_tol_deg_s``
+    [deg/s], accel ``accel_tol_m_s2`` [m/s²]: turning
     or tilting); it is **disturbed** when the standard deviation inside the window of any axis exceeds
     ``std_ratio`` × the median window's (vibration, handling). The log is static when no window moves
     and at most ``max_disturbed_fraction`` of the windows are disturbed.

@@ -28,6 +28,19 @@ with C_b^n(est) = (I − [ε×]) C_b^n(true). Angles in radians.
 * Ambiguities (SPEC §3.3): η known removes (φ, θ, γ, η) ↔ (φ±π, −θ, −γ, −η); γ and γ + π give the same
   subspace, i.e. a 180° ambiguity of the attitude about the line of sight, resolved by
   :func:`resolve_line_of_sight` with a prior attitude (e.g. the previous epoch) or "upright".
+* Bad input (all public estimators): every unobservable case raises :class:`ValueError` naming the
+  parameter that cannot be estimated; no number is returned for it. From A = cosη ṽ1 + i sinη ṽ2 and the
+  CVAE bound diag(1/cos²2η, 1/sin²η, 1/cos²η):
+
+  - η = 0 (linear polarization): A = ṽ1 is real, only the major axis ṽ1 (2 degrees of freedom) is seen;
+    the rotation about ṽ1 is unobservable (1/sin²η = ∞), so the DOA (φ, θ) and the tilt γ are not
+    identifiable (u can be any direction ⊥ ṽ1); in the seed's nose-on geometry this is the pitch.
+  - |η| = π/4 (circular polarization): a rotation α about u only multiplies A by e^{∓iα}, absorbed in
+    s(t); the tilt γ (rotation about the line of sight u, 1/cos²2η = ∞) is unobservable; (φ, θ) are not.
+  - |η| > π/4, non-finite η: outside the model's range.
+  - estimated source at θ = ±90° (a_z = 0): the DOA parametrisation is singular (gimbal lock of
+    Rx(γ)Ry(θ)Rz(φ)); the azimuth φ is undefined and only φ ∓ γ is, so φ and γ are unobservable.
+  - wrong array shapes, non-finite or all-zero data, n < 1 snapshots, SNR ρ ≤ 0 (linear) in the bounds.
 """
 
 from __future__ import annotations
@@ -56,6 +69,55 @@ __all__ = [
     "estimate_attitude",
 ]
 
+#: |η| (or π/4 − |η|) below this [rad] counts as η = 0 (or ±45°): unobservable, see the module docstring.
+ETA_TOL = 1e-9
+#: |a_z| / ‖a‖ below this counts as a source at θ = ±90° (φ undefined).
+ZENITH_TOL = 1e-9
+
+
+def _check_eta(eta) -> float:
+    """η as a float; ValueError for η = 0 / ±45° (naming what becomes unobservable) or outside [−π/4, π/4]."""
+    if np.ndim(eta) != 0 or not np.isrealobj(eta):
+        raise ValueError(f"eta must be a real scalar [rad], got {eta!r}")
+    e = float(eta)
+    if not np.isfinite(e) or abs(e) > np.pi / 4 + ETA_TOL:
+        raise ValueError(f"eta must be finite and in [-pi/4, pi/4] rad, got {eta!r}")
+    if abs(e) < ETA_TOL:
+        raise ValueError("eta = 0 (linear polarization): the rotation about the major axis is unobservable, "
+                         "so the DOA (phi, theta) and the tilt gamma cannot be estimated")
+    if np.pi / 4 - abs(e) < ETA_TOL:
+        raise ValueError("|eta| = 45 deg (circular polarization): the tilt gamma (rotation about the line of "
+                         "sight) is unobservable")
+    return e
+
+
+def _check_finite(x, name):
+    if not np.all(np.isfinite(x)):
+        raise ValueError(f"{name} contains NaN or inf")
+
+
+def _check_cov(R, batch: bool) -> np.ndarray:
+    """R̂ as a complex array of shape (3, 3) (or (..., 3, 3) when ``batch``), finite, non-zero trace."""
+    R = np.asarray(R, dtype=complex)
+    if R.ndim < 2 or R.shape[-2:] != (3, 3) or (not batch and R.ndim != 2):
+        want = "(..., 3, 3)" if batch else "(3, 3)"
+        raise ValueError(f"R must have shape {want} (sample covariance of the triad), got {R.shape}")
+    _check_finite(R, "R")
+    if np.any(np.real(np.trace(R, axis1=-2, axis2=-1)) <= 0.0):
+        raise ValueError("R has a non-positive trace (no data / zero snapshots)")
+    return R
+
+
+def _check_snapshots(n) -> int:
+    if np.ndim(n) != 0 or not np.isfinite(n) or n < 1 or n != int(n):
+        raise ValueError(f"n (number of snapshots) must be an integer >= 1, got {n!r}")
+    return int(n)
+
+
+def _zenith_error():
+    return ValueError("source at theta = +-90 deg (a_z = 0): the DOA is singular, the azimuth phi (and the "
+                      "tilt gamma, only phi -+ gamma is defined) is unobservable")
+
 
 # ============================================================================ closed form (eqs. 2–4)
 def closed_form(a, eta):
@@ -70,12 +132,25 @@ def closed_form(a, eta):
 
     Exact on noise-free data for θ ∈ (−π/2, π/2) and a_z ≠ 0. Returns arrays of shape (...) each,
     γ ∈ (−π/2, π/2].
+
+    Raises ValueError (module docstring, "Bad input"): η = 0 (φ, θ, γ unobservable), |η| = 45° (γ
+    unobservable), |η| > 45° or non-finite; a source at θ = ±90° in any element (|a_z| ≤ 1e-9‖a‖: φ, γ
+    unobservable); ``a`` not of shape (..., 3), non-finite or zero.
     """
+    eta = _check_eta(eta)
     a = np.asarray(a, dtype=complex)
+    if a.ndim < 1 or a.shape[-1] != 3:
+        raise ValueError(f"a must have shape (..., 3) (dipole outputs x, y, z), got {a.shape}")
+    _check_finite(a, "a")
+    nrm2 = np.sum(a.real**2 + a.imag**2, axis=-1)
+    if np.any(nrm2 == 0.0):
+        raise ValueError("a is zero (no signal)")
     ax, ay, az = a[..., 0], a[..., 1], a[..., 2]
+    if np.any(np.abs(az) ** 2 <= ZENITH_TOL**2 * nrm2):
+        raise _zenith_error()
     xz = ax * np.conj(az)
     yz = ay * np.conj(az)
-    sg = np.sign(eta) if eta != 0 else 1.0
+    sg = np.sign(eta)
     phi = np.arctan2(sg * xz.imag, -sg * yz.imag)
     cp, sp = np.cos(phi), np.sin(phi)
     theta = np.arctan(-(xz.real * cp + yz.real * sp) / (np.abs(az) ** 2))
@@ -96,8 +171,14 @@ def principal_eigenvector(R):
 
 
 def closed_form_covariance(R, eta):
-    """:func:`closed_form` applied to the principal eigenvector of the sample covariance R̂ (..., 3, 3)."""
-    return closed_form(principal_eigenvector(R), eta)
+    """:func:`closed_form` applied to the principal eigenvector of the sample covariance R̂ (..., 3, 3).
+
+    Raises ValueError as :func:`closed_form` (η = 0: φ, θ, γ unobservable; |η| = 45°: γ unobservable;
+    estimated θ = ±90°: φ, γ unobservable), and for R̂ not of shape (..., 3, 3), non-finite, or with a
+    non-positive trace.
+    """
+    eta = _check_eta(eta)
+    return closed_form(principal_eigenvector(_check_cov(R, batch=True)), eta)
 
 
 # ============================================================================ concentrated ML (eqs. 5–6)
@@ -175,13 +256,27 @@ def ml_estimate(R, eta, start=None, gtol=1e-9, maxiter=200) -> MLResult:
     ``success`` is also set when BFGS stops on "precision loss" with a gradient norm (of AᴴR̂A / tr R̂)
     below 1e-7, i.e. at the optimum to ~1e-7 rad. The principal-eigenvector closed form is already within
     ~1e-4 rad of the ML at SNR 10 dB (both are first-order equivalent), so the search is short.
+
+    Raises ValueError (module docstring, "Bad input"): η = 0 (φ, θ, γ unobservable), |η| = 45° (γ
+    unobservable), |η| > 45° or non-finite; an estimate (closed-form start or ML optimum) at θ = ±90°
+    (φ, γ unobservable); R̂ not of shape (3, 3), non-finite or with a non-positive trace; ``start`` not
+    3 finite numbers.
     """
-    R = np.asarray(R, dtype=complex)
-    p0 = np.array(closed_form_covariance(R, eta) if start is None else start, dtype=float)
+    eta = _check_eta(eta)
+    R = _check_cov(R, batch=False)
+    if start is None:
+        p0 = np.array(closed_form_covariance(R, eta), dtype=float)
+    else:
+        p0 = np.asarray(start, dtype=float)
+        if p0.shape != (3,):
+            raise ValueError(f"start must have shape (3,) (phi, theta, gamma), got {p0.shape}")
+        _check_finite(p0, "start")
     scale = 1.0 / float(np.real(np.trace(R)))
     res = minimize(_neg_obj, p0, args=(R, eta, scale), jac=True, method="BFGS",
                    options={"gtol": gtol, "maxiter": maxiter})
     phi, theta, gamma = wave_params_from_dcm(wave_dcm(*res.x))
+    if abs(np.cos(theta)) <= ZENITH_TOL:
+        raise _zenith_error()
     A = steering_vector(phi, theta, gamma, eta)
     pw, s2 = power_noise(A, R)
     return MLResult(phi, theta, gamma, pw, s2, pw / s2 if s2 > 0 else np.inf, -res.fun / scale,
@@ -190,7 +285,12 @@ def ml_estimate(R, eta, start=None, gtol=1e-9, maxiter=200) -> MLResult:
 
 # ============================================================================ Cramér–Rao bounds
 def _factor(snr, n):
-    """(1+ρ)/(2Nρ²) written as (1/ρ + 1/ρ²)/(2N), so that ρ = ∞ (noise-free) gives 0."""
+    """(1+ρ)/(2Nρ²) written as (1/ρ + 1/ρ²)/(2N), so that ρ = ∞ (noise-free) gives 0.
+
+    ValueError for ρ ≤ 0 or NaN (linear SNR) and for N < 1."""
+    if not float(snr) > 0.0:
+        raise ValueError(f"snr (linear P/sigma^2) must be > 0, got {snr!r}")
+    n = _check_snapshots(n)
     r = 1.0 / float(snr)
     return (r + r * r) / (2.0 * n)
 
@@ -230,6 +330,7 @@ def crb_numerical(phi, theta, gamma, eta, snr, n, power=1.0):
     ∂A by complex step (independent of eq. 7 and of the analytic derivatives). Returns the 3×3 block of
     FIM⁻¹ (P and σ² are nuisance parameters).
     """
+    _factor(snr, n)  # validates snr > 0, n >= 1
     s2 = power / float(snr)
     A = steering_vector(phi, theta, gamma, eta)
     D = _dA_complex_step(phi, theta, gamma, eta)
@@ -358,8 +459,17 @@ def estimate_attitude(R, n, eta, bearing, elevation, tx_tilt, method="ml", prior
     seen from the base [rad] (bearing clockwise from North); tx_tilt : γ′ [rad]; method : "ml" (default)
     or "closed_form" (principal eigenvector); prior : C_b^n used to resolve the line-of-sight ambiguity
     (None: upright); base_to_local : C_{n_base}^{n} (None: flat Earth, the seed's assumption).
+
+    Raises ValueError, never a fix that pretends (module docstring, "Bad input"): η = 0 (DOA and tilt,
+    hence the attitude about the major axis, unobservable), |η| = 45° (tilt γ, the attitude about the
+    line of sight, unobservable), |η| > 45° or non-finite η; an estimated source at θ = ±90° (φ, γ
+    unobservable); R̂ not of shape (3, 3), non-finite or with a non-positive trace; n not an integer ≥ 1;
+    non-finite bearing, elevation or tx_tilt; an unknown ``method``.
     """
-    R = np.asarray(R, dtype=complex)
+    eta = _check_eta(eta)
+    R = _check_cov(R, batch=False)
+    n = _check_snapshots(n)
+    _check_finite([bearing, elevation, tx_tilt], "bearing/elevation/tx_tilt")
     if method == "ml":
         ml = ml_estimate(R, eta)
         phi, theta, gamma, snr = ml.phi, ml.theta, ml.gamma, ml.snr

@@ -41,7 +41,18 @@ def simulate_snapshots(phi, theta, gamma, eta, snr_db, n, rng: np.random.Generat
     n : snapshots; rng : numpy Generator; power : P (σ² = P/ρ); runs : independent realisations.
 
     Returns (n, 3) complex, or (runs, n, 3) when ``runs`` is given. Rows are snapshots [s_x, s_y, s_z].
+    ``snr_db`` may be any real number (negative: below the noise; +inf: noise-free); ValueError for NaN
+    or −inf (ρ = 0, no signal), n or runs not an integer ≥ 1, and power not finite and > 0.
     """
+    if np.isnan(snr_db) or snr_db == -np.inf:
+        raise ValueError(f"snr_db must be a number > -inf (linear SNR > 0), got {snr_db!r}")
+    for name, k in (("n", n), ("runs", 1 if runs is None else runs)):
+        if np.ndim(k) != 0 or not np.isfinite(k) or k < 1 or k != int(k):
+            raise ValueError(f"{name} must be an integer >= 1, got {k!r}")
+    if not (np.isfinite(power) and power > 0):
+        raise ValueError(f"power must be finite and > 0, got {power!r}")
+    n = int(n)
+    runs = None if runs is None else int(runs)
     a = steering_vector(phi, theta, gamma, eta)
     rho = 10.0 ** (snr_db / 10.0)
     sig2 = power / rho
@@ -52,8 +63,14 @@ def simulate_snapshots(phi, theta, gamma, eta, snr_db, n, rng: np.random.Generat
 
 
 def sample_covariance(S: np.ndarray) -> np.ndarray:
-    """R̂ = (1/N) Σ S(t) S(t)ᴴ of snapshots (..., N, 3) → (..., 3, 3) Hermitian."""
+    """R̂ = (1/N) Σ S(t) S(t)ᴴ of snapshots (..., N, 3) → (..., 3, 3) Hermitian.
+
+    ValueError for S not of shape (..., N, 3) with N ≥ 1 (zero snapshots) or with NaN/inf entries."""
     S = np.asarray(S)
+    if S.ndim < 2 or S.shape[-1] != 3 or S.shape[-2] < 1:
+        raise ValueError(f"S must have shape (..., N, 3) with N >= 1 snapshots, got {S.shape}")
+    if not np.all(np.isfinite(S)):
+        raise ValueError("S (snapshots) contains NaN or inf")
     return np.einsum("...ti,...tj->...ij", S, S.conj()) / S.shape[-2]
 
 

@@ -74,6 +74,9 @@ from aidnav.sim.scenario import (
     _yaml_line,
     load_scenario,
 )
+from aidnav.sim.scenario import (
+    error_message as scenario_error_message,
+)
 
 from . import estimators as est_mod
 
@@ -327,23 +330,8 @@ def _format_error(e: dict, prefix: tuple, where: str, root, data,
     raw = tuple(prefix) + tuple(e["loc"])
     loc, member = _clean_loc(raw)
     path = ".".join(str(x) for x in loc) or "(top level)"
-    msg = e["msg"]
-    if msg.startswith("Value error, "):
-        msg = msg[len("Value error, "):]
-    elif msg:
-        msg = msg[0].lower() + msg[1:]
-    if e["type"] == "extra_forbidden":
-        keys = expected(raw[:-1]) if expected else None
-        msg = f"unknown key '{loc[-1]}'" + (f" (expected one of: {', '.join(keys)})" if keys else "")
-    elif e["type"] == "missing" and loc and isinstance(loc[-1], int):
-        msg = f"missing value {loc[-1]} (too few values in the list)"
-    elif e["type"] == "missing":
-        msg = "field required"
-    elif e["type"] == "union_tag_invalid":
-        msg = (f"unknown segment type {e['input'].get('type')!r} "
-               f"(expected one of: {', '.join(_SEGMENT_TYPES)})")
-    elif e["type"] == "union_tag_not_found":
-        msg = f"segment has no 'type' key (expected one of: {', '.join(_SEGMENT_TYPES)})"
+    keys = expected(raw[:-1]) if (expected and e["type"] == "extra_forbidden") else None
+    msg = scenario_error_message(e, loc, keys)
     line = _yaml_line(root, loc) if root is not None else None
     at = f"{where}:{line}" if line is not None else where
     return f"{at}: {path}: {msg}", loc, member

@@ -422,13 +422,21 @@ def _yaml_line(root, loc: tuple) -> int | None:
 
 def _format_one(e: dict, loc: tuple, where: str, root) -> str:
     path = ".".join(str(x) for x in loc) or "(top level)"
+    msg = error_message(e, loc, _expected_keys(tuple(e["loc"])[:-1]))
+    line = _yaml_line(root, loc) if root is not None else None
+    at = f"{where}:{line}" if line is not None else where
+    return f"{at}: {path}: {msg}"
+
+
+def error_message(e: dict, loc: tuple, keys=None) -> str:
+    """Readable message of one pydantic error ``e`` at the cleaned location ``loc``; ``keys``: the keys
+    allowed where an unknown key was found (listed in the message). Shared with experiment files."""
     msg = e["msg"]
     if msg.startswith("Value error, "):
         msg = msg[len("Value error, "):]
     elif msg:
         msg = msg[0].lower() + msg[1:]
     if e["type"] == "extra_forbidden":
-        keys = _expected_keys(tuple(e["loc"])[:-1])
         msg = f"unknown key '{loc[-1]}'" + (f" (expected one of: {', '.join(keys)})" if keys else "")
     elif e["type"] == "missing" and loc and isinstance(loc[-1], int):
         msg = f"missing value {loc[-1]} (too few values in the list)"
@@ -439,9 +447,7 @@ def _format_one(e: dict, loc: tuple, where: str, root) -> str:
                f"(expected one of: {', '.join(_SEGMENT_TYPES)})")
     elif e["type"] == "union_tag_not_found":
         msg = f"segment has no 'type' key (expected one of: {', '.join(_SEGMENT_TYPES)})"
-    line = _yaml_line(root, loc) if root is not None else None
-    at = f"{where}:{line}" if line is not None else where
-    return f"{at}: {path}: {msg}"
+    return msg
 
 
 def _format_errors(err: ValidationError, where: str, root=None, data=None) -> str:

@@ -60,7 +60,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
-from aidnav.filters.ins_errors import fill_model
+from aidnav.filters.ins_errors import correct_increments, fill_model
 from aidnav.filters.kalman import discretize, predict, update
 from aidnav.nav.geo_pointing import beam_body, geo_sat_ecef, servo_angles, servo_angles_rad, wrap_pol
 from aidnav.nav.rotations import (
@@ -315,13 +315,7 @@ def _replay_increments(imu_t, dth, dvel, t0, st0, states, bias, nb):
     for k in range(n):
         dt = imu_t[k] - tp
         tp = imu_t[k]
-        for i in range(3):
-            dthc[i] = dth[k, i] - b[i] * dt
-            dvc[i] = dvel[k, i] - b[3 + i] * dt
-        if nb >= 12:
-            for i in range(3):
-                dthc[i] -= b[6 + i] * dth[k, i]
-                dvc[i] -= b[9 + i] * dvel[k, i]
+        correct_increments(dth[k], dvel[k], b, dt, dthc, dvc)
         q_prev = st[6:10].copy()
         strapdown_step(st, dthc, dvc, dth_prev, dv_prev, dt)
         out[k] = rotvec_from_quat(quat_mult(quat_conj(q_prev), st[6:10]))

@@ -24,7 +24,7 @@ from numba import njit
 from aidnav.nav.rotations import dcm_from_quat, dcm_from_rotvec, quat_to_euler_batch
 from aidnav.nav.strapdown import strapdown_step
 
-from .ins_errors import fill_model, noise_count
+from .ins_errors import correct_increments, fill_model, noise_count
 from .kalman import discretize, predict, update
 from .loose import _apply_correction
 from .measurements import attitude
@@ -52,9 +52,7 @@ def _propagate(st, bias, time, dth, dvel, k0, k1, tprev, dth_prev, dv_prev, out,
     for k in range(k0, k1 + 1):
         dt = time[k] - tprev
         tprev = time[k]
-        for i in range(3):
-            dthc[i] = dth[k, i] - bias[i] * dt
-            dvc[i] = dvel[k, i] - bias[3 + i] * dt
+        correct_increments(dth[k], dvel[k], bias, dt, dthc, dvc)
         C = dcm_from_quat(st[6:10])
         C_sum += C
         sums[0] += C @ dvc

@@ -51,7 +51,7 @@ from aidnav.nav.geo_pointing import az_el_from_body, beam_body, los_enu
 from aidnav.nav.rotations import dcm_from_quat
 from aidnav.nav.strapdown import strapdown_step
 
-from .ins_errors import fill_model, noise_count
+from .ins_errors import correct_increments, fill_model, noise_count
 from .kalman import discretize, predict, update
 from .loose import _apply_correction
 from .measurements import gnss_position, gnss_velocity, sapv_angles
@@ -206,9 +206,7 @@ def _federated_kernel(imu_t, dth, dvel, t0, st0, P0, q_psd, par, mode, beta,
     for k in range(n_imu):
         dt = imu_t[k] - tp
         tp = imu_t[k]
-        for i in range(3):
-            dthc[i] = dth[k, i] - bias[i] * dt
-            dvc[i] = dvel[k, i] - bias[3 + i] * dt
+        correct_increments(dth[k], dvel[k], bias, dt, dthc, dvc)
         C = dcm_from_quat(st[6:10])
         C_sum += C
         fn_sum += C @ dvc

@@ -137,3 +137,25 @@ def fill_model(F, G, lat, h, v, fn, Cbn, wb, fb, tau_g, tau_a, tau_sg, tau_sa):
             G[SG + i, 12 + i] = 1.0
             G[SA + i, 15 + i] = 1.0
 
+
+
+@njit(cache=True, inline="always")
+def correct_increments(dth, dv, bias, dt, dthc, dvc):
+    """IMU increments corrected by the estimated sensor errors of this state layout (in place).
+
+    dth [rad], dv [m/s] (3,): raw increments over dt [s], body RFU; ``bias`` (nb,): [gyro bias (rad/s),
+    accel bias (m/s²), gyro scale factor, accel scale factor], as far as the model has them (nb = 0, 6
+    or 12). dthc = dth − b_g dt − s_g∘dth, dvc = dv − b_a dt − s_a∘dv.
+    """
+    nb = bias.shape[0]
+    for i in range(3):
+        dthc[i] = dth[i]
+        dvc[i] = dv[i]
+    if nb >= 6:
+        for i in range(3):
+            dthc[i] -= bias[i] * dt
+            dvc[i] -= bias[3 + i] * dt
+    if nb >= 12:
+        for i in range(3):
+            dthc[i] -= bias[6 + i] * dth[i]
+            dvc[i] -= bias[9 + i] * dv[i]

@@ -26,7 +26,7 @@ from aidnav.nav.earth import OMEGA_IE, radii
 from aidnav.nav.rotations import dcm_from_quat, quat_from_rotvec, quat_mult, quat_normalize
 from aidnav.nav.strapdown import strapdown_step
 
-from .ins_errors import fill_model, noise_count
+from .ins_errors import correct_increments, fill_model, noise_count
 from .kalman import discretize, rts_gain, update
 from .measurements import gnss_position, gnss_velocity, nonholonomic, zero_velocity
 
@@ -153,13 +153,7 @@ def _loose_kernel(imu_t, dth, dvel, t0, st0, bias0, P0, q_psd, par,
     for k in range(n_imu):
         dt = imu_t[k] - tp
         tp = imu_t[k]
-        for i in range(3):
-            dthc[i] = dth[k, i] - bias[i] * dt
-            dvc[i] = dvel[k, i] - bias[3 + i] * dt
-        if nb >= 12:
-            for i in range(3):
-                dthc[i] -= bias[6 + i] * dth[k, i]
-                dvc[i] -= bias[9 + i] * dvel[k, i]
+        correct_increments(dth[k], dvel[k], bias, dt, dthc, dvc)
         C = dcm_from_quat(st[6:10])
         C_sum += C
         fn_sum += C @ dvc

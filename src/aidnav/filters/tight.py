@@ -56,7 +56,7 @@ from aidnav.nav.rotations import dcm_from_quat, quat_mult, quat_normalize
 from aidnav.nav.strapdown import strapdown_step
 
 from .config import Constraints, FilterSettings, ImuNoise, Initialisation
-from .ins_errors import fill_model
+from .ins_errors import correct_increments, fill_model
 from .kalman import discretize, update, update_scalar
 from .loose import _apply_correction
 from .measurements import gnss_position, gnss_velocity, zero_velocity
@@ -244,13 +244,7 @@ def _tight_kernel(
     for k in range(n_imu):
         dt = imu_t[k] - tp
         tp = imu_t[k]
-        for i in range(3):
-            dthc[i] = dth[k, i]
-            dvc[i] = dvel[k, i]
-        if nb >= 6:
-            for i in range(3):
-                dthc[i] -= bias[i] * dt
-                dvc[i] -= bias[3 + i] * dt
+        correct_increments(dth[k], dvel[k], bias, dt, dthc, dvc)
         C = dcm_from_quat(st[6:10])
         C_sum += C
         fn_sum += C @ dvc

@@ -225,7 +225,7 @@ def test_runs_are_reproducible_and_streams_independent(turning):
 def test_master_output_noise_statistics():
     scn = parse_scenario({"initial": INI, "segments": [{"type": "straight", "duration_s": 3000.0}]}, "<s>")
     truth, imu, _ = generate_truth(scn)
-    spec = dp.MasterPosSpec.for_gnss_baseline(40)
+    spec = dp.MasterPosSpec.for_gnss_baseline(40, pos_drift_fraction=0.0)  # white errors only
     assert (spec.sigma_horizontal_m, spec.sigma_vertical_m) == (0.5, 1.0)
     out = dp.simulate_master_pos(truth, imu, spec, np.random.default_rng(1))
     idx = out.index
@@ -247,6 +247,38 @@ def test_master_output_noise_statistics():
     r1 = np.corrcoef(e[:-1], e[1:])[0, 1]
     assert abs(r1 - math.exp(-1.0 / 20.0)) < 0.03
     assert abs(e.std() / 0.03 - 1.0) < 0.25
+
+
+def test_master_position_drift_is_consistent_with_its_velocity():
+    """The smooth position drift d(t) of the master (GNSS-baseline-dependent part) has its σ and the
+    master velocity error carries exactly its rate ḋ: with no white errors, the finite difference of
+    the position error equals the velocity error."""
+    scn = parse_scenario({"initial": INI, "segments": [{"type": "straight", "duration_s": 6000.0}]}, "<s>")
+    truth, imu, _ = generate_truth(scn)
+    tau = 20.0
+    spec = dp.MasterPosSpec.for_gnss_baseline(60, sigma_vel_m_s=0.0, pos_drift_fraction=1.0,
+                                              pos_drift_tau_s=tau)
+    out = dp.simulate_master_pos(truth, imu, spec, np.random.default_rng(3))
+    idx = out.index
+    from aidnav.nav.earth import lla_difference_enu
+
+    ep = np.array(lla_difference_enu(out.lat, out.lon, out.height, truth.lat[idx], truth.lon[idx],
+                                     truth.height[idx])).T
+    ev = out.vel - truth.vel[idx]
+    beta = dp.BETA_FACTOR / tau
+    # 6000 s = 300 τ: the sample σ of this smooth process is within ~±15 % (4 sd) of the true σ
+    np.testing.assert_allclose(ep.std(axis=0) / spec.pos_sigma_m, 1.0, atol=0.2)
+    np.testing.assert_allclose(ev.std(axis=0) / (beta * spec.pos_sigma_m), 1.0, atol=0.2)
+    np.testing.assert_allclose(spec.vel_drift_sigma_m_s, beta * spec.pos_sigma_m)
+    # each 1-s position-error step is the integral of the velocity error (trapezoid rule)
+    dp_step = np.diff(ep, axis=0)
+    trap = 0.5 * (ev[1:] + ev[:-1]) * np.diff(out.time)[:, None]
+    ratio = np.std(dp_step - trap, axis=0) / np.std(dp_step, axis=0)
+    # the trapezoid residual of a velocity driven by white acceleration of PSD q = 4β³σ² has variance
+    # q·dt³/12 against the step variance ≈ β²σ²·dt²: ratio² = β·dt/3 (0.19 here; 6000 steps: ±2 %)
+    np.testing.assert_allclose(ratio, math.sqrt(beta * 1.0 / 3.0), rtol=0.1)
+    with pytest.raises(ValueError, match="pos_drift_fraction"):
+        dp.MasterPosSpec(pos_drift_fraction=1.5)
 
 
 def test_euler_error_map():

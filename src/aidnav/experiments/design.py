@@ -95,7 +95,7 @@ def _grade_key(grade: str) -> str:
     g = g[len("seed004_"):] if g.startswith("seed004_") else g
     if g not in GRADES:
         raise ValueError(f"design_trajectory: unknown IMU grade {grade!r}; use one of "
-                         f"{', '.join('seed004_' + k if k != 'sub_arw' else k for k in GRADES)}")
+                         f"{', '.join(k if k.endswith('_arw') else 'seed004_' + k for k in GRADES)}")
     return g
 
 
@@ -127,7 +127,8 @@ def design_trajectory(requirement: dict, grade: str = "sub", modes=DESIGN_MODES,
 
     requirement: {"heading_deg", "pitch_deg", "roll_deg"}: the 1σ attitude accuracy [deg] required on
     the imaging legs (mean over ``legs`` of the RMS of the predicted σ, see :func:`predict_accuracy`).
-    grade: sub-IMU grade, ``seed004_high|medium|low|sub`` (or without the prefix) or ``sub_arw``.
+    grade: sub-IMU grade, ``seed004_high|medium|low|sub`` (or without the prefix), or with ``_arw`` appended
+    (``sub_arw``, …: the gyro's "random drift" read as an ARW; see ``seed_004.GRADES``).
     modes: scenario names of seed Table 3 (``examples/<mode>.yaml``). t1_values [s]: straight leg
     between the maneuver and AB; t2_values [s]: candidate lengths of AB and CD (each).
     baseline_km: GNSS baseline of seed Table 7 (master position accuracy). nstate: 21 or 24.
@@ -197,7 +198,7 @@ def design_trajectory(requirement: dict, grade: str = "sub", modes=DESIGN_MODES,
                + (f"; closest: {closest['label']}, T1 = {closest['t1_s']:g} s, T2 = {closest['t2_s']:g} s at "
                   f"{closest['worst_ratio']:.2f} x the requirement" if closest else ""))
     summary = {
-        "grade": gkey if gkey == "sub_arw" else f"seed004_{gkey}", "imu": imu_spec(gkey).name,
+        "grade": gkey if gkey.endswith("_arw") else f"seed004_{gkey}", "imu": imu_spec(gkey).name,
         "requirement": req, "legs": list(legs), "baseline_km": float(baseline_km), "nstate": int(nstate),
         "t1_values_s": t1s, "t2_values_s": t2s, "feasible": rec is not None, "recommended": rec,
         "t2_at_candidate_limit": bool(rec is not None and rec["t2_s"] >= t2s[-1]),

@@ -60,6 +60,7 @@ from aidnav.sim.imu import ImuSpec, corrupt_imu
 __all__ = [
     "BETA_FACTOR", "GNSS_BASELINE_ACCURACY_M", "MasterPosSpec", "FlexureSpec", "DistributedPosConfig",
     "MasterPosOutput", "SubImuOutput", "DistributedPosRun", "flexure_transition", "simulate_flexure",
+    "second_order_markov",
     "flexure_autocorrelation", "lever_arm_acceleration", "lever_arm_increment", "simulate_master_pos",
     "simulate_sub_imu", "simulate_distributed_pos", "run_streams", "euler_error_map", "SubGeometry",
     "sub_geometry",
@@ -84,6 +85,15 @@ class MasterPosSpec:
     > 0 for first-order Gauss-Markov errors with that correlation time [s] and the same stationary σ
     (a real POS's errors are slowly varying; used as a sensitivity case, the filter still assumes
     white noise).
+
+    Position drift (the GNSS-baseline-dependent part): a fraction ``pos_drift_fraction`` of each
+    position variance is a smooth second-order Gauss-Markov drift d(t) with 1/e time
+    ``pos_drift_tau_s`` [s] (the slowly varying residual of differential GNSS: ionosphere,
+    troposphere and orbit errors decorrelating with the baseline), the rest white. A POS's velocity is
+    consistent with its position, so the master's velocity error carries ḋ(t) (σ = β·σ_d, β = 2.146/τ)
+    beside its white ``sigma_vel_m_s``. Default: half the variance, τ = 300 s (the seed states neither;
+    at 20 km ḋ is 0.0005 m/s, at 60 km 0.005 m/s horizontal). ``pos_drift_fraction = 0`` gives white
+    position errors only.
     """
 
     sigma_roll_deg: float = 0.005
@@ -94,6 +104,14 @@ class MasterPosSpec:
     sigma_vertical_m: float = 0.2
     rate_hz: float = 1.0
     corr_time_s: float = 0.0
+    pos_drift_fraction: float = 0.5
+    pos_drift_tau_s: float = 300.0
+
+    def __post_init__(self):
+        if not 0.0 <= self.pos_drift_fraction <= 1.0:
+            raise ValueError("MasterPosSpec: pos_drift_fraction must be in [0, 1]")
+        if self.pos_drift_tau_s <= 0:
+            raise ValueError("MasterPosSpec: pos_drift_tau_s must be > 0 [s]")
 
     @classmethod
     def for_gnss_baseline(cls, baseline_km: float, **kw) -> MasterPosSpec:
@@ -115,6 +133,16 @@ class MasterPosSpec:
     def pos_sigma_m(self) -> np.ndarray:
         """(E, N, U) 1σ [m]."""
         return np.array([self.sigma_horizontal_m, self.sigma_horizontal_m, self.sigma_vertical_m])
+
+    @property
+    def pos_drift_sigma_m(self) -> np.ndarray:
+        """(E, N, U) 1σ of the smooth position drift [m]."""
+        return self.pos_sigma_m * math.sqrt(self.pos_drift_fraction)
+
+    @property
+    def vel_drift_sigma_m_s(self) -> np.ndarray:
+        """(E, N, U) 1σ of the drift's rate ḋ carried by the master velocity [m/s]."""
+        return self.pos_drift_sigma_m * BETA_FACTOR / self.pos_drift_tau_s
 
 
 @dataclass(frozen=True)
@@ -214,14 +242,15 @@ def _flexure_kernel(phi, lch, z, x0, theta, theta_dot):
             theta_dot[k + 1, a] = t1
 
 
-def simulate_flexure(spec: FlexureSpec, dt: float, n: int, rng: np.random.Generator) -> tuple[np.ndarray,
-                                                                                              np.ndarray]:
-    """Flexure angle θ [rad] and rate θ̇ [rad/s], (n+1, 3) each at t = 0, dt, …, n·dt [s].
-
-    Exact discretisation (:func:`flexure_transition`), stationary start. Draws: 6 normals for the
-    start, then (n, 3, 2) normals.
+def second_order_markov(sigma, tau, dt: float, n: int, rng: np.random.Generator) -> tuple[np.ndarray,
+                                                                                       np.ndarray]:
+    """Second-order Gauss-Markov processes x (and ẋ), one per entry of ``sigma``/``tau`` (3 each, any unit
+    of x per σ; τ [s] the 1/e correlation time, β = 2.146/τ), sampled at t = 0, dt, …, n·dt [s]: arrays
+    (n+1, 3) each. Exact discretisation (:func:`flexure_transition`), stationary start. Draws: 6 normals
+    for the start, then (n, 3, 2) normals.
     """
-    beta, sigma = spec.beta, spec.sigma
+    sigma = np.asarray(sigma, float)
+    beta = BETA_FACTOR / np.asarray(tau, float)
     phi = np.empty((3, 2, 2))
     lch = np.zeros((3, 2, 2))
     x0 = np.empty((3, 2))
@@ -232,10 +261,17 @@ def simulate_flexure(spec: FlexureSpec, dt: float, n: int, rng: np.random.Genera
             lch[a] = np.linalg.cholesky(qd)
         x0[a] = [sigma[a] * z0[a, 0], beta[a] * sigma[a] * z0[a, 1]]
     z = rng.standard_normal((int(n), 3, 2))
-    theta = np.empty((int(n) + 1, 3))
-    theta_dot = np.empty((int(n) + 1, 3))
-    _flexure_kernel(phi, lch, z, x0, theta, theta_dot)
-    return theta, theta_dot
+    x = np.empty((int(n) + 1, 3))
+    x_dot = np.empty((int(n) + 1, 3))
+    _flexure_kernel(phi, lch, z, x0, x, x_dot)
+    return x, x_dot
+
+
+def simulate_flexure(spec: FlexureSpec, dt: float, n: int, rng: np.random.Generator) -> tuple[np.ndarray,
+                                                                                              np.ndarray]:
+    """Flexure angle θ [rad] and rate θ̇ [rad/s], (n+1, 3) each at t = 0, dt, …, n·dt [s]
+    (:func:`second_order_markov` with the spec's σ and τ)."""
+    return second_order_markov(spec.sigma, spec.tau, dt, n, rng)
 
 
 def flexure_autocorrelation(spec: FlexureSpec, lags) -> np.ndarray:
@@ -559,7 +595,8 @@ def simulate_master_pos(truth: Trajectory, imu: ImuData, spec: MasterPosSpec,
 
     truth, imu: master truth and error-free increments on a uniform grid (from ``generate_truth``).
     Draws, fixed order: (M, 3) attitude, (M, 3) velocity, (M, 3) position unit normals (made
-    Gauss-Markov, stationary from the first epoch, when ``spec.corr_time_s`` > 0).
+    Gauss-Markov, stationary from the first epoch, when ``spec.corr_time_s`` > 0), then the position
+    drift's draws (:func:`second_order_markov`; see :class:`MasterPosSpec`).
     """
     dt = float(truth.time[1] - truth.time[0])
     ratio = int(round(1.0 / (spec.rate_hz * dt)))
@@ -578,10 +615,12 @@ def simulate_master_pos(truth: Trajectory, imu: ImuData, spec: MasterPosSpec,
                 z[k] = a * z[k - 1] + b * z[k]
     rph = truth.rph[idx] + za * spec.att_sigma_rad
     rph[:, 2] = np.mod(rph[:, 2], 2 * np.pi)
-    vel = truth.vel[idx] + zv * spec.sigma_vel_m_s
+    drift, drift_rate = second_order_markov(spec.pos_drift_sigma_m, np.full(3, spec.pos_drift_tau_s),
+                                            ratio * dt, m - 1, rng)
+    vel = truth.vel[idx] + zv * spec.sigma_vel_m_s + drift_rate
     lat, h = truth.lat[idx], truth.height[idx]
     rm, rn = radii(lat)
-    dp = zp * spec.pos_sigma_m
+    dp = zp * (spec.pos_sigma_m * math.sqrt(1.0 - spec.pos_drift_fraction)) + drift
     w = _rates_at_points(imu.dtheta, dt)[idx]
     return MasterPosOutput(time=truth.time[idx].copy(), index=idx, lat=lat + dp[:, 1] / (rm + h),
                            lon=truth.lon[idx] + dp[:, 0] / ((rn + h) * np.cos(lat)), height=h + dp[:, 2],

@@ -14,8 +14,9 @@ What is rebuilt (seed §3, Tables 4–8, Figs. 2–3, and SPEC §5.3's acceptanc
   T1 (Table 5), T2 (Table 6), baseline (Table 8) — ``sweeps.png`` and the tables.
 * **21 vs 24 states** — Table 4 again with the seed's 21-state filter (first-order flexure).
 * **Master-error model** — Table 4 again with Gauss-Markov (τ = 100 s) instead of white master errors.
-* **White-noise reading** — Tables 4, 5, 6 again with the sub-IMU's "random drift 0.1°/h" read as an
-  angle random walk of 0.1°/√h instead of the preset's 0.1°/h/√Hz (``sub_arw``).
+* **Noise reading** — the sub-IMU's "random drift 0.1°/h" is read as an angle random walk of 0.1°/√h
+  (``sub_arw``: the seed's own attitude STDs need that much gyro noise); Tables 4, 5, 6 again with the
+  seed004_sub preset's white-noise density 0.1°/h/√Hz (ARW 0.0017°/√h), as a sensitivity case.
 * **Design tool** — the covariance-only prediction (:mod:`aidnav.experiments.design`) of each mode's
   accuracy, ranked against the Monte Carlo.
 * **Flexure generator** — σ and 1/e time of the second-order Markov generator against the spec.
@@ -76,8 +77,17 @@ TITLE = ("Design and comparative analysis of flight trajectories for airborne Ea
          "(distributed POS transfer alignment)")
 MODES = ("none", "s_turns", "o_circle", "figure8", "climb")
 LABEL = {"none": "none", "s_turns": "S", "o_circle": "O", "figure8": "8", "climb": "climb"}
+#: sub-IMU grades: seed Table 1 (high/medium/low) and §3.1 (sub), with the "random drift X°/h" read as an
+#: angle random walk of X°/√h (``*_arw``, the reading the reproduction uses) or as the preset's
+#: white-noise density X°/h/√Hz (no suffix; 60× less ARW)
 GRADES = {"sub": "seed004_sub", "high": "seed004_high", "medium": "seed004_medium", "low": "seed004_low",
-          "sub_arw": "seed004_sub with ARW 0.1 deg/sqrt(h)"}
+          "sub_arw": "seed004_sub with ARW 0.1 deg/sqrt(h)",
+          "high_arw": "seed004_high with ARW 0.01 deg/sqrt(h)",
+          "medium_arw": "seed004_medium with ARW 0.05 deg/sqrt(h)",
+          "low_arw": "seed004_low with ARW 0.1 deg/sqrt(h)"}
+#: the sub-IMU of the reproduction's tables (see the module docstring: "Noise reading")
+BASE_GRADE = "sub_arw"
+SWEEP_GRADES = ("high_arw", "medium_arw", "low_arw", "sub_arw")
 T1_VALUES = (0, 100, 200, 300, 400, 500)
 T2_VALUES = (100, 200, 400)
 BASELINES = (20, 40, 60)
@@ -109,7 +119,7 @@ class Case:
     mode: str = "figure8"
     t1: float = 0.0
     t2: float | None = None
-    grade: str = "sub"
+    grade: str = BASE_GRADE
     baseline_km: float = 20.0
     nstate: int = 24
     master_tau: float = 0.0
@@ -156,12 +166,14 @@ def variant(scn: Scenario, t1: float = 0.0, t2: float | None = None) -> Scenario
 
 
 def imu_spec(grade: str) -> ImuSpec:
-    """Sub-IMU spec of a grade key: the seed004_* presets (seed Table 1, §3.1), or ``sub_arw``: the §3.1
-    sub-IMU with its "random drift 0.1°/h" read as an angle random walk of 0.1°/√h (60× the preset's
-    0.1°/h/√Hz reading; a sensitivity case)."""
-    if grade == "sub_arw":
-        return ImuSpec.from_units(gyro_bias_deg_h=0.1, arw_deg_sqrt_h=0.1, accel_bias_ug=50.0,
-                                  vrw_m_s_sqrt_h=50.0 * 9.80665e-6 * 60.0, name="seed004_sub_arw")
+    """Sub-IMU spec of a grade key of ``GRADES``: the seed004_* presets (seed Table 1, §3.1; "random
+    drift X°/h" read as X°/h/√Hz), or ``<preset>_arw``: the same with the gyro's random drift read as an
+    angle random walk of X°/√h (60× the preset's ARW; accelerometer unchanged)."""
+    if grade not in GRADES:
+        raise ValueError(f"seed 004: unknown sub-IMU grade {grade!r}; use one of {', '.join(GRADES)}")
+    if grade.endswith("_arw"):
+        base = ImuSpec.grade(GRADES[grade.removesuffix("_arw")])
+        return replace(base, gyro_arw=base.gyro_arw * 60.0, name=f"{base.name}_arw")
     return ImuSpec.grade(GRADES[grade])
 
 
@@ -501,7 +513,7 @@ def _tables(res: dict, cov_pred: dict, flex: dict, flex_spec: FlexureSpec) -> li
                                 "(master position accuracy of seed Table 7)", rows))
     # ---------------------------------------------------------------- sweeps / variants (no SPEC targets)
     rows = []
-    for g in ("high", "medium", "low", "sub"):
+    for g in SWEEP_GRADES:
         d = res["grade"][g].mean()
         for q in names:
             rows.append(summary_row(f"{q} STD, sub-IMU {g} ({GRADES[g]})", "deg", d[q]))
@@ -525,15 +537,16 @@ def _tables(res: dict, cov_pred: dict, flex: dict, flex_spec: FlexureSpec) -> li
                                 f"(τ = {MASTER_TAU_S:g} s, "
                                 "same σ) instead of white; the filter still assumes white (sensitivity case)",
                                 _t4_rows(gm, ", GM master")))
-    arw = {m: res["T4-ARW"][m].mean() for m in MODES}
-    tables.append(summary_table("Table 4, ARW reading",
-                                "Table 4 with the sub-IMU's 'random drift 0.1°/h' read as an angle random "
-                                "walk of 0.1°/√h instead of 0.1°/h/√Hz (sensitivity case; filter matched)",
-                                _t4_rows(arw, ", ARW 0.1°/√h")))
-    tables.append(summary_table("Table 5, ARW reading", "Table 5 with the ARW reading of the sub-IMU",
-                                _t5_rows({t: res["T5-ARW"][t].mean() for t in T1_VALUES}, ", ARW 0.1°/√h")))
-    tables.append(summary_table("Table 6, ARW reading", "Table 6 with the ARW reading of the sub-IMU",
-                                _t6_rows({t: res["T6-ARW"][t].mean() for t in T2_VALUES}, ", ARW 0.1°/√h")))
+    dens = {m: res["T4-density"][m].mean() for m in MODES}
+    sfx = ", ARW 0.0017°/√h"
+    tables.append(summary_table("Table 4, density reading",
+                                "Table 4 with the sub-IMU's 'random drift 0.1°/h' read as a white-noise "
+                                "density of 0.1°/h/√Hz (ARW 0.0017°/√h, the seed004_sub preset) instead of "
+                                "an ARW of 0.1°/√h (sensitivity case; filter matched)", _t4_rows(dens, sfx)))
+    tables.append(summary_table("Table 5, density reading", "Table 5 with the density reading of the sub-IMU",
+                                _t5_rows({t: res["T5-density"][t].mean() for t in T1_VALUES}, sfx)))
+    tables.append(summary_table("Table 6, density reading", "Table 6 with the density reading of the sub-IMU",
+                                _t6_rows({t: res["T6-density"][t].mean() for t in T2_VALUES}, sfx)))
     # ---------------------------------------------------------------- design tool
     rows = []
     pr = {m: cov_pred[m]["heading_deg"] for m in MODES}
@@ -647,8 +660,8 @@ def run(out_dir, runs: int | None = 10, base_seed: int = 1, console: Console | N
     runner = _Runner(run_seeds, lambda m: console.log(m))
 
     # Monte Carlo cases, grouped by trajectory so that each trajectory is generated once
-    res: dict[str, dict] = {"T4": {}, "T4-21": {}, "T4-GM": {}, "T4-ARW": {}, "T5": {}, "T6": {}, "T8": {},
-                            "grade": {}, "T5-ARW": {}, "T6-ARW": {}}
+    res: dict[str, dict] = {k: {} for k in ("T4", "T4-21", "T4-GM", "T4-density", "T5", "T6", "T8", "grade",
+                                            "T5-density", "T6-density")}
     bundles = {}
     for m in MODES:
         base = Case(mode=m, t1=0.0, t2=400.0)
@@ -656,18 +669,18 @@ def run(out_dir, runs: int | None = 10, base_seed: int = 1, console: Console | N
         res["T4"][m] = runner.run(base)
         res["T4-21"][m] = runner.run(replace(base, nstate=21))
         res["T4-GM"][m] = runner.run(replace(base, master_tau=MASTER_TAU_S))
-        res["T4-ARW"][m] = runner.run(replace(base, grade="sub_arw"))
+        res["T4-density"][m] = runner.run(replace(base, grade="sub"))
     for t1 in T1_VALUES:
         c = Case(mode="figure8", t1=float(t1), t2=400.0)
         res["T5"][t1] = runner.run(c)
-        res["T5-ARW"][t1] = runner.run(replace(c, grade="sub_arw"))
+        res["T5-density"][t1] = runner.run(replace(c, grade="sub"))
     for t2 in T2_VALUES:
         c = Case(mode="figure8", t1=200.0, t2=float(t2))
         res["T6"][t2] = runner.run(c)
-        res["T6-ARW"][t2] = runner.run(replace(c, grade="sub_arw"))
+        res["T6-density"][t2] = runner.run(replace(c, grade="sub"))
     for b in BASELINES:
         res["T8"][b] = runner.run(replace(BASE, baseline_km=float(b)))
-    for g in ("sub", "high", "medium", "low"):
+    for g in SWEEP_GRADES:
         res["grade"][g] = runner.run(replace(BASE, grade=g))
     t_mc = time.perf_counter() - t_start
 
@@ -698,8 +711,8 @@ def run(out_dir, runs: int | None = 10, base_seed: int = 1, console: Console | N
         "maneuver (Table 4)": ([LABEL[m] for m in MODES], rows_of(res["T4"], MODES),
                                paper_of(PAPER_T4, MODES),
                                "maneuver before the survey area"),
-        "sub-IMU grade (Table 1)": (["high", "medium", "low", "sub"],
-                                    rows_of(res["grade"], ("high", "medium", "low", "sub")), None, "grade"),
+        "sub-IMU grade (Table 1)": ([g.removesuffix("_arw") for g in SWEEP_GRADES],
+                                    rows_of(res["grade"], SWEEP_GRADES), None, "grade"),
         "T1 (Table 5)": (list(T1_VALUES), rows_of(res["T5"], T1_VALUES), paper_of(PAPER_T5, T1_VALUES),
                          "T1 [s]"),
         "T2 (Table 6)": (list(T2_VALUES), rows_of(res["T6"], T2_VALUES), paper_of(PAPER_T6, T2_VALUES),
@@ -735,7 +748,7 @@ def run(out_dir, runs: int | None = 10, base_seed: int = 1, console: Console | N
     h5 = [res["T5"][t].mean()["heading"] for t in T1_VALUES]
     four = ("s_turns", "o_circle", "figure8")
     att = ("heading", "pitch", "roll")
-    below = [PAPER_T4[m][i] / res["T4"][m].mean()[q] for m in four for i, q in enumerate(att)]
+    below = [PAPER_T4[m][i] / res["T4-density"][m].mean()[q] for m in four for i, q in enumerate(att)]
     gm_up = [res["T4-GM"][m].mean()[q] / res["T4"][m].mean()[q] for m in four for q in att]
     notes = [
         "Statistic: per run, the standard deviation over time of each error on AB and on CD (the seed's "
@@ -754,31 +767,33 @@ def run(out_dir, runs: int | None = 10, base_seed: int = 1, console: Console | N
         "0.9 deg/s, O 360 deg in 400 s, S +-30 deg in two cycles, figure-8 two opposite circles, climb "
         "5 m/s with a 90 deg turn); T1 is a straight leg inserted between the maneuver and AB; T2 sets the "
         "lengths of AB and CD.",
-        "Master POS output = truth + white errors of the POS/AV610 accuracies at 1 Hz (the seed's "
-        "'measurement noise'); the filter's R uses the same sigmas. Sub-IMU: the seed004_sub preset "
-        "(0.1 deg/h constant bias, 'random 0.1 deg/h' read as 0.1 deg/h/sqrt(Hz); 50 ug + 50 ug/sqrt(Hz)), "
-        "lever arm [5, 0.1, 0.1] m, mounting 0.5 deg per axis, flexure sigma (0.01, 0.15, 0.01) deg, "
-        "tau (2, 5, 2) s.",
-        "Absolute values: with the preset's reading of the sub-IMU's white noise (ARW 0.0017 deg/sqrt(h)) "
-        f"our attitude STDs after the S, O and 8 maneuvers are {min(below):.0f}-{max(below):.0f}x below the "
-        "seed's, while the orderings hold. Two sensitivity cases: Gauss-Markov master errors "
-        f"(tau = {MASTER_TAU_S:g} s) raise them {min(gm_up):.1f}-{max(gm_up):.1f}x; reading 'random "
-        "drift 0.1 deg/h' as an ARW of 0.1 deg/sqrt(h) puts Table 4 values within a factor of 2 of the "
-        f"seed in {within2('Table 4, ARW reading')} cells (preset: {within2('Table 4')}), Table 5 in "
-        f"{within2('Table 5, ARW reading')} (preset: {within2('Table 5')}); SPEC predicates holding, ARW "
-        f"reading / preset: Table 4 {holding('Table 4, ARW reading')} / {holding('Table 4')}, Table 5 "
-        f"{holding('Table 5, ARW reading')} / {holding('Table 5')}, Table 6 {holding('Table 6, ARW reading')}"
-        f" / {holding('Table 6')}. The seed's sub-IMU was probably much noisier than the preset assumes.",
-        f"Table 5 (preset reading): heading STD {', '.join(f'{v:.5f}' for v in h5)} deg for T1 = "
-        f"{', '.join(str(t) for t in T1_VALUES)} s; it falls after T1 = 0 as the filter settles after the "
-        "figure-8 (as in the seed), and any later rise needs more sub-IMU drift than the preset has.",
-        "Table 8: with velocity + attitude matching the master's position accuracy reaches the sub only "
-        "through its initial position, so with common random numbers the sub's attitude, velocity and "
-        f"position STDs hardly change with L0 (vE {t8v[0]:.5f}, {t8v[1]:.5f}, {t8v[2]:.5f} m/s: the "
-        "'non-decreasing' rows compare nearly equal numbers); the seed's growth of 5-30 % is within its own "
-        "Monte Carlo noise. The master-sub baseline-length error follows the master's accuracy "
-        f"({b8[0]:.3f}, {b8[1]:.3f}, {b8[2]:.3f} m against 0.218, 0.597, 1.276 m); the sub's own position "
-        "drift is a larger part of the 20-km value than in the seed.",
+        "Master POS output = truth + errors of the POS/AV610 accuracies at 1 Hz (the seed's 'measurement "
+        "noise'): white attitude and velocity errors; position errors half white, half a smooth second-order "
+        "Gauss-Markov drift (tau 300 s: the baseline-dependent residual of differential GNSS) whose rate the "
+        "master velocity carries, so that the master's velocity is consistent with its position "
+        "(aidnav.sim.distributed_pos.MasterPosSpec). The filter's R uses the white sigmas. Lever arm "
+        "[5, 0.1, 0.1] m, mounting 0.5 deg per axis, flexure sigma (0.01, 0.15, 0.01) deg, tau (2, 5, 2) s.",
+        "Noise reading (SPEC 1.1 reads a seed's 'random drift X deg/h' as a white-noise density; the unit is "
+        "ambiguous): the tables use the sub-IMU's 'random drift 0.1 deg/h' as an angle random walk of "
+        "0.1 deg/sqrt(h) (grade sub_arw; 0.1 deg/h constant bias, 50 ug + 50 ug/sqrt(Hz)). Reason: the "
+        "seed's own pitch/roll STDs after the maneuvers (0.004-0.009 deg) need that much gyro noise. "
+        "With the other reading (0.1 deg/h/sqrt(Hz), ARW 0.0017 deg/sqrt(h), the seed004_sub preset) our "
+        f"attitude STDs after the S, O and 8 maneuvers are {min(below):.0f}-{max(below):.0f}x below the "
+        "seed's, and the climb's pitch/roll, limited by the accelerometer bias its gentle turn leaves "
+        "unresolved instead of by gyro noise, are much worse than the other maneuvers'. Factor-2 cells, "
+        f"ARW / density reading: Table 4 {within2('Table 4')} / {within2('Table 4, density reading')}, "
+        f"Table 5 {within2('Table 5')} / {within2('Table 5, density reading')}; SPEC predicates holding: "
+        f"Table 4 {holding('Table 4')} / {holding('Table 4, density reading')}, Table 5 {holding('Table 5')}"
+        f" / {holding('Table 5, density reading')}, Table 6 {holding('Table 6')} / "
+        f"{holding('Table 6, density reading')}. Gauss-Markov master errors (tau = {MASTER_TAU_S:g} s, "
+        f"all channels) change the maneuver STDs by {min(gm_up):.1f}-{max(gm_up):.1f}x.",
+        f"Table 5: heading STD {', '.join(f'{v:.5f}' for v in h5)} deg for T1 = "
+        f"{', '.join(str(t) for t in T1_VALUES)} s.",
+        "Table 8: velocity + attitude matching passes the master's velocity error to the sub, and the sub's "
+        "position (its integral) follows the master's smooth position drift, so the sub's velocity and "
+        f"position STDs grow with L0 (vE {t8v[0]:.5f}, {t8v[1]:.5f}, {t8v[2]:.5f} m/s); the white part of "
+        "the master's position error makes the master-sub baseline-length error follow the master's "
+        f"accuracy ({b8[0]:.3f}, {b8[1]:.3f}, {b8[2]:.3f} m against the seed's 0.218, 0.597, 1.276 m).",
         f"Design tool: the covariance analysis ({t_design / len(MODES):.2f} s per trajectory once compiled, "
         "against seconds per Monte Carlo case) predicts the ensemble RMS; Spearman correlation of its "
         f"heading ranking with the Monte Carlo: {_spearman(pred, [mc_rms[m] for m in MODES]):.2f} (RMS), "

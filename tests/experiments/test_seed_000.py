@@ -15,7 +15,7 @@ def test_run_writes_summary(tmp_path):
     for f in d["figures"]:
         assert (tmp_path / f).stat().st_size > 1000
     names = [t["name"] for t in d["tables"]]
-    assert names == ["Table 1", "Table 2", "SPEC 1.3", "Federated filter", "Eqs. 23-26"]
+    assert names == ["Table 1", "Table 2", "SPEC 1.3", "Federated filter", "Eqs. 23-26", "Initial heading"]
     for t in d["tables"]:
         for r in t["rows"]:
             assert set(r) == {"quantity", "unit", "paper", "ours", "target", "holds"}
@@ -28,3 +28,13 @@ def test_run_writes_summary(tmp_path):
     ratio = next(r for r in d["tables"][2]["rows"] if r["quantity"].startswith("heading RMS ratio"))
     assert ratio["holds"] is True and ratio["ours"] >= 10
     assert (tmp_path / "statistics.json").exists()
+
+
+def test_initial_heading_sweep_physics():
+    """The larger the initial heading error, the more SAPV helps heading and north velocity (the heading
+    error drives the north velocity through the Earth rate); up velocity is untouched by SAPV."""
+    sw = seed_000.heading0_sweep(3, 5, phis=(0.1, 2.0))
+    assert sw[2.0]["heading"] > 3 * sw[0.1]["heading"] and sw[2.0]["heading"] >= 10
+    assert sw[2.0]["vN"] < sw[0.1]["vN"] < 1.0
+    for p in (0.1, 2.0):
+        assert abs(sw[p]["vU"] - 1.0) < 0.01

@@ -485,8 +485,15 @@ def _tables(res: dict, cov_pred: dict, flex: dict, flex_spec: FlexureSpec) -> li
     tables.append(summary_table("Table 5", "figure-8, attitude error STD vs T1 (straight flight after the "
                                 "maneuver before entering the survey area), T2 = 400 s",
                                 _t5_rows({t: res["T5"][t].mean() for t in T1_VALUES}, "")))
+    rows6 = _t6_rows({t: res["T6"][t].mean() for t in T2_VALUES}, "")
+    for a, b in zip(T2_VALUES[:-1], T2_VALUES[1:], strict=True):
+        d = res["T6"][b].std[:, 0] - res["T6"][a].std[:, 0]  # paired: common random numbers
+        se = d.std(ddof=1) / np.sqrt(len(d)) if len(d) > 1 else float("nan")
+        rows6.append(summary_row(f"heading STD change T2 = {a} -> {b} s in standard errors (paired over the "
+                                 f"{len(d)} runs; |value| < 2: not resolved by the Monte Carlo)", "-",
+                                 float(d.mean() / se) if se > 0 else float("nan")))
     tables.append(summary_table("Table 6", "figure-8, T1 = 200 s, attitude error STD vs T2 (length of the "
-                                "imaging legs)", _t6_rows({t: res["T6"][t].mean() for t in T2_VALUES}, "")))
+                                "imaging legs)", rows6))
     # ---------------------------------------------------------------- Table 8
     t8 = {b: res["T8"][b].mean() for b in BASELINES}
     rows = []
@@ -789,6 +796,9 @@ def run(out_dir, runs: int | None = 10, base_seed: int = 1, console: Console | N
         f"all channels) change the maneuver STDs by {min(gm_up):.1f}-{max(gm_up):.1f}x.",
         f"Table 5: heading STD {', '.join(f'{v:.5f}' for v in h5)} deg for T1 = "
         f"{', '.join(str(t) for t in T1_VALUES)} s.",
+        "Table 6: the heading STD changes with T2 by less than the Monte Carlo resolves (see the paired rows "
+        "in standard errors); the seed's growth (0.0083, 0.0086, 0.0091 deg) is of the same size as that "
+        "noise with its 10 runs, so the 'non-decreasing' predicate compares nearly equal numbers.",
         "Table 8: velocity + attitude matching passes the master's velocity error to the sub, and the sub's "
         "position (its integral) follows the master's smooth position drift, so the sub's velocity and "
         f"position STDs grow with L0 (vE {t8v[0]:.5f}, {t8v[1]:.5f}, {t8v[2]:.5f} m/s); the white part of "

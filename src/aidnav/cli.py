@@ -211,11 +211,15 @@ def characterise(
                                    "or raw rtklibexplorer CSV"),
     out: Path = typer.Option(Path("characterise"), "-o", "--out", help="output directory"),
     static: str | None = typer.Option(None, "--static", help="START:END in seconds after the first "
-                                      "sample (either may be empty): the static part to analyse"),
+                                      "sample (either may be empty): the static part to analyse (default: "
+                                      "the whole log; motion in it is cut off and reported)"),
     grade: str | None = typer.Option(None, "--grade", help="IMU preset for terms the log cannot resolve "
                                      "(default: the one nearest in ARW/VRW)"),
 ):
-    """Allan deviation → fitted IMU noise terms: DIR/allan.png, DIR/noise.json, DIR/imu.yaml."""
+    """Allan deviation → fitted IMU noise terms: DIR/allan.png, DIR/noise.json, DIR/imu.yaml.
+
+    The longest static part of the log (or of --static) is analysed; motion, slow motion and vibration are
+    reported as warnings. A short log gives the white-noise terms only (and says so)."""
     from aidnav.analysis.characterise import characterise_file, print_characterisation
 
     try:

@@ -72,3 +72,24 @@ def test_imu_allan_rejects_gaps():
     imu = ImuData(t, np.zeros((n, 3)), np.zeros((n, 3)), t0=0.0)
     with pytest.raises(ValueError, match="gap"):
         imu_allan(imu)
+
+
+def test_same_numbers_as_allantools_freq_input():
+    """The phase is formed once per channel and given to allantools as phase: the deviations are those of
+    ``allantools.oadev(..., data_type="freq")`` to the last bit, with one thread or several."""
+    fs = 100.0
+    rng = np.random.default_rng(19)
+    x = rng.normal(size=(50_000, 3)) * [1e-3, 2e-3, 5e-2] + [0.0, 1e-2, 9.8]
+    taus, adev, err, ns = allan_deviation(x, fs)
+    _, adev1, _, _ = allan_deviation(x, fs, workers=1)
+    np.testing.assert_array_equal(adev, adev1)
+    for c in range(3):
+        t, d, e, n = allantools.oadev(x[:, c], rate=fs, data_type="freq", taus="octave")
+        np.testing.assert_array_equal(t, taus)
+        np.testing.assert_array_equal(n, ns)
+        np.testing.assert_allclose(d, adev[:, c], rtol=1e-14, atol=0)
+        np.testing.assert_allclose(e, err[:, c], rtol=1e-14, atol=0)
+    bad = x.copy()
+    bad[10, 1] = np.nan
+    with pytest.raises(ValueError, match="NaN"):
+        allan_deviation(bad, fs)

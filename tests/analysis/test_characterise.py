@@ -318,11 +318,263 @@ def test_cli_writes_allan_png_noise_json_and_imu_yaml(tmp_path):
     ImuNoise.model_validate(sec)  # keys and ranges of the filter configuration
     assert text.count("#") >= len(sec) and "fitted" in text and "grade default" in text
     assert "ARW" in res.output and "wrote" in res.output
-    # a moving log is an error with exit status 2
+    # a log that moves (a 11.5 deg/s turn at 500-510 s): its longest static part is analysed and the motion
+    # is reported, as gaps are
     df.loc[50_000:51_000, "gyro_z_rad_s"] += 0.2
     df.to_csv(log, index=False, float_format="%.17g")
     res = CliRunner().invoke(app, ["characterise", str(log), "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    nd = json.loads((out / "noise.json").read_text())
+    warn = " ".join(nd["warnings"])
+    assert "not static" in warn and "500.0-511.0 s" in warn and "longest static part" in warn
+    assert nd["span_s"][0] == pytest.approx(345600.0, abs=0.05)
+    assert nd["span_s"][1] == pytest.approx(345600.0 + 499.0, abs=1.01)  # one window of margin
+    # a log that turns every few seconds has no static part long enough: an error with exit status 2
+    turns = (np.arange(len(df)) // 150) % 2 == 1
+    df.loc[turns, "gyro_z_rad_s"] += 0.3
+    df.to_csv(log, index=False, float_format="%.17g")
+    res = CliRunner().invoke(app, ["characterise", str(log), "-o", str(out)])
     assert res.exit_code == 2 and "not static" in res.output
+
+
+# ------------------------------------------------------------- statistics: exact and continuum lag sums
+def _brute_force_cov(ms, n, tau0, coef, t_corr):
+    """Covariance of the overlapping Allan variance estimates by the full double sum over all pairs of
+    second differences (Isserlis, with the model's phase structure function): O(N²) per pair."""
+    S = np.array([C._phase_sf(tau0 * float(h), coef, t_corr) for h in range(n + 2)])
+    a = (1.0, -2.0, 1.0)
+    out = np.zeros((len(ms), len(ms)))
+    for p, m1 in enumerate(ms.astype(int)):
+        for r, m2 in enumerate(ms.astype(int)):
+            M1, M2 = n + 1 - 2 * m1, n + 1 - 2 * m2
+            lag = np.arange(M2)[None, :] - np.arange(M1)[:, None]
+            c = -0.5 * sum(a[i] * a[j] * S[np.abs(lag + j * m2 - i * m1)] for i in range(3) for j in range(3))
+            out[p, r] = 2.0 * np.sum(c * c) / (4.0 * (m1 * tau0) ** 2 * (m2 * tau0) ** 2 * M1 * M2)
+    return out
+
+
+@pytest.mark.parametrize("coef, t_corr, tol", [
+    ((1e-8, 1e-4, 0.0, 0.0), 1.0, 1e-12),  # quantisation + white: piecewise polynomial, summed exactly
+    ((1e-8, 1e-4, 2e-4, 1e-5), 2.0, 1e-6),  # all four terms: the Gauss-Markov tails are integrated
+    ((0.0, 1e-4, 4e-4, 0.0), 0.3, 1e-5),  # short correlation time (30 samples): the worst case of the tails
+])
+def test_estimate_covariance_equals_the_brute_force_double_sum(coef, t_corr, tol):
+    """The lag sums of ``_avar_cov_nb`` (pair counts in closed form, the structure function from a table
+    of integer lags, the Gauss-Markov tails by quadrature) equal the O(N²) double sum on a short log."""
+    n, tau0 = 600, 0.01
+    ms = 2.0 ** np.arange(8)
+    coef = np.array(coef)
+    want = _brute_force_cov(ms, n, tau0, coef, t_corr)
+    got = C._avar_cov_nb(ms, float(n + 1), tau0, coef, t_corr)
+    scale = np.sqrt(np.outer(np.diag(want), np.diag(want)))
+    assert np.max(np.abs(got - want) / scale) < tol
+
+
+def test_continuum_lag_sum_is_the_large_m_limit_of_the_exact_sum():
+    """Cores longer than ``EXACT_LAGS`` lags use the continuum form ∫ n(ℓ) c₁₂(ℓ)² dℓ. Against the exact
+    sum over the integer lags its relative error is −1.25/m² for white noise (the kinks of c₁₂ at integer
+    lags; 5.6e-7 where the continuum takes over) and below 1e-7 for the random walk and Gauss-Markov terms;
+    it does not depend on the number of samples (n(ℓ) is in closed form)."""
+    tau0 = 0.01
+    for n in (200_001.0, 3_600_001.0):
+        for coef, t_corr in (((0.0, 1e-4, 0.0, 0.0), 1.0), ((0.0, 0.0, 0.0, 1e-6), 1.0),
+                             ((0.0, 0.0, 1e-4, 0.0), 50.0)):
+            coef = np.array(coef)
+            gm = coef[2] > 0
+            for m in (64, 256, 1500):
+                M = n - 2.0 * m
+                tail = 12.0 * t_corr / tau0 if gm else 0.0
+                lo, hi = -2.0 * m - tail, 2.0 * m + tail
+                S = np.array([C._phase_sf(tau0 * h, coef, t_corr) for h in range(int(4 * m + tail) + 8)])
+                exact = C._core_sum(int(lo), int(hi), m, m, M, M, S, tau0, coef, t_corr)
+                cont = C._quad_lags(lo - 0.5, hi + 0.5, float(m), float(m), M, M, tau0, coef, t_corr,
+                                    max(16.0, t_corr / tau0 / 4.0) if gm else 1e18)
+                err = cont / exact - 1.0
+                if coef[1] > 0:
+                    assert err == pytest.approx(-1.25 / m**2, rel=1e-2), (n, m, err)
+                else:
+                    assert abs(err) < 1e-7, (coef, n, m, err)
+
+
+def test_resampled_min_m():
+    """The resampling bias 1/(6m) stays below a quarter of the estimate's scatter from m³ ≥ n/3 on."""
+    assert [C.resampled_min_m(n) for n in (600, 1_800, 3_400, 180_000, 720_000, 3_600_000)] == \
+        [8, 16, 16, 64, 64, 64]
+
+
+# ---------------------------------------------------- short logs, motion, vibration (issue 19, real data)
+def test_short_log_fits_white_noise_only():
+    """40 s of a jittered MEMS log: only the white terms are fitted (from the short-tau part), stated as
+    such; the bias instability and the random walk are reported as not resolvable and imu.yaml takes grade
+    defaults for them, saying why."""
+    spec = grade_spec("mems")
+    ch = C.characterise_imu(static_log(spec, 41, seconds=40.0, jitter=0.05))
+    assert ch.white_only and ch.resampled
+    truth = truth_terms(spec)
+    for a in ch.axes:
+        assert a.white_only and a.used[a.taus < 0.155].sum() == 0  # the fit starts at 16 intervals
+        w = a.terms["white"]
+        assert w.fitted and w.covers(truth[a.sensor]["white"]) and "white noise only" in w.note, (a.axis, w)
+        for k in ("bias_instability", "gm_sigma", "gm_tau", "rrw"):
+            t = a.terms[k]
+            assert t.status == "not resolved" and t.value is None and "not resolvable" in t.note, (a.axis, k)
+    assert any(w.startswith("white noise only") for w in ch.warnings)
+    nd = C.noise_dict(ch)
+    assert nd["fit"].startswith("white noise only")
+    text = C.imu_yaml(ch, grade="mems")
+    assert "White noise only" in text and "not resolvable in 40 s" in text
+    vals, com = C.imu_section(ch, grade="mems")
+    assert "grade default (mems): not resolvable" in com["gyro_bias_instability_deg_h"]
+    assert "white noise only" in com["arw_deg_sqrt_h"]
+    assert vals["arw_deg_sqrt_h"] == pytest.approx(0.3, rel=0.25)
+
+
+def test_slow_motion_is_kept_with_a_warning_and_motion_is_cut_off():
+    """A slow rotation (0.3 deg/s for 1 s) is kept and reported with its time and size; a turn (20 deg/s
+    for 5 s) is never analysed: the longest part without it is, and the turn is reported."""
+    spec = ImuSpec.from_units(arw_deg_sqrt_h=0.2, vrw_m_s_sqrt_h=0.05)
+    imu = static_log(spec, 42, seconds=1200.0)
+    dth = imu.dtheta.copy()
+    dth[30_000:30_100, 0] += math.radians(0.3) * 0.01  # 0.3 deg/s about x for 1 s at 300 s
+    dth[90_000:90_500, 2] += math.radians(20.0) * 0.01  # 20 deg/s about z for 5 s at 900 s
+    ch = C.characterise_imu(ImuData(imu.time, dth, imu.dv, t0=imu.t0))
+    warn = " ".join(ch.warnings)
+    assert "slow motion at 300.0-301.0 s" in warn and "0.3 deg/s gyro" in warn
+    assert "not static" in warn and "900.0-905.0 s" in warn and "20 deg/s" in warn
+    assert ch.span_s == pytest.approx((0.0, 899.0), abs=0.02)  # the longest part, one window of margin
+    ev = ch.static["events"]
+    assert [e["kind"] for e in ev] == ["slow motion"]
+    assert ev[0]["peak_gyro_deg_s"] == pytest.approx(0.3, rel=0.1)
+    for a in ch.axes:  # the white noise is unaffected (15 min of data: within 3%)
+        q = spec.gyro_arw[0] if a.sensor == "gyro" else spec.accel_vrw[0]
+        w = a.terms["white"]
+        assert w.fitted and abs(w.value / q - 1) < 0.03, (a.axis, w)
+    # the array API refuses a log with motion, naming it and the parts without it
+    rates, dt, t0, _, _ = C.uniform_rates(ImuData(imu.time, dth, imu.dv, t0=imu.t0))
+    with pytest.raises(C.NotStaticError, match="900.0-905.0 s") as e:
+        C.characterise_rates(rates, 1.0 / dt, t_start=t0)
+    assert "0.0-899.0 s" in str(e.value)
+
+
+def test_vibration_is_reported_not_fitted():
+    """A 30 Hz vibration (1 deg/s rms on gyro x, 0.2 m/s² on accel z) on a white-noise log: reported per axis
+    with its std and frequency, flagged only where it is, and the white noise is still fitted; a slope −1
+    at the short τ is then not called quantisation. A white-noise log reports no vibration."""
+    spec = ImuSpec.from_units(arw_deg_sqrt_h=0.2, vrw_m_s_sqrt_h=0.05)
+    quiet = C.characterise_imu(static_log(spec, 43, seconds=600.0))
+    assert quiet.vibration["detected"] == []
+    imu = static_log(spec, 43, seconds=600.0)
+    t = imu.time
+    dt = np.diff(np.r_[imu.t0, t])
+    # the increment of a sinusoid over each interval (an averaged rate, as a sensor's output would be)
+    ph = 2 * np.pi * 30.0
+    integ = (np.cos(ph * (t - dt)) - np.cos(ph * t)) / ph
+    dth, dv = imu.dtheta.copy(), imu.dv.copy()
+    dth[:, 0] += math.radians(1.0) * math.sqrt(2) * integ
+    dv[:, 2] += 0.2 * math.sqrt(2) * integ
+    ch = C.characterise_imu(ImuData(t, dth, dv, t0=imu.t0))
+    vib = ch.vibration
+    assert set(vib["detected"]) == {"gyro_x", "accel_z"}
+    gx, az = vib["axes"]["gyro_x"], vib["axes"]["accel_z"]
+    # std of 30 Hz averaged over 10 ms: sinc(0.3) = 0.858 of the point value, plus the white noise
+    assert gx["std_deg_s"] == pytest.approx(math.hypot(0.858, gx["white_noise_std_deg_s"]), rel=0.05)
+    assert az["std_m_s2"] == pytest.approx(math.hypot(0.2 * 0.858, az["white_noise_std_m_s2"]), rel=0.05)
+    assert gx["peak_hz"] == pytest.approx(30.0, abs=0.3) and gx["peak_share"] > 0.9
+    assert any("vibration" in w and "gyro_x" in w for w in ch.warnings)
+    for a in ch.axes:
+        q = spec.gyro_arw[0] if a.sensor == "gyro" else spec.accel_vrw[0]
+        assert a.terms["white"].covers(q), (a.axis, a.terms["white"])
+        assert not a.terms["quantisation"].fitted
+
+
+def test_trapezoid_samples_invert_the_raw_log_increments():
+    """Point samples ω_k → trapezoid increments as the rtklibexplorer reader forms them → back, exactly."""
+    rng = np.random.default_rng(44)
+    n = 20_000
+    t = 1000.0 + np.cumsum(rng.choice([0.008, 0.009, 0.010, 0.011], n))
+    w = rng.normal(size=(n, 6)) + [0.0, 0.0, 0.0, 0.0, 0.0, 9.8]
+    dt = np.diff(t)
+    inc = np.empty_like(w)
+    inc[0] = w[0] * 0.01
+    inc[1:] = 0.5 * (w[1:] + w[:-1]) * dt[:, None]
+    imu = ImuData(t, inc[:, :3], inc[:, 3:], t0=t[0] - 0.01)
+    np.testing.assert_allclose(C.trapezoid_samples(imu), w, rtol=0, atol=1e-11)
+
+
+def test_real_drive_log_static_start(data_dir, tmp_path):
+    """rtklibexplorer_drive_0708: the car is parked with the engine running until it drives off about 34 s
+    after the first IMU sample (38 s after the first GNSS epoch: the IMU log starts 3.5 s later).
+
+    ``--static 0:38``: the drive-off is cut (reported), the slow rotation at 19-20 s (0.24 deg/s, 0.24 deg) is
+    kept and reported as a warning with its time and size; the white terms (ARW/VRW) are fitted from the
+    short-tau part and stated as white noise only; the bias instability, its correlation time and the random
+    walk are not claimed (imu.yaml: grade defaults, saying so); the engine vibration is reported: std of the
+    sensor's samples on raw x/y 0.62 / 2.33 deg/s (README: 0.64 / 2.37 over the first 30 s) at 31 Hz.
+    Without ``--static`` the same parked part is found."""
+    import yaml
+    from typer.testing import CliRunner
+
+    from aidnav.cli import app
+
+    log = data_dir / "rtklibexplorer_drive_0708" / "imu_1934.csv"
+    if not log.is_file():
+        pytest.skip(f"rtklibexplorer_drive_0708/imu_1934.csv not found under {data_dir}")
+    out = tmp_path / "drive"
+    res = CliRunner().invoke(app, ["characterise", str(log), "--static", "0:38", "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    for f in ("allan.png", "noise.json", "imu.yaml"):
+        assert (out / f).stat().st_size > 1000, f
+    nd = json.loads((out / "noise.json").read_text())
+    t_first = nd["static_check"]["time_origin_s"]
+    assert nd["span_s"][0] - t_first == pytest.approx(0.0, abs=0.05)
+    assert 32.0 <= nd["span_s"][1] - t_first <= 34.5  # the drive-off (34 s) is not analysed
+    warn = nd["warnings"]
+    assert any("not static" in w and "34.0-37.0 s" in w for w in warn)
+    slow = [e for e in nd["static_check"]["events"] if e["kind"] == "slow motion"]
+    assert len(slow) == 1 and 18.5 <= slow[0]["start_s"] <= 20.0 and 0.1 < slow[0]["peak_gyro_deg_s"] < 0.5
+    assert any(w.startswith("slow motion at 19.0-20.0 s") for w in warn)
+    # white terms only, stated as such
+    assert nd["fit"].startswith("white noise only")
+    n_white = 0
+    for ax, d in nd["axes"].items():
+        wkey = "arw_deg_sqrt_h" if ax.startswith("gyro") else "vrw_m_s_sqrt_h"
+        w = d[wkey]
+        if w["status"] == "fitted":
+            n_white += 1
+            assert "white noise only" in w["note"]
+        else:  # no white-noise region on this axis: an upper bound from the curve
+            assert w["upper_bound"] is not None and "white noise below" in w["note"]
+        for k, v in d.items():  # nothing beyond the white terms is claimed
+            if isinstance(v, dict) and "status" in v and not k.startswith(("arw", "vrw", "quantisation")):
+                assert v["status"] == "not resolved" and "value" not in v, (ax, k)
+    assert n_white >= 5 and all(nd["axes"][g]["arw_deg_sqrt_h"]["status"] == "fitted"
+                                for g in ("gyro_x", "gyro_y", "gyro_z"))
+    assert 0.1 < nd["axes"]["gyro_z"]["arw_deg_sqrt_h"]["value"] < 1.0  # the data author's 0.23 deg/sqrt(h)
+    text = (out / "imu.yaml").read_text()
+    assert "White noise only" in text
+    sec = yaml.safe_load(text)["imu"]
+    assert set(sec) >= {"arw_deg_sqrt_h", "vrw_m_s_sqrt_h", "gyro_bias_instability_deg_h"}
+    for line in text.splitlines():
+        if line.strip().startswith(("gyro_bias_instability", "accel_bias_instability", "gyro_bias_tau",
+                                    "accel_bias_tau")):
+            assert "grade default" in line and "not resolvable" in line, line
+    # the engine vibration: reported, on the raw x/y axes (body RFU = sensor axes here) in the range the
+    # data README gives
+    vib = nd["vibration"]
+    assert vib["samples"].startswith("sensor's samples (trapezoid")
+    for ax in ("gyro_x", "gyro_y"):
+        d = vib["axes"][ax]
+        assert 0.6 <= d["std_deg_s"] <= 2.4 and d["vibration"], (ax, d)
+        assert d["peak_hz"] == pytest.approx(31.0, abs=1.0) and d["peak_share"] > 0.5
+    assert vib["axes"]["gyro_x"]["std_deg_s"] == pytest.approx(0.63, abs=0.03)
+    assert vib["axes"]["gyro_y"]["std_deg_s"] == pytest.approx(2.33, abs=0.05)
+    assert any(w.startswith("vibration") and "31.1 Hz" in w for w in warn)
+    assert "vibration" in res.output and "slow motion" in res.output
+    # no --static: the parked start is found (the drive, cruising included, is not "static")
+    ch = C.characterise_file(log, tmp_path / "auto")[0]
+    t0 = ch.static["time_origin_s"]
+    assert ch.span_s[0] - t0 < 1.0 and 30.0 < ch.span_s[1] - t0 <= 34.5
+    assert any("the log is not static" in w for w in ch.warnings)
 
 
 # ------------------------------------------------------------------- the filter with the fitted noise

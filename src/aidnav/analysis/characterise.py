@@ -11,9 +11,26 @@ stamps) are put on a uniform grid of the median interval by **cumulative-sum int
 cumulative angle (velocity) at the sample times is interpolated linearly (constant rate within each
 interval, as the increment model says) to the grid points and differenced, so no angle is lost or
 counted twice. Averaging mixes neighbouring samples, which lowers the Allan variance at m grid intervals
-by about 1/(6m) of its white part; when a log is resampled the fit therefore starts at m = 64 (and says
-so; quantisation is then out of reach). A gap (an interval longer
+by about 1/(6m) of its white part; when a log is resampled the fit therefore starts at the m where that
+bias is below a quarter of the estimate's scatter (:func:`resampled_min_m`: 64 for a 2-h log at 100 Hz,
+16 for half a minute; it says so, and quantisation is then out of reach). A gap (an interval longer
 than 1.5 × the median) is never bridged: the longest gap-free part is analysed and the gap reported.
+
+Static, motion, vibration (:func:`static_check`, :func:`characterise_imu`). Motion (driving, turning,
+tilting) is never analysed: the longest static part is, as with gaps, and the motion is reported with
+its time and size; with ``static`` (``--static START:END``) the same holds inside the chosen part. A
+slow motion (a small, short rotation: someone leaning on a parked car) is kept and reported as a
+warning, with the physics of its bounded effect. Vibration (zero-mean, a large sample spread, often at
+one frequency: an engine) is not motion: it is reported per axis (std of the sensor's samples, the
+dominant frequency: :func:`vibration_report`) and shows in the Allan deviation at the shortest τ,
+which the fit then leaves out.
+
+Short logs (:func:`fit_allan`, ``white_only``). With fewer than ``MIN_FULL_POINTS`` τ to fit, only the
+white terms (quantisation and ARW / VRW) are fitted, on the short-τ part where they describe the curve
+(from the shortest 3 τ they fit, extended upwards while they still do); the bias instability, its
+correlation time and the random walk are reported as not resolvable, and the ``imu:`` section takes grade
+defaults for them, saying so. Where no τ range is white noise (vibration or disturbance everywhere),
+the white term is not resolved and its upper bound min(σ(τ)·√τ) is given.
 
 Model. Per axis, the Allan variance is fitted with the sum of the standard terms (IEEE Std 952-1997,
 Annex C; El-Sheimy, Hou & Niu, "Analysis and modeling of inertial sensors using Allan variance", IEEE
@@ -60,6 +77,14 @@ of χ² (1 degree of freedom; 2 for the Gauss-Markov σ and T together). T is re
 interval is closed and within a factor ``MAX_CI_RATIO``. Otherwise the term is "not resolved": no
 value, only the ends of its interval (an upper bound, or none). The ``imu:`` section then takes the grade
 default for it and says so.
+
+Speed (3.6 million samples per axis; benchmarks/characterise.py --speed). allantools computes the
+overlapping ADEV from each axis's phase, formed once in place (:func:`aidnav.analysis.allan.allan_deviation`);
+the axes run in threads, each Allan deviation followed by its fit (the numba kernels release the GIL),
+with glibc keeping allantools' large temporaries for reuse. The covariance of the estimates sums the
+short cores exactly over a table of the structure function and integrates long cores and tails in
+their continuum form (cost independent of the number of samples). The libraries are imported while the
+log is read.
 """
 
 from __future__ import annotations
@@ -94,8 +119,11 @@ MAX_CI_RATIO = 10.0  #: a term whose 95% interval spans more than this factor is
 #: first cluster size fitted when the log was resampled onto a uniform grid: linear interpolation of the
 #: cumulative sums mixes neighbouring samples and lowers the Allan variance by about 1/(6m) of its white
 #: part at m intervals (0.26% at m = 64, below the scatter of a 2-h log there)
-RESAMPLED_MIN_M = 64
+RESAMPLED_MIN_M = 64  #: (at most: shorter logs start lower, see resampled_min_m)
 MIN_CLUSTERS = 3  #: a τ is fitted only when the log holds at least this many independent clusters of it
+#: fewer fitted τ than this: only the white terms (Q, N) are fitted; the bias instability and the random
+#: walk are reported as not resolvable (a short log; see :func:`fit_allan`)
+MIN_FULL_POINTS = 8
 #: shortest τ of a Gauss-Markov ADEV peak [s] (and at least 10 × the shortest τ): bias instability is drift
 #: over seconds and longer; a shorter bump is coloured sensor noise, and letting the fit place a bump
 #: anywhere turns chance wiggles of the white-noise region into "bias instability" (look-elsewhere)
@@ -105,6 +133,12 @@ GM_MIN_PEAK_S = 2.0
 #: the 95% intervals alone, and T is not defined without the term
 DETECT_PROB = 0.99
 AXES = ("gyro_x", "gyro_y", "gyro_z", "accel_x", "accel_y", "accel_z")
+#: a moving span of the static check is "motion" (never analysed) when its window means depart by more than
+#: this rate [deg/s], rotate by more than this angle [deg] or depart by more than this specific force
+#: [m/s²]; smaller ones are "slow motion" (kept with a warning): see :func:`static_check`
+MOTION_GYRO_DEG_S = 1.0
+MOTION_ANGLE_DEG = 1.0
+MOTION_ACCEL_M_S2 = 0.1
 
 __all__ = ["characterise_imu", "characterise_rates", "fit_allan", "merge_gm_rw", "print_characterisation",
             "Characterisation", "AxisFit",
@@ -162,10 +196,12 @@ def _logchi2_moments(nu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 # ------------------------------------------------------------------------------ fitting kernels (numba)
 # Objective: ‖L⁻¹ r‖² with r_j = (y_j − ln M_j(θ))/s_j, y_j = ln σ̂²_j − E ln(χ²_ν/ν), s_j = sd ln(χ²_ν/ν),
-# and L the Cholesky factor of the correlation of the estimates. For a fixed T the model M = A c is linear
-# in c = (Q², N², σ², K²) ≥ 0: Gauss-Newton on ln M with an exact non-negative least-squares step (all
-# active sets of the ≤ 4 columns enumerated) and step halving; T by a grid and golden section.
-@njit(cache=True)
+# and L the Cholesky factor of the correlation of the estimates (L⁻¹ lower triangular). For a fixed T the
+# model M = A c is linear in c = (Q², N², σ², K²) ≥ 0: Gauss-Newton on ln M with an exact non-negative
+# least-squares step (all active sets of the ≤ 4 columns enumerated) and step halving; T by a grid and
+# golden section. The kernels are plain loops (no BLAS calls: the matrices are at most ~25 × 25, and the
+# loops compile in a fraction of the time) and release the GIL, so the six axes are fitted in parallel.
+@njit(cache=True, nogil=True)
 def _gm_shape_nb(x):
     if x < 0.05:
         acc = 0.0
@@ -175,7 +211,7 @@ def _gm_shape_nb(x):
     return (2.0 / x) * (1.0 - (3.0 - 4.0 * np.exp(-x) + np.exp(-2.0 * x)) / (2.0 * x))
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _columns_nb(tau, u):
     n = tau.shape[0]
     A = np.empty((n, 4))
@@ -188,7 +224,7 @@ def _columns_nb(tau, u):
     return A
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _solve_small(G, r, idx, n):
     """Solve G[idx, idx] x = r[idx] (n ≤ 4) by Gaussian elimination with partial pivoting; ok=False if
     (nearly) singular."""
@@ -206,7 +242,9 @@ def _solve_small(G, r, idx, n):
             return np.zeros(n), False
         if p != col:
             for j in range(n + 1):
-                M[col, j], M[p, j] = M[p, j], M[col, j]
+                tmp = M[col, j]
+                M[col, j] = M[p, j]
+                M[p, j] = tmp
         for i in range(col + 1, n):
             f = M[i, col] / M[col, col]
             for j in range(col, n + 1):
@@ -220,62 +258,92 @@ def _solve_small(G, r, idx, n):
     return x, True
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _nnls_enum(A, b, free):
     """min ||A c − b|| over c ≥ 0 with c_i = 0 where not free[i] (k ≤ 4: every active set is tried; the
     columns of A should have comparable norms)."""
-    k = A.shape[1]
-    G = A.T @ A
-    r = A.T @ b
-    bb = np.sum(b * b)
+    n, k = A.shape
+    G = np.zeros((k, k))
+    r = np.zeros(k)
+    for i in range(k):
+        for j in range(k):
+            acc = 0.0
+            for q in range(n):
+                acc += A[q, i] * A[q, j]
+            G[i, j] = acc
+        acc = 0.0
+        for q in range(n):
+            acc += A[q, i] * b[q]
+        r[i] = acc
+    bb = 0.0
+    for q in range(n):
+        bb += b[q] * b[q]
     best = np.zeros(k)
     best_r = bb
     idx = np.empty(k, np.int64)
     for mask in range(1, 1 << k):
-        n = 0
+        nsel = 0
         ok = True
         for i in range(k):
             if (mask >> i) & 1:
                 if not free[i]:
                     ok = False
-                idx[n] = i
-                n += 1
+                idx[nsel] = i
+                nsel += 1
         if not ok:
             continue
-        x, good = _solve_small(G, r, idx, n)
+        x, good = _solve_small(G, r, idx, nsel)
         if not good:
             continue
         neg = False
-        for i in range(n):
+        for i in range(nsel):
             if x[i] < 0.0:
                 neg = True
         if neg:
             continue
         # ||b − A_s x||² = bb − 2 xᵀ r_s + xᵀ G_s x
         rr = bb
-        for i in range(n):
+        for i in range(nsel):
             rr -= 2.0 * x[i] * r[idx[i]]
-            for j in range(n):
+            for j in range(nsel):
                 rr += x[i] * G[idx[i], idx[j]] * x[j]
         if rr < best_r:
             best_r = rr
             best[:] = 0.0
-            for i in range(n):
+            for i in range(nsel):
                 best[idx[i]] = x[i]
     return best
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _objective(y, s, Linv, M):
+    """‖L⁻¹ (y − ln M)/s‖² (L⁻¹ lower triangular)."""
     n = y.shape[0]
     r = np.empty(n)
     for j in range(n):
         r[j] = (y[j] - np.log(M[j])) / s[j]
-    z = Linv @ r
-    return np.sum(z * z)
+    q = 0.0
+    for i in range(n):
+        acc = 0.0
+        for j in range(i + 1):
+            acc += Linv[i, j] * r[j]
+        q += acc * acc
+    return q
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
+def _model_nb(A, c, off, out):
+    """out = max(off + A c, 1e-300)."""
+    n, k = A.shape
+    for j in range(n):
+        acc = off[j]
+        for i in range(k):
+            acc += A[j, i] * c[i]
+        out[j] = max(acc, 1e-300)
+    return out
+
+
+@njit(cache=True, nogil=True)
 def _fit_c_nb(A, y, s, Linv, fixed, fixv, c0, iters):
     """Coefficients c ≥ 0 for fixed columns A (n, 4) minimising the correlated log-scale objective
     ‖L⁻¹ (y − ln A c)/s‖²; coefficients where ``fixed`` are held at ``fixv``. Gauss-Newton on the
@@ -287,37 +355,63 @@ def _fit_c_nb(A, y, s, Linv, fixed, fixv, c0, iters):
     c = c0.copy()
     for i in range(k):
         if fixed[i]:
-            off += A[:, i] * fixv[i]
+            for j in range(n):
+                off[j] += A[j, i] * fixv[i]
             c[i] = 0.0
-    M = off + A @ c
+    M = np.empty(n)
     start = True
     for j in range(n):
-        if M[j] > 0.0:
+        acc = off[j]
+        for i in range(k):
+            acc += A[j, i] * c[i]
+        M[j] = acc
+        if acc > 0.0:
             start = False
     if start:  # no usable start: linearise about the data
-        M = np.exp(y)
+        for j in range(n):
+            M[j] = np.exp(y[j])
         q_old = np.inf
     else:
         for j in range(n):
             M[j] = max(M[j], 1e-300)
         q_old = _objective(y, s, Linv, M)
     scale = np.empty(k)
+    Aw = np.empty((n, k))
+    bw = np.empty(n)
+    xw = np.empty((n, k))
+    tw = np.empty(n)
+    M_try = np.empty(n)
     for _ in range(iters):
-        w = 1.0 / (M * s)
-        t = M * (y - np.log(M) + 1.0)
-        Aw = Linv @ (A * w[:, None])
-        bw = Linv @ ((t - off) * w)
+        for j in range(n):
+            wj = 1.0 / (M[j] * s[j])
+            tw[j] = (M[j] * (y[j] - np.log(M[j]) + 1.0) - off[j]) * wj
+            for i in range(k):
+                xw[j, i] = A[j, i] * wj
+        for r_ in range(n):  # whitening by the lower-triangular L⁻¹
+            acc = 0.0
+            for j in range(r_ + 1):
+                acc += Linv[r_, j] * tw[j]
+            bw[r_] = acc
+            for i in range(k):
+                acc = 0.0
+                for j in range(r_ + 1):
+                    acc += Linv[r_, j] * xw[j, i]
+                Aw[r_, i] = acc
         for i in range(k):
-            scale[i] = max(np.sqrt(np.sum(Aw[:, i] ** 2)), 1e-300)
-        c_new = _nnls_enum(Aw / scale, bw, free) / scale
+            acc = 0.0
+            for j in range(n):
+                acc += Aw[j, i] ** 2
+            scale[i] = max(np.sqrt(acc), 1e-300)
+        for j in range(n):
+            for i in range(k):
+                Aw[j, i] /= scale[i]
+        c_new = _nnls_enum(Aw, bw, free) / scale
         lam = 1.0
         c_try = c_new
         q_try = np.inf
         for _h in range(12):
             c_try = c + lam * (c_new - c) if q_old < np.inf else c_new
-            M_try = off + A @ c_try
-            for j in range(n):
-                M_try[j] = max(M_try[j], 1e-300)
+            _model_nb(A, c_try, off, M_try)
             q_try = _objective(y, s, Linv, M_try)
             if q_try < q_old:
                 break
@@ -326,7 +420,7 @@ def _fit_c_nb(A, y, s, Linv, fixed, fixv, c0, iters):
             break
         done = lam == 1.0 and q_old - q_try < 1e-10 * (1.0 + q_try)
         c = c_try
-        M = M_try
+        M[:] = M_try
         q_old = q_try
         if done:
             break
@@ -336,7 +430,7 @@ def _fit_c_nb(A, y, s, Linv, fixed, fixv, c0, iters):
     return q_old, c
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _profile_u_nb(tau, y, s, Linv, fixed, fixv, u_lo, u_hi, ngrid, c0, u_hint):
     """min over T (a grid plus ``u_hint`` (NaN: none), then golden section around the best) and the free
     coefficients. Without a Gauss-Markov term (σ² fixed at 0) T is not searched.
@@ -390,7 +484,24 @@ def _profile_u_nb(tau, y, s, Linv, fixed, fixv, u_lo, u_hi, ngrid, c0, u_hint):
 # white PM (Q) 2Q² (h ≠ 0), white FM N²|h|, Gauss-Markov 2σ²T²(|h|/T − 1 + e^(−|h|/T)); random-walk FM has
 # no stationary phase increments, but second differences filter it (an intrinsic random function of
 # order 1, generalised covariance K²|h|³/12), so it enters as S = −2·K²|h|³/12 = −K²|h|³/6.
-@njit(cache=True)
+#
+# Cost. c₁₂ vanishes outside the core |ℓ| ≤ 2(m₁ + m₂) (without a Gauss-Markov term; with one, it decays
+# as e^(−|ℓ|τ₀/T) beyond), and has kinks at the integers i m₁ − j m₂ inside. A short core (≤ EXACT_LAGS
+# lags) is summed exactly over the integers, with S read from a table of its values at the integer lags
+# (S is even and the arguments are integers, so one table serves every pair of cluster sizes). A longer
+# core and the Gauss-Markov tails use the continuum form of the sum, ∫ n(ℓ) c₁₂(ℓ)² dℓ, by Gauss-Legendre
+# quadrature on the smooth pieces between the kinks; its relative error falls as 1/m² for the white FM
+# term (Euler-Maclaurin: the kinks of c₁₂ at integer lags; 1.2/m², about 1e-7 where the core is first
+# integrated) and faster for the others (tests/analysis/test_characterise.py checks it against the exact
+# sum). Nothing scales with the number of samples: n(ℓ) enters in closed form.
+EXACT_LAGS = 6000.0  #: cores of c₁₂ up to this many lags are summed exactly
+_XG = np.array([-0.9061798459386640, -0.5384693101056831, 0.0, 0.5384693101056831, 0.9061798459386640])
+_WG = np.array([0.2369268850561891, 0.4786286704993665, 0.5688888888888889, 0.4786286704993665,
+                0.2369268850561891])
+_A2 = np.array([1.0, -2.0, 1.0])
+
+
+@njit(cache=True, nogil=True)
 def _phase_sf(h, coef, t_corr):
     a = abs(h)
     v = coef[1] * a - coef[3] * a * a * a / 6.0
@@ -402,94 +513,146 @@ def _phase_sf(h, coef, t_corr):
     return v
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _c12(lag, m1, m2, tau0, coef, t_corr):
-    acoef = (1.0, -2.0, 1.0)
     v = 0.0
     for i in range(3):
         for j in range(3):
-            v += acoef[i] * acoef[j] * _phase_sf(tau0 * (lag + j * m2 - i * m1), coef, t_corr)
+            v += _A2[i] * _A2[j] * _phase_sf(tau0 * (lag + j * m2 - i * m1), coef, t_corr)
     return -0.5 * v
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _pair_count(lag, M1, M2):
     lo = max(0.0, -lag)
     hi = min(float(M1), M2 - lag)
     return max(0.0, hi - lo)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
+def _gauss_piece(a0, hh, m1, m2, M1, M2, tau0, coef, t_corr):
+    """5-point Gauss-Legendre ∫ n(ℓ) c₁₂(ℓ)² dℓ over [a0, a0 + hh]."""
+    s = 0.0
+    for g in range(5):
+        ell = a0 + 0.5 * hh * (_XG[g] + 1.0)
+        c = _c12(ell, m1, m2, tau0, coef, t_corr)
+        s += 0.5 * hh * _WG[g] * _pair_count(ell, M1, M2) * c * c
+    return s
+
+
+@njit(cache=True, nogil=True)
 def _quad_lags(a, b, m1, m2, M1, M2, tau0, coef, t_corr, seg_max):
     """∫ n(ℓ) c₁₂(ℓ)² dℓ over [a, b] (5-point Gauss-Legendre on the smooth pieces between the kinks)."""
     if b <= a:
         return 0.0
-    bp = [a, b, 0.0, float(M2 - M1)]
+    # break points: the ends, the kinks of n(ℓ) (0, M₂ − M₁) and of c₁₂ (i m₁ − j m₂), clipped and sorted
+    pts = np.empty(13)
+    pts[0] = a
+    pts[1] = b
+    pts[2] = 0.0
+    pts[3] = float(M2 - M1)
+    q = 4
     for i in range(3):
         for j in range(3):
-            bp.append(float(i * m1 - j * m2))
-    pts = np.unique(np.minimum(np.maximum(np.array(bp), a), b))
-    xg = np.array([-0.9061798459386640, -0.5384693101056831, 0.0, 0.5384693101056831, 0.9061798459386640])
-    wg = np.array([0.2369268850561891, 0.4786286704993665, 0.5688888888888889, 0.4786286704993665,
-                   0.2369268850561891])
+            pts[q] = float(i * m1 - j * m2)
+            q += 1
+    for q in range(13):
+        pts[q] = min(max(pts[q], a), b)
+    for q in range(1, 13):  # insertion sort (13 values)
+        v = pts[q]
+        r = q - 1
+        while r >= 0 and pts[r] > v:
+            pts[r + 1] = pts[r]
+            r -= 1
+        pts[r + 1] = v
     s = 0.0
-    for k in range(len(pts) - 1):
+    for k in range(12):
         lo = pts[k]
         hi = pts[k + 1]
         if hi - lo <= 0.0:
             continue
         # graded sub-segments: seg_max next to both ends (Gauss-Markov transients at the kinks decay on
         # that scale), doubling towards the middle (the polynomial parts are exact on any segment)
-        sub = [lo, hi]
+        mid = 0.5 * (lo + hi)
+        nl = 0
         h = seg_max
         x = lo + h
-        while x < 0.5 * (lo + hi):
-            sub.append(x)
-            sub.append(lo + hi - x)
+        while x < mid:
+            nl += 1
             h *= 2.0
             x += h
-        spts = np.sort(np.array(sub))
-        for q in range(len(spts) - 1):
-            a0 = spts[q]
-            hh = spts[q + 1] - a0
+        sub = np.empty(2 * nl + 2)
+        sub[0] = lo
+        sub[2 * nl + 1] = hi
+        h = seg_max
+        x = lo + h
+        for i in range(nl):
+            sub[1 + i] = x
+            sub[2 * nl - i] = lo + hi - x
+            h *= 2.0
+            x += h
+        for i in range(2 * nl + 1):
+            a0 = sub[i]
+            hh = sub[i + 1] - a0
             if hh <= 0.0:
                 continue
-            for g in range(5):
-                ell = a0 + 0.5 * hh * (xg[g] + 1.0)
-                c = _c12(ell, m1, m2, tau0, coef, t_corr)
-                s += 0.5 * hh * wg[g] * _pair_count(ell, M1, M2) * c * c
+            s += _gauss_piece(a0, hh, m1, m2, M1, M2, tau0, coef, t_corr)
     return s
 
 
-@njit(cache=True)
-def _lag_sum(m1, m2, M1, M2, tau0, coef, t_corr, tail):
+@njit(cache=True, nogil=True)
+def _core_sum(i_lo, i_hi, m1, m2, M1, M2, S, tau0, coef, t_corr):
+    """Σ_ℓ n(ℓ) c₁₂(ℓ)² over the integer lags i_lo..i_hi, with S[|h|] = S(τ₀ h) from the table (computed
+    beyond its end)."""
+    s = 0.0
+    ns = S.shape[0]
+    for ell in range(i_lo, i_hi + 1):
+        v = 0.0
+        for i in range(3):
+            for j in range(3):
+                h = abs(ell + j * m2 - i * m1)
+                v += _A2[i] * _A2[j] * (S[h] if h < ns else _phase_sf(tau0 * float(h), coef, t_corr))
+        c = -0.5 * v
+        s += _pair_count(float(ell), M1, M2) * c * c
+    return s
+
+
+@njit(cache=True, nogil=True)
+def _lag_sum(m1, m2, M1, M2, tau0, coef, t_corr, tail, S):
     """Σ_ℓ n(ℓ) c₁₂(ℓ)² over the integer lags where c₁₂ ≠ 0 (plus ``tail`` lags of Gauss-Markov decay).
     The core |ℓ| ≲ 2(m₁ + m₂), where c₁₂ has kinks at the integers i m₁ − j m₂, is summed exactly when
-    short; longer cores and the smooth exponential tails are integrated (the midpoint rule of the sum)."""
+    short (``S``: the structure function at the integer lags, long enough for it); longer cores and the
+    smooth exponential tails are integrated (the midpoint rule of the sum)."""
     lo = max(-2.0 * m2 - tail, -(M1 - 1.0))
     hi = min(2.0 * m1 + tail, M2 - 1.0)
     c_lo = max(lo, -2.0 * m2 - 1.0)
     c_hi = min(hi, 2.0 * m1 + 1.0)
     seg_max = max(16.0, t_corr / tau0 / 4.0) if coef[2] > 0.0 else 1e18  # pieces are polynomial without GM
-    if c_hi - c_lo > 6000.0:
+    if c_hi - c_lo > EXACT_LAGS:
         return _quad_lags(lo, hi, m1, m2, M1, M2, tau0, coef, t_corr, seg_max)
     i_lo = int(np.floor(c_lo))
     i_hi = int(np.ceil(c_hi))
-    s = 0.0
-    for ell in range(i_lo, i_hi + 1):
-        c = _c12(float(ell), m1, m2, tau0, coef, t_corr)
-        s += _pair_count(float(ell), M1, M2) * c * c
+    s = _core_sum(i_lo, i_hi, int(m1), int(m2), M1, M2, S, tau0, coef, t_corr)
     s += _quad_lags(lo - 0.5, i_lo - 0.5, m1, m2, M1, M2, tau0, coef, t_corr, seg_max)
     s += _quad_lags(i_hi + 0.5, hi + 0.5, m1, m2, M1, M2, tau0, coef, t_corr, seg_max)
     return s
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _avar_cov_nb(m, n_phase, tau0, coef, t_corr):
     """Covariance matrix of the overlapping Allan variance estimates at cluster sizes m (model coef, T)."""
     k = m.shape[0]
     C = np.zeros((k, k))
     tail = 12.0 * t_corr / tau0 if coef[2] > 0.0 else 0.0  # e^(−24) of the squared covariance left
+    # table of S at the integer lags that the exactly summed cores reach (|h| ≤ 2(m₁ + m₂) + 1)
+    h_max = 0
+    for p in range(k):
+        for r in range(p, k):
+            if 2.0 * (m[p] + m[r]) + 2.0 <= EXACT_LAGS:
+                h_max = max(h_max, int(2.0 * (m[p] + m[r])) + 2)
+    S = np.empty(h_max + 1)
+    for h in range(h_max + 1):
+        S[h] = _phase_sf(tau0 * float(h), coef, t_corr)
     for p in range(k):
         for r in range(p, k):
             m1 = float(m[p])
@@ -498,7 +661,8 @@ def _avar_cov_nb(m, n_phase, tau0, coef, t_corr):
             M2 = n_phase - 2.0 * m2
             t1 = m1 * tau0
             t2 = m2 * tau0
-            v = 2.0 * _lag_sum(m1, m2, M1, M2, tau0, coef, t_corr, tail) / (4.0 * t1 * t1 * t2 * t2 * M1 * M2)
+            v = 2.0 * _lag_sum(m1, m2, M1, M2, tau0, coef, t_corr, tail, S) / (
+                4.0 * t1 * t1 * t2 * t2 * M1 * M2)
             C[p, r] = v
             C[r, p] = v
     return C
@@ -577,7 +741,8 @@ class AxisFit:
     terms (SI): ``white`` N [u·√s] (ARW rad/√s, VRW m/s/√s); ``quantisation`` Q [u·s] (rad, m/s);
     ``gm_sigma`` [u] and ``gm_tau`` [s]; ``bias_instability`` B = 0.9294 σ_GM [u]; ``rrw`` K [u/√s].
     coef : maximum-likelihood (Q², N², σ_GM², K²) [SI]; t_corr : T [s]; deviance, dof, dispersion : of
-    the fit (dispersion = max(1, minimum/dof) scales the profile threshold).
+    the fit (dispersion = max(1, minimum/dof) scales the profile threshold); white_only : only Q and N
+    were fitted (a short log: σ_GM and K held at zero and reported as not resolvable).
     """
 
     axis: str
@@ -595,6 +760,7 @@ class AxisFit:
     dof: int
     dispersion: float
     notes: list[str] = field(default_factory=list)
+    white_only: bool = False
 
     @property
     def sensor(self) -> str:
@@ -618,7 +784,10 @@ class Characterisation:
     axes : the six :class:`AxisFit` (gyro x, y, z [rad/s], accel x, y, z [m/s²]); fs_hz : uniform
     sample rate analysed; n_samples; duration_s; span_s : (start, end) of the analysed part on the
     input's time scale [s]; resampled : the log was put on a uniform grid; static : result of
-    :func:`static_check`; notes : what was done and found, in words (gaps, resampling, short log).
+    :func:`static_check`; notes : what was done and found, in words (gaps, resampling, short log);
+    warnings : the findings a user must not miss (slow motion kept, motion cut off, vibration), also in
+    notes; vibration : :func:`vibration_report` of the analysed part; white_only : only the white terms
+    were fitted (a short log).
     """
 
     axes: list[AxisFit]
@@ -629,6 +798,9 @@ class Characterisation:
     resampled: bool
     static: dict
     notes: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    vibration: dict = field(default_factory=dict)
+    white_only: bool = False
 
     def axis(self, name: str) -> AxisFit:
         return self.axes[AXES.index(name)]
@@ -737,7 +909,8 @@ def _why_not(term: str, tau_lo: float, tau_hi: float) -> str:
     return "white noise not resolved"
 
 
-def fit_allan(taus, adev, n_samples: int, fs: float, axis: str = "gyro_x", min_m: int = 1) -> AxisFit:
+def fit_allan(taus, adev, n_samples: int, fs: float, axis: str = "gyro_x", min_m: int = 1,
+              white_only: bool | None = None) -> AxisFit:
     """Fit the noise model of the module docstring to one axis's overlapping Allan deviation.
 
     Parameters
@@ -747,6 +920,10 @@ def fit_allan(taus, adev, n_samples: int, fs: float, axis: str = "gyro_x", min_m
     n_samples : number of rate samples behind the ADEV (the EDF needs it); fs : their rate [Hz].
     axis : label (one of ``AXES``: its prefix decides the sensor in reports).
     min_m : smallest cluster size fitted (τ below min_m/fs are shown but not fitted).
+    white_only : fit only the white terms (quantisation Q and white noise N) and report the bias
+        instability and the random walk as not resolvable; None (default) = when fewer than
+        ``MIN_FULL_POINTS`` τ can be fitted (a short log: the longer-τ terms are out of its reach, and the
+        five parameters of the full model would leave almost no degrees of freedom).
 
     Method (module docstring): all four terms at once (Q², N², σ², K² ≥ 0, T with its ADEV peak inside
     the fitted τ range) by correlated least squares of the log Allan variances, whose degrees of freedom
@@ -767,11 +944,38 @@ def fit_allan(taus, adev, n_samples: int, fs: float, axis: str = "gyro_x", min_m
     # one or two degrees of freedom, far from the Gaussian log-likelihood used
     used = ok & (m >= min_m) & (n_samples >= MIN_CLUSTERS * m)
     notes: list[str] = []
-    if used.sum() < 5:
-        raise ValueError(f"{axis}: fewer than 5 usable Allan deviation points (log too short or constant)")
+    if white_only is None:
+        white_only = bool(used.sum() < MIN_FULL_POINTS)
+    n_min = 3 if white_only else 5
+    if used.sum() < n_min:
+        raise ValueError(f"{axis}: fewer than {n_min} usable Allan deviation points (log too short or "
+                         "constant)")
     avar = adev**2
+    if white_only:  # the white-noise region: the shortest 3 τ that the white terms fit, extended upwards
+        idx = np.flatnonzero(used)
+        crit_w = float(chi2_dist.ppf(DETECT_PROB, 1))
+        d3 = [_white_deviance(tau[idx[j:j + 3]], avar[idx[j:j + 3]], m[idx[j:j + 3]], n_phase)
+              for j in range(len(idx) - 2)]
+        j0 = next((j for j, d in enumerate(d3) if d <= crit_w), int(np.argmin(d3)))
+        k = j0 + 3
+        d_prev = d3[j0]
+        while k < len(idx):
+            d_new = _white_deviance(tau[idx[j0:k + 1]], avar[idx[j0:k + 1]], m[idx[j0:k + 1]], n_phase)
+            if d_new - d_prev > crit_w:
+                break
+            k += 1
+            d_prev = d_new
+        used[idx[:j0]] = False
+        used[idx[k:]] = False
+        if j0 or k < len(idx):
+            notes.append(f"{axis}: white-noise region tau {tau[idx[j0]]:.3g}-{tau[idx[k - 1]]:.3g} s"
+                         + ("; shorter tau depart from the white terms (vibration)" if j0 else "")
+                         + (f"; from {tau[idx[k]]:.3g} s on the Allan deviation departs from them (other "
+                            "noise or a disturbance)" if k < len(idx) else "") + ": shown, not fitted")
     tu, au = tau[used], avar[used]
     tau_lo, tau_hi = float(tu[0]), float(tu[-1])
+    drop = (2, 3) if white_only else ()
+    n_par = 2 if white_only else 5
 
     # EDFs and correlations of the estimates from the model itself (exact for Gaussian noise, see
     # _estimate_stats), re-evaluated at the fit three times starting from white noise
@@ -779,7 +983,7 @@ def fit_allan(taus, adev, n_samples: int, fs: float, axis: str = "gyro_x", min_m
     for _ in range(3):
         nu, Linv = _estimate_stats(tu, m[used], n_phase, c_hat, math.exp(u_hat))
         b, sd = _logchi2_moments(nu)
-        full = _Profile(tu, np.log(au) - b, sd, Linv)
+        full = _Profile(tu, np.log(au) - b, sd, Linv, drop=drop)
         d_full, u_hat, c_hat = full.best()
     full.u_hint, full.c0 = u_hat, c_hat.copy()
     nu_all = np.full(len(tau), np.nan)
@@ -788,10 +992,10 @@ def fit_allan(taus, adev, n_samples: int, fs: float, axis: str = "gyro_x", min_m
                              c_hat[2] * _gm_shape(tau / math.exp(u_hat)), c_hat[3] * tau / 3.0])
     alpha = np.array([(2, 0, -1, -2)[k] for k in np.argmax(parts, axis=1)])
     n_pts = len(tu)
-    disp = max(1.0, d_full / max(1, n_pts - 5))  # reduced chi-square of the fit, when above 1
+    disp = max(1.0, d_full / max(1, n_pts - n_par))  # reduced chi-square of the fit, when above 1
     if disp > 2.0:
         notes.append(f"{axis}: the model fits the Allan variance with chi-square {d_full:.3g} for "
-                     f"{n_pts - 5} degrees of freedom; intervals widened accordingly")
+                     f"{n_pts - n_par} degrees of freedom; intervals widened accordingly")
     crit = float(chi2_dist.ppf(CI_PROB, 1)) * disp
     # every term stays in the model (no selection: dropping a term that the data cannot separate from
     # another would bias the other's interval); a term is reported when its own interval allows it
@@ -806,8 +1010,15 @@ def fit_allan(taus, adev, n_samples: int, fs: float, axis: str = "gyro_x", min_m
     caps = np.min(au[:, None] / _columns_nb(tu, u_hat), axis=0)  # each term alone ≤ the data
     caps[2] = float(np.max(au)) / 0.38
     terms: dict[str, TermEstimate] = {}
+    span_s = n_samples / fs
+    short = (f"not resolvable in {span_s:.3g} s of data: only the white terms were fitted (tau "
+             f"{tau_lo:.3g}-{tau_hi:.3g} s); a bias instability or random walk needs a log many times "
+             "longer than its correlation time")
     for idx, name in ((0, "quantisation"), (1, "white"), (2, "gm_sigma"), (3, "rrw")):
         t = _TERM_ORDER[idx]
+        if idx in drop:
+            terms[name] = TermEstimate("not resolved", note=short)
+            continue
         lo2, hi2 = _interval(prof, idx, float(c_hat[idx]), d_min, crit, float(caps[idx]))
         v, lo, hi = math.sqrt(max(c_hat[idx], 0.0)), math.sqrt(lo2), _sqrt_or_none(hi2)
         dof_t = 2 if idx == 2 else 1
@@ -821,6 +1032,25 @@ def fit_allan(taus, adev, n_samples: int, fs: float, axis: str = "gyro_x", min_m
             terms[name] = TermEstimate("not resolved", upper=hi, note=f"its 95% interval {span}")
         else:
             terms[name] = TermEstimate("not resolved", upper=hi, note=_why_not(t, tau_lo, tau_hi))
+    qt = terms["quantisation"]
+    if min_m > 1 and qt.fitted:  # a slope −1 above the resampling's reach is not quantisation
+        terms["quantisation"] = TermEstimate(
+            "not resolved", upper=qt.hi, note=f"the slope -1 part of the fit from tau {tau_lo:.3g} s on "
+            f"({qt.value:.3g}) is not quantisation on a resampled log (vibration's tail or the resampling); "
+            "kept in the model as a nuisance")
+    if white_only and not terms["white"].fitted:
+        # every term adds to the Allan variance: N²/τ ≤ σ²(τ) at each τ, a bound that holds whatever else
+        # the curve holds (vibration, disturbance)
+        ub = float(np.min(adev_hi[ok] * np.sqrt(tau[ok])))
+        w = terms["white"]
+        w.upper = ub if w.upper is None else min(w.upper, ub)
+        fu, un = (DEG_SQRT_H, "deg/sqrt(h)") if axis.startswith("gyro") else (M_S_SQRT_H, "m/s/sqrt(h)")
+        w.note += (f"; white noise below {ub / fu:.4g} {un} (the 95% upper ADEV limits x sqrt(tau): the "
+                   f"curve is not white noise anywhere in the {span_s:.3g} s of data)")
+    if white_only and terms["white"].fitted:
+        terms["white"].note = (f"white noise only: the bias instability and the random walk are not "
+                               f"resolvable in {span_s:.3g} s of data (tau {tau_lo:.3g}-{tau_hi:.3g} s "
+                               "fitted)")
     gm = terms["gm_sigma"]
     if gm.fitted:
         ulo, uhi = _u_interval(prof, d_min, crit)
@@ -837,6 +1067,8 @@ def fit_allan(taus, adev, n_samples: int, fs: float, axis: str = "gyro_x", min_m
     if gm.fitted:
         terms["bias_instability"] = TermEstimate("fitted", B_PER_GM_SIGMA * gm.value, B_PER_GM_SIGMA * gm.lo,
                                                  B_PER_GM_SIGMA * gm.hi)
+    elif white_only:
+        terms["bias_instability"] = TermEstimate("not resolved", note=short)
     else:
         floor = float(np.min(adev_hi[used]) / FLICKER_ADEV)  # a flicker floor would be below every limit
         fu, un = (DEG_H, "deg/h") if axis.startswith("gyro") else (UG, "ug")
@@ -846,7 +1078,18 @@ def fit_allan(taus, adev, n_samples: int, fs: float, axis: str = "gyro_x", min_m
             "upper limits / 0.6643)")
     return AxisFit(axis=axis, taus=tau, adev=adev, adev_lo=adev_lo, adev_hi=adev_hi, edf=nn, alpha=alpha,
                    used=used, terms=terms, coef=np.array(c_hat, float), t_corr=math.exp(u_hat),
-                   deviance=float(d_min), dof=dof, dispersion=disp, notes=notes)
+                   deviance=float(d_min), dof=dof, dispersion=disp, notes=notes, white_only=white_only)
+
+
+def _white_deviance(tau, avar, m, n_phase) -> float:
+    """Minimum of the white-terms (Q, N) objective on these τ (statistics re-evaluated at the fit)."""
+    c_hat, u = np.array([0.0, float(np.min(avar * tau)), 0.0, 0.0]), math.log(tau[-1])
+    d = math.inf
+    for _ in range(3):
+        nu, Linv = _estimate_stats(tau, m, n_phase, c_hat, math.exp(u))
+        b, sd = _logchi2_moments(nu)
+        d, u, c_hat = _Profile(tau, np.log(avar) - b, sd, Linv, drop=(2, 3)).best()
+    return float(d)
 
 
 def _sqrt_or_none(x: float) -> float | None:
@@ -861,18 +1104,21 @@ def uniform_rates(imu: ImuData, max_gap_ratio: float = 1.5, jitter_tol: float = 
     (bool), notes). Gaps (intervals > ``max_gap_ratio`` × median): the longest gap-free part is used and
     the gaps reported in ``notes``. Jitter (any interval off the median by more than ``jitter_tol``
     relative): increments are averaged onto the uniform grid by cumulative-sum interpolation.
+    Memory: one (M, 6) output array and a few (M,) vectors (no stacked copies of the increments).
     """
     t = np.asarray(imu.time, float)
     if len(t) < 3:
         raise ValueError("characterise: need at least 3 IMU samples")
     t0 = imu.t0 if imu.t0 is not None else 2 * t[0] - t[1]
-    edges = np.concatenate(([t0], t))
-    dt = np.diff(edges)
+    dt = np.empty(len(t))
+    dt[0] = t[0] - t0
+    np.subtract(t[1:], t[:-1], out=dt[1:])
     if np.any(dt <= 0):
         raise ValueError("characterise: sample times are not strictly increasing")
     med = float(np.median(dt))
-    inc = np.concatenate((imu.dtheta, imu.dv), axis=1)
     notes: list[str] = []
+    a, b = 0, len(t)
+    t_first = float(t0)
     gap = dt > max_gap_ratio * med
     if gap.any():
         # segments between gaps: a gap interval k starts a new segment at k + 1 (the sample over the gap
@@ -884,65 +1130,122 @@ def uniform_rates(imu: ImuData, max_gap_ratio: float = 1.5, jitter_tol: float = 
         a, b = int(starts[j]), int(ends[j])
         big = np.flatnonzero(gap)
         worst = big[np.argmax(dt[big])]
+        t_first = float(t[a - 1]) if a > 0 else float(t0)
         notes.append(f"{len(big)} gap(s) in the log (intervals longer than {max_gap_ratio:g} x the median "
                      f"{med:.6g} s; the longest {dt[worst]:.6g} s ending at t = {t[worst]:.3f} s): analysed "
-                     f"the longest gap-free part t = {edges[a]:.3f}-{t[b - 1]:.3f} s "
+                     f"the longest gap-free part t = {t_first:.3f}-{t[b - 1]:.3f} s "
                      f"({100.0 * (b - a) / len(t):.1f}% of the samples); gaps are never bridged")
-        edges = edges[a:b + 1]
-        inc = inc[a:b]
-        dt = dt[a:b]
-        if len(dt) < 3:
+        if b - a < 3:
             raise ValueError("characterise: no gap-free part with at least 3 samples")
+        dt = dt[a:b]
         med = float(np.median(dt))
     rel = np.max(np.abs(dt - med)) / med
+    n_in = b - a
     if rel <= jitter_tol:
-        return inc / dt[:, None], med, float(edges[0]), False, notes
+        rates = np.empty((n_in, 6))
+        np.divide(imu.dtheta[a:b], dt[:, None], out=rates[:, :3])
+        np.divide(imu.dv[a:b], dt[:, None], out=rates[:, 3:])
+        return rates, med, t_first, False, notes
     # cumulative-sum interpolation onto the uniform grid t_start + j·med (mean rate removed first, for
-    # precision of the running sums; added back after)
+    # precision of the running sums; added back after), one channel at a time
+    edges = np.empty(n_in + 1)
+    edges[0] = t_first
+    edges[1:] = t[a:b]
     span = edges[-1] - edges[0]
-    mean_rate = inc.sum(axis=0) / span
-    cum = np.vstack((np.zeros((1, 6)), np.cumsum(inc - mean_rate * dt[:, None], axis=0)))
     n = int(np.floor(span / med + 1e-9))
     grid = edges[0] + med * np.arange(n + 1)
-    cg = np.column_stack([np.interp(grid, edges, cum[:, c]) for c in range(6)])
-    rates = np.diff(cg, axis=0) / med + mean_rate
+    rates = np.empty((n, 6))
+    cum = np.empty(n_in + 1)
+    cum[0] = 0.0
+    for c in range(6):
+        inc = imu.dtheta[a:b, c] if c < 3 else imu.dv[a:b, c - 3]
+        mean_rate = inc.sum() / span
+        np.cumsum(inc - mean_rate * dt, out=cum[1:])
+        cg = np.interp(grid, edges, cum)
+        rates[:, c] = np.diff(cg) / med + mean_rate
     notes.append(f"time stamps jitter by up to {100 * rel:.2g}% of the median interval {med:.6g} s: "
                  f"increments averaged onto a uniform {1 / med:.6g} Hz grid by cumulative-sum "
-                 f"interpolation; the fit starts at tau = {RESAMPLED_MIN_M} intervals (resampling lowers "
-                 "the shorter ones), so quantisation cannot be resolved")
-    return rates, med, float(edges[0]), True, notes
+                 "interpolation; the shortest tau are not fitted (resampling lowers them), so quantisation "
+                 "cannot be resolved")
+    return rates, med, t_first, True, notes
+
+
+@njit(cache=True, nogil=True)
+def _window_stats(y, w, nw):
+    """Mean and standard deviation of each of ``nw`` consecutive windows of ``w`` rows of y (M, k)."""
+    k = y.shape[1]
+    mean = np.empty((nw, k))
+    std = np.empty((nw, k))
+    acc = np.empty(k)
+    for b in range(nw):
+        acc[:] = 0.0
+        for i in range(b * w, (b + 1) * w):
+            for c in range(k):
+                acc[c] += y[i, c]
+        for c in range(k):
+            mean[b, c] = acc[c] / w
+        acc[:] = 0.0
+        for i in range(b * w, (b + 1) * w):
+            for c in range(k):
+                d = y[i, c] - mean[b, c]
+                acc[c] += d * d
+        for c in range(k):
+            std[b, c] = np.sqrt(acc[c] / w)
+    return mean, std
 
 
 def static_check(rates, fs: float, t_start: float = 0.0, window_s: float = 1.0,
                  gyro_tol_deg_s: float = 0.05, accel_tol_m_s2: float = 0.1, std_ratio: float = 4.0,
-                 max_disturbed_fraction: float = 0.01) -> dict:
+                 max_disturbed_fraction: float = 0.01, motion_gyro_deg_s: float = MOTION_GYRO_DEG_S,
+                 motion_angle_deg: float = MOTION_ANGLE_DEG,
+                 motion_accel_m_s2: float = MOTION_ACCEL_M_S2) -> dict:
     """Is a log static? From window means and window variances of the gyros and accelerometers.
 
     rates : (M, 6) gyro [rad/s] and accel [m/s²] rates, uniform at ``fs`` [Hz]; t_start [s] of sample 0's
     interval. Windows of ``window_s`` (at least 10 samples). A window **moves** when the mean of any axis
     departs from the log's median window mean by more than max(tolerance, 8 × the robust spread of the
     window means, 6 × the white-noise scatter of a window mean) (tolerances: gyro ``gyro_tol_deg_s``
-    [deg/s], accel ``accel_tol_m_s2`` [m/s²]: turning
-    or tilting); it is **disturbed** when the standard deviation inside the window of any axis exceeds
-    ``std_ratio`` × the median window's (vibration, handling). The log is static when no window moves
-    and at most ``max_disturbed_fraction`` of the windows are disturbed.
+    [deg/s], accel ``accel_tol_m_s2`` [m/s²]: turning or tilting); it is **disturbed** when the standard
+    deviation inside the window of any axis exceeds ``std_ratio`` × the median window's (vibration bursts,
+    handling).
 
-    Returns dict: static (bool), windows (count), moving / disturbed (counts), moving_spans_s /
-    disturbed_spans_s (up to 10 [start, end] spans on the input time scale), max_gyro_dev_deg_s,
-    max_accel_dev_m_s2, message (str, empty when static).
+    Consecutive moving windows form an event, sized by its largest window-mean departure (gyro [deg/s],
+    accel [m/s²]) and the rotation over it (the departures integrated, largest axis [deg]). An event is
+    **motion** when any exceeds ``motion_gyro_deg_s``, ``motion_angle_deg`` or ``motion_accel_m_s2`` (the
+    platform is moved: driving, turning, tilting), otherwise **slow motion** (a small, short rotation or
+    rocking: someone leaning on a parked car). Why the two are treated differently (see
+    :func:`characterise_imu`): the Allan variance at τ is the mean square change between successive
+    τ-averages over the whole log, so a short rate excursion a of duration D adds about a²τ²/(D·T_log) at
+    τ ≲ D (and a²D/T_log around τ ~ D): for a slow motion (a ≲ 1 deg/s, a fraction of a degree) that is a
+    small, reported bias of the white-noise region of a short log and is kept with a warning; motion
+    adds a rate change far above the sensor noise at every τ and is never analysed.
+
+    The log is static when no window moves and at most ``max_disturbed_fraction`` of the windows are
+    disturbed; it is **usable** when it holds no motion event and at most that fraction is disturbed
+    (slow motion only: kept, with the warning in ``warnings``).
+
+    Returns dict: static, usable (bool), windows (count), window_s, moving / disturbed (counts),
+    moving_spans_s / disturbed_spans_s (up to 10 [start, end] spans on the input time scale), events
+    (list of dicts: start_s, end_s, kind "motion" | "slow motion", peak_gyro_deg_s, angle_deg,
+    peak_accel_m_s2), motion_free_spans_s (the spans between motion events, each shortened by one window
+    at a motion event; longest first), max_gyro_dev_deg_s, max_accel_dev_m_s2, warnings (list of str),
+    message (str, empty when usable).
     """
-    y = np.asarray(rates, float)
+    y = np.ascontiguousarray(rates, dtype=float)
     w = max(10, int(round(window_s * fs)))
     nw = len(y) // w
+    wdt = w / fs
+    t_end = t_start + len(y) / fs
     if nw < 3:
-        return {"static": True, "windows": nw, "moving": 0, "disturbed": 0, "moving_spans_s": [],
-                "disturbed_spans_s": [], "max_gyro_dev_deg_s": 0.0, "max_accel_dev_m_s2": 0.0,
-                "message": "", "note": "log too short for the static check (fewer than 3 windows)"}
-    blk = y[:nw * w].reshape(nw, w, y.shape[1])
-    mean = blk.mean(axis=1)
-    std = blk.std(axis=1)
+        return {"static": True, "usable": True, "windows": nw, "window_s": wdt, "moving": 0, "disturbed": 0,
+                "moving_spans_s": [], "disturbed_spans_s": [], "events": [],
+                "motion_free_spans_s": [[t_start, t_end]], "max_gyro_dev_deg_s": 0.0,
+                "max_accel_dev_m_s2": 0.0, "warnings": [], "message": "",
+                "note": "log too short for the static check (fewer than 3 windows)"}
+    mean, std = _window_stats(y, w, nw)
     med = np.median(mean, axis=0)
-    dev = np.abs(mean - med)
+    sdev = mean - med
+    dev = np.abs(sdev)
     mad = 1.4826 * np.median(dev, axis=0)
     tol = np.r_[np.full(3, gyro_tol_deg_s * DEG), np.full(3, accel_tol_m_s2)]
     floor = np.r_[np.full(3, 1e-3 * DEG), np.full(3, 1e-3)]
@@ -951,92 +1254,371 @@ def static_check(rates, fs: float, t_start: float = 0.0, window_s: float = 1.0,
     # vibrating (but parked) vehicle is not "moving" because of that scatter (6σ)
     moving = np.any(dev > np.maximum(np.maximum(tol, 8.0 * mad), 6.0 * sref / np.sqrt(w)), axis=1)
     disturbed = np.any(std > std_ratio * sref, axis=1)
-    wdt = w / fs
+
+    def runs(mask):
+        idx = np.flatnonzero(mask)
+        if not len(idx):
+            return []
+        br = np.flatnonzero(np.diff(idx) > 1)
+        return list(zip(np.r_[idx[0], idx[br + 1]].tolist(), np.r_[idx[br], idx[-1]].tolist(), strict=True))
 
     def spans(mask):
-        idx = np.flatnonzero(mask)
-        out = []
-        if len(idx):
-            br = np.flatnonzero(np.diff(idx) > 1)
-            for s_, e_ in zip(np.r_[idx[0], idx[br + 1]], np.r_[idx[br], idx[-1]], strict=True):
-                out.append([t_start + s_ * wdt, t_start + (e_ + 1) * wdt])
-        return out
+        return [[t_start + a * wdt, t_start + (b + 1) * wdt] for a, b in runs(mask)]
 
+    events = []
+    motion = np.zeros(nw, bool)
+    for a, b in runs(moving):
+        pg = float(dev[a:b + 1, :3].max() / DEG)
+        ang = float(np.abs(sdev[a:b + 1, :3].sum(axis=0)).max() * wdt / DEG)
+        pa = float(dev[a:b + 1, 3:].max())
+        kind = "motion" if (pg > motion_gyro_deg_s or ang > motion_angle_deg or pa > motion_accel_m_s2) \
+            else "slow motion"
+        if kind == "motion":
+            motion[max(0, a - 1):b + 2] = True  # one window of margin on each side
+        events.append({"start_s": t_start + a * wdt, "end_s": t_start + (b + 1) * wdt, "kind": kind,
+                       "peak_gyro_deg_s": pg, "angle_deg": ang, "peak_accel_m_s2": pa})
+    free = []
+    for a, b in runs(~motion):
+        lo = t_start if a == 0 else t_start + a * wdt
+        hi = t_end if b == nw - 1 else t_start + (b + 1) * wdt
+        free.append([lo, hi])
+    free.sort(key=lambda s: s[0] - s[1])
     ms, ds = spans(moving), spans(disturbed)
     static = (not moving.any()) and disturbed.mean() <= max_disturbed_fraction
-    res = {"static": bool(static), "windows": int(nw), "moving": int(moving.sum()),
-           "disturbed": int(disturbed.sum()), "moving_spans_s": ms[:10], "disturbed_spans_s": ds[:10],
+    usable = (not motion.any()) and disturbed.mean() <= max_disturbed_fraction
+    res = {"static": bool(static), "usable": bool(usable), "windows": int(nw), "window_s": wdt,
+           "moving": int(moving.sum()), "disturbed": int(disturbed.sum()), "moving_spans_s": ms[:10],
+           "disturbed_spans_s": ds[:10], "events": events[:20], "motion_free_spans_s": free[:10],
            "max_gyro_dev_deg_s": float(dev[:, :3].max() / DEG), "max_accel_dev_m_s2": float(dev[:, 3:].max()),
-           "message": ""}
-    if not static:
+           "warnings": [], "message": ""}
+    for e in events:
+        if e["kind"] == "slow motion":
+            res["warnings"].append(
+                f"slow motion at {e['start_s']:.1f}-{e['end_s']:.1f} s: window means depart by up to "
+                f"{e['peak_gyro_deg_s']:.3g} deg/s gyro ({e['angle_deg']:.2g} deg of rotation) and "
+                f"{e['peak_accel_m_s2']:.3g} m/s2 accel (thresholds of motion {motion_gyro_deg_s:g} deg/s, "
+                f"{motion_angle_deg:g} deg, {motion_accel_m_s2:g} m/s2): kept; it raises the Allan deviation "
+                f"of the affected axes at tau of about {e['end_s'] - e['start_s']:.3g} s and longer")
+    if not usable:
         parts = []
-        if moving.any():
-            parts.append(f"it moves in {moving.sum()} of {nw} windows of {wdt:g} s (window means depart from "
-                         f"the median by up to {res['max_gyro_dev_deg_s']:.3g} deg/s gyro, "
-                         f"{res['max_accel_dev_m_s2']:.3g} m/s2 accel; first spans "
-                         + ", ".join(f"{a:.1f}-{b:.1f} s" for a, b in ms[:3]) + ")")
+        mot = [e for e in events if e["kind"] == "motion"]
+        if mot:
+            parts.append(f"it moves in {len(mot)} span(s) (window means depart from the median by up to "
+                         f"{max(e['peak_gyro_deg_s'] for e in mot):.3g} deg/s gyro, "
+                         f"{max(e['peak_accel_m_s2'] for e in mot):.3g} m/s2 accel; first spans "
+                         + ", ".join(f"{e['start_s']:.1f}-{e['end_s']:.1f} s" for e in mot[:3]) + ")")
         if disturbed.mean() > max_disturbed_fraction:
             parts.append(f"{disturbed.sum()} of {nw} windows are disturbed (in-window spread above "
                          f"{std_ratio:g} x the typical; first spans "
                          + ", ".join(f"{a:.1f}-{b:.1f} s" for a, b in ds[:3]) + ")")
+        sugg = ", ".join(f"{a:.1f}-{b:.1f} s" for a, b in free[:3])
         res["message"] = ("the log is not static: " + "; ".join(parts)
-                          + ". Allan analysis needs a static log: choose a static part with "
-                          "--static START:END")
+                          + ". Allan analysis needs a static log: the longest parts without motion are "
+                          f"{sugg}; choose a static part with --static START:END")
     return res
 
 
 # ------------------------------------------------------------------------------------------ drivers
+def resampled_min_m(n: int) -> int:
+    """First cluster size fitted on a resampled log of ``n`` samples.
+
+    Cumulative-sum resampling lowers the white part of the Allan variance at m intervals by about
+    1/(6m); the estimate at m scatters by about √(2/ν) with ν ≈ 1.5 n/m degrees of freedom (white noise).
+    The bias stays below a quarter of that scatter from m³ ≥ n/3 on: the smallest power of two with it,
+    at least 8 (a 2% bias) and at most ``RESAMPLED_MIN_M`` (64: a 2-h log at 100 Hz)."""
+    m = 8
+    while m < RESAMPLED_MIN_M and m**3 < n / 3.0:
+        m *= 2
+    return m
+
+
+def trapezoid_samples(imu: ImuData) -> np.ndarray:
+    """The sensor's point samples (N, 6) [rad/s, m/s²] behind trapezoid increments.
+
+    Raw logs of point-sampled rates are read as Δθ_k = ½(ω_{k−1} + ω_k)(t_k − t_{k−1}) and Δθ_0 = ω_0
+    (t_0 − t0) (:func:`aidnav.io.logs.read_rtklibexplorer_imu`); the exact inverse is
+    ω_k = 2Δθ_k/Δt_k − ω_{k−1}, i.e. ω_k = (−1)^k Σ_{j≤k} (−1)^j r_j with r_0 = Δθ_0/Δt_0 and
+    r_j = 2Δθ_j/Δt_j (rounding error ~1e-16 × |r| × √k). The trapezoid averages neighbouring samples
+    (gain cos(π f Δt) at frequency f): a vibration near the Nyquist frequency is much weaker in the
+    increments than in the sensor's output, which is what a data sheet or a vibration spec quotes."""
+    t = np.asarray(imu.time, float)
+    dt = np.diff(t, prepend=imu.t0 if imu.t0 is not None else 2 * t[0] - t[1])
+    out = np.empty((len(t), 6))
+    sign = np.where(np.arange(len(t)) % 2 == 0, 1.0, -1.0)
+    for c in range(6):
+        inc = imu.dtheta[:, c] if c < 3 else imu.dv[:, c - 3]
+        r = 2.0 * inc / dt
+        r[0] = inc[0] / dt[0]
+        out[:, c] = sign * np.cumsum(sign * r)
+    return out
+
+
+def _psd_peak(x: np.ndarray, fs: float, f_min: float = 1.0, nseg: int = 512, max_segs: int = 256):
+    """Dominant frequency [Hz] above ``f_min`` of one channel (Welch: Hann windows of ``nseg`` samples, at
+    most ``max_segs`` of them spread over the record) and the fraction of the variance above ``f_min``
+    that lies within ±1 Hz of it. (nan, nan) when the record is too short."""
+    x = np.asarray(x, float)
+    nseg = min(nseg, 1 << int(math.floor(math.log2(max(len(x), 2)))))
+    if nseg < 32:
+        return math.nan, math.nan
+    n_avail = (len(x) - nseg) // (nseg // 2) + 1
+    starts = np.linspace(0, len(x) - nseg, min(max_segs, n_avail)).astype(np.int64)
+    seg = x[starts[:, None] + np.arange(nseg)]
+    seg = seg - seg.mean(axis=1, keepdims=True)
+    p = (np.abs(np.fft.rfft(seg * np.hanning(nseg), axis=1)) ** 2).mean(axis=0)
+    f = np.fft.rfftfreq(nseg, 1.0 / fs)
+    hi = f > f_min
+    if not hi.any() or p[hi].sum() <= 0:
+        return math.nan, math.nan
+    fp = float(f[hi][np.argmax(p[hi])])
+    share = float(p[hi & (np.abs(f - fp) <= 1.0)].sum() / p[hi].sum())
+    return fp, share
+
+
+VIBRATION_RATIO = 2.0  #: sample spread above this × the white noise's (N·√fs) is reported as vibration
+#: ... and so is a spectrum with more than this share of its variance above 1 Hz within ±1 Hz of its peak
+#: (white noise: about 2 Hz / (fs/2), 4% at 100 Hz; an engine's vibration: most of it)
+VIBRATION_SHARE = 0.25
+
+
+def vibration_report(rates, fs: float, axes: list[AxisFit], sensor: dict | None = None) -> dict:
+    """Spread of the samples against the fitted white noise, per axis: vibration, reported.
+
+    rates : (M, 6) analysed uniform rates [rad/s, m/s²] at ``fs``; axes : the fits (their white term N);
+    sensor : optional {"std": (6,), "peak_hz": (6,), "share": (6,), "what": str} of the sensor's own
+    samples when they differ from the analysed rates (resampled or trapezoid increments).
+
+    White rate noise of density N sampled at fs has a standard deviation N·√fs. A sample spread well above
+    it (ratio > ``VIBRATION_RATIO``; N: the fitted value or its upper bound), or a spectrum concentrated at
+    one frequency (share > ``VIBRATION_SHARE``), is vibration (engine, pumps, fans): zero-mean, at
+    frequencies above the τ the fit uses, so it shows in the Allan deviation at the shortest τ (a hump
+    near τ ~ 1/(2f), then a −1 slope) and not in the fitted terms. Reported per axis: std [deg/s | m/s²]
+    of the analysed rates and of the sensor samples, the white-noise std, their ratio, the dominant
+    frequency above 1 Hz and the share of the variance within ±1 Hz of it."""
+    y = np.ascontiguousarray(rates, dtype=float)
+    _, std_a = _window_stats(y, len(y), 1)
+    std_a = std_a[0]
+    if sensor is None:
+        std_s = std_a
+        pk = [_psd_peak(y[:, c], fs) for c in range(6)]
+        what = "analysed rates (the sensor's samples)"
+    else:
+        std_s = np.asarray(sensor["std"], float)
+        pk = list(zip(sensor["peak_hz"], sensor["share"], strict=True))
+        what = sensor["what"]
+    out = {"samples": what, "ratio_threshold": VIBRATION_RATIO, "axes": {}, "detected": []}
+    for c, a in enumerate(axes):
+        g = a.sensor == "gyro"
+        f, unit = (DEG, "deg_s") if g else (1.0, "m_s2")
+        w = a.terms["white"]
+        n_ref = w.value if w.fitted else (w.upper if w.upper is not None else math.sqrt(max(a.coef[1], 0.0)))
+        white_std = n_ref * math.sqrt(fs)
+        ratio = float(std_s[c] / white_std) if white_std > 0 else None
+        share = pk[c][1]
+        vib = bool((ratio is not None and ratio > VIBRATION_RATIO)
+                   or (math.isfinite(share) and share > VIBRATION_SHARE))
+        d = {f"std_{unit}": float(std_s[c] / f), f"analysed_std_{unit}": float(std_a[c] / f),
+             f"white_noise_std_{unit}": float(white_std / f), "ratio": ratio,
+             "peak_hz": _json_float(pk[c][0]), "peak_share": _json_float(share), "vibration": vib}
+        out["axes"][a.axis] = d
+        if d["vibration"]:
+            out["detected"].append(a.axis)
+    return out
+
+
+def _vibration_text(vib: dict) -> str:
+    parts = []
+    for ax in vib["detected"]:
+        d = vib["axes"][ax]
+        unit = "deg/s" if ax.startswith("gyro") else "m/s2"
+        k = "std_deg_s" if ax.startswith("gyro") else "std_m_s2"
+        pk = "" if d["peak_hz"] is None else \
+            f" at {d['peak_hz']:.3g} Hz ({d['peak_share']:.0%} of it within 1 Hz)"
+        rt = "" if d["ratio"] is None else f", {d['ratio']:.3g} x the white noise"
+        parts.append(f"{ax} {d[k]:.3g} {unit}{pk}{rt}")
+    return ("vibration (zero-mean, above the fitted tau; it shows as the hump and -1 slope of the Allan "
+            f"deviation at the shortest tau, not in the fitted terms), std of the {vib['samples']}: "
+            + "; ".join(parts))
+
+
 def characterise_rates(rates, fs: float, t_start: float = 0.0, min_m: int = 1, check_static: bool = True,
-                       notes: list[str] | None = None, resampled: bool = False) -> Characterisation:
+                       notes: list[str] | None = None, resampled: bool = False,
+                       white_only: bool | None = None, sensor: dict | None = None,
+                       warnings: list[str] | None = None,
+                       workers: int | None = None, time_origin: float = 0.0,
+                       timings: dict | None = None) -> Characterisation:
     """Characterise uniformly sampled rates (the Python API on arrays).
 
     rates : (M, 6) gyro x, y, z [rad/s] then accel x, y, z [m/s²], body frame, uniform at ``fs`` [Hz]
     (sample k is the average over (t_start + k/fs, t_start + (k+1)/fs]).
     min_m : smallest cluster size fitted. check_static : raise :class:`NotStaticError` when
-    :func:`static_check` says the log moves.
+    :func:`static_check` finds motion (slow motion is kept, with a warning). white_only : see
+    :func:`fit_allan`. sensor : statistics of the sensor's own samples for :func:`vibration_report`.
+    workers : threads (None: one per CPU); each axis's Allan deviation (allantools) and fit run together.
+    time_origin : the static check's spans and messages are in seconds after it [s]
+    (``static["time_origin_s"]``). timings : a dict that receives the wall time of the stages [s].
     Returns a :class:`Characterisation` (ADEV at octave-spaced τ = 2^j/fs and the fitted terms, SI).
     """
-    from aidnav.analysis.allan import allan_deviation
+    import os
+    from concurrent.futures import ThreadPoolExecutor
+
+    from aidnav.analysis.allan import allan_deviation, reuse_freed_memory
 
     y = np.asarray(rates, float)
     if y.ndim != 2 or y.shape[1] != 6:
         raise ValueError(f"characterise_rates: rates must be (M, 6), got {y.shape}")
-    if not np.all(np.isfinite(y)):
-        raise ValueError("characterise_rates: rates contain NaN or inf")
     notes = list(notes or [])
+    warns = list(warnings or [])
     n = len(y)
     dur = n / fs
     if n < 64:
         raise ValueError(f"characterise: only {n} samples ({dur:.3g} s); need at least 64")
-    st = static_check(y, fs, t_start)
-    if check_static and not st["static"]:
+    if not np.isfinite(y).all():
+        raise ValueError("characterise_rates: rates contain NaN or inf")
+    stg = _Stages(timings)
+    st = static_check(y, fs, t_start - time_origin)
+    st["time_origin_s"] = float(time_origin)
+    if check_static and not st["usable"]:
         raise NotStaticError(st["message"])
     if st.get("note"):
         notes.append(st["note"])
-    if st["disturbed"] and st["static"]:
+    warns += st["warnings"]
+    if st["disturbed"] and st["usable"]:
         notes.append(f"{st['disturbed']} of {st['windows']} one-second windows are disturbed (vibration or "
                      "handling); kept")
-    taus, adev, _, _ = allan_deviation(y, fs, taus="octave")
-    axes = [fit_allan(taus, adev[:, c], n, fs, axis=AXES[c], min_m=min_m) for c in range(6)]
+    stg.lap("static check")
+    if white_only is None:
+        n_fit = sum(1 for k in range(int(math.log2(n)) + 1) if 2**k >= min_m and n >= MIN_CLUSTERS * 2**k)
+        white_only = n_fit < MIN_FULL_POINTS
+
+    def one_axis(c):
+        taus, adev, _, _ = allan_deviation(y[:, c], fs, taus="octave", workers=1)
+        return fit_allan(taus, adev, n, fs, axis=AXES[c], min_m=min_m, white_only=white_only)
+
+    nw = max(1, min(6, workers if workers is not None else (os.cpu_count() or 1)))
+    with reuse_freed_memory():  # allantools' full-length temporaries: no page faults for each
+        if nw == 1:
+            axes = [one_axis(c) for c in range(6)]
+        else:
+            with ThreadPoolExecutor(max_workers=nw) as ex:
+                axes = list(ex.map(one_axis, range(6)))
+    stg.lap("Allan deviation (allantools) + fit, per axis in threads")
     for a in axes:
         notes += a.notes
     t_fit = max(float(a.taus[a.used][-1]) for a in axes)
-    notes.append(f"{dur:.6g} s of data: terms whose Allan signature lies beyond tau ~ {t_fit:.4g} s (the "
-                 f"longest tau with {MIN_CLUSTERS} independent clusters, the last one fitted) cannot be "
-                 "resolved")
+    if white_only:
+        t0_fit = min(float(a.taus[a.used][0]) for a in axes)
+        warns.append(f"white noise only: {dur:.3g} s of data resolve the white terms (ARW / VRW, fitted on "
+                     f"tau {t0_fit:.3g}-{t_fit:.3g} s); the bias instability and the random walk are not "
+                     f"resolvable in {dur:.3g} s (they need a log many times longer than their correlation "
+                     "time): imu.yaml takes grade defaults for them")
+    else:
+        notes.append(f"{dur:.6g} s of data: terms whose Allan signature lies beyond tau ~ {t_fit:.4g} s (the "
+                     f"longest tau with {MIN_CLUSTERS} independent clusters, the last one fitted) cannot be "
+                     "resolved")
+    vib = vibration_report(y, fs, axes, sensor)
+    if vib["detected"]:
+        warns.append(_vibration_text(vib))
+        for a in axes:  # with vibration, a slope −1 at the short τ is its tail, not quantisation
+            qt = a.terms["quantisation"]
+            if a.axis in vib["detected"] and qt.fitted:
+                a.terms["quantisation"] = TermEstimate(
+                    "not resolved", upper=qt.hi, note=f"the slope -1 part of the fit ({qt.value:.3g}) is the "
+                    "vibration's tail, not quantisation; kept in the model as a nuisance")
+    notes += [w for w in warns if w not in notes]
+    stg.lap("vibration report")
     return Characterisation(axes=axes, fs_hz=float(fs), n_samples=n, duration_s=dur,
                             span_s=(float(t_start), float(t_start + dur)), resampled=resampled, static=st,
-                            notes=notes)
+                            notes=notes, warnings=warns, vibration=vib, white_only=bool(white_only))
+
+
+def _longest_static(rates, fs: float, t_rel: float, resampled: bool, st: dict,
+                    chosen: bool = False) -> tuple[int, int]:
+    """Sample range [i0, i1) of the longest static part of ``rates`` (not usable as a whole: ``st``).
+
+    chosen : the rates are a part the user chose as static: its own motion-free spans (``st``) are
+    candidates too (its median level is the parked one; small disturbances in it are kept and reported).
+    Candidates are (also) the runs of quiet one-second windows (the in-window spread of every axis within
+    4 × its 5th percentile over the windows: a moving vehicle shakes far more than a parked one,
+    engine vibration included), less one window at each end that borders a loud one; each is checked
+    with :func:`static_check` on its own level (the median window of a mostly moving log says nothing of
+    the parked level) and cut down to its longest part without motion. Raises :class:`NotStaticError`
+    (naming the candidates) when none is long enough to fit."""
+    y = np.ascontiguousarray(rates, dtype=float)
+    n = len(y)
+    w = max(10, int(round(fs)))
+    nw = n // w
+    cands = []
+    if nw >= 3:
+        _, std = _window_stats(y, w, nw)
+        floor = np.r_[np.full(3, 1e-3 * DEG), np.full(3, 1e-3)] / 4.0
+        ref = np.maximum(np.percentile(std, 5, axis=0), floor)
+        quiet = np.all(std <= 4.0 * ref, axis=1)
+        idx = np.flatnonzero(quiet)
+        if len(idx):
+            br = np.flatnonzero(np.diff(idx) > 1)
+            for a, b in zip(np.r_[idx[0], idx[br + 1]], np.r_[idx[br], idx[-1]], strict=True):
+                s0 = int(a + (a > 0)) * w
+                s1 = n if b == nw - 1 else int(b) * w
+                if s1 > s0:
+                    cands.append((s0, s1))
+    if chosen:
+        for lo, hi in st["motion_free_spans_s"]:
+            cands.append((max(0, int(round((lo - t_rel) * fs))), min(n, int(round((hi - t_rel) * fs)))))
+    cands.sort(key=lambda c: c[0] - c[1])
+    best = None
+    for s0, s1 in cands:
+        if best is not None and s1 - s0 <= best[1] - best[0]:
+            break
+        for _ in range(3):
+            sub = static_check(y[s0:s1], fs, t_rel + s0 / fs)
+            if sub["usable"] or not any(e["kind"] == "motion" for e in sub["events"]):
+                break
+            lo, hi = sub["motion_free_spans_s"][0]
+            s0, s1 = max(s0, int(round((lo - t_rel) * fs))), min(s1, int(round((hi - t_rel) * fs)))
+        need = max(64, 12 * (resampled_min_m(s1 - s0) if resampled else 1))
+        if sub["usable"] and s1 - s0 >= need and (best is None or s1 - s0 > best[1] - best[0]):
+            best = (s0, s1)
+    if best is None:
+        spans = ", ".join(f"{t_rel + a / fs:.1f}-{t_rel + b / fs:.1f} s" for a, b in cands[:3]) or "none"
+        raise NotStaticError(st["message"].split(". Allan analysis")[0]
+                             + f". No static part is long enough to analyse (quiet parts: {spans}; times in "
+                             "s after the first sample); choose a static part with --static START:END")
+    return best
 
 
 def characterise_imu(imu: ImuData, static: tuple[float | None, float | None] | None = None,
-                     check_static: bool = True) -> Characterisation:
+                     check_static: bool = True, increments: str = "interval",
+                     workers: int | None = None, timings: dict | None = None) -> Characterisation:
     """Characterise an IMU log (increments with their own Δt; rates, any rate, jitter and gaps allowed).
 
     static : (start, end) [s] after the log's first time stamp (either None = open) to analyse only that
-    part. Gaps → the longest gap-free part (reported); jitter → cumulative-sum resampling (reported).
+    part; None = the whole log. Gaps → the longest gap-free part (reported); jitter → cumulative-sum
+    resampling (reported).
+
+    Motion (check_static). The part is checked by :func:`static_check`. Motion (driving, turning,
+    tilting: rates or tilts far above the sensor noise) is never analysed: the longest part without it is
+    (the part chosen with ``static`` included), and the motion is reported with its time and size, as
+    gaps are; with no part long enough, :class:`NotStaticError` names the spans. Slow motion (a small,
+    short rotation or rocking, below ``MOTION_GYRO_DEG_S`` / ``MOTION_ANGLE_DEG`` / ``MOTION_ACCEL_M_S2``)
+    is kept with a warning: cutting it out would shorten a short log further (or split it), and its effect
+    is bounded and stated: a rate excursion a of duration D adds about a²τ²/(D·T_log) to the Allan
+    variance at τ ≲ D, a small part of the white-noise region that a short log's fit uses, and it enters
+    the reported intervals through the fit's dispersion. Vibration (zero-mean, large sample spread) is
+    not motion: it is kept and reported by :func:`vibration_report` (std per axis, dominant frequency).
+
+    workers, timings : see :func:`characterise_rates` (timings: wall time of the stages [s]).
+    increments : how the increments relate to the sensor's samples, for the vibration report only:
+    "interval" (Δθ/Δt is the sensor's output: rate logs, simulated increments) or "trapezoid"
+    (Δθ_k = ½(ω_{k−1} + ω_k)Δt_k, as raw rtklibexplorer logs are read; :func:`trapezoid_samples`).
     """
+    if increments not in ("interval", "trapezoid"):
+        raise ValueError(f"increments must be 'interval' or 'trapezoid', got {increments!r}")
+    stg = _Stages(timings)
     notes = list(imu.events)
+    warns: list[str] = []
+    base0 = float(imu.time[0])
+    samples = trapezoid_samples(imu) if increments == "trapezoid" else None
     if static is not None:
         a, b = static
         base = float(imu.time[0])
@@ -1048,12 +1630,51 @@ def characterise_imu(imu: ImuData, static: tuple[float | None, float | None] | N
         idx = np.flatnonzero(m)
         t0 = imu.time[idx[0] - 1] if idx[0] > 0 else imu.t0
         imu = ImuData(imu.time[m], imu.dtheta[m], imu.dv[m], t0=t0)
+        if samples is not None:
+            samples = samples[m]
         notes.append(f"static part {a or 0:g}-{'end' if b is None else f'{b:g}'} s after the first sample "
                      "analysed")
     rates, dt, t_start, resampled, n2 = uniform_rates(imu)
     notes += n2
-    return characterise_rates(rates, 1.0 / dt, t_start=t_start, min_m=RESAMPLED_MIN_M if resampled else 1,
-                              check_static=check_static, notes=notes, resampled=resampled)
+    fs = 1.0 / dt
+    stg.lap("uniform rates")
+    if check_static:
+        st = static_check(rates, fs, t_start - base0)
+        if not st["usable"]:
+            i0, i1 = _longest_static(rates, fs, t_start - base0, resampled, st, chosen=static is not None)
+            why = st["message"].split(": ", 1)[1].split(". Allan analysis")[0]
+            what = "chosen part" if static is not None else "log"
+            warns.append(f"the {what} is not static ({why}; times in s after the first sample): analysed "
+                         "its longest static part, "
+                         f"{t_start - base0 + i0 * dt:.1f}-{t_start - base0 + i1 * dt:.1f} s "
+                         f"({100.0 * (i1 - i0) / len(rates):.0f}% of its samples); motion is never analysed")
+            rates = rates[i0:i1]
+            t_start = t_start + i0 * dt
+    stg.lap("static check")
+    min_m = resampled_min_m(len(rates)) if resampled else 1
+    if resampled:
+        notes.append(f"resampled log of {len(rates)} samples: the fit starts at tau = {min_m} intervals (the "
+                     "resampling bias 1/(6m) of the white part is then below a quarter of the scatter)")
+    sensor = None
+    if samples is not None or resampled:
+        t_hi = t_start + len(rates) * dt
+        sel = (imu.time > t_start + 0.5 * dt) & (imu.time <= t_hi + 0.5 * dt)
+        if samples is not None:
+            x = samples[sel]
+            what = "sensor's samples (trapezoid increments inverted)"
+        else:
+            dts = np.diff(imu.time, prepend=imu.t0)[sel]
+            x = np.column_stack([imu.dtheta[sel], imu.dv[sel]]) / dts[:, None]
+            what = "sensor's samples (increments / their own intervals)"
+        if len(x) >= 3:
+            pk = [_psd_peak(x[:, c], fs) for c in range(6)]
+            sensor = {"std": x.std(axis=0), "peak_hz": [p[0] for p in pk], "share": [p[1] for p in pk],
+                      "what": what}
+        stg.lap("sensor samples")
+    imu = samples = None  # the log is no longer needed (memory: the caller holds no reference either)
+    return characterise_rates(rates, fs, t_start=t_start, min_m=min_m, check_static=check_static, notes=notes,
+                              resampled=resampled, sensor=sensor, warnings=warns, workers=workers,
+                              time_origin=base0, timings=timings)
 
 
 # ------------------------------------------------------------------------------------------ outputs
@@ -1096,7 +1717,13 @@ def noise_dict(ch: Characterisation) -> dict:
         axes[a.axis] = d
     return {
         "samples": ch.n_samples, "rate_hz": ch.fs_hz, "duration_s": ch.duration_s, "span_s": list(ch.span_s),
-        "resampled": ch.resampled, "static_check": ch.static,
+        "resampled": ch.resampled,
+        "fit": ("white noise only: quantisation and white noise (ARW / VRW) fitted on the short-tau part; "
+                "the bias instability and the random walk are not resolvable in "
+                f"{ch.duration_s:.3g} s of data"
+                if ch.white_only else "full model: quantisation, white noise, Gauss-Markov bias instability, "
+                "random walk"),
+        "warnings": ch.warnings, "vibration": ch.vibration, "static_check": ch.static,
         "conventions": {
             "units": "gyro: deg/sqrt(h), deg/h, deg/h/sqrt(h), rad; accel: m/s/sqrt(h), ug, ug/sqrt(h), m/s",
             "ci95": "95% profile-likelihood interval; each Allan variance a chi-square variable whose "
@@ -1209,8 +1836,10 @@ def imu_section(ch: Characterisation, grade: str | None = None) -> tuple[dict, d
         rkey, skey = f"{p}_bias_rw_{rwsuf}", f"{p}_bias_sigma_{bsuf}"
 
         w, wtxt = _fitted_max(axes, "white", wunit)
+        wo = (f" (white noise only, from the short-tau part of {ch.duration_s:.3g} s of data)"
+              if ch.white_only else "")
         if w is not None:
-            vals[wkey], com[wkey] = w / wunit, f"fitted, largest axis: {wtxt}"
+            vals[wkey], com[wkey] = w / wunit, f"fitted, largest axis: {wtxt}{wo}"
         else:
             vals[wkey] = gu[wkey]
             com[wkey] = f"grade default ({grade}): not resolved on any axis ({wtxt})"
@@ -1253,10 +1882,15 @@ def imu_section(ch: Characterisation, grade: str | None = None) -> tuple[dict, d
             ubs = [a.terms["bias_instability"].upper for a in axes]
             bound = ("B below " + _fmt(max(ubs) / bunit) + f" {bname} (95%)") if None not in ubs else \
                 "no upper bound on B"
-            com[ikey] = (f"grade default ({grade}): the log is too short (or too noisy) to resolve the bias "
+            com[ikey] = (f"grade default ({grade}): not resolvable in {ch.duration_s:.3g} s of data (white "
+                         "noise only was fitted)" if ch.white_only else
+                         f"grade default ({grade}): the log is too short (or too noisy) to resolve the bias "
                          f"instability ({stxt}; {bound})")
-            com[tkey] = f"grade default ({grade})"
-            com[rkey] = f"random walk not resolved ({ktxt}); unused while {tkey} > 0"
+            com[tkey] = f"grade default ({grade})" + (" (not resolvable in this log)" if ch.white_only
+                                                       else "")
+            com[rkey] = (f"random walk not resolvable in {ch.duration_s:.3g} s of data; unused while "
+                         f"{tkey} > 0" if ch.white_only else
+                         f"random walk not resolved ({ktxt}); unused while {tkey} > 0")
         tb = gu[f"{p}_bias_{bsuf}"]
         vals[skey] = math.hypot(tb, vals[ikey])
         com[skey] = (f"turn-on bias {_fmt(tb)} {bname}: grade default ({grade}), one static log cannot show "
@@ -1274,22 +1908,89 @@ def imu_yaml(ch: Characterisation, grade: str | None = None, source: str = "") -
             f"# ({ch.n_samples} samples at {ch.fs_hz:.6g} Hz, {ch.duration_s:.6g} s). Values per axis in "
             "brackets are 95% intervals.",
             "# One value per triad: the largest axis noise and sigma, the shortest correlation time."]
+    if ch.white_only:
+        head.append(f"# White noise only: {ch.duration_s:.3g} s of data resolve ARW / VRW; the bias "
+                    "instability, its correlation time and the random walk are grade defaults (not "
+                    "resolvable in this log).")
+    for w in ch.warnings:
+        if not w.startswith("white noise only"):
+            head.append("# warning: " + w)
     lines = ["imu:"]
     for k, v in vals.items():
         lines.append(f"  {k}: {v!r}  # {com[k]}")
     return "\n".join(head + lines) + "\n"
 
 
-def characterise_file(imu_path, out_dir, static: str | None = None, grade: str | None = None) -> tuple:
+def _increment_rule(path) -> str:
+    """How :func:`aidnav.process.read_imu_any` forms the increments of this file: "trapezoid" for a raw
+    rtklibexplorer CSV (point samples of the rates; :func:`aidnav.io.logs.read_rtklibexplorer_imu`),
+    "interval" for interchange files (rates × Δt or increments as given)."""
+    path = Path(path)
+    if path.suffix.lower() in (".parquet", ".pq"):
+        return "interval"
+    try:
+        with open(path, "rb") as f:
+            head = f.read(4096).decode("utf-8", "replace")
+    except OSError:
+        return "interval"
+    first = next((ln for ln in head.splitlines() if ln.strip() and not ln.startswith("#")), "")
+    return "interval" if "time" in first else "trapezoid"
+
+
+def _warm_up() -> None:
+    """Import the analysis and plotting libraries and load the compiled kernels (numba's first call costs
+    a few tenths of a second): run in a thread while the log is read, so that it overlaps the reading."""
+    try:
+        import allantools  # noqa: F401  (scipy.stats, scipy.interpolate)
+        import matplotlib.backends.backend_agg  # noqa: F401
+        import matplotlib.figure  # noqa: F401
+        from scipy.optimize import brentq  # noqa: F401
+
+        import aidnav.report.allan_plot  # noqa: F401
+
+        tau = np.array([0.01, 0.02, 0.04])
+        _window_stats(np.zeros((20, 6)), 10, 2)
+        _avar_cov_nb(tau / 0.01, 100.0, 0.01, np.array([0.0, 1.0, 0.0, 0.0]), 1.0)
+        _profile_u_nb(tau, np.zeros(3), np.ones(3), np.eye(3), np.zeros(4, np.bool_), np.zeros(4), -1.0, 1.0,
+                      3, np.zeros(4), math.nan)
+    except Exception:  # noqa: BLE001  (a warm-up only: the analysis imports and compiles what it needs)
+        pass
+
+
+class _Stages:
+    """Wall time of the stages of :func:`characterise_file` into a dict (None: not recorded)."""
+
+    def __init__(self, out: dict | None):
+        import time
+
+        self.out, self._clock = out, time.perf_counter
+        self._t = self._clock()
+
+    def lap(self, name: str) -> None:
+        now = self._clock()
+        if self.out is not None:
+            self.out[name] = self.out.get(name, 0.0) + now - self._t
+        self._t = now
+
+
+def characterise_file(imu_path, out_dir, static: str | None = None, grade: str | None = None,
+                      timings: dict | None = None) -> tuple:
     """``aidnav characterise``: read any IMU log, characterise it, write allan.png, noise.json, imu.yaml.
 
-    static : "START:END" seconds after the first sample (either may be empty). Returns
-    (Characterisation, list of written paths). Raises :class:`NotStaticError` / ValueError with a clear
-    message for a moving log, bad option or unusable data.
-    """
-    from aidnav.process import read_imu_any
-    from aidnav.report.allan_plot import plot_allan
+    static : "START:END" seconds after the first sample (either may be empty); None: the whole log (its
+    longest static part when it moves: see :func:`characterise_imu`). timings : a dict that receives the
+    wall time of each stage [s]. Returns (Characterisation, list of written paths). Raises
+    :class:`NotStaticError` / ValueError with a clear message for a moving log, bad option or unusable data.
 
+    Speed: the analysis libraries are imported (and the compiled kernels loaded) in a thread while the
+    log is read; the reader holds no reference to the log after the analysis has taken its rates.
+    """
+    import sys
+    import threading
+
+    from aidnav.process import read_imu_any
+
+    st = _Stages(timings)
     rng = None
     if static:
         parts = static.split(":")
@@ -1302,8 +2003,26 @@ def characterise_file(imu_path, out_dir, static: str | None = None, grade: str |
                              ) from None
         if rng[0] is not None and rng[1] is not None and rng[1] <= rng[0]:
             raise ValueError(f"--static {static!r}: END must be after START")
-    imu = read_imu_any(imu_path)
-    ch = characterise_imu(imu, static=rng)
+    warm = threading.Thread(target=_warm_up, name="aidnav-characterise-warm-up", daemon=True)
+    warm.start()
+    st.lap("start")
+
+    def read():
+        imu = read_imu_any(imu_path)
+        pa = sys.modules.get("pyarrow")
+        if pa is not None and hasattr(pa, "default_memory_pool"):  # the Parquet/CSV buffers the reader freed
+            try:
+                pa.default_memory_pool().release_unused()
+            except AttributeError:
+                pass
+        st.lap("read")
+        warm.join()
+        st.lap("imports not overlapped by the reading")
+        return imu
+
+    # no reference to the log is held here: characterise_imu lets it go once it has the rates
+    ch = characterise_imu(read(), static=rng, increments=_increment_rule(imu_path), timings=timings)
+    st.lap("characterise")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     nd = noise_dict(ch)
@@ -1313,7 +2032,11 @@ def characterise_file(imu_path, out_dir, static: str | None = None, grade: str |
     p_json.write_text(json.dumps(nd, indent=2, allow_nan=False))
     p_yaml = out / "imu.yaml"
     p_yaml.write_text(imu_yaml(ch, nd["grade_for_defaults"], source=str(imu_path)))
+    st.lap("noise.json + imu.yaml")
+    from aidnav.report.allan_plot import plot_allan
+
     p_png = plot_allan(ch, out / "allan.png", title=f"Allan deviation: {Path(imu_path).name}")
+    st.lap("allan.png")
     return ch, [p_png, p_json, p_yaml]
 
 
@@ -1345,4 +2068,7 @@ def print_characterisation(ch: Characterisation, console=None) -> None:
         tab.add_row(*row)
     console.print(tab)
     for n in ch.notes:
-        console.print(f"note: {n}")
+        if n not in ch.warnings:
+            console.print(f"note: {n}")
+    for w in ch.warnings:
+        console.print(f"[bold yellow]warning:[/] {w}")

@@ -5,7 +5,12 @@ accelerometer ADEV in µg (CONVENTIONS boundary units). Each panel shows the ove
 chi-square interval (filled markers: fitted; open: shown only), the maximum-likelihood model, and each
 term's own ADEV with its slope: quantisation −1, white noise (ARW/VRW) −1/2, the Gauss-Markov bias
 instability (its bump; the dotted line at 0.6643·B is the flicker floor with the same height), random
-walk +1/2. Terms that the log does not resolve are drawn faint and marked "not resolved".
+walk +1/2. Terms that the log does not resolve are drawn faint and marked "not resolved" ("not
+resolvable" when only the white terms were fitted, a short log). Vibration found by the characterisation
+is named in the panel (std, frequency): it is the hump and −1 slope of the shortest τ, not fitted.
+
+Speed: a fixed layout (no constrained layout: it draws the figure twice) and the decade grid drawn as
+two line collections instead of minor ticks (hundreds of tick artists on six log axes).
 """
 
 from __future__ import annotations
@@ -16,6 +21,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.ticker import LogLocator, NullLocator
 
 __all__ = ["plot_allan"]
 
@@ -23,7 +29,7 @@ DPI = 120
 _COLORS = {"Q": "tab:purple", "N": "tab:green", "GM": "tab:orange", "K": "tab:red"}
 
 
-def _term_labels(a, sensor: str) -> dict:
+def _term_labels(a, sensor: str, span_s: float | None = None) -> dict:
     from aidnav.analysis import characterise as C
 
     if sensor == "gyro":
@@ -34,15 +40,21 @@ def _term_labels(a, sensor: str) -> dict:
              "GM": (C.UG, "µg", "bias instability B"), "K": (C.UG_SQRT_H, "µg/√h", "acc. RW")}
     keys = {"Q": "quantisation", "N": "white", "GM": "bias_instability", "K": "rrw"}
     slope = {"Q": "−1", "N": "−1/2", "GM": "bump", "K": "+1/2"}
+    white_only = getattr(a, "white_only", False)
     out = {}
     for t, k in keys.items():
         f, unit, name = u[t]
         te = a.terms[k]
         if te.fitted:
             txt = f"{name} {te.value / f:.3g} [{te.lo / f:.3g}, {te.hi / f:.3g}] {unit} (slope {slope[t]})"
+            if t == "N" and white_only:
+                txt += ", white noise only"
             if t == "GM":
                 tt = a.terms["gm_tau"]
                 txt += (f", T {tt.value:.3g} s" if tt.fitted else ", T not resolved")
+        elif white_only and t in ("GM", "K"):
+            txt = f"{name} not resolvable in {span_s:.3g} s (slope {slope[t]})" if span_s else \
+                f"{name} not resolvable (slope {slope[t]})"
         else:
             ub = "" if te.upper is None else f" < {te.upper / f:.3g} {unit}"
             txt = f"{name} not resolved{ub} (slope {slope[t]})"
@@ -50,14 +62,31 @@ def _term_labels(a, sensor: str) -> dict:
     return out
 
 
+def _decade_grid(ax, lo: float, hi: float, axis: str) -> None:
+    """Minor grid lines at 2..9 × 10^k between lo and hi (one line collection)."""
+    k0, k1 = math.floor(math.log10(lo)), math.ceil(math.log10(hi))
+    vals = [m * 10.0**k for k in range(k0, k1 + 1) for m in range(2, 10)]
+    vals = [v for v in vals if lo < v < hi]
+    if not vals:
+        return
+    if axis == "x":
+        ax.vlines(vals, 0, 1, transform=ax.get_xaxis_transform(), colors="0.5", lw=0.4, alpha=0.25, zorder=0)
+    else:
+        ax.hlines(vals, 0, 1, transform=ax.get_yaxis_transform(), colors="0.5", lw=0.4, alpha=0.25, zorder=0)
+
+
 def plot_allan(ch, path, title: str | None = None) -> Path:
     """Write the 2 × 3 panel Allan deviation figure of a characterisation
     (:class:`aidnav.analysis.characterise.Characterisation`) to ``path`` (PNG) and return the path."""
     from aidnav.analysis import characterise as C
 
-    fig = Figure(figsize=(16.0, 9.5), layout="constrained")
+    fig = Figure(figsize=(16.0, 9.5))
     FigureCanvasAgg(fig)
+    fig.subplots_adjust(left=0.05, right=0.99, bottom=0.06, top=0.92 if title else 0.95, wspace=0.17,
+                        hspace=0.25)
     axs = fig.subplots(2, 3, squeeze=False)
+    vib = getattr(ch, "vibration", None) or {}
+    span_s = getattr(ch, "duration_s", None)
     for i, a in enumerate(ch.axes):
         ax = axs[i // 3, i % 3]
         sensor = a.sensor
@@ -76,7 +105,7 @@ def plot_allan(ch, path, title: str | None = None) -> Path:
         tf = tau[u] if u.any() else tau  # the model is drawn over the fitted τ range
         tt = np.exp(np.linspace(math.log(tf[0]), math.log(tf[-1]), 200))
         ax.plot(tt, a.model_adev(tt) / f, color="k", lw=1.2, label="fitted model")
-        labels = _term_labels(a, sensor)
+        labels = _term_labels(a, sensor, span_s)
         for t in ("Q", "N", "GM", "K"):
             comp = a.model_adev(tt, t) / f
             fitted, txt = labels[t]
@@ -91,12 +120,26 @@ def plot_allan(ch, path, title: str | None = None) -> Path:
         ax.set_xscale("log")
         ax.set_yscale("log")
         ymin = max(np.nanmin(lo[lo > 0]) if np.any(lo > 0) else y.min(), 1e-300) / 3.0
-        ax.set_ylim(ymin, np.nanmax(hi) * 3.0)
+        ymax = np.nanmax(hi) * 3.0
+        xmin, xmax = tau[0] / 1.5, tau[-1] * 1.5
+        ax.set_xlim(xmin, xmax)
+        ax.set_ylim(ymin, ymax)
+        for axis in (ax.xaxis, ax.yaxis):
+            axis.set_major_locator(LogLocator(base=10.0, numticks=12))
+            axis.set_minor_locator(NullLocator())
+        _decade_grid(ax, xmin, xmax, "x")
+        _decade_grid(ax, ymin, ymax, "y")
+        ax.grid(True, which="major", alpha=0.25)
         ax.set_xlabel("τ [s]")
         ax.set_ylabel(f"Allan deviation [{unit}]")
-        ax.set_title(a.axis.replace("_", " "))
-        ax.grid(True, which="both", alpha=0.25)
-        ax.legend(fontsize="x-small", loc="upper right")
+        name = a.axis.replace("_", " ")
+        d = (vib.get("axes") or {}).get(a.axis)
+        if d and d.get("vibration"):
+            k, vu = ("std_deg_s", "deg/s") if sensor == "gyro" else ("std_m_s2", "m/s²")
+            pk = "" if d.get("peak_hz") is None else f" at {d['peak_hz']:.3g} Hz"
+            name += f" — vibration {d[k]:.3g} {vu}{pk} (short-τ hump)"
+        ax.set_title(name, fontsize="medium")
+        ax.legend(fontsize="x-small", loc="best")
     if title:
         fig.suptitle(title)
     path = Path(path)

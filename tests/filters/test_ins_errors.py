@@ -25,6 +25,7 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
+from aidnav.filters import ins_errors
 from aidnav.filters.ins_errors import fill_model, noise_count
 from aidnav.nav.earth import E2, OMEGA_IE, gravity, radii
 from aidnav.nav.rotations import (
@@ -219,3 +220,84 @@ def test_f_jacobian_other_latitudes(lat_deg):
     nz = Fa != 0.0
     assert (np.abs(J - Fa)[nz] / np.abs(Fa[nz])).max() < 1.5e-6
     assert np.abs(J[~nz]).max() < 1e-12
+
+
+# ------------------------------------------------------------------ shared kernel helpers
+def test_propagate_sample_accumulates_means_and_matches_strapdown():
+    """N constant increments through ``propagate_sample``: the same state as the bias correction +
+    ``strapdown_step`` written out, the interval sums/means of the corrected increments, and F, G of
+    ``interval_model`` equal to ``fill_model`` of those means; ``reset_accumulator`` clears it."""
+    dt, N = 0.01, 50
+    dth = W_IB * dt
+    dv = F_B * dt
+    bias = np.array([1e-4, -2e-4, 3e-4, 0.02, -0.01, 0.03, 1e-3, -2e-3, 5e-4, 2e-3, 1e-3, -1e-3])
+    dthc_ref = dth - bias[0:3] * dt - bias[6:9] * dth  # corrected increments [rad], [m/s]
+    dvc_ref = dv - bias[3:6] * dt - bias[9:12] * dv
+    st0 = make_state(LAT, 1.0, H, VEL, quat_from_dcm(C_BN))
+    st, ref = st0.copy(), st0.copy()
+    acc = ins_errors.new_accumulator()
+    dthc, dvc, dth_prev, dv_prev = ins_errors.increment_buffers()
+    r_prev, rv_prev = np.zeros(3), np.zeros(3)
+    C_sum, fn_sum = np.zeros((3, 3)), np.zeros(3)
+    for k in range(N):
+        C = dcm_from_quat(ref[6:10])
+        C_sum += C
+        fn_sum += C @ dvc_ref
+        strapdown_step(ref, dthc_ref, dvc_ref, r_prev, rv_prev, dt)
+        r_prev[:], rv_prev[:] = dthc_ref, dvc_ref
+        T = ins_errors.propagate_sample(st, acc, dth, dv, bias, dt, dthc, dvc, dth_prev, dv_prev)
+        assert T == pytest.approx((k + 1) * dt, rel=1e-12)
+    np.testing.assert_array_equal(st, ref)
+    for a in (dthc, dth_prev):
+        np.testing.assert_allclose(a, dthc_ref, rtol=1e-15, atol=1e-18)
+    for a in (dvc, dv_prev):
+        np.testing.assert_allclose(a, dvc_ref, rtol=1e-15, atol=1e-18)
+    assert acc[ins_errors.ACC_TN, 1] == N
+    fn, Cbn, wb, fb = ins_errors.interval_means(acc, T)
+    np.testing.assert_allclose(wb, dthc_ref / dt, rtol=1e-12)  # constant increments: mean = rate
+    np.testing.assert_allclose(fb, dvc_ref / dt, rtol=1e-12)
+    np.testing.assert_allclose(Cbn, C_sum / N, rtol=0, atol=1e-14)
+    np.testing.assert_allclose(fn, fn_sum / T, rtol=1e-12, atol=1e-12)
+    # the means as fill_model arguments
+    n = 21
+    F, G, Phi, Qd = ins_errors.model_arrays(n, noise_count(n))
+    assert F.shape == Phi.shape == Qd.shape == (n, n) and G.shape == (n, 18) and not F.any()
+    w = ins_errors.interval_model(F, G, st, acc, 300.0, 600.0, 0.0, 1000.0)
+    F_ref, G_ref = np.zeros((n, n)), np.zeros((n, 18))
+    fill_model(F_ref, G_ref, st[0], st[2], st[3:6], fn, Cbn, wb, fb, 300.0, 600.0, 0.0, 1000.0)
+    np.testing.assert_array_equal(F, F_ref)
+    np.testing.assert_array_equal(G, G_ref)
+    np.testing.assert_array_equal(w, wb)
+    ins_errors.reset_accumulator(acc)
+    assert not acc.any()
+
+
+def test_propagate_sample_without_sensor_errors_and_work_arrays():
+    """nb = 0 (no bias states): the raw increments drive the strapdown; measurement work arrays."""
+    dt = 0.005
+    st = make_state(LAT, 0.3, H, VEL, quat_from_dcm(C_BN))
+    ref = st.copy()
+    acc = ins_errors.new_accumulator()
+    bufs = [np.zeros(3) for _ in range(4)]
+    T = ins_errors.propagate_sample(st, acc, W_IB * dt, F_B * dt, np.zeros(0), dt, *bufs)
+    strapdown_step(ref, W_IB * dt, F_B * dt, np.zeros(3), np.zeros(3), dt)
+    np.testing.assert_array_equal(st, ref)
+    assert T == dt and acc[ins_errors.ACC_TN, 1] == 1
+    Hm, z, R, innov, sdiag = ins_errors.measurement_arrays(2, 15)
+    assert Hm.shape == (2, 15) and R.shape == (2, 2) and z.shape == innov.shape == sdiag.shape == (2,)
+
+
+def test_set_heading_keeps_roll_pitch_and_resets_the_heading_variance():
+    from aidnav.nav.rotations import euler_from_quat
+
+    rph = np.radians([5.0, -3.0, 40.0])
+    st = make_state(LAT, 1.0, H, VEL, quat_from_dcm(dcm_from_euler(*rph)))
+    P = np.arange(225.0).reshape(15, 15)
+    P = P + P.T
+    P0 = P.copy()
+    ins_errors.set_heading(st, P, np.radians(250.0), 0.1)
+    np.testing.assert_allclose(euler_from_quat(st[6:10]), [rph[0], rph[1], np.radians(250.0)],
+                               atol=1e-12)
+    assert P[2, 2] == pytest.approx(0.01) and not np.delete(P[2], 2).any() and not np.delete(P[:, 2], 2).any()
+    keep = np.delete(np.delete(P, 2, 0), 2, 1)
+    np.testing.assert_array_equal(keep, np.delete(np.delete(P0, 2, 0), 2, 1))

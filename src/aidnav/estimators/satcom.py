@@ -60,7 +60,16 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
-from aidnav.filters.ins_errors import correct_increments, fill_model
+from aidnav.filters.ins_errors import (
+    correct_increments,
+    increment_buffers,
+    interval_model,
+    measurement_arrays,
+    model_arrays,
+    new_accumulator,
+    propagate_sample,
+    reset_accumulator,
+)
 from aidnav.filters.kalman import discretize, predict, update
 from aidnav.nav.geo_pointing import beam_body, geo_sat_ecef, servo_angles, servo_angles_rad, wrap_pol
 from aidnav.nav.rotations import (
@@ -160,23 +169,14 @@ def _nav8_kernel(imu_t, dth, dvel, t0, st0, P0, q_psd, tau, g_t, g_lat, g_lon, g
     st = st0.copy()
     P = P0.copy()
     x = np.zeros(8)
-    F15 = np.zeros((15, 15))
-    G15 = np.zeros((15, 12))
-    F8 = np.zeros((8, 8))
-    G8 = np.zeros((8, 12))
-    Phi = np.zeros((8, 8))
-    Qd = np.zeros((8, 8))
-    H = np.zeros((2, 8))
+    F15, G15, _, _ = model_arrays(15, 12)  # full 15-state model, restricted to the 8 states (_IDX15)
+    F8, G8, Phi, Qd = model_arrays(8, 12)
+    H, z, R, innov, sdiag = measurement_arrays(2, 8)  # horizontal velocity matching
     H[0, 0] = 1.0
     H[1, 1] = 1.0
-    R = np.zeros((2, 2))
     R[0, 0] = r_vel * r_vel
     R[1, 1] = r_vel * r_vel
-    z = np.zeros(2)
-    innov = np.zeros(2)
-    sdiag = np.zeros(2)
-    bg = np.zeros(3)
-    ba = np.zeros(3)
+    bias = np.zeros(6)  # [gyro bias (3) rad/s, accel bias (3) m/s²]; only x and y are estimated
     out_st = np.empty((n_imu, 10))
     out_dth = np.empty((n_imu, 3))
     out_dt = np.empty(n_imu)
@@ -185,16 +185,8 @@ def _nav8_kernel(imu_t, dth, dvel, t0, st0, P0, q_psd, tau, g_t, g_lat, g_lon, g
     rec_t = np.full(M, np.nan)
     rec_x = np.full((M, 8), np.nan)
     rec_p = np.full((M, 8), np.nan)
-    dthc = np.zeros(3)
-    dvc = np.zeros(3)
-    dth_prev = np.zeros(3)
-    dv_prev = np.zeros(3)
-    C_sum = np.zeros((3, 3))
-    fn_sum = np.zeros(3)
-    wb_sum = np.zeros(3)
-    fb_sum = np.zeros(3)
-    T = 0.0
-    n_sum = 0
+    dthc, dvc, dth_prev, dv_prev = increment_buffers()  # corrected increments: this / previous sample
+    acc = new_accumulator()  # sums over the samples since the last filter step (ins_errors.ACC_*)
     gi = 0
     while gi < M and g_t[gi] <= t0 + 1e-9:
         gi += 1
@@ -202,28 +194,15 @@ def _nav8_kernel(imu_t, dth, dvel, t0, st0, P0, q_psd, tau, g_t, g_lat, g_lon, g
     for k in range(n_imu):
         dt = imu_t[k] - tp
         tp = imu_t[k]
-        for i in range(3):
-            dthc[i] = dth[k, i] - bg[i] * dt
-            dvc[i] = dvel[k, i] - ba[i] * dt
-        C = dcm_from_quat(st[6:10])
-        C_sum += C
-        fn_sum += C @ dvc
-        wb_sum += dthc
-        fb_sum += dvc
-        T += dt
-        n_sum += 1
         q_prev = st[6:10].copy()
-        strapdown_step(st, dthc, dvc, dth_prev, dv_prev, dt)
-        dth_prev[:] = dthc
-        dv_prev[:] = dvc
+        T = propagate_sample(st, acc, dth[k], dvel[k], bias, dt, dthc, dvc, dth_prev, dv_prev)
         # ΔΘ of this interrupt: q_pre = q_prev ⊗ q(ΔΘ) (body rotation relative to the ideal platform)
         out_dth[k] = rotvec_from_quat(quat_mult(quat_conj(q_prev), st[6:10]))
         out_dt[k] = dt
         while gi < M and g_t[gi] <= imu_t[k] + 1e-9:
             if use_filter:
                 if T > 0.0:
-                    fill_model(F15, G15, st[0], st[2], st[3:6], fn_sum / T, C_sum / n_sum, wb_sum / T,
-                               fb_sum / T, tau, tau, 0.0, 0.0)
+                    interval_model(F15, G15, st, acc, tau, tau, 0.0, 0.0)
                     for i in range(8):
                         for j in range(8):
                             F8[i, j] = F15[_IDX15[i], _IDX15[j]]
@@ -243,18 +222,14 @@ def _nav8_kernel(imu_t, dth, dvel, t0, st0, P0, q_psd, tau, g_t, g_lat, g_lon, g
                 st[6:10] = quat_normalize(quat_mult(quat_from_rotvec(phi), st[6:10]))
                 st[3] -= x[0]
                 st[4] -= x[1]
-                bg[0] += x[4]
-                bg[1] += x[5]
-                ba[0] += x[6]
-                ba[1] += x[7]
+                bias[0] += x[4]
+                bias[1] += x[5]
+                bias[3] += x[6]
+                bias[4] += x[7]
                 x[:] = 0.0
                 corr[k] = True
-                T = 0.0
-                n_sum = 0
-                C_sum[:, :] = 0.0
-                fn_sum[:] = 0.0
-                wb_sum[:] = 0.0
-                fb_sum[:] = 0.0
+                reset_accumulator(acc)
+                T = 0.0  # a second fix at this sample has no interval to propagate over
             if reset_pos:
                 st[0] = g_lat[gi]
                 st[1] = g_lon[gi]
@@ -263,8 +238,7 @@ def _nav8_kernel(imu_t, dth, dvel, t0, st0, P0, q_psd, tau, g_t, g_lat, g_lon, g
                     st[5] = g_vel[gi, 2]
             gi += 1
         out_st[k] = st
-        out_bias[k, 0:3] = bg
-        out_bias[k, 3:6] = ba
+        out_bias[k] = bias
     return out_st, out_dth, out_dt, corr, out_bias, rec_t, rec_x, rec_p
 
 
@@ -307,10 +281,7 @@ def _replay_increments(imu_t, dth, dvel, t0, st0, states, bias, nb):
     dts = np.empty(n)
     st = st0.copy()
     b = np.zeros(nb)
-    dthc = np.zeros(3)
-    dvc = np.zeros(3)
-    dth_prev = np.zeros(3)
-    dv_prev = np.zeros(3)
+    dthc, dvc, dth_prev, dv_prev = increment_buffers()  # corrected increments: this / previous sample
     tp = t0
     for k in range(n):
         dt = imu_t[k] - tp

@@ -22,9 +22,16 @@ import numpy as np
 from numba import njit
 
 from aidnav.nav.rotations import dcm_from_quat, dcm_from_rotvec, quat_to_euler_batch
-from aidnav.nav.strapdown import strapdown_step
 
-from .ins_errors import correct_increments, fill_model, noise_count
+from .ins_errors import (
+    interval_model,
+    measurement_arrays,
+    model_arrays,
+    new_accumulator,
+    noise_count,
+    propagate_sample,
+    reset_accumulator,
+)
 from .kalman import discretize, predict, update
 from .loose import _apply_correction
 from .measurements import attitude
@@ -37,37 +44,27 @@ UG = 9.80665e-6
 
 
 @njit(cache=True)
-def _propagate(st, bias, time, dth, dvel, k0, k1, tprev, dth_prev, dv_prev, out, sums, hold_h, hold_vu):
+def _propagate(st, bias, time, dth, dvel, k0, k1, tprev, dth_prev, dv_prev, out, acc, hold_h, hold_vu):
     """Strapdown over samples k0..k1 (inclusive) with bias-corrected increments; in place.
 
-    bias = [gyro bias (3) rad/s, accel bias (3) m/s²]; sums (3, 3) accumulates the rows [Σ C Δv, Σ Δθ, Σ Δv]
-    and the returned C_sum is Σ C_b^n over the samples. Returns (T, count, C_sum, t_last).
+    bias = [gyro bias (3) rad/s, accel bias (3) m/s²]; ``acc`` is reset, then accumulates the interval
+    (:func:`aidnav.filters.ins_errors.propagate_sample`); height and up velocity are held to
+    ``hold_h``/``hold_vu`` after each step when given. Returns (T [s], t_last).
     """
+    reset_accumulator(acc)
     T = 0.0
-    cnt = 0
-    C_sum = np.zeros((3, 3))
     dthc = np.empty(3)
     dvc = np.empty(3)
     hold = hold_h.shape[0] == time.shape[0]
     for k in range(k0, k1 + 1):
         dt = time[k] - tprev
         tprev = time[k]
-        correct_increments(dth[k], dvel[k], bias, dt, dthc, dvc)
-        C = dcm_from_quat(st[6:10])
-        C_sum += C
-        sums[0] += C @ dvc
-        sums[1] += dthc
-        sums[2] += dvc
-        strapdown_step(st, dthc, dvc, dth_prev, dv_prev, dt)
+        T = propagate_sample(st, acc, dth[k], dvel[k], bias, dt, dthc, dvc, dth_prev, dv_prev)
         if hold:
             st[2] = hold_h[k]
             st[5] = hold_vu[k]
-        dth_prev[:] = dthc
-        dv_prev[:] = dvc
         out[k] = st
-        T += dt
-        cnt += 1
-    return T, cnt, C_sum, tprev
+    return T, tprev
 
 
 @dataclass
@@ -167,14 +164,8 @@ def fuse_attitude_fixes(imu, state0, fix_time, fix_C_bn, fix_cov, q_psd, P0, tau
     bias = np.zeros(6)
     P = np.asarray(P0, dtype=float).copy()
     x = np.zeros(n)
-    F = np.zeros((n, n))
-    G = np.zeros((n, m))
-    Phi = np.zeros((n, n))
-    Qd = np.zeros((n, n))
-    H = np.zeros((3, n))
-    z = np.zeros(3)
-    innov = np.zeros(3)
-    sdiag = np.zeros(3)
+    F, G, Phi, Qd = model_arrays(n, m)
+    H, z, _, innov, sdiag = measurement_arrays(3, n)  # R: the covariance of each fix
     q_psd = np.asarray(q_psd, dtype=float)
     hh = np.zeros(0) if hold_h is None else np.ascontiguousarray(hold_h, dtype=float)
     hv = np.zeros(0) if hold_vu is None else np.ascontiguousarray(hold_vu, dtype=float)
@@ -189,15 +180,13 @@ def fuse_attitude_fixes(imu, state0, fix_time, fix_C_bn, fix_cov, q_psd, P0, tau
     dth_prev = np.zeros(3)
     dv_prev = np.zeros(3)
     tprev = float(imu.t0)
+    sums = new_accumulator()  # sums over the samples of the current interval (ins_errors.ACC_*)
     k0 = 0
     for k1 in nodes:
-        sums = np.zeros((3, 3))
-        T, cnt, C_sum, tprev = _propagate(st, bias, time, dth, dvel, k0, int(k1), tprev, dth_prev, dv_prev,
-                                          out, sums, hh, hv)
+        T, tprev = _propagate(st, bias, time, dth, dvel, k0, int(k1), tprev, dth_prev, dv_prev, out, sums,
+                              hh, hv)
         if T > 0.0:
-            # sensor errors act through the mean C_b^n of the interval (the body turns within it)
-            fill_model(F, G, st[0], st[2], st[3:6], sums[0] / T, C_sum / cnt, sums[1] / T, sums[2] / T,
-                       tau_g, tau_a, 0.0, 0.0)
+            interval_model(F, G, st, sums, tau_g, tau_a, 0.0, 0.0)
             discretize(F, G, q_psd, T, Phi, Qd)
             x[:] = 0.0
             predict(x, P, Phi, Qd)

@@ -49,9 +49,17 @@ from numba import njit
 from aidnav.nav.earth import OMEGA_IE, radii
 from aidnav.nav.geo_pointing import az_el_from_body, beam_body, los_enu
 from aidnav.nav.rotations import dcm_from_quat
-from aidnav.nav.strapdown import strapdown_step
 
-from .ins_errors import correct_increments, fill_model, noise_count
+from .ins_errors import (
+    increment_buffers,
+    interval_model,
+    measurement_arrays,
+    model_arrays,
+    new_accumulator,
+    noise_count,
+    propagate_sample,
+    reset_accumulator,
+)
 from .kalman import discretize, predict, update
 from .loose import _apply_correction
 from .measurements import gnss_position, gnss_velocity, sapv_angles
@@ -152,20 +160,9 @@ def _federated_kernel(imu_t, dth, dvel, t0, st0, P0, q_psd, par, mode, beta,
         use_f[nloc] = True
     st = st0.copy()
     bias = np.zeros(n - 9)
-    F = np.zeros((n, n))
-    G = np.zeros((n, m))
-    Phi = np.zeros((n, n))
-    Qd = np.zeros((n, n))
-    H3 = np.zeros((3, n))
-    H2 = np.zeros((2, n))
-    z3 = np.zeros(3)
-    z2 = np.zeros(2)
-    R3 = np.zeros((3, 3))
-    R2 = np.zeros((2, 2))
-    innov3 = np.zeros(3)
-    sd3 = np.zeros(3)
-    innov2 = np.zeros(2)
-    sd2 = np.zeros(2)
+    F, G, Phi, Qd = model_arrays(n, m)
+    H3, z3, R3, innov3, sd3 = measurement_arrays(3, n)  # GPS position / velocity
+    H2, z2, R2, innov2, sd2 = measurement_arrays(2, n)  # SAPV azimuth / elevation
     lever = par[P_LEVER:P_LEVER + 3].copy()
     prop_dt = par[P_PROP_DT]
     max_nodes = M + S + int((imu_t[-1] - t0) / prop_dt) + 3
@@ -191,41 +188,21 @@ def _federated_kernel(imu_t, dth, dvel, t0, st0, P0, q_psd, par, mode, beta,
     si = 0
     while si < S and s_t[si] <= t0:
         si += 1
-    T = 0.0
-    fn_sum = np.zeros(3)
-    wb_sum = np.zeros(3)
-    fb_sum = np.zeros(3)
-    C_sum = np.zeros((3, 3))
-    n_sum = 0
-    dth_prev = np.zeros(3)
-    dv_prev = np.zeros(3)
-    dthc = np.zeros(3)
-    dvc = np.zeros(3)
+    acc = new_accumulator()  # sums over the samples since the last node (ins_errors.ACC_*)
+    dthc, dvc, dth_prev, dv_prev = increment_buffers()  # corrected increments: this / previous sample
     tp = t0
     kn = 0
     for k in range(n_imu):
         dt = imu_t[k] - tp
         tp = imu_t[k]
-        correct_increments(dth[k], dvel[k], bias, dt, dthc, dvc)
-        C = dcm_from_quat(st[6:10])
-        C_sum += C
-        fn_sum += C @ dvc
-        wb_sum += dthc
-        fb_sum += dvc
-        T += dt
-        n_sum += 1
-        strapdown_step(st, dthc, dvc, dth_prev, dv_prev, dt)
-        dth_prev[:] = dthc
-        dv_prev[:] = dvc
+        T = propagate_sample(st, acc, dth[k], dvel[k], bias, dt, dthc, dvc, dth_prev, dv_prev)
         tk = imu_t[k] + 1e-9
         is_node = (T >= prop_dt - 1e-9 or (gi < M and g_t[gi] <= tk) or (si < S and s_t[si] <= tk)
                    or k == n_imu - 1)
         if not (is_node and T > 0.0):
             continue
         C = dcm_from_quat(st[6:10])
-        wb = wb_sum / T
-        fill_model(F, G, st[0], st[2], st[3:6], fn_sum / T, C_sum / n_sum, wb, fb_sum / T,
-                   par[P_TAU_G], par[P_TAU_A], 0.0, 0.0)
+        interval_model(F, G, st, acc, par[P_TAU_G], par[P_TAU_A], 0.0, 0.0)
         discretize(F, G, q_psd, T, Phi, Qd)
         # 1. time update of every filter (local i with Q/β_i; the master with Q/β_m)
         for i in range(nf):
@@ -309,12 +286,7 @@ def _federated_kernel(imu_t, dth, dvel, t0, st0, P0, q_psd, par, mode, beta,
         if keep_cov:
             out_cov[kn] = Pg
         kn += 1
-        T = 0.0
-        fn_sum[:] = 0.0
-        wb_sum[:] = 0.0
-        fb_sum[:] = 0.0
-        C_sum[:, :] = 0.0
-        n_sum = 0
+        reset_accumulator(acc)
     return (node_k[:kn], out_st[:kn], out_bias[:kn], out_pd[:kn], out_loc[:kn],
             out_cov[:kn] if keep_cov else out_cov[:0], rec_pos, rec_vel, rec_pos_nis, rec_vel_nis,
             rec_s, rec_s_innov, rec_s_s, rec_s_nis)

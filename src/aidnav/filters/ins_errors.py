@@ -19,6 +19,14 @@ correlation time τ > 0 is first-order Gauss-Markov (ẋ = −x/τ + w); τ ≤ 
 Dynamics: φ̇ = M_aa φ + M_av δv + M_ap δp − C_b^n ε;  δv̇ = [f^n×] φ + M_vv δv + M_vp δp + C_b^n ∇;
 δṗ = M_pv δv + M_pp δp.  Closed-loop feedback resets the estimated errors after each update
 (see :func:`aidnav.filters.loose.apply_correction`).
+
+Shared building blocks of the filter kernels (loose, tight, federated, transfer, attitude aiding, the
+satcom 8-state filter): the strapdown runs at the IMU rate while the covariance is propagated at
+*nodes*. Per IMU sample, :func:`propagate_sample` corrects the increments, accumulates the interval
+sums and advances the strapdown; at a node, :func:`interval_model` builds F and G from the interval
+means and :func:`reset_accumulator` starts the next interval. :func:`model_arrays`,
+:func:`measurement_arrays` and :func:`increment_buffers` allocate the usual work arrays;
+:func:`set_heading` is the heading (re)initialisation from a GNSS course.
 """
 
 from __future__ import annotations
@@ -27,8 +35,18 @@ import numpy as np
 from numba import njit
 
 from aidnav.nav.earth import OMEGA_IE, gravity, gravity_dh, radii
+from aidnav.nav.rotations import dcm_from_quat, quat_mult, quat_normalize
+from aidnav.nav.strapdown import strapdown_step
 
 PHI, DV, DP, BG, BA, SG, SA = 0, 3, 6, 9, 12, 15, 18
+
+# Rows of the per-interval accumulator ``acc`` (7×3 float array, :func:`new_accumulator`) filled by
+# :func:`propagate_sample` between two covariance nodes (sums over the samples of the interval):
+ACC_C = 0  # rows 0:3: Σ C_b^n (attitude at the start of each sample) [-]
+ACC_FN = 3  # Σ C_b^n Δv_c: corrected velocity increments resolved in n [m/s]
+ACC_WB = 4  # Σ Δθ_c: corrected angle increments, body [rad]
+ACC_FB = 5  # Σ Δv_c: corrected velocity increments, body [m/s]
+ACC_TN = 6  # [T = Σ dt [s], number of samples, unused]
 
 
 @njit(cache=True)
@@ -138,7 +156,6 @@ def fill_model(F, G, lat, h, v, fn, Cbn, wb, fb, tau_g, tau_a, tau_sg, tau_sa):
             G[SA + i, 15 + i] = 1.0
 
 
-
 @njit(cache=True, inline="always")
 def correct_increments(dth, dv, bias, dt, dthc, dvc):
     """IMU increments corrected by the estimated sensor errors of this state layout (in place).
@@ -159,3 +176,115 @@ def correct_increments(dth, dv, bias, dt, dthc, dvc):
         for i in range(3):
             dthc[i] -= bias[6 + i] * dth[i]
             dvc[i] -= bias[9 + i] * dv[i]
+
+
+# ------------------------------------------------------------------ shared pieces of the filter kernels
+@njit(cache=True)
+def model_arrays(n, m):
+    """Zeroed work arrays of the time update of an n-state model with m noise inputs.
+
+    Returns (F (n×n), G (n×m), Φ (n×n), Qd (n×n)), as filled by :func:`fill_model` and
+    :func:`aidnav.filters.kalman.discretize`.
+    """
+    return np.zeros((n, n)), np.zeros((n, m)), np.zeros((n, n)), np.zeros((n, n))
+
+
+@njit(cache=True)
+def measurement_arrays(nz, n):
+    """Zeroed work arrays of an nz-row measurement update of an n-state filter.
+
+    Returns (H (nz×n), z (nz,), R (nz×nz), innovation (nz,), diag S (nz,)), the arguments of
+    :func:`aidnav.filters.kalman.update`.
+    """
+    return np.zeros((nz, n)), np.zeros(nz), np.zeros((nz, nz)), np.zeros(nz), np.zeros(nz)
+
+
+@njit(cache=True)
+def increment_buffers():
+    """Zeroed (3,) buffers of :func:`propagate_sample`: (Δθ_c, Δv_c, Δθ_c previous, Δv_c previous)."""
+    return np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3)
+
+
+@njit(cache=True)
+def new_accumulator():
+    """Empty per-interval accumulator (7×3; rows ``ACC_*`` above) for :func:`propagate_sample`."""
+    return np.zeros((7, 3))
+
+
+@njit(cache=True)
+def reset_accumulator(acc):
+    """Start a new propagation interval: all sums (and T, the sample count) to zero, in place."""
+    acc[:, :] = 0.0
+
+
+@njit(cache=True, inline="always")
+def propagate_sample(st, acc, dth, dv, bias, dt, dthc, dvc, dth_prev, dv_prev):
+    """One IMU sample of a filter kernel: correct, accumulate, strapdown (all in place).
+
+    st (10,): strapdown state [lat, lon (rad), h (m), v^n (m/s), q_b^n], advanced over the sample.
+    acc (7, 3): interval accumulator (rows ``ACC_*``): Σ C_b^n, Σ C_b^n Δv_c, Σ Δθ_c, Σ Δv_c, and
+    [T, count]; C_b^n is the attitude *before* this sample's strapdown step.
+    dth [rad], dv [m/s] (3,): raw increments of the sample, body RFU; bias (nb,): sensor-error
+    estimates as in :func:`correct_increments` (nb = 0, 6 or 12); dt [s]: sample interval.
+    dthc, dvc (3,): out, the corrected increments of this sample; dth_prev, dv_prev (3,): the corrected
+    increments of the previous sample (coning/sculling), replaced by this sample's.
+    Returns T [s], the length of the interval accumulated so far.
+
+    Inlined into the kernels (numba IR): as a call it costs ~25 % of the loose filter's throughput.
+    Its order of operations is that of the kernels before the helper existed (bit-identical results).
+    """
+    correct_increments(dth, dv, bias, dt, dthc, dvc)
+    C = dcm_from_quat(st[6:10])
+    fn = C @ dvc
+    for i in range(3):  # element loops: no array views in the per-sample path
+        for j in range(3):
+            acc[ACC_C + i, j] += C[i, j]
+        acc[ACC_FN, i] += fn[i]
+        acc[ACC_WB, i] += dthc[i]
+        acc[ACC_FB, i] += dvc[i]
+    acc[ACC_TN, 0] += dt
+    acc[ACC_TN, 1] += 1.0
+    strapdown_step(st, dthc, dvc, dth_prev, dv_prev, dt)
+    dth_prev[:] = dthc
+    dv_prev[:] = dvc
+    return acc[ACC_TN, 0]
+
+
+@njit(cache=True)
+def set_heading(st, P, heading, sigma):
+    """Heading (re)initialisation, in place: keep roll and pitch of q_b^n in ``st``, set the heading to
+    ``heading`` [rad, from North, clockwise] and reset the row and column of φ_U (index 2) of the
+    covariance ``P`` (n×n) to the variance sigma² [rad²] (no correlation with the other errors).
+    """
+    Cn = dcm_from_quat(st[6:10])
+    from_h = np.arctan2(Cn[0, 1], Cn[1, 1])
+    dpsi = -(heading - from_h)  # rotation about Up by yaw = -heading change
+    qz = np.array([np.cos(0.5 * dpsi), 0.0, 0.0, np.sin(0.5 * dpsi)])
+    st[6:10] = quat_normalize(quat_mult(qz, st[6:10]))
+    for j in range(P.shape[0]):
+        P[PHI + 2, j] = 0.0
+        P[j, PHI + 2] = 0.0
+    P[PHI + 2, PHI + 2] = sigma * sigma
+
+
+@njit(cache=True)
+def interval_means(acc, T):
+    """Means over the accumulated interval of length T [s] (> 0).
+
+    Returns (f^n [m/s²], mean C_b^n (3×3), ω_ib^b [rad/s], f^b [m/s²]): the nav-frame specific force,
+    the mean attitude (sum / sample count) and the body rates, the arguments of :func:`fill_model`.
+    """
+    return acc[ACC_FN] / T, acc[ACC_C:ACC_C + 3] / acc[ACC_TN, 1], acc[ACC_WB] / T, acc[ACC_FB] / T
+
+
+@njit(cache=True)
+def interval_model(F, G, st, acc, tau_g, tau_a, tau_sg, tau_sa):
+    """F and G (in place, :func:`fill_model`) of the interval accumulated in ``acc`` (T > 0).
+
+    The nominal is the strapdown state ``st`` at the node (lat, h, v^n); the sensor errors act through
+    the mean C_b^n of the interval (the body turns within it). tau_* [s]: bias and scale-factor
+    correlation times (≤ 0: random walk). Returns the mean body rate ω_ib^b [rad/s] (3,).
+    """
+    fn, Cbn, wb, fb = interval_means(acc, acc[ACC_TN, 0])
+    fill_model(F, G, st[0], st[2], st[3:6], fn, Cbn, wb, fb, tau_g, tau_a, tau_sg, tau_sa)
+    return wb

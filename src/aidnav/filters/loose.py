@@ -24,9 +24,18 @@ from numba import njit
 
 from aidnav.nav.earth import OMEGA_IE, radii
 from aidnav.nav.rotations import dcm_from_quat, quat_from_rotvec, quat_mult, quat_normalize
-from aidnav.nav.strapdown import strapdown_step
 
-from .ins_errors import correct_increments, fill_model, noise_count
+from .ins_errors import (
+    increment_buffers,
+    interval_model,
+    measurement_arrays,
+    model_arrays,
+    new_accumulator,
+    noise_count,
+    propagate_sample,
+    reset_accumulator,
+    set_heading,
+)
 from .kalman import discretize, rts_gain, update
 from .measurements import gnss_position, gnss_velocity, nonholonomic, zero_velocity
 
@@ -79,18 +88,9 @@ def _loose_kernel(imu_t, dth, dvel, t0, st0, bias0, P0, q_psd, par,
     bias = bias0.copy()  # [bg(3), ba(3), sg(3), sa(3)] as far as the state has them
     P = P0.copy()
     x = np.zeros(n)
-    F = np.zeros((n, n))
-    G = np.zeros((n, m))
-    Phi = np.zeros((n, n))
-    Qd = np.zeros((n, n))
-    H3 = np.zeros((3, n))
-    H2 = np.zeros((2, n))
-    z3 = np.zeros(3)
-    z2 = np.zeros(2)
-    R3 = np.zeros((3, 3))
-    R2 = np.zeros((2, 2))
-    innov = np.zeros(3)
-    sdiag = np.zeros(3)
+    F, G, Phi, Qd = model_arrays(n, m)
+    H3, z3, R3, innov, sdiag = measurement_arrays(3, n)  # GNSS position / velocity, ZUPT, ZARU
+    H2, z2, R2, innov2, sdiag2 = measurement_arrays(2, n)  # non-holonomic constraint
     lever = par[P_LEVER:P_LEVER + 3].copy()
     nhc_lever = par[P_NHC_LEVER:P_NHC_LEVER + 3].copy()
     Cbv = par[P_CBV:P_CBV + 9].copy().reshape(3, 3)
@@ -132,18 +132,10 @@ def _loose_kernel(imu_t, dth, dvel, t0, st0, bias0, P0, q_psd, par,
     gi = 0
     while gi < M and g_t[gi] <= t0:
         gi += 1
-    T = 0.0
-    fn_sum = np.zeros(3)
-    wb_sum = np.zeros(3)
-    fb_sum = np.zeros(3)
-    C_sum = np.zeros((3, 3))
-    n_sum = 0
+    acc = new_accumulator()  # sums over the samples since the last node (ins_errors.ACC_*)
     gap_phi = 0.0
     gap_v = 0.0
-    dth_prev = np.zeros(3)
-    dv_prev = np.zeros(3)
-    dthc = np.zeros(3)
-    dvc = np.zeros(3)
+    dthc, dvc, dth_prev, dv_prev = increment_buffers()  # corrected increments: this / previous sample
     tp = t0
     kn = 0
     oi = 0
@@ -153,31 +145,14 @@ def _loose_kernel(imu_t, dth, dvel, t0, st0, bias0, P0, q_psd, par,
     for k in range(n_imu):
         dt = imu_t[k] - tp
         tp = imu_t[k]
-        correct_increments(dth[k], dvel[k], bias, dt, dthc, dvc)
-        C = dcm_from_quat(st[6:10])
-        C_sum += C
-        fn_sum += C @ dvc
-        wb_sum += dthc
-        fb_sum += dvc
-        T += dt
-        n_sum += 1
+        T = propagate_sample(st, acc, dth[k], dvel[k], bias, dt, dthc, dvc, dth_prev, dv_prev)
+        # bridged IMU gaps: attitude / velocity variance of the unknown motion, added at the next node
         gap_phi += gap_var[k, 0]
         gap_v += gap_var[k, 1]
-        strapdown_step(st, dthc, dvc, dth_prev, dv_prev, dt)
-        dth_prev[:] = dthc
-        dv_prev[:] = dvc
         if k == reset_idx:
             reset_node = kn  # the next node is the first one after the re-initialisation
             # heading (re)initialisation: keep roll and pitch, set heading, reset its covariance
-            Cn = dcm_from_quat(st[6:10])
-            from_h = np.arctan2(Cn[0, 1], Cn[1, 1])
-            dpsi = -(reset_heading - from_h)  # rotation about Up by yaw = -heading change
-            qz = np.array([np.cos(0.5 * dpsi), 0.0, 0.0, np.sin(0.5 * dpsi)])
-            st[6:10] = quat_normalize(quat_mult(qz, st[6:10]))
-            for j in range(n):
-                P[2, j] = 0.0
-                P[j, 2] = 0.0
-            P[2, 2] = reset_sigma * reset_sigma
+            set_heading(st, P, reset_heading, reset_sigma)
             dvr = np.sqrt((st[3] - reset_nav[0]) ** 2 + (st[4] - reset_nav[1]) ** 2)
             if not np.isnan(reset_nav[0]) and dvr > 3.0 * np.sqrt(P[3, 3] + P[4, 4] + reset_nav[6] ** 2):
                 # the velocity and position integrated with the unknown heading are re-initialised
@@ -200,12 +175,8 @@ def _loose_kernel(imu_t, dth, dvel, t0, st0, bias0, P0, q_psd, par,
         is_node = T >= prop_dt - 1e-9 or (gi < M and g_t[gi] <= imu_t[k]) or k == n_imu - 1
         if is_node and T > 0.0:
             C = dcm_from_quat(st[6:10])
-            wb = wb_sum / T
-            fb = fb_sum / T
+            wb = interval_model(F, G, st, acc, par[P_TAU], par[P_TAU + 1], par[P_TAU + 2], par[P_TAU + 3])
             last_w[:] = wb
-            # sensor errors act through the mean C_b^n of the interval (the body turns within it)
-            fill_model(F, G, st[0], st[2], st[3:6], fn_sum / T, C_sum / n_sum, wb, fb,
-                       par[P_TAU], par[P_TAU + 1], par[P_TAU + 2], par[P_TAU + 3])
             discretize(F, G, q_psd, T, Phi, Qd)
             P[:, :] = Phi @ P @ Phi.T + Qd
             if gap_phi > 0.0:
@@ -284,7 +255,7 @@ def _loose_kernel(imu_t, dth, dvel, t0, st0, bias0, P0, q_psd, par,
                     nonholonomic(st, C, Cbv, w_nb, nhc_lever, H2, z2)
                     R2[0, 0] = par[P_NHC_SIG] ** 2
                     R2[1, 1] = par[P_NHC_SIG] ** 2
-                    ok, nis = update(x, P, H2, R2, z2, 0.0 if par[P_GATE_VEL] <= 0 else 25.0, innov, sdiag)
+                    ok, nis = update(x, P, H2, R2, z2, 0.0 if par[P_GATE_VEL] <= 0 else 25.0, innov2, sdiag2)
                     if ok:
                         n_nhc += 1
                     else:
@@ -295,12 +266,7 @@ def _loose_kernel(imu_t, dth, dvel, t0, st0, bias0, P0, q_psd, par,
                 S_post[kn] = P
                 S_dx[kn] = x
             kn += 1
-            T = 0.0
-            fn_sum[:] = 0.0
-            wb_sum[:] = 0.0
-            fb_sum[:] = 0.0
-            C_sum[:, :] = 0.0
-            n_sum = 0
+            reset_accumulator(acc)
         if k % out_every == 0:
             out_idx[oi] = k
             out_st[oi] = st

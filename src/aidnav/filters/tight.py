@@ -52,11 +52,19 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from aidnav.nav.earth import OMEGA_IE, dcm_ecef_to_enu, lla_to_ecef, radii
 from aidnav.nav.gnss_sat import C_LIGHT, az_el, geo_range, geo_range_rate, klobuchar, tropo_delay
-from aidnav.nav.rotations import dcm_from_quat, quat_mult, quat_normalize
-from aidnav.nav.strapdown import strapdown_step
+from aidnav.nav.rotations import dcm_from_quat
 
 from .config import Constraints, FilterSettings, ImuNoise, Initialisation
-from .ins_errors import correct_increments, fill_model
+from .ins_errors import (
+    increment_buffers,
+    interval_model,
+    measurement_arrays,
+    model_arrays,
+    new_accumulator,
+    propagate_sample,
+    reset_accumulator,
+    set_heading,
+)
 from .kalman import discretize, update, update_scalar
 from .loose import _apply_correction
 from .measurements import gnss_position, gnss_velocity, zero_velocity
@@ -184,19 +192,11 @@ def _tight_kernel(
     clk = clk0.copy()
     P = P0.copy()
     x = np.zeros(n)
-    F15 = np.zeros((15, 15))
-    G15 = np.zeros((15, 12))
-    F = np.zeros((n, n))
-    G = np.zeros((n, N_NOISE))
-    Phi = np.zeros((n, n))
-    Qd = np.zeros((n, n))
-    H3p = np.zeros((3, 15))
+    F15, G15, _, _ = model_arrays(15, 12)  # INS block (ins_errors), then the clock states appended
+    F, G, Phi, Qd = model_arrays(n, N_NOISE)
+    H3, z3, R3, innov3, sdiag3 = measurement_arrays(3, n)  # ZUPT
+    H3p = np.zeros((3, 15))  # antenna position / velocity blocks of the loosely coupled measurements
     H3v = np.zeros((3, 15))
-    z3 = np.zeros(3)
-    H3 = np.zeros((3, n))
-    R3 = np.zeros((3, 3))
-    innov3 = np.zeros(3)
-    sdiag3 = np.zeros(3)
     h = np.zeros(n)
     lever = par[T_LEVER : T_LEVER + 3].copy()
     alpha = ion_ab[:4].copy()
@@ -229,64 +229,22 @@ def _tight_kernel(
     gi = 0
     while gi < M and g_t[gi] - clk[0] / C_LIGHT <= t0:
         gi += 1
-    T = 0.0
-    fn_sum = np.zeros(3)
-    wb_sum = np.zeros(3)
-    fb_sum = np.zeros(3)
-    C_sum = np.zeros((3, 3))
-    n_sum = 0
-    dth_prev = np.zeros(3)
-    dv_prev = np.zeros(3)
-    dthc = np.zeros(3)
-    dvc = np.zeros(3)
+    acc = new_accumulator()  # sums over the samples since the last node (ins_errors.ACC_*)
+    dthc, dvc, dth_prev, dv_prev = increment_buffers()  # corrected increments: this / previous sample
     tp = t0
     oi = 0
     for k in range(n_imu):
         dt = imu_t[k] - tp
         tp = imu_t[k]
-        correct_increments(dth[k], dvel[k], bias, dt, dthc, dvc)
-        C = dcm_from_quat(st[6:10])
-        C_sum += C
-        fn_sum += C @ dvc
-        wb_sum += dthc
-        fb_sum += dvc
-        T += dt
-        n_sum += 1
-        strapdown_step(st, dthc, dvc, dth_prev, dv_prev, dt)
-        dth_prev[:] = dthc
-        dv_prev[:] = dvc
-        clk[0] += clk[1] * dt
+        T = propagate_sample(st, acc, dth[k], dvel[k], bias, dt, dthc, dvc, dth_prev, dv_prev)
+        clk[0] += clk[1] * dt  # receiver clock bias [m] follows its drift [m/s]
         if k == reset_idx:
-            Cn = dcm_from_quat(st[6:10])
-            from_h = np.arctan2(Cn[0, 1], Cn[1, 1])
-            dpsi = -(reset_heading - from_h)
-            qz = np.array([np.cos(0.5 * dpsi), 0.0, 0.0, np.sin(0.5 * dpsi)])
-            st[6:10] = quat_normalize(quat_mult(qz, st[6:10]))
-            for j in range(n):
-                P[2, j] = 0.0
-                P[j, 2] = 0.0
-            P[2, 2] = reset_sigma * reset_sigma
+            set_heading(st, P, reset_heading, reset_sigma)  # heading from the GNSS course
         t_meas = g_t[gi] - clk[0] / C_LIGHT if gi < M else np.inf
         is_node = T >= par[T_PROP_DT] - 1e-9 or t_meas <= imu_t[k] or k == n_imu - 1
         if is_node and T > 0.0:
             C = dcm_from_quat(st[6:10])
-            wb = wb_sum / T
-            fb = fb_sum / T
-            fill_model(
-                F15,
-                G15,
-                st[0],
-                st[2],
-                st[3:6],
-                fn_sum / T,
-                C_sum / n_sum,
-                wb,
-                fb,
-                par[T_TAU_G],
-                par[T_TAU_A],
-                0.0,
-                0.0,
-            )
+            wb = interval_model(F15, G15, st, acc, par[T_TAU_G], par[T_TAU_A], 0.0, 0.0)
             _build_model(F, G, F15, G15, nnav, par[T_TAU_F])
             discretize(F, G, q_psd, T, Phi, Qd)
             P[:, :] = Phi @ P @ Phi.T + Qd
@@ -431,12 +389,7 @@ def _tight_kernel(
                 rec_clk[g, 1] = clk[1]
                 rec_Pnav[g] = P[:9, :9]
                 rec_state[g] = st
-            T = 0.0
-            fn_sum[:] = 0.0
-            wb_sum[:] = 0.0
-            fb_sum[:] = 0.0
-            C_sum[:, :] = 0.0
-            n_sum = 0
+            reset_accumulator(acc)
         if k % out_every == 0:
             out_idx[oi] = k
             out_st[oi] = st

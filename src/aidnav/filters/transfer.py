@@ -74,7 +74,7 @@ from aidnav.nav.rotations import (
     quat_from_dcm,
     quat_to_euler_batch,
 )
-from aidnav.nav.strapdown import make_state, strapdown_step
+from aidnav.nav.strapdown import make_state
 from aidnav.sim.distributed_pos import (
     DistributedPosConfig,
     DistributedPosRun,
@@ -84,7 +84,16 @@ from aidnav.sim.distributed_pos import (
     flexure_transition,
 )
 
-from .ins_errors import fill_model
+from .ins_errors import (
+    fill_model,
+    increment_buffers,
+    interval_means,
+    measurement_arrays,
+    model_arrays,
+    new_accumulator,
+    propagate_sample,
+    reset_accumulator,
+)
 from .kalman import discretize, predict, update
 from .loose import _apply_correction
 from .measurements import attitude as attitude_measurement
@@ -249,16 +258,9 @@ def _transfer_kernel(dth, dvel, dt, ratio, st0, P0, beta, sigma, q_gyro, q_accel
     bias = np.zeros(6)
     P = P0.copy()
     x = np.zeros(n)
-    F = np.zeros((n, n))
-    G = np.zeros((n, nn))
+    F, G, Phi, Qd = model_arrays(n, nn)
     q = np.zeros(nn)
-    Phi = np.zeros((n, n))
-    Qd = np.zeros((n, n))
-    H = np.zeros((6, n))
-    z = np.zeros(6)
-    R = np.zeros((6, 6))
-    innov = np.zeros(6)
-    sdiag = np.zeros(6)
+    H, z, R, innov, sdiag = measurement_arrays(6, n)  # attitude (3) + velocity (3) matching
     out_st = np.empty((M, 10))
     out_bias = np.empty((M, 6))
     out_x = np.empty((M, n - N_INS))
@@ -268,36 +270,18 @@ def _transfer_kernel(dth, dvel, dt, ratio, st0, P0, beta, sigma, q_gyro, q_accel
     out_ok = np.empty(M, np.bool_)
     out_innov = np.empty((M, 6))
     out_s = np.empty((M, 6))
-    dth_prev = np.zeros(3)
-    dv_prev = np.zeros(3)
-    dthc = np.zeros(3)
-    dvc = np.zeros(3)
-    fn_sum = np.zeros(3)
-    wb_sum = np.zeros(3)
-    fb_sum = np.zeros(3)
-    C_sum = np.zeros((3, 3))
+    dthc, dvc, dth_prev, dv_prev = increment_buffers()  # corrected increments: this / previous sample
+    acc = new_accumulator()  # sums over the samples of one epoch interval (ins_errors.ACC_*)
     for j in range(M):
         if j > 0:
-            fn_sum[:] = 0.0
-            wb_sum[:] = 0.0
-            fb_sum[:] = 0.0
-            C_sum[:, :] = 0.0
+            reset_accumulator(acc)
             for kk in range(ratio):
                 i = (j - 1) * ratio + kk
-                for a in range(3):
-                    dthc[a] = dth[i, a] - bias[a] * dt
-                    dvc[a] = dvel[i, a] - bias[3 + a] * dt
-                C = dcm_from_quat(st[6:10])
-                C_sum += C
-                fn_sum += C @ dvc
-                wb_sum += dthc
-                fb_sum += dvc
-                strapdown_step(st, dthc, dvc, dth_prev, dv_prev, dt)
-                dth_prev[:] = dthc
-                dv_prev[:] = dvc
+                propagate_sample(st, acc, dth[i], dvel[i], bias, dt, dthc, dvc, dth_prev, dv_prev)
+            # epochs are exactly ``ratio`` samples apart: the interval is ratio·dt (not the summed dt)
             T = ratio * dt
-            fill_transfer_model(F, G, q, st[0], st[2], st[3:6], fn_sum / T, C_sum / ratio, wb_sum / T,
-                                fb_sum / T, beta, sigma, q_gyro, q_accel)
+            fn, Cbn, wb, fb = interval_means(acc, T)
+            fill_transfer_model(F, G, q, st[0], st[2], st[3:6], fn, Cbn, wb, fb, beta, sigma, q_gyro, q_accel)
             discretize_transfer(F, G, q, T, beta, sigma, Phi, Qd)
             predict(x, P, Phi, Qd)
         _measurement(st, x, m_C[j], m_vel[j], m_w[j], lever, m_Ra[j], sig_v, H, z, R)
@@ -587,16 +571,9 @@ def _covariance_kernel(lat, h, vel, Cm, Cmean, fn, wb, fb, T, P0, beta, sigma, q
     n = P0.shape[0]
     P = P0.copy()
     x = np.zeros(n)
-    F = np.zeros((n, n))
-    G = np.zeros((n, 15))
+    F, G, Phi, Qd = model_arrays(n, 15)
     q = np.zeros(15)
-    Phi = np.zeros((n, n))
-    Qd = np.zeros((n, n))
-    H = np.zeros((6, n))
-    R = np.zeros((6, 6))
-    z = np.zeros(6)
-    innov = np.zeros(6)
-    sd = np.zeros(6)
+    H, z, R, innov, sd = measurement_arrays(6, n)
     out = np.empty((M, n, n))
     for j in range(M):
         if j > 0:

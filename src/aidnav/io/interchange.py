@@ -229,7 +229,10 @@ def _read_csv(path: Path) -> _Table:
 
 def _read_parquet(path: Path) -> _Table:
     try:
-        tbl = pq.read_table(path)
+        # ParquetFile.read, not pq.read_table: the latter goes through pyarrow.dataset, which imports
+        # pandas, and returns one chunk per row group (3x slower on a 10-h IMU log)
+        with pq.ParquetFile(path) as pf:
+            tbl = pf.read()
     except (OSError, pa.ArrowException) as e:
         raise DataError(path, None, f"cannot read Parquet file: {e}") from None
     if tbl.num_rows == 0:

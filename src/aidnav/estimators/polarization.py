@@ -48,6 +48,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 from scipy.optimize import minimize
 
 from aidnav.nav.rotations import dcm_from_euler, euler_from_dcm, rotvec_from_dcm
@@ -64,7 +65,8 @@ from aidnav.nav.wave_frame import (
 
 __all__ = [
     "closed_form", "principal_eigenvector", "closed_form_covariance", "power_noise", "concentrated_loglik",
-    "MLResult", "ml_estimate", "crb_eq7", "crb_numerical", "crb_rotation_vector", "cvae_bound",
+    "MLResult", "ml_estimate", "objective_gradient", "crb_eq7", "crb_numerical", "crb_rotation_vector",
+    "cvae_bound",
     "euler_error_jacobian", "attitude_from_wave", "crb_attitude", "resolve_line_of_sight", "AttitudeFix",
     "estimate_attitude",
 ]
@@ -223,8 +225,11 @@ class MLResult:
         return self.phi, self.theta, self.gamma
 
 
-def _neg_obj(p, R, eta, scale):
-    """−AᴴR̂A·scale and its gradient −2 Re{DᴴR̂A}·scale (A, D written out for speed)."""
+@njit(cache=True)
+def objective_gradient(p, R, ce, se, g):
+    """f = AᴴR̂A at p = (φ, θ, γ) [rad] and its gradient 2 Re{DᴴR̂A} written into g (3,), for
+    A = cosη ṽ1 + i sinη ṽ2 (ce = cos η, se = sin η) and R (3, 3) complex128; A and D = ∂A/∂(φ, θ, γ)
+    written out (numba; the per-fix BFGS and the batch Newton of ``polarization_batch`` share it)."""
     cp, sp = np.cos(p[0]), np.sin(p[0])
     ct, st = np.cos(p[1]), np.sin(p[1])
     cg, sg = np.cos(p[2]), np.sin(p[2])
@@ -233,17 +238,31 @@ def _neg_obj(p, R, eta, scale):
     v2 = np.array([-cp * st, -sp * st, ct])
     d1 = np.array([-cp, -sp, 0.0])  # ∂v1/∂φ
     d2 = np.array([sp * st, -cp * st, 0.0])  # ∂v2/∂φ
-    t1 = cg * v1 - sg * v2
-    t2 = sg * v1 + cg * v2
-    ce, se = np.cos(eta), 1j * np.sin(eta)
-    A = ce * t1 + se * t2
-    D = np.empty((3, 3), dtype=complex)
-    D[:, 0] = ce * (cg * d1 - sg * d2) + se * (sg * d1 + cg * d2)
-    D[:, 1] = (ce * sg - se * cg) * u  # ∂ṽ1/∂θ = sinγ u, ∂ṽ2/∂θ = −cosγ u
-    D[:, 2] = -ce * t2 + se * t1
+    A = np.empty(3, np.complex128)
+    D = np.empty((3, 3), np.complex128)
+    for i in range(3):
+        t1 = cg * v1[i] - sg * v2[i]
+        t2 = sg * v1[i] + cg * v2[i]
+        A[i] = ce * t1 + 1j * se * t2
+        D[i, 0] = ce * (cg * d1[i] - sg * d2[i]) + 1j * se * (sg * d1[i] + cg * d2[i])
+        D[i, 1] = (ce * sg - 1j * se * cg) * u[i]
+        D[i, 2] = -ce * t2 + 1j * se * t1
     RA = R @ A
-    f = float(np.real(np.conj(A) @ RA))
-    g = 2.0 * np.real(D.conj().T @ RA)
+    f = 0.0
+    for i in range(3):
+        f += (np.conj(A[i]) * RA[i]).real
+    for j in range(3):
+        s = 0.0
+        for i in range(3):
+            s += (np.conj(D[i, j]) * RA[i]).real
+        g[j] = 2.0 * s
+    return f
+
+
+def _neg_obj(p, R, eta, scale):
+    """−AᴴR̂A·scale and its gradient (scipy's BFGS minimises)."""
+    g = np.empty(3)
+    f = objective_gradient(np.asarray(p, dtype=float), R, np.cos(eta), np.sin(eta), g)
     return -f * scale, -g * scale
 
 
@@ -272,6 +291,7 @@ def ml_estimate(R, eta, start=None, gtol=1e-9, maxiter=200) -> MLResult:
             raise ValueError(f"start must have shape (3,) (phi, theta, gamma), got {p0.shape}")
         _check_finite(p0, "start")
     scale = 1.0 / float(np.real(np.trace(R)))
+    R = np.ascontiguousarray(R, dtype=np.complex128)
     res = minimize(_neg_obj, p0, args=(R, eta, scale), jac=True, method="BFGS",
                    options={"gtol": gtol, "maxiter": maxiter})
     phi, theta, gamma = wave_params_from_dcm(wave_dcm(*res.x))

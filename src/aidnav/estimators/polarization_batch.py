@@ -30,7 +30,13 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from aidnav.estimators.polarization import ZENITH_TOL, _check_eta, _check_snapshots, _zenith_error
+from aidnav.estimators.polarization import (
+    ZENITH_TOL,
+    _check_eta,
+    _check_snapshots,
+    _zenith_error,
+)
+from aidnav.estimators.polarization import objective_gradient as _objective_gradient
 from aidnav.nav.rotations import euler_from_dcm
 from aidnav.nav.wave_frame import P_SEED
 
@@ -77,38 +83,6 @@ def _wave_dcm(phi, theta, gamma):
         C[1, i] = cg * v1[i] - sg * v2[i]
         C[2, i] = sg * v1[i] + cg * v2[i]
     return C
-
-
-@njit(cache=True)
-def _objective_gradient(p, R, ce, se, g):
-    """f = AᴴR̂A at p = (φ, θ, γ) and its gradient 2 Re{DᴴR̂A} into g (A = cosη ṽ1 + i sinη ṽ2)."""
-    cp, sp = np.cos(p[0]), np.sin(p[0])
-    ct, st = np.cos(p[1]), np.sin(p[1])
-    cg, sg = np.cos(p[2]), np.sin(p[2])
-    u = np.array([cp * ct, sp * ct, st])
-    v1 = np.array([-sp, cp, 0.0])
-    v2 = np.array([-cp * st, -sp * st, ct])
-    d1 = np.array([-cp, -sp, 0.0])  # ∂v1/∂φ
-    d2 = np.array([sp * st, -cp * st, 0.0])  # ∂v2/∂φ
-    A = np.empty(3, np.complex128)
-    D = np.empty((3, 3), np.complex128)
-    for i in range(3):
-        t1 = cg * v1[i] - sg * v2[i]
-        t2 = sg * v1[i] + cg * v2[i]
-        A[i] = ce * t1 + 1j * se * t2
-        D[i, 0] = ce * (cg * d1[i] - sg * d2[i]) + 1j * se * (sg * d1[i] + cg * d2[i])
-        D[i, 1] = (ce * sg - 1j * se * cg) * u[i]
-        D[i, 2] = -ce * t2 + 1j * se * t1
-    RA = R @ A
-    f = 0.0
-    for i in range(3):
-        f += (np.conj(A[i]) * RA[i]).real
-    for j in range(3):
-        s = 0.0
-        for i in range(3):
-            s += (np.conj(D[i, j]) * RA[i]).real
-        g[j] = 2.0 * s
-    return f
 
 
 @njit(cache=True)

@@ -72,6 +72,7 @@ from aidnav.sim.scenario import (
     SensorsConfig,
     _clean_loc,
     _yaml_line,
+    join_error_lines,
     load_scenario,
 )
 from aidnav.sim.scenario import (
@@ -316,15 +317,6 @@ def _model_at(loc: tuple, root_model: type[BaseModel] | None = None) -> type[Bas
     return model if isinstance(model, type) and issubclass(model, BaseModel) else None
 
 
-def _value_at(data, loc):
-    for item in loc:
-        try:
-            data = data[item]
-        except (KeyError, IndexError, TypeError):
-            return None
-    return data
-
-
 def _format_error(e: dict, prefix: tuple, where: str, root, data,
                   expected=None) -> tuple[str, tuple, str | None]:
     raw = tuple(prefix) + tuple(e["loc"])
@@ -345,23 +337,8 @@ def _format_validation(err: ValidationError, where: str, root=None, data=None, p
         def expected(raw):
             m = _model_at(raw)
             return list(m.model_fields) if m is not None else None
-    lines: list[str] = []
-    other: dict[tuple, list[str]] = {}
-    reported: set[tuple] = set()
-    for e in err.errors():
-        text, loc, member = _format_error(e, prefix, where, root, data, expected)
-        if member is not None and loc:
-            field_loc = loc[:-1] if isinstance(loc[-1], int) else loc
-            if member.startswith("tuple") != isinstance(_value_at(data, field_loc), list):
-                other.setdefault(field_loc, []).append(text)
-                continue
-            reported.add(field_loc)
-        if text not in lines:
-            lines.append(text)
-    for field_loc, texts in other.items():
-        if field_loc not in reported:
-            lines.extend(t for t in texts if t not in lines)
-    return "\n".join(lines)
+    items = (_format_error(e, prefix, where, root, data, expected) for e in err.errors())
+    return join_error_lines(items, data)
 
 
 # ----------------------------------------------------------------------------------------- parsing

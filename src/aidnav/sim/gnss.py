@@ -61,6 +61,23 @@ def _vec3(x, name: str) -> np.ndarray:
     return a.copy()
 
 
+def time_windows(items, name: str) -> list[tuple[float, float]]:
+    """Time windows (outages, blockages) as a list of (start [s], duration [s]) from pairs or mappings
+    {start_s, duration_s}; ValueError (naming ``name``) for unknown keys or a negative duration."""
+    out = []
+    for w in items:
+        if isinstance(w, dict):
+            bad = set(w) - {"start_s", "duration_s"}
+            if bad:
+                raise ValueError(f"{name}: unknown key(s) {', '.join(map(repr, sorted(bad)))}")
+            w = (w["start_s"], w["duration_s"])
+        start, dur = float(w[0]), float(w[1])
+        if dur < 0:
+            raise ValueError(f"{name}: duration_s must be >= 0")
+        out.append((start, dur))
+    return out
+
+
 @dataclass
 class GnssSpec:
     """GNSS position/velocity receiver model.
@@ -95,18 +112,7 @@ class GnssSpec:
         if lev.shape != (3,):
             raise ValueError("GnssSpec.lever_arm_b: expected 3 values [m], body RFU")
         self.lever_arm_b = lev.copy()
-        outs = []
-        for o in self.outages:
-            if isinstance(o, dict):
-                bad = set(o) - {"start_s", "duration_s"}
-                if bad:
-                    raise ValueError(f"GnssSpec.outages: unknown key(s) {', '.join(map(repr, sorted(bad)))}")
-                o = (o["start_s"], o["duration_s"])
-            start, dur = float(o[0]), float(o[1])
-            if dur < 0:
-                raise ValueError("GnssSpec.outages: duration_s must be >= 0")
-            outs.append((start, dur))
-        self.outages = outs
+        self.outages = time_windows(self.outages, "GnssSpec.outages")
         self.latency_s = float(self.latency_s)
         if self.latency_s < 0:
             raise ValueError("GnssSpec.latency_s must be >= 0")
@@ -324,4 +330,4 @@ def simulate_gnss(truth: Trajectory, spec: GnssSpec, rng: np.random.Generator,
     return GnssData(tags, lat_o, lon_o, h_o, vel, std_pos, std_vel, None, events)
 
 
-__all__ = ["GnssSpec", "simulate_gnss", "interpolate_truth"]
+__all__ = ["GnssSpec", "simulate_gnss", "interpolate_truth", "time_windows"]

@@ -40,6 +40,7 @@ import numpy as np
 
 from aidnav.data import Trajectory
 from aidnav.nav.geo_pointing import R_GEO, R_GEO_SEED000, az_el_from_body, geo_sat_ecef
+from aidnav.sim.gnss import time_windows
 
 __all__ = ["SapvSpec", "SapvData", "simulate_sapv", "OK", "BLOCKED", "LOW_ELEVATION", "BODY_RATE",
            "REACQUIRING", "REASONS", "R_GEO", "R_GEO_SEED000"]
@@ -100,18 +101,7 @@ class SapvSpec:
             raise ValueError("SapvSpec.max_body_rate_deg_s must be > 0")
         if self.reacquire_s < 0:
             raise ValueError("SapvSpec.reacquire_s must be >= 0")
-        out = []
-        for b in self.blockages:
-            if isinstance(b, dict):
-                bad = set(b) - {"start_s", "duration_s"}
-                if bad:
-                    raise ValueError(f"SapvSpec.blockages: unknown key(s) {', '.join(sorted(bad))}")
-                b = (b["start_s"], b["duration_s"])
-            s, d = float(b[0]), float(b[1])
-            if d < 0:
-                raise ValueError("SapvSpec.blockages: duration_s must be >= 0")
-            out.append((s, d))
-        self.blockages = out
+        self.blockages = time_windows(self.blockages, "SapvSpec.blockages")
 
     @property
     def sat_ecef(self) -> np.ndarray:

@@ -452,14 +452,22 @@ def error_message(e: dict, loc: tuple, keys=None) -> str:
 
 def _format_errors(err: ValidationError, where: str, root=None, data=None) -> str:
     """One line per problem: ``file[:line]: key.path: message``."""
+    items = []
+    for e in err.errors():
+        loc, member = _clean_loc(tuple(e["loc"]))
+        items.append((_format_one(e, loc, where, root), loc, member))
+    return join_error_lines(items, data)
+
+
+def join_error_lines(items, data) -> str:
+    """The message of a validation error from its (text, cleaned loc, union member) items, one line each,
+    without repeats. For a scalar-or-[x, y, z] union only the branch that matches what was written (a list
+    or not) is reported, unless no error came from that branch. Shared with experiment files."""
     lines: list[str] = []
     other_branch: dict[tuple, list[str]] = {}
     reported: set[tuple] = set()
-    for e in err.errors():
-        loc, member = _clean_loc(tuple(e["loc"]))
-        text = _format_one(e, loc, where, root)
-        if member is not None:
-            # a scalar-or-[x, y, z] value: report the branch that matches what was written
+    for text, loc, member in items:
+        if member is not None and loc:
             field_loc = loc[:-1] if isinstance(loc[-1], int) else loc
             if member.startswith("tuple") != isinstance(_value_at(data, field_loc), list):
                 other_branch.setdefault(field_loc, []).append(text)

@@ -605,7 +605,7 @@ def spp_series(
     lat, lon, h, clock_m, vel_enu (T, 3), clock_drift, n_used, status (list), pdop, excluded (list),
     residuals (T, S), events (list of str: satellites without ephemeris, exclusions, epochs without a fix).
     """
-    from aidnav.nav.gnss_sat import FREQ_L1, FREQ_L2
+    from aidnav.nav.gnss_sat import dual_frequency_iono
 
     eph = eph.to_week(obs.ref_week) if eph.ref_week != obs.ref_week else eph
     T, S = obs.code1.shape
@@ -613,19 +613,7 @@ def spp_series(
     if iono == "dual":
         if obs.code2 is None:
             raise ValueError("iono='dual' needs an L2 code in the observation file")
-        gam = (FREQ_L1 / FREQ_L2) ** 2
-        i1 = (obs.code2 - obs.code1) / (gam - 1.0)
-        half = iono_window_s / 2
-        i1s = np.full_like(i1, np.nan)
-        for j in range(S):
-            ok = np.isfinite(i1[:, j])
-            tj, ij = obs.time[ok], i1[ok, j]
-            if not len(tj):
-                continue
-            cs = np.concatenate([[0.0], np.cumsum(ij)])
-            lo = np.searchsorted(tj, tj - half, "left")
-            hi = np.searchsorted(tj, tj + half, "right")
-            i1s[np.flatnonzero(ok), j] = (cs[hi] - cs[lo]) / (hi - lo)
+        i1s = dual_frequency_iono(obs.time, obs.code1, obs.code2, iono_window_s)
         pr_all = obs.code1 - i1s
     alpha = beta = None
     if iono == "klobuchar":

@@ -51,7 +51,15 @@ from numba import njit
 from pydantic import BaseModel, ConfigDict, Field
 
 from aidnav.nav.earth import OMEGA_IE, dcm_ecef_to_enu, lla_to_ecef, radii
-from aidnav.nav.gnss_sat import C_LIGHT, az_el, geo_range, geo_range_rate, klobuchar, tropo_delay
+from aidnav.nav.gnss_sat import (
+    C_LIGHT,
+    az_el,
+    dual_frequency_iono,
+    geo_range,
+    geo_range_rate,
+    klobuchar,
+    tropo_delay,
+)
 from aidnav.nav.rotations import dcm_from_quat
 
 from .config import Constraints, FilterSettings, ImuNoise, Initialisation
@@ -490,25 +498,6 @@ def _satellite_arrays(obs, eph, use_tgd, max_age):
     return sp, sv, sc, scr
 
 
-def _dual_iono(obs, window_s):
-    from aidnav.nav.gnss_sat import FREQ_L1, FREQ_L2
-
-    gam = (FREQ_L1 / FREQ_L2) ** 2
-    i1 = (obs.code2 - obs.code1) / (gam - 1.0)
-    out = np.full_like(i1, np.nan)
-    half = window_s / 2
-    for j in range(i1.shape[1]):
-        ok = np.isfinite(i1[:, j])
-        tj, ij = obs.time[ok], i1[ok, j]
-        if not len(tj):
-            continue
-        cs = np.concatenate([[0.0], np.cumsum(ij)])
-        lo = np.searchsorted(tj, tj - half, "left")
-        hi = np.searchsorted(tj, tj + half, "right")
-        out[np.flatnonzero(ok), j] = (cs[hi] - cs[lo]) / (hi - lo)
-    return out
-
-
 def run_tight(
     imu,
     obs,
@@ -602,7 +591,7 @@ def run_tight(
     if g.iono == "dual":
         if obs.code2 is None:
             raise ValueError("iono = dual needs an L2 code")
-        ion_dual = _dual_iono(obs, g.iono_window_s)
+        ion_dual = dual_frequency_iono(obs.time, obs.code1, obs.code2, g.iono_window_s)
     else:
         ion_dual = np.full(obs.code1.shape, np.nan)
     sp, sv, sc, scr = _satellite_arrays(obs, eph, use_tgd, g.max_eph_age_s)

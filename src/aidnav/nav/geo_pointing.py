@@ -40,7 +40,7 @@ from numba import njit
 
 from .earth import R_GEO, dcm_ecef_to_enu, lla_to_ecef, radii
 from .earth import A as WGS84_A
-from .rotations import dcm_from_euler
+from .rotations import dcm_from_euler, skew
 
 __all__ = [
     "R_GEO", "H_GEO_SEED000", "R_GEO_SEED000", "geo_radius_from_height", "geo_sat_ecef", "los_ecef",
@@ -119,15 +119,6 @@ def pointing_az_el(lat, lon, h, Cbn, sat_ecef):
 
 
 @njit(cache=True)
-def _skew(v):
-    m = np.zeros((3, 3))
-    m[0, 1], m[0, 2] = -v[2], v[1]
-    m[1, 0], m[1, 2] = v[2], -v[0]
-    m[2, 0], m[2, 1] = -v[1], v[0]
-    return m
-
-
-@njit(cache=True)
 def az_el_jacobians(lat, lon, h, Cbn, sat_ecef):
     """(az, el, H_phi, H_pos): antenna angles [rad] and their exact Jacobians.
 
@@ -143,7 +134,7 @@ def az_el_jacobians(lat, lon, h, Cbn, sat_ecef):
     r_b = Cnb @ r_n
     az, el = az_el_from_body(r_b)
     Aj = az_el_jacobian_rb(r_b)
-    rx = _skew(r_n)
+    rx = skew(r_n)
     H_phi = -(Aj @ (Cnb @ rx))
     rm, rn = radii(lat)
     cl, sl = np.cos(lat), np.sin(lat)

@@ -321,22 +321,25 @@ def read_imu(path) -> ImuData:
     t.increasing_time()
     time = t.cols["time"]
     events = []
+    # the gyro and accelerometer triads as two contiguous (N, 3) arrays (no (N, 6) copy)
     if has_inc:
-        x = t.get(IMU_INCREMENT_COLUMNS)
+        dth, dv = t.get(IMU_INCREMENT_COLUMNS[:3]), t.get(IMU_INCREMENT_COLUMNS[3:])
         if has_rate:
             events.append("file has both rate and increment columns; the increments were used")
     else:
         if len(time) < 2:
             t.fail(0, "rates need at least two samples to form increments")
-        dt = np.diff(time, prepend=time[0] - (time[1] - time[0]))
-        x = t.get(IMU_RATE_COLUMNS) * dt[:, None]
+        dt = np.diff(time, prepend=time[0] - (time[1] - time[0]))[:, None]
+        dth, dv = t.get(IMU_RATE_COLUMNS[:3]), t.get(IMU_RATE_COLUMNS[3:])
+        dth *= dt
+        dv *= dt
         events.append("rates converted to increments (rate × Δt over (t_{k-1}, t_k])")
     t0 = t.meta.get("t0_s")
     if t0 is not None and not t0 < time[0]:
         t0 = None
     if t0 is None and has_rate:
         t0 = float(time[0] - (time[1] - time[0]))
-    return ImuData(time=time, dtheta=x[:, :3], dv=x[:, 3:], t0=t0, events=events)
+    return ImuData(time=time, dtheta=dth, dv=dv, t0=t0, events=events)
 
 
 def write_imu(imu: ImuData, path) -> Path:

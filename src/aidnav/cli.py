@@ -236,8 +236,9 @@ def design_trajectory_cmd(
     heading: float = typer.Option(..., "--heading", help="required heading accuracy on AB, CD [deg, 1σ]"),
     pitch: float = typer.Option(..., "--pitch", help="required pitch accuracy [deg, 1σ]"),
     roll: float = typer.Option(..., "--roll", help="required roll accuracy [deg, 1σ]"),
-    grade: str = typer.Option("seed004_sub", "--grade",
-                              help="seed004_high|medium|low|sub, or high_arw|medium_arw|low_arw|sub_arw"),
+    grade: str = typer.Option("sub_arw", "--grade",
+                              help="seed004_high|medium|low|sub, or high_arw|medium_arw|low_arw|sub_arw (the "
+                              "seed's 'random drift' read as an ARW, as the seed-004 reproduction does)"),
     t1: str = typer.Option("0,200,400", "--t1", help="candidate straight legs before AB [s]"),
     t2: str = typer.Option("100,200,400,600,800", "--t2", help="candidate lengths of AB and CD [s]"),
     modes: str = typer.Option("none,s_turns,o_circle,figure8,climb", "--modes", help="maneuvers to consider"),

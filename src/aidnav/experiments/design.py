@@ -119,7 +119,7 @@ class TrajectoryDesign:
     analysis: CovarianceAnalysis | None
 
 
-def design_trajectory(requirement: dict, grade: str = "sub", modes=DESIGN_MODES,
+def design_trajectory(requirement: dict, grade: str = "sub_arw", modes=DESIGN_MODES,
                       t1_values=(0.0, 200.0, 400.0), t2_values=(100.0, 200.0, 400.0, 600.0, 800.0),
                       legs=("AB", "CD"), baseline_km: float = 20.0, nstate: int = 24, mc_runs: int = 3,
                       base_seed: int = 1, say=None) -> TrajectoryDesign:

@@ -56,7 +56,9 @@ P_MAX_REJECT = 27
 P_POS_STD_SCALE = 28
 P_VEL_STD_SCALE = 29
 P_ZARU_SIG = 30  # zero angular rate update sigma [rad/s], <= 0 off
-N_PARAMS = 31
+P_GATE_VEL1 = 31  # chi-square gate of a velocity fix with 1 measured component
+P_GATE_VEL2 = 32  # ... with 2 measured components (e.g. no vertical velocity)
+N_PARAMS = 33
 
 
 @njit(cache=True)
@@ -208,7 +210,11 @@ def _loose_kernel(imu_t, dth, dvel, t0, st0, bias0, P0, q_psd, par,
                         rec_pos_innov[gi] = innov
                         rec_pos_s[gi] = sdiag
                         n_rej_pos = 0 if ok else n_rej_pos + 1
-                    if par[P_USE_VEL] > 0 and not np.isnan(g_vel[gi, 0]):
+                    nvm = 0  # measured velocity components (NaN: not measured)
+                    for i in range(3):
+                        if not np.isnan(g_vel[gi, i]):
+                            nvm += 1
+                    if par[P_USE_VEL] > 0 and nvm > 0:
                         sl = np.sin(st[0])
                         cl = np.cos(st[0])
                         rm, rn = radii(st[0])
@@ -218,18 +224,33 @@ def _loose_kernel(imu_t, dth, dvel, t0, st0, bias0, P0, q_psd, par,
                         # rate since the previous node (up to prop_dt ago: lags in turn transitions)
                         w_fix = dthc / dt
                         gnss_velocity(st, C, lever, w_fix, w_in, g_vel[gi], H3, z3)
-                        R3[:, :] = 0.0
+                        # only the measured components enter the update
+                        Hm = np.zeros((nvm, n))
+                        zm = np.zeros(nvm)
+                        Rm = np.zeros((nvm, nvm))
+                        innov_m = np.zeros(nvm)
+                        sdiag_m = np.zeros(nvm)
+                        r = 0
                         for i in range(3):
-                            R3[i, i] = (g_svel[gi, i] * par[P_VEL_STD_SCALE]) ** 2
-                        gate = par[P_GATE_VEL]
+                            if not np.isnan(g_vel[gi, i]):
+                                Hm[r, :] = H3[i, :]
+                                zm[r] = z3[i]
+                                Rm[r, r] = (g_svel[gi, i] * par[P_VEL_STD_SCALE]) ** 2
+                                r += 1
+                        gate = par[P_GATE_VEL] if nvm == 3 else (par[P_GATE_VEL2] if nvm == 2
+                                                                  else par[P_GATE_VEL1])
                         if n_rej_vel >= par[P_MAX_REJECT]:
                             gate = 0.0
-                        ok, nis = update(x, P, H3, R3, z3, gate, innov, sdiag)
+                        ok, nis = update(x, P, Hm, Rm, zm, gate, innov_m, sdiag_m)
                         n_rej_vel = 0 if ok else n_rej_vel + 1
                         rec_vel[gi] = 1 if ok else 0
                         rec_vel_nis[gi] = nis
-                        rec_vel_innov[gi] = innov
-                        rec_vel_s[gi] = sdiag
+                        r = 0
+                        for i in range(3):
+                            if not np.isnan(g_vel[gi, i]):
+                                rec_vel_innov[gi, i] = innov_m[r]
+                                rec_vel_s[gi, i] = sdiag_m[r]
+                                r += 1
                 gi += 1
             # ---- vehicle constraints
             if static[k] and par[P_ZUPT_SIG] > 0:
@@ -491,7 +512,7 @@ def bridge_gaps(imu, events: list, factor: float = 5.0, window_s: float = 1.0):
 
 
 def gnss_arrays(gnss, cfg):
-    """GNSS fixes as kernel arrays with σ floors, quality factors and the height offset applied."""
+    """GNSS fixes as kernel arrays with σ floors and quality factors applied (heights as read)."""
     g = cfg.gnss
     m = len(gnss)
     spos = (np.tile(g.default_pos_std_m, (m, 1)) if gnss.std_pos is None else gnss.std_pos.copy())
@@ -504,7 +525,8 @@ def gnss_arrays(gnss, cfg):
     spos = np.maximum(spos, g.min_pos_std_m)
     svel = np.maximum(svel, g.min_vel_std_m_s)
     vel = gnss.vel if gnss.vel is not None else np.full((m, 3), np.nan)
-    return (gnss.time, gnss.lat, gnss.lon, gnss.height + g.height_offset_m,
+    # heights arrive ellipsoidal: the datum offset is applied once, by the reader (aidnav.io)
+    return (gnss.time, gnss.lat, gnss.lon, gnss.height,
             np.ascontiguousarray(vel), np.ascontiguousarray(spos), np.ascontiguousarray(svel))
 
 
@@ -638,8 +660,10 @@ def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: 
             else:
                 tca, course, ica = ca
                 ica = np.flatnonzero(use)[ica]
-                vel_g = g_vel[ica] if not np.isnan(g_vel[ica, 0]) else np.zeros(3)
-                svel = g_svel[ica] if not np.isnan(g_vel[ica, 0]) else np.full(3, 1.0)
+                # a component the receiver did not measure (NaN) resets to 0 with σ 1 m/s
+                meas = ~np.isnan(g_vel[ica])
+                vel_g = np.where(meas, np.nan_to_num(g_vel[ica]), 0.0)
+                svel = np.where(meas, g_svel[ica], 1.0)
                 reset_nav = np.array([*vel_g, g_lat[ica], g_lon[ica], g_h[ica], *svel, *g_spos[ica]])
                 mount_h = cfg.imu.mounting_rph_deg[2] * DEG
                 # vehicle heading = course; IMU heading = vehicle heading + mounting heading
@@ -661,6 +685,8 @@ def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: 
     gp = cfg.gnss.gate_probability
     par[P_GATE_POS] = chdtri(3, 1.0 - gp) if gp < 1 else 0.0
     par[P_GATE_VEL] = par[P_GATE_POS]
+    par[P_GATE_VEL1] = chdtri(1, 1.0 - gp) if gp < 1 else 0.0
+    par[P_GATE_VEL2] = chdtri(2, 1.0 - gp) if gp < 1 else 0.0
     par[P_USE_POS] = cfg.gnss.use in ("both", "position")
     par[P_USE_VEL] = cfg.gnss.use in ("both", "velocity")
     par[P_PROP_DT] = cfg.filter.prop_dt_s

@@ -45,16 +45,18 @@ def simdir(tmp_path_factory):
 
 
 def test_process_then_evaluate(simdir):
-    out = simdir / "est.csv"
+    outdir = simdir / "est"
+    out = outdir / "trajectory.csv"
     r = runner.invoke(app, ["process", "--imu", str(simdir / "sim/imu.csv"), "--gnss",
                             str(simdir / "sim/gnss.csv"), "--config", str(simdir / "cfg.yaml"), "-o",
-                            str(out), "--outage", "80:10", "--smooth"])
+                            str(outdir), "--format", "csv", "--outage", "80:10", "--smooth"])
     assert r.exit_code == 0, r.output
-    summary = json.loads((simdir / "est_summary.json").read_text())
+    summary = json.loads((outdir / "summary.json").read_text())
     assert summary["gnss_withheld"] == 10
     assert summary["outage_score"]["n_scored"] == 10
     assert any("heading from GNSS course" in e for e in summary["events"])
-    r = runner.invoke(app, ["evaluate", str(out), "--truth", str(simdir / "sim/truth.csv"), "-o",
+    r = runner.invoke(app, ["evaluate", "--estimate", str(out), "--truth", str(simdir / "sim/truth.csv"),
+                            "-o",
                             str(simdir / "eval")])
     assert r.exit_code == 0, r.output
     stats = json.loads((simdir / "eval/errors.json").read_text())
@@ -71,12 +73,11 @@ def test_process_then_evaluate(simdir):
 
 
 def test_process_without_config_states_assumptions(simdir, tmp_path):
-    out = tmp_path / "est.parquet"
     r = runner.invoke(app, ["process", "--imu", str(simdir / "sim/imu.csv"), "--gnss",
-                            str(simdir / "sim/gnss.csv"), "-o", str(out)])
+                            str(simdir / "sim/gnss.csv"), "-o", str(tmp_path / "est")])
     assert r.exit_code == 0, r.output
     assert "no --config" in r.output
-    assert out.exists()
+    assert (tmp_path / "est" / "trajectory.parquet").exists()
 
 
 @pytest.mark.parametrize("content, needle", [
@@ -92,7 +93,7 @@ def test_bad_imu_file_names_file_and_line(simdir, tmp_path, content, needle):
     bad = tmp_path / "bad_imu.csv"
     bad.write_text(content)
     r = runner.invoke(app, ["process", "--imu", str(bad), "--gnss", str(simdir / "sim/gnss.csv"), "-o",
-                            str(tmp_path / "o.csv")])
+                            str(tmp_path / "o")])
     assert r.exit_code == 2
     assert "bad_imu.csv" in r.output and needle in r.output.replace("\n", "")
 
@@ -102,7 +103,7 @@ def test_bad_config_names_the_key(simdir, tmp_path):
     cfg.write_text("imu: {arw_deg_per_sqrt_h: 0.1}\n")
     r = runner.invoke(app, ["process", "--imu", str(simdir / "sim/imu.csv"), "--gnss",
                             str(simdir / "sim/gnss.csv"), "--config", str(cfg), "-o",
-                            str(tmp_path / "o.csv")])
+                            str(tmp_path / "o")])
     assert r.exit_code == 2
     assert "imu.arw_deg_per_sqrt_h" in r.output
 
@@ -113,11 +114,11 @@ def test_gnss_outlier_is_rejected_and_reported(simdir, tmp_path):
     g = read_gnss(simdir / "sim/gnss.csv")
     g.lat[70] += 1000.0 / 6.37e6  # 1 km north
     write_gnss(g, tmp_path / "g.csv")
-    out = tmp_path / "o.csv"
+    out = tmp_path / "o"
     r = runner.invoke(app, ["process", "--imu", str(simdir / "sim/imu.csv"), "--gnss",
                             str(tmp_path / "g.csv"), "--config", str(simdir / "cfg.yaml"), "-o", str(out)])
     assert r.exit_code == 0, r.output
-    s = json.loads((tmp_path / "o_summary.json").read_text())
+    s = json.loads((out / "summary.json").read_text())
     assert s["gnss_position_rejected"] >= 1
     assert g.time[70] in s["rejected_fix_times"]
 
@@ -140,13 +141,15 @@ def test_tight_cli_on_walk_data(data_dir, tmp_path):
     """`aidnav tight` on the walk set (4 GPS satellites with ephemeris, code only): a solution within
     the metre-level accuracy such a solution can have (the RTK reference, Q = 1 epochs)."""
     d = data_dir / "rtklibexplorer_walk_0827"
-    out = tmp_path / "tight.csv"
+    out = tmp_path / "tight"
     r = runner.invoke(app, ["tight", "--imu", str(d / "imu_1730.csv"), "--obs",
                             str(d / "rinex_converted/gnss_1730.obs"), "--nav",
-                            str(d / "rinex_converted/gnss_1730.nav"), "--reference",
+                            str(d / "rinex_converted/gnss_1730.nav"), "--truth",
                             str(d / "gnss_1730_sf.pos"),
-                            "--reference-height-offset", "-21.4", "-o", str(out)])
+                            "--truth-height-offset", "-21.4", "-o", str(out)])
     assert r.exit_code == 0, r.output
-    s = json.loads((tmp_path / "tight_summary.json").read_text())
-    assert s["reference"]["epochs"] > 300
-    assert s["reference"]["horizontal_rms_m"] < 15.0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["reference"]["Q=1"]["epochs"] > 300
+    assert s["reference"]["Q=1"]["horizontal_rms_m"] < 15.0
+    # every reference epoch is scored too, not only the fixed ones
+    assert s["reference"]["all"]["epochs"] >= s["reference"]["Q=1"]["epochs"]

@@ -1,7 +1,16 @@
-"""Command-line interface: thin typer commands over the library functions."""
+"""Command-line interface: thin typer commands over the jobs in :mod:`aidnav.apps`.
+
+One grammar for every command (README "Command grammar"): data inputs are named by their role
+(``--imu --gnss --obs --nav --truth``), ``-o DIR`` is always an output directory with fixed file
+names inside, the datum and time options are the same everywhere (``--height-offset``,
+``--truth-height-offset``, ``--time-offset``), lists are repeated options, and the output is a human
+summary (``--json`` prints the machine summary instead). Bad input exits with status 2 and
+``error: FILE:LINE: what is wrong — what to do``; status 1 is a bug in aidnav.
+"""
 
 from __future__ import annotations
 
+import functools
 import os
 
 # Small matrices: single-threaded BLAS is faster than threaded (must be set before numpy loads).
@@ -13,71 +22,169 @@ from pathlib import Path  # noqa: E402
 import typer  # noqa: E402
 from rich.console import Console  # noqa: E402
 
-app = typer.Typer(add_completion=False, no_args_is_help=True,
+# rich_markup_mode=None: help texts are printed as written ("[deg]" would otherwise vanish)
+app = typer.Typer(add_completion=False, no_args_is_help=True, rich_markup_mode=None,
+                  pretty_exceptions_enable=False,
                   help="aidnav: aided inertial navigation (simulate, process, evaluate).")
-console = Console()
+# markup off: file names and messages with brackets are printed as they are
+console = Console(markup=False, highlight=False, soft_wrap=True)
+err_console = Console(stderr=True, markup=False, highlight=False, soft_wrap=True)
 
 
 def _fail(msg: str, code: int = 2):
-    console.print(f"[bold red]error:[/] {msg}")
+    err_console.print(f"error: {msg}")
     raise typer.Exit(code)
 
 
-@app.command()
+def _user_errors() -> tuple[type[BaseException], ...]:
+    """Exceptions that are the user's to fix: exit 2 with the message, no traceback."""
+    import yaml
+
+    errs: list[type[BaseException]] = [ValueError, OSError, yaml.YAMLError, UnicodeDecodeError]
+    try:
+        from pydantic import ValidationError
+
+        errs.append(ValidationError)
+    except ImportError:  # pragma: no cover - pydantic is a dependency
+        pass
+    return tuple(errs)
+
+
+def guarded(fn):
+    """Every command fails the same way: user errors → exit 2 with ``error: …``; anything else → exit 1
+    with ``internal error`` and the traceback only when ``AIDNAV_DEBUG`` is set."""
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        try:
+            return fn(*args, **kwargs)
+        except (typer.Exit, typer.Abort, KeyboardInterrupt, SystemExit):
+            raise
+        except _user_errors() as e:
+            msg = str(e)
+            if isinstance(e, OSError) and e.filename is not None and str(e.filename) not in msg:
+                msg = f"{e.filename}: {e.strerror}"
+            elif isinstance(e, OSError) and e.strerror:
+                msg = f"{e.filename}: {e.strerror}" if e.filename else e.strerror
+            _fail(msg or type(e).__name__)
+        except Exception as e:  # a bug: say so, exit 1
+            if os.environ.get("AIDNAV_DEBUG"):
+                raise
+            err_console.print(f"internal error (a bug in aidnav, please report it): {type(e).__name__}: {e} "
+                              "(set AIDNAV_DEBUG=1 for the traceback)")
+            raise typer.Exit(1) from None
+
+    return wrapper
+
+
+def _command(*args, **kwargs):
+    """``@app.command`` with the error guard."""
+
+    def deco(fn):
+        return app.command(*args, **kwargs)(guarded(fn))
+
+    return deco
+
+
+def _version_callback(value: bool):
+    if value:
+        from aidnav import __version__
+
+        typer.echo(f"aidnav {__version__}")
+        raise typer.Exit(0)
+
+
+@app.callback()
+def _main(version: bool = typer.Option(False, "--version", callback=_version_callback, is_eager=True,
+                                       help="print the version and exit")):
+    """aidnav: aided inertial navigation (simulate, process, evaluate)."""
+
+
+def _print_summary(summary: dict, text: str, as_json: bool):
+    import json
+
+    if as_json:
+        typer.echo(json.dumps(summary, indent=2, default=float))
+    else:
+        console.print(text)
+
+
+@_command()
 def simulate(
     scenario: Path | None = typer.Argument(None, help="scenario YAML; default: the built-in figure8"),
     out: Path = typer.Option(Path("out"), "-o", "--out", help="output directory"),
     seed: int | None = typer.Option(None, help="override the scenario's random seed"),
     fmt: str = typer.Option("both", "--format", help="csv, parquet or both"),
 ):
-    """Simulate truth, IMU and GNSS from a scenario file; write tables and a figure."""
-    from aidnav.sim.run import ScenarioError, simulate_to_dir
+    """Simulate truth, IMU and GNSS from a scenario file; write tables and a figure into DIR."""
+    from aidnav.apps.common import prepare_out_dir
+    from aidnav.sim.run import simulate_to_dir
 
-    try:
-        written = simulate_to_dir(scenario, out, seed=seed, fmt=fmt, console=console)
-    except ScenarioError as e:
-        _fail(str(e))
+    if fmt not in ("csv", "parquet", "both"):
+        _fail(f"--format {fmt}: expected csv, parquet or both")
+    prepare_out_dir(out)
+    written = simulate_to_dir(scenario, out, seed=seed, fmt=fmt, console=console)
     for p in written:
         console.print(f"wrote {p}")
 
 
-@app.command()
+@_command()
 def evaluate(
-    estimate: Path = typer.Argument(..., help="estimated trajectory (interchange CSV/Parquet or .pos)"),
+    estimate: Path = typer.Option(..., "--estimate", help="estimated trajectory (interchange CSV/Parquet or "
+                                  ".pos)"),
     truth: Path = typer.Option(..., "--truth", help="reference trajectory (interchange or RTKLIB .pos)"),
+    truth_height_offset: float = typer.Option(0.0, "--truth-height-offset",
+                                              help="added to the reference heights, e.g. a geoid undulation "
+                                              "for a .pos above mean sea level [m]"),
     out: Path | None = typer.Option(None, "-o", "--out", help="directory for errors.json/.csv and figures"),
 ):
     """Errors of an estimate against a reference: table of RMS/95%/max; JSON, CSV and figures with -o."""
     from aidnav.analysis.evaluate import evaluate_files
+    from aidnav.apps.common import prepare_out_dir
 
-    try:
-        _, written = evaluate_files(estimate, truth, out_dir=out, console=console)
-    except (OSError, ValueError) as e:
-        _fail(str(e))
+    if out is not None:
+        prepare_out_dir(out)
+    _, written = evaluate_files(estimate, truth, out_dir=out, console=console,
+                                truth_height_offset_m=truth_height_offset)
     for p in written:
         console.print(f"wrote {p}")
 
 
-@app.command()
+@_command()
 def process(
     imu: Path = typer.Option(..., "--imu", help="IMU log: interchange CSV/Parquet or raw rtklibexplorer CSV"),
     gnss: Path = typer.Option(..., "--gnss", help="GNSS fixes: RTKLIB .pos or interchange CSV/Parquet"),
     config: Path | None = typer.Option(None, "--config", help="filter configuration YAML"),
-    out: Path = typer.Option(Path("out/trajectory.csv"), "-o", "--out", help="output .csv or .parquet"),
+    out: Path = typer.Option(Path("out"), "-o", "--out", help="output directory: trajectory.parquet|csv, "
+                             "summary.json, summary.txt"),
+    fmt: str = typer.Option("parquet", "--format", help="trajectory file format: parquet or csv"),
     smooth: bool = typer.Option(False, "--smooth", help="run the RTS smoother as well"),
     outage: list[str] = typer.Option(
-        [], "--outage", help="simulated GNSS outage START:LENGTH[:PERIOD] [s after the first fix]"),
+        [], "--outage", help="simulated GNSS outage START:LENGTH[:PERIOD] [s after the first fix]; "
+        "repeatable"),
+    height_offset: float | None = typer.Option(None, "--height-offset", help="added to the GNSS heights, "
+                                               "e.g. "
+                                               "the geoid undulation for heights above mean sea level [m] "
+                                               "(overrides gnss.height_offset_m)"),
+    time_offset: float | None = typer.Option(None, "--time-offset", help="added to the IMU time stamps [s] "
+                                             "(overrides imu.time_offset_s)"),
+    start: float | None = typer.Option(None, "--start", help="process from this many seconds after the first "
+                                       "IMU sample"),
+    end: float | None = typer.Option(None, "--end", help="process up to this many seconds after the first "
+                                     "IMU sample"),
+    skip_check: list[str] = typer.Option([], "--skip-check", help="skip a plausibility check by name "
+                                         "(imu-rate, "
+                                         "imu-accel, imu-gyro, gnss-latlon, overlap); repeatable"),
+    as_json: bool = typer.Option(False, "--json", help="print the JSON summary instead of the text"),
 ):
-    """Loosely coupled GNSS/INS on logs: trajectory with σ columns plus a JSON/text summary."""
-    from aidnav.io.errors import DataError
-    from aidnav.process import ConfigError, format_summary, process_logs
+    """Loosely coupled GNSS/INS on logs: DIR/trajectory with σ columns plus a JSON/text summary."""
+    from aidnav.apps.process import format_summary, process_logs
 
-    try:
-        with console.status("aidnav process: reading, filtering" + (", smoothing" if smooth else "")):
-            s = process_logs(imu, gnss, config, out, smooth=smooth, outages=outage, console=console)
-    except (DataError, ConfigError, ValueError) as e:
-        _fail(str(e))
-    console.print(format_summary(s), markup=False, highlight=False, soft_wrap=True)
+    with console.status("aidnav process: reading, filtering" + (", smoothing" if smooth else "")):
+        s = process_logs(imu, gnss, config, out, smooth=smooth, outages=outage, console=console, fmt=fmt,
+                         height_offset_m=height_offset, time_offset_s=time_offset, start_s=start, end_s=end,
+                         skip_checks=skip_check)
+    _print_summary(s, format_summary(s), as_json)
 
 
 satcom_app = typer.Typer(no_args_is_help=True, help="Satcom on the move (seed 003): antenna servo angles.")
@@ -85,6 +192,7 @@ app.add_typer(satcom_app, name="satcom")
 
 
 @satcom_app.command("point")
+@guarded
 def satcom_point(
     lat: float = typer.Option(..., "--lat", help="vehicle geodetic latitude [deg]"),
     lon: float = typer.Option(..., "--lon", help="vehicle longitude [deg, east +]"),
@@ -118,7 +226,7 @@ def satcom_point(
     console.print(tab)
 
 
-@app.command("run")
+@_command("run")
 def run_experiment_cmd(
     experiment: Path = typer.Argument(..., help="experiment YAML (see aidnav.experiments.config)"),
     out: Path = typer.Option(..., "-o", "--out", help="campaign directory (what is already there is reused)"),
@@ -145,7 +253,7 @@ def run_experiment_cmd(
     console.print(format_result(res), markup=False, highlight=False, soft_wrap=True)
 
 
-@app.command("report")
+@_command("report")
 def report_cmd(directory: Path = typer.Argument(..., help="campaign directory written by `aidnav run`")):
     """Self-contained HTML report of a campaign: DIR/report.html (and DIR/statistics.json)."""
     from aidnav.experiments.report import ReportError, write_report
@@ -157,7 +265,7 @@ def report_cmd(directory: Path = typer.Argument(..., help="campaign directory wr
     console.print(f"wrote {path}")
 
 
-@app.command("reproduce")
+@_command("reproduce")
 def reproduce_cmd(
     seed: str = typer.Argument(..., help="seed to reproduce: 000, 001, 002, 003, 004 or all"),
     out: Path = typer.Option(..., "-o", "--out", help="output directory (all: one sub-directory per seed)"),
@@ -180,35 +288,42 @@ def reproduce_cmd(
         raise typer.Exit(2)
 
 
-@app.command()
+@_command()
 def tight(
     imu: Path = typer.Option(..., "--imu", help="IMU log (interchange or raw rtklibexplorer CSV + .tag)"),
     obs: Path = typer.Option(..., "--obs", help="RINEX observation file"),
     nav: Path = typer.Option(..., "--nav", help="RINEX navigation file (GPS broadcast ephemerides)"),
     config: Path | None = typer.Option(None, "--config", help="tight filter configuration YAML"),
-    reference: Path | None = typer.Option(None, "--reference", help="reference solution (.pos, Q=1 used)"),
-    reference_height_offset: float = typer.Option(0.0, help="added to the reference heights [m]"),
-    out: Path = typer.Option(Path("out/tight.csv"), "-o", "--out", help="output .csv or .parquet"),
+    truth: Path | None = typer.Option(None, "--truth", help="reference solution (.pos or interchange): "
+                                      "scored "
+                                      "at every epoch and per solution quality"),
+    truth_height_offset: float = typer.Option(0.0, "--truth-height-offset",
+                                              help="added to the reference heights, e.g. the geoid "
+                                              "undulation of a .pos above mean sea level [m]"),
+    time_offset: float | None = typer.Option(None, "--time-offset", help="added to the IMU time stamps [s] "
+                                             "(overrides imu.time_offset_s)"),
+    out: Path = typer.Option(Path("out"), "-o", "--out", help="output directory: trajectory.parquet|csv, "
+                             "summary.json, summary.txt"),
+    fmt: str = typer.Option("parquet", "--format", help="trajectory file format: parquet or csv"),
+    smooth: bool = typer.Option(False, "--smooth", help="RTS smoother (not yet available for the tight "
+                                "filter: "
+                                "says so in the summary)"),
+    as_json: bool = typer.Option(False, "--json", help="print the JSON summary instead of the text"),
 ):
     """Tightly coupled GNSS/INS (pseudorange + Doppler) on an IMU log and RINEX files."""
-    import json
+    from aidnav.apps.tight import format_tight_summary, process_tight_files
 
-    from aidnav.io.errors import DataError
-    from aidnav.process import ConfigError
-    from aidnav.process_tight import process_tight_files
-
-    try:
-        with console.status("aidnav tight: SPP, alignment, tightly coupled filter"):
-            s = process_tight_files(imu, obs, nav, config, out, reference, reference_height_offset)
-    except (DataError, ConfigError, ValueError, OSError) as e:
-        _fail(str(e))
-    console.print(json.dumps(s, indent=2, default=float), markup=False, highlight=False, soft_wrap=True)
+    with console.status("aidnav tight: SPP, alignment, tightly coupled filter"):
+        s = process_tight_files(imu, obs, nav, config, out, truth, truth_height_offset, fmt=fmt,
+                                time_offset_s=time_offset, smooth=smooth)
+    _print_summary(s, format_tight_summary(s), as_json)
 
 
-@app.command()
+@_command()
 def characterise(
-    imu_log: Path = typer.Argument(..., help="static IMU log: interchange CSV/Parquet (rates or increments) "
-                                   "or raw rtklibexplorer CSV"),
+    imu: Path = typer.Option(..., "--imu", help="static IMU log: interchange CSV/Parquet (rates or "
+                             "increments) "
+                             "or raw rtklibexplorer CSV"),
     out: Path = typer.Option(Path("characterise"), "-o", "--out", help="output directory"),
     static: str | None = typer.Option(None, "--static", help="START:END in seconds after the first "
                                       "sample (either may be empty): the static part to analyse (default: "
@@ -221,17 +336,16 @@ def characterise(
     The longest static part of the log (or of --static) is analysed; motion, slow motion and vibration are
     reported as warnings. A short log gives the white-noise terms only (and says so)."""
     from aidnav.analysis.characterise import characterise_file, print_characterisation
+    from aidnav.apps.common import prepare_out_dir
 
-    try:
-        ch, written = characterise_file(imu_log, out, static=static, grade=grade)
-    except (OSError, ValueError) as e:
-        _fail(str(e))
+    prepare_out_dir(out)
+    ch, written = characterise_file(imu, out, static=static, grade=grade)
     print_characterisation(ch, console)
     for p in written:
         console.print(f"wrote {p}")
 
 
-@app.command("design-trajectory")
+@_command("design-trajectory")
 def design_trajectory_cmd(
     heading: float = typer.Option(..., "--heading", help="required heading accuracy on AB, CD [deg, 1σ]"),
     pitch: float = typer.Option(..., "--pitch", help="required pitch accuracy [deg, 1σ]"),
@@ -249,7 +363,7 @@ def design_trajectory_cmd(
 ):
     """Recommend maneuver, T1 and the longest T2 meeting an attitude requirement (seed 004 design).
 
-    Exit status 1 when no candidate plan meets the requirement."""
+    Exit status 3 when no candidate plan meets the requirement (1 is reserved for bugs)."""
     from aidnav.experiments.design import design_trajectory, print_design, write_design
 
     def _list(v):
@@ -266,7 +380,7 @@ def design_trajectory_cmd(
     for p in write_design(d, out):
         console.print(f"wrote {p}")
     if not d.summary["feasible"]:
-        raise typer.Exit(1)
+        raise typer.Exit(3)
 
 
 def main():  # pragma: no cover

@@ -303,7 +303,7 @@ def test_cli_writes_allan_png_noise_json_and_imu_yaml(tmp_path):
     log = tmp_path / "imu_rates.csv"
     df.to_csv(log, index=False, float_format="%.17g")
     out = tmp_path / "char"
-    res = CliRunner().invoke(app, ["characterise", str(log), "--static", "100:", "-o", str(out)])
+    res = CliRunner().invoke(app, ["characterise", "--imu", str(log), "--static", "100:", "-o", str(out)])
     assert res.exit_code == 0, res.output
     assert (out / "allan.png").stat().st_size > 10_000
     nd = json.loads((out / "noise.json").read_text())
@@ -322,7 +322,7 @@ def test_cli_writes_allan_png_noise_json_and_imu_yaml(tmp_path):
     # is reported, as gaps are
     df.loc[50_000:51_000, "gyro_z_rad_s"] += 0.2
     df.to_csv(log, index=False, float_format="%.17g")
-    res = CliRunner().invoke(app, ["characterise", str(log), "-o", str(out)])
+    res = CliRunner().invoke(app, ["characterise", "--imu", str(log), "-o", str(out)])
     assert res.exit_code == 0, res.output
     nd = json.loads((out / "noise.json").read_text())
     warn = " ".join(nd["warnings"])
@@ -333,7 +333,7 @@ def test_cli_writes_allan_png_noise_json_and_imu_yaml(tmp_path):
     turns = (np.arange(len(df)) // 150) % 2 == 1
     df.loc[turns, "gyro_z_rad_s"] += 0.3
     df.to_csv(log, index=False, float_format="%.17g")
-    res = CliRunner().invoke(app, ["characterise", str(log), "-o", str(out)])
+    res = CliRunner().invoke(app, ["characterise", "--imu", str(log), "-o", str(out)])
     assert res.exit_code == 2 and "not static" in res.output
 
 
@@ -520,7 +520,7 @@ def test_real_drive_log_static_start(data_dir, tmp_path):
     if not log.is_file():
         pytest.skip(f"rtklibexplorer_drive_0708/imu_1934.csv not found under {data_dir}")
     out = tmp_path / "drive"
-    res = CliRunner().invoke(app, ["characterise", str(log), "--static", "0:38", "-o", str(out)])
+    res = CliRunner().invoke(app, ["characterise", "--imu", str(log), "--static", "0:38", "-o", str(out)])
     assert res.exit_code == 0, res.output
     for f in ("allan.png", "noise.json", "imu.yaml"):
         assert (out / f).stat().st_size > 1000, f

@@ -108,7 +108,8 @@ def test_cli_evaluate(files, tmp_path):
     from aidnav.cli import app
 
     est_p, truth_p, _ = files
-    res = typer_testing.CliRunner().invoke(app, ["evaluate", str(est_p), "--truth", str(truth_p),
+    res = typer_testing.CliRunner().invoke(app, ["evaluate", "--estimate", str(est_p), "--truth",
+                                                 str(truth_p),
                                                  "-o", str(tmp_path / "cli")])
     assert res.exit_code == 0, res.output
     assert (tmp_path / "cli" / "errors.json").exists()

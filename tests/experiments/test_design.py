@@ -84,6 +84,6 @@ def test_cli(tmp_path):
     r = CliRunner().invoke(app, ["design-trajectory", "--heading", "1e-5", "--pitch", "1e-5", "--roll",
                                  "1e-5", "--modes", "figure8", "--t1", "0", "--t2", "100", "--mc-runs", "0",
                                  "-o", str(tmp_path)])
-    assert r.exit_code == 1, r.output
+    assert r.exit_code == 3, r.output
     assert "no plan meets" in r.output
     assert json.loads((tmp_path / "design.json").read_text())["feasible"] is False

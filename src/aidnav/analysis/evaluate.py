@@ -116,7 +116,8 @@ def print_table(stats: pd.DataFrame, errors: ErrorSeries, console=None, title: s
 
 
 def evaluate_files(estimate_path, truth_path, out_dir=None, console=None, max_dt: float | None = None,
-                   time_scale: str = "GPS SOW") -> tuple[pd.DataFrame, list[Path]]:
+                   time_scale: str = "GPS SOW",
+                   truth_height_offset_m: float = 0.0) -> tuple[pd.DataFrame, list[Path]]:
     """Compare an estimate file with a reference ("truth") file.
 
     estimate_path, truth_path : interchange trajectory files, or RTKLIB ``.pos`` (see module doc).
@@ -125,6 +126,7 @@ def evaluate_files(estimate_path, truth_path, out_dir=None, console=None, max_dt
         and the PNG figures of :mod:`aidnav.report.error_plots`.
     console : rich Console for the table (a new one if None).
     max_dt : gap threshold for :func:`trajectory_errors` [s]; time_scale : label of the time axis.
+    truth_height_offset_m : added to the reference heights [m] (datum of the reference file).
 
     Returns (statistics DataFrame of :func:`error_statistics`, list of files written).
     Raises ``ValueError`` when no reference epoch falls inside the estimate's span (e.g. files in
@@ -133,6 +135,10 @@ def evaluate_files(estimate_path, truth_path, out_dir=None, console=None, max_dt
     read_notes: list[str] = []
     est = read_any_trajectory(estimate_path, read_notes)
     ref = read_any_trajectory(truth_path, read_notes)
+    if truth_height_offset_m:  # datum of the reference file → ellipsoid (e.g. a .pos above MSL)
+        ref.height = np.asarray(ref.height, float) + truth_height_offset_m
+        read_notes.append(f"{truth_path}: height offset {truth_height_offset_m:+.3f} m added to the "
+                          "reference")
     errors = trajectory_errors(est, ref, max_dt=max_dt)
     errors.notes[:0] = read_notes
     if errors.n_used == 0:

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+from aidnav.errors import InputError
 
-class DataError(ValueError):
+
+class DataError(InputError):
     """Bad input data: ``DataError(path, line, problem)`` → "path:line: problem"."""
 
     def __init__(self, path, line: int | None, problem: str):

@@ -1,0 +1,5 @@
+"""``python -m aidnav``: the command-line interface."""
+
+from aidnav.cli import main
+
+main()

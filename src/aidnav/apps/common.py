@@ -1,0 +1,134 @@
+"""What every job behind the CLI shares: configuration files, the output directory, the summary
+files and the last check of a solution before it is written."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from aidnav.errors import DivergenceError, InputError
+
+#: the extensions a trajectory can be written with (``--format``)
+TRAJECTORY_FORMATS = ("parquet", "csv")
+
+
+class ConfigError(InputError):
+    """A configuration file that does not validate; the message names the key."""
+
+
+def load_model(path, model):
+    """Read a YAML file into the pydantic ``model`` (unknown keys are errors; messages name keys)."""
+    from pydantic import ValidationError
+
+    path = Path(path)
+    try:
+        data = yaml.safe_load(path.read_text()) or {}
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as e:
+        raise ConfigError(f"{path}: cannot read configuration: {e}") from e
+    if not isinstance(data, dict):
+        raise ConfigError(f"{path}: expected a mapping of keys at the top level")
+    try:
+        return model.model_validate(data)
+    except ValidationError as e:
+        lines = []
+        for err in e.errors():
+            key = ".".join(str(p) for p in err["loc"])
+            lines.append(f"{key}: {err['msg']}")
+        raise ConfigError(f"{path}: invalid configuration — fix these keys:\n  "
+                          + "\n  ".join(lines)) from None
+
+
+def prepare_out_dir(out) -> Path:
+    """Check ``-o DIR`` before any work and create it: a directory (not a file, not under a file),
+    writable. A path that looks like a file name (``.csv``/``.parquet``/``.json``) is refused with the
+    grammar (``-o`` names a directory for every command)."""
+    out = Path(out)
+    if out.suffix.lower() in (".csv", ".parquet", ".pq", ".json", ".txt", ".png", ".html"):
+        raise InputError(f"-o {out}: -o names an output directory (files inside get fixed names); "
+                         f"give e.g. -o {out.with_suffix('')}")
+    if out.exists() and not out.is_dir():
+        raise InputError(f"-o {out}: exists and is not a directory")
+    for parent in out.parents:
+        if parent.exists():
+            if not parent.is_dir():
+                raise InputError(f"-o {out}: {parent} is a file, not a directory")
+            break
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise InputError(f"-o {out}: cannot create the output directory: {e.strerror}") from None
+    if not os.access(out, os.W_OK | os.X_OK):
+        raise InputError(f"-o {out}: the output directory is not writable")
+    return out
+
+
+def trajectory_path(out_dir: Path, fmt: str) -> Path:
+    fmt = fmt.lower().lstrip(".")
+    if fmt not in TRAJECTORY_FORMATS:
+        raise InputError(f"--format {fmt}: expected one of {', '.join(TRAJECTORY_FORMATS)}")
+    return Path(out_dir) / f"trajectory.{fmt}"
+
+
+def write_summary_files(out_dir: Path, summary: dict, text: str) -> list[Path]:
+    """``summary.json`` (machines) and ``summary.txt`` (people) in the output directory."""
+    js = Path(out_dir) / "summary.json"
+    tx = Path(out_dir) / "summary.txt"
+    js.write_text(json.dumps(summary, indent=2, default=_json_default))
+    tx.write_text(text)
+    return [js, tx]
+
+
+def _json_default(o):
+    if isinstance(o, np.integer):
+        return int(o)
+    if isinstance(o, np.floating):
+        return float(o)
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    return str(o)
+
+
+#: a position change between output samples faster than this is a jump, not motion [m/s]
+MAX_PLAUSIBLE_SPEED_M_S = 3000.0
+#: a position σ above this says the filter has lost the solution [m]
+MAX_PLAUSIBLE_POS_STD_M = 1.0e5
+
+
+def check_solution(traj, what: str = "filter") -> None:
+    """Refuse to write a solution that is not one: NaN/inf, position jumps faster than
+    :data:`MAX_PLAUSIBLE_SPEED_M_S`, position σ beyond :data:`MAX_PLAUSIBLE_POS_STD_M`.
+
+    Raises :class:`DivergenceError` naming the first bad epoch and what to check."""
+    from aidnav.nav.earth import lla_difference_enu
+
+    cols = [traj.lat, traj.lon, traj.height, traj.vel, traj.rph]
+    bad = np.zeros(len(traj.time), bool)
+    for c in cols:
+        c = np.asarray(c)
+        bad |= ~np.isfinite(c).reshape(len(traj.time), -1).all(axis=1)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise DivergenceError(f"{what} diverged: NaN/inf in the solution from t={traj.time[i]:.3f} s "
+                              f"({int(bad.sum())} samples); check the IMU units and the noise "
+                              "configuration; nothing was written")
+    if len(traj.time) > 1:
+        de, dn, du = lla_difference_enu(traj.lat[1:], traj.lon[1:], traj.height[1:],
+                                        traj.lat[:-1], traj.lon[:-1], traj.height[:-1])
+        dt = np.diff(traj.time)
+        sp = np.sqrt(de**2 + dn**2 + du**2) / np.maximum(dt, 1e-9)
+        if np.nanmax(sp) > MAX_PLAUSIBLE_SPEED_M_S:
+            i = int(np.argmax(sp))
+            raise DivergenceError(f"{what} diverged: the position jumps {sp[i] * dt[i]:.1f} m in "
+                                  f"{dt[i]:.3f} s at t={traj.time[i + 1]:.3f} s; check the GNSS file and "
+                                  "the IMU units; nothing was written")
+    if traj.std_pos is not None:
+        sp = np.asarray(traj.std_pos)
+        if np.isfinite(sp).all() and sp.size and float(sp.max()) > MAX_PLAUSIBLE_POS_STD_M:
+            i = int(np.argmax(sp.max(axis=1)))
+            raise DivergenceError(f"{what} diverged: position σ {sp[i].max():.3g} m at "
+                                  f"t={traj.time[i]:.3f} s "
+                                  "(no aiding reached the filter?); nothing was written")

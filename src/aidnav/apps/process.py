@@ -1,0 +1,356 @@
+"""``aidnav process``: read IMU + GNSS logs, run the loosely coupled filter (and smoother), score
+simulated outages, write the trajectory, a summary and the figures into one output directory.
+
+Times stay on the input's scale (GPS seconds of week for GNSS-timed logs). Outages are given in
+seconds after the first GNSS epoch: ``START:LENGTH[:PERIOD]``; with a period they repeat while the
+whole outage fits before the last GNSS epoch. Withheld fixes are kept aside and scored (horizontal
+error of the output, interpolated to each withheld epoch, against the withheld fix; fixes with
+quality Q = 1 only when the file has a quality column).
+
+Conversions (datum offset, IMU time offset) happen once, here at the boundary through
+:mod:`aidnav.io`; the filter receives ellipsoidal heights and IMU stamps on the GNSS time scale.
+"""
+
+from __future__ import annotations
+
+import time as _time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from aidnav.apps.common import (
+    ConfigError,
+    check_solution,
+    load_model,
+    prepare_out_dir,
+    trajectory_path,
+    write_summary_files,
+)
+from aidnav.data import GnssData, ImuData
+from aidnav.errors import InputError
+from aidnav.filters.config import LooseConfig
+from aidnav.io.errors import DataError
+
+__all__ = ["ConfigError", "load_config", "process", "process_logs", "format_summary", "parse_outage",
+           "outage_windows", "score_outages", "read_imu_any", "read_gnss_any", "ProcessRun"]
+
+
+def load_config(path) -> LooseConfig:
+    """Read a YAML configuration of the loosely coupled filter (unknown keys are errors)."""
+    return load_model(path, LooseConfig)
+
+
+def read_imu_any(path) -> ImuData:
+    """IMU log by format: interchange CSV/Parquet, or a raw rtklibexplorer CSV (no header) + .tag."""
+    path = Path(path)
+    if not path.exists():
+        raise DataError(path, None, "file not found")
+    if path.is_dir():
+        raise DataError(path, None, "is a directory, not an IMU log")
+    if path.suffix.lower() in (".parquet", ".pq"):
+        from aidnav.io.interchange import read_imu
+
+        return read_imu(path)
+    with open(path, "rb") as f:
+        head = f.read(4096).decode("utf-8", "replace")
+    first = next((ln for ln in head.splitlines() if ln.strip() and not ln.startswith("#")), "")
+    if not first:
+        raise DataError(path, 1, "empty file")
+    if "time" in first:
+        from aidnav.io.interchange import read_imu
+
+        return read_imu(path)
+    from aidnav.io.logs import read_rtklibexplorer_imu
+
+    return read_rtklibexplorer_imu(path)
+
+
+def read_gnss_any(path, height_offset_m: float = 0.0) -> GnssData:
+    """GNSS fixes: RTKLIB ``.pos`` or interchange CSV/Parquet; the datum offset added once."""
+    from aidnav.io.boundary import shift_height
+
+    path = Path(path)
+    if not path.exists():
+        raise DataError(path, None, "file not found")
+    if path.is_dir():
+        raise DataError(path, None, "is a directory, not a GNSS file")
+    if path.suffix.lower() == ".pos":
+        from aidnav.io.rtklib import read_pos
+
+        return read_pos(path, height_offset_m=height_offset_m)
+    from aidnav.io.interchange import read_gnss
+
+    return shift_height(read_gnss(path), height_offset_m, path.name)
+
+
+@dataclass
+class Outage:
+    start_s: float
+    length_s: float
+    period_s: float | None = None
+
+
+def parse_outage(text: str) -> Outage:
+    """``START:LENGTH[:PERIOD]`` in seconds → :class:`Outage` (clear error on bad text)."""
+    parts = text.split(":")
+    try:
+        vals = [float(p) for p in parts]
+    except ValueError:
+        raise InputError(f"--outage {text!r}: expected START:LENGTH[:PERIOD] in seconds") from None
+    if (len(vals) not in (2, 3) or not np.isfinite(vals).all() or vals[0] < 0 or vals[1] <= 0
+            or (len(vals) == 3 and vals[2] <= vals[1])):
+        raise InputError(f"--outage {text!r}: expected START:LENGTH[:PERIOD] with START >= 0, LENGTH > 0 "
+                         "and PERIOD > LENGTH")
+    return Outage(vals[0], vals[1], vals[2] if len(vals) == 3 else None)
+
+
+def outage_windows(outages: list[Outage], t_first: float, t_last: float) -> list[tuple[float, float]]:
+    """Absolute [start, end) windows of the outages (repeated ones while they fit before t_last).
+
+    An outage that does not fit inside the GNSS span is an error (it would withhold nothing)."""
+    wins = []
+    for o in outages:
+        s = t_first + o.start_s
+        if s + o.length_s > t_last + 1e-9:
+            raise InputError(f"--outage {o.start_s:g}:{o.length_s:g}: ends {s + o.length_s - t_first:.1f} s "
+                             f"after the first fix but the GNSS fixes span only {t_last - t_first:.1f} s")
+        while s + o.length_s <= t_last + 1e-9:
+            wins.append((s, s + o.length_s))
+            if not o.period_s:
+                break
+            s += o.period_s
+    return wins
+
+
+def score_outages(traj, gnss: GnssData, wins, withheld) -> dict:
+    """Horizontal errors at the withheld fixes: end-of-outage statistics and RMS over all of them."""
+    from aidnav.nav.earth import lla_difference_enu
+
+    good = withheld.copy()
+    if gnss.quality is not None:
+        good &= gnss.quality == 1
+    t = gnss.time[good]
+    inside = (t >= traj.time[0]) & (t <= traj.time[-1])
+    t = t[inside]
+    if len(t) == 0:
+        return {"n_withheld": int(withheld.sum()), "n_scored": 0}
+    lat = np.interp(t, traj.time, traj.lat)
+    lon = np.interp(t, traj.time, np.unwrap(traj.lon))
+    de, dn, _ = lla_difference_enu(lat, lon, 0.0, gnss.lat[good][inside], gnss.lon[good][inside], 0.0)
+    herr = np.hypot(de, dn)
+    ends = []
+    per = []
+    for a, b in wins:
+        m = (t >= a) & (t < b)
+        if m.any():
+            ends.append(float(herr[m][-1]))
+            per.append({"start": a, "end": b, "n": int(m.sum()), "end_error_m": float(herr[m][-1]),
+                        "rms_m": float(np.sqrt(np.mean(herr[m] ** 2)))})
+    ends = np.array(ends)
+    return {
+        "n_outages": len(wins), "n_withheld": int(withheld.sum()), "n_scored": int(len(herr)),
+        "end_error_median_m": float(np.median(ends)) if len(ends) else None,
+        "end_error_p95_m": float(np.percentile(ends, 95)) if len(ends) else None,
+        "end_error_max_m": float(ends.max()) if len(ends) else None,
+        "rms_m": float(np.sqrt(np.mean(herr**2))),
+        "outages": per,
+    }
+
+
+@dataclass
+class ProcessRun:
+    """What :func:`process` returns: the trajectory, the summary and the filter result."""
+
+    trajectory: object
+    summary: dict
+    result: object = None
+    forward_trajectory: object = None
+    withheld: np.ndarray | None = None
+    windows: list = field(default_factory=list)
+
+
+def window(imu: ImuData, gnss: GnssData, start_s: float | None, end_s: float | None):
+    """Cut both logs to ``[start, end]`` seconds after the first IMU sample (``--start/--end``)."""
+    if start_s is None and end_s is None:
+        return imu, gnss
+    t0 = float(imu.time[0])
+    a = t0 + (start_s or 0.0)
+    b = t0 + end_s if end_s is not None else float(imu.time[-1])
+    if b <= a:
+        raise InputError(f"--start/--end: empty window ({start_s} … {end_s} s after the first IMU sample)")
+    if a >= imu.time[-1]:
+        raise InputError(f"--start {start_s}: after the end of the IMU log ({imu.time[-1] - t0:.1f} s long)")
+    m = (imu.time >= a) & (imu.time <= b)
+    k = int(np.flatnonzero(m)[0])
+    t_prev = float(imu.time[k - 1]) if k > 0 else imu.t0
+    imu2 = ImuData(imu.time[m], imu.dtheta[m], imu.dv[m], t0=t_prev, events=list(imu.events))
+    gnss2 = gnss.subset((gnss.time >= a) & (gnss.time <= b))
+    gnss2.events = list(gnss.events) + [f"processing window {a:.3f} … {b:.3f} s"]
+    return imu2, gnss2
+
+
+def process(imu: ImuData, gnss: GnssData, cfg: LooseConfig | None = None, smooth: bool = False,
+            outages: list[str] | None = None, imu_name: str = "imu", gnss_name: str = "gnss",
+            skip_checks=(), start_s: float | None = None, end_s: float | None = None) -> ProcessRun:
+    """In-memory ``aidnav process``: logs already read (:mod:`aidnav.io`: ellipsoidal heights, IMU on
+    the GNSS time scale, i.e. ``cfg.imu.time_offset_s`` is applied here, once) → :class:`ProcessRun`.
+    """
+    from aidnav.filters.loose import LooseResult, run_loose, to_trajectory
+    from aidnav.io.sanity import check_gnss, check_imu, check_overlap
+
+    cfg = cfg or LooseConfig()
+    warnings: list[str] = []
+    if cfg.imu.time_offset_s:
+        from aidnav.io.boundary import shift_imu_time
+
+        imu = shift_imu_time(imu, cfg.imu.time_offset_s)
+        cfg = cfg.model_copy(update={"imu": cfg.imu.model_copy(update={"time_offset_s": 0.0})})
+    imu, gnss = window(imu, gnss, start_s, end_s)
+    warnings += check_imu(imu, imu_name, skip_checks)
+    warnings += check_gnss(gnss, gnss_name, skip_checks)
+    warnings += check_overlap(imu, gnss, imu_name, gnss_name, skip_checks)
+    wins = outage_windows([parse_outage(o) for o in (outages or [])], gnss.time[0], gnss.time[-1])
+    withheld = np.zeros(len(gnss), bool)
+    for a, b in wins:
+        withheld |= (gnss.time >= a) & (gnss.time < b)
+    events: list[str] = []
+    t0 = _time.perf_counter()
+    res = run_loose(imu, gnss, cfg, withheld=withheld, smooth=smooth, events=events)
+    t_filt = _time.perf_counter() - t0
+    traj = to_trajectory(res)
+    check_solution(traj, "the loosely coupled filter")
+    rec = res.records
+    pos_ok = rec["pos_status"] == 1
+    summary = {
+        "smoothed": res.smoothed,
+        "time_scale": "input (GPS seconds of week for GNSS-timed logs)",
+        "imu_samples": len(imu), "imu_rate_hz": imu.rate_hz, "gnss_fixes": len(gnss),
+        "gnss_withheld": int(withheld.sum()),
+        "gnss_position_accepted": int(pos_ok.sum()),
+        "gnss_position_rejected": int((rec["pos_status"] == 0).sum()),
+        "gnss_velocity_accepted": int((rec["vel_status"] == 1).sum()),
+        "gnss_velocity_rejected": int((rec["vel_status"] == 0).sum()),
+        "rejected_fix_times": [float(t) for t in gnss.time[rec["pos_status"] == 0]][:100],
+        "counts": res.counts,
+        "nis": nis_summary(rec),
+        "outage_windows": [[a, b] for a, b in wins],
+        "events": imu.events + gnss.events + events,
+        "warnings": warnings,
+        "timing_s": {"filter": t_filt},
+    }
+    fwd = None
+    if wins:
+        summary["outage_score"] = score_outages(traj, gnss, wins, withheld)
+        if res.smoothed and res.forward_state is not None:
+            fwd = to_trajectory(LooseResult(res.time, res.forward_state, res.bias, res.forward_pdiag,
+                                            res.node_time))
+            summary["outage_score_forward"] = score_outages(fwd, gnss, wins, withheld)
+    return ProcessRun(traj, summary, res, fwd, withheld, wins)
+
+
+def nis_summary(rec: dict) -> dict:
+    """Mean NIS per measurement type over accepted updates, with its degrees of freedom and the
+    two-sided 95 % band of the mean of N χ²(dof) draws (normal approximation, 2·dof/N variance)."""
+    out = {}
+    for name, st, nis, dof in (("gnss_position", "pos_status", "pos_nis", 3),
+                               ("gnss_velocity", "vel_status", "vel_nis", None)):
+        if st not in rec or nis not in rec:
+            continue
+        ok = (rec[st] == 1) & np.isfinite(rec[nis])
+        n = int(ok.sum())
+        if n == 0:
+            continue
+        if dof is None:  # velocity fixes may lack components: dof from the recorded innovations
+            inn = rec.get("vel_innov")
+            d = (np.isfinite(inn[ok]).sum(axis=1).astype(float) if inn is not None
+                 else np.full(n, 3.0))
+        else:
+            d = np.full(n, float(dof))
+        mean_dof = float(d.mean())
+        half = 1.96 * np.sqrt(2.0 * mean_dof / n)
+        m = float(rec[nis][ok].mean())
+        out[name] = {"mean": m, "dof": mean_dof, "n": n,
+                     "band95": [mean_dof - half, mean_dof + half],
+                     "in_band": bool(mean_dof - half <= m <= mean_dof + half)}
+    return out
+
+
+def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=False,
+                 outages: list[str] | None = None, console=None, fmt: str = "parquet",
+                 height_offset_m: float | None = None, time_offset_s: float | None = None,
+                 start_s: float | None = None, end_s: float | None = None, skip_checks=()) -> dict:
+    """Run the whole ``aidnav process`` job into the directory ``out_dir``; returns the summary dict
+    (also written as ``summary.json`` and ``summary.txt`` beside ``trajectory.<fmt>``).
+
+    height_offset_m / time_offset_s override ``gnss.height_offset_m`` / ``imu.time_offset_s`` of the
+    configuration (``--height-offset``, ``--time-offset``)."""
+    from aidnav.io.interchange import write_trajectory
+    from aidnav.io.sanity import validate_skip
+
+    t_start = _time.perf_counter()
+    skip_checks = validate_skip(skip_checks)
+    out_dir = prepare_out_dir(out_dir)
+    traj_path = trajectory_path(out_dir, fmt)
+    notes: list[str] = []
+    if config_path is None:
+        cfg = LooseConfig()
+        notes.append("no --config: defaults for a consumer MEMS IMU (ARW 0.3 deg/sqrt(h), "
+                     "VRW 0.1 m/s/sqrt(h), "
+                     "gyro bias 100 deg/h, accel bias 5 mg), no lever arm, automatic alignment "
+                     "(static roll/pitch, heading from GNSS course), ZUPT on, NHC off")
+    else:
+        cfg = load_config(config_path)
+    if height_offset_m is not None:
+        gnss_cfg = cfg.gnss.model_copy(update={"height_offset_m": height_offset_m})
+        cfg = cfg.model_copy(update={"gnss": gnss_cfg})
+    if time_offset_s is not None:
+        cfg = cfg.model_copy(update={"imu": cfg.imu.model_copy(update={"time_offset_s": time_offset_s})})
+    datum = cfg.gnss.height_offset_m
+    imu = read_imu_any(imu_path)
+    gnss = read_gnss_any(gnss_path, height_offset_m=datum)
+    # the offset is applied by the reader; the filter must not see it again
+    cfg = cfg.model_copy(update={"gnss": cfg.gnss.model_copy(update={"height_offset_m": 0.0})})
+    if len(imu) < 2:
+        raise DataError(imu_path, None, "fewer than 2 IMU samples")
+    if len(gnss) < 1:
+        raise DataError(gnss_path, None, "no GNSS fixes")
+    t_read = _time.perf_counter()
+    run = process(imu, gnss, cfg, smooth=smooth, outages=outages, imu_name=str(imu_path),
+                  gnss_name=str(gnss_path), skip_checks=skip_checks, start_s=start_s, end_s=end_s)
+    t_filt = _time.perf_counter()
+    write_trajectory(run.trajectory, traj_path)
+    t_write = _time.perf_counter()
+    summary = {"imu": str(imu_path), "gnss": str(gnss_path),
+               "config": str(config_path) if config_path else None, "output": str(traj_path),
+               "gnss_height_offset_m": datum,
+               **run.summary, "notes": notes}
+    summary["timing_s"] = {"read": t_read - t_start, "filter": t_filt - t_read, "write": t_write - t_filt}
+    write_summary_files(out_dir, summary, format_summary(summary))
+    return summary
+
+
+def format_summary(s: dict) -> str:
+    """Human-readable summary text."""
+    lines = [f"aidnav process: {s['imu']} + {s['gnss']}",
+             f"output: {s['output']} (smoothed: {s['smoothed']})",
+             f"IMU samples {s['imu_samples']} at {s['imu_rate_hz']:.1f} Hz; GNSS fixes {s['gnss_fixes']}, "
+             f"withheld {s['gnss_withheld']}",
+             f"GNSS position accepted {s['gnss_position_accepted']}, rejected {s['gnss_position_rejected']}; "
+             f"velocity accepted {s['gnss_velocity_accepted']}, rejected {s['gnss_velocity_rejected']}",
+             f"counts: {s['counts']}"]
+    for name, v in s.get("nis", {}).items():
+        lo, hi = v["band95"]
+        lines.append(f"NIS {name}: mean {v['mean']:.2f} over {v['n']} updates (dof {v['dof']:.2f}, 95 % band "
+                     f"{lo:.2f}…{hi:.2f}: {'in band' if v['in_band'] else 'OUT OF BAND'})")
+    for key, title in (("outage_score", "outage score"), ("outage_score_forward", "outage score (forward)")):
+        if key in s:
+            o = s[key]
+            if o.get("end_error_median_m") is not None:
+                lines.append(f"{title}: {o['n_outages']} outages, end-of-outage horizontal error median "
+                             f"{o['end_error_median_m']:.2f} m, p95 {o['end_error_p95_m']:.2f} m, max "
+                             f"{o['end_error_max_m']:.2f} m; RMS over {o['n_scored']} withheld fixes "
+                             f"{o['rms_m']:.3f} m")
+    lines += [f"warning: {w}" for w in s.get("warnings", [])]
+    lines += [f"event: {e}" for e in s["events"]] + [f"note: {n}" for n in s["notes"]]
+    return "\n".join(lines) + "\n"

@@ -19,7 +19,40 @@ Layers (each imports only those to its left): ``nav < sim | filters < estimators
 report < experiments < apps < cli``; ``aidnav.io`` and ``aidnav.data`` sit beside ``nav``.
 """
 
+import os as _os
+import tempfile as _tempfile
 from importlib.metadata import PackageNotFoundError, version
+
+
+def _numba_cache_dir() -> str | None:
+    """numba writes its cache (``cache=True``) beside the sources; where that is not writable (a
+    read-only install) and ``NUMBA_CACHE_DIR`` is unset, use a user cache directory instead, or a
+    temporary one. Returns the directory chosen, or None when the default is used."""
+    if _os.environ.get("NUMBA_CACHE_DIR"):
+        return None
+    here = _os.path.dirname(_os.path.abspath(__file__))
+    probe = _os.path.join(here, "nav", "__pycache__")
+    target = probe if _os.path.isdir(probe) else here
+    if _os.access(target, _os.W_OK | _os.X_OK):
+        return None
+    for base in (_os.environ.get("XDG_CACHE_HOME") or _os.path.join(_os.path.expanduser("~"), ".cache"),
+                 _tempfile.gettempdir()):
+        d = _os.path.join(base, "aidnav-numba")
+        try:
+            _os.makedirs(d, exist_ok=True)
+        except OSError:
+            continue
+        if _os.access(d, _os.W_OK | _os.X_OK):
+            _os.environ["NUMBA_CACHE_DIR"] = d
+            import warnings
+
+            warnings.warn(f"aidnav: the package directory is not writable; numba caches compiled code in {d}",
+                          stacklevel=2)
+            return d
+    return None
+
+
+NUMBA_CACHE_FALLBACK = _numba_cache_dir()
 
 try:
     __version__ = version("aidnav")

@@ -92,15 +92,19 @@ def _json_default(o):
     return str(o)
 
 
-#: a position change between output samples faster than this is a jump, not motion [m/s]
+#: a position change between output samples faster than this is a jump, not motion [m/s] ...
 MAX_PLAUSIBLE_SPEED_M_S = 3000.0
+#: ... unless it is shorter than this: a GNSS update after an outage may correct a drift of tens or
+#: hundreds of metres in one step (that is the filter working, and it is reported as an update) [m]
+MIN_JUMP_M = 10_000.0
 #: a position σ above this says the filter has lost the solution [m]
 MAX_PLAUSIBLE_POS_STD_M = 1.0e5
 
 
 def check_solution(traj, what: str = "filter") -> None:
     """Refuse to write a solution that is not one: NaN/inf, position jumps faster than
-    :data:`MAX_PLAUSIBLE_SPEED_M_S`, position σ beyond :data:`MAX_PLAUSIBLE_POS_STD_M`.
+    :data:`MAX_PLAUSIBLE_SPEED_M_S` and longer than :data:`MIN_JUMP_M`, position σ beyond
+    :data:`MAX_PLAUSIBLE_POS_STD_M`.
 
     Raises :class:`DivergenceError` naming the first bad epoch and what to check."""
     from aidnav.nav.earth import lla_difference_enu
@@ -119,9 +123,11 @@ def check_solution(traj, what: str = "filter") -> None:
         de, dn, du = lla_difference_enu(traj.lat[1:], traj.lon[1:], traj.height[1:],
                                         traj.lat[:-1], traj.lon[:-1], traj.height[:-1])
         dt = np.diff(traj.time)
-        sp = np.sqrt(de**2 + dn**2 + du**2) / np.maximum(dt, 1e-9)
-        if np.nanmax(sp) > MAX_PLAUSIBLE_SPEED_M_S:
-            i = int(np.argmax(sp))
+        step = np.sqrt(de**2 + dn**2 + du**2)
+        sp = step / np.maximum(dt, 1e-9)
+        jump = (sp > MAX_PLAUSIBLE_SPEED_M_S) & (step > MIN_JUMP_M)
+        if jump.any():
+            i = int(np.flatnonzero(jump)[0])
             raise DivergenceError(f"{what} diverged: the position jumps {sp[i] * dt[i]:.1f} m in "
                                   f"{dt[i]:.3f} s at t={traj.time[i + 1]:.3f} s; check the GNSS file and "
                                   "the IMU units; nothing was written")

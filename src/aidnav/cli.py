@@ -118,7 +118,7 @@ def simulate(
 ):
     """Simulate truth, IMU and GNSS from a scenario file; write tables and a figure into DIR."""
     from aidnav.apps.common import prepare_out_dir
-    from aidnav.sim.run import simulate_to_dir
+    from aidnav.apps.simulate import simulate_to_dir
 
     if fmt not in ("csv", "parquet", "both"):
         _fail(f"--format {fmt}: expected csv, parquet or both")

@@ -634,9 +634,47 @@ def parse_experiment(data, where: str = "<experiment>", root=None, base_dir=None
                           estimators=[e.name for e in exp.estimators])
 
 
-def _check_paper(exp: Experiment, doc: dict, points: list[SweepPoint], where: str) -> None:
-    from .store import statistic_columns
+def _quantities(stats: StatisticsSpec, states) -> list[str]:
+    avail = available_quantities(tuple(states))
+    if stats.quantities is None:
+        return avail
+    return [q for q in stats.quantities if q in avail]
 
+
+def _window_metrics(stats: StatisticsSpec):
+    for wname, w in stats.windows.items():
+        for m in (w.metrics or stats.metrics):
+            yield wname, w, m
+
+
+def statistic_columns(stats: StatisticsSpec, estimators: list[tuple[str, tuple[str, ...]]]) -> list[str]:
+    """Statistics columns of runs.parquet, in order, for estimators given as (name, states):
+    ``<metric>_<window>_<quantity>_<unit>``, ``converge_<name>_s``, ``nees_<block>_mean``."""
+    cols: list[str] = []
+
+    def add(c):
+        if c not in cols:
+            cols.append(c)
+
+    qs_all: list[str] = []
+    for _, states in estimators:
+        for q in _quantities(stats, states):
+            if q not in qs_all:
+                qs_all.append(q)
+    if stats.quantities is not None:
+        qs_all = [q for q in stats.quantities if q in qs_all]
+    for wname, _, m in _window_metrics(stats):
+        for q in qs_all:
+            add(f"{m}_{wname}_{quantity_column(q)}")
+    for cname in stats.convergence:
+        add(f"converge_{cname}_s")
+    for _, states in estimators:
+        for b in est_mod.state_blocks(states):
+            add(f"nees_{b}_mean")
+    return cols
+
+
+def _check_paper(exp: Experiment, doc: dict, points: list[SweepPoint], where: str) -> None:
     cols = set(statistic_columns(exp.statistics, [(e["name"], est_mod.get_estimator(e["type"]).states)
                                                   for e in doc["estimators"]]))
     names = [e.name for e in exp.estimators]

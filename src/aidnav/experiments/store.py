@@ -39,7 +39,15 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from .config import DERIVED_QUANTITIES, StatisticsSpec, available_quantities, quantity_column
+from .config import (
+    DERIVED_QUANTITIES,
+    StatisticsSpec,
+    _quantities,
+    _window_metrics,
+    available_quantities,
+    quantity_column,
+    statistic_columns,
+)
 from .estimators import state_blocks, state_unit
 
 __all__ = ["package_version", "run_path", "save_run", "load_run", "existing_runs", "statistic_columns",
@@ -142,46 +150,6 @@ def existing_runs(out_dir, plan) -> set[tuple[str, int]]:
 
 
 # ----------------------------------------------------------------------------------- statistics
-def _quantities(stats: StatisticsSpec, states) -> list[str]:
-    avail = available_quantities(tuple(states))
-    if stats.quantities is None:
-        return avail
-    return [q for q in stats.quantities if q in avail]
-
-
-def _window_metrics(stats: StatisticsSpec):
-    for wname, w in stats.windows.items():
-        for m in (w.metrics or stats.metrics):
-            yield wname, w, m
-
-
-def statistic_columns(stats: StatisticsSpec, estimators: list[tuple[str, tuple[str, ...]]]) -> list[str]:
-    """Statistics columns of runs.parquet, in order, for estimators given as (name, states):
-    ``<metric>_<window>_<quantity>_<unit>``, ``converge_<name>_s``, ``nees_<block>_mean``."""
-    cols: list[str] = []
-
-    def add(c):
-        if c not in cols:
-            cols.append(c)
-
-    qs_all: list[str] = []
-    for _, states in estimators:
-        for q in _quantities(stats, states):
-            if q not in qs_all:
-                qs_all.append(q)
-    if stats.quantities is not None:
-        qs_all = [q for q in stats.quantities if q in qs_all]
-    for wname, _, m in _window_metrics(stats):
-        for q in qs_all:
-            add(f"{m}_{wname}_{quantity_column(q)}")
-    for cname in stats.convergence:
-        add(f"converge_{cname}_s")
-    for _, states in estimators:
-        for b in state_blocks(states):
-            add(f"nees_{b}_mean")
-    return cols
-
-
 def _quantity(q: str, err: np.ndarray, sig: np.ndarray, states) -> tuple[np.ndarray, np.ndarray]:
     """(R, N) error and σ of a quantity from (R, N, n) state arrays (boundary units)."""
     states = list(states)

@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 from rich.console import Console
 
+from aidnav.apps.simulate import simulate_to_dir
 from aidnav.io.interchange import read_gnss, read_imu, read_trajectory
-from aidnav.sim.run import ScenarioError, simulate, simulate_to_dir
+from aidnav.sim.run import ScenarioError, simulate
 from aidnav.sim.scenario import load_scenario
 
 SHORT = """# 60 s test scenario

@@ -20,8 +20,12 @@ report < experiments < apps < cli``; ``aidnav.io`` and ``aidnav.data`` sit besid
 """
 
 import os as _os
-import tempfile as _tempfile
-from importlib.metadata import PackageNotFoundError, version
+
+
+def _gettempdir() -> str:
+    import tempfile
+
+    return tempfile.gettempdir()
 
 
 def _numba_cache_dir() -> str | None:
@@ -36,7 +40,7 @@ def _numba_cache_dir() -> str | None:
     if _os.access(target, _os.W_OK | _os.X_OK):
         return None
     for base in (_os.environ.get("XDG_CACHE_HOME") or _os.path.join(_os.path.expanduser("~"), ".cache"),
-                 _tempfile.gettempdir()):
+                 _gettempdir()):
         d = _os.path.join(base, "aidnav-numba")
         try:
             _os.makedirs(d, exist_ok=True)
@@ -54,9 +58,18 @@ def _numba_cache_dir() -> str | None:
 
 NUMBA_CACHE_FALLBACK = _numba_cache_dir()
 
-try:
-    __version__ = version("aidnav")
-except PackageNotFoundError:  # running from a source tree that is not installed
-    __version__ = "0+unknown"
+def __getattr__(name: str):
+    # the version is looked up on first use: importlib.metadata costs ~20 ms of every command's start
+    if name == "__version__":
+        from importlib.metadata import PackageNotFoundError, version
+
+        try:
+            v = version("aidnav")
+        except PackageNotFoundError:  # a source tree that is not installed
+            v = "0+unknown"
+        globals()["__version__"] = v
+        return v
+    raise AttributeError(f"module 'aidnav' has no attribute {name!r}")
+
 
 __all__ = ["__version__"]

@@ -310,7 +310,9 @@ def print_design(design: TrajectoryDesign, console) -> None:
         t.add_row(m["label"] + star, f"{p['t1_s']:g}", f"{p['t2_s']:g}", f"{p['flight_time_s']:g}",
                   *(f"{p['predicted'][k]:.4f}" for k in _AXES), f"{p['worst_ratio']:.2f}")
     console.print(t)
-    console.print(("[bold green]" if s["feasible"] else "[bold red]") + s["message"] + "[/]")
+    from rich.text import Text
+
+    console.print(Text(s["message"], style="bold green" if s["feasible"] else "bold red"))
     mc = s["monte_carlo"]
     if mc:
         t = Table(title=f"Monte Carlo confirmation ({mc['runs']} runs)")

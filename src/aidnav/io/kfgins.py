@@ -97,7 +97,7 @@ def read_nav(path) -> Trajectory:
     return Trajectory(time=v[:, 1], lat=np.radians(v[:, 2]), lon=np.radians(v[:, 3]), height=v[:, 4],
                       vel=np.column_stack([v[:, 6], v[:, 5], -v[:, 7]]),
                       rph=np.column_stack([np.radians(v[:, 8]), np.radians(v[:, 9]), heading]),
-                      extra={"gps_week": v[:, 0]})
+                      extra={"gps_week": v[:, 0]}, week=int(v[0, 0]) if v[0, 0] > 0 else None)
 
 
 def _write_rows(path, cols: list[np.ndarray], int_cols=()) -> Path:

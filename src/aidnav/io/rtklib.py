@@ -194,4 +194,4 @@ def read_pos(path, height_offset_m: float = 0.0, min_pos_std_m: float = ZERO_POS
     events.append(f"{name}: time = GPS seconds of week {week}; {n} epochs"
                   + (f"; height offset {height_offset_m:+.3f} m added" if height_offset_m else ""))
     return GnssData(sow, lat, lon, height, vel=vel, std_pos=std_pos, std_vel=std_vel,
-                    quality=quality, events=events)
+                    quality=quality, events=events, week=week)

@@ -2,11 +2,11 @@
 
 Per NAV-PVT message (u-blox interface description, UBX-NAV-PVT):
 
-* time: ``iTOW`` [ms] is the GPS time of week of the navigation epoch → seconds of week (exact, no
-  leap seconds); the GPS week comes from the UTC date/time fields (when ``validDate`` and
-  ``validTime``) converted to GPST with the leap seconds (:mod:`aidnav.io.gpstime`); the two must agree
-  within 1 s or the file is refused (wrong leap-second table or corrupt data). Returned as seconds of
-  week of the first epoch's week (stated in the events).
+* time: the UTC date/time fields with ``nano`` (when ``validDate`` and ``validTime``) converted to
+  GPST with the leap seconds (:mod:`aidnav.io.gpstime`) give the epoch to the ns and the GPS week;
+  they must agree with ``iTOW`` (GPS time of week [ms], rounded to the ms) within 1 s or the file is
+  refused (wrong leap-second table or corrupt data); epochs without a valid UTC time use ``iTOW``.
+  Returned as seconds of week of the first epoch's week (stated in the events).
 * position: ``lat``, ``lon`` [deg], ``height`` [mm] above the **ellipsoid** → [m] (``hMSL`` is not
   used: no datum offset is needed for NAV-PVT).
 * velocity: ``velN, velE, velD`` [mm/s] → ENU [m/s] = [velE, velN, −velD] / 1000.
@@ -118,7 +118,10 @@ def read_ubx(path, min_pos_std_m: float = ZERO_POS_STD_FLOOR_M,
         week = int(wk[0])
         # a log that crosses the week end: iTOW restarts at 0; count on past 604800 s
         sow = itow + (wk - week) * SECONDS_PER_WEEK
-        wmsg = f"time = GPS seconds of week {week} (iTOW; week from the UTC date + leap seconds)"
+        # iTOW is rounded to the ms; the UTC fields with ``nano`` give the epoch to the ns: use them
+        sow[ok_utc] = t_gpst - GPS_EPOCH_UNIX - week * SECONDS_PER_WEEK
+        wmsg = (f"time = GPS seconds of week {week} (UTC date/time + nano + leap seconds, checked against "
+                "iTOW; iTOW where the UTC time is not valid)")
     else:
         week = None
         sow = itow

@@ -111,8 +111,10 @@ class _Sniff:
         """Column names when the first data line is a header (has a letter-led field), else None."""
         if not self.first or self.binary:
             return None
-        fields = [f.strip() for f in re.split(r"[,;\t]", self.first)]
-        if any(f and not _NUM.match(f) and f.lower() not in ("nan", "inf", "-inf") for f in fields):
+        fields = [f for f in _SPLIT.split(self.first) if f]
+        if any(not _NUM.match(f) and f.lower() not in ("nan", "-nan", "inf", "-inf") for f in fields):
+            if re.search(r"[,;\t]", self.first):
+                return [f.strip() for f in re.split(r"[,;\t]", self.first)]
             return fields
         return None
 

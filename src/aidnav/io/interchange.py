@@ -65,6 +65,7 @@ _TRAJ_STD_ATT = ["roll_deg_std", "pitch_deg_std", "heading_deg_std"]
 TEXT_COLUMNS = ("utc",)  #: columns of text (not read as data): ISO UTC time
 _META_KEY = b"aidnav"
 _T0_RE = re.compile(r"^#\s*t0_s\s*[=:]\s*(\S+)")
+_WEEK_RE = re.compile(r"^#\s*gps_week\s*[=:]\s*(\d+)\s*$")
 _CSV_EXT = (".csv",)
 _PARQUET_EXT = (".parquet", ".pq")
 
@@ -259,6 +260,9 @@ def _read_csv(path: Path) -> _Table:
                 meta["t0_s"] = float(m.group(1))
             except ValueError:
                 pass
+        m = _WEEK_RE.match(c)
+        if m:
+            meta["gps_week"] = int(m.group(1))
     return _Table(path, cols, first, "csv", meta)
 
 
@@ -378,14 +382,30 @@ def read_imu(path) -> ImuData:
         t0 = None
     if t0 is None and has_rate:
         t0 = float(time[0] - (time[1] - time[0]))
-    return ImuData(time=time, dtheta=dth, dv=dv, t0=t0, events=events)
+    return ImuData(time=time, dtheta=dth, dv=dv, t0=t0, events=events, week=_week(t.meta))
 
 
-def write_imu(imu: ImuData, path) -> Path:
+def _week(meta: dict) -> int | None:
+    w = meta.get("gps_week")
+    return None if w is None else int(w)
+
+
+def _provenance(comments: list[str], meta: dict, week: int | None, notes: list[str] | None):
+    """GPS week and free-text notes (source format, time scale, conversions) into comments/metadata."""
+    if week is not None:
+        comments.append(f"gps_week = {int(week)}")
+        meta["gps_week"] = int(week)
+    if notes:
+        comments.extend(str(n).replace("\n", " ") for n in notes)
+        meta["notes"] = [str(n) for n in notes]
+
+
+def write_imu(imu: ImuData, path, notes: list[str] | None = None) -> Path:
     """Write IMU increments (time [s], Δθ [rad], Δv [m/s], body RFU) to ``path`` (.csv or .parquet).
 
     The start of the first interval ``imu.t0`` [s] is kept in a ``# t0_s = ...`` comment (CSV) or the
-    file metadata (Parquet).
+    file metadata (Parquet), as are ``imu.week`` (``# gps_week = ...``) and ``notes`` (provenance: one
+    comment line each / ``"notes"`` in the metadata).
     """
     df = {"time": imu.time}
     for j, c in enumerate(IMU_INCREMENT_COLUMNS[:3]):
@@ -397,6 +417,7 @@ def write_imu(imu: ImuData, path) -> Path:
     if imu.t0 is not None:
         comments.append(f"t0_s = {float(imu.t0)!r}")
         meta["t0_s"] = float(imu.t0)
+    _provenance(comments, meta, imu.week, notes)
     return _write(df, path, comments, meta)
 
 
@@ -455,12 +476,13 @@ def read_gnss(path, min_pos_std_m: float = ZERO_POS_STD_FLOOR_M,
         quality = np.where(np.isfinite(q), q, 0).astype(np.int64)
     return GnssData(time=t.cols["time"], lat=np.radians(t.cols["lat_deg"]), lon=np.radians(t.cols["lon_deg"]),
                     height=t.cols["height_m"], vel=vel, std_pos=std_pos, std_vel=std_vel, quality=quality,
-                    events=events)
+                    events=events, week=_week(t.meta))
 
 
-def write_gnss(gnss: GnssData, path) -> Path:
-    """Write GNSS fixes (time [s], lat/lon [deg], height [m], optional ENU velocity [m/s], 1σ ENU
-    position [m] / velocity [m/s], quality) to ``path`` (.csv or .parquet)."""
+def write_gnss(gnss: GnssData, path, notes: list[str] | None = None) -> Path:
+    """Write GNSS fixes (time [s], lat/lon [deg], height [m], optional ENU velocity [m/s] (NaN = not
+    measured, an empty CSV field), 1σ ENU position [m] / velocity [m/s], quality) to ``path`` (.csv or
+    .parquet); ``gnss.week`` and ``notes`` are kept as for :func:`write_imu`."""
     df = {"time": gnss.time, "lat_deg": np.degrees(gnss.lat), "lon_deg": np.degrees(gnss.lon),
           "height_m": gnss.height}
     for arr, names in ((gnss.vel, GNSS_VEL_COLUMNS), (gnss.std_pos, GNSS_STD_POS_COLUMNS),
@@ -472,7 +494,9 @@ def write_gnss(gnss: GnssData, path) -> Path:
         df["quality"] = np.asarray(gnss.quality, dtype=np.int64)
     comments = ["aidnav GNSS fixes; time [s], lat/lon [deg], height [m] ellipsoidal, velocity ENU [m/s], "
                 "std ENU [m], [m/s]"]
-    return _write(df, path, comments, {})
+    meta: dict = {}
+    _provenance(comments, meta, gnss.week, notes)
+    return _write(df, path, comments, meta)
 
 
 # ======================================================================================== trajectory

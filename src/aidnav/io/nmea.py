@@ -32,7 +32,7 @@ import numpy as np
 from aidnav.data import GnssData
 from aidnav.io._std import DEFAULT_POS_STD_M, ZERO_POS_STD_FLOOR_M, check_std
 from aidnav.io.errors import DataError
-from aidnav.io.gpstime import gpst_unix_to_week_sow, utc_unix_to_gpst_unix
+from aidnav.io.gpstime import GPS_EPOCH_UNIX, SECONDS_PER_WEEK, gpst_unix_to_week_sow, leap_seconds
 
 KNOT_M_S = 1852.0 / 3600.0  #: [m/s] per knot
 _GGA_Q = {1: 5, 2: 4, 3: 5, 4: 1, 5: 2, 9: 3}  # GGA fix quality → RTKLIB Q
@@ -182,9 +182,8 @@ def read_nmea(path, date: str | _dt.date | None = None, min_pos_std_m: float = Z
             st = e["gst"]
             sd = (_f(st.std_dev_longitude), _f(st.std_dev_latitude), _f(st.std_dev_altitude))
         d = e["date"]
-        utc = (_dt.datetime(d.year, d.month, d.day, tzinfo=_dt.UTC) - _dt.datetime(1970, 1, 1, tzinfo=_dt.UTC)
-               ).total_seconds() + e["tod"]
-        rows.append((utc, lat, lon, alt + sep, ve, vn, *sd, _GGA_Q[q], ln))
+        day = (_dt.date(d.year, d.month, d.day) - _dt.date(1970, 1, 1)).days * 86400  # midnight UTC [s]
+        rows.append((day, lat, lon, alt + sep, ve, vn, *sd, _GGA_Q[q], ln, e["tod"]))
     if n_no_gga:
         events.append(f"{name}: {n_no_gga} epoch(s) without GGA (no height) skipped")
     for q, n in sorted(skipped_q.items()):
@@ -197,9 +196,11 @@ def read_nmea(path, date: str | _dt.date | None = None, min_pos_std_m: float = Z
                       "undulation)")
     a = np.array(rows, dtype=float)
     line_no = a[:, 10].astype(np.int64)
-    t_gpst = utc_unix_to_gpst_unix(a[:, 0])
-    week = gpst_unix_to_week_sow(t_gpst[0])[0]
-    _, sow = gpst_unix_to_week_sow(t_gpst, week=week)
+    # whole seconds and the time of day kept apart: a POSIX count in float64 has only ~0.2 μs resolution
+    day, tod = a[:, 0], a[:, 11]
+    leap = leap_seconds(day + tod)
+    week = gpst_unix_to_week_sow(day[0] + leap[0] + tod[0])[0]
+    sow = (day + leap - GPS_EPOCH_UNIX - week * SECONDS_PER_WEEK) + tod
     d = np.diff(sow)
     if np.any(d <= 0):
         i = int(np.argmax(d <= 0)) + 1
@@ -210,9 +211,9 @@ def read_nmea(path, date: str | _dt.date | None = None, min_pos_std_m: float = Z
     sp = a[:, 6:9]
     std_pos = check_std(path, None if np.isnan(sp).all() else sp, ["GST σlon", "GST σlat", "GST σalt"],
                         lambda i: int(line_no[i]), "position", DEFAULT_POS_STD_M, min_pos_std_m, "m", events)
-    events.append(f"{name}: NMEA, UTC → GPST (+{utc_unix_to_gpst_unix(a[0, 0]) - a[0, 0]:g} s leap seconds); "
+    events.append(f"{name}: NMEA, UTC → GPST (+{leap[0]:g} s leap seconds); "
                   f"time = GPS seconds of week {week}; {len(a)} epochs; heights MSL + geoid separation; "
                   "velocity from speed/course: vu not measured (NaN)"
                   + ("" if vel is not None else "; no RMC/VTG: no velocity"))
     return GnssData(sow, np.radians(a[:, 1]), np.radians(a[:, 2]), a[:, 3], vel=vel, std_pos=std_pos,
-                    quality=a[:, 9].astype(np.int64), events=events)
+                    quality=a[:, 9].astype(np.int64), events=events, week=int(week))

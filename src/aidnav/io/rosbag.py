@@ -31,7 +31,7 @@ import numpy as np
 from aidnav.data import GnssData, ImuData
 from aidnav.io._std import DEFAULT_POS_STD_M, DEFAULT_VEL_STD_M_S, ZERO_POS_STD_FLOOR_M, check_std
 from aidnav.io.errors import DataError
-from aidnav.io.gpstime import gpst_unix_to_week_sow, utc_unix_to_gpst_unix
+from aidnav.io.gpstime import GPS_EPOCH_UNIX, SECONDS_PER_WEEK, leap_seconds
 
 IMU_TYPE = "sensor_msgs/msg/Imu"
 FIX_TYPE = "sensor_msgs/msg/NavSatFix"
@@ -91,25 +91,31 @@ def _pick(path, reader, msgtype: str, topic: str | None, required: bool = True):
     return conns
 
 
-def _stamp(msg) -> float:
+def _stamp(msg) -> tuple[int, int]:
     st = msg.header.stamp
-    return float(st.sec) + float(st.nanosec) * 1e-9
+    return int(st.sec), int(st.nanosec)
 
 
-def _time_scale(t: np.ndarray, stamps: str, name: str, events: list[str]) -> tuple[np.ndarray, int | None]:
+def _time_scale(sec: np.ndarray, nsec: np.ndarray, stamps: str, name: str,
+                events: list[str]) -> tuple[np.ndarray, int | None]:
+    """Header stamps (whole seconds, nanoseconds) → seconds [s] on the chosen scale. The whole seconds
+    and the fraction are kept apart until the end: a POSIX count in float64 resolves only ~0.2 μs."""
+    sec = np.asarray(sec, dtype=np.int64)
+    frac = np.asarray(nsec, dtype=float) * 1e-9
     if stamps == "raw":
         events.append(f"{name}: header stamps kept as they are (stamps='raw')")
-        return t, None
+        return sec.astype(float) + frac, None
     if stamps == "utc":
-        t_gpst = utc_unix_to_gpst_unix(t)
-        how = f"UTC → GPST (+{float(t_gpst[0] - t[0]):g} s leap seconds)"
+        leap = np.asarray(leap_seconds(sec.astype(float) + frac), dtype=np.int64)
+        how = f"UTC → GPST (+{int(leap[0])} s leap seconds)"
     elif stamps == "gps":
-        t_gpst = t
+        leap = np.zeros_like(sec)
         how = "stamps are GPST (stamps='gps')"
     else:
         raise ValueError(f"stamps must be 'utc', 'gps' or 'raw', got {stamps!r}")
-    week = gpst_unix_to_week_sow(t_gpst[0])[0]
-    _, sow = gpst_unix_to_week_sow(t_gpst, week=week)
+    g = sec + leap - GPS_EPOCH_UNIX
+    week = int(g[0] // SECONDS_PER_WEEK)
+    sow = (g - week * SECONDS_PER_WEEK).astype(float) + frac
     events.append(f"{name}: header stamps {how}; time = GPS seconds of week {week}")
     return sow, week
 
@@ -141,8 +147,10 @@ def read_imu(path, topic: str | None = None, axes: str = "FLU", stamps: str = "u
         topic_name = conns[0].topic
     if len(t) < 2:
         raise DataError(path, None, f"{len(t)} IMU message(s) on {topic_name}: need at least 2")
-    t = np.asarray(t)
-    _check_increasing(path, t, topic_name)
+    st = np.asarray(t, dtype=np.int64)
+    events: list[str] = []
+    time, week = _time_scale(st[:, 0], st[:, 1], stamps, path.name, events)
+    _check_increasing(path, time, topic_name)
     c = AXES[axes]
     w = np.asarray(w, dtype=float) @ c.T
     f = np.asarray(f, dtype=float) @ c.T
@@ -150,8 +158,6 @@ def read_imu(path, topic: str | None = None, axes: str = "FLU", stamps: str = "u
     if bad.any():
         i = int(np.argmax(bad))
         raise DataError(path, f"{topic_name} message {i + 1}", "NaN or inf rate")
-    events: list[str] = []
-    time, week = _time_scale(t, stamps, path.name, events)
     dt = np.diff(time, prepend=time[0] - (time[1] - time[0]))[:, None]
     events.append(f"{path.name}: {len(time)} sensor_msgs/Imu on {topic_name}; axes {axes} → body RFU; "
                   "rates converted to increments (rate × Δt over (t_{k-1}, t_k])")
@@ -177,10 +183,10 @@ def read_gnss(path, topic: str | None = None, vel_topic: str | None = None, stam
                 continue
             cov = np.asarray(m.position_covariance, dtype=float).reshape(3, 3)
             sd = np.sqrt(np.diag(cov)) if m.position_covariance_type > 0 else np.full(3, np.nan)
-            rows.append((_stamp(m), m.latitude, m.longitude, m.altitude, *sd,
+            rows.append((*_stamp(m), m.latitude, m.longitude, m.altitude, *sd,
                          _FIX_Q.get(int(m.status.status), 5)))
         vt, vv = [], []
-        for conn, _ts, raw in rd.messages(connections=vconns):
+        for conn, _ts, raw in (rd.messages(connections=vconns) if vconns else ()):  # [] would mean all
             m = rd.deserialize(raw, conn.msgtype)
             vt.append(_stamp(m))
             lin = m.twist.linear
@@ -190,31 +196,34 @@ def read_gnss(path, topic: str | None = None, vel_topic: str | None = None, stam
         events.append(f"{name}: {n_nofix} NavSatFix message(s) with status NO_FIX skipped")
     if not rows:
         raise DataError(path, None, f"no NavSatFix with a fix on {fix_topic}")
-    a = np.asarray(rows, dtype=float)
-    _check_increasing(path, a[:, 0], fix_topic)
-    bad = np.abs(a[:, 1]) > 90
+    st = np.asarray([r[:2] for r in rows], dtype=np.int64)
+    a = np.asarray([r[2:] for r in rows], dtype=float)  # lat lon alt σE σN σU Q
+    time, week = _time_scale(st[:, 0], st[:, 1], stamps, name, events)
+    _check_increasing(path, time, fix_topic)
+    bad = np.abs(a[:, 0]) > 90
     if bad.any():
-        raise DataError(path, f"{fix_topic} fix {int(np.argmax(bad)) + 1}", f"latitude {a[bad][0, 1]} deg")
+        raise DataError(path, f"{fix_topic} fix {int(np.argmax(bad)) + 1}", f"latitude {a[bad][0, 0]} deg")
     vel = std_vel = None
     if vconns:
-        vt, vv = np.asarray(vt), np.asarray(vv, dtype=float)
+        vst = np.asarray(vt, dtype=np.int64).reshape(-1, 2)
+        vt = _time_scale(vst[:, 0], vst[:, 1], stamps, name, [])[0]
+        vv = np.asarray(vv, dtype=float)
         order = np.argsort(vt)
         vt, vv = vt[order], vv[order]
-        j = np.clip(np.searchsorted(vt, a[:, 0]), 1, len(vt) - 1) if len(vt) > 1 else np.zeros(len(a), int)
+        j = np.clip(np.searchsorted(vt, time), 1, len(vt) - 1) if len(vt) > 1 else np.zeros(len(a), int)
         if len(vt) > 1:
-            j = np.where(np.abs(vt[j - 1] - a[:, 0]) < np.abs(vt[j] - a[:, 0]), j - 1, j)
-        ok = np.abs(vt[j] - a[:, 0]) <= match_s
+            j = np.where(np.abs(vt[j - 1] - time) < np.abs(vt[j] - time), j - 1, j)
+        ok = np.abs(vt[j] - time) <= match_s
         vel = np.full((len(a), 3), np.nan)
         vel[ok] = vv[j[ok]]
         events.append(f"{name}: velocity from TwistStamped on {vconns[0].topic} (twist.linear as ENU); "
                       f"{int(ok.sum())} of {len(a)} fixes matched within {match_s:g} s, others not measured")
         std_vel = check_std(path, None, ["σve", "σvn", "σvu"], lambda i: i, "velocity", DEFAULT_VEL_STD_M_S,
                             0.0, "m/s", events)
-    sp = a[:, 4:7]
+    sp = a[:, 3:6]
     std_pos = check_std(path, None if np.isnan(sp).all() else sp, ["σE", "σN", "σU"],
                         lambda i: f"{fix_topic} fix {i + 1}", "position", DEFAULT_POS_STD_M, min_pos_std_m,
                         "m", events)
-    time, week = _time_scale(a[:, 0], stamps, name, events)
     events.append(f"{name}: {len(a)} NavSatFix on {fix_topic}; ellipsoidal altitude")
-    return GnssData(time, np.radians(a[:, 1]), np.radians(a[:, 2]), a[:, 3], vel=vel, std_pos=std_pos,
-                    std_vel=std_vel, quality=a[:, 7].astype(np.int64), events=events, week=week)
+    return GnssData(time, np.radians(a[:, 0]), np.radians(a[:, 1]), a[:, 2], vel=vel, std_pos=std_pos,
+                    std_vel=std_vel, quality=a[:, 6].astype(np.int64), events=events, week=week)

@@ -20,6 +20,7 @@ class ImuData:
     dv : (N, 3) velocity increments (integrated specific force) [m/s], body RFU.
     t0 : start time of the first interval [s] (t_0 - Δt by default).
     events : human-readable notes about the data (gaps, dropped lines, ...), never silently dropped.
+    week : GPS week of ``time`` when it is GPS seconds of week (None: unknown or not GNSS-timed).
     """
 
     time: np.ndarray
@@ -27,6 +28,7 @@ class ImuData:
     dv: np.ndarray
     t0: float | None = None
     events: list[str] = field(default_factory=list)
+    week: int | None = None
 
     def __post_init__(self):
         self.time = np.ascontiguousarray(self.time, dtype=float)
@@ -50,7 +52,19 @@ class ImuData:
         m = (self.time >= start) & (self.time < stop)
         idx = np.flatnonzero(m)
         t0 = self.time[idx[0] - 1] if len(idx) and idx[0] > 0 else None
-        return ImuData(self.time[m], self.dtheta[m], self.dv[m], t0=t0)
+        return ImuData(self.time[m], self.dtheta[m], self.dv[m], t0=t0, week=self.week)
+
+    def to_dataframe(self):
+        """A pandas DataFrame in the interchange columns: ``time`` [s], ``dtheta_{x,y,z}_rad`` [rad],
+        ``dv_{x,y,z}_m_s`` [m/s] (body RFU)."""
+        import pandas as pd
+
+        cols = {"time": self.time}
+        for j, a in enumerate("xyz"):
+            cols[f"dtheta_{a}_rad"] = self.dtheta[:, j]
+        for j, a in enumerate("xyz"):
+            cols[f"dv_{a}_m_s"] = self.dv[:, j]
+        return pd.DataFrame(cols)
 
 
 @dataclass
@@ -61,6 +75,8 @@ class GnssData:
     vel : (M, 3) ENU velocity [m/s] or None.
     std_pos : (M, 3) 1σ ENU position [m]; std_vel : (M, 3) 1σ ENU velocity [m/s] or None.
     quality : (M,) integer quality flag (RTKLIB Q: 1 fix, 2 float, 5 single; 0 unknown) or None.
+    A velocity component that is NaN was not measured (e.g. vu of a speed/course fix).
+    week : GPS week of ``time`` when it is GPS seconds of week (None: unknown).
     """
 
     time: np.ndarray
@@ -72,6 +88,7 @@ class GnssData:
     std_vel: np.ndarray | None = None
     quality: np.ndarray | None = None
     events: list[str] = field(default_factory=list)
+    week: int | None = None
 
     def __post_init__(self):
         self.time = np.ascontiguousarray(self.time, dtype=float)
@@ -95,7 +112,25 @@ class GnssData:
             return None if a is None else a[mask]
 
         return GnssData(self.time[mask], self.lat[mask], self.lon[mask], self.height[mask],
-                        pick(self.vel), pick(self.std_pos), pick(self.std_vel), pick(self.quality))
+                        pick(self.vel), pick(self.std_pos), pick(self.std_vel), pick(self.quality),
+                        week=self.week)
+
+    def to_dataframe(self):
+        """A pandas DataFrame in the interchange columns: ``time`` [s], ``lat_deg, lon_deg`` [deg],
+        ``height_m`` [m], then where present ``ve, vn, vu`` [m/s], ``std_e_m, std_n_m, std_u_m`` [m],
+        ``std_ve, std_vn, std_vu`` [m/s], ``quality``."""
+        import pandas as pd
+
+        cols = {"time": self.time, "lat_deg": np.degrees(self.lat), "lon_deg": np.degrees(self.lon),
+                "height_m": self.height}
+        for arr, names in ((self.vel, ("ve", "vn", "vu")), (self.std_pos, ("std_e_m", "std_n_m", "std_u_m")),
+                           (self.std_vel, ("std_ve", "std_vn", "std_vu"))):
+            if arr is not None:
+                for j, c in enumerate(names):
+                    cols[c] = arr[:, j]
+        if self.quality is not None:
+            cols["quality"] = np.asarray(self.quality)
+        return pd.DataFrame(cols)
 
 
 @dataclass
@@ -108,6 +143,7 @@ class Trajectory:
     std_att : (N, 3) 1σ roll, pitch, heading [rad] (all optional).
     extra : further per-epoch columns keyed by their interchange name with units
     (e.g. ``"gyro_bias_x_deg_h"``).
+    week : GPS week of ``time`` when it is GPS seconds of week (None: unknown).
     The interchange writer turns std_* into the ``<column>_std`` columns of CONVENTIONS
     (``lat_deg_std``, ``lon_deg_std``, ``height_m_std``, ``ve_std`` ... ``heading_deg_std``).
     """
@@ -122,6 +158,19 @@ class Trajectory:
     std_vel: np.ndarray | None = None
     std_att: np.ndarray | None = None
     extra: dict[str, np.ndarray] = field(default_factory=dict)
+    week: int | None = None
 
     def __len__(self) -> int:
         return len(self.time)
+
+    def to_dataframe(self, week: int | None = None):
+        """A pandas DataFrame with the interchange trajectory columns (degrees, m, m/s; heading in
+        [0, 360)), the σ columns as :func:`aidnav.io.interchange.write_trajectory` writes them (including
+        ``std_e_m, std_n_m, std_u_m`` [m]) and ``extra``; with ``week`` also ``gps_week`` and ``utc``."""
+        import pandas as pd
+
+        # the unit conversions to file columns have one owner, aidnav.io (imported here, not at the top:
+        # aidnav.io imports this module)
+        from aidnav.io.interchange import trajectory_columns
+
+        return pd.DataFrame(trajectory_columns(self, week=week))

@@ -213,8 +213,11 @@ def test_missing_columns_named(tmp_path):
     p.write_text("time,lat_deg,height_m\n1,40,10\n")
     e = _err(read_gnss, p)
     assert "lon_deg" in e.problem and e.line == 1
+    # issue 25: a missing vu column is "vertical velocity not measured" (all-NaN), not an error
     p.write_text("time,lat_deg,lon_deg,height_m,ve,vn\n1,40,116,10,1,2\n")
-    assert "vu" in _err(read_gnss, p).problem  # velocity columns are all or none
+    g = read_gnss(p)
+    np.testing.assert_array_equal(g.vel[0, :2], [1.0, 2.0])
+    assert np.isnan(g.vel[0, 2]) and any("vu" in e for e in g.events)
     p = tmp_path / "i.csv"
     p.write_text("time,dtheta_x_rad,dtheta_y_rad,dtheta_z_rad,dv_x_m_s,dv_y_m_s\n1,0,0,0,0,0\n")
     e = _err(read_imu, p)

@@ -113,3 +113,53 @@ def gpst_unix_to_calendar(t) -> np.ndarray | str:
     dt = np.datetime64("1970-01-01T00:00:00", "ms") + ms.astype("timedelta64[ms]")
     s = np.char.replace(np.char.replace(np.datetime_as_string(dt, unit="ms"), "T", " "), "-", "/")
     return str(s) if s.ndim == 0 else s
+
+
+# ====================================================================================== UTC ↔ GPST
+#: UTC instants (seconds since 1970-01-01 UTC, POSIX count) from which GPST − UTC takes the value, [s].
+#: IERS leap seconds since the GPS epoch (GPST − UTC = 0 s on 1980-01-06). No leap second has been
+#: inserted after 2017-01-01 up to the writing of this table (IERS Bulletin C); a new one must be added
+#: here, and only here.
+_LEAP_TABLE = [
+    ("1981-07-01", 1), ("1982-07-01", 2), ("1983-07-01", 3), ("1985-07-01", 4), ("1988-01-01", 5),
+    ("1990-01-01", 6), ("1991-01-01", 7), ("1992-07-01", 8), ("1993-07-01", 9), ("1994-07-01", 10),
+    ("1996-01-01", 11), ("1997-07-01", 12), ("1999-01-01", 13), ("2006-01-01", 14), ("2009-01-01", 15),
+    ("2012-07-01", 16), ("2015-07-01", 17), ("2017-01-01", 18),
+]
+_LEAP_UTC = np.array([np.datetime64(d, "s").astype(np.int64) for d, _ in _LEAP_TABLE], dtype=float)
+_LEAP_VAL = np.array([v for _, v in _LEAP_TABLE], dtype=float)
+
+
+def leap_seconds(t_utc_unix) -> np.ndarray | float:
+    """GPST − UTC [s] at the UTC instants ``t_utc_unix`` (POSIX seconds since 1970-01-01 UTC).
+
+    Raises ValueError for instants before the GPS epoch (1980-01-06), where GPS time is not defined."""
+    t = np.asarray(t_utc_unix, dtype=float)
+    if np.any(t < GPS_EPOCH_UNIX):
+        raise ValueError("UTC time before the GPS epoch 1980-01-06: not a GNSS time stamp")
+    idx = np.searchsorted(_LEAP_UTC, t, side="right")
+    out = np.where(idx > 0, _LEAP_VAL[np.maximum(idx - 1, 0)], 0.0)
+    return float(out) if out.ndim == 0 else out
+
+
+def utc_unix_to_gpst_unix(t_utc_unix):
+    """UTC (POSIX seconds, as ROS stamps, NMEA and UBX UTC fields give it) → GPST counted like Unix [s]."""
+    t = np.asarray(t_utc_unix, dtype=float)
+    out = t + leap_seconds(t)
+    return float(out) if out.ndim == 0 else out
+
+
+def gpst_unix_to_utc_unix(t_gpst_unix):
+    """GPST counted like Unix [s] → UTC POSIX seconds (inverse of :func:`utc_unix_to_gpst_unix`)."""
+    t = np.asarray(t_gpst_unix, dtype=float)
+    approx = t - leap_seconds(np.maximum(t - 18.0, GPS_EPOCH_UNIX))
+    out = t - leap_seconds(np.maximum(approx, GPS_EPOCH_UNIX))
+    return float(out) if out.ndim == 0 else out
+
+
+def week_sow_to_utc_iso(week, sow) -> np.ndarray:
+    """(GPS week, seconds of week [s]) → UTC ISO 8601 strings 'YYYY-MM-DDTHH:MM:SS.ssssssZ' (μs)."""
+    utc = np.atleast_1d(gpst_unix_to_utc_unix(week_sow_to_gpst_unix(week, sow)))
+    us = np.round(utc * 1e6).astype(np.int64)
+    dt = np.datetime64("1970-01-01T00:00:00", "us") + us.astype("timedelta64[us]")
+    return np.char.add(np.datetime_as_string(dt, unit="us"), "Z")

@@ -35,7 +35,16 @@ import pyarrow.parquet as pq
 
 from aidnav.data import GnssData, ImuData, Trajectory
 from aidnav.io._arrow import column_to_f64, f64_to_arrow
+from aidnav.io._std import (
+    DEFAULT_POS_STD_M,
+    DEFAULT_VEL_STD_M_S,
+    ZERO_POS_STD_FLOOR_M,
+    ZERO_VEL_STD_FLOOR_M_S,
+    check_std,
+    check_velocity,
+)
 from aidnav.io.errors import DataError
+from aidnav.io.gpstime import SECONDS_PER_WEEK, week_sow_to_utc_iso
 from aidnav.nav.earth import radii
 
 __all__ = ["read_imu", "write_imu", "read_gnss", "write_gnss", "read_trajectory", "write_trajectory",
@@ -53,8 +62,10 @@ TRAJECTORY_COLUMNS = ["time", "lat_deg", "lon_deg", "height_m", "ve", "vn", "vu"
 _TRAJ_STD_POS = ["lat_deg_std", "lon_deg_std", "height_m_std"]
 _TRAJ_STD_VEL = ["ve_std", "vn_std", "vu_std"]
 _TRAJ_STD_ATT = ["roll_deg_std", "pitch_deg_std", "heading_deg_std"]
+TEXT_COLUMNS = ("utc",)  #: columns of text (not read as data): ISO UTC time
 _META_KEY = b"aidnav"
 _T0_RE = re.compile(r"^#\s*t0_s\s*[=:]\s*(\S+)")
+_WEEK_RE = re.compile(r"^#\s*gps_week\s*[=:]\s*(\d+)\s*$")
 _CSV_EXT = (".csv",)
 _PARQUET_EXT = (".parquet", ".pq")
 
@@ -150,6 +161,20 @@ def _line_stats(body: bytes):
     return starts, ends, commas, nonblank
 
 
+_DELIM_NAMES = {",": "','", ";": "';'", "\t": "tabs"}
+
+
+def _delimiter(path: Path, header: str, line: int) -> str:
+    """The field separator of a CSV file from its header line: ',' or else ';' or a tab."""
+    for d in (",", ";", "\t"):
+        if d in header:
+            return d
+    if len(header.split()) > 1:
+        raise DataError(path, line, "header columns separated by spaces: separate them with ',' "
+                                    "(';' and tabs are also read)")
+    return ","
+
+
 def _read_csv(path: Path) -> _Table:
     raw = _read_bytes(path)
     # comment lines and the header
@@ -171,13 +196,21 @@ def _read_csv(path: Path) -> _Table:
     if header is None:
         raise DataError(path, None, "empty file (no header line)")
     header_line = line_no
-    names = [h.strip() for h in header.split(",")]
+    delim = _delimiter(path, header, header_line)
+    names = [h.strip() for h in header.split(delim)]
     if any(not n for n in names):
         raise DataError(path, header_line, f"empty column name in the header: {header!r}")
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
         raise DataError(path, header_line, f"duplicate column(s) in the header: {', '.join(dup)}")
     body = raw[min(pos, len(raw)):]
+    if delim != ",":
+        if b"," in body:
+            k = body.find(b",")
+            ln = header_line + 1 + body.count(b"\n", 0, k)
+            raise DataError(path, ln, f"a ',' in a file whose header is separated by {_DELIM_NAMES[delim]}: "
+                                      "decimal commas are not supported (write 1.5, not 1,5)")
+        body = body.replace(delim.encode(), b",")
     starts, ends, commas, nonblank = _line_stats(body)
     # drop trailing blank lines
     keep = len(ends)
@@ -197,12 +230,15 @@ def _read_csv(path: Path) -> _Table:
                                          f"(the header has {len(names)})")
     body = body[: ends[keep - 1]]
     ropts = pacsv.ReadOptions(column_names=names, use_threads=True)
-    copts = pacsv.ConvertOptions(column_types={n: pa.float64() for n in names})
+    copts = pacsv.ConvertOptions(column_types={n: (pa.string() if n in TEXT_COLUMNS else pa.float64())
+                                               for n in names})
+    names = [n for n in names if n not in TEXT_COLUMNS]  # text columns (utc) are not data
     try:
         tbl = pacsv.read_csv(io.BytesIO(body), read_options=ropts, convert_options=copts)
         cols = {n: column_to_f64(tbl.column(n)) for n in names}
     except pa.ArrowInvalid:
-        sopts = pacsv.ConvertOptions(column_types={n: pa.string() for n in names}, strings_can_be_null=False)
+        sopts = pacsv.ConvertOptions(column_types={n: pa.string() for n in ropts.column_names},
+                                     strings_can_be_null=False)
         tbl = pacsv.read_csv(io.BytesIO(body), read_options=ropts, convert_options=sopts)
         cols = {}
         for n in names:
@@ -224,6 +260,9 @@ def _read_csv(path: Path) -> _Table:
                 meta["t0_s"] = float(m.group(1))
             except ValueError:
                 pass
+        m = _WEEK_RE.match(c)
+        if m:
+            meta["gps_week"] = int(m.group(1))
     return _Table(path, cols, first, "csv", meta)
 
 
@@ -239,6 +278,8 @@ def _read_parquet(path: Path) -> _Table:
         raise DataError(path, None, "empty file (no rows)")
     cols = {}
     for n in tbl.column_names:
+        if n in TEXT_COLUMNS:
+            continue
         col = tbl.column(n)
         if pa.types.is_integer(col.type) or pa.types.is_floating(col.type):
             cols[n] = column_to_f64(col)
@@ -290,7 +331,9 @@ def _write(cols: dict, path, comments: list[str], meta: dict) -> Path:
                 f.write(f"# {c}\n")
             pd.DataFrame(cols).to_csv(f, index=False, lineterminator="\n")  # shortest exact round trip
     else:
-        tbl = pa.Table.from_arrays([f64_to_arrow(v) for v in cols.values()], names=list(cols))
+        arrays = [pa.array([str(x) for x in v], type=pa.string()) if np.asarray(v).dtype.kind in "US"
+                  else f64_to_arrow(v) for v in cols.values()]
+        tbl = pa.Table.from_arrays(arrays, names=list(cols))
         md = dict(tbl.schema.metadata or {})
         md[_META_KEY] = json.dumps(meta).encode()
         pq.write_table(tbl.replace_schema_metadata(md), path)
@@ -339,14 +382,30 @@ def read_imu(path) -> ImuData:
         t0 = None
     if t0 is None and has_rate:
         t0 = float(time[0] - (time[1] - time[0]))
-    return ImuData(time=time, dtheta=dth, dv=dv, t0=t0, events=events)
+    return ImuData(time=time, dtheta=dth, dv=dv, t0=t0, events=events, week=_week(t.meta))
 
 
-def write_imu(imu: ImuData, path) -> Path:
+def _week(meta: dict) -> int | None:
+    w = meta.get("gps_week")
+    return None if w is None else int(w)
+
+
+def _provenance(comments: list[str], meta: dict, week: int | None, notes: list[str] | None):
+    """GPS week and free-text notes (source format, time scale, conversions) into comments/metadata."""
+    if week is not None:
+        comments.append(f"gps_week = {int(week)}")
+        meta["gps_week"] = int(week)
+    if notes:
+        comments.extend(str(n).replace("\n", " ") for n in notes)
+        meta["notes"] = [str(n) for n in notes]
+
+
+def write_imu(imu: ImuData, path, notes: list[str] | None = None) -> Path:
     """Write IMU increments (time [s], Δθ [rad], Δv [m/s], body RFU) to ``path`` (.csv or .parquet).
 
     The start of the first interval ``imu.t0`` [s] is kept in a ``# t0_s = ...`` comment (CSV) or the
-    file metadata (Parquet).
+    file metadata (Parquet), as are ``imu.week`` (``# gps_week = ...``) and ``notes`` (provenance: one
+    comment line each / ``"notes"`` in the metadata).
     """
     df = {"time": imu.time}
     for j, c in enumerate(IMU_INCREMENT_COLUMNS[:3]):
@@ -358,35 +417,72 @@ def write_imu(imu: ImuData, path) -> Path:
     if imu.t0 is not None:
         comments.append(f"t0_s = {float(imu.t0)!r}")
         meta["t0_s"] = float(imu.t0)
+    _provenance(comments, meta, imu.week, notes)
     return _write(df, path, comments, meta)
 
 
 # ============================================================================================== GNSS
-def read_gnss(path) -> GnssData:
+def _optional_triad(t: _Table, names: list[str]) -> np.ndarray | None:
+    """(M, 3) array of the columns ``names`` that are present (absent ones all-NaN); None if none is."""
+    if not any(c in t.cols for c in names):
+        return None
+    m = len(t)
+    return np.column_stack([t.cols[c] if c in t.cols else np.full(m, np.nan) for c in names])
+
+
+def read_gnss(path, min_pos_std_m: float = ZERO_POS_STD_FLOOR_M,
+              min_vel_std_m_s: float = ZERO_VEL_STD_FLOOR_M_S) -> GnssData:
     """Read GNSS fixes: time [s], lat/lon [deg → rad], height [m]; optional ENU velocity [m/s],
-    1σ ENU position [m] / velocity [m/s] and ``quality``. Returns :class:`aidnav.data.GnssData`."""
+    1σ ENU position [m] / velocity [m/s] and ``quality``. Returns :class:`aidnav.data.GnssData`.
+
+    Partial content (:mod:`aidnav.io._std`): each velocity component is optional and NaN (or an empty
+    field) means "not measured" — a file with ``ve, vn`` and no ``vu`` has vu all-NaN; σ columns are
+    optional (absent: ``std_*`` None and an event names the σ the filter uses; a NaN σ of a measured
+    value gets the default σ); σ = 0 is floored to ``min_pos_std_m`` / ``min_vel_std_m_s`` with a
+    warning event; a negative σ is refused (DataError with file, line and column). Heights are as in
+    the file: a datum offset is applied by :func:`aidnav.io.formats.read_gnss`.
+    """
     t = _open(path)
     t.require(GNSS_COLUMNS, "GNSS")
-    has_v = t.has_all(GNSS_VEL_COLUMNS, "GNSS velocity")
-    has_sp = t.has_all(GNSS_STD_POS_COLUMNS, "GNSS position std")
-    has_sv = t.has_all(GNSS_STD_VEL_COLUMNS, "GNSS velocity std")
-    used = GNSS_COLUMNS + (GNSS_VEL_COLUMNS if has_v else []) + (GNSS_STD_POS_COLUMNS if has_sp else []) \
-        + (GNSS_STD_VEL_COLUMNS if has_sv else [])
-    t.finite(used)
+    t.finite(GNSS_COLUMNS)
     t.increasing_time()
+    events: list[str] = []
+    name = t.path.name
+    vel = _optional_triad(t, GNSS_VEL_COLUMNS)
+    if vel is not None:
+        check_velocity(t.path, vel, GNSS_VEL_COLUMNS, t.line)
+        absent = [c for c in GNSS_VEL_COLUMNS if c not in t.cols]
+        if absent:
+            events.append(f"{name}: no {', '.join(absent)} column: that velocity component is not measured "
+                          "(NaN); only the measured components are used")
+        nan_rows = int(np.isnan(vel[:, [GNSS_VEL_COLUMNS.index(c) for c in GNSS_VEL_COLUMNS
+                                        if c in t.cols]]).any(axis=1).sum())
+        if nan_rows:
+            events.append(f"{name}: {nan_rows} fix(es) with some velocity component not measured (NaN)")
+        if np.isnan(vel).all():
+            vel = None
+    measured_v = None if vel is None else ~np.isnan(vel)
+    sp = _optional_triad(t, GNSS_STD_POS_COLUMNS)
+    std_pos = check_std(t.path, sp, GNSS_STD_POS_COLUMNS, t.line, "position", DEFAULT_POS_STD_M,
+                        min_pos_std_m, "m", events)
+    std_vel = None
+    if vel is not None:
+        sv = _optional_triad(t, GNSS_STD_VEL_COLUMNS)
+        std_vel = check_std(t.path, sv, GNSS_STD_VEL_COLUMNS, t.line, "velocity", DEFAULT_VEL_STD_M_S,
+                            min_vel_std_m_s, "m/s", events, measured=measured_v)
     quality = None
     if "quality" in t.cols:
         q = t.cols["quality"]
         quality = np.where(np.isfinite(q), q, 0).astype(np.int64)
     return GnssData(time=t.cols["time"], lat=np.radians(t.cols["lat_deg"]), lon=np.radians(t.cols["lon_deg"]),
-                    height=t.cols["height_m"], vel=t.get(GNSS_VEL_COLUMNS) if has_v else None,
-                    std_pos=t.get(GNSS_STD_POS_COLUMNS) if has_sp else None,
-                    std_vel=t.get(GNSS_STD_VEL_COLUMNS) if has_sv else None, quality=quality)
+                    height=t.cols["height_m"], vel=vel, std_pos=std_pos, std_vel=std_vel, quality=quality,
+                    events=events, week=_week(t.meta))
 
 
-def write_gnss(gnss: GnssData, path) -> Path:
-    """Write GNSS fixes (time [s], lat/lon [deg], height [m], optional ENU velocity [m/s], 1σ ENU
-    position [m] / velocity [m/s], quality) to ``path`` (.csv or .parquet)."""
+def write_gnss(gnss: GnssData, path, notes: list[str] | None = None) -> Path:
+    """Write GNSS fixes (time [s], lat/lon [deg], height [m], optional ENU velocity [m/s] (NaN = not
+    measured, an empty CSV field), 1σ ENU position [m] / velocity [m/s], quality) to ``path`` (.csv or
+    .parquet); ``gnss.week`` and ``notes`` are kept as for :func:`write_imu`."""
     df = {"time": gnss.time, "lat_deg": np.degrees(gnss.lat), "lon_deg": np.degrees(gnss.lon),
           "height_m": gnss.height}
     for arr, names in ((gnss.vel, GNSS_VEL_COLUMNS), (gnss.std_pos, GNSS_STD_POS_COLUMNS),
@@ -398,7 +494,9 @@ def write_gnss(gnss: GnssData, path) -> Path:
         df["quality"] = np.asarray(gnss.quality, dtype=np.int64)
     comments = ["aidnav GNSS fixes; time [s], lat/lon [deg], height [m] ellipsoidal, velocity ENU [m/s], "
                 "std ENU [m], [m/s]"]
-    return _write(df, path, comments, {})
+    meta: dict = {}
+    _provenance(comments, meta, gnss.week, notes)
+    return _write(df, path, comments, meta)
 
 
 # ======================================================================================== trajectory
@@ -414,15 +512,15 @@ def read_trajectory(path) -> Trajectory:
     Columns ``time`` [s], ``lat_deg, lon_deg`` [deg → rad], ``height_m`` [m], ``ve, vn, vu`` [m/s ENU],
     ``roll_deg, pitch_deg, heading_deg`` [deg → rad; heading wrapped to [0, 2π)]. Optional standard
     deviations: ``lat_deg_std, lon_deg_std`` [deg] → ``std_pos`` E/N [m] (via R_N, R_M),
-    ``height_m_std`` → U [m] (``std_e_m, std_n_m, std_u_m`` [m] are accepted too); ``ve_std ...`` →
+    ``height_m_std`` → U [m] (``std_e_m, std_n_m, std_u_m`` [m] are preferred when present); ``ve_std ...`` →
     ``std_vel`` [m/s]; ``roll_deg_std ...`` → ``std_att`` [rad]. Other columns → ``extra`` as read.
     """
     t = _open(path)
     t.require(TRAJECTORY_COLUMNS, "trajectory")
     has_sp = t.has_all(_TRAJ_STD_POS, "position std")
-    has_sp_m = (not has_sp) and t.has_all(GNSS_STD_POS_COLUMNS, "position std")
     has_sv = t.has_all(_TRAJ_STD_VEL, "velocity std")
     has_sa = t.has_all(_TRAJ_STD_ATT, "attitude std")
+    has_sp_m = t.has_all(GNSS_STD_POS_COLUMNS, "position std")
     std_cols = (_TRAJ_STD_POS if has_sp else []) + (GNSS_STD_POS_COLUMNS if has_sp_m else []) \
         + (_TRAJ_STD_VEL if has_sv else []) + (_TRAJ_STD_ATT if has_sa else [])
     t.finite(TRAJECTORY_COLUMNS + std_cols)
@@ -433,42 +531,56 @@ def read_trajectory(path) -> Trajectory:
     heading[heading >= 2 * np.pi] = 0.0
     rph = np.column_stack([np.radians(c["roll_deg"]), np.radians(c["pitch_deg"]), heading])
     std_pos = std_vel = std_att = None
-    if has_sp:
+    if has_sp_m:  # metres as written (exact); the degree columns are kept for older files
+        std_pos = t.get(GNSS_STD_POS_COLUMNS)
+    elif has_sp:
         sn, se = _pos_std_scale(lat, h)
         std_pos = np.column_stack([np.radians(c["lon_deg_std"]) * se, np.radians(c["lat_deg_std"]) * sn,
                                    c["height_m_std"]])
-    elif has_sp_m:
-        std_pos = t.get(GNSS_STD_POS_COLUMNS)
     if has_sv:
         std_vel = t.get(_TRAJ_STD_VEL)
     if has_sa:
         std_att = np.radians(t.get(_TRAJ_STD_ATT))
-    known = set(TRAJECTORY_COLUMNS) | set(std_cols)
+    known = set(TRAJECTORY_COLUMNS) | set(std_cols) | {"gps_week"}
     extra = {k: v for k, v in c.items() if k not in known}
+    week = t.meta.get("gps_week")
+    if week is None and "gps_week" in c and np.isfinite(c["gps_week"][0]):
+        week = int(c["gps_week"][0] - np.floor(c["time"][0] / SECONDS_PER_WEEK))
     return Trajectory(time=c["time"], lat=lat, lon=lon, height=h, vel=t.get(["ve", "vn", "vu"]), rph=rph,
-                      std_pos=std_pos, std_vel=std_vel, std_att=std_att, extra=extra)
+                      std_pos=std_pos, std_vel=std_vel, std_att=std_att, extra=extra,
+                      week=None if week is None else int(week))
 
 
-def write_trajectory(traj: Trajectory, path) -> Path:
-    """Write a trajectory (``CONVENTIONS.md`` trajectory columns, degrees at the boundary) to ``path``.
+def trajectory_columns(traj: Trajectory, week: int | None = None) -> dict[str, np.ndarray]:
+    """The interchange columns of ``traj`` (degrees, m, m/s at the boundary) as a dict of arrays.
 
-    ``std_pos`` E/N/U [m] becomes ``lon_deg_std, lat_deg_std`` [deg] and ``height_m_std`` [m];
-    ``std_vel`` → ``ve_std, vn_std, vu_std`` [m/s]; ``std_att`` → ``roll_deg_std ...`` [deg];
-    ``extra`` columns are appended as they are (their names carry their units).
+    ``std_pos`` E/N/U [m] becomes ``lon_deg_std, lat_deg_std`` [deg] and ``height_m_std`` [m] (kept
+    for compatibility) **and** ``std_e_m, std_n_m, std_u_m`` [m]; ``std_vel`` → ``ve_std, vn_std,
+    vu_std`` [m/s]; ``std_att`` → ``roll_deg_std ...`` [deg]; ``extra`` columns as they are. With
+    ``week`` (the GPS week of ``traj.time``, which is then GPS seconds of week) two columns follow
+    ``time``: ``gps_week`` (the week of each epoch: a time past 604800 s belongs to the next week) and
+    ``utc`` (ISO 8601 UTC, microseconds, leap seconds applied by :mod:`aidnav.io.gpstime`).
     """
     heading = np.mod(np.degrees(traj.rph[:, 2]), 360.0)
     heading[heading >= 360.0] = 0.0
-    df = {
-        "time": traj.time, "lat_deg": np.degrees(traj.lat), "lon_deg": np.degrees(traj.lon),
+    df = {"time": traj.time}
+    if week is not None:
+        wk = int(week) + np.floor(np.asarray(traj.time) / SECONDS_PER_WEEK).astype(np.int64)
+        df["gps_week"] = wk
+        df["utc"] = week_sow_to_utc_iso(int(week), traj.time)
+    df.update({
+        "lat_deg": np.degrees(traj.lat), "lon_deg": np.degrees(traj.lon),
         "height_m": traj.height, "ve": traj.vel[:, 0], "vn": traj.vel[:, 1], "vu": traj.vel[:, 2],
         "roll_deg": np.degrees(traj.rph[:, 0]), "pitch_deg": np.degrees(traj.rph[:, 1]),
         "heading_deg": heading,
-    }
+    })
     if traj.std_pos is not None:
         sn, se = _pos_std_scale(traj.lat, traj.height)
         df["lat_deg_std"] = np.degrees(traj.std_pos[:, 1] / sn)
         df["lon_deg_std"] = np.degrees(traj.std_pos[:, 0] / se)
         df["height_m_std"] = traj.std_pos[:, 2]
+        for j, c in enumerate(GNSS_STD_POS_COLUMNS):
+            df[c] = traj.std_pos[:, j]
     if traj.std_vel is not None:
         for j, c in enumerate(_TRAJ_STD_VEL):
             df[c] = traj.std_vel[:, j]
@@ -476,7 +588,22 @@ def write_trajectory(traj: Trajectory, path) -> Path:
         for j, c in enumerate(_TRAJ_STD_ATT):
             df[c] = np.degrees(traj.std_att[:, j])
     for k, v in traj.extra.items():
+        if k in df:
+            continue
         df[k] = np.asarray(v)
+    return df
+
+
+def write_trajectory(traj: Trajectory, path, week: int | None = None) -> Path:
+    """Write a trajectory (``CONVENTIONS.md`` trajectory columns, degrees at the boundary) to ``path``
+    (.csv or .parquet); columns as :func:`trajectory_columns` (``week``: add ``gps_week`` and ``utc``).
+    A ``.nav`` path writes KF-GINS navigation text instead (:func:`aidnav.io.kfgins.write_nav`)."""
+    if str(path).lower().endswith(".nav"):
+        from aidnav.io.kfgins import write_nav
+
+        return write_nav(traj, path, week=week)
+    df = trajectory_columns(traj, week=week)
     comments = ["aidnav trajectory; time [s], lat/lon [deg], height [m] ellipsoidal, velocity ENU [m/s], "
-                "roll/pitch/heading [deg] (heading clockwise from North)"]
-    return _write(df, path, comments, {})
+                "roll/pitch/heading [deg] (heading clockwise from North); std_e_m/std_n_m/std_u_m [m]"
+                + ("" if week is None else f"; time = GPS seconds of week {int(week)}, utc = UTC (ISO 8601)")]
+    return _write(df, path, comments, {} if week is None else {"gps_week": int(week)})

@@ -224,5 +224,5 @@ def read_rtklibexplorer_imu(path, tag_path=None, axes: str = "RFU", mounting=Non
     dv[0] = f_b[0] * dt0
     dtheta[1:] = 0.5 * (w_b[1:] + w_b[:-1]) * dt[:, None]
     dv[1:] = 0.5 * (f_b[1:] + f_b[:-1]) * dt[:, None]
-    imu = ImuData(t, dtheta, dv, t0=float(t[0] - dt0), events=events)
+    imu = ImuData(t, dtheta, dv, t0=float(t[0] - dt0), events=events, week=int(week))
     return (imu, fit) if return_fit else imu

@@ -18,6 +18,13 @@ from pathlib import Path
 import numpy as np
 
 from aidnav.data import GnssData
+from aidnav.io._std import (
+    DEFAULT_POS_STD_M,
+    DEFAULT_VEL_STD_M_S,
+    ZERO_POS_STD_FLOOR_M,
+    ZERO_VEL_STD_FLOOR_M_S,
+    check_std,
+)
 from aidnav.io.errors import DataError
 from aidnav.io.gpstime import calendar_to_week_sow
 
@@ -38,7 +45,8 @@ def _check_header(path: Path, header: list[tuple[int, str]]):
             raise DataError(path, ln, "lat/lon in deg-min-sec not supported: use decimal degrees")
 
 
-def read_pos(path, height_offset_m: float = 0.0) -> GnssData:
+def read_pos(path, height_offset_m: float = 0.0, min_pos_std_m: float = ZERO_POS_STD_FLOOR_M,
+             min_vel_std_m_s: float = ZERO_VEL_STD_FLOOR_M_S) -> GnssData:
     """Read an RTKLIB ``.pos`` solution (GPST, lat/lon in degrees) into :class:`GnssData`.
 
     path : the ``.pos`` file.
@@ -51,6 +59,9 @@ def read_pos(path, height_offset_m: float = 0.0) -> GnssData:
     604800 s if the file crosses a week end; the week is named in ``events``), lat/lon [rad],
     height [m], std_pos ENU [m] (= sde, sdn, sdu of the file), vel ENU [m/s] (= ve, vn, vu) and
     std_vel ENU [m/s] when the file has velocity columns, quality = Q (1 fix, 2 float, 5 single ...).
+
+    σ = 0 is floored to ``min_pos_std_m`` / ``min_vel_std_m_s`` with a warning event; a negative σ
+    is refused (:mod:`aidnav.io._std`).
 
     Raises :class:`DataError` "file:line: problem" for a malformed line, an unsupported format or
     time going backwards. Only a malformed *last* line (a file cut while being written) is skipped and
@@ -169,12 +180,18 @@ def read_pos(path, height_offset_m: float = 0.0) -> GnssData:
         raise DataError(path, ln[k], f"latitude {num[k, 0]} deg out of range")
     height = num[:, 2] + height_offset_m
     quality = np.round(num[:, 3]).astype(int)
-    std_pos = num[:, [6, 5, 7]]  # sde, sdn, sdu (file: sdn sde sdu)
+    def line_of(i):
+        return ln[i]
+
+    # sde, sdn, sdu (file: sdn sde sdu); σ = 0 floored, negative refused (aidnav.io._std)
+    std_pos = check_std(path, num[:, [6, 5, 7]], ["sde(m)", "sdn(m)", "sdu(m)"], line_of, "position",
+                        DEFAULT_POS_STD_M, min_pos_std_m, "m", events)
     vel = std_vel = None
     if expected - 2 > _N_POS:
         vel = num[:, [14, 13, 15]]  # ve, vn, vu (file: vn ve vu)
-        std_vel = num[:, [17, 16, 18]]  # sdve, sdvn, sdvu
+        std_vel = check_std(path, num[:, [17, 16, 18]], ["sdve", "sdvn", "sdvu"], line_of, "velocity",
+                            DEFAULT_VEL_STD_M_S, min_vel_std_m_s, "m/s", events)
     events.append(f"{name}: time = GPS seconds of week {week}; {n} epochs"
                   + (f"; height offset {height_offset_m:+.3f} m added" if height_offset_m else ""))
     return GnssData(sow, lat, lon, height, vel=vel, std_pos=std_pos, std_vel=std_vel,
-                    quality=quality, events=events)
+                    quality=quality, events=events, week=week)

@@ -1,0 +1,379 @@
+"""One place that recognises every IMU, GNSS and trajectory file aidnav reads, and reads it.
+
+Formats (name → reader):
+
+IMU (:data:`IMU_FORMATS`)
+  ``interchange``     aidnav CSV (``,`` ``;`` or tab) / Parquet, header with ``time`` (:mod:`.interchange`)
+  ``rtklibexplorer``  raw rtklibexplorer IMU CSV (7 fields, no header) + ``<file>.tag`` (:mod:`.logs`)
+  ``kfgins``          KF-GINS IMU text ``t dθ dv`` FRD (:mod:`.kfgins`)
+  ``rosbag``          sensor_msgs/Imu in a ROS 1 / ROS 2 bag (:mod:`.rosbag`)
+GNSS (:data:`GNSS_FORMATS`)
+  ``interchange``     aidnav CSV / Parquet with ``time, lat_deg, lon_deg, height_m``
+  ``rtklib-pos``      RTKLIB ``.pos`` solution (:mod:`.rtklib`)
+  ``kfgins``          KF-GINS GNSS text ``t lat lon h σN σE σD``
+  ``nmea``            NMEA 0183 GGA + RMC/VTG (+ GST) (:mod:`.nmea`)
+  ``ubx``             u-blox UBX NAV-PVT (:mod:`.ubx`)
+  ``rosbag``          sensor_msgs/NavSatFix (+ TwistStamped) in a ROS bag
+Trajectories (:func:`read_trajectory_any`): ``interchange``, ``kfgins-nav`` (KF-GINS ``.nav``), and any
+GNSS format above (a position/velocity reference without attitude).
+
+Detection looks at the content (magic bytes, header line, field count and values), the extension
+only where the content is ambiguous; ``fmt=`` overrides it. A file that matches none raises
+:class:`DataError` "unknown format: expected one of …" naming what was seen.
+
+The **datum (height) offset** of GNSS data is applied here, once, for every format
+(:func:`read_gnss` ``height_offset_m``: h_ellipsoidal = h_file + offset); no other code adds it.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+
+from aidnav.data import GnssData, ImuData, Trajectory
+from aidnav.io._std import ZERO_POS_STD_FLOOR_M, ZERO_VEL_STD_FLOOR_M_S
+from aidnav.io.errors import DataError
+
+__all__ = ["IMU_FORMATS", "GNSS_FORMATS", "TRAJECTORY_FORMATS", "detect_imu_format", "detect_gnss_format",
+           "detect_trajectory_format", "read_imu", "read_gnss", "read_trajectory_any", "gnss_to_trajectory"]
+
+IMU_FORMATS = {
+    "interchange": "aidnav interchange CSV/Parquet (header with time and gyro_*_rad_s/accel_*_m_s2 or "
+                   "dtheta_*_rad/dv_*_m_s)",
+    "rtklibexplorer": "raw rtklibexplorer IMU CSV (ax,ay,az [g], gx,gy,gz [deg/s], stamp [ms]; no header) "
+                      "with its RTKLIB time tag FILE.tag",
+    "kfgins": "KF-GINS IMU text (7 columns: t [s], dθ x y z [rad], dv x y z [m/s], FRD)",
+    "rosbag": "ROS 1 .bag / ROS 2 bag directory with sensor_msgs/Imu",
+}
+GNSS_FORMATS = {
+    "interchange": "aidnav interchange CSV/Parquet (header with time, lat_deg, lon_deg, height_m)",
+    "rtklib-pos": "RTKLIB .pos solution (lat/lon/height, GPST)",
+    "kfgins": "KF-GINS GNSS text (7 columns: t [s], lat lon [deg], h [m], σ N E D [m])",
+    "nmea": "NMEA 0183 log (GGA + RMC/VTG, optional GST)",
+    "ubx": "u-blox UBX log with NAV-PVT",
+    "rosbag": "ROS 1 .bag / ROS 2 bag directory with sensor_msgs/NavSatFix",
+}
+TRAJECTORY_FORMATS = {
+    "interchange": "aidnav interchange trajectory CSV/Parquet",
+    "kfgins-nav": "KF-GINS navigation result .nav (11 columns: week sow lat lon h vN vE vD roll pitch yaw)",
+    **{f"gnss:{k}": v for k, v in GNSS_FORMATS.items()},
+}
+
+_HEAD_BYTES = 65536
+_NUM = re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
+_SPLIT = re.compile(r"[,;\s]+")
+_NMEA = re.compile(rb"^\$[A-Z]{2}[A-Z]{3},")
+_RTKLIB_TIME = re.compile(r"^\d{4}[/-]\d{2}[/-]\d{2}$")
+
+
+def _unknown(path, kinds: dict, seen: str):
+    exp = "; ".join(f"{k} — {v}" for k, v in kinds.items())
+    raise DataError(path, None, f"unknown format: expected one of: {exp}. Seen: {seen}")
+
+
+class _Sniff:
+    """What the first bytes of a file say about it."""
+
+    def __init__(self, path: Path):
+        self.path = path
+        if not path.exists():
+            raise DataError(path, None, "file not found")
+        self.is_dir = path.is_dir()
+        self.head = b""
+        if not self.is_dir:
+            try:
+                with open(path, "rb") as f:
+                    self.head = f.read(_HEAD_BYTES)
+            except OSError as e:
+                raise DataError(path, None, f"cannot read file: {e.strerror or e}") from None
+        self.suffix = path.suffix.lower()
+        text = self.head.decode("utf-8", errors="replace")
+        lines = text.split("\n")
+        if len(self.head) == _HEAD_BYTES and len(lines) > 1:
+            lines = lines[:-1]  # the last one may be cut
+        self.lines = [ln.strip() for ln in lines]
+        self.data = [ln for ln in self.lines if ln and not ln.startswith(("#", "%"))]
+        self.first = self.data[0] if self.data else ""
+        h = self.head[:4096]
+        self.binary = b"\x00" in h or (bool(h) and sum(b < 9 or 13 < b < 32 for b in h) > 0.05 * len(h))
+
+    def rosbag(self) -> bool:
+        from aidnav.io.rosbag import is_rosbag
+
+        return is_rosbag(self.path)
+
+    def parquet(self) -> bool:
+        return self.head[:4] == b"PAR1" or self.suffix in (".parquet", ".pq")
+
+    def header_names(self) -> list[str] | None:
+        """Column names when the first data line is a header (has a letter-led field), else None."""
+        if not self.first or self.binary:
+            return None
+        fields = [f for f in _SPLIT.split(self.first) if f]
+        if any(not _NUM.match(f) and f.lower() not in ("nan", "-nan", "inf", "-inf") for f in fields):
+            if re.search(r"[,;\t]", self.first):
+                return [f.strip() for f in re.split(r"[,;\t]", self.first)]
+            return fields
+        return None
+
+    def numeric_rows(self, n: int = 50) -> np.ndarray | None:
+        """The first data lines as a float array if they are all numeric with one field count."""
+        rows = []
+        for ln in self.data[:n]:
+            f = [x for x in _SPLIT.split(ln) if x]
+            if not all(_NUM.match(x) or x.lower() in ("nan", "-nan", "inf", "-inf") for x in f):
+                return None
+            rows.append([float(x) for x in f])
+        if not rows:
+            return None
+        # the modal field count (a raw logger may start or end in the middle of a line)
+        counts = [len(r) for r in rows]
+        k = max(set(counts), key=counts.count)
+        if counts.count(k) < 0.8 * len(rows):
+            return None
+        return np.asarray([r for r in rows if len(r) == k])
+
+    def delimiter_note(self) -> str:
+        if not self.first:
+            return "an empty file" if not self.head else "no data lines"
+        if self.binary:
+            return f"binary data (first bytes {self.head[:8]!r})"
+        return f"first data line {self.first[:80]!r}"
+
+
+def _increasing(x: np.ndarray) -> bool:
+    return len(x) < 2 or bool(np.all(np.diff(x) > 0))
+
+
+def detect_imu_format(path) -> str:
+    """The IMU format of ``path`` (a key of :data:`IMU_FORMATS`), from its content.
+
+    Raises DataError "unknown format: expected one of …" (naming what was seen) when none matches, and
+    a specific message for a raw rtklibexplorer log whose ``.tag`` file is missing."""
+    path = Path(path)
+    s = _Sniff(path)
+    if s.rosbag():
+        return "rosbag"
+    if s.is_dir:
+        _unknown(path, IMU_FORMATS, "a directory without metadata.yaml")
+    if not s.head:
+        raise DataError(path, None, "empty file")
+    if s.parquet():
+        return "interchange"
+    names = s.header_names()
+    if names is not None:
+        if "time" in names:
+            return "interchange"
+        _unknown(path, IMU_FORMATS, f"a header line without a 'time' column: {', '.join(names)[:200]}")
+    rows = s.numeric_rows()
+    if rows is not None:
+        k = rows.shape[1]
+        tag = path.with_name(path.name + ".tag")
+        if k == 7 and "," in s.first and tag.exists():
+            return "rtklibexplorer"
+        if k in (7, 8) and _increasing(rows[:, 0]) and np.all(np.abs(rows[:, 1:4]) < 1.0):
+            return "kfgins"
+        if k == 7 and "," in s.first and _increasing(rows[:, 6]):
+            raise DataError(path, None, "looks like a raw rtklibexplorer IMU log (7 comma-separated fields, "
+                                        f"ms stamp last) but its time tag {tag.name} is missing: it is "
+                                        "needed to map the IMU stamps to GPS time")
+        _unknown(path, IMU_FORMATS, f"a headerless table of {k} numeric columns ({s.delimiter_note()})")
+    _unknown(path, IMU_FORMATS, s.delimiter_note())
+
+
+def detect_gnss_format(path) -> str:
+    """The GNSS format of ``path`` (a key of :data:`GNSS_FORMATS`), from its content."""
+    path = Path(path)
+    s = _Sniff(path)
+    if s.rosbag():
+        return "rosbag"
+    if s.is_dir:
+        _unknown(path, GNSS_FORMATS, "a directory without metadata.yaml")
+    if not s.head:
+        raise DataError(path, None, "empty file")
+    if s.parquet():
+        return "interchange"
+    if b"\xb5\x62\x01\x07" in s.head or (s.suffix == ".ubx" and b"\xb5\x62" in s.head):
+        return "ubx"
+    nmea_lines = sum(bool(_NMEA.match(ln.encode(errors="replace"))) for ln in s.lines[:200])
+    if nmea_lines and nmea_lines >= 0.5 * min(len([x for x in s.lines[:200] if x]), 200):
+        return "nmea"
+    if b"\xb5\x62" in s.head and s.binary:
+        return "ubx"
+    if any(ln.startswith("%") for ln in s.lines[:50]) or s.suffix == ".pos" or (
+            s.first and _RTKLIB_TIME.match(s.first.split()[0])):
+        return "rtklib-pos"
+    names = s.header_names()
+    if names is not None:
+        if "time" in names and "lat_deg" in names:
+            return "interchange"
+        _unknown(path, GNSS_FORMATS, f"a header line without time/lat_deg columns: {', '.join(names)[:200]}")
+    rows = s.numeric_rows()
+    if rows is not None:
+        k = rows.shape[1]
+        if k in (7, 13) and _increasing(rows[:, 0]) and np.all(np.abs(rows[:, 1]) <= 90):
+            return "kfgins"
+        _unknown(path, GNSS_FORMATS, f"a headerless table of {k} numeric columns ({s.delimiter_note()})")
+    _unknown(path, GNSS_FORMATS, s.delimiter_note())
+
+
+def detect_trajectory_format(path) -> str:
+    """``interchange`` (a trajectory with attitude columns), ``kfgins-nav`` or ``gnss:<format>``."""
+    path = Path(path)
+    s = _Sniff(path)
+    if not s.is_dir and s.head and not s.binary:
+        names = s.header_names()
+        if names is not None and "heading_deg" in names:
+            return "interchange"
+        rows = s.numeric_rows()
+        if rows is not None and rows.shape[1] == 11 and _increasing(rows[:, 1]):
+            return "kfgins-nav"
+    if s.parquet():
+        import pyarrow.parquet as pq
+
+        try:
+            names = pq.ParquetFile(path).schema_arrow.names
+        except Exception:  # noqa: BLE001  (a broken Parquet file: the reader names the problem)
+            names = []
+        if "heading_deg" in names:
+            return "interchange"
+    try:
+        return "gnss:" + detect_gnss_format(path)
+    except DataError as e:
+        if "unknown format" in e.problem:
+            _unknown(path, TRAJECTORY_FORMATS, s.delimiter_note())
+        raise
+
+
+def _check_fmt(fmt: str, kinds: dict, what: str):
+    if fmt not in kinds:
+        raise ValueError(f"unknown {what} format {fmt!r}: expected one of {', '.join(kinds)}")
+
+
+def read_imu(path, fmt: str | None = None, *, topic: str | None = None, axes: str | None = None,
+             stamps: str = "utc", tag_path=None) -> ImuData:
+    """Read an IMU log of any known format → :class:`ImuData` (increments [rad], [m/s], body RFU;
+    GPS seconds of week for GNSS-timed logs). The format is detected unless ``fmt`` names it.
+
+    topic, stamps : ROS bags (:func:`aidnav.io.rosbag.read_imu`). axes : sensor axes of a ROS bag
+    ("FLU" default) or a raw rtklibexplorer log ("RFU" default). tag_path : rtklibexplorer time tag.
+    The format is recorded in the first event."""
+    path = Path(path)
+    how = "given"
+    if fmt is None:
+        fmt, how = detect_imu_format(path), "detected"
+    _check_fmt(fmt, IMU_FORMATS, "IMU")
+    if fmt == "interchange":
+        from aidnav.io import interchange
+
+        imu = interchange.read_imu(path)
+    elif fmt == "rtklibexplorer":
+        from aidnav.io.logs import read_rtklibexplorer_imu
+
+        imu = read_rtklibexplorer_imu(path, tag_path=tag_path, axes=axes or "RFU")
+    elif fmt == "kfgins":
+        from aidnav.io import kfgins
+
+        imu = kfgins.read_imu(path)
+    else:
+        from aidnav.io import rosbag
+
+        imu = rosbag.read_imu(path, topic=topic, axes=axes or "FLU", stamps=stamps)
+    imu.events.insert(0, f"{path.name}: IMU format {fmt} ({how})")
+    return imu
+
+
+def read_gnss(path, fmt: str | None = None, height_offset_m: float = 0.0, *,
+              min_pos_std_m: float = ZERO_POS_STD_FLOOR_M, min_vel_std_m_s: float = ZERO_VEL_STD_FLOOR_M_S,
+              topic: str | None = None, vel_topic: str | None = None, stamps: str = "utc",
+              date=None) -> GnssData:
+    """Read GNSS fixes of any known format → :class:`GnssData` (lat/lon [rad], **ellipsoidal** height
+    [m], ENU velocity [m/s] with NaN = not measured, σ ENU or None, GPS seconds of week).
+
+    height_offset_m : datum offset added to every height, here and nowhere else (e.g. −21.4 m for the
+        rtklibexplorer ``.pos`` files, which hold heights above MSL); stated in the events.
+    min_pos_std_m, min_vel_std_m_s : the value a σ of exactly 0 is floored to (warning event).
+    topic, vel_topic, stamps : ROS bags. date : UTC date of an NMEA log without RMC ('YYYY-MM-DD').
+    """
+    path = Path(path)
+    how = "given"
+    if fmt is None:
+        fmt, how = detect_gnss_format(path), "detected"
+    _check_fmt(fmt, GNSS_FORMATS, "GNSS")
+    if fmt == "interchange":
+        from aidnav.io import interchange
+
+        g = interchange.read_gnss(path, min_pos_std_m=min_pos_std_m, min_vel_std_m_s=min_vel_std_m_s)
+    elif fmt == "rtklib-pos":
+        from aidnav.io.rtklib import read_pos
+
+        g = read_pos(path, min_pos_std_m=min_pos_std_m, min_vel_std_m_s=min_vel_std_m_s)
+    elif fmt == "kfgins":
+        from aidnav.io import kfgins
+
+        g = kfgins.read_gnss(path, min_pos_std_m=min_pos_std_m)
+    elif fmt == "nmea":
+        from aidnav.io.nmea import read_nmea
+
+        g = read_nmea(path, date=date, min_pos_std_m=min_pos_std_m)
+    elif fmt == "ubx":
+        from aidnav.io.ubx import read_ubx
+
+        g = read_ubx(path, min_pos_std_m=min_pos_std_m, min_vel_std_m_s=min_vel_std_m_s)
+    else:
+        from aidnav.io import rosbag
+
+        g = rosbag.read_gnss(path, topic=topic, vel_topic=vel_topic, stamps=stamps,
+                             min_pos_std_m=min_pos_std_m)
+    g.events.insert(0, f"{path.name}: GNSS format {fmt} ({how})")
+    if height_offset_m:
+        g.height = g.height + float(height_offset_m)
+        g.events.append(f"{path.name}: datum offset {float(height_offset_m):+.3f} m added to every height "
+                        "(h_ellipsoidal = h_file + gnss.height_offset_m), once, by the reader")
+    return g
+
+
+def gnss_to_trajectory(g: GnssData) -> Trajectory:
+    """GNSS fixes as a :class:`Trajectory` (a reference without attitude): same time, lat/lon, height,
+    velocity (NaN where not measured or absent), attitude all NaN, σ carried over, quality in extra."""
+    m = len(g.time)
+    vel = np.full((m, 3), np.nan) if g.vel is None else np.asarray(g.vel, dtype=float)
+    extra = {} if g.quality is None else {"quality": np.asarray(g.quality)}
+    return Trajectory(time=g.time, lat=g.lat, lon=g.lon, height=g.height, vel=vel,
+                      rph=np.full((m, 3), np.nan), std_pos=g.std_pos, std_vel=g.std_vel, extra=extra,
+                      week=g.week)
+
+
+def read_trajectory_any(path, fmt: str | None = None, height_offset_m: float = 0.0,
+                        notes: list[str] | None = None, **gnss_options) -> Trajectory:
+    """Read a trajectory of any known format: an interchange trajectory, a KF-GINS ``.nav`` result, or
+    GNSS fixes of any GNSS format (:func:`read_gnss`, with ``height_offset_m`` applied, converted by
+    :func:`gnss_to_trajectory`). ``notes`` receives the reader's events. fmt : a key of
+    :data:`TRAJECTORY_FORMATS` (``"gnss:<format>"`` for GNSS files)."""
+    path = Path(path)
+    if fmt is None:
+        fmt = detect_trajectory_format(path)
+    _check_fmt(fmt, TRAJECTORY_FORMATS, "trajectory")
+    if fmt == "interchange":
+        from aidnav.io import interchange
+
+        traj = interchange.read_trajectory(path)
+        if height_offset_m:
+            traj.height = traj.height + float(height_offset_m)
+            if notes is not None:
+                notes.append(f"{path.name}: datum offset {float(height_offset_m):+.3f} m added to every "
+                             "height")
+        return traj
+    if fmt == "kfgins-nav":
+        from aidnav.io import kfgins
+
+        traj = kfgins.read_nav(path)
+        if height_offset_m:
+            traj.height = traj.height + float(height_offset_m)
+        return traj
+    g = read_gnss(path, fmt.split(":", 1)[1], height_offset_m=height_offset_m, **gnss_options)
+    if notes is not None:
+        notes.extend(g.events)
+    return gnss_to_trajectory(g)

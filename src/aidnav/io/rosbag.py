@@ -1,0 +1,229 @@
+"""ROS 1 (``.bag``) and ROS 2 (bag directory with ``metadata.yaml``) bags → ImuData / GnssData, via
+``rosbags`` (pure Python; no ROS installation needed).
+
+Messages read:
+
+* ``sensor_msgs/Imu``: ``angular_velocity`` [rad/s] and ``linear_acceleration`` [m/s²] (rates), in the
+  frame of the message. ROS body frames follow REP-103, **FLU** (x forward, y left, z up): converted to
+  body RFU, x_RFU = −y_FLU, y_RFU = x_FLU, z_RFU = z_FLU (``axes="FLU"``; "RFU" and "FRD" are also
+  accepted). Rates become increments over (t_{k-1}, t_k] exactly as the interchange reader forms them
+  from rate columns: Δθ_k = ω_k·(t_k − t_{k-1}), the first interval taking the length of the second.
+* ``sensor_msgs/NavSatFix``: ``latitude, longitude`` [deg], ``altitude`` [m] above the WGS-84
+  **ellipsoid** (the message definition), σ = √diag(``position_covariance``) (ENU, m²) unless the
+  covariance type is 0 (unknown: σ absent, the filter default is used); fixes with status −1 (no fix)
+  are skipped (counted). quality (RTKLIB Q): status 0 → 5 (single), 1 (SBAS) → 3, 2 (GBAS) → 4.
+* optional ``geometry_msgs/TwistStamped`` velocity (``twist.linear`` taken as ENU x East, y North,
+  z Up [m/s], as GNSS drivers publish it) matched to the fixes by header stamp (within ``match_s``);
+  fixes without a velocity message get NaN (not measured).
+
+Time: the header stamps (``sec + nanosec·1e-9``). ``stamps="utc"`` (default; ROS time is POSIX/UTC):
+converted to GPST with the leap seconds and returned as GPS seconds of week of the first sample's week;
+``"gps"``: the stamps are GPST counted like Unix time (some GNSS drivers); ``"raw"``: kept as they are
+(simulation time). The choice is stated in the events.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from aidnav.data import GnssData, ImuData
+from aidnav.io._std import DEFAULT_POS_STD_M, DEFAULT_VEL_STD_M_S, ZERO_POS_STD_FLOOR_M, check_std
+from aidnav.io.errors import DataError
+from aidnav.io.gpstime import GPS_EPOCH_UNIX, SECONDS_PER_WEEK, leap_seconds
+
+IMU_TYPE = "sensor_msgs/msg/Imu"
+FIX_TYPE = "sensor_msgs/msg/NavSatFix"
+TWIST_TYPE = "geometry_msgs/msg/TwistStamped"
+
+#: v_RFU = AXES[name] @ v_sensor
+AXES = {
+    "FLU": np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]),
+    "RFU": np.eye(3),
+    "FRD": np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]]),
+}
+_FIX_Q = {0: 5, 1: 3, 2: 4}
+
+
+def is_rosbag(path) -> bool:
+    """True for a ROS 1 bag file or a ROS 2 bag directory (``metadata.yaml``)."""
+    path = Path(path)
+    if path.is_dir():
+        return (path / "metadata.yaml").exists()
+    try:
+        with open(path, "rb") as f:
+            return f.read(13) == b"#ROSBAG V2.0\n"
+    except OSError:
+        return False
+
+
+def _reader(path):
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+
+    path = Path(path)
+    if not is_rosbag(path):
+        raise DataError(path, None, "not a ROS bag (a ROS 1 .bag file or a ROS 2 bag directory with "
+                                    "metadata.yaml)")
+    try:
+        return AnyReader([path], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
+    except Exception as e:  # noqa: BLE001  (rosbags raises its own error classes for a broken bag)
+        raise DataError(path, None, f"cannot open ROS bag: {e}") from None
+
+
+def _pick(path, reader, msgtype: str, topic: str | None, required: bool = True):
+    conns = [c for c in reader.connections if c.msgtype == msgtype]
+    topics = sorted({c.topic for c in conns})
+    if topic is not None:
+        conns = [c for c in conns if c.topic == topic]
+        if not conns:
+            raise DataError(path, None, f"no {msgtype} messages on topic {topic!r} (topics of that type: "
+                                        f"{', '.join(topics) or 'none'})")
+        return conns
+    if not conns:
+        if required:
+            have = sorted({f"{c.topic} ({c.msgtype})" for c in reader.connections})
+            raise DataError(path, None, f"no {msgtype} topic in the bag (have: {', '.join(have) or 'none'})")
+        return []
+    if len(topics) > 1:
+        raise DataError(path, None, f"several {msgtype} topics: {', '.join(topics)}; choose one (topic=)")
+    return conns
+
+
+def _stamp(msg) -> tuple[int, int]:
+    st = msg.header.stamp
+    return int(st.sec), int(st.nanosec)
+
+
+def _time_scale(sec: np.ndarray, nsec: np.ndarray, stamps: str, name: str,
+                events: list[str]) -> tuple[np.ndarray, int | None]:
+    """Header stamps (whole seconds, nanoseconds) → seconds [s] on the chosen scale. The whole seconds
+    and the fraction are kept apart until the end: a POSIX count in float64 resolves only ~0.2 μs."""
+    sec = np.asarray(sec, dtype=np.int64)
+    frac = np.asarray(nsec, dtype=float) * 1e-9
+    if stamps == "raw":
+        events.append(f"{name}: header stamps kept as they are (stamps='raw')")
+        return sec.astype(float) + frac, None
+    if stamps == "utc":
+        leap = np.asarray(leap_seconds(sec.astype(float) + frac), dtype=np.int64)
+        how = f"UTC → GPST (+{int(leap[0])} s leap seconds)"
+    elif stamps == "gps":
+        leap = np.zeros_like(sec)
+        how = "stamps are GPST (stamps='gps')"
+    else:
+        raise ValueError(f"stamps must be 'utc', 'gps' or 'raw', got {stamps!r}")
+    g = sec + leap - GPS_EPOCH_UNIX
+    week = int(g[0] // SECONDS_PER_WEEK)
+    sow = (g - week * SECONDS_PER_WEEK).astype(float) + frac
+    events.append(f"{name}: header stamps {how}; time = GPS seconds of week {week}")
+    return sow, week
+
+
+def _check_increasing(path, t, what):
+    d = np.diff(t)
+    bad = ~(d > 0)
+    if bad.any():
+        i = int(np.argmax(bad)) + 1
+        raise DataError(path, f"{what} message {i + 1}", f"header stamp {t[i]!r} s does not increase "
+                                                         f"(previous {t[i - 1]!r} s)")
+
+
+def read_imu(path, topic: str | None = None, axes: str = "FLU", stamps: str = "utc") -> ImuData:
+    """sensor_msgs/Imu messages of a bag → ImuData (GPS seconds of week with ``stamps="utc"``/"gps",
+    increments [rad], [m/s] in body RFU). See the module docstring."""
+    if axes not in AXES:
+        raise ValueError(f"axes must be one of {sorted(AXES)}, got {axes!r}")
+    path = Path(path)
+    with _reader(path) as rd:
+        conns = _pick(path, rd, IMU_TYPE, topic)
+        t, w, f = [], [], []
+        for conn, _ts, raw in rd.messages(connections=conns):
+            m = rd.deserialize(raw, conn.msgtype)
+            t.append(_stamp(m))
+            av, la = m.angular_velocity, m.linear_acceleration
+            w.append((av.x, av.y, av.z))
+            f.append((la.x, la.y, la.z))
+        topic_name = conns[0].topic
+    if len(t) < 2:
+        raise DataError(path, None, f"{len(t)} IMU message(s) on {topic_name}: need at least 2")
+    st = np.asarray(t, dtype=np.int64)
+    events: list[str] = []
+    time, week = _time_scale(st[:, 0], st[:, 1], stamps, path.name, events)
+    _check_increasing(path, time, topic_name)
+    c = AXES[axes]
+    w = np.asarray(w, dtype=float) @ c.T
+    f = np.asarray(f, dtype=float) @ c.T
+    bad = ~np.isfinite(np.hstack([w, f])).all(axis=1)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise DataError(path, f"{topic_name} message {i + 1}", "NaN or inf rate")
+    dt = np.diff(time, prepend=time[0] - (time[1] - time[0]))[:, None]
+    events.append(f"{path.name}: {len(time)} sensor_msgs/Imu on {topic_name}; axes {axes} → body RFU; "
+                  "rates converted to increments (rate × Δt over (t_{k-1}, t_k])")
+    return ImuData(time, w * dt, f * dt, t0=float(time[0] - (time[1] - time[0])), events=events, week=week)
+
+
+def read_gnss(path, topic: str | None = None, vel_topic: str | None = None, stamps: str = "utc",
+              match_s: float = 1e-3, min_pos_std_m: float = ZERO_POS_STD_FLOOR_M) -> GnssData:
+    """sensor_msgs/NavSatFix (+ optional geometry_msgs/TwistStamped velocity) of a bag → GnssData
+    (GPS seconds of week, lat/lon [rad], ellipsoidal height [m], ENU velocity [m/s], σ ENU [m]).
+    See the module docstring."""
+    path = Path(path)
+    events: list[str] = []
+    name = path.name
+    with _reader(path) as rd:
+        conns = _pick(path, rd, FIX_TYPE, topic)
+        vconns = _pick(path, rd, TWIST_TYPE, vel_topic, required=vel_topic is not None)
+        rows, n_nofix = [], 0
+        for conn, _ts, raw in rd.messages(connections=conns):
+            m = rd.deserialize(raw, conn.msgtype)
+            if m.status.status < 0:
+                n_nofix += 1
+                continue
+            cov = np.asarray(m.position_covariance, dtype=float).reshape(3, 3)
+            sd = np.sqrt(np.diag(cov)) if m.position_covariance_type > 0 else np.full(3, np.nan)
+            rows.append((*_stamp(m), m.latitude, m.longitude, m.altitude, *sd,
+                         _FIX_Q.get(int(m.status.status), 5)))
+        vt, vv = [], []
+        for conn, _ts, raw in (rd.messages(connections=vconns) if vconns else ()):  # [] would mean all
+            m = rd.deserialize(raw, conn.msgtype)
+            vt.append(_stamp(m))
+            lin = m.twist.linear
+            vv.append((lin.x, lin.y, lin.z))
+        fix_topic = conns[0].topic
+    if n_nofix:
+        events.append(f"{name}: {n_nofix} NavSatFix message(s) with status NO_FIX skipped")
+    if not rows:
+        raise DataError(path, None, f"no NavSatFix with a fix on {fix_topic}")
+    st = np.asarray([r[:2] for r in rows], dtype=np.int64)
+    a = np.asarray([r[2:] for r in rows], dtype=float)  # lat lon alt σE σN σU Q
+    time, week = _time_scale(st[:, 0], st[:, 1], stamps, name, events)
+    _check_increasing(path, time, fix_topic)
+    bad = np.abs(a[:, 0]) > 90
+    if bad.any():
+        raise DataError(path, f"{fix_topic} fix {int(np.argmax(bad)) + 1}", f"latitude {a[bad][0, 0]} deg")
+    vel = std_vel = None
+    if vconns:
+        vst = np.asarray(vt, dtype=np.int64).reshape(-1, 2)
+        vt = _time_scale(vst[:, 0], vst[:, 1], stamps, name, [])[0]
+        vv = np.asarray(vv, dtype=float)
+        order = np.argsort(vt)
+        vt, vv = vt[order], vv[order]
+        j = np.clip(np.searchsorted(vt, time), 1, len(vt) - 1) if len(vt) > 1 else np.zeros(len(a), int)
+        if len(vt) > 1:
+            j = np.where(np.abs(vt[j - 1] - time) < np.abs(vt[j] - time), j - 1, j)
+        ok = np.abs(vt[j] - time) <= match_s
+        vel = np.full((len(a), 3), np.nan)
+        vel[ok] = vv[j[ok]]
+        events.append(f"{name}: velocity from TwistStamped on {vconns[0].topic} (twist.linear as ENU); "
+                      f"{int(ok.sum())} of {len(a)} fixes matched within {match_s:g} s, others not measured")
+        std_vel = check_std(path, None, ["σve", "σvn", "σvu"], lambda i: i, "velocity", DEFAULT_VEL_STD_M_S,
+                            0.0, "m/s", events)
+    sp = a[:, 3:6]
+    std_pos = check_std(path, None if np.isnan(sp).all() else sp, ["σE", "σN", "σU"],
+                        lambda i: f"{fix_topic} fix {i + 1}", "position", DEFAULT_POS_STD_M, min_pos_std_m,
+                        "m", events)
+    events.append(f"{name}: {len(a)} NavSatFix on {fix_topic}; ellipsoidal altitude")
+    return GnssData(time, np.radians(a[:, 0]), np.radians(a[:, 1]), a[:, 2], vel=vel, std_pos=std_pos,
+                    std_vel=std_vel, quality=a[:, 6].astype(np.int64), events=events, week=week)

@@ -187,6 +187,41 @@ def process(
     _print_summary(s, format_summary(s), as_json)
 
 
+@_command()
+def convert(
+    imu: Path | None = typer.Option(None, "--imu", help="IMU log of any known format (interchange, raw "
+                                    "rtklibexplorer + .tag, KF-GINS, ROS bag)"),
+    gnss: Path | None = typer.Option(None, "--gnss", help="GNSS log of any known format (interchange, RTKLIB "
+                                     ".pos, KF-GINS, NMEA, UBX, ROS bag)"),
+    out: Path = typer.Option(Path("converted"), "-o", "--out",
+                             help="output directory: imu.<fmt>, gnss.<fmt>"),
+    fmt: str = typer.Option("parquet", "--format", help="parquet or csv"),
+    height_offset: float = typer.Option(0.0, "--height-offset", help="added to the GNSS heights (datum of "
+                                        "the file → ellipsoid) [m]; recorded in the file"),
+):
+    """Any readable log → the interchange format (time scale and conversions recorded in the file)."""
+    import math
+
+    from aidnav.apps.common import prepare_out_dir
+    from aidnav.io.convert import convert as convert_file
+
+    if imu is None and gnss is None:
+        _fail("give --imu and/or --gnss")
+    if fmt not in ("parquet", "csv"):
+        _fail(f"--format {fmt}: expected parquet or csv")
+    if not math.isfinite(height_offset):
+        _fail(f"--height-offset {height_offset}: not a finite number")
+    prepare_out_dir(out)
+    for kind, src in (("imu", imu), ("gnss", gnss)):
+        if src is None:
+            continue
+        s = convert_file(src, out / f"{kind}.{fmt}", kind=kind,
+                         height_offset_m=height_offset if kind == "gnss" else 0.0)
+        console.print(f"wrote {s['output']}: {s['samples']} {kind} samples from {src} ({s['format']})")
+        for n in s["notes"]:
+            console.print(f"  {n}")
+
+
 satcom_app = typer.Typer(no_args_is_help=True, help="Satcom on the move (seed 003): antenna servo angles.")
 app.add_typer(satcom_app, name="satcom")
 

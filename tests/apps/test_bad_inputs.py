@@ -285,7 +285,7 @@ def _traj_shifted(b: Path, d: Path) -> Path:
     return p
 
 
-PENDING_IO = {"gnss-no-vu-column", "gnss-vu-nan-rows", "gnss-negative-sigma"}  # io branch, being merged
+PENDING_IO: set[str] = set()
 PARAMS = [pytest.param(c, id=c[0], marks=[pytest.mark.xfail(strict=True, reason="io branch")]
                        if c[0] in PENDING_IO else []) for c in CASES]
 

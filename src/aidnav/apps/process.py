@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import time as _time
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
@@ -42,46 +41,17 @@ def load_config(path) -> LooseConfig:
 
 
 def read_imu_any(path) -> ImuData:
-    """IMU log by format: interchange CSV/Parquet, or a raw rtklibexplorer CSV (no header) + .tag."""
-    path = Path(path)
-    if not path.exists():
-        raise DataError(path, None, "file not found")
-    if path.is_dir():
-        raise DataError(path, None, "is a directory, not an IMU log")
-    if path.suffix.lower() in (".parquet", ".pq"):
-        from aidnav.io.interchange import read_imu
+    """IMU log of any known format (:func:`aidnav.io.formats.read_imu`)."""
+    from aidnav.io.formats import read_imu
 
-        return read_imu(path)
-    with open(path, "rb") as f:
-        head = f.read(4096).decode("utf-8", "replace")
-    first = next((ln for ln in head.splitlines() if ln.strip() and not ln.startswith("#")), "")
-    if not first:
-        raise DataError(path, 1, "empty file")
-    if "time" in first:
-        from aidnav.io.interchange import read_imu
-
-        return read_imu(path)
-    from aidnav.io.logs import read_rtklibexplorer_imu
-
-    return read_rtklibexplorer_imu(path)
+    return read_imu(path)
 
 
 def read_gnss_any(path, height_offset_m: float = 0.0) -> GnssData:
-    """GNSS fixes: RTKLIB ``.pos`` or interchange CSV/Parquet; the datum offset added once."""
-    from aidnav.io.boundary import shift_height
+    """GNSS fixes of any known format, the datum offset added once (:func:`aidnav.io.formats.read_gnss`)."""
+    from aidnav.io.formats import read_gnss
 
-    path = Path(path)
-    if not path.exists():
-        raise DataError(path, None, "file not found")
-    if path.is_dir():
-        raise DataError(path, None, "is a directory, not a GNSS file")
-    if path.suffix.lower() == ".pos":
-        from aidnav.io.rtklib import read_pos
-
-        return read_pos(path, height_offset_m=height_offset_m)
-    from aidnav.io.interchange import read_gnss
-
-    return shift_height(read_gnss(path), height_offset_m, path.name)
+    return read_gnss(path, height_offset_m=height_offset_m)
 
 
 @dataclass
@@ -301,6 +271,10 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
                      "(static roll/pitch, heading from GNSS course), ZUPT on, NHC off")
     else:
         cfg = load_config(config_path)
+    for opt, v in (("--height-offset", height_offset_m), ("--time-offset", time_offset_s),
+                   ("--start", start_s), ("--end", end_s)):
+        if v is not None and not np.isfinite(v):
+            raise InputError(f"{opt} {v}: not a finite number")
     if height_offset_m is not None:
         gnss_cfg = cfg.gnss.model_copy(update={"height_offset_m": height_offset_m})
         cfg = cfg.model_copy(update={"gnss": gnss_cfg})

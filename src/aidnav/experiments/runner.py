@@ -396,8 +396,8 @@ def run_experiment(experiment, out_dir, *, workers: int = 1, scheduler: str | No
     info = {"kind": backend, "workers": workers if backend != "serial" else 1}
     computed = 0
 
-    cols = [TextColumn("{task.description}", markup=False), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-            TextColumn("ETA"), TimeRemainingColumn()]
+    cols = [TextColumn("{task.description}", markup=False), BarColumn(), MofNCompleteColumn(),
+            TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn()]
     t_comp = time.perf_counter()
     with Progress(*cols, console=console, disable=not progress or not todo, transient=False) as bar:
         task_id = bar.add_task(f"{plan.experiment.name}: runs", total=n_total, completed=n_reused)

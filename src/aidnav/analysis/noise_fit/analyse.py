@@ -12,7 +12,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from aidnav.analysis.allan import allan_deviation, reuse_freed_memory
+from aidnav.analysis.allan import allan_deviation
 from aidnav.analysis.noise_fit.fit import MIN_CLUSTERS, MIN_FULL_POINTS, fit_allan
 from aidnav.analysis.noise_fit.model import AXES
 from aidnav.analysis.noise_fit.prepare import resampled_min_m, trapezoid_samples, uniform_rates
@@ -36,7 +36,7 @@ def characterise_rates(rates, fs: float, t_start: float = 0.0, min_m: int = 1, c
     min_m : smallest cluster size fitted. check_static : raise :class:`NotStaticError` when
     :func:`static_check` finds motion (slow motion is kept, with a warning). white_only : see
     :func:`fit_allan`. sensor : statistics of the sensor's own samples for :func:`vibration_report`.
-    workers : threads (None: one per CPU); each axis's Allan deviation (allantools) and fit run together.
+    workers : threads (None: one per CPU); each axis's Allan deviation and fit run together.
     time_origin : the static check's spans and messages are in seconds after it [s]
     (``static["time_origin_s"]``). timings : a dict that receives the wall time of the stages [s].
     Returns a :class:`Characterisation` (ADEV at octave-spaced τ = 2^j/fs and the fitted terms, SI).
@@ -73,13 +73,12 @@ def characterise_rates(rates, fs: float, t_start: float = 0.0, min_m: int = 1, c
         return fit_allan(taus, adev, n, fs, axis=AXES[c], min_m=min_m, white_only=white_only)
 
     nw = max(1, min(6, workers if workers is not None else (os.cpu_count() or 1)))
-    with reuse_freed_memory():  # allantools' full-length temporaries: no page faults for each
-        if nw == 1:
-            axes = [one_axis(c) for c in range(6)]
-        else:
-            with ThreadPoolExecutor(max_workers=nw) as ex:
-                axes = list(ex.map(one_axis, range(6)))
-    stg.lap("Allan deviation (allantools) + fit, per axis in threads")
+    if nw == 1:
+        axes = [one_axis(c) for c in range(6)]
+    else:
+        with ThreadPoolExecutor(max_workers=nw) as ex:
+            axes = list(ex.map(one_axis, range(6)))
+    stg.lap("Allan deviation + fit, per axis in threads")
     for a in axes:
         notes += a.notes
     t_fit = max(float(a.taus[a.used][-1]) for a in axes)

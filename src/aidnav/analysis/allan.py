@@ -164,7 +164,7 @@ def allan_deviation(rate_samples, fs: float, taus=None, workers: int | None = No
     dt = 1.0 / float(fs)
 
     def one_channel(c):
-        col = np.ascontiguousarray(x2[:, c])
+        col = x2[:, c]  # a strided column of (N, k): read in place, not copied
         ph = _phase_nb(col, float(np.mean(col)), dt, np.empty(n_phase))
         return _oadev_sums(ph, ms)
 

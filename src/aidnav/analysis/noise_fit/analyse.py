@@ -28,7 +28,7 @@ def characterise_rates(rates, fs: float, t_start: float = 0.0, min_m: int = 1, c
                        white_only: bool | None = None, sensor: dict | None = None,
                        warnings: list[str] | None = None,
                        workers: int | None = None, time_origin: float = 0.0,
-                       timings: dict | None = None) -> Characterisation:
+                       timings: dict | None = None, static_result: dict | None = None) -> Characterisation:
     """Characterise uniformly sampled rates (the Python API on arrays).
 
     rates : (M, 6) gyro x, y, z [rad/s] then accel x, y, z [m/s²], body frame, uniform at ``fs`` [Hz]
@@ -39,6 +39,8 @@ def characterise_rates(rates, fs: float, t_start: float = 0.0, min_m: int = 1, c
     workers : threads (None: one per CPU); each axis's Allan deviation and fit run together.
     time_origin : the static check's spans and messages are in seconds after it [s]
     (``static["time_origin_s"]``). timings : a dict that receives the wall time of the stages [s].
+    static_result : :func:`static_check` of these very rates (same t_start and time_origin) when the caller
+    has it already (it is not run again).
     Returns a :class:`Characterisation` (ADEV at octave-spaced τ = 2^j/fs and the fitted terms, SI).
     """
     y = np.asarray(rates, float)
@@ -53,7 +55,7 @@ def characterise_rates(rates, fs: float, t_start: float = 0.0, min_m: int = 1, c
     if not np.isfinite(y).all():
         raise ValueError("characterise_rates: rates contain NaN or inf")
     stg = Stages(timings)
-    st = static_check(y, fs, t_start - time_origin)
+    st = static_result if static_result is not None else static_check(y, fs, t_start - time_origin)
     st["time_origin_s"] = float(time_origin)
     if check_static and not st["usable"]:
         raise NotStaticError(st["message"])
@@ -159,6 +161,7 @@ def characterise_imu(imu: ImuData, static: tuple[float | None, float | None] | N
     notes += n2
     fs = 1.0 / dt
     stg.lap("uniform rates")
+    st = None
     if check_static:
         st = static_check(rates, fs, t_start - base0)
         if not st["usable"]:
@@ -171,6 +174,7 @@ def characterise_imu(imu: ImuData, static: tuple[float | None, float | None] | N
                          f"({100.0 * (i1 - i0) / len(rates):.0f}% of its samples); motion is never analysed")
             rates = rates[i0:i1]
             t_start = t_start + i0 * dt
+            st = None  # another part: checked again by characterise_rates
     stg.lap("static check")
     min_m = resampled_min_m(len(rates)) if resampled else 1
     if resampled:
@@ -195,4 +199,4 @@ def characterise_imu(imu: ImuData, static: tuple[float | None, float | None] | N
     imu = samples = None  # the log is no longer needed (memory: the caller holds no reference either)
     return characterise_rates(rates, fs, t_start=t_start, min_m=min_m, check_static=check_static, notes=notes,
                               resampled=resampled, sensor=sensor, warnings=warns, workers=workers,
-                              time_origin=base0, timings=timings)
+                              time_origin=base0, timings=timings, static_result=st)

@@ -155,6 +155,14 @@ def _u_interval(prof: _Profile, d_min: float, crit: float):
     return lo, hi
 
 
+def _chi2_ppf(p, df):
+    """Quantile of χ²_df at probability p: scipy.stats.chi2.ppf's own formula, 2·P⁻¹(df/2, p) (without the
+    import of scipy.stats, half a second at start-up)."""
+    from scipy.special import gammaincinv  # scipy.special: imported on first use (startup cost)
+
+    return 2.0 * gammaincinv(np.asarray(df, dtype=float) / 2.0, p)
+
+
 def _why_not(term: str, tau_lo: float, tau_hi: float) -> str:
     if term == "Q":
         return f"no slope −1 at the shortest τ (from {tau_lo:g} s): quantisation below the white noise"
@@ -190,8 +198,6 @@ def fit_allan(taus, adev, n_samples: int, fs: float, axis: str = "gyro_x", min_m
     Returns an :class:`AxisFit` with terms in [u·√s] (white), [u·s] (quantisation Q), [u] (σ_GM, B),
     [s] (T), [u/√s] (random walk K), 95% intervals, and notes on what could not be resolved.
     """
-    from scipy.stats import chi2 as chi2_dist  # scipy.stats: ~0.3 s to import, on first use only
-
     tau = np.asarray(taus, float)
     adev = np.asarray(adev, float)
     m = np.rint(tau * fs).astype(int)
@@ -210,7 +216,7 @@ def fit_allan(taus, adev, n_samples: int, fs: float, axis: str = "gyro_x", min_m
     avar = adev**2
     if white_only:  # the white-noise region: the shortest 3 τ that the white terms fit, extended upwards
         idx = np.flatnonzero(used)
-        crit_w = float(chi2_dist.ppf(DETECT_PROB, 1))
+        crit_w = float(_chi2_ppf(DETECT_PROB, 1))
         d3 = [_white_deviance(tau[idx[j:j + 3]], avar[idx[j:j + 3]], m[idx[j:j + 3]], n_phase)
               for j in range(len(idx) - 2)]
         j0 = next((j for j, d in enumerate(d3) if d <= crit_w), int(np.argmin(d3)))
@@ -253,7 +259,7 @@ def fit_allan(taus, adev, n_samples: int, fs: float, axis: str = "gyro_x", min_m
     if disp > 2.0:
         notes.append(f"{axis}: the model fits the Allan variance with chi-square {d_full:.3g} for "
                      f"{n_pts - n_par} degrees of freedom; intervals widened accordingly")
-    crit = float(chi2_dist.ppf(CI_PROB, 1)) * disp
+    crit = float(_chi2_ppf(CI_PROB, 1)) * disp
     # every term stays in the model (no selection: dropping a term that the data cannot separate from
     # another would bias the other's interval); a term is reported when its own interval allows it
     prof, d_min = full, d_full
@@ -261,8 +267,8 @@ def fit_allan(taus, adev, n_samples: int, fs: float, axis: str = "gyro_x", min_m
 
     # ADEV intervals (95%)
     nn = np.where(ok, nu_all, 1.0)
-    adev_lo = adev * np.sqrt(nn / chi2_dist.ppf(0.5 * (1 + CI_PROB), nn))
-    adev_hi = adev * np.sqrt(nn / chi2_dist.ppf(0.5 * (1 - CI_PROB), nn))
+    adev_lo = adev * np.sqrt(nn / _chi2_ppf(0.5 * (1 + CI_PROB), nn))
+    adev_hi = adev * np.sqrt(nn / _chi2_ppf(0.5 * (1 - CI_PROB), nn))
 
     caps = np.min(au[:, None] / _columns_nb(tu, u_hat), axis=0)  # each term alone ≤ the data
     caps[2] = float(np.max(au)) / 0.38
@@ -279,7 +285,7 @@ def fit_allan(taus, adev, n_samples: int, fs: float, axis: str = "gyro_x", min_m
         lo2, hi2 = _interval(prof, idx, float(c_hat[idx]), d_min, crit, float(caps[idx]))
         v, lo, hi = math.sqrt(max(c_hat[idx], 0.0)), math.sqrt(lo2), _sqrt_or_none(hi2)
         dof_t = 2 if idx == 2 else 1
-        if idx != 1 and lo > 0 and prof.best(idx, 0.0)[0] - d_min < chi2_dist.ppf(DETECT_PROB, dof_t) * disp:
+        if idx != 1 and lo > 0 and prof.best(idx, 0.0)[0] - d_min < _chi2_ppf(DETECT_PROB, dof_t) * disp:
             terms[name] = TermEstimate("not resolved", upper=hi, note=f"not significant at {DETECT_PROB:.0%} "
                                        "(likelihood ratio)" + (" of σ and T together" if idx == 2 else ""))
         elif lo > 0 and hi is not None and hi / lo <= MAX_CI_RATIO:

@@ -93,3 +93,42 @@ def test_same_numbers_as_allantools_freq_input():
     bad[10, 1] = np.nan
     with pytest.raises(ValueError, match="NaN"):
         allan_deviation(bad, fs)
+
+
+@pytest.mark.parametrize("taus", ["octave", "decade", "log10", [0.01, 0.03, 0.5, 7.0, 120.0, 1e6]])
+def test_fused_kernel_equals_allantools_to_1e12(taus):
+    """The fused one-pass kernel against ``allantools.oadev`` (the reference, test-only dependency) on
+    rates with a large mean, a random walk and white noise (phase values far larger than the second
+    differences: the cancellation that tests the summation), every τ list; relative 1e-12 (issue 29)."""
+    fs, n = 200.0, 300_001  # an odd length: the last block is partial
+    rng = np.random.default_rng(29)
+    x = 9.80665 + 0.02 * rng.standard_normal(n) + np.cumsum(1e-4 * rng.standard_normal(n))
+    t, d, e, ns = allan_deviation(x, fs, taus=taus)
+    rt, rd, re_, rn = allantools.oadev(x, rate=fs, data_type="freq", taus=np.asarray(taus) if
+                                       isinstance(taus, list) else taus)
+    np.testing.assert_array_equal(t, rt)
+    np.testing.assert_array_equal(ns, rn)
+    assert len(t) >= 4 and t[-1] < n / fs
+    np.testing.assert_allclose(d, rd, rtol=1e-12, atol=0)
+    np.testing.assert_allclose(e, re_, rtol=1e-12, atol=0)
+
+
+def test_taus_are_checked():
+    x = np.random.default_rng(1).standard_normal(1000)
+    with pytest.raises(ValueError, match="taus"):
+        allan_deviation(x, 10.0, taus="weekly")
+    with pytest.raises(ValueError, match="at least 2 terms"):
+        allan_deviation(x, 10.0, taus=[60.0])  # 600 samples > half the log
+
+
+def test_no_allantools_at_run_time():
+    """allantools is a test dependency only: the library never imports it."""
+    import subprocess
+    import sys
+
+    code = ("import sys, numpy as np\n"
+            "import aidnav.analysis.characterise, aidnav.analysis.allan as A, aidnav.report.allan_plot\n"
+            "A.allan_deviation(np.random.default_rng(0).standard_normal((500, 2)), 10.0)\n"
+            "print('allantools' in sys.modules)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False", out.stderr

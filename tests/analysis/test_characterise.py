@@ -20,6 +20,8 @@ from scipy.signal import lfilter
 from scipy.stats import binom
 
 from aidnav.analysis import characterise as C
+from aidnav.analysis.noise_fit import allan_cov as AC
+from aidnav.analysis.noise_fit import model as NFM
 from aidnav.data import ImuData
 from aidnav.sim.imu import ImuSpec, corrupt_imu
 
@@ -62,7 +64,7 @@ def truth_terms(spec: ImuSpec) -> dict:
 # ------------------------------------------------------------------------------------- model pieces
 def test_gauss_markov_constants():
     """ADEV of a first-order GM peaks at 0.6174 σ at τ = 1.8926 T; flicker floor 0.6643 B; B = 0.9294 σ."""
-    r = minimize_scalar(lambda x: -C._gm_shape(np.array([x]))[0], bounds=(0.5, 5.0), method="bounded",
+    r = minimize_scalar(lambda x: -NFM._gm_shape(np.array([x]))[0], bounds=(0.5, 5.0), method="bounded",
                         options={"xatol": 1e-10})
     assert r.x == pytest.approx(C.GM_PEAK_X, rel=1e-6)
     assert math.sqrt(-r.fun) == pytest.approx(C.GM_PEAK_ADEV, rel=1e-9)
@@ -70,9 +72,9 @@ def test_gauss_markov_constants():
     assert C.B_PER_GM_SIGMA == pytest.approx(0.9294, abs=1e-4)
     # series branch joins the closed form; RRW-like and white-like limits (El-Sheimy 2008)
     x = np.array([0.05 - 1e-12, 0.05 + 1e-12])
-    assert C._gm_shape(x)[0] == pytest.approx(C._gm_shape(x)[1], rel=1e-9)
-    assert C._gm_shape(np.array([1e-4]))[0] == pytest.approx(2e-4 / 3, rel=1e-3)
-    assert C._gm_shape(np.array([1e4]))[0] == pytest.approx(2e-4, rel=1e-3)
+    assert NFM._gm_shape(x)[0] == pytest.approx(NFM._gm_shape(x)[1], rel=1e-9)
+    assert NFM._gm_shape(np.array([1e-4]))[0] == pytest.approx(2e-4 / 3, rel=1e-3)
+    assert NFM._gm_shape(np.array([1e4]))[0] == pytest.approx(2e-4, rel=1e-3)
 
 
 def test_estimate_statistics_match_greenhall_and_simulation():
@@ -84,7 +86,7 @@ def test_estimate_statistics_match_greenhall_and_simulation():
     n = 1 << 15
     ms = 2 ** np.arange(0, 13)
     taus = ms * 0.01
-    nu, _ = C._estimate_stats(taus, ms, n + 1, np.array([0.0, 1.0, 0.0, 0.0]), 600.0)
+    nu, _ = AC._estimate_stats(taus, ms, n + 1, np.array([0.0, 1.0, 0.0, 0.0]), 600.0)
     gh = np.array([allantools.edf_greenhall(0, 2, int(m), n + 1, overlapping=True) for m in ms])
     np.testing.assert_allclose(nu[6:], gh[6:], rtol=0.01)
     np.testing.assert_allclose(nu[3:6], gh[3:6], rtol=0.1)
@@ -103,8 +105,8 @@ def test_estimate_statistics_match_greenhall_and_simulation():
         logs.append([np.log(np.mean((x[2 * m:] - 2 * x[m:-m] + x[:-2 * m]) ** 2) / (2 * (m * 0.01) ** 2))
                      for m in ms])
     logs = np.array(logs)
-    nu, linv = C._estimate_stats(taus, ms, n + 1, coef, t_corr)
-    b, sd = C._logchi2_moments(nu)
+    nu, linv = AC._estimate_stats(taus, ms, n + 1, coef, t_corr)
+    b, sd = NFM._logchi2_moments(nu)
     z = ((logs - np.log(C.model_avar(taus, coef, t_corr)) - b) / sd) @ linv.T
     per_tau = (z**2).mean(axis=0)
     assert np.all((per_tau > 0.6) & (per_tau < 1.5)), per_tau
@@ -341,7 +343,7 @@ def test_cli_writes_allan_png_noise_json_and_imu_yaml(tmp_path):
 def _brute_force_cov(ms, n, tau0, coef, t_corr):
     """Covariance of the overlapping Allan variance estimates by the full double sum over all pairs of
     second differences (Isserlis, with the model's phase structure function): O(N²) per pair."""
-    S = np.array([C._phase_sf(tau0 * float(h), coef, t_corr) for h in range(n + 2)])
+    S = np.array([AC._phase_sf(tau0 * float(h), coef, t_corr) for h in range(n + 2)])
     a = (1.0, -2.0, 1.0)
     out = np.zeros((len(ms), len(ms)))
     for p, m1 in enumerate(ms.astype(int)):
@@ -365,7 +367,7 @@ def test_estimate_covariance_equals_the_brute_force_double_sum(coef, t_corr, tol
     ms = 2.0 ** np.arange(8)
     coef = np.array(coef)
     want = _brute_force_cov(ms, n, tau0, coef, t_corr)
-    got = C._avar_cov_nb(ms, float(n + 1), tau0, coef, t_corr)
+    got = AC._avar_cov_nb(ms, float(n + 1), tau0, coef, t_corr)
     scale = np.sqrt(np.outer(np.diag(want), np.diag(want)))
     assert np.max(np.abs(got - want) / scale) < tol
 
@@ -385,9 +387,9 @@ def test_continuum_lag_sum_is_the_large_m_limit_of_the_exact_sum():
                 M = n - 2.0 * m
                 tail = 12.0 * t_corr / tau0 if gm else 0.0
                 lo, hi = -2.0 * m - tail, 2.0 * m + tail
-                S = np.array([C._phase_sf(tau0 * h, coef, t_corr) for h in range(int(4 * m + tail) + 8)])
-                exact = C._core_sum(int(lo), int(hi), m, m, M, M, S, tau0, coef, t_corr)
-                cont = C._quad_lags(lo - 0.5, hi + 0.5, float(m), float(m), M, M, tau0, coef, t_corr,
+                S = np.array([AC._phase_sf(tau0 * h, coef, t_corr) for h in range(int(4 * m + tail) + 8)])
+                exact = AC._core_sum(int(lo), int(hi), m, m, M, M, S, tau0, coef, t_corr)
+                cont = AC._quad_lags(lo - 0.5, hi + 0.5, float(m), float(m), M, M, tau0, coef, t_corr,
                                     max(16.0, t_corr / tau0 / 4.0) if gm else 1e18)
                 err = cont / exact - 1.0
                 if coef[1] > 0:

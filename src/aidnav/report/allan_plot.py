@@ -23,6 +23,9 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.ticker import LogLocator, NullLocator
 
+from aidnav.analysis.noise_fit import model as C
+from aidnav.analysis.noise_fit.results import Characterisation
+
 __all__ = ["plot_allan"]
 
 DPI = 120
@@ -30,8 +33,6 @@ _COLORS = {"Q": "tab:purple", "N": "tab:green", "GM": "tab:orange", "K": "tab:re
 
 
 def _term_labels(a, sensor: str, span_s: float | None = None) -> dict:
-    from aidnav.analysis import characterise as C
-
     if sensor == "gyro":
         u = {"Q": (1.0, "rad", "quantisation"), "N": (C.DEG_SQRT_H, "deg/√h", "ARW"),
              "GM": (C.DEG_H, "deg/h", "bias instability B"), "K": (C.DEG_H_SQRT_H, "deg/h/√h", "RRW")}
@@ -75,11 +76,9 @@ def _decade_grid(ax, lo: float, hi: float, axis: str) -> None:
         ax.hlines(vals, 0, 1, transform=ax.get_yaxis_transform(), colors="0.5", lw=0.4, alpha=0.25, zorder=0)
 
 
-def plot_allan(ch, path, title: str | None = None) -> Path:
+def plot_allan(ch: Characterisation, path, title: str | None = None) -> Path:
     """Write the 2 × 3 panel Allan deviation figure of a characterisation
-    (:class:`aidnav.analysis.characterise.Characterisation`) to ``path`` (PNG) and return the path."""
-    from aidnav.analysis import characterise as C
-
+    (:class:`aidnav.analysis.noise_fit.Characterisation`) to ``path`` (PNG) and return the path."""
     fig = Figure(figsize=(16.0, 9.5))
     FigureCanvasAgg(fig)
     fig.subplots_adjust(left=0.05, right=0.99, bottom=0.06, top=0.92 if title else 0.95, wspace=0.17,

@@ -1,0 +1,59 @@
+"""IMU noise characterisation: Allan deviation of a static log → fitted noise terms → filter settings.
+
+Frames and units. Input increments Δθ [rad], Δv [m/s] (body RFU, :class:`aidnav.data.ImuData`) or rates
+[rad/s], [m/s²] on arrays. Inside, everything is SI; the results are given back in boundary units: ARW
+[deg/√h], VRW [m/s/√h], gyro bias instability [deg/h], accelerometer bias instability [µg], rate random
+walk [deg/h/√h], acceleration random walk [µg/√h], correlation times [s], quantisation noise coefficient
+Q [rad] / [m/s] (IEEE 952: σ² = 3Q²/τ²; quantum = √12·Q).
+
+The modules, in the order of the data:
+
+- :mod:`.prepare` — uniform rates from increments (gaps cut, jitter resampled by cumulative-sum
+  interpolation), trapezoid increments inverted to the sensor's samples;
+- :mod:`.static` — static check (motion, slow motion, disturbance) and the longest static part;
+- :mod:`aidnav.analysis.allan` — the overlapping Allan deviation (one fused numba pass per axis);
+- :mod:`.model` — the four-term noise model and the unit constants;
+- :mod:`.allan_cov` — exact covariance of the Allan variance estimates (EDFs and correlations);
+- :mod:`.nnls` — numba kernels of the fit; :mod:`.fit` — the fit with its profile-likelihood intervals;
+- :mod:`.vibration` — sample spread and dominant frequency per axis;
+- :mod:`.analyse` — :func:`characterise_rates` / :func:`characterise_imu`, the whole analysis;
+- :mod:`.results` — the result containers; :mod:`.output` — noise.json, the ``imu:`` section, its YAML;
+- :mod:`.file_job` — ``aidnav characterise`` on a file; :mod:`.console` — the console summary.
+
+The figure (allan.png) is drawn by :func:`aidnav.report.allan_plot.plot_allan`, passed to
+:func:`characterise_file` by its caller: analysis does not import report.
+"""
+
+from __future__ import annotations
+
+from aidnav.analysis.noise_fit.analyse import characterise_imu, characterise_rates
+from aidnav.analysis.noise_fit.console import print_characterisation
+from aidnav.analysis.noise_fit.file_job import characterise_file, imu_log_format
+from aidnav.analysis.noise_fit.fit import fit_allan
+from aidnav.analysis.noise_fit.model import (
+    AXES,
+    B_PER_GM_SIGMA,
+    DEG_H,
+    DEG_H_SQRT_H,
+    DEG_SQRT_H,
+    FLICKER_ADEV,
+    GM_PEAK_ADEV,
+    GM_PEAK_X,
+    M_S_SQRT_H,
+    UG,
+    UG_SQRT_H,
+    gm_avar,
+    model_avar,
+)
+from aidnav.analysis.noise_fit.output import auto_grade, imu_section, imu_yaml, merge_gm_rw, noise_dict
+from aidnav.analysis.noise_fit.prepare import resampled_min_m, trapezoid_samples, uniform_rates
+from aidnav.analysis.noise_fit.results import AxisFit, Characterisation, NotStaticError, TermEstimate
+from aidnav.analysis.noise_fit.static import static_check
+from aidnav.analysis.noise_fit.vibration import vibration_report
+
+__all__ = ["characterise_imu", "characterise_rates", "fit_allan", "merge_gm_rw", "print_characterisation",
+           "Characterisation", "AxisFit", "TermEstimate", "NotStaticError", "static_check", "uniform_rates",
+           "imu_section", "imu_yaml", "noise_dict", "characterise_file", "imu_log_format", "gm_avar",
+           "model_avar", "auto_grade", "resampled_min_m", "trapezoid_samples", "vibration_report", "AXES",
+           "B_PER_GM_SIGMA", "GM_PEAK_X", "GM_PEAK_ADEV", "FLICKER_ADEV", "DEG_H", "DEG_SQRT_H",
+           "DEG_H_SQRT_H", "UG", "UG_SQRT_H", "M_S_SQRT_H"]

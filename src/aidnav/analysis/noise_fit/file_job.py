@@ -1,0 +1,142 @@
+"""``aidnav characterise``: read an IMU log, characterise it, write noise.json, imu.yaml (and allan.png).
+
+The figure is drawn by a function the caller passes (``plot``, e.g.
+:func:`aidnav.report.allan_plot.plot_allan`): analysis does not import report.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+import threading
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from aidnav.analysis.noise_fit.allan_cov import _avar_cov_nb
+from aidnav.analysis.noise_fit.analyse import characterise_imu
+from aidnav.analysis.noise_fit.nnls import _profile_u_nb
+from aidnav.analysis.noise_fit.output import auto_grade, imu_yaml, noise_dict
+from aidnav.analysis.noise_fit.results import Characterisation
+from aidnav.analysis.noise_fit.static import _window_stats
+from aidnav.analysis.noise_fit.timing import Stages
+from aidnav.data import ImuData
+from aidnav.io.errors import DataError
+from aidnav.io.interchange import read_imu
+from aidnav.io.logs import read_rtklibexplorer_imu
+
+
+# -------------------------------------------------------------------------------------- format detection
+# FORMAT DETECTION: the one place this job tells IMU log formats apart. Replace the body by the call to
+# ``aidnav.io.formats`` (being written) when it lands; the reader and the increment rule follow from it.
+def imu_log_format(path) -> str:
+    """Format of an IMU log: "interchange" (Parquet, or a CSV whose header names ``time``) or
+    "rtklibexplorer" (a raw CSV without header: point samples of the rates). DataError when the file is
+    missing or empty."""
+    path = Path(path)
+    if not path.exists():
+        raise DataError(path, None, "file not found")
+    if path.suffix.lower() in (".parquet", ".pq"):
+        return "interchange"
+    with open(path, "rb") as f:
+        head = f.read(4096).decode("utf-8", "replace")
+    first = next((ln for ln in head.splitlines() if ln.strip() and not ln.startswith("#")), "")
+    if not first:
+        raise DataError(path, 1, "empty file")
+    return "interchange" if "time" in first else "rtklibexplorer"
+
+
+#: reader of each format (increments Δθ [rad], Δv [m/s], body RFU)
+_READERS: dict[str, Callable[[Path], ImuData]] = {"interchange": read_imu,
+                                                  "rtklibexplorer": read_rtklibexplorer_imu}
+#: how the increments of each format relate to the sensor's samples (for the vibration report): a raw
+#: rtklibexplorer CSV holds point samples of the rates, read as trapezoid increments
+#: (:func:`aidnav.io.logs.read_rtklibexplorer_imu`); interchange files give rates × Δt or increments as
+#: they are
+INCREMENT_RULE = {"interchange": "interval", "rtklibexplorer": "trapezoid"}
+
+
+def _warm_up() -> None:
+    """Import the analysis libraries and load the compiled kernels (numba's first call costs a few tenths
+    of a second): run in a thread while the log is read, so that it overlaps the reading."""
+    try:
+        # the fit's scipy parts, loaded here to overlap the reading (scipy.stats alone takes ~0.3 s)
+        from scipy.optimize import brentq  # noqa: F401
+        from scipy.special import digamma  # noqa: F401
+        from scipy.stats import chi2  # noqa: F401
+
+        tau = np.array([0.01, 0.02, 0.04])
+        _window_stats(np.zeros((20, 6)), 10, 2)
+        _avar_cov_nb(tau / 0.01, 100.0, 0.01, np.array([0.0, 1.0, 0.0, 0.0]), 1.0)
+        _profile_u_nb(tau, np.zeros(3), np.ones(3), np.eye(3), np.zeros(4, np.bool_), np.zeros(4), -1.0, 1.0,
+                      3, np.zeros(4), math.nan)
+    except Exception:  # noqa: BLE001  (a warm-up only: the analysis imports and compiles what it needs)
+        pass
+
+
+def characterise_file(imu_path, out_dir, static: str | None = None, grade: str | None = None,
+                      timings: dict | None = None,
+                      plot: Callable[[Characterisation, Path, str], Path] | None = None) -> tuple:
+    """``aidnav characterise``: read any IMU log, characterise it, write noise.json, imu.yaml (and allan.png).
+
+    static : "START:END" seconds after the first sample (either may be empty); None: the whole log (its
+    longest static part when it moves: see :func:`characterise_imu`). timings : a dict that receives the
+    wall time of each stage [s]. plot : ``plot(ch, path, title) -> path`` that draws the Allan deviation
+    figure (:func:`aidnav.report.allan_plot.plot_allan`) into DIR/allan.png; None: no figure. Returns
+    (Characterisation, list of written paths). Raises
+    :class:`NotStaticError` / ValueError with a clear message for a moving log, bad option or unusable data.
+
+    Speed: the analysis libraries are imported (and the compiled kernels loaded) in a thread while the
+    log is read; the reader holds no reference to the log after the analysis has taken its rates.
+    """
+    st = Stages(timings)
+    rng = None
+    if static:
+        parts = static.split(":")
+        try:
+            if len(parts) != 2:
+                raise ValueError
+            rng = tuple(float(x) if x.strip() else None for x in parts)
+        except ValueError:
+            raise ValueError(f"--static {static!r}: expected START:END in seconds after the first sample"
+                             ) from None
+        if rng[0] is not None and rng[1] is not None and rng[1] <= rng[0]:
+            raise ValueError(f"--static {static!r}: END must be after START")
+    fmt = imu_log_format(imu_path)
+    warm = threading.Thread(target=_warm_up, name="aidnav-characterise-warm-up", daemon=True)
+    warm.start()
+    st.lap("start")
+
+    def read():
+        imu = _READERS[fmt](Path(imu_path))
+        pa = sys.modules.get("pyarrow")
+        if pa is not None and hasattr(pa, "default_memory_pool"):  # the Parquet/CSV buffers the reader freed
+            try:
+                pa.default_memory_pool().release_unused()
+            except AttributeError:
+                pass
+        st.lap("read")
+        warm.join()
+        st.lap("imports not overlapped by the reading")
+        return imu
+
+    # no reference to the log is held here: characterise_imu lets it go once it has the rates
+    ch = characterise_imu(read(), static=rng, increments=INCREMENT_RULE[fmt], timings=timings)
+    st.lap("characterise")
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    nd = noise_dict(ch)
+    nd["imu"] = str(imu_path)
+    nd["grade_for_defaults"] = grade or auto_grade(ch)
+    p_json = out / "noise.json"
+    p_json.write_text(json.dumps(nd, indent=2, allow_nan=False))
+    p_yaml = out / "imu.yaml"
+    p_yaml.write_text(imu_yaml(ch, nd["grade_for_defaults"], source=str(imu_path)))
+    st.lap("noise.json + imu.yaml")
+    written = [p_json, p_yaml]
+    if plot is not None:
+        written.insert(0, plot(ch, out / "allan.png", f"Allan deviation: {Path(imu_path).name}"))
+        st.lap("allan.png")
+    return ch, written

@@ -122,3 +122,31 @@ def test_html_helpers():
     assert '<div class="scroll">' in t and '<td class="good"><b>x</b></td>' in t
     kv = kv_table([["k", "<v>"]])
     assert 'class="kv"' in kv and "&lt;v&gt;" in kv
+
+
+def test_write_run_outputs(tmp_path, run_summary):
+    import io
+
+    from rich.console import Console
+
+    from aidnav.data import GnssData, Trajectory
+    from aidnav.progress import ProgressBar
+    from aidnav.report.run_page import write_run_outputs
+
+    n = 500
+    t = 345600.0 + 0.2 * np.arange(n)
+    lat = np.radians(30.0) + 1e-7 * np.arange(n)
+    lon = np.full(n, np.radians(114.0))
+    tr = Trajectory(t, lat, lon, np.full(n, 5.0), np.zeros((n, 3)), np.zeros((n, 3)),
+                    std_pos=np.full((n, 3), 0.3))
+    g = GnssData(t[::5], lat[::5], lon[::5], np.full(n // 5, 5.0))
+    run_summary["outage_windows"] = [[t[100], t[150]]]
+    buf = io.StringIO()
+    with ProgressBar("process", console=Console(file=buf, force_terminal=True, width=120)) as bar:
+        paths = write_run_outputs(tmp_path / "OUT", tr, g, run_summary, progress=bar)
+    assert {k: p.name for k, p in paths.items()} == {"overview": "overview.png", "kml": "trajectory.kml",
+                                                      "geojson": "trajectory.geojson", "run_page": "run.html"}
+    assert all(p.exists() and p.parent == tmp_path / "OUT" for p in paths.values())
+    text = paths["run_page"].read_text()
+    assert "<h3>Overview</h3>" in text and len(parse(text).imgs) == 1
+    assert "figures and maps" in buf.getvalue() and "3/3 steps" in buf.getvalue()

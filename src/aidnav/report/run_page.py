@@ -22,7 +22,7 @@ import numpy as np
 
 from .html import escape, fmt, img_file_tag, kv_table, page, table
 
-__all__ = ["write_run_page", "run_page_html"]
+__all__ = ["write_run_page", "run_page_html", "write_run_outputs"]
 
 _INPUT_KEYS = [("imu", "IMU log"), ("gnss", "GNSS fixes"), ("obs", "RINEX observations"),
                ("nav", "RINEX navigation"), ("config", "configuration"), ("output", "trajectory written"),
@@ -211,3 +211,32 @@ def write_run_page(path, summary: dict, figures=(), title: str | None = None) ->
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(text, encoding="utf-8")
     return path
+
+
+def write_run_outputs(out_dir, traj, gnss=None, summary: dict | None = None, records: dict | None = None,
+                      figures=(), maps: bool = True, base: str = "trajectory", progress=None) -> dict:
+    """Everything a run leaves to look at, in ``out_dir``: ``overview.png``
+    (:func:`aidnav.report.overview.write_overview`), ``<base>.kml`` and ``<base>.geojson``
+    (:func:`aidnav.report.maps.write_maps`, when ``maps``) and ``run.html`` embedding the overview
+    and the further ``figures``. progress : optional :class:`aidnav.progress.ProgressBar` (one stage
+    "figures and maps", 3 steps). Returns {"overview", "run_page", "kml", "geojson"} → paths."""
+    from .maps import write_maps
+    from .overview import write_overview
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    summary = summary or {}
+    if progress is not None:
+        progress.stage("figures and maps", total=3, unit="steps")
+    paths = {"overview": write_overview(out / "overview.png", traj, gnss, summary, records)}
+    if progress is not None:
+        progress.advance(1)
+    if maps:
+        kml, gj = write_maps(out / base, traj, gnss, summary)
+        paths.update(kml=kml, geojson=gj)
+    if progress is not None:
+        progress.advance(1)
+    paths["run_page"] = write_run_page(out / "run.html", summary, [(paths["overview"], "Overview"), *figures])
+    if progress is not None:
+        progress.advance(1)
+    return paths

@@ -150,3 +150,37 @@ def test_write_run_outputs(tmp_path, run_summary):
     text = paths["run_page"].read_text()
     assert "<h3>Overview</h3>" in text and len(parse(text).imgs) == 1
     assert "figures and maps" in buf.getvalue() and "3/3 steps" in buf.getvalue()
+
+
+def test_calibration_estimates_units():
+    import math
+    from types import SimpleNamespace
+
+    from aidnav.report.run_page import calibration_estimates, run_page_html
+
+    deg_h = math.pi / 180 / 3600  # rad/s
+    ug = 9.80665e-6  # m/s²
+    n = 21
+    pdiag = np.zeros((2, n))
+    pdiag[-1, 9:12] = (np.array([1.0, 2.0, 3.0]) * deg_h) ** 2
+    pdiag[-1, 12:15] = (np.array([10.0, 20.0, 30.0]) * ug) ** 2
+    pdiag[-1, 15:21] = 1e-12  # σ 1 ppm
+    bias = np.zeros((2, 12))
+    bias[-1, :3] = np.array([50.0, -5.0, 0.5]) * deg_h
+    bias[-1, 3:6] = np.array([100.0, 0.0, -200.0]) * ug
+    bias[-1, 6:] = 1e-6 * np.arange(1, 7)
+    cal = calibration_estimates(SimpleNamespace(bias=bias, pdiag=pdiag))
+    assert list(cal)[:3] == ["gyro_bias_x_deg_h", "gyro_bias_y_deg_h", "gyro_bias_z_deg_h"]
+    assert len(cal) == 12
+    def col(fmt, key):
+        return [cal[fmt.format(a)][key] for a in "xyz"]
+
+    np.testing.assert_allclose(col("gyro_bias_{}_deg_h", "value"), [50, -5, 0.5], rtol=1e-12)
+    np.testing.assert_allclose(col("gyro_bias_{}_deg_h", "std"), [1, 2, 3], rtol=1e-12)
+    np.testing.assert_allclose(col("accel_bias_{}_ug", "value"), [100, 0, -200], rtol=1e-12, atol=1e-9)
+    np.testing.assert_allclose(col("accel_bias_{}_ug", "std"), [10, 20, 30], rtol=1e-12)
+    np.testing.assert_allclose(cal["accel_sf_z_ppm"]["value"], 6.0, rtol=1e-12)
+    np.testing.assert_allclose(cal["gyro_sf_x_ppm"]["std"], 1.0, rtol=1e-9)
+    assert "gyro_bias_x_deg_h" in run_page_html({"calibration": cal})
+    with pytest.raises(ValueError, match="fewer than"):
+        calibration_estimates(SimpleNamespace(bias=bias, pdiag=pdiag[:, :15]))

@@ -22,7 +22,33 @@ import numpy as np
 
 from .html import escape, fmt, img_file_tag, kv_table, page, table
 
-__all__ = ["write_run_page", "run_page_html", "write_run_outputs"]
+__all__ = ["write_run_page", "run_page_html", "write_run_outputs", "calibration_estimates"]
+
+_CAL_NAMES = [("gyro_bias_{}_deg_h", 180.0 / math.pi * 3600.0), ("accel_bias_{}_ug", 1.0 / 9.80665e-6),
+              ("gyro_sf_{}_ppm", 1e6), ("accel_sf_{}_ppm", 1e6)]
+
+
+def calibration_estimates(res) -> dict:
+    """``summary["calibration"]`` from a filter result with ``bias`` (N, nb) and ``pdiag`` (N, n) —
+    :class:`~aidnav.filters.loose.LooseResult` or :class:`~aidnav.filters.tight.TightResult`: the last
+    epoch's sensor-error estimates and their 1σ = √P[9 + k, 9 + k] (error states after the 9 navigation
+    states), converted to gyro bias [deg/h], accelerometer bias [µg] and scale factors [ppm]
+    (names as the trajectory's bias columns, e.g. ``gyro_bias_x_deg_h``)."""
+    bias = np.asarray(res.bias, float)
+    pdiag = np.asarray(res.pdiag, float)
+    if bias.ndim != 2 or len(bias) == 0:
+        return {}
+    nb = min(bias.shape[1] // 3, len(_CAL_NAMES)) * 3
+    if pdiag.shape[1] < 9 + nb:
+        raise ValueError(f"calibration: pdiag has {pdiag.shape[1]} states, fewer than 9 + {nb} bias states")
+    out = {}
+    for k in range(nb):
+        name, scale = _CAL_NAMES[k // 3]
+        var = pdiag[-1, 9 + k]
+        out[name.format("xyz"[k % 3])] = {
+            "value": float(bias[-1, k] * scale),
+            "std": float(math.sqrt(var) * scale) if math.isfinite(var) and var >= 0 else None}
+    return out
 
 _INPUT_KEYS = [("imu", "IMU log"), ("gnss", "GNSS fixes"), ("obs", "RINEX observations"),
                ("nav", "RINEX navigation"), ("config", "configuration"), ("output", "trajectory written"),

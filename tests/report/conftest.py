@@ -147,6 +147,12 @@ def summary_example(tmp_path) -> dict:
                         "lever_arm_m": [0.1, 0.2, -0.3], "time_offset": {"value": 0.012, "sigma": 0.001,
                                                                           "unit": "s"}},
         "custom_value": np.float64(3.25),
+        "gnss_height_offset_m": -21.4,
+        "warnings": ["GNSS fixes stop 12.0 s before the IMU log ends"],
+        "nis": {"gnss_position": {"mean": 2.9, "dof": 3.0, "n": 1490, "band95": [2.78, 3.12],
+                                  "in_band": True},
+                "gnss_velocity": {"mean": 7.5, "dof": 2.0, "n": 1500, "band95": [1.9, 2.1],
+                                  "in_band": False}},
     }
 
 

@@ -73,6 +73,8 @@ def test_run_page_sections_and_embedding(tmp_path, run_summary):
     assert base64.b64decode(srcs[0].split(",", 1)[1]) == f1.read_bytes()
     assert base64.b64decode(srcs[1].split(",", 1)[1]) == f2.read_bytes()
     assert "<h3>Position errors</h3>" in text
+    assert "<h2>Filter consistency (NIS)</h2>" in text and '<td class="bad">OUT OF BAND</td>' in text
+    assert "<h2>Warnings (1)</h2>" in text and "<td>GNSS height offset added [m]</td><td>-21.4</td>" in text
     # events are escaped
     assert "&lt;bad&gt; &amp; ok" in text and "<bad>" not in text
     # calibration rows: value, σ and the unit from the name or the dict

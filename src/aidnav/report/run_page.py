@@ -52,7 +52,8 @@ def calibration_estimates(res) -> dict:
 
 _INPUT_KEYS = [("imu", "IMU log"), ("gnss", "GNSS fixes"), ("obs", "RINEX observations"),
                ("nav", "RINEX navigation"), ("config", "configuration"), ("output", "trajectory written"),
-               ("smoothed", "smoothed (RTS)"), ("states", "filter states"), ("time_scale", "time scale")]
+               ("gnss_height_offset_m", "GNSS height offset added [m]"), ("smoothed", "smoothed (RTS)"),
+               ("states", "filter states"), ("time_scale", "time scale")]
 _COUNT_KEYS = [("imu_samples", "IMU samples"), ("imu_rate_hz", "IMU rate [Hz]"),
                ("gnss_fixes", "GNSS fixes"),
                ("gnss_withheld", "GNSS fixes withheld (outages)"),
@@ -62,7 +63,7 @@ _COUNT_KEYS = [("imu_samples", "IMU samples"), ("imu_rate_hz", "IMU rate [Hz]"),
                ("gnss_velocity_rejected", "GNSS velocities rejected")]
 _LAID_OUT = {k for k, _ in _INPUT_KEYS + _COUNT_KEYS} | {
     "counts", "timing_s", "outage_windows", "outage_score", "outage_score_forward", "reference",
-    "calibration", "events", "notes", "rejected_fix_times", "title"}
+    "calibration", "events", "notes", "warnings", "rejected_fix_times", "title", "nis"}
 
 
 def _val(x) -> str:
@@ -170,6 +171,20 @@ def run_page_html(summary: dict, figures=(), title: str | None = None) -> str:
                 parts.append(f"<h3>Score: {name}</h3>")
                 parts.append(_score_table(s[key]))
 
+    nis = s.get("nis")
+    if isinstance(nis, dict) and nis:
+        parts.append("<h2>Filter consistency (NIS)</h2>")
+        parts.append('<p class="note">Mean normalised innovation squared over the accepted updates against '
+                     "the 95 % band of the mean of N χ²(dof) values (per-epoch values in overview.png).</p>")
+        rows = []
+        for name, v in nis.items():
+            band = v.get("band95") or [None, None]
+            ok = v.get("in_band")
+            verdict = "–" if ok is None else (("in band", "good") if ok else ("OUT OF BAND", "bad"))
+            rows.append([name.replace("_", " "), fmt(v.get("mean")), fmt(v.get("dof")), fmt(v.get("n")),
+                         f"{fmt(band[0])} – {fmt(band[1])}", verdict])
+        parts.append(table(["measurement", "mean NIS", "dof", "updates", "95 % band", "verdict"], rows))
+
     ref = s.get("reference")
     if isinstance(ref, dict):
         parts.append("<h2>Comparison with the reference</h2>")
@@ -187,7 +202,7 @@ def run_page_html(summary: dict, figures=(), title: str | None = None) -> str:
         parts.append(f"<h2>Rejected GNSS positions{more}</h2>")
         parts.append(f"<p><code>{escape(', '.join(f'{float(t):.3f}' for t in rej))}</code></p>")
 
-    for key, name in (("events", "Events"), ("notes", "Notes")):
+    for key, name in (("warnings", "Warnings"), ("events", "Events"), ("notes", "Notes")):
         items = s.get(key) or []
         if items:
             parts.append(f"<h2>{name} ({len(items)})</h2>")

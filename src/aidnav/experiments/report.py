@@ -20,11 +20,8 @@ small angles); time in seconds since the start of the simulated run.
 
 from __future__ import annotations
 
-import base64
 import html
-import io
 import json
-import math
 import warnings
 from pathlib import Path
 
@@ -34,10 +31,12 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from aidnav.analysis.consistency import chi2_band
+from aidnav.report.html import DPI, img_tag, kv_table, page, png_b64
+from aidnav.report.html import fmt as _fmt
+from aidnav.report.html import table as _table
 
 __all__ = ["write_report", "ReportError", "paper_rows"]
 
-DPI = 100
 
 
 class ReportError(ValueError):
@@ -46,9 +45,7 @@ class ReportError(ValueError):
 
 # --------------------------------------------------------------------------------------- figures
 def _png(fig: Figure) -> str:
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=DPI)
-    return base64.b64encode(buf.getvalue()).decode("ascii")
+    return png_b64(fig, DPI)
 
 
 def _blocks(states: list[str]) -> dict[str, list[str]]:
@@ -179,31 +176,6 @@ def _map_figure(traj, points: list[dict]) -> str | None:
 
 
 # ----------------------------------------------------------------------------------------- tables
-def _fmt(x) -> str:
-    if x is None or (isinstance(x, float) and not math.isfinite(x)):
-        return "–"
-    if isinstance(x, (bool, np.bool_)):
-        return "yes" if x else "no"
-    if isinstance(x, (int, np.integer)):
-        return str(int(x))
-    return f"{float(x):.4g}"
-
-
-def _table(header: list[str], rows: list[list], cls: str = "") -> str:
-    h = "".join(f"<th>{html.escape(str(c))}</th>" for c in header)
-    body = []
-    for r in rows:
-        cells = []
-        for c in r:
-            if isinstance(c, tuple):  # (html, css class)
-                cells.append(f'<td class="{c[1]}">{c[0]}</td>')
-            else:
-                cells.append(f"<td>{html.escape(str(c))}</td>")
-        body.append("<tr>" + "".join(cells) + "</tr>")
-    return f'<div class="scroll"><table class="{cls}"><thead><tr>{h}</tr></thead><tbody>' + \
-        "".join(body) + "</tbody></table></div>"
-
-
 def _col_stats(runs: dict, point: int, est: str, col: str) -> tuple[float, float, int]:
     m = (runs["point"] == point) & (runs["estimator"] == est)
     v = runs[col][m]
@@ -237,19 +209,6 @@ def paper_rows(manifest: dict, runs: dict) -> list[dict]:
                              "paper": pv.get("paper"), "ours": ours, "ours_std": sd, "runs": n,
                              "target": pv.get("target"), "holds": holds})
     return rows
-
-
-_CSS = """
-body{font-family:system-ui,-apple-system,Segoe UI,Helvetica,Arial,sans-serif;margin:1.5em auto;
-max-width:1300px;color:#222;padding:0 1em}
-h1{font-size:1.6em}h2{font-size:1.25em;border-bottom:1px solid #ccc;padding-bottom:.2em;margin-top:1.8em}
-h3{font-size:1.05em}
-table{border-collapse:collapse;font-size:.85em;margin:.5em 0}
-th,td{border:1px solid #ccc;padding:.25em .5em;text-align:right;white-space:nowrap}
-th{background:#f0f0f0}td:first-child,th:first-child{text-align:left}
-.scroll{overflow-x:auto}.bad{background:#fdd;color:#900;font-weight:bold}.good{background:#dfd;color:#060}
-.note{color:#555;font-size:.85em}img{max-width:100%}code{background:#f4f4f4;padding:0 .2em}
-"""
 
 
 def _load(out: Path):
@@ -307,7 +266,7 @@ def write_report(out_dir, path=None, figures: bool = True) -> Path:
             ["wall time", f"{_fmt(tm.get('wall_s'))} s (compute {_fmt(tm.get('compute_wall_s'))} s, "
                           f"merge {_fmt(tm.get('merge_s'))} s)"],
             ["created", manifest.get("created", "?")]]
-    parts.append(_table(["", ""], meta))
+    parts.append(kv_table(meta))
 
     # sweep points
     parts.append("<h2>Sweep points</h2>")
@@ -391,7 +350,7 @@ def write_report(out_dir, path=None, figures: bool = True) -> Path:
             warnings.simplefilter("ignore")
             img = _map_figure(traj, points)
             if img:
-                parts.append(f'<img alt="trajectory map" src="data:image/png;base64,{img}">')
+                parts.append(img_tag(img, "trajectory map"))
             stems = _state_cols(list(epochs))
             dof_of = {}
             for c in cons:
@@ -409,19 +368,16 @@ def write_report(out_dir, path=None, figures: bool = True) -> Path:
                     if have:
                         img = _error_figure(t, ep, have, f"{p['label']} — {e}: error (estimate − truth), "
                                                          f"{r_here} runs")
-                        parts.append(f'<img alt="errors {html.escape(e)}" src="data:image/png;base64,{img}">')
+                        parts.append(img_tag(img, f"errors {e}"))
                     blocks = [k[5:] for k in ep if k.startswith("nees_") and np.any(np.isfinite(ep[k]))]
                     dof = {b: dof_of.get((p["index"], e, b), len(_blocks(have).get(b, [1]))) for b in blocks}
                     if blocks:
                         img = _nees_figure(t, ep, blocks, dof, r_here, prob, f"{p['label']} — {e}: NEES")
-                        parts.append(f'<img alt="NEES {html.escape(e)}" src="data:image/png;base64,{img}">')
+                        parts.append(img_tag(img, f"NEES {e}"))
     parts.append('<p class="note">Errors are estimate − truth: position ENU [m], velocity ENU [m/s], '
                  'attitude as the misalignment φ (E, N, U) [deg] with C(est) = (I − [φ×]) C(true). '
                  'Generated by <code>aidnav report</code>.</p>')
-    page = ("<!DOCTYPE html><html><head><meta charset='utf-8'>"
-            f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>"
-            + "\n".join(parts) + "</body></html>")
-    path.write_text(page, encoding="utf-8")
+    path.write_text(page(title, parts), encoding="utf-8")
     from .store import write_json
 
     write_json(out / "statistics.json", {"experiment": manifest["experiment"]["name"],

@@ -8,6 +8,11 @@ stated in the axis label, in the inputs' time scale (``time_scale``, default "GP
 of week, CONVENTIONS "Time"), e.g. ``time since 345600.000 s (GPS SOW) [s]``.
 Errors are estimate − reference (see :mod:`aidnav.analysis.errors`); envelopes are ±k·σ from the
 estimate's own standard deviations (k = 3 by default) where the estimate has them.
+
+Y-limits are robust (:func:`robust_limit`): set by the 99th percentile of the errors, widened to show
+the typical (median) envelope but never beyond 5× the error scale, so that a large initial σ (e.g. an
+unaligned heading at ±540°) does not flatten errors of a tenth of a degree; the envelope is clipped to
+the view and the epochs whose error lies outside it are counted on the axis.
 """
 
 from __future__ import annotations
@@ -46,69 +51,139 @@ def _save(fig: Figure, path: Path) -> Path:
     return path
 
 
-def _component_figure(t, xlabel, err, std, names, unit, title, nsigma, path) -> Path:
+def robust_limit(values, envelope=None, pct: float = 99.0, margin: float = 1.25,
+                 envelope_cap: float = 5.0) -> float:
+    """Half-range of a y-axis centred on 0 for ``values`` (errors) and an optional ``envelope``
+    (k·σ ≥ 0, same unit).
+
+    error scale e = ``margin`` · (``pct``-th percentile of |values|); envelope scale s = median of the
+    finite positive envelope values; limit = max(e, min(s, ``envelope_cap``·e)); e alone when there is
+    no envelope, s when all errors are 0 or missing, 1 when both are empty. Percentiles, not the
+    maximum: a few outliers (or the first epochs of an unaligned filter) do not set the scale."""
+    v = np.abs(np.asarray(values, dtype=float)).ravel()
+    v = v[np.isfinite(v)]
+    e = margin * float(np.percentile(v, pct)) if v.size else 0.0
+    s = 0.0
+    if envelope is not None:
+        env = np.asarray(envelope, dtype=float).ravel()
+        env = env[np.isfinite(env) & (env > 0)]
+        if env.size:
+            s = float(np.median(env))
+    if e > 0:
+        return max(e, min(s, envelope_cap * e))
+    return s if s > 0 else 1.0
+
+
+def _note_outside(ax, values, lo, hi, unit) -> int:
+    v = np.asarray(values, dtype=float)
+    fin = np.isfinite(v)
+    out = fin & ((v < lo) | (v > hi))
+    n = int(out.sum())
+    if n:
+        ax.text(0.01, 0.03, f"{n} epoch(s) outside the view (max |e| {np.max(np.abs(v[out])):.3g} {unit})",
+                transform=ax.transAxes, fontsize="x-small", color="tab:red", va="bottom")
+    return n
+
+
+def _component_figure(t, xlabel, err, std, names, unit, title, nsigma) -> Figure:
     fig, axes = _new_figure(len(names))
     for i, (ax, name) in enumerate(zip(axes, names, strict=True)):
+        s = None
         if std is not None and np.any(np.isfinite(std[:, i])):
             s = nsigma * std[:, i]
-            ax.fill_between(t, -s, s, color="tab:orange", alpha=0.25, lw=0, label=f"±{nsigma:g}σ (estimate)")
+        lim = robust_limit(err[:, i], s)
+        if s is not None:
+            sc = np.minimum(s, 1.05 * lim)  # envelope clipped to the view
+            ax.fill_between(t, -sc, sc, color="tab:orange", alpha=0.25, lw=0,
+                            label=f"±{nsigma:g}σ (estimate)")
         ax.plot(t, err[:, i], color="tab:blue", lw=0.8, label="error")
         ax.axhline(0.0, color="k", lw=0.5)
+        ax.set_ylim(-lim, lim)
+        _note_outside(ax, err[:, i], -lim, lim, unit)
         ax.set_ylabel(f"{name} [{unit}]")
         ax.grid(True, alpha=0.3)
     axes[0].legend(loc="upper right", fontsize="small")
     axes[0].set_title(title)
     axes[-1].set_xlabel(xlabel)
-    return _save(fig, path)
+    return fig
 
 
-def plot_position_errors(errors: ErrorSeries, path, nsigma: float = 3.0, time_scale: str = "GPS SOW") -> Path:
-    """dE, dN, dU [m] vs time with ±nsigma·σ envelopes; writes ``path`` (PNG), returns it."""
+def position_error_figure(errors: ErrorSeries, nsigma: float = 3.0, time_scale: str = "GPS SOW") -> Figure:
+    """The figure of :func:`plot_position_errors` (not saved)."""
     t, xl = time_axis(errors.time, time_scale)
     return _component_figure(t, xl, errors.pos, errors.std_pos, ["dE", "dN", "dU"], "m",
-                             "Position error (estimate − reference), ENU", nsigma, path)
+                             "Position error (estimate − reference), ENU", nsigma)
 
 
-def plot_velocity_errors(errors: ErrorSeries, path, nsigma: float = 3.0,
-                         time_scale: str = "GPS SOW") -> Path | None:
-    """dvE, dvN, dvU [m/s] vs time with ±nsigma·σ; None (no file) without velocity errors."""
+def velocity_error_figure(errors: ErrorSeries, nsigma: float = 3.0,
+                          time_scale: str = "GPS SOW") -> Figure | None:
+    """The figure of :func:`plot_velocity_errors` (not saved); None without velocity errors."""
     if errors.vel is None:
         return None
     t, xl = time_axis(errors.time, time_scale)
     return _component_figure(t, xl, errors.vel, errors.std_vel, ["dvE", "dvN", "dvU"], "m/s",
-                             "Velocity error (estimate − reference), ENU", nsigma, path)
+                             "Velocity error (estimate − reference), ENU", nsigma)
 
 
-def plot_attitude_errors(errors: ErrorSeries, path, nsigma: float = 3.0,
-                         time_scale: str = "GPS SOW") -> Path | None:
-    """droll, dpitch, dheading [deg] vs time with ±nsigma·σ; None (no file) without attitude."""
+def attitude_error_figure(errors: ErrorSeries, nsigma: float = 3.0,
+                          time_scale: str = "GPS SOW") -> Figure | None:
+    """The figure of :func:`plot_attitude_errors` (not saved); None without attitude errors."""
     if errors.att is None:
         return None
     t, xl = time_axis(errors.time, time_scale)
     std = None if errors.std_att is None else np.degrees(errors.std_att)
     return _component_figure(t, xl, np.degrees(errors.att), std, ["droll", "dpitch", "dheading"], "deg",
-                             "Attitude error (estimate − reference)", nsigma, path)
+                             "Attitude error (estimate − reference)", nsigma)
+
+
+def horizontal_error_figure(errors: ErrorSeries, nsigma: float = 3.0, time_scale: str = "GPS SOW") -> Figure:
+    """The figure of :func:`plot_horizontal_error` (not saved)."""
+    t, xl = time_axis(errors.time, time_scale)
+    fig, (ax,) = _new_figure(1, height=3.2)
+    sh = None
+    if errors.std_pos is not None:
+        sh = nsigma * np.hypot(errors.std_pos[:, 0], errors.std_pos[:, 1])
+        if not np.any(np.isfinite(sh)):
+            sh = None
+    top = robust_limit(np.concatenate([errors.horizontal, errors.pos3d]), sh)
+    if sh is not None:
+        ax.fill_between(t, 0.0, np.minimum(sh, 1.05 * top), color="tab:orange", alpha=0.25, lw=0,
+                        label=f"{nsigma:g}·√(σE²+σN²) (estimate)")
+    ax.plot(t, errors.horizontal, color="tab:blue", lw=0.8, label="horizontal")
+    ax.plot(t, errors.pos3d, color="tab:gray", lw=0.6, alpha=0.8, label="3D")
+    ax.set_ylabel("position error [m]")
+    ax.set_xlabel(xl)
+    ax.set_ylim(0.0, top)
+    _note_outside(ax, errors.pos3d, -np.inf, top, "m")
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="upper right", fontsize="small")
+    ax.set_title("Horizontal position error")
+    return fig
+
+
+def plot_position_errors(errors: ErrorSeries, path, nsigma: float = 3.0, time_scale: str = "GPS SOW") -> Path:
+    """dE, dN, dU [m] vs time with ±nsigma·σ envelopes; writes ``path`` (PNG), returns it."""
+    return _save(position_error_figure(errors, nsigma, time_scale), path)
+
+
+def plot_velocity_errors(errors: ErrorSeries, path, nsigma: float = 3.0,
+                         time_scale: str = "GPS SOW") -> Path | None:
+    """dvE, dvN, dvU [m/s] vs time with ±nsigma·σ; None (no file) without velocity errors."""
+    fig = velocity_error_figure(errors, nsigma, time_scale)
+    return None if fig is None else _save(fig, path)
+
+
+def plot_attitude_errors(errors: ErrorSeries, path, nsigma: float = 3.0,
+                         time_scale: str = "GPS SOW") -> Path | None:
+    """droll, dpitch, dheading [deg] vs time with ±nsigma·σ; None (no file) without attitude."""
+    fig = attitude_error_figure(errors, nsigma, time_scale)
+    return None if fig is None else _save(fig, path)
 
 
 def plot_horizontal_error(errors: ErrorSeries, path, nsigma: float = 3.0,
                           time_scale: str = "GPS SOW") -> Path:
     """Horizontal and 3D position error [m] vs time, with nsigma·√(σE²+σN²) when available."""
-    t, xl = time_axis(errors.time, time_scale)
-    fig, (ax,) = _new_figure(1, height=3.2)
-    if errors.std_pos is not None:
-        sh = nsigma * np.hypot(errors.std_pos[:, 0], errors.std_pos[:, 1])
-        if np.any(np.isfinite(sh)):
-            ax.fill_between(t, 0.0, sh, color="tab:orange", alpha=0.25, lw=0,
-                            label=f"{nsigma:g}·√(σE²+σN²) (estimate)")
-    ax.plot(t, errors.horizontal, color="tab:blue", lw=0.8, label="horizontal")
-    ax.plot(t, errors.pos3d, color="tab:gray", lw=0.6, alpha=0.8, label="3D")
-    ax.set_ylabel("position error [m]")
-    ax.set_xlabel(xl)
-    ax.set_ylim(bottom=0.0)
-    ax.grid(True, alpha=0.3)
-    ax.legend(loc="upper right", fontsize="small")
-    ax.set_title("Horizontal position error")
-    return _save(fig, path)
+    return _save(horizontal_error_figure(errors, nsigma, time_scale), path)
 
 
 def plot_nees(time: np.ndarray, values: np.ndarray, dof: int, path, prob: float = 0.95,

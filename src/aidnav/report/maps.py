@@ -1,0 +1,341 @@
+"""Map exports of a trajectory: KML (Google Earth; written with simplekml) and GeoJSON (QGIS, web maps).
+
+Layers (KML folders; GeoJSON features with a ``layer`` property):
+
+* ``trajectory`` — the track as line pieces, coloured by the horizontal 1σ √(σE² + σN²) [m] of the
+  solution (fixed classes, :data:`SIGMA_CLASSES_M`) or by the GNSS solution quality (RTKLIB Q, when the
+  trajectory has a ``quality`` column, e.g. a ``.pos`` reference);
+* ``gnss`` — the GNSS fixes (points), coloured by quality Q when the fixes have it, else by their σ;
+  withheld fixes (inside an outage) are flagged;
+* ``rejected`` — the fixes the filter rejected (points, red);
+* ``outage`` — the track during each GNSS outage window (lines), with the window's start/end times.
+
+Coordinates: WGS-84 longitude, latitude [deg] and ellipsoidal height [m], written with Python's
+shortest round-trip float text (``repr``), so they read back to the same double (far below the 1e-9°
+tested). GeoJSON follows RFC 7946 ([lon, lat, height]). KML altitudes are ellipsoidal heights and the
+placemarks use the default ``clampToGround`` mode (KML altitudes would be above mean sea level).
+Long tracks are decimated to at most ``max_points`` points (every k-th sample plus the last); epochs
+with a non-finite position are left out of the lines and counted in the document description.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from aidnav.data import GnssData, Trajectory
+
+__all__ = ["write_kml", "write_geojson", "write_maps", "SIGMA_CLASSES_M", "QUALITY_NAMES", "track_pieces"]
+
+#: Upper bounds [m] of the horizontal-σ colour classes (the last class is "above the last bound").
+SIGMA_CLASSES_M = (0.05, 0.2, 1.0, 5.0, 20.0)
+#: Colours (#rrggbb) of the σ classes, good (green) to poor (dark red), plus "no σ" (grey).
+_SIGMA_COLOURS = ("#1a9850", "#91cf60", "#d9ef8b", "#fee08b", "#fc8d59", "#b2182b")
+_NO_SIGMA = "#3366cc"
+#: RTKLIB solution quality flags and their usual colours.
+QUALITY_NAMES = {1: "fix", 2: "float", 3: "SBAS", 4: "DGPS", 5: "single", 6: "PPP", 0: "unknown"}
+_QUALITY_COLOURS = {1: "#1a9850", 2: "#fee08b", 3: "#66c2a5", 4: "#3288bd", 5: "#d73027", 6: "#9e0142",
+                    0: "#888888"}
+_OUTAGE_COLOUR = "#ff7f00"
+_REJECTED_COLOUR = "#e41a1c"
+
+
+def _deg(lat, lon) -> tuple[np.ndarray, np.ndarray]:
+    lon = (np.asarray(lon, float) + np.pi) % (2 * np.pi) - np.pi
+    return np.degrees(np.asarray(lat, float)), np.degrees(lon)
+
+
+def _sigma_class(sig_h: np.ndarray) -> np.ndarray:
+    """Class index per epoch (0 … len(SIGMA_CLASSES_M)); -1 for a non-finite σ."""
+    c = np.searchsorted(np.asarray(SIGMA_CLASSES_M), sig_h, side="left")
+    return np.where(np.isfinite(sig_h), c, -1)
+
+
+def _sigma_label(c: int) -> str:
+    if c < 0:
+        return "σh unknown"
+    b = SIGMA_CLASSES_M
+    if c == 0:
+        return f"σh ≤ {b[0]:g} m"
+    if c >= len(b):
+        return f"σh > {b[-1]:g} m"
+    return f"{b[c - 1]:g} < σh ≤ {b[c]:g} m"
+
+
+def _quality_of(traj_or_gnss) -> np.ndarray | None:
+    q = getattr(traj_or_gnss, "quality", None)
+    if q is None and isinstance(traj_or_gnss, Trajectory):
+        q = traj_or_gnss.extra.get("quality")
+    return None if q is None else np.asarray(q).astype(int)
+
+
+def _classes(obj, color_by: str) -> tuple[np.ndarray, str]:
+    """Per-epoch class ids and the colouring used ("quality" / "sigma" / "none")."""
+    n = len(obj.time)
+    if color_by not in ("auto", "sigma", "quality"):
+        raise ValueError(f"color_by must be 'auto', 'sigma' or 'quality' (got {color_by!r})")
+    q = _quality_of(obj)
+    if color_by == "quality" and q is None:
+        raise ValueError("color_by='quality': the data have no quality column")
+    if q is not None and color_by in ("quality", "auto"):
+        return q, "quality"
+    sp = obj.std_pos
+    if sp is None:
+        if color_by == "sigma" and isinstance(obj, Trajectory):
+            raise ValueError("color_by='sigma': the trajectory has no position σ (std_pos)")
+        return np.full(n, -1), "none"
+    return _sigma_class(np.hypot(sp[:, 0], sp[:, 1])), "sigma"
+
+
+def _colour(c: int, mode: str) -> str:
+    if mode == "quality":
+        return _QUALITY_COLOURS.get(int(c), "#888888")
+    if mode == "sigma" and c >= 0:
+        return _SIGMA_COLOURS[min(int(c), len(_SIGMA_COLOURS) - 1)]
+    return _NO_SIGMA
+
+
+def _label(c: int, mode: str) -> str:
+    if mode == "quality":
+        return f"Q={int(c)} ({QUALITY_NAMES.get(int(c), '?')})"
+    return _sigma_label(int(c)) if mode == "sigma" else "track"
+
+
+def _decimate(n: int, max_points: int) -> np.ndarray:
+    if max_points < 2:
+        raise ValueError("max_points must be >= 2")
+    step = max(1, math.ceil(n / max_points))
+    idx = np.arange(0, n, step)
+    if n and idx[-1] != n - 1:
+        idx = np.append(idx, n - 1)
+    return idx
+
+
+def track_pieces(traj: Trajectory, color_by: str = "auto", max_points: int = 20000):
+    """The trajectory as line pieces of one colour class each.
+
+    Returns (pieces, mode, n_dropped): pieces is a list of dicts {cls, colour, label, idx (indices into
+    ``traj``), t0, t1}; consecutive pieces share their boundary epoch so the drawn line is continuous;
+    a non-finite position splits the line. mode: "sigma", "quality" or "none"; n_dropped: epochs left
+    out for a non-finite position."""
+    n = len(traj.time)
+    cls, mode = _classes(traj, color_by)
+    ok = np.isfinite(traj.lat) & np.isfinite(traj.lon) & np.isfinite(traj.height)
+    n_dropped = int((~ok).sum())
+    idx = _decimate(n, max_points) if n else np.zeros(0, int)
+    idx = idx[ok[idx]]
+    out = []
+    if len(idx) == 0:
+        return out, mode, n_dropped
+    bad = np.concatenate([[0], np.cumsum(~ok)])  # bad[i] = non-finite epochs before i
+    gap = bad[idx[1:]] - bad[idx[:-1] + 1] > 0  # a non-finite epoch between consecutive points
+    ci = cls[idx]
+    change = ci[1:] != ci[:-1]
+    brk = np.flatnonzero(gap | change)  # a piece ends after point j
+    start = 0
+    bounds = []
+    for j in brk:
+        bounds.append((start, j + 1 if (change[j] and not gap[j]) else j))  # inclusive end
+        start = j + 1
+    bounds.append((start, len(idx) - 1))
+    for k, (s, e) in enumerate(bounds):
+        if e == s:  # one point: drawn as the end of the previous piece, or isolated between gaps
+            shared = k > 0 and bounds[k - 1][1] == s
+            if not shared:
+                n_dropped += 1
+            continue
+        ii = idx[s:e + 1]
+        c = int(ci[s])
+        out.append({"cls": c, "colour": _colour(c, mode), "label": _label(c, mode), "idx": ii,
+                    "t0": float(traj.time[ii[0]]), "t1": float(traj.time[ii[-1]])})
+    return out, mode, n_dropped
+
+
+def _fix_groups(gnss: GnssData, rejected_times, outages) -> tuple[np.ndarray, np.ndarray]:
+    """Masks (rejected, withheld) over the fixes."""
+    t = np.asarray(gnss.time, float)
+    rej = np.zeros(len(t), bool)
+    if rejected_times is not None and len(rejected_times):
+        rt = np.sort(np.asarray(rejected_times, float))
+        k = np.clip(np.searchsorted(rt, t), 1, max(len(rt) - 1, 1))
+        near = np.minimum(np.abs(rt[k - 1] - t), np.abs(rt[np.minimum(k, len(rt) - 1)] - t))
+        rej = near <= 1e-6
+    wh = np.zeros(len(t), bool)
+    for a, b in outages or []:
+        wh |= (t >= a) & (t < b)
+    return rej, wh
+
+
+def _outage_idx(traj: Trajectory, a: float, b: float, max_points: int) -> np.ndarray:
+    m = np.flatnonzero((traj.time >= a) & (traj.time < b) & np.isfinite(traj.lat) & np.isfinite(traj.lon))
+    if len(m) > max_points:
+        m = m[_decimate(len(m), max_points)]
+    return m
+
+
+def _coords(traj_or_gnss, idx) -> list[tuple[float, float, float]]:
+    la, lo = _deg(traj_or_gnss.lat[idx], traj_or_gnss.lon[idx])
+    h = np.asarray(traj_or_gnss.height, float)[idx]
+    return [(float(x), float(y), float(z) if math.isfinite(z) else 0.0) for x, y, z in zip(lo, la, h,
+                                                                                            strict=True)]
+
+
+def _fix_text(g: GnssData, i: int, rejected: bool, withheld: bool) -> dict:
+    p = {"time_s": float(g.time[i])}
+    if g.quality is not None:
+        q = int(g.quality[i])
+        p["quality"] = q
+        p["quality_name"] = QUALITY_NAMES.get(q, "?")
+    if g.std_pos is not None:
+        s = g.std_pos[i]
+        p["std_e_m"], p["std_n_m"], p["std_u_m"] = (float(x) if math.isfinite(x) else None for x in s)
+    p["rejected"] = bool(rejected)
+    p["withheld"] = bool(withheld)
+    return p
+
+
+def _kml_colour(hex_rgb: str, alpha: int = 255) -> str:
+    import simplekml
+
+    r, g, b = int(hex_rgb[1:3], 16), int(hex_rgb[3:5], 16), int(hex_rgb[5:7], 16)
+    return simplekml.Color.rgb(r, g, b, alpha)
+
+
+def write_kml(path, traj: Trajectory, gnss: GnssData | None = None, outages=None, rejected_times=None,
+              color_by: str = "auto", max_points: int = 20000, max_fixes: int = 20000,
+              name: str | None = None) -> Path:
+    """Write a KML file of ``traj`` (folders ``trajectory``, ``gnss``, ``rejected``, ``outage``; see the
+    module docstring) and return its path.
+
+    gnss : GNSS fixes (optional); outages : [(start, end)] windows [s, on the trajectory's time scale],
+    e.g. ``summary["outage_windows"]``; rejected_times : times [s] of the fixes the filter rejected
+    (``summary["rejected_fix_times"]``), matched to the fixes within 1 µs; color_by : "auto" (quality
+    when present, else σ), "sigma" or "quality"; max_points / max_fixes : decimation limits.
+    """
+    import simplekml
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    kml = simplekml.Kml(name=name or path.stem)
+    pieces, mode, n_drop = track_pieces(traj, color_by, max_points)
+    desc = [f"{len(traj.time)} epochs, {sum(len(p['idx']) for p in pieces)} points drawn, coloured by "
+            f"{mode}"]
+    if n_drop:
+        desc.append(f"{n_drop} epochs without a finite position left out")
+    ftr = kml.newfolder(name="trajectory")
+    styles: dict[str, simplekml.Style] = {}
+    for k, p in enumerate(pieces):
+        ls = ftr.newlinestring(name=p["label"], coords=_coords(traj, p["idx"]),
+                               description=f"piece {k}: {p['label']}, t = {p['t0']:.3f} … {p['t1']:.3f} s")
+        if p["colour"] not in styles:
+            st = simplekml.Style()
+            st.linestyle.color = _kml_colour(p["colour"])
+            st.linestyle.width = 3
+            styles[p["colour"]] = st
+        ls.style = styles[p["colour"]]
+    if gnss is not None and len(gnss):
+        rej, wh = _fix_groups(gnss, rejected_times, outages)
+        cls, gmode = _classes(gnss, color_by if color_by != "quality" or gnss.quality is not None else "auto")
+        fg = kml.newfolder(name="gnss")
+        fr = kml.newfolder(name="rejected")
+        sel = np.flatnonzero(np.isfinite(gnss.lat) & np.isfinite(gnss.lon))
+        if len(sel) > max_fixes:
+            desc.append(f"GNSS fixes decimated from {len(sel)} to at most {max_fixes}")
+            keep = sel[_decimate(len(sel), max_fixes)]
+            sel = np.union1d(keep, sel[rej[sel]])  # every rejected fix is kept
+        pstyles: dict[str, simplekml.Style] = {}
+        for i in sel:
+            colour = _REJECTED_COLOUR if rej[i] else ("#bbbbbb" if wh[i] else _colour(cls[i], gmode))
+            if colour not in pstyles:
+                st = simplekml.Style()
+                st.iconstyle.color = _kml_colour(colour)
+                st.iconstyle.scale = 0.5
+                st.iconstyle.icon.href = "http://maps.google.com/mapfiles/kml/shapes/placemark_circle.png"
+                st.labelstyle.scale = 0
+                pstyles[colour] = st
+            info = _fix_text(gnss, int(i), rej[i], wh[i])
+            pt = (fr if rej[i] else fg).newpoint(coords=_coords(gnss, [i]),
+                                                 description=json.dumps(info))
+            pt.style = pstyles[colour]
+    fo = kml.newfolder(name="outage")
+    ost = simplekml.Style()
+    ost.linestyle.color = _kml_colour(_OUTAGE_COLOUR)
+    ost.linestyle.width = 6
+    for k, (a, b) in enumerate(outages or []):
+        ii = _outage_idx(traj, a, b, max_points)
+        if len(ii) < 2:
+            continue
+        ls = fo.newlinestring(name=f"outage {k + 1}", coords=_coords(traj, ii),
+                              description=f"GNSS outage {a:.3f} – {b:.3f} s ({b - a:g} s)")
+        ls.style = ost
+    kml.document.description = "; ".join(desc)
+    kml.save(str(path))
+    return path
+
+
+def _feature(geom_type: str, coords, props: dict) -> dict:
+    return {"type": "Feature", "geometry": {"type": geom_type, "coordinates": coords}, "properties": props}
+
+
+def geojson_dict(traj: Trajectory, gnss: GnssData | None = None, outages=None, rejected_times=None,
+                 color_by: str = "auto", max_points: int = 20000, max_fixes: int = 20000) -> dict:
+    """The GeoJSON FeatureCollection (a dict) written by :func:`write_geojson`."""
+    feats = []
+    pieces, mode, n_drop = track_pieces(traj, color_by, max_points)
+    for p in pieces:
+        props = {"layer": "trajectory", "class": p["label"], "color_by": mode, "stroke": p["colour"],
+                 "stroke-width": 3, "time_start_s": p["t0"], "time_end_s": p["t1"]}
+        feats.append(_feature("LineString", [list(c) for c in _coords(traj, p["idx"])], props))
+    if gnss is not None and len(gnss):
+        rej, wh = _fix_groups(gnss, rejected_times, outages)
+        cls, gmode = _classes(gnss, color_by if color_by != "quality" or gnss.quality is not None else "auto")
+        sel = np.flatnonzero(np.isfinite(gnss.lat) & np.isfinite(gnss.lon))
+        if len(sel) > max_fixes:
+            sel = np.union1d(sel[_decimate(len(sel), max_fixes)], sel[rej[sel]])
+        for i in sel:
+            colour = _REJECTED_COLOUR if rej[i] else ("#bbbbbb" if wh[i] else _colour(cls[i], gmode))
+            props = {"layer": "rejected" if rej[i] else "gnss", "marker-color": colour,
+                     "marker-size": "small", **_fix_text(gnss, int(i), rej[i], wh[i])}
+            feats.append(_feature("Point", list(_coords(gnss, [i])[0]), props))
+    for k, (a, b) in enumerate(outages or []):
+        ii = _outage_idx(traj, a, b, max_points)
+        if len(ii) < 2:
+            continue
+        props = {"layer": "outage", "outage": k + 1, "start_s": float(a), "end_s": float(b),
+                 "length_s": float(b - a), "stroke": _OUTAGE_COLOUR, "stroke-width": 6}
+        feats.append(_feature("LineString", [list(c) for c in _coords(traj, ii)], props))
+    return {"type": "FeatureCollection", "features": feats,
+            "properties": {"epochs": len(traj.time), "non_finite_epochs_left_out": n_drop, "color_by": mode,
+                           "sigma_classes_m": list(SIGMA_CLASSES_M)}}
+
+
+def write_geojson(path, traj: Trajectory, gnss: GnssData | None = None, outages=None, rejected_times=None,
+                  color_by: str = "auto", max_points: int = 20000, max_fixes: int = 20000) -> Path:
+    """Write a GeoJSON FeatureCollection of ``traj`` (features tagged ``layer`` = trajectory / gnss /
+    rejected / outage; arguments as :func:`write_kml`) and return its path. Colours follow the
+    simplestyle properties (``stroke``, ``marker-color``) understood by most web viewers."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    doc = geojson_dict(traj, gnss, outages, rejected_times, color_by, max_points, max_fixes)
+    path.write_text(json.dumps(doc, allow_nan=False) + "\n", encoding="utf-8")
+    return path
+
+
+def write_maps(base, traj: Trajectory, gnss: GnssData | None = None, summary: dict | None = None,
+               kml: bool = True, geojson: bool = True, **kw) -> list[Path]:
+    """``base.kml`` and/or ``base.geojson`` (``base`` without suffix, e.g. ``OUT/trajectory``), with the
+    outage windows and rejected fix times of an ``aidnav process`` summary when given. Returns the
+    paths written."""
+    base = Path(base)
+    summary = summary or {}
+    outages = [tuple(w) for w in summary.get("outage_windows", [])]
+    rejected = summary.get("rejected_fix_times")
+    out = []
+    if kml:
+        out.append(write_kml(base.with_suffix(".kml"), traj, gnss, outages, rejected, **kw))
+    if geojson:
+        out.append(write_geojson(base.with_suffix(".geojson"), traj, gnss, outages, rejected, **kw))
+    return out

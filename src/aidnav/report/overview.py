@@ -1,0 +1,288 @@
+"""``overview.png`` of a processing run (``aidnav process`` / ``aidnav tight``): what a navigation
+engineer looks at first.
+
+Panels: the track on a local ENU map (metres about the first epoch, WGS-84) with the GNSS fixes, the
+fixes the filter rejected (red ×), the withheld fixes and the track during GNSS outages (orange);
+height; roll and pitch; heading; the solution's 1σ (position E/N/U [m], attitude [deg]); and the
+normalised innovation squared (NIS) per measurement type against its two-sided 95 % χ² band
+(dof = number of measured components of each update). Outage windows are shaded on every time panel.
+Time axis: seconds since the trajectory's first epoch (stated in the label, on the input's time scale).
+
+Inputs: a :class:`~aidnav.data.Trajectory`, optionally the :class:`~aidnav.data.GnssData` fixes, the
+summary dict of :func:`aidnav.process.process_logs` (``outage_windows``, ``rejected_fix_times``, input
+names) and a records dict of innovations: ``run_loose``'s ``res.records`` (``pos_status``, ``pos_nis``,
+``pos_innov``, ``vel_status``, ``vel_nis``, ``vel_innov``, aligned with the GNSS fixes) or, for the
+tightly coupled filter, :func:`tight_records` of ``res.epochs``. Generic rule: every ``<type>_nis``
+array is a panel, with ``<type>_dof`` or the finite count of ``<type>_innov`` as the dof,
+``<type>_status`` (1 accepted, 0 rejected) for the markers and ``time`` (or the GNSS times) as its time.
+"""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from aidnav.analysis.consistency import chi2_band
+from aidnav.data import GnssData, Trajectory
+from aidnav.nav.earth import lla_to_enu
+
+__all__ = ["write_overview", "overview_figure", "nis_series", "tight_records", "NIS_NAMES"]
+
+#: Panel names of the usual measurement types.
+NIS_NAMES = {"pos": "GNSS position", "vel": "GNSS velocity", "pr": "pseudorange", "rate": "range rate"}
+_DEFAULT_DOF = {"pos": 3, "vel": 3}
+PROB = 0.95
+
+
+def tight_records(epochs: dict) -> dict:
+    """NIS records of the tightly coupled filter from ``TightResult.epochs``: per GNSS epoch, the sum
+    over satellites of ν²/s of the sequential scalar updates (pseudorange ``pr``, range rate ``rate``;
+    every tested measurement, gated ones included), with dof = the number of terms. Keys ``time``,
+    ``pr_nis``, ``pr_dof``, ``rate_nis``, ``rate_dof``."""
+    out = {"time": np.asarray(epochs["time"], float)}
+    for k in ("pr", "rate"):
+        nu, s = epochs.get(f"{k}_innov"), epochs.get(f"{k}_s")
+        if nu is None or s is None:
+            continue
+        nu, s = np.asarray(nu, float), np.asarray(s, float)
+        ok = np.isfinite(nu) & np.isfinite(s) & (s > 0)
+        terms = np.where(ok, nu**2 / np.where(ok, s, 1.0), 0.0)
+        dof = ok.sum(axis=1)
+        out[f"{k}_nis"] = np.where(dof > 0, terms.sum(axis=1), np.nan)
+        out[f"{k}_dof"] = dof
+    return out
+
+
+def nis_series(records: dict | None, gnss: GnssData | None = None) -> list[dict]:
+    """The NIS panels of ``records``: a list of {key, name, time, nis, dof (per epoch, int), status
+    (or None)}. Raises ``ValueError`` when a series has no time (no ``time`` key and no GNSS fixes of
+    its length)."""
+    if not records:
+        return []
+    out = []
+    for key in sorted(k[:-4] for k in records if k.endswith("_nis")):
+        nis = np.asarray(records[f"{key}_nis"], float).ravel()
+        t = records.get("time")
+        if t is None or len(t) != len(nis):
+            if gnss is not None and len(gnss) == len(nis):
+                t = gnss.time
+            else:
+                raise ValueError(f"records[{key + '_nis'!r}]: {len(nis)} values but no 'time' of that length "
+                                 f"(GNSS fixes: {None if gnss is None else len(gnss)})")
+        if f"{key}_dof" in records:
+            dof = np.asarray(records[f"{key}_dof"]).astype(int).ravel()
+        elif f"{key}_innov" in records:
+            inn = np.asarray(records[f"{key}_innov"], float)
+            dof = np.isfinite(inn).reshape(len(nis), -1).sum(axis=1)
+        else:
+            dof = np.full(len(nis), _DEFAULT_DOF.get(key, 1))
+        st = records.get(f"{key}_status")
+        out.append({"key": key, "name": NIS_NAMES.get(key, key), "time": np.asarray(t, float), "nis": nis,
+                    "dof": dof, "status": None if st is None else np.asarray(st).ravel()})
+    return out
+
+
+def _bands(dof: np.ndarray, prob: float = PROB) -> tuple[np.ndarray, np.ndarray]:
+    lo = np.full(len(dof), np.nan)
+    hi = np.full(len(dof), np.nan)
+    for d in np.unique(dof[dof > 0]):
+        a, b = chi2_band(int(d), 1, prob)
+        lo[dof == d], hi[dof == d] = a, b
+    return lo, hi
+
+
+def _rejected_mask(gnss: GnssData, summary: dict, records: dict | None) -> np.ndarray:
+    st = None if records is None else records.get("pos_status")
+    if st is not None and len(st) == len(gnss):
+        return np.asarray(st) == 0
+    from .maps import _fix_groups
+
+    return _fix_groups(gnss, summary.get("rejected_fix_times"), None)[0]
+
+
+def _shade(ax, wins, t0):
+    for k, (a, b) in enumerate(wins):
+        ax.axvspan(a - t0, b - t0, color="tab:orange", alpha=0.15, lw=0,
+                   label="GNSS outage" if k == 0 else None)
+
+
+def overview_figure(traj: Trajectory, gnss: GnssData | None = None, summary: dict | None = None,
+                    records: dict | None = None, title: str | None = None, max_points: int = 20000) -> Figure:
+    """The figure of :func:`write_overview` (not saved)."""
+    if len(traj.time) == 0:
+        raise ValueError("overview: empty trajectory")
+    summary = summary or {}
+    wins = [tuple(map(float, w)) for w in summary.get("outage_windows", [])]
+    series = nis_series(records, gnss)
+    has_std_att = traj.std_att is not None and np.any(np.isfinite(traj.std_att))
+    has_std_pos = traj.std_pos is not None and np.any(np.isfinite(traj.std_pos))
+    right = ["rp", "heading"] + (["spos"] if has_std_pos else []) + (["satt"] if has_std_att else []) + \
+        [f"nis:{s['key']}" for s in series]
+    nr = max(len(right), 3)
+    fig = Figure(figsize=(14.0, max(8.0, 0.9 + 2.0 * nr)), layout="constrained")
+    FigureCanvasAgg(fig)
+    gs = fig.add_gridspec(nr, 2, width_ratios=[1.15, 1.0])
+    n_map = max(nr - 1, 2) if nr > 3 else 2
+    ax_map = fig.add_subplot(gs[:n_map, 0])
+    ax_h = fig.add_subplot(gs[n_map:, 0])
+    axes = {}
+    for i, name in enumerate(right):
+        axes[name] = fig.add_subplot(gs[i, 1], sharex=ax_h)
+
+    step = max(1, int(np.ceil(len(traj.time) / max_points)))
+    sl = slice(None, None, step)
+    t0 = float(traj.time[0])
+    t = traj.time[sl] - t0
+    xl = f"time since {t0:.3f} s [s]"
+    fin = np.isfinite(traj.lat) & np.isfinite(traj.lon)
+    i0 = int(np.flatnonzero(fin)[0]) if fin.any() else 0
+    ref = (float(traj.lat[i0]), float(traj.lon[i0]), float(traj.height[i0]))
+    e, n, _ = lla_to_enu(traj.lat[sl], traj.lon[sl], traj.height[sl], *ref)
+    ext = max(np.nanmax(e) - np.nanmin(e), np.nanmax(n) - np.nanmin(n)) if np.isfinite(e).any() else 0.0
+    scale, unit = (1000.0, "km") if ext > 5000.0 else (1.0, "m")
+    e, n = e / scale, n / scale
+
+    # map
+    ax_map.plot(e, n, lw=1.1, color="C0", label="trajectory", zorder=3)
+    for k, (a, b) in enumerate(wins):
+        m = (traj.time >= a) & (traj.time < b)
+        if m.any():
+            oe, on, _ = lla_to_enu(traj.lat[m][::step], traj.lon[m][::step], traj.height[m][::step], *ref)
+            oe, on = oe / scale, on / scale
+            ax_map.plot(oe, on, lw=3.0, color="tab:orange", zorder=4,
+                        label="during outage" if k == 0 else None)
+    if gnss is not None and len(gnss):
+        ge, gn, _ = lla_to_enu(gnss.lat, gnss.lon, gnss.height, *ref)
+        ge, gn = ge / scale, gn / scale
+        rej = _rejected_mask(gnss, summary, records)
+        wh = np.zeros(len(gnss), bool)
+        for a, b in wins:
+            wh |= (gnss.time >= a) & (gnss.time < b)
+        used = ~rej & ~wh
+        ax_map.plot(ge[used], gn[used], ".", ms=2.5, color="C1", alpha=0.7,
+                    label=f"GNSS fixes ({used.sum()})", zorder=2)
+        if wh.any():
+            ax_map.plot(ge[wh], gn[wh], "o", ms=3, mfc="none", mec="0.55", mew=0.6,
+                        label=f"withheld ({wh.sum()})", zorder=2)
+        if rej.any():
+            ax_map.plot(ge[rej], gn[rej], "x", ms=6, color="tab:red", mew=1.2,
+                        label=f"rejected ({rej.sum()})", zorder=5)
+        ax_h.plot(gnss.time - t0, gnss.height, ".", ms=2, color="C1", alpha=0.6, label="GNSS")
+    ax_map.plot(e[0], n[0], "o", color="C2", ms=7, label="start", zorder=6)
+    ax_map.plot(e[-1], n[-1], "s", color="C3", ms=7, label="end", zorder=6)
+    ax_map.set_xlabel(f"East [{unit}]")
+    ax_map.set_ylabel(f"North [{unit}]")
+    ax_map.set_aspect("equal", adjustable="datalim")
+    ax_map.grid(True, alpha=0.3)
+    ax_map.legend(loc="best", fontsize=8)
+    ax_map.set_title("map: local ENU about the first epoch")
+
+    ax_h.plot(t, traj.height[sl], color="C0", lw=0.9, label="solution")
+    ax_h.set_ylabel("height [m]")
+    ax_h.set_xlabel(xl)
+    ax_h.legend(loc="best", fontsize=8)
+
+    ax = axes["rp"]
+    ax.plot(t, np.degrees(traj.rph[sl, 0]), lw=0.8, label="roll")
+    ax.plot(t, np.degrees(traj.rph[sl, 1]), lw=0.8, label="pitch")
+    ax.set_ylabel("roll, pitch [deg]")
+    ax.legend(loc="upper right", fontsize=8)
+    ax = axes["heading"]
+    ax.plot(t, np.mod(np.degrees(traj.rph[sl, 2]), 360.0), ".", ms=1, color="C2")
+    ax.set_ylabel("heading [deg]")
+    ax.set_ylim(0, 360)
+    ax.set_yticks([0, 90, 180, 270, 360])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # log axes with zero / NaN σ
+        if has_std_pos:
+            ax = axes["spos"]
+            for i, c in enumerate("ENU"):
+                ax.plot(t, traj.std_pos[sl, i], lw=0.8, label=f"σ{c}")
+            ax.set_yscale("log")
+            ax.set_ylabel("position 1σ [m]")
+            ax.legend(loc="upper right", fontsize=8, ncol=3)
+        if has_std_att:
+            ax = axes["satt"]
+            for i, c in enumerate(("roll", "pitch", "heading")):
+                ax.plot(t, np.degrees(traj.std_att[sl, i]), lw=0.8, label=f"σ {c}")
+            ax.set_yscale("log")
+            ax.set_ylabel("attitude 1σ [deg]")
+            ax.legend(loc="upper right", fontsize=8, ncol=3)
+        for s in series:
+            _nis_panel(axes[f"nis:{s['key']}"], s, t0)
+    for name, ax in axes.items():
+        _shade(ax, wins, t0)
+        ax.grid(True, alpha=0.3)
+        if name != right[-1]:
+            ax.tick_params(labelbottom=False)
+    axes[right[-1]].set_xlabel(xl)
+    _shade(ax_h, wins, t0)
+    ax_h.grid(True, alpha=0.3)
+    if title is None:
+        inputs = [Path(str(summary[k])).name for k in ("imu", "gnss", "obs") if summary.get(k)]
+        title = "aidnav run" + (": " + " + ".join(inputs) if inputs else "")
+        if summary.get("smoothed"):
+            title += " (smoothed)"
+    fig.suptitle(title)
+    return fig
+
+
+def _nis_panel(ax, s: dict, t0: float) -> None:
+    t = s["time"] - t0
+    v, dof = s["nis"], s["dof"]
+    fin = np.isfinite(v) & (dof > 0)
+    lo, hi = _bands(dof)
+    d = np.unique(dof[fin])
+    if len(d) <= 1:
+        if len(d):
+            a, b = chi2_band(int(d[0]), 1, PROB)
+            ax.axhspan(a, b, color="tab:green", alpha=0.15, lw=0,
+                       label=f"{100 * PROB:g}% χ² band ({a:.3g}, {b:.3g})")
+            ax.axhline(d[0], color="k", lw=0.6, ls="--", label=f"expected {int(d[0])}")
+    else:
+        o = np.argsort(t)
+        ax.fill_between(t[o], lo[o], hi[o], where=fin[o], step="mid", color="tab:green", alpha=0.15, lw=0,
+                        label=f"{100 * PROB:g}% χ² band (dof {int(d.min())}–{int(d.max())})")
+    st = s["status"]
+    rej = np.zeros(len(v), bool) if st is None or len(st) != len(v) else (st == 0)
+    # robust view: the band and 99.5 % of the values; the values above it are drawn on the top edge (▲)
+    top = max(np.nanmax(hi[fin]) * 1.3, np.percentile(v[fin], 99.5) * 1.1) if fin.any() else 1.0
+    above = fin & (v > top)
+    ok = fin & ~rej & ~above
+    ax.plot(t[ok], v[ok], ".", ms=2.5, color="tab:blue", label="NIS")
+    if (fin & rej & ~above).any():
+        ax.plot(t[fin & rej & ~above], v[fin & rej & ~above], "x", ms=5, color="tab:red",
+                label=f"rejected ({(fin & rej).sum()})")
+    if above.any():
+        ax.plot(t[above], np.full(above.sum(), top), "^", ms=5, color="tab:red", clip_on=False,
+                label=f"above the view ({above.sum()}, max {np.nanmax(v[above]):.3g})")
+    inside = float(np.mean((v[fin] >= lo[fin]) & (v[fin] <= hi[fin]))) if fin.any() else float("nan")
+    ax.set_ylim(0, top)
+    if len(d) == 1:
+        dtxt = f"dof {int(d[0])}"
+    else:
+        dtxt = f"dof {int(d.min())}–{int(d.max())}" if len(d) else "no data"
+    ax.set_ylabel(f"NIS {s['key']}")
+    ax.set_title(f"{s['name']} NIS ({dtxt}): {fin.sum()} updates, "
+                 + (f"{100 * inside:.1f}% inside the band" if fin.any() else "none"), fontsize=9)
+    ax.legend(loc="upper right", fontsize=7, ncol=2)
+
+
+def write_overview(path, traj: Trajectory, gnss: GnssData | None = None, summary: dict | None = None,
+                   records: dict | None = None, title: str | None = None, dpi: int = 100) -> Path:
+    """Write ``overview.png`` (see the module docstring) to ``path`` and return the path.
+
+    traj : the solution; gnss : the GNSS fixes used (antenna positions); summary : the dict of
+    :func:`aidnav.process.process_logs` (outage windows, rejected fix times, input names); records :
+    innovation records (``res.records`` of ``run_loose``, or :func:`tight_records`); dpi : 100 gives a
+    1400-px-wide image.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig = overview_figure(traj, gnss, summary, records, title)
+    fig.savefig(path, dpi=dpi)
+    return path

@@ -116,7 +116,7 @@ def speed(hours: float = 10.0, runs: int = 3, seed: int = 1) -> dict:
     import tempfile
     from pathlib import Path
 
-    from aidnav.analysis.characterise import characterise_file
+    from aidnav.apps.characterise import characterise_file
     from aidnav.io.interchange import write_imu
 
     out = {"hours": hours, "samples_per_axis": int(round(hours * 3600 * 100)), "runs": [], "target_s": 5.0}

@@ -139,8 +139,8 @@ def evaluate(
     out: Path | None = typer.Option(None, "-o", "--out", help="directory for errors.json/.csv and figures"),
 ):
     """Errors of an estimate against a reference: table of RMS/95%/max; JSON, CSV and figures with -o."""
-    from aidnav.analysis.evaluate import evaluate_files
     from aidnav.apps.common import prepare_out_dir
+    from aidnav.apps.evaluate import evaluate_files
 
     if out is not None:
         prepare_out_dir(out)
@@ -370,7 +370,7 @@ def characterise(
 
     The longest static part of the log (or of --static) is analysed; motion, slow motion and vibration are
     reported as warnings. A short log gives the white-noise terms only (and says so)."""
-    from aidnav.analysis.characterise import characterise_file, print_characterisation
+    from aidnav.apps.characterise import characterise_file, print_characterisation
     from aidnav.apps.common import prepare_out_dir
 
     prepare_out_dir(out)

@@ -1,27 +1,11 @@
 """Compatibility facade of :mod:`aidnav.analysis.noise_fit` (the IMU noise characterisation, split there
-into focused modules). Import from :mod:`aidnav.analysis.noise_fit` in new code.
-
-``characterise_file`` here draws allan.png by default, as it always did; the one import of report from
-analysis that this needs is below, marked, and goes once the ``characterise`` command passes
-``plot=plot_allan`` to :func:`aidnav.analysis.noise_fit.characterise_file` itself.
+into focused modules). Import from :mod:`aidnav.analysis.noise_fit` in new code; the file job with its
+figure is :func:`aidnav.apps.characterise.characterise_file`.
 """
 
 from __future__ import annotations
 
 from aidnav.analysis.noise_fit import *  # noqa: F403
 from aidnav.analysis.noise_fit import __all__ as _all
-from aidnav.analysis.noise_fit import characterise_file as _characterise_file
 
 __all__ = list(_all)
-
-
-def characterise_file(imu_path, out_dir, static: str | None = None, grade: str | None = None,
-                      timings: dict | None = None, plot="default") -> tuple:
-    """:func:`aidnav.analysis.noise_fit.characterise_file` with allan.png drawn by
-    :func:`aidnav.report.allan_plot.plot_allan` unless ``plot`` says otherwise (None: no figure)."""
-    if plot == "default":
-        # TEMPORARY compatibility (the cli's import path): remove with this facade once the cli passes plot
-        from aidnav.report.allan_plot import plot_allan
-
-        plot = plot_allan
-    return _characterise_file(imu_path, out_dir, static=static, grade=grade, timings=timings, plot=plot)

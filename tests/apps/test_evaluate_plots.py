@@ -10,7 +10,7 @@ from aidnav.io.interchange import write_trajectory
 
 
 def test_evaluate_attitude_axis_robust(tmp_path, monkeypatch):
-    from aidnav.analysis.evaluate import evaluate_files
+    from aidnav.apps.evaluate import evaluate_files
     from aidnav.report import error_plots
 
     n = 1500

@@ -1,4 +1,4 @@
-"""Evaluate an estimated trajectory file against a reference file: statistics, tables, figures.
+"""``aidnav evaluate``: an estimated trajectory file against a reference file: statistics, tables, figures.
 
 Files: interchange trajectories (CSV/Parquet, CONVENTIONS "Interchange files") read by
 :func:`aidnav.io.interchange.read_trajectory`, or an RTKLIB ``.pos`` solution read by
@@ -25,6 +25,7 @@ from aidnav.analysis.errors import (
     trajectory_errors,
 )
 from aidnav.data import GnssData, Trajectory
+from aidnav.report.error_plots import plot_errors, plot_nees
 
 #: Row order of the printed table (position N/E/U first, as navigation reports usually list them).
 TABLE_ORDER = ["pos N", "pos E", "pos U", "pos horizontal", "pos 3D", "vel N", "vel E", "vel U",
@@ -32,47 +33,19 @@ TABLE_ORDER = ["pos N", "pos E", "pos U", "pos horizontal", "pos 3D", "vel N", "
 
 
 def trajectory_from_gnss(g: GnssData) -> Trajectory:
-    """A :class:`Trajectory` from GNSS fixes (e.g. an RTK reference): same time [s], lat/lon [rad],
-    height [m]; velocity ENU [m/s] (NaN when the fixes have none); attitude all NaN (none);
-    std_pos / std_vel carried over."""
-    m = len(g.time)
-    vel = np.full((m, 3), np.nan) if g.vel is None else np.asarray(g.vel, dtype=float)
-    extra = {} if g.quality is None else {"quality": np.asarray(g.quality)}
-    return Trajectory(time=np.asarray(g.time, dtype=float), lat=g.lat, lon=g.lon, height=g.height,
-                      vel=vel, rph=np.full((m, 3), np.nan), std_pos=g.std_pos, std_vel=g.std_vel,
-                      extra=extra)
+    """A :class:`Trajectory` from GNSS fixes (:func:`aidnav.io.formats.gnss_to_trajectory`)."""
+    from aidnav.io.formats import gnss_to_trajectory
+
+    return gnss_to_trajectory(g)
 
 
-def read_any_trajectory(path, notes: list[str] | None = None) -> Trajectory:
-    """Read a trajectory: RTKLIB ``.pos`` (via :func:`aidnav.io.rtklib.read_pos`, converted by
-    :func:`trajectory_from_gnss`) or an interchange CSV/Parquet trajectory
-    (:func:`aidnav.io.interchange.read_trajectory`); an interchange file of GNSS fixes (no attitude
-    columns) is read with ``read_gnss`` and converted by :func:`trajectory_from_gnss`.
-    notes : when given, the reader's events about GNSS files (gaps, skipped lines) are appended."""
-    path = Path(path)
-    if path.suffix.lower() == ".pos":
-        from aidnav.io.rtklib import read_pos
+def read_any_trajectory(path, notes: list[str] | None = None, height_offset_m: float = 0.0) -> Trajectory:
+    """A trajectory of any known format (:func:`aidnav.io.formats.read_trajectory_any`: interchange,
+    KF-GINS ``.nav``, or GNSS fixes of any GNSS format); the datum offset added once, by the reader.
+    notes : when given, the reader's events (gaps, skipped lines, datum) are appended."""
+    from aidnav.io.formats import read_trajectory_any
 
-        g = read_pos(path)
-        if notes is not None:
-            notes.extend(g.events)
-        return trajectory_from_gnss(g)
-    from aidnav.io import interchange
-
-    try:
-        return interchange.read_trajectory(path)
-    except ValueError:
-        # only a file without any attitude column is taken as GNSS fixes; any other problem is raised
-        try:
-            cols, _ = interchange.read_table(path)
-        except (AttributeError, ValueError, OSError):
-            cols = None
-        if cols is None or any(c in cols for c in ("roll_deg", "pitch_deg", "heading_deg")):
-            raise
-        g = interchange.read_gnss(path)
-        if notes is not None:
-            notes.extend(g.events)
-        return trajectory_from_gnss(g)
+    return read_trajectory_any(path, height_offset_m=height_offset_m, notes=notes)
 
 
 def _clean(x):
@@ -112,7 +85,7 @@ def print_table(stats: pd.DataFrame, errors: ErrorSeries, console=None, title: s
                   f"outside the estimate's span, {c['in_gaps']} in estimate gaps > {c['max_dt_s']:.3g} s, "
                   f"{c['invalid_reference']} with invalid reference position")
     for note in errors.notes:
-        console.print(f"[yellow]note:[/] {note}")
+        console.print(f"note: {note}", markup=False)
 
 
 def evaluate_files(estimate_path, truth_path, out_dir=None, console=None, max_dt: float | None = None,
@@ -134,11 +107,7 @@ def evaluate_files(estimate_path, truth_path, out_dir=None, console=None, max_dt
     """
     read_notes: list[str] = []
     est = read_any_trajectory(estimate_path, read_notes)
-    ref = read_any_trajectory(truth_path, read_notes)
-    if truth_height_offset_m:  # datum of the reference file → ellipsoid (e.g. a .pos above MSL)
-        ref.height = np.asarray(ref.height, float) + truth_height_offset_m
-        read_notes.append(f"{truth_path}: height offset {truth_height_offset_m:+.3f} m added to the "
-                          "reference")
+    ref = read_any_trajectory(truth_path, read_notes, height_offset_m=truth_height_offset_m)
     errors = trajectory_errors(est, ref, max_dt=max_dt)
     errors.notes[:0] = read_notes
     if errors.n_used == 0:
@@ -157,8 +126,6 @@ def evaluate_files(estimate_path, truth_path, out_dir=None, console=None, max_dt
         return stats, written
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-
-    from aidnav.report.error_plots import plot_errors, plot_nees
 
     summary = {"estimate": str(estimate_path), "truth": str(truth_path), "time_scale": time_scale,
                "t0": float(errors.time[0]), "t1": float(errors.time[-1]), "epochs": errors.counts(),

@@ -1,4 +1,4 @@
-"""Tests of aidnav.analysis.evaluate and the ``aidnav evaluate`` command.
+"""Tests of aidnav.apps.evaluate and the ``aidnav evaluate`` command.
 
 The readers are replaced by in-memory trajectories (monkeypatch), so these tests depend on
 neither the interchange nor the RTKLIB module; the round trip through real interchange files is
@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from rich.console import Console
 
-import aidnav.analysis.evaluate as ev
+import aidnav.apps.evaluate as ev
 from aidnav.data import GnssData, Trajectory
 from aidnav.nav.earth import radii
 
@@ -45,7 +45,7 @@ def files(monkeypatch, tmp_path):
     truth = _truth()
     est = _estimate(truth)
     data = {"est.csv": est, "truth.csv": truth}
-    monkeypatch.setattr(ev, "read_any_trajectory", lambda p, notes=None: data[p.name])
+    monkeypatch.setattr(ev, "read_any_trajectory", lambda p, notes=None, height_offset_m=0.0: data[p.name])
     return tmp_path / "est.csv", tmp_path / "truth.csv", data
 
 
@@ -97,7 +97,7 @@ def test_rtk_like_reference_has_no_attitude_rows(monkeypatch, tmp_path):
     truth = _truth()
     g = GnssData(truth.time[::10], truth.lat[::10], truth.lon[::10], truth.height[::10])
     data = {"est.csv": _estimate(truth), "ref.pos": ev.trajectory_from_gnss(g)}
-    monkeypatch.setattr(ev, "read_any_trajectory", lambda p, notes=None: data[p.name])
+    monkeypatch.setattr(ev, "read_any_trajectory", lambda p, notes=None, height_offset_m=0.0: data[p.name])
     stats, _ = ev.evaluate_files(tmp_path / "est.csv", tmp_path / "ref.pos", console=Console(quiet=True))
     assert "heading" not in stats.index and "vel N" not in stats.index
     assert stats.loc["pos N", "n"] == 20

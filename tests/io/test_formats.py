@@ -132,3 +132,10 @@ def test_height_offset_applied_once_for_every_format(tmp_path):
         t = formats.read_trajectory_any(p, height_offset_m=-21.4)
         np.testing.assert_allclose(t.height, [100 - 21.4, 101 - 21.4], rtol=0, atol=1e-12)
         assert np.isnan(t.rph).all()
+
+
+def test_spreadsheet_export_bom_and_quoted_header(tmp_path):
+    text = b'\xef\xbb\xbf"time";"lat_deg";"lon_deg";"height_m"\r\n1;40;116;10\r\n2;40;116;11\r\n'
+    p = _w(tmp_path, "g.csv", text)
+    g = formats.read_gnss(p)
+    assert g.height.tolist() == [10.0, 11.0] and np.degrees(g.lat[0]) == 40.0

@@ -89,7 +89,7 @@ class _Sniff:
             except OSError as e:
                 raise DataError(path, None, f"cannot read file: {e.strerror or e}") from None
         self.suffix = path.suffix.lower()
-        text = self.head.decode("utf-8", errors="replace")
+        text = self.head.decode("utf-8", errors="replace").lstrip("\ufeff").replace('"', "")
         lines = text.split("\n")
         if len(self.head) == _HEAD_BYTES and len(lines) > 1:
             lines = lines[:-1]  # the last one may be cut

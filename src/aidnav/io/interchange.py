@@ -177,6 +177,8 @@ def _delimiter(path: Path, header: str, line: int) -> str:
 
 def _read_csv(path: Path) -> _Table:
     raw = _read_bytes(path)
+    if raw.startswith(b"\xef\xbb\xbf"):  # UTF-8 byte-order mark (spreadsheet exports)
+        raw = raw[3:]
     # comment lines and the header
     pos, line_no, comments = 0, 0, []
     header = None
@@ -197,7 +199,7 @@ def _read_csv(path: Path) -> _Table:
         raise DataError(path, None, "empty file (no header line)")
     header_line = line_no
     delim = _delimiter(path, header, header_line)
-    names = [h.strip() for h in header.split(delim)]
+    names = [h.strip().strip('"').strip() for h in header.split(delim)]
     if any(not n for n in names):
         raise DataError(path, header_line, f"empty column name in the header: {header!r}")
     dup = sorted({n for n in names if names.count(n) > 1})

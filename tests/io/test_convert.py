@@ -96,3 +96,11 @@ def test_bad_output_and_input(tmp_path):
         convert(q, tmp_path / "out.csv")
     assert ei.value.problem.startswith("unknown format") and "IMU logs" in ei.value.problem
     assert "GNSS logs" in ei.value.problem and "binary" in ei.value.problem
+
+
+def test_options_of_the_other_kind_refused(tmp_path):
+    p = tmp_path / "imu.txt"
+    p.write_text("1.0 0 0 0 0 0 -0.049\n1.005 0 0 0 0 0 -0.049\n")
+    with pytest.raises(ValueError, match="date do not apply to IMU"):
+        convert(p, tmp_path / "o.csv", date="2022-12-01")
+    assert convert(p, tmp_path / "o.csv", date=None, topic=None)["samples"] == 2

@@ -559,10 +559,12 @@ def trajectory_columns(traj: Trajectory, week: int | None = None) -> dict[str, n
     ``std_pos`` E/N/U [m] becomes ``lon_deg_std, lat_deg_std`` [deg] and ``height_m_std`` [m] (kept
     for compatibility) **and** ``std_e_m, std_n_m, std_u_m`` [m]; ``std_vel`` → ``ve_std, vn_std,
     vu_std`` [m/s]; ``std_att`` → ``roll_deg_std ...`` [deg]; ``extra`` columns as they are. With
-    ``week`` (the GPS week of ``traj.time``, which is then GPS seconds of week) two columns follow
+    ``week`` (the GPS week of ``traj.time``, which is then GPS seconds of week; default ``traj.week``,
+    None when the trajectory does not know it) two columns follow
     ``time``: ``gps_week`` (the week of each epoch: a time past 604800 s belongs to the next week) and
     ``utc`` (ISO 8601 UTC, microseconds, leap seconds applied by :mod:`aidnav.io.gpstime`).
     """
+    week = traj.week if week is None else week
     heading = np.mod(np.degrees(traj.rph[:, 2]), 360.0)
     heading[heading >= 360.0] = 0.0
     df = {"time": traj.time}
@@ -604,6 +606,7 @@ def write_trajectory(traj: Trajectory, path, week: int | None = None) -> Path:
         from aidnav.io.kfgins import write_nav
 
         return write_nav(traj, path, week=week)
+    week = traj.week if week is None else week
     df = trajectory_columns(traj, week=week)
     comments = ["aidnav trajectory; time [s], lat/lon [deg], height [m] ellipsoidal, velocity ENU [m/s], "
                 "roll/pitch/heading [deg] (heading clockwise from North); std_e_m/std_n_m/std_u_m [m]"

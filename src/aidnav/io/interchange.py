@@ -472,6 +472,8 @@ def read_gnss(path, min_pos_std_m: float = ZERO_POS_STD_FLOOR_M,
         sv = _optional_triad(t, GNSS_STD_VEL_COLUMNS)
         std_vel = check_std(t.path, sv, GNSS_STD_VEL_COLUMNS, t.line, "velocity", DEFAULT_VEL_STD_M_S,
                             min_vel_std_m_s, "m/s", events, measured=measured_v)
+    elif any(c in t.cols for c in GNSS_STD_VEL_COLUMNS):
+        events.append(f"{name}: velocity σ columns without measured velocity: not used")
     quality = None
     if "quality" in t.cols:
         q = t.cols["quality"]

@@ -132,3 +132,21 @@ def test_height_offset_applied_once_for_every_format(tmp_path):
         t = formats.read_trajectory_any(p, height_offset_m=-21.4)
         np.testing.assert_allclose(t.height, [100 - 21.4, 101 - 21.4], rtol=0, atol=1e-12)
         assert np.isnan(t.rph).all()
+
+
+def test_spreadsheet_export_bom_and_quoted_header(tmp_path):
+    text = b'\xef\xbb\xbf"time";"lat_deg";"lon_deg";"height_m"\r\n1;40;116;10\r\n2;40;116;11\r\n'
+    p = _w(tmp_path, "g.csv", text)
+    g = formats.read_gnss(p)
+    assert g.height.tolist() == [10.0, 11.0] and np.degrees(g.lat[0]) == 40.0
+
+
+def test_kfgins_imu_and_gnss_files_swapped(tmp_path):
+    imu = _w(tmp_path, "imu.txt", "100.0 1e-4 2e-4 3e-4 0.01 0.02 0.098\n"
+                                  "100.005 1e-4 2e-4 3e-4 0.01 0.02 0.098\n")
+    gnss = _w(tmp_path, "gnss.txt", "100.0 30.5 114.3 20.1 0.01 0.02 0.03\n"
+                                    "101.0 30.5 114.3 20.1 0.01 0.02 0.03\n")
+    with pytest.raises(DataError, match="KF-GINS IMU file"):
+        formats.read_gnss(imu)
+    with pytest.raises(DataError, match="KF-GINS GNSS file"):
+        formats.read_imu(gnss)

@@ -151,3 +151,13 @@ def test_trajectory_metres_week_and_utc_columns(tmp_path):
         np.testing.assert_array_equal(back.std_pos, t.std_pos)  # exact: the metre columns are read
     df2 = t.to_dataframe(week=2238)
     assert df2["utc"][0] == df["utc"][0] and list(df2.columns) == list(df.columns)
+
+
+def test_nav_across_the_week_end(tmp_path):
+    t = _traj(3)
+    t.time = np.array([604799.5, 604800.0, 604800.5])
+    p = kfgins.write_nav(t, tmp_path / "w.nav", week=2238)
+    a = np.loadtxt(p)
+    np.testing.assert_array_equal(a[:, 0], [2238, 2239, 2239])
+    np.testing.assert_array_equal(a[:, 1], [604799.5, 0.0, 0.5])
+    np.testing.assert_array_equal(kfgins.read_nav(p).time, t.time)

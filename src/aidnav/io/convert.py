@@ -9,6 +9,7 @@ source.
 
 from __future__ import annotations
 
+import inspect
 from pathlib import Path
 
 from aidnav.io import formats
@@ -69,7 +70,8 @@ def convert(in_path, out_path, kind: str = "auto", fmt: str | None = None, heigh
     name the source format) and write it to ``out_path`` (.csv or .parquet) in the interchange format.
 
     height_offset_m : datum offset applied to GNSS heights (recorded). read_options : passed to the
-    reader (e.g. ``topic``, ``axes``, ``stamps``, ``date``).
+    reader (e.g. ``topic``, ``axes``, ``stamps``, ``date``; None values are ignored, an option the
+    reader of that kind does not take is a ValueError).
     Returns a summary: ``{"kind", "format", "input", "output", "samples", "week", "notes"}``.
     """
     from aidnav.io import interchange
@@ -82,6 +84,12 @@ def convert(in_path, out_path, kind: str = "auto", fmt: str | None = None, heigh
         raise DataError(out_path, None, "output is the input file")
     if kind == "auto":
         kind = detect_kind(in_path)
+    reader = formats.read_imu if kind == "imu" else formats.read_gnss
+    accepted = set(inspect.signature(reader).parameters)
+    wrong = sorted(k for k, v in read_options.items() if v is not None and k not in accepted)
+    if wrong:
+        raise ValueError(f"option(s) {', '.join(wrong)} do not apply to {kind.upper()} logs")
+    read_options = {k: v for k, v in read_options.items() if v is not None}
     if kind == "imu":
         if height_offset_m:
             raise ValueError("height_offset_m applies to GNSS logs only")

@@ -89,7 +89,7 @@ class _Sniff:
             except OSError as e:
                 raise DataError(path, None, f"cannot read file: {e.strerror or e}") from None
         self.suffix = path.suffix.lower()
-        text = self.head.decode("utf-8", errors="replace")
+        text = self.head.decode("utf-8", errors="replace").lstrip("\ufeff").replace('"', "")
         lines = text.split("\n")
         if len(self.head) == _HEAD_BYTES and len(lines) > 1:
             lines = lines[:-1]  # the last one may be cut
@@ -175,6 +175,10 @@ def detect_imu_format(path) -> str:
             return "rtklibexplorer"
         if k in (7, 8) and _increasing(rows[:, 0]) and np.all(np.abs(rows[:, 1:4]) < 1.0):
             return "kfgins"
+        if k in (7, 13) and _increasing(rows[:, 0]) and np.all(np.abs(rows[:, 1]) <= 90) and \
+                np.all(rows[:, 4:7] >= 0) and np.any(np.abs(rows[:, 1:3]) > 1):
+            raise DataError(path, None, "looks like a KF-GINS GNSS file (t lat lon h σN σE σD), not IMU "
+                                        "increments: check the file given for the IMU")
         if k == 7 and "," in s.first and _increasing(rows[:, 6]):
             raise DataError(path, None, "looks like a raw rtklibexplorer IMU log (7 comma-separated fields, "
                                         f"ms stamp last) but its time tag {tag.name} is missing: it is "
@@ -213,6 +217,9 @@ def detect_gnss_format(path) -> str:
     rows = s.numeric_rows()
     if rows is not None:
         k = rows.shape[1]
+        if k in (7, 13) and _increasing(rows[:, 0]) and np.all(np.abs(rows[:, 1:4]) < 1e-2):
+            raise DataError(path, None, "looks like a KF-GINS IMU file (t and small increments), not GNSS "
+                                        "fixes (t lat lon h σN σE σD): check the file given for GNSS")
         if k in (7, 13) and _increasing(rows[:, 0]) and np.all(np.abs(rows[:, 1]) <= 90):
             return "kfgins"
         _unknown(path, GNSS_FORMATS, f"a headerless table of {k} numeric columns ({s.delimiter_note()})")

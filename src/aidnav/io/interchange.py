@@ -177,6 +177,8 @@ def _delimiter(path: Path, header: str, line: int) -> str:
 
 def _read_csv(path: Path) -> _Table:
     raw = _read_bytes(path)
+    if raw.startswith(b"\xef\xbb\xbf"):  # UTF-8 byte-order mark (spreadsheet exports)
+        raw = raw[3:]
     # comment lines and the header
     pos, line_no, comments = 0, 0, []
     header = None
@@ -197,7 +199,7 @@ def _read_csv(path: Path) -> _Table:
         raise DataError(path, None, "empty file (no header line)")
     header_line = line_no
     delim = _delimiter(path, header, header_line)
-    names = [h.strip() for h in header.split(delim)]
+    names = [h.strip().strip('"').strip() for h in header.split(delim)]
     if any(not n for n in names):
         raise DataError(path, header_line, f"empty column name in the header: {header!r}")
     dup = sorted({n for n in names if names.count(n) > 1})
@@ -470,6 +472,8 @@ def read_gnss(path, min_pos_std_m: float = ZERO_POS_STD_FLOOR_M,
         sv = _optional_triad(t, GNSS_STD_VEL_COLUMNS)
         std_vel = check_std(t.path, sv, GNSS_STD_VEL_COLUMNS, t.line, "velocity", DEFAULT_VEL_STD_M_S,
                             min_vel_std_m_s, "m/s", events, measured=measured_v)
+    elif any(c in t.cols for c in GNSS_STD_VEL_COLUMNS):
+        events.append(f"{name}: velocity σ columns without measured velocity: not used")
     quality = None
     if "quality" in t.cols:
         q = t.cols["quality"]
@@ -557,10 +561,12 @@ def trajectory_columns(traj: Trajectory, week: int | None = None) -> dict[str, n
     ``std_pos`` E/N/U [m] becomes ``lon_deg_std, lat_deg_std`` [deg] and ``height_m_std`` [m] (kept
     for compatibility) **and** ``std_e_m, std_n_m, std_u_m`` [m]; ``std_vel`` → ``ve_std, vn_std,
     vu_std`` [m/s]; ``std_att`` → ``roll_deg_std ...`` [deg]; ``extra`` columns as they are. With
-    ``week`` (the GPS week of ``traj.time``, which is then GPS seconds of week) two columns follow
+    ``week`` (the GPS week of ``traj.time``, which is then GPS seconds of week; default ``traj.week``,
+    None when the trajectory does not know it) two columns follow
     ``time``: ``gps_week`` (the week of each epoch: a time past 604800 s belongs to the next week) and
     ``utc`` (ISO 8601 UTC, microseconds, leap seconds applied by :mod:`aidnav.io.gpstime`).
     """
+    week = traj.week if week is None else week
     heading = np.mod(np.degrees(traj.rph[:, 2]), 360.0)
     heading[heading >= 360.0] = 0.0
     df = {"time": traj.time}
@@ -602,6 +608,7 @@ def write_trajectory(traj: Trajectory, path, week: int | None = None) -> Path:
         from aidnav.io.kfgins import write_nav
 
         return write_nav(traj, path, week=week)
+    week = traj.week if week is None else week
     df = trajectory_columns(traj, week=week)
     comments = ["aidnav trajectory; time [s], lat/lon [deg], height [m] ellipsoidal, velocity ENU [m/s], "
                 "roll/pitch/heading [deg] (heading clockwise from North); std_e_m/std_n_m/std_u_m [m]"

@@ -90,11 +90,13 @@ def read_nav(path) -> Trajectory:
     :class:`Trajectory` (time = seconds of week [s], ENU velocity, radians; the week in ``extra``)."""
     path = Path(path)
     v, ln = read_numeric_text(path, (11,), "KF-GINS navigation (week sow lat lon h vN vE vD roll pitch yaw)")
-    check_increasing(path, v[:, 1], ln)
+    # a log across the week end: seconds counted on from the first epoch's week
+    time = v[:, 1] + np.where(v[:, 0] > 0, v[:, 0] - v[0, 0], 0.0) * 604800.0
+    check_increasing(path, time, ln)
     _check_lat(path, v[:, 2], ln)
     heading = np.mod(np.radians(v[:, 10]), 2 * np.pi)
     heading[heading >= 2 * np.pi] = 0.0
-    return Trajectory(time=v[:, 1], lat=np.radians(v[:, 2]), lon=np.radians(v[:, 3]), height=v[:, 4],
+    return Trajectory(time=time, lat=np.radians(v[:, 2]), lon=np.radians(v[:, 3]), height=v[:, 4],
                       vel=np.column_stack([v[:, 6], v[:, 5], -v[:, 7]]),
                       rph=np.column_stack([np.radians(v[:, 8]), np.radians(v[:, 9]), heading]),
                       extra={"gps_week": v[:, 0]}, week=int(v[0, 0]) if v[0, 0] > 0 else None)
@@ -112,12 +114,16 @@ def write_nav(traj: Trajectory, path, week: int | None = None) -> Path:
     """Write ``traj`` as a KF-GINS ``.nav`` text file: ``week sow lat lon h vN vE vD roll pitch yaw``
     (week, seconds of week [s], [deg], [deg], [m], NED [m/s], [deg]; yaw = heading in [0, 360)).
 
-    week : the GPS week of ``traj.time`` (written as 0 when unknown, as KF-GINS data sets do).
+    week : the GPS week of ``traj.time`` (default ``traj.week``; written as 0 when unknown, as KF-GINS
+    data sets do).
     Full float64 precision (``%.17g``): reading it back gives the same numbers."""
     heading = np.mod(np.degrees(traj.rph[:, 2]), 360.0)
     heading[heading >= 360.0] = 0.0
-    n = len(traj.time)
-    return _write_rows(path, [np.full(n, 0 if week is None else int(week)), traj.time, np.degrees(traj.lat),
+    week = traj.week if week is None else week
+    roll = np.floor(np.asarray(traj.time) / 604800.0) if week is not None else 0.0  # past the week end
+    wk = (0 if week is None else int(week)) + roll * np.ones(len(traj.time))
+    sow = np.asarray(traj.time) - roll * 604800.0
+    return _write_rows(path, [wk, sow, np.degrees(traj.lat),
                               np.degrees(traj.lon), traj.height, traj.vel[:, 1], traj.vel[:, 0],
                               -traj.vel[:, 2], np.degrees(traj.rph[:, 0]), np.degrees(traj.rph[:, 1]),
                               heading], int_cols=(0,))

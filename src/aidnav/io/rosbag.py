@@ -46,9 +46,18 @@ AXES = {
 _FIX_Q = {0: 5, 1: 3, 2: 4}
 
 
-def is_rosbag(path) -> bool:
-    """True for a ROS 1 bag file or a ROS 2 bag directory (``metadata.yaml``)."""
+def _bag_path(path) -> Path:
+    """A ROS 2 storage file (.db3 / .mcap) given instead of its bag directory → the directory."""
     path = Path(path)
+    storage = path.suffix.lower() in (".db3", ".mcap") and path.is_file()
+    if storage and (path.parent / "metadata.yaml").exists():
+        return path.parent
+    return path
+
+
+def is_rosbag(path) -> bool:
+    """True for a ROS 1 bag file or a ROS 2 bag directory (``metadata.yaml``) or a storage file in one."""
+    path = _bag_path(path)
     if path.is_dir():
         return (path / "metadata.yaml").exists()
     try:
@@ -62,7 +71,7 @@ def _reader(path):
     from rosbags.highlevel import AnyReader
     from rosbags.typesys import Stores, get_typestore
 
-    path = Path(path)
+    path = _bag_path(path)
     if not is_rosbag(path):
         raise DataError(path, None, "not a ROS bag (a ROS 1 .bag file or a ROS 2 bag directory with "
                                     "metadata.yaml)")

@@ -176,14 +176,18 @@ def process(
                                          "(imu-rate, "
                                          "imu-accel, imu-gyro, gnss-latlon, overlap); repeatable"),
     as_json: bool = typer.Option(False, "--json", help="print the JSON summary instead of the text"),
+    no_figures: bool = typer.Option(False, "--no-figures", help="skip overview.png, the KML/GeoJSON maps and "
+                                    "run.html"),
 ):
-    """Loosely coupled GNSS/INS on logs: DIR/trajectory with σ columns plus a JSON/text summary."""
+    """Loosely coupled GNSS/INS on logs: DIR/trajectory with σ columns, summary, overview.png, maps
+    (KML, GeoJSON) and run.html."""
     from aidnav.apps.process import format_summary, process_logs
+    from aidnav.progress import progress_bar
 
-    with console.status("aidnav process: reading, filtering" + (", smoothing" if smooth else "")):
+    with progress_bar("aidnav process") as bar:
         s = process_logs(imu, gnss, config, out, smooth=smooth, outages=outage, console=console, fmt=fmt,
                          height_offset_m=height_offset, time_offset_s=time_offset, start_s=start, end_s=end,
-                         skip_checks=skip_check)
+                         skip_checks=skip_check, progress=bar, figures=not no_figures)
     _print_summary(s, format_summary(s), as_json)
 
 
@@ -344,13 +348,17 @@ def tight(
                                 "filter: "
                                 "says so in the summary)"),
     as_json: bool = typer.Option(False, "--json", help="print the JSON summary instead of the text"),
+    no_figures: bool = typer.Option(False, "--no-figures", help="skip overview.png, maps and run.html"),
 ):
     """Tightly coupled GNSS/INS (pseudorange + Doppler) on an IMU log and RINEX files."""
     from aidnav.apps.tight import format_tight_summary, process_tight_files
+    from aidnav.progress import progress_bar
 
-    with console.status("aidnav tight: SPP, alignment, tightly coupled filter"):
+    with progress_bar("aidnav tight") as bar:
+        bar.stage("SPP, alignment, tightly coupled filter", total=None)
         s = process_tight_files(imu, obs, nav, config, out, truth, truth_height_offset, fmt=fmt,
-                                time_offset_s=time_offset, smooth=smooth)
+                                time_offset_s=time_offset, smooth=smooth, progress=bar,
+                                figures=not no_figures)
     _print_summary(s, format_tight_summary(s), as_json)
 
 

@@ -138,6 +138,7 @@ class ProcessRun:
     forward_trajectory: object = None
     withheld: np.ndarray | None = None
     windows: list = field(default_factory=list)
+    gnss: GnssData | None = None  # the fixes the filter saw (after --start/--end): records line up
 
 
 def window(imu: ImuData, gnss: GnssData, start_s: float | None, end_s: float | None):
@@ -216,7 +217,10 @@ def process(imu: ImuData, gnss: GnssData, cfg: LooseConfig | None = None, smooth
             fwd = to_trajectory(LooseResult(res.time, res.forward_state, res.bias, res.forward_pdiag,
                                             res.node_time))
             summary["outage_score_forward"] = score_outages(fwd, gnss, wins, withheld)
-    return ProcessRun(traj, summary, res, fwd, withheld, wins)
+    from aidnav.report.run_page import calibration_estimates
+
+    summary["calibration"] = calibration_estimates(res)
+    return ProcessRun(traj, summary, res, fwd, withheld, wins, gnss=gnss)
 
 
 def nis_summary(rec: dict) -> dict:
@@ -249,14 +253,18 @@ def nis_summary(rec: dict) -> dict:
 def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=False,
                  outages: list[str] | None = None, console=None, fmt: str = "parquet",
                  height_offset_m: float | None = None, time_offset_s: float | None = None,
-                 start_s: float | None = None, end_s: float | None = None, skip_checks=()) -> dict:
+                 start_s: float | None = None, end_s: float | None = None, skip_checks=(),
+                 progress=None, figures: bool = True) -> dict:
     """Run the whole ``aidnav process`` job into the directory ``out_dir``; returns the summary dict
     (also written as ``summary.json`` and ``summary.txt`` beside ``trajectory.<fmt>``).
 
     height_offset_m / time_offset_s override ``gnss.height_offset_m`` / ``imu.time_offset_s`` of the
-    configuration (``--height-offset``, ``--time-offset``)."""
+    configuration (``--height-offset``, ``--time-offset``). progress : an
+    :class:`aidnav.progress.ProgressBar` (stages: reading, filter, writing, figures). figures : also write
+    ``overview.png``, ``trajectory.kml``, ``trajectory.geojson`` and ``run.html``."""
     from aidnav.io.interchange import write_trajectory
     from aidnav.io.sanity import validate_skip
+    from aidnav.progress import NullProgress
 
     t_start = _time.perf_counter()
     skip_checks = validate_skip(skip_checks)
@@ -280,9 +288,13 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
         cfg = cfg.model_copy(update={"gnss": gnss_cfg})
     if time_offset_s is not None:
         cfg = cfg.model_copy(update={"imu": cfg.imu.model_copy(update={"time_offset_s": time_offset_s})})
+    bar = progress if progress is not None else NullProgress()
     datum = cfg.gnss.height_offset_m
+    bar.stage("reading", total=2, unit="files")
     imu = read_imu_any(imu_path)
+    bar.advance(1)
     gnss = read_gnss_any(gnss_path, height_offset_m=datum)
+    bar.advance(1)
     # the offset is applied by the reader; the filter must not see it again
     cfg = cfg.model_copy(update={"gnss": cfg.gnss.model_copy(update={"height_offset_m": 0.0})})
     if len(imu) < 2:
@@ -290,10 +302,14 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
     if len(gnss) < 1:
         raise DataError(gnss_path, None, "no GNSS fixes")
     t_read = _time.perf_counter()
+    bar.stage("filter" + (" + smoother" if smooth else ""), total=len(imu), unit="IMU samples")
     run = process(imu, gnss, cfg, smooth=smooth, outages=outages, imu_name=str(imu_path),
                   gnss_name=str(gnss_path), skip_checks=skip_checks, start_s=start_s, end_s=end_s)
+    bar.update(len(imu))
     t_filt = _time.perf_counter()
-    write_trajectory(run.trajectory, traj_path)
+    bar.stage("writing the trajectory", total=1, unit="files")
+    write_trajectory(run.trajectory, traj_path, week=gnss.week)
+    bar.advance(1)
     t_write = _time.perf_counter()
     summary = {"imu": str(imu_path), "gnss": str(gnss_path),
                "config": str(config_path) if config_path else None, "output": str(traj_path),
@@ -301,6 +317,10 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
                **run.summary, "notes": notes}
     summary["timing_s"] = {"read": t_read - t_start, "filter": t_filt - t_read, "write": t_write - t_filt}
     write_summary_files(out_dir, summary, format_summary(summary))
+    if figures:  # overview.png, trajectory.kml / .geojson, run.html
+        from aidnav.report.run_page import write_run_outputs
+
+        write_run_outputs(out_dir, run.trajectory, run.gnss, summary, run.result.records, progress=bar)
     return summary
 
 

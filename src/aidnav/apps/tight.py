@@ -144,7 +144,8 @@ def score_against_reference(traj, ref: GnssData) -> dict:
 
 def process_tight_files(imu_path, obs_path, nav_path, config_path=None, out_dir="out", truth=None,
                         truth_height_offset_m: float = 0.0, fmt: str = "parquet",
-                        time_offset_s: float | None = None, smooth: bool = False) -> dict:
+                        time_offset_s: float | None = None, smooth: bool = False, progress=None,
+                        figures: bool = True) -> dict:
     """File-level job behind ``aidnav tight``: read IMU + RINEX obs/nav (+ optional reference ``truth``,
     RTKLIB ``.pos`` or interchange, with its own datum offset), run :func:`process_tight`, write
     ``trajectory.<fmt>``, ``summary.json`` and ``summary.txt`` into ``out_dir``."""
@@ -173,17 +174,27 @@ def process_tight_files(imu_path, obs_path, nav_path, config_path=None, out_dir=
     events: list[str] = []
     if smooth:
         events.append("--smooth: the tight filter has no smoother yet; the forward solution is written")
-    res, _ = process_tight(imu, obs, eph, cfg, events=events)
+    res, sp = process_tight(imu, obs, eph, cfg, events=events)
     traj = to_trajectory(res)
     check_solution(traj, "the tightly coupled filter")
-    write_trajectory(traj, traj_path)
+    write_trajectory(traj, traj_path, week=getattr(obs, "ref_week", None))
     summary = {"imu": str(imu_path), "obs": str(obs_path), "nav": str(nav_path), "output": str(traj_path),
                "states": cfg.states, "events": imu.events + events}
     if truth is not None:
         ref = read_gnss_any(truth, truth_height_offset_m)
         summary["reference"] = {"file": str(truth), "height_offset_m": truth_height_offset_m,
                                 **score_against_reference(traj, ref)}
+    from aidnav.report.run_page import calibration_estimates
+
+    summary["calibration"] = calibration_estimates(res)
     write_summary_files(out_dir, summary, format_tight_summary(summary))
+    if figures:
+        from aidnav.report.overview import tight_records
+        from aidnav.report.run_page import write_run_outputs
+
+        ok = np.isfinite(sp["lat"])
+        spp = GnssData(sp["time"][ok], sp["lat"][ok], sp["lon"][ok], sp["h"][ok])
+        write_run_outputs(out_dir, traj, spp, summary, tight_records(res.epochs), progress=progress)
     return summary
 
 

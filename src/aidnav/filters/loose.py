@@ -37,6 +37,7 @@ from .ins_errors import (
     set_heading,
 )
 from .kalman import discretize, rts_gain, update
+from .layout import BA, BG, DP, DV, NAV, PHI, SA, SG, ST_POS, ST_Q, ST_VEL
 from .measurements import gnss_position, gnss_velocity, nonholonomic, zero_velocity
 
 # indices into the float parameter vector of the kernel
@@ -64,16 +65,13 @@ N_PARAMS = 33
 @njit(cache=True)
 def _apply_correction(st, bias, dx, nstate):
     """Closed-loop feedback of an error estimate dx into the strapdown state and the sensor errors."""
-    q = quat_mult(quat_from_rotvec(dx[0:3]), st[6:10])
-    st[6:10] = quat_normalize(q)
-    st[3] -= dx[3]
-    st[4] -= dx[4]
-    st[5] -= dx[5]
-    st[0] -= dx[6]
-    st[1] -= dx[7]
-    st[2] -= dx[8]
-    for i in range(nstate - 9):
-        bias[i] += dx[9 + i]
+    q = quat_mult(quat_from_rotvec(dx[PHI:PHI + 3]), st[ST_Q:ST_Q + 4])
+    st[ST_Q:ST_Q + 4] = quat_normalize(q)
+    for i in range(3):
+        st[ST_VEL + i] -= dx[DV + i]
+        st[ST_POS + i] -= dx[DP + i]
+    for i in range(nstate - NAV):
+        bias[i] += dx[NAV + i]
 
 
 @njit(cache=True)
@@ -156,35 +154,36 @@ def _loose_kernel(imu_t, dth, dvel, t0, st0, bias0, P0, q_psd, par,
             # heading (re)initialisation: keep roll and pitch, set heading, reset its covariance
             set_heading(st, P, reset_heading, reset_sigma)
             dvr = np.sqrt((st[3] - reset_nav[0]) ** 2 + (st[4] - reset_nav[1]) ** 2)
-            if not np.isnan(reset_nav[0]) and dvr > 3.0 * np.sqrt(P[3, 3] + P[4, 4] + reset_nav[6] ** 2):
+            sv = np.sqrt(P[DV, DV] + P[DV + 1, DV + 1] + reset_nav[6] ** 2)
+            if not np.isnan(reset_nav[0]) and dvr > 3.0 * sv:
                 # the velocity and position integrated with the unknown heading are re-initialised
                 # from the GNSS fix that gave the course (antenna → IMU with the new attitude)
-                l_n = dcm_from_quat(st[6:10]) @ lever
+                l_n = dcm_from_quat(st[ST_Q:ST_Q + 4]) @ lever
                 rm, rn = radii(reset_nav[3])
                 st[0] = reset_nav[3] - l_n[1] / (rm + reset_nav[5])
                 st[1] = reset_nav[4] - l_n[0] / ((rn + reset_nav[5]) * np.cos(reset_nav[3]))
                 st[2] = reset_nav[5] - l_n[2]
                 st[3], st[4], st[5] = reset_nav[0], reset_nav[1], reset_nav[2]
-                for i in range(3, 9):
+                for i in range(DV, DP + 3):
                     for j in range(n):
                         P[i, j] = 0.0
                         P[j, i] = 0.0
                 for i in range(3):
-                    P[3 + i, 3 + i] = reset_nav[6 + i] ** 2
-                P[6, 6] = (reset_nav[10] / (rm + reset_nav[5])) ** 2
-                P[7, 7] = (reset_nav[9] / ((rn + reset_nav[5]) * np.cos(reset_nav[3]))) ** 2
-                P[8, 8] = reset_nav[11] ** 2
+                    P[DV + i, DV + i] = reset_nav[6 + i] ** 2
+                P[DP, DP] = (reset_nav[10] / (rm + reset_nav[5])) ** 2
+                P[DP + 1, DP + 1] = (reset_nav[9] / ((rn + reset_nav[5]) * np.cos(reset_nav[3]))) ** 2
+                P[DP + 2, DP + 2] = reset_nav[11] ** 2
         is_node = T >= prop_dt - 1e-9 or (gi < M and g_t[gi] <= imu_t[k]) or k == n_imu - 1
         if is_node and T > 0.0:
-            C = dcm_from_quat(st[6:10])
+            C = dcm_from_quat(st[ST_Q:ST_Q + 4])
             wb = interval_model(F, G, st, acc, par[P_TAU], par[P_TAU + 1], par[P_TAU + 2], par[P_TAU + 3])
             last_w[:] = wb
             discretize(F, G, q_psd, T, Phi, Qd)
             P[:, :] = Phi @ P @ Phi.T + Qd
             if gap_phi > 0.0:
                 for i in range(3):
-                    P[i, i] += gap_phi
-                    P[3 + i, 3 + i] += gap_v
+                    P[PHI + i, PHI + i] += gap_phi
+                    P[DV + i, DV + i] += gap_v
                 gap_phi = 0.0
                 gap_v = 0.0
             P[:, :] = 0.5 * (P + P.T)
@@ -265,7 +264,7 @@ def _loose_kernel(imu_t, dth, dvel, t0, st0, bias0, P0, q_psd, par,
                     wie_b = C.T @ np.array([0.0, OMEGA_IE * np.cos(st[0]), OMEGA_IE * np.sin(st[0])])
                     for i in range(3):
                         H3[i, :] = 0.0
-                        H3[i, 9 + i] = 1.0
+                        H3[i, BG + i] = 1.0
                         z3[i] = wb[i] - wie_b[i]
                         R3[i, i] = par[P_ZARU_SIG] ** 2
                     update(x, P, H3, R3, z3, 0.0, innov, sdiag)
@@ -450,16 +449,16 @@ def initial_covariance(cfg, nstate: int, lat: float, h: float, att_sigma_rad) ->
     rm, rn = radii(lat)
     ps = cfg.init.position_sigma_m
     d = np.zeros(nstate)
-    d[0:3] = np.asarray(att_sigma_rad) ** 2
-    d[3:6] = np.asarray(cfg.init.velocity_sigma_m_s) ** 2
-    d[6] = (ps[1] / (rm + h)) ** 2
-    d[7] = (ps[0] / ((rn + h) * np.cos(lat))) ** 2
-    d[8] = ps[2] ** 2
-    d[9:12] = (cfg.imu.gyro_bias_sigma_deg_h * DEG_H) ** 2
-    d[12:15] = (cfg.imu.accel_bias_sigma_ug * UG) ** 2
-    if nstate == 21:
-        d[15:18] = (cfg.imu.gyro_sf_sigma_ppm * 1e-6) ** 2
-        d[18:21] = (cfg.imu.accel_sf_sigma_ppm * 1e-6) ** 2
+    d[PHI:PHI + 3] = np.asarray(att_sigma_rad) ** 2
+    d[DV:DV + 3] = np.asarray(cfg.init.velocity_sigma_m_s) ** 2
+    d[DP] = (ps[1] / (rm + h)) ** 2
+    d[DP + 1] = (ps[0] / ((rn + h) * np.cos(lat))) ** 2
+    d[DP + 2] = ps[2] ** 2
+    d[BG:BG + 3] = (cfg.imu.gyro_bias_sigma_deg_h * DEG_H) ** 2
+    d[BA:BA + 3] = (cfg.imu.accel_bias_sigma_ug * UG) ** 2
+    if nstate >= 21:
+        d[SG:SG + 3] = (cfg.imu.gyro_sf_sigma_ppm * 1e-6) ** 2
+        d[SA:SA + 3] = (cfg.imu.accel_sf_sigma_ppm * 1e-6) ** 2
     return np.diag(d)
 
 

@@ -57,7 +57,7 @@ def gnss_velocity(st, Cbn, lever, w_ib_b, w_in_n, vel_g, H, z):
         z[i] = st[3 + i] + corr[i] - vel_g[i]
         H[i, DV + i] = 1.0
     skew_into(H, 0, PHI, cwl, 1.0)
-    H[:, BG:BG + 3] = -(Cbn @ skew(lever))
+    H[:3, BG:BG + 3] = -(Cbn @ skew(lever))
 
 
 @njit(cache=True)

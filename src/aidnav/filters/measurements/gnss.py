@@ -21,7 +21,7 @@ def gnss_position(st, Cbn, lever, lat_g, lon_g, h_g, dt_back, H, z):
 
     st : strapdown state (lat, lon, h, v, q) at t_k; the fix is at t_k − dt_back [s] (the INS is
     moved back along its velocity). lever : IMU→antenna in body RFU [m]. H (3×n), z (3,) filled.
-    H = [[(C l)×], 0, D, ...] with D = ∂(ENU metres)/∂(δL, δλ, δh).
+    H = [[(C l)×], −dt_back I, D, ...] with D = ∂(ENU metres)/∂(δL, δλ, δh).
     """
     lat, lon, h = st[0], st[1], st[2]
     rm, rn = radii(lat)
@@ -41,13 +41,15 @@ def gnss_position(st, Cbn, lever, lat_g, lon_g, h_g, dt_back, H, z):
     H[0, DP + 1] = (rn + h) * cl
     H[1, DP + 0] = rm + h
     H[2, DP + 2] = 1.0
+    for i in range(3):
+        H[i, DV + i] = -dt_back
 
 
 @njit(cache=True)
 def gnss_velocity(st, Cbn, lever, w_ib_b, w_in_n, vel_g, H, z):
     """GNSS antenna velocity ENU [m/s]: v_ant = v + C (ω_ib^b × l) − ω_in^n × (C l).
 
-    H = [[(C(ω×l))×], I, 0, −C[l×] (gyro bias), 0].
+    H = [[(C(ω×l))×] − [ω_in×][(C l)×], I, 0, −C[l×] (gyro bias), 0].
     """
     H[:, :] = 0.0
     cwl = Cbn @ cross(w_ib_b, lever)
@@ -57,6 +59,7 @@ def gnss_velocity(st, Cbn, lever, w_ib_b, w_in_n, vel_g, H, z):
         z[i] = st[3 + i] + corr[i] - vel_g[i]
         H[i, DV + i] = 1.0
     skew_into(H, 0, PHI, cwl, 1.0)
+    H[:3, PHI:PHI + 3] -= skew(w_in_n) @ skew(l_n)
     H[:3, BG:BG + 3] = -(Cbn @ skew(lever))
 
 

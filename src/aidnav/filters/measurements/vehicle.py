@@ -71,12 +71,16 @@ def zupt_model(nav, row, par, lay, H, z, R):
 
 @njit(cache=True)
 def zaru_model(nav, row, par, lay, H, z, R):
-    """ZARU: the mean measured rate minus the Earth rate in body is the gyro-bias residual.
-    par[0] = σ [rad/s]."""
+    """ZARU: the mean measured rate minus the Earth rate in body, z = ω̂_ib^b − Ĉ_n^b ω_ie^n (true: 0),
+    ≈ ε + C_n^b [ω_ie×] φ. par[0] = σ [rad/s]."""
     wie_b = nav.C.T @ nav.w[W_IE]
     H[:3, :] = 0.0
+    Hphi = nav.C.T @ skew(nav.w[W_IE])
     for i in range(3):
         H[i, BG + i] = 1.0
+        for j in range(3):
+            H[i, PHI + j] = Hphi[i, j]
+            R[i, j] = 0.0
         z[i] = nav.w[W_IB, i] - wie_b[i]
         R[i, i] = par[0] ** 2
     return 3

@@ -103,6 +103,29 @@ class Constraints(_Strict):
         (0.0, 0.0, 0.0), description="IMU → constrained point (rear axle), body RFU [m]")
 
 
+class OdometerAiding(_Strict):
+    """Odometer (wheel speed) updates, used when odometer data are given to the filter."""
+
+    sigma_m_s: float = Field(0.05, gt=0, description="speed σ when the data carry none [m/s]")
+    scale_factor: bool = Field(True, description="estimate the odometer scale factor (one state)")
+    scale_factor_sigma_ppm: float = Field(10000.0, ge=0, description="initial scale-factor σ [ppm]")
+    scale_factor_tau_s: float = Field(0.0, description="correlation time [s]; <=0: random constant")
+    scale_factor_instability_ppm: float = Field(0.0, ge=0, description="Gauss-Markov σ (with tau > 0)")
+    lever_arm_m: tuple[float, float, float] = Field(
+        (0.0, 0.0, 0.0), description="IMU → wheel contact point (rear axle centre), body RFU [m]")
+
+
+class BaroAiding(_Strict):
+    """Barometric height updates, used when barometer data are given to the filter."""
+
+    sigma_m: float = Field(0.5, gt=0, description="height σ when the data carry none [m]")
+    bias: bool = Field(True, description="estimate the barometer bias (one state)")
+    bias_sigma_m: float = Field(10.0, ge=0, description="initial bias σ [m]")
+    bias_tau_s: float = Field(0.0, description="correlation time [s]; <=0: random walk")
+    bias_instability_m: float = Field(0.0, ge=0, description="Gauss-Markov σ [m] (with tau > 0)")
+    bias_rw_m_sqrt_s: float = Field(0.001, ge=0, description="random walk [m/sqrt(s)] (tau <= 0)")
+
+
 class FilterSettings(_Strict):
     states: Literal[15, 21] | None = None  # derived from imu.scale_factors when None
     prop_dt_s: float = Field(1.0, gt=0, description="max covariance propagation interval [s]")
@@ -117,6 +140,8 @@ class LooseConfig(_Strict):
     init: Initialisation = Initialisation()
     constraints: Constraints = Constraints()
     filter: FilterSettings = FilterSettings()
+    odometer: OdometerAiding = OdometerAiding()
+    baro: BaroAiding = BaroAiding()
 
     @property
     def nstate(self) -> int:

@@ -1,0 +1,320 @@
+"""The filter engine (numba): one forward pass and one RTS pass for every INS error-state filter.
+
+A filter is a state layout (:mod:`aidnav.filters.layout`), its process model (:mod:`.ins_errors` for
+the INS block, first-order Gauss-Markov / random constant for each calibration state) and the
+measurement models it feeds (:mod:`aidnav.filters.measurements`, dispatched by model id). The
+engine does what used to be copied into every kernel:
+
+* **node schedule**: the strapdown runs at the IMU rate (:func:`.ins_errors.propagate_sample`); a
+  *node* is every ``prop_dt`` seconds, at every record time (a record in (t_{k−1}, t_k] makes t_k a
+  node) and at the last sample;
+* **predict** at nodes through :func:`.kalman.discretize` / :func:`.kalman.predict`, plus the
+  variance of bridged IMU gaps;
+* **one update-with-gate policy** (:func:`gated_update`): χ² gate by the number of rows
+  (``Models.gate[model, m]``, 0 = ungated), and after ``Models.max_rej[model]`` consecutive rejections
+  of a model the next one is accepted ungated (a filter that went wrong must be able to come back);
+* **one innovation log** (:class:`Log`): per entry time, model id, status (1 accepted, 0 rejected, −1
+  not used), NIS, innovation and diag S (up to ``MAX_ROWS``), and the record index (−1: a node
+  constraint). Log rows 0..M−1 are the records, in order; node constraints follow;
+* **re-initialisation event** at sample ``Init.reset_idx``: heading from a GNSS course and, when the
+  velocity integrated with the wrong heading is off by more than 3σ, velocity and position from that
+  fix (``reset_nav``); the RTS pass passes nothing back across it;
+* **closed-loop feedback** (:func:`feedback`) after each node's updates;
+* **RTS** over the stored nodes (:func:`rts`, :func:`smooth_outputs`).
+
+Inputs are named tuples (numba): :class:`Imu`, :class:`Records`, :class:`Models`, :class:`Process`,
+:class:`Init`, :class:`Output`; the result is :class:`EngineOut`.
+"""
+
+from __future__ import annotations
+
+from collections import namedtuple
+
+import numpy as np
+from numba import njit
+
+from aidnav.nav.earth import OMEGA_IE, radii
+from aidnav.nav.rotations import dcm_from_quat, quat_from_rotvec, quat_mult, quat_normalize
+
+from .ins_errors import (
+    increment_buffers,
+    interval_model,
+    model_arrays,
+    new_accumulator,
+    noise_count,
+    propagate_sample,
+    reset_accumulator,
+    set_heading,
+)
+from .kalman import discretize, predict, rts_gain, update
+from .layout import DP, DV, L_N, L_NINS, NAV, PHI, ST_POS, ST_Q, ST_VEL
+from .measurements import MAX_ROWS, N_MODELS, Nav, fill
+from .measurements.common import W_FIX, W_IB, W_IE, W_IN
+
+# t (N,) [s]; dth, dv (N, 3) raw increments [rad, m/s]; static (N,) bool; gap_var (N, 2) [rad², (m/s)²]
+Imu = namedtuple("Imu", ["t", "dth", "dv", "static", "gap_var"])
+# time-sorted aiding records: t (M,) [s], model (M,) ids, data (M, W) rows of the models, use (M,) bool
+Records = namedtuple("Records", ["t", "model", "data", "use"])
+# par (N_MODELS, P) model parameters; gate (N_MODELS, MAX_ROWS + 1) χ² thresholds by rows (0: off);
+# max_rej (N_MODELS,) consecutive rejections before an ungated update; node (K, 2): constraints at
+# nodes as (model id, 1: at static samples / 0: at the others)
+Models = namedtuple("Models", ["par", "gate", "max_rej", "node"])
+# lay: layout table; q: noise PSDs (INS inputs, then one per calibration state); tau (4,): INS bias/SF
+# correlation times [s]; aux_tau (n − n_ins,) [s] (≤ 0: random walk); prop_dt [s]
+Process = namedtuple("Process", ["lay", "q", "tau", "aux_tau", "prop_dt"])
+Init = namedtuple("Init", ["t0", "st", "bias", "P", "reset_idx", "reset_heading", "reset_sigma", "reset_nav"])
+# every: output decimation; smooth: store nodes for RTS; cov_idx: sorted samples to keep P at
+Output = namedtuple("Output", ["every", "smooth", "cov_idx"])
+Log = namedtuple("Log", ["t", "model", "status", "nis", "nu", "s", "ref"])
+Work = namedtuple("Work", ["H", "z", "R"])
+EngineOut = namedtuple("EngineOut", ["out_idx", "out_st", "out_bias", "out_pdiag", "out_node", "node_idx",
+                                     "S_post", "S_prior", "S_phi", "S_dx", "log", "n_log", "reset_node",
+                                     "st", "bias", "P", "cov"])
+
+
+@njit(cache=True)
+def feedback(st, bias, dx, nstate):
+    """Closed-loop feedback of an error estimate dx into the strapdown state and the sensor errors:
+    C_b^n ← (I + [φ̂×]) C_b^n, v ← v − δv̂, p ← p − δp̂, (biases, calibration) b̂ ← b̂ + r̂."""
+    q = quat_mult(quat_from_rotvec(dx[PHI:PHI + 3]), st[ST_Q:ST_Q + 4])
+    st[ST_Q:ST_Q + 4] = quat_normalize(q)
+    for i in range(3):
+        st[ST_VEL + i] -= dx[DV + i]
+        st[ST_POS + i] -= dx[DP + i]
+    for i in range(nstate - NAV):
+        bias[i] += dx[NAV + i]
+
+
+@njit(cache=True)
+def gated_update(x, P, wk, m, model, mod, rej, log, li):
+    """The update policy: χ² gate ``mod.gate[model, m]`` unless ``mod.max_rej[model]`` consecutive
+    rejections; writes status, NIS, innovation and diag S to log row ``li``. Returns accepted."""
+    gate = mod.gate[model, m]
+    if rej[model] >= mod.max_rej[model]:
+        gate = 0.0
+    nu = np.zeros(m)
+    sd = np.zeros(m)
+    ok, nis = update(x, P, wk.H[:m].copy(), wk.R[:m, :m].copy(), wk.z[:m].copy(), gate, nu, sd)
+    rej[model] = 0 if ok else rej[model] + 1
+    log.status[li] = 1 if ok else 0
+    log.nis[li] = nis
+    log.nu[li, :m] = nu
+    log.s[li, :m] = sd
+    return ok
+
+
+@njit(cache=True)
+def _reinit(st, P, ini):
+    """Re-initialisation event: heading, then (if 3σ off) velocity and position from ``reset_nav`` =
+    [v (3), lat, lon, h, σ_v (3), σ_pos E, N, U, lever (3)] of the fix that gave the course."""
+    rn_ = ini.reset_nav
+    set_heading(st, P, ini.reset_heading, ini.reset_sigma)
+    dvr = np.sqrt((st[ST_VEL] - rn_[0]) ** 2 + (st[ST_VEL + 1] - rn_[1]) ** 2)
+    if np.isnan(rn_[0]) or dvr <= 3.0 * np.sqrt(P[DV, DV] + P[DV + 1, DV + 1] + rn_[6] ** 2):
+        return
+    # velocity and position integrated with the unknown heading: from the fix (antenna → IMU)
+    l_n = dcm_from_quat(st[ST_Q:ST_Q + 4]) @ rn_[12:15]
+    rm, rn = radii(rn_[3])
+    st[0] = rn_[3] - l_n[1] / (rm + rn_[5])
+    st[1] = rn_[4] - l_n[0] / ((rn + rn_[5]) * np.cos(rn_[3]))
+    st[2] = rn_[5] - l_n[2]
+    st[3], st[4], st[5] = rn_[0], rn_[1], rn_[2]
+    n = P.shape[0]
+    for i in range(DV, DP + 3):
+        for j in range(n):
+            P[i, j] = 0.0
+            P[j, i] = 0.0
+    for i in range(3):
+        P[DV + i, DV + i] = rn_[6 + i] ** 2
+    P[DP, DP] = (rn_[10] / (rm + rn_[5])) ** 2
+    P[DP + 1, DP + 1] = (rn_[9] / ((rn + rn_[5]) * np.cos(rn_[3]))) ** 2
+    P[DP + 2, DP + 2] = rn_[11] ** 2
+
+
+@njit(cache=True)
+def _node_rates(st, wb, dthc, dt, w):
+    """Rows of ``Nav.w``: mean ω_ib^b, ω_ib^b of the last sample, ω_ie^n, ω_in^n."""
+    sl, cl = np.sin(st[0]), np.cos(st[0])
+    rm, rn = radii(st[0])
+    w[W_IB] = wb
+    w[W_FIX] = dthc / dt
+    w[W_IE, 0], w[W_IE, 1], w[W_IE, 2] = 0.0, OMEGA_IE * cl, OMEGA_IE * sl
+    w[W_IN, 0] = -st[4] / (rm + st[2])
+    w[W_IN, 1] = OMEGA_IE * cl + st[3] / (rn + st[2])
+    w[W_IN, 2] = OMEGA_IE * sl + st[3] * sl / cl / (rn + st[2])
+
+
+@njit(cache=True)
+def run_filter(imu, rec, mod, proc, ini, out):
+    """Forward pass of the closed-loop error-state filter (module doc); returns :class:`EngineOut`."""
+    n_imu = imu.t.shape[0]
+    lay = proc.lay
+    n, nins = lay[L_N], lay[L_NINS]
+    mins = noise_count(nins)
+    nb = n - NAV
+    M = rec.t.shape[0]
+    st, bias, P, x = ini.st.copy(), ini.bias.copy(), ini.P.copy(), np.zeros(n)
+    Fi, Gi, _, _ = model_arrays(nins, mins)
+    F, G, Phi, Qd = model_arrays(n, mins + n - nins)
+    for j in range(n - nins):  # calibration states: Gauss-Markov (τ > 0) or random walk / constant
+        if proc.aux_tau[j] > 0:
+            F[nins + j, nins + j] = -1.0 / proc.aux_tau[j]
+        G[nins + j, mins + j] = 1.0
+    wk = Work(np.zeros((MAX_ROWS, n)), np.zeros(MAX_ROWS), np.zeros((MAX_ROWS, MAX_ROWS)))
+    w = np.zeros((4, 3))
+    no_row = np.zeros(rec.data.shape[1])  # the row of a node constraint (unused)
+    prop_dt = proc.prop_dt
+    n_out = (n_imu + out.every - 1) // out.every
+    out_idx = np.empty(n_out, np.int64)
+    out_st = np.empty((n_out, 10))
+    out_bias = np.empty((n_out, max(nb, 1)))
+    out_pdiag = np.empty((n_out, n))
+    out_node = np.empty(n_out, np.int64)  # index of the last node at or before the sample
+    max_nodes = M + int((imu.t[-1] - ini.t0) / prop_dt) + 3 + n_imu // max(1, int(prop_dt * 1000.0))
+    max_nodes = min(max_nodes, n_imu + 1)
+    node_idx = np.empty(max_nodes, np.int64)
+    ns = max_nodes if out.smooth else 1
+    S_post, S_prior, S_phi = np.zeros((ns, n, n)), np.zeros((ns, n, n)), np.zeros((ns, n, n))
+    S_dx = np.zeros((ns, n))
+    cap = M + max_nodes * mod.node.shape[0]
+    log = Log(np.full(cap, np.nan), np.full(cap, -1, np.int8), np.full(cap, -1, np.int8),
+              np.full(cap, np.nan), np.full((cap, MAX_ROWS), np.nan), np.full((cap, MAX_ROWS), np.nan),
+              np.full(cap, -1, np.int64))
+    for i in range(M):
+        log.t[i], log.model[i], log.ref[i] = rec.t[i], rec.model[i], i
+    li = M
+    rej = np.zeros(N_MODELS, np.int64)
+    cov_out = np.zeros((out.cov_idx.shape[0], n, n))
+    ci, reset_node, gi = 0, -1, 0
+    while gi < M and rec.t[gi] <= ini.t0:
+        gi += 1
+    acc = new_accumulator()
+    gap_phi, gap_v = 0.0, 0.0
+    dthc, dvc, dth_prev, dv_prev = increment_buffers()
+    tp, kn, oi = ini.t0, 0, 0
+    for k in range(n_imu):
+        dt = imu.t[k] - tp
+        tp = imu.t[k]
+        T = propagate_sample(st, acc, imu.dth[k], imu.dv[k], bias, dt, dthc, dvc, dth_prev, dv_prev)
+        gap_phi += imu.gap_var[k, 0]
+        gap_v += imu.gap_var[k, 1]
+        if k == ini.reset_idx:
+            reset_node = kn  # the next node is the first one after the re-initialisation
+            _reinit(st, P, ini)
+        is_node = T >= prop_dt - 1e-9 or (gi < M and rec.t[gi] <= imu.t[k]) or k == n_imu - 1
+        if is_node and T > 0.0:
+            C = dcm_from_quat(st[ST_Q:ST_Q + 4])
+            wb = interval_model(Fi, Gi, st, acc, proc.tau[0], proc.tau[1], proc.tau[2], proc.tau[3])
+            F[:nins, :nins] = Fi
+            G[:nins, :mins] = Gi
+            discretize(F, G, proc.q, T, Phi, Qd)
+            x[:] = 0.0
+            predict(x, P, Phi, Qd)
+            if gap_phi > 0.0:
+                for i in range(3):
+                    P[PHI + i, PHI + i] += gap_phi
+                    P[DV + i, DV + i] += gap_v
+                gap_phi, gap_v = 0.0, 0.0
+            if out.smooth:
+                S_phi[kn] = Phi
+                S_prior[kn] = P
+            _node_rates(st, wb, dthc, dt, w)
+            while gi < M and rec.t[gi] <= imu.t[k]:  # records in (t_{k-1}, t_k]
+                if rec.use[gi]:
+                    md = rec.model[gi]
+                    nav = Nav(st, C, w, imu.t[k] - rec.t[gi], bias)
+                    m = fill(md, nav, rec.data[gi], mod.par[md], lay, wk.H, wk.z, wk.R)
+                    if m > 0:
+                        gated_update(x, P, wk, m, md, mod, rej, log, gi)
+                gi += 1
+            nav = Nav(st, C, w, 0.0, bias)
+            for c in range(mod.node.shape[0]):  # node constraints (ZUPT, ZARU at static samples, NHC)
+                md = mod.node[c, 0]
+                if (mod.node[c, 1] == 1) == imu.static[k]:
+                    m = fill(md, nav, no_row, mod.par[md], lay, wk.H, wk.z, wk.R)
+                    if m > 0:
+                        log.t[li], log.model[li] = imu.t[k], md
+                        gated_update(x, P, wk, m, md, mod, rej, log, li)
+                        li += 1
+            feedback(st, bias, x, n)
+            node_idx[kn] = k
+            if out.smooth:
+                S_post[kn] = P
+                S_dx[kn] = x
+            kn += 1
+            reset_accumulator(acc)
+        if k % out.every == 0:
+            out_idx[oi] = k
+            out_st[oi] = st
+            for i in range(nb):
+                out_bias[oi, i] = bias[i]
+            for i in range(n):
+                out_pdiag[oi, i] = P[i, i]
+            out_node[oi] = kn - 1
+            oi += 1
+        while ci < out.cov_idx.shape[0] and out.cov_idx[ci] == k:
+            cov_out[ci] = P
+            ci += 1
+    return EngineOut(out_idx[:oi], out_st[:oi], out_bias[:oi], out_pdiag[:oi], out_node[:oi], node_idx[:kn],
+                     S_post[:kn], S_prior[:kn], S_phi[:kn], S_dx[:kn], log, li, reset_node, st, bias, P,
+                     cov_out)
+
+
+@njit(cache=True)
+def rts(S_post, S_prior, S_phi, S_dx, brk):
+    """Backward RTS pass over the nodes of a closed-loop filter.
+
+    Returns ds (K, n): smoothed error of the post-update nominal at each node, and Ps (K, n, n).
+    Recursion: ds_k = A_k (ds_{k+1} + dx_{k+1}),  Ps_k = P⁺_k + A_k (Ps_{k+1} − P⁻_{k+1}) A_kᵀ.
+    ``brk``: index of the first node after a state re-initialisation (heading alignment), or −1;
+    no information is passed backwards across it (the states before it are not linearly related).
+    """
+    K = S_post.shape[0]
+    n = S_post.shape[1]
+    ds = np.zeros((K, n))
+    Ps = np.empty((K, n, n))
+    Ps[K - 1] = S_post[K - 1]
+    for k in range(K - 2, -1, -1):
+        if k + 1 == brk:
+            ds[k] = 0.0
+            Ps[k] = S_post[k]
+            continue
+        A = rts_gain(S_post[k], S_phi[k + 1], S_prior[k + 1])
+        ds[k] = A @ (ds[k + 1] + S_dx[k + 1])
+        Pk = S_post[k] + A @ (Ps[k + 1] - S_prior[k + 1]) @ A.T
+        Ps[k] = 0.5 * (Pk + Pk.T)
+    return ds, Ps
+
+
+@njit(cache=True)
+def smooth_outputs(out_idx, out_st, out_bias, out_node, node_idx, ds, S_dx, nstate):
+    """Apply the smoothed corrections to the forward outputs (linear in time between nodes)."""
+    n_out = out_idx.shape[0]
+    K = node_idx.shape[0]
+    st = np.empty(10)
+    dx = np.empty(nstate)
+    b = np.empty(max(nstate - NAV, 1))
+    res_st = out_st.copy()
+    res_b = out_bias.copy()
+    for o in range(n_out):
+        j = out_node[o]
+        k = out_idx[o]
+        if j < 0:
+            dx[:] = ds[0] + S_dx[0]
+        elif j >= K - 1:
+            dx[:] = ds[K - 1]
+        else:
+            k0 = node_idx[j]
+            k1 = node_idx[j + 1]
+            a = (k - k0) / (k1 - k0) if k1 > k0 else 0.0
+            dx[:] = (1.0 - a) * ds[j] + a * (ds[j + 1] + S_dx[j + 1])
+            if k == k0:
+                dx[:] = ds[j]
+        st[:] = out_st[o]
+        for i in range(nstate - NAV):
+            b[i] = out_bias[o, i]
+        feedback(st, b, dx, nstate)
+        res_st[o] = st
+        for i in range(nstate - NAV):
+            res_b[o, i] = b[i]
+    return res_st, res_b

@@ -1,0 +1,86 @@
+"""State layouts by name: the one place that says which index holds which error state.
+
+Strapdown (nominal) state ``st`` (10,): ``ST_POS`` lat, lon [rad], h [m]; ``ST_VEL`` v^n ENU [m/s];
+``ST_Q`` q_b^n (4). Error state (computed − true for the navigation block, true − estimated for the
+sensor and calibration residuals, see :mod:`aidnav.filters.ins_errors`):
+
+========  =========================================  ======================
+block     content                                    layouts
+========  =========================================  ======================
+PHI  0:3  misalignment φ [rad]                        all
+DV   3:6  δv^n [m/s]                                  all
+DP   6:9  δL, δλ [rad], δh [m]                        all
+BG  9:12  gyro bias residual [rad/s]                  15, 17, 21, 24
+BA 12:15  accel bias residual [m/s²]                  15, 17, 21, 24
+SG 15:18  gyro scale-factor residual [-]              21, 24
+SA 18:21  accel scale-factor residual [-]             21, 24
+CLK       receiver clock bias [m], drift [m/s]        17 (15:17), 11 (9:11)
+AUX       calibration states (odometer scale factor   after the INS block
+          [-], barometer bias [m], lever arm …)
+========  =========================================  ======================
+
+The named layouts: 15 = navigation + biases; 17 = 15 + receiver clock (tight); 21 = 15 + scale
+factors; 24 = 21 + 3 calibration states (e.g. a lever arm). :func:`make_layout` builds the index table
+of any INS block plus calibration states; kernels read indices from it (``L_*`` entries), never
+literal slices.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .ins_errors import BA, BG, DP, DV, PHI, SA, SG
+
+# strapdown state
+ST_POS, ST_VEL, ST_Q = 0, 3, 6
+N_ST = 10
+# error-state blocks of the INS model (ins_errors)
+NAV = 9  # φ, δv, δp
+__all__ = ["PHI", "DV", "DP", "BG", "BA", "SG", "SA", "ST_POS", "ST_VEL", "ST_Q", "N_ST", "NAV",
+           "AUX_NAMES", "make_layout", "layout_names", "LAYOUTS"]
+
+# calibration (auxiliary) states the engine knows: name -> width
+AUX_NAMES = {"odometer_scale": 1, "baro_bias": 1, "clock": 2, "lever_arm": 3}
+
+# entries of the int64 layout table (kernels read these)
+L_N = 0  # total number of error states
+L_NINS = 1  # size of the INS block (15 or 21: ins_errors.fill_model)
+L_ODO = 2  # index of the odometer scale-factor residual, -1: none
+L_BARO = 3  # index of the barometer bias residual, -1: none
+L_CLK = 4  # index of the clock bias (drift at +1), -1: none
+L_LEVER = 5  # index of a 3-state lever-arm calibration, -1: none
+L_SIZE = 6
+
+LAYOUTS = {15: dict(scale_factors=False), 17: dict(scale_factors=False, aux=("clock",)),
+           21: dict(scale_factors=True), 24: dict(scale_factors=True, aux=("lever_arm",))}
+
+
+def make_layout(scale_factors: bool = False, aux: tuple[str, ...] = ()) -> np.ndarray:
+    """Index table (int64, ``L_*`` entries) of the INS block (15 or 21 states) plus calibration states
+    ``aux`` (names of :data:`AUX_NAMES`, appended in the given order)."""
+    lay = np.full(L_SIZE, -1, np.int64)
+    n = 21 if scale_factors else 15
+    lay[L_NINS] = n
+    slot = {"odometer_scale": L_ODO, "baro_bias": L_BARO, "clock": L_CLK, "lever_arm": L_LEVER}
+    for name in aux:
+        if name not in AUX_NAMES:
+            raise ValueError(f"unknown calibration state {name!r}; known: {sorted(AUX_NAMES)}")
+        if lay[slot[name]] >= 0:
+            raise ValueError(f"calibration state {name!r} given twice")
+        lay[slot[name]] = n
+        n += AUX_NAMES[name]
+    lay[L_N] = n
+    return lay
+
+
+def layout_names(lay: np.ndarray) -> list[str]:
+    """One name per error state of layout ``lay`` (for tables and data frames)."""
+    names = [f"{b}_{a}" for b in ("phi", "dv") for a in "enu"] + ["dlat", "dlon", "dh"]
+    blocks = ["gyro_bias", "accel_bias"] + (["gyro_sf", "accel_sf"] if lay[L_NINS] == 21 else [])
+    names += [f"{b}_{a}" for b in blocks for a in "xyz"]
+    aux = sorted((int(lay[s]), nm) for s, nm in ((L_ODO, "odometer_scale"), (L_BARO, "baro_bias"),
+                                                  (L_CLK, "clock"), (L_LEVER, "lever_arm")) if lay[s] >= 0)
+    for _, nm in aux:
+        names += ([nm] if AUX_NAMES[nm] == 1 else
+                  (["clock_bias", "clock_drift"] if nm == "clock" else [f"{nm}_{a}" for a in "xyz"]))
+    return names

@@ -1,0 +1,95 @@
+"""GNSS antenna position and velocity (loose coupling), with the IMU → antenna lever arm.
+
+Core functions keep their explicit signatures (used by the tight, federated and transfer kernels);
+the ``*_model`` functions are their uniform-signature forms (:mod:`.common`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from aidnav.nav.earth import radii
+
+from ..layout import BG, DP, DV, PHI
+from .common import W_FIX, W_IN, cross, diag_r, skew, skew_into
+
+
+@njit(cache=True)
+def gnss_position(st, Cbn, lever, lat_g, lon_g, h_g, dt_back, H, z):
+    """GNSS antenna position (ENU metres residual).
+
+    st : strapdown state (lat, lon, h, v, q) at t_k; the fix is at t_k − dt_back [s] (the INS is
+    moved back along its velocity). lever : IMU→antenna in body RFU [m]. H (3×n), z (3,) filled.
+    H = [[(C l)×], −dt_back I, D, ...] with D = ∂(ENU metres)/∂(δL, δλ, δh).
+    """
+    lat, lon, h = st[0], st[1], st[2]
+    rm, rn = radii(lat)
+    cl = np.cos(lat)
+    l_n = Cbn @ lever
+    H[:, :] = 0.0
+    # INS antenna minus GNSS, local metres
+    dlon = lon - lon_g
+    if dlon > np.pi:
+        dlon -= 2 * np.pi
+    elif dlon < -np.pi:
+        dlon += 2 * np.pi
+    z[0] = dlon * (rn + h) * cl + l_n[0] - st[3] * dt_back
+    z[1] = (lat - lat_g) * (rm + h) + l_n[1] - st[4] * dt_back
+    z[2] = (h - h_g) + l_n[2] - st[5] * dt_back
+    skew_into(H, 0, PHI, l_n, 1.0)
+    H[0, DP + 1] = (rn + h) * cl
+    H[1, DP + 0] = rm + h
+    H[2, DP + 2] = 1.0
+    for i in range(3):
+        H[i, DV + i] = -dt_back
+
+
+@njit(cache=True)
+def gnss_velocity(st, Cbn, lever, w_ib_b, w_in_n, vel_g, H, z):
+    """GNSS antenna velocity ENU [m/s]: v_ant = v + C (ω_ib^b × l) − ω_in^n × (C l).
+
+    H = [[(C(ω×l))×] − [ω_in×][(C l)×], I, 0, −C[l×] (gyro bias), 0].
+    """
+    H[:, :] = 0.0
+    cwl = Cbn @ cross(w_ib_b, lever)
+    l_n = Cbn @ lever
+    corr = cwl - cross(w_in_n, l_n)
+    for i in range(3):
+        z[i] = st[3 + i] + corr[i] - vel_g[i]
+        H[i, DV + i] = 1.0
+    skew_into(H, 0, PHI, cwl, 1.0)
+    H[:3, PHI:PHI + 3] -= skew(w_in_n) @ skew(l_n)
+    H[:3, BG:BG + 3] = -(Cbn @ skew(lever))
+
+
+@njit(cache=True)
+def gnss_position_model(nav, row, par, lay, H, z, R):
+    """Uniform form of :func:`gnss_position`. row = [lat, lon [rad], h [m], σE, σN, σU [m]] of the
+    fix at the node time − ``nav.dt_back``; par[0:3] = lever arm IMU → antenna, body RFU [m]."""
+    gnss_position(nav.st, nav.C, par[0:3], row[0], row[1], row[2], nav.dt_back, H, z)
+    diag_r(R, 3, row[3:6])
+    return 3
+
+
+@njit(cache=True)
+def gnss_velocity_model(nav, row, par, lay, H, z, R):
+    """Uniform form of :func:`gnss_velocity`. row = [vE, vN, vU [m/s], σE, σN, σU [m/s]]; a NaN
+    component was not measured: only the measured rows enter (returns their number, 0 if none).
+    par[0:3] = lever arm [m]. The lever-arm rate uses ω_ib^b of the last sample (``W_FIX``)."""
+    gnss_velocity(nav.st, nav.C, par[0:3], nav.w[W_FIX], nav.w[W_IN], row[0:3], H, z)
+    r = 0
+    for i in range(3):
+        if not np.isnan(row[i]):
+            if r != i:
+                H[r, :] = H[i, :]
+                z[r] = z[i]
+            r += 1
+    k = 0
+    for i in range(3):
+        if not np.isnan(row[i]):
+            for j in range(r):
+                R[k, j] = 0.0
+            R[k, k] = row[3 + i] * row[3 + i]
+            k += 1
+    return r

@@ -1,0 +1,102 @@
+"""One result type of the engine filters: :class:`FilterResult`, with ``to_trajectory`` / ``to_dataframe``."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from aidnav.nav.earth import radii
+
+from .layout import L_BARO, L_NINS, L_ODO, NAV
+
+
+@dataclass
+class FilterResult:
+    """Output of an engine filter (arrays in aidnav conventions).
+
+    ``state`` (N, 10): lat, lon [rad], h [m], v^n ENU [m/s], q_b^n; ``bias`` (N, n − 9): the sensor and
+    calibration estimates in layout order (gyro bias [rad/s], accel bias [m/s²], scale factors [-],
+    odometer scale factor [-], barometer bias [m], …); ``pdiag`` (N, n): covariance diagonal (forward,
+    or smoothed when ``smoothed``); ``innovations``: the engine's innovation log (time, model id and
+    name, status 1/0/−1, nis, innovation and diag S (rows), record index); ``records``: the per-GNSS-fix
+    view of it (``pos_status``, ``pos_nis``, ``pos_innov`` …); ``layout``: the index table of
+    :mod:`aidnav.filters.layout` and ``state_names`` one name per error state.
+    """
+
+    time: np.ndarray
+    state: np.ndarray
+    bias: np.ndarray
+    pdiag: np.ndarray
+    node_time: np.ndarray
+    records: dict = field(default_factory=dict)
+    counts: dict = field(default_factory=dict)
+    smoothed: bool = False
+    final_P: np.ndarray | None = None
+    forward_state: np.ndarray | None = None
+    forward_pdiag: np.ndarray | None = None
+    cov_time: np.ndarray | None = None  # (K,) sample times of ``cov`` (only with ``cov_times``)
+    cov: np.ndarray | None = None  # (K, n, n) forward covariance at ``cov_time``
+    innovations: dict = field(default_factory=dict)
+    events: list = field(default_factory=list)
+    layout: np.ndarray | None = None
+    state_names: list = field(default_factory=list)
+
+    def to_trajectory(self):
+        """:class:`aidnav.data.Trajectory` with σ, bias and calibration columns."""
+        return to_trajectory(self)
+
+    def to_dataframe(self):
+        """pandas DataFrame: time, navigation state, sensor/calibration estimates and 1σ of every error
+        state (``sigma_<name>``, in the state's unit: rad, m/s, rad/rad/m for δL δλ δh, …)."""
+        import pandas as pd
+
+        s = self.state
+        cols = {"time_s": self.time, "lat_rad": s[:, 0], "lon_rad": s[:, 1], "height_m": s[:, 2],
+                "vel_e_m_s": s[:, 3], "vel_n_m_s": s[:, 4], "vel_u_m_s": s[:, 5]}
+        for i in range(4):
+            cols[f"q{i}"] = s[:, 6 + i]
+        names = self.state_names or [f"x{i}" for i in range(self.pdiag.shape[1])]
+        for j in range(self.bias.shape[1]):
+            if NAV + j < len(names):
+                cols[names[NAV + j]] = self.bias[:, j]
+        sig = np.sqrt(np.maximum(self.pdiag, 0.0))
+        for j, nm in enumerate(names):
+            cols[f"sigma_{nm}"] = sig[:, j]
+        return pd.DataFrame(cols)
+
+
+LooseResult = FilterResult
+
+
+def to_trajectory(res: FilterResult):
+    """FilterResult → :class:`aidnav.data.Trajectory` with σ columns and bias columns."""
+    from aidnav.data import Trajectory
+    from aidnav.nav.rotations import quat_to_euler_batch
+
+    s = res.state
+    lat, h = s[:, 0], s[:, 2]
+    rm, rn = radii(lat)
+    pd = np.sqrt(np.maximum(res.pdiag, 0.0))
+    std_pos = np.column_stack([pd[:, 7] * (rn + h) * np.cos(lat), pd[:, 6] * (rm + h), pd[:, 8]])
+    rph = quat_to_euler_batch(np.ascontiguousarray(s[:, 6:10]))
+    hd = rph[:, 2]
+    # φ (E, N, U) → roll/pitch/heading σ (diagonal approximation about the current heading)
+    sr = np.sqrt((np.cos(hd) * pd[:, 1]) ** 2 + (np.sin(hd) * pd[:, 0]) ** 2)
+    sp = np.sqrt((np.sin(hd) * pd[:, 1]) ** 2 + (np.cos(hd) * pd[:, 0]) ** 2)
+    std_att = np.column_stack([sr, sp, pd[:, 2]])
+    extra = {}
+    names = ["gyro_bias_{}_deg_h", "accel_bias_{}_ug", "gyro_sf_{}_ppm", "accel_sf_{}_ppm"]
+    scale = [180 / np.pi * 3600, 1 / 9.80665e-6, 1e6, 1e6]
+    lay = getattr(res, "layout", None)
+    n_groups = res.bias.shape[1] // 3 if lay is None else (int(lay[L_NINS]) - NAV) // 3
+    for j in range(n_groups):
+        for i, ax in enumerate("xyz"):
+            extra[names[j].format(ax)] = res.bias[:, 3 * j + i] * scale[j]
+    if lay is not None:
+        if lay[L_ODO] >= 0:
+            extra["odometer_scale_ppm"] = res.bias[:, lay[L_ODO] - NAV] * 1e6
+        if lay[L_BARO] >= 0:
+            extra["baro_bias_m"] = res.bias[:, lay[L_BARO] - NAV]
+    return Trajectory(time=res.time, lat=lat, lon=s[:, 1], height=h, vel=s[:, 3:6], rph=rph,
+                      std_pos=std_pos, std_vel=pd[:, 3:6], std_att=std_att, extra=extra)

@@ -40,6 +40,8 @@ from pathlib import Path
 
 import numpy as np
 
+from aidnav.nav.rotations import wrap_pi
+
 from . import store
 from .config import ExperimentPlan, build_scenario, load_experiment
 from .estimators import get_estimator, state_blocks, state_unit
@@ -189,7 +191,7 @@ class GnssTemplate:
         rm, rn = radii(b.lat)
         lat = b.lat + ne[:, 1] / (rm + b.height)
         lon = b.lon + ne[:, 0] / ((rn + b.height) * np.cos(b.lat))
-        lon = (lon + np.pi) % (2 * np.pi) - np.pi
+        lon = wrap_pi(lon)
         h = b.height + ne[:, 2]
         vel = std_vel = None
         if self.spec.velocity:

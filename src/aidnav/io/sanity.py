@@ -12,8 +12,8 @@ from __future__ import annotations
 import numpy as np
 
 from aidnav.io.errors import DataError
+from aidnav.units import G0
 
-G0 = 9.80665
 OMEGA_IE = 7.2921151467e-5
 
 #: name → what it checks (the names accepted by ``--skip-check``)

@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from aidnav.data import GnssData, Trajectory
+from aidnav.nav.rotations import wrap_pi
 
 __all__ = ["write_kml", "write_geojson", "write_maps", "SIGMA_CLASSES_M", "QUALITY_NAMES", "track_pieces"]
 
@@ -44,7 +45,7 @@ _REJECTED_COLOUR = "#e41a1c"
 
 
 def _deg(lat, lon) -> tuple[np.ndarray, np.ndarray]:
-    lon = (np.asarray(lon, float) + np.pi) % (2 * np.pi) - np.pi
+    lon = wrap_pi(np.asarray(lon, float))
     return np.degrees(np.asarray(lat, float)), np.degrees(lon)
 
 

@@ -56,6 +56,7 @@ from aidnav.data import ImuData, Trajectory
 from aidnav.nav.earth import OMEGA_IE, dcm_ecef_to_enu, ecef_to_lla, gravity, lla_to_ecef, radii
 from aidnav.nav.rotations import dcm_from_euler, euler_from_dcm, rotvec_from_dcm
 from aidnav.sim.imu import ImuSpec, corrupt_imu
+from aidnav.units import DEG
 
 __all__ = [
     "BETA_FACTOR", "GNSS_BASELINE_ACCURACY_M", "MasterPosSpec", "FlexureSpec", "DistributedPosConfig",
@@ -66,7 +67,6 @@ __all__ = [
     "sub_geometry",
 ]
 
-DEG = math.pi / 180.0
 BETA_FACTOR = 2.146  #: β = 2.146/τ makes τ the 1/e time of R(t) = σ²(1+β|t|)e^{−β|t|} (SPEC §5.1 item 7)
 
 #: seed Table 7: GNSS baseline [km] -> (horizontal, vertical) 1σ position accuracy [m]

@@ -47,6 +47,7 @@ from aidnav.nav.rotations import (
     quat_from_rotvec,
     quat_mult,
     rotvec_from_quat,
+    wrap_pi,
 )
 
 
@@ -320,7 +321,7 @@ def simulate_gnss(truth: Trajectory, spec: GnssSpec, rng: np.random.Generator,
     rm, rn = radii(lat_a)
     lat_o = lat_a + ne[:, 1] / (rm + h_a)
     lon_o = lon_a + ne[:, 0] / ((rn + h_a) * np.cos(lat_a))
-    lon_o = (lon_o + np.pi) % (2 * np.pi) - np.pi
+    lon_o = wrap_pi(lon_o)
     h_o = h_a + ne[:, 2]
     std_pos = np.tile(sp, (m, 1))
     vel = std_vel = None

@@ -39,6 +39,7 @@ from aidnav.nav.gnss_sat import (
     visible,
 )
 from aidnav.nav.gnss_types import GpsEphemerides
+from aidnav.nav.rotations import wrap_pi
 
 __all__ = ["SLOTS_24", "nominal_constellation", "visible_satellites"]
 
@@ -122,9 +123,9 @@ def nominal_constellation(
         r[E_I0] = np.radians(inclination_deg)
         u_t = np.radians(u) + n * t_since
         lam = np.radians(raan) + _OMEGA_DOT * t_since - (np.radians(_GHA0_DEG) + OMEGA_E_GPS * t_since)
-        r[E_M0] = (u_t + np.pi) % (2 * np.pi) - np.pi
+        r[E_M0] = wrap_pi(u_t)
         # IS-GPS-200: Ω_k = Ω0 + (Ω̇ − ω_e) t_k − ω_e toe; at t_k = 0 this must be λ(toe)
-        r[E_OMEGA0] = (lam + OMEGA_E_GPS * toe + np.pi) % (2 * np.pi) - np.pi
+        r[E_OMEGA0] = wrap_pi(lam + OMEGA_E_GPS * toe)
         r[E_OMEGADOT] = _OMEGA_DOT
         r[E_HEALTH] = 0.0
         r[E_FIT] = 1e6

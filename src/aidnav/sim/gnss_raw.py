@@ -74,6 +74,7 @@ from aidnav.nav.gnss_sat import (
     tropo_delay,
 )
 from aidnav.nav.gnss_types import GnssObservations, GpsEphemerides
+from aidnav.nav.rotations import wrap_pi
 
 __all__ = [
     "RawGnssSpec",
@@ -308,7 +309,7 @@ def limit_satellites(
             best, pair = -1.0, keep
             for a in range(len(cand)):
                 for b in range(a + 1, len(cand)):
-                    d = abs((azimuth[k0, cand[a]] - azimuth[k0, cand[b]] + np.pi) % (2 * np.pi) - np.pi)
+                    d = abs(wrap_pi(azimuth[k0, cand[a]] - azimuth[k0, cand[b]]))
                     if d > best:
                         best, pair = d, np.array([cand[a], cand[b]])
             keep = pair
@@ -397,7 +398,7 @@ def simulate_raw_gnss(
     from aidnav.nav.earth import radii
 
     rm, rn = radii(ref_lat)
-    dlon = (lon - ref_lon + np.pi) % (2 * np.pi) - np.pi
+    dlon = wrap_pi(lon - ref_lon)
     d_km = np.column_stack([dlon * (rn + ref_h) * np.cos(ref_lat), (lat - ref_lat) * (rm + ref_h)]) / 1e3
     dist = np.hypot(d_km[:, 0], d_km[:, 1])
     sz = spec.tropo_zenith_sigma_m

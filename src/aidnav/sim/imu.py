@@ -38,18 +38,19 @@ import numpy as np
 from numba import njit
 
 from aidnav.data import ImuData
-from aidnav.nav.earth import G0
 
-# ------------------------------------------------------------------------------------- unit factors
-DEG = np.pi / 180.0
-DEG_H = DEG / 3600.0  #: 1 deg/h in rad/s
-DEG_SQRT_H = DEG / 60.0  #: 1 deg/√h in rad/√s (√h = 60 √s)
-UG = G0 * 1e-6  #: 1 µg in m/s²
-M_S_SQRT_H = 1.0 / 60.0  #: 1 m/s/√h in m/s/√s
-PPM = 1e-6  #: 1 ppm as a ratio
-ARCSEC = DEG / 3600.0  #: 1 arcsec in rad
-DEG_H_SQRT_H = DEG_H / 60.0  #: 1 deg/h/√h in rad/s/√s
-UG_SQRT_H = UG / 60.0  #: 1 µg/√h in m/s²/√s
+# unit factors (aidnav.units), re-exported: sensor specs below are written with them
+from aidnav.units import (  # noqa: E402, F401
+    ARCSEC,
+    DEG,
+    DEG_H,
+    DEG_H_SQRT_H,
+    DEG_SQRT_H,
+    M_S_SQRT_H,
+    PPM,
+    UG,
+    UG_SQRT_H,
+)
 
 _CHUNK = 1 << 16  # samples per block of random draws (bounded memory, fixed for reproducibility)
 

@@ -41,11 +41,11 @@ import numpy as np
 from aidnav.data import Trajectory
 from aidnav.nav.geo_pointing import R_GEO, R_GEO_SEED000, az_el_from_body, geo_sat_ecef
 from aidnav.sim.gnss import time_windows
+from aidnav.units import DEG
 
 __all__ = ["SapvSpec", "SapvData", "simulate_sapv", "OK", "BLOCKED", "LOW_ELEVATION", "BODY_RATE",
            "REACQUIRING", "REASONS", "R_GEO", "R_GEO_SEED000"]
 
-DEG = np.pi / 180.0
 
 OK, BLOCKED, LOW_ELEVATION, BODY_RATE, REACQUIRING = 0, 1, 2, 3, 4
 REASONS = {OK: "tracking", BLOCKED: "blocked", LOW_ELEVATION: "elevation below mask",

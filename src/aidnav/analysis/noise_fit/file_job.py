@@ -62,10 +62,8 @@ def _warm_up() -> None:
     """Import the analysis libraries and load the compiled kernels (numba's first call costs a few tenths
     of a second): run in a thread while the log is read, so that it overlaps the reading."""
     try:
-        # the fit's scipy parts, loaded here to overlap the reading (scipy.stats alone takes ~0.3 s)
+        # the fit's scipy.optimize (~0.3 s with scipy.linalg), imported here to overlap the reading
         from scipy.optimize import brentq  # noqa: F401
-        from scipy.special import digamma  # noqa: F401
-        from scipy.stats import chi2  # noqa: F401
 
         tau = np.array([0.01, 0.02, 0.04])
         _window_stats(np.zeros((20, 6)), 10, 2)

@@ -29,6 +29,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.special import gammaincinv
 
 from aidnav.analysis.noise_fit.allan_cov import _estimate_stats
 from aidnav.analysis.noise_fit.model import (
@@ -110,7 +111,7 @@ class _Profile:
 
 def _interval(prof: _Profile, idx: int, c_hat: float, d_min: float, crit: float, cap: float):
     """Profile-likelihood interval (lo, hi) of coefficient ``idx``: where D − D_min = crit."""
-    from scipy.optimize import brentq  # scipy.optimize: imported on first use (startup cost)
+    from scipy.optimize import brentq  # scipy.optimize: ~0.3 s to import (scipy.linalg); on first use
 
     def f(v):
         return prof.best(idx, v)[0] - d_min - crit
@@ -138,7 +139,7 @@ def _interval(prof: _Profile, idx: int, c_hat: float, d_min: float, crit: float,
 
 def _u_interval(prof: _Profile, d_min: float, crit: float):
     """Profile interval of u = ln T over the grid range (None at an end that reaches the range end)."""
-    from scipy.optimize import brentq  # scipy.optimize: imported on first use (startup cost)
+    from scipy.optimize import brentq  # scipy.optimize: ~0.3 s to import (scipy.linalg); on first use
 
     us = np.linspace(prof.u_lo, prof.u_hi, 4 * _NGRID)
     d = np.array([prof.at_u(u)[0] for u in us]) - d_min - crit
@@ -158,8 +159,6 @@ def _u_interval(prof: _Profile, d_min: float, crit: float):
 def _chi2_ppf(p, df):
     """Quantile of χ²_df at probability p: scipy.stats.chi2.ppf's own formula, 2·P⁻¹(df/2, p) (without the
     import of scipy.stats, half a second at start-up)."""
-    from scipy.special import gammaincinv  # scipy.special: imported on first use (startup cost)
-
     return 2.0 * gammaincinv(np.asarray(df, dtype=float) / 2.0, p)
 
 

@@ -29,6 +29,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.special import digamma, polygamma
 
 from aidnav.nav.earth import G0
 
@@ -90,7 +91,5 @@ def model_avar(tau, coef, t_corr: float) -> np.ndarray:
 
 def _logchi2_moments(nu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Mean and standard deviation of ln(χ²_ν/ν)."""
-    from scipy.special import digamma, polygamma  # scipy.special: imported on first use (startup cost)
-
     h = 0.5 * np.asarray(nu, float)
     return digamma(h) - np.log(h), np.sqrt(polygamma(1, h))

@@ -29,7 +29,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.special import digamma, polygamma
 
 from aidnav.nav.earth import G0
 
@@ -91,5 +90,7 @@ def model_avar(tau, coef, t_corr: float) -> np.ndarray:
 
 def _logchi2_moments(nu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Mean and standard deviation of ln(χ²_ν/ν)."""
+    from scipy.special import digamma, polygamma  # scipy.special: ~0.1 s to import; the warm-up loads it
+
     h = 0.5 * np.asarray(nu, float)
     return digamma(h) - np.log(h), np.sqrt(polygamma(1, h))

@@ -1,4 +1,4 @@
-"""Acceptance checks of the IMU characterisation (issue 19): coverage of the fitted noise terms; speed.
+"""Acceptance checks of the IMU characterisation (issues 19, 29): coverage of the fitted noise terms; speed.
 
 For each grade (tactical, MEMS presets; a rate / acceleration random walk added, see ``RRW``), 50 seeded
 static logs of 2 h at 100 Hz are made with the core IMU model (:func:`aidnav.sim.imu.corrupt_imu` on zero
@@ -14,10 +14,13 @@ Speed (``--speed [--hours H] [--runs R] [--json out.json]``): a static MEMS log 
 100 Hz, 3.6 million samples per axis, made as above and written as an interchange Parquet file; then
 ``aidnav characterise LOG -o DIR`` is run R times (default 3) as a command. Printed: the wall time, the CPU
 time (user + system) and the peak memory (maximum resident set) of each run, and the wall time of each
-stage of the same command run in this process. Target: wall time under 5 s on a 2-core machine. The
-first run after the package's source changes compiles the numba kernels (tens of seconds, once: numba
-caches them); the target is for the runs after it. Reference, the same machine before this work: 33 s
-(with compilation; 11 s without) and 1.26 GB.
+stage of the same command run in this process, and the floor of the command: the interpreter with the
+imports it needs (``python -c "import aidnav.cli, aidnav.analysis.characterise, aidnav.report.allan_plot"``).
+Target (issue 29): wall time ≤ 2 s on the 2-core machine. The first run after the package's source changes
+compiles the numba kernels (tens of seconds, once: numba caches them); the target is for the runs after it.
+The machine is shared: the load average is printed with the figures, and the CPU time is the steadier one.
+References, the same machine: 33 s (with compilation; 11 s without) and 1.26 GB before issue 19's work;
+4.2-6.2 s with allantools (issue 29).
 """
 
 from __future__ import annotations
@@ -119,7 +122,7 @@ def speed(hours: float = 10.0, runs: int = 3, seed: int = 1) -> dict:
     from aidnav.apps.characterise import characterise_file
     from aidnav.io.interchange import write_imu
 
-    out = {"hours": hours, "samples_per_axis": int(round(hours * 3600 * 100)), "runs": [], "target_s": 5.0}
+    out = {"hours": hours, "samples_per_axis": int(round(hours * 3600 * 100)), "runs": [], "target_s": 2.0}
     with tempfile.TemporaryDirectory(prefix="aidnav-characterise-speed-") as tmp:
         log = Path(tmp) / "static_mems.parquet"
         t0 = time.perf_counter()
@@ -127,6 +130,14 @@ def speed(hours: float = 10.0, runs: int = 3, seed: int = 1) -> dict:
         out["log_seconds_to_make"] = time.perf_counter() - t0
         out["log_bytes"] = log.stat().st_size
         cmd = [sys.executable, "-m", "aidnav.cli", "characterise", str(log), "-o", str(Path(tmp) / "out")]
+        imp = [sys.executable, "-c",
+               "import aidnav.cli, aidnav.analysis.characterise, aidnav.report.allan_plot"]
+        floor = []
+        for _ in range(runs):
+            t0 = time.perf_counter()
+            subprocess.run(imp, check=True)
+            floor.append(time.perf_counter() - t0)
+        out["imports_wall_s"] = float(np.median(floor))
         for _ in range(runs):
             t0 = time.perf_counter()
             proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
@@ -163,12 +174,15 @@ def main_speed(argv: list[str]) -> int:
         tag = "first (numba compiles if its cache is stale)" if i == 0 else "again"
         print(f"  run {i + 1}: wall {run['wall_s']:6.2f} s   CPU {run['cpu_s']:6.2f} s   peak memory "
               f"{run['peak_memory_mb']:6.0f} MB   {tag}")
+    print(f"  floor: interpreter + imports of the command {r['imports_wall_s']:.2f} s (median of {runs})")
     print(f"  stages (the same command in this process, {r['in_process_s']:.2f} s):")
     for k, v in r["stages_s"].items():
         print(f"    {k:58s} {v:6.3f} s")
-    ok = r["wall_s"] < r["target_s"]
-    print(f"  wall time {r['wall_s']:.2f} s (median of the runs after the first) against the target "
-          f"{r['target_s']:g} s: {'PASS' if ok else 'FAIL'}; peak memory {r['peak_memory_mb']:.0f} MB")
+    ok = r["wall_s"] <= r["target_s"]
+    cpu = float(np.median([x["cpu_s"] for x in (r["runs"][1:] or r["runs"])]))
+    print(f"  10-h static log: wall time {r['wall_s']:.2f} s (median of the runs after the first; CPU "
+          f"{cpu:.2f} s) against the target <= {r['target_s']:g} s (issue 29): {'PASS' if ok else 'FAIL'}; "
+          f"peak memory {r['peak_memory_mb']:.0f} MB")
     if path:
         with open(path, "w") as f:
             json.dump(r, f, indent=2)

@@ -646,3 +646,15 @@ def test_imu_yaml_gives_consistent_filter(case, loose_error_state):
     if case == "tactical":
         assert np.all((means["truth"] > lo) & (means["truth"] < hi)), means
     assert np.all((means["fitted"] > lo) & (means["fitted"] < hi)), means
+
+
+def test_chi2_quantiles_are_scipy_stats():
+    """The fit's χ² quantiles (scipy.special, without importing scipy.stats) are scipy.stats.chi2.ppf's."""
+    from scipy.stats import chi2
+
+    from aidnav.analysis.noise_fit.fit import _chi2_ppf
+
+    nu = np.array([1.0, 2.0, 3.7, 40.0, 2.5e4])
+    for p in (0.025, 0.5, 0.95, 0.975, 0.99):
+        np.testing.assert_array_equal(_chi2_ppf(p, nu), chi2.ppf(p, nu))
+        assert _chi2_ppf(p, 1) == chi2.ppf(p, 1) and _chi2_ppf(p, 2) == chi2.ppf(p, 2)

@@ -2,15 +2,15 @@
 
 from __future__ import annotations
 
+from rich.console import Console
+from rich.table import Table
+
 from aidnav.analysis.noise_fit.output import _UNITS
 from aidnav.analysis.noise_fit.results import Characterisation
 
 
 def print_characterisation(ch: Characterisation, console=None) -> None:
     """A rich table of the fitted terms per axis (boundary units) and the notes."""
-    from rich.console import Console  # rich: only for the console summary (startup cost)
-    from rich.table import Table
-
     console = console or Console()
     tab = Table(title=f"IMU noise ({ch.n_samples} samples at {ch.fs_hz:.6g} Hz, {ch.duration_s:.6g} s; "
                       "95% intervals)")

@@ -15,9 +15,10 @@ from pathlib import Path
 
 import numpy as np
 
+from aidnav.analysis.allan import allan_deviation
 from aidnav.analysis.noise_fit.allan_cov import _avar_cov_nb
 from aidnav.analysis.noise_fit.analyse import characterise_imu
-from aidnav.analysis.noise_fit.nnls import _profile_u_nb
+from aidnav.analysis.noise_fit.nnls import _columns_nb, _fit_c_nb, _profile_u_nb
 from aidnav.analysis.noise_fit.output import auto_grade, imu_yaml, noise_dict
 from aidnav.analysis.noise_fit.results import Characterisation
 from aidnav.analysis.noise_fit.static import _window_stats
@@ -62,16 +63,20 @@ def _warm_up() -> None:
     """Import the analysis libraries and load the compiled kernels (numba's first call costs a few tenths
     of a second): run in a thread while the log is read, so that it overlaps the reading."""
     try:
-        # the fit's scipy parts, loaded here to overlap the reading (scipy.stats alone takes ~0.3 s)
+        # the fit's scipy.optimize (~0.3 s with scipy.linalg) and scipy.special, imported here to overlap
+        # the reading
         from scipy.optimize import brentq  # noqa: F401
-        from scipy.special import digamma  # noqa: F401
-        from scipy.stats import chi2  # noqa: F401
+        from scipy.special import digamma, gammaincinv  # noqa: F401
 
         tau = np.array([0.01, 0.02, 0.04])
         _window_stats(np.zeros((20, 6)), 10, 2)
         _avar_cov_nb(tau / 0.01, 100.0, 0.01, np.array([0.0, 1.0, 0.0, 0.0]), 1.0)
         _profile_u_nb(tau, np.zeros(3), np.ones(3), np.eye(3), np.zeros(4, np.bool_), np.zeros(4), -1.0, 1.0,
                       3, np.zeros(4), math.nan)
+        _fit_c_nb(_columns_nb(tau, 0.0), np.zeros(3), np.ones(3), np.eye(3), np.zeros(4, np.bool_),
+                  np.zeros(4), np.zeros(4), 2)
+        # the ADEV kernels, on strided columns as characterise_rates gives them
+        allan_deviation(np.random.default_rng(0).standard_normal((64, 2)), 100.0, workers=1)
     except Exception:  # noqa: BLE001  (a warm-up only: the analysis imports and compiles what it needs)
         pass
 

@@ -18,14 +18,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from aidnav.apps.common import (
-    ConfigError,
-    check_solution,
-    load_model,
-    prepare_out_dir,
-    trajectory_path,
-    write_summary_files,
-)
+from aidnav.apps import common
+from aidnav.apps.common import ConfigError, check_solution, load_model, prepare_out_dir
 from aidnav.data import GnssData, ImuData
 from aidnav.errors import InputError
 from aidnav.filters.config import LooseConfig
@@ -269,7 +263,7 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
     t_start = _time.perf_counter()
     skip_checks = validate_skip(skip_checks)
     out_dir = prepare_out_dir(out_dir)
-    traj_path = trajectory_path(out_dir, fmt)
+    traj_path = common.trajectory_path(out_dir, fmt)
     notes: list[str] = []
     if config_path is None:
         cfg = LooseConfig()
@@ -316,7 +310,7 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
                "gnss_height_offset_m": datum,
                **run.summary, "notes": notes}
     summary["timing_s"] = {"read": t_read - t_start, "filter": t_filt - t_read, "write": t_write - t_filt}
-    write_summary_files(out_dir, summary, format_summary(summary))
+    common.write_summary_files(out_dir, summary, format_summary(summary))
     if figures:  # overview.png, trajectory.kml / .geojson, run.html
         from aidnav.report.run_page import write_run_outputs
 

@@ -39,15 +39,8 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from .config import (
-    DERIVED_QUANTITIES,
-    StatisticsSpec,
-    _quantities,
-    _window_metrics,
-    available_quantities,
-    quantity_column,
-    statistic_columns,
-)
+from . import config as _config
+from .config import _quantities, _window_metrics, available_quantities, quantity_column, statistic_columns
 from .estimators import state_blocks, state_unit
 
 __all__ = ["package_version", "run_path", "save_run", "load_run", "existing_runs", "statistic_columns",
@@ -156,7 +149,7 @@ def _quantity(q: str, err: np.ndarray, sig: np.ndarray, states) -> tuple[np.ndar
     if q in states:
         i = states.index(q)
         return err[..., i], sig[..., i]
-    need, kind = DERIVED_QUANTITIES[q]
+    need, kind = _config.DERIVED_QUANTITIES[q]
     idx = [states.index(s) for s in need]
     if kind == "alias":
         return err[..., idx[0]], sig[..., idx[0]]
@@ -217,7 +210,7 @@ def _convergence(t: np.ndarray, val: np.ndarray, below: float, hold_s: float | N
 
 
 def run_statistics(t: np.ndarray, err: np.ndarray, sig: np.ndarray, nees: np.ndarray, states, blocks,
-                   stats: StatisticsSpec, segments: list[dict]) -> dict[str, np.ndarray]:
+                   stats: _config.StatisticsSpec, segments: list[dict]) -> dict[str, np.ndarray]:
     """Per-run statistics of one estimator at one sweep point.
 
     t : (N,) epochs [s]; err, sig : (R, N, n) errors and filter σ in boundary units; nees : (R, N, B) per

@@ -328,23 +328,20 @@ def _seed_grade(gyro_deg_h, gyro_random_deg_h, accel_ug, accel_random_ug) -> dic
                 vrw_m_s_sqrt_h=accel_random_ug * UG * 60.0)
 
 
+#: columns of the tabulated grades below
+_GRADE_KEYS = ("gyro_bias_deg_h", "gyro_bias_instability_deg_h", "arw_deg_sqrt_h", "accel_bias_ug",
+               "accel_bias_instability_ug", "vrw_m_s_sqrt_h", "bias_corr_time_s", "gyro_scale_ppm",
+               "accel_scale_ppm", "misalignment_arcsec")
+_GRADE_TABLE = {
+    #              gyro   instab  ARW    accel   instab  VRW    τ [s]   gSF    aSF     misal.
+    "navigation": (0.005, 0.003, 0.002, 10.0, 5.0, 0.002, 3600.0, 5.0, 50.0, 5.0),
+    "tactical": (1.0, 0.3, 0.1, 100.0, 50.0, 0.03, 600.0, 100.0, 300.0, 60.0),
+    "mems": (10.0, 5.0, 0.3, 1000.0, 100.0, 0.1, 300.0, 500.0, 1000.0, 360.0),
+    "consumer": (360.0, 20.0, 1.0, 10000.0, 500.0, 0.2, 100.0, 5000.0, 5000.0, 1800.0),
+}
+
 _PRESETS: dict[str, dict] = {
-    "navigation": dict(gyro_bias_deg_h=0.005, gyro_bias_instability_deg_h=0.003, arw_deg_sqrt_h=0.002,
-                       accel_bias_ug=10.0, accel_bias_instability_ug=5.0, vrw_m_s_sqrt_h=0.002,
-                       bias_corr_time_s=3600.0, gyro_scale_ppm=5.0, accel_scale_ppm=50.0,
-                       misalignment_arcsec=5.0),
-    "tactical": dict(gyro_bias_deg_h=1.0, gyro_bias_instability_deg_h=0.3, arw_deg_sqrt_h=0.1,
-                     accel_bias_ug=100.0, accel_bias_instability_ug=50.0, vrw_m_s_sqrt_h=0.03,
-                     bias_corr_time_s=600.0, gyro_scale_ppm=100.0, accel_scale_ppm=300.0,
-                     misalignment_arcsec=60.0),
-    "mems": dict(gyro_bias_deg_h=10.0, gyro_bias_instability_deg_h=5.0, arw_deg_sqrt_h=0.3,
-                 accel_bias_ug=1000.0, accel_bias_instability_ug=100.0, vrw_m_s_sqrt_h=0.1,
-                 bias_corr_time_s=300.0, gyro_scale_ppm=500.0, accel_scale_ppm=1000.0,
-                 misalignment_arcsec=360.0),
-    "consumer": dict(gyro_bias_deg_h=360.0, gyro_bias_instability_deg_h=20.0, arw_deg_sqrt_h=1.0,
-                     accel_bias_ug=10000.0, accel_bias_instability_ug=500.0, vrw_m_s_sqrt_h=0.2,
-                     bias_corr_time_s=100.0, gyro_scale_ppm=5000.0, accel_scale_ppm=5000.0,
-                     misalignment_arcsec=1800.0),
+    **{name: dict(zip(_GRADE_KEYS, row, strict=True)) for name, row in _GRADE_TABLE.items()},
     "seed004_high": _seed_grade(0.01, 0.01, 10.0, 10.0),
     "seed004_medium": _seed_grade(0.05, 0.05, 50.0, 50.0),
     "seed004_low": _seed_grade(0.1, 0.1, 100.0, 100.0),

@@ -194,3 +194,17 @@ def test_report_page_and_index(tmp_path):
     assert 'href="seed_004/report.html"' in idx.read_text()
     paths = report_folder(tmp_path)
     assert paths[-1] == idx
+
+
+def test_cli_report_accepts_a_reproduction_folder(tmp_path):
+    rows = [summary_row("q", "m", ours=1.0, paper=2.0, target="ours < paper", spec=True)]
+    for seed in ("000", "003"):
+        write_summary(tmp_path / f"seed_{seed}", seed=seed, title="T [x]", runs=1, base_seed=1,
+                      tables=[summary_table("t", "c", rows)])
+    r = CliRunner().invoke(app, ["report", str(tmp_path / "seed_003")])
+    assert r.exit_code == 0, r.output
+    assert (tmp_path / "seed_003" / "report.html").exists()
+    r = CliRunner().invoke(app, ["report", str(tmp_path)])
+    assert r.exit_code == 0 and (tmp_path / "index.html").exists() and (tmp_path / "seed_000" / "report.html")
+    r = CliRunner().invoke(app, ["report", str(tmp_path / "nothing")])
+    assert r.exit_code != 0

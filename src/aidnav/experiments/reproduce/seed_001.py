@@ -479,10 +479,16 @@ def dr_rows(per) -> list[dict]:
     da, sea = paired(none, two)
     db, seb = paired(before, after)
     n = len(per)
-    reason_a = reason_b = None
     if n < 7:
         reason_a = reason_b = (f"{n} runs: a sign test cannot reach p < {P_SIGN:g} with fewer than 7 runs "
                                "(quick setting)")
+    else:
+        reason_a = (f"{ka} of {na} runs; paired difference {da:.2g} ± {sea:.2g} m/s (1 se)")
+        reason_b = (f"{kb} of {nb} runs; the paired slope difference {db:.2g} ± {seb:.2g} m/s (1 se) is "
+                    f"{'within' if abs(db) < 2 * seb else 'beyond'} 2 standard errors of zero: in the "
+                    f"{SLOPE_S:g} s after the two satellites return the tight filter does not lower the "
+                    "velocity error that the DR integrates by more than the runs resolve (two lines of sight "
+                    "and the clock drift observe only part of the velocity error the outage left)")
     return [
         summary_row("(a) DR error growth 20–92 s, 2 satellites, tight", "m/s", float(two.mean()),
                     stderr=mean_se(two)[1]),

@@ -36,7 +36,6 @@ is ≈ 1 km above the base) is removed in the relative solution; the seed assume
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 import numpy as np
 
@@ -48,9 +47,35 @@ from aidnav.estimators.dgps import (
     spp,
 )
 from aidnav.experiments.reproduce._study import Study, main, mean_se, paired, sign_test
+from aidnav.experiments.reproduce.seed_001_figures import _figures
+from aidnav.experiments.reproduce.seed_001_setup import (
+    APP_S,
+    BASE_H,
+    BASE_LAT,
+    BASE_LON,
+    CLOCK,
+    D2R,
+    DEFAULT_RUNS,
+    GNSS_HZ,
+    IMU_GRADE,
+    OUT_S,
+    P_SIGN,
+    PAIR,
+    POOR_CLOCK,
+    PRE_S,
+    SEED,
+    SENS_RUNS,
+    SLOPE_S,
+    SOW0,
+    TITLE,
+    WEEK,
+    _imu_spec,
+    _tight_cfg,
+    approach_scenario,
+    relative_ls_study,
+)
 from aidnav.experiments.reproduce.summary import summary_row, summary_table
-from aidnav.filters.tight import TightConfig, run_tight
-from aidnav.filters.tuning import loose_config_from_specs
+from aidnav.filters.tight import run_tight
 from aidnav.nav.earth import dcm_ecef_to_enu, lla_to_ecef, lla_to_enu, radii
 from aidnav.nav.rotations import attitude_error_batch, euler_to_quat_batch
 from aidnav.sim.gnss_constellation import nominal_constellation
@@ -60,152 +85,9 @@ from aidnav.sim.gnss_raw import (
     RawGnssSpec,
     limit_satellites,
     simulate_raw_gnss,
-    static_pseudoranges,
 )
-from aidnav.sim.imu import ImuSpec, corrupt_imu
-from aidnav.sim.scenario import parse_scenario
+from aidnav.sim.imu import corrupt_imu
 from aidnav.sim.trajectory import generate_truth
-
-SEED = "001"
-TITLE = "Key technologies of approach and landing based on tightly integrated DGPS/SINS (Pang et al., 2013)"
-D2R = np.pi / 180.0
-WEEK, SOW0 = 2381, 400000.0
-BASE_LAT, BASE_LON, BASE_H = 34.2 * D2R, 108.9 * D2R, 400.0
-GLIDE = 3.0 * D2R
-SPEED = 70.0
-PRE_S, APP_S, OUT_S = 120.0, 92.0, 20.0
-START_KM = 25.0
-IMU_HZ = 50.0
-PAIR = "spread"  # which two satellites remain after the outage
-CLOCK = {"clock_h0": 2e-19, "clock_hm2": 2e-20}  # receiver oscillator (TCXO of Brown & Hwang)
-#: a poor receiver oscillator for the sensitivity table: 100× the TCXO's white-frequency and random-walk
-#: frequency noise (h0, h−2)
-POOR_CLOCK = {"clock_h0": 2e-17, "clock_hm2": 2e-18}
-IMU_GRADE = "tactical"  #: fibre-optic class (1°/h bias, 0.1°/√h ARW), as the SPAN-CPT's gyros
-DEFAULT_RUNS = 20
-SENS_RUNS = 10  #: runs per case of the sensitivity tables (at most ``runs``)
-SLOPE_S = 5.0  #: window before / after the satellites return for the slope comparison (b) [s]
-P_SIGN = 0.01  #: sign-test level of the DR targets
-GNSS_HZ = 2.0
-
-
-def _say(console, msg):
-    if console is not None:
-        console.log(msg)
-
-
-# ------------------------------------------------------------------------------ relative LS targets
-def rover_on_glide_path(baseline_m: float):
-    """Rover ECEF [m] at horizontal distance ``baseline_m`` south of the base on the 3° glide path."""
-    e, n, u = 0.0, -baseline_m, baseline_m * np.tan(GLIDE)
-    C = dcm_ecef_to_enu(BASE_LAT, BASE_LON)
-    return np.array(lla_to_ecef(BASE_LAT, BASE_LON, BASE_H)) + C.T @ np.array([e, n, u]), np.array([e, n, u])
-
-
-def relative_ls_study(
-    rng,
-    baselines_km=(5, 10, 20, 30, 40),
-    n_times: int = 10,
-    nees_draws: int = 400,
-    common_sigma_m: float = 10.0,
-):
-    """Targets 1–2 of SPEC 2.3 (noise-free common mode; σ = 1 m NEES). Returns a dict of results."""
-    eph = nominal_constellation(WEEK, SOW0, 24)
-    pb = np.array(lla_to_ecef(BASE_LAT, BASE_LON, BASE_H))
-    times = SOW0 + np.linspace(0, 3600, n_times)
-    err_iter = {}
-    single = []
-    nees = []
-    cdt_err = []
-    for b in baselines_km:
-        pk, enu_true = rover_on_glide_path(b * 1e3)
-        worst = 0.0
-        for t in times:
-            cb, ck = rng.normal(0, 3e4), rng.normal(0, 3e4)
-            pr_b, _ = static_pseudoranges(eph, t, pb, cb)
-            pr_k, _ = static_pseudoranges(eph, t, pk, ck)
-            common = rng.normal(0, common_sigma_m, len(pr_b))
-            pr_b, pr_k = pr_b + common, pr_k + common
-            sb, _, _, _ = satellites_from_pseudoranges(eph.table, eph.table[:, 0], t, pr_b, max_age_s=1e7)
-            sk, _, _, _ = satellites_from_pseudoranges(eph.table, eph.table[:, 0], t, pr_k, max_age_s=1e7)
-            r = relative_position(pb, sb, pr_b, sk, pr_k, sigma0=1.0, weighting="equal")
-            worst = max(worst, float(np.linalg.norm(r.enu - enu_true)), abs(r.clock_m - (ck - cb)))
-            if b == 20:
-                r1 = relative_position(pb, sb, pr_b, sk, pr_k, sigma0=1.0, weighting="equal", iterate=False)
-                single.append(np.r_[r1.enu - enu_true, r1.clock_m - (ck - cb)])
-                # σ = 1 m white noise on the single differences (here: on the rover's pseudoranges)
-                for _ in range(nees_draws // n_times):
-                    prn_k = pr_k + rng.normal(0, 1.0, len(pr_k))
-                    sk2, _, _, _ = satellites_from_pseudoranges(
-                        eph.table, eph.table[:, 0], t, prn_k, max_age_s=1e7
-                    )
-                    r2 = relative_position(pb, sb, pr_b, sk2, prn_k, sigma0=1.0, weighting="equal")
-                    d = np.r_[r2.enu - enu_true, r2.clock_m - (ck - cb)]
-                    nees.append(float(d @ np.linalg.solve(r2.cov, d)))
-                    cdt_err.append(d)
-        err_iter[b] = worst
-    single = np.array(single)
-    return {
-        "err_iter": err_iter,
-        "single_mean": single.mean(0),
-        "single_max3d": float(np.max(np.linalg.norm(single[:, :3], axis=1))),
-        "single": single,
-        "nees": np.array(nees),
-        "noise_err": np.array(cdt_err),
-    }
-
-
-# --------------------------------------------------------------------------------- the approach run
-def approach_scenario():
-    """The seed's approach: level pre-approach towards the base, then 92 s on a 3° descent."""
-    rm, _ = radii(BASE_LAT)
-    dist0 = START_KM * 1e3 + PRE_S * SPEED
-    lat0 = BASE_LAT - dist0 / (rm + BASE_H)
-    h0 = BASE_H + START_KM * 1e3 * np.tan(GLIDE)
-    return parse_scenario(
-        {
-            "name": "seed001_approach",
-            "imu_rate_hz": IMU_HZ,
-            "transition_s": 1.0,
-            "initial": {
-                "lat_deg": np.degrees(lat0),
-                "lon_deg": np.degrees(BASE_LON),
-                "height_m": float(h0),
-                "speed_m_s": SPEED,
-                "heading_deg": 0.0,
-            },
-            "segments": [
-                {"type": "straight", "duration_s": PRE_S, "name": "pre-approach"},
-                {
-                    "type": "climb",
-                    "duration_s": APP_S,
-                    "flight_path_deg": -3.0,
-                    "pull_s": 2.0,
-                    "name": "approach",
-                },
-            ],
-        }
-    )
-
-
-def _imu_spec(grade: str = IMU_GRADE):
-    return ImuSpec.grade(grade)
-
-
-def _tight_cfg(spec, clock=None):
-    lc = loose_config_from_specs(spec)
-    return TightConfig(
-        states=17,
-        imu=lc.imu,
-        constraints={"zupt": False},
-        filter={"prop_dt_s": 0.5},
-        init={
-            "position_sigma_m": (3, 3, 5),
-            "velocity_sigma_m_s": (0.3, 0.3, 0.3),
-            "attitude_sigma_deg": (0.5, 0.5, 2.0),
-        },
-        gnss={"code_sigma_m": 1.0, "rate_sigma_m_s": 0.06, "mask_deg": 5.0, **(clock or CLOCK)},
-    )
 
 
 def approach_run(run_seed: int, truth, imu_true, with_figures_data: bool = False, grade: str = IMU_GRADE,
@@ -392,79 +274,6 @@ def approach_run(run_seed: int, truth, imu_true, with_figures_data: bool = False
         )
     out["dr_err_curve"] = np.interp(np.arange(0, APP_S + 0.01, 1.0), rel_s, np.linalg.norm(dr_err, axis=1))
     return out
-
-
-# ----------------------------------------------------------------------------------------- figures
-def _figures(out: Path, s, curves, rel) -> list[str]:
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    names = []
-
-    def save(fig, name):
-        FigureCanvasAgg(fig)
-        fig.savefig(out / name, dpi=110)
-        names.append(name)
-
-    t = s["t_a"]
-    for name, key, ylab, labels in (
-        ("fig2_attitude_error.png", "att_err", "deg", ("roll", "pitch", "heading")),
-        ("fig3_position_error.png", "pos_err", "m", ("E", "N", "U")),
-        ("fig4_velocity_error.png", "vel_err", "m/s", ("E", "N", "U")),
-    ):
-        fig = Figure(figsize=(9, 6))
-        axs = fig.subplots(3, 1, sharex=True)
-        for i in range(3):
-            axs[i].plot(t, s[key][:, i], lw=0.8)
-            axs[i].set_ylabel(f"{labels[i]} [{ylab}]")
-            axs[i].axvspan(PRE_S, PRE_S + APP_S, color="0.9")
-            axs[i].grid(alpha=0.3)
-        axs[-1].set_xlabel("time [s] (shaded: the 92 s approach)")
-        fig.suptitle(
-            f"Tight DGPS/SINS integration, all satellites: {name.split('_', 1)[1][:-4].replace('_', ' ')}"
-        )
-        save(fig, name)
-    fig = Figure(figsize=(9, 6))
-    ax = fig.subplots(2, 1)
-    tc = np.arange(0, APP_S + 0.01, 1.0)
-    ax[0].plot(s["t_b"], s["dr_err"], lw=0.8)
-    ax[0].plot(s["t_b"], np.linalg.norm(s["dr_err"], axis=1), "k", lw=1.2)
-    ax[0].axvline(OUT_S, color="r", ls="--")
-    ax[0].legend(["E", "N", "U", "|e|"], fontsize=8)
-    ax[0].set_ylabel("DR error [m] (run 1)")
-    ax[0].set_title("Relative-position dead reckoning: 0 satellites for 20 s, then 2 satellites")
-    ax[1].plot(tc, np.median(curves, 0), "k", label="median")
-    ax[1].fill_between(
-        tc, np.percentile(curves, 10, 0), np.percentile(curves, 90, 0), color="0.8", label="10-90 %"
-    )
-    ax[1].axvline(OUT_S, color="r", ls="--")
-    ax[1].set_xlabel("time since the start of the approach [s]")
-    ax[1].set_ylabel("|DR error| [m], all runs")
-    ax[1].legend(fontsize=8)
-    for a in ax:
-        a.grid(alpha=0.3)
-    save(fig, "fig5_relative_position_error.png")
-    fig = Figure(figsize=(8, 4.5))
-    ax = fig.subplots()
-    ax.plot(s["dg_t"], np.linalg.norm(s["dg_err"], axis=1), label="DGPS single differences (iterated)")
-    ax.plot(s["dg_t"], np.linalg.norm(s["spp_err"], axis=1), label="SPP of the rover")
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("3-D error [m]")
-    ax.set_title("Relative (DGPS) vs absolute (SPP) position error during the approach, run 1")
-    ax.legend()
-    ax.grid(alpha=0.3)
-    save(fig, "dgps_vs_spp.png")
-    fig = Figure(figsize=(7, 4))
-    ax = fig.subplots()
-    b = sorted(rel["err_iter"])
-    ax.semilogy(b, [max(rel["err_iter"][x], 1e-12) for x in b], "o-", label="iterated, common-mode only")
-    ax.axhline(1e-3, color="r", ls="--", label="target 1 mm")
-    ax.set_xlabel("baseline [km]")
-    ax.set_ylabel("max error [m]")
-    ax.legend()
-    ax.grid(alpha=0.3)
-    save(fig, "relative_ls_common_mode.png")
-    return names
 
 
 def dr_rows(per) -> list[dict]:

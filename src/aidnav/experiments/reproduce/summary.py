@@ -143,6 +143,11 @@ def _num(x):
 
 
 VERDICTS = ("holds", "fails", "unresolved")
+
+
+def _g(x) -> str:
+    return "nan" if x is None else f"{x:.3g}"
+
 #: how many standard errors separate a resolved trend from Monte Carlo noise
 RESOLVE_SE = 2.0
 
@@ -180,9 +185,11 @@ def summary_row(quantity: str, unit: str, ours, paper=None, target=None,
     if holds is not None:
         verdict = _verdict(holds, mg)
         if verdict != "holds" and not reason:
-            if verdict == "unresolved":
+            if verdict == "unresolved" and mg["stderr"] is None:
+                reason = "no Monte Carlo standard error (one run): the trend cannot be resolved"
+            elif verdict == "unresolved":
                 reason = (f"within {RESOLVE_SE:g} standard errors of the target's boundary "
-                          f"(distance {mg['value']:.3g}, standard error {mg['stderr']:.3g}): the runs do "
+                          f"(distance {_g(mg['value'])}, standard error {_g(mg['stderr'])}): the runs do "
                           "not resolve it")
             elif not finite:
                 reason = "no value (not finite)"

@@ -208,3 +208,28 @@ def test_cli_report_accepts_a_reproduction_folder(tmp_path):
     assert r.exit_code == 0 and (tmp_path / "index.html").exists() and (tmp_path / "seed_000" / "report.html")
     r = CliRunner().invoke(app, ["report", str(tmp_path / "nothing")])
     assert r.exit_code != 0
+
+
+def test_report_fits_a_1400_px_browser_window(tmp_path):
+    import numpy as np
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from aidnav.experiments.reproduce.page import browser_layout, write_seed_page
+
+    fig = Figure(figsize=(30, 4))  # a 3000-px-wide figure must scale down
+    FigureCanvasAgg(fig)
+    fig.subplots().plot(np.arange(10))
+    fig.savefig(tmp_path / "wide.png", dpi=100)
+    long = "x" * 300  # an unbreakable word, a long target, many rows
+    rows = [summary_row(f"{long} {i}", "m", ours=float(i), paper=1.0, target=f"ours < paper + {i} * 1e-3 + 0"
+                        + " + 0" * 60, spec=True, stderr=0.1) for i in range(30)]
+    write_summary(tmp_path, seed="002", title="wide " + long, runs=1, base_seed=1,
+                  tables=[summary_table("T", "c " + long, rows)], figures=["wide.png"], notes=[long])
+    page = write_seed_page(tmp_path)
+    got = browser_layout(page, tmp_path)
+    if got is None:
+        pytest.skip("Chromium is not installed")
+    maxright, scrollw, imgs, shot = got
+    assert imgs == 1 and shot.stat().st_size > 10_000
+    assert maxright <= 1400 and scrollw <= 1400, (maxright, scrollw)

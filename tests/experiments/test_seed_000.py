@@ -7,6 +7,7 @@ import json
 import pytest
 
 from aidnav.experiments.reproduce import run_seed, seed_000
+from aidnav.experiments.reproduce.page import browser_layout
 from aidnav.experiments.reproduce.summary import _ROW_KEYS
 
 
@@ -35,6 +36,10 @@ def test_run_writes_summary(tmp_path):
     spec13 = d["tables"][2]["rows"]
     assert all(r["spec"] for r in spec13 if r["target"] and "centralized" not in r["quantity"])
     assert (tmp_path / "report.html").stat().st_size > 10000
+    got = browser_layout(tmp_path / "report.html", tmp_path / "browser")
+    if got is not None:  # every table and figure visible, nothing wider than a 1400-px window
+        maxright, scrollw, imgs, shot = got
+        assert imgs == len(d["figures"]) and maxright <= 1400 and scrollw <= 1400
     assert rows["SINS/GPS: heading error std"]["paper"] == 98.5442
     assert rows[f"{seed_000.FED}: heading error std"]["paper"] == 2.8714
     ratio = next(r for r in d["tables"][2]["rows"] if r["quantity"].startswith("heading RMS ratio"))

@@ -7,6 +7,7 @@ import os
 import subprocess
 import sys
 
+from aidnav.experiments.reproduce.page import browser_layout
 from aidnav.experiments.reproduce.summary import _ROW_KEYS, check_row
 
 
@@ -35,3 +36,10 @@ def test_cli_reproduce_001_end_to_end(tmp_path):
     assert [t["kind"] for t in d["tables"]].count("sensitivity") == 3
     html = (out / "report.html").read_text()
     assert html.count("data:image/png;base64,") == len(d["figures"]) >= 5
+    got = browser_layout(out / "report.html", tmp_path / "browser")
+    if got is not None:
+        assert got[2] == len(d["figures"]) and got[0] <= 1400 and got[1] <= 1400, got
+    # `aidnav report` rewrites the page from the summary
+    r = subprocess.run([sys.executable, "-m", "aidnav.cli", "report", str(out)], capture_output=True,
+                       text=True, env=env, timeout=300)
+    assert r.returncode == 0 and (out / "report.html").read_text() == html

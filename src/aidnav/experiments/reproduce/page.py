@@ -13,9 +13,13 @@ import base64
 import html
 import json
 import math
+import re
+import shutil
+import subprocess
 from pathlib import Path
 
-__all__ = ["write_seed_page", "write_index", "print_summary", "report_folder", "ReproductionError"]
+__all__ = ["write_seed_page", "write_index", "print_summary", "report_folder", "ReproductionError",
+           "browser_layout", "is_reproduction"]
 
 CSS = """
 *{box-sizing:border-box}
@@ -235,3 +239,33 @@ def print_summary(console, doc: dict, tables=None) -> None:
                         vt)
         console.print(tab)
     console.print(Text(f"seed {doc['seed']}: {_counts_line(_counts(doc))}"))
+
+
+_LAYOUT_JS = (
+    '<script>window.addEventListener("load",()=>{let w=0;for(const e of document.querySelectorAll("body *"))'
+    '{let p=e.parentElement,clip=false;while(p){const o=getComputedStyle(p).overflowX;if(o!=="visible")'
+    '{clip=true;break}p=p.parentElement}const r=e.getBoundingClientRect().right;if(!clip&&r>w)w=r}'
+    'document.body.setAttribute("data-maxright",String(w));document.body.setAttribute("data-scrollw",'
+    'String(document.documentElement.scrollWidth));document.body.setAttribute("data-imgs",String('
+    '[...document.images].filter(i=>i.complete&&i.naturalWidth>0).length))});</script>')
+
+
+def browser_layout(page, work_dir, width: int = 1400):
+    """Open ``page`` (a report.html) in headless Chromium with a ``width``-px window: returns (largest right
+    edge of an element not clipped by a scrolling box [px], the document's scroll width [px], images
+    decoded, path of a screenshot in ``work_dir``), or None when Chromium is not installed. For tests."""
+    found = [shutil.which(n) for n in ("chromium", "chromium-browser", "google-chrome")]
+    exe = next((f for f in found if f), None)
+    if exe is None:
+        return None
+    Path(work_dir).mkdir(parents=True, exist_ok=True)
+    probe = Path(work_dir) / "probe.html"
+    probe.write_text(page.read_text().replace("</body>", _LAYOUT_JS + "</body>"))
+    args = [exe, "--headless", "--no-sandbox", "--disable-gpu", f"--window-size={width},1000",
+            "--virtual-time-budget=5000"]
+    dom = subprocess.run(args + ["--dump-dom", probe.as_uri()], capture_output=True, text=True,
+                         timeout=120).stdout
+    shot = Path(work_dir) / "shot.png"
+    subprocess.run(args + [f"--screenshot={shot}", page.as_uri()], capture_output=True, timeout=120)
+    got = dict(re.findall(r'data-(maxright|scrollw|imgs)="([0-9.]+)"', dom))
+    return float(got["maxright"]), float(got["scrollw"]), int(got["imgs"]), shot

@@ -29,7 +29,8 @@ import numpy as np
 from .page import print_summary, write_seed_page
 from .summary import write_summary
 
-__all__ = ["Study", "main", "figure", "mean_se", "ratio_se", "rms_ratio_se", "paired", "sign_test"]
+__all__ = ["Study", "main", "figure", "mean_se", "ratio_se", "rms_ratio_se", "paired", "sign_test",
+           "runs_needed"]
 
 
 # ------------------------------------------------------------------ Monte Carlo standard errors
@@ -64,6 +65,13 @@ def rms_ratio_se(ms_a, ms_b) -> tuple[float, float]:
 def paired(a, b) -> tuple[float, float]:
     """(mean of a − b, its standard error) over paired runs."""
     return mean_se(np.asarray(a, float) - np.asarray(b, float))
+
+
+def runs_needed(d: float, se: float, runs: int, k: float = 2.0) -> int:
+    """Runs that would bring the standard error ``se`` (of ``runs`` runs) below |d|/k (se ∝ 1/√runs)."""
+    if not (math.isfinite(d) and math.isfinite(se)) or d == 0:
+        return -1
+    return int(math.ceil(runs * (k * se / abs(d)) ** 2))
 
 
 def sign_test(a, b) -> tuple[int, int, float]:

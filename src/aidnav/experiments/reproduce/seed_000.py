@@ -36,9 +36,10 @@ import sys
 
 import numpy as np
 
-from aidnav.experiments.reproduce._study import Study, main, mean_se, ratio_se, rms_ratio_se
+from aidnav.experiments.reproduce._study import Study, main, mean_se, ratio_se, rms_ratio_se, runs_needed
 from aidnav.experiments.reproduce.seed_000_figures import _plot_loss, _plot_seed_figs, _plot_variants
 from aidnav.experiments.reproduce.seed_000_setup import (
+    ACCEL_BIAS_UG,
     ARCMIN,
     CENTRAL,
     DEFAULT_RUNS,
@@ -222,7 +223,7 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
         duration_s: float = DURATION_S) -> dict:
     """Reproduce seed 000 into ``out_dir``: PNG figures, ``summary.json`` (every row checked against its
     target), ``report.html`` and ``statistics.json`` (per-variant, per-run statistics). ``runs``: Monte
-    Carlo realisations (None: 20). Returns the summary dict."""
+    Carlo realisations (None: DEFAULT_RUNS = 30). Returns the summary dict."""
     from aidnav.analysis.consistency import chi2_band
     from aidnav.experiments.reproduce.summary import summary_row, summary_table
 
@@ -319,6 +320,18 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
     pitch_max = float(np.max(pmax))
     n_over = int(np.sum(np.asarray(pmax) >= 2.0))
     pitch_after = rms(pooled(FED, "pitch", SETTLE_S))
+    g0 = geometry_check()
+    share = float(np.sin(np.radians(g0["az_deg"])))  # the unobserved tilt axis (LOS) vs the pitch axis
+    tilt1 = ACCEL_BIAS_UG * 1e-6 / ARCMIN  # accelerometer bias / g as a tilt [arcmin]
+    pitch_reason = (
+        "physics: on a static base the SAPV elevation observes the tilt about the horizontal axis across "
+        "the line of sight, but the tilt about the line of sight's horizontal direction stays tied to the "
+        f"horizontal accelerometer bias (σ {ACCEL_BIAS_UG:g} µg → {tilt1:.2f}′ of tilt); with the antenna "
+        f"{g0['az_deg']:.1f}° from the nose its share in pitch is sin({g0['az_deg']:.1f}°) = {share:.2f}, "
+        f"a pitch error of ≈ {share * tilt1:.2f}′ (1σ) that no filter removes. The largest over {runs} runs "
+        f"and {duration_s - SETTLE_S:g} s therefore exceeds 2′ whenever a run draws a bias beyond "
+        f"≈ {2.0 / (share * tilt1):.1f}σ ({n_over} of {runs} runs); the seed's one run shows 0.79′ std, "
+        f"ours has {pitch_after:.2f}′ RMS after {SETTLE_S:g} s")
     nis = mc["fed_nis"]
     nis_m, nis_se = mean_se(nis)
     lo, hi = 2.0 - 1.96 * nis_se, 2.0 + 1.96 * nis_se
@@ -339,7 +352,7 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
                     margin=(1.0 - p_ratio, p_ratio_se)),
         summary_row(f"largest |pitch error| after {SETTLE_S:g} s, SINS/GPS/SAPV, over all runs (below ~2′; "
                     f"{n_over} of {runs} runs reach 2′)", "arcmin", pitch_max, None, "ours < 2",
-                    spec=True),
+                    spec=True, reason=pitch_reason),
         summary_row(f"pitch error RMS after {SETTLE_S:g} s, SINS/GPS/SAPV (informative)", "arcmin",
                     pitch_after),
         summary_row("roll error std ratio SINS/GPS/SAPV / SINS/GPS (no degradation; seed 3.78′ → 3.75′)", "-",
@@ -350,10 +363,19 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
         a, b = np.array(st[GPS_ONLY][q]["std"]), np.array(st[FED][q]["std"])
         r, se = rms_ratio_se(b**2, a**2)
         pa, pb = PAPER_T2[q]["std"]
+        d = 0.15 - abs(r - 1.0)
+        reason = None
+        if abs(d) < 2 * se:
+            reason = (f"ratio {r:.3f} ± {se:.3f} (1 se) is {d:+.3f} from the ±15 % boundary: resolving it "
+                      f"needs ≈ {runs_needed(d, se, runs)} runs. φ_U0 = {PHI0_DEG[2]:g}° is by decision the "
+                      "largest "
+                      "initial heading error for which the seed's velocity relation holds, so the north "
+                      "ratio sits at the boundary by construction (see the 'Initial heading' sensitivity "
+                      "table: SAPV lowers the north velocity error more the larger φ_U0)")
         rows3.append(summary_row(f"{q} error std ratio SINS/GPS/SAPV / SINS/GPS, whole run (SAPV does not "
                                  f"help velocity; seed {pa:g} → {pb:g} m/s)", "-", r, pb / pa,
-                                 "abs(ours - 1) <= 0.15", spec=True, stderr=se,
-                                 margin=(0.15 - abs(r - 1.0), se)))
+                                 "abs(ours - 1) <= 0.15", spec=True, stderr=se, margin=(d, se),
+                                 reason=reason))
     for q in ("vN", "vU", "vE"):
         a, b = rms(pooled(GPS_ONLY, q, SETTLE_S)), rms(pooled(FED, q, SETTLE_S))
         rows3.append(summary_row(f"{q} error RMS ratio SINS/GPS/SAPV / SINS/GPS after {SETTLE_S:g} s "

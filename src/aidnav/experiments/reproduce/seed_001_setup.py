@@ -35,6 +35,7 @@ DEFAULT_RUNS = 20
 SENS_RUNS = 10  #: runs per case of the sensitivity tables (at most ``runs``)
 SLOPE_S = 5.0  #: window before / after the satellites return for the slope comparison (b) [s]
 P_SIGN = 0.01  #: sign-test level of the DR targets
+DOPPLER_SIGMA_M_S = 0.06  #: σ of a pseudorange rate (Doppler) in the tight filter [m/s]
 GNSS_HZ = 2.0
 
 
@@ -148,5 +149,5 @@ def _tight_cfg(spec, clock=None):
             "velocity_sigma_m_s": (0.3, 0.3, 0.3),
             "attitude_sigma_deg": (0.5, 0.5, 2.0),
         },
-        gnss={"code_sigma_m": 1.0, "rate_sigma_m_s": 0.06, "mask_deg": 5.0, **(clock or CLOCK)},
+        gnss={"code_sigma_m": 1.0, "rate_sigma_m_s": DOPPLER_SIGMA_M_S, "mask_deg": 5.0, **(clock or CLOCK)},
     )

@@ -218,13 +218,19 @@ def is_reproduction(directory) -> bool:
     return (d / "summary.json").is_file() or any((s / "summary.json").is_file() for s in d.glob("seed_*"))
 
 
-def print_summary(console, doc: dict, tables=None) -> None:
-    """The paper-vs-ours table of ``doc`` on a rich console (data strings are not read as markup)."""
+def print_summary(console, doc: dict, tables=None, sensitivity: bool = False) -> None:
+    """The paper-vs-ours tables of ``doc`` on a rich console (data strings are not read as markup):
+    ``tables`` (names; None: all), the sensitivity studies only with ``sensitivity`` (they are in
+    report.html)."""
     from rich.table import Table
     from rich.text import Text
 
+    skipped = 0
     for t in doc["tables"]:
         if tables is not None and t["name"] not in tables:
+            continue
+        if t.get("kind") == "sensitivity" and not sensitivity:
+            skipped += 1
             continue
         tab = Table(title=Text(f"seed {doc['seed']} · {t['name']}: {t['caption']}"), title_justify="left")
         for c, just in (("quantity", "left"), ("unit", "left"), ("paper", "right"), ("ours", "right"),
@@ -238,6 +244,8 @@ def print_summary(console, doc: dict, tables=None) -> None:
                         Text(_fmt(r.get("ours"))), Text(_fmt(r.get("stderr"))), Text(r.get("target") or ""),
                         vt)
         console.print(tab)
+    if skipped:
+        console.print(Text(f"seed {doc['seed']}: {skipped} sensitivity tables in report.html"))
     console.print(Text(f"seed {doc['seed']}: {_counts_line(_counts(doc))}"))
 
 

@@ -296,7 +296,16 @@ def run_experiment_cmd(
 def report_cmd(directory: Path = typer.Argument(..., help="campaign directory written by `aidnav run`")):
     """Self-contained HTML report of a campaign: DIR/report.html (and DIR/statistics.json)."""
     from aidnav.experiments.report import ReportError, write_report
+    from aidnav.experiments.reproduce.page import ReproductionError, is_reproduction, report_folder
 
+    if is_reproduction(directory):  # a folder of `aidnav reproduce` (one seed, or all with index.html)
+        try:
+            paths = report_folder(directory)
+        except ReproductionError as e:
+            _fail(str(e))
+        for p in paths:
+            console.print(f"wrote {p}", markup=False, highlight=False)
+        return
     try:
         path = write_report(directory)
     except ReportError as e:
@@ -317,12 +326,19 @@ def reproduce_cmd(
         resolve_seeds(seed)
     except ValueError as e:
         _fail(str(e))
+    from rich.text import Text
+
+    from aidnav.experiments.reproduce.page import write_index
+
     outcomes = reproduce(seed, out, runs=runs, console=console)
     for o in outcomes:
         if o.ok:
-            console.print(f"seed {o.seed}: done; {o.summary or o.out_dir}")
+            console.print(f"seed {o.seed}: done; {o.summary or o.out_dir}", markup=False, highlight=False)
         else:
-            console.print(f"[bold red]seed {o.seed}[/]: cannot be reproduced yet: {o.reason}")
+            console.print(Text.assemble((f"seed {o.seed}", "bold red"),
+                                        f": cannot be reproduced yet: {o.reason}"), highlight=False)
+    if len(outcomes) > 1 and any(o.ok for o in outcomes):
+        console.print(f"wrote {write_index(out, outcomes)}", markup=False, highlight=False)
     if not all(o.ok for o in outcomes):
         raise typer.Exit(2)
 

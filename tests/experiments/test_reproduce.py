@@ -104,14 +104,15 @@ def test_summary_rows_compute_holds():
     r = summary_row("heading std, none", "deg", ours=0.21, paper=0.2483, target="none / figure8 >= 5",
                     values={"none": 0.21, "figure8": 0.03})
     assert r == {"quantity": "heading std, none", "unit": "deg", "paper": 0.2483, "ours": 0.21,
-                 "target": "none / figure8 >= 5", "holds": True}
+                 "stderr": None, "target": "none / figure8 >= 5", "holds": True, "verdict": "holds",
+                 "spec": False, "reason": None, "margin": None, "values": {"none": 0.21, "figure8": 0.03}}
     r = summary_row("x", "m", ours=2.0, paper=1.0, target="abs(ours - paper) <= 0.1 * paper")
     assert r["holds"] is False
     assert summary_row("x", "m", ours=2.0)["holds"] is None
     even = Target("ours is even", lambda o, p: o % 2 == 0)
     assert summary_row("x", "m", ours=2.0, target=even)["holds"] is True
-    assert summary_row("x", "m", ours=float("nan"), paper=1.0, target="ours < paper") == {
-        "quantity": "x", "unit": "m", "paper": 1.0, "ours": None, "target": "ours < paper", "holds": False}
+    nan = summary_row("x", "m", ours=float("nan"), paper=1.0, target="ours < paper")
+    assert (nan["ours"], nan["holds"], nan["verdict"]) == (None, False, "fails") and nan["reason"]
     for bad in ("ours <", "__import__('os')", "ours.real > 1", "ours + 1", "unknown > 1", "paper < 1"):
         with pytest.raises(SummaryError):
             evaluate_target(bad, 1.0, None)
@@ -124,11 +125,111 @@ def test_write_summary_schema(tmp_path):
                       aidnav_version="9.9")
     d = json.loads(p.read_text())
     assert d == {"seed": "004", "title": "T", "aidnav_version": "9.9", "runs": 10, "base_seed": 1,
-                 "tables": [{"name": "Table 4", "caption": "cap", "rows": [
-                     {"quantity": "q", "unit": "deg", "paper": None, "ours": 1.0, "target": "ours < 2",
-                      "holds": True}]}], "figures": ["f.png"], "notes": ["n"]}
+                 "tables": [{"name": "Table 4", "caption": "cap", "kind": "results", "rows": [
+                     {"quantity": "q", "unit": "deg", "paper": None, "ours": 1.0, "stderr": None,
+                      "target": "ours < 2", "holds": True, "verdict": "holds", "spec": False, "reason": None,
+                      "margin": None, "values": None}]}], "figures": ["f.png"], "notes": ["n"],
+                 "verdicts": {"spec": {"holds": 0, "fails": 0, "unresolved": 0},
+                              "other": {"holds": 1, "fails": 0, "unresolved": 0}}}
     typed = dict(rows[0], target=None, holds=True)
     with pytest.raises(SummaryError, match="holds without a target"):
         write_summary(tmp_path / "x", seed="004", title="T", runs=1, base_seed=1,
                       tables=[summary_table("t", "c", [typed])])
     assert not (tmp_path / "x" / "summary.json").exists()
+
+
+def _write_one(path, row):
+    return write_summary(path, seed="004", title="T", runs=1, base_seed=1,
+                         tables=[summary_table("t", "c", [row])])
+
+
+def test_write_summary_rejects_holds_that_disagree_with_the_target(tmp_path):
+    good = summary_row("q", "deg", ours=3.0, paper=1.0, target="ours < 2 * paper", spec=True)
+    assert good["holds"] is False and good["verdict"] == "fails" and good["reason"]
+    for bad, msg in [(dict(good, holds=True, verdict="holds", reason=None), "disagrees with its target"),
+                     (dict(good, verdict="holds"), "verdict"),
+                     (dict(good, reason=None), "needs a reason"),
+                     (dict(good, target="ours < 2 * k"), "cannot be checked"),
+                     (dict(good, target=None, holds=None, verdict=None), "spec row needs a target"),
+                     (dict(good, target=None, verdict=None, spec=False), "holds without a target")]:
+        with pytest.raises(SummaryError, match=msg):
+            _write_one(tmp_path / "x", bad)
+        assert not (tmp_path / "x" / "summary.json").exists()
+    # a hand-made row with named values is re-evaluated from them
+    v = summary_row("q", "-", ours=1.0, target="ours < k", values={"k": 2.0})
+    _write_one(tmp_path / "ok", v)
+    with pytest.raises(SummaryError, match="disagrees"):
+        _write_one(tmp_path / "x", dict(v, values={"k": 0.5}))
+    with pytest.raises(SummaryError, match="spec row needs a target"):
+        summary_row("q", "-", ours=1.0, spec=True)
+
+
+def test_unresolved_within_two_standard_errors():
+    # an ordering a > b that holds by 0.3 with a standard error of 0.2: not resolved (< 2 se)
+    r = summary_row("a - b", "-", ours=0.3, target="ours > 0", stderr=0.2, margin=(0.3, 0.2), spec=True)
+    assert r["holds"] is True and r["verdict"] == "unresolved" and "standard errors" in r["reason"]
+    r = summary_row("a - b", "-", ours=0.5, target="ours > 0", stderr=0.2, margin=(0.5, 0.2), spec=True)
+    assert r["verdict"] == "holds" and r["reason"] is None
+    r = summary_row("a - b", "-", ours=-0.5, target="ours > 0", margin=(-0.5, 0.2), reason="physics")
+    assert r["verdict"] == "fails" and r["reason"] == "physics"
+
+
+def test_report_page_and_index(tmp_path):
+    import re
+
+    from aidnav.experiments.reproduce.page import report_folder, write_index
+
+    rows = [summary_row("x [ms] <b>", "m", ours=1.0, paper=2.0, target="ours < paper", spec=True,
+                        stderr=0.1),
+            summary_row("echo", "m", ours=1.0, paper=1.0)]
+    d = tmp_path / "seed_004"
+    write_summary(d, seed="004", title="T", runs=3, base_seed=1,
+                  tables=[summary_table("Table 4", "cap", rows),
+                          summary_table("Sens", "c", rows[1:], kind="sensitivity")])
+    (p,) = report_folder(d)
+    text = p.read_text()
+    assert "x [ms] &lt;b&gt;" in text and "Sensitivity studies" in text and "max-width:1300px" in text
+    assert len(re.findall("<table>", text)) == 2
+    idx = write_index(tmp_path)
+    assert 'href="seed_004/report.html"' in idx.read_text()
+    paths = report_folder(tmp_path)
+    assert paths[-1] == idx
+
+
+def test_cli_report_accepts_a_reproduction_folder(tmp_path):
+    rows = [summary_row("q", "m", ours=1.0, paper=2.0, target="ours < paper", spec=True)]
+    for seed in ("000", "003"):
+        write_summary(tmp_path / f"seed_{seed}", seed=seed, title="T [x]", runs=1, base_seed=1,
+                      tables=[summary_table("t", "c", rows)])
+    r = CliRunner().invoke(app, ["report", str(tmp_path / "seed_003")])
+    assert r.exit_code == 0, r.output
+    assert (tmp_path / "seed_003" / "report.html").exists()
+    r = CliRunner().invoke(app, ["report", str(tmp_path)])
+    assert r.exit_code == 0 and (tmp_path / "index.html").exists() and (tmp_path / "seed_000" / "report.html")
+    r = CliRunner().invoke(app, ["report", str(tmp_path / "nothing")])
+    assert r.exit_code != 0
+
+
+def test_report_fits_a_1400_px_browser_window(tmp_path):
+    import numpy as np
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from aidnav.experiments.reproduce.page import browser_layout, write_seed_page
+
+    fig = Figure(figsize=(30, 4))  # a 3000-px-wide figure must scale down
+    FigureCanvasAgg(fig)
+    fig.subplots().plot(np.arange(10))
+    fig.savefig(tmp_path / "wide.png", dpi=100)
+    long = "x" * 300  # an unbreakable word, a long target, many rows
+    rows = [summary_row(f"{long} {i}", "m", ours=float(i), paper=1.0, target=f"ours < paper + {i} * 1e-3 + 0"
+                        + " + 0" * 60, spec=True, stderr=0.1) for i in range(30)]
+    write_summary(tmp_path, seed="002", title="wide " + long, runs=1, base_seed=1,
+                  tables=[summary_table("T", "c " + long, rows)], figures=["wide.png"], notes=[long])
+    page = write_seed_page(tmp_path)
+    got = browser_layout(page, tmp_path)
+    if got is None:
+        pytest.skip("Chromium is not installed")
+    maxright, scrollw, imgs, shot = got
+    assert imgs == 1 and shot.stat().st_size > 10_000
+    assert maxright <= 1400 and scrollw <= 1400, (maxright, scrollw)

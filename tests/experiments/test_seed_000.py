@@ -4,7 +4,11 @@ from __future__ import annotations
 
 import json
 
+import pytest
+
 from aidnav.experiments.reproduce import run_seed, seed_000
+from aidnav.experiments.reproduce.page import browser_layout
+from aidnav.experiments.reproduce.summary import _ROW_KEYS
 
 
 def test_run_writes_summary(tmp_path):
@@ -18,11 +22,24 @@ def test_run_writes_summary(tmp_path):
     assert names == ["Table 1", "Table 2", "SPEC 1.3", "Federated filter", "Eqs. 23-26", "Initial heading"]
     for t in d["tables"]:
         for r in t["rows"]:
-            assert set(r) == {"quantity", "unit", "paper", "ours", "target", "holds"}
+            assert set(r) == set(_ROW_KEYS)
             assert r["holds"] in (True, False, None)
-            assert (r["holds"] is None) == (r["target"] is None)
+            assert (r["holds"] is None) == (r["target"] is None) == (r["verdict"] is None)
     rows = {r["quantity"]: r for t in d["tables"] for r in t["rows"]}
-    assert all(r["holds"] for r in d["tables"][0]["rows"])  # Table 1: our setting is the seed's
+    t1 = d["tables"][0]
+    assert t1["kind"] == "setting"  # Table 1 is an echo of our configuration: no targets, nothing to count
+    for r in t1["rows"]:  # our setting is the seed's
+        assert r["target"] is None
+        if r["paper"] is not None:
+            assert r["ours"] == pytest.approx(r["paper"], rel=1e-9, abs=1e-9), r["quantity"]
+    assert d["tables"][-1]["kind"] == "sensitivity"
+    spec13 = d["tables"][2]["rows"]
+    assert all(r["spec"] for r in spec13 if r["target"] and "centralized" not in r["quantity"])
+    assert (tmp_path / "report.html").stat().st_size > 10000
+    got = browser_layout(tmp_path / "report.html", tmp_path / "browser")
+    if got is not None:  # every table and figure visible, nothing wider than a 1400-px window
+        maxright, scrollw, imgs, shot = got
+        assert imgs == len(d["figures"]) and maxright <= 1400 and scrollw <= 1400
     assert rows["SINS/GPS: heading error std"]["paper"] == 98.5442
     assert rows[f"{seed_000.FED}: heading error std"]["paper"] == 2.8714
     ratio = next(r for r in d["tables"][2]["rows"] if r["quantity"].startswith("heading RMS ratio"))

@@ -7,6 +7,7 @@ import json
 import numpy as np
 
 from aidnav.experiments.reproduce import seed_002
+from aidnav.experiments.reproduce.summary import _ROW_KEYS
 
 
 def test_seed_flight_shape():
@@ -32,7 +33,12 @@ def test_run_writes_summary(tmp_path):
     assert {"Fig. 2", "Sweeps", "INS fusion"} <= names
     for t in d["tables"]:
         for r in t["rows"]:
-            assert set(r) == {"quantity", "unit", "paper", "ours", "target", "holds"}
+            assert set(r) == set(_ROW_KEYS)
             assert r["holds"] in (True, False, None)
     cvae = [r for r in d["tables"][0]["rows"] if r["quantity"].startswith("CVAE CRB")]
     assert len(cvae) == 3 and all(r["holds"] for r in cvae)
+    # the seed's ordering is one predicate, counted once; the CRB rows are SPEC acceptance targets
+    order = [r for r in d["tables"][0]["rows"] if "ordering" in r["quantity"]]
+    assert len(order) == 1 and not order[0]["spec"] and order[0]["margin"] is not None
+    assert all(r["spec"] for r in cvae)
+    assert not any(r["spec"] for t in d["tables"][1:] for r in t["rows"])

@@ -1,11 +1,15 @@
 """Paper reproductions: ``aidnav reproduce SEED -o DIR`` (seeds 000 … 004, or ``all``).
 
-Each seed is one module ``aidnav.experiments.reproduce.seed_XXX`` with a function
+Each seed is one module ``aidnav.experiments.reproduce.seed_XXX`` (with ``seed_XXX_setup``,
+``seed_XXX_figures``, ``seed_XXX_tables`` helpers where it is large) with a function
 ``run(out_dir, runs=None, console=None)`` that rebuilds the seed's tables and figures into ``out_dir``
-and writes ``out_dir/summary.json`` with :func:`aidnav.experiments.reproduce.summary.write_summary`
-(``holds`` computed from each row's target). A seed whose module does not exist, has no ``run``, or
-raises ``NotImplementedError`` cannot be reproduced yet: :func:`reproduce` reports it
-(:class:`SeedUnavailable`) and no summary is left behind; the CLI exits with status 2.
+through :class:`aidnav.experiments.reproduce._study.Study`: ``summary.json`` (every row checked against
+its target by :func:`aidnav.experiments.reproduce.summary.write_summary`; schema in
+``docs/reproduce_schema.md``), ``report.html`` (self-contained) and the paper-vs-ours table on the console
+(:mod:`aidnav.experiments.reproduce.page`). ``reproduce all`` also writes ``DIR/index.html``. A seed whose
+module does not exist, has no ``run``, or raises ``NotImplementedError`` cannot be reproduced yet:
+:func:`reproduce` reports it (:class:`SeedUnavailable`) and no summary is left behind; the CLI exits with
+status 2.
 """
 
 from __future__ import annotations

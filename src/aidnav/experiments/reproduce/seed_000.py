@@ -19,243 +19,78 @@ What is rebuilt:
 * **Figures** like the seed's Figs. 1-6 (heading, roll, pitch, east/north/up velocity errors, run 0),
   and the Monte Carlo heading RMS of every variant, the SAPV-loss and GPS-outage runs.
 
-Choices where the seed is silent (in the summary's notes): initial misalignment φ_0 = [0.1°, 0.1°, 2°]
-(E, N, U; SPEC 1.3) in every run with P_0 matched; initial position error drawn with σ 10 m, velocity
+Choices where the seed is silent (in the summary's notes): initial misalignment φ_0 = [0.1°, 0.1°, 1°]
+(E, N, U; SPEC 1.3 as decided: the largest initial heading error for which the seed's own Table 2 relations
+hold together) in every run with P_0 matched; initial position error drawn with σ 10 m, velocity
 error with σ 0.5 m/s (those of a GPS fix; P_0 matched); IMU rate 100 Hz; SAPV at 1 Hz (the GPS rate);
-Table 2's attitude rows in arc-minutes (SPEC erratum 11). The "Initial heading" table sweeps φ_U0 (the
-velocity and heading targets of SPEC 1.3 depend on it in opposite directions).
+Table 2's attitude rows in arc-minutes (SPEC erratum 11). The "Initial heading" sensitivity table sweeps
+φ_U0 (the velocity and heading targets of SPEC 1.3 depend on it in opposite directions), 2° included.
 
-Run: ``python -m aidnav.experiments.reproduce.seed_000 OUT [RUNS] [BASE_SEED]`` or ``aidnav reproduce 000``.
+Run: ``python -m aidnav.experiments.reproduce.seed_000 OUT [--runs N]`` or ``aidnav reproduce 000``.
 """
 
 from __future__ import annotations
 
 import json
 import sys
-import time
-from pathlib import Path
 
 import numpy as np
 
-from aidnav.filters.federated import FederatedConfig, run_federated
-from aidnav.nav.geo_pointing import R_GEO_SEED000
+from aidnav.experiments.reproduce._study import Study, main, mean_se, ratio_se, rms_ratio_se, runs_needed
+from aidnav.experiments.reproduce.seed_000_figures import _plot_loss, _plot_seed_figs, _plot_variants
+from aidnav.experiments.reproduce.seed_000_setup import (
+    ACCEL_BIAS_UG,
+    ARCMIN,
+    CENTRAL,
+    DEFAULT_RUNS,
+    DURATION_S,
+    FED,
+    GPS_ONLY,
+    GPS_OUTAGE,
+    GPS_RATE_HZ,
+    GPS_SIGMA_POS_M,
+    GPS_SIGMA_VEL_M_S,
+    HEADING0_SWEEP_DEG,
+    HEADING_DEG,
+    LAST_S,
+    PAPER_EQ24,
+    PAPER_T2,
+    PHI0_DEG,
+    POS0_SIGMA_M,
+    QUANTS,
+    SAPV_LOSS,
+    SAPV_SIGMA_DEG,
+    SEED,
+    SETTLE_S,
+    SITE,
+    SWEEP_RUNS,
+    TITLE,
+    UNITS,
+    VARIANTS,
+    VEL0_SIGMA_M_S,
+    _series,
+    error_state,
+    euler_errors,
+    filter_config,
+    geometry_check,
+    sapv_spec,
+    seed_scenario,
+    simulate_case,
+    truth_index,
+    velocity_errors,
+)
+from aidnav.filters.federated import run_federated
 
-SEED = "000"
-TITLE = "Satellite antenna pointing vector (SAPV) aiding of SINS/GPS with a federated Kalman filter"
-DEFAULT_RUNS = 20
-D = np.pi / 180.0
-ARCMIN = D / 60.0
-
-SITE = dict(lat_deg=39.0, lon_deg=116.0, height_m=0.0)
-HEADING_DEG = 100.0
-SAT_LON_DEG = 138.0
-DURATION_S = 500.0
-IMU_RATE_HZ = 100.0
-GPS_SIGMA_POS_M = 10.0
-GPS_SIGMA_VEL_M_S = 0.5
-GPS_RATE_HZ = 1.0
-SAPV_SIGMA_DEG = 0.05
-SAPV_RATE_HZ = 1.0
-PHI0_DEG = (0.1, 0.1, 2.0)  #: initial misalignment φ_E, φ_N, φ_U [deg] (SPEC 1.3 suggestion)
-POS0_SIGMA_M = 10.0  #: initial position error σ [m]: the INS starts from a GPS fix (σ 10 m)
-VEL0_SIGMA_M_S = 0.5  #: initial velocity error σ [m/s]: from a GPS velocity (σ 0.5 m/s)
-#: initial heading errors [deg] of the sensitivity sweep of the velocity target (SPEC 1.3, erratum 12)
-HEADING0_SWEEP_DEG = (0.1, 0.5, 1.0, 2.0)
-SWEEP_RUNS = 10
-SETTLE_S = 30.0  #: "with SAPV the heading error is below 10′ after ≤ 30 s"
-LAST_S = 400.0  #: heading RMS ratio over the last 400 s
-SAPV_LOSS = (200.0, 300.0)  #: SAPV lost (blockage) in this window [s]
-GPS_OUTAGE = (200.0, 260.0)  #: GPS outage in this window [s]
-
-#: Table 2 of the seed (attitude rows in arc-minutes per SPEC erratum 11; velocity m/s), state 1 = SINS/GPS,
-#: state 2 = SINS/GPS/SAPV
-PAPER_T2 = {
-    "heading": {"mean": (-76.9119, -0.3550), "std": (98.5442, 2.8714)},
-    "roll": {"mean": (1.1392, 0.4296), "std": (3.7765, 3.7504)},
-    "pitch": {"mean": (1.2096, -1.1423), "std": (3.2584, 0.7877)},
-    "vN": {"mean": (0.0312, 0.0290), "std": (0.0951, 0.0952)},
-    "vU": {"mean": (-0.0106, -0.0531), "std": (0.0851, 0.0670)},
-    "vE": {"mean": (-0.0055, -0.0052), "std": (0.0869, 0.0870)},
-}
-#: seed eq. (24), printed; SPEC erratum 8: not reproduced by any consistent model
-PAPER_EQ24 = np.array([[0.4547, 0.8011, 0.0], [-0.8376, 0.2001, 0.0]])
-
-GPS_ONLY = "SINS/GPS"
-FED = "federated reset b=1/2,1/2"
-VARIANTS = {
-    GPS_ONLY: FederatedConfig(mode="centralized", use_sapv=False),
-    FED: FederatedConfig(mode="reset", beta_gps=0.5, beta_sapv=0.5),
-    "federated reset b=1/3,1/3, master 1/3": FederatedConfig(mode="reset", beta_gps=1 / 3, beta_sapv=1 / 3,
-                                                              beta_master=1 / 3),
-    "federated reset b=0.8,0.2": FederatedConfig(mode="reset", beta_gps=0.8, beta_sapv=0.2),
-    "federated no-reset b=1/2,1/2": FederatedConfig(mode="no_reset", beta_gps=0.5, beta_sapv=0.5),
-    "federated no-reset b=0.8,0.2": FederatedConfig(mode="no_reset", beta_gps=0.8, beta_sapv=0.2),
-    "centralized GPS+SAPV": FederatedConfig(mode="centralized"),
-}
-CENTRAL = "centralized GPS+SAPV"
-QUANTS = ("heading", "roll", "pitch", "vN", "vU", "vE")  # the seed's row order (erratum 11)
-UNITS = {"heading": "arcmin", "roll": "arcmin", "pitch": "arcmin", "vN": "m/s", "vU": "m/s", "vE": "m/s"}
-
-
-# ============================================================================ scenario
-def seed_scenario(duration_s: float = DURATION_S, imu_rate_hz: float = IMU_RATE_HZ, gps_outages=()):
-    """The seed's Table 1 scenario (:class:`aidnav.sim.scenario.Scenario`): static vehicle, heading 100°."""
-    from aidnav.sim.scenario import Scenario
-
-    return Scenario.model_validate(dict(
-        name="seed000", description="seed 000 Table 1: static vehicle, SINS/GPS/SAPV", seed=1,
-        initial=dict(**SITE, speed_m_s=0.0, heading_deg=HEADING_DEG), imu_rate_hz=imu_rate_hz,
-        transition_s=0.0,
-        segments=[dict(type="static", duration_s=duration_s)],
-        sensors=dict(imu=dict(grade="seed000"),
-                     gnss=dict(rate_hz=GPS_RATE_HZ, sigma_pos_m=[GPS_SIGMA_POS_M] * 3,
-                               sigma_vel_m_s=[GPS_SIGMA_VEL_M_S] * 3,
-                               outages=[dict(start_s=s, duration_s=e - s) for s, e in gps_outages]))))
-
-
-def sapv_spec(**changes):
-    """The seed's antenna: σ 0.05° (az, el) at 1 Hz, GEO 138°E at height 3.5785e7 m."""
-    from aidnav.sim.sapv import SapvSpec
-
-    kw = dict(rate_hz=SAPV_RATE_HZ, sigma_deg=SAPV_SIGMA_DEG, sat_lon_deg=SAT_LON_DEG,
-              sat_radius_m=R_GEO_SEED000)
-    kw.update(changes)
-    return SapvSpec(**kw)
-
-
-def filter_config(truth, rng, phi0_deg=PHI0_DEG, draw_attitude: bool = False,
-                  pos_sigma_m: float = POS0_SIGMA_M, vel_sigma_m_s: float = VEL0_SIGMA_M_S):
-    """Filter configuration matched to the seed's sensors, with the initial state set around the truth.
-
-    φ_0 = ``phi0_deg`` (E, N, U) [deg] applied as C_est = (I − [φ×]) C_true (drawn from N(0, diag(φ0²))
-    when ``draw_attitude``); position and velocity errors drawn with σ ``pos_sigma_m``, ``vel_sigma_m_s``;
-    P_0 = diag of those σ and the IMU's bias σ.
-    """
-    from aidnav.filters.tuning import loose_config_from_specs
-    from aidnav.nav.earth import radii
-    from aidnav.nav.rotations import dcm_from_euler, dcm_from_rotvec, euler_from_dcm
-    from aidnav.sim.gnss import GnssSpec
-    from aidnav.sim.imu import ImuSpec
-
-    lat, lon, h = truth.lat[0], truth.lon[0], truth.height[0]
-    rm, rn = radii(lat)
-    dp = rng.normal(0.0, pos_sigma_m, 3)
-    dv = rng.normal(0.0, vel_sigma_m_s, 3)
-    phi = np.asarray(phi0_deg, float) * D
-    if draw_attitude:
-        phi = rng.normal(0.0, phi)
-    lla = (np.degrees(lat + dp[1] / (rm + h)), np.degrees(lon + dp[0] / ((rn + h) * np.cos(lat))), h + dp[2])
-    C = dcm_from_rotvec(-phi) @ dcm_from_euler(*truth.rph[0])
-    rph = np.degrees(euler_from_dcm(C))
-    gspec = GnssSpec(sigma_pos_enu=GPS_SIGMA_POS_M, sigma_vel_enu=GPS_SIGMA_VEL_M_S)
-    return loose_config_from_specs(ImuSpec.grade("seed000"), gspec, init_rph_deg=rph, init_lla_deg_m=lla,
-                                   init_vel=truth.vel[0] + dv, position_sigma_m=(pos_sigma_m,) * 3,
-                                   velocity_sigma_m_s=(vel_sigma_m_s,) * 3,
-                                   attitude_sigma_deg=tuple(float(x) for x in np.abs(phi0_deg)))
-
-
-def simulate_case(seed_seq: np.random.SeedSequence, duration_s: float = DURATION_S, gps_outages=(),
-                  sapv_changes=None, draw_attitude: bool = False):
-    """One Monte Carlo realisation: (sim result, SAPV data, filter config). Independent streams for the
-    IMU/GPS simulation, the antenna and the initial errors are spawned from ``seed_seq``."""
-    from aidnav.sim.run import simulate
-    from aidnav.sim.sapv import simulate_sapv
-
-    # children built from the spawn key (not .spawn(), which advances a counter): the same seed_seq gives
-    # the same streams on every call (e.g. the GPS-outage rerun of a realisation)
-    s_sim, s_sapv, s_init = (np.random.SeedSequence(seed_seq.entropy, spawn_key=(*seed_seq.spawn_key, i))
-                             for i in range(3))
-    sim = simulate(seed_scenario(duration_s, gps_outages=gps_outages), seed=int(s_sim.generate_state(1)[0]))
-    sv = simulate_sapv(sim.truth, sapv_spec(**(sapv_changes or {})), np.random.default_rng(s_sapv))
-    cfg = filter_config(sim.truth, np.random.default_rng(s_init), draw_attitude=draw_attitude)
-    return sim, sv, cfg
-
-
-# ============================================================================ errors
-def truth_index(truth, times):
-    """Indices of the truth samples at ``times`` (filter epochs are IMU samples)."""
-    i = np.searchsorted(truth.time, np.asarray(times) - 1e-9)
-    if not np.allclose(truth.time[i], times, rtol=0, atol=1e-6):
-        raise ValueError("filter epochs are not on truth samples")
-    return i
-
-
-def euler_errors(res, truth):
-    """(K, 3) roll, pitch, heading errors estimate − truth [rad] (wrapped to (−π, π])."""
-    i = truth_index(truth, res.time)
-    e = res.rph - truth.rph[i]
-    return (e + np.pi) % (2 * np.pi) - np.pi
-
-
-def velocity_errors(res, truth):
-    """(K, 3) ENU velocity errors estimate − truth [m/s]."""
-    return res.state[:, 3:6] - truth.vel[truth_index(truth, res.time)]
-
-
-def error_state(res, truth, realised):
-    """(K, 15) error in the filter's state definition (:mod:`aidnav.filters.ins_errors`): φ with
-    C_est = (I − [φ×]) C_true [rad], δv [m/s], δL δλ [rad], δh [m] (estimate − truth), and the bias residuals
-    true − estimated [rad/s, m/s²] (the filter's ε, ∇; constant simulated biases)."""
-    from aidnav.nav.rotations import attitude_error_batch, euler_to_quat_batch
-
-    i = truth_index(truth, res.time)
-    e = np.zeros((len(i), 15))
-    q_true = euler_to_quat_batch(np.ascontiguousarray(truth.rph[i]))
-    e[:, 0:3] = attitude_error_batch(np.ascontiguousarray(res.state[:, 6:10]), q_true)
-    e[:, 3:6] = res.state[:, 3:6] - truth.vel[i]
-    e[:, 6] = res.state[:, 0] - truth.lat[i]
-    e[:, 7] = (res.state[:, 1] - truth.lon[i] + np.pi) % (2 * np.pi) - np.pi
-    e[:, 8] = res.state[:, 2] - truth.height[i]
-    e[:, 9:12] = realised["gyro_bias"] - res.bias[:, 0:3]
-    e[:, 12:15] = realised["accel_bias"] - res.bias[:, 3:6]
-    return e
-
-
-def _series(res, truth) -> dict:
-    """Error time series in the seed's units: attitude [arcmin], velocity [m/s]."""
-    e = euler_errors(res, truth) / ARCMIN
-    v = velocity_errors(res, truth)
-    sig = np.sqrt(res.pdiag[:, 2]) / ARCMIN
-    return {"t": res.time - truth.time[0],
-            "heading": e[:, 2], "roll": e[:, 0], "pitch": e[:, 1],
-            "vE": v[:, 0], "vN": v[:, 1], "vU": v[:, 2], "heading_sigma": sig}
-
-
-# ============================================================================ geometry (eqs. 23-26)
-def geometry_check() -> dict:
-    """Eq. (23)-(26) at the seed's case: our H_phi, H_pos (exact Jacobians), finite-difference check of both
-    through the nonlinear chain, and the pointing change for the seed's 100 m position error (eq. 25)."""
-    from aidnav.nav.earth import radii
-    from aidnav.nav.geo_pointing import az_el_jacobians, geo_sat_ecef, pointing_az_el
-    from aidnav.nav.rotations import dcm_from_euler, dcm_from_rotvec
-
-    lat, lon, h = SITE["lat_deg"] * D, SITE["lon_deg"] * D, SITE["height_m"]
-    C = dcm_from_euler(0.0, 0.0, HEADING_DEG * D)
-    sat = geo_sat_ecef(SAT_LON_DEG * D, R_GEO_SEED000)
-    az, el, Hphi, Hpos = az_el_jacobians(lat, lon, h, C, sat)
-
-    def angles(phi, dP):
-        # the computed state: C_c = (I − [φ×]) C (exact rotation), position + δP; satellite fixed
-        a = pointing_az_el(lat + dP[0], lon + dP[1], h + dP[2], dcm_from_rotvec(-phi) @ C, sat)
-        return np.array([a[0], a[1]])
-
-    fd_phi = np.zeros((2, 3))
-    fd_pos = np.zeros((2, 3))
-    rm, rn = radii(lat)
-    steps_pos = np.array([1.0 / rm, 1.0 / (rn * np.cos(lat)), 1.0])  # 1 m
-    for j in range(3):
-        e = np.zeros(3)
-        e[j] = 1e-6
-        fd_phi[:, j] = (angles(e, np.zeros(3)) - angles(-e, np.zeros(3))) / 2e-6
-        p = np.zeros(3)
-        p[j] = steps_pos[j]
-        fd_pos[:, j] = (angles(np.zeros(3), p) - angles(np.zeros(3), -p)) / (2 * steps_pos[j])
-    dP25 = np.array([100.0 / rm, 100.0 / (rn * np.cos(lat)), 100.0])  # eq. (25) with erratum 9's order
-    return {"az_deg": float(np.degrees(az)), "el_deg": float(np.degrees(el)), "H_phi": Hphi, "H_pos": Hpos,
-            "fd_rel_phi": float(np.max(np.abs(fd_phi - Hphi)) / np.max(np.abs(Hphi))),
-            "fd_rel_pos": float(np.max(np.abs(fd_pos - Hpos)) / np.max(np.abs(Hpos))),
-            "pos100_deg": float(np.degrees(np.max(np.abs(Hpos @ dP25))))}
-
+#: the setting and helpers of seed_000_setup, re-exported (tests and other modules use them from here)
+__all__ = [
+    "ARCMIN", "CENTRAL", "DEFAULT_RUNS", "DURATION_S", "FED", "GPS_ONLY", "GPS_OUTAGE", "GPS_RATE_HZ",
+    "GPS_SIGMA_POS_M", "GPS_SIGMA_VEL_M_S", "HEADING0_SWEEP_DEG", "HEADING_DEG", "LAST_S", "PAPER_EQ24",
+    "PAPER_T2", "PHI0_DEG", "POS0_SIGMA_M", "QUANTS", "SAPV_LOSS", "SAPV_SIGMA_DEG", "SEED", "SETTLE_S",
+    "SITE", "SWEEP_RUNS", "TITLE", "UNITS", "VARIANTS", "VEL0_SIGMA_M_S", "_series", "error_state",
+    "euler_errors", "filter_config", "geometry_check", "sapv_spec", "seed_scenario", "simulate_case",
+    "truth_index", "velocity_errors", "run", "monte_carlo", "heading0_sweep", "federated_sapv_nis",
+    "run_case"
+]
 
 # ============================================================================ Monte Carlo
 def _stats(x):
@@ -277,6 +112,9 @@ def monte_carlo(runs: int, base_seed: int, duration_s: float = DURATION_S, say=p
     series = {k: [] for k in VARIANTS}
     central_nis = []
     local_nis = []
+    fed_nis = []
+    pitch_max = {GPS_ONLY: [], FED: []}
+    h_ms = {k: [] for k in VARIANTS}
     diff_reset = []
     nr_ratio = []
     nees_runs = []
@@ -295,7 +133,15 @@ def monte_carlo(runs: int, base_seed: int, duration_s: float = DURATION_S, say=p
         c = res[CENTRAL]
         central_nis.append(c.sapv_nis[c.sapv_status == 1])
         f = res[FED]
-        local_nis.append(f.sapv_nis[f.sapv_status == 1])
+        used = f.sapv_status == 1
+        local_nis.append(f.sapv_nis[used])
+        fed_nis.append(federated_sapv_nis(f, VARIANTS[FED].beta_sapv)[used])
+        for k in VARIANTS:
+            s = series[k][-1]
+            h_ms[k].append(float(np.mean(s["heading"][s["t"] > s["t"][-1] - LAST_S] ** 2)))
+        for k in pitch_max:
+            s = series[k][-1]
+            pitch_max[k].append(float(np.max(np.abs(s["pitch"][s["t"] > SETTLE_S]))))
         diff_reset.append(max(float(np.max(np.abs(res[k].rph[:, 2] - c.rph[:, 2]))) / ARCMIN
                               for k in VARIANTS if VARIANTS[k].mode == "reset"))
         nr_ratio.append(min(float(np.min(res[k].pdiag / c.pdiag)) for k in VARIANTS
@@ -316,9 +162,23 @@ def monte_carlo(runs: int, base_seed: int, duration_s: float = DURATION_S, say=p
                                                             VARIANTS[GPS_ONLY]), sim_o.truth))
         say(f"seed 000: run {r + 1}/{runs} done")
     return dict(stats=stats, series=series, central_nis=np.concatenate(central_nis),
-                local_nis=np.concatenate(local_nis), diff_reset=np.array(diff_reset),
+                local_nis=np.concatenate(local_nis), fed_nis=np.concatenate(fed_nis), pitch_max=pitch_max,
+                h_ms=h_ms, diff_reset=np.array(diff_reset),
                 nr_ratio=np.array(nr_ratio), nees=np.array(nees_runs), loss=loss, outage=outage,
                 runs=runs)
+
+
+def federated_sapv_nis(res, beta_sapv: float) -> np.ndarray:
+    """SAPV NIS of the federated fusion-reset filter with the innovation covariance of the fused prior.
+
+    After each reset the SAPV local filter carries P_g/β (and Q/β): its own S = H P_g H'/β + R is
+    conservative by design, so its NIS has a mean below the χ²(2) mean (1/β = 2 inflation of the state
+    part). The covariance the innovation really has is H P_g H' + R = β (S − R) + R; per component
+    ν_i² / (β (S_ii − R_ii) + R_ii) has mean 1 for a consistent filter, so the sum over (az, el) has mean 2.
+    R_ii is recovered from the pointing σ of the measurement (the seed's 0.05°)."""
+    r = np.radians(SAPV_SIGMA_DEG) ** 2
+    s_true = beta_sapv * (res.sapv_s - r) + r
+    return np.sum(res.sapv_innov**2 / s_true, axis=1)
 
 
 def heading0_sweep(runs: int, base_seed: int, duration_s: float = DURATION_S,
@@ -349,109 +209,9 @@ def heading0_sweep(runs: int, base_seed: int, duration_s: float = DURATION_S,
         a, b = acc[p][GPS_ONLY], acc[p][FED]
         out[p] = {q: float(np.mean(b[q]) / np.mean(a[q])) for q in ("vN", "vE", "vU")}
         out[p]["heading"] = float(np.sqrt(np.mean(a["hlast"]) / np.mean(b["hlast"])))
+        out[p]["se"] = {q: ratio_se(b[q], a[q])[1] for q in ("vN", "vE", "vU")}
+        out[p]["se"]["heading"] = rms_ratio_se(a["hlast"], b["hlast"])[1]
     return out
-
-
-# ============================================================================ figures
-def _fig(nrows=1, ncols=1, w=8.0, h=4.5):
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(w, h))
-    FigureCanvasAgg(fig)
-    axs = fig.subplots(nrows, ncols, squeeze=False)
-    return fig, axs
-
-
-def _plot_seed_figs(mc, out: Path) -> list[str]:
-    """Figs. 1-6 of the seed: run 0, SINS/GPS vs SINS/GPS/SAPV (federated, fusion-reset, β = 1/2)."""
-    names = [("heading", "Fig. 1 azimuth (heading) error", "arcmin", "fig1_heading_error.png"),
-             ("roll", "Fig. 2 roll error", "arcmin", "fig2_roll_error.png"),
-             ("pitch", "Fig. 3 pitch error", "arcmin", "fig3_pitch_error.png"),
-             ("vE", "Fig. 4 east velocity error", "m/s", "fig4_east_velocity_error.png"),
-             ("vN", "Fig. 5 north velocity error", "m/s", "fig5_north_velocity_error.png"),
-             ("vU", "Fig. 6 up velocity error", "m/s", "fig6_up_velocity_error.png")]
-    a, b = mc["series"][GPS_ONLY][0], mc["series"][FED][0]
-    files = []
-    for q, title, unit, fname in names:
-        fig, axs = _fig(2 if q == "heading" else 1, 1, h=6.0 if q == "heading" else 4.0)
-        ax = axs[0, 0]
-        ax.plot(a["t"], a[q], label="SINS/GPS (state 1)", lw=1.0)
-        ax.plot(b["t"], b[q], label="SINS/GPS/SAPV federated (state 2)", lw=1.0)
-        ax.set_ylabel(f"{q} error [{unit}]")
-        ax.set_title(f"{title} (run 0)")
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=8)
-        if q == "heading":
-            ax2 = axs[1, 0]
-            ax2.plot(b["t"], b[q], color="C1", lw=1.0, label="SINS/GPS/SAPV federated")
-            ax2.fill_between(b["t"], -3 * b["heading_sigma"], 3 * b["heading_sigma"], color="C1", alpha=0.2,
-                             label="±3σ (fused P)")
-            ax2.axhline(10, color="k", ls=":", lw=0.8)
-            ax2.axhline(-10, color="k", ls=":", lw=0.8, label="±10′")
-            ax2.set_ylim(-15, 15)
-            ax2.set_ylabel("heading error [arcmin]")
-            ax2.grid(alpha=0.3)
-            ax2.legend(fontsize=8)
-        axs[-1, 0].set_xlabel("time [s]")
-        fig.tight_layout()
-        fig.savefig(out / fname, dpi=110)
-        files.append(fname)
-    return files
-
-
-def _plot_variants(mc, out: Path) -> str:
-    fig, axs = _fig(1, 1, h=4.5)
-    ax = axs[0, 0]
-    for i, k in enumerate(VARIANTS):
-        h = np.array([s["heading"] for s in mc["series"][k]])
-        ax.semilogy(mc["series"][k][0]["t"], np.sqrt(np.mean(h**2, 0)), label=k, lw=1.2 if i < 2 else 0.9,
-                    ls="-" if VARIANTS[k].mode != "no_reset" else "--")
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("heading error RMS over runs [arcmin]")
-    ax.set_title(f"Heading error, {mc['runs']} Monte Carlo runs (reset variants coincide with centralized)")
-    ax.grid(alpha=0.3, which="both")
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(out / "fig7_heading_rms_variants.png", dpi=110)
-    return "fig7_heading_rms_variants.png"
-
-
-def _plot_loss(mc, out: Path) -> list[str]:
-    fig, axs = _fig(1, 1, h=4.5)
-    ax = axs[0, 0]
-    for key, lab in (("none", "no loss"), ("reset", "SAPV lost, fusion-reset"),
-                     ("no_reset", "SAPV lost, no-reset")):
-        s = mc["loss"][key][0]
-        ax.plot(s["t"], s["heading"], label=lab, lw=1.0)
-    s = mc["loss"]["reset"][0]
-    ax.fill_between(s["t"], -3 * s["heading_sigma"], 3 * s["heading_sigma"], color="C1", alpha=0.15,
-                    label="±3σ (fusion-reset)")
-    ax.axvspan(*SAPV_LOSS, color="0.6", alpha=0.25, zorder=0, label="SAPV lost")
-    ax.set_ylim(-15, 15)
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("heading error [arcmin]")
-    ax.set_title("SINS/GPS/SAPV with the antenna losing the satellite (run 0)")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out / "fig8_sapv_loss.png", dpi=110)
-    fig, axs = _fig(2, 1, h=6.0)
-    for key, lab in (("gps_only", "SINS/GPS"), ("reset", "SINS/GPS/SAPV federated")):
-        s = mc["outage"][key][0]
-        axs[0, 0].plot(s["t"], s["heading"], label=lab, lw=1.0)
-        axs[1, 0].plot(s["t"], np.hypot(s["vE"], s["vN"]), label=lab, lw=1.0)
-    for ax in axs[:, 0]:
-        ax.axvspan(*GPS_OUTAGE, color="0.6", alpha=0.25, zorder=0, label="GPS outage")
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=8)
-    axs[0, 0].set_ylabel("heading error [arcmin]")
-    axs[1, 0].set_ylabel("horizontal velocity error [m/s]")
-    axs[1, 0].set_xlabel("time [s]")
-    axs[0, 0].set_title("GPS outage: the federated solution continues on SAPV (run 0)")
-    fig.tight_layout()
-    fig.savefig(out / "fig9_gps_outage.png", dpi=110)
-    return ["fig8_sapv_loss.png", "fig9_gps_outage.png"]
 
 
 # ============================================================================ run
@@ -461,31 +221,24 @@ def _lit(x: float) -> str:
 
 def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
         duration_s: float = DURATION_S) -> dict:
-    """Reproduce seed 000 into ``out_dir``: PNG figures, ``summary.json`` (CONVENTIONS schema, every ``holds``
-    computed from its target by :func:`aidnav.experiments.reproduce.summary.write_summary`) and
-    ``statistics.json`` (per-variant, per-run statistics). ``runs``: Monte Carlo realisations (None: 20).
-    Returns the summary dict."""
+    """Reproduce seed 000 into ``out_dir``: PNG figures, ``summary.json`` (every row checked against its
+    target), ``report.html`` and ``statistics.json`` (per-variant, per-run statistics). ``runs``: Monte
+    Carlo realisations (None: DEFAULT_RUNS = 30). Returns the summary dict."""
     from aidnav.analysis.consistency import chi2_band
-    from aidnav.experiments.reproduce.summary import summary_row, summary_table, write_summary
+    from aidnav.experiments.reproduce.summary import summary_row, summary_table
 
-    runs = DEFAULT_RUNS if runs is None else int(runs)
-    if runs < 1:
-        raise ValueError("runs must be >= 1")
+    study = Study(SEED, TITLE, out_dir, DEFAULT_RUNS if runs is None else runs, base_seed, console)
+    runs = study.runs
     if duration_s < LAST_S + SETTLE_S:
         raise ValueError(f"duration_s must be >= {LAST_S + SETTLE_S:g} s (targets use the last {LAST_S:g} s)")
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-
-    def say(msg):
-        if console is not None:
-            console.print(msg)
-
-    t_start = time.perf_counter()
+    out = study.out
+    say = study.say
     say(f"seed 000: {runs} Monte Carlo runs × {len(VARIANTS)} filters ({duration_s:g} s, 100 Hz IMU)")
     mc = monte_carlo(runs, base_seed, duration_s, say)
-    figures = _plot_seed_figs(mc, out) + [_plot_variants(mc, out)] + _plot_loss(mc, out)
+    for f in _plot_seed_figs(mc, out) + [_plot_variants(mc, out)] + _plot_loss(mc, out):
+        study.add_figure(f)
 
-    # ---------------------------------------------------------------- Table 1
+    # ---------------------------------------------------------------- Table 1 (configuration echo)
     from aidnav.sim.imu import ImuSpec
 
     u = ImuSpec.grade("seed000").to_units()
@@ -510,9 +263,10 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
         ("satellite longitude", "deg", 138.0, sp.sat_lon_deg),
         ("satellite height above the ellipsoid", "m", 3.5785e7, sp.sat_radius_m - 6378137.0),
         ("simulation time", "s", 500.0, duration_s),
+        ("initial heading error φ_U0 (not in the seed; SPEC 1.3 decision)", "deg", None, PHI0_DEG[2]),
     ]
-    rows1 = [summary_row(q, un, ours, paper, "abs(ours - paper) <= 1e-9 * max(1, abs(paper))")
-             for q, un, paper, ours in t1]
+    # echoes of our configuration beside the printed setting: no target (a constant equal to itself)
+    rows1 = [summary_row(q, un, ours, paper) for q, un, paper, ours in t1]
 
     # ---------------------------------------------------------------- Table 2
     st = mc["stats"]
@@ -521,13 +275,21 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
         v = np.array(st[k][q][which])
         return float(np.mean(v)) if which == "mean" else float(np.sqrt(np.mean(v**2)))
 
+    def se_of(k, q, which):
+        v = np.array(st[k][q][which])
+        if which == "mean":
+            return mean_se(v)[1]
+        r, se2 = mean_se(v**2)
+        return se2 / (2 * np.sqrt(r))
+
     rows2 = []
     for k in VARIANTS:
         col = 0 if k == GPS_ONLY else (1 if k == FED else None)
         for q in QUANTS:
             for which in ("mean", "std"):
                 paper = PAPER_T2[q][which][col] if col is not None else None
-                rows2.append(summary_row(f"{k}: {q} error {which}", UNITS[q], mean_of(k, q, which), paper))
+                rows2.append(summary_row(f"{k}: {q} error {which}", UNITS[q], mean_of(k, q, which), paper,
+                                         stderr=se_of(k, q, which)))
 
     # ---------------------------------------------------------------- SPEC 1.3 targets
     def pooled(k, q, t_from=0.0, t_to=np.inf):
@@ -537,49 +299,94 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
     def rms(x):
         return float(np.sqrt(np.mean(np.square(x))))
 
+    hm = mc["h_ms"]
     t_last = duration_s - LAST_S
-    h_gps = rms(pooled(GPS_ONLY, "heading", t_last))
-    h_fed = rms(pooled(FED, "heading", t_last))
+    h_gps, h_gps_se = np.sqrt(np.mean(hm[GPS_ONLY])), mean_se(hm[GPS_ONLY])[1] / (2 * np.sqrt(
+        np.mean(hm[GPS_ONLY])))
+    h_fed, h_fed_se = np.sqrt(np.mean(hm[FED])), mean_se(hm[FED])[1] / (2 * np.sqrt(np.mean(hm[FED])))
     h_cen = rms(pooled(CENTRAL, "heading", t_last))
+    h_ratio, h_ratio_se = rms_ratio_se(hm[GPS_ONLY], hm[FED])
     # first filter epoch from which |heading error| < 10′ for good (worst run)
     settle = []
     for s in mc["series"][FED]:
         above = np.flatnonzero(np.abs(s["heading"]) >= 10.0)
         settle.append(float(s["t"][above[-1] + 1]) if len(above) else float(s["t"][0]))
     t_settle = max(settle)
-    std_p = {k: mean_of(k, "pitch", "std") for k in (GPS_ONLY, FED)}
-    std_r = {k: mean_of(k, "roll", "std") for k in (GPS_ONLY, FED)}
+    sp_runs = {k: np.array(st[k]["pitch"]["std"]) for k in (GPS_ONLY, FED)}
+    sr_runs = {k: np.array(st[k]["roll"]["std"]) for k in (GPS_ONLY, FED)}
+    p_ratio, p_ratio_se = rms_ratio_se(sp_runs[FED] ** 2, sp_runs[GPS_ONLY] ** 2)
+    r_ratio, r_ratio_se = rms_ratio_se(sr_runs[FED] ** 2, sr_runs[GPS_ONLY] ** 2)
+    pmax = mc["pitch_max"][FED]
+    pitch_max = float(np.max(pmax))
+    n_over = int(np.sum(np.asarray(pmax) >= 2.0))
     pitch_after = rms(pooled(FED, "pitch", SETTLE_S))
-    nis = mc["central_nis"]
-    lo, hi = chi2_band(2, len(nis), 0.95)
+    g0 = geometry_check()
+    share = float(np.sin(np.radians(g0["az_deg"])))  # the unobserved tilt axis (LOS) vs the pitch axis
+    tilt1 = ACCEL_BIAS_UG * 1e-6 / ARCMIN  # accelerometer bias / g as a tilt [arcmin]
+    pitch_reason = (
+        "physics: on a static base the SAPV elevation observes the tilt about the horizontal axis across "
+        "the line of sight, but the tilt about the line of sight's horizontal direction stays tied to the "
+        f"horizontal accelerometer bias (σ {ACCEL_BIAS_UG:g} µg → {tilt1:.2f}′ of tilt); with the antenna "
+        f"{g0['az_deg']:.1f}° from the nose its share in pitch is sin({g0['az_deg']:.1f}°) = {share:.2f}, "
+        f"a pitch error of ≈ {share * tilt1:.2f}′ (1σ) that no filter removes. The largest over {runs} runs "
+        f"and {duration_s - SETTLE_S:g} s therefore exceeds 2′ whenever a run draws a bias beyond "
+        f"≈ {2.0 / (share * tilt1):.1f}σ ({n_over} of {runs} runs); the seed's one run shows 0.79′ std, "
+        f"ours has {pitch_after:.2f}′ RMS after {SETTLE_S:g} s")
+    nis = mc["fed_nis"]
+    nis_m, nis_se = mean_se(nis)
+    lo, hi = 2.0 - 1.96 * nis_se, 2.0 + 1.96 * nis_se
+    cnis = mc["central_nis"]
+    clo, chi = chi2_band(2, len(cnis), 0.95)
     rows3 = [
-        summary_row(f"heading error RMS over the last {LAST_S:g} s, SINS/GPS", "arcmin", h_gps),
+        summary_row(f"heading error RMS over the last {LAST_S:g} s, SINS/GPS", "arcmin", h_gps,
+                    stderr=h_gps_se),
         summary_row(f"heading error RMS over the last {LAST_S:g} s, SINS/GPS/SAPV federated", "arcmin",
-                    h_fed),
+                    h_fed, stderr=h_fed_se),
         summary_row("heading RMS ratio SINS/GPS / SINS/GPS/SAPV (the seed prints std 98.5′ → 2.87′, a ratio "
-                    "of 34)", "-", h_gps / h_fed, None, "ours >= 10"),
+                    "of 34)", "-", h_ratio, None, "ours >= 10", spec=True, stderr=h_ratio_se,
+                    margin=(h_ratio - 10.0, h_ratio_se)),
         summary_row("with SAPV: first epoch from which |heading error| < 10′ for good (worst run)", "s",
-                    t_settle, None, f"ours <= {SETTLE_S:g}"),
-        summary_row("pitch error std, SINS/GPS/SAPV (≤ SINS/GPS)", "arcmin", std_p[FED], 0.7877,
-                    "ours <= nosapv", {"nosapv": std_p[GPS_ONLY]}),
-        summary_row(f"pitch error RMS after {SETTLE_S:g} s, SINS/GPS/SAPV (below ~2′)", "arcmin", pitch_after,
-                    None, "ours < 2"),
+                    t_settle, None, f"ours <= {SETTLE_S:g}", spec=True),
+        summary_row("pitch error std ratio SINS/GPS/SAPV / SINS/GPS (≤ 1; seed 3.26′ → 0.79′)", "-",
+                    p_ratio, 0.7877 / 3.2584, "ours <= 1", spec=True, stderr=p_ratio_se,
+                    margin=(1.0 - p_ratio, p_ratio_se)),
+        summary_row(f"largest |pitch error| after {SETTLE_S:g} s, SINS/GPS/SAPV, over all runs (below ~2′; "
+                    f"{n_over} of {runs} runs reach 2′)", "arcmin", pitch_max, None, "ours < 2",
+                    spec=True, reason=pitch_reason),
+        summary_row(f"pitch error RMS after {SETTLE_S:g} s, SINS/GPS/SAPV (informative)", "arcmin",
+                    pitch_after),
         summary_row("roll error std ratio SINS/GPS/SAPV / SINS/GPS (no degradation; seed 3.78′ → 3.75′)", "-",
-                    std_r[FED] / std_r[GPS_ONLY], None, "ours <= 1.1"),
+                    r_ratio, 3.7504 / 3.7765, "ours <= 1.1", spec=True, stderr=r_ratio_se,
+                    margin=(1.1 - r_ratio, r_ratio_se)),
     ]
     for q in ("vN", "vU", "vE"):
-        a, b = mean_of(GPS_ONLY, q, "std"), mean_of(FED, q, "std")
+        a, b = np.array(st[GPS_ONLY][q]["std"]), np.array(st[FED][q]["std"])
+        r, se = rms_ratio_se(b**2, a**2)
         pa, pb = PAPER_T2[q]["std"]
+        d = 0.15 - abs(r - 1.0)
+        reason = None
+        if abs(d) < 2 * se:
+            reason = (f"ratio {r:.3f} ± {se:.3f} (1 se) is {d:+.3f} from the ±15 % boundary: resolving it "
+                      f"needs ≈ {runs_needed(d, se, runs)} runs. φ_U0 = {PHI0_DEG[2]:g}° is by decision the "
+                      "largest "
+                      "initial heading error for which the seed's velocity relation holds, so the north "
+                      "ratio sits at the boundary by construction (see the 'Initial heading' sensitivity "
+                      "table: SAPV lowers the north velocity error more the larger φ_U0)")
         rows3.append(summary_row(f"{q} error std ratio SINS/GPS/SAPV / SINS/GPS, whole run (SAPV does not "
-                                 f"help velocity; seed {pa:g} → {pb:g} m/s)", "-", b / a, None,
-                                 "abs(ours - 1) <= 0.15"))
+                                 f"help velocity; seed {pa:g} → {pb:g} m/s)", "-", r, pb / pa,
+                                 "abs(ours - 1) <= 0.15", spec=True, stderr=se, margin=(d, se),
+                                 reason=reason))
     for q in ("vN", "vU", "vE"):
         a, b = rms(pooled(GPS_ONLY, q, SETTLE_S)), rms(pooled(FED, q, SETTLE_S))
         rows3.append(summary_row(f"{q} error RMS ratio SINS/GPS/SAPV / SINS/GPS after {SETTLE_S:g} s "
                                  "(no target: informs the row above)", "-", b / a))
-    rows3.append(summary_row(f"SAPV NIS mean, centralized = fusion-reset global ({len(nis)} epochs pooled; "
-                             f"χ²(2) 95 % band {lo:.3f}-{hi:.3f})", "-", float(np.mean(nis)), None,
-                             f"{_lit(lo)} <= ours <= {_lit(hi)}"))
+    rows3.append(summary_row(
+        f"SAPV NIS mean, federated fusion-reset filter, with the fused prior's covariance H P_g Hᵀ + R "
+        f"({len(nis)} epochs pooled; 95 % band of the mean 2 ± 1.96 se)", "-", nis_m, None,
+        f"{_lit(lo)} <= ours <= {_lit(hi)}", spec=True, stderr=nis_se))
+    rows3.append(summary_row(
+        f"SAPV NIS mean, centralized filter (χ²(2) 95 % band {clo:.3f}-{chi:.3f}, {len(cnis)} epochs)", "-",
+        float(np.mean(cnis)), None, f"{_lit(clo)} <= ours <= {_lit(chi)}", stderr=mean_se(cnis)[1]))
 
     # ---------------------------------------------------------------- federated filter behaviour
     ne = mc["nees"]
@@ -621,8 +428,9 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
                     f"{_lit(nlo)} <= ours <= {_lit(nhi)}"),
         summary_row("centralized NEES: fraction of epochs with the run-averaged NEES in its 95 % band", "-",
                     frac, None, "ours >= 0.9"),
-        summary_row("SAPV NIS mean in the fusion-reset local filter (its S uses P_g/β_2: smaller by design)",
-                    "-", float(np.mean(mc["local_nis"]))),
+        summary_row("SAPV NIS mean in the fusion-reset local filter with its own S (its prior is P_g/β_2: "
+                    "smaller than 2 by design; the SPEC 1.3 row uses H P_g Hᵀ + R)", "-",
+                    float(np.mean(mc["local_nis"]))),
         summary_row(f"SAPV lost {SAPV_LOSS[0]:g}-{SAPV_LOSS[1]:g} s: largest |heading error| during the loss "
                     "and 60 s after (all runs)", "arcmin", loss_max, None, "ours < 10"),
         summary_row("SAPV lost: heading σ of the filter when the SAPV returns (smallest over runs)", "arcmin",
@@ -664,33 +472,42 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
     rows6 = []
     for p, r in sweep.items():
         for q in ("vN", "vE", "vU"):
-            rows6.append(summary_row(f"{q} error std ratio, φ_U0 = {p:g}°", "-", r[q]))
+            se = r["se"][q]
+            rows6.append(summary_row(f"{q} error std ratio, φ_U0 = {p:g}° (within ±15 %)", "-", r[q], None,
+                                     "abs(ours - 1) <= 0.15", stderr=se,
+                                     margin=(0.15 - abs(r[q] - 1.0), se)))
+        se = r["se"]["heading"]
         rows6.append(summary_row(f"heading RMS ratio (last {LAST_S:g} s) SINS/GPS / SINS/GPS/SAPV, "
-                                 f"φ_U0 = {p:g}°", "-", r["heading"]))
+                                 f"φ_U0 = {p:g}° (≥ 10)", "-", r["heading"], None, "ours >= 10", stderr=se,
+                                 margin=(r["heading"] - 10.0, se)))
     ok_v = [p for p, r in sweep.items() if all(abs(r[q] - 1.0) <= 0.15 for q in ("vN", "vE", "vU"))]
     ok_h = [p for p, r in sweep.items() if r["heading"] >= 10.0]
     rows6.append(summary_row("largest φ_U0 of the sweep with every velocity ratio within ±15 %", "deg",
                              float(max(ok_v)) if ok_v else float("nan")))
     rows6.append(summary_row("smallest φ_U0 of the sweep with the heading RMS ratio >= 10", "deg",
                              float(min(ok_h)) if ok_h else float("nan")))
+    rows6.append(summary_row("the seed's own up-velocity std ratio (0.0670 / 0.0851 m/s): also outside ±15 %",
+                             "-", None, 0.0670 / 0.0851))
     tables = [
-        summary_table("Table 1", "simulation setting: the seed's values and ours", rows1),
+        summary_table("Table 1", "simulation setting: the seed's values and ours (configuration echo, no "
+                      "targets)", rows1, kind="setting"),
         summary_table("Table 2", f"error statistics over the {duration_s:g}-s run (mean and standard "
                       "deviation of the error time series at the 1 Hz filter epochs; mean averaged over "
                       f"{runs} runs, std as the RMS over runs); paper: state 1 = SINS/GPS, state 2 = "
-                      "SINS/GPS/SAPV; attitude in arc-minutes (SPEC erratum 11)", rows2),
-        summary_table("SPEC 1.3", f"acceptance targets, {runs} Monte Carlo runs, SINS/GPS/SAPV = federated "
-                      "fusion-reset β = 1/2, 1/2 (the seed's filter)", rows3),
+                      "SINS/GPS/SAPV; attitude in arc-minutes (SPEC erratum 11); absolute values depend on "
+                      "initial errors the seed does not give (no targets)", rows2),
+        summary_table("SPEC 1.3", f"acceptance targets, {runs} Monte Carlo runs, φ_U0 = {PHI0_DEG[2]:g}°, "
+                      "SINS/GPS/SAPV = federated fusion-reset β = 1/2, 1/2 (the seed's filter)", rows3),
         summary_table("Federated filter", "fusion-reset vs centralized, no-reset, consistency, loss of one "
-                      "local filter's measurements", rows4),
+                      "local filter's measurements (checks of our own)", rows4),
         summary_table("Eqs. 23-26", "SAPV geometry at 116°E 39°N 0 m, heading 100°, level, GEO 138°E "
                       "(exact Jacobians of aidnav.nav.geo_pointing)", rows5),
         summary_table("Initial heading", "sensitivity of the SPEC 1.3 velocity and heading targets to the "
                       f"initial heading error the seed does not give (erratum 12): {n_sweep} runs per value, "
-                      "same realisations; ratios SINS/GPS/SAPV over SINS/GPS (no targets: the SPEC 1.3 rows "
-                      f"use φ_U0 = {PHI0_DEG[2]:g}°)", rows6),
+                      "same realisations; ratios SINS/GPS/SAPV over SINS/GPS. The SPEC 1.3 table uses "
+                      f"φ_U0 = {PHI0_DEG[2]:g}°; at 2° the velocity target fails (the heading error drives "
+                      "the north velocity through the Earth rate)", rows6, kind="sensitivity"),
     ]
-    elapsed = time.perf_counter() - t_start
     notes = [
         "SPEC 1.2 errata followed: F_nav of SPEC §6 instead of eqs. (7)-(9) (1); H_p/H_v per eq. (4) (2); "
         "r_g = C_e^n r_e, r_b = C_n^b r_g (3, 4); the recommended az = atan2(Δx, Δy) clockwise from body "
@@ -722,33 +539,36 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
         "With the SAPV position columns included (SPEC eq. 23) the results change by far less than the "
         "pointing noise (largest effect of 100 m: 0.002°); the seed's simplification (eq. 26) is the "
         "default.",
-        "Velocity: the SPEC 1.3 target (std within ±15 % with and without SAPV) does not hold for the north "
-        f"velocity with the suggested φ_U0 = {PHI0_DEG[2]:g}°: SAPV reduces it by "
-        f"{100 * (1 - sweep[max(sweep)]['vN']):.0f} %. Physics, not the filter: on a static base the heading "
-        "error drives the north velocity error through the Earth rate (φ̇_E = −Ω cosL φ_U, δv̇_N = −g φ_E) "
-        "and the SAPV elevation observes the tilt about the axis perpendicular to the line of sight (mostly "
-        "φ_E), so removing both uncertainties lowers the north velocity error. The 'Initial heading' table "
-        "shows the two SPEC 1.3 ratio targets pulling opposite ways: velocity within ±15 % needs φ_U0 <= "
-        f"{max(ok_v) if ok_v else float('nan'):g}°, the heading RMS ratio >= 10 needs φ_U0 >= "
-        f"{min(ok_h) if ok_h else float('nan'):g}° (of the values swept). The seed's own SINS/GPS heading "
-        "error (mean -77′, std 98.5′ over 500 s) points to an initial heading error of several degrees, "
-        "where velocity cannot be unchanged with a matched filter; we keep SPEC's suggested 2° and report "
-        "the failure. Initial position and velocity errors are those of a GPS fix (σ 10 m, 0.5 m/s).",
-        f"Runtime {elapsed:.0f} s for {runs} runs (numba kernels compiled once and cached).",
+        f"Initial heading error (the seed does not give it): φ_U0 = {PHI0_DEG[2]:g}° as decided for SPEC "
+        "1.3, the largest value for which the seed's own Table 2 relations (heading gain ≥ 10×, velocity "
+        "unchanged within ±15 %) hold together. Mechanism: on a static base the heading error drives the "
+        "north velocity error through the Earth rate (φ̇_E = −Ω cosL φ_U, δv̇_N = −g φ_E) and the SAPV "
+        "elevation observes the tilt about the axis perpendicular to the line of sight (mostly φ_E), so "
+        "the larger φ_U0 the more SAPV lowers the north velocity error too. The 'Initial heading' "
+        "sensitivity table shows the two ratio targets pulling opposite ways: velocity within ±15 % for "
+        f"φ_U0 <= {max(ok_v) if ok_v else float('nan'):g}°, heading ratio >= 10 for φ_U0 >= "
+        f"{min(ok_h) if ok_h else float('nan'):g}° (of the values swept, {n_sweep} runs each). At 2° "
+        f"SAPV lowers the north velocity std by {100 * (1 - sweep[max(sweep)]['vN']):.0f} %. The seed's own "
+        "up-velocity ratio (0.067/0.0851 = 0.79) is outside ±15 % too. Initial position and velocity "
+        "errors are those of a GPS fix (σ 10 m, 0.5 m/s).",
+        "'Pitch below ~2′ after 30 s' is checked on the largest |pitch error| over every epoch after 30 s "
+        "and every run (not on an RMS).",
+        "SAPV NIS (SPEC 1.3) on the seed's federated filter: after each reset the SAPV local filter carries "
+        "P_g/β_2 (β_2 = 1/2), so its own innovation covariance S = H P_g Hᵀ/β_2 + R overstates the state "
+        "part twice and its NIS mean is below 2 by design (the 'Federated filter' table shows it). The "
+        "covariance the innovation has is H P_g Hᵀ + R = β_2 (S − R) + R; the SPEC row normalises each "
+        "component by it (mean 2 for a consistent filter; band = 2 ± 1.96 standard errors of the pooled "
+        "mean, from the per-epoch spread). The centralized filter's NIS is shown beside it against the "
+        "χ²(2) band.",
+        "Monte Carlo standard errors: ratios of RMS values over runs by the delta method on the per-run "
+        "mean squares (paired runs); a ratio target is 'unresolved' when it is within 2 standard errors of "
+        "its boundary.",
+        f"Runtime {study.elapsed_s:.0f} s for {runs} runs (numba kernels compiled once and cached).",
     ]
-    path = write_summary(out, seed=SEED, title=TITLE, runs=runs, base_seed=base_seed, tables=tables,
-                         figures=figures, notes=notes)
     (out / "statistics.json").write_text(json.dumps(
         {k: {q: mc["stats"][k][q] for q in QUANTS} for k in VARIANTS}, indent=1))
-    say(f"seed 000: wrote {path} ({elapsed:.0f} s)")
-    return json.loads(path.read_text())
+    return study.finish(tables, notes)
 
 
 if __name__ == "__main__":  # pragma: no cover
-    if len(sys.argv) < 2:
-        print("usage: python -m aidnav.experiments.reproduce.seed_000 OUT_DIR [RUNS] [BASE_SEED]")
-        sys.exit(2)
-    s = run(sys.argv[1], runs=int(sys.argv[2]) if len(sys.argv) > 2 else DEFAULT_RUNS,
-            base_seed=int(sys.argv[3]) if len(sys.argv) > 3 else 1)
-    bad = [r["quantity"] for t in s["tables"] for r in t["rows"] if r["holds"] is False]
-    print(f"wrote {sys.argv[1]}/summary.json; {len(bad)} rows not holding" + "".join("\n  " + b for b in bad))
+    sys.exit(main(run, SEED, DEFAULT_RUNS))

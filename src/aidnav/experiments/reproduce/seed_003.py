@@ -20,7 +20,14 @@ Choices where the patent is silent (listed in the summary's notes): the satellit
 (``mems`` preset with a 3 deg/h turn-on gyro bias), the initial alignment errors (level 1°, heading 0.3°,
 1σ), w_max = 0.5°/s (the SPEC §4.5 value), the servo limits and the beamwidth.
 
-Run: ``python -m aidnav.experiments.reproduce.seed_003 OUT [RUNS] [BASE_SEED]`` or ``aidnav reproduce 003``.
+Closing-time tolerances of the reference chase, stated from the motion coupling (before the results):
+both quaternions receive the same body increments, so the body-frame difference between them turns with
+the body at the yaw rate r = 5°/s. The heading difference is not moved by a yaw (tolerance: one interrupt
+dt). A tilt difference d_i (pitch or roll) closes at |d_i0|/T_f while the turn feeds it at most
+r·|d_j0| from the other tilt axis, so it closes within T_f/(1 ± r·T_f·|d_j0|/|d_i0|): pitch
+(0.5°, fed from roll 0.3°) in [0.950, 1.055] s, roll (0.3°, fed from pitch 0.5°) in [0.873, 1.170] s.
+
+Run: ``python -m aidnav.experiments.reproduce.seed_003 OUT [--runs N]`` or ``aidnav reproduce 003``.
 """
 
 from __future__ import annotations
@@ -45,6 +52,7 @@ from aidnav.estimators.satcom import (
     servo_track,
     signal_loss_db,
 )
+from aidnav.experiments.reproduce._study import Study, main
 from aidnav.nav.rotations import attitude_error_batch, euler_to_quat_batch
 
 SEED = "003"
@@ -309,15 +317,6 @@ def _fig_level(a, out: Path) -> str:
 
 
 # ============================================================================================== run
-def _version():
-    try:
-        from importlib.metadata import version
-
-        return version("aidnav")
-    except Exception:  # pragma: no cover
-        return "unknown"
-
-
 def run(out_dir, runs: int | None = DEFAULT_RUNS, base_seed: int = 1, console=None,
         route: str = "full") -> dict:
     """Reproduce seed 003 into ``out_dir``: figures (PNG) and ``summary.json`` (CONVENTIONS schema).
@@ -325,19 +324,12 @@ def run(out_dir, runs: int | None = DEFAULT_RUNS, base_seed: int = 1, console=No
     runs : Monte Carlo realisations of the driving run (None: ``DEFAULT_RUNS``); base_seed : seeds the
     realisations; route : "full" (~610 s) or "short" (145 s, for quick checks). Returns the summary dict.
     """
-    from aidnav.experiments.reproduce.summary import summary_row, summary_table, write_summary
+    from aidnav.experiments.reproduce.summary import summary_row, summary_table
 
-    runs = DEFAULT_RUNS if runs is None else int(runs)
-    if runs < 1:
-        raise ValueError("runs must be >= 1")
     if route not in ("full", "short"):
         raise ValueError("route must be 'full' or 'short'")
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-
-    def say(msg):
-        if console is not None:
-            console.print(msg)
+    study = Study(SEED, TITLE, out_dir, DEFAULT_RUNS if runs is None else runs, base_seed, console)
+    runs, out, say = study.runs, study.out, study.say
 
     # ---------------------------------------------------------------- reference chase (SPEC §4.5)
     say("seed 003: reference chase (SPEC 4.5)")
@@ -351,23 +343,44 @@ def run(out_dir, runs: int | None = DEFAULT_RUNS, base_seed: int = 1, console=No
     lin_dev = float(np.abs(d_h[k0:] - line).max())
     expected_h = 2.0 / W_MAX_DEG_S
     wmdt = W_MAX_DEG_S * dt
+    # closing-time tolerances from the motion coupling (module docstring): the yaw rate r turns the tilt
+    # difference between the pitch and roll axes; the heading difference is not moved by a yaw
+    r_yaw = 5.0 * D
+    d0 = {"pitch": 0.5, "roll": 0.3}
+    other = {"pitch": "roll", "roll": "pitch"}
+    band = {}
+    for a in d0:
+        c = r_yaw * T_F * d0[other[a]] / d0[a]
+        band[a] = (T_F / (1 + c), T_F / (1 - c))
     rows1 = [
-        summary_row("heading difference closes after the correction", "s", ch["close_time_s"]["heading"],
-                    None, "abs(ours - expected) <= dt + 1e-9", {"expected": expected_h, "dt": dt}),
-        summary_row("pitch difference closes after the correction", "s", ch["close_time_s"]["pitch"], None,
-                    "abs(ours - t_f) <= 0.05", {"t_f": T_F}),
-        summary_row("roll difference closes after the correction", "s", ch["close_time_s"]["roll"], None,
-                    "abs(ours - t_f) <= 0.1", {"t_f": T_F}),
+        summary_row("heading difference closes after the correction (|Δ|/w_max = 4 s ± one interrupt)", "s",
+                    ch["close_time_s"]["heading"], None, "abs(ours - expected) <= dt + 1e-9",
+                    {"expected": expected_h, "dt": dt}, spec=True),
+    ]
+    for a in ("pitch", "roll"):
+        lo, hi = band[a]
+        rows1.append(summary_row(f"{a} difference closes after the correction (≈ T_f; coupling band "
+                                 f"T_f/(1 ± r·T_f·|d_{other[a]}|/|d_{a}|) = {lo:.3f}-{hi:.3f} s)", "s",
+                                 ch["close_time_s"][a], None, "lo <= ours <= hi", {"lo": lo, "hi": hi},
+                                 spec=True))
+    rot_reason = ("the chase bounds each Euler angle by w_max·dt (aidnav.estimators.satcom._dual_kernel); "
+                  "when the three angles chase at once the total rotation of an interrupt reaches "
+                  "√3·w_max·dt (level). Meeting the bound needs the kernel to scale the three steps by "
+                  "min(1, w_max·dt/|rotation|) (requested; not in this reproduction's files)")
+    rows1 += [
         summary_row("heading difference: largest departure from the line |Δ| − w_max·t", "deg", lin_dev, None,
                     "ours <= w_max_dt", {"w_max_dt": wmdt}),
-        summary_row("largest per-interrupt antenna Euler change beyond the gyro motion", "deg",
-                    max(ch["max_step_deg"].values()), None, "ours <= 0.0053"),
-        summary_row("largest total command rotation per interrupt (three axes at once)", "deg",
-                    ch["max_rot_deg"], None, "ours <= sqrt(3) * w_max_dt", {"w_max_dt": wmdt}),
+        summary_row("largest per-interrupt antenna Euler change beyond the gyro motion (per axis)", "deg",
+                    max(ch["max_step_deg"].values()), None, "ours <= 0.0053", spec=True),
+        summary_row("largest total change of the antenna attitude per interrupt beyond the vehicle motion "
+                    "(three angles chasing at once; the pointing-error rate the antenna tolerates)", "deg",
+                    ch["max_rot_deg"], None, "ours <= w_max_dt * (1 + 1e-9)", {"w_max_dt": wmdt},
+                    spec=True, reason=rot_reason),
         summary_row("angle between q_ant and q_nav before the correction", "rad", ch["identity_before_rad"],
                     None, "ours <= 1e-12"),
     ]
-    figures = [_fig_chase(ch, out)]
+    figures = study.figures
+    figures.append(_fig_chase(ch, out))
 
     # ---------------------------------------------------------------- driving run, Monte Carlo
     ss = np.random.SeedSequence(base_seed).spawn(runs)
@@ -471,6 +484,10 @@ def run(out_dir, runs: int | None = DEFAULT_RUNS, base_seed: int = 1, console=No
         "SPEC 4.4 erratum 3 / SPEC 4.2: the rate is latched at each correction at |d|/T_f and capped at "
         "w_max when |d|/T_f > w_max; between corrections it is max(latched, |d|/T_f) (still within the "
         "claim-2 bounds).",
+        "Closing-time tolerances (stated from the motion coupling before the results): heading |Δ|/w_max "
+        "± one interrupt (a yaw does not move the heading difference); pitch and roll T_f/(1 ± r·T_f·"
+        "|d_other|/|d_self|) with r = 5°/s, because the body-frame tilt difference turns with the body "
+        "between the two tilt axes (pitch 0.950-1.055 s, roll 0.873-1.170 s for the 0.5°/0.3° correction).",
         "The command is applied as exact Euler-angle rates (the patent's 'first element pitch, second roll, "
         "third heading'); the per-axis bound is w_max*dt; the total rotation of one interrupt is at most "
         "sqrt(3 + 2|sin(pitch)|)*w_max*dt (sqrt(3)*w_max*dt when level, as in the chase).",
@@ -490,21 +507,11 @@ def run(out_dir, runs: int | None = DEFAULT_RUNS, base_seed: int = 1, console=No
         "correction by at most T_f, or |d|/w_max); what changes is the servo load: bounded command steps "
         "instead of jumps of the size of the correction.",
     ]
-    summary_path = write_summary(out, seed=SEED, title=TITLE, runs=runs, base_seed=base_seed, tables=tables,
-                                 figures=figures, notes=notes, aidnav_version=_version())
     import json
 
-    summary = json.loads(summary_path.read_text())
     (out / "runs.json").write_text(json.dumps(results, indent=1))
-    say(f"seed 003: wrote {summary_path}")
-    return summary
+    return study.finish(tables, notes)
 
 
 if __name__ == "__main__":  # pragma: no cover
-    if len(sys.argv) < 2:
-        print("usage: python -m aidnav.experiments.reproduce.seed_003 OUT_DIR [RUNS] [BASE_SEED]")
-        sys.exit(2)
-    s = run(sys.argv[1], runs=int(sys.argv[2]) if len(sys.argv) > 2 else DEFAULT_RUNS,
-            base_seed=int(sys.argv[3]) if len(sys.argv) > 3 else 1)
-    bad = [r["quantity"] for t in s["tables"] for r in t["rows"] if r["holds"] is False]
-    print(f"wrote {sys.argv[1]}/summary.json; {len(bad)} rows not holding" + "".join("\n  " + b for b in bad))
+    sys.exit(main(run, SEED, DEFAULT_RUNS))

@@ -42,7 +42,6 @@ example files (SPEC §5.1 suggestions). ``holds`` is the verdict of the SPEC §5
 
 from __future__ import annotations
 
-import argparse
 import csv
 import math
 import sys
@@ -52,13 +51,43 @@ from importlib import resources
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
-from rich.console import Console
-from rich.table import Table
 
 from aidnav.experiments.design import predict_accuracy
-from aidnav.experiments.reproduce.summary import summary_row, summary_table, write_summary
+from aidnav.experiments.reproduce._study import Study, main
+from aidnav.experiments.reproduce.seed_004_figures import (
+    fig_attitude,
+    fig_design,
+    fig_flexure,
+    fig_sweeps,
+    fig_trajectories,
+)
+from aidnav.experiments.reproduce.seed_004_tables import (
+    BASE_GRADE,
+    BASELINES,
+    DRIFT_FRACTIONS,
+    FACTOR2,
+    GRADES,
+    LABEL,
+    MASTER_TAU_S,
+    MODES,
+    PAPER_T4,
+    PAPER_T5,
+    PAPER_T6,
+    PAPER_T8,
+    QUANTS,
+    SWEEP_GRADES,
+    T1_VALUES,
+    T2_VALUES,
+    TREND_RUNS_FACTOR,
+    UNITS,
+    Group,
+    drift_rows,
+    t4_rows,
+    t5_rows,
+    t6_rows,
+    t8_rows,
+)
+from aidnav.experiments.reproduce.summary import summary_row, summary_table
 from aidnav.filters.transfer import TransferConfig, run_transfer, segment_statistic, transfer_errors
 from aidnav.sim.distributed_pos import (
     DistributedPosConfig,
@@ -75,39 +104,6 @@ from aidnav.sim.trajectory import generate_truth
 SEED = "004"
 TITLE = ("Design and comparative analysis of flight trajectories for airborne Earth observation "
          "(distributed POS transfer alignment)")
-MODES = ("none", "s_turns", "o_circle", "figure8", "climb")
-LABEL = {"none": "none", "s_turns": "S", "o_circle": "O", "figure8": "8", "climb": "climb"}
-#: sub-IMU grades: seed Table 1 (high/medium/low) and §3.1 (sub), with the "random drift X°/h" read as an
-#: angle random walk of X°/√h (``*_arw``, the reading the reproduction uses) or as the preset's
-#: white-noise density X°/h/√Hz (no suffix; 60× less ARW)
-GRADES = {"sub": "seed004_sub", "high": "seed004_high", "medium": "seed004_medium", "low": "seed004_low",
-          "sub_arw": "seed004_sub with ARW 0.1 deg/sqrt(h)",
-          "high_arw": "seed004_high with ARW 0.01 deg/sqrt(h)",
-          "medium_arw": "seed004_medium with ARW 0.05 deg/sqrt(h)",
-          "low_arw": "seed004_low with ARW 0.1 deg/sqrt(h)"}
-#: the sub-IMU of the reproduction's tables (see the module docstring: "Noise reading")
-BASE_GRADE = "sub_arw"
-SWEEP_GRADES = ("high_arw", "medium_arw", "low_arw", "sub_arw")
-T1_VALUES = (0, 100, 200, 300, 400, 500)
-T2_VALUES = (100, 200, 400)
-BASELINES = (20, 40, 60)
-MASTER_TAU_S = 100.0
-#: the per-run statistics, in this order: attitude [deg], velocity [m/s], position [m], baseline [m]
-QUANTS = ("heading", "pitch", "roll", "vE", "vN", "vU", "lat", "lon", "h", "baseline")
-UNITS = ("deg", "deg", "deg", "m/s", "m/s", "m/s", "m", "m", "m", "m")
-
-# ------------------------------------------------------------------------------------ seed's numbers
-PAPER_T4 = {"none": (0.2483, 0.0376, 0.0404), "s_turns": (0.0120, 0.0082, 0.0041),
-            "o_circle": (0.0209, 0.0082, 0.0041), "figure8": (0.0116, 0.0084, 0.0040),
-            "climb": (0.1521, 0.0092, 0.0038)}
-PAPER_T5 = {0: (0.0116, 0.0084, 0.0040), 100: (0.0116, 0.0083, 0.0040), 200: (0.0091, 0.0085, 0.0038),
-            300: (0.0093, 0.0082, 0.0038), 400: (0.0099, 0.0081, 0.0038), 500: (0.0102, 0.0082, 0.0038)}
-PAPER_T6 = {100: (0.0083, 0.0076, 0.0038), 200: (0.0086, 0.0077, 0.0039), 400: (0.0091, 0.0085, 0.0038)}
-PAPER_T8 = {"heading": (0.0101, 0.0098, 0.0098), "pitch": (0.0080, 0.0080, 0.0081),
-            "roll": (0.0037, 0.0038, 0.0038), "vE": (0.0137, 0.0162, 0.0181), "vN": (0.0162, 0.0171, 0.0189),
-            "vU": (0.0194, 0.0194, 0.0201), "lat": (0.2057, 0.2445, 0.2465), "lon": (0.1688, 0.2308, 0.2782),
-            "h": (0.4942, 0.4849, 0.5192), "baseline": (0.2180, 0.5972, 1.2757)}
-FACTOR2 = "paper / 2 <= ours <= 2 * paper"
 
 
 # ------------------------------------------------------------------------------------------ cases
@@ -123,6 +119,8 @@ class Case:
     baseline_km: float = 20.0
     nstate: int = 24
     master_tau: float = 0.0
+    drift_fraction: float | None = None  #: master position-drift fraction (None: MasterPosSpec's 0.5)
+    runs: int | None = None  #: the first ``runs`` of the runner's run seeds (None: all)
 
     @property
     def traj_key(self):
@@ -179,6 +177,8 @@ def imu_spec(grade: str) -> ImuSpec:
 
 def sim_config(case: Case) -> DistributedPosConfig:
     master = MasterPosSpec.for_gnss_baseline(case.baseline_km, corr_time_s=case.master_tau)
+    if case.drift_fraction is not None:
+        master = replace(master, pos_drift_fraction=float(case.drift_fraction))
     return DistributedPosConfig(sub_imu=imu_spec(case.grade), master=master)
 
 
@@ -228,7 +228,7 @@ class _Runner:
         cfg = sim_config(case)
         fcfg = TransferConfig.from_sim(cfg, nstate=case.nstate)
         S, R, first = [], [], {}
-        for i, ss in enumerate(self.run_seeds):
+        for i, ss in enumerate(self.run_seeds if case.runs is None else self.run_seeds[:case.runs]):
             run = simulate_distributed_pos(tb, cfg, ss, geo)
             res = run_transfer(run, fcfg)
             s, r, e = _run_stats(res, run)
@@ -272,325 +272,93 @@ def flexure_check(spec: FlexureSpec | None = None, dt: float = 0.1, duration_s: 
             "lags": np.arange(len(acf)) * dt, "acf": acf}
 
 
-# ----------------------------------------------------------------------------------------- figures
-def _save(fig: Figure, path: Path) -> str:
-    FigureCanvasAgg(fig)
-    fig.savefig(path, dpi=110)
-    return path.name
-
-
-def _legs(ax, segments, names=("AB", "CD")):
-    for r in segments:
-        if r["name"] in names:
-            ax.axvspan(r["start_s"], r["end_s"], color="0.9", zorder=0)
-
-
-def fig_trajectories(out: Path, bundles: dict) -> str:
-    from aidnav.nav.earth import lla_to_enu
-
-    fig = Figure(figsize=(15, 3.6))
-    for i, mode in enumerate(MODES):
-        ax = fig.add_subplot(1, 5, i + 1)
-        tr, _, segs = bundles[mode]
-        e, n, _ = lla_to_enu(tr.lat, tr.lon, tr.height, tr.lat[0], tr.lon[0], tr.height[0])
-        ax.plot(e / 1e3, n / 1e3, color="0.5", lw=0.8)
-        for name, c in (("AB", "tab:blue"), ("CD", "tab:red")):
-            r = next(r for r in segs if r["name"] == name)
-            m = (tr.time >= r["start_s"]) & (tr.time <= r["end_s"])
-            ax.plot(e[m] / 1e3, n[m] / 1e3, color=c, lw=2, label=name)
-        ax.plot(e[0] / 1e3, n[0] / 1e3, "k^")
-        ax.set_title(f"mode {i + 1}: {LABEL[mode]}" + (" (climb 0→2.4 km)" if mode == "climb" else ""))
-        ax.set_xlabel("East [km]")
-        if i == 0:
-            ax.set_ylabel("North [km]")
-            ax.legend(loc="best", fontsize=8)
-        ax.set_aspect("equal", adjustable="datalim")
-        ax.grid(alpha=0.3)
-    fig.suptitle("Fig. 2 (seed): the five motion modes; imaging legs AB and CD")
-    fig.tight_layout()
-    return _save(fig, out / "fig2_trajectories.png")
-
-
-def fig_attitude(out: Path, results: dict) -> str:
-    fig = Figure(figsize=(15, 8))
-    names = ("heading", "pitch", "roll")
-    for j, mode in enumerate(MODES):
-        fr = results[mode].first
-        for i, (k, q) in enumerate(zip((2, 1, 0), names, strict=True)):
-            ax = fig.add_subplot(3, 5, 1 + i * 5 + j)
-            _legs(ax, fr["segments"])
-            ax.plot(fr["time"], fr["rph"][:, k], lw=0.7, label="error (run 1)")
-            if q == "heading":
-                lim = 0.8 if mode in ("none", "climb") else 0.05
-            else:
-                lim = 0.05 if mode == "none" else 0.01
-            ax.set_ylim(-lim, lim)
-            if j == 0:
-                ax.set_ylabel(f"{q} error [deg]")
-            if i == 0:
-                ax.set_title(f"{LABEL[mode]}")
-            if i == 2:
-                ax.set_xlabel("time [s]")
-            ax.grid(alpha=0.3)
-    fig.suptitle("Fig. 3 (seed): sub-IMU attitude errors, 24-state filter, run 1 (AB, CD shaded)")
-    fig.tight_layout()
-    return _save(fig, out / "fig3_attitude_errors.png")
-
-
-def fig_sweeps(out: Path, sweeps: dict) -> str:
-    fig = Figure(figsize=(15, 8))
-    for i, (title, (xs, rows, paper, xlabel)) in enumerate(sweeps.items()):
-        ax = fig.add_subplot(2, 3, i + 1)
-        xi = np.arange(len(xs))
-        for q, c in (("heading", "tab:blue"), ("pitch", "tab:orange"), ("roll", "tab:green")):
-            ax.plot(xi, [r[q] for r in rows], "o-", color=c, label=f"{q} (ours)")
-            if paper is not None:
-                ax.plot(xi, [p[q] for p in paper], "s--", color=c, alpha=0.6, label=f"{q} (paper)")
-        ax.set_xticks(xi, [str(x) for x in xs])
-        ax.set_yscale("log")
-        ax.set_xlabel(xlabel)
-        ax.set_ylabel("STD on AB, CD [deg]")
-        ax.set_title(title)
-        ax.grid(alpha=0.3, which="both")
-        if i == 0:
-            ax.legend(fontsize=7)
-    fig.suptitle("Seed Table 2 factors, one at a time (mean over runs of the imaging-leg STD)")
-    fig.tight_layout()
-    return _save(fig, out / "sweeps.png")
-
-
-def fig_design(out: Path, analyses: dict, pred: dict, mc_std: dict, mc_rms: dict) -> str:
-    fig = Figure(figsize=(13, 4.5))
-    ax = fig.add_subplot(1, 2, 1)
-    for mode in MODES:
-        a = analyses[mode]
-        ax.semilogy(a.time, np.degrees(a.rph_sigma[:, 2]), label=LABEL[mode])
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("predicted heading 1σ [deg]")
-    ax.set_title("covariance analysis (no Monte Carlo)")
-    ax.legend()
-    ax.grid(alpha=0.3, which="both")
-    ax = fig.add_subplot(1, 2, 2)
-    for mode in MODES:
-        ax.loglog(pred[mode], mc_rms[mode], "o", label=f"{LABEL[mode]} RMS")
-        ax.loglog(pred[mode], mc_std[mode], "x", color=ax.lines[-1].get_color(), label=f"{LABEL[mode]} STD")
-    lo, hi = 1e-4, 1.0
-    ax.plot([lo, hi], [lo, hi], "k:", lw=0.8)
-    ax.set_xlabel("predicted heading σ, RMS over AB, CD [deg]")
-    ax.set_ylabel("Monte Carlo heading error [deg]")
-    ax.set_title("prediction vs Monte Carlo (o: RMS, x: STD)")
-    ax.legend(fontsize=7, ncol=2)
-    ax.grid(alpha=0.3, which="both")
-    fig.tight_layout()
-    return _save(fig, out / "design_tool.png")
-
-
-def fig_flexure(out: Path, chk: dict, spec: FlexureSpec) -> str:
-    from aidnav.sim.distributed_pos import flexure_autocorrelation
-
-    fig = Figure(figsize=(7, 4))
-    ax = fig.add_subplot(1, 1, 1)
-    th = flexure_autocorrelation(spec, chk["lags"]) / spec.sigma[None, :] ** 2
-    for a, c in zip(range(3), ("tab:blue", "tab:orange", "tab:green"), strict=True):
-        ax.plot(chk["lags"], chk["acf"][:, a], color=c, label=f"axis {'xyz'[a]} generated")
-        ax.plot(chk["lags"], th[:, a], "--", color=c, lw=0.8)
-    ax.axhline(math.exp(-1), color="k", lw=0.6)
-    ax.set_xlabel("lag [s]")
-    ax.set_ylabel("autocorrelation")
-    ax.set_title("flexure generator vs (1+β|t|)e^{-β|t|} (dashed)")
-    ax.legend()
-    ax.grid(alpha=0.3)
-    fig.tight_layout()
-    return _save(fig, out / "flexure.png")
-
-
 # ------------------------------------------------------------------------------------------ tables
-def _spread(vals) -> float:
-    v = np.asarray(vals, float)
-    return float(np.max(np.abs(v / v.mean() - 1.0)))
-
-
-def _att(d) -> tuple:
-    return d["heading"], d["pitch"], d["roll"]
-
-
-def _t4_rows(t4: dict, suffix: str) -> list[dict]:
-    """Table-4 rows (values against the paper, factor 2) and the SPEC §5.3 Table-4 predicates."""
-    names = ("heading", "pitch", "roll")
-    rows = []
-    for m in MODES:
-        for q, p in zip(names, PAPER_T4[m], strict=True):
-            rows.append(summary_row(f"{q} STD, {LABEL[m]}{suffix}", "deg", t4[m][q], p, FACTOR2))
-    h = {m: t4[m]["heading"] for m in MODES}
-    ph = {m: PAPER_T4[m][0] for m in MODES}
-    for a, b, target in (("none", "figure8", "ours >= 5"), ("none", "climb", "ours > 1"),
-                         ("climb", "o_circle", "ours > 1"), ("o_circle", "s_turns", "ours > 1")):
-        rows.append(summary_row(f"heading {LABEL[a]} / {LABEL[b]}{suffix}", "-", h[a] / h[b], ph[a] / ph[b],
-                                target))
-    rows.append(summary_row(f"heading S / 8 (S ≈ 8: within 30 %){suffix}", "-", h["s_turns"] / h["figure8"],
-                            ph["s_turns"] / ph["figure8"], "abs(ours - 1) <= 0.3"))
-    four = ("s_turns", "o_circle", "figure8", "climb")
-    for k, q in ((1, "pitch"), (2, "roll")):
-        ours = [t4[m][q] for m in four]
-        pap = [PAPER_T4[m][k] for m in four]
-        rows.append(summary_row(f"{q}: largest deviation of the 4 maneuvers from their mean{suffix}", "-",
-                                _spread(ours), _spread(pap), "ours <= 0.3"))
-        rows.append(summary_row(f"{q}: none / mean of the 4 maneuvers{suffix}", "-",
-                                t4["none"][q] / np.mean(ours),
-                                PAPER_T4["none"][k] / np.mean(pap), "ours >= 2"))
-    return rows
-
-
-def _t5_rows(t5: dict, suffix: str) -> list[dict]:
-    """Table-5 rows (values, factor 2) and the SPEC §5.3 Table-5 predicates."""
-    names = ("heading", "pitch", "roll")
-    rows = []
-    for t in T1_VALUES:
-        for q, p in zip(names, PAPER_T5[t], strict=True):
-            rows.append(summary_row(f"{q} STD, T1 = {t} s{suffix}", "deg", t5[t][q], p, FACTOR2))
-    hs = [t5[t]["heading"] for t in T1_VALUES]
-    rows.append(summary_row(f"T1 of the lowest heading STD{suffix}", "s", T1_VALUES[int(np.argmin(hs))], 200,
-                            "100 <= ours <= 300"))
-    for k, q, tol in ((0, "heading", 0.3), (1, "pitch", 0.1), (2, "roll", 0.1)):
-        rows.append(summary_row(f"{q}: largest deviation across T1 from the mean{suffix}", "-",
-                                _spread([t5[t][q] for t in T1_VALUES]),
-                                _spread([PAPER_T5[t][k] for t in T1_VALUES]), f"ours <= {tol}"))
-    return rows
-
-
-def _t6_rows(t6: dict, suffix: str) -> list[dict]:
-    """Table-6 rows (values, factor 2) and the SPEC §5.3 Table-6 predicate."""
-    names = ("heading", "pitch", "roll")
-    rows = []
-    for t in T2_VALUES:
-        for q, p in zip(names, PAPER_T6[t], strict=True):
-            rows.append(summary_row(f"{q} STD, T2 = {t} s{suffix}", "deg", t6[t][q], p, FACTOR2))
-    hs = [t6[t]["heading"] for t in T2_VALUES]
-    phs = [PAPER_T6[t][0] for t in T2_VALUES]
-    rows.append(summary_row(f"heading: smallest ratio of successive T2 (non-decreasing: >= 1){suffix}", "-",
-                            min(hs[1] / hs[0], hs[2] / hs[1]), min(phs[1] / phs[0], phs[2] / phs[1]),
-                            "ours >= 1"))
-    return rows
-
-
 def _tables(res: dict, cov_pred: dict, flex: dict, flex_spec: FlexureSpec) -> list[dict]:
-    tables = []
-    names = ("heading", "pitch", "roll")
-    # ---------------------------------------------------------------- Table 4
-    t4 = {m: res["T4"][m].mean() for m in MODES}
-    tables.append(summary_table("Table 4", "imaging-leg attitude error STD by maneuver (T1 = 0, T2 = 400 s; "
-                                "mean over AB and CD and over the runs)", _t4_rows(t4, "")))
-    ph = {m: PAPER_T4[m][0] for m in MODES}
-    # ---------------------------------------------------------------- Tables 5 and 6
-    tables.append(summary_table("Table 5", "figure-8, attitude error STD vs T1 (straight flight after the "
-                                "maneuver before entering the survey area), T2 = 400 s",
-                                _t5_rows({t: res["T5"][t].mean() for t in T1_VALUES}, "")))
-    rows6 = _t6_rows({t: res["T6"][t].mean() for t in T2_VALUES}, "")
+    g4 = Group(res["T4"])
+    t4 = g4.means()
+    tables = [summary_table("Table 4", "imaging-leg attitude error STD by maneuver (T1 = 0, T2 = 400 s; "
+                            f"mean over AB and CD and over {g4.runs} runs)", t4_rows(g4)),
+              summary_table("Table 5", "figure-8, attitude error STD vs T1 (straight flight after the "
+                            "maneuver before entering the survey area), T2 = 400 s; "
+                            f"{res['T5'][0].std.shape[0]} runs", t5_rows(Group(res["T5"])))]
+    rows6 = t6_rows(Group(res["T6"]))
     for a, b in zip(T2_VALUES[:-1], T2_VALUES[1:], strict=True):
         d = res["T6"][b].std[:, 0] - res["T6"][a].std[:, 0]  # paired: common random numbers
         se = d.std(ddof=1) / np.sqrt(len(d)) if len(d) > 1 else float("nan")
-        rows6.append(summary_row(f"heading STD change T2 = {a} -> {b} s in standard errors (paired over the "
-                                 f"{len(d)} runs; |value| < 2: not resolved by the Monte Carlo)", "-",
-                                 float(d.mean() / se) if se > 0 else float("nan")))
-    tables.append(summary_table("Table 6", "figure-8, T1 = 200 s, attitude error STD vs T2 (length of the "
-                                "imaging legs)", rows6))
-    # ---------------------------------------------------------------- Table 8
-    t8 = {b: res["T8"][b].mean() for b in BASELINES}
-    rows = []
-    for q, u in zip(QUANTS, UNITS, strict=True):
-        for i, b in enumerate(BASELINES):
-            rows.append(summary_row(f"{q} STD, L0 = {b} km", u, t8[b][q], PAPER_T8[q][i], FACTOR2))
-    for q in ("heading", "pitch", "roll"):
-        rows.append(summary_row(f"{q}: largest deviation across L0 from the mean", "-",
-                                _spread([t8[b][q] for b in BASELINES]), _spread(PAPER_T8[q]), "ours <= 0.1"))
-    for q in ("vE", "vN", "vU", "lat", "lon"):
-        o = [t8[b][q] for b in BASELINES]
-        p = PAPER_T8[q]
-        rows.append(summary_row(f"{q}: smallest ratio of successive L0 (non-decreasing: >= 1)", "-",
-                                min(o[1] / o[0], o[2] / o[1]), min(p[1] / p[0], p[2] / p[1]), "ours >= 1"))
-    gps = [0.1, 0.5, 1.0]
-    ob = [t8[b]["baseline"] for b in BASELINES]
-    pb = PAPER_T8["baseline"]
-    for i in (1, 2):
-        rows.append(summary_row(f"baseline error ratio {BASELINES[i]} / 20 km over GPS accuracy ratio "
-                                f"{gps[i] / gps[0]:g} (about proportional: 0.5 … 2)", "-",
-                                ob[i] / ob[0] / (gps[i] / gps[0]), pb[i] / pb[0] / (gps[i] / gps[0]),
-                                "0.5 <= ours <= 2"))
-    tables.append(summary_table("Table 8", "figure-8, T1 = 200 s, T2 = 400 s: error STD vs GNSS baseline "
-                                "(master position accuracy of seed Table 7)", rows))
-    # ---------------------------------------------------------------- sweeps / variants (no SPEC targets)
-    rows = []
-    for g in SWEEP_GRADES:
-        d = res["grade"][g].mean()
-        for q in names:
-            rows.append(summary_row(f"{q} STD, sub-IMU {g} ({GRADES[g]})", "deg", d[q]))
+        rows6.append(summary_row(f"heading STD change T2 = {a} -> {b} s, paired over the {len(d)} runs",
+                                 "deg", float(d.mean()), stderr=se))
+    tables += [summary_table("Table 6", "figure-8, T1 = 200 s, attitude error STD vs T2 (length of the "
+                             "imaging legs)", rows6),
+               summary_table("Table 8", "figure-8, T1 = 200 s, T2 = 400 s: error STD vs GNSS baseline "
+                             "(master position accuracy of seed Table 7)", t8_rows(Group(res["T8"])))]
+    # ---------------------------------------------------------------- sensitivity studies (no SPEC rows)
+    drift = {f: Group(res["drift"][f]) for f in DRIFT_FRACTIONS}
+    tables.append(summary_table("Master-error model", "Table 8 with the master's position error split "
+                                "into a smooth drift (fraction f of its variance, τ 300 s, its rate carried "
+                                "by the master velocity) and a white part: what f gives both a proportional "
+                                "baseline error and the growth of velocity and position with L0",
+                                drift_rows(drift), kind="sensitivity"))
+    gg = Group(res["grade"]).means()
+    rows = [summary_row(f"{q} STD, sub-IMU {g} ({GRADES[g]})", "deg", gg[g][q]) for g in SWEEP_GRADES
+            for q in ("heading", "pitch", "roll")]
     tables.append(summary_table("Grade sweep", "figure-8, T1 = 200 s, T2 = 400 s, 20 km: sub-IMU grade of "
                                 "seed Table 1 (sub = the §3.1 sub-IMU, the baseline); the seed prints no "
-                                "numbers", rows))
+                                "numbers", rows, kind="sensitivity"))
+    g21 = Group(res["T4-21"])
+    m21 = g21.means()
     rows = []
     for m in MODES:
-        d21 = res["T4-21"][m].mean()
-        for q in names:
-            rows.append(summary_row(f"{q} STD, {LABEL[m]}, 21 states", "deg", d21[q],
-                                    PAPER_T4[m][names.index(q)]))
-        rows.append(summary_row(f"heading STD 21 / 24 states, {LABEL[m]}", "-",
-                                d21["heading"] / t4[m]["heading"]))
+        rows += [summary_row(f"{q} STD, {LABEL[m]}, 21 states", "deg", m21[m][q], PAPER_T4[m][i],
+                             stderr=g21.cell_se(m, q)) for i, q in enumerate(("heading", "pitch", "roll"))]
+        rows.append(summary_row(f"heading STD 21 / 24 states, {LABEL[m]}", "-",  # the same runs
+                                m21[m]["heading"] / float(res["T4"][m].std[:g21.runs, 0].mean())))
     tables.append(summary_table("21 vs 24 states", "Table 4 with the seed's 21-state filter (first-order "
-                                "flexure "
-                                "model, the truth stays second order); paper = the seed's Table 4", rows))
-    gm = {m: res["T4-GM"][m].mean() for m in MODES}
-    tables.append(summary_table("Table 4, GM master",
-                                "Table 4 with first-order Gauss-Markov master errors "
-                                f"(τ = {MASTER_TAU_S:g} s, "
-                                "same σ) instead of white; the filter still assumes white (sensitivity case)",
-                                _t4_rows(gm, ", GM master")))
-    dens = {m: res["T4-density"][m].mean() for m in MODES}
+                                "flexure model, the truth stays second order); paper = the seed's Table 4",
+                                rows, kind="sensitivity"))
+    tables.append(summary_table("Table 4, GM master", "Table 4 with first-order Gauss-Markov master errors "
+                                f"(τ = {MASTER_TAU_S:g} s, same σ) instead of white; the filter still "
+                                "assumes white", t4_rows(Group(res["T4-GM"]), ", GM master", spec=False),
+                                kind="sensitivity"))
     sfx = ", ARW 0.0017°/√h"
-    tables.append(summary_table("Table 4, density reading",
-                                "Table 4 with the sub-IMU's 'random drift 0.1°/h' read as a white-noise "
-                                "density of 0.1°/h/√Hz (ARW 0.0017°/√h, the seed004_sub preset) instead of "
-                                "an ARW of 0.1°/√h (sensitivity case; filter matched)", _t4_rows(dens, sfx)))
-    tables.append(summary_table("Table 5, density reading", "Table 5 with the density reading of the sub-IMU",
-                                _t5_rows({t: res["T5-density"][t].mean() for t in T1_VALUES}, sfx)))
-    tables.append(summary_table("Table 6, density reading", "Table 6 with the density reading of the sub-IMU",
-                                _t6_rows({t: res["T6-density"][t].mean() for t in T2_VALUES}, sfx)))
-    # ---------------------------------------------------------------- design tool
-    rows = []
+    tables += [summary_table("Table 4, density reading", "Table 4 with the sub-IMU's 'random drift 0.1°/h' "
+                             "read as a white-noise density of 0.1°/h/√Hz (ARW 0.0017°/√h, the seed004_sub "
+                             "preset) instead of an ARW of 0.1°/√h (filter matched)",
+                             t4_rows(Group(res["T4-density"]), sfx, spec=False), kind="sensitivity"),
+               summary_table("Table 5, density reading", "Table 5 with the density reading of the sub-IMU",
+                             t5_rows(Group(res["T5-density"]), sfx, spec=False), kind="sensitivity"),
+               summary_table("Table 6, density reading", "Table 6 with the density reading of the sub-IMU",
+                             t6_rows(Group(res["T6-density"]), sfx, spec=False), kind="sensitivity")]
+    # ---------------------------------------------------------------- design tool (checks of our own)
     pr = {m: cov_pred[m]["heading_deg"] for m in MODES}
+    ph = {m: PAPER_T4[m][0] for m in MODES}
     mc_rms = {m: float(res["T4"][m].rms.mean(axis=0)[0]) for m in MODES}
+    rows = []
     for m in MODES:
         rows.append(summary_row(f"predicted heading σ (covariance), {LABEL[m]}", "deg", pr[m]))
         rows.append(summary_row(f"Monte Carlo heading RMS, {LABEL[m]}", "deg", mc_rms[m]))
+    for a, b, target in (("none", "figure8", "ours >= 5"), ("none", "climb", "ours > 1"),
+                         ("climb", "o_circle", "ours > 1"), ("o_circle", "s_turns", "ours > 1"),
+                         ("s_turns", "figure8", "abs(ours - 1) <= 0.3")):
+        rows.append(summary_row(f"predicted heading {LABEL[a]} / {LABEL[b]}", "-", pr[a] / pr[b],
+                                ph[a] / ph[b], target))
     rows += [
-        summary_row("predicted heading none / 8", "-", pr["none"] / pr["figure8"], ph["none"] / ph["figure8"],
-                    "ours >= 5"),
-        summary_row("predicted heading none / climb", "-", pr["none"] / pr["climb"], ph["none"] / ph["climb"],
-                    "ours > 1"),
-        summary_row("predicted heading climb / O", "-", pr["climb"] / pr["o_circle"],
-                    ph["climb"] / ph["o_circle"], "ours > 1"),
-        summary_row("predicted heading O / S", "-", pr["o_circle"] / pr["s_turns"],
-                    ph["o_circle"] / ph["s_turns"], "ours > 1"),
-        summary_row("predicted heading S / 8 (within 30 %)", "-", pr["s_turns"] / pr["figure8"],
-                    ph["s_turns"] / ph["figure8"], "abs(ours - 1) <= 0.3"),
         summary_row("Spearman rank correlation, predicted σ vs Monte Carlo RMS (heading, 5 modes)", "-",
                     _spearman([pr[m] for m in MODES], [mc_rms[m] for m in MODES])),
         summary_row("Spearman rank correlation, predicted σ vs Monte Carlo STD (heading, 5 modes)", "-",
                     _spearman([pr[m] for m in MODES], [t4[m]["heading"] for m in MODES])),
     ]
     tables.append(summary_table("Design tool", "covariance-only prediction of the imaging-leg heading "
-                                "accuracy "
-                                "(aidnav.experiments.design) against the Monte Carlo of Table 4; the SPEC "
-                                "Table 4 ordering applied to the prediction", rows))
-    # ---------------------------------------------------------------- flexure
+                                "accuracy (aidnav.experiments.design) against the Monte Carlo of Table 4; "
+                                "the SPEC Table 4 ordering applied to the prediction", rows))
     rows = []
     for a in range(3):
         ax = "xyz"[a]
         rows.append(summary_row(f"flexure σ_{ax}", "deg", flex["sigma_deg"][a], flex_spec.sigma_deg[a],
-                                "abs(ours - paper) <= 0.05 * paper"))
+                                "abs(ours - paper) <= 0.05 * paper", spec=True))
         rows.append(summary_row(f"flexure 1/e time τ_{ax}", "s", flex["tau_s"][a], flex_spec.tau_s[a],
-                                "abs(ours - paper) <= 0.05 * paper"))
-    tables.append(summary_table("Flexure", "second-order Markov flexure generator (exact discretisation), "
-                                "1e5 s at 0.1 s: σ and 1/e lag against the seed's values", rows))
+                                "abs(ours - paper) <= 0.05 * paper", spec=True))
+    tables.append(summary_table("Flexure", "second-order Markov flexure generator (exact discretisation): σ "
+                                "and 1/e lag against the seed's values", rows))
     return tables
 
 
@@ -598,39 +366,6 @@ def _spearman(a, b) -> float:
     ra = np.argsort(np.argsort(a))
     rb = np.argsort(np.argsort(b))
     return float(np.corrcoef(ra, rb)[0, 1])
-
-
-def _print_tables(console: Console, tables: list[dict]):
-    for t in tables:
-        tab = Table(title=f"{t['name']}: {t['caption']}", title_justify="left")
-        for c in ("quantity", "unit", "paper", "ours", "target", "holds"):
-            tab.add_column(c)
-        for r in t["rows"]:
-            def f(v):
-                return "" if v is None else (f"{v:.4g}" if isinstance(v, float) else str(v))
-            tab.add_row(r["quantity"], r["unit"], f(r["paper"]), f(r["ours"]), r["target"] or "",
-                        "" if r["holds"] is None else ("yes" if r["holds"] else "NO"))
-        console.print(tab)
-
-
-def _write_report(out: Path, tables: list[dict], notes: list[str], figures: list[str]) -> Path:
-    lines = [f"# Seed {SEED} reproduction: {TITLE}", ""]
-    for t in tables:
-        lines += [f"## {t['name']}", "", t["caption"], "",
-                  "| quantity | unit | paper | ours | target | holds |",
-                  "|---|---|---|---|---|---|"]
-        for r in t["rows"]:
-            def f(v):
-                return "" if v is None else f"{v:.4g}"
-            h = "" if r["holds"] is None else ("yes" if r["holds"] else "**no**")
-            lines.append(f"| {r['quantity']} | {r['unit']} | {f(r['paper'])} | {f(r['ours'])} | "
-                         f"{r['target'] or ''} | {h} |")
-        lines.append("")
-    lines += ["## Figures", ""] + [f"![{f}]({f})" for f in figures] + ["", "## Notes", ""]
-    lines += [f"- {n}" for n in notes]
-    p = out / "report.md"
-    p.write_text("\n".join(lines) + "\n")
-    return p
 
 
 def _write_runs(out: Path, runner: _Runner) -> Path:
@@ -648,47 +383,50 @@ def _write_runs(out: Path, runner: _Runner) -> Path:
 
 
 # --------------------------------------------------------------------------------------------- run
-def run(out_dir, runs: int | None = 10, base_seed: int = 1, console: Console | None = None,
-        quick: bool = False) -> dict:
-    """Reproduce seed 004 into ``out_dir``: figures, ``report.md``, ``runs.csv`` and ``summary.json``.
+def run(out_dir, runs: int | None = 10, base_seed: int = 1, console=None, quick: bool = False) -> dict:
+    """Reproduce seed 004 into ``out_dir``: figures, ``report.html``, ``runs.csv`` and ``summary.json``.
 
     runs: Monte Carlo runs per case (10 as in the seed; None → 10, or 2 with ``quick``).
     quick: fewer runs (2 unless given) for tests; the same cases and tables.
     Returns the summary document (a dict, as written).
     """
-    t_start = time.perf_counter()
-    console = console or Console()
-    runs = int(runs) if runs is not None else (2 if quick else 10)
-    if runs < 1:
-        raise ValueError("seed_004.run: runs must be >= 1")
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    run_seeds = np.random.SeedSequence(int(base_seed)).spawn(runs)
-    runner = _Runner(run_seeds, lambda m: console.log(m))
+    study = Study(SEED, TITLE, out_dir, int(runs) if runs is not None else (2 if quick else 10), base_seed,
+                  console)
+    t_start = study.t_start
+    runs, out = study.runs, study.out
+    trend_runs = TREND_RUNS_FACTOR * runs  # Tables 4 and 5: their trends are a few percent
+    run_seeds = np.random.SeedSequence(int(base_seed)).spawn(trend_runs)  # the first `runs` in every case
+    runner = _Runner(run_seeds, study.say)
+
+    def mc(case: Case, n: int = runs) -> CaseResult:
+        return runner.run(replace(case, runs=n))
 
     # Monte Carlo cases, grouped by trajectory so that each trajectory is generated once
     res: dict[str, dict] = {k: {} for k in ("T4", "T4-21", "T4-GM", "T4-density", "T5", "T6", "T8", "grade",
-                                            "T5-density", "T6-density")}
+                                            "T5-density", "T6-density", "drift")}
     bundles = {}
     for m in MODES:
         base = Case(mode=m, t1=0.0, t2=400.0)
         bundles[m] = runner.bundle(base.traj_key)[0]
-        res["T4"][m] = runner.run(base)
-        res["T4-21"][m] = runner.run(replace(base, nstate=21))
-        res["T4-GM"][m] = runner.run(replace(base, master_tau=MASTER_TAU_S))
-        res["T4-density"][m] = runner.run(replace(base, grade="sub"))
+        res["T4"][m] = mc(base, trend_runs)
+        res["T4-21"][m] = mc(replace(base, nstate=21))
+        res["T4-GM"][m] = mc(replace(base, master_tau=MASTER_TAU_S))
+        res["T4-density"][m] = mc(replace(base, grade="sub"))
     for t1 in T1_VALUES:
         c = Case(mode="figure8", t1=float(t1), t2=400.0)
-        res["T5"][t1] = runner.run(c)
-        res["T5-density"][t1] = runner.run(replace(c, grade="sub"))
+        res["T5"][t1] = mc(c, trend_runs)
+        res["T5-density"][t1] = mc(replace(c, grade="sub"))
     for t2 in T2_VALUES:
         c = Case(mode="figure8", t1=200.0, t2=float(t2))
-        res["T6"][t2] = runner.run(c)
-        res["T6-density"][t2] = runner.run(replace(c, grade="sub"))
+        res["T6"][t2] = mc(c)
+        res["T6-density"][t2] = mc(replace(c, grade="sub"))
     for b in BASELINES:
-        res["T8"][b] = runner.run(replace(BASE, baseline_km=float(b)))
+        res["T8"][b] = mc(replace(BASE, baseline_km=float(b)))
     for g in SWEEP_GRADES:
-        res["grade"][g] = runner.run(replace(BASE, grade=g))
+        res["grade"][g] = mc(replace(BASE, grade=g))
+    for f in DRIFT_FRACTIONS:  # the master-error study of Table 8 (0.5 = the cases above)
+        res["drift"][f] = {b: mc(replace(BASE, baseline_km=float(b), drift_fraction=None if f == 0.5
+                                                 else f)) for b in BASELINES}
     t_mc = time.perf_counter() - t_start
 
     # design tool (covariance only) and flexure check
@@ -703,7 +441,8 @@ def run(out_dir, runs: int | None = 10, base_seed: int = 1, console: Console | N
     tables = _tables(res, cov_pred, flex, flex_spec)
 
     # figures
-    figures = [fig_trajectories(out, bundles), fig_attitude(out, res["T4"])]
+    figures = study.figures
+    figures += [fig_trajectories(out, bundles), fig_attitude(out, res["T4"])]
     att = ("heading", "pitch", "roll")
 
     def rows_of(d, keys):
@@ -735,7 +474,7 @@ def run(out_dir, runs: int | None = 10, base_seed: int = 1, console: Console | N
     figures.append(fig_flexure(out, flex, flex_spec))
     _write_runs(out, runner)
 
-    elapsed = time.perf_counter() - t_start
+    elapsed = study.elapsed_s
     r2124 = [res["T4-21"][m].mean()["heading"] / res["T4"][m].mean()["heading"] for m in MODES]
     b8 = [res["T8"][b].mean()["baseline"] for b in BASELINES]
     t8v = [res["T8"][b].mean()["vE"] for b in BASELINES]
@@ -744,13 +483,19 @@ def run(out_dir, runs: int | None = 10, base_seed: int = 1, console: Console | N
 
     def holding(name):
         t = next(t for t in tables if t["name"] == name)
-        hs = [r["holds"] for r in t["rows"] if r["holds"] is not None and "paper / 2" not in r["target"]]
-        return f"{sum(hs)} of {len(hs)}"
+        hs = [r["verdict"] for r in t["rows"] if r["verdict"] is not None and r["target"] != FACTOR2]
+        return f"{hs.count('holds')} of {len(hs)} hold ({hs.count('unresolved')} unresolved)"
 
     def within2(name):
         t = next(t for t in tables if t["name"] == name)
         hs = [r["holds"] for r in t["rows"] if r["target"] == FACTOR2]
         return f"{sum(hs)} of {len(hs)}"
+
+    main4 = [r["holds"] for t in tables if t["name"] in ("Table 4", "Table 5", "Table 6", "Table 8")
+             for r in t["rows"] if r["target"] == FACTOR2]
+    dm = {f: Group(res["drift"][f]).means() for f in DRIFT_FRACTIONS}
+    prop = {f: dm[f][60]["baseline"] / dm[f][20]["baseline"] / 10.0 for f in DRIFT_FRACTIONS}
+    grow = {f: dm[f][60]["vE"] / dm[f][20]["vE"] for f in DRIFT_FRACTIONS}
 
     h5 = [res["T5"][t].mean()["heading"] for t in T1_VALUES]
     four = ("s_turns", "o_circle", "figure8")
@@ -780,8 +525,11 @@ def run(out_dir, runs: int | None = 10, base_seed: int = 1, console: Console | N
         "master velocity carries, so that the master's velocity is consistent with its position "
         "(aidnav.sim.distributed_pos.MasterPosSpec). The filter's R uses the white sigmas. Lever arm "
         "[5, 0.1, 0.1] m, mounting 0.5 deg per axis, flexure sigma (0.01, 0.15, 0.01) deg, tau (2, 5, 2) s.",
-        "Noise reading (SPEC 1.1 reads a seed's 'random drift X deg/h' as a white-noise density; the unit is "
-        "ambiguous): the tables use the sub-IMU's 'random drift 0.1 deg/h' as an angle random walk of "
+        f"Factor-2 cells of Tables 4, 5, 6 and 8 within 2x of the paper: {sum(main4)} of {len(main4)} "
+        f"({100 * sum(main4) / max(len(main4), 1):.0f} %).",
+        "Disclosure, sub-IMU noise (decided in issue 27): SPEC 1.1 reads a seed's 'random drift X deg/h' as "
+        "a white-noise density; the unit is ambiguous. The tables use the sub-IMU's 'random drift "
+        "0.1 deg/h' as an angle random walk of "
         "0.1 deg/sqrt(h) (grade sub_arw; 0.1 deg/h constant bias, 50 ug + 50 ug/sqrt(Hz)). Reason: the "
         "seed's own pitch/roll STDs after the maneuvers (0.004-0.009 deg) need that much gyro noise. "
         "With the other reading (0.1 deg/h/sqrt(Hz), ARW 0.0017 deg/sqrt(h), the seed004_sub preset) our "
@@ -799,6 +547,21 @@ def run(out_dir, runs: int | None = 10, base_seed: int = 1, console: Console | N
         "Table 6: the heading STD changes with T2 by less than the Monte Carlo resolves (see the paired rows "
         "in standard errors); the seed's growth (0.0083, 0.0086, 0.0091 deg) is of the same size as that "
         "noise with its 10 runs, so the 'non-decreasing' predicate compares nearly equal numbers.",
+        "Disclosure, baseline error (the SPEC Table 8 proportionality rows): the master-sub baseline-length "
+        "error is the difference of the two position errors. The sub's position follows the master's "
+        "smooth drift (velocity matching passes the drift rate, which the master's velocity carries), so "
+        "the drift cancels in the difference and only the master's white part remains, over a floor of the "
+        "sub's own errors that does not scale with the GNSS accuracy. The 'Master-error model' table varies "
+        "the drift fraction f of the master's position variance: baseline proportionality (ratio 60/20 km "
+        "over the GPS ratio) "
+        + ", ".join(f"f = {f:g}: {prop[f]:.2f}" for f in DRIFT_FRACTIONS)
+        + "; vE growth 60/20 km "
+        + ", ".join(f"f = {f:g}: {grow[f]:.3f}" for f in DRIFT_FRACTIONS)
+        + ". Less drift makes the baseline error follow the master's accuracy but removes the growth of "
+        "velocity and position with L0 that the drift drives, more drift does the opposite: no fraction "
+        "gives both with a master whose stated σ is the POS/AV610's; the seed's numbers (baseline error "
+        "≈ 1.3σ of the master position) suggest its baseline error is taken against the true master "
+        "position, which the seed does not say. We keep f = 0.5 and report the two rows as failing.",
         "Table 8: velocity + attitude matching passes the master's velocity error to the sub, and the sub's "
         "position (its integral) follows the master's smooth position drift, so the sub's velocity and "
         f"position STDs grow with L0 (vE {t8v[0]:.5f}, {t8v[1]:.5f}, {t8v[2]:.5f} m/s); the white part of "
@@ -810,33 +573,13 @@ def run(out_dir, runs: int | None = 10, base_seed: int = 1, console: Console | N
         f"{_spearman(pred, [mc_std[m] for m in MODES]):.2f} (STD); predicted / Monte Carlo RMS "
         f"{min(pess):.2f}-{max(pess):.2f} (the Monte Carlo mounting is a fixed 0.5 deg, inside the filter's "
         "1-deg prior).",
-        f"Runs: {runs} per case, base seed {base_seed}, common random numbers across cases. Monte Carlo "
-        f"{t_mc:.0f} s, design tool {t_design:.1f} s, whole reproduction {elapsed:.0f} s on this machine.",
+        f"Runs: {runs} per case ({TREND_RUNS_FACTOR * runs} for Tables 4 and 5, whose orderings are a few "
+        f"percent apart; the first runs are shared), base seed {base_seed}, common random numbers across "
+        f"cases. Monte Carlo {t_mc:.0f} s, design tool {t_design:.1f} s, whole reproduction {elapsed:.0f} s "
+        "on this machine.",
     ]
-    _write_report(out, tables, notes, figures)
-    path = write_summary(out, seed=SEED, title=TITLE, runs=runs, base_seed=int(base_seed), tables=tables,
-                         figures=figures, notes=notes)
-    _print_tables(console, tables[:4])
-    console.log(f"wrote {path} ({elapsed:.0f} s)")
-    import json
-
-    return json.loads(path.read_text())
-
-
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m aidnav.experiments.reproduce.seed_004",
-                                 description="Reproduce seed 004 (distributed POS transfer alignment).")
-    ap.add_argument("out_dir")
-    ap.add_argument("--runs", type=int, default=None,
-                    help="Monte Carlo runs per case (default 10; 2 with --quick)")
-    ap.add_argument("--base-seed", type=int, default=1)
-    ap.add_argument("--quick", action="store_true", help="2 runs per case (tests)")
-    a = ap.parse_args(argv)
-    doc = run(a.out_dir, runs=a.runs, base_seed=a.base_seed, quick=a.quick)
-    bad = [r["quantity"] for t in doc["tables"] for r in t["rows"] if r["holds"] is False]
-    print(f"wrote {a.out_dir}/summary.json; {len(bad)} rows not holding" + "".join("\n  " + b for b in bad))
-    return 0
+    return study.finish(tables, notes)
 
 
 if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
+    sys.exit(main(run, SEED, 10))

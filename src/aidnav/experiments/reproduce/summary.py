@@ -1,4 +1,4 @@
-"""Reproduction summaries: ``DIR/summary.json`` in the schema of ``CONVENTIONS.md``.
+"""Reproduction summaries: ``DIR/summary.json`` in the schema of ``docs/reproduce_schema.md``.
 
 A row compares our value with the paper's and states a *target*; ``holds`` is **computed** from the
 target, never typed in. A target is either
@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 __all__ = ["Target", "summary_row", "summary_table", "write_summary", "evaluate_target", "check_expression",
-           "SummaryError"]
+           "check_row", "count_verdicts", "SummaryError", "VERDICTS"]
 
 
 class SummaryError(ValueError):
@@ -142,34 +142,139 @@ def _num(x):
     return None if not math.isfinite(x) else x
 
 
+VERDICTS = ("holds", "fails", "unresolved")
+
+
+def _g(x) -> str:
+    return "nan" if x is None else f"{x:.3g}"
+
+#: how many standard errors separate a resolved trend from Monte Carlo noise
+RESOLVE_SE = 2.0
+
+
 def summary_row(quantity: str, unit: str, ours, paper=None, target=None,
-                values: Mapping[str, float] | None = None) -> dict:
-    """One row ``{quantity, unit, paper, ours, target, holds}``; ``holds`` is the verdict of ``target``
-    (None without a target). ``paper`` None = the seed prints no number."""
+                values: Mapping[str, float] | None = None, *, spec: bool = False, stderr=None,
+                margin: tuple[float, float] | None = None, reason: str | None = None) -> dict:
+    """One row of a reproduction table (keys: see ``docs/reproduce_schema.md``).
+
+    ``holds`` is the verdict of ``target`` (None without a target: a configuration echo or an informative
+    number). ``spec``: True for an acceptance target of SPEC, False for a paper comparison (e.g. a
+    factor-2 cell); a row without a target cannot be ``spec``. ``stderr``: Monte Carlo standard error of
+    ``ours`` (None when ``ours`` is not a Monte Carlo statistic). ``margin = (d, se)``: for a trend or
+    ordering between Monte Carlo statistics, the signed distance ``d`` of the compared statistic from the
+    target's boundary and its standard error ``se``; the verdict is ``unresolved`` when
+    ``|d| < 2 se``. ``reason``: why a row fails or is unresolved (a default is written when not given).
+    """
     o, p = _num(ours), _num(paper)
     holds = None
     text = None
+    verdict = None
+    vals = {str(k): _num(v) for k, v in (values or {}).items()}
     if target is not None:
         text = target.text if isinstance(target, Target) else str(target)
-        holds = evaluate_target(target, o, p, values) if o is not None else False
-    return {"quantity": str(quantity), "unit": str(unit), "paper": p, "ours": o, "target": text,
-            "holds": holds}
+        finite = o is not None and all(v is not None for v in vals.values())
+        holds = evaluate_target(target, o, p, vals) if finite else False
+    elif spec:
+        raise SummaryError(f"row {quantity!r}: a spec row needs a target")
+    mg = None
+    if margin is not None:
+        if target is None:
+            raise SummaryError(f"row {quantity!r}: a margin without a target")
+        d, se = (_num(margin[0]), _num(margin[1]))
+        mg = {"value": d, "stderr": se}
+    if holds is not None:
+        verdict = _verdict(holds, mg)
+        if verdict != "holds" and not reason:
+            if verdict == "unresolved" and mg["stderr"] is None:
+                reason = "no Monte Carlo standard error (one run): the trend cannot be resolved"
+            elif verdict == "unresolved":
+                reason = (f"within {RESOLVE_SE:g} standard errors of the target's boundary "
+                          f"(distance {_g(mg['value'])}, standard error {_g(mg['stderr'])}): the runs do "
+                          "not resolve it")
+            elif not finite:
+                reason = "no value (not finite)"
+            else:
+                reason = f"ours = {o:.4g} does not meet {text}"
+    row = {"quantity": str(quantity), "unit": str(unit), "paper": p, "ours": o, "stderr": _num(stderr),
+           "target": text, "holds": holds, "verdict": verdict, "spec": bool(spec) and text is not None,
+           "reason": None if verdict in (None, "holds") else str(reason), "margin": mg,
+           "values": vals or None}
+    if isinstance(target, Target):
+        row["_fn"] = target.fn
+    return row
 
 
-def summary_table(name: str, caption: str, rows: list[dict]) -> dict:
-    """``{name, caption, rows}``."""
-    return {"name": str(name), "caption": str(caption), "rows": list(rows)}
+def _verdict(holds: bool, margin: dict | None) -> str:
+    if margin is not None:
+        d, se = margin["value"], margin["stderr"]
+        if d is None or se is None or abs(d) < RESOLVE_SE * se:
+            return "unresolved"
+    return "holds" if holds else "fails"
 
 
-_ROW_KEYS = ("quantity", "unit", "paper", "ours", "target", "holds")
+def summary_table(name: str, caption: str, rows: list[dict], kind: str = "results") -> dict:
+    """``{name, caption, kind, rows}``; ``kind``: "results", "setting" (configuration echoes) or
+    "sensitivity" (a study of a choice the seed leaves open)."""
+    if kind not in TABLE_KINDS:
+        raise SummaryError(f"table {name!r}: kind must be one of {', '.join(TABLE_KINDS)}")
+    return {"name": str(name), "caption": str(caption), "kind": kind, "rows": list(rows)}
+
+
+TABLE_KINDS = ("results", "setting", "sensitivity")
+_ROW_KEYS = ("quantity", "unit", "paper", "ours", "stderr", "target", "holds", "verdict", "spec", "reason",
+             "margin", "values")
+
+
+def check_row(r: Mapping, where: str = "") -> None:
+    """Raise :class:`SummaryError` unless the row follows the schema and its ``holds`` and ``verdict`` are
+    those of its target (re-evaluated here from ``ours``, ``paper`` and ``values``)."""
+    q = f"{where}row {r.get('quantity', '?')!r}"
+    missing = [k for k in _ROW_KEYS if k not in r]
+    if missing:
+        raise SummaryError(f"{q}: missing {missing} (make rows with summary_row)")
+    if r["target"] is None:
+        if r["holds"] is not None or r["verdict"] is not None:
+            raise SummaryError(f"{q}: holds without a target")
+        if r["spec"]:
+            raise SummaryError(f"{q}: a spec row needs a target")
+        if r["margin"] is not None:
+            raise SummaryError(f"{q}: a margin without a target")
+        return
+    if not isinstance(r["holds"], bool):
+        raise SummaryError(f"{q}: holds must be computed (a bool)")
+    if not isinstance(r["spec"], bool):
+        raise SummaryError(f"{q}: spec must be a bool")
+    fn = r.get("_fn")
+    try:
+        if r["ours"] is None or any(v is None for v in (r["values"] or {}).values()):
+            expect = False
+        elif fn is not None:
+            expect = bool(fn(r["ours"], r["paper"]))
+        else:
+            expect = evaluate_target(r["target"], r["ours"], r["paper"], r["values"] or {})
+    except SummaryError as e:
+        raise SummaryError(f"{q}: its target cannot be checked: {e}") from None
+    if expect != r["holds"]:
+        raise SummaryError(f"{q}: holds = {r['holds']} disagrees with its target {r['target']!r} "
+                           f"(ours = {r['ours']}, paper = {r['paper']}: {expect})")
+    mg = r["margin"]
+    if mg is not None and (not isinstance(mg, Mapping) or set(mg) != {"value", "stderr"}):
+        raise SummaryError(f"{q}: margin must be {{value, stderr}}")
+    v = _verdict(r["holds"], mg)
+    if r["verdict"] != v:
+        raise SummaryError(f"{q}: verdict {r['verdict']!r} disagrees with holds and margin ({v!r})")
+    if v != "holds" and not (isinstance(r["reason"], str) and r["reason"].strip()):
+        raise SummaryError(f"{q}: a row that is {v} needs a reason")
 
 
 def write_summary(out_dir, *, seed: str, title: str, runs: int, base_seed: int, tables: list[dict],
-                  figures: list[str] = (), notes: list[str] = (), aidnav_version: str | None = None) -> Path:
-    """Write ``out_dir/summary.json`` (schema of ``CONVENTIONS.md``) and return its path.
+                  figures: list[str] = (), notes: list[str] = (), aidnav_version: str | None = None,
+                  extra: Mapping | None = None) -> Path:
+    """Write ``out_dir/summary.json`` (schema: ``docs/reproduce_schema.md``) and return its path.
 
-    Rows must come from :func:`summary_row` (``holds`` computed); a row whose ``holds`` disagrees with
-    its target, or that lacks a key, raises :class:`SummaryError` and nothing is written.
+    Every row is checked with :func:`check_row`: a row whose ``holds`` disagrees with its target (or
+    whose verdict disagrees with its holds and margin, or that lacks a key) raises :class:`SummaryError`
+    and nothing is written. ``extra``: further top-level keys (e.g. ``elapsed_s``).
     """
     if aidnav_version is None:
         from aidnav.experiments.store import package_version
@@ -180,21 +285,21 @@ def write_summary(out_dir, *, seed: str, title: str, runs: int, base_seed: int, 
         for k in ("name", "caption", "rows"):
             if k not in t:
                 raise SummaryError(f"table {t.get('name', '?')!r}: missing key {k!r}")
+        kind = t.get("kind", "results")
+        if kind not in TABLE_KINDS:
+            raise SummaryError(f"table {t['name']!r}: kind must be one of {', '.join(TABLE_KINDS)}")
         rows = []
         for r in t["rows"]:
-            missing = [k for k in _ROW_KEYS if k not in r]
-            if missing:
-                raise SummaryError(f"table {t['name']!r}, row {r.get('quantity', '?')!r}: missing {missing} "
-                                   "(make rows with summary_row)")
-            if r["target"] is None and r["holds"] is not None:
-                raise SummaryError(f"table {t['name']!r}, row {r['quantity']!r}: holds without a target")
-            if r["holds"] is not None and not isinstance(r["holds"], bool):
-                raise SummaryError(f"table {t['name']!r}, row {r['quantity']!r}: holds must be computed")
+            check_row(r, f"table {t['name']!r}, ")
             rows.append({k: r[k] for k in _ROW_KEYS})
-        out_tables.append({"name": t["name"], "caption": t["caption"], "rows": rows})
+        out_tables.append({"name": t["name"], "caption": t["caption"], "kind": kind, "rows": rows})
     doc = {"seed": str(seed), "title": str(title), "aidnav_version": aidnav_version, "runs": int(runs),
            "base_seed": int(base_seed), "tables": out_tables, "figures": [str(f) for f in figures],
-           "notes": [str(n) for n in notes]}
+           "notes": [str(n) for n in notes], "verdicts": count_verdicts(out_tables)}
+    for k, v in (extra or {}).items():
+        if k in doc:
+            raise SummaryError(f"extra key {k!r} is a summary key")
+        doc[k] = v
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     path = out / "summary.json"
@@ -202,3 +307,14 @@ def write_summary(out_dir, *, seed: str, title: str, runs: int, base_seed: int, 
     tmp.write_text(json.dumps(doc, indent=2, allow_nan=False))
     tmp.replace(path)
     return path
+
+
+def count_verdicts(tables: list[dict]) -> dict:
+    """``{"spec": {holds, fails, unresolved}, "other": {...}}``: verdict counts of the spec rows and of the
+    other rows with a target (paper comparisons and our own checks)."""
+    out = {"spec": dict.fromkeys(VERDICTS, 0), "other": dict.fromkeys(VERDICTS, 0)}
+    for t in tables:
+        for r in t["rows"]:
+            if r.get("verdict") is not None:
+                out["spec" if r.get("spec") else "other"][r["verdict"]] += 1
+    return out

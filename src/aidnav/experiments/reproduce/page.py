@@ -1,0 +1,279 @@
+"""Pages of a reproduction: ``DIR/report.html`` per seed (self-contained: figures embedded as base64 PNG),
+``DIR/index.html`` for ``aidnav reproduce all``, and the paper-vs-ours table on the console.
+
+Each table shows quantity, unit, paper, ours, the Monte Carlo standard error of ours, target, verdict
+(holds / fails / unresolved), whether the row is a SPEC acceptance target, and the reason where it does
+not hold. The layout fits a 1400-px window: the body is at most 1300 px wide, tables scroll inside their
+own box, long text wraps and images scale down.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import json
+import math
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+__all__ = ["write_seed_page", "write_index", "print_summary", "report_folder", "ReproductionError",
+           "browser_layout", "is_reproduction"]
+
+CSS = """
+*{box-sizing:border-box}
+body{font-family:system-ui,-apple-system,Segoe UI,Helvetica,Arial,sans-serif;margin:1.5em auto;
+max-width:1300px;color:#222;padding:0 1em;overflow-wrap:anywhere}
+h1{font-size:1.5em}h2{font-size:1.2em;border-bottom:1px solid #ccc;padding-bottom:.2em;margin-top:1.8em}
+.scroll{max-width:100%;overflow-x:auto}
+table{border-collapse:collapse;font-size:.82em;margin:.5em 0;max-width:100%}
+th,td{border:1px solid #ccc;padding:.25em .45em;vertical-align:top}
+th{background:#f0f0f0;text-align:left}td.num{text-align:right;white-space:nowrap}
+td.q{min-width:16em;max-width:34em}td.t{max-width:18em;font-family:monospace;font-size:.95em}
+td.r{max-width:26em;color:#555}
+.holds{background:#dfd;color:#060}.fails{background:#fdd;color:#900;font-weight:bold}
+.unresolved{background:#ffe9b3;color:#7a5200;font-weight:bold}
+.note{color:#444;font-size:.88em;max-width:100%}figure{margin:1em 0;max-width:100%}
+img{max-width:100%;height:auto;border:1px solid #eee}figcaption{font-size:.85em;color:#555}
+.sens{border-left:4px solid #88a;padding-left:.6em}
+"""
+
+
+class ReproductionError(ValueError):
+    """The directory does not hold a reproduction (no ``summary.json`` of a seed)."""
+
+
+def _fmt(x) -> str:
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "–"
+    if isinstance(x, bool):
+        return "yes" if x else "no"
+    return f"{float(x):.4g}"
+
+
+def _e(x) -> str:
+    return html.escape(str(x))
+
+
+def _counts(doc: dict) -> dict:
+    from .summary import count_verdicts
+
+    return doc.get("verdicts") or count_verdicts(doc.get("tables", []))
+
+
+def _row_html(r: dict) -> str:
+    v = r.get("verdict")
+    vcell = '<td class="num">–</td>' if v is None else f'<td class="{v}">{v}</td>'
+    spec = "SPEC" if r.get("spec") else ("–" if not r.get("target") else
+                                         ("paper" if r.get("paper") is not None else "check"))
+    return ("<tr>" f'<td class="q">{_e(r["quantity"])}</td><td>{_e(r.get("unit", ""))}</td>'
+            f'<td class="num">{_fmt(r.get("paper"))}</td><td class="num">{_fmt(r.get("ours"))}</td>'
+            f'<td class="num">{_fmt(r.get("stderr"))}</td>'
+            f'<td class="t">{_e(r.get("target") or "–")}</td>{vcell}<td>{spec}</td>'
+            f'<td class="r">{_e(r.get("reason") or "")}</td></tr>')
+
+
+_HEAD = ["quantity", "unit", "paper", "ours", "std. error", "target", "verdict", "kind", "reason"]
+
+
+def _table_html(t: dict) -> str:
+    head = "".join(f"<th>{h}</th>" for h in _HEAD)
+    body = "".join(_row_html(r) for r in t["rows"])
+    kind = t.get("kind", "results")
+    cls = ' class="sens"' if kind == "sensitivity" else ""
+    label = {"sensitivity": " (sensitivity)", "setting": " (setting)"}.get(kind, "")
+    return (f"<section{cls}><h2>{_e(t['name'])}{label}</h2><p>{_e(t.get('caption', ''))}</p>"
+            f'<div class="scroll"><table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table></div>'
+            "</section>")
+
+
+def _counts_line(c: dict) -> str:
+    s, p = c["spec"], c["other"]
+    return (f"SPEC rows: {s['holds']} hold, {s['fails']} fail, {s['unresolved']} unresolved; other rows "
+            f"with a target: {p['holds']} hold, {p['fails']} fail, {p['unresolved']} unresolved")
+
+
+def seed_page_html(out: Path, doc: dict) -> str:
+    """The HTML text of one seed's report (figures read from ``out`` and embedded)."""
+    parts = [f"<h1>Seed {_e(doc['seed'])}: {_e(doc['title'])}</h1>"]
+    meta = [("Monte Carlo runs", doc.get("runs")), ("base seed", doc.get("base_seed")),
+            ("aidnav version", doc.get("aidnav_version")), ("run time [s]", doc.get("elapsed_s"))]
+    parts.append("<p>" + " · ".join(f"{_e(k)}: {_e(v)}" for k, v in meta if v is not None) + "</p>")
+    parts.append(f"<p><b>{_e(_counts_line(_counts(doc)))}</b></p>")
+    parts.append('<p class="note">verdict: <i>holds</i> / <i>fails</i> from the target; <i>unresolved</i> '
+                 "when a trend or ordering between Monte Carlo statistics is within 2 standard errors. "
+                 "kind: SPEC = acceptance target of the specification; paper = comparison with the "
+                 "paper's number; check = a check of our own; – = configuration echo or informative number "
+                 "(no target). Schema: "
+                 "docs/reproduce_schema.md.</p>")
+    bad = [(t["name"], r) for t in doc["tables"] for r in t["rows"]
+           if r.get("spec") and r.get("verdict") != "holds"]
+    if bad:
+        parts.append("<h2>SPEC rows that do not hold</h2><ul>" + "".join(
+            f"<li><b>{_e(n)}</b>: {_e(r['quantity'])} — {_e(r['verdict'])}: {_e(r.get('reason'))}</li>"
+            for n, r in bad) + "</ul>")
+    for t in doc["tables"]:
+        if t.get("kind") != "sensitivity":
+            parts.append(_table_html(t))
+    sens = [t for t in doc["tables"] if t.get("kind") == "sensitivity"]
+    if sens:
+        parts.append("<h2>Sensitivity studies</h2>")
+        parts += [_table_html(t) for t in sens]
+    if doc.get("figures"):
+        parts.append("<h2>Figures</h2>")
+    for f in doc.get("figures", []):
+        p = out / f
+        if not p.is_file():
+            parts.append(f'<p class="fails">figure {_e(f)} missing</p>')
+            continue
+        b64 = base64.b64encode(p.read_bytes()).decode("ascii")
+        parts.append(f'<figure><img alt="{_e(f)}" src="data:image/png;base64,{b64}">'
+                     f"<figcaption>{_e(f)}</figcaption></figure>")
+    if doc.get("notes"):
+        parts.append("<h2>Notes: errata followed, choices, disclosures</h2><ul>"
+                     + "".join(f'<li class="note">{_e(n)}</li>' for n in doc["notes"]) + "</ul>")
+    return _page(f"aidnav reproduction of seed {doc['seed']}", "".join(parts))
+
+
+def _page(title: str, body: str) -> str:
+    return (f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>{_e(title)}</title>'
+            '<meta name="viewport" content="width=device-width, initial-scale=1">'
+            f"<style>{CSS}</style></head><body>{body}</body></html>\n")
+
+
+def write_seed_page(out_dir, doc: dict | None = None) -> Path:
+    """Write ``out_dir/report.html`` from ``doc`` (default: ``out_dir/summary.json``); return its path."""
+    out = Path(out_dir)
+    if doc is None:
+        doc = load_summary(out)
+    path = out / "report.html"
+    path.write_text(seed_page_html(out, doc), encoding="utf-8")
+    return path
+
+
+def load_summary(out: Path) -> dict:
+    p = Path(out) / "summary.json"
+    if not p.is_file():
+        raise ReproductionError(f"{out}: no summary.json (run `aidnav reproduce SEED -o DIR` first)")
+    doc = json.loads(p.read_text())
+    if "seed" not in doc or "tables" not in doc:
+        raise ReproductionError(f"{p}: not a reproduction summary (no seed/tables)")
+    return doc
+
+
+def write_index(out_dir, outcomes=None) -> Path:
+    """Write ``out_dir/index.html``: one line per seed sub-directory (``seed_XXX``) with its verdict
+    counts and a link to its report; ``outcomes`` (from :func:`aidnav.experiments.reproduce.reproduce`)
+    adds the seeds that could not be reproduced."""
+    out = Path(out_dir)
+    rows = []
+    seen = set()
+    for d in sorted(out.glob("seed_*")):
+        if not (d / "summary.json").is_file():
+            continue
+        doc = load_summary(d)
+        seen.add(doc["seed"])
+        c = _counts(doc)
+        s = c["spec"]
+        cls = "holds" if s["fails"] == 0 and s["unresolved"] == 0 else "fails"
+        rows.append(f'<tr><td><a href="{_e(d.name)}/report.html">seed {_e(doc["seed"])}</a></td>'
+                    f'<td class="q">{_e(doc["title"])}</td><td class="num">{_e(doc.get("runs"))}</td>'
+                    f'<td class="{cls}">{s["holds"]} / {s["fails"]} / {s["unresolved"]}</td>'
+                    f'<td class="num">{c["other"]["holds"]} / {c["other"]["fails"]} / '
+                    f'{c["other"]["unresolved"]}</td><td class="num">{_fmt(doc.get("elapsed_s"))}</td></tr>')
+    for o in outcomes or ():
+        if not o.ok and o.seed not in seen:
+            rows.append(f"<tr><td>seed {_e(o.seed)}</td><td class=\"r\" colspan=\"5\">cannot be reproduced "
+                        f"yet: {_e(o.reason)}</td></tr>")
+    if not rows:
+        raise ReproductionError(f"{out}: no seed_XXX/summary.json")
+    head = "".join(f"<th>{h}</th>" for h in ("seed", "title", "runs", "SPEC rows hold / fail / unresolved",
+                                             "other rows hold / fail / unresolved", "run time [s]"))
+    body = (f"<h1>aidnav reproductions</h1><div class=\"scroll\"><table><thead><tr>{head}</tr></thead>"
+            f"<tbody>{''.join(rows)}</tbody></table></div>")
+    path = out / "index.html"
+    path.write_text(_page("aidnav reproductions", body), encoding="utf-8")
+    return path
+
+
+def report_folder(directory) -> list[Path]:
+    """Write the pages of a reproduction folder: ``report.html`` for a seed folder, or each
+    ``seed_XXX/report.html`` and ``index.html`` for a ``reproduce all`` folder. Returns the paths written.
+    Raises :class:`ReproductionError` when the folder holds no reproduction."""
+    d = Path(directory)
+    if (d / "summary.json").is_file():
+        return [write_seed_page(d)]
+    subs = [s for s in sorted(d.glob("seed_*")) if (s / "summary.json").is_file()]
+    if not subs:
+        raise ReproductionError(f"{d}: not a reproduction folder (no summary.json, no seed_XXX/summary.json)")
+    return [write_seed_page(s) for s in subs] + [write_index(d)]
+
+
+def is_reproduction(directory) -> bool:
+    """True when ``directory`` holds a seed summary (and no campaign manifest) or seed_XXX summaries."""
+    d = Path(directory)
+    if (d / "manifest.json").is_file():
+        return False
+    return (d / "summary.json").is_file() or any((s / "summary.json").is_file() for s in d.glob("seed_*"))
+
+
+def print_summary(console, doc: dict, tables=None, sensitivity: bool = False) -> None:
+    """The paper-vs-ours tables of ``doc`` on a rich console (data strings are not read as markup):
+    ``tables`` (names; None: all), the sensitivity studies only with ``sensitivity`` (they are in
+    report.html)."""
+    from rich.table import Table
+    from rich.text import Text
+
+    skipped = 0
+    for t in doc["tables"]:
+        if tables is not None and t["name"] not in tables:
+            continue
+        if t.get("kind") == "sensitivity" and not sensitivity:
+            skipped += 1
+            continue
+        tab = Table(title=Text(f"seed {doc['seed']} · {t['name']}: {t['caption']}"), title_justify="left")
+        for c, just in (("quantity", "left"), ("unit", "left"), ("paper", "right"), ("ours", "right"),
+                        ("±se", "right"), ("target", "left"), ("verdict", "left")):
+            tab.add_column(c, justify=just, overflow="fold")
+        style = {"holds": "green", "fails": "bold red", "unresolved": "yellow"}
+        for r in t["rows"]:
+            v = r.get("verdict")
+            vt = Text("" if v is None else (v + (" (SPEC)" if r.get("spec") else "")), style=style.get(v, ""))
+            tab.add_row(Text(r["quantity"]), Text(r.get("unit", "")), Text(_fmt(r.get("paper"))),
+                        Text(_fmt(r.get("ours"))), Text(_fmt(r.get("stderr"))), Text(r.get("target") or ""),
+                        vt)
+        console.print(tab)
+    if skipped:
+        console.print(Text(f"seed {doc['seed']}: {skipped} sensitivity tables in report.html"))
+    console.print(Text(f"seed {doc['seed']}: {_counts_line(_counts(doc))}"))
+
+
+_LAYOUT_JS = (
+    '<script>window.addEventListener("load",()=>{let w=0;for(const e of document.querySelectorAll("body *"))'
+    '{let p=e.parentElement,clip=false;while(p){const o=getComputedStyle(p).overflowX;if(o!=="visible")'
+    '{clip=true;break}p=p.parentElement}const r=e.getBoundingClientRect().right;if(!clip&&r>w)w=r}'
+    'document.body.setAttribute("data-maxright",String(w));document.body.setAttribute("data-scrollw",'
+    'String(document.documentElement.scrollWidth));document.body.setAttribute("data-imgs",String('
+    '[...document.images].filter(i=>i.complete&&i.naturalWidth>0).length))});</script>')
+
+
+def browser_layout(page, work_dir, width: int = 1400):
+    """Open ``page`` (a report.html) in headless Chromium with a ``width``-px window: returns (largest right
+    edge of an element not clipped by a scrolling box [px], the document's scroll width [px], images
+    decoded, path of a screenshot in ``work_dir``), or None when Chromium is not installed. For tests."""
+    found = [shutil.which(n) for n in ("chromium", "chromium-browser", "google-chrome")]
+    exe = next((f for f in found if f), None)
+    if exe is None:
+        return None
+    Path(work_dir).mkdir(parents=True, exist_ok=True)
+    probe = Path(work_dir) / "probe.html"
+    probe.write_text(page.read_text().replace("</body>", _LAYOUT_JS + "</body>"))
+    args = [exe, "--headless", "--no-sandbox", "--disable-gpu", f"--window-size={width},1000",
+            "--virtual-time-budget=5000"]
+    dom = subprocess.run(args + ["--dump-dom", probe.as_uri()], capture_output=True, text=True,
+                         timeout=120).stdout
+    shot = Path(work_dir) / "shot.png"
+    subprocess.run(args + [f"--screenshot={shot}", page.as_uri()], capture_output=True, timeout=120)
+    got = dict(re.findall(r'data-(maxright|scrollw|imgs)="([0-9.]+)"', dom))
+    return float(got["maxright"]), float(got["scrollw"]), int(got["imgs"]), shot

@@ -1,0 +1,105 @@
+"""Seed 000: the figures (the seed's Figs. 1-6 from run 0, the Monte Carlo heading RMS of every filter
+variant, the SAPV-loss and GPS-outage runs), written as PNGs; each function returns the file names."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ._study import figure
+from .seed_000_setup import FED, GPS_ONLY, GPS_OUTAGE, SAPV_LOSS, VARIANTS
+
+# ============================================================================ figures
+_fig = figure
+
+
+def _plot_seed_figs(mc, out: Path) -> list[str]:
+    """Figs. 1-6 of the seed: run 0, SINS/GPS vs SINS/GPS/SAPV (federated, fusion-reset, β = 1/2)."""
+    names = [("heading", "Fig. 1 azimuth (heading) error", "arcmin", "fig1_heading_error.png"),
+             ("roll", "Fig. 2 roll error", "arcmin", "fig2_roll_error.png"),
+             ("pitch", "Fig. 3 pitch error", "arcmin", "fig3_pitch_error.png"),
+             ("vE", "Fig. 4 east velocity error", "m/s", "fig4_east_velocity_error.png"),
+             ("vN", "Fig. 5 north velocity error", "m/s", "fig5_north_velocity_error.png"),
+             ("vU", "Fig. 6 up velocity error", "m/s", "fig6_up_velocity_error.png")]
+    a, b = mc["series"][GPS_ONLY][0], mc["series"][FED][0]
+    files = []
+    for q, title, unit, fname in names:
+        fig, axs = _fig(2 if q == "heading" else 1, 1, h=6.0 if q == "heading" else 4.0)
+        ax = axs[0, 0]
+        ax.plot(a["t"], a[q], label="SINS/GPS (state 1)", lw=1.0)
+        ax.plot(b["t"], b[q], label="SINS/GPS/SAPV federated (state 2)", lw=1.0)
+        ax.set_ylabel(f"{q} error [{unit}]")
+        ax.set_title(f"{title} (run 0)")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+        if q == "heading":
+            ax2 = axs[1, 0]
+            ax2.plot(b["t"], b[q], color="C1", lw=1.0, label="SINS/GPS/SAPV federated")
+            ax2.fill_between(b["t"], -3 * b["heading_sigma"], 3 * b["heading_sigma"], color="C1", alpha=0.2,
+                             label="±3σ (fused P)")
+            ax2.axhline(10, color="k", ls=":", lw=0.8)
+            ax2.axhline(-10, color="k", ls=":", lw=0.8, label="±10′")
+            ax2.set_ylim(-15, 15)
+            ax2.set_ylabel("heading error [arcmin]")
+            ax2.grid(alpha=0.3)
+            ax2.legend(fontsize=8)
+        axs[-1, 0].set_xlabel("time [s]")
+        fig.tight_layout()
+        fig.savefig(out / fname, dpi=110)
+        files.append(fname)
+    return files
+
+
+def _plot_variants(mc, out: Path) -> str:
+    fig, axs = _fig(1, 1, h=4.5)
+    ax = axs[0, 0]
+    for i, k in enumerate(VARIANTS):
+        h = np.array([s["heading"] for s in mc["series"][k]])
+        ax.semilogy(mc["series"][k][0]["t"], np.sqrt(np.mean(h**2, 0)), label=k, lw=1.2 if i < 2 else 0.9,
+                    ls="-" if VARIANTS[k].mode != "no_reset" else "--")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("heading error RMS over runs [arcmin]")
+    ax.set_title(f"Heading error, {mc['runs']} Monte Carlo runs (reset variants coincide with centralized)")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(out / "fig7_heading_rms_variants.png", dpi=110)
+    return "fig7_heading_rms_variants.png"
+
+
+def _plot_loss(mc, out: Path) -> list[str]:
+    fig, axs = _fig(1, 1, h=4.5)
+    ax = axs[0, 0]
+    for key, lab in (("none", "no loss"), ("reset", "SAPV lost, fusion-reset"),
+                     ("no_reset", "SAPV lost, no-reset")):
+        s = mc["loss"][key][0]
+        ax.plot(s["t"], s["heading"], label=lab, lw=1.0)
+    s = mc["loss"]["reset"][0]
+    ax.fill_between(s["t"], -3 * s["heading_sigma"], 3 * s["heading_sigma"], color="C1", alpha=0.15,
+                    label="±3σ (fusion-reset)")
+    ax.axvspan(*SAPV_LOSS, color="0.6", alpha=0.25, zorder=0, label="SAPV lost")
+    ax.set_ylim(-15, 15)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("heading error [arcmin]")
+    ax.set_title("SINS/GPS/SAPV with the antenna losing the satellite (run 0)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(out / "fig8_sapv_loss.png", dpi=110)
+    fig, axs = _fig(2, 1, h=6.0)
+    for key, lab in (("gps_only", "SINS/GPS"), ("reset", "SINS/GPS/SAPV federated")):
+        s = mc["outage"][key][0]
+        axs[0, 0].plot(s["t"], s["heading"], label=lab, lw=1.0)
+        axs[1, 0].plot(s["t"], np.hypot(s["vE"], s["vN"]), label=lab, lw=1.0)
+    for ax in axs[:, 0]:
+        ax.axvspan(*GPS_OUTAGE, color="0.6", alpha=0.25, zorder=0, label="GPS outage")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+    axs[0, 0].set_ylabel("heading error [arcmin]")
+    axs[1, 0].set_ylabel("horizontal velocity error [m/s]")
+    axs[1, 0].set_xlabel("time [s]")
+    axs[0, 0].set_title("GPS outage: the federated solution continues on SAPV (run 0)")
+    fig.tight_layout()
+    fig.savefig(out / "fig9_gps_outage.png", dpi=110)
+    return ["fig8_sapv_loss.png", "fig9_gps_outage.png"]

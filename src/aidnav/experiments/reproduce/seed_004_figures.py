@@ -1,0 +1,149 @@
+"""Seed 004: the figures of the reproduction (seed Figs. 2-3, the sweeps, the design tool, the flexure
+generator), each written as a PNG into the output folder; the functions return the file name."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from aidnav.sim.distributed_pos import FlexureSpec
+
+from .seed_004_tables import LABEL, MODES
+
+__all__ = ["fig_trajectories", "fig_attitude", "fig_sweeps", "fig_design", "fig_flexure"]
+
+
+# ----------------------------------------------------------------------------------------- figures
+def _save(fig: Figure, path: Path) -> str:
+    FigureCanvasAgg(fig)
+    fig.savefig(path, dpi=110)
+    return path.name
+
+
+def _legs(ax, segments, names=("AB", "CD")):
+    for r in segments:
+        if r["name"] in names:
+            ax.axvspan(r["start_s"], r["end_s"], color="0.9", zorder=0)
+
+
+def fig_trajectories(out: Path, bundles: dict) -> str:
+    from aidnav.nav.earth import lla_to_enu
+
+    fig = Figure(figsize=(15, 3.6))
+    for i, mode in enumerate(MODES):
+        ax = fig.add_subplot(1, 5, i + 1)
+        tr, _, segs = bundles[mode]
+        e, n, _ = lla_to_enu(tr.lat, tr.lon, tr.height, tr.lat[0], tr.lon[0], tr.height[0])
+        ax.plot(e / 1e3, n / 1e3, color="0.5", lw=0.8)
+        for name, c in (("AB", "tab:blue"), ("CD", "tab:red")):
+            r = next(r for r in segs if r["name"] == name)
+            m = (tr.time >= r["start_s"]) & (tr.time <= r["end_s"])
+            ax.plot(e[m] / 1e3, n[m] / 1e3, color=c, lw=2, label=name)
+        ax.plot(e[0] / 1e3, n[0] / 1e3, "k^")
+        ax.set_title(f"mode {i + 1}: {LABEL[mode]}" + (" (climb 0→2.4 km)" if mode == "climb" else ""))
+        ax.set_xlabel("East [km]")
+        if i == 0:
+            ax.set_ylabel("North [km]")
+            ax.legend(loc="best", fontsize=8)
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.grid(alpha=0.3)
+    fig.suptitle("Fig. 2 (seed): the five motion modes; imaging legs AB and CD")
+    fig.tight_layout()
+    return _save(fig, out / "fig2_trajectories.png")
+
+
+def fig_attitude(out: Path, results: dict) -> str:
+    fig = Figure(figsize=(15, 8))
+    names = ("heading", "pitch", "roll")
+    for j, mode in enumerate(MODES):
+        fr = results[mode].first
+        for i, (k, q) in enumerate(zip((2, 1, 0), names, strict=True)):
+            ax = fig.add_subplot(3, 5, 1 + i * 5 + j)
+            _legs(ax, fr["segments"])
+            ax.plot(fr["time"], fr["rph"][:, k], lw=0.7, label="error (run 1)")
+            if q == "heading":
+                lim = 0.8 if mode in ("none", "climb") else 0.05
+            else:
+                lim = 0.05 if mode == "none" else 0.01
+            ax.set_ylim(-lim, lim)
+            if j == 0:
+                ax.set_ylabel(f"{q} error [deg]")
+            if i == 0:
+                ax.set_title(f"{LABEL[mode]}")
+            if i == 2:
+                ax.set_xlabel("time [s]")
+            ax.grid(alpha=0.3)
+    fig.suptitle("Fig. 3 (seed): sub-IMU attitude errors, 24-state filter, run 1 (AB, CD shaded)")
+    fig.tight_layout()
+    return _save(fig, out / "fig3_attitude_errors.png")
+
+
+def fig_sweeps(out: Path, sweeps: dict) -> str:
+    fig = Figure(figsize=(15, 8))
+    for i, (title, (xs, rows, paper, xlabel)) in enumerate(sweeps.items()):
+        ax = fig.add_subplot(2, 3, i + 1)
+        xi = np.arange(len(xs))
+        for q, c in (("heading", "tab:blue"), ("pitch", "tab:orange"), ("roll", "tab:green")):
+            ax.plot(xi, [r[q] for r in rows], "o-", color=c, label=f"{q} (ours)")
+            if paper is not None:
+                ax.plot(xi, [p[q] for p in paper], "s--", color=c, alpha=0.6, label=f"{q} (paper)")
+        ax.set_xticks(xi, [str(x) for x in xs])
+        ax.set_yscale("log")
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel("STD on AB, CD [deg]")
+        ax.set_title(title)
+        ax.grid(alpha=0.3, which="both")
+        if i == 0:
+            ax.legend(fontsize=7)
+    fig.suptitle("Seed Table 2 factors, one at a time (mean over runs of the imaging-leg STD)")
+    fig.tight_layout()
+    return _save(fig, out / "sweeps.png")
+
+
+def fig_design(out: Path, analyses: dict, pred: dict, mc_std: dict, mc_rms: dict) -> str:
+    fig = Figure(figsize=(13, 4.5))
+    ax = fig.add_subplot(1, 2, 1)
+    for mode in MODES:
+        a = analyses[mode]
+        ax.semilogy(a.time, np.degrees(a.rph_sigma[:, 2]), label=LABEL[mode])
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("predicted heading 1σ [deg]")
+    ax.set_title("covariance analysis (no Monte Carlo)")
+    ax.legend()
+    ax.grid(alpha=0.3, which="both")
+    ax = fig.add_subplot(1, 2, 2)
+    for mode in MODES:
+        ax.loglog(pred[mode], mc_rms[mode], "o", label=f"{LABEL[mode]} RMS")
+        ax.loglog(pred[mode], mc_std[mode], "x", color=ax.lines[-1].get_color(), label=f"{LABEL[mode]} STD")
+    lo, hi = 1e-4, 1.0
+    ax.plot([lo, hi], [lo, hi], "k:", lw=0.8)
+    ax.set_xlabel("predicted heading σ, RMS over AB, CD [deg]")
+    ax.set_ylabel("Monte Carlo heading error [deg]")
+    ax.set_title("prediction vs Monte Carlo (o: RMS, x: STD)")
+    ax.legend(fontsize=7, ncol=2)
+    ax.grid(alpha=0.3, which="both")
+    fig.tight_layout()
+    return _save(fig, out / "design_tool.png")
+
+
+def fig_flexure(out: Path, chk: dict, spec: FlexureSpec) -> str:
+    from aidnav.sim.distributed_pos import flexure_autocorrelation
+
+    fig = Figure(figsize=(7, 4))
+    ax = fig.add_subplot(1, 1, 1)
+    th = flexure_autocorrelation(spec, chk["lags"]) / spec.sigma[None, :] ** 2
+    for a, c in zip(range(3), ("tab:blue", "tab:orange", "tab:green"), strict=True):
+        ax.plot(chk["lags"], chk["acf"][:, a], color=c, label=f"axis {'xyz'[a]} generated")
+        ax.plot(chk["lags"], th[:, a], "--", color=c, lw=0.8)
+    ax.axhline(math.exp(-1), color="k", lw=0.6)
+    ax.set_xlabel("lag [s]")
+    ax.set_ylabel("autocorrelation")
+    ax.set_title("flexure generator vs (1+β|t|)e^{-β|t|} (dashed)")
+    ax.legend()
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    return _save(fig, out / "flexure.png")

@@ -48,13 +48,10 @@ __all__ = ["package_version", "run_path", "save_run", "load_run", "existing_runs
 
 
 def package_version() -> str:
-    """Installed version of aidnav."""
-    try:
-        from importlib.metadata import version
+    """Installed version of aidnav (:data:`aidnav.__version__`)."""
+    import aidnav
 
-        return version("aidnav")
-    except Exception:  # noqa: BLE001 - not installed (source tree)
-        return "unknown"
+    return aidnav.__version__
 
 
 def write_json(path, obj) -> Path:

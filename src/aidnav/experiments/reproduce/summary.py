@@ -277,9 +277,9 @@ def write_summary(out_dir, *, seed: str, title: str, runs: int, base_seed: int, 
     and nothing is written. ``extra``: further top-level keys (e.g. ``elapsed_s``).
     """
     if aidnav_version is None:
-        from aidnav.experiments.store import package_version
+        import aidnav
 
-        aidnav_version = package_version()
+        aidnav_version = aidnav.__version__
     out_tables = []
     for t in tables:
         for k in ("name", "caption", "rows"):

@@ -61,7 +61,7 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from aidnav.sim.scenario import (
     _SEGMENT_TYPES,
@@ -80,27 +80,25 @@ from aidnav.sim.scenario import (
 )
 
 from . import estimators as est_mod
+from .statistics_spec import (
+    NonNegative,
+    Positive,
+    StatisticsSpec,
+    _Strict,
+    available_quantities,
+    statistic_columns,
+)
 
 __all__ = [
-    "ExperimentError", "Experiment", "MotionSpec", "WindowSpec", "ConvergenceSpec", "ConsistencySpec",
-    "StatisticsSpec", "PaperValue", "EstimatorEntry", "SweepPoint", "ExperimentPlan", "load_experiment",
-    "parse_experiment", "DERIVED_QUANTITIES", "quantity_column", "RUN_FORMAT",
+    "ExperimentError", "Experiment", "MotionSpec", "StatisticsSpec", "PaperValue", "EstimatorEntry",
+    "SweepPoint", "ExperimentPlan", "load_experiment", "parse_experiment", "RUN_FORMAT",
 ]
 
 #: Version of the per-run result format; part of every point key (changing it invalidates old runs).
 RUN_FORMAT = 1
 
-_NAME = r"^[A-Za-z0-9][A-Za-z0-9_.+-]*$"
-Positive = Annotated[float, Field(gt=0)]
-NonNegative = Annotated[float, Field(ge=0)]
-
-
 class ExperimentError(ValueError):
     """An experiment that cannot be run; the message names the file, key path and problem."""
-
-
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", validate_default=True)
 
 
 class MotionSpec(_Strict):
@@ -111,67 +109,6 @@ class MotionSpec(_Strict):
     imu_rate_hz: Positive = 100.0
     transition_s: NonNegative = 4.0
     segments: list[Segment] = Field(min_length=1)
-
-
-Metric = Literal["std", "rms", "mean", "max"]
-
-
-class WindowSpec(_Strict):
-    """A time window of the statistics: a named segment, or ``start_s``/``end_s`` [s since the start]
-    (either may be missing), or the last ``last_s`` seconds; nothing = the whole run. ``metrics``
-    replaces the statistics' default metrics for this window."""
-
-    segment: str | None = None
-    start_s: NonNegative | None = None
-    end_s: NonNegative | None = None
-    last_s: Positive | None = None
-    metrics: list[Metric] | None = None
-
-    @model_validator(mode="after")
-    def _one_kind(self):
-        kinds = [self.segment is not None, self.start_s is not None or self.end_s is not None,
-                 self.last_s is not None]
-        if sum(kinds) > 1:
-            raise ValueError("give one of segment, start_s/end_s or last_s")
-        if self.start_s is not None and self.end_s is not None and self.end_s <= self.start_s:
-            raise ValueError(f"end_s = {self.end_s} s must be after start_s = {self.start_s} s")
-        return self
-
-
-class ConvergenceSpec(_Strict):
-    """Time [s since the start] of the first epoch after which |error| (``of: error``) or the filter σ
-    (``of: sigma``) of ``quantity`` stays <= ``below`` (in the quantity's unit: m, m/s, deg) until the
-    end (``hold_s`` None) or for at least ``hold_s`` seconds. NaN when it never does."""
-
-    quantity: str
-    below: Positive
-    of: Literal["error", "sigma"] = "error"
-    hold_s: Positive | None = None
-
-
-class ConsistencySpec(_Strict):
-    """NEES check per estimator and block (:func:`aidnav.analysis.consistency.consistency_report`).
-
-    prob : probability of the χ² band; alpha : level of the verdict's tests. epoch_spacing_s : the
-    verdict uses epochs at least this far apart [s] (errors of a filter are correlated in time, the
-    tests assume independent epochs); the plotted NEES uses every epoch.
-    """
-
-    prob: float = Field(0.95, gt=0, lt=1)
-    alpha: float = Field(1e-3, gt=0, lt=0.5)
-    epoch_spacing_s: Positive = 30.0
-
-
-class StatisticsSpec(_Strict):
-    """What is reported per run (see the module docstring). ``quantities`` None = every state of each
-    estimator plus the derived ones it supports."""
-
-    quantities: list[str] | None = None
-    metrics: list[Metric] = Field(default_factory=lambda: ["std", "rms"], min_length=1)
-    windows: dict[Annotated[str, Field(pattern=_NAME)], WindowSpec] = Field(
-        default_factory=lambda: {"all": WindowSpec()})
-    convergence: dict[Annotated[str, Field(pattern=_NAME)], ConvergenceSpec] = Field(default_factory=dict)
-    consistency: ConsistencySpec = Field(default_factory=ConsistencySpec)
 
 
 class PaperValue(_Strict):
@@ -214,29 +151,6 @@ class Experiment(_Strict):
     sweep_mode: Literal["grid", "zip"] = "grid"
     statistics: StatisticsSpec = Field(default_factory=StatisticsSpec)
     paper: list[PaperValue] = Field(default_factory=list)
-
-
-# ------------------------------------------------------------------------------------- quantities
-#: Derived quantities: name → (states needed, kind). ``heading`` is an alias of ``att_u``.
-DERIVED_QUANTITIES: dict[str, tuple[tuple[str, ...], str]] = {
-    "pos_h": (("pos_e", "pos_n"), "norm"),
-    "pos_3d": (("pos_e", "pos_n", "pos_u"), "norm"),
-    "vel_h": (("vel_e", "vel_n"), "norm"),
-    "heading": (("att_u",), "alias"),
-}
-
-
-def quantity_column(q: str) -> str:
-    """Column stem of a quantity with its unit: ``pos_h`` → ``pos_h_m``, ``heading`` → ``heading_deg``."""
-    if q == "heading":
-        return "heading_deg"
-    unit, _ = est_mod.state_unit(q)
-    return f"{q}_{unit}"
-
-
-def available_quantities(states: tuple[str, ...]) -> list[str]:
-    """Quantities an estimator with ``states`` supports: its states, then the derived ones."""
-    return list(states) + [d for d, (need, _) in DERIVED_QUANTITIES.items() if all(s in states for s in need)]
 
 
 # ------------------------------------------------------------------------------------ sweep points
@@ -632,46 +546,6 @@ def parse_experiment(data, where: str = "<experiment>", root=None, base_dir=None
     _check_paper(exp, doc, points, where)
     return ExperimentPlan(experiment=exp, doc=doc, points=points, source=where, text=text,
                           estimators=[e.name for e in exp.estimators])
-
-
-def _quantities(stats: StatisticsSpec, states) -> list[str]:
-    avail = available_quantities(tuple(states))
-    if stats.quantities is None:
-        return avail
-    return [q for q in stats.quantities if q in avail]
-
-
-def _window_metrics(stats: StatisticsSpec):
-    for wname, w in stats.windows.items():
-        for m in (w.metrics or stats.metrics):
-            yield wname, w, m
-
-
-def statistic_columns(stats: StatisticsSpec, estimators: list[tuple[str, tuple[str, ...]]]) -> list[str]:
-    """Statistics columns of runs.parquet, in order, for estimators given as (name, states):
-    ``<metric>_<window>_<quantity>_<unit>``, ``converge_<name>_s``, ``nees_<block>_mean``."""
-    cols: list[str] = []
-
-    def add(c):
-        if c not in cols:
-            cols.append(c)
-
-    qs_all: list[str] = []
-    for _, states in estimators:
-        for q in _quantities(stats, states):
-            if q not in qs_all:
-                qs_all.append(q)
-    if stats.quantities is not None:
-        qs_all = [q for q in stats.quantities if q in qs_all]
-    for wname, _, m in _window_metrics(stats):
-        for q in qs_all:
-            add(f"{m}_{wname}_{quantity_column(q)}")
-    for cname in stats.convergence:
-        add(f"converge_{cname}_s")
-    for _, states in estimators:
-        for b in est_mod.state_blocks(states):
-            add(f"nees_{b}_mean")
-    return cols
 
 
 def _check_paper(exp: Experiment, doc: dict, points: list[SweepPoint], where: str) -> None:

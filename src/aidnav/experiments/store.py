@@ -39,9 +39,15 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from . import config as _config
-from .config import _quantities, _window_metrics, available_quantities, quantity_column, statistic_columns
+from . import statistics_spec as _config
 from .estimators import state_blocks, state_unit
+from .statistics_spec import (
+    _quantities,
+    _window_metrics,
+    available_quantities,
+    quantity_column,
+    statistic_columns,  # noqa: F401  (re-exported)
+)
 
 __all__ = ["package_version", "run_path", "save_run", "load_run", "existing_runs", "statistic_columns",
            "run_statistics", "epoch_summary", "merge_campaign", "write_trajectories", "write_json"]

@@ -397,3 +397,50 @@ __all__ = [
     "visible",
     "OMEGA_IE",
 ]
+
+
+# ------------------------------------------------------- satellites of an epoch, measurement weights
+@njit(cache=True)
+def elevation_sigma(sigma0, el):
+    """σ(E) = σ0 √(½ + ½/sin²E) [m] (E clamped at 2°)."""
+    s = np.sin(max(el, 0.035))
+    return sigma0 * np.sqrt(0.5 + 0.5 / (s * s))
+
+
+@njit(cache=True)
+def satellite_states(eph_table, prns, t_rx, pr, use_tgd, max_age):
+    """numba core of :func:`satellites_from_pseudoranges` (arrays already typed)."""
+    s = prns.shape[0]
+    pos = np.full((s, 3), np.nan)
+    vel = np.full((s, 3), np.nan)
+    clk = np.full(s, np.nan)
+    clk_rate = np.full(s, np.nan)
+    for j in range(s):
+        if not np.isfinite(pr[j]):
+            continue
+        i = select_ephemeris(eph_table, prns[j], t_rx, max_age)
+        if i < 0:
+            continue
+        p, v, dts, ddts = sat_from_pseudorange(eph_table[i], t_rx, pr[j], use_tgd)
+        pos[j] = p
+        vel[j] = v
+        clk[j] = dts * C_LIGHT
+        clk_rate[j] = ddts * C_LIGHT
+    return pos, vel, clk, clk_rate
+
+
+def satellites_from_pseudoranges(eph_table, prns, t_rx, pr, use_tgd: bool = True, max_age_s: float = 7200.0):
+    """Satellite states at the transmit times implied by the pseudoranges of one epoch.
+
+    eph_table : (K, N_EPH) ephemeris records (reference-week scale); prns (S,); t_rx receiver tag [s];
+    pr (S,) [m] (NaN = no measurement). Returns (pos (S, 3) ECEF of transmit time [m], vel (S, 3) [m/s],
+    clk (S,) c·dt_s [m], clk_rate (S,) c·ḋt_s [m/s]); NaN where no measurement or no ephemeris.
+    """
+    return satellite_states(
+        np.ascontiguousarray(eph_table, float),
+        np.asarray(prns, np.int64),
+        float(t_rx),
+        np.asarray(pr, float),
+        bool(use_tgd),
+        float(max_age_s),
+    )

@@ -484,7 +484,7 @@ def _sapv_input_check(sapv) -> np.ndarray:
     The angles follow :func:`aidnav.nav.geo_pointing.az_el_from_body`: az ∈ [0, 2π), el ∈ [−π/2, π/2]
     [rad]; anything else is a unit or convention error in the data (e.g. degrees), not a measurement.
     """
-    from aidnav.sim.sapv import OK
+    from aidnav.models.sapv import OK
 
     az, el = np.asarray(sapv.az, float), np.asarray(sapv.el, float)
     out = np.full(len(az), "", "<U20")

@@ -483,7 +483,7 @@ def _initial_P(cfg: TightConfig, lat, h, att_sig) -> np.ndarray:
 
 
 def _satellite_arrays(obs, eph, use_tgd, max_age):
-    from aidnav.estimators.dgps import _satellites
+    from aidnav.nav.gnss_sat import satellite_states as _satellites
 
     M, S = obs.code1.shape
     sp = np.full((M, S, 3), np.nan)

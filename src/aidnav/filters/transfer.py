@@ -28,7 +28,7 @@ random constants, white gyro/accelerometer noise of the sub-IMU grade), ρ̇ = 0
 above. F is block diagonal between (INS, ρ) and the flexure, so the transition is discretised per
 block: :func:`aidnav.filters.kalman.discretize` (third-order Taylor of Van Loan) for the INS+ρ block,
 the exact matrix exponential for the flexure block (‖F_flex‖·T ≈ 2βT ≈ 2 at T = 1 s, far too large
-for a Taylor series): :func:`aidnav.sim.distributed_pos.flexure_transition`.
+for a Taylor series): :func:`aidnav.models.distributed_pos.flexure_transition`.
 
 Measurements, every filter epoch (SPEC §5.1 item 10), one batch update of six rows with
 :func:`aidnav.filters.kalman.update` (Joseph form, optional χ² gate):
@@ -37,7 +37,7 @@ Measurements, every filter epoch (SPEC §5.1 item 10), one batch update of six r
   (:func:`aidnav.filters.measurements.attitude` gives z_a and the φ columns; the ρ and θ columns are
   C̃_bm^n J, J the left Jacobian of SO(3) at −(ρ̂ + θ̂)): the residual is formed about the current
   estimate of ρ + θ (EKF, see :func:`_measurement`). R_a = M diag(σ_roll², σ_pitch², σ_heading²) Mᵀ
-  maps the master's Euler-angle errors into n (:func:`aidnav.sim.distributed_pos.euler_error_map`).
+  maps the master's Euler-angle errors into n (:func:`aidnav.nav.rotations.euler_error_map`).
 * velocity: z_v = ṽ_s − (ṽ_m + C̃_bm^n (ω_eb^bm × r^bm)) = δv + v_v: the master velocity after lever-arm
   compensation, ω_eb^bm = ω_ib^bm − C_n^bm ω_ie^n (the master IMU's rate). R_v = σ_v² I.
 
@@ -62,27 +62,25 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit
 
+from aidnav.models.distributed_pos import FlexureSpec, MasterPosSpec, flexure_transition
 from aidnav.nav.earth import OMEGA_IE, lla_difference_enu, radii
 from aidnav.nav.rotations import (
     dcm_from_euler,
     dcm_from_quat,
     dcm_from_rotvec,
+    euler_error_map,
     quat_from_dcm,
     quat_to_euler_batch,
 )
 from aidnav.nav.strapdown import make_state
-from aidnav.sim.distributed_pos import (
-    DistributedPosConfig,
-    DistributedPosRun,
-    FlexureSpec,
-    MasterPosSpec,
-    euler_error_map,
-    flexure_transition,
-)
+
+if TYPE_CHECKING:  # the simulator's containers, for annotations only (filters do not import sim)
+    from aidnav.sim.distributed_pos import DistributedPosConfig, DistributedPosRun
 
 from .ins_errors import (
     fill_model,
@@ -158,7 +156,7 @@ def discretize_transfer(F, G, q, T, beta, sigma, Phi, Qd):
     """Φ, Qd (n×n) over ``T`` [s] of the model of :func:`fill_transfer_model`.
 
     INS + ρ block (18 states): :func:`aidnav.filters.kalman.discretize`; flexure block: exact
-    (:func:`aidnav.sim.distributed_pos.flexure_transition` for 24 states, e^{−T/τ} for 21 states).
+    (:func:`aidnav.models.distributed_pos.flexure_transition` for 24 states, e^{−T/τ} for 21 states).
     """
     n = F.shape[0]
     m = 18

@@ -281,3 +281,21 @@ def wrap_pi(a):
 def wrap_180(a):
     """Wrap angle(s) [deg] to [-180, 180)."""
     return (np.asarray(a) + 180.0) % 360.0 - 180.0
+
+
+def euler_error_map(rph: np.ndarray) -> np.ndarray:
+    """M (…, 3, 3) with φ = M·[δroll, δpitch, δheading] for small Euler-angle errors (rad).
+
+    φ is the misalignment of CONVENTIONS (C_computed = (I − [φ×]) C_true). With C = R3(ψ)R1(p)R2(r),
+    ψ = −heading: columns −R3R1·e_y (roll), −R3·e_x (pitch), +e_z (heading).
+    """
+    rph = np.asarray(rph, float)
+    p, h = rph[..., 1], rph[..., 2]
+    sy, cy = -np.sin(h), np.cos(h)
+    sp, cp = np.sin(p), np.cos(p)
+    m = np.zeros(rph.shape[:-1] + (3, 3))
+    # R3(ψ) e_x = [cψ, sψ, 0]; R3 R1 e_y = R3 [0, cp, sp] = [−sψ cp, cψ cp, sp]
+    m[..., 0, 0], m[..., 1, 0], m[..., 2, 0] = sy * cp, -cy * cp, -sp
+    m[..., 0, 1], m[..., 1, 1] = -cy, -sy
+    m[..., 2, 2] = 1.0
+    return m

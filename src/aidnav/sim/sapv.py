@@ -47,9 +47,7 @@ __all__ = ["SapvSpec", "SapvData", "simulate_sapv", "OK", "BLOCKED", "LOW_ELEVAT
            "REACQUIRING", "REASONS", "R_GEO", "R_GEO_SEED000"]
 
 
-OK, BLOCKED, LOW_ELEVATION, BODY_RATE, REACQUIRING = 0, 1, 2, 3, 4
-REASONS = {OK: "tracking", BLOCKED: "blocked", LOW_ELEVATION: "elevation below mask",
-           BODY_RATE: "body rate above tracking limit", REACQUIRING: "re-acquiring"}
+from aidnav.models.sapv import BLOCKED, BODY_RATE, LOW_ELEVATION, OK, REACQUIRING, REASONS  # noqa: E402, F401
 
 
 def _pair(x, name: str) -> np.ndarray:

@@ -24,14 +24,16 @@ __all__ = ["write_seed_page", "write_index", "print_summary", "report_folder", "
 CSS = """
 *{box-sizing:border-box}
 body{font-family:system-ui,-apple-system,Segoe UI,Helvetica,Arial,sans-serif;margin:1.5em auto;
-max-width:1300px;color:#222;padding:0 1em;overflow-wrap:anywhere}
+max-width:1300px;color:#222;padding:0 1em}
+h1,h2,p,li,figcaption{overflow-wrap:anywhere}
 h1{font-size:1.5em}h2{font-size:1.2em;border-bottom:1px solid #ccc;padding-bottom:.2em;margin-top:1.8em}
 .scroll{max-width:100%;overflow-x:auto}
 table{border-collapse:collapse;font-size:.82em;margin:.5em 0;max-width:100%}
-th,td{border:1px solid #ccc;padding:.25em .45em;vertical-align:top}
-th{background:#f0f0f0;text-align:left}td.num{text-align:right;white-space:nowrap}
+th,td{border:1px solid #ccc;padding:.25em .45em;vertical-align:top;white-space:nowrap}
+th{background:#f0f0f0;text-align:left}td.num{text-align:right}
+td.q,td.t,td.r{white-space:normal;overflow-wrap:anywhere}
 td.q{min-width:16em;max-width:34em}td.t{max-width:18em;font-family:monospace;font-size:.95em}
-td.r{max-width:26em;color:#555}
+td.r{min-width:12em;max-width:26em;color:#555}
 .holds{background:#dfd;color:#060}.fails{background:#fdd;color:#900;font-weight:bold}
 .unresolved{background:#ffe9b3;color:#7a5200;font-weight:bold}
 .note{color:#444;font-size:.88em;max-width:100%}figure{margin:1em 0;max-width:100%}

@@ -22,7 +22,7 @@ import numpy as np
 from aidnav.nav.rotations import quat_to_euler_batch
 
 from . import measurements as ms
-from .engine import Imu, Init, Models, Output, Process, Records, run_filter
+from .engine import Imu, Init, Models, Output, Process, Records, rts, run_filter, smooth_outputs
 from .layout import make_layout
 
 __all__ = ["AttitudeFusionResult", "fuse_attitude_fixes", "imu_noise_psd", "initial_covariance_15"]
@@ -52,6 +52,9 @@ class AttitudeFusionResult:
     fix_innovation: np.ndarray
     fix_nis: np.ndarray
     fix_accepted: np.ndarray
+    smoothed: bool = False
+    forward_states: np.ndarray | None = None  #: (N, 10) forward solution when smoothed
+    forward_std_att: np.ndarray | None = None
 
 
 def imu_noise_psd(arw_deg_sqrt_h, vrw_m_s_sqrt_h, gyro_bias_instability_deg_h, accel_bias_instability_ug,
@@ -87,7 +90,7 @@ def initial_covariance_15(att_sigma_rad, vel_sigma_m_s, pos_sigma_m, gyro_bias_d
 
 def fuse_attitude_fixes(imu, state0, fix_time, fix_C_bn, fix_cov, q_psd, P0, tau_g=3600.0, tau_a=3600.0,
                         prop_dt=1.0, gate=0.0, hold_h=None, hold_vu=None,
-                        use_fixes=True) -> AttitudeFusionResult:
+                        use_fixes=True, smooth: bool = False) -> AttitudeFusionResult:
     """Strapdown INS with attitude fixes in a closed-loop 15-state error-state Kalman filter.
 
     Parameters
@@ -104,6 +107,8 @@ def fuse_attitude_fixes(imu, state0, fix_time, fix_C_bn, fix_cov, q_psd, P0, tau
     prop_dt : covariance propagation interval [s]; gate : chi-square gate on the fix NIS (≤ 0: off).
     hold_h, hold_vu : (N,) arrays to hold height and up velocity to (a baro-like aid), or None.
     use_fixes : False runs the free INS (same code path, the "INS only" reference).
+    smooth : also run the engine's RTS pass; states, σ and biases are then the smoothed ones (the forward
+        solution in ``forward_states`` / ``forward_std_att``).
     """
     time = np.ascontiguousarray(imu.time, dtype=float)
     N = time.shape[0]
@@ -136,12 +141,20 @@ def fuse_attitude_fixes(imu, state0, fix_time, fix_C_bn, fix_cov, q_psd, P0, tau
     hold = np.zeros((0, 2)) if hold_h is None else np.column_stack([hold_h, hold_vu]).astype(float)
     dth, dv = np.ascontiguousarray(imu.dtheta, dtype=float), np.ascontiguousarray(imu.dv, dtype=float)
     imu_in = Imu(time, dth, dv, np.zeros(N, np.bool_), np.zeros((N, 2)), np.ascontiguousarray(hold))
-    r = run_filter(imu_in, rec, mod, proc, ini, Output(1, False, np.zeros(0, np.int64)))
+    r = run_filter(imu_in, rec, mod, proc, ini, Output(1, bool(smooth), np.zeros(0, np.int64)))
     # σ and biases of the node that closes each sample's interval (as before the engine)
-    nxt = r.node_idx[np.minimum(np.searchsorted(r.node_idx, np.arange(N)), len(r.node_idx) - 1)]
+    j = np.minimum(np.searchsorted(r.node_idx, np.arange(N)), len(r.node_idx) - 1)
+    nxt = r.node_idx[j]
     std_att = np.sqrt(np.maximum(r.out_pdiag[nxt, 0:3], 0.0))
+    states, bias = r.out_st, r.out_bias
+    fwd = (None, None)
+    if smooth and len(r.node_idx) > 1:
+        ds, Ps = rts(r.S_post, r.S_prior, r.S_phi, r.S_dx, r.reset_node)
+        states, bias = smooth_outputs(r.out_idx, r.out_st, r.out_bias, r.out_node, r.node_idx, ds, r.S_dx, 15)
+        fwd = (r.out_st, std_att)
+        std_att = np.sqrt(np.maximum(np.einsum("kii->ki", Ps)[j, 0:3], 0.0))
     f_innov, f_nis, f_acc = np.full((M, 3), np.nan), np.full(M, np.nan), np.zeros(M, bool)
     f_innov[:], f_nis[:], f_acc[:] = r.log.nu[pos, :3], r.log.nis[pos], r.log.status[pos] == 1
-    rph = quat_to_euler_batch(np.ascontiguousarray(r.out_st[:, 6:10]))
-    return AttitudeFusionResult(time, r.out_st, rph, std_att, r.out_bias[nxt, 0:3], r.out_bias[nxt, 3:6],
-                                fix_time, f_innov, f_nis, f_acc)
+    rph = quat_to_euler_batch(np.ascontiguousarray(states[:, 6:10]))
+    return AttitudeFusionResult(time, states, rph, std_att, bias[nxt, 0:3], bias[nxt, 3:6], fix_time, f_innov,
+                                f_nis, f_acc, fwd[0] is not None, fwd[0], fwd[1])

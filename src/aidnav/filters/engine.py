@@ -7,7 +7,8 @@ engine does what used to be copied into every kernel:
 
 * **node schedule**: the strapdown runs at the IMU rate (:func:`.ins_errors.propagate_sample`); a
   *node* is every ``prop_dt`` seconds, at every record time (a record in (t_{k−1}, t_k] makes t_k a
-  node) and at the last sample;
+  node; a record with ``use`` False only schedules the node, e.g. a fixed propagation grid) and at
+  the last sample; with ``Imu.hold`` the height and up velocity are held to given values;
 * **predict** at nodes through :func:`.kalman.discretize` / :func:`.kalman.predict`, plus the
   variance of bridged IMU gaps;
 * **one update-with-gate policy** (:func:`gated_update`): χ² gate by the number of rows

@@ -134,7 +134,9 @@ def test_barometer_with_bias_state():
 def test_attitude_fix():
     """H = [I, 0] is the Jacobian at a zero residual (the linearisation point): measured ≈ computed."""
     Cm = dcm_from_euler(0.1 + 1e-6, -0.05 - 2e-6, 1.0 + 3e-6)
-    _check(ms.attitude_model, np.concatenate([Cm.ravel(), [0.01, 0.01, 0.02]]), np.zeros(1))
+    H, R, _ = _check(ms.attitude_model, np.concatenate([Cm.ravel(), np.diag([1e-4, 2e-4, 4e-4]).ravel()]),
+                     np.zeros(1))
+    assert np.allclose(R, np.diag([1e-4, 2e-4, 4e-4]))
 
 
 def test_velocity_attitude_matching():

@@ -1,11 +1,10 @@
 """INS aided by sparse attitude fixes (e.g. the dipole-triad polarization attitude of seed 002).
 
-A closed-loop 15-state error-state Kalman filter: the strapdown of :mod:`aidnav.nav.strapdown` at the
-IMU rate (numba kernel :func:`_propagate` between nodes), the error model of
-:mod:`aidnav.filters.ins_errors`, ``discretize``/``predict``/``update`` of the one Kalman core
-(:mod:`aidnav.filters.kalman`) and the attitude measurement :func:`aidnav.filters.measurements.attitude`
-(z from C_computed C_measuredᵀ ≈ I − [z×], z ≈ φ − ε). Fixes are sparse, so the node loop (covariance
-propagation every ``prop_dt`` and at every fix) is plain Python.
+A closed-loop 15-state error-state Kalman filter on the filter engine (:mod:`aidnav.filters.engine`:
+strapdown at the IMU rate, covariance nodes every ``prop_dt`` and at every fix, the one gate policy
+and feedback) with the attitude model :func:`aidnav.filters.measurements.attitude_model` (z from
+C_computed C_measuredᵀ ≈ I − [z×], z ≈ φ − ε, the fix's full covariance as R) and the engine's
+height / up-velocity hold (a baro-like aid).
 
 Frames and units (``CONVENTIONS.md``): n = ENU, b = RFU, positions (lat, lon [rad], h [m]), velocity
 ENU [m/s], attitude q_b^n; misalignment φ in n with C_b^n(computed) = (I − [φ×]) C_b^n(true); the
@@ -19,52 +18,18 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
-from aidnav.nav.rotations import dcm_from_quat, dcm_from_rotvec, quat_to_euler_batch
+from aidnav.nav.rotations import quat_to_euler_batch
 
-from .ins_errors import (
-    interval_model,
-    measurement_arrays,
-    model_arrays,
-    new_accumulator,
-    noise_count,
-    propagate_sample,
-    reset_accumulator,
-)
-from .kalman import discretize, predict, update
-from .loose import _apply_correction
-from .measurements import attitude
+from . import measurements as ms
+from .engine import Imu, Init, Models, Output, Process, Records, rts, run_filter, smooth_outputs
+from .layout import make_layout
 
 __all__ = ["AttitudeFusionResult", "fuse_attitude_fixes", "imu_noise_psd", "initial_covariance_15"]
 
 DEG = np.pi / 180.0
 DEG_H = DEG / 3600.0
 UG = 9.80665e-6
-
-
-@njit(cache=True)
-def _propagate(st, bias, time, dth, dvel, k0, k1, tprev, dth_prev, dv_prev, out, acc, hold_h, hold_vu):
-    """Strapdown over samples k0..k1 (inclusive) with bias-corrected increments; in place.
-
-    bias = [gyro bias (3) rad/s, accel bias (3) m/s²]; ``acc`` is reset, then accumulates the interval
-    (:func:`aidnav.filters.ins_errors.propagate_sample`); height and up velocity are held to
-    ``hold_h``/``hold_vu`` after each step when given. Returns (T [s], t_last).
-    """
-    reset_accumulator(acc)
-    T = 0.0
-    dthc = np.empty(3)
-    dvc = np.empty(3)
-    hold = hold_h.shape[0] == time.shape[0]
-    for k in range(k0, k1 + 1):
-        dt = time[k] - tprev
-        tprev = time[k]
-        T = propagate_sample(st, acc, dth[k], dvel[k], bias, dt, dthc, dvc, dth_prev, dv_prev)
-        if hold:
-            st[2] = hold_h[k]
-            st[5] = hold_vu[k]
-        out[k] = st
-    return T, tprev
 
 
 @dataclass
@@ -87,6 +52,9 @@ class AttitudeFusionResult:
     fix_innovation: np.ndarray
     fix_nis: np.ndarray
     fix_accepted: np.ndarray
+    smoothed: bool = False
+    forward_states: np.ndarray | None = None  #: (N, 10) forward solution when smoothed
+    forward_std_att: np.ndarray | None = None
 
 
 def imu_noise_psd(arw_deg_sqrt_h, vrw_m_s_sqrt_h, gyro_bias_instability_deg_h, accel_bias_instability_ug,
@@ -122,7 +90,7 @@ def initial_covariance_15(att_sigma_rad, vel_sigma_m_s, pos_sigma_m, gyro_bias_d
 
 def fuse_attitude_fixes(imu, state0, fix_time, fix_C_bn, fix_cov, q_psd, P0, tau_g=3600.0, tau_a=3600.0,
                         prop_dt=1.0, gate=0.0, hold_h=None, hold_vu=None,
-                        use_fixes=True) -> AttitudeFusionResult:
+                        use_fixes=True, smooth: bool = False) -> AttitudeFusionResult:
     """Strapdown INS with attitude fixes in a closed-loop 15-state error-state Kalman filter.
 
     Parameters
@@ -139,75 +107,54 @@ def fuse_attitude_fixes(imu, state0, fix_time, fix_C_bn, fix_cov, q_psd, P0, tau
     prop_dt : covariance propagation interval [s]; gate : chi-square gate on the fix NIS (≤ 0: off).
     hold_h, hold_vu : (N,) arrays to hold height and up velocity to (a baro-like aid), or None.
     use_fixes : False runs the free INS (same code path, the "INS only" reference).
+    smooth : also run the engine's RTS pass; states, σ and biases are then the smoothed ones (the forward
+        solution in ``forward_states`` / ``forward_std_att``).
     """
     time = np.ascontiguousarray(imu.time, dtype=float)
-    dth = np.ascontiguousarray(imu.dtheta, dtype=float)
-    dvel = np.ascontiguousarray(imu.dv, dtype=float)
     N = time.shape[0]
-    n = 15
-    m = noise_count(n)
     fix_time = np.asarray(fix_time, dtype=float).reshape(-1)
-    fix_C = np.asarray(fix_C_bn, dtype=float).reshape(-1, 3, 3)
-    fix_R = np.asarray(fix_cov, dtype=float).reshape(-1, 3, 3)
     M = fix_time.shape[0]
-    fix_idx = np.searchsorted(time, fix_time - 1e-9, side="left")
-    ok_fix = (fix_idx < N) & (fix_time > imu.t0) if use_fixes else np.zeros(M, bool)
-    # nodes: every prop_dt and at every fix
-    grid = np.searchsorted(time, imu.t0 + prop_dt * np.arange(1, int((time[-1] - imu.t0) / prop_dt) + 1)
-                           - 1e-9, side="left")
-    nodes = np.unique(np.concatenate([grid[grid < N], fix_idx[ok_fix], [N - 1]])).astype(np.int64)
-    fixes_at = {}
-    for j in np.flatnonzero(ok_fix):
-        fixes_at.setdefault(int(fix_idx[j]), []).append(int(j))
-
-    st = np.asarray(state0, dtype=float).copy()
-    bias = np.zeros(6)
-    P = np.asarray(P0, dtype=float).copy()
-    x = np.zeros(n)
-    F, G, Phi, Qd = model_arrays(n, m)
-    H, z, _, innov, sdiag = measurement_arrays(3, n)  # R: the covariance of each fix
-    q_psd = np.asarray(q_psd, dtype=float)
-    hh = np.zeros(0) if hold_h is None else np.ascontiguousarray(hold_h, dtype=float)
-    hv = np.zeros(0) if hold_vu is None else np.ascontiguousarray(hold_vu, dtype=float)
-
-    out = np.empty((N, 10))
-    std_att = np.empty((N, 3))
-    gb = np.empty((N, 3))
-    ab = np.empty((N, 3))
-    f_innov = np.full((M, 3), np.nan)
-    f_nis = np.full(M, np.nan)
-    f_acc = np.zeros(M, bool)
-    dth_prev = np.zeros(3)
-    dv_prev = np.zeros(3)
-    tprev = float(imu.t0)
-    sums = new_accumulator()  # sums over the samples of the current interval (ins_errors.ACC_*)
-    k0 = 0
-    for k1 in nodes:
-        T, tprev = _propagate(st, bias, time, dth, dvel, k0, int(k1), tprev, dth_prev, dv_prev, out, sums,
-                              hh, hv)
-        if T > 0.0:
-            interval_model(F, G, st, sums, tau_g, tau_a, 0.0, 0.0)
-            discretize(F, G, q_psd, T, Phi, Qd)
-            x[:] = 0.0
-            predict(x, P, Phi, Qd)
-        for j in fixes_at.get(int(k1), []):
-            dtk = time[k1] - (time[k1 - 1] if k1 > 0 else imu.t0)
-            w = (dth[k1] - bias[0:3] * dtk) / dtk
-            Cm = fix_C[j] @ dcm_from_rotvec(w * (time[k1] - fix_time[j]))
-            C = dcm_from_quat(st[6:10])
-            attitude(C, Cm, H, z)  # z = φ − ε, H = [I 0 ...]
-            x[:] = 0.0
-            acc, nis = update(x, P, H, fix_R[j], z, gate, innov, sdiag)
-            f_innov[j] = innov
-            f_nis[j] = nis
-            f_acc[j] = acc
-            if acc:
-                _apply_correction(st, bias, x, n)
-                out[k1] = st
-        s = np.sqrt(np.maximum(np.diag(P)[0:3], 0.0))
-        std_att[k0:k1 + 1] = s
-        gb[k0:k1 + 1] = bias[0:3]
-        ab[k0:k1 + 1] = bias[3:6]
-        k0 = int(k1) + 1
-    rph = quat_to_euler_batch(np.ascontiguousarray(out[:, 6:10]))
-    return AttitudeFusionResult(time, out, rph, std_att, gb, ab, fix_time, f_innov, f_nis, f_acc)
+    rows = np.column_stack([np.asarray(fix_C_bn, dtype=float).reshape(M, 9),
+                            np.asarray(fix_cov, dtype=float).reshape(M, 9)])
+    # covariance nodes on the grid t0 + j·prop_dt (records that only schedule a node: use = False) and at
+    # every fix; a fix is applied at the first IMU sample at or after its time (1 ns tolerance)
+    grid = imu.t0 + prop_dt * np.arange(1, int((time[-1] - imu.t0) / prop_dt) + 1)
+    t_all = np.concatenate([fix_time, grid]) - 1e-9
+    o = np.argsort(t_all, kind="stable")
+    rows_all = np.vstack([rows, np.zeros((len(grid), 18))])
+    use = np.concatenate([np.full(M, bool(use_fixes)), np.zeros(len(grid), bool)])
+    rec = Records(np.ascontiguousarray(t_all[o]), np.full(len(o), ms.M_ATT, np.int64),
+                  np.ascontiguousarray(rows_all[o]), np.ascontiguousarray(use[o]))
+    pos = np.empty(len(o), np.int64)
+    pos[o] = np.arange(len(o))
+    pos = pos[:M]  # log row of each fix
+    gates = np.zeros((ms.N_MODELS, ms.MAX_ROWS + 1))
+    gates[ms.M_ATT, 3] = max(float(gate), 0.0)
+    never = np.full(ms.N_MODELS, 2**62, np.int64)  # no consecutive-rejection rule
+    mod = Models(np.zeros((ms.N_MODELS, 1)), gates, never, np.zeros((0, 2), np.int64))
+    lay = make_layout(False)
+    proc = Process(lay, np.asarray(q_psd, dtype=float), np.array([tau_g, tau_a, 0.0, 0.0]), np.zeros(0),
+                   float(prop_dt))
+    st0 = np.asarray(state0, dtype=float).copy()
+    ini = Init(float(imu.t0), st0, np.zeros(6), np.asarray(P0, dtype=float).copy(), -1, 0.0, 0.0,
+               np.full(15, np.nan))
+    hold = np.zeros((0, 2)) if hold_h is None else np.column_stack([hold_h, hold_vu]).astype(float)
+    dth, dv = np.ascontiguousarray(imu.dtheta, dtype=float), np.ascontiguousarray(imu.dv, dtype=float)
+    imu_in = Imu(time, dth, dv, np.zeros(N, np.bool_), np.zeros((N, 2)), np.ascontiguousarray(hold))
+    r = run_filter(imu_in, rec, mod, proc, ini, Output(1, bool(smooth), np.zeros(0, np.int64)))
+    # σ and biases of the node that closes each sample's interval (as before the engine)
+    j = np.minimum(np.searchsorted(r.node_idx, np.arange(N)), len(r.node_idx) - 1)
+    nxt = r.node_idx[j]
+    std_att = np.sqrt(np.maximum(r.out_pdiag[nxt, 0:3], 0.0))
+    states, bias = r.out_st, r.out_bias
+    fwd = (None, None)
+    if smooth and len(r.node_idx) > 1:
+        ds, Ps = rts(r.S_post, r.S_prior, r.S_phi, r.S_dx, r.reset_node)
+        states, bias = smooth_outputs(r.out_idx, r.out_st, r.out_bias, r.out_node, r.node_idx, ds, r.S_dx, 15)
+        fwd = (r.out_st, std_att)
+        std_att = np.sqrt(np.maximum(np.einsum("kii->ki", Ps)[j, 0:3], 0.0))
+    f_innov, f_nis, f_acc = np.full((M, 3), np.nan), np.full(M, np.nan), np.zeros(M, bool)
+    f_innov[:], f_nis[:], f_acc[:] = r.log.nu[pos, :3], r.log.nis[pos], r.log.status[pos] == 1
+    rph = quat_to_euler_batch(np.ascontiguousarray(states[:, 6:10]))
+    return AttitudeFusionResult(time, states, rph, std_att, bias[nxt, 0:3], bias[nxt, 3:6], fix_time, f_innov,
+                                f_nis, f_acc, fwd[0] is not None, fwd[0], fwd[1])

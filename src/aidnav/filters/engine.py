@@ -7,7 +7,8 @@ engine does what used to be copied into every kernel:
 
 * **node schedule**: the strapdown runs at the IMU rate (:func:`.ins_errors.propagate_sample`); a
   *node* is every ``prop_dt`` seconds, at every record time (a record in (t_{k−1}, t_k] makes t_k a
-  node) and at the last sample;
+  node; a record with ``use`` False only schedules the node, e.g. a fixed propagation grid) and at
+  the last sample; with ``Imu.hold`` the height and up velocity are held to given values;
 * **predict** at nodes through :func:`.kalman.discretize` / :func:`.kalman.predict`, plus the
   variance of bridged IMU gaps;
 * **one update-with-gate policy** (:func:`gated_update`): χ² gate by the number of rows
@@ -51,8 +52,9 @@ from .layout import DP, DV, L_N, L_NINS, NAV, PHI, ST_POS, ST_Q, ST_VEL
 from .measurements import MAX_ROWS, N_MODELS, Nav, fill
 from .measurements.common import W_FIX, W_IB, W_IE, W_IN
 
-# t (N,) [s]; dth, dv (N, 3) raw increments [rad, m/s]; static (N,) bool; gap_var (N, 2) [rad², (m/s)²]
-Imu = namedtuple("Imu", ["t", "dth", "dv", "static", "gap_var"])
+# t (N,) [s]; dth, dv (N, 3) raw increments [rad, m/s]; static (N,) bool; gap_var (N, 2) [rad², (m/s)²];
+# hold (N, 2) height [m] and up velocity [m/s] the strapdown is held to after each sample, or (0, 2)
+Imu = namedtuple("Imu", ["t", "dth", "dv", "static", "gap_var", "hold"])
 # time-sorted aiding records: t (M,) [s], model (M,) ids, data (M, W) rows of the models, use (M,) bool
 Records = namedtuple("Records", ["t", "model", "data", "use"])
 # par (N_MODELS, P) model parameters; gate (N_MODELS, MAX_ROWS + 1) χ² thresholds by rows (0: off);
@@ -192,10 +194,14 @@ def run_filter(imu, rec, mod, proc, ini, out):
     gap_phi, gap_v = 0.0, 0.0
     dthc, dvc, dth_prev, dv_prev = increment_buffers()
     tp, kn, oi = ini.t0, 0, 0
+    hold = imu.hold.shape[0] == n_imu
     for k in range(n_imu):
         dt = imu.t[k] - tp
         tp = imu.t[k]
         T = propagate_sample(st, acc, imu.dth[k], imu.dv[k], bias, dt, dthc, dvc, dth_prev, dv_prev)
+        if hold:
+            st[ST_POS + 2] = imu.hold[k, 0]
+            st[ST_VEL + 2] = imu.hold[k, 1]
         gap_phi += imu.gap_var[k, 0]
         gap_v += imu.gap_var[k, 1]
         if k == ini.reset_idx:

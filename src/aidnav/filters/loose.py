@@ -248,8 +248,8 @@ def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: 
     ini = Init(float(i0["t0"]), st0, np.zeros(n - 9), P0, int(i0["reset_idx"]), float(i0["reset_heading"]),
                cfg.init.course_heading_sigma_deg * DEG, reset_nav)
     sl = slice(k0, None)
-    r = run_filter(Imu(t_imu[sl], dth_in[sl], dv_in[sl], static[sl], gap_var[sl]), rec, _models(cfg), proc,
-                   ini, Output(out_every, bool(smooth), cov_idx))
+    imu_in = Imu(t_imu[sl], dth_in[sl], dv_in[sl], static[sl], gap_var[sl], np.zeros((0, 2)))
+    r = run_filter(imu_in, rec, _models(cfg), proc, ini, Output(out_every, bool(smooth), cov_idx))
     log = _log_dict(r.log, r.n_log)
     mdl = log["model"]
     cnt = dict(zupt_updates=int((mdl == ms.M_ZUPT).sum()),

@@ -5,8 +5,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from aidnav.nav.rotations import dcm_from_rotvec
+
 from ..layout import DV, PHI
-from .common import diag_r
+from .common import W_FIX, diag_r
 
 
 @njit(cache=True)
@@ -23,9 +25,17 @@ def attitude(st_q_dcm, C_meas, H, z):
 
 @njit(cache=True)
 def attitude_model(nav, row, par, lay, H, z, R):
-    """Uniform form of :func:`attitude`: row = [C_b^n measured (9, row-major), σ φ_E, φ_N, φ_U [rad]]."""
-    attitude(nav.C, row[0:9].copy().reshape(3, 3), H, z)
-    diag_r(R, 3, row[9:12])
+    """Uniform form of :func:`attitude`: row = [C_b^n measured (9, row-major), covariance of its
+    misalignment ε in n (9, row-major) [rad²]], C_b^n(fix) = (I − [ε×]) C_b^n(true). A fix older than the
+    node by ``nav.dt_back`` is carried to the node with the last sample's body rate,
+    C(t_k) ≈ C(t_fix) exp([ω dt_back ×]) (Earth and transport rate over < 1 sample neglected)."""
+    Cm = row[0:9].copy().reshape(3, 3)
+    if nav.dt_back != 0.0:
+        Cm = Cm @ dcm_from_rotvec(nav.w[W_FIX] * nav.dt_back)
+    attitude(nav.C, Cm, H, z)
+    for i in range(3):
+        for j in range(3):
+            R[i, j] = row[9 + 3 * i + j]
     return 3
 
 

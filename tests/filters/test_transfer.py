@@ -216,7 +216,7 @@ def test_covariance_analysis_matches_filter_and_ranks(maneuver, straight, maneuv
 def test_seed_004_reproduction_quick(tmp_path):
     """``run(quick=True, runs=1)`` writes summary.json in the reproduction schema with computed holds."""
     from aidnav.experiments.reproduce import seed_004
-    from aidnav.experiments.reproduce.summary import evaluate_target
+    from aidnav.experiments.reproduce.summary import _ROW_KEYS, evaluate_target
 
     doc = seed_004.run(tmp_path, runs=1, quick=True)
     saved = json.loads((tmp_path / "summary.json").read_text())
@@ -228,9 +228,9 @@ def test_seed_004_reproduction_quick(tmp_path):
         assert (tmp_path / f).stat().st_size > 10_000
     for t in saved["tables"]:
         for r in t["rows"]:
-            assert set(r) == {"quantity", "unit", "paper", "ours", "target", "holds"}
+            assert set(r) == set(_ROW_KEYS)
             if r["target"] is not None:
-                assert r["holds"] == evaluate_target(r["target"], r["ours"], r["paper"])
+                assert r["holds"] == evaluate_target(r["target"], r["ours"], r["paper"], r["values"] or {})
     t4 = {r["quantity"]: r for r in saved["tables"][0]["rows"]}
     assert t4["heading none / 8"]["holds"] and t4["heading none / 8"]["paper"] == pytest.approx(
         0.2483 / 0.0116

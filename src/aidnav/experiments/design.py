@@ -15,7 +15,8 @@ so it predicts the RMS error over runs; the seed's "STD" (the standard deviation
 over a leg) leaves out the part of the error that is constant over the leg. Where a maneuver makes
 the heading observable before the leg, both are close; where it does not (no maneuver), the heading
 error is a slowly changing offset and the covariance predicts it, the per-leg STD does not. The
-seed-004 reproduction (``aidnav.experiments.reproduce.seed_004``) compares both rankings with the
+seed-004 reproduction (``aidnav.experiments.reproduce.seed_004``; the cases: ``experiments.transfer_cases``)
+compares both rankings with the
 Monte Carlo.
 
 Units: angles in degrees in the returned rows (``*_deg``), radians inside.
@@ -89,7 +90,7 @@ _AXES = ("heading_deg", "pitch_deg", "roll_deg")
 
 def _grade_key(grade: str) -> str:
     """'seed004_high' / 'high' / 'sub_arw' … → the key of ``seed_004.GRADES``."""
-    from aidnav.experiments.reproduce.seed_004 import GRADES
+    from aidnav.experiments.transfer_cases import GRADES
 
     g = str(grade).strip().lower()
     g = g[len("seed004_"):] if g.startswith("seed004_") else g
@@ -141,7 +142,7 @@ def design_trajectory(requirement: dict, grade: str = "sub_arw", modes=DESIGN_MO
     run_transfer` (RMS and STD of the errors on the legs, mean over the legs, RMS over the runs).
     Returns a :class:`TrajectoryDesign`; angles in degrees, times in seconds.
     """
-    from aidnav.experiments.reproduce.seed_004 import LABEL, Case, imu_spec, load_mode, sim_config, variant
+    from aidnav.experiments.transfer_cases import LABEL, Case, imu_spec, load_mode, sim_config, variant
     from aidnav.sim.trajectory import generate_truth
 
     say = say or (lambda msg: None)
@@ -217,7 +218,7 @@ def design_trajectory(requirement: dict, grade: str = "sub_arw", modes=DESIGN_MO
 def _confirm(plan: dict, gkey: str, baseline_km: float, nstate: int, legs, runs: int, base_seed: int,
              req: dict) -> dict:
     """Monte Carlo of the recommended plan: RMS over runs of the per-run leg RMS and mean per-run leg STD."""
-    from aidnav.experiments.reproduce.seed_004 import Case, load_mode, sim_config, variant
+    from aidnav.experiments.transfer_cases import Case, load_mode, sim_config, variant
     from aidnav.filters.transfer import run_transfer, segment_statistic, transfer_errors
     from aidnav.sim.distributed_pos import simulate_distributed_pos, sub_geometry
     from aidnav.sim.trajectory import generate_truth

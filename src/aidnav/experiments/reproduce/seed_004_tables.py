@@ -10,20 +10,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from aidnav.experiments.transfer_cases import BASE_GRADE, GRADES, LABEL, MODES  # noqa: E402, F401
+
 from .summary import RESOLVE_SE, summary_row, summary_table
 
-MODES = ("none", "s_turns", "o_circle", "figure8", "climb")
-LABEL = {"none": "none", "s_turns": "S", "o_circle": "O", "figure8": "8", "climb": "climb"}
-#: sub-IMU grades: seed Table 1 (high/medium/low) and §3.1 (sub), with the "random drift X°/h" read as an
-#: angle random walk of X°/√h (``*_arw``, the reading the reproduction uses) or as the preset's
-#: white-noise density X°/h/√Hz (no suffix; 60× less ARW)
-GRADES = {"sub": "seed004_sub", "high": "seed004_high", "medium": "seed004_medium", "low": "seed004_low",
-          "sub_arw": "seed004_sub with ARW 0.1 deg/sqrt(h)",
-          "high_arw": "seed004_high with ARW 0.01 deg/sqrt(h)",
-          "medium_arw": "seed004_medium with ARW 0.05 deg/sqrt(h)",
-          "low_arw": "seed004_low with ARW 0.1 deg/sqrt(h)"}
-#: the sub-IMU of the reproduction's tables (see the module docstring of seed_004: "Noise reading")
-BASE_GRADE = "sub_arw"
 SWEEP_GRADES = ("high_arw", "medium_arw", "low_arw", "sub_arw")
 T1_VALUES = (0, 100, 200, 300, 400, 500)
 T2_VALUES = (100, 200, 400)

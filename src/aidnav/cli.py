@@ -155,6 +155,10 @@ def process(
     imu: Path = typer.Option(..., "--imu", help="IMU log: interchange CSV/Parquet or raw rtklibexplorer CSV"),
     gnss: Path = typer.Option(..., "--gnss", help="GNSS fixes: RTKLIB .pos or interchange CSV/Parquet"),
     config: Path | None = typer.Option(None, "--config", help="filter configuration YAML"),
+    odometer: Path | None = typer.Option(None, "--odometer", help="odometer CSV (time_s, speed_m_s or "
+                                         "speed_km_h [, speed_std_m_s]) on the GNSS time scale"),
+    baro: Path | None = typer.Option(None, "--baro", help="barometer CSV (time_s, height_m or height_ft "
+                                     "[, height_std_m]) on the GNSS time scale"),
     out: Path = typer.Option(Path("out"), "-o", "--out", help="output directory: trajectory.parquet|csv, "
                              "summary.json, summary.txt"),
     fmt: str = typer.Option("parquet", "--format", help="trajectory file format: parquet or csv"),
@@ -187,7 +191,8 @@ def process(
     with progress_bar("aidnav process") as bar:
         s = process_logs(imu, gnss, config, out, smooth=smooth, outages=outage, console=console, fmt=fmt,
                          height_offset_m=height_offset, time_offset_s=time_offset, start_s=start, end_s=end,
-                         skip_checks=skip_check, progress=bar, figures=not no_figures)
+                         skip_checks=skip_check, progress=bar, figures=not no_figures,
+                         odometer_path=odometer, baro_path=baro)
     _print_summary(s, format_summary(s), as_json)
 
 

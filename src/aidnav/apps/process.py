@@ -157,7 +157,8 @@ def window(imu: ImuData, gnss: GnssData, start_s: float | None, end_s: float | N
 
 def process(imu: ImuData, gnss: GnssData, cfg: LooseConfig | None = None, smooth: bool = False,
             outages: list[str] | None = None, imu_name: str = "imu", gnss_name: str = "gnss",
-            skip_checks=(), start_s: float | None = None, end_s: float | None = None) -> ProcessRun:
+            skip_checks=(), start_s: float | None = None, end_s: float | None = None, odometer=None,
+            baro=None) -> ProcessRun:
     """In-memory ``aidnav process``: logs already read (:mod:`aidnav.io`: ellipsoidal heights, IMU on
     the GNSS time scale, i.e. ``cfg.imu.time_offset_s`` is applied here, once) → :class:`ProcessRun`.
     """
@@ -181,7 +182,8 @@ def process(imu: ImuData, gnss: GnssData, cfg: LooseConfig | None = None, smooth
         withheld |= (gnss.time >= a) & (gnss.time < b)
     events: list[str] = []
     t0 = _time.perf_counter()
-    res = run_loose(imu, gnss, cfg, withheld=withheld, smooth=smooth, events=events)
+    res = run_loose(imu, gnss, cfg, withheld=withheld, smooth=smooth, events=events, odometer=odometer,
+                    baro=baro)
     t_filt = _time.perf_counter() - t0
     traj = to_trajectory(res)
     check_solution(traj, "the loosely coupled filter")
@@ -248,7 +250,7 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
                  outages: list[str] | None = None, console=None, fmt: str = "parquet",
                  height_offset_m: float | None = None, time_offset_s: float | None = None,
                  start_s: float | None = None, end_s: float | None = None, skip_checks=(),
-                 progress=None, figures: bool = True) -> dict:
+                 progress=None, figures: bool = True, odometer_path=None, baro_path=None) -> dict:
     """Run the whole ``aidnav process`` job into the directory ``out_dir``; returns the summary dict
     (also written as ``summary.json`` and ``summary.txt`` beside ``trajectory.<fmt>``).
 
@@ -295,10 +297,20 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
         raise DataError(imu_path, None, "fewer than 2 IMU samples")
     if len(gnss) < 1:
         raise DataError(gnss_path, None, "no GNSS fixes")
+    odometer = baro = None
+    if odometer_path is not None:  # aux-sensor times must be on the GNSS time scale
+        from aidnav.io.aux_sensors import read_odometer_csv
+
+        odometer = read_odometer_csv(odometer_path)
+    if baro_path is not None:
+        from aidnav.io.aux_sensors import read_baro_csv
+
+        baro = read_baro_csv(baro_path)
     t_read = _time.perf_counter()
     bar.stage("filter" + (" + smoother" if smooth else ""), total=len(imu), unit="IMU samples")
     run = process(imu, gnss, cfg, smooth=smooth, outages=outages, imu_name=str(imu_path),
-                  gnss_name=str(gnss_path), skip_checks=skip_checks, start_s=start_s, end_s=end_s)
+                  gnss_name=str(gnss_path), skip_checks=skip_checks, start_s=start_s, end_s=end_s,
+                  odometer=odometer, baro=baro)
     bar.update(len(imu))
     t_filt = _time.perf_counter()
     bar.stage("writing the trajectory", total=1, unit="files")
@@ -306,6 +318,8 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
     bar.advance(1)
     t_write = _time.perf_counter()
     summary = {"imu": str(imu_path), "gnss": str(gnss_path),
+               "odometer": str(odometer_path) if odometer_path else None,
+               "baro": str(baro_path) if baro_path else None,
                "config": str(config_path) if config_path else None, "output": str(traj_path),
                "gnss_height_offset_m": datum,
                **run.summary, "notes": notes}

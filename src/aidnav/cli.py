@@ -182,6 +182,8 @@ def process(
     as_json: bool = typer.Option(False, "--json", help="print the JSON summary instead of the text"),
     no_figures: bool = typer.Option(False, "--no-figures", help="skip overview.png, the KML/GeoJSON maps and "
                                     "run.html"),
+    kfgins_nav: bool = typer.Option(False, "--kfgins-nav", help="also write DIR/trajectory.nav in KF-GINS's "
+                                    "navigation-result format"),
 ):
     """Loosely coupled GNSS/INS on logs: DIR/trajectory with σ columns, summary, overview.png, maps
     (KML, GeoJSON) and run.html."""
@@ -192,7 +194,7 @@ def process(
         s = process_logs(imu, gnss, config, out, smooth=smooth, outages=outage, console=console, fmt=fmt,
                          height_offset_m=height_offset, time_offset_s=time_offset, start_s=start, end_s=end,
                          skip_checks=skip_check, progress=bar, figures=not no_figures,
-                         odometer_path=odometer, baro_path=baro)
+                         odometer_path=odometer, baro_path=baro, kfgins_nav=kfgins_nav)
     _print_summary(s, format_summary(s), as_json)
 
 

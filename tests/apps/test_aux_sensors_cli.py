@@ -60,11 +60,18 @@ def _process(d, out, *extra):
 
 
 def test_odometer_and_baro_reach_the_filter(files):
-    r = _process(files, "o", "--odometer", str(files / "odo.csv"), "--baro", str(files / "baro.csv"))
+    r = _process(files, "o", "--odometer", str(files / "odo.csv"), "--baro", str(files / "baro.csv"),
+                 "--kfgins-nav")
     assert r.returncode == 0, r.stderr
+    from aidnav.io.kfgins import read_nav
+
+    nav = read_nav(files / "o" / "trajectory.nav")  # the KF-GINS result file, read back
+    t = read_trajectory(files / "o" / "trajectory.parquet")
+    np.testing.assert_allclose(nav.time, t.time, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(nav.lat, t.lat, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(nav.vel, t.vel, rtol=0, atol=1e-6)
     s = json.loads((files / "o" / "summary.json").read_text())
     assert s["counts"]["odometer_updates"] > 500 and s["counts"]["baro_updates"] > 500
-    t = read_trajectory(files / "o" / "trajectory.parquet")
     k = t.extra["odometer_scale_ppm"][-1] * 1e-6
     b = t.extra["baro_bias_m"][-1]
     assert abs(k - ODO_K) < 0.005, k

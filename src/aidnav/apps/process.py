@@ -250,14 +250,16 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
                  outages: list[str] | None = None, console=None, fmt: str = "parquet",
                  height_offset_m: float | None = None, time_offset_s: float | None = None,
                  start_s: float | None = None, end_s: float | None = None, skip_checks=(),
-                 progress=None, figures: bool = True, odometer_path=None, baro_path=None) -> dict:
+                 progress=None, figures: bool = True, odometer_path=None, baro_path=None,
+                 kfgins_nav: bool = False) -> dict:
     """Run the whole ``aidnav process`` job into the directory ``out_dir``; returns the summary dict
     (also written as ``summary.json`` and ``summary.txt`` beside ``trajectory.<fmt>``).
 
     height_offset_m / time_offset_s override ``gnss.height_offset_m`` / ``imu.time_offset_s`` of the
     configuration (``--height-offset``, ``--time-offset``). progress : an
     :class:`aidnav.progress.ProgressBar` (stages: reading, filter, writing, figures). figures : also write
-    ``overview.png``, ``trajectory.kml``, ``trajectory.geojson`` and ``run.html``."""
+    ``overview.png``, ``trajectory.kml``, ``trajectory.geojson`` and ``run.html``. kfgins_nav : also write
+    ``trajectory.nav`` in KF-GINS's navigation-result format."""
     from aidnav.io.interchange import write_trajectory
     from aidnav.io.sanity import validate_skip
     from aidnav.progress import NullProgress
@@ -315,6 +317,8 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
     t_filt = _time.perf_counter()
     bar.stage("writing the trajectory", total=1, unit="files")
     write_trajectory(run.trajectory, traj_path, week=gnss.week)
+    if kfgins_nav:  # KF-GINS navigation text beside it (week, SOW, lat, lon, h, vN, vE, vD, roll, pitch, yaw)
+        write_trajectory(run.trajectory, out_dir / "trajectory.nav", week=gnss.week)
     bar.advance(1)
     t_write = _time.perf_counter()
     summary = {"imu": str(imu_path), "gnss": str(gnss_path),

@@ -38,7 +38,7 @@ def sim(tmp_path_factory):
 
 def _args(d, out):
     return [sys.executable, "-m", "aidnav", "process", "--imu", str(d / "sim/imu.parquet"), "--gnss",
-            str(d / "sim/gnss.parquet"), "-o", str(d / out)]
+            str(d / "sim/gnss.parquet"), "-o", str(d / out), "--no-figures"]
 
 
 def test_bar_on_a_pseudo_terminal(sim):

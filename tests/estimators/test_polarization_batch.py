@@ -44,6 +44,7 @@ def test_sample_covariance_batch_matches_numpy():
 
 
 @pytest.mark.parametrize("snr_db", [0.0, 10.0, 30.0])
+@pytest.mark.slow
 def test_batch_equals_single_fix(snr_db):
     n = 500
     S, geo = _cases(40, n, seed=int(snr_db) + 1, snr_db=snr_db)

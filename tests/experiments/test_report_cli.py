@@ -60,6 +60,7 @@ def test_report_needs_a_campaign(tmp_path):
     assert r.exit_code == 2 and "aidnav run" in r.output
 
 
+@pytest.mark.slow
 def test_cli_run_workers_and_report(tiny_file, tiny_serial, tmp_path):
     out = tmp_path / "cli"
     r = CliRunner().invoke(app, ["run", str(tiny_file), "-o", str(out), "--workers", "2"])

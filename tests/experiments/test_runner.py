@@ -51,6 +51,7 @@ def test_tiny_campaign_tables(tiny_serial):
     assert [p["label"] for p in man["points"]] == ["imu.grade=tactical", "imu.grade=mems"]
 
 
+@pytest.mark.slow
 def test_identical_serial_processes_and_dask(tiny_file, tiny_serial, tmp_path):
     from distributed import LocalCluster
 

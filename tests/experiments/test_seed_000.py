@@ -11,6 +11,7 @@ from aidnav.experiments.reproduce.page import browser_layout
 from aidnav.experiments.reproduce.summary import _ROW_KEYS
 
 
+@pytest.mark.slow
 def test_run_writes_summary(tmp_path):
     s = run_seed("0", tmp_path, runs=2)  # through the dispatcher, as `aidnav reproduce 000`
     d = json.loads((tmp_path / "summary.json").read_text())

@@ -7,10 +7,13 @@ import os
 import subprocess
 import sys
 
+import pytest
+
 from aidnav.experiments.reproduce.page import browser_layout
 from aidnav.experiments.reproduce.summary import _ROW_KEYS, check_row
 
 
+@pytest.mark.slow
 def test_cli_reproduce_001_end_to_end(tmp_path):
     out = tmp_path / "s1"
     env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")

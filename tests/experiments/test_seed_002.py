@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 
 from aidnav.experiments.reproduce import seed_002
 from aidnav.experiments.reproduce.summary import _ROW_KEYS
@@ -22,6 +23,7 @@ def test_seed_flight_shape():
     assert abs(fl.wave[18, 0]) < 20 * np.pi / 180 and abs(fl.wave[18, 1]) < 10 * np.pi / 180
 
 
+@pytest.mark.slow
 def test_run_writes_summary(tmp_path):
     s = seed_002.run(tmp_path, runs=2, base_seed=3, sweep_runs=3, fusion_runs=1)
     d = json.loads((tmp_path / "summary.json").read_text())

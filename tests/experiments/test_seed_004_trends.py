@@ -32,6 +32,7 @@ def _spread(v) -> float:
     return float(np.max(np.abs(v / v.mean() - 1.0)))
 
 
+@pytest.mark.slow
 def test_maneuvers_give_similar_pitch_and_roll(runner):
     t4 = {m: runner.run(s4.Case(mode=m, t1=0.0, t2=400.0)).mean() for m in s4.MODES}
     four = ("s_turns", "o_circle", "figure8", "climb")
@@ -42,6 +43,7 @@ def test_maneuvers_give_similar_pitch_and_roll(runner):
     assert t4["none"]["heading"] >= 5.0 * t4["figure8"]["heading"]
 
 
+@pytest.mark.slow
 def test_baseline_moves_velocity_and_position_not_attitude(runner, monkeypatch):
     t8 = {b: runner.run(replace(s4.BASE, baseline_km=float(b))).mean() for b in s4.BASELINES}
     for q in ("heading", "pitch", "roll"):
@@ -64,6 +66,7 @@ def test_baseline_moves_velocity_and_position_not_attitude(runner, monkeypatch):
     assert w[60]["lat"] == pytest.approx(w[20]["lat"], rel=0.02)
 
 
+@pytest.mark.slow
 def test_heading_does_not_decrease_as_t2_grows():
     """Heading STD vs the imaging-leg length T2 (figure-8, T1 = 200 s), paired over 20 runs with common
     random numbers: it grows from 100 to 200 s, and no decrease from 200 to 400 s is detectable (the

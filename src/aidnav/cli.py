@@ -184,6 +184,8 @@ def process(
                                     "run.html"),
     kfgins_nav: bool = typer.Option(False, "--kfgins-nav", help="also write DIR/trajectory.nav in KF-GINS's "
                                     "navigation-result format"),
+    output_rate: float | None = typer.Option(None, "--output-rate", help="output rate [Hz] (default: every "
+                                             "IMU sample; overrides filter.output_rate_hz)"),
 ):
     """Loosely coupled GNSS/INS on logs: DIR/trajectory with σ columns, summary, overview.png, maps
     (KML, GeoJSON) and run.html."""
@@ -194,7 +196,8 @@ def process(
         s = process_logs(imu, gnss, config, out, smooth=smooth, outages=outage, console=console, fmt=fmt,
                          height_offset_m=height_offset, time_offset_s=time_offset, start_s=start, end_s=end,
                          skip_checks=skip_check, progress=bar, figures=not no_figures,
-                         odometer_path=odometer, baro_path=baro, kfgins_nav=kfgins_nav)
+                         odometer_path=odometer, baro_path=baro, kfgins_nav=kfgins_nav,
+                         output_rate_hz=output_rate)
     _print_summary(s, format_summary(s), as_json)
 
 

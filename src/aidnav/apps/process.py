@@ -251,7 +251,7 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
                  height_offset_m: float | None = None, time_offset_s: float | None = None,
                  start_s: float | None = None, end_s: float | None = None, skip_checks=(),
                  progress=None, figures: bool = True, odometer_path=None, baro_path=None,
-                 kfgins_nav: bool = False) -> dict:
+                 kfgins_nav: bool = False, output_rate_hz: float | None = None) -> dict:
     """Run the whole ``aidnav process`` job into the directory ``out_dir``; returns the summary dict
     (also written as ``summary.json`` and ``summary.txt`` beside ``trajectory.<fmt>``).
 
@@ -281,6 +281,11 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
                    ("--start", start_s), ("--end", end_s)):
         if v is not None and not np.isfinite(v):
             raise InputError(f"{opt} {v}: not a finite number")
+    if output_rate_hz is not None:
+        if not output_rate_hz > 0:
+            raise InputError(f"--output-rate {output_rate_hz}: expected a rate > 0 Hz")
+        filt = cfg.filter.model_copy(update={"output_rate_hz": output_rate_hz})
+        cfg = cfg.model_copy(update={"filter": filt})
     if height_offset_m is not None:
         gnss_cfg = cfg.gnss.model_copy(update={"height_offset_m": height_offset_m})
         cfg = cfg.model_copy(update={"gnss": gnss_cfg})

@@ -25,36 +25,11 @@ def data_dir() -> Path:
 
 # ------------------------------------------------------------------ loosely coupled filter tests
 def _loose_error_state(res, truth, imu_errors, idx):
-    """15-state error of a :class:`aidnav.filters.loose.LooseResult` against the simulation truth.
+    """15-state error of a loose filter result against the truth: the library's
+    :func:`aidnav.analysis.errors.ins_error_state` (one definition for tests, studies and campaigns)."""
+    from aidnav.analysis.errors import ins_error_state
 
-    res : LooseResult; truth : the IMU truth Trajectory (same time scale); imu_errors : the
-    ``realised`` dict of :func:`aidnav.sim.imu.corrupt_imu` (constant biases only: no Gauss-Markov or
-    random-walk drift in these tests); idx : indices into the result's outputs.
-    Returns (len(idx), 15) in the filter's error state (``aidnav.filters.ins_errors``):
-    φ [rad] with C_est = (I − [φ×]) C_true; δv = v_est − v_true [m/s]; δL, δλ [rad], δh [m] est − true;
-    gyro/accel bias residual = true bias − estimated bias [rad/s, m/s²] (the filter's bias states are
-    what remains in the compensated measurement, fed back as b̂ += ε̂; the opposite sign does not
-    match the filter's cross-covariances).
-    """
-    import numpy as np
-
-    from aidnav.nav.rotations import attitude_error_batch, euler_to_quat_batch
-
-    idx = np.asarray(idx)
-    t = res.time[idx]
-    ti = np.searchsorted(truth.time, t)
-    assert np.allclose(truth.time[ti], t, rtol=0, atol=1e-9), "outputs not on truth samples"
-    st = res.state[idx]
-    e = np.zeros((len(idx), 15))
-    q_true = euler_to_quat_batch(np.ascontiguousarray(truth.rph[ti]))
-    e[:, 0:3] = attitude_error_batch(np.ascontiguousarray(st[:, 6:10]), q_true)
-    e[:, 3:6] = st[:, 3:6] - truth.vel[ti]
-    e[:, 6] = st[:, 0] - truth.lat[ti]
-    e[:, 7] = (st[:, 1] - truth.lon[ti] + np.pi) % (2 * np.pi) - np.pi
-    e[:, 8] = st[:, 2] - truth.height[ti]
-    e[:, 9:12] = imu_errors["gyro_bias"] - res.bias[idx, 0:3]
-    e[:, 12:15] = imu_errors["accel_bias"] - res.bias[idx, 3:6]
-    return e
+    return ins_error_state(res, truth, imu_errors, idx)
 
 
 @pytest.fixture(scope="session")

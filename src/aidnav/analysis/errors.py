@@ -360,3 +360,34 @@ def fraction_within_sigma(errors: ErrorSeries, k: float = 1.0,
         rows.append({"quantity": q, "fraction": frac, "n": n, "expected": float(erf(k / np.sqrt(2.0)))})
     df = pd.DataFrame(rows, columns=["quantity", "fraction", "n", "expected"])
     return df.set_index("quantity")
+
+
+def ins_error_state(res, truth: Trajectory, sensor_errors: dict, idx=None) -> np.ndarray:
+    """(K, 15) error of an INS filter result against the simulation truth, in the filter's error state
+    (:mod:`aidnav.filters.layout`): φ [rad] with C_est = (I − [φ×]) C_true; δv = v_est − v_true [m/s];
+    δL, δλ [rad], δh [m] estimate − truth; gyro/accel bias residual = true − estimated [rad/s, m/s²]
+    (what is left in the compensated measurement, the sign of the filter's bias states).
+
+    res : a filter result with ``time``, ``state`` (N, 10: lat, lon, h, v, q) and ``bias`` (N, ≥6);
+    truth : the IMU truth at the IMU samples (same time scale); sensor_errors : the ``realised`` dict
+    of :func:`aidnav.sim.imu.corrupt_imu` (constant biases ``gyro_bias``, ``accel_bias``); idx : output
+    indices (default: all). Raises ValueError when an output epoch is not a truth sample.
+    """
+    from aidnav.nav.rotations import attitude_error_batch
+
+    idx = np.arange(len(res.time)) if idx is None else np.asarray(idx)
+    t = np.asarray(res.time)[idx]
+    ti = np.clip(np.searchsorted(truth.time, t), 0, len(truth.time) - 1)
+    if not np.allclose(truth.time[ti], t, rtol=0, atol=1e-9):
+        raise ValueError("ins_error_state: filter outputs are not on truth samples")
+    st = res.state[idx]
+    e = np.zeros((len(idx), 15))
+    q_true = euler_to_quat_batch(np.ascontiguousarray(truth.rph[ti]))
+    e[:, 0:3] = attitude_error_batch(np.ascontiguousarray(st[:, 6:10]), q_true)
+    e[:, 3:6] = st[:, 3:6] - truth.vel[ti]
+    e[:, 6] = st[:, 0] - truth.lat[ti]
+    e[:, 7] = wrap_pi(st[:, 1] - truth.lon[ti])
+    e[:, 8] = st[:, 2] - truth.height[ti]
+    e[:, 9:12] = sensor_errors["gyro_bias"] - res.bias[idx, 0:3]
+    e[:, 12:15] = sensor_errors["accel_bias"] - res.bias[idx, 3:6]
+    return e

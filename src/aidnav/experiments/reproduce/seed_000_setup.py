@@ -154,8 +154,9 @@ def truth_index(truth, times):
 def euler_errors(res, truth):
     """(K, 3) roll, pitch, heading errors estimate − truth [rad] (wrapped to (−π, π])."""
     i = truth_index(truth, res.time)
-    e = res.rph - truth.rph[i]
-    return (e + np.pi) % (2 * np.pi) - np.pi
+    from aidnav.nav.rotations import wrap_pi
+
+    return wrap_pi(res.rph - truth.rph[i])
 
 
 def velocity_errors(res, truth):
@@ -164,22 +165,10 @@ def velocity_errors(res, truth):
 
 
 def error_state(res, truth, realised):
-    """(K, 15) error in the filter's state definition (:mod:`aidnav.filters.ins_errors`): φ with
-    C_est = (I − [φ×]) C_true [rad], δv [m/s], δL δλ [rad], δh [m] (estimate − truth), and the bias residuals
-    true − estimated [rad/s, m/s²] (the filter's ε, ∇; constant simulated biases)."""
-    from aidnav.nav.rotations import attitude_error_batch, euler_to_quat_batch
+    """(K, 15) error in the filter's state definition (:func:`aidnav.analysis.errors.ins_error_state`)."""
+    from aidnav.analysis.errors import ins_error_state
 
-    i = truth_index(truth, res.time)
-    e = np.zeros((len(i), 15))
-    q_true = euler_to_quat_batch(np.ascontiguousarray(truth.rph[i]))
-    e[:, 0:3] = attitude_error_batch(np.ascontiguousarray(res.state[:, 6:10]), q_true)
-    e[:, 3:6] = res.state[:, 3:6] - truth.vel[i]
-    e[:, 6] = res.state[:, 0] - truth.lat[i]
-    e[:, 7] = (res.state[:, 1] - truth.lon[i] + np.pi) % (2 * np.pi) - np.pi
-    e[:, 8] = res.state[:, 2] - truth.height[i]
-    e[:, 9:12] = realised["gyro_bias"] - res.bias[:, 0:3]
-    e[:, 12:15] = realised["accel_bias"] - res.bias[:, 3:6]
-    return e
+    return ins_error_state(res, truth, realised)
 
 
 def _series(res, truth) -> dict:

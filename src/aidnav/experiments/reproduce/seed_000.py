@@ -189,7 +189,7 @@ def heading0_sweep(runs: int, base_seed: int, duration_s: float = DURATION_S,
     Returns {φ_U0: {"vN"|"vE"|"vU"|"heading": ratio}}: the run-averaged error std with SAPV over that
     without (heading: RMS over the last ``LAST_S`` s, inverted so that > 1 means SAPV helps).
     The heading error drives the north velocity error through the Earth rate (φ̇_E = −Ω cosL φ_U,
-    δv̇_N = −g φ_E), so how much SAPV improves velocity depends on φ_U0, which the seed does not give.
+    δv̇_N = +g φ_E), so how much SAPV improves velocity depends on φ_U0, which the seed does not give.
     """
     seqs = np.random.SeedSequence(base_seed).spawn(runs)
     acc = {p: {k: {q: [] for q in ("vN", "vE", "vU", "hlast")} for k in (GPS_ONLY, FED)} for p in phis}
@@ -542,7 +542,7 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
         f"Initial heading error (the seed does not give it): φ_U0 = {PHI0_DEG[2]:g}° as decided for SPEC "
         "1.3, the largest value for which the seed's own Table 2 relations (heading gain ≥ 10×, velocity "
         "unchanged within ±15 %) hold together. Mechanism: on a static base the heading error drives the "
-        "north velocity error through the Earth rate (φ̇_E = −Ω cosL φ_U, δv̇_N = −g φ_E) and the SAPV "
+        "north velocity error through the Earth rate (φ̇_E = −Ω cosL φ_U, δv̇_N = +g φ_E) and the SAPV "
         "elevation observes the tilt about the axis perpendicular to the line of sight (mostly φ_E), so "
         "the larger φ_U0 the more SAPV lowers the north velocity error too. The 'Initial heading' "
         "sensitivity table shows the two ratio targets pulling opposite ways: velocity within ±15 % for "

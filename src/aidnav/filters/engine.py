@@ -37,6 +37,7 @@ from aidnav.nav.earth import OMEGA_IE, radii
 from aidnav.nav.rotations import dcm_from_quat, quat_from_rotvec, quat_mult, quat_normalize
 
 from .ins_errors import (
+    ACC_FN,
     increment_buffers,
     interval_model,
     model_arrays,
@@ -50,6 +51,7 @@ from .kalman import discretize, predict, rts_gain, update
 from .layout import DP, DV, L_N, L_NINS, NAV, PHI, ST_POS, ST_Q, ST_VEL
 from .measurements import MAX_ROWS, N_MODELS, Nav, fill
 from .measurements.common import W_FIX, W_IB, W_IE, W_IN
+from .measurements.gnss import W_FN
 
 # t (N,) [s]; dth, dv (N, 3) raw increments [rad, m/s]; static (N,) bool; gap_var (N, 2) [rad², (m/s)²]
 Imu = namedtuple("Imu", ["t", "dth", "dv", "static", "gap_var"])
@@ -154,6 +156,7 @@ def run_filter(imu, rec, mod, proc, ini, out):
     nb = n - NAV
     M = rec.t.shape[0]
     st, bias, P, x = ini.st.copy(), ini.bias.copy(), ini.P.copy(), np.zeros(n)
+    ib = bias[:nins - NAV].copy()  # INS sensor errors only: the strapdown must not read calibration states
     Fi, Gi, _, _ = model_arrays(nins, mins)
     F, G, Phi, Qd = model_arrays(n, mins + n - nins)
     for j in range(n - nins):  # calibration states: Gauss-Markov (τ > 0) or random walk / constant
@@ -161,7 +164,7 @@ def run_filter(imu, rec, mod, proc, ini, out):
             F[nins + j, nins + j] = -1.0 / proc.aux_tau[j]
         G[nins + j, mins + j] = 1.0
     wk = Work(np.zeros((MAX_ROWS, n)), np.zeros(MAX_ROWS), np.zeros((MAX_ROWS, MAX_ROWS)))
-    w = np.zeros((4, 3))
+    w = np.zeros((5, 3))  # rows W_IB, W_FIX, W_IE, W_IN and W_FN (mean f^n, models with a time offset)
     no_row = np.zeros(rec.data.shape[1])  # the row of a node constraint (unused)
     prop_dt = proc.prop_dt
     n_out = (n_imu + out.every - 1) // out.every
@@ -195,7 +198,7 @@ def run_filter(imu, rec, mod, proc, ini, out):
     for k in range(n_imu):
         dt = imu.t[k] - tp
         tp = imu.t[k]
-        T = propagate_sample(st, acc, imu.dth[k], imu.dv[k], bias, dt, dthc, dvc, dth_prev, dv_prev)
+        T = propagate_sample(st, acc, imu.dth[k], imu.dv[k], ib, dt, dthc, dvc, dth_prev, dv_prev)
         gap_phi += imu.gap_var[k, 0]
         gap_v += imu.gap_var[k, 1]
         if k == ini.reset_idx:
@@ -219,6 +222,7 @@ def run_filter(imu, rec, mod, proc, ini, out):
                 S_phi[kn] = Phi
                 S_prior[kn] = P
             _node_rates(st, wb, dthc, dt, w)
+            w[W_FN] = acc[ACC_FN] / T
             while gi < M and rec.t[gi] <= imu.t[k]:  # records in (t_{k-1}, t_k]
                 if rec.use[gi]:
                     md = rec.model[gi]
@@ -237,6 +241,7 @@ def run_filter(imu, rec, mod, proc, ini, out):
                         gated_update(x, P, wk, m, md, mod, rej, log, li)
                         li += 1
             feedback(st, bias, x, n)
+            ib[:] = bias[:nins - NAV]
             node_idx[kn] = k
             if out.smooth:
                 S_post[kn] = P

@@ -185,3 +185,44 @@ def test_layout_switches():
         "time_offset": False, "lever_arm": False, "mounting": False}})
     lay = loose_layout(cfg)
     assert lay[L_LEVER] < 0 and lay[L_TOFF] < 0 and lay[L_MOUNT] < 0 and lay[L_N] == 15
+
+
+def test_calibration_summary_names_and_mounting_round_trip():
+    """Zero estimates give back the configured values; a mounting residual about the vehicle's up axis
+    changes the summary's heading by that angle (sign: ρ_z = −Δheading)."""
+    from aidnav.filters.result import FilterResult, calibration_summary
+
+    lay = make_layout(False, ("lever_arm", "time_offset", "mounting"))
+    n = int(lay[L_N])
+    bias = np.zeros((1, n - 9))
+    pdiag = np.full((1, n), 1e-4)
+    base = {"time_offset_s": 0.05, "lever_arm_m": [0.1, 0.2, 0.3], "mounting_rph_deg": [1.0, -2.0, 30.0]}
+    r = FilterResult(np.zeros(1), np.zeros((1, 10)), bias, pdiag, np.zeros(1), layout=lay,
+                     calibration_base=base)
+    c = calibration_summary(r)
+    assert c["time_offset_s"]["value"] == 0.05 and c["time_offset_s"]["std"] == pytest.approx(0.01)
+    assert np.allclose(c["lever_arm_m"]["value"], [0.1, 0.2, 0.3])
+    assert np.allclose(c["mounting_rph_deg"]["value"], [1.0, -2.0, 30.0])
+    assert c["odometer_scale"] == {"value": 0.0, "std": None, "estimated": False}
+    bias[0, lay[L_MOUNT] - 9 + 2] = np.radians(0.5)
+    h = calibration_summary(r)["mounting_rph_deg"]["value"][2]
+    assert abs(abs(h - 30.0) - 0.5) < 0.02
+
+
+def test_presets():
+    from aidnav.filters.presets import apply_preset, preset_names
+
+    assert preset_names() == ["aircraft", "car", "pedestrian", "ship"]
+    car = apply_preset(None, "car")
+    assert car.constraints.nhc and car.constraints.nhc_lever_arm_sigma_m == 1.0
+    assert loose_layout(car)[L_MOUNT] >= 0
+    for name in ("aircraft", "pedestrian", "ship"):
+        assert not apply_preset(None, name).constraints.nhc
+    assert not apply_preset(None, "ship").constraints.zupt
+    # an explicit configuration key wins over the preset
+    mine = LooseConfig.model_validate({"constraints": {"nhc_sigma_m_s": 0.2}})
+    c = apply_preset(mine, "car")
+    assert c.constraints.nhc and c.constraints.nhc_sigma_m_s == 0.2
+    assert apply_preset(mine, None) is mine
+    with pytest.raises(ValueError, match="known: aircraft, car"):
+        apply_preset(None, "boat")

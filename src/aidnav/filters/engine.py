@@ -48,7 +48,7 @@ from .ins_errors import (
     set_heading,
 )
 from .kalman import discretize, predict, rts_gain, update
-from .layout import DP, DV, L_N, L_NINS, NAV, PHI, ST_POS, ST_Q, ST_VEL
+from .layout import DP, DV, L_N, L_NINS, L_TOFF, NAV, PHI, ST_POS, ST_Q, ST_VEL
 from .measurements import MAX_ROWS, N_MODELS, Nav, fill
 from .measurements.common import W_FIX, W_IB, W_IE, W_IN
 from .measurements.gnss import W_FN
@@ -156,6 +156,7 @@ def run_filter(imu, rec, mod, proc, ini, out):
     nb = n - NAV
     M = rec.t.shape[0]
     st, bias, P, x = ini.st.copy(), ini.bias.copy(), ini.P.copy(), np.zeros(n)
+    itoff = lay[L_TOFF]
     ib = bias[:nins - NAV].copy()  # INS sensor errors only: the strapdown must not read calibration states
     Fi, Gi, _, _ = model_arrays(nins, mins)
     F, G, Phi, Qd = model_arrays(n, mins + n - nins)
@@ -204,7 +205,9 @@ def run_filter(imu, rec, mod, proc, ini, out):
         if k == ini.reset_idx:
             reset_node = kn  # the next node is the first one after the re-initialisation
             _reinit(st, P, ini)
-        is_node = T >= prop_dt - 1e-9 or (gi < M and rec.t[gi] <= imu.t[k]) or k == n_imu - 1
+        # a record is due when its time on the IMU clock (t − d̂, the time-offset estimate) has come
+        toff = bias[itoff - NAV] if itoff >= 0 else 0.0
+        is_node = T >= prop_dt - 1e-9 or (gi < M and rec.t[gi] - toff <= imu.t[k]) or k == n_imu - 1
         if is_node and T > 0.0:
             C = dcm_from_quat(st[ST_Q:ST_Q + 4])
             wb = interval_model(Fi, Gi, st, acc, proc.tau[0], proc.tau[1], proc.tau[2], proc.tau[3])
@@ -223,7 +226,7 @@ def run_filter(imu, rec, mod, proc, ini, out):
                 S_prior[kn] = P
             _node_rates(st, wb, dthc, dt, w)
             w[W_FN] = acc[ACC_FN] / T
-            while gi < M and rec.t[gi] <= imu.t[k]:  # records in (t_{k-1}, t_k]
+            while gi < M and rec.t[gi] - toff <= imu.t[k]:  # records in (t_{k-1}, t_k]
                 if rec.use[gi]:
                     md = rec.model[gi]
                     nav = Nav(st, C, w, imu.t[k] - rec.t[gi], bias)

@@ -81,8 +81,9 @@ def calibration_summary(result, base: dict | None = None) -> dict:
 
     * ``time_offset_s`` [s], added to the IMU stamps (configured value + estimate);
     * ``lever_arm_m`` IMU → GNSS antenna, body RFU [m] (3 values / 3 σ);
-    * ``mounting_rph_deg`` IMU body → vehicle as roll, pitch, heading [deg] (C_b^v = C(r, p, h)ᵀ); σ of
-      roll, pitch, heading from the residual about the vehicle's forward, right and up axes;
+    * ``mounting_rph_deg`` IMU body → vehicle as roll, pitch, heading [deg] (C_b^v = C(r, p, h), as the
+      NHC uses it); their
+      σ from the rotation-vector σ's through the Jacobian of the angles (cross-covariances neglected);
     * ``odometer_scale`` [-] (s = (1 + k) v);
     * ``gnss_velocity_delay_s`` [s] (only when estimated): the GNSS velocity describes its stamp − τ.
 
@@ -123,14 +124,24 @@ def calibration_summary(result, base: dict | None = None) -> dict:
         out["mounting_rph_deg"] = {"value": [float(x) for x in m0], "std": None, "estimated": False}
     else:
         r = np.radians(m0)
-        cbv = dcm_from_euler(r[0], r[1], r[2]).T
-        c_hat = dcm_from_rotvec(-np.asarray(v, float)) @ cbv
-        rph = np.degrees(euler_from_dcm(np.ascontiguousarray(c_hat.T)))
+        cbv = dcm_from_euler(r[0], r[1], r[2])  # the C_b^v the NHC and odometer use (loose._models)
+
+        def rph_of(rho):
+            c_hat = dcm_from_rotvec(-np.asarray(rho, float)) @ cbv
+            return np.asarray(euler_from_dcm(np.ascontiguousarray(c_hat)), float)
+
+        rph = rph_of(v)
+        # σ of roll, pitch, heading: J diag(σ_ρ²) Jᵀ with J = ∂(r, p, h)/∂ρ by central differences
+        J = np.empty((3, 3))
+        for j in range(3):
+            e = np.zeros(3)
+            e[j] = 1e-6
+            J[:, j] = ((rph_of(v + e) - rph_of(v - e) + np.pi) % (2 * np.pi) - np.pi) / 2e-6
+        sd = np.sqrt(np.diag(J @ np.diag(np.asarray(s, float) ** 2) @ J.T))
+        rph = np.degrees(rph)
         rph[2] %= 360.0
-        # vehicle RFU: roll about forward (y), pitch about right (x), heading about up (z)
         out["mounting_rph_deg"] = {"value": [float(x) for x in rph],
-                                   "std": [float(np.degrees(s[1])), float(np.degrees(s[0])),
-                                           float(np.degrees(s[2]))], "estimated": True}
+                                   "std": [float(x) for x in np.degrees(sd)], "estimated": True}
     v, s = est(L_VDEL, 1)
     if v is not None:  # only where estimated (not one of the convention's names)
         out["gnss_velocity_delay_s"] = {"value": float(v[0]), "std": float(s[0]), "estimated": True}

@@ -157,6 +157,10 @@ def run_filter(imu, rec, mod, proc, ini, out):
     M = rec.t.shape[0]
     st, bias, P, x = ini.st.copy(), ini.bias.copy(), ini.P.copy(), np.zeros(n)
     itoff = lay[L_TOFF]
+    # an unknown heading (initial σ above 80°) with an alignment to come (reset_idx > 0; beyond the last
+    # sample: none found) stays unknown until then: a linearised filter would otherwise "gyrocompass"
+    # from a gyro bias model it cannot separate from the heading (static) or from noise
+    hold_h = ini.reset_idx > 0 and ini.P[PHI + 2, PHI + 2] >= 2.0
     ib = bias[:nins - NAV].copy()  # INS sensor errors only: the strapdown must not read calibration states
     Fi, Gi, _, _ = model_arrays(nins, mins)
     F, G, Phi, Qd = model_arrays(n, mins + n - nins)
@@ -245,6 +249,11 @@ def run_filter(imu, rec, mod, proc, ini, out):
                         li += 1
             feedback(st, bias, x, n)
             ib[:] = bias[:nins - NAV]
+            if hold_h and k < ini.reset_idx:  # heading unknown until the alignment: no information
+                for j in range(n):
+                    P[PHI + 2, j] = 0.0
+                    P[j, PHI + 2] = 0.0
+                P[PHI + 2, PHI + 2] = ini.P[PHI + 2, PHI + 2]
             node_idx[kn] = k
             if out.smooth:
                 S_post[kn] = P

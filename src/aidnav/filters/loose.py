@@ -281,6 +281,9 @@ def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: 
     aux = _aux_model(cfg, lay)
     P0 = np.zeros((n, n))
     P0[:n_ins, :n_ins] = initial_covariance(cfg, n_ins, i0["lat0"], i0["h0"], i0["att_sig"])
+    if i0.get("vel_sig") is not None:  # in-motion start: velocity from GNSS with its σ
+        for i in range(3):
+            P0[DV + i, DV + i] = max(P0[DV + i, DV + i], float(i0["vel_sig"][i]) ** 2)
     P0[n_ins:, n_ins:] = np.diag(aux[:, 0])
     q_psd = np.concatenate([process_noise(cfg, n_ins), aux[:, 1]])
     taus = np.array([cfg.imu.gyro_bias_tau_s, cfg.imu.accel_bias_tau_s, cfg.imu.sf_tau_s, cfg.imu.sf_tau_s])

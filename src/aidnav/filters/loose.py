@@ -271,6 +271,7 @@ def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: 
         events.append(f"{int((~finite).sum())} GNSS fixes with NaN/inf position or sigma not used "
                       f"(first at t={bad_t[0]:.3f})")
         use &= finite
+    cfg = _coarse_mounting_if_unknown(cfg, imu, gnss, t_imu, g, use, odometer, events)
     i0 = initial_state(imu, gnss, cfg, t_imu, g, use, events)
     k0 = i0["k0"]
     dth_in, dv_in, gap_var = bridge_gaps(imu, events)
@@ -341,6 +342,29 @@ def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: 
         mem = r.S_post.nbytes + r.S_prior.nbytes + r.S_phi.nbytes + Ps.nbytes
         res.counts["smoother_memory_mb"] = mem / 1e6
     return res
+
+
+def _coarse_mounting_if_unknown(cfg, imu, gnss, t_imu, g, use, odometer, events):
+    """With the NHC or an odometer and no ``imu.mounting_rph_deg`` in the configuration, the mounting is
+    unknown and may be anything (an IMU mounted backwards): a coarse mounting from the log
+    (:func:`aidnav.filters.preprocess.coarse_mounting`, a whole-log fit: post-processing) replaces the
+    identity, and the mounting state refines it. Returns the configuration to use."""
+    from .preprocess import coarse_mounting, gnss_velocity_for_init
+
+    if not (cfg.constraints.nhc or odometer is not None) or "mounting_rph_deg" in cfg.imu.model_fields_set:
+        return cfg
+    iu = np.flatnonzero(use)
+    gs = tuple(a[iu] for a in g)
+    vel, _ = gnss_velocity_for_init(gnss.subset(use), gs)
+    cm = coarse_mounting(imu, t_imu, gnss.subset(use), vel)
+    if cm is None:
+        events.append("mounting not given and not resolvable from the log (too little motion): identity "
+                      "used for the NHC/odometer")
+        return cfg
+    rph = tuple(float(np.degrees(x)) for x in cm[1:4])
+    events.append(f"mounting not given: coarse IMU->vehicle mounting from the log's accelerations "
+                  f"(roll {rph[0]:.1f}, pitch {rph[1]:.1f}, heading {rph[2]:.1f} deg, {cm[4]} epochs)")
+    return cfg.model_copy(update={"imu": cfg.imu.model_copy(update={"mounting_rph_deg": rph})})
 
 
 def _calibration_base(cfg) -> dict:

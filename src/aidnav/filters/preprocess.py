@@ -381,3 +381,60 @@ def _moving_tilt_sigma(gsub, vel, svel, j0, cfg):
     if not (np.isfinite(sp) and _course_ok(sp, sg, cfg)):
         sig = np.hypot(sig, float(np.hypot(a[0], a[1])) / g if np.all(np.isfinite(a)) else 10.0 * DEG)
     return max(float(np.arctan(sig)), 2.0 * DEG)
+
+
+def coarse_mounting(imu, t_imu, gnss, vel, min_speed_m_s: float = 3.0, window_s: float = 1.0):
+    """Coarse IMU → vehicle mounting of a car from the log itself (no configuration): the vehicle frame's
+    horizontal acceleration [lateral, longitudinal] = [s·χ̇, ṡ] from the GNSS speed s and course χ, the
+    body's from the specific force with the mean specific force over the log as "up" (a car is level on
+    average); the mounting heading is the rotation about up that best maps one onto the other
+    (θ = arg Σ z_v z̄_b, z = right + i·forward). Returns (C_b^v (3, 3), roll, pitch, heading [rad] of
+    C_b^v = C(r, p, h) as the NHC uses it, the number of epochs used) or None with fewer than 20 epochs
+    above ``min_speed_m_s`` or a fit that does not explain the acceleration (|Σ z_v z̄_b| < 0.5 Σ|z_v||z_b|).
+    """
+    from aidnav.nav.rotations import euler_from_dcm
+
+    t = np.asarray(gnss.time, float)
+    s = np.hypot(vel[:, 0], vel[:, 1])
+    chi = np.unwrap(np.arctan2(vel[:, 0], np.where(np.isfinite(vel[:, 1]), vel[:, 1], 0.0)))
+    ok = np.isfinite(s) & (s > min_speed_m_s)
+    if ok.sum() < 20:
+        return None
+    dt_i = np.diff(np.concatenate([[imu.t0], imu.time]))
+    csum_v = np.vstack([np.zeros((1, 3)), np.cumsum(imu.dv, axis=0)])
+    csum_t = np.concatenate([[0.0], np.cumsum(dt_i)])
+    up = imu.dv.sum(axis=0)
+    up = up / np.linalg.norm(up)
+    e1 = np.cross(np.array([0.0, 1.0, 0.0]), up)
+    if np.linalg.norm(e1) < 0.5:
+        e1 = np.cross(up, np.array([0.0, 0.0, 1.0]))
+        e1 = np.cross(e1, up)
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(up, e1)
+    zs_v, zs_b = [], []
+    for k in np.flatnonzero(ok):
+        i = np.searchsorted(t, t[k] - 0.5 * window_s)
+        j = np.searchsorted(t, t[k] + 0.5 * window_s) - 1
+        if i < 0 or j >= len(t) or j <= i or not (ok[i] and ok[j]):
+            continue
+        T = t[j] - t[i]
+        a_long = (s[j] - s[i]) / T
+        a_lat = s[k] * (chi[j] - chi[i]) / T
+        a = int(np.searchsorted(t_imu, t[i]))
+        b = int(np.searchsorted(t_imu, t[j]))
+        if b - a < 5:
+            continue
+        f = (csum_v[b] - csum_v[a]) / (csum_t[b] - csum_t[a])
+        zs_v.append(a_lat + 1j * a_long)
+        zs_b.append(f @ e1 + 1j * (f @ e2))
+    if len(zs_v) < 20:
+        return None
+    zv, zb = np.array(zs_v), np.array(zs_b)
+    c = np.sum(zv * np.conj(zb))
+    if abs(c) < 0.5 * np.sum(np.abs(zv) * np.abs(zb)):
+        return None
+    th = float(np.angle(c))
+    Rz = np.array([[np.cos(th), -np.sin(th), 0.0], [np.sin(th), np.cos(th), 0.0], [0.0, 0.0, 1.0]])
+    cbv = Rz @ np.vstack([e1, e2, up])
+    r, p, h = euler_from_dcm(np.ascontiguousarray(cbv))
+    return cbv, float(r), float(p), float(h % (2 * np.pi)), len(zv)

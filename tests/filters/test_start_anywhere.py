@@ -137,3 +137,59 @@ def test_coarse_mounting_of_an_imu_mounted_backwards_and_tilted():
     C = cm[0]
     ang = np.degrees(np.arccos(np.clip((np.trace(C @ cbv.T) - 1) / 2, -1, 1)))
     assert ang < 4.0, (ang, np.degrees(cm[1:4]))
+
+
+def test_spp_course_only_when_meaningful():
+    """SPP Doppler noise at a standstill (σ 1 m/s, spikes above 3 m/s) never gives a course; a walk at
+    1.3 m/s with 0.15 m/s noise does, from its 2 s mean."""
+    from aidnav.apps.tight import _meaningful_course
+
+    rng = np.random.default_rng(2)
+    t = np.arange(0.0, 60.0, 0.25)
+    still = rng.normal(0.0, 1.0, (len(t), 3))
+    assert np.hypot(still[:, 0], still[:, 1]).max() > 3.0
+    assert _meaningful_course(t, still, 0.8) is None
+    walk = rng.normal(0.0, 0.15, (len(t), 3))
+    walk[:, 0] += 1.3 * np.sin(np.radians(40.0))
+    walk[:, 1] += 1.3 * np.cos(np.radians(40.0))
+    tc, course, spd, se = _meaningful_course(t, walk, 0.8)
+    assert abs(np.degrees(course) - 40.0) < 3.0 * np.degrees(se / spd) + 1.0
+
+
+@pytest.fixture(scope="module")
+def walk_default(data_dir):
+    """``aidnav tight`` on the walk with no configuration: (tight, SPP) horizontal RMS over every
+    reference epoch (issue 26: before, the heading came from an SPP speed spike and it diverged to 21 m)."""
+    import warnings
+
+    from aidnav.filters.tight import TightConfig
+    from aidnav.io.rinex import read_rinex_nav, read_rinex_obs
+    from aidnav.io.rtklib import read_pos
+    from aidnav.process import read_imu_any
+    from aidnav.process_tight import compare_with_reference, process_tight
+
+    d = data_dir / "rtklibexplorer_walk_0827"
+    if not d.is_dir():
+        pytest.skip("walk data set not found")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FutureWarning)
+        nav = read_rinex_nav(d / "rinex_converted" / "gnss_1730.nav")
+        obs = read_rinex_obs(d / "rinex_converted" / "gnss_1730.obs")
+    ref = read_pos(d / "gnss_1730_sf.pos", height_offset_m=-21.4)
+    res, sp = process_tight(read_imu_any(d / "imu_1730.csv"), obs, nav, TightConfig())
+    c = compare_with_reference(res.time, res.state[:, 0], res.state[:, 1], res.state[:, 2], ref, quality=None)
+    ok = np.isfinite(sp["lat"])
+    cs = compare_with_reference(sp["time"][ok], sp["lat"][ok], sp["lon"][ok], sp["h"][ok], ref, quality=None)
+    return c["horizontal_rms"], cs["horizontal_rms"]
+
+
+def test_walk_tight_does_not_diverge(walk_default):
+    tight, spp = walk_default
+    assert tight <= 1.1 * spp  # measured 8.58 m vs SPP 8.36 m
+
+
+@pytest.mark.xfail(strict=True, reason="issue 26 target not reached: tight 8.58 m vs SPP 8.36 m over all "
+                   "reference epochs")
+def test_walk_tight_no_worse_than_spp(walk_default):
+    tight, spp = walk_default
+    assert tight <= spp

@@ -50,25 +50,26 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
     roll = np.arctan2(-f[0], f[2])
     pitch = np.arctan2(f[1], np.hypot(f[0], f[2]))
     heading = 0.0 if ini.heading_deg is None else ini.heading_deg * DEG
-    sp_h = np.hypot(g.vel[:, 0], g.vel[:, 1])
     heading_reset = None
     if ini.heading_deg is None:
-        # course over a short window (SPP Doppler velocities are noisy): mean velocity over 2 s
-        idx = np.flatnonzero(sp_h > ini.course_min_speed_m_s)
-        if len(idx):
-            i = idx[0]
-            m = np.abs(g.time - g.time[i]) <= 1.0
-            ve, vn = np.nanmean(g.vel[m, 0]), np.nanmean(g.vel[m, 1])
-            course = np.arctan2(ve, vn) % (2 * np.pi)
-            heading_reset = (
-                float(g.time[i]),
-                float((course + cfg.imu.mounting_rph_deg[2] * DEG) % (2 * np.pi)),
-            )
-            events.append(
-                f"heading from the SPP course at t={g.time[i]:.2f}: {np.degrees(heading_reset[1]):.1f} deg"
-            )
+        # the course of the SPP Doppler velocities averaged over 2 s, and only where it is meaningful:
+        # mean speed above init.course_min_speed_m_s and at least 5 times its standard error (the spread
+        # of the velocities in the window / sqrt(n)); SPP speed noise at a standstill never qualifies
+        found = _meaningful_course(g.time, g.vel, ini.course_min_speed_m_s)
+        if found is not None:
+            tc, course, spd, se = found
+            heading_reset = (tc, float((course + cfg.imu.mounting_rph_deg[2] * DEG) % (2 * np.pi)))
+            events.append(f"heading from the SPP course at t={tc:.2f}: {np.degrees(heading_reset[1]):.1f} "
+                          "deg "
+                          f"(2 s mean speed {spd:.2f} m/s, standard error {se:.2f} m/s)")
         else:
-            events.append("heading never aligned: no SPP speed above init.course_min_speed_m_s")
+            events.append("heading never aligned: no SPP course above init.course_min_speed_m_s with a speed "
+                          "5 standard errors above its noise; the heading stays unknown (sigma 180 deg)")
+        # until it is aligned the heading is unknown: its initial σ says so
+        sig = list(ini.attitude_sigma_deg)
+        sig[2] = 180.0
+        cfg = cfg.model_copy(update={"init": ini.model_copy(update={"attitude_sigma_deg": tuple(sig)})})
+        ini = cfg.init
     lc = LooseConfig(imu=cfg.imu, constraints=cfg.constraints, init=cfg.init)
     static = static_flags(imu, g, lc) if cfg.constraints.zupt else None
     init_state = (
@@ -90,6 +91,24 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
         imu, obs, eph, cfg, init_state=init_state, static=static, heading_reset=heading_reset, events=events
     )
     return res, sp
+
+
+def _meaningful_course(t, vel, min_speed, window_s: float = 2.0, k_sigma: float = 5.0):
+    """First epoch whose ``window_s`` mean horizontal velocity has a speed above ``min_speed`` and above
+    ``k_sigma`` standard errors (spread / √n of the velocities in the window). Returns (time, course [rad],
+    mean speed, standard error) or None."""
+    ve, vn = vel[:, 0], vel[:, 1]
+    for i in np.flatnonzero(np.hypot(ve, vn) > min_speed):
+        m = (np.abs(t - t[i]) <= 0.5 * window_s) & np.isfinite(ve) & np.isfinite(vn)
+        n = int(m.sum())
+        if n < 3:
+            continue
+        me, mn = ve[m].mean(), vn[m].mean()
+        spd = float(np.hypot(me, mn))
+        se = float(np.sqrt((ve[m].var(ddof=1) + vn[m].var(ddof=1)) / n))
+        if spd > min_speed and spd > k_sigma * se:
+            return float(t[i]), float(np.arctan2(me, mn) % (2 * np.pi)), spd, se
+    return None
 
 
 def compare_with_reference(time, lat, lon, h, ref: GnssData, quality: int | None = 1, max_dt: float = 0.01):

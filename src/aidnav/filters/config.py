@@ -101,6 +101,35 @@ class Constraints(_Strict):
     nhc_min_speed_m_s: float = Field(1.0, ge=0)
     nhc_lever_arm_m: tuple[float, float, float] = Field(
         (0.0, 0.0, 0.0), description="IMU → constrained point (rear axle), body RFU [m]")
+    nhc_lever_arm_sigma_m: float = Field(
+        0.0, ge=0, description="1σ per axis of the unknown part of nhc_lever_arm_m [m]: the constrained "
+        "velocity ω × l it causes is added to the NHC variance")
+
+
+class Calibration(_Strict):
+    """Self-calibration states of the loose filter. Each switch is ``true`` (estimate), ``false`` (the
+    configured value is exact) or unset (automatic, where observable):
+
+    * ``time_offset`` (IMU–GNSS, added to the IMU stamps, starting at ``imu.time_offset_s``): automatic =
+      estimated when GNSS velocity is used (the offset is seen through the acceleration, a·δt; with
+      positions alone only through v·δt against the position σ) and ``imu.time_offset_s`` is not given;
+    * ``lever_arm`` (IMU → antenna): automatic = estimated unless ``gnss.lever_arm_m`` is given;
+    * ``mounting`` (IMU → vehicle, about the vehicle axes): automatic = estimated with the NHC or an
+      odometer (without them it is not observable; a mounting off by a degree biases every NHC update).
+    * ``velocity_delay`` (the receiver's velocity describes its stamp − τ, e.g. a Doppler or
+      position-difference average, while the position is at the stamp): automatic = with the time offset.
+    Each state starts at the configured value (0 for the velocity delay) with the given 1σ."""
+
+    time_offset: bool | None = Field(None, description="estimate the IMU-GNSS time offset (None: auto)")
+    time_offset_sigma_s: float = Field(0.2, gt=0, description="initial 1σ of the time offset [s]")
+    time_offset_rw_s_sqrt_s: float = Field(0.0, ge=0, description="random walk of the offset [s/sqrt(s)]")
+    lever_arm: bool | None = Field(None, description="estimate the IMU → antenna lever arm (None: auto)")
+    lever_arm_sigma_m: float = Field(0.3, gt=0, description="initial 1σ per axis of the lever arm [m]")
+    mounting: bool | None = Field(None, description="estimate the IMU → vehicle mounting (None: auto)")
+    mounting_sigma_deg: float = Field(3.0, gt=0, description="initial 1σ per axis of the mounting [deg]")
+    velocity_delay: bool | None = Field(None, description="estimate a delay of the GNSS velocity relative "
+                                        "to its position (None: auto = with the time offset)")
+    velocity_delay_sigma_s: float = Field(0.1, gt=0, description="initial 1σ of the velocity delay [s]")
 
 
 class OdometerAiding(_Strict):
@@ -142,6 +171,7 @@ class LooseConfig(_Strict):
     filter: FilterSettings = FilterSettings()
     odometer: OdometerAiding = OdometerAiding()
     baro: BaroAiding = BaroAiding()
+    calibration: Calibration = Calibration()
 
     @property
     def nstate(self) -> int:

@@ -38,6 +38,7 @@ from aidnav.nav.earth import OMEGA_IE, radii
 from aidnav.nav.rotations import dcm_from_quat, quat_from_rotvec, quat_mult, quat_normalize
 
 from .ins_errors import (
+    ACC_FN,
     increment_buffers,
     interval_model,
     model_arrays,
@@ -48,9 +49,10 @@ from .ins_errors import (
     set_heading,
 )
 from .kalman import discretize, predict, rts_gain, update
-from .layout import DP, DV, L_N, L_NINS, NAV, PHI, ST_POS, ST_Q, ST_VEL
+from .layout import DP, DV, L_N, L_NINS, L_TOFF, NAV, PHI, ST_POS, ST_Q, ST_VEL
 from .measurements import MAX_ROWS, N_MODELS, Nav, fill
 from .measurements.common import W_FIX, W_IB, W_IE, W_IN
+from .measurements.gnss import W_FN
 
 # t (N,) [s]; dth, dv (N, 3) raw increments [rad, m/s]; static (N,) bool; gap_var (N, 2) [rad², (m/s)²];
 # hold (N, 2) height [m] and up velocity [m/s] the strapdown is held to after each sample, or (0, 2)
@@ -156,6 +158,12 @@ def run_filter(imu, rec, mod, proc, ini, out):
     nb = n - NAV
     M = rec.t.shape[0]
     st, bias, P, x = ini.st.copy(), ini.bias.copy(), ini.P.copy(), np.zeros(n)
+    itoff = lay[L_TOFF]
+    # an unknown heading (initial σ above 80°) with an alignment to come (reset_idx > 0; beyond the last
+    # sample: none found) stays unknown until then: a linearised filter would otherwise "gyrocompass"
+    # from a gyro bias model it cannot separate from the heading (static) or from noise
+    hold_h = ini.reset_idx > 0 and ini.P[PHI + 2, PHI + 2] >= 2.0
+    ib = bias[:nins - NAV].copy()  # INS sensor errors only: the strapdown must not read calibration states
     Fi, Gi, _, _ = model_arrays(nins, mins)
     F, G, Phi, Qd = model_arrays(n, mins + n - nins)
     for j in range(n - nins):  # calibration states: Gauss-Markov (τ > 0) or random walk / constant
@@ -163,7 +171,7 @@ def run_filter(imu, rec, mod, proc, ini, out):
             F[nins + j, nins + j] = -1.0 / proc.aux_tau[j]
         G[nins + j, mins + j] = 1.0
     wk = Work(np.zeros((MAX_ROWS, n)), np.zeros(MAX_ROWS), np.zeros((MAX_ROWS, MAX_ROWS)))
-    w = np.zeros((4, 3))
+    w = np.zeros((5, 3))  # rows W_IB, W_FIX, W_IE, W_IN and W_FN (mean f^n, models with a time offset)
     no_row = np.zeros(rec.data.shape[1])  # the row of a node constraint (unused)
     prop_dt = proc.prop_dt
     n_out = (n_imu + out.every - 1) // out.every
@@ -198,7 +206,7 @@ def run_filter(imu, rec, mod, proc, ini, out):
     for k in range(n_imu):
         dt = imu.t[k] - tp
         tp = imu.t[k]
-        T = propagate_sample(st, acc, imu.dth[k], imu.dv[k], bias, dt, dthc, dvc, dth_prev, dv_prev)
+        T = propagate_sample(st, acc, imu.dth[k], imu.dv[k], ib, dt, dthc, dvc, dth_prev, dv_prev)
         if hold:
             st[ST_POS + 2] = imu.hold[k, 0]
             st[ST_VEL + 2] = imu.hold[k, 1]
@@ -207,7 +215,9 @@ def run_filter(imu, rec, mod, proc, ini, out):
         if k == ini.reset_idx:
             reset_node = kn  # the next node is the first one after the re-initialisation
             _reinit(st, P, ini)
-        is_node = T >= prop_dt - 1e-9 or (gi < M and rec.t[gi] <= imu.t[k]) or k == n_imu - 1
+        # a record is due when its time on the IMU clock (t − d̂, the time-offset estimate) has come
+        toff = bias[itoff - NAV] if itoff >= 0 else 0.0
+        is_node = T >= prop_dt - 1e-9 or (gi < M and rec.t[gi] - toff <= imu.t[k]) or k == n_imu - 1
         if is_node and T > 0.0:
             C = dcm_from_quat(st[ST_Q:ST_Q + 4])
             wb = interval_model(Fi, Gi, st, acc, proc.tau[0], proc.tau[1], proc.tau[2], proc.tau[3])
@@ -225,7 +235,8 @@ def run_filter(imu, rec, mod, proc, ini, out):
                 S_phi[kn] = Phi
                 S_prior[kn] = P
             _node_rates(st, wb, dthc, dt, w)
-            while gi < M and rec.t[gi] <= imu.t[k]:  # records in (t_{k-1}, t_k]
+            w[W_FN] = acc[ACC_FN] / T
+            while gi < M and rec.t[gi] - toff <= imu.t[k]:  # records in (t_{k-1}, t_k]
                 if rec.use[gi]:
                     md = rec.model[gi]
                     nav = Nav(st, C, w, imu.t[k] - rec.t[gi], bias)
@@ -243,6 +254,12 @@ def run_filter(imu, rec, mod, proc, ini, out):
                         gated_update(x, P, wk, m, md, mod, rej, log, li)
                         li += 1
             feedback(st, bias, x, n)
+            ib[:] = bias[:nins - NAV]
+            if hold_h and k < ini.reset_idx:  # heading unknown until the alignment: no information
+                for j in range(n):
+                    P[PHI + 2, j] = 0.0
+                    P[j, PHI + 2] = 0.0
+                P[PHI + 2, PHI + 2] = ini.P[PHI + 2, PHI + 2]
             node_idx[kn] = k
             if out.smooth:
                 S_post[kn] = P

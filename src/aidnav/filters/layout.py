@@ -16,7 +16,8 @@ SG 15:18  gyro scale-factor residual [-]              21, 24
 SA 18:21  accel scale-factor residual [-]             21, 24
 CLK       receiver clock bias [m], drift [m/s]        17 (15:17), 11 (9:11)
 AUX       calibration states (odometer scale factor   after the INS block
-          [-], barometer bias [m], lever arm …)
+          [-], barometer bias [m], GNSS lever arm
+          [m], time offset [s], mounting ρ [rad])
 ========  =========================================  ======================
 
 The named layouts: 15 = navigation + biases; 17 = 15 + receiver clock (tight); 21 = 15 + scale
@@ -37,10 +38,11 @@ N_ST = 10
 # error-state blocks of the INS model (ins_errors)
 NAV = 9  # φ, δv, δp
 __all__ = ["PHI", "DV", "DP", "BG", "BA", "SG", "SA", "ST_POS", "ST_VEL", "ST_Q", "N_ST", "NAV",
-           "AUX_NAMES", "make_layout", "layout_names", "LAYOUTS"]
+           "AUX_NAMES", "L_TOFF", "L_MOUNT", "L_VDEL", "make_layout", "layout_names", "LAYOUTS"]
 
 # calibration (auxiliary) states the engine knows: name -> width
-AUX_NAMES = {"odometer_scale": 1, "baro_bias": 1, "clock": 2, "lever_arm": 3}
+AUX_NAMES = {"odometer_scale": 1, "baro_bias": 1, "clock": 2, "lever_arm": 3, "time_offset": 1, "mounting": 3,
+             "velocity_delay": 1}
 
 # entries of the int64 layout table (kernels read these)
 L_N = 0  # total number of error states
@@ -49,7 +51,10 @@ L_ODO = 2  # index of the odometer scale-factor residual, -1: none
 L_BARO = 3  # index of the barometer bias residual, -1: none
 L_CLK = 4  # index of the clock bias (drift at +1), -1: none
 L_LEVER = 5  # index of a 3-state lever-arm calibration, -1: none
-L_SIZE = 6
+L_TOFF = 6  # index of the IMU-GNSS time-offset residual [s] (added to the IMU stamps), -1: none
+L_MOUNT = 7  # index of the 3-state mounting residual ρ [rad] (vehicle frame), -1: none
+L_VDEL = 8  # index of the GNSS velocity delay residual [s] (velocity older than its stamp), -1: none
+L_SIZE = 9
 
 LAYOUTS = {15: dict(scale_factors=False), 17: dict(scale_factors=False, aux=("clock",)),
            21: dict(scale_factors=True), 24: dict(scale_factors=True, aux=("lever_arm",))}
@@ -61,7 +66,8 @@ def make_layout(scale_factors: bool = False, aux: tuple[str, ...] = ()) -> np.nd
     lay = np.full(L_SIZE, -1, np.int64)
     n = 21 if scale_factors else 15
     lay[L_NINS] = n
-    slot = {"odometer_scale": L_ODO, "baro_bias": L_BARO, "clock": L_CLK, "lever_arm": L_LEVER}
+    slot = {"odometer_scale": L_ODO, "baro_bias": L_BARO, "clock": L_CLK, "lever_arm": L_LEVER,
+            "time_offset": L_TOFF, "mounting": L_MOUNT, "velocity_delay": L_VDEL}
     for name in aux:
         if name not in AUX_NAMES:
             raise ValueError(f"unknown calibration state {name!r}; known: {sorted(AUX_NAMES)}")
@@ -79,7 +85,10 @@ def layout_names(lay: np.ndarray) -> list[str]:
     blocks = ["gyro_bias", "accel_bias"] + (["gyro_sf", "accel_sf"] if lay[L_NINS] == 21 else [])
     names += [f"{b}_{a}" for b in blocks for a in "xyz"]
     aux = sorted((int(lay[s]), nm) for s, nm in ((L_ODO, "odometer_scale"), (L_BARO, "baro_bias"),
-                                                  (L_CLK, "clock"), (L_LEVER, "lever_arm")) if lay[s] >= 0)
+                                                  (L_CLK, "clock"), (L_LEVER, "lever_arm"),
+                                                  (L_TOFF, "time_offset"), (L_MOUNT, "mounting"),
+                                                  (L_VDEL, "velocity_delay"))
+                 if lay[s] >= 0)
     for _, nm in aux:
         names += ([nm] if AUX_NAMES[nm] == 1 else
                   (["clock_bias", "clock_drift"] if nm == "clock" else [f"{nm}_{a}" for a in "xyz"]))

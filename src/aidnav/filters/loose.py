@@ -21,7 +21,25 @@ from aidnav.nav.earth import radii
 
 from . import measurements as ms
 from .engine import Imu, Init, Models, Output, Process, Records, feedback, rts, run_filter, smooth_outputs
-from .layout import BA, BG, DP, DV, L_BARO, L_N, L_ODO, PHI, SA, SG, layout_names, make_layout
+from .layout import (
+    BA,
+    BG,
+    DP,
+    DV,
+    L_BARO,
+    L_LEVER,
+    L_MOUNT,
+    L_N,
+    L_ODO,
+    L_TOFF,
+    L_VDEL,
+    NAV,
+    PHI,
+    SA,
+    SG,
+    layout_names,
+    make_layout,
+)
 from .preprocess import bridge_gaps, course_alignment, gnss_arrays, initial_state, static_flags
 from .result import FilterResult, LooseResult, to_trajectory
 
@@ -77,15 +95,37 @@ def initial_covariance(cfg, nstate: int, lat: float, h: float, att_sigma_rad) ->
     return np.diag(d)
 
 
-def loose_layout(cfg, odometer=None, baro=None) -> np.ndarray:
+def loose_layout(cfg, odometer=None, baro=None, gnss=True, gnss_velocity=True) -> np.ndarray:
     """Layout of the loose filter: 15 or 21 INS states, then the odometer scale factor and the barometer
-    bias when their data are given and their state is enabled."""
+    bias when their data are given and their state is enabled, then the self-calibration states of
+    ``cfg.calibration`` where they are observable: GNSS lever arm and IMU–GNSS time offset (with GNSS
+    fixes), the mounting angles (with the NHC or an odometer)."""
     aux = []
     if odometer is not None and cfg.odometer.scale_factor:
         aux.append("odometer_scale")
     if baro is not None and cfg.baro.bias:
         aux.append("baro_bias")
+    est = calibration_switches(cfg, odometer is not None, gnss_velocity)
+    for name in ("lever_arm", "time_offset", "mounting", "velocity_delay"):
+        if est[name] and (gnss or name == "mounting"):
+            aux.append(name)
     return make_layout(cfg.nstate == 21, tuple(aux))
+
+
+def calibration_switches(cfg, odometer: bool = False, gnss_velocity: bool = True) -> dict:
+    """Which calibration states the loose filter estimates (``cfg.calibration``; unset = automatic,
+    see :class:`aidnav.filters.config.Calibration`). The mounting needs the NHC or an odometer.
+    gnss_velocity : whether the fixes carry a velocity (the automatic time offset needs it)."""
+    c = cfg.calibration
+    vel = gnss_velocity and cfg.gnss.use in ("both", "velocity")
+    auto = {"time_offset": vel and "time_offset_s" not in cfg.imu.model_fields_set,
+            "lever_arm": "lever_arm_m" not in cfg.gnss.model_fields_set,
+            "mounting": True}
+    out = {k: (auto[k] if getattr(c, k) is None else bool(getattr(c, k))) for k in auto}
+    vd = out["time_offset"] if c.velocity_delay is None else bool(c.velocity_delay)
+    out["velocity_delay"] = vd and vel
+    out["mounting"] &= bool(cfg.constraints.nhc or odometer)
+    return out
 
 
 def _aux_model(cfg, lay):
@@ -101,6 +141,16 @@ def _aux_model(cfg, lay):
         b = cfg.baro
         qb = 2 * b.bias_instability_m ** 2 / b.bias_tau_s if b.bias_tau_s > 0 else b.bias_rw_m_sqrt_s ** 2
         rows.append((lay[L_BARO], b.bias_sigma_m ** 2, qb, b.bias_tau_s))
+    c = cfg.calibration
+    for j in range(3):
+        if lay[L_LEVER] >= 0:
+            rows.append((lay[L_LEVER] + j, c.lever_arm_sigma_m ** 2, 0.0, 0.0))
+        if lay[L_MOUNT] >= 0:
+            rows.append((lay[L_MOUNT] + j, (c.mounting_sigma_deg * np.pi / 180) ** 2, 0.0, 0.0))
+    if lay[L_TOFF] >= 0:
+        rows.append((lay[L_TOFF], c.time_offset_sigma_s ** 2, c.time_offset_rw_s_sqrt_s ** 2, 0.0))
+    if lay[L_VDEL] >= 0:
+        rows.append((lay[L_VDEL], c.velocity_delay_sigma_s ** 2, 0.0, 0.0))
     return np.array([r[1:] for r in sorted(rows)], float).reshape(-1, 3)
 
 
@@ -130,6 +180,7 @@ def _models(cfg) -> Models:
     par[ms.M_NHC, V.V_SIG], par[ms.M_NHC, V.V_MIN_SPEED] = c.nhc_sigma_m_s, c.nhc_min_speed_m_s
     par[ms.M_NHC, V.V_LEVER:V.V_LEVER + 3], par[ms.M_NHC, V.V_CBV:V.V_CBV + 9] = c.nhc_lever_arm_m, cbv
     par[ms.M_ODO, V.V_LEVER:V.V_LEVER + 3], par[ms.M_ODO, V.V_CBV:V.V_CBV + 9] = cfg.odometer.lever_arm_m, cbv
+    par[ms.M_NHC, V.V_LEVER_SIG] = c.nhc_lever_arm_sigma_m
     gate[ms.M_NHC, 1:] = 25.0 if gp < 1 else 0.0
     par[ms.M_ZUPT, 0], par[ms.M_ZARU, 0] = c.zupt_sigma_m_s, c.zaru_sigma_deg_s * DEG
     node = []
@@ -207,7 +258,8 @@ def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: 
 
     cfg = cfg or LooseConfig()
     events = events if events is not None else []
-    lay = loose_layout(cfg, odometer, baro)
+    has_vel = gnss.vel is not None and bool(np.any(np.isfinite(gnss.vel)))
+    lay = loose_layout(cfg, odometer, baro, gnss=len(gnss) > 0, gnss_velocity=has_vel)
     n_ins, n = cfg.nstate, int(lay[L_N])
     t_imu = imu.time + cfg.imu.time_offset_s
     g = gnss_arrays(gnss, cfg)
@@ -219,6 +271,7 @@ def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: 
         events.append(f"{int((~finite).sum())} GNSS fixes with NaN/inf position or sigma not used "
                       f"(first at t={bad_t[0]:.3f})")
         use &= finite
+    cfg = _coarse_mounting_if_unknown(cfg, imu, gnss, t_imu, g, use, odometer, events)
     i0 = initial_state(imu, gnss, cfg, t_imu, g, use, events)
     k0 = i0["k0"]
     dth_in, dv_in, gap_var = bridge_gaps(imu, events)
@@ -229,6 +282,9 @@ def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: 
     aux = _aux_model(cfg, lay)
     P0 = np.zeros((n, n))
     P0[:n_ins, :n_ins] = initial_covariance(cfg, n_ins, i0["lat0"], i0["h0"], i0["att_sig"])
+    if i0.get("vel_sig") is not None:  # in-motion start: velocity from GNSS with its σ
+        for i in range(3):
+            P0[DV + i, DV + i] = max(P0[DV + i, DV + i], float(i0["vel_sig"][i]) ** 2)
     P0[n_ins:, n_ins:] = np.diag(aux[:, 0])
     q_psd = np.concatenate([process_noise(cfg, n_ins), aux[:, 1]])
     taus = np.array([cfg.imu.gyro_bias_tau_s, cfg.imu.accel_bias_tau_s, cfg.imu.sf_tau_s, cfg.imu.sf_tau_s])
@@ -261,10 +317,18 @@ def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: 
         if np.any(mdl == md):
             cnt[f"{name}_updates"] = int(((mdl == md) & (log["status"] == 1)).sum())
             cnt[f"{name}_rejected"] = int(((mdl == md) & (log["status"] == 0)).sum())
-    res = FilterResult(time=t_imu[sl][r.out_idx], state=r.out_st, bias=r.out_bias, pdiag=r.out_pdiag,
+    # the outputs are stamped on the GNSS scale with the final time-offset estimate (CONVENTIONS: the
+    # offset is added to the IMU stamps); a forward output at t holds the INS of IMU time t − d̂
+    d_hat = float(r.bias[lay[L_TOFF] - NAV]) if lay[L_TOFF] >= 0 else 0.0
+    if d_hat:
+        sd = float(np.sqrt(r.P[lay[L_TOFF], lay[L_TOFF]]))
+        events.append(f"IMU time offset estimated {d_hat:+.4f} s (sigma {sd:.4f} s): output times shifted "
+                      "by it")
+    res = FilterResult(time=t_imu[sl][r.out_idx] + d_hat, state=r.out_st, bias=r.out_bias, pdiag=r.out_pdiag,
                        node_time=t_imu[sl][r.node_idx], records=_gnss_records(log, rmap, len(gnss)),
                        counts=cnt, final_P=r.P, innovations=log, events=events, layout=lay,
                        state_names=layout_names(lay))
+    res.calibration_base = _calibration_base(cfg)
     if cov_times is not None:
         res.cov_time, res.cov = t_imu[sl][cov_idx], r.cov
     if smooth and len(r.node_idx) > 1:
@@ -278,6 +342,35 @@ def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: 
         mem = r.S_post.nbytes + r.S_prior.nbytes + r.S_phi.nbytes + Ps.nbytes
         res.counts["smoother_memory_mb"] = mem / 1e6
     return res
+
+
+def _coarse_mounting_if_unknown(cfg, imu, gnss, t_imu, g, use, odometer, events):
+    """With the NHC or an odometer and no ``imu.mounting_rph_deg`` in the configuration, the mounting is
+    unknown and may be anything (an IMU mounted backwards): a coarse mounting from the log
+    (:func:`aidnav.filters.preprocess.coarse_mounting`, a whole-log fit: post-processing) replaces the
+    identity, and the mounting state refines it. Returns the configuration to use."""
+    from .preprocess import coarse_mounting, gnss_velocity_for_init
+
+    if not (cfg.constraints.nhc or odometer is not None) or "mounting_rph_deg" in cfg.imu.model_fields_set:
+        return cfg
+    iu = np.flatnonzero(use)
+    gs = tuple(a[iu] for a in g)
+    vel, _ = gnss_velocity_for_init(gnss.subset(use), gs)
+    cm = coarse_mounting(imu, t_imu, gnss.subset(use), vel)
+    if cm is None:
+        events.append("mounting not given and not resolvable from the log (too little motion): identity "
+                      "used for the NHC/odometer")
+        return cfg
+    rph = tuple(float(np.degrees(x)) for x in cm[1:4])
+    events.append(f"mounting not given: coarse IMU->vehicle mounting from the log's accelerations "
+                  f"(roll {rph[0]:.1f}, pitch {rph[1]:.1f}, heading {rph[2]:.1f} deg, {cm[4]} epochs)")
+    return cfg.model_copy(update={"imu": cfg.imu.model_copy(update={"mounting_rph_deg": rph})})
+
+
+def _calibration_base(cfg) -> dict:
+    """The configured values the calibration states correct (their estimates are added to these)."""
+    return {"time_offset_s": float(cfg.imu.time_offset_s), "lever_arm_m": list(cfg.gnss.lever_arm_m),
+            "mounting_rph_deg": list(cfg.imu.mounting_rph_deg), "odometer_scale": 0.0}
 
 
 def _log_dict(log, n_log) -> dict:

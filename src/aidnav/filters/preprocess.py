@@ -7,6 +7,46 @@ from __future__ import annotations
 import numpy as np
 
 
+def velocity_from_positions(gnss, window_s: float = 1.0, std_pos=None):
+    """Velocity ENU [m/s] and its 1σ per axis from central differences of the GNSS positions.
+
+    For fix k the difference is taken between the last fix at or before t_k − window_s/2 and the first at
+    or after t_k + window_s/2 (so that the baseline T ≥ window_s), v = Δp / T and σ_v = √(σ_i² + σ_j²) / T
+    per axis (σ: ``std_pos`` (m, 3), else the file's σ, else 1 m; white position noise assumed).
+    Returns (vel (m, 3), std (m, 3)); NaN where no baseline exists.
+    """
+    from aidnav.nav.earth import radii
+
+    t = np.asarray(gnss.time, float)
+    m = len(t)
+    vel = np.full((m, 3), np.nan)
+    sd = np.full((m, 3), np.nan)
+    if m < 2:
+        return vel, sd
+    sp = std_pos if std_pos is not None else (gnss.std_pos if gnss.std_pos is not None else np.ones((m, 3)))
+    i = np.clip(np.searchsorted(t, t - 0.5 * window_s, side="right") - 1, 0, m - 1)
+    j = np.clip(np.searchsorted(t, t + 0.5 * window_s, side="left"), 0, m - 1)
+    T = t[j] - t[i]
+    ok = T >= 0.5 * window_s - 1e-9  # one-sided at the ends of the log
+    rm, rn = radii(gnss.lat)
+    dlon = (gnss.lon[j] - gnss.lon[i] + np.pi) % (2 * np.pi) - np.pi
+    d = np.column_stack([dlon * (rn + gnss.height) * np.cos(gnss.lat),
+                         (gnss.lat[j] - gnss.lat[i]) * (rm + gnss.height), gnss.height[j] - gnss.height[i]])
+    Ts = np.where(ok, T, np.nan)[:, None]
+    vel[:] = d / Ts
+    sd[:] = np.sqrt(sp[i] ** 2 + sp[j] ** 2) / Ts
+    return vel, sd
+
+
+def gnss_velocity_for_init(gnss, g, window_s: float = 1.0):
+    """(velocity, σ) per fix for the initialisation and the static test: the receiver's where it has one
+    (``g``: :func:`gnss_arrays`), else from position differences (:func:`velocity_from_positions`)."""
+    g_vel, g_svel = g[4], g[6]
+    vd, sd = velocity_from_positions(gnss, window_s, g[5])
+    has = ~np.isnan(g_vel)
+    return np.where(has, g_vel, vd), np.where(has, g_svel, sd)
+
+
 def static_flags(imu, gnss, cfg, window_s: float = 1.0) -> np.ndarray:
     """Per-IMU-sample static detection: low gyro and accel spread over ``window_s`` and, where GNSS
     velocity exists, GNSS speed below ``cfg.constraints.static_gnss_speed_m_s``."""
@@ -29,8 +69,16 @@ def static_flags(imu, gnss, cfg, window_s: float = 1.0) -> np.ndarray:
         return np.sqrt(np.maximum(var, 0.0)).max(axis=1)
 
     ok = (rolling_std(w) < c.static_gyro_std_deg_s * np.pi / 180) & (rolling_std(f) < c.static_accel_std_m_s2)
-    if gnss is not None and gnss.vel is not None and len(gnss) > 0:
-        sp = np.hypot(gnss.vel[:, 0], gnss.vel[:, 1])
+    gv = gnss.vel if gnss is not None else None
+    if gnss is not None and len(gnss) > 1 and (gv is None or np.all(np.isnan(gv[:, :2]))):
+        # no receiver velocity: from position differences, and "static" only where their σ can tell
+        # the threshold apart (σ_v <= threshold / 2): noisy fixes never say static
+        vd, sd = velocity_from_positions(gnss, 1.0)
+        sig = np.hypot(sd[:, 0], sd[:, 1])
+        gv = np.where((sig <= 0.5 * c.static_gnss_speed_m_s)[:, None], vd, np.inf)
+        gv = np.where(np.isnan(gv), np.inf, gv)
+    if gnss is not None and gv is not None and len(gnss) > 0:
+        sp = np.hypot(gv[:, 0], gv[:, 1])
         j = np.clip(np.searchsorted(gnss.time, imu.time), 0, len(gnss) - 1)
         jp = np.clip(j - 1, 0, len(gnss) - 1)
         near = (np.abs(gnss.time[j] - imu.time) < 1.0) | (np.abs(gnss.time[jp] - imu.time) < 1.0)
@@ -50,7 +98,9 @@ def bridge_gaps(imu, events: list, factor: float = 5.0, window_s: float = 1.0):
     Either way the motion during the gap is unknown: the returned ``gap_var`` (N, 2) holds, for the
     sample after each gap, the variance added to each attitude axis [rad²] and each velocity axis
     [(m/s)²] by holding the rates: (σ_ω T)² and (σ_f T)² with σ the spread of the rates in the window
-    before the gap (floors 0.1 deg/s and 0.05 m/s²). Each gap and the decision go into ``events``.
+    before the gap (floors 0.1 deg/s and 0.05 m/s²), the rate's σ² also holding |ω̄|²/3 (the turn may
+    end anywhere in the gap: uniform between 0 and the held rate). Each gap and the decision go into
+    ``events``.
     Returns (dtheta, dv, gap_var); the arrays are copies only when something was changed.
     """
     dt = np.diff(np.concatenate([[imu.t0], imu.time]))
@@ -68,7 +118,10 @@ def bridge_gaps(imu, events: list, factor: float = 5.0, window_s: float = 1.0):
             w = imu.dtheta[lo:k] / dt[lo:k, None]
             f = imu.dv[lo:k] / dt[lo:k, None]
             w_mean, f_mean = w.mean(axis=0), f.mean(axis=0)
-            s_w = max(float(np.sqrt(np.mean(np.var(w, axis=0)))), np.radians(0.1))
+            # the rate may change anywhere between 0 and its value before the gap (a turn that ends):
+            # its variance |ω|²/3 (uniform) adds to the spread seen before the gap
+            s_w = max(float(np.sqrt(np.mean(np.var(w, axis=0)) + np.dot(w_mean, w_mean) / 3.0)),
+                      np.radians(0.1))
             s_f = max(float(np.sqrt(np.mean(np.var(f, axis=0)))), 0.05)
         else:
             w_mean, f_mean = imu.dtheta[k] / med, imu.dv[k] / med
@@ -107,18 +160,23 @@ def gnss_arrays(gnss, cfg):
             np.ascontiguousarray(vel), np.ascontiguousarray(spos), np.ascontiguousarray(svel))
 
 
-def course_alignment(gnss, cfg, t_start: float):
-    """First GNSS epoch after ``t_start`` with horizontal speed above the threshold.
+def course_alignment(gnss, cfg, t_start: float, vel=None, std=None):
+    """First GNSS epoch after ``t_start`` where the course is meaningful: horizontal speed above
+    ``init.course_min_speed_m_s`` and at least 5 times its σ. ``vel``/``std``: velocities and σ per fix
+    (default: the receiver's, else from position differences, :func:`velocity_from_positions`).
 
     Returns (time, course [rad], index of the fix) or None.
     """
-    if gnss.vel is None:
-        ve = np.gradient(gnss.lon, gnss.time) * 6378137.0 * np.cos(gnss.lat)
-        vn = np.gradient(gnss.lat, gnss.time) * 6378137.0
-    else:
-        ve, vn = gnss.vel[:, 0], gnss.vel[:, 1]
-    sp = np.hypot(ve, vn)
-    idx = np.flatnonzero((sp > cfg.init.course_min_speed_m_s) & (gnss.time > t_start))
+    if vel is None:
+        if gnss.vel is not None and not np.all(np.isnan(gnss.vel[:, :2])):
+            vel = gnss.vel
+            std = gnss.std_vel if gnss.std_vel is not None else np.zeros_like(vel)
+        else:
+            vel, std = velocity_from_positions(gnss)
+    std = np.zeros_like(vel) if std is None else np.nan_to_num(std, nan=np.inf)
+    ve, vn = vel[:, 0], vel[:, 1]
+    sp = np.nan_to_num(np.hypot(ve, vn))
+    idx = np.flatnonzero(_course_ok(sp, np.hypot(std[:, 0], std[:, 1]), cfg) & (gnss.time > t_start))
     if len(idx) == 0:
         return None
     i = idx[0]
@@ -126,12 +184,17 @@ def course_alignment(gnss, cfg, t_start: float):
 
 
 def initial_state(imu, gnss, cfg, t_imu, g, use, events):
-    """Initial strapdown state of the loose filter: given (``init.mode = given``) or automatic (first GNSS
-    fix, static coarse alignment, gyrocompassing or the heading from the GNSS course later).
+    """Initial strapdown state of the loose filter: given (``init.mode = given``) or automatic from any
+    state (issue 26): at the first GNSS fix, static (coarse alignment, gyrocompassing where the gyros
+    resolve the Earth rate) or moving (velocity from GNSS, from position differences with their σ when
+    the receiver gives none; roll/pitch from the specific force corrected by the GNSS acceleration;
+    heading from the course only when it is meaningful, :func:`_course_ok`, else later; heading σ π
+    until then).
 
     g : the arrays of :func:`gnss_arrays`; use : bool mask of the usable fixes. Returns a dict with t0,
     k0 (first IMU sample used), lat0, lon0, h0, v0, rph, att_sig [rad], reset_idx (sample index of the
-    course alignment, −1: none; relative to k0), reset_heading [rad], reset_nav (12,) of the course fix.
+    course alignment, −1: none; relative to k0), reset_heading [rad], reset_nav (12,) of the course fix,
+    vel_sig (3,) [m/s] of an in-motion start (None: the configured σ).
     """
     from aidnav.data import ImuData
 
@@ -153,6 +216,7 @@ def initial_state(imu, gnss, cfg, t_imu, g, use, events):
         reset_idx, reset_heading = -1, 0.0
         reset_nav = np.full(12, np.nan)
         k0 = 0
+        vsig0 = None
     else:
         # start at the first GNSS fix inside the IMU span
         first = np.flatnonzero(use & (g_t >= t_imu[0]))
@@ -165,7 +229,13 @@ def initial_state(imu, gnss, cfg, t_imu, g, use, events):
                           "are not used")
         t0 = float(g_t[i0]) if k0 == 0 else float(t_imu[k0 - 1])
         lat0, lon0, h0 = g_lat[i0], g_lon[i0], g_h[i0]
-        v0 = np.nan_to_num(g_vel[i0]) if not np.isnan(g_vel[i0, 0]) else np.zeros(3)
+        # velocity at the fixes: the receiver's, else from position differences with their σ
+        gsub = gnss.subset(use)
+        iu = np.flatnonzero(use)
+        gs = (g_t[iu], g_lat[iu], g_lon[iu], g_h[iu], g_vel[iu], g_spos[iu], g_svel[iu])
+        vel_u, svel_u = gnss_velocity_for_init(gsub, gs)
+        j0 = int(np.searchsorted(iu, i0))
+        v_first = vel_u[j0]
         # static coarse alignment (aidnav.nav.alignment): roll/pitch from the mean specific force over
         # the static window; heading by gyrocompassing where the gyro grade resolves the Earth rate
         from aidnav.nav.alignment import coarse_align_static
@@ -177,17 +247,27 @@ def initial_state(imu, gnss, cfg, t_imu, g, use, events):
                                                              height=h0, gyro_bias_std=gb)
         heading = 0.0
         att_sig = np.array(ini.attitude_sigma_deg) * DEG
-        gw = use & (g_t >= t_a) & (g_t < t_a + ini.static_window_s)
-        moving = bool(np.any(np.hypot(g_vel[gw, 0], g_vel[gw, 1]) > cfg.constraints.static_gnss_speed_m_s))
+        gw = (gsub.time >= t_a) & (gsub.time < t_a + ini.static_window_s)
+        sp_w = np.hypot(vel_u[gw, 0], vel_u[gw, 1])
+        ss_w = np.hypot(svel_u[gw, 0], svel_u[gw, 1])
+        thr = cfg.constraints.static_gnss_speed_m_s
+        # moving: a speed above the static threshold by 3σ (noisy fixes at a standstill do not count)
+        moving = bool(np.any(sp_w > thr + 3.0 * np.nan_to_num(ss_w, nan=np.inf)))
+        v0 = np.zeros(3)
+        vsig0 = None
+        heading_now = None
         if moving or abs(ainfo["f_norm"] - ainfo["gravity"]) > 0.02 * ainfo["gravity"]:
-            # not static: in-motion start, level from zero with a wide sigma (the filter converges)
-            events.append(f"in-motion start (GNSS speed above {cfg.constraints.static_gnss_speed_m_s} m/s or "
-                          f"mean specific force {ainfo['f_norm']:.3f} m/s^2 not gravity "
-                          f"{ainfo['gravity']:.3f}): roll and pitch start at 0 with sigma 10 deg")
-            roll, pitch, gc_heading = 0.0, 0.0, None
-            att_sig[0:2] = np.maximum(att_sig[0:2], 10.0 * DEG)
+            roll, pitch, gc_heading, heading_now, vsig0 = _moving_start(
+                imu, t_imu, k0, gsub, vel_u, svel_u, j0, cfg, events, ainfo)
+            att_sig[0:2] = np.maximum(att_sig[0:2], _moving_tilt_sigma(gsub, vel_u, svel_u, j0, cfg))
+            if np.all(np.isfinite(v_first)):
+                v0 = v_first.copy()
+            elif np.any(np.isfinite(v_first)):
+                v0 = np.nan_to_num(v_first)
         if ini.heading_deg is not None:
             heading = ini.heading_deg * DEG
+        elif heading_now is not None:
+            heading = heading_now[0]
         elif gc_heading is not None:
             heading = gc_heading
         if ini.roll_deg is not None:
@@ -196,27 +276,31 @@ def initial_state(imu, gnss, cfg, t_imu, g, use, events):
             pitch = ini.pitch_deg * DEG
         rph = np.array([roll, pitch, heading])
         f = ainfo["mean_f"] / 9.80665
-        events.append(f"coarse alignment over {ini.static_window_s:g} s: roll {np.degrees(roll):.2f} deg, "
-                      f"pitch {np.degrees(pitch):.2f} deg (mean specific force {np.round(f, 4)} g)")
+        if not moving:
+            events.append(f"coarse alignment over {ini.static_window_s:g} s: roll {np.degrees(roll):.2f} "
+                          f"deg, pitch {np.degrees(pitch):.2f} deg (mean specific force {np.round(f, 4)} g)")
         if ini.heading_deg is None and gc_heading is not None:
             events.append(f"heading by gyrocompassing: {np.degrees(gc_heading):.2f} deg "
                           f"(sigma {np.degrees(ainfo['heading_std']):.2f} deg)")
             att_sig[2] = max(att_sig[2], ainfo["heading_std"])
+        elif ini.heading_deg is None and heading_now is not None:
+            att_sig[2] = heading_now[1]
         elif ini.heading_deg is None:
             events.append(f"no gyrocompass heading ({ainfo['heading_reason']}): heading from GNSS course")
         reset_idx, reset_heading = -1, 0.0
         reset_nav = np.full(12, np.nan)
-        if ini.heading_deg is None and gc_heading is None:
-            ca = course_alignment(gnss.subset(use), cfg, t0)
+        if ini.heading_deg is None and gc_heading is None and heading_now is None:
+            ca = course_alignment(gsub, cfg, t0, vel=vel_u, std=svel_u)
             if ca is None:
-                events.append("heading never aligned: no GNSS speed above init.course_min_speed_m_s")
+                events.append("heading never aligned: no GNSS course above init.course_min_speed_m_s with "
+                              "a speed well above its sigma")
+                reset_idx = len(t_imu) + 1  # never: the heading stays unknown (engine: no information)
             else:
-                tca, course, ica = ca
-                ica = np.flatnonzero(use)[ica]
-                # a component the receiver did not measure (NaN) resets to 0 with σ 1 m/s
-                meas = ~np.isnan(g_vel[ica])
-                vel_g = np.where(meas, np.nan_to_num(g_vel[ica]), 0.0)
-                svel = np.where(meas, g_svel[ica], 1.0)
+                tca, course, ica_u = ca[:3]
+                ica = iu[ica_u]
+                meas = ~np.isnan(vel_u[ica_u])
+                vel_g = np.where(meas, np.nan_to_num(vel_u[ica_u]), 0.0)
+                svel = np.where(meas, svel_u[ica_u], 1.0)
                 reset_nav = np.array([*vel_g, g_lat[ica], g_lon[ica], g_h[ica], *svel, *g_spos[ica]])
                 mount_h = cfg.imu.mounting_rph_deg[2] * DEG
                 # vehicle heading = course; IMU heading = vehicle heading + mounting heading
@@ -224,5 +308,133 @@ def initial_state(imu, gnss, cfg, t_imu, g, use, events):
                 reset_idx = int(np.searchsorted(t_imu[k0:], tca, side="left"))
                 events.append(f"heading from GNSS course at t={tca:.3f}: {np.degrees(reset_heading):.2f} deg")
             att_sig[2] = np.pi  # unknown until the course alignment
+        if vsig0 is not None:
+            events.append(f"in-motion start: velocity from GNSS {np.round(v0, 2)} m/s (sigma "
+                          f"{np.round(vsig0, 3)} m/s)")
     return dict(t0=t0, k0=k0, lat0=lat0, lon0=lon0, h0=h0, v0=v0, rph=rph, att_sig=att_sig,
-                reset_idx=reset_idx, reset_heading=reset_heading, reset_nav=reset_nav)
+                reset_idx=reset_idx, reset_heading=reset_heading, reset_nav=reset_nav, vel_sig=vsig0)
+
+
+def _course_ok(speed, sig_h, cfg):
+    """A GNSS course is meaningful above ``init.course_min_speed_m_s`` and where the speed is at least
+    5 times its σ (course σ below about 11°; a parked vehicle's noisy fixes never qualify)."""
+    return (speed > cfg.init.course_min_speed_m_s) & (speed > 5.0 * sig_h)
+
+
+def _moving_start(imu, t_imu, k0, gsub, vel, svel, j0, cfg, events, ainfo):
+    """In-motion start at fix j0: heading from the course now when it is meaningful (:func:`_course_ok`),
+    roll and pitch from the mean specific force over 1 s corrected by the GNSS-derived acceleration
+    (rotated into the IMU's level frame with that heading; without it only the magnitude is known and
+    enters the tilt σ). Returns (roll, pitch, None, (heading, σ) or None, σ_v (3,))."""
+    from .config import DEG
+
+    sp = float(np.hypot(vel[j0, 0], vel[j0, 1]))
+    sg = float(np.hypot(svel[j0, 0], svel[j0, 1])) if np.all(np.isfinite(svel[j0, :2])) else np.inf
+    heading_now = None
+    if np.isfinite(sp) and _course_ok(sp, sg, cfg):
+        course = float(np.arctan2(vel[j0, 0], vel[j0, 1]) % (2 * np.pi))
+        h = (course + cfg.imu.mounting_rph_deg[2] * DEG) % (2 * np.pi)
+        hs = float(np.hypot(cfg.init.course_heading_sigma_deg * DEG, np.arctan2(sg, sp)))
+        heading_now = (h, hs)
+    a_n = _gnss_acceleration(gsub, vel, j0)
+    t_a = t_imu[k0]
+    m = (t_imu >= t_a) & (t_imu < t_a + 1.0)
+    dt = np.diff(np.concatenate([[imu.t0 + cfg.imu.time_offset_s], t_imu]))[m]
+    f_b = imu.dv[m].sum(axis=0) / max(dt.sum(), 1e-9) if m.any() else ainfo["mean_f"]
+    g_b = np.array(f_b, float)
+    if heading_now is not None and np.all(np.isfinite(a_n)):
+        h = heading_now[0]
+        right, fwd = np.array([np.cos(h), -np.sin(h), 0.0]), np.array([np.sin(h), np.cos(h), 0.0])
+        g_b = g_b - np.array([a_n @ right, a_n @ fwd, a_n[2]])
+    roll = float(np.arctan2(-g_b[0], g_b[2]))
+    pitch = float(np.arctan2(g_b[1], np.hypot(g_b[0], g_b[2])))
+    events.append(f"in-motion start (GNSS speed {sp:.2f} m/s): roll {np.degrees(roll):.2f}, pitch "
+                  f"{np.degrees(pitch):.2f} deg from the specific force"
+                  + (" corrected by the GNSS acceleration" if heading_now is not None else "")
+                  + (f"; heading {np.degrees(heading_now[0]):.2f} deg from the course (sigma "
+                     f"{np.degrees(heading_now[1]):.2f} deg)" if heading_now is not None else
+                     "; heading unknown until the course is meaningful"))
+    return roll, pitch, None, heading_now, np.nan_to_num(svel[j0], nan=1.0)
+
+
+def _gnss_acceleration(gsub, vel, j0, window_s: float = 1.0):
+    """Acceleration ENU [m/s²] at fix j0 from the velocities about ``window_s`` apart (NaN: unknown)."""
+    t = gsub.time
+    j1 = int(np.searchsorted(t, t[j0] + window_s))
+    if j1 >= len(t) or t[j1] <= t[j0]:
+        return np.full(3, np.nan)
+    return (vel[j1] - vel[j0]) / (t[j1] - t[j0])
+
+
+def _moving_tilt_sigma(gsub, vel, svel, j0, cfg):
+    """Roll/pitch σ of an in-motion start [rad]: the error of the acceleration correction (velocity σ
+    over the 1 s baseline) and the accelerometer bias, over g; with no heading the whole horizontal
+    acceleration (its direction in the body is unknown); at least 2°."""
+    from .config import DEG, UG
+
+    g = 9.80665
+    a = _gnss_acceleration(gsub, vel, j0)
+    sa = float(np.nan_to_num(np.hypot(svel[j0, 0], svel[j0, 1]), nan=1.0)) * np.sqrt(2.0)
+    sig = np.hypot(sa, cfg.imu.accel_bias_sigma_ug * UG) / g
+    sp = float(np.hypot(vel[j0, 0], vel[j0, 1]))
+    sg = float(np.hypot(svel[j0, 0], svel[j0, 1]))
+    if not (np.isfinite(sp) and _course_ok(sp, sg, cfg)):
+        sig = np.hypot(sig, float(np.hypot(a[0], a[1])) / g if np.all(np.isfinite(a)) else 10.0 * DEG)
+    return max(float(np.arctan(sig)), 2.0 * DEG)
+
+
+def coarse_mounting(imu, t_imu, gnss, vel, min_speed_m_s: float = 3.0, window_s: float = 1.0):
+    """Coarse IMU → vehicle mounting of a car from the log itself (no configuration): the vehicle frame's
+    horizontal acceleration [lateral, longitudinal] = [s·χ̇, ṡ] from the GNSS speed s and course χ, the
+    body's from the specific force with the mean specific force over the log as "up" (a car is level on
+    average); the mounting heading is the rotation about up that best maps one onto the other
+    (θ = arg Σ z_v z̄_b, z = right + i·forward). Returns (C_b^v (3, 3), roll, pitch, heading [rad] of
+    C_b^v = C(r, p, h) as the NHC uses it, the number of epochs used) or None with fewer than 20 epochs
+    above ``min_speed_m_s`` or a fit that does not explain the acceleration (|Σ z_v z̄_b| < 0.5 Σ|z_v||z_b|).
+    """
+    from aidnav.nav.rotations import euler_from_dcm
+
+    t = np.asarray(gnss.time, float)
+    s = np.hypot(vel[:, 0], vel[:, 1])
+    chi = np.unwrap(np.arctan2(vel[:, 0], np.where(np.isfinite(vel[:, 1]), vel[:, 1], 0.0)))
+    ok = np.isfinite(s) & (s > min_speed_m_s)
+    if ok.sum() < 20:
+        return None
+    dt_i = np.diff(np.concatenate([[imu.t0], imu.time]))
+    csum_v = np.vstack([np.zeros((1, 3)), np.cumsum(imu.dv, axis=0)])
+    csum_t = np.concatenate([[0.0], np.cumsum(dt_i)])
+    up = imu.dv.sum(axis=0)
+    up = up / np.linalg.norm(up)
+    e1 = np.cross(np.array([0.0, 1.0, 0.0]), up)
+    if np.linalg.norm(e1) < 0.5:
+        e1 = np.cross(up, np.array([0.0, 0.0, 1.0]))
+        e1 = np.cross(e1, up)
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(up, e1)
+    zs_v, zs_b = [], []
+    for k in np.flatnonzero(ok):
+        i = np.searchsorted(t, t[k] - 0.5 * window_s)
+        j = np.searchsorted(t, t[k] + 0.5 * window_s) - 1
+        if i < 0 or j >= len(t) or j <= i or not (ok[i] and ok[j]):
+            continue
+        T = t[j] - t[i]
+        a_long = (s[j] - s[i]) / T
+        a_lat = s[k] * (chi[j] - chi[i]) / T
+        a = int(np.searchsorted(t_imu, t[i]))
+        b = int(np.searchsorted(t_imu, t[j]))
+        if b - a < 5:
+            continue
+        f = (csum_v[b] - csum_v[a]) / (csum_t[b] - csum_t[a])
+        zs_v.append(a_lat + 1j * a_long)
+        zs_b.append(f @ e1 + 1j * (f @ e2))
+    if len(zs_v) < 20:
+        return None
+    zv, zb = np.array(zs_v), np.array(zs_b)
+    c = np.sum(zv * np.conj(zb))
+    if abs(c) < 0.5 * np.sum(np.abs(zv) * np.abs(zb)):
+        return None
+    th = float(np.angle(c))
+    Rz = np.array([[np.cos(th), -np.sin(th), 0.0], [np.sin(th), np.cos(th), 0.0], [0.0, 0.0, 1.0]])
+    cbv = Rz @ np.vstack([e1, e2, up])
+    r, p, h = euler_from_dcm(np.ascontiguousarray(cbv))
+    return cbv, float(r), float(p), float(h % (2 * np.pi)), len(zv)

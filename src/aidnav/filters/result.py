@@ -8,7 +8,7 @@ import numpy as np
 
 from aidnav.nav.earth import radii
 
-from .layout import L_BARO, L_NINS, L_ODO, NAV
+from .layout import L_BARO, L_LEVER, L_MOUNT, L_NINS, L_ODO, L_TOFF, L_VDEL, NAV
 
 
 @dataclass
@@ -41,6 +41,12 @@ class FilterResult:
     events: list = field(default_factory=list)
     layout: np.ndarray | None = None
     state_names: list = field(default_factory=list)
+    calibration_base: dict = field(default_factory=dict)  # configured values the calibration corrects
+
+    @property
+    def calibration(self) -> dict:
+        """:func:`calibration_summary` of this result."""
+        return calibration_summary(self)
 
     def to_trajectory(self):
         """:class:`aidnav.data.Trajectory` with σ, bias and calibration columns."""
@@ -67,6 +73,84 @@ class FilterResult:
 
 
 LooseResult = FilterResult
+
+
+def calibration_summary(result, base: dict | None = None) -> dict:
+    """The self-calibration of a loose-filter result as ``{name: {"value", "std", "estimated"}}``
+    (docs/conventions.md "Command outputs"), at the last output epoch:
+
+    * ``time_offset_s`` [s], added to the IMU stamps (configured value + estimate);
+    * ``lever_arm_m`` IMU → GNSS antenna, body RFU [m] (3 values / 3 σ);
+    * ``mounting_rph_deg`` IMU body → vehicle as roll, pitch, heading [deg] (C_b^v = C(r, p, h), as the
+      NHC uses it); their
+      σ from the rotation-vector σ's through the Jacobian of the angles (cross-covariances neglected);
+    * ``odometer_scale`` [-] (s = (1 + k) v);
+    * ``gnss_velocity_delay_s`` [s] (only when estimated): the GNSS velocity describes its stamp − τ.
+
+    A quantity whose state is not in the layout is reported with its configured value, ``std`` None
+    and ``estimated`` False. ``base``: the configured values (default ``result.calibration_base``; the
+    caller adds an offset it applied to the stamps itself, e.g. ``aidnav process``'s
+    ``imu.time_offset_s``, by passing ``{"time_offset_s": ...}``).
+    """
+    from aidnav.nav.rotations import dcm_from_euler, dcm_from_rotvec, euler_from_dcm
+
+    b = dict(getattr(result, "calibration_base", None) or {})
+    b.update(base or {})
+    lay = getattr(result, "layout", None)
+    bias = np.asarray(result.bias, float)
+    pdiag = np.asarray(result.pdiag, float)
+
+    def est(slot, width):
+        if lay is None or lay[slot] < 0 or len(bias) == 0:
+            return None, None
+        i = int(lay[slot])
+        return bias[-1, i - NAV:i - NAV + width], np.sqrt(np.maximum(pdiag[-1, i:i + width], 0.0))
+
+    out = {}
+    t0 = float(b.get("time_offset_s", 0.0))
+    v, s = est(L_TOFF, 1)
+    out["time_offset_s"] = {"value": t0, "std": None, "estimated": False}
+    if v is not None:
+        out["time_offset_s"] = {"value": t0 + float(v[0]), "std": float(s[0]), "estimated": True}
+    l0 = np.asarray(b.get("lever_arm_m", (0.0, 0.0, 0.0)), float)
+    v, s = est(L_LEVER, 3)
+    out["lever_arm_m"] = {"value": [float(x) for x in l0], "std": None, "estimated": False}
+    if v is not None:
+        out["lever_arm_m"] = {"value": [float(x) for x in l0 + v], "std": [float(x) for x in s],
+                              "estimated": True}
+    m0 = np.asarray(b.get("mounting_rph_deg", (0.0, 0.0, 0.0)), float)
+    v, s = est(L_MOUNT, 3)
+    if v is None:
+        out["mounting_rph_deg"] = {"value": [float(x) for x in m0], "std": None, "estimated": False}
+    else:
+        r = np.radians(m0)
+        cbv = dcm_from_euler(r[0], r[1], r[2])  # the C_b^v the NHC and odometer use (loose._models)
+
+        def rph_of(rho):
+            c_hat = dcm_from_rotvec(-np.asarray(rho, float)) @ cbv
+            return np.asarray(euler_from_dcm(np.ascontiguousarray(c_hat)), float)
+
+        rph = rph_of(v)
+        # σ of roll, pitch, heading: J diag(σ_ρ²) Jᵀ with J = ∂(r, p, h)/∂ρ by central differences
+        J = np.empty((3, 3))
+        for j in range(3):
+            e = np.zeros(3)
+            e[j] = 1e-6
+            J[:, j] = ((rph_of(v + e) - rph_of(v - e) + np.pi) % (2 * np.pi) - np.pi) / 2e-6
+        sd = np.sqrt(np.diag(J @ np.diag(np.asarray(s, float) ** 2) @ J.T))
+        rph = np.degrees(rph)
+        rph[2] %= 360.0
+        out["mounting_rph_deg"] = {"value": [float(x) for x in rph],
+                                   "std": [float(x) for x in np.degrees(sd)], "estimated": True}
+    v, s = est(L_VDEL, 1)
+    if v is not None:  # only where estimated (not one of the convention's names)
+        out["gnss_velocity_delay_s"] = {"value": float(v[0]), "std": float(s[0]), "estimated": True}
+    v, s = est(L_ODO, 1)
+    k0 = float(b.get("odometer_scale", 0.0))
+    out["odometer_scale"] = {"value": k0, "std": None, "estimated": False}
+    if v is not None:
+        out["odometer_scale"] = {"value": k0 + float(v[0]), "std": float(s[0]), "estimated": True}
+    return out
 
 
 def to_trajectory(res: FilterResult):

@@ -25,6 +25,8 @@ def loose_config_from_specs(imu_spec, gnss_spec=None, *, init_rph_deg=None, init
     initial covariance (position ENU [m], velocity [m/s], roll/pitch/heading [deg]). ``floor_bias``
     keeps a tiny positive bias σ so that P stays positive definite for an error-free IMU.
     ``overrides``: section dicts merged into the configuration (e.g. ``constraints={"zupt": False}``).
+    The self-calibration states are off (the simulated lever arm, zero time offset and mounting are
+    given exactly); switch them on with ``calibration={...}``.
     """
     gb = float(np.max(imu_spec.gyro_bias))
     ab = float(np.max(imu_spec.accel_bias))
@@ -61,7 +63,8 @@ def loose_config_from_specs(imu_spec, gnss_spec=None, *, init_rph_deg=None, init
                     velocity_m_s=tuple(float(v) for v in init_vel), roll_deg=init_rph_deg[0],
                     pitch_deg=init_rph_deg[1], heading_deg=init_rph_deg[2])
     cfg = dict(imu=imu, gnss=gnss, init=init, constraints=dict(zupt=False, nhc=False),
-               filter=dict(states=states, prop_dt_s=prop_dt_s))
+               filter=dict(states=states, prop_dt_s=prop_dt_s),
+               calibration=dict(time_offset=False, lever_arm=False, mounting=False, velocity_delay=False))
     for k, v in overrides.items():
         cfg.setdefault(k, {}).update(v)
     return LooseConfig.model_validate(cfg)

@@ -9,10 +9,12 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from aidnav.nav.earth import radii
+from aidnav.nav.earth import gravity, gravity_dh, radii
 
-from ..layout import BG, DP, DV, PHI
-from .common import W_FIX, W_IN, cross, diag_r, skew, skew_into
+from ..layout import BG, DP, DV, L_LEVER, L_TOFF, L_VDEL, NAV, PHI
+from .common import W_FIX, W_IE, W_IN, cross, diag_r, skew, skew_into
+
+W_FN = 4  # row of ``Nav.w`` holding the interval's mean specific force f^n [m/s²] (engine)
 
 
 @njit(cache=True)
@@ -64,10 +66,59 @@ def gnss_velocity(st, Cbn, lever, w_ib_b, w_in_n, vel_g, H, z):
 
 
 @njit(cache=True)
+def lever_and_offset(nav, par, lay):
+    """The lever arm IMU → antenna in use (par[0:3] plus the lever-arm estimate, body RFU [m]) and the
+    time-offset estimate d̂ [s] (0 without the state)."""
+    lever = par[0:3].copy()
+    if lay[L_LEVER] >= 0:
+        for i in range(3):
+            lever[i] += nav.bias[lay[L_LEVER] - NAV + i]
+    d = nav.bias[lay[L_TOFF] - NAV] if lay[L_TOFF] >= 0 else 0.0
+    return lever, d
+
+
+@njit(cache=True)
+def nav_acceleration(nav):
+    """a^n = f^n + g^n − (2 ω_ie^n + ω_en^n) × v^n [m/s²] from the interval's mean specific force."""
+    st = nav.st
+    w2 = 2.0 * nav.w[W_IE] + (nav.w[W_IN] - nav.w[W_IE])
+    a = nav.w[W_FN] - cross(w2, st[3:6])
+    a[2] -= gravity(st[0], st[2])
+    return a
+
+
+@njit(cache=True)
 def gnss_position_model(nav, row, par, lay, H, z, R):
     """Uniform form of :func:`gnss_position`. row = [lat, lon [rad], h [m], σE, σN, σU [m]] of the
-    fix at the node time − ``nav.dt_back``; par[0:3] = lever arm IMU → antenna, body RFU [m]."""
-    gnss_position(nav.st, nav.C, par[0:3], row[0], row[1], row[2], nav.dt_back, H, z)
+    fix at the node time − ``nav.dt_back``; par[0:3] = lever arm IMU → antenna, body RFU [m].
+
+    Calibration states (when in ``lay``): lever arm residual r_l (true − estimated, body): H = −C_b^n;
+    IMU–GNSS time offset residual r_d [s] (the offset is *added* to the IMU stamps): the INS is read
+    at the node time − dt_back − d̂ (the fix's time on the IMU clock as estimated), so that
+    z ≈ … + v_ant^n r_d: H = v_ant^n = v + C(ω_ib^b × l) − ω_in^n × (C l)."""
+    lever, d = lever_and_offset(nav, par, lay)
+    gnss_position(nav.st, nav.C, lever, row[0], row[1], row[2], nav.dt_back + d, H, z)
+    if lay[L_LEVER] >= 0:
+        il = lay[L_LEVER]
+        for i in range(3):
+            for j in range(3):
+                H[i, il + j] = -nav.C[i, j]
+    if lay[L_TOFF] >= 0:  # the antenna (not the IMU) moved back: its lever-arm rate too
+        tb = nav.dt_back + d
+        Hv = np.zeros((3, H.shape[1]))
+        zv = np.zeros(3)
+        gnss_velocity(nav.st, nav.C, lever, nav.w[W_FIX], nav.w[W_IN], nav.st[3:6], Hv, zv)
+        if lay[L_LEVER] >= 0:
+            J = nav.C @ skew(nav.w[W_FIX]) - skew(nav.w[W_IN]) @ nav.C
+            for i in range(3):
+                for j in range(3):
+                    Hv[i, lay[L_LEVER] + j] = -J[i, j]
+        for i in range(3):  # zv = the lever-arm rate; Hv its columns (φ, gyro bias, lever)
+            z[i] -= zv[i] * tb
+            Hv[i, DV + i] = 0.0
+            for j in range(H.shape[1]):
+                H[i, j] -= tb * Hv[i, j]
+            H[i, lay[L_TOFF]] = nav.st[3 + i] + zv[i]
     diag_r(R, 3, row[3:6])
     return 3
 
@@ -76,8 +127,31 @@ def gnss_position_model(nav, row, par, lay, H, z, R):
 def gnss_velocity_model(nav, row, par, lay, H, z, R):
     """Uniform form of :func:`gnss_velocity`. row = [vE, vN, vU [m/s], σE, σN, σU [m/s]]; a NaN
     component was not measured: only the measured rows enter (returns their number, 0 if none).
-    par[0:3] = lever arm [m]. The lever-arm rate uses ω_ib^b of the last sample (``W_FIX``)."""
-    gnss_velocity(nav.st, nav.C, par[0:3], nav.w[W_FIX], nav.w[W_IN], row[0:3], H, z)
+    par[0:3] = lever arm [m]. The lever-arm rate uses ω_ib^b of the last sample (``W_FIX``).
+
+    Calibration states: lever arm residual: H = −(C[ω×] − [ω_in×] C); time offset residual: the INS
+    velocity is moved back by (dt_back + d̂) along a^n (:func:`nav_acceleration`), H = a^n; velocity
+    delay τ (the receiver's velocity describes the time stamp − τ, e.g. a Doppler average): moved back
+    by τ̂ more, H = a^n too (τ and d are told apart by the positions, which only d moves)."""
+    lever, d = lever_and_offset(nav, par, lay)
+    gnss_velocity(nav.st, nav.C, lever, nav.w[W_FIX], nav.w[W_IN], row[0:3], H, z)
+    if lay[L_LEVER] >= 0:
+        il = lay[L_LEVER]
+        J = nav.C @ skew(nav.w[W_FIX]) - skew(nav.w[W_IN]) @ nav.C
+        for i in range(3):
+            for j in range(3):
+                H[i, il + j] = -J[i, j]
+    if lay[L_TOFF] >= 0 or lay[L_VDEL] >= 0:
+        a = nav_acceleration(nav)
+        tau = nav.bias[lay[L_VDEL] - NAV] if lay[L_VDEL] >= 0 else 0.0
+        tb = nav.dt_back + d + tau
+        for i in range(3):
+            z[i] -= a[i] * tb
+            if lay[L_TOFF] >= 0:
+                H[i, lay[L_TOFF]] = a[i]
+            if lay[L_VDEL] >= 0:
+                H[i, lay[L_VDEL]] = a[i]
+        H[2, DP + 2] += tb * gravity_dh(nav.st[0], nav.st[2])
     r = 0
     for i in range(3):
         if not np.isnan(row[i]):

@@ -1,0 +1,73 @@
+"""Vehicle presets of the loose filter (``aidnav process --vehicle NAME``): constraints and default
+noise for a kind of vehicle, applied over a configuration by :func:`apply_preset`.
+
+No preset means the conservative defaults of :class:`aidnav.filters.config.LooseConfig` (no vehicle
+constraint, consumer-MEMS noise). Every number below is physics of the vehicle kind, not a fit:
+
+* ``car``: the non-holonomic constraint (a wheeled vehicle does not slide sideways or jump: lateral
+  and vertical velocity σ 0.05 m/s at the axle, above 1 m/s); the IMU → rear-axle lever arm is not
+  known, so its ω × l enters the NHC variance with σ 1 m per axis (an IMU anywhere in a car body is
+  within about a metre of the rear axle centre, in height and along the car); the mounting angles
+  are estimated (3° σ); ZUPT at standstill; heading from the course above 2 m/s (a car's course equals
+  its heading without slip).
+* ``aircraft``: no NHC (aircraft sideslip and climb); ZUPT kept (a parked aircraft is still, and the
+  static test needs both IMU and GNSS); heading from the course above 15 m/s (taxi and
+  crosswind make it meaningless below), course σ 10° (crab angle).
+* ``pedestrian``: no NHC (people side-step), ZUPT on (standing still), heading from the course above
+  1 m/s with σ 30° (a walker's body need not face the walking direction; a phone even less).
+* ``ship``: no NHC (leeway and currents), no ZUPT (a ship at anchor still heaves), heading from the
+  course above 2 m/s with σ 15° (drift angle).
+"""
+
+from __future__ import annotations
+
+from .config import LooseConfig
+
+PRESETS: dict[str, dict] = {
+    "car": {
+        "constraints": {"nhc": True, "nhc_sigma_m_s": 0.05, "nhc_min_speed_m_s": 1.0,
+                        "nhc_lever_arm_sigma_m": 1.0, "zupt": True},
+        "calibration": {"mounting": True, "mounting_sigma_deg": 3.0},
+        "init": {"course_min_speed_m_s": 2.0, "course_heading_sigma_deg": 5.0},
+    },
+    "aircraft": {
+        "constraints": {"nhc": False, "zupt": True},
+        "init": {"course_min_speed_m_s": 15.0, "course_heading_sigma_deg": 10.0},
+    },
+    "pedestrian": {
+        "constraints": {"nhc": False, "zupt": True},
+        "init": {"course_min_speed_m_s": 1.0, "course_heading_sigma_deg": 30.0},
+    },
+    "ship": {
+        "constraints": {"nhc": False, "zupt": False},
+        "init": {"course_min_speed_m_s": 2.0, "course_heading_sigma_deg": 15.0},
+    },
+}
+
+__all__ = ["PRESETS", "apply_preset", "preset_names"]
+
+
+def preset_names() -> list[str]:
+    """Names accepted by :func:`apply_preset`."""
+    return sorted(PRESETS)
+
+
+def apply_preset(cfg: LooseConfig | None, name: str | None) -> LooseConfig:
+    """``cfg`` (default: :class:`LooseConfig`) with the preset ``name`` applied under it: a key the
+    configuration states explicitly (in its YAML) wins over the preset; ``None`` returns ``cfg``
+    unchanged. Unknown names raise ValueError naming the known ones."""
+    cfg = cfg if cfg is not None else LooseConfig()
+    if name is None:
+        return cfg
+    if name not in PRESETS:
+        raise ValueError(f"--vehicle {name!r}: unknown vehicle; known: {', '.join(preset_names())}")
+    data = cfg.model_dump(exclude_unset=True)
+    merged: dict = {}
+    for section, vals in PRESETS[name].items():
+        merged[section] = dict(vals)
+    for section, vals in data.items():
+        if isinstance(vals, dict):
+            merged.setdefault(section, {}).update(vals)
+        else:
+            merged[section] = vals
+    return LooseConfig.model_validate(merged)

@@ -1,0 +1,147 @@
+"""Drive acceptance of the self-calibrating loose filter (issue 26) on rtklibexplorer_drive_0708.
+
+The example configuration holds only the data README's facts (author's mounting, antenna lever arm,
+noise from the README / the static start, height datum): no time offset, no fitted mounting
+correction, no NHC lever arm. Targets (issue 26): forward end-of-outage median <= 2.0 m and RMS over
+the withheld epochs <= 1.5 m with the README's benchmark outages (40:15:45); aided-epoch horizontal
+RMS <= 0.15 m; time offset within -0.17 ... -0.09 s with its sigma. Shifting every GNSS stamp by a
+known amount, or mis-stating the mounting heading by a few degrees, must change the estimate by that
+amount and the accuracy by almost nothing.
+"""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from aidnav.filters.result import calibration_summary
+from aidnav.nav.earth import lla_difference_enu
+from aidnav.process import load_config, process, read_gnss_any, read_imu_any
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+
+
+@pytest.fixture(scope="module")
+def drive(data_dir):
+    d = data_dir / "rtklibexplorer_drive_0708"
+    if not d.is_dir():
+        pytest.skip("rtklibexplorer_drive_0708 not found")
+    cfg = load_config(EXAMPLES / "rtklibexplorer_drive_0708.yaml")
+    imu = read_imu_any(d / "imu_1934.csv")
+    gnss = read_gnss_any(d / "gnss_1934_sf.pos", cfg.gnss.height_offset_m)
+    cfg = cfg.model_copy(update={"gnss": cfg.gnss.model_copy(update={"height_offset_m": 0.0})})
+    return cfg, imu, gnss
+
+
+def _run(cfg, imu, gnss):
+    run = process(imu, gnss, cfg, outages=["40:15:45"])
+    tr = run.trajectory
+    ok = ~run.withheld & (gnss.quality == 1) & (gnss.time > tr.time[0]) & (gnss.time < tr.time[-1])
+    lat = np.interp(gnss.time[ok], tr.time, tr.lat)
+    lon = np.interp(gnss.time[ok], tr.time, tr.lon)
+    e, n, _ = lla_difference_enu(lat, lon, 0.0, gnss.lat[ok], gnss.lon[ok], 0.0)
+    return run, float(np.sqrt(np.mean(e * e + n * n))), calibration_summary(run.result)
+
+
+@pytest.fixture(scope="module")
+def nominal(drive):
+    return _run(*drive)
+
+
+def test_example_holds_only_readme_facts(drive):
+    cfg = drive[0]
+    assert cfg.imu.time_offset_s == 0.0
+    assert cfg.constraints.nhc_lever_arm_m == (0.0, 0.0, 0.0)
+    assert cfg.imu.mounting_rph_deg == (-6.76, 0.63, 95.31)  # the author's [180, -6.79, 185.35] deg
+    assert cfg.gnss.lever_arm_m == (0.0, 0.05, 0.0)
+
+
+def test_outage_targets(nominal):
+    run, _, _ = nominal
+    s = run.summary["outage_score"]
+    assert s["n_scored"] == 652
+    assert s["end_error_median_m"] <= 2.0
+    assert s["rms_m"] <= 1.5
+    assert run.summary["gnss_position_rejected"] == 0
+
+
+def test_calibration_reported_with_sigma(nominal):
+    _, _, cal = nominal
+    for name in ("time_offset_s", "lever_arm_m", "mounting_rph_deg", "odometer_scale"):
+        assert set(cal[name]) == {"value", "std", "estimated"}
+    t = cal["time_offset_s"]
+    assert t["estimated"] and 0.0 < t["std"] < 0.01
+    assert cal["mounting_rph_deg"]["estimated"] and not cal["lever_arm_m"]["estimated"]  # the README's
+
+
+def test_aided_epoch_rms(nominal):
+    assert nominal[1] <= 0.15
+
+
+@pytest.mark.xfail(strict=True, reason="issue 26 target not reached: with the GNSS velocity delay "
+                   "state (0.129 s) the position-referenced offset is -0.260 s")
+def test_time_offset_in_the_independent_range(nominal):
+    assert -0.17 <= nominal[2]["time_offset_s"]["value"] <= -0.09
+
+
+@pytest.mark.parametrize("shift", [0.1, -0.1])
+def test_gnss_stamp_shift_moves_the_offset_by_that_amount(drive, nominal, shift):
+    """GNSS stamps later by s: the IMU stamps need s more (offset + s); the accuracy stays."""
+    cfg, imu, gnss = drive
+    g = gnss.subset(np.ones(len(gnss), bool))
+    g.time = gnss.time + shift
+    run, aided, cal = _run(cfg, imu, g)
+    d0 = nominal[2]["time_offset_s"]["value"]
+    assert cal["time_offset_s"]["value"] - d0 == pytest.approx(shift, abs=0.1 * abs(shift))
+    assert abs(cal["gnss_velocity_delay_s"]["value"] - nominal[2]["gnss_velocity_delay_s"]["value"]) < 0.01
+    s0, s = nominal[0].summary["outage_score"], run.summary["outage_score"]
+    assert abs(s["rms_m"] - s0["rms_m"]) < 0.15
+    assert abs(aided - nominal[1]) < 0.05
+
+
+def test_misstated_mounting_heading_is_estimated(drive, nominal):
+    """Mounting heading stated 3 deg off: the estimate moves back by about 3 deg, accuracy stays."""
+    cfg, imu, gnss = drive
+    m = list(cfg.imu.mounting_rph_deg)
+    m[2] += 3.0
+    cfg2 = cfg.model_copy(update={"imu": cfg.imu.model_copy(update={"mounting_rph_deg": tuple(m)})})
+    run, aided, cal = _run(cfg2, imu, gnss)
+    h0 = nominal[2]["mounting_rph_deg"]["value"][2]
+    h = cal["mounting_rph_deg"]["value"][2]
+    sd = cal["mounting_rph_deg"]["std"][2]
+    assert abs(h - h0) < max(0.3, 3 * sd)
+    s0, s = nominal[0].summary["outage_score"], run.summary["outage_score"]
+    assert abs(s["rms_m"] - s0["rms_m"]) < 0.15
+
+
+@pytest.fixture(scope="module")
+def car_only(data_dir):
+    """The drive with no configuration at all, ``--vehicle car`` only (height datum as read)."""
+    from aidnav.filters.presets import apply_preset
+
+    d = data_dir / "rtklibexplorer_drive_0708"
+    if not d.is_dir():
+        pytest.skip("rtklibexplorer_drive_0708 not found")
+    imu = read_imu_any(d / "imu_1934.csv")
+    gnss = read_gnss_any(d / "gnss_1934_sf.pos", 0.0)
+    return process(imu, gnss, apply_preset(None, "car"), outages=["40:15:45"])
+
+
+def test_car_preset_without_configuration(car_only):
+    """Issue 26: median <= 4 m (before: 17.0 m); the unknown mounting is found from the log."""
+    assert car_only.summary["outage_score"]["end_error_median_m"] <= 4.0
+    assert any("coarse IMU->vehicle mounting" in e for e in car_only.summary["events"])
+
+
+def _longest_rejection_run(status):
+    run = best = 0
+    for v in status:
+        run = run + 1 if v == 0 else 0
+        best = max(best, run)
+    return best
+
+
+@pytest.mark.xfail(strict=True, reason="issue 26 target not reached: runs of 10 rejected fixes (the "
+                   "consecutive-rejection rule) with the default noise on this vibrating IMU")
+def test_car_preset_no_long_rejection_runs(car_only):
+    assert _longest_rejection_run(car_only.result.records["pos_status"]) <= 5

@@ -1,0 +1,195 @@
+"""Start from any state (issue 26, item 1), simulated with fixed seeds.
+
+* a car already moving at the first fix, position-only 1 Hz fixes: horizontal error <= 1 m RMS after
+  30 s (velocity from position differences with their σ, heading from the course only when the speed
+  is 5σ above its noise, roll/pitch from the specific force corrected by the GNSS acceleration);
+* 10 min parked with 10 Hz position-only fixes (1 m noise: the position differences are noise), then
+  driving: no heading from the noise while parked, no ZUPT claimed from the GNSS, and the heading σ
+  covers the heading error at every parked epoch (|error| <= 3σ, as a χ²(1) 99.7 % bound);
+* a 30 s IMU gap in a turn: the bridged gap's variance covers what the gap did to the heading.
+The filter's noise model is the simulated sensors' (:func:`aidnav.filters.tuning.loose_config_from_specs`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from aidnav.data import ImuData
+from aidnav.filters.loose import run_loose, to_trajectory
+from aidnav.filters.tuning import loose_config_from_specs
+from aidnav.nav.earth import lla_difference_enu
+from aidnav.sim.gnss import GnssSpec
+from aidnav.sim.imu import ImuSpec
+from aidnav.sim.run import simulate
+from aidnav.sim.scenario import parse_scenario
+
+
+def _scn(segments, speed, gnss, seed=5, grade="mems"):
+    return parse_scenario({
+        "name": "start", "seed": seed, "imu_rate_hz": 100,
+        "initial": {"lat_deg": 40.0, "lon_deg": 116.0, "height_m": 50.0, "speed_m_s": speed,
+                    "heading_deg": 37.0},
+        "segments": segments, "sensors": {"imu": {"grade": grade}, "gnss": gnss}})
+
+
+def _cfg(sim, **over):
+    spec = ImuSpec.grade(sim.scenario.sensors.imu.grade)
+    g = GnssSpec.from_config(sim.scenario.sensors.gnss)
+    init = {"mode": "auto", "attitude_sigma_deg": [2.0, 2.0, 10.0], "static_window_s": 10.0}
+    init.update(over.pop("init", {}))
+    return loose_config_from_specs(spec, g, init=init, **over)
+
+
+def _herr(traj, truth):
+    j = np.clip(np.searchsorted(truth.time, traj.time), 0, len(truth) - 1)
+    e, n, _ = lla_difference_enu(traj.lat, traj.lon, 0.0, truth.lat[j], truth.lon[j], 0.0)
+    return np.hypot(e, n), j
+
+
+def _heading_err(traj, truth, j):
+    return (traj.rph[:, 2] - truth.rph[j, 2] + np.pi) % (2 * np.pi) - np.pi
+
+
+@pytest.mark.parametrize("seed", [5, 6])
+def test_moving_start_position_only_1hz(seed):
+    sim = simulate(_scn([{"type": "straight", "duration_s": 20}, {"type": "turn", "angle_deg": 90,
+                                                                   "duration_s": 15},
+                         {"type": "straight", "duration_s": 30}, {"type": "turn", "angle_deg": -60,
+                                                                   "duration_s": 10},
+                         {"type": "straight", "duration_s": 30}], 15.0,
+                        {"rate_hz": 1, "sigma_pos_m": [0.5, 0.5, 1.0], "velocity": False}, seed=seed))
+    events: list[str] = []
+    r = run_loose(sim.imu, sim.gnss, _cfg(sim), events=events)
+    assert any("in-motion start" in e for e in events), events
+    traj = to_trajectory(r)
+    h, _ = _herr(traj, sim.truth)
+    after = traj.time >= traj.time[0] + 30.0
+    assert np.sqrt(np.mean(h[after] ** 2)) <= 1.0
+
+
+def test_parked_then_driving_10hz_position_only():
+    sim = simulate(_scn([{"type": "static", "duration_s": 600},
+                         {"type": "accelerate", "duration_s": 10, "to_speed_m_s": 12},
+                         {"type": "turn", "angle_deg": 90, "duration_s": 15},
+                         {"type": "straight", "duration_s": 40}], 0.0,
+                        {"rate_hz": 10, "sigma_pos_m": [1.0, 1.0, 2.0], "velocity": False}, seed=9))
+    cfg = _cfg(sim, constraints={"zupt": True}, init={"course_min_speed_m_s": 2.0})
+    events: list[str] = []
+    r = run_loose(sim.imu, sim.gnss, cfg, events=events)
+    align = [e for e in events if "heading from GNSS course at t=" in e]
+    assert align, events
+    t_align = float(align[0].split("t=")[1].split(":")[0])
+    assert t_align > sim.truth.time[0] + 600.0  # never while parked
+    assert r.counts["zupt_updates"] == 0  # the GNSS cannot say "static" with 1 m noise at 10 Hz
+    traj = to_trajectory(r)
+    _, j = _herr(traj, sim.truth)
+    parked = traj.time < sim.truth.time[0] + 600.0
+    err = np.abs(_heading_err(traj, sim.truth, j))
+    sig = traj.std_att[:, 2]
+    assert np.all(err[parked] <= 3.0 * sig[parked])
+    assert np.min(sig[parked]) > np.radians(30.0)  # no heading information while parked: σ stays large
+
+
+def test_imu_gap_in_a_turn_heading_sigma_covers_the_error():
+    sim = simulate(_scn([{"type": "straight", "duration_s": 60}, {"type": "turn", "angle_deg": 270,
+                                                                   "duration_s": 60},
+                         {"type": "straight", "duration_s": 60}], 10.0,
+                        {"rate_hz": 1, "sigma_pos_m": [0.5, 0.5, 1.0], "sigma_vel_m_s": [0.05, 0.05, 0.1]},
+                        seed=3, grade="tactical"))
+    imu = sim.imu
+    t = imu.time
+    keep = ~((t > t[0] + 80.0) & (t <= t[0] + 110.0))  # 30 s without IMU samples, in the turn
+    gap = ImuData(t[keep], imu.dtheta[keep], imu.dv[keep], t0=imu.t0)
+    events: list[str] = []
+    r = run_loose(gap, sim.gnss, _cfg(sim, init={"mode": "auto"}), events=events)
+    assert any("IMU gap" in e for e in events)
+    traj = to_trajectory(r)
+    _, j = _herr(traj, sim.truth)
+    after = np.searchsorted(traj.time, t[0] + 110.0)
+    err = abs(_heading_err(traj, sim.truth, j)[after])
+    assert err <= 3.0 * traj.std_att[after, 2], (np.degrees(err), np.degrees(traj.std_att[after, 2]))
+
+
+def test_coarse_mounting_of_an_imu_mounted_backwards_and_tilted():
+    """IMU axes = vehicle axes turned by a known C_b^v (heading 95°, roll −6°, pitch 1°): the coarse
+    mounting from the accelerations is within 4° of it (the linear range of the mounting state, σ 3°;
+    "up" from the mean specific force is off by the mean acceleration / g ≈ 1° on this run)."""
+    from aidnav.filters.preprocess import coarse_mounting, velocity_from_positions
+    from aidnav.nav.rotations import dcm_from_euler
+
+    sim = simulate(_scn([{"type": "accelerate", "duration_s": 10, "to_speed_m_s": 12},
+                         {"type": "turn", "angle_deg": 90, "duration_s": 10},
+                         {"type": "straight", "duration_s": 10}, {"type": "turn", "angle_deg": -120,
+                                                                   "duration_s": 12},
+                         {"type": "accelerate", "duration_s": 8, "to_speed_m_s": 4},
+                         {"type": "turn", "angle_deg": 180, "duration_s": 15},
+                         {"type": "accelerate", "duration_s": 10, "to_speed_m_s": 14}], 2.0,
+                        {"rate_hz": 4, "sigma_pos_m": [0.02, 0.02, 0.04],
+                         "sigma_vel_m_s": [0.03, 0.03, 0.05]},
+                        seed=4, grade="mems"))
+    cbv = dcm_from_euler(np.radians(-6.0), np.radians(1.0), np.radians(95.0))
+    imu = sim.imu
+    rot = ImuData(imu.time, imu.dtheta @ cbv, imu.dv @ cbv, t0=imu.t0)  # body' = C_v^b' · vehicle
+    vel, _ = velocity_from_positions(sim.gnss, 1.0) if sim.gnss.vel is None else (sim.gnss.vel, None)
+    cm = coarse_mounting(rot, rot.time, sim.gnss, vel)
+    assert cm is not None
+    C = cm[0]
+    ang = np.degrees(np.arccos(np.clip((np.trace(C @ cbv.T) - 1) / 2, -1, 1)))
+    assert ang < 4.0, (ang, np.degrees(cm[1:4]))
+
+
+def test_spp_course_only_when_meaningful():
+    """SPP Doppler noise at a standstill (σ 1 m/s, spikes above 3 m/s) never gives a course; a walk at
+    1.3 m/s with 0.15 m/s noise does, from its 2 s mean."""
+    from aidnav.apps.tight import _meaningful_course
+
+    rng = np.random.default_rng(2)
+    t = np.arange(0.0, 60.0, 0.25)
+    still = rng.normal(0.0, 1.0, (len(t), 3))
+    assert np.hypot(still[:, 0], still[:, 1]).max() > 3.0
+    assert _meaningful_course(t, still, 0.8) is None
+    walk = rng.normal(0.0, 0.15, (len(t), 3))
+    walk[:, 0] += 1.3 * np.sin(np.radians(40.0))
+    walk[:, 1] += 1.3 * np.cos(np.radians(40.0))
+    tc, course, spd, se = _meaningful_course(t, walk, 0.8)
+    assert abs(np.degrees(course) - 40.0) < 3.0 * np.degrees(se / spd) + 1.0
+
+
+@pytest.fixture(scope="module")
+def walk_default(data_dir):
+    """``aidnav tight`` on the walk with no configuration: (tight, SPP) horizontal RMS over every
+    reference epoch (issue 26: before, the heading came from an SPP speed spike and it diverged to 21 m)."""
+    import warnings
+
+    from aidnav.filters.tight import TightConfig
+    from aidnav.io.rinex import read_rinex_nav, read_rinex_obs
+    from aidnav.io.rtklib import read_pos
+    from aidnav.process import read_imu_any
+    from aidnav.process_tight import compare_with_reference, process_tight
+
+    d = data_dir / "rtklibexplorer_walk_0827"
+    if not d.is_dir():
+        pytest.skip("walk data set not found")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FutureWarning)
+        nav = read_rinex_nav(d / "rinex_converted" / "gnss_1730.nav")
+        obs = read_rinex_obs(d / "rinex_converted" / "gnss_1730.obs")
+    ref = read_pos(d / "gnss_1730_sf.pos", height_offset_m=-21.4)
+    res, sp = process_tight(read_imu_any(d / "imu_1730.csv"), obs, nav, TightConfig())
+    c = compare_with_reference(res.time, res.state[:, 0], res.state[:, 1], res.state[:, 2], ref, quality=None)
+    ok = np.isfinite(sp["lat"])
+    cs = compare_with_reference(sp["time"][ok], sp["lat"][ok], sp["lon"][ok], sp["h"][ok], ref, quality=None)
+    return c["horizontal_rms"], cs["horizontal_rms"]
+
+
+def test_walk_tight_does_not_diverge(walk_default):
+    tight, spp = walk_default
+    assert tight <= 1.1 * spp  # measured 8.58 m vs SPP 8.36 m
+
+
+@pytest.mark.xfail(strict=True, reason="issue 26 target not reached: tight 8.58 m vs SPP 8.36 m over all "
+                   "reference epochs")
+def test_walk_tight_no_worse_than_spp(walk_default):
+    tight, spp = walk_default
+    assert tight <= spp

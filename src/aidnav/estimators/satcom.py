@@ -397,7 +397,7 @@ def _dual_kernel(q0, dtheta, dts, q_nav, corrected, t_f, w_max, margin):
     correction at min(w_max, margin·|e|/T_f). Its rotation is exactly σ|e| ≤ w·dt ≤ w_max·dt (no
     iteration). Guard: off level the roll and heading Euler axes are not orthogonal, so an Euler angle can
     move by up to σ|e|/cos(pitch); σ is then shrunk until none moves by more than w_max·dt (the Euler
-    change is linear in σ up to a relative O(|e|·σ) term, so one or two secant passes suffice; bisection
+    change is linear in σ up to a relative O(σ|e|) term, so one or two rescaling passes suffice; bisection
     is the fallback).
     """
     n = dtheta.shape[0]

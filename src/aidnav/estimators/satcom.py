@@ -24,25 +24,29 @@ What is here, in the order of the patent's system (its Fig. 3):
   Both return a :class:`NavRun`: the navigation quaternion after each interrupt, the rotation vector
   ΔΘ of that interrupt (body relative to the ideal platform: q_pre = q_prev ⊗ q(ΔΘ), i.e.
   ΔΘ ≈ ∫(ω_ib^b − C_n^b ω_in^n)dt) and whether a filter correction was applied.
-* **Dual-quaternion control** (SPEC §4.2, claims 1–2). :func:`dual_quaternion_track`: the antenna-control
-  quaternion starts equal to the navigation quaternion and receives the **same** ΔΘ every interrupt;
-  then, for each Euler angle k (patent element order: 1 pitch, 2 roll, 3 heading), d_k = angle_k(q_ant) −
-  angle_k(q_nav) wrapped to (−π, π], and a command angular rate of sign +sign(d_k) and magnitude w_k is
-  applied. The sign rules a–f only make sense if the command rotates the antenna's *virtual platform*
-  (SPEC §4.4 erratum 2): a positive platform rate decreases the antenna's angle, so |d_k| decreases.
-  The patent's (Qin/PSINS) heading is the yaw angle, counter-clockwise positive; aidnav's heading is
-  clockwise, so the third element is computed on yaw ψ = −heading (with aidnav's heading the rules a/b read
-  with the opposite sign; the behaviour, |d| decreasing, is the same). The command is applied as Euler-angle
-  rates (each angle of q_ant moves by exactly −sign(d_k)·min(w_k·dt, |d_k|), which is the exact form of the
-  patent's "first element ↔ pitch, second ↔ roll, third ↔ heading" rotation vector); the equivalent
-  rotation vector of every interrupt is returned. Magnitude (claim 2, SPEC §4.2): |d_k|/T_f ≤ w_k ≤ w_max,
-  latched at each filter correction (w_k = min(w_max, margin·|d_k|/T_f)); between corrections
-  w_k = min(w_max, max(latched, |d_k|/T_f)) so that a difference moved between pitch and roll by a turn is
-  still closed; when |d_k|/T_f > w_max the bound w_max wins (the patent is silent; SPEC §4.4 erratum 3).
-  No step overshoots (min(w_k·dt, |d_k|)). Per axis the antenna's Euler angles never move by more than
-  w_max·dt per interrupt beyond the gyro-propagated motion; the total rotation of one interrupt is
-  ≤ √(3 + 2|sin θ|)·w_max·dt at pitch θ (√3·w_max·dt when level: the Euler axes are then orthogonal).
-  Servo commands are computed from q_ant only (:func:`servo_commands`).
+* **Dual-quaternion control** (SPEC §4.2, claims 1–2; total rate bound of issue 27).
+  :func:`dual_quaternion_track`: the antenna-control quaternion starts equal to the navigation quaternion
+  and receives the **same** ΔΘ every interrupt. The patent then "updates the antenna quaternion again with
+  the three-axis command rotation vector" ([0025], [0071]). Here that vector is the geodesic toward the
+  navigation quaternion: with e = rotvec(q_ant* ⊗ q_nav) (body frame; elements x ↔ pitch, y ↔ roll,
+  z ↔ heading), q_ant ← q_ant ⊗ q(σ·e), σ = min(1, w·dt/|e|).
+  - Signs: each element has the sign of the patent's rules a–f. This holds exactly for one axis alone and
+    to first order otherwise, in the platform sense of SPEC §4.4 erratum 2: the command rotates the
+    antenna's virtual platform, so every Euler difference d_k = angle_k(q_ant) − angle_k(q_nav) decreases.
+    The patent's (Qin/PSINS) heading is the counter-clockwise yaw; aidnav's heading is clockwise, so the
+    reported third difference is on yaw ψ = −heading.
+  - Magnitude (claim 2 on the total rotation; SPEC §4.4 erratum 3): |e|/T_f ≤ w ≤ w_max. The rate is
+    latched at each filter correction (w = min(w_max, margin·|e|/T_f)). Between corrections it is
+    min(w_max, max(latched, |e|/T_f)). When |e|/T_f ≤ w_max every element is at least |e_k|/T_f, so the
+    per-axis claim 2 holds; otherwise the bound w_max wins.
+  - Bounds: the total change of the antenna attitude per interrupt beyond the gyro-propagated motion is
+    exactly min(w·dt, |e|) ≤ w_max·dt. A guard keeps every Euler angle's change within w_max·dt too;
+    off level the roll and heading axes are not orthogonal. A single-axis difference is chased exactly
+    as by the per-axis rule (|d| falls by min(w·dt, |d|) per interrupt).
+  - Closing: the common ΔΘ does not change the angle |e|, only how it is split between the Euler angles.
+    So the angle falls linearly at w and every axis closes when the whole rotation does, at
+    |e_0|/w (± one interrupt; ``docs/seed_003_closing_times.md``). The command never passes q_nav.
+  - Servo commands are computed from q_ant only (:func:`servo_commands`).
 * **Servo angles** (SPEC §4.3): :func:`aidnav.nav.geo_pointing.servo_angles_rad` /
   :func:`aidnav.nav.geo_pointing.servo_angles` (re-exported here).
 * **Servo and pointing model**: :func:`servo_track` (each axis a second-order loop, natural frequency
@@ -369,48 +373,95 @@ def _patent_angles(q):
 
 
 @njit(cache=True)
+def _align_sign(q, ref):
+    """q or −q, whichever is on the side of ``ref`` (keeps the quaternion sign continuous)."""
+    if q[0] * ref[0] + q[1] * ref[1] + q[2] * ref[2] + q[3] * ref[3] < 0:
+        return -q
+    return q
+
+
+@njit(cache=True)
+def _euler_change(a0, q):
+    """Euler change a0 − angles(q), patent order [pitch, roll, yaw], wrapped (platform sense +)."""
+    p, r, y = _patent_angles(q)
+    return np.array([_wrap_pi(a0[0] - p), _wrap_pi(a0[1] - r), _wrap_pi(a0[2] - y)])
+
+
+@njit(cache=True)
 def _dual_kernel(q0, dtheta, dts, q_nav, corrected, t_f, w_max, margin):
+    """Antenna-control quaternion chasing q_nav along the geodesic at a bounded total rate (SPEC §4.2).
+
+    Per interrupt: q_ant ← q_ant ⊗ q(ΔΘ) (the same increment as q_nav); then with the body-frame
+    difference e = rotvec(q_ant* ⊗ q_nav) (angle |e|, unchanged by the common increment) the command is
+    the rotation σ·e, σ = min(1, w·dt/|e|), w = min(w_max, max(w_lat, |e|/T_f)), w_lat latched at each
+    correction at min(w_max, margin·|e|/T_f). Its rotation is exactly σ|e| ≤ w·dt ≤ w_max·dt (no
+    iteration). Guard: off level the roll and heading Euler axes are not orthogonal, so an Euler angle can
+    move by up to σ|e|/cos(pitch); σ is then shrunk until none moves by more than w_max·dt (the Euler
+    change is linear in σ up to a relative O(σ|e|) term, so one or two rescaling passes suffice; bisection
+    is the fallback).
+    """
     n = dtheta.shape[0]
     q_ant = q0.copy()
-    w_lat = np.zeros(3)
+    w_lat = 0.0
     out_q = np.empty((n, 4))
-    out_d = np.empty((n, 3))  # differences after the command [pitch, roll, yaw]
-    out_step = np.zeros((n, 3))  # Euler step applied by the command [pitch, roll, yaw] (platform sense +)
-    out_rot = np.zeros((n, 3))  # equivalent rotation vector of the command, body frame
-    out_w = np.empty((n, 3))
+    out_d = np.empty((n, 3))  # Euler differences after the command [pitch, roll, yaw]
+    out_step = np.zeros((n, 3))  # Euler change applied by the command [pitch, roll, yaw] (platform sense +)
+    out_rot = np.zeros((n, 3))  # rotation vector of the command, body frame: q_ant ← q_ant ⊗ q(rot)
+    out_w = np.empty(n)  # total command rate w [rad/s]
+    a_nav = np.empty(3)
     for k in range(n):
         # 1. the same ΔΘ as the navigation quaternion (gyro-propagated motion)
         q_ant = quat_normalize(quat_mult(q_ant, quat_from_rotvec(dtheta[k])))
+        qn = q_nav[k]
+        pn, rn, yn = _patent_angles(qn)
+        a_nav[0], a_nav[1], a_nav[2] = pn, rn, yn
         pa, ra, ya = _patent_angles(q_ant)
-        pn, rn, yn = _patent_angles(q_nav[k])
-        d = np.array([_wrap_pi(pa - pn), _wrap_pi(ra - rn), _wrap_pi(ya - yn)])
-        # 2. latch the command magnitude at a filter correction: |d|/T_f ≤ w ≤ w_max (w_max wins)
+        a_ant = np.array([pa, ra, ya])
+        # 2. the difference as one rotation (shortest way) and its angle
+        e = rotvec_from_quat(quat_mult(quat_conj(q_ant), qn))
+        ang = np.sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2])
+        # 3. the rate, claim 2 on the total rotation: |e|/T_f ≤ w ≤ w_max (w_max wins), latched
         if corrected[k]:
-            for i in range(3):
-                w_lat[i] = min(w_max, margin * abs(d[i]) / t_f)
+            w_lat = min(w_max, margin * ang / t_f)
+        w = min(w_max, max(w_lat, ang / t_f))
+        out_w[k] = w
         dt = dts[k]
-        step = np.zeros(3)
-        moved = False
-        for i in range(3):
-            ad = abs(d[i])
-            w = min(w_max, max(w_lat[i], ad / t_f))
-            out_w[k, i] = w
-            if ad > 0.0:
-                # sign +sign(d) in the platform sense: the antenna's angle decreases by the step
-                step[i] = np.sign(d[i]) * min(w * dt, ad)
-                moved = True
-        if moved:
-            q_new = quat_from_euler(ra - step[1], pa - step[0], -(ya - step[2]))
-            # keep the quaternion sign continuous
-            if q_new[0] * q_ant[0] + q_new[1] * q_ant[1] + q_new[2] * q_ant[2] + q_new[3] * q_ant[3] < 0:
-                q_new = -q_new
+        if ang > 0.0:
+            w_ax = w_max * dt
+            frac = min(1.0, w * dt / ang)
+            if frac >= 1.0:
+                q_new = _align_sign(qn.copy(), q_ant)  # closes: the antenna attitude is the navigation's
+            else:
+                q_new = quat_normalize(quat_mult(q_ant, quat_from_rotvec(frac * e)))
+            step = _euler_change(a_ant, q_new)
+            m = np.abs(step).max()
+            if m > w_ax:  # guard: no Euler angle beyond w_max·dt (off level only)
+                for _ in range(8):
+                    frac *= w_ax / m
+                    q_new = quat_normalize(quat_mult(q_ant, quat_from_rotvec(frac * e)))
+                    step = _euler_change(a_ant, q_new)
+                    m = np.abs(step).max()
+                    if m <= w_ax:
+                        break
+                if m > w_ax:  # fallback (not met away from pitch ±90°): bisection on [0, frac]
+                    lo, hi = 0.0, frac
+                    for _ in range(60):
+                        mid = 0.5 * (lo + hi)
+                        qm = quat_normalize(quat_mult(q_ant, quat_from_rotvec(mid * e)))
+                        if np.abs(_euler_change(a_ant, qm)).max() <= w_ax:
+                            lo = mid
+                        else:
+                            hi = mid
+                    q_new = quat_normalize(quat_mult(q_ant, quat_from_rotvec(lo * e)))
+                    step = _euler_change(a_ant, q_new)
             out_rot[k] = rotvec_from_quat(quat_mult(quat_conj(q_ant), q_new))
+            out_step[k] = step
             q_ant = q_new
-            for i in range(3):
-                d[i] -= step[i]
-        out_step[k] = step
         out_q[k] = q_ant
-        out_d[k] = d
+        pa, ra, ya = _patent_angles(q_ant)
+        out_d[k, 0] = _wrap_pi(pa - a_nav[0])
+        out_d[k, 1] = _wrap_pi(ra - a_nav[1])
+        out_d[k, 2] = _wrap_pi(ya - a_nav[2])
     return out_q, out_d, out_step, out_rot, out_w
 
 
@@ -421,7 +472,8 @@ class DualResult:
     q_ant (N, 4) antenna-control quaternion; diff (N, 3) Euler differences q_ant − q_nav after the command,
     patent order [pitch, roll, yaw=−heading] [rad]; step (N, 3) Euler change applied by the command (platform
     sense, + = the antenna angle decreased) [rad]; cmd_rotvec (N, 3) the command as a body-frame rotation
-    vector [rad]; w (N, 3) command rate magnitudes [rad/s].
+    vector (q_ant ← q_ant ⊗ q(cmd_rotvec)) [rad], its norm the total change of the antenna attitude beyond
+    the vehicle motion; w (N,) the total command rate [rad/s] (its share on element k is w·|e_k|/|e|).
     """
 
     q_ant: np.ndarray
@@ -433,11 +485,15 @@ class DualResult:
 
 def dual_quaternion_track(nav: NavRun, t_f: float = 1.0, w_max: float = 0.5 * DEG,
                           margin: float = 1.0) -> DualResult:
-    """Antenna-control quaternion chasing the navigation quaternion (SPEC §4.2, claims 1–2).
+    """Antenna-control quaternion chasing the navigation quaternion (SPEC §4.2, claims 1–2, issue 27).
 
     nav : :class:`NavRun`; t_f : filter period T_f [s]; w_max : largest pointing-error rate the antenna
-    tolerates [rad/s]; margin (≥ 1) : the latched rate is margin·|d|/T_f (the patent asks for "at least"
-    |d|/T_f; 1 closes a difference exactly in T_f). See the module docstring for the rules.
+    tolerates [rad/s], a bound on the **total** change of the antenna attitude per interrupt beyond the
+    vehicle motion (and on each Euler angle's); margin (≥ 1) : the latched rate is margin·|e|/T_f (the
+    patent asks for "at least" |d|/T_f; 1 closes a difference exactly in T_f). The command follows the
+    geodesic from q_ant to q_nav, so the rate is shared between the axes in proportion to their remaining
+    differences and all of them close together (``docs/seed_003_closing_times.md``); a single-axis
+    difference is chased exactly as by the per-axis rule. See the module docstring.
     """
     if margin < 1.0:
         raise ValueError("margin must be >= 1 (the rate is at least |d|/T_f)")

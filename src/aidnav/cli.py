@@ -186,6 +186,8 @@ def process(
                                     "navigation-result format"),
     output_rate: float | None = typer.Option(None, "--output-rate", help="output rate [Hz] (default: every "
                                              "IMU sample; overrides filter.output_rate_hz)"),
+    vehicle: str | None = typer.Option(None, "--vehicle", help="vehicle preset under the configuration: car "
+                                       "(NHC), aircraft, pedestrian, ship; none: conservative defaults"),
 ):
     """Loosely coupled GNSS/INS on logs: DIR/trajectory with σ columns, summary, overview.png, maps
     (KML, GeoJSON) and run.html."""
@@ -197,7 +199,7 @@ def process(
                          height_offset_m=height_offset, time_offset_s=time_offset, start_s=start, end_s=end,
                          skip_checks=skip_check, progress=bar, figures=not no_figures,
                          odometer_path=odometer, baro_path=baro, kfgins_nav=kfgins_nav,
-                         output_rate_hz=output_rate)
+                         output_rate_hz=output_rate, vehicle=vehicle)
     _print_summary(s, format_summary(s), as_json)
 
 

@@ -167,6 +167,7 @@ def process(imu: ImuData, gnss: GnssData, cfg: LooseConfig | None = None, smooth
 
     cfg = cfg or LooseConfig()
     warnings: list[str] = []
+    applied_offset = float(cfg.imu.time_offset_s)  # configured; the filter may refine it (calibration)
     if cfg.imu.time_offset_s:
         from aidnav.io.boundary import shift_imu_time
 
@@ -213,9 +214,13 @@ def process(imu: ImuData, gnss: GnssData, cfg: LooseConfig | None = None, smooth
             fwd = to_trajectory(LooseResult(res.time, res.forward_state, res.bias, res.forward_pdiag,
                                             res.node_time))
             summary["outage_score_forward"] = score_outages(fwd, gnss, wins, withheld)
+    from aidnav.filters.result import calibration_summary
     from aidnav.report.run_page import calibration_estimates
 
-    summary["calibration"] = calibration_estimates(res)
+    # sensor errors (biases, scale factors) and the self-calibration (time offset added to the IMU
+    # stamps, lever arm, mounting, odometer scale) with σ, under the names of docs/conventions.md
+    summary["calibration"] = {**calibration_estimates(res),
+                              **calibration_summary(res, base={"time_offset_s": applied_offset})}
     return ProcessRun(traj, summary, res, fwd, withheld, wins, gnss=gnss)
 
 
@@ -251,7 +256,8 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
                  height_offset_m: float | None = None, time_offset_s: float | None = None,
                  start_s: float | None = None, end_s: float | None = None, skip_checks=(),
                  progress=None, figures: bool = True, odometer_path=None, baro_path=None,
-                 kfgins_nav: bool = False, output_rate_hz: float | None = None) -> dict:
+                 kfgins_nav: bool = False, output_rate_hz: float | None = None,
+                 vehicle: str | None = None) -> dict:
     """Run the whole ``aidnav process`` job into the directory ``out_dir``; returns the summary dict
     (also written as ``summary.json`` and ``summary.txt`` beside ``trajectory.<fmt>``).
 
@@ -277,6 +283,12 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
                      "(static roll/pitch, heading from GNSS course), ZUPT on, NHC off")
     else:
         cfg = load_config(config_path)
+    if vehicle is not None:  # the preset under the configuration: keys the YAML states win
+        from aidnav.filters.presets import apply_preset
+
+        cfg = apply_preset(cfg, vehicle)
+        notes.append(f"--vehicle {vehicle}: constraints and noise of the {vehicle} preset under the "
+                     "configuration")
     for opt, v in (("--height-offset", height_offset_m), ("--time-offset", time_offset_s),
                    ("--start", start_s), ("--end", end_s)):
         if v is not None and not np.isfinite(v):

@@ -322,6 +322,9 @@ def run_loose_nav(imu, gnss, lat: float, lon: float, h: float, vel, rph, cfg=Non
     ini.velocity_m_s = tuple(float(v) for v in vel)
     ini.roll_deg, ini.pitch_deg, ini.heading_deg = (float(np.degrees(a)) for a in rph)
     cfg.filter.output_rate_hz = None
+    # the 15-state navigation: no self-calibration states (simulated data, exact lever arm and clocks)
+    cfg.calibration.time_offset = cfg.calibration.lever_arm = cfg.calibration.mounting = False
+    cfg.calibration.velocity_delay = False
     if cfg.imu.time_offset_s != 0.0:
         raise ValueError("run_loose_nav: use IMU data already on the GNSS time scale (time_offset_s = 0)")
     res = run_loose(imu, gnss, cfg)

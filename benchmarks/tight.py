@@ -3,11 +3,13 @@
 * tight: :func:`aidnav.filters.tight.run_tight` on the rtklibexplorer walk (as ``aidnav tight`` runs it,
   :func:`aidnav.apps.tight.process_tight`; SPP and reading outside the timing), forward and, where the
   filter has it, forward + RTS smoother; horizontal RMS against the RTK reference (Q = 1) for both.
-* federated: :func:`aidnav.filters.federated.run_federated` on the seed-000 simulation.
+* federated: :func:`aidnav.filters.federated.run_federated` on the seed-000 simulation (600 s, 100 Hz),
+  fusion-reset and centralized, forward and forward + RTS.
 Best of 3, compiled code warm. Target (issue 24): no slower than before the engine migration
-(tight before: see docs/results.md / the report of the migration).
+(``BEFORE``, measured with the pre-engine kernels).
 
-Run: ``python benchmarks/tight.py`` (needs ../shared/data or $AIDNAV_DATA).
+Run: ``python benchmarks/tight.py [tight_module [federated_module]]`` (needs ../shared/data or
+$AIDNAV_DATA; the optional module names let the same script time another implementation).
 """
 
 from __future__ import annotations
@@ -27,7 +29,8 @@ import numpy as np  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 DATA = Path(os.environ.get("AIDNAV_DATA", ROOT.parent / "shared" / "data"))
 WALK = DATA / "rtklibexplorer_walk_0827"
-TARGET_TIGHT = float(os.environ.get("TIGHT_TARGET_SPS", "0"))  # samples/s before the migration
+# IMU samples/s of the pre-engine kernels (commit c842deb): this script, best of 3, shared 2-core machine
+BEFORE = {"tight": 625_559, "reset": 1_151_719, "centralized": 1_511_781}
 
 
 def best_of(fn, n=3):
@@ -39,11 +42,13 @@ def best_of(fn, n=3):
     return best, out
 
 
-def tight_case():
+def tight_case(module="aidnav.filters.tight"):
+    import importlib
+
     import aidnav.apps.tight as app
     from aidnav.apps.process import read_gnss_any, read_imu_any
     from aidnav.apps.tight import compare_with_reference, process_tight
-    from aidnav.filters import tight
+    tight = importlib.import_module(module)
     from aidnav.io.rinex import read_rinex_nav, read_rinex_obs
 
     imu = read_imu_any(WALK / "imu_1730.csv")
@@ -77,24 +82,37 @@ def tight_case():
     return n
 
 
-def federated_case():
-    from aidnav.filters import federated
+def federated_case(module="aidnav.filters.federated"):
+    import importlib
 
-    fn = getattr(federated, "benchmark_case", None)
-    if fn is None:
-        print("federated: no benchmark_case in aidnav.filters.federated")
-        return
-    fn(best_of)
+    from aidnav.experiments.reproduce import seed_000 as s0
+
+    federated = importlib.import_module(module)
+    sim, sv, cfg = s0.simulate_case(np.random.SeedSequence(11), duration_s=600.0)
+    n = len(sim.imu)
+    modes = [("forward", {})]
+    if "smooth" in inspect.signature(federated.run_federated).parameters:
+        modes.append(("forward + RTS", {"smooth": True}))
+    for mode in ("reset", "centralized"):
+        fed = federated.FederatedConfig(mode=mode)
+        for name, extra in modes:
+            def run(f=fed, kw=extra):
+                return federated.run_federated(sim.imu, sim.gnss, sv, cfg, f, **kw)
+
+            dt, _ = best_of(run)
+            print(f"federated {mode:11s} {name:14s}: {n / dt:12,.0f} IMU samples/s "
+                  f"({dt:.3f} s for {n} samples)")
 
 
 def main():
     if not WALK.is_dir():
         print(f"data folder {WALK} not found: set AIDNAV_DATA")
         return 2
-    tight_case()
-    federated_case()
-    if TARGET_TIGHT:
-        print(f"target: tight forward >= {TARGET_TIGHT:,.0f} samples/s (before the migration)")
+    tight_case(*sys.argv[1:2])
+    federated_case(*sys.argv[2:3])
+    print("target (issue 24): no slower than before the engine migration; measured before on this machine "
+          f"(best of 3, shared CPUs): tight forward {BEFORE['tight']:,} samples/s, federated reset forward "
+          f"{BEFORE['reset']:,}, centralized {BEFORE['centralized']:,}")
     return 0
 
 

@@ -1,34 +1,30 @@
 """The filter engine (numba): one forward pass and one RTS pass for every INS error-state filter.
 
-A filter is a state layout (:mod:`aidnav.filters.layout`), its process model (:mod:`.ins_errors` for
-the INS block, first-order Gauss-Markov / random constant for each calibration state) and the
-measurement models it feeds (:mod:`aidnav.filters.measurements`, dispatched by model id). The
-engine does what used to be copied into every kernel:
+A filter is a state layout (:mod:`aidnav.filters.layout`), its process model (:mod:`.ins_errors`;
+Gauss-Markov / random constant per calibration state) and its measurement models
+(:mod:`aidnav.filters.measurements`, by model id). The engine does:
 
-* **node schedule**: the strapdown runs at the IMU rate (:func:`.ins_errors.propagate_sample`); a
-  *node* is every ``prop_dt`` seconds, at every record time (a record in (t_{k−1}, t_k] makes t_k a
-  node; a record with ``use`` False only schedules the node, e.g. a fixed propagation grid) and at
-  the last sample; with ``Imu.hold`` the height and up velocity are held to given values;
-* **predict** at nodes through :func:`.kalman.discretize` / :func:`.kalman.predict`, plus the
-  variance of bridged IMU gaps;
+* **node schedule**: strapdown at the IMU rate (:func:`.ins_errors.propagate_sample`); a *node* every
+  ``prop_dt`` s, at every record time (a record in (t_{k−1}, t_k] makes t_k a node; ``use`` False only
+  schedules it) and at the last sample; ``Imu.hold`` holds height and up velocity to given values;
+* **predict** at nodes (:func:`.kalman.discretize`, :func:`.kalman.predict`) + bridged-gap variance;
 * **one update-with-gate policy** (:func:`gated_update`): χ² gate by the number of rows
   (``Models.gate[model, m]``, 0 = ungated), and after ``Models.max_rej[model]`` consecutive rejections
   of a model the next one is accepted ungated (a filter that went wrong must be able to come back);
-* **one innovation log** (:class:`Log`): per entry time, model id, status (1 accepted, 0 rejected, −1
-  not used), NIS, innovation and diag S (up to ``MAX_ROWS``), and the record index (−1: a node
-  constraint). Log rows 0..M−1 are the records, in order; node constraints follow;
+* **one innovation log** (:class:`Log`): time, model id, status (1 accepted, 0 rejected, −1 not used),
+  NIS, innovation, diag S (≤ ``MAX_ROWS``), record index (−1: node constraint); rows 0..M−1: records;
 * **re-initialisation event** at sample ``Init.reset_idx``: heading from a GNSS course and, when the
   velocity integrated with the wrong heading is off by more than 3σ, velocity and position from that
   fix (``reset_nav``); the RTS pass passes nothing back across it;
-* **closed-loop feedback** (:func:`feedback`) after each node's updates;
-* **RTS** over the stored nodes (:func:`rts`, :func:`smooth_outputs`);
+* **closed-loop feedback** (:func:`feedback`) after each node's updates; **RTS** over the stored nodes
+  (:func:`rts`, :func:`smooth_outputs`);
 * **epoch records** (tight coupling): with clock states (``lay[L_CLK]``) record times are receiver
-  tags, due at t − b̂/c, and b̂ follows d̂ per sample; a pseudorange record with ``Records.grp`` is a
-  whole epoch (:func:`.measurements.epoch.epoch_update`: its own sequential scalar updates and
-  rejection rule, outputs in ``grp``). An INS block of 9 states (no sensor errors) is allowed.
+  tags, due at t − b̂/c, and b̂ follows d̂ per sample; with ``Records.grp`` a pseudorange record is a
+  whole epoch (:func:`.measurements.epoch.epoch_update`: sequential scalar updates, its rejection rule,
+  outputs in ``grp``). An INS block of 9 states (no sensor errors) is allowed.
 
-Inputs are named tuples (numba): :class:`Imu`, :class:`Records`, :class:`Models`, :class:`Process`,
-:class:`Init`, :class:`Output`; the result is :class:`EngineOut`.
+Inputs: named tuples :class:`Imu`, :class:`Records`, :class:`Models`, :class:`Process`, :class:`Init`,
+:class:`Output`; result :class:`EngineOut`.
 """
 
 from __future__ import annotations
@@ -72,8 +68,7 @@ Models = namedtuple("Models", ["par", "gate", "max_rej", "node"])
 # correlation times [s]; aux_tau (n − n_ins,) [s] (≤ 0: random walk); prop_dt [s]
 Process = namedtuple("Process", ["lay", "q", "tau", "aux_tau", "prop_dt"])
 Init = namedtuple("Init", ["t0", "st", "bias", "P", "reset_idx", "reset_heading", "reset_sigma", "reset_nav"])
-# every: output decimation; smooth: store nodes for RTS; cov_idx: sorted samples to keep P at
-Output = namedtuple("Output", ["every", "smooth", "cov_idx"])
+Output = namedtuple("Output", ["every", "smooth", "cov_idx"])  # decimation; store nodes for RTS; P at samples
 Log = namedtuple("Log", ["t", "model", "status", "nis", "nu", "s", "ref"])
 Work = namedtuple("Work", ["H", "z", "R"])
 EngineOut = namedtuple("EngineOut", ["out_idx", "out_st", "out_bias", "out_pdiag", "out_node", "node_idx",

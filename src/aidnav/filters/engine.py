@@ -1,30 +1,31 @@
 """The filter engine (numba): one forward pass and one RTS pass for every INS error-state filter.
 
-A filter is a state layout (:mod:`aidnav.filters.layout`), its process model (:mod:`.ins_errors` for
-the INS block, first-order Gauss-Markov / random constant for each calibration state) and the
-measurement models it feeds (:mod:`aidnav.filters.measurements`, dispatched by model id). The
-engine does what used to be copied into every kernel:
+A filter is a state layout (:mod:`aidnav.filters.layout`), its process model (:mod:`.ins_errors`;
+Gauss-Markov / random constant per calibration state) and its measurement models
+(:mod:`aidnav.filters.measurements`, by model id). The engine does:
 
-* **node schedule**: the strapdown runs at the IMU rate (:func:`.ins_errors.propagate_sample`); a
-  *node* is every ``prop_dt`` seconds, at every record time (a record in (t_{k−1}, t_k] makes t_k a
-  node; a record with ``use`` False only schedules the node, e.g. a fixed propagation grid) and at
-  the last sample; with ``Imu.hold`` the height and up velocity are held to given values;
-* **predict** at nodes through :func:`.kalman.discretize` / :func:`.kalman.predict`, plus the
-  variance of bridged IMU gaps;
+* **node schedule**: strapdown at the IMU rate (:func:`.ins_errors.propagate_sample`); a *node* every
+  ``prop_dt`` s, at every record time (a record in (t_{k−1}, t_k] makes t_k a node; ``use`` False only
+  schedules it) and at the last sample; ``Imu.hold`` holds height and up velocity to given values;
+  with a time-offset state (``lay[L_TOFF]``) a record is due at its receive time − d̂;
+* **predict** at nodes (:func:`.kalman.discretize`, :func:`.kalman.predict`) + bridged-gap variance;
 * **one update-with-gate policy** (:func:`gated_update`): χ² gate by the number of rows
   (``Models.gate[model, m]``, 0 = ungated), and after ``Models.max_rej[model]`` consecutive rejections
   of a model the next one is accepted ungated (a filter that went wrong must be able to come back);
-* **one innovation log** (:class:`Log`): per entry time, model id, status (1 accepted, 0 rejected, −1
-  not used), NIS, innovation and diag S (up to ``MAX_ROWS``), and the record index (−1: a node
-  constraint). Log rows 0..M−1 are the records, in order; node constraints follow;
+* **one innovation log** (:class:`Log`): time, model id, status (1 accepted, 0 rejected, −1 not used),
+  NIS, innovation, diag S (≤ ``MAX_ROWS``), record index (−1: node constraint); rows 0..M−1: records;
 * **re-initialisation event** at sample ``Init.reset_idx``: heading from a GNSS course and, when the
   velocity integrated with the wrong heading is off by more than 3σ, velocity and position from that
   fix (``reset_nav``); the RTS pass passes nothing back across it;
-* **closed-loop feedback** (:func:`feedback`) after each node's updates;
-* **RTS** over the stored nodes (:func:`rts`, :func:`smooth_outputs`).
+* **closed-loop feedback** (:func:`feedback`) after each node's updates; **RTS** over the stored nodes
+  (:func:`rts`, :func:`smooth_outputs`);
+* **epoch records** (tight coupling): with clock states (``lay[L_CLK]``) record times are receiver
+  tags, due at t − b̂/c, and b̂ follows d̂ per sample; with ``Records.grp`` a pseudorange record is a
+  whole epoch (:func:`.measurements.epoch.epoch_update`: sequential scalar updates, its rejection rule,
+  outputs in ``grp``). An INS block of 9 states (no sensor errors) is allowed.
 
-Inputs are named tuples (numba): :class:`Imu`, :class:`Records`, :class:`Models`, :class:`Process`,
-:class:`Init`, :class:`Output`; the result is :class:`EngineOut`.
+Inputs: named tuples :class:`Imu`, :class:`Records`, :class:`Models`, :class:`Process`, :class:`Init`,
+:class:`Output`; result :class:`EngineOut`.
 """
 
 from __future__ import annotations
@@ -35,6 +36,7 @@ import numpy as np
 from numba import njit
 
 from aidnav.nav.earth import OMEGA_IE, radii
+from aidnav.nav.gnss_sat import C_LIGHT
 from aidnav.nav.rotations import dcm_from_quat, quat_from_rotvec, quat_mult, quat_normalize
 
 from .ins_errors import (
@@ -49,16 +51,18 @@ from .ins_errors import (
     set_heading,
 )
 from .kalman import discretize, predict, rts_gain, update
-from .layout import DP, DV, L_N, L_NINS, L_TOFF, NAV, PHI, ST_POS, ST_Q, ST_VEL
-from .measurements import MAX_ROWS, N_MODELS, Nav, fill
+from .layout import DP, DV, L_CLK, L_N, L_NINS, L_TOFF, NAV, PHI, ST_POS, ST_Q, ST_VEL
+from .measurements import M_PR, MAX_ROWS, N_MODELS, Nav, fill
 from .measurements.common import W_FIX, W_IB, W_IE, W_IN
+from .measurements.epoch import epoch_out, epoch_record, epoch_update
 from .measurements.gnss import W_FN
 
 # t (N,) [s]; dth, dv (N, 3) raw increments [rad, m/s]; static (N,) bool; gap_var (N, 2) [rad², (m/s)²];
 # hold (N, 2) height [m] and up velocity [m/s] the strapdown is held to after each sample, or (0, 2)
 Imu = namedtuple("Imu", ["t", "dth", "dv", "static", "gap_var", "hold"])
-# time-sorted aiding records: t (M,) [s], model (M,) ids, data (M, W) rows of the models, use (M,) bool
-Records = namedtuple("Records", ["t", "model", "data", "use"])
+# time-sorted aiding records: t (M,) [s], model (M,) ids, data (M, W) rows of the models, use (M,) bool;
+# grp: per-epoch outputs of whole-epoch pseudorange records (measurements.epoch.EpochOut; empty: none)
+Records = namedtuple("Records", ["t", "model", "data", "use", "grp"], defaults=(epoch_out(0, 1),))
 # par (N_MODELS, P) model parameters; gate (N_MODELS, MAX_ROWS + 1) χ² thresholds by rows (0: off);
 # max_rej (N_MODELS,) consecutive rejections before an ungated update; node (K, 2): constraints at
 # nodes as (model id, 1: at static samples / 0: at the others)
@@ -67,8 +71,7 @@ Models = namedtuple("Models", ["par", "gate", "max_rej", "node"])
 # correlation times [s]; aux_tau (n − n_ins,) [s] (≤ 0: random walk); prop_dt [s]
 Process = namedtuple("Process", ["lay", "q", "tau", "aux_tau", "prop_dt"])
 Init = namedtuple("Init", ["t0", "st", "bias", "P", "reset_idx", "reset_heading", "reset_sigma", "reset_nav"])
-# every: output decimation; smooth: store nodes for RTS; cov_idx: sorted samples to keep P at
-Output = namedtuple("Output", ["every", "smooth", "cov_idx"])
+Output = namedtuple("Output", ["every", "smooth", "cov_idx"])  # decimation; store nodes for RTS; P at samples
 Log = namedtuple("Log", ["t", "model", "status", "nis", "nu", "s", "ref"])
 Work = namedtuple("Work", ["H", "z", "R"])
 EngineOut = namedtuple("EngineOut", ["out_idx", "out_st", "out_bias", "out_pdiag", "out_node", "node_idx",
@@ -149,12 +152,19 @@ def _node_rates(st, wb, dthc, dt, w):
 
 
 @njit(cache=True)
+def _rec_time(rec, i, bias, ic):
+    """Time of record i: the tag, or with clock states (ic ≥ 0) the tag − b̂/c."""
+    return rec.t[i] - bias[ic - NAV] / C_LIGHT if ic >= 0 else rec.t[i]
+
+
+@njit(cache=True)
 def run_filter(imu, rec, mod, proc, ini, out):
     """Forward pass of the closed-loop error-state filter (module doc); returns :class:`EngineOut`."""
     n_imu = imu.t.shape[0]
     lay = proc.lay
     n, nins = lay[L_N], lay[L_NINS]
-    mins = noise_count(nins)
+    nfull, ic, grp = max(nins, 15), lay[L_CLK], rec.grp.t.shape[0] > 0
+    mins = noise_count(nfull)
     nb = n - NAV
     M = rec.t.shape[0]
     st, bias, P, x = ini.st.copy(), ini.bias.copy(), ini.P.copy(), np.zeros(n)
@@ -163,13 +173,17 @@ def run_filter(imu, rec, mod, proc, ini, out):
     # sample: none found) stays unknown until then: a linearised filter would otherwise "gyrocompass"
     # from a gyro bias model it cannot separate from the heading (static) or from noise
     hold_h = ini.reset_idx > 0 and ini.P[PHI + 2, PHI + 2] >= 2.0
-    ib = bias[:nins - NAV].copy()  # INS sensor errors only: the strapdown must not read calibration states
-    Fi, Gi, _, _ = model_arrays(nins, mins)
+    # INS sensor errors only (nins − 9 = 0, 6 or 12; not nfull): the strapdown must not read clock or
+    # calibration states
+    ib = bias[:nins - NAV].copy()
+    Fi, Gi, _, _ = model_arrays(nfull, mins)
     F, G, Phi, Qd = model_arrays(n, mins + n - nins)
     for j in range(n - nins):  # calibration states: Gauss-Markov (τ > 0) or random walk / constant
         if proc.aux_tau[j] > 0:
             F[nins + j, nins + j] = -1.0 / proc.aux_tau[j]
         G[nins + j, mins + j] = 1.0
+    if ic >= 0:
+        F[ic, ic + 1] = 1.0  # clock bias [m] integrates the drift [m/s]
     wk = Work(np.zeros((MAX_ROWS, n)), np.zeros(MAX_ROWS), np.zeros((MAX_ROWS, MAX_ROWS)))
     w = np.zeros((5, 3))  # rows W_IB, W_FIX, W_IE, W_IN and W_FN (mean f^n, models with a time offset)
     no_row = np.zeros(rec.data.shape[1])  # the row of a node constraint (unused)
@@ -196,7 +210,8 @@ def run_filter(imu, rec, mod, proc, ini, out):
     rej = np.zeros(N_MODELS, np.int64)
     cov_out = np.zeros((out.cov_idx.shape[0], n, n))
     ci, reset_node, gi = 0, -1, 0
-    while gi < M and rec.t[gi] <= ini.t0:
+    toff = bias[itoff - NAV] if itoff >= 0 else 0.0
+    while gi < M and _rec_time(rec, gi, bias, ic) - toff <= ini.t0:
         gi += 1
     acc = new_accumulator()
     gap_phi, gap_v = 0.0, 0.0
@@ -207,6 +222,8 @@ def run_filter(imu, rec, mod, proc, ini, out):
         dt = imu.t[k] - tp
         tp = imu.t[k]
         T = propagate_sample(st, acc, imu.dth[k], imu.dv[k], ib, dt, dthc, dvc, dth_prev, dv_prev)
+        if ic >= 0:
+            bias[ic - NAV] += bias[ic - NAV + 1] * dt
         if hold:
             st[ST_POS + 2] = imu.hold[k, 0]
             st[ST_VEL + 2] = imu.hold[k, 1]
@@ -215,14 +232,16 @@ def run_filter(imu, rec, mod, proc, ini, out):
         if k == ini.reset_idx:
             reset_node = kn  # the next node is the first one after the re-initialisation
             _reinit(st, P, ini)
-        # a record is due when its time on the IMU clock (t − d̂, the time-offset estimate) has come
+        # a record is due when its time on the IMU clock has come: its receive time (the tag, or with
+        # clock states tag − b̂/c) − d̂, the time-offset estimate
         toff = bias[itoff - NAV] if itoff >= 0 else 0.0
-        is_node = T >= prop_dt - 1e-9 or (gi < M and rec.t[gi] - toff <= imu.t[k]) or k == n_imu - 1
+        due = gi < M and _rec_time(rec, gi, bias, ic) - toff <= imu.t[k]
+        is_node = T >= prop_dt - 1e-9 or due or k == n_imu - 1
         if is_node and T > 0.0:
             C = dcm_from_quat(st[ST_Q:ST_Q + 4])
             wb = interval_model(Fi, Gi, st, acc, proc.tau[0], proc.tau[1], proc.tau[2], proc.tau[3])
-            F[:nins, :nins] = Fi
-            G[:nins, :mins] = Gi
+            F[:nins, :nins] = Fi[:nins, :nins]
+            G[:nins, :mins] = Gi[:nins, :mins]
             discretize(F, G, proc.q, T, Phi, Qd)
             x[:] = 0.0
             predict(x, P, Phi, Qd)
@@ -236,13 +255,21 @@ def run_filter(imu, rec, mod, proc, ini, out):
                 S_prior[kn] = P
             _node_rates(st, wb, dthc, dt, w)
             w[W_FN] = acc[ACC_FN] / T
-            while gi < M and rec.t[gi] - toff <= imu.t[k]:  # records in (t_{k-1}, t_k]
+            g0 = gi
+            while gi < M and _rec_time(rec, gi, bias, ic) - toff <= imu.t[k]:  # records in (t_{k-1}, t_k]
+                tr = _rec_time(rec, gi, bias, ic)  # the models add d̂ to dt_back themselves
                 if rec.use[gi]:
                     md = rec.model[gi]
-                    nav = Nav(st, C, w, imu.t[k] - rec.t[gi], bias)
-                    m = fill(md, nav, rec.data[gi], mod.par[md], lay, wk.H, wk.z, wk.R)
-                    if m > 0:
-                        gated_update(x, P, wk, m, md, mod, rej, log, gi)
+                    nav = Nav(st, C, w, imu.t[k] - tr, bias)
+                    if grp and md == M_PR:  # a whole epoch: its scalar updates and rejection rule
+                        gate = mod.gate[md, 1] if rej[md] < mod.max_rej[md] else 0.0
+                        ok = epoch_update(x, P, nav, rec.data[gi], mod.par[md], lay, gate, rec.grp, gi, tr)
+                        rej[md] = 0 if ok else rej[md] + 1
+                        log.status[gi] = 1 if ok else 0
+                    else:
+                        m = fill(md, nav, rec.data[gi], mod.par[md], lay, wk.H, wk.z, wk.R)
+                        if m > 0:
+                            gated_update(x, P, wk, m, md, mod, rej, log, gi)
                 gi += 1
             nav = Nav(st, C, w, 0.0, bias)
             for c in range(mod.node.shape[0]):  # node constraints (ZUPT, ZARU at static samples, NHC)
@@ -260,6 +287,8 @@ def run_filter(imu, rec, mod, proc, ini, out):
                     P[PHI + 2, j] = 0.0
                     P[j, PHI + 2] = 0.0
                 P[PHI + 2, PHI + 2] = ini.P[PHI + 2, PHI + 2]
+            for g in range(g0, gi if grp else g0):
+                epoch_record(rec.grp, g, st, bias, P, lay)
             node_idx[kn] = k
             if out.smooth:
                 S_post[kn] = P

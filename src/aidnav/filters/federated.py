@@ -1,109 +1,57 @@
 """Federated Kalman filter SINS/GPS + SINS/SAPV (seed 000), and the centralized filter it is compared with.
 
 Frames and units (``CONVENTIONS.md``): n = ENU, b = RFU; strapdown state [lat, lon (rad), h (m), v^n (m/s),
-q_b^n]; the 15-state error model of :mod:`aidnav.filters.ins_errors` (φ with C_b^n(computed) =
-(I − [φ×]) C_b^n(true), δv, δL δλ δh, gyro bias residual ε [rad/s], accelerometer bias residual ∇
-[m/s²], all computed − true). GNSS fixes: antenna position/velocity (:class:`aidnav.data.GnssData`);
-SAPV: antenna azimuth/elevation axis angles [rad] (:class:`aidnav.sim.sapv.SapvData`). A measurement is
-used at the first IMU sample t_k at or after its time t_j (GPS: the INS is moved back along its velocity;
-SAPV: the line of sight is carried by the body rotation over t_k − t_j).
+q_b^n]; the 15-state INS error layout of :mod:`aidnav.filters.layout`. GNSS: antenna position/velocity
+(:class:`aidnav.data.GnssData`); SAPV: antenna axis angles [rad] (:class:`aidnav.sim.sapv.SapvData`). A
+measurement is used at the first IMU sample at or after its time (GPS: the INS moved back along its
+velocity; SAPV: the line of sight carried by the body rotation, :func:`.measurements.sapv.carry_angles`).
 
-Architecture (Carlson's federated filter, SPEC §1.1): one strapdown INS (numba, every IMU sample), two
-*local* filters sharing its 15-state error model, local 1 = SINS/GPS (position + velocity,
-:func:`~aidnav.filters.measurements.gnss_position`, :func:`~aidnav.filters.measurements.gnss_velocity`),
-local 2 = SINS/SAPV (:func:`~aidnav.filters.measurements.sapv_angles`), and a *master* filter that does a
-time update only. Information-sharing factors β_1 + β_2 + β_m = 1 (β_m = 0: no master). At every filter
-epoch (covariance node: each GPS or SAPV epoch and at most every ``prop_dt`` seconds):
-
-1. time update of every filter with the same Φ and Qd (:func:`~aidnav.filters.kalman.discretize`,
-   :func:`~aidnav.filters.kalman.predict`): local i uses Q_i = Qd/β_i (master Qd/β_m);
-2. measurement updates in the local filters (:func:`~aidnav.filters.kalman.update`, Joseph form);
-3. fusion (:func:`fuse_information`): P_g = (Σ P_i⁻¹ + P_m⁻¹)⁻¹, x_g = P_g (Σ P_i⁻¹ x_i + P_m⁻¹ x_m);
-4. closed-loop feedback of x_g to the INS (:func:`aidnav.filters.loose._apply_correction`:
-   C_b^n ← (I + [φ̂×]) C_b^n, v ← v − δv̂, p ← p − δp̂, bias estimates ← + ε̂, ∇̂);
-5. mode ``"reset"`` (fusion-reset): P_i ← P_g/β_i, x_i ← 0 (and the master likewise). With the same
-   linearisation point for all local filters this is algebraically the centralized filter (the
-   information of the priors sums to P_g⁻¹, the measurement information adds), so it equals
-   ``"centralized"`` up to rounding. Mode ``"no_reset"``: the local filters keep their covariances and
-   only follow the INS correction (x_i ← x_i − x_g: their estimate of the true state is unchanged); with
-   P_i(0) = P_0/β_i and Q_i = Q/β_i the fused covariance is a conservative bound (not optimal), and a
-   fault in one local filter does not propagate into the others.
-
-``"centralized"``: one filter with all measurements (GPS and SAPV) in sequence, before the feedback.
-The INS-only solution with GPS (``use_sapv=False``) is the seed's SINS/GPS.
-
-When one local filter's measurements stop (SAPV lost: NaN epochs of :class:`~aidnav.sim.sapv.SapvData`;
-GPS outage: missing fixes) its filter keeps predicting and the fused solution continues on the other.
-
-The per-IMU-sample work (strapdown, bias compensation, interval sums for F) and the epoch work (the
-covariance algebra) are one numba kernel (:func:`_federated_kernel`), as the loosely coupled filter.
+Carlson's federated filter (SPEC §1.1): one strapdown INS, local 1 = SINS/GPS, local 2 = SINS/SAPV, and a
+master with a time update only; sharing factors β_1 + β_2 + β_m = 1 (β_m = 0: no master). At each node
+(each GPS or SAPV epoch, at most every ``prop_dt``): (1) time update of every filter with one Φ, Qd
+(local i: Qd/β_i); (2) updates in the locals with the engine's records, models, gate policy and log
+(:func:`aidnav.filters.engine.gated_update`); (3) fusion (:func:`fuse_information`) P_g = (Σ P_i⁻¹)⁻¹,
+x_g = P_g Σ P_i⁻¹ x_i; (4) closed-loop feedback of x_g (:func:`aidnav.filters.engine.feedback`);
+(5) ``"reset"``: P_i ← P_g/β_i, x_i ← 0 (algebraically the centralized filter), ``"no_reset"``: the
+locals keep their covariances, x_i ← x_i − x_g (the fused covariance is a conservative bound).
+``"centralized"``: one filter, GPS then SAPV updates. A local whose measurements stop keeps predicting.
+``smooth``: the engine's RTS pass over the fused nodes with the fused prior Φ P_g Φᵀ + Qd (exact for
+"reset" and "centralized"; for "no_reset" the smoother of the fused bound).
 """
 
 from __future__ import annotations
 
+from collections import namedtuple
 from dataclasses import dataclass, field
 
 import numpy as np
 from numba import njit
 
-from aidnav.nav.earth import OMEGA_IE, radii
-from aidnav.nav.geo_pointing import az_el_from_body, beam_body, los_enu
+from aidnav.nav.geo_pointing import los_enu
 from aidnav.nav.rotations import dcm_from_quat
 
-from .ins_errors import (
-    increment_buffers,
-    interval_model,
-    measurement_arrays,
-    model_arrays,
-    new_accumulator,
-    noise_count,
-    propagate_sample,
-    reset_accumulator,
-)
-from .kalman import discretize, predict, update
-from .loose import _apply_correction
-from .measurements import gnss_position, gnss_velocity, sapv_angles
+from . import ins_errors as ie
+from .engine import Imu, Log, Models, Records, Work, _node_rates, feedback, gated_update, rts, smooth_outputs
+from .kalman import discretize, predict
+from .measurements import M_GNSS_POS, M_GNSS_VEL, M_SAPV, MAX_ROWS, N_MODELS, Nav, fill
+from .measurements import sapv as sp
+from .measurements import streams as st_
+from .measurements.common import W_FIX
+from .measurements.sapv import SAPV_BAD_INPUT, SAPV_BELOW_HORIZON, SAPV_SKIP_REASONS, SAPV_UNUSED
 
 __all__ = ["FederatedConfig", "FederatedResult", "run_federated", "run_centralized", "fuse_information",
-           "spd_inverse", "MODES", "SAPV_SKIP_REASONS"]
-
+           "spd_inverse", "MODES", "SAPV_SKIP_REASONS", "SAPV_UNUSED", "SAPV_BAD_INPUT", "SAPV_BELOW_HORIZON"]
 MODES = {"centralized": 0, "reset": 1, "no_reset": 2}
-
-# FederatedResult.sapv_status codes of SAPV epochs that were not used
-SAPV_UNUSED = -1  #: antenna not tracking (reason flag), or SAPV not used in this run
-SAPV_BAD_INPUT = -2  #: NaN on an epoch flagged as tracking, or an angle outside its range
-SAPV_BELOW_HORIZON = -3  #: the satellite is below the local horizon at the INS position
-#: FederatedResult.counts["sapv_skipped"] keys: why SAPV epochs were skipped
-SAPV_SKIP_REASONS = {
-    "not_tracking": "antenna reports no lock (SapvData.reason != OK)",
-    "nan": "non-finite az/el on an epoch flagged as tracking",
-    "angle_out_of_range": "azimuth outside [0, 2*pi) or elevation outside [-pi/2, pi/2] rad",
-    "below_horizon": "the satellite is below the local horizon at the INS position",
-}
-
-# float parameters of the kernel
-P_PROP_DT = 0
-P_TAU_G = 1
-P_TAU_A = 2
-P_GATE_POS = 3
-P_GATE_VEL = 4
-P_GATE_SAPV = 5
-P_USE_POS = 6
-P_USE_VEL = 7
-P_USE_SAPV = 8
-P_SAPV_POS = 9
-P_LEVER = 10  # 3
-N_PAR = 13
+# mode (MODES), beta (3,), t0 [s], st0 (10,), P0, q (PSDs), tau (g, a) [s], prop_dt [s], keep_cov, smooth
+Fed = namedtuple("Fed", ["mode", "beta", "t0", "st", "P", "q", "tau", "prop_dt", "keep_cov", "smooth"])
+FedOut = namedtuple("FedOut", ["node_k", "st", "bias", "pd", "loc", "cov", "log", "S_post", "S_prior",
+                               "S_phi", "S_dx"])
 
 
 @njit(cache=True)
 def spd_inverse(P):
-    """Inverse of a symmetric positive-definite matrix with Jacobi (diagonal) scaling.
-
-    P⁻¹ = D⁻¹ (D⁻¹ P D⁻¹)⁻¹ D⁻¹ with D = √diag(P): the INS error covariance mixes rad², m² and (rad/s)²
-    (diagonal spanning ~25 orders of magnitude); the scaled matrix is a correlation matrix whose
-    condition number reflects only the correlations. Returns the symmetrised inverse.
-    """
+    """Symmetrised inverse of an SPD matrix with Jacobi scaling, P⁻¹ = D⁻¹ (D⁻¹ P D⁻¹)⁻¹ D⁻¹, D = √diag(P)
+    (the INS covariance mixes rad², m², (rad/s)²: the scaled matrix is a correlation matrix)."""
     n = P.shape[0]
     d = np.empty(n)
     for i in range(n):
@@ -115,11 +63,8 @@ def spd_inverse(P):
 
 @njit(cache=True)
 def fuse_information(Ps, xs, use):
-    """Information fusion of the federated filter: P_g = (Σ P_i⁻¹)⁻¹, x_g = P_g Σ P_i⁻¹ x_i.
-
-    Ps (k, n, n), xs (k, n); use (k,) bool: which filters take part (a filter with no information, e.g. a
-    master with β_m = 0, is left out). Returns (P_g, x_g).
-    """
+    """P_g = (Σ P_i⁻¹)⁻¹, x_g = P_g Σ P_i⁻¹ x_i over Ps (k, n, n), xs (k, n) where ``use`` (k,) (a filter
+    without information, e.g. a master with β_m = 0, is left out). Returns (P_g, x_g)."""
     n = Ps.shape[1]
     Y = np.zeros((n, n))
     y = np.zeros(n)
@@ -133,166 +78,104 @@ def fuse_information(Ps, xs, use):
 
 
 @njit(cache=True)
-def _federated_kernel(imu_t, dth, dvel, t0, st0, P0, q_psd, par, mode, beta,
-                      g_t, g_lat, g_lon, g_h, g_vel, g_spos, g_svel, g_use,
-                      s_t, s_az, s_el, s_sig, s_use, sat, keep_cov):
-    n_imu = imu_t.shape[0]
-    n = P0.shape[0]
-    m = noise_count(n)
-    M = g_t.shape[0]
-    S = s_t.shape[0]
-    nloc = 1 if mode == 0 else 2
-    r_sapv = 0 if mode == 0 else 1
-    has_master = mode != 0 and beta[2] > 0.0
-    # filters: locals 0..nloc-1, the master at index nloc (used only when has_master)
-    nf = nloc + 1
-    Pf = np.zeros((nf, n, n))
-    xf = np.zeros((nf, n))
-    qs = np.ones(nf)
-    use_f = np.zeros(nf, np.bool_)
-    for i in range(nloc):
-        qs[i] = 1.0 if mode == 0 else 1.0 / beta[i]
-        Pf[i] = P0 * qs[i]
-        use_f[i] = True
-    if has_master:
-        qs[nloc] = 1.0 / beta[2]
-        Pf[nloc] = P0 * qs[nloc]
-        use_f[nloc] = True
-    st = st0.copy()
-    bias = np.zeros(n - 9)
-    F, G, Phi, Qd = model_arrays(n, m)
-    H3, z3, R3, innov3, sd3 = measurement_arrays(3, n)  # GPS position / velocity
-    H2, z2, R2, innov2, sd2 = measurement_arrays(2, n)  # SAPV azimuth / elevation
-    lever = par[P_LEVER:P_LEVER + 3].copy()
-    prop_dt = par[P_PROP_DT]
-    max_nodes = M + S + int((imu_t[-1] - t0) / prop_dt) + 3
-    if max_nodes > n_imu:
-        max_nodes = n_imu
-    node_k = np.empty(max_nodes, np.int64)
-    out_st = np.empty((max_nodes, 10))
-    out_bias = np.empty((max_nodes, n - 9))
-    out_pd = np.empty((max_nodes, n))
-    out_loc = np.empty((max_nodes, nloc, 3))
-    out_cov = np.zeros((max_nodes if keep_cov else 1, n, n))
-    rec_pos = np.full(M, -1, np.int8)
-    rec_vel = np.full(M, -1, np.int8)
-    rec_pos_nis = np.full(M, np.nan)
-    rec_vel_nis = np.full(M, np.nan)
-    rec_s = np.full(S, -1, np.int8)
-    rec_s_innov = np.full((S, 2), np.nan)
-    rec_s_s = np.full((S, 2), np.nan)
-    rec_s_nis = np.full(S, np.nan)
-    gi = 0
-    while gi < M and g_t[gi] <= t0:
-        gi += 1
-    si = 0
-    while si < S and s_t[si] <= t0:
-        si += 1
-    acc = new_accumulator()  # sums over the samples since the last node (ins_errors.ACC_*)
-    dthc, dvc, dth_prev, dv_prev = increment_buffers()  # corrected increments: this / previous sample
-    tp = t0
-    kn = 0
+def _federated_kernel(imu, gn, sv, mod, lay, fed):
+    """Forward pass (module doc). gn, sv: engine :class:`Records` of GNSS (position, velocity) and SAPV
+    (``sapv_model`` rows); mod: engine :class:`Models`; lay: layout 15; fed: :class:`Fed`."""
+    n_imu, n, M, S, mode = imu.t.shape[0], fed.P.shape[0], gn.t.shape[0], sv.t.shape[0], fed.mode
+    nloc, r_sapv = (1, 0) if mode == 0 else (2, 1)
+    nf = nloc + 1  # locals 0..nloc-1, the master at nloc (used when β_m > 0)
+    Pf, xf, qs, use_f = np.zeros((nf, n, n)), np.zeros((nf, n)), np.ones(nf), np.zeros(nf, np.bool_)
+    for i in range(nf):
+        if i < nloc or (mode != 0 and fed.beta[2] > 0.0):
+            qs[i] = 1.0 if mode == 0 else 1.0 / fed.beta[min(i, 2)]
+            Pf[i], use_f[i] = fed.P * qs[i], True
+    st, bias, Pg = fed.st.copy(), np.zeros(n - 9), fed.P.copy()
+    F, G, Phi, Qd = ie.model_arrays(n, ie.noise_count(n))
+    wk = Work(np.zeros((MAX_ROWS, n)), np.zeros(MAX_ROWS), np.zeros((MAX_ROWS, MAX_ROWS)))
+    w = np.zeros((4, 3))
+    mx = min(M + S + int((imu.t[-1] - fed.t0) / fed.prop_dt) + 3, n_imu)
+    node_k, out_st, out_bias = np.empty(mx, np.int64), np.empty((mx, 10)), np.empty((mx, n - 9))
+    out_pd, out_loc = np.empty((mx, n)), np.empty((mx, nloc, 3))
+    out_cov = np.zeros((mx if fed.keep_cov else 1, n, n))
+    ns = mx if fed.smooth else 1
+    S_post, S_prior, S_phi = np.zeros((ns, n, n)), np.zeros((ns, n, n)), np.zeros((ns, n, n))
+    S_dx = np.zeros((ns, n))
+    cap = M + S
+    log = Log(np.full(cap, np.nan), np.full(cap, -1, np.int8), np.full(cap, -1, np.int8),
+              np.full(cap, np.nan), np.full((cap, MAX_ROWS), np.nan), np.full((cap, MAX_ROWS), np.nan),
+              np.full(cap, -1, np.int64))
+    for i in range(cap):
+        log.t[i] = gn.t[i] if i < M else sv.t[i - M]
+        log.model[i], log.ref[i] = (gn.model[i], i) if i < M else (M_SAPV, i - M)
+    rej = np.zeros(N_MODELS, np.int64)
+    gi, si = np.searchsorted(gn.t, fed.t0, side="right"), np.searchsorted(sv.t, fed.t0, side="right")
+    acc = ie.new_accumulator()
+    dthc, dvc, dth_prev, dv_prev = ie.increment_buffers()
+    tp, kn = fed.t0, 0
     for k in range(n_imu):
-        dt = imu_t[k] - tp
-        tp = imu_t[k]
-        T = propagate_sample(st, acc, dth[k], dvel[k], bias, dt, dthc, dvc, dth_prev, dv_prev)
-        tk = imu_t[k] + 1e-9
-        is_node = (T >= prop_dt - 1e-9 or (gi < M and g_t[gi] <= tk) or (si < S and s_t[si] <= tk)
-                   or k == n_imu - 1)
-        if not (is_node and T > 0.0):
+        dt = imu.t[k] - tp
+        tp = imu.t[k]
+        T = ie.propagate_sample(st, acc, imu.dth[k], imu.dv[k], bias, dt, dthc, dvc, dth_prev, dv_prev)
+        tk = imu.t[k] + 1e-9
+        due = (gi < M and gn.t[gi] <= tk) or (si < S and sv.t[si] <= tk)
+        if not ((T >= fed.prop_dt - 1e-9 or due or k == n_imu - 1) and T > 0.0):
             continue
         C = dcm_from_quat(st[6:10])
-        interval_model(F, G, st, acc, par[P_TAU_G], par[P_TAU_A], 0.0, 0.0)
-        discretize(F, G, q_psd, T, Phi, Qd)
-        # 1. time update of every filter (local i with Q/β_i; the master with Q/β_m)
-        for i in range(nf):
+        wb = ie.interval_model(F, G, st, acc, fed.tau[0], fed.tau[1], 0.0, 0.0)
+        discretize(F, G, fed.q, T, Phi, Qd)
+        for i in range(nf):  # 1. time update (local i with Q/β_i; the master with Q/β_m)
             if use_f[i]:
                 predict(xf[i], Pf[i], Phi, Qd * qs[i])
-        # 2. local measurement updates
-        while gi < M and g_t[gi] <= tk:
-            if g_use[gi]:
-                if par[P_USE_POS] > 0:
-                    gnss_position(st, C, lever, g_lat[gi], g_lon[gi], g_h[gi], imu_t[k] - g_t[gi], H3, z3)
-                    R3[:, :] = 0.0
-                    for i in range(3):
-                        R3[i, i] = g_spos[gi, i] ** 2
-                    ok, nis = update(xf[0], Pf[0], H3, R3, z3, par[P_GATE_POS], innov3, sd3)
-                    rec_pos[gi] = 1 if ok else 0
-                    rec_pos_nis[gi] = nis
-                if par[P_USE_VEL] > 0 and not np.isnan(g_vel[gi, 0]):
-                    cl = np.cos(st[0])
-                    sl = np.sin(st[0])
-                    rm, rn = radii(st[0])
-                    w_in = np.array([-st[4] / (rm + st[2]), OMEGA_IE * cl + st[3] / (rn + st[2]),
-                                     OMEGA_IE * sl + st[3] * sl / cl / (rn + st[2])])
-                    gnss_velocity(st, C, lever, dthc / dt, w_in, g_vel[gi], H3, z3)
-                    R3[:, :] = 0.0
-                    for i in range(3):
-                        R3[i, i] = g_svel[gi, i] ** 2
-                    ok, nis = update(xf[0], Pf[0], H3, R3, z3, par[P_GATE_VEL], innov3, sd3)
-                    rec_vel[gi] = 1 if ok else 0
-                    rec_vel_nis[gi] = nis
+        if fed.smooth:
+            S_phi[kn], S_prior[kn] = Phi, Phi @ Pg @ Phi.T + Qd
+        _node_rates(st, wb, dthc, dt, w)
+        while gi < M and gn.t[gi] <= tk:  # 2. local updates: GNSS in local 1
+            if gn.use[gi]:
+                md = gn.model[gi]
+                nav = Nav(st, C, w, imu.t[k] - gn.t[gi], bias)
+                m = fill(md, nav, gn.data[gi], mod.par[md], lay, wk.H, wk.z, wk.R)
+                if m > 0:
+                    gated_update(xf[0], Pf[0], wk, m, md, mod, rej, log, gi)
             gi += 1
-        while si < S and s_t[si] <= tk:
-            if s_use[si] and par[P_USE_SAPV] > 0:
-                az_m, el_m = s_az[si], s_el[si]
-                dtb = imu_t[k] - s_t[si]
-                if dtb > 1e-9:
-                    # the angles describe the body at t_j < t_k: carry the (nav-fixed) line of sight into the
-                    # body frame at t_k, r_b(k) = (I − [θ×]) r_b(j) with θ = ω_ib^b (t_k − t_j)
-                    u = beam_body(az_m, el_m)
-                    th = dthc * (dtb / dt)
-                    az_m, el_m = az_el_from_body(u - np.cross(th, u))
-                if los_enu(st[0], st[1], st[2], sat)[2] < 0.0:
-                    # the satellite is below the local horizon at the INS position: the antenna cannot be
-                    # tracking it (wrong satellite longitude / data): skipped, flagged
-                    rec_s[si] = SAPV_BELOW_HORIZON
+        while si < S and sv.t[si] <= tk:  # SAPV in local 2 (in the one filter when centralized)
+            if sv.use[si]:
+                row = sv.data[si].copy()
+                sp.carry_angles(row, w[W_FIX], imu.t[k] - sv.t[si])
+                if los_enu(st[0], st[1], st[2], row[0:3].copy())[2] < 0.0:
+                    log.status[M + si] = SAPV_BELOW_HORIZON  # the antenna cannot be tracking it: skipped
                 else:
-                    sapv_angles(st, C, sat, az_m, el_m, par[P_SAPV_POS] > 0, H2, z2)
-                    R2[0, 0] = s_sig[0] ** 2
-                    R2[1, 1] = s_sig[1] ** 2
-                    ok, nis = update(xf[r_sapv], Pf[r_sapv], H2, R2, z2, par[P_GATE_SAPV], innov2, sd2)
-                    rec_s[si] = 1 if ok else 0
-                    rec_s_nis[si] = nis
-                    rec_s_innov[si] = innov2
-                    rec_s_s[si] = sd2
+                    nav = Nav(st, C, w, 0.0, bias)
+                    m = fill(M_SAPV, nav, row, mod.par[M_SAPV], lay, wk.H, wk.z, wk.R)
+                    gated_update(xf[r_sapv], Pf[r_sapv], wk, m, M_SAPV, mod, rej, log, M + si)
             si += 1
-        # 3. fusion
-        if mode == 0:
-            Pg = Pf[0].copy()
-            xg = xf[0].copy()
+        if mode == 0:  # 3. fusion
+            Pg, xg = Pf[0].copy(), xf[0].copy()
         else:
             Pg, xg = fuse_information(Pf, xf, use_f)
-        # 4. closed-loop feedback to the INS
-        _apply_correction(st, bias, xg, n)
-        # 5. reset / follow the correction
-        for i in range(nf):
-            if not use_f[i]:
-                continue
-            if mode == 2:
-                xf[i] -= xg
-            else:
-                xf[i][:] = 0.0
-                if mode == 1:
-                    Pf[i][:, :] = Pg * qs[i]
-        node_k[kn] = k
-        out_st[kn] = st
-        out_bias[kn] = bias
-        for i in range(n):
-            out_pd[kn, i] = Pg[i, i]
+        feedback(st, bias, xg, n)  # 4. closed-loop feedback
+        for i in range(nf):  # 5. reset / follow the correction
+            if use_f[i]:
+                if mode == 2:
+                    xf[i] -= xg
+                else:
+                    xf[i][:] = 0.0
+                    if mode == 1:
+                        Pf[i][:, :] = Pg * qs[i]
+        if fed.smooth:
+            S_post[kn], S_dx[kn] = Pg, xg
+        node_k[kn], out_st[kn], out_bias[kn] = k, st, bias
+        out_pd[kn] = np.diag(Pg)
         for i in range(nloc):
-            for j in range(3):
-                out_loc[kn, i, j] = np.sqrt(Pf[i][j, j])
-        if keep_cov:
+            out_loc[kn, i] = np.sqrt(np.diag(Pf[i])[:3])
+        if fed.keep_cov:
             out_cov[kn] = Pg
         kn += 1
-        reset_accumulator(acc)
-    return (node_k[:kn], out_st[:kn], out_bias[:kn], out_pd[:kn], out_loc[:kn],
-            out_cov[:kn] if keep_cov else out_cov[:0], rec_pos, rec_vel, rec_pos_nis, rec_vel_nis,
-            rec_s, rec_s_innov, rec_s_s, rec_s_nis)
+        ie.reset_accumulator(acc)
+    return FedOut(node_k[:kn], out_st[:kn], out_bias[:kn], out_pd[:kn], out_loc[:kn],
+                  out_cov[:kn] if fed.keep_cov else out_cov[:0], log, S_post[:kn], S_prior[:kn], S_phi[:kn],
+                  S_dx[:kn])
 
 
-# ------------------------------------------------------------------------------------------ driver
 @dataclass(frozen=True)
 class FederatedConfig:
     """Options of :func:`run_federated`.
@@ -341,20 +224,18 @@ class FederatedConfig:
 
 @dataclass
 class FederatedResult:
-    """Output of :func:`run_federated` at the filter epochs (after the feedback).
+    """Output of :func:`run_federated` at the filter nodes (after the feedback).
 
     time : (K,) [s]; state : (K, 10) [lat, lon, h, vE, vN, vU, q_b^n]; rph : (K, 3) roll, pitch, heading
-    [rad]; bias : (K, 6) estimated gyro [rad/s] and accelerometer [m/s²] biases; pdiag : (K, 15) diagonal
-    of the fused covariance P_g; cov : (K, 15, 15) P_g (only with ``keep_cov``); local_att_std :
-    (K, nloc, 3) 1σ of φ in each local filter [rad] (inflated by 1/β_i in the federated modes);
-    gps_pos_status, gps_vel_status : (M,) int8 per fix, −1 not used, 0 gated out, 1 used; gps_pos_nis,
-    gps_vel_nis : (M,); sapv_status : (S,) int8 likewise; sapv_innov : (S, 2) ν = z − H x [rad];
-    sapv_s : (S, 2) diag of its S [rad²]; sapv_nis : (S,) (of the filter that used it); config : the
-    :class:`FederatedConfig`. sapv_status codes below −1: −2 bad input (NaN angles on an epoch flagged
-    as tracking, azimuth outside [0, 2π) or elevation outside [−π/2, π/2]), −3 satellite below the local
-    horizon at the INS position; those epochs are skipped. counts : ``{"sapv_used", "sapv_gated": int,
-    "sapv_skipped": {reason: int}}`` with the reasons of :data:`SAPV_SKIP_REASONS` (epochs of a run with
-    ``use_sapv=False`` are not counted as skipped).
+    [rad]; bias : (K, 6) gyro [rad/s] and accelerometer [m/s²] bias estimates; pdiag : (K, 15) diagonal of
+    the fused covariance P_g (smoothed when ``smoothed``; forward in ``forward_state``/``forward_pdiag``);
+    cov : (K, 15, 15) forward P_g (only with ``keep_cov``); local_att_std : (K, nloc, 3) 1σ of φ in each
+    local filter [rad] (inflated by 1/β_i); gps_pos_status, gps_vel_status : (M,) int8 per fix, −1 not
+    used, 0 gated out, 1 used; gps_pos_nis, gps_vel_nis : (M,); sapv_status : (S,) int8 likewise, below −1
+    skipped (−2 bad input: NaN on a tracking epoch, az ∉ [0, 2π) or el ∉ [−π/2, π/2]; −3 satellite below
+    the local horizon); sapv_innov : (S, 2) ν [rad]; sapv_s : (S, 2) diag S [rad²]; sapv_nis : (S,);
+    counts : ``{"sapv_used", "sapv_gated", "sapv_skipped": {reason: int}}`` (:data:`SAPV_SKIP_REASONS`;
+    a run with ``use_sapv=False`` counts none as skipped); innovations : the engine log (GNSS, then SAPV).
     """
 
     time: np.ndarray
@@ -374,40 +255,31 @@ class FederatedResult:
     sapv_nis: np.ndarray
     config: FederatedConfig
     counts: dict = field(default_factory=dict)
+    smoothed: bool = False
+    forward_state: np.ndarray | None = None
+    forward_pdiag: np.ndarray | None = None
+    innovations: dict = field(default_factory=dict)
 
 
-def _empty_gnss():
-    z = np.zeros(0)
-    return z, z, z, z, np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3))
-
-
-def run_federated(imu, gnss, sapv, cfg, fed: FederatedConfig | None = None, *,
-                  keep_cov: bool = False) -> FederatedResult:
+def run_federated(imu, gnss, sapv, cfg, fed: FederatedConfig | None = None, *, keep_cov: bool = False,
+                  smooth: bool = False) -> FederatedResult:
     """SINS/GPS/SAPV: federated (fusion-reset or no-reset) or centralized error-state Kalman filter.
-
-    Parameters
-    ----------
     imu : :class:`aidnav.data.ImuData` (increments, body RFU); the filter starts at ``imu.t0``.
     gnss : :class:`aidnav.data.GnssData` antenna fixes (σ columns or ``cfg.gnss.default_*``), or None.
     sapv : :class:`aidnav.sim.sapv.SapvData` antenna angles (NaN = not tracking; R = its ``sigma``²), or None.
-    cfg : :class:`aidnav.filters.config.LooseConfig` with ``init.mode = "given"`` (initial position,
-        velocity, attitude and their σ), the IMU noise model (:func:`aidnav.filters.loose.process_noise`,
-        :func:`aidnav.filters.loose.initial_covariance`), the GNSS σ handling
-        (:func:`aidnav.filters.loose.gnss_arrays`: floors, scale factors) and ``filter.prop_dt_s``.
-        Only 15 states (no scale factors).
-    fed : :class:`FederatedConfig` (default: fusion-reset, β = 1/2, 1/2).
-    keep_cov : keep the full fused covariance at every epoch (``FederatedResult.cov``).
-
-    Returns
-    -------
-    :class:`FederatedResult` (algorithm in the module docstring).
+    cfg : :class:`aidnav.filters.config.LooseConfig` with ``init.mode = "given"`` (initial state and σ),
+        the IMU noise model, the GNSS σ handling (:func:`aidnav.filters.loose.gnss_arrays`) and
+        ``filter.prop_dt_s``; 15 states only. fed : :class:`FederatedConfig` (default: fusion-reset,
+        β = 1/2, 1/2). keep_cov : keep the full forward fused covariance at every node.
+    smooth : RTS smoother over the fused nodes (module doc); the forward solution stays in ``forward_*``.
     """
     from scipy.special import chdtri
 
     from aidnav.nav.rotations import quat_from_euler, quat_to_euler_batch
 
     from .config import DEG
-    from .loose import gnss_arrays, initial_covariance, process_noise
+    from .layout import make_layout
+    from .loose import NEVER, _log_dict, gnss_arrays, initial_covariance, process_noise
 
     fed = fed or FederatedConfig()
     if cfg.nstate != 15:
@@ -423,88 +295,56 @@ def run_federated(imu, gnss, sapv, cfg, fed: FederatedConfig | None = None, *,
     q0 = quat_from_euler(ini.roll_deg * DEG, ini.pitch_deg * DEG, ini.heading_deg * DEG)
     st0 = np.array([lat0, lon0, h0, *ini.velocity_m_s, *q0], float)
     P0 = initial_covariance(cfg, 15, lat0, h0, np.array(ini.attitude_sigma_deg) * DEG)
-    q_psd = process_noise(cfg, 15)
-    if gnss is None or len(gnss) == 0:
-        g_t, g_lat, g_lon, g_h, g_vel, g_spos, g_svel = _empty_gnss()
-    else:
-        g_t, g_lat, g_lon, g_h, g_vel, g_spos, g_svel = gnss_arrays(gnss, cfg)
-    g_use = np.ones(len(g_t), np.bool_)
-    if sapv is None or len(sapv) == 0:
-        s_t, s_az, s_el = np.zeros(0), np.zeros(0), np.zeros(0)
-        s_skip = np.zeros(0, "<U20")
-        s_use = np.zeros(0, np.bool_)
-        s_sig = np.ones(2)
-        sat = np.array([1.0, 0.0, 0.0])
-    else:
-        s_t, s_az, s_el = sapv.time, sapv.az, sapv.el
-        s_skip = _sapv_input_check(sapv)
-        s_use = np.ascontiguousarray(s_skip == "")
-        s_sig = np.ascontiguousarray(sapv.sigma, dtype=float)
-        sat = np.ascontiguousarray(sapv.sat_ecef, dtype=float)
-    par = np.zeros(N_PAR)
-    par[P_PROP_DT] = cfg.filter.prop_dt_s
-    par[P_TAU_G] = cfg.imu.gyro_bias_tau_s
-    par[P_TAU_A] = cfg.imu.accel_bias_tau_s
+    m = 0 if gnss is None else len(gnss)
+    use_g = fed.use_gps and m > 0
+    g = gnss_arrays(gnss, cfg) if m else (np.zeros(0),) * 4 + (np.zeros((0, 3)),) * 3
+    gr, order = st_.gnss_records(g, use_g and cfg.gnss.use in ("both", "position"),
+                                 use_g and cfg.gnss.use in ("both", "velocity"))
+    sr, s_skip = st_.sapv_records(sapv, fed.use_sapv)
+    gn, sv = Records(*gr), Records(*sr)
     gp = fed.gate_probability
-    par[P_GATE_POS] = chdtri(3, 1.0 - gp) if gp < 1 else 0.0
-    par[P_GATE_VEL] = par[P_GATE_POS]
-    par[P_GATE_SAPV] = chdtri(2, 1.0 - gp) if gp < 1 else 0.0
-    use_g = fed.use_gps and len(g_t) > 0
-    par[P_USE_POS] = use_g and cfg.gnss.use in ("both", "position")
-    par[P_USE_VEL] = use_g and cfg.gnss.use in ("both", "velocity")
-    par[P_USE_SAPV] = fed.use_sapv and len(s_t) > 0
-    par[P_SAPV_POS] = fed.sapv_position_columns
-    par[P_LEVER:P_LEVER + 3] = cfg.gnss.lever_arm_m
-    beta = np.array([fed.beta_gps, fed.beta_sapv, fed.beta_master], float)
-    def arr(a):
-        return np.ascontiguousarray(a, dtype=float)
-
-    r = _federated_kernel(arr(imu.time), imu.dtheta, imu.dv, float(imu.t0), st0, P0, q_psd, par,
-                          MODES[fed.mode], beta, g_t, g_lat, g_lon, g_h, g_vel, g_spos, g_svel, g_use,
-                          arr(s_t), arr(s_az), arr(s_el), s_sig, s_use, sat, keep_cov)
-    (node_k, out_st, out_bias, out_pd, out_loc, out_cov, rpos, rvel, rpn, rvn, rs, rsi, rss, rsn) = r
-    rph = quat_to_euler_batch(np.ascontiguousarray(out_st[:, 6:10]))
-    skipped = dict.fromkeys(SAPV_SKIP_REASONS, 0)
-    if par[P_USE_SAPV] > 0:
-        rs[(s_skip == "nan") | (s_skip == "angle_out_of_range")] = SAPV_BAD_INPUT
-        for k in ("not_tracking", "nan", "angle_out_of_range"):
-            skipped[k] = int(np.count_nonzero(s_skip == k))
-        skipped["below_horizon"] = int(np.count_nonzero(rs == SAPV_BELOW_HORIZON))
-    counts = {"sapv_used": int(np.count_nonzero(rs == 1)), "sapv_gated": int(np.count_nonzero(rs == 0)),
-              "sapv_skipped": skipped}
-    return FederatedResult(time=imu.time[node_k], state=out_st, rph=rph, bias=out_bias, pdiag=out_pd,
-                           cov=out_cov if keep_cov else None, local_att_std=out_loc, gps_pos_status=rpos,
-                           gps_vel_status=rvel, gps_pos_nis=rpn, gps_vel_nis=rvn, sapv_status=rs,
-                           sapv_innov=rsi, sapv_s=rss, sapv_nis=rsn, config=fed, counts=counts)
-
-
-def _sapv_input_check(sapv) -> np.ndarray:
-    """(S,) str: why each SAPV epoch cannot be used (a key of :data:`SAPV_SKIP_REASONS`), "" if it can.
-
-    The angles follow :func:`aidnav.nav.geo_pointing.az_el_from_body`: az ∈ [0, 2π), el ∈ [−π/2, π/2]
-    [rad]; anything else is a unit or convention error in the data (e.g. degrees), not a measurement.
-    """
-    from aidnav.models.sapv import OK
-
-    az, el = np.asarray(sapv.az, float), np.asarray(sapv.el, float)
-    out = np.full(len(az), "", "<U20")
-    finite = np.isfinite(az) & np.isfinite(el)
-    with np.errstate(invalid="ignore"):
-        bad_range = finite & ((az < 0.0) | (az >= 2.0 * np.pi) | (np.abs(el) > 0.5 * np.pi))
-    tracking = np.asarray(sapv.reason) == OK
-    out[tracking & bad_range] = "angle_out_of_range"
-    out[tracking & ~finite] = "nan"
-    out[~tracking] = "not_tracking"
-    return out
+    par = np.zeros((N_MODELS, 4))
+    par[M_GNSS_POS, :3] = par[M_GNSS_VEL, :3] = cfg.gnss.lever_arm_m
+    par[M_SAPV, 0] = fed.sapv_position_columns
+    gate = np.zeros((N_MODELS, MAX_ROWS + 1))
+    if gp < 1:
+        gate[M_GNSS_POS, 1:4] = gate[M_GNSS_VEL, 1:4] = chdtri(3, 1.0 - gp)  # one χ²(3) gate (as before)
+        gate[M_SAPV, 2] = chdtri(2, 1.0 - gp)
+    mod = Models(par, gate, np.full(N_MODELS, NEVER, np.int64), np.zeros((0, 2), np.int64))
+    t_imu = np.ascontiguousarray(imu.time, dtype=float)
+    no = np.zeros((0, 2))
+    imu_in = Imu(t_imu, imu.dtheta, imu.dv, np.zeros(len(t_imu), np.bool_), no, no)
+    f = Fed(MODES[fed.mode], np.array([fed.beta_gps, fed.beta_sapv, fed.beta_master], float), float(imu.t0),
+            st0, P0, process_noise(cfg, 15), np.array([cfg.imu.gyro_bias_tau_s, cfg.imu.accel_bias_tau_s]),
+            float(cfg.filter.prop_dt_s), bool(keep_cov), bool(smooth))
+    r = _federated_kernel(imu_in, gn, sv, mod, make_layout(), f)
+    log = _log_dict(r.log, len(r.log.t))
+    M = len(gn.t)
+    gl = st_.per_fix(log, order, m)
+    rs, ls = log["status"][M:].copy(), slice(M, None)
+    counts = sp.sapv_counts(rs, s_skip, fed.use_sapv and len(sv.t) > 0)
+    rph = quat_to_euler_batch(np.ascontiguousarray(r.st[:, 6:10]))
+    res = FederatedResult(time=t_imu[r.node_k], state=r.st, rph=rph, bias=r.bias, pdiag=r.pd,
+                          cov=r.cov if keep_cov else None, local_att_std=r.loc,
+                          gps_pos_status=gl["status"][0], gps_vel_status=gl["status"][1],
+                          gps_pos_nis=gl["nis"][0], gps_vel_nis=gl["nis"][1], sapv_status=rs,
+                          sapv_innov=log["nu"][ls, :2], sapv_s=log["s"][ls, :2], sapv_nis=log["nis"][ls],
+                          config=fed, counts=counts, innovations=log)
+    if smooth and len(r.node_k) > 1:
+        ds, Ps = rts(r.S_post, r.S_prior, r.S_phi, r.S_dx, -1)
+        kk = r.node_k
+        sm_st, sm_b = smooth_outputs(kk, r.st, r.bias, np.arange(len(kk)), kk, ds, r.S_dx, 15)
+        res.forward_state, res.forward_pdiag = res.state, res.pdiag
+        res.state, res.bias, res.pdiag = sm_st, sm_b, np.einsum("kii->ki", Ps)
+        res.rph, res.smoothed = quat_to_euler_batch(np.ascontiguousarray(sm_st[:, 6:10])), True
+    return res
 
 
 def run_centralized(imu, gnss, sapv, cfg, *, use_gps: bool = True, use_sapv: bool = True,
                     sapv_position_columns: bool = False, gate_probability: float = 1.0,
                     keep_cov: bool = False) -> FederatedResult:
-    """One 15-state filter with GPS and SAPV measurements (the reference of the federated filter).
-
-    Same arguments and result as :func:`run_federated`; ``use_sapv=False`` is the seed's SINS/GPS.
-    """
+    """One 15-state filter with GPS and SAPV (the federated filter's reference; as :func:`run_federated`;
+    ``use_sapv=False`` is the seed's SINS/GPS)."""
     fed = FederatedConfig(mode="centralized", use_gps=use_gps, use_sapv=use_sapv,
                           sapv_position_columns=sapv_position_columns, gate_probability=gate_probability)
     return run_federated(imu, gnss, sapv, cfg, fed, keep_cov=keep_cov)

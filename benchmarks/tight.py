@@ -1,0 +1,120 @@
+"""Benchmark of the tightly coupled and federated filters (issue 24): IMU samples per second.
+
+* tight: :func:`aidnav.filters.tight.run_tight` on the rtklibexplorer walk (as ``aidnav tight`` runs it,
+  :func:`aidnav.apps.tight.process_tight`; SPP and reading outside the timing), forward and, where the
+  filter has it, forward + RTS smoother; horizontal RMS against the RTK reference (Q = 1) for both.
+* federated: :func:`aidnav.filters.federated.run_federated` on the seed-000 simulation (600 s, 100 Hz),
+  fusion-reset and centralized, forward and forward + RTS.
+Best of 3, compiled code warm. Target (issue 24): no slower than before the engine migration
+(``BEFORE``, measured with the pre-engine kernels).
+
+Run: ``python benchmarks/tight.py [tight_module [federated_module]]`` (needs ../shared/data or
+$AIDNAV_DATA; the optional module names let the same script time another implementation).
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import inspect  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = Path(os.environ.get("AIDNAV_DATA", ROOT.parent / "shared" / "data"))
+WALK = DATA / "rtklibexplorer_walk_0827"
+# IMU samples/s of the pre-engine kernels (commit c842deb): this script, best of 3, shared 2-core machine
+BEFORE = {"tight": 625_559, "reset": 1_151_719, "centralized": 1_511_781}
+
+
+def best_of(fn, n=3):
+    best, out = float("inf"), None
+    for _ in range(n):
+        t = time.perf_counter()
+        out = fn()
+        best = min(best, time.perf_counter() - t)
+    return best, out
+
+
+def tight_case(module="aidnav.filters.tight"):
+    import importlib
+
+    import aidnav.apps.tight as app
+    from aidnav.apps.process import read_gnss_any, read_imu_any
+    from aidnav.apps.tight import compare_with_reference, process_tight
+    tight = importlib.import_module(module)
+    from aidnav.io.rinex import read_rinex_nav, read_rinex_obs
+
+    imu = read_imu_any(WALK / "imu_1730.csv")
+    obs = read_rinex_obs(WALK / "rinex_converted/gnss_1730.obs")
+    eph = read_rinex_nav(WALK / "rinex_converted/gnss_1730.nav", ref_week=getattr(obs, "ref_week", None))
+    ref = read_gnss_any(WALK / "gnss_1730_sf.pos", -21.4)
+    captured = {}
+    orig = tight.run_tight
+
+    def capture(*a, **k):  # the arguments process_tight gives run_tight
+        captured["a"], captured["k"] = a, k
+        return orig(*a, **k)
+
+    app.run_tight = capture
+    try:
+        process_tight(imu, obs, eph)
+    finally:
+        app.run_tight = orig
+    a, k = captured["a"], captured["k"]
+    n = len(imu)
+    modes = [("forward", {})]
+    if "smooth" in inspect.signature(orig).parameters:
+        modes.append(("forward + RTS", {"smooth": True}))
+    for name, extra in modes:
+        dt, res = best_of(lambda kw={**k, **extra}: orig(*a, **kw))
+        traj = tight.to_trajectory(res)
+        c = compare_with_reference(traj.time, traj.lat, traj.lon, traj.height, ref, quality=1)
+        sig = np.median(np.hypot(traj.std_pos[:, 0], traj.std_pos[:, 1]))
+        print(f"tight {name:14s}: {n / dt:12,.0f} IMU samples/s ({dt:.3f} s for {n} samples); "
+              f"horizontal RMS (Q=1) {c['horizontal_rms']:.2f} m; median horizontal sigma {sig:.2f} m")
+    return n
+
+
+def federated_case(module="aidnav.filters.federated"):
+    import importlib
+
+    from aidnav.experiments.reproduce import seed_000 as s0
+
+    federated = importlib.import_module(module)
+    sim, sv, cfg = s0.simulate_case(np.random.SeedSequence(11), duration_s=600.0)
+    n = len(sim.imu)
+    modes = [("forward", {})]
+    if "smooth" in inspect.signature(federated.run_federated).parameters:
+        modes.append(("forward + RTS", {"smooth": True}))
+    for mode in ("reset", "centralized"):
+        fed = federated.FederatedConfig(mode=mode)
+        for name, extra in modes:
+            def run(f=fed, kw=extra):
+                return federated.run_federated(sim.imu, sim.gnss, sv, cfg, f, **kw)
+
+            dt, _ = best_of(run)
+            print(f"federated {mode:11s} {name:14s}: {n / dt:12,.0f} IMU samples/s "
+                  f"({dt:.3f} s for {n} samples)")
+
+
+def main():
+    if not WALK.is_dir():
+        print(f"data folder {WALK} not found: set AIDNAV_DATA")
+        return 2
+    tight_case(*sys.argv[1:2])
+    federated_case(*sys.argv[2:3])
+    print("target (issue 24): no slower than before the engine migration; measured before on this machine "
+          f"(best of 3, shared CPUs): tight forward {BEFORE['tight']:,} samples/s, federated reset forward "
+          f"{BEFORE['reset']:,}, centralized {BEFORE['centralized']:,}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -65,8 +65,11 @@ Records = namedtuple("Records", ["t", "model", "data", "use", "grp"], defaults=(
 # nodes as (model id, 1: at static samples / 0: at the others)
 Models = namedtuple("Models", ["par", "gate", "max_rej", "node"])
 # lay: layout table; q: noise PSDs (INS inputs, then one per calibration state); tau (4,): INS bias/SF
-# correlation times [s]; aux_tau (n − n_ins,) [s] (≤ 0: random walk); prop_dt [s]
-Process = namedtuple("Process", ["lay", "q", "tau", "aux_tau", "prop_dt"])
+# correlation times [s]; aux_tau (n − n_ins,) [s] (≤ 0: random walk); prop_dt [s]; sub: a state subset
+# (indices into the INS block; models fill INS rows, the engine takes the subset's columns); reset_pos:
+# after each node, position (and a finite v_U) from data[6:10] of its records (outside the filter)
+Process = namedtuple("Process", ["lay", "q", "tau", "aux_tau", "prop_dt", "sub", "reset_pos"],
+                     defaults=(np.zeros(0, np.int64), False))
 Init = namedtuple("Init", ["t0", "st", "bias", "P", "reset_idx", "reset_heading", "reset_sigma", "reset_nav"])
 Output = namedtuple("Output", ["every", "smooth", "cov_idx"])  # decimation; store nodes for RTS; P at samples
 Log = namedtuple("Log", ["t", "model", "status", "nis", "nu", "s", "ref"])
@@ -155,25 +158,38 @@ def _rec_time(rec, i, bias, ic):
 
 
 @njit(cache=True)
+def _subset(wk, m, sub, ws):
+    """The Work whose H the update uses: wk, or with a state subset its columns ``sub`` (in ws)."""
+    if sub.shape[0] == 0:
+        return wk
+    for r in range(m):
+        for i in range(sub.shape[0]):
+            ws.H[r, i] = wk.H[r, sub[i]]
+    return ws
+
+
+@njit(cache=True)
 def run_filter(imu, rec, mod, proc, ini, out):
     """Forward pass of the closed-loop error-state filter (module doc); returns :class:`EngineOut`."""
     n_imu = imu.t.shape[0]
     lay = proc.lay
     n, nins = lay[L_N], lay[L_NINS]
-    nfull, ic, grp = max(nins, 15), lay[L_CLK], rec.grp.t.shape[0] > 0
-    mins = noise_count(nfull)
-    nb = n - NAV
+    nfull, ic, grp, sub = max(nins, 15), lay[L_CLK], rec.grp.t.shape[0] > 0, proc.sub
+    mins, nsub = noise_count(nfull), sub.shape[0]
+    n = nsub if nsub else n
+    nb, naux, nh = (nins if nsub else n) - NAV, 0 if nsub else n - nins, nins if nsub else n
     M = rec.t.shape[0]
     st, bias, P, x = ini.st.copy(), ini.bias.copy(), ini.P.copy(), np.zeros(n)
     Fi, Gi, _, _ = model_arrays(nfull, mins)
-    F, G, Phi, Qd = model_arrays(n, mins + n - nins)
-    for j in range(n - nins):  # calibration states: Gauss-Markov (τ > 0) or random walk / constant
+    F, G, Phi, Qd = model_arrays(n, mins + naux)
+    for j in range(naux):  # calibration states: Gauss-Markov (τ > 0) or random walk / constant
         if proc.aux_tau[j] > 0:
             F[nins + j, nins + j] = -1.0 / proc.aux_tau[j]
         G[nins + j, mins + j] = 1.0
     if ic >= 0:
         F[ic, ic + 1] = 1.0  # clock bias [m] integrates the drift [m/s]
-    wk = Work(np.zeros((MAX_ROWS, n)), np.zeros(MAX_ROWS), np.zeros((MAX_ROWS, MAX_ROWS)))
+    wk = Work(np.zeros((MAX_ROWS, nh)), np.zeros(MAX_ROWS), np.zeros((MAX_ROWS, MAX_ROWS)))
+    ws, dxf = Work(np.zeros((MAX_ROWS, n)), wk.z, wk.R), np.zeros(nh)
     w = np.zeros((4, 3))
     no_row = np.zeros(rec.data.shape[1])  # the row of a node constraint (unused)
     prop_dt = proc.prop_dt
@@ -225,8 +241,14 @@ def run_filter(imu, rec, mod, proc, ini, out):
         if is_node and T > 0.0:
             C = dcm_from_quat(st[ST_Q:ST_Q + 4])
             wb = interval_model(Fi, Gi, st, acc, proc.tau[0], proc.tau[1], proc.tau[2], proc.tau[3])
-            F[:nins, :nins] = Fi[:nins, :nins]
-            G[:nins, :mins] = Gi[:nins, :mins]
+            if nsub:
+                for i in range(n):
+                    for j in range(n):
+                        F[i, j] = Fi[sub[i], sub[j]]
+                    G[i, :] = Gi[sub[i], :mins]
+            else:
+                F[:nins, :nins] = Fi[:nins, :nins]
+                G[:nins, :mins] = Gi[:nins, :mins]
             discretize(F, G, proc.q, T, Phi, Qd)
             x[:] = 0.0
             predict(x, P, Phi, Qd)
@@ -253,7 +275,7 @@ def run_filter(imu, rec, mod, proc, ini, out):
                     else:
                         m = fill(md, nav, rec.data[gi], mod.par[md], lay, wk.H, wk.z, wk.R)
                         if m > 0:
-                            gated_update(x, P, wk, m, md, mod, rej, log, gi)
+                            gated_update(x, P, _subset(wk, m, sub, ws), m, md, mod, rej, log, gi)
                 gi += 1
             nav = Nav(st, C, w, 0.0, bias)
             for c in range(mod.node.shape[0]):  # node constraints (ZUPT, ZARU at static samples, NHC)
@@ -262,9 +284,15 @@ def run_filter(imu, rec, mod, proc, ini, out):
                     m = fill(md, nav, no_row, mod.par[md], lay, wk.H, wk.z, wk.R)
                     if m > 0:
                         log.t[li], log.model[li] = imu.t[k], md
-                        gated_update(x, P, wk, m, md, mod, rej, log, li)
+                        gated_update(x, P, _subset(wk, m, sub, ws), m, md, mod, rej, log, li)
                         li += 1
-            feedback(st, bias, x, n)
+            if nsub:  # the subset's estimate in the INS block
+                dxf[sub] = x
+            feedback(st, bias, dxf if nsub else x, nh)
+            for g in range(g0, gi if proc.reset_pos else g0):
+                st[0], st[1], st[2] = rec.data[g, 6], rec.data[g, 7], rec.data[g, 8]
+                if not np.isnan(rec.data[g, 9]):
+                    st[5] = rec.data[g, 9]
             for g in range(g0, gi if grp else g0):
                 epoch_record(rec.grp, g, st, bias, P, lay)
             node_idx[kn] = k

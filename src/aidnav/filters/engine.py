@@ -96,17 +96,11 @@ def feedback(st, bias, dx, nstate):
 def gated_update(x, P, wk, m, model, mod, rej, log, li):
     """The update policy: χ² gate ``mod.gate[model, m]`` unless ``mod.max_rej[model]`` consecutive
     rejections; writes status, NIS, innovation and diag S to log row ``li``. Returns accepted."""
-    gate = mod.gate[model, m]
-    if rej[model] >= mod.max_rej[model]:
-        gate = 0.0
-    nu = np.zeros(m)
-    sd = np.zeros(m)
+    gate = 0.0 if rej[model] >= mod.max_rej[model] else mod.gate[model, m]
+    nu, sd = np.zeros(m), np.zeros(m)
     ok, nis = update(x, P, wk.H[:m].copy(), wk.R[:m, :m].copy(), wk.z[:m].copy(), gate, nu, sd)
     rej[model] = 0 if ok else rej[model] + 1
-    log.status[li] = 1 if ok else 0
-    log.nis[li] = nis
-    log.nu[li, :m] = nu
-    log.s[li, :m] = sd
+    log.status[li], log.nis[li], log.nu[li, :m], log.s[li, :m] = (1 if ok else 0), nis, nu, sd
     return ok
 
 
@@ -126,11 +120,8 @@ def _reinit(st, P, ini):
     st[1] = rn_[4] - l_n[0] / ((rn + rn_[5]) * np.cos(rn_[3]))
     st[2] = rn_[5] - l_n[2]
     st[3], st[4], st[5] = rn_[0], rn_[1], rn_[2]
-    n = P.shape[0]
-    for i in range(DV, DP + 3):
-        for j in range(n):
-            P[i, j] = 0.0
-            P[j, i] = 0.0
+    P[DV:DP + 3, :] = 0.0
+    P[:, DV:DP + 3] = 0.0
     for i in range(3):
         P[DV + i, DV + i] = rn_[6 + i] ** 2
     P[DP, DP] = (rn_[10] / (rm + rn_[5])) ** 2
@@ -194,13 +185,10 @@ def run_filter(imu, rec, mod, proc, ini, out):
     no_row = np.zeros(rec.data.shape[1])  # the row of a node constraint (unused)
     prop_dt = proc.prop_dt
     n_out = (n_imu + out.every - 1) // out.every
-    out_idx = np.empty(n_out, np.int64)
-    out_st = np.empty((n_out, 10))
-    out_bias = np.empty((n_out, max(nb, 1)))
-    out_pdiag = np.empty((n_out, n))
-    out_node = np.empty(n_out, np.int64)  # index of the last node at or before the sample
-    max_nodes = M + int((imu.t[-1] - ini.t0) / prop_dt) + 3 + n_imu // max(1, int(prop_dt * 1000.0))
-    max_nodes = min(max_nodes, n_imu + 1)
+    out_idx, out_st, out_node = np.empty(n_out, np.int64), np.empty((n_out, 10)), np.empty(n_out, np.int64)
+    out_bias, out_pdiag = np.empty((n_out, max(nb, 1))), np.empty((n_out, n))  # out_node: last node ≤ sample
+    max_nodes = min(M + int((imu.t[-1] - ini.t0) / prop_dt) + 3 + n_imu // max(1, int(prop_dt * 1000.0)),
+                    n_imu + 1)
     node_idx = np.empty(max_nodes, np.int64)
     ns = max_nodes if out.smooth else 1
     S_post, S_prior, S_phi = np.zeros((ns, n, n)), np.zeros((ns, n, n)), np.zeros((ns, n, n))
@@ -223,16 +211,13 @@ def run_filter(imu, rec, mod, proc, ini, out):
     tp, kn, oi = ini.t0, 0, 0
     hold = imu.hold.shape[0] == n_imu
     for k in range(n_imu):
-        dt = imu.t[k] - tp
-        tp = imu.t[k]
+        dt, tp = imu.t[k] - tp, imu.t[k]
         T = propagate_sample(st, acc, imu.dth[k], imu.dv[k], bias, dt, dthc, dvc, dth_prev, dv_prev)
         if ic >= 0:
             bias[ic - NAV] += bias[ic - NAV + 1] * dt
         if hold:
-            st[ST_POS + 2] = imu.hold[k, 0]
-            st[ST_VEL + 2] = imu.hold[k, 1]
-        gap_phi += imu.gap_var[k, 0]
-        gap_v += imu.gap_var[k, 1]
+            st[ST_POS + 2], st[ST_VEL + 2] = imu.hold[k, 0], imu.hold[k, 1]
+        gap_phi, gap_v = gap_phi + imu.gap_var[k, 0], gap_v + imu.gap_var[k, 1]
         if k == ini.reset_idx:
             reset_node = kn  # the next node is the first one after the re-initialisation
             _reinit(st, P, ini)
@@ -243,9 +228,7 @@ def run_filter(imu, rec, mod, proc, ini, out):
             wb = interval_model(Fi, Gi, st, acc, proc.tau[0], proc.tau[1], proc.tau[2], proc.tau[3])
             if nsub:
                 for i in range(n):
-                    for j in range(n):
-                        F[i, j] = Fi[sub[i], sub[j]]
-                    G[i, :] = Gi[sub[i], :mins]
+                    F[i, :], G[i, :] = Fi[sub[i]][sub], Gi[sub[i], :mins]
             else:
                 F[:nins, :nins] = Fi[:nins, :nins]
                 G[:nins, :mins] = Gi[:nins, :mins]
@@ -258,8 +241,7 @@ def run_filter(imu, rec, mod, proc, ini, out):
                     P[DV + i, DV + i] += gap_v
                 gap_phi, gap_v = 0.0, 0.0
             if out.smooth:
-                S_phi[kn] = Phi
-                S_prior[kn] = P
+                S_phi[kn], S_prior[kn] = Phi, P
             _node_rates(st, wb, dthc, dt, w)
             g0 = gi
             while gi < M and _rec_time(rec, gi, bias, ic) <= imu.t[k]:  # records in (t_{k-1}, t_k]
@@ -320,22 +302,16 @@ def run_filter(imu, rec, mod, proc, ini, out):
 
 @njit(cache=True)
 def rts(S_post, S_prior, S_phi, S_dx, brk):
-    """Backward RTS pass over the nodes of a closed-loop filter.
-
-    Returns ds (K, n): smoothed error of the post-update nominal at each node, and Ps (K, n, n).
-    Recursion: ds_k = A_k (ds_{k+1} + dx_{k+1}),  Ps_k = P⁺_k + A_k (Ps_{k+1} − P⁻_{k+1}) A_kᵀ.
-    ``brk``: index of the first node after a state re-initialisation (heading alignment), or −1;
-    no information is passed backwards across it (the states before it are not linearly related).
-    """
-    K = S_post.shape[0]
-    n = S_post.shape[1]
-    ds = np.zeros((K, n))
-    Ps = np.empty((K, n, n))
+    """Backward RTS pass over the nodes of a closed-loop filter: ds (K, n), the smoothed error of the
+    post-update nominal at each node, and Ps (K, n, n); ds_k = A_k (ds_{k+1} + dx_{k+1}),
+    Ps_k = P⁺_k + A_k (Ps_{k+1} − P⁻_{k+1}) A_kᵀ. ``brk``: first node after a re-initialisation (or −1);
+    nothing is passed backwards across it (the states before it are not linearly related)."""
+    K, n = S_post.shape[0], S_post.shape[1]
+    ds, Ps = np.zeros((K, n)), np.empty((K, n, n))
     Ps[K - 1] = S_post[K - 1]
     for k in range(K - 2, -1, -1):
         if k + 1 == brk:
-            ds[k] = 0.0
-            Ps[k] = S_post[k]
+            ds[k], Ps[k] = 0.0, S_post[k]
             continue
         A = rts_gain(S_post[k], S_phi[k + 1], S_prior[k + 1])
         ds[k] = A @ (ds[k + 1] + S_dx[k + 1])
@@ -347,23 +323,17 @@ def rts(S_post, S_prior, S_phi, S_dx, brk):
 @njit(cache=True)
 def smooth_outputs(out_idx, out_st, out_bias, out_node, node_idx, ds, S_dx, nstate):
     """Apply the smoothed corrections to the forward outputs (linear in time between nodes)."""
-    n_out = out_idx.shape[0]
-    K = node_idx.shape[0]
-    st = np.empty(10)
-    dx = np.empty(nstate)
-    b = np.empty(max(nstate - NAV, 1))
-    res_st = out_st.copy()
-    res_b = out_bias.copy()
+    n_out, K = out_idx.shape[0], node_idx.shape[0]
+    st, dx, b = np.empty(10), np.empty(nstate), np.empty(max(nstate - NAV, 1))
+    res_st, res_b = out_st.copy(), out_bias.copy()
     for o in range(n_out):
-        j = out_node[o]
-        k = out_idx[o]
+        j, k = out_node[o], out_idx[o]
         if j < 0:
             dx[:] = ds[0] + S_dx[0]
         elif j >= K - 1:
             dx[:] = ds[K - 1]
         else:
-            k0 = node_idx[j]
-            k1 = node_idx[j + 1]
+            k0, k1 = node_idx[j], node_idx[j + 1]
             a = (k - k0) / (k1 - k0) if k1 > k0 else 0.0
             dx[:] = (1.0 - a) * ds[j] + a * (ds[j + 1] + S_dx[j + 1])
             if k == k0:

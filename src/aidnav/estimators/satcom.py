@@ -67,14 +67,7 @@ from numba import njit
 from aidnav.filters.ins_errors import (
     correct_increments,
     increment_buffers,
-    interval_model,
-    measurement_arrays,
-    model_arrays,
-    new_accumulator,
-    propagate_sample,
-    reset_accumulator,
 )
-from aidnav.filters.kalman import discretize, predict, update
 from aidnav.nav.geo_pointing import beam_body, geo_sat_ecef, servo_angles, servo_angles_rad, wrap_pol
 from aidnav.nav.rotations import (
     dcm_from_euler,
@@ -165,85 +158,33 @@ class NavRun:
     label: str = ""
 
 
-@njit(cache=True)
-def _nav8_kernel(imu_t, dth, dvel, t0, st0, P0, q_psd, tau, g_t, g_lat, g_lon, g_h, g_vel, r_vel,
-                 use_filter, reset_pos):
-    n_imu = imu_t.shape[0]
-    M = g_t.shape[0]
-    st = st0.copy()
-    P = P0.copy()
-    x = np.zeros(8)
-    F15, G15, _, _ = model_arrays(15, 12)  # full 15-state model, restricted to the 8 states (_IDX15)
-    F8, G8, Phi, Qd = model_arrays(8, 12)
-    H, z, R, innov, sdiag = measurement_arrays(2, 8)  # horizontal velocity matching
-    H[0, 0] = 1.0
-    H[1, 1] = 1.0
-    R[0, 0] = r_vel * r_vel
-    R[1, 1] = r_vel * r_vel
-    bias = np.zeros(6)  # [gyro bias (3) rad/s, accel bias (3) m/s²]; only x and y are estimated
-    out_st = np.empty((n_imu, 10))
-    out_dth = np.empty((n_imu, 3))
-    out_dt = np.empty(n_imu)
-    out_bias = np.empty((n_imu, 6))
-    corr = np.zeros(n_imu, np.bool_)
-    rec_t = np.full(M, np.nan)
-    rec_x = np.full((M, 8), np.nan)
-    rec_p = np.full((M, 8), np.nan)
-    dthc, dvc, dth_prev, dv_prev = increment_buffers()  # corrected increments: this / previous sample
-    acc = new_accumulator()  # sums over the samples since the last filter step (ins_errors.ACC_*)
-    gi = 0
-    while gi < M and g_t[gi] <= t0 + 1e-9:
-        gi += 1
-    tp = t0
-    for k in range(n_imu):
-        dt = imu_t[k] - tp
-        tp = imu_t[k]
-        q_prev = st[6:10].copy()
-        T = propagate_sample(st, acc, dth[k], dvel[k], bias, dt, dthc, dvc, dth_prev, dv_prev)
-        # ΔΘ of this interrupt: q_pre = q_prev ⊗ q(ΔΘ) (body rotation relative to the ideal platform)
-        out_dth[k] = rotvec_from_quat(quat_mult(quat_conj(q_prev), st[6:10]))
-        out_dt[k] = dt
-        while gi < M and g_t[gi] <= imu_t[k] + 1e-9:
-            if use_filter:
-                if T > 0.0:
-                    interval_model(F15, G15, st, acc, tau, tau, 0.0, 0.0)
-                    for i in range(8):
-                        for j in range(8):
-                            F8[i, j] = F15[_IDX15[i], _IDX15[j]]
-                        for j in range(12):
-                            G8[i, j] = G15[_IDX15[i], j]
-                    discretize(F8, G8, q_psd, T, Phi, Qd)
-                    predict(x, P, Phi, Qd)
-                z[0] = st[3] - g_vel[gi, 0]
-                z[1] = st[4] - g_vel[gi, 1]
-                update(x, P, H, R, z, 0.0, innov, sdiag)
-                rec_t[gi] = imu_t[k]
-                for i in range(8):
-                    rec_x[gi, i] = x[i]
-                    rec_p[gi, i] = P[i, i]
-                # closed-loop feedback (CONVENTIONS): C_b^n ← (I + [φ̂×]) C_b^n as q ← q(φ̂) ⊗ q
-                phi = np.array([x[2], x[3], 0.0])
-                st[6:10] = quat_normalize(quat_mult(quat_from_rotvec(phi), st[6:10]))
-                st[3] -= x[0]
-                st[4] -= x[1]
-                bias[0] += x[4]
-                bias[1] += x[5]
-                bias[3] += x[6]
-                bias[4] += x[7]
-                x[:] = 0.0
-                corr[k] = True
-                reset_accumulator(acc)
-                T = 0.0  # a second fix at this sample has no interval to propagate over
-            if reset_pos:
-                st[0] = g_lat[gi]
-                st[1] = g_lon[gi]
-                st[2] = g_h[gi]
-                if not np.isnan(g_vel[gi, 2]):
-                    st[5] = g_vel[gi, 2]
-            gi += 1
-        out_st[k] = st
-        out_bias[k] = bias
-    return out_st, out_dth, out_dt, corr, out_bias, rec_t, rec_x, rec_p
+def _nav8_engine(imu, gnss, st0, cfg: Nav8Config, use_filter: bool):
+    """The 8-state filter on the filter engine (:func:`aidnav.filters.engine.run_filter`): the state
+    subset ``_IDX15`` of the 15-state layout, nodes at the GPS fixes only (a fix at t is used at the first
+    IMU sample at or after t − 1 ns), the GNSS velocity model with the vertical component left out
+    (z = v_INS − v_GPS, E and N) and no lever arm, ungated; position, height and v_U from each fix after
+    the node (``reset_pos``, outside the filter). Returns the engine output and the record times."""
+    from aidnav.filters import engine as eng
+    from aidnav.filters import measurements as ms
+    from aidnav.filters.layout import make_layout
+
+    m, n = len(gnss), len(imu)
+    row = np.full((m, 10), np.nan)
+    row[:, 0:2] = gnss.vel[:, 0:2]
+    row[:, 3:6] = cfg.vel_sigma_m_s
+    row[:, 6:9] = np.column_stack([gnss.lat, gnss.lon, gnss.height])
+    row[:, 9] = gnss.vel[:, 2]
+    rec = eng.Records(np.asarray(gnss.time, float) - 1e-9, np.full(m, ms.M_GNSS_VEL, np.int64), row,
+                      np.full(m, bool(use_filter)))
+    mod = eng.Models(np.zeros((ms.N_MODELS, 4)), np.zeros((ms.N_MODELS, ms.MAX_ROWS + 1)),
+                     np.full(ms.N_MODELS, 2**62, np.int64), np.zeros((0, 2), np.int64))
+    tau = float(cfg.bias_tau_s)
+    proc = eng.Process(make_layout(), cfg.q_psd(), np.array([tau, tau, 0.0, 0.0]), np.zeros(0), 1e9,
+                       _IDX15, bool(cfg.reset_position))
+    ini = eng.Init(float(imu.t0), st0, np.zeros(6), cfg.p0(), -1, 0.0, 0.0, np.full(15, np.nan))
+    imu_in = eng.Imu(np.asarray(imu.time, float), imu.dtheta, imu.dv, np.zeros(n, np.bool_), np.zeros((n, 2)),
+                     np.zeros((0, 2)))
+    return eng.run_filter(imu_in, rec, mod, proc, ini, eng.Output(1, True, np.zeros(0, np.int64))), rec.t
 
 
 def _init_state(lat, lon, h, vel, rph):
@@ -265,15 +206,17 @@ def run_nav8(imu, gnss, lat: float, lon: float, h: float, vel, rph, cfg: Nav8Con
     if gnss.vel is None:
         raise ValueError("run_nav8: the 8-state filter needs GPS velocity")
     st0 = _init_state(lat, lon, h, np.asarray(vel, float), rph)
-    r = _nav8_kernel(imu.time, imu.dtheta, imu.dv, float(imu.t0), st0, cfg.p0(), cfg.q_psd(),
-                     float(cfg.bias_tau_s), gnss.time, gnss.lat, gnss.lon, gnss.height,
-                     np.ascontiguousarray(gnss.vel), float(cfg.vel_sigma_m_s), bool(use_filter),
-                     bool(cfg.reset_position))
-    out_st, out_dth, out_dt, corr, bias, rec_t, rec_x, _rec_p = r
-    ok = ~np.isnan(rec_t)
-    return NavRun(time=imu.time.copy(), state=out_st, dtheta=out_dth, dt=out_dt, corrected=corr,
-                  q0=st0[6:10].copy(), t0=float(imu.t0), filter_time=rec_t[ok], filter_x=rec_x[ok],
-                  bias=bias, label="8-state" if use_filter else "free INS")
+    r, rec_t = _nav8_engine(imu, gnss, st0, cfg, use_filter)
+    t = np.asarray(imu.time, float)
+    dth, dts = _replay_increments(t, imu.dtheta, imu.dv, float(imu.t0), st0, r.out_st, r.out_bias, 6)
+    used = r.log.status[:len(rec_t)] == 1  # the fixes the filter used, at their node sample
+    k_used = np.searchsorted(t, rec_t[used], side="left")
+    corr = np.zeros(len(t), np.bool_)
+    corr[k_used] = True
+    x = r.S_dx[np.searchsorted(r.node_idx, k_used)]
+    return NavRun(time=t.copy(), state=r.out_st, dtheta=dth, dt=dts, corrected=corr, q0=st0[6:10].copy(),
+                  t0=float(imu.t0), filter_time=t[k_used], filter_x=x, bias=r.out_bias,
+                  label="8-state" if use_filter else "free INS")
 
 
 @njit(cache=True)

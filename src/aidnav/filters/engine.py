@@ -68,8 +68,11 @@ Records = namedtuple("Records", ["t", "model", "data", "use", "grp"], defaults=(
 # nodes as (model id, 1: at static samples / 0: at the others)
 Models = namedtuple("Models", ["par", "gate", "max_rej", "node"])
 # lay: layout table; q: noise PSDs (INS inputs, then one per calibration state); tau (4,): INS bias/SF
-# correlation times [s]; aux_tau (n − n_ins,) [s] (≤ 0: random walk); prop_dt [s]
-Process = namedtuple("Process", ["lay", "q", "tau", "aux_tau", "prop_dt"])
+# correlation times [s]; aux_tau (n − n_ins,) [s] (≤ 0: random walk); prop_dt [s]; sub: a state subset
+# (indices into the INS block; models fill INS rows, the engine takes the subset's columns); reset_pos:
+# after each node, position (and a finite v_U) from data[6:10] of its records (outside the filter)
+Process = namedtuple("Process", ["lay", "q", "tau", "aux_tau", "prop_dt", "sub", "reset_pos"],
+                     defaults=(np.zeros(0, np.int64), False))
 Init = namedtuple("Init", ["t0", "st", "bias", "P", "reset_idx", "reset_heading", "reset_sigma", "reset_nav"])
 Output = namedtuple("Output", ["every", "smooth", "cov_idx"])  # decimation; store nodes for RTS; P at samples
 Log = namedtuple("Log", ["t", "model", "status", "nis", "nu", "s", "ref"])
@@ -96,17 +99,11 @@ def feedback(st, bias, dx, nstate):
 def gated_update(x, P, wk, m, model, mod, rej, log, li):
     """The update policy: χ² gate ``mod.gate[model, m]`` unless ``mod.max_rej[model]`` consecutive
     rejections; writes status, NIS, innovation and diag S to log row ``li``. Returns accepted."""
-    gate = mod.gate[model, m]
-    if rej[model] >= mod.max_rej[model]:
-        gate = 0.0
-    nu = np.zeros(m)
-    sd = np.zeros(m)
+    gate = 0.0 if rej[model] >= mod.max_rej[model] else mod.gate[model, m]
+    nu, sd = np.zeros(m), np.zeros(m)
     ok, nis = update(x, P, wk.H[:m].copy(), wk.R[:m, :m].copy(), wk.z[:m].copy(), gate, nu, sd)
     rej[model] = 0 if ok else rej[model] + 1
-    log.status[li] = 1 if ok else 0
-    log.nis[li] = nis
-    log.nu[li, :m] = nu
-    log.s[li, :m] = sd
+    log.status[li], log.nis[li], log.nu[li, :m], log.s[li, :m] = (1 if ok else 0), nis, nu, sd
     return ok
 
 
@@ -126,11 +123,8 @@ def _reinit(st, P, ini):
     st[1] = rn_[4] - l_n[0] / ((rn + rn_[5]) * np.cos(rn_[3]))
     st[2] = rn_[5] - l_n[2]
     st[3], st[4], st[5] = rn_[0], rn_[1], rn_[2]
-    n = P.shape[0]
-    for i in range(DV, DP + 3):
-        for j in range(n):
-            P[i, j] = 0.0
-            P[j, i] = 0.0
+    P[DV:DP + 3, :] = 0.0
+    P[:, DV:DP + 3] = 0.0
     for i in range(3):
         P[DV + i, DV + i] = rn_[6 + i] ** 2
     P[DP, DP] = (rn_[10] / (rm + rn_[5])) ** 2
@@ -158,44 +152,54 @@ def _rec_time(rec, i, bias, ic):
 
 
 @njit(cache=True)
+def _subset(wk, m, sub, ws):
+    """The Work whose H the update uses: wk, or with a state subset its columns ``sub`` (in ws)."""
+    if sub.shape[0] == 0:
+        return wk
+    for r in range(m):
+        for i in range(sub.shape[0]):
+            ws.H[r, i] = wk.H[r, sub[i]]
+    return ws
+
+
+@njit(cache=True)
 def run_filter(imu, rec, mod, proc, ini, out):
     """Forward pass of the closed-loop error-state filter (module doc); returns :class:`EngineOut`."""
     n_imu = imu.t.shape[0]
     lay = proc.lay
     n, nins = lay[L_N], lay[L_NINS]
-    nfull, ic, grp = max(nins, 15), lay[L_CLK], rec.grp.t.shape[0] > 0
-    mins = noise_count(nfull)
-    nb = n - NAV
+    nfull, ic, grp, sub = max(nins, 15), lay[L_CLK], rec.grp.t.shape[0] > 0, proc.sub
+    mins, nsub = noise_count(nfull), sub.shape[0]
+    n = nsub if nsub else n
+    nb, naux, nh = (nins if nsub else n) - NAV, 0 if nsub else n - nins, nins if nsub else n
     M = rec.t.shape[0]
     st, bias, P, x = ini.st.copy(), ini.bias.copy(), ini.P.copy(), np.zeros(n)
     itoff = lay[L_TOFF]
     # an unknown heading (initial σ above 80°) with an alignment to come (reset_idx > 0; beyond the last
     # sample: none found) stays unknown until then: a linearised filter would otherwise "gyrocompass"
     # from a gyro bias model it cannot separate from the heading (static) or from noise
-    hold_h = ini.reset_idx > 0 and ini.P[PHI + 2, PHI + 2] >= 2.0
+    hold_h = nsub == 0 and ini.reset_idx > 0 and ini.P[PHI + 2, PHI + 2] >= 2.0  # (a subset: no φ_U at 2)
     # INS sensor errors only (nins − 9 = 0, 6 or 12; not nfull): the strapdown must not read clock or
     # calibration states
     ib = bias[:nins - NAV].copy()
     Fi, Gi, _, _ = model_arrays(nfull, mins)
-    F, G, Phi, Qd = model_arrays(n, mins + n - nins)
-    for j in range(n - nins):  # calibration states: Gauss-Markov (τ > 0) or random walk / constant
+    F, G, Phi, Qd = model_arrays(n, mins + naux)
+    for j in range(naux):  # calibration states: Gauss-Markov (τ > 0) or random walk / constant
         if proc.aux_tau[j] > 0:
             F[nins + j, nins + j] = -1.0 / proc.aux_tau[j]
         G[nins + j, mins + j] = 1.0
     if ic >= 0:
         F[ic, ic + 1] = 1.0  # clock bias [m] integrates the drift [m/s]
-    wk = Work(np.zeros((MAX_ROWS, n)), np.zeros(MAX_ROWS), np.zeros((MAX_ROWS, MAX_ROWS)))
+    wk = Work(np.zeros((MAX_ROWS, nh)), np.zeros(MAX_ROWS), np.zeros((MAX_ROWS, MAX_ROWS)))
+    ws, dxf = Work(np.zeros((MAX_ROWS, n)), wk.z, wk.R), np.zeros(nh)
     w = np.zeros((5, 3))  # rows W_IB, W_FIX, W_IE, W_IN and W_FN (mean f^n, models with a time offset)
     no_row = np.zeros(rec.data.shape[1])  # the row of a node constraint (unused)
     prop_dt = proc.prop_dt
     n_out = (n_imu + out.every - 1) // out.every
-    out_idx = np.empty(n_out, np.int64)
-    out_st = np.empty((n_out, 10))
-    out_bias = np.empty((n_out, max(nb, 1)))
-    out_pdiag = np.empty((n_out, n))
-    out_node = np.empty(n_out, np.int64)  # index of the last node at or before the sample
-    max_nodes = M + int((imu.t[-1] - ini.t0) / prop_dt) + 3 + n_imu // max(1, int(prop_dt * 1000.0))
-    max_nodes = min(max_nodes, n_imu + 1)
+    out_idx, out_st, out_node = np.empty(n_out, np.int64), np.empty((n_out, 10)), np.empty(n_out, np.int64)
+    out_bias, out_pdiag = np.empty((n_out, max(nb, 1))), np.empty((n_out, n))  # out_node: last node ≤ sample
+    max_nodes = min(M + int((imu.t[-1] - ini.t0) / prop_dt) + 3 + n_imu // max(1, int(prop_dt * 1000.0)),
+                    n_imu + 1)
     node_idx = np.empty(max_nodes, np.int64)
     ns = max_nodes if out.smooth else 1
     S_post, S_prior, S_phi = np.zeros((ns, n, n)), np.zeros((ns, n, n)), np.zeros((ns, n, n))
@@ -219,16 +223,13 @@ def run_filter(imu, rec, mod, proc, ini, out):
     tp, kn, oi = ini.t0, 0, 0
     hold = imu.hold.shape[0] == n_imu
     for k in range(n_imu):
-        dt = imu.t[k] - tp
-        tp = imu.t[k]
+        dt, tp = imu.t[k] - tp, imu.t[k]
         T = propagate_sample(st, acc, imu.dth[k], imu.dv[k], ib, dt, dthc, dvc, dth_prev, dv_prev)
         if ic >= 0:
             bias[ic - NAV] += bias[ic - NAV + 1] * dt
         if hold:
-            st[ST_POS + 2] = imu.hold[k, 0]
-            st[ST_VEL + 2] = imu.hold[k, 1]
-        gap_phi += imu.gap_var[k, 0]
-        gap_v += imu.gap_var[k, 1]
+            st[ST_POS + 2], st[ST_VEL + 2] = imu.hold[k, 0], imu.hold[k, 1]
+        gap_phi, gap_v = gap_phi + imu.gap_var[k, 0], gap_v + imu.gap_var[k, 1]
         if k == ini.reset_idx:
             reset_node = kn  # the next node is the first one after the re-initialisation
             _reinit(st, P, ini)
@@ -240,8 +241,12 @@ def run_filter(imu, rec, mod, proc, ini, out):
         if is_node and T > 0.0:
             C = dcm_from_quat(st[ST_Q:ST_Q + 4])
             wb = interval_model(Fi, Gi, st, acc, proc.tau[0], proc.tau[1], proc.tau[2], proc.tau[3])
-            F[:nins, :nins] = Fi[:nins, :nins]
-            G[:nins, :mins] = Gi[:nins, :mins]
+            if nsub:
+                for i in range(n):
+                    F[i, :], G[i, :] = Fi[sub[i]][sub], Gi[sub[i], :mins]
+            else:
+                F[:nins, :nins] = Fi[:nins, :nins]
+                G[:nins, :mins] = Gi[:nins, :mins]
             discretize(F, G, proc.q, T, Phi, Qd)
             x[:] = 0.0
             predict(x, P, Phi, Qd)
@@ -251,8 +256,7 @@ def run_filter(imu, rec, mod, proc, ini, out):
                     P[DV + i, DV + i] += gap_v
                 gap_phi, gap_v = 0.0, 0.0
             if out.smooth:
-                S_phi[kn] = Phi
-                S_prior[kn] = P
+                S_phi[kn], S_prior[kn] = Phi, P
             _node_rates(st, wb, dthc, dt, w)
             w[W_FN] = acc[ACC_FN] / T
             g0 = gi
@@ -269,7 +273,7 @@ def run_filter(imu, rec, mod, proc, ini, out):
                     else:
                         m = fill(md, nav, rec.data[gi], mod.par[md], lay, wk.H, wk.z, wk.R)
                         if m > 0:
-                            gated_update(x, P, wk, m, md, mod, rej, log, gi)
+                            gated_update(x, P, _subset(wk, m, sub, ws), m, md, mod, rej, log, gi)
                 gi += 1
             nav = Nav(st, C, w, 0.0, bias)
             for c in range(mod.node.shape[0]):  # node constraints (ZUPT, ZARU at static samples, NHC)
@@ -278,15 +282,19 @@ def run_filter(imu, rec, mod, proc, ini, out):
                     m = fill(md, nav, no_row, mod.par[md], lay, wk.H, wk.z, wk.R)
                     if m > 0:
                         log.t[li], log.model[li] = imu.t[k], md
-                        gated_update(x, P, wk, m, md, mod, rej, log, li)
+                        gated_update(x, P, _subset(wk, m, sub, ws), m, md, mod, rej, log, li)
                         li += 1
-            feedback(st, bias, x, n)
+            if nsub:  # the subset's estimate in the INS block
+                dxf[sub] = x
+            feedback(st, bias, dxf if nsub else x, nh)
             ib[:] = bias[:nins - NAV]
             if hold_h and k < ini.reset_idx:  # heading unknown until the alignment: no information
-                for j in range(n):
-                    P[PHI + 2, j] = 0.0
-                    P[j, PHI + 2] = 0.0
+                P[PHI + 2, :], P[:, PHI + 2] = 0.0, 0.0
                 P[PHI + 2, PHI + 2] = ini.P[PHI + 2, PHI + 2]
+            for g in range(g0, gi if proc.reset_pos else g0):
+                st[0], st[1], st[2] = rec.data[g, 6], rec.data[g, 7], rec.data[g, 8]
+                if not np.isnan(rec.data[g, 9]):
+                    st[5] = rec.data[g, 9]
             for g in range(g0, gi if grp else g0):
                 epoch_record(rec.grp, g, st, bias, P, lay)
             node_idx[kn] = k
@@ -314,22 +322,16 @@ def run_filter(imu, rec, mod, proc, ini, out):
 
 @njit(cache=True)
 def rts(S_post, S_prior, S_phi, S_dx, brk):
-    """Backward RTS pass over the nodes of a closed-loop filter.
-
-    Returns ds (K, n): smoothed error of the post-update nominal at each node, and Ps (K, n, n).
-    Recursion: ds_k = A_k (ds_{k+1} + dx_{k+1}),  Ps_k = P⁺_k + A_k (Ps_{k+1} − P⁻_{k+1}) A_kᵀ.
-    ``brk``: index of the first node after a state re-initialisation (heading alignment), or −1;
-    no information is passed backwards across it (the states before it are not linearly related).
-    """
-    K = S_post.shape[0]
-    n = S_post.shape[1]
-    ds = np.zeros((K, n))
-    Ps = np.empty((K, n, n))
+    """Backward RTS pass over the nodes of a closed-loop filter: ds (K, n), the smoothed error of the
+    post-update nominal at each node, and Ps (K, n, n); ds_k = A_k (ds_{k+1} + dx_{k+1}),
+    Ps_k = P⁺_k + A_k (Ps_{k+1} − P⁻_{k+1}) A_kᵀ. ``brk``: first node after a re-initialisation (or −1);
+    nothing is passed backwards across it (the states before it are not linearly related)."""
+    K, n = S_post.shape[0], S_post.shape[1]
+    ds, Ps = np.zeros((K, n)), np.empty((K, n, n))
     Ps[K - 1] = S_post[K - 1]
     for k in range(K - 2, -1, -1):
         if k + 1 == brk:
-            ds[k] = 0.0
-            Ps[k] = S_post[k]
+            ds[k], Ps[k] = 0.0, S_post[k]
             continue
         A = rts_gain(S_post[k], S_phi[k + 1], S_prior[k + 1])
         ds[k] = A @ (ds[k + 1] + S_dx[k + 1])
@@ -341,23 +343,17 @@ def rts(S_post, S_prior, S_phi, S_dx, brk):
 @njit(cache=True)
 def smooth_outputs(out_idx, out_st, out_bias, out_node, node_idx, ds, S_dx, nstate):
     """Apply the smoothed corrections to the forward outputs (linear in time between nodes)."""
-    n_out = out_idx.shape[0]
-    K = node_idx.shape[0]
-    st = np.empty(10)
-    dx = np.empty(nstate)
-    b = np.empty(max(nstate - NAV, 1))
-    res_st = out_st.copy()
-    res_b = out_bias.copy()
+    n_out, K = out_idx.shape[0], node_idx.shape[0]
+    st, dx, b = np.empty(10), np.empty(nstate), np.empty(max(nstate - NAV, 1))
+    res_st, res_b = out_st.copy(), out_bias.copy()
     for o in range(n_out):
-        j = out_node[o]
-        k = out_idx[o]
+        j, k = out_node[o], out_idx[o]
         if j < 0:
             dx[:] = ds[0] + S_dx[0]
         elif j >= K - 1:
             dx[:] = ds[K - 1]
         else:
-            k0 = node_idx[j]
-            k1 = node_idx[j + 1]
+            k0, k1 = node_idx[j], node_idx[j + 1]
             a = (k - k0) / (k1 - k0) if k1 > k0 else 0.0
             dx[:] = (1.0 - a) * ds[j] + a * (ds[j + 1] + S_dx[j + 1])
             if k == k0:

@@ -8,7 +8,9 @@
 Best of 3, compiled code warm. Target (issue 24): no slower than before the engine migration
 (``BEFORE``, measured with the pre-engine kernels).
 
-Run: ``python benchmarks/tight.py [tight_module [federated_module]]`` (needs ../shared/data or
+* satcom: :func:`aidnav.estimators.satcom.run_nav8` (seed 003's 8-state filter; no target in issue 24).
+
+Run: ``python benchmarks/tight.py [tight_module [federated_module [satcom_module]]]`` (needs ../shared/data or
 $AIDNAV_DATA; the optional module names let the same script time another implementation).
 """
 
@@ -104,12 +106,36 @@ def federated_case(module="aidnav.filters.federated"):
                   f"({dt:.3f} s for {n} samples)")
 
 
+def satcom_case(module="aidnav.estimators.satcom"):
+    """The seed-003 8-state navigation filter (run_nav8) on a 160 s MEMS car run at 100 Hz."""
+    import importlib
+
+    from aidnav.sim.run import simulate
+    from aidnav.sim.scenario import Scenario
+
+    satcom = importlib.import_module(module)
+    scn = Scenario.model_validate(dict(
+        name="bench", seed=1, initial=dict(lat_deg=39.9, lon_deg=116.4, height_m=50.0, heading_deg=60.0),
+        imu_rate_hz=100.0, transition_s=2.0,
+        segments=[dict(type="static", duration_s=20), dict(type="accelerate", duration_s=10, to_speed_m_s=15),
+                  dict(type="straight", duration_s=60), dict(type="turn", angle_deg=90, rate_deg_s=6),
+                  dict(type="straight", duration_s=55)],
+        sensors=dict(imu=dict(grade="mems"), gnss=dict(rate_hz=1.0))))
+    sim = simulate(scn, seed=7)
+    tr = sim.truth
+    args = (sim.imu, sim.gnss, tr.lat[0], tr.lon[0], tr.height[0], tr.vel[0], tr.rph[0])
+    dt, _ = best_of(lambda: satcom.run_nav8(*args))
+    n = len(sim.imu)
+    print(f"satcom run_nav8 (8-state)       : {n / dt:12,.0f} IMU samples/s ({dt:.3f} s for {n} samples)")
+
+
 def main():
     if not WALK.is_dir():
         print(f"data folder {WALK} not found: set AIDNAV_DATA")
         return 2
     tight_case(*sys.argv[1:2])
     federated_case(*sys.argv[2:3])
+    satcom_case(*sys.argv[3:4])
     print("target (issue 24): no slower than before the engine migration; measured before on this machine "
           f"(best of 3, shared CPUs): tight forward {BEFORE['tight']:,} samples/s, federated reset forward "
           f"{BEFORE['reset']:,}, centralized {BEFORE['centralized']:,}")

@@ -76,10 +76,10 @@ def _clock_start(P, nav, row, par, lay, grp, ra, va):
         o = j * E_W
         if np.isnan(row[o + 6]) or np.isnan(row[o]):
             continue
-        rho, e = geo_range(row[o:o + 3].copy(), ra)
+        rho, e = geo_range(row[o:o + 3], ra)
         res[j] = row[o + 6] - rho
         if not np.isnan(row[o + 7]):
-            res_r[j] = row[o + 7] - geo_range_rate(row[o:o + 3].copy(), row[o + 3:o + 6].copy(), ra, va, e)
+            res_r[j] = row[o + 7] - geo_range_rate(row[o:o + 3], row[o + 3:o + 6], ra, va, e)
     ok = np.isfinite(res)
     if ok.sum() == 0:
         return
@@ -126,11 +126,12 @@ def epoch_update(x, P, nav, row, par, lay, gate, grp, g, t_gps):
     grp.t[g] = t_gps
     _clock_start(P, nav, row, par, lay, grp, ra, va)
     lat, lon, hh = nav.st[0], nav.st[1], nav.st[2]
+    alpha, beta = par[E_ALPHA:E_ALPHA + 4].copy(), par[E_BETA:E_BETA + 4].copy()
     n_vis = 0
     for j in range(S):
         o = j * E_W
         if not (np.isnan(row[o + 6]) or np.isnan(row[o])):
-            _, e = geo_range(row[o:o + 3].copy(), ra)
+            _, e = geo_range(row[o:o + 3], ra)
             if az_el(e, lat, lon)[1] >= par[E_MASK]:
                 n_vis += 1
     use_code = n_vis >= par[E_CODE_MIN]
@@ -140,7 +141,7 @@ def epoch_update(x, P, nav, row, par, lay, gate, grp, g, t_gps):
         o = j * E_W
         if np.isnan(row[o + 6]) or np.isnan(row[o]):
             continue
-        rho, e = geo_range(row[o:o + 3].copy(), ra)
+        rho, e = geo_range(row[o:o + 3], ra)
         en = Cen @ e
         az, el, _ = az_el(e, lat, lon)
         grp.el[g, j] = el
@@ -149,8 +150,7 @@ def epoch_update(x, P, nav, row, par, lay, gate, grp, g, t_gps):
         grp.navail[g] += 1
         corr = 0.0
         if par[E_IONO] > 0:
-            corr += klobuchar(lat, lon, az, el, t_gps, par[E_ALPHA:E_ALPHA + 4].copy(),
-                              par[E_BETA:E_BETA + 4].copy())
+            corr += klobuchar(lat, lon, az, el, t_gps, alpha, beta)
         if par[E_TROPO] > 0:
             corr += tropo_delay(lat, hh, el, par[E_HUMID])
         if not np.isnan(row[o + 8]):
@@ -165,7 +165,7 @@ def epoch_update(x, P, nav, row, par, lay, gate, grp, g, t_gps):
             grp.npr[g] += ok
             nrej += not ok
         if par[E_RATE] > 0 and not np.isnan(row[o + 7]):
-            rr = geo_range_rate(row[o:o + 3].copy(), row[o + 3:o + 6].copy(), ra, va, e)
+            rr = geo_range_rate(row[o:o + 3], row[o + 3:o + 6], ra, va, e)
             _row(h, en, Hv, nn, ib + 1)
             ok, nu, s = update_scalar(x, P, h, par[E_SIG_RATE] ** 2 * mfac,
                                       row[o + 7] - (rr + nav.bias[bi + 1]), gate)

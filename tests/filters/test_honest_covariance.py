@@ -102,3 +102,20 @@ def test_white_model_at_10_hz_claims_too_much(runs):
     head_b = np.degrees(_stats(out["B"], truth)[1])
     print(f"\nwhite model at 10 Hz: 3σ coverage {cover_b:.3f}, heading RMS {head_b:.3f} deg")
     assert cover_b < 0.95, cover_b
+
+
+def test_nis_health_flags_only_the_window_where_sigma_is_wrong():
+    """χ²(3) NIS at 4 Hz for 120 s, ×10 in [60, 90) s (σ √10 too small there): that window and only it."""
+    from aidnav.filters.result import FilterResult, nis_health
+
+    rng = np.random.default_rng(4)
+    t = np.arange(0.0, 120.0, 0.25)
+    nis = rng.chisquare(3, len(t))
+    bad = (t >= 60) & (t < 90)
+    nis[bad] *= 10.0
+    rec = {"pos_status": np.ones(len(t), np.int8), "pos_nis": nis, "pos_innov": np.zeros((len(t), 3))}
+    r = FilterResult(t, np.zeros((len(t), 10)), np.zeros((len(t), 6)), np.zeros((len(t), 15)), t,
+                     records=rec, gnss_time=t)
+    h = nis_health(r)
+    assert [(w["model"], w["start"]) for w in h["windows"]] == [("gnss_position", 60.0)]
+    assert "too small" in h["warnings"][0]

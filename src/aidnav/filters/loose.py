@@ -336,6 +336,7 @@ def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: 
                        counts=cnt, final_P=r.P, innovations=log, events=events, layout=lay,
                        state_names=layout_names(lay))
     res.calibration_base = _calibration_base(cfg)
+    res.gnss_time = np.asarray(gnss.time, float)
     if cov_times is not None:
         res.cov_time, res.cov = t_imu[sl][cov_idx], r.cov
     if smooth and len(r.node_idx) > 1:

@@ -246,3 +246,18 @@ def test_gnss_position_error_states():
     z1 = np.zeros(6)
     ms.gnss_position_model(ms.Nav(st, dcm_from_quat(st[6:10]), w, 0.0, bias), row, LEVER, lay, H, z1, R)
     assert np.allclose(z1[:3] - z0[:3], [0.3, -0.2, 0.5], atol=1e-9)
+
+
+def test_summary_calibration_reads_the_layout():
+    """Calibration states after a 15-state INS block are not reported as scale factors."""
+    from aidnav.filters.result import FilterResult, summary_calibration
+
+    lay = make_layout(False, ("lever_arm", "time_offset", "mounting"))
+    n = int(lay[L_N])
+    bias = np.zeros((1, n - 9))
+    bias[0, 0] = np.radians(1.0) / 3600.0
+    r = FilterResult(np.zeros(1), np.zeros((1, 10)), bias, np.full((1, n), 1e-6), np.zeros(1), layout=lay)
+    c = summary_calibration(r, {"time_offset_s": -0.1})
+    assert c["gyro_bias_x_deg_h"]["value"] == pytest.approx(1.0)
+    assert not any("_sf_" in k for k in c)
+    assert c["time_offset_s"]["value"] == pytest.approx(-0.1) and c["time_offset_s"]["estimated"]

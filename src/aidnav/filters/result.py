@@ -235,3 +235,27 @@ def nis_health(result, window_s: float = 30.0, far_ratio: float = 2.0) -> dict:
                 + ("filter's sigma is too small there (noise model or a calibration is wrong)"
                    if worst["mean_nis"] > worst["dof"] else "filter's sigma is too large there"))
     return out
+
+
+def summary_calibration(result, base: dict | None = None) -> dict:
+    """``summary["calibration"]`` of a loose-filter result: the INS sensor errors at the last epoch
+    (``gyro_bias_x_deg_h`` …, ``accel_bias_x_ug`` …, scale factors ``…_ppm``, read through the layout so
+    that calibration states are never mistaken for scale factors) as {"value", "std", "estimated"}, then
+    :func:`calibration_summary` (``time_offset_s``, ``lever_arm_m``, ``mounting_rph_deg``,
+    ``odometer_scale``, …)."""
+    lay = getattr(result, "layout", None)
+    bias = np.asarray(result.bias, float)
+    pdiag = np.asarray(result.pdiag, float)
+    out = {}
+    if len(bias):
+        nins = int(lay[L_NINS]) if lay is not None else NAV + 6
+        names = ["gyro_bias_{}_deg_h", "accel_bias_{}_ug", "gyro_sf_{}_ppm", "accel_sf_{}_ppm"]
+        scale = [180 / np.pi * 3600, 1 / 9.80665e-6, 1e6, 1e6]
+        for k in range(nins - NAV):
+            g, ax = divmod(k, 3)
+            var = pdiag[-1, NAV + k]
+            out[names[g].format("xyz"[ax])] = {"value": float(bias[-1, k] * scale[g]),
+                                               "std": float(np.sqrt(var) * scale[g]) if var >= 0 else None,
+                                               "estimated": True}
+    out.update(calibration_summary(result, base))
+    return out

@@ -72,10 +72,12 @@ def test_odometer_and_baro_reach_the_filter(files):
     np.testing.assert_allclose(nav.vel, t.vel, rtol=0, atol=1e-6)
     s = json.loads((files / "o" / "summary.json").read_text())
     assert s["counts"]["odometer_updates"] > 500 and s["counts"]["baro_updates"] > 500
-    k = t.extra["odometer_scale_ppm"][-1] * 1e-6
     b = t.extra["baro_bias_m"][-1]
-    assert abs(k - ODO_K) < 0.005, k
     assert abs(b - BARO_B) < 1.0, b
+    # the odometer scale factor with its σ from the summary: within 4σ of the simulated value
+    k = s["calibration"]["odometer_scale"]
+    assert k["estimated"] and k["std"] < 0.01, k
+    assert abs(k["value"] - ODO_K) < 4 * k["std"], k
 
 
 def test_bad_odometer_file_exits_2(files):

@@ -226,3 +226,38 @@ def test_presets():
     assert apply_preset(mine, None) is mine
     with pytest.raises(ValueError, match="known: aircraft, car"):
         apply_preset(None, "boat")
+
+
+def test_gnss_position_error_states():
+    """Gauss-Markov fix errors b: z = (p̂_ant + b̂) − fix, so z moves by b̂ and H[:, b] = −I."""
+    from aidnav.filters.layout import L_GPE
+
+    lay = make_layout(False, ("gnss_pos_error",))
+    n = int(lay[L_N])
+    st, _ = _nominal()
+    bias = np.zeros(n - 9)
+    w = np.zeros((5, 3))
+    _node_rates(st, W_RAW, W_RAW * 0.01, 0.01, w)
+    row = np.array([0.6, 2.0, 100.0, 1.0, 1.0, 1.0])
+    H, z0, R = np.zeros((6, n)), np.zeros(6), np.zeros((6, 6))
+    ms.gnss_position_model(ms.Nav(st, dcm_from_quat(st[6:10]), w, 0.0, bias), row, LEVER, lay, H, z0, R)
+    assert np.array_equal(H[:3, lay[L_GPE]:lay[L_GPE] + 3], -np.eye(3))
+    bias[lay[L_GPE] - 9:lay[L_GPE] - 6] = [0.3, -0.2, 0.5]
+    z1 = np.zeros(6)
+    ms.gnss_position_model(ms.Nav(st, dcm_from_quat(st[6:10]), w, 0.0, bias), row, LEVER, lay, H, z1, R)
+    assert np.allclose(z1[:3] - z0[:3], [0.3, -0.2, 0.5], atol=1e-9)
+
+
+def test_summary_calibration_reads_the_layout():
+    """Calibration states after a 15-state INS block are not reported as scale factors."""
+    from aidnav.filters.result import FilterResult, summary_calibration
+
+    lay = make_layout(False, ("lever_arm", "time_offset", "mounting"))
+    n = int(lay[L_N])
+    bias = np.zeros((1, n - 9))
+    bias[0, 0] = np.radians(1.0) / 3600.0
+    r = FilterResult(np.zeros(1), np.zeros((1, 10)), bias, np.full((1, n), 1e-6), np.zeros(1), layout=lay)
+    c = summary_calibration(r, {"time_offset_s": -0.1})
+    assert c["gyro_bias_x_deg_h"]["value"] == pytest.approx(1.0)
+    assert not any("_sf_" in k for k in c)
+    assert c["time_offset_s"]["value"] == pytest.approx(-0.1) and c["time_offset_s"]["estimated"]

@@ -214,13 +214,14 @@ def process(imu: ImuData, gnss: GnssData, cfg: LooseConfig | None = None, smooth
             fwd = to_trajectory(LooseResult(res.time, res.forward_state, res.bias, res.forward_pdiag,
                                             res.node_time))
             summary["outage_score_forward"] = score_outages(fwd, gnss, wins, withheld)
-    from aidnav.filters.result import calibration_summary
-    from aidnav.report.run_page import calibration_estimates
+    from aidnav.filters.result import nis_health, summary_calibration
 
     # sensor errors (biases, scale factors) and the self-calibration (time offset added to the IMU
     # stamps, lever arm, mounting, odometer scale) with σ, under the names of docs/conventions.md
-    summary["calibration"] = {**calibration_estimates(res),
-                              **calibration_summary(res, base={"time_offset_s": applied_offset})}
+    summary["calibration"] = summary_calibration(res, {"time_offset_s": applied_offset})
+    health = nis_health(res)  # windows where the innovations say σ is wrong, and which way
+    summary["nis_windows_far_out"] = health.get("windows", [])
+    warnings += health.get("warnings", [])
     return ProcessRun(traj, summary, res, fwd, withheld, wins, gnss=gnss)
 
 
@@ -353,6 +354,19 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
     return summary
 
 
+#: the self-calibration quantities the text summary prints (all of them are in summary.json)
+CALIBRATION_SHOWN = ("time_offset_s", "lever_arm_m", "mounting_rph_deg", "odometer_scale",
+                     "gnss_velocity_delay_s")
+
+
+def _fmt_val(v) -> str:
+    if v is None:
+        return "n/a"
+    if isinstance(v, list | tuple):
+        return "[" + ", ".join(f"{x:.4g}" for x in v) + "]"
+    return f"{v:.4g}"
+
+
 def format_summary(s: dict) -> str:
     """Human-readable summary text."""
     lines = [f"aidnav process: {s['imu']} + {s['gnss']}",
@@ -362,6 +376,9 @@ def format_summary(s: dict) -> str:
              f"GNSS position accepted {s['gnss_position_accepted']}, rejected {s['gnss_position_rejected']}; "
              f"velocity accepted {s['gnss_velocity_accepted']}, rejected {s['gnss_velocity_rejected']}",
              f"counts: {s['counts']}"]
+    for name, v in s.get("calibration", {}).items():
+        if isinstance(v, dict) and v.get("estimated") and name in CALIBRATION_SHOWN:
+            lines.append(f"calibration {name}: {_fmt_val(v['value'])} ± {_fmt_val(v['std'])} (1σ, estimated)")
     for name, v in s.get("nis", {}).items():
         lo, hi = v["band95"]
         lines.append(f"NIS {name}: mean {v['mean']:.2f} over {v['n']} updates (dof {v['dof']:.2f}, 95 % band "

@@ -66,6 +66,12 @@ class GnssAiding(_Strict):
     height_offset_m: float = Field(0.0, description="added to GNSS heights (e.g. MSL → ellipsoidal)")
     gate_probability: float = Field(0.9999, gt=0, le=1, description="chi-square gate; 1 disables")
     max_consecutive_rejections: int = Field(10, ge=1, description="then the next fix is accepted")
+    error_tau_s: float = Field(0.0, ge=0, description="correlation time of the fixes' position errors [s]: "
+                               "> 0 adds 3 first-order Gauss-Markov error states (high-rate receivers whose "
+                               "errors are not white); 0: white errors")
+    error_sigma_m: tuple[float, float, float] = Field(
+        (0.5, 0.5, 1.0), description="steady-state σ of the correlated error E, N, U [m] (with error_tau_s); "
+        "the receiver's σ (row) is then the white part")
 
 
 class Initialisation(_Strict):

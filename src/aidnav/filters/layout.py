@@ -38,11 +38,11 @@ N_ST = 10
 # error-state blocks of the INS model (ins_errors)
 NAV = 9  # φ, δv, δp
 __all__ = ["PHI", "DV", "DP", "BG", "BA", "SG", "SA", "ST_POS", "ST_VEL", "ST_Q", "N_ST", "NAV",
-           "AUX_NAMES", "L_TOFF", "L_MOUNT", "L_VDEL", "make_layout", "layout_names", "LAYOUTS"]
+           "AUX_NAMES", "L_TOFF", "L_MOUNT", "L_VDEL", "L_GPE", "make_layout", "layout_names", "LAYOUTS"]
 
 # calibration (auxiliary) states the engine knows: name -> width
 AUX_NAMES = {"odometer_scale": 1, "baro_bias": 1, "clock": 2, "lever_arm": 3, "time_offset": 1, "mounting": 3,
-             "velocity_delay": 1}
+             "velocity_delay": 1, "gnss_pos_error": 3}
 
 # entries of the int64 layout table (kernels read these)
 L_N = 0  # total number of error states
@@ -54,7 +54,8 @@ L_LEVER = 5  # index of a 3-state lever-arm calibration, -1: none
 L_TOFF = 6  # index of the IMU-GNSS time-offset residual [s] (added to the IMU stamps), -1: none
 L_MOUNT = 7  # index of the 3-state mounting residual ρ [rad] (vehicle frame), -1: none
 L_VDEL = 8  # index of the GNSS velocity delay residual [s] (velocity older than its stamp), -1: none
-L_SIZE = 9
+L_GPE = 9  # index of the 3 Gauss-Markov GNSS position-error states ENU [m] (time-correlated), -1: none
+L_SIZE = 10
 
 LAYOUTS = {15: dict(scale_factors=False), 17: dict(scale_factors=False, aux=("clock",)),
            21: dict(scale_factors=True), 24: dict(scale_factors=True, aux=("lever_arm",))}
@@ -67,7 +68,7 @@ def make_layout(scale_factors: bool = False, aux: tuple[str, ...] = ()) -> np.nd
     n = 21 if scale_factors else 15
     lay[L_NINS] = n
     slot = {"odometer_scale": L_ODO, "baro_bias": L_BARO, "clock": L_CLK, "lever_arm": L_LEVER,
-            "time_offset": L_TOFF, "mounting": L_MOUNT, "velocity_delay": L_VDEL}
+            "time_offset": L_TOFF, "mounting": L_MOUNT, "velocity_delay": L_VDEL, "gnss_pos_error": L_GPE}
     for name in aux:
         if name not in AUX_NAMES:
             raise ValueError(f"unknown calibration state {name!r}; known: {sorted(AUX_NAMES)}")
@@ -87,7 +88,7 @@ def layout_names(lay: np.ndarray) -> list[str]:
     aux = sorted((int(lay[s]), nm) for s, nm in ((L_ODO, "odometer_scale"), (L_BARO, "baro_bias"),
                                                   (L_CLK, "clock"), (L_LEVER, "lever_arm"),
                                                   (L_TOFF, "time_offset"), (L_MOUNT, "mounting"),
-                                                  (L_VDEL, "velocity_delay"))
+                                                  (L_VDEL, "velocity_delay"), (L_GPE, "gnss_pos_error"))
                  if lay[s] >= 0)
     for _, nm in aux:
         names += ([nm] if AUX_NAMES[nm] == 1 else

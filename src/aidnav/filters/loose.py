@@ -27,6 +27,7 @@ from .layout import (
     DP,
     DV,
     L_BARO,
+    L_GPE,
     L_LEVER,
     L_MOUNT,
     L_N,
@@ -109,6 +110,8 @@ def loose_layout(cfg, odometer=None, baro=None, gnss=True, gnss_velocity=True) -
     for name in ("lever_arm", "time_offset", "mounting", "velocity_delay"):
         if est[name] and (gnss or name == "mounting"):
             aux.append(name)
+    if gnss and cfg.gnss.error_tau_s > 0 and cfg.gnss.use in ("both", "position"):
+        aux.append("gnss_pos_error")
     return make_layout(cfg.nstate == 21, tuple(aux))
 
 
@@ -151,6 +154,10 @@ def _aux_model(cfg, lay):
         rows.append((lay[L_TOFF], c.time_offset_sigma_s ** 2, c.time_offset_rw_s_sqrt_s ** 2, 0.0))
     if lay[L_VDEL] >= 0:
         rows.append((lay[L_VDEL], c.velocity_delay_sigma_s ** 2, 0.0, 0.0))
+    if lay[L_GPE] >= 0:
+        tau = cfg.gnss.error_tau_s
+        for j, sg in enumerate(cfg.gnss.error_sigma_m):
+            rows.append((lay[L_GPE] + j, sg ** 2, 2.0 * sg ** 2 / tau, tau))
     return np.array([r[1:] for r in sorted(rows)], float).reshape(-1, 3)
 
 
@@ -329,6 +336,7 @@ def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: 
                        counts=cnt, final_P=r.P, innovations=log, events=events, layout=lay,
                        state_names=layout_names(lay))
     res.calibration_base = _calibration_base(cfg)
+    res.gnss_time = np.asarray(gnss.time, float)
     if cov_times is not None:
         res.cov_time, res.cov = t_imu[sl][cov_idx], r.cov
     if smooth and len(r.node_idx) > 1:

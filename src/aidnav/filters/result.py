@@ -42,6 +42,7 @@ class FilterResult:
     layout: np.ndarray | None = None
     state_names: list = field(default_factory=list)
     calibration_base: dict = field(default_factory=dict)  # configured values the calibration corrects
+    gnss_time: np.ndarray | None = None  # (M,) times of the GNSS fixes that ``records`` are indexed by
 
     @property
     def calibration(self) -> dict:
@@ -184,3 +185,77 @@ def to_trajectory(res: FilterResult):
             extra["baro_bias_m"] = res.bias[:, lay[L_BARO] - NAV]
     return Trajectory(time=res.time, lat=lat, lon=s[:, 1], height=h, vel=s[:, 3:6], rph=rph,
                       std_pos=std_pos, std_vel=pd[:, 3:6], std_att=std_att, extra=extra)
+
+
+def nis_health(result, window_s: float = 30.0, far_ratio: float = 2.0) -> dict:
+    """Windows where the GNSS innovations say the filter is wrong (issue 26): for GNSS position and
+    velocity, over consecutive windows of ``window_s`` seconds, the mean NIS of every fix that was tested
+    (accepted or rejected) against the two-sided 99.9 % band of the mean of N χ²(dof) values (normal
+    approximation, dof ± 3.29 √(2 dof / N)). A window is *far out of band* when it is outside that band
+    and its mean is more than ``far_ratio`` × dof (σ too small) or less than dof / ``far_ratio``² (σ too
+    large). Returns {"windows": [{"model", "start", "end", "n", "mean_nis", "dof", "band", "rejected"}],
+    "warnings": [text]} — the lead puts the warnings into the summary."""
+    rec = getattr(result, "records", None) or {}
+    t_fix = getattr(result, "gnss_time", None)
+    out = {"windows": [], "warnings": []}
+    if t_fix is None:
+        return out
+    for name, st, nis, inn in (("gnss_position", "pos_status", "pos_nis", "pos_innov"),
+                               ("gnss_velocity", "vel_status", "vel_nis", "vel_innov")):
+        if st not in rec:
+            continue
+        tested = (rec[st] >= 0) & np.isfinite(rec[nis])
+        if not tested.any():
+            continue
+        t = np.asarray(t_fix)[tested]
+        v = rec[nis][tested]
+        dof_k = np.isfinite(rec[inn][tested]).sum(axis=1).astype(float)
+        rej = rec[st][tested] == 0
+        edges = np.arange(t[0], t[-1] + window_s, window_s)
+        for a in edges:
+            m = (t >= a) & (t < a + window_s)
+            n = int(m.sum())
+            if n < 5:
+                continue
+            dof = float(dof_k[m].mean())
+            mean = float(v[m].mean())
+            half = 3.29 * np.sqrt(2.0 * dof / n)
+            outside = not (dof - half <= mean <= dof + half)
+            far = outside and (mean > far_ratio * dof or mean < dof / far_ratio ** 2)
+            if far:
+                out["windows"].append({"model": name, "start": float(a), "end": float(a + window_s), "n": n,
+                                       "mean_nis": mean, "dof": dof, "band": [dof - half, dof + half],
+                                       "rejected": int(rej[m].sum())})
+        ws = [w for w in out["windows"] if w["model"] == name]
+        if ws:
+            worst = max(ws, key=lambda w: abs(np.log(w["mean_nis"] / w["dof"])))
+            out["warnings"].append(
+                f"{name}: mean NIS far out of its chi-square band in {len(ws)} window(s) of {window_s:g} s "
+                f"(worst {worst['mean_nis']:.1f} vs {worst['dof']:.0f} dof at t={worst['start']:.1f}): the "
+                + ("filter's sigma is too small there (noise model or a calibration is wrong)"
+                   if worst["mean_nis"] > worst["dof"] else "filter's sigma is too large there"))
+    return out
+
+
+def summary_calibration(result, base: dict | None = None) -> dict:
+    """``summary["calibration"]`` of a loose-filter result: the INS sensor errors at the last epoch
+    (``gyro_bias_x_deg_h`` …, ``accel_bias_x_ug`` …, scale factors ``…_ppm``, read through the layout so
+    that calibration states are never mistaken for scale factors) as {"value", "std", "estimated"}, then
+    :func:`calibration_summary` (``time_offset_s``, ``lever_arm_m``, ``mounting_rph_deg``,
+    ``odometer_scale``, …)."""
+    lay = getattr(result, "layout", None)
+    bias = np.asarray(result.bias, float)
+    pdiag = np.asarray(result.pdiag, float)
+    out = {}
+    if len(bias):
+        nins = int(lay[L_NINS]) if lay is not None else NAV + 6
+        names = ["gyro_bias_{}_deg_h", "accel_bias_{}_ug", "gyro_sf_{}_ppm", "accel_sf_{}_ppm"]
+        scale = [180 / np.pi * 3600, 1 / 9.80665e-6, 1e6, 1e6]
+        for k in range(nins - NAV):
+            g, ax = divmod(k, 3)
+            var = pdiag[-1, NAV + k]
+            out[names[g].format("xyz"[ax])] = {"value": float(bias[-1, k] * scale[g]),
+                                               "std": float(np.sqrt(var) * scale[g]) if var >= 0 else None,
+                                               "estimated": True}
+    out.update(calibration_summary(result, base))
+    return out

@@ -11,7 +11,7 @@ from numba import njit
 
 from aidnav.nav.earth import gravity, gravity_dh, radii
 
-from ..layout import BG, DP, DV, L_LEVER, L_TOFF, L_VDEL, NAV, PHI
+from ..layout import BG, DP, DV, L_GPE, L_LEVER, L_TOFF, L_VDEL, NAV, PHI
 from .common import W_FIX, W_IE, W_IN, cross, diag_r, skew, skew_into
 
 W_FN = 4  # row of ``Nav.w`` holding the interval's mean specific force f^n [m/s²] (engine)
@@ -119,6 +119,10 @@ def gnss_position_model(nav, row, par, lay, H, z, R):
             for j in range(H.shape[1]):
                 H[i, j] -= tb * Hv[i, j]
             H[i, lay[L_TOFF]] = nav.st[3 + i] + zv[i]
+    if lay[L_GPE] >= 0:  # time-correlated fix error b (ENU m): measured = p + b + white; H = −I
+        for i in range(3):
+            z[i] += nav.bias[lay[L_GPE] - NAV + i]
+            H[i, lay[L_GPE] + i] = -1.0
     diag_r(R, 3, row[3:6])
     return 3
 

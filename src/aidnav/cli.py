@@ -372,9 +372,8 @@ def tight(
     out: Path = typer.Option(Path("out"), "-o", "--out", help="output directory: trajectory.parquet|csv, "
                              "summary.json, summary.txt"),
     fmt: str = typer.Option("parquet", "--format", help="trajectory file format: parquet or csv"),
-    smooth: bool = typer.Option(False, "--smooth", help="RTS smoother (not yet available for the tight "
-                                "filter: "
-                                "says so in the summary)"),
+    smooth: bool = typer.Option(False, "--smooth", help="run the RTS smoother as well (the smoothed "
+                                "solution is written; the innovations stay the forward ones)"),
     as_json: bool = typer.Option(False, "--json", help="print the JSON summary instead of the text"),
     no_figures: bool = typer.Option(False, "--no-figures", help="skip overview.png, maps and run.html"),
 ):

@@ -19,7 +19,8 @@ from aidnav.filters.tight import TightConfig, run_tight
 __all__ = ["process_tight", "compare_with_reference", "process_tight_files", "score_against_reference"]
 
 
-def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | None = None):
+def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | None = None,
+                  smooth: bool = False):
     """Run the tightly coupled filter on real data; returns (TightResult, spp dict)."""
     from aidnav.estimators.dgps import spp_series
     from aidnav.filters.config import DEG, LooseConfig
@@ -88,7 +89,8 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
         f"{np.degrees(pitch):.2f} deg from the mean specific force over {ini.static_window_s:g} s"
     )
     res = run_tight(
-        imu, obs, eph, cfg, init_state=init_state, static=static, heading_reset=heading_reset, events=events
+        imu, obs, eph, cfg, init_state=init_state, static=static, heading_reset=heading_reset, events=events,
+        smooth=smooth,
     )
     return res, sp
 
@@ -191,14 +193,12 @@ def process_tight_files(imu_path, obs_path, nav_path, config_path=None, out_dir=
     obs = read_rinex_obs(obs_path)
     eph = read_rinex_nav(nav_path, ref_week=getattr(obs, "ref_week", None))
     events: list[str] = []
-    if smooth:
-        events.append("--smooth: the tight filter has no smoother yet; the forward solution is written")
-    res, sp = process_tight(imu, obs, eph, cfg, events=events)
+    res, sp = process_tight(imu, obs, eph, cfg, events=events, smooth=smooth)
     traj = to_trajectory(res)
     check_solution(traj, "the tightly coupled filter")
     write_trajectory(traj, traj_path, week=getattr(obs, "ref_week", None))
     summary = {"imu": str(imu_path), "obs": str(obs_path), "nav": str(nav_path), "output": str(traj_path),
-               "states": cfg.states, "events": imu.events + events}
+               "states": cfg.states, "smoothed": bool(smooth), "events": imu.events + events}
     if truth is not None:
         ref = read_gnss_any(truth, truth_height_offset_m)
         summary["reference"] = {"file": str(truth), "height_offset_m": truth_height_offset_m,

@@ -37,6 +37,7 @@ from .measurements import M_GNSS_POS, M_GNSS_VEL, M_SAPV, MAX_ROWS, N_MODELS, Na
 from .measurements import sapv as sp
 from .measurements import streams as st_
 from .measurements.common import W_FIX
+from .measurements.gnss import W_FN
 from .measurements.sapv import SAPV_BAD_INPUT, SAPV_BELOW_HORIZON, SAPV_SKIP_REASONS, SAPV_UNUSED
 
 __all__ = ["FederatedConfig", "FederatedResult", "run_federated", "run_centralized", "fuse_information",
@@ -92,7 +93,7 @@ def _federated_kernel(imu, gn, sv, mod, lay, fed):
     st, bias, Pg = fed.st.copy(), np.zeros(n - 9), fed.P.copy()
     F, G, Phi, Qd = ie.model_arrays(n, ie.noise_count(n))
     wk = Work(np.zeros((MAX_ROWS, n)), np.zeros(MAX_ROWS), np.zeros((MAX_ROWS, MAX_ROWS)))
-    w = np.zeros((4, 3))
+    w = np.zeros((5, 3))  # rows W_IB, W_FIX, W_IE, W_IN, W_FN (as the engine: models may read the mean f^n)
     mx = min(M + S + int((imu.t[-1] - fed.t0) / fed.prop_dt) + 3, n_imu)
     node_k, out_st, out_bias = np.empty(mx, np.int64), np.empty((mx, 10)), np.empty((mx, n - 9))
     out_pd, out_loc = np.empty((mx, n)), np.empty((mx, nloc, 3))
@@ -129,6 +130,7 @@ def _federated_kernel(imu, gn, sv, mod, lay, fed):
         if fed.smooth:
             S_phi[kn], S_prior[kn] = Phi, Phi @ Pg @ Phi.T + Qd
         _node_rates(st, wb, dthc, dt, w)
+        w[W_FN] = acc[ie.ACC_FN] / T
         while gi < M and gn.t[gi] <= tk:  # 2. local updates: GNSS in local 1
             if gn.use[gi]:
                 md = gn.model[gi]

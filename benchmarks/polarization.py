@@ -1,4 +1,4 @@
-"""Throughput benchmark of the seed-002 polarization attitude fix (dipole triad, SPEC §3).
+"""Throughput benchmark of the seed-002 polarization attitude fix (dipole triad, §3).
 
 Prints attitude fixes per second on one core: each fix is N = 1000 complex snapshots → sample covariance
 → concentrated ML (started from the principal-eigenvector closed form) → attitude, line-of-sight

@@ -15,6 +15,9 @@ Conventions (full text: ``docs/conventions.md``):
 * time: float seconds, GPS seconds of week for GNSS-timed data; outputs keep their inputs' scale;
 * every unit, frame, time and datum conversion happens once, in :mod:`aidnav.io`.
 
+A reference "§x.y" (or "models.md §x.y") in a comment is a section of ``docs/models.md``: the models and
+the errata aidnav follows, in our words, numbered as the project's specification.
+
 Layers (each imports only those to its left): ``nav < sim | filters < estimators < analysis <
 report < experiments < apps < cli``; ``aidnav.io`` and ``aidnav.data`` sit beside ``nav``.
 """

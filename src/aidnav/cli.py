@@ -255,7 +255,7 @@ def satcom_point(
     polarization: str = typer.Option("vertical", "--polarization", help="vertical or horizontal"),
     as_json: bool = typer.Option(False, "--json", help="print a JSON object instead of a table"),
 ):
-    """Servo azimuth, elevation and polarization [deg] of a satcom antenna on a vehicle (SPEC 4.3)."""
+    """Servo azimuth, elevation and polarization [deg] of a satcom antenna on a vehicle (§4.3)."""
     import json
 
     from rich.table import Table

@@ -1,4 +1,4 @@
-"""Polarization attitude estimators of seed 002 (SPEC §3.3–3.5): closed form, ML, CRBs, attitude."""
+"""Polarization attitude estimators of seed 002 (§3.3–3.5): closed form, ML, CRBs, attitude."""
 
 from __future__ import annotations
 
@@ -71,7 +71,7 @@ def test_closed_form_vectorised():
 
 
 def test_seed_eq4_valid_only_for_real_signal():
-    """SPEC §3.6 erratum 4: tan γ = Re{s_z sinφ}/Re{s_z sinθ cosφ + s_x cosθ} needs a real s(t)."""
+    """§3.6 erratum 4: tan γ = Re{s_z sinφ}/Re{s_z sinθ cosφ + s_x cosθ} needs a real s(t)."""
     phi, th, g, eta = 30 * D, 20 * D, 15 * D, 27 * D
     A = steering_vector(phi, th, g, eta)
 
@@ -81,7 +81,7 @@ def test_seed_eq4_valid_only_for_real_signal():
 
     for s in (1.0, -2.3):  # exact for a real s(t)
         assert eq4(s * A) == pytest.approx(g, abs=1e-12)
-    # SPEC §3.3: γ = 15° comes out as 56.4° when the signal phase is 60°
+    # §3.3: γ = 15° comes out as 56.4° when the signal phase is 60°
     assert eq4(np.exp(1j * 60 * D) * A) / D == pytest.approx(56.4, abs=0.05)
     # the corrected (Stokes/Jones) form does not care about the signal phase
     for ph in (0.0, 60 * D, 2.0):
@@ -162,7 +162,7 @@ def test_cvae_is_diagonal_and_geometry_free():
         ref = cvae_bound(eta, 10.0, 1000)
         np.testing.assert_allclose(cv, ref, rtol=1e-9, atol=1e-12 * ref.max())
     sig = np.sqrt(np.diag(cvae_bound(27 * D, 10.0, 1000))) / D
-    np.testing.assert_allclose(sig, [0.7229, 0.9360, 0.4769], atol=5e-5)  # SPEC §3.7
+    np.testing.assert_allclose(sig, [0.7229, 0.9360, 0.4769], atol=5e-5)  # §3.7
 
 
 def test_euler_error_jacobian_numerical():
@@ -215,7 +215,7 @@ def test_attitude_round_trip(roll, pitch, heading, bearing, elev, tilt, dlat):
     eta = 27 * D
     A = steering_vector(*p, eta)
     if abs(A[2]) < 1e-2 or abs(np.cos(p[1])) < 1e-2:
-        return  # θ undefined or over the top (SPEC §3.3)
+        return  # θ undefined or over the top (§3.3)
     rng = np.random.default_rng(0)
     s = rng.standard_normal(50) + 1j * rng.standard_normal(50)
     R = sample_covariance(s[:, None] * A)

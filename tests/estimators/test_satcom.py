@@ -51,7 +51,7 @@ def test_servo_angles_known_answers():
     az = servo_angles(39.9, 110.5, 0, 0, 0, 180.0, 110.5)["azimuth_deg"]
     assert (az + 180.0) % 360.0 - 180.0 == pytest.approx(0.0, abs=1e-9)
     assert servo_angles(39.9, 110.5, 0, 0, 0, 270.0, 110.5)["azimuth_deg"] == pytest.approx(270.0, abs=1e-9)
-    # satellite west of the site: azimuth west of South, positive skew (SPEC 4.3 level check)
+    # satellite west of the site: azimuth west of South, positive skew (§4.3 level check)
     r = servo_angles(39.9, 116.4, 0.0, 0.0, 0.0, 0.0, 110.5)
     assert 180.0 < r["azimuth_deg"] < 200.0
     skew = -np.degrees(np.arctan(np.sin(-5.9 * D) / np.tan(L)))
@@ -85,7 +85,7 @@ def test_cli_satcom_point_json_matches_function():
 
 # ------------------------------------------------------------------------------- dual-quaternion control
 def test_reference_chase_spec_4_5():
-    """SPEC 4.5 chase with the total rate bounded (issue 27; docs/seed_003_closing_times.md).
+    """§4.5 chase with the total rate bounded (issue 27; docs/seed_003_closing_times.md).
 
     The common ΔΘ leaves the rotation ε between q_ant and q_nav unchanged and the chase removes w_max·dt of
     it per interrupt along ε, so every axis closes when the whole rotation does:
@@ -237,7 +237,7 @@ def test_total_rotation_bound_for_random_simultaneous_three_axis_errors():
 @pytest.mark.parametrize("attitude_deg", [(0.0, 0.0, 100.0), (12.0, -8.0, 250.0)])
 def test_single_axis_chase_is_the_per_axis_rule(axis, attitude_deg):
     """One Euler angle differing alone (any attitude, no vehicle rotation): |d| falls by exactly
-    min(w·dt, |d|) per interrupt, w = min(w_max, |Δ|/T_f) latched, the other two stay 0 (SPEC 4.2
+    min(w·dt, |d|) per interrupt, w = min(w_max, |Δ|/T_f) latched, the other two stay 0 (§4.2
     behaviour 2; the rule before issue 27, unchanged for one axis)."""
     dt, t_f, w_max = 0.01, 1.0, 0.5 * D
     n = 700
@@ -269,7 +269,7 @@ def test_single_axis_chase_is_the_per_axis_rule(axis, attitude_deg):
 
 
 def test_single_heading_chase_while_yawing_is_unchanged():
-    """SPEC 4.5 with a heading correction alone: the old per-axis result, 2°/w_max − dt = 3.99 s."""
+    """§4.5 with a heading correction alone: the old per-axis result, 2°/w_max − dt = 3.99 s."""
     ch = reference_chase(correction_rph_deg=(0.0, 0.0, 2.0))
     assert ch["close_time_s"]["heading"] == pytest.approx(3.99, abs=1e-9)
     assert ch["max_rot_deg"] == pytest.approx(0.005, rel=1e-9)

@@ -1,4 +1,4 @@
-"""SPEC §5.3 trends of the seed-004 reproduction on a small Monte Carlo (fixed seeds, common random
+"""§5.3 trends of the seed-004 reproduction on a small Monte Carlo (fixed seeds, common random
 numbers), with the reproduction's own cases (ARW reading of the sub-IMU, Gauss-Markov master position
 drift):
 

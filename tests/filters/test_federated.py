@@ -72,7 +72,8 @@ def test_sapv_azimuth_wrap():
 
 
 def test_position_columns_negligible_for_100_m():
-    """SPEC eq. 25/26: 100 m of position error moves the pointing by ≈ 0.002°, 1/25 of the 0.05° noise."""
+    """§1.2 items 8-9 and §1.1 eq. 26: 100 m of position error moves the pointing by ≈ 0.002°, 1/25 of the
+    0.05° noise."""
     C = dcm_from_euler(0, 0, 100 * D)
     rm, rn = radii(LAT)
     worst = 0.0

@@ -1,4 +1,4 @@
-"""Tests of the ENU INS error model ``aidnav.filters.ins_errors.fill_model`` (SPEC §6).
+"""Tests of the ENU INS error model ``aidnav.filters.ins_errors.fill_model`` (§6).
 
 (a) Continuous time: F against the numerical Jacobian of the nonlinear mechanization equations
     (ṗ, v̇ = C f − (2ω_ie + ω_en) × v + g, Ċ = C[ω_ib×] − [ω_in×]C), written here independently of
@@ -7,7 +7,7 @@
     ω̃_ib = ω_ib + ε, f̃ = f + ∇ (the filter feeds ε̂, ∇̂ back with b̂ += ε̂: the state is what is
     left in the compensated measurement). The same IMU drives the true and the perturbed solution;
     central differences over ±δ per column. φ̇ comes from d/dt(I − C̃Cᵀ) = −(Ċ̃Cᵀ + C̃Ċᵀ).
-    With the radii frozen at the test point (the analytic form neglects dR/dL) SPEC §6 quotes
+    With the radii frozen at the test point (the analytic form neglects dR/dL) §6 quotes
     agreement to 1.5e-6 entry-relative; with the radii free, only the δL column moves, by at most
     the dR/dL terms bounded below.
 (b) Discrete time, through the library's own ``strapdown_step``: the state-transition matrix of
@@ -107,7 +107,7 @@ def test_f_matches_numerical_jacobian_with_frozen_radii():
     Fa = F[:9]
     nz = Fa != 0.0
     rel = np.abs(J - Fa)[nz] / np.abs(Fa[nz])
-    # SPEC §6: 1.5e-6 entry-relative (measured here: 7e-9)
+    # §6: 1.5e-6 entry-relative (measured here: 7e-9)
     assert rel.max() < 1.5e-6, np.unravel_index(np.argmax(np.where(nz, np.abs(J - Fa), 0)), J.shape)
     # entries the model sets to zero are zero in the Jacobian too (up to round-off: the largest
     # analytic entries are ~10, the Jacobian's zeros come out at ≤ 1e-13)
@@ -117,7 +117,7 @@ def test_f_matches_numerical_jacobian_with_frozen_radii():
 def test_f_numerical_jacobian_with_varying_radii_differs_only_by_dr_dl():
     """Unfrozen radii: the δL column picks up the neglected dR/dL terms, bounded by
     |dR_M/dL| ≤ 1.5 e² R_M, |dR_N/dL| ≤ 0.5 e² R_N: ≲ 1.5 e² |v| sec²L / R in the attitude and position
-    rows and ≲ 1.5 e² |v|² sec²L / R in the velocity rows (SPEC §6: ≤ 2e-5 in F(6,7), ≤ 1.2e-7 elsewhere
+    rows and ≲ 1.5 e² |v|² sec²L / R in the velocity rows (§6: ≤ 2e-5 in F(6,7), ≤ 1.2e-7 elsewhere
     at 150 m/s)."""
     J = _numerical_jacobian(None)
     F, _ = _analytic()
@@ -135,7 +135,7 @@ def test_f_numerical_jacobian_with_varying_radii_differs_only_by_dr_dl():
     b_vel = 1.5 * E2 * sp**2 * sec2 / rm
     assert d[[0, 1, 2, 6, 7, 8], 6].max() < b_att  # measured 1.2e-7 (bound 3.4e-7)
     assert d[3:6, 6].max() < b_vel  # measured 1.7e-5 (bound 4.9e-5)
-    # SPEC's numbers: ≤ 2e-5 in F(6,7) (δv_U row), ≤ 1.2e-7 s⁻¹ in the attitude and position rows
+    # the numbers of models.md §6: ≤ 2e-5 in F(6,7) (δv_U row), ≤ 1.2e-7 s⁻¹ in the attitude and position rows
     assert d[5, 6] < 2e-5 and d[[0, 1, 2, 6, 7, 8], 6].max() < 1.2e-7
 
 

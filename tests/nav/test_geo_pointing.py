@@ -1,4 +1,4 @@
-"""GEO pointing geometry (seeds 000 and 003): LOS, az/el, exact Jacobians, servo angles (SPEC §1.1, §4.3)."""
+"""GEO pointing geometry (seeds 000 and 003): LOS, az/el, exact Jacobians, servo angles (§1.1, §4.3)."""
 
 from __future__ import annotations
 
@@ -51,7 +51,7 @@ def test_satellite_position_and_radius_options():
     assert np.linalg.norm(s) == pytest.approx(R_GEO)
     assert s[2] == 0.0
     assert np.degrees(np.arctan2(s[1], s[0])) == pytest.approx(138.0)
-    # the seed-000 height changes the pointing only at the 1e-3 deg level (SPEC §0)
+    # the seed-000 height changes the pointing only at the 1e-3 deg level (§0)
     C = dcm_from_euler(0.0, 0.0, 100 * D)
     a1 = np.array(pointing_az_el(39 * D, 116 * D, 0.0, C, geo_sat_ecef(138 * D)))
     a2 = np.array(pointing_az_el(39 * D, 116 * D, 0.0, C, geo_sat_ecef(138 * D, R_GEO_SEED000)))
@@ -237,7 +237,7 @@ def test_jacobians_against_finite_differences(el_body):
 
 
 def test_jacobian_A_and_seed000_form():
-    """A is the exact Jacobian of (az, el) in r_b; H_phi = −A C_n^b [r_n×] (SPEC §1.1 eq. 26)."""
+    """A is the exact Jacobian of (az, el) in r_b; H_phi = −A C_n^b [r_n×] (§1.1 eq. 26)."""
     rng = np.random.default_rng(11)
     for _ in range(20):
         r = rng.normal(size=3) * 1e7

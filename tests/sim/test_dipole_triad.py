@@ -1,4 +1,4 @@
-"""Dipole-triad signal model and the seed-002 frames (SPEC §3.1–3.2, §0)."""
+"""Dipole-triad signal model and the seed-002 frames (§3.1–3.2, §0)."""
 
 from __future__ import annotations
 
@@ -119,7 +119,7 @@ def test_frame_conversion_P():
 
 
 def test_base_wave_dcm_corrected_eq9():
-    """u in B is the aircraft → base direction: azimuth φ′ + π and elevation −θ′ (SPEC §3.4)."""
+    """u in B is the aircraft → base direction: azimuth φ′ + π and elevation −θ′ (§3.4)."""
     for phi_b, th_b, g_b in ((30 * D, 5 * D, 0.0), (-120 * D, 40 * D, 0.3)):
         C_WB = base_wave_dcm(phi_b, th_b, g_b)
         to_aircraft = np.array([np.cos(phi_b) * np.cos(th_b), np.sin(phi_b) * np.cos(th_b), np.sin(th_b)])

@@ -1,6 +1,6 @@
 """Code-based GNSS relative positioning: base/rover relative
-positioning from pseudorange single differences (seed 001 eqs. 1–5, iterated per SPEC 2.2.2), and dead
-reckoning of the relative position during outages (seed eqs. 6–7 with the frame rotation of SPEC 2.2.5).
+positioning from pseudorange single differences (seed 001 eqs. 1–5, iterated per §2.2 item 2), and dead
+reckoning of the relative position during outages (seed eqs. 6–7 with the frame rotation of §2.2 item 5).
 
 Frames and units: ECEF e [m]; ENU n [m]; the relative position is in the ENU frame **of the base**
 (n_B); angles [rad] inside, azimuth clockwise from North; clock terms in metres (c × seconds); times
@@ -22,7 +22,7 @@ SPP itself is :mod:`aidnav.estimators.spp`; the satellite states of an epoch and
 unknowns ΔX = [Δx_E, Δx_N, Δx_U, cΔT_BK] in n_B; rows [−e_j^T, 1] with e_j the n_B unit vector from the
 current rover estimate to satellite j; the residual is ΔP − (ρ̂_K − ρ̂_B + cΔT̂) with exact (Sagnac)
 ranges, each receiver's satellite position at its own transmit time. ``iterate=False`` gives the seed's
-single linearisation about the base (second-order error ≈ |Δx|²/(2ρ), SPEC 2.2.2). Optionally the
+single linearisation about the base (second-order error ≈ |Δx|²/(2ρ), §2.2 item 2). Optionally the
 model difference of the tropospheric delays (heights differ on an approach: ≈ 0.3 m zenith per km) is
 removed. The base position need only be roughly known: an error δp_B moves the result by about
 |δp_B|·|Δx|/ρ (0.1 m for 100 m at 20 km).
@@ -224,7 +224,7 @@ def dead_reckon(
 
     time (N,) [s]; vel_enu_rover (N, 3) rover velocity in its own ENU frame [m/s]; lat_rover, lon_rover
     (N,) [rad] (for C_{n_K}^e); base_lat, base_lon [rad]; dx0 (3,) relative position at time[0] [m].
-    rotate : use v^{n_B} = C_e^{n_B} C_{n_K}^e v^{n_K} (SPEC 2.2.5; False = the seed's unrotated sum).
+    rotate : use v^{n_B} = C_e^{n_B} C_{n_K}^e v^{n_K} (§2.2 item 5; False = the seed's unrotated sum).
     method : "euler" (Δx_{k+1} = Δx_k + v_k T_k, the seed's eq. 7) or "trapezoid" (½(v_k + v_{k+1}) T_k).
     Returns (N, 3) relative ENU positions [m].
     """

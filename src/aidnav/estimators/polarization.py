@@ -1,4 +1,4 @@
-"""Aircraft attitude from a dipole triad and one polarized base-station signal (seed 002, SPEC §3).
+"""Aircraft attitude from a dipole triad and one polarized base-station signal (seed 002, §3).
 
 Estimators of the wave parameters, their Cramér–Rao bounds and the attitude steps 1–4.
 
@@ -7,25 +7,25 @@ antenna frame I (FLU); η is the (known) ellipticity. Everything returned to the
 conventions: C_b^n (RFU → ENU), (roll, pitch, heading) as in ``CONVENTIONS.md``, misalignment ε in n
 with C_b^n(est) = (I − [ε×]) C_b^n(true). Angles in radians.
 
-* :func:`closed_form` — seed eqs. (2)–(4) as corrected in SPEC §3.3 (eq. (3) gets its minus sign and
+* :func:`closed_form` — seed eqs. (2)–(4) as corrected in §3.3 (eq. (3) gets its minus sign and
   |a_z|²; eq. (4), valid only for a real s(t), is replaced by the Stokes/Jones form), applied to one
   snapshot or, better, to the principal eigenvector of R̂ (:func:`closed_form_covariance`).
 * :func:`ml_estimate` — the concentrated maximum likelihood of eqs. (5)–(6): with ‖A‖ = 1 and one
   source it maximises AᴴR̂A over (φ, θ, γ) (BFGS with the analytic gradient, started from the closed
   form). :func:`concentrated_loglik` is eq. (6) with the circular-complex normalisation
-  (SPEC §3.6 erratum 5; the argmax is unchanged).
+  (§3.6 erratum 5; the argmax is unchanged).
 * :func:`crb_eq7` (seed eq. (7), correct as printed) and :func:`crb_numerical` (Slepian–Bangs Fisher
   information of the circular Gaussian model over (φ, θ, γ, P, σ²), with complex-step derivatives):
   the two agree to rounding. :func:`crb_rotation_vector` is the CVAE bound of the small rotation δ
   of the wave frame (components about u, ṽ1, ṽ2) = (1+ρ)/(2Nρ²)·diag(1/cos²2η, 1/sin²η, 1/cos²η)
-  (the printed CVAE has a spurious leading "N·", SPEC §3.6 erratum 7); :func:`crb_attitude` maps it to
-  the misalignment in n and to (roll, pitch, heading), which **does** depend on the geometry (SPEC §3.5:
+  (the printed CVAE has a spurious leading "N·", §3.6 erratum 7); :func:`crb_attitude` maps it to
+  the misalignment in n and to (roll, pitch, heading), which **does** depend on the geometry (§3.5:
   the seed's "independent of DOA and attitude" holds for the rotation vector only).
 * :func:`attitude_from_wave` — steps 1–4: C_I^B = C_W^B C_I^W with the corrected eq. (9)
-  (C_W^B = [Rx(γ′) Ry(−θ′) Rz(φ′+π)]ᵀ, SPEC §3.4), then C_b^n = P C_I^B Pᵀ, optionally rotated from
+  (C_W^B = [Rx(γ′) Ry(−θ′) Rz(φ′+π)]ᵀ, §3.4), then C_b^n = P C_I^B Pᵀ, optionally rotated from
   the base's geographic frame into the aircraft's (the seed assumes them parallel — flat Earth; physics
   says they differ by the great-circle angle, so :func:`estimate_attitude` takes ``base_to_local``).
-* Ambiguities (SPEC §3.3): η known removes (φ, θ, γ, η) ↔ (φ±π, −θ, −γ, −η); γ and γ + π give the same
+* Ambiguities (§3.3): η known removes (φ, θ, γ, η) ↔ (φ±π, −θ, −γ, −η); γ and γ + π give the same
   subspace, i.e. a 180° ambiguity of the attitude about the line of sight, resolved by
   :func:`resolve_line_of_sight` with a prior attitude (e.g. the previous epoch) or "upright".
 * Bad input (all public estimators): every unobservable case raises :class:`ValueError` naming the
@@ -125,7 +125,7 @@ def _zenith_error():
 def closed_form(a, eta):
     """Closed-form (φ, θ, γ) [rad] from a snapshot or a steering-vector estimate ``a`` (..., 3) complex.
 
-    SPEC §3.3 (corrected seed eqs. 2–4), with η [rad] known (η ≠ 0 for φ; |η| < π/4 for γ):
+    §3.3 (corrected seed eqs. 2–4), with η [rad] known (η ≠ 0 for φ; |η| < π/4 for γ):
 
     * φ = atan2(sgn η · Im{a_x a_z*}, −sgn η · Im{a_y a_z*})  (the seed's arccot with its −π branch)
     * θ = arctan(−(Re{a_x a_z*} cos φ + Re{a_y a_z*} sin φ) / |a_z|²)  (seed: no minus sign, /s_z)
@@ -269,7 +269,7 @@ def _neg_obj(p, R, eta, scale):
 def ml_estimate(R, eta, start=None, gtol=1e-9, maxiter=200) -> MLResult:
     """Concentrated ML (φ, θ, γ) from a sample covariance R̂ (3×3) with η [rad] known.
 
-    Maximises AᴴR̂A (SPEC §3.3) with scipy BFGS and the analytic gradient 2 Re{Dᴴ R̂ A}, started from
+    Maximises AᴴR̂A (§3.3) with scipy BFGS and the analytic gradient 2 Re{Dᴴ R̂ A}, started from
     ``start`` (φ, θ, γ) or from :func:`closed_form_covariance`. The result is put back into the
     canonical ranges through the wave-frame DCM (θ ∈ [−π/2, π/2], γ folded into (−π/2, π/2]).
     ``success`` is also set when BFGS stops on "precision loss" with a gradient norm (of AᴴR̂A / tr R̂)
@@ -376,7 +376,7 @@ def crb_rotation_vector(phi, theta, gamma, eta, snr, n):
 
 
 def cvae_bound(eta, snr, n):
-    """(1+ρ)/(2Nρ²)·diag(1/cos²2η, 1/sin²η, 1/cos²η) [rad²] (SPEC §3.5; no leading N·)."""
+    """(1+ρ)/(2Nρ²)·diag(1/cos²2η, 1/sin²η, 1/cos²η) [rad²] (§3.5; no leading N·)."""
     return _factor(snr, n) * np.diag([1 / np.cos(2 * eta) ** 2, 1 / np.sin(eta) ** 2,
                                                     1 / np.cos(eta) ** 2])
 
@@ -433,7 +433,7 @@ def _angle_between(C1, C2):
 
 
 def resolve_line_of_sight(phi, theta, gamma, bearing, elevation, tx_tilt, prior=None, base_to_local=None):
-    """Choose γ or γ + π (the 180° ambiguity of the attitude about the line of sight, SPEC §3.3).
+    """Choose γ or γ + π (the 180° ambiguity of the attitude about the line of sight, §3.3).
 
     prior : C_b^n of a prior attitude (e.g. the previous epoch, or the INS) — the candidate closest to it
     wins; without a prior the aircraft is assumed upright (the candidate whose body up axis points most

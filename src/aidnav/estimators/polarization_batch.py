@@ -1,10 +1,10 @@
-"""Batch polarization attitude fixes (seed 002, SPEC §3) in numba: many fixes per call.
+"""Batch polarization attitude fixes (seed 002, §3) in numba: many fixes per call.
 
 :func:`estimate_attitude_batch` does for K fixes what :func:`aidnav.estimators.polarization.
 estimate_attitude` (method "ml") does for one, with the same conventions and results (tested against it
 fix by fix), without a Python call per fix:
 
-1. principal eigenvector of R̂ and the closed form (SPEC §3.3, corrected seed eqs. 2–4) as the start;
+1. principal eigenvector of R̂ and the closed form (§3.3, corrected seed eqs. 2–4) as the start;
 2. concentrated ML: maximise f(φ, θ, γ) = AᴴR̂A by Newton steps with the analytic gradient
    2 Re{DᴴR̂A} and a Hessian from central differences of that gradient (h = 1e-5 rad, error ~1e-10
    relative); a step that does not increase f is replaced by a backtracked gradient step. From the closed
@@ -13,7 +13,7 @@ fix by fix), without a Python call per fix:
 4. line-of-sight resolution (γ or γ + π: the candidate closest to ``prior``, or the upright one),
    C_b^n = base_to_local · P C_W^B C_I^W Pᵀ, (roll, pitch, heading);
 5. the attitude CRB at the estimated SNR: the CVAE bound (1+ρ)/(2Nρ²)·diag(1/cos²2η, 1/sin²η, 1/cos²η)
-   of the wave-frame rotation (the same for every DOA and tilt, SPEC §3.5) mapped to the misalignment ε
+   of the wave-frame rotation (the same for every DOA and tilt, §3.5) mapped to the misalignment ε
    in n and to (roll, pitch, heading).
 
 :func:`sample_covariance_batch` forms R̂ = (1/N) Σ S(t) S(t)ᴴ for K snapshot blocks.

@@ -1,5 +1,5 @@
 """Satcom on the move (seed 003, patent CN104064869): MEMS-INS/GPS navigation, dual-quaternion antenna
-control, servo model and pointing error (SPEC.md §4).
+control, servo model and pointing error (models.md §4).
 
 Frames and units (``CONVENTIONS.md``): n = ENU, b = body RFU, antenna frame v (y_v beam, z_v on the
 azimuth-axis side); position (lat, lon [rad], h [m]), velocity ENU [m/s], attitude q_b^n (Hamilton,
@@ -8,11 +8,11 @@ input's scale.
 
 What is here, in the order of the patent's system (its Fig. 3):
 
-* **Navigation** (SPEC §4.1). :func:`run_nav8`: strapdown (:func:`aidnav.nav.strapdown.strapdown_step`)
+* **Navigation** (§4.1). :func:`run_nav8`: strapdown (:func:`aidnav.nav.strapdown.strapdown_step`)
   at the IMU ("interrupt") rate and the patent's **8-state Kalman filter** (Qin, Zhang & Wang, 2nd ed.)
   x = [δv_E, δv_N, φ_E, φ_N, ε_x, ε_y, ∇_x, ∇_y] with the GPS velocity difference z = v_INS − v_GPS (E, N)
   as measurement. The dynamics are the rows and columns of the common 15-state ENU model
-  (:func:`aidnav.filters.ins_errors.fill_model`, SPEC §6) restricted to these states (φ_U dropped); the
+  (:func:`aidnav.filters.ins_errors.fill_model`, §6) restricted to these states (φ_U dropped); the
   filter is the one Kalman core (:mod:`aidnav.filters.kalman`: ``discretize``, ``predict``, ``update``).
   Only the level attitude (and the E/N velocity, the x/y sensor biases) is corrected; heading comes from
   the initial alignment and gyro integration. The correction convention is that of CONVENTIONS:
@@ -24,18 +24,18 @@ What is here, in the order of the patent's system (its Fig. 3):
   Both return a :class:`NavRun`: the navigation quaternion after each interrupt, the rotation vector
   ΔΘ of that interrupt (body relative to the ideal platform: q_pre = q_prev ⊗ q(ΔΘ), i.e.
   ΔΘ ≈ ∫(ω_ib^b − C_n^b ω_in^n)dt) and whether a filter correction was applied.
-* **Dual-quaternion control** (SPEC §4.2, claims 1–2; total rate bound of issue 27).
+* **Dual-quaternion control** (§4.2, claims 1–2; total rate bound of issue 27).
   :func:`dual_quaternion_track`: the antenna-control quaternion starts equal to the navigation quaternion
   and receives the **same** ΔΘ every interrupt. The patent then "updates the antenna quaternion again with
   the three-axis command rotation vector" ([0025], [0071]). Here that vector is the geodesic toward the
   navigation quaternion: with e = rotvec(q_ant* ⊗ q_nav) (body frame; elements x ↔ pitch, y ↔ roll,
   z ↔ heading), q_ant ← q_ant ⊗ q(σ·e), σ = min(1, w·dt/|e|).
   - Signs: each element has the sign of the patent's rules a–f. This holds exactly for one axis alone and
-    to first order otherwise, in the platform sense of SPEC §4.4 erratum 2: the command rotates the
+    to first order otherwise, in the platform sense of §4.4 erratum 2: the command rotates the
     antenna's virtual platform, so every Euler difference d_k = angle_k(q_ant) − angle_k(q_nav) decreases.
     The patent's (Qin/PSINS) heading is the counter-clockwise yaw; aidnav's heading is clockwise, so the
     reported third difference is on yaw ψ = −heading.
-  - Magnitude (claim 2 on the total rotation; SPEC §4.4 erratum 3): |e|/T_f ≤ w ≤ w_max. The rate is
+  - Magnitude (claim 2 on the total rotation; §4.4 erratum 3): |e|/T_f ≤ w ≤ w_max. The rate is
     latched at each filter correction (w = min(w_max, margin·|e|/T_f)). Between corrections it is
     min(w_max, max(latched, |e|/T_f)). When |e|/T_f ≤ w_max every element is at least |e_k|/T_f, so the
     per-axis claim 2 holds; otherwise the bound w_max wins.
@@ -47,14 +47,14 @@ What is here, in the order of the patent's system (its Fig. 3):
     So the angle falls linearly at w and every axis closes when the whole rotation does, at
     |e_0|/w (± one interrupt; ``docs/seed_003_closing_times.md``). The command never passes q_nav.
   - Servo commands are computed from q_ant only (:func:`servo_commands`).
-* **Servo angles** (SPEC §4.3): :func:`aidnav.nav.geo_pointing.servo_angles_rad` /
+* **Servo angles** (§4.3): :func:`aidnav.nav.geo_pointing.servo_angles_rad` /
   :func:`aidnav.nav.geo_pointing.servo_angles` (re-exported here).
 * **Servo and pointing model**: :func:`servo_track` (each axis a second-order loop, natural frequency
   ω_n = 2π·bandwidth and damping ζ, with command-rate feed-forward, acceleration and rate limits),
   :func:`beam_errors` (angle between the servo's beam and the true line of sight, with the true attitude
   and position; polarization mismatch) and :func:`signal_loss_db` (Gaussian-beam pointing loss
   12·(θ/θ_3dB)² dB plus polarization mismatch loss −20·log10|cos Δp|).
-* :func:`reference_chase`: the reference chase run of SPEC §4.5.
+* :func:`reference_chase`: the reference chase run of §4.5.
 """
 
 from __future__ import annotations
@@ -194,7 +194,7 @@ def _init_state(lat, lon, h, vel, rph):
 
 def run_nav8(imu, gnss, lat: float, lon: float, h: float, vel, rph, cfg: Nav8Config | None = None,
              use_filter: bool = True) -> NavRun:
-    """MEMS INS + GPS with the patent's 8-state velocity-matching filter (SPEC §4.1).
+    """MEMS INS + GPS with the patent's 8-state velocity-matching filter (§4.1).
 
     imu : :class:`aidnav.data.ImuData` (increments, body RFU); gnss : :class:`aidnav.data.GnssData` with
     velocity (the filter period T_f is the GPS interval). Initial state at ``imu.t0``: lat, lon [rad],
@@ -335,7 +335,7 @@ def _euler_change(a0, q):
 
 @njit(cache=True)
 def _dual_kernel(q0, dtheta, dts, q_nav, corrected, t_f, w_max, margin):
-    """Antenna-control quaternion chasing q_nav along the geodesic at a bounded total rate (SPEC §4.2).
+    """Antenna-control quaternion chasing q_nav along the geodesic at a bounded total rate (§4.2).
 
     Per interrupt: q_ant ← q_ant ⊗ q(ΔΘ) (the same increment as q_nav); then with the body-frame
     difference e = rotvec(q_ant* ⊗ q_nav) (angle |e|, unchanged by the common increment) the command is
@@ -431,7 +431,7 @@ class DualResult:
 
 def dual_quaternion_track(nav: NavRun, t_f: float = 1.0, w_max: float = 0.5 * DEG,
                           margin: float = 1.0) -> DualResult:
-    """Antenna-control quaternion chasing the navigation quaternion (SPEC §4.2, claims 1–2, issue 27).
+    """Antenna-control quaternion chasing the navigation quaternion (§4.2, claims 1–2, issue 27).
 
     nav : :class:`NavRun`; t_f : filter period T_f [s]; w_max : largest pointing-error rate the antenna
     tolerates [rad/s], a bound on the **total** change of the antenna attitude per interrupt beyond the
@@ -628,7 +628,7 @@ def signal_loss_db(pointing_error, beamwidth_3db, pol_error=None):
 def reference_chase(heading_deg: float = 100.0, yaw_rate_deg_s: float = 5.0, dt: float = 0.01,
                     t_f: float = 1.0, w_max_deg_s: float = 0.5, correction_rph_deg=(0.3, -0.5, 2.0),
                     t_correction: float = 1.0, duration: float = 8.0, margin: float = 1.0) -> dict:
-    """The reference chase run of SPEC §4.5.
+    """The reference chase run of §4.5.
 
     A level vehicle at ``heading_deg`` yaws at ``yaw_rate_deg_s`` (heading increasing); every interrupt
     (``dt``) both quaternions get the same ΔΘ; at ``t_correction`` the navigation quaternion is corrected by

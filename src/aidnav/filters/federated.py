@@ -6,7 +6,7 @@ q_b^n]; the 15-state INS error layout of :mod:`aidnav.filters.layout`. GNSS: ant
 measurement is used at the first IMU sample at or after its time (GPS: the INS moved back along its
 velocity; SAPV: the line of sight carried by the body rotation, :func:`.measurements.sapv.carry_angles`).
 
-Carlson's federated filter (SPEC §1.1): one strapdown INS, local 1 = SINS/GPS, local 2 = SINS/SAPV, and a
+Carlson's federated filter (§1.1): one strapdown INS, local 1 = SINS/GPS, local 2 = SINS/SAPV, and a
 master with a time update only; sharing factors β_1 + β_2 + β_m = 1 (β_m = 0: no master). At each node
 (each GPS or SAPV epoch, at most every ``prop_dt``): (1) time update of every filter with one Φ, Qd
 (local i: Qd/β_i); (2) updates in the locals with the engine's records, models, gate policy and log
@@ -187,7 +187,7 @@ class FederatedConfig:
         (SINS/SAPV) and the master (time update only; 0 = no master); they must sum to 1 (ignored for
         ``"centralized"``).
     use_gps, use_sapv : which measurements are used at all (SINS/GPS = ``use_sapv=False``).
-    sapv_position_columns : include the position columns of the SAPV H (SPEC eq. 23); the seed drops
+    sapv_position_columns : include the position columns of the SAPV H (§1.1 eq. 23); the seed drops
         them (eq. 26, the default).
     gate_probability : chi-square gate on each update (1 disables, the default).
     """

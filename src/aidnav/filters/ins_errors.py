@@ -1,4 +1,4 @@
-"""INS error-state model in ENU (SPEC §6), numba-compiled.
+"""INS error-state model in ENU (§6), numba-compiled.
 
 State layout (indices below), errors defined as computed − true:
 

@@ -5,7 +5,7 @@ Frames and units: n = ENU, b = RFU (IMU), e = ECEF; strapdown state (lat, lon [r
 q_b^n); receiver clock bias b [m] and drift d [m/s]; GNSS times are receiver tags on the GPS
 reference-week scale, IMU times on the same GPS scale.
 
-**States** (SPEC 2.1, seed eq. 8): ``states=11`` = [φ, δv, δL δλ δh, δt_u, δf] (the seed's model),
+**States** (§2.1, seed eq. 8): ``states=11`` = [φ, δv, δL δλ δh, δt_u, δf] (the seed's model),
 ``states=17`` = [φ, δv, δp, ε (gyro bias), ∇ (accel bias), δt_u, δf]: the layout of
 :mod:`aidnav.filters.layout` with the clock block (``L_CLK``) after the INS block of 9 or 15 states;
 δt_u = b − b̂ [m], δf = d − d̂ [m/s] (true − estimated, ρ_GPS = ρ_true + b). Clock dynamics: δṫ_u = δf +

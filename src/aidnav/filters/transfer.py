@@ -1,6 +1,6 @@
-"""Transfer alignment of a sub-IMU to a master POS by velocity + attitude matching (seed 004, SPEC §5.1).
+"""Transfer alignment of a sub-IMU to a master POS by velocity + attitude matching (seed 004, §5.1).
 
-Frames and units: n = ENU (master and sub navigation frames taken equal, SPEC §5.1), b_m / b_s the
+Frames and units: n = ENU (master and sub navigation frames taken equal, §5.1), b_m / b_s the
 master / sub body frames (RFU); radians, metres, seconds; sub state as in
 :mod:`aidnav.nav.strapdown` (lat, lon, h, v^n, q_bs^n).
 
@@ -17,7 +17,7 @@ State (errors are computed − true, as in :mod:`aidnav.filters.ins_errors`):
 21:24    θ̇, flexure rate (24-state model only)                         rad/s
 =======  =============================================================  ============
 
-* **24 states** (SPEC §5.1 item 9, recommended): θ is the second-order Markov process of the truth,
+* **24 states** (§5.1 item 9, recommended): θ is the second-order Markov process of the truth,
   θ̈ + 2βθ̇ + β²θ = η, Q_η = 4β³σ², β = 2.146/τ.
 * **21 states** (the seed's count): x₂ = (ρ, θ) only, which cannot carry a second-order process, so θ
   is modelled as first-order Gauss-Markov θ̇ = −θ/τ + w with the same σ and τ (τ is then also its 1/e
@@ -30,7 +30,7 @@ block: :func:`aidnav.filters.kalman.discretize` (third-order Taylor of Van Loan)
 the exact matrix exponential for the flexure block (‖F_flex‖·T ≈ 2βT ≈ 2 at T = 1 s, far too large
 for a Taylor series): :func:`aidnav.models.distributed_pos.flexure_transition`.
 
-Measurements, every filter epoch (SPEC §5.1 item 10), one batch update of six rows with
+Measurements, every filter epoch (§5.1 item 10), one batch update of six rows with
 :func:`aidnav.filters.kalman.update` (Joseph form, optional χ² gate):
 
 * attitude: D = C̃_bs^n (C̃_bm^n)ᵀ ≈ I − [z_a×], z_a = φ + C̃_bm^n (ρ + θ) + v_a

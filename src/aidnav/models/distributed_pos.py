@@ -17,7 +17,7 @@ from aidnav.units import DEG
 __all__ = ["BETA_FACTOR", "GNSS_BASELINE_ACCURACY_M", "MasterPosSpec", "FlexureSpec", "flexure_transition",
            "flexure_autocorrelation"]
 
-BETA_FACTOR = 2.146  #: β = 2.146/τ makes τ the 1/e time of R(t) = σ²(1+β|t|)e^{−β|t|} (SPEC §5.1 item 7)
+BETA_FACTOR = 2.146  #: β = 2.146/τ makes τ the 1/e time of R(t) = σ²(1+β|t|)e^{−β|t|} (§5.1 item 7)
 
 #: seed Table 7: GNSS baseline [km] -> (horizontal, vertical) 1σ position accuracy [m]
 GNSS_BASELINE_ACCURACY_M: dict[float, tuple[float, float]] = {20.0: (0.1, 0.2), 40.0: (0.5, 1.0),
@@ -27,11 +27,11 @@ GNSS_BASELINE_ACCURACY_M: dict[float, tuple[float, float]] = {20.0: (0.1, 0.2), 
 # ------------------------------------------------------------------------------------------ specs
 @dataclass(frozen=True)
 class MasterPosSpec:
-    """1σ white errors of the master POS output (POS/AV610 real-time accuracy by default, SPEC §5.1).
+    """1σ white errors of the master POS output (POS/AV610 real-time accuracy by default, §5.1).
 
     sigma_roll_deg, sigma_pitch_deg, sigma_heading_deg [deg]; sigma_vel_m_s [m/s] per ENU axis;
     sigma_horizontal_m (E and N), sigma_vertical_m [m]; rate_hz: output (= filter) rate [Hz].
-    corr_time_s: 0 (default) for white errors, as the seed's "measurement noise" and SPEC §5.1's R;
+    corr_time_s: 0 (default) for white errors, as the seed's "measurement noise" and §5.1's R;
     > 0 for first-order Gauss-Markov errors with that correlation time [s] and the same stationary σ
     (a real POS's errors are slowly varying; used as a sensitivity case, the filter still assumes
     white noise).

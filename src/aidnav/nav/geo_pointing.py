@@ -1,7 +1,7 @@
 """Pointing geometry of a GEO satellite: line of sight, antenna az/el, Jacobians, servo angles.
 
 One module serves seed 000 (SAPV aiding: antenna az/el as a measurement of the attitude) and seed 003
-(satcom on the move: servo azimuth, elevation and polarization). ``SPEC.md`` §1.1 and §4.3.
+(satcom on the move: servo azimuth, elevation and polarization). models.md §1.1 and §4.3.
 
 Frames and units (``CONVENTIONS.md``): e = ECEF WGS-84, n = ENU, b = body RFU (x right, y forward, z up),
 antenna frame v (y_v along the beam, z_v on the azimuth-axis side, x_v = y_v × z_v). Latitude, longitude
@@ -23,8 +23,8 @@ and lines of sight in metres.
   B = ∂r_e/∂P = −C_n^e M with M = [[0, (R_N+h)cosL, 0], [R_M+h, 0, 0], [0, 0, 1]] (exact: the North
   component of ∂p/∂L *is* R_M + h) and D = [[−1, 0, 0], [0, cosL, 0], [0, sinL, 0]] (the rotation of the
   ENU frame, C_e^n(P + δP) = (I − [DδP ×]) C_e^n(P) to first order).
-  Hence δ[az, el] = −A C_n^b [r_n×] φ + A C_n^b (C_e^n B + [r_n×] D) δP (SPEC §1.1 eq. 23).
-* Servo polarization (SPEC §4.3): the satellite's "vertical" E-field at the antenna is
+  Hence δ[az, el] = −A C_n^b [r_n×] φ + A C_n^b (C_e^n B + [r_n×] D) δP (§1.1 eq. 23).
+* Servo polarization (§4.3): the satellite's "vertical" E-field at the antenna is
   p = k − (k·l) l (k = Earth spin axis, l = r_e/|r_e|); pol = atan2((z_v × p)·y_v, z_v·p), the angle from
   z_v to p as a right-handed rotation about the beam (clockwise seen from behind the antenna looking at
   the satellite), reduced to (−π/2, π/2]; horizontal polarization adds π/2 before the reduction.
@@ -125,7 +125,7 @@ def az_el_jacobians(lat, lon, h, Cbn, sat_ecef):
     H_phi (2×3) = ∂(az, el)/∂φ [rad/rad] for the attitude error φ (n frame) with
     C_b^n(computed) = (I − [φ×]) C_b^n(true); H_pos (2×3) = ∂(az, el)/∂[δL, δλ, δh] [rad/rad, rad/rad,
     rad/m] for a position error (computed − true) with the satellite fixed. Both are evaluated at the
-    given (computed) state; see the module docstring for the formulas (SPEC §1.1 eq. 23).
+    given (computed) state; see the module docstring for the formulas (§1.1 eq. 23).
     """
     Ce = dcm_ecef_to_enu(lat, lon)
     r_e = los_ecef(lat, lon, h, sat_ecef)
@@ -171,7 +171,7 @@ def wrap_pol(p):
 @njit(cache=True)
 def polarization_from_body(az, el, p_b):
     """Polarization angle [rad] from the antenna reference z_v to the field direction ``p_b`` (body frame)
-    for antenna angles (az, el): atan2((z_v × p)·y_v, z_v·p), not reduced (SPEC §4.3)."""
+    for antenna angles (az, el): atan2((z_v × p)·y_v, z_v·p), not reduced (§4.3)."""
     sa, ca = np.sin(az), np.cos(az)
     se, ce = np.sin(el), np.cos(el)
     # C_v^b = R3(-az) R1(el); columns x_v, y_v = [sa·ce, ca·ce, se] (the beam), z_v
@@ -183,7 +183,7 @@ def polarization_from_body(az, el, p_b):
 
 @njit(cache=True)
 def servo_angles_rad(lat, lon, h, Cbn, sat_ecef, horizontal):
-    """Servo (azimuth, elevation, polarization) [rad] (SPEC §4.3) at (lat, lon [rad], h [m]) with attitude
+    """Servo (azimuth, elevation, polarization) [rad] (§4.3) at (lat, lon [rad], h [m]) with attitude
     C_b^n; az ∈ [0, 2π), el ∈ [−π/2, π/2], pol ∈ (−π/2, π/2]; ``horizontal``: horizontal polarization."""
     Ce = dcm_ecef_to_enu(lat, lon)
     r_e = los_ecef(lat, lon, h, sat_ecef)
@@ -203,7 +203,7 @@ def servo_angles_rad(lat, lon, h, Cbn, sat_ecef, horizontal):
 def servo_angles(lat_deg: float, lon_deg: float, height_m: float, roll_deg: float, pitch_deg: float,
                  heading_deg: float, sat_lon_deg: float, polarization: str = "vertical",
                  radius_m: float = R_GEO) -> dict:
-    """Servo azimuth, elevation and polarization [deg] of a satcom antenna (SPEC §4.3).
+    """Servo azimuth, elevation and polarization [deg] of a satcom antenna (§4.3).
 
     Vehicle at geodetic (lat_deg, lon_deg [deg], height_m [m] WGS-84) with attitude (roll, pitch, heading
     [deg], CONVENTIONS); GEO satellite at longitude ``sat_lon_deg`` [deg, east +] and radius ``radius_m``

@@ -1,12 +1,12 @@
 """Wave-structure frame of a polarized plane wave and the frames of seed 002 (dipole-triad attitude).
 
 Pure geometry shared by the dipole-triad signal simulator (:mod:`aidnav.sim.dipole_triad`) and the
-estimators (:mod:`aidnav.estimators.polarization`); SPEC §3.1–3.2 and §3.4.
+estimators (:mod:`aidnav.estimators.polarization`); §3.1–3.2 and §3.4.
 
 Seed-002 frames (converted at this boundary, never inside an algorithm):
 
 * I: antenna/body frame of the seed, **FLU** (x nose, y left wing, z up). The seed's "y right wing"
-  is left-handed (SPEC §3.6 erratum 1).
+  is left-handed (§3.6 erratum 1).
 * B: geographic frame at the base station, **NWU** (x North, y West, z Up).
 * W: wave-structure frame with axes (u, ṽ1, ṽ2): u the unit vector from the antenna **toward** the
   source (the wave travels along −u), ṽ1 the major and ṽ2 the minor axis of the E-field ellipse.
@@ -14,7 +14,7 @@ Seed-002 frames (converted at this boundary, never inside an algorithm):
 Ours (``CONVENTIONS.md``): body b = RFU, nav n = ENU. ``P_SEED = [[0,−1,0],[1,0,0],[0,0,1]]`` maps
 both: v_ENU = P v_NWU, v_RFU = P v_FLU, C_b^n = P C_I^B Pᵀ. P is a proper rotation (+90° about z).
 
-Wave parameters (SPEC §3.2): direction of arrival φ (azimuth, from the I/B x axis toward y, in
+Wave parameters (§3.2): direction of arrival φ (azimuth, from the I/B x axis toward y, in
 (−π, π]) and θ (elevation in [−π/2, π/2]; the seed's "[0, π]" is an OCR slip), tilt γ ∈ (−π/2, π/2]
 and ellipticity η ∈ [−π/4, π/4]:
 
@@ -90,7 +90,7 @@ def wave_params_from_dcm(C):
     φ ∈ (−π, π], θ ∈ [−π/2, π/2]; γ is returned in (−π/2, π/2]: γ and γ + π describe the same
     polarization subspace (A → −A), so the steering vector cannot tell them apart. The frame of the
     returned angles may therefore differ from ``C`` by a rotation of π about u (the line-of-sight
-    ambiguity, SPEC §3.3); use :func:`wave_params_from_dcm_full` to keep it.
+    ambiguity, §3.3); use :func:`wave_params_from_dcm_full` to keep it.
     """
     phi, theta, gamma = wave_params_from_dcm_full(C)
     return phi, theta, wrap_tilt(gamma)
@@ -116,7 +116,7 @@ def wrap_tilt(gamma):
 def steering_vector(phi, theta, gamma, eta):
     """Polarization–space steering vector A = cosη ṽ1 + i sinη ṽ2 (complex (3,), ‖A‖ = 1) [rad].
 
-    Equals the seed's V Q w and its component form (SPEC §3.2, verified).
+    Equals the seed's V Q w and its component form (§3.2, verified).
     """
     _, t1, t2 = wave_vectors(phi, theta, gamma)
     return np.cos(eta) * t1 + 1j * np.sin(eta) * t2
@@ -137,13 +137,13 @@ def wave_rotation_jacobian(phi, theta, gamma):
     """J (3×3): small wave-frame rotation δ (components about u, ṽ1, ṽ2) per (dφ, dθ, dγ).
 
     δ is defined by C_I^W(p + dp) = (I − [δ×]) C_I^W(p), δ = J dp (first order). This is the seed's
-    CVAE matrix up to the sign convention of the rotation vector (SPEC §3.5).
+    CVAE matrix up to the sign convention of the rotation vector (§3.5).
     """
     C = wave_dcm(phi, theta, gamma)
     return np.column_stack([vee(-(d @ C.T)) for d in wave_dcm_derivatives(phi, theta, gamma)])
 
 
-# ------------------------------------------------------------------ base-station side (SPEC §3.4)
+# ------------------------------------------------------------------ base-station side (§3.4)
 def base_wave_dcm(base_azimuth_ccw, base_elevation, tx_tilt):
     """C_W^B (corrected eq. 9): maps wave-frame coordinates to the base's NWU frame B.
 
@@ -154,7 +154,7 @@ def base_wave_dcm(base_azimuth_ccw, base_elevation, tx_tilt):
 
     The arrival direction (aircraft → base) in B has azimuth φ′ + π and elevation −θ′, so
     C_W^B = [Rx(γ′) Ry(−θ′) Rz(φ′ + π)]ᵀ. The seed prints Ry(+θ′)ᵀ in the middle: a sign error for an
-    aircraft above the base (SPEC §3.6 erratum 6).
+    aircraft above the base (§3.6 erratum 6).
     """
     return wave_dcm(base_azimuth_ccw + np.pi, -base_elevation, tx_tilt).T
 

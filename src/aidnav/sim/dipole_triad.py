@@ -1,6 +1,6 @@
-"""Dipole-triad (three co-located orthogonal electric dipoles) signal simulator, seed 002 / SPEC §3.2.
+"""Dipole-triad (three co-located orthogonal electric dipoles) signal simulator, seed 002 / §3.2.
 
-Signal model (verified in SPEC §3.2): complex snapshots of the three dipole outputs, in the seed's
+Signal model (verified in §3.2): complex snapshots of the three dipole outputs, in the seed's
 antenna frame I (FLU: x nose, y left wing, z up),
 
     S(t) = A s(t) + e(t),   A = cosη ṽ1 + i sinη ṽ2  (‖A‖ = 1, :func:`aidnav.nav.wave_frame.steering_vector`)
@@ -11,7 +11,7 @@ channel), SNR_dB = 10 log10 ρ.
 
 The geometry helpers compute the wave parameters (φ, θ, γ) that an aircraft with attitude C_b^n
 (ENU/RFU, ``CONVENTIONS.md``) sees from a base station at a given bearing/elevation, transmitting a
-wave with tilt γ′ (the inverse of the attitude steps of SPEC §3.4, exact for any distance: the
+wave with tilt γ′ (the inverse of the attitude steps of §3.4, exact for any distance: the
 base's and the aircraft's geographic frames are related by ``base_to_local``).
 
 Angles in radians, distances in metres.
@@ -37,7 +37,7 @@ def simulate_snapshots(phi, theta, gamma, eta, snr_db, n, rng: np.random.Generat
                        runs: int | None = None) -> np.ndarray:
     """Complex dipole-triad snapshots S(t) = A s(t) + e(t) in the seed's antenna frame I (FLU).
 
-    phi, theta, gamma, eta : wave parameters [rad] (SPEC §3.2); snr_db : 10 log10(P/σ²);
+    phi, theta, gamma, eta : wave parameters [rad] (§3.2); snr_db : 10 log10(P/σ²);
     n : snapshots; rng : numpy Generator; power : P (σ² = P/ρ); runs : independent realisations.
 
     Returns (n, 3) complex, or (runs, n, 3) when ``runs`` is given. Rows are snapshots [s_x, s_y, s_z].

@@ -1,11 +1,11 @@
-"""Airborne distributed POS (seed 004, SPEC §5): master POS output and a wing-mounted sub-IMU.
+"""Airborne distributed POS (seed 004, §5): master POS output and a wing-mounted sub-IMU.
 
 Frames and units (``CONVENTIONS.md``): n = ENU, b = RFU; radians, metres, seconds inside; the
 boundary specs carry their units in their names (``*_deg``, ``*_m``, ``*_s``). ``b_m`` is the master
 body frame, ``b_s`` the sub-IMU body frame.
 
 **Master POS output** (:func:`simulate_master_pos`): the truth at the filter rate plus white errors of
-the POS/AV610 real-time accuracies (SPEC §5.1: roll and pitch 0.005°, heading 0.02°, velocity
+the POS/AV610 real-time accuracies (§5.1: roll and pitch 0.005°, heading 0.02°, velocity
 0.03 m/s, horizontal position 0.1 m, height 0.2 m, 1σ), or the GNSS-baseline variants of seed
 Table 7 (:meth:`MasterPosSpec.for_gnss_baseline`). Euler-angle errors are added to the true roll,
 pitch and heading; the same unit-variance draws are used whatever the σ (common random numbers).
@@ -15,7 +15,7 @@ taken error-free: its errors (≲ 0.01°/h) are far below anything the transfer 
 **Sub-IMU** (:func:`simulate_sub_imu`), at the lever arm r^bm (default [5, 0.1, 0.1] m) with a fixed
 mounting misalignment ρ (default 0.5° per axis) and a wing flexure angle θ(t):
 
-* attitude: C_bs^bm = exp(−[(ρ + θ)×]) (SPEC §5.1 item 10, exact rotation), so that
+* attitude: C_bs^bm = exp(−[(ρ + θ)×]) (§5.1 item 10, exact rotation), so that
   C_bs^n = C_bm^n C_bs^bm ≈ (I − [C_bm^n(ρ+θ)×]) C_bm^n;
 * gyro increments: Δθ_s = rotvec(C_bm^bs(t_{k−1}) · exp([Δθ_m×]) · C_bs^bm(t_k)), the exact body
   attitude change over the interval, i.e. the master rate rotated into b_s plus the flexure rate;
@@ -25,12 +25,12 @@ mounting misalignment ρ (default 0.5° per axis) and a wing flexure angle θ(t)
   difference; ≈ 0.8 µg here);
 * position r_s = r_m + C_bm^n r (exact, through ECEF), velocity v_s = v_m + C_bm^n (ω_eb^bm × r),
   both in the sub's own ENU frame n_s (the two ENU frames differ by |r|/R ≈ 8e-7 rad; the truth
-  accounts for it, the filter takes them equal as SPEC §5.1 does);
+  accounts for it, the filter takes them equal as §5.1 does);
 * sensor errors: :func:`aidnav.sim.imu.corrupt_imu` with an :class:`~aidnav.sim.imu.ImuSpec` (seed
   Table 1 grades ``seed004_high/medium/low``, and the §3.1 sub-IMU ``seed004_sub``, the default).
 
 **Flexure** (:func:`simulate_flexure`): per body axis J a second-order Gauss-Markov process
-θ̈ + 2βθ̇ + β²θ = η with β = 2.146/τ and PSD Q_η = 4β³σ² (SPEC §5.1 items 6–7), so that
+θ̈ + 2βθ̇ + β²θ = η with β = 2.146/τ and PSD Q_η = 4β³σ² (§5.1 items 6–7), so that
 var θ = σ², var θ̇ = β²σ², R(t) = σ²(1 + β|t|)e^{−β|t|} and R(τ) = σ²/e. Discretised exactly:
 the transition matrix of the critically damped 2×2 system is
 Φ(t) = e^{−βt}[[1 + βt, t], [−β²t, 1 − βt]] (the matrix exponential of [[0, 1], [−β², −2β]]·t)

@@ -227,9 +227,9 @@ class ImuSpec:
         and Multisensor Integrated Navigation Systems* (2nd ed., 2013), §4.4, gives for each grade; the
         brief's anchor numbers (navigation 0.005 deg/h, 0.002 deg/√h, 10 µg; tactical 1 deg/h, 0.1 deg/√h,
         100 µg; MEMS 10 deg/h, 0.3 deg/√h, 1 mg) are used as given; not any one datasheet.
-        [T1]: seed 004 Table 1 (SPEC.md §5.1): gyro "constant and random" X deg/h, accelerometer X µg.
-        [S]: seed 004 sub-IMU (SPEC.md §5.1): gyro constant and random 0.1 deg/h, accelerometer constant
-        50 µg and random 50 µg. [S0]: seed 000 Table 1 (SPEC.md §1.3): gyro constant 0.1 deg/h, random
+        [T1]: seed 004 Table 1 (models.md §5.1): gyro "constant and random" X deg/h, accelerometer X µg.
+        [S]: seed 004 sub-IMU (models.md §5.1): gyro constant and random 0.1 deg/h, accelerometer constant
+        50 µg and random 50 µg. [S0]: seed 000 Table 1 (models.md §1.3): gyro constant 0.1 deg/h, random
         0.01 deg/h; accelerometer constant 500 µg, random 100 µg.
 
         Reading of the seeds' "random" terms: a white-noise **density** with the printed number taken per

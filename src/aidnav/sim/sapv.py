@@ -1,6 +1,6 @@
 """Satellite-antenna pointing vector (SAPV) sensor: the axis angles of an antenna that tracks a GEO satellite.
 
-Seed 000 (SPEC §1.1): a satcom antenna on the vehicle that has acquired a GEO satellite keeps its beam on
+Seed 000 (§1.1): a satcom antenna on the vehicle that has acquired a GEO satellite keeps its beam on
 it by self-search (step tracking); its azimuth- and elevation-axis angle sensors then report the
 satellite's direction in the body (platform) frame to within a fraction of the beamwidth. Those two
 angles are a measurement of the vehicle attitude.

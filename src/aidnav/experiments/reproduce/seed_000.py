@@ -1,5 +1,5 @@
 """Reproduction of seed 000 (Zhang & Zhao, BUAA, 2012): satellite-antenna pointing vector (SAPV) aiding of
-SINS/GPS with a federated Kalman filter (SPEC §1).
+SINS/GPS with a federated Kalman filter (§1).
 
 What is rebuilt:
 
@@ -12,19 +12,19 @@ What is rebuilt:
   Carlo realisations): SINS/GPS (the seed's state 1), the federated SINS/GPS/SAPV filter (state 2:
   fusion-reset, β = 1/2, 1/2) beside the paper's numbers, and the variants the brief asks for: fusion-reset
   with a master share and with unequal β, no-reset, and the centralized filter.
-* **SPEC 1.3 targets** with ``holds`` computed: heading RMS ratio ≥ 10 over the last 400 s, heading below
+* **§1.3 targets** with ``holds`` computed: heading RMS ratio ≥ 10 over the last 400 s, heading below
   10′ after ≤ 30 s, pitch/roll not degraded, velocity unchanged (±15 %), SAPV NIS in its χ²(2) band; plus
   federated-reset = centralized, SAPV loss and GPS outage behaviour, the consistency (NEES) of the
-  centralized filter and the eq. (23)-(26) geometry (eq. 24 is **not reproduced**, SPEC erratum 8).
+  centralized filter and the eq. (23)-(26) geometry (eq. 24 is **not reproduced**, §1.2 item 8).
 * **Figures** like the seed's Figs. 1-6 (heading, roll, pitch, east/north/up velocity errors, run 0),
   and the Monte Carlo heading RMS of every variant, the SAPV-loss and GPS-outage runs.
 
 Choices where the seed is silent (in the summary's notes): initial misalignment φ_0 = [0.1°, 0.1°, 1°]
-(E, N, U; SPEC 1.3 as decided: the largest initial heading error for which the seed's own Table 2 relations
+(E, N, U; §1.3 as decided: the largest initial heading error for which the seed's own Table 2 relations
 hold together) in every run with P_0 matched; initial position error drawn with σ 10 m, velocity
 error with σ 0.5 m/s (those of a GPS fix; P_0 matched); IMU rate 100 Hz; SAPV at 1 Hz (the GPS rate);
-Table 2's attitude rows in arc-minutes (SPEC erratum 11). The "Initial heading" sensitivity table sweeps
-φ_U0 (the velocity and heading targets of SPEC 1.3 depend on it in opposite directions), 2° included.
+Table 2's attitude rows in arc-minutes (§1.2 item 11). The "Initial heading" sensitivity table sweeps
+φ_U0 (the velocity and heading targets of §1.3 depend on it in opposite directions), 2° included.
 
 Run: ``python -m aidnav.experiments.reproduce.seed_000 OUT [--runs N]`` or ``aidnav reproduce 000``.
 """
@@ -263,7 +263,7 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
         ("satellite longitude", "deg", 138.0, sp.sat_lon_deg),
         ("satellite height above the ellipsoid", "m", 3.5785e7, sp.sat_radius_m - 6378137.0),
         ("simulation time", "s", 500.0, duration_s),
-        ("initial heading error φ_U0 (not in the seed; SPEC 1.3 decision)", "deg", None, PHI0_DEG[2]),
+        ("initial heading error φ_U0 (not in the seed; §1.3 decision)", "deg", None, PHI0_DEG[2]),
     ]
     # echoes of our configuration beside the printed setting: no target (a constant equal to itself)
     rows1 = [summary_row(q, un, ours, paper) for q, un, paper, ours in t1]
@@ -291,7 +291,7 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
                 rows2.append(summary_row(f"{k}: {q} error {which}", UNITS[q], mean_of(k, q, which), paper,
                                          stderr=se_of(k, q, which)))
 
-    # ---------------------------------------------------------------- SPEC 1.3 targets
+    # ---------------------------------------------------------------- §1.3 targets
     def pooled(k, q, t_from=0.0, t_to=np.inf):
         x = [s[q][(s["t"] > t_from) & (s["t"] <= t_to)] for s in mc["series"][k]]
         return np.concatenate(x)
@@ -429,7 +429,7 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
         summary_row("centralized NEES: fraction of epochs with the run-averaged NEES in its 95 % band", "-",
                     frac, None, "ours >= 0.9"),
         summary_row("SAPV NIS mean in the fusion-reset local filter with its own S (its prior is P_g/β_2: "
-                    "smaller than 2 by design; the SPEC 1.3 row uses H P_g Hᵀ + R)", "-",
+                    "smaller than 2 by design; the §1.3 row uses H P_g Hᵀ + R)", "-",
                     float(np.mean(mc["local_nis"]))),
         summary_row(f"SAPV lost {SAPV_LOSS[0]:g}-{SAPV_LOSS[1]:g} s: largest |heading error| during the loss "
                     "and 60 s after (all runs)", "arcmin", loss_max, None, "ours < 10"),
@@ -456,7 +456,7 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
     for i in range(2):
         for j in range(3):
             rows5.append(summary_row(f"eq. 24 entry ({i + 1},{j + 1}) = ∂({'az' if i == 0 else 'el'})/∂"
-                                     f"{('δL', 'δλ', 'δh')[j]} (SPEC erratum 8: not reproduced)",
+                                     f"{('δL', 'δλ', 'δh')[j]} (§1.2 item 8: not reproduced)",
                                      "rad/rad" if j < 2 else "rad/m", float(g["H_pos"][i, j]),
                                      float(PAPER_EQ24[i, j])))
     rows5 += [
@@ -494,7 +494,7 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
         summary_table("Table 2", f"error statistics over the {duration_s:g}-s run (mean and standard "
                       "deviation of the error time series at the 1 Hz filter epochs; mean averaged over "
                       f"{runs} runs, std as the RMS over runs); paper: state 1 = SINS/GPS, state 2 = "
-                      "SINS/GPS/SAPV; attitude in arc-minutes (SPEC erratum 11); absolute values depend on "
+                      "SINS/GPS/SAPV; attitude in arc-minutes (§1.2 item 11); absolute values depend on "
                       "initial errors the seed does not give (no targets)", rows2),
         summary_table("SPEC 1.3", f"acceptance targets, {runs} Monte Carlo runs, φ_U0 = {PHI0_DEG[2]:g}°, "
                       "SINS/GPS/SAPV = federated fusion-reset β = 1/2, 1/2 (the seed's filter)", rows3),
@@ -502,23 +502,23 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
                       "local filter's measurements (checks of our own)", rows4),
         summary_table("Eqs. 23-26", "SAPV geometry at 116°E 39°N 0 m, heading 100°, level, GEO 138°E "
                       "(exact Jacobians of aidnav.nav.geo_pointing)", rows5),
-        summary_table("Initial heading", "sensitivity of the SPEC 1.3 velocity and heading targets to the "
+        summary_table("Initial heading", "sensitivity of the §1.3 velocity and heading targets to the "
                       f"initial heading error the seed does not give (erratum 12): {n_sweep} runs per value, "
-                      "same realisations; ratios SINS/GPS/SAPV over SINS/GPS. The SPEC 1.3 table uses "
+                      "same realisations; ratios SINS/GPS/SAPV over SINS/GPS. The §1.3 table uses "
                       f"φ_U0 = {PHI0_DEG[2]:g}°; at 2° the velocity target fails (the heading error drives "
                       "the north velocity through the Earth rate)", rows6, kind="sensitivity"),
     ]
     notes = [
-        "SPEC 1.2 errata followed: F_nav of SPEC §6 instead of eqs. (7)-(9) (1); H_p/H_v per eq. (4) (2); "
+        "§1.2 errata followed: F_nav of §6 instead of eqs. (7)-(9) (1); H_p/H_v per eq. (4) (2); "
         "r_g = C_e^n r_e, r_b = C_n^b r_g (3, 4); the recommended az = atan2(Δx, Δy) clockwise from body "
         "forward and el = atan2(Δz, √(Δx²+Δy²)) with their exact Jacobian A (5); exact B = −C_n^e·M "
         "including dR_N/dL (6); C_e^g in eqs. (21)-(22) (7); H_2 = [−A C_n^b [r_g×], 0] (10).",
-        "SPEC erratum 8: eq. (24) is not reproduced; the Eqs. 23-26 table gives our exact ∂(az, el)/∂(δL, "
+        "§1.2 item 8: eq. (24) is not reproduced; the Eqs. 23-26 table gives our exact ∂(az, el)/∂(δL, "
         "δλ, δh) (checked by central differences of the nonlinear chain) beside the printed values; the "
         "seed's conclusion (position error negligible) holds. Erratum 9: eq. (25)'s δP order swapped.",
-        "SPEC erratum 11: Table 2's attitude rows are read as arc-minutes; its velocity rows are in the "
+        "§1.2 item 11: Table 2's attitude rows are read as arc-minutes; its velocity rows are in the "
         "seed's order N, U, E.",
-        f"SPEC erratum 12 / 1.3: initial misalignment φ_0 = {list(PHI0_DEG)} deg (E, N, U) in every run with "
+        f"§1.2 item 12 / 1.3: initial misalignment φ_0 = {list(PHI0_DEG)} deg (E, N, U) in every run with "
         f"P_0 matched; initial position error drawn with σ {POS0_SIGMA_M:g} m and velocity error with σ "
         f"{VEL0_SIGMA_M_S:g} m/s (P_0 matched). The IMU biases are drawn per run (σ = Table 1), GPS and SAPV "
         "noise are white with Table 1's σ.",
@@ -528,7 +528,7 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
         "has no share (β_m = 0) in the seed's configuration; filter epochs every 1 s (fusion at each).",
         "Table 2 is one run in the seed; here mean = average of per-run time means, std = RMS of per-run "
         f"time standard deviations over {runs} runs. Absolute values depend on the unknown initial errors "
-        "(SPEC 1.3: only the trends are targets).",
+        "(§1.3: only the trends are targets).",
         "Fusion-reset with any β (sum 1) is algebraically the centralized filter (information of the "
         "β-scaled priors sums to P⁻¹, measurement information adds); the rows show the rounding-level "
         "difference. The β variants differ only in the no-reset mode.",
@@ -536,11 +536,11 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
         "horizontal axis perpendicular to the line of sight, the azimuth sees heading plus tan(el) × the "
         "tilt about the line of sight. The latter tilt stays tied to the horizontal accelerometer bias "
         "(static vehicle), which limits heading to ≈ tan(39.4°) × (bias/g) ≈ 1.4′ (1σ).",
-        "With the SAPV position columns included (SPEC eq. 23) the results change by far less than the "
+        "With the SAPV position columns included (§1.1 eq. 23) the results change by far less than the "
         "pointing noise (largest effect of 100 m: 0.002°); the seed's simplification (eq. 26) is the "
         "default.",
-        f"Initial heading error (the seed does not give it): φ_U0 = {PHI0_DEG[2]:g}° as decided for SPEC "
-        "1.3, the largest value for which the seed's own Table 2 relations (heading gain ≥ 10×, velocity "
+        f"Initial heading error (the seed does not give it): φ_U0 = {PHI0_DEG[2]:g}° as decided in models.md "
+        "§1.3, the largest value for which the seed's own Table 2 relations (heading gain ≥ 10×, velocity "
         "unchanged within ±15 %) hold together. Mechanism: on a static base the heading error drives the "
         "north velocity error through the Earth rate (φ̇_E = −Ω cosL φ_U, δv̇_N = +g φ_E) and the SAPV "
         "elevation observes the tilt about the axis perpendicular to the line of sight (mostly φ_E), so "
@@ -553,7 +553,7 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
         "errors are those of a GPS fix (σ 10 m, 0.5 m/s).",
         "'Pitch below ~2′ after 30 s' is checked on the largest |pitch error| over every epoch after 30 s "
         "and every run (not on an RMS).",
-        "SAPV NIS (SPEC 1.3) on the seed's federated filter: after each reset the SAPV local filter carries "
+        "SAPV NIS (§1.3) on the seed's federated filter: after each reset the SAPV local filter carries "
         "P_g/β_2 (β_2 = 1/2), so its own innovation covariance S = H P_g Hᵀ/β_2 + R overstates the state "
         "part twice and its NIS mean is below 2 by design (the 'Federated filter' table shows it). The "
         "covariance the innovation has is H P_g Hᵀ + R = β_2 (S − R) + R; the SPEC row normalises each "

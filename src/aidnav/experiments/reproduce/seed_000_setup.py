@@ -12,7 +12,7 @@ from aidnav.nav.geo_pointing import R_GEO_SEED000
 
 SEED = "000"
 TITLE = "Satellite antenna pointing vector (SAPV) aiding of SINS/GPS with a federated Kalman filter"
-DEFAULT_RUNS = 30  #: resolves the SPEC 1.3 ratio rows within 2 standard errors (20 did not, for vE)
+DEFAULT_RUNS = 30  #: resolves the §1.3 ratio rows within 2 standard errors (20 did not, for vE)
 D = np.pi / 180.0
 ARCMIN = D / 60.0
 
@@ -27,10 +27,10 @@ GPS_RATE_HZ = 1.0
 SAPV_SIGMA_DEG = 0.05
 ACCEL_BIAS_UG = 500.0  #: accelerometer constant bias σ of Table 1 [µg] (the seed000 IMU preset)
 SAPV_RATE_HZ = 1.0
-PHI0_DEG = (0.1, 0.1, 1.0)  #: initial misalignment φ_E, φ_N, φ_U [deg] (SPEC 1.3, decided)
+PHI0_DEG = (0.1, 0.1, 1.0)  #: initial misalignment φ_E, φ_N, φ_U [deg] (§1.3, decided)
 POS0_SIGMA_M = 10.0  #: initial position error σ [m]: the INS starts from a GPS fix (σ 10 m)
 VEL0_SIGMA_M_S = 0.5  #: initial velocity error σ [m/s]: from a GPS velocity (σ 0.5 m/s)
-#: initial heading errors [deg] of the sensitivity sweep of the velocity target (SPEC 1.3, erratum 12)
+#: initial heading errors [deg] of the sensitivity sweep of the velocity target (§1.3, erratum 12)
 HEADING0_SWEEP_DEG = (0.1, 0.5, 1.0, 2.0)
 SWEEP_RUNS = 10
 SETTLE_S = 30.0  #: "with SAPV the heading error is below 10′ after ≤ 30 s"
@@ -38,7 +38,7 @@ LAST_S = 400.0  #: heading RMS ratio over the last 400 s
 SAPV_LOSS = (200.0, 300.0)  #: SAPV lost (blockage) in this window [s]
 GPS_OUTAGE = (200.0, 260.0)  #: GPS outage in this window [s]
 
-#: Table 2 of the seed (attitude rows in arc-minutes per SPEC erratum 11; velocity m/s), state 1 = SINS/GPS,
+#: Table 2 of the seed (attitude rows in arc-minutes per §1.2 item 11; velocity m/s), state 1 = SINS/GPS,
 #: state 2 = SINS/GPS/SAPV
 PAPER_T2 = {
     "heading": {"mean": (-76.9119, -0.3550), "std": (98.5442, 2.8714)},
@@ -48,7 +48,7 @@ PAPER_T2 = {
     "vU": {"mean": (-0.0106, -0.0531), "std": (0.0851, 0.0670)},
     "vE": {"mean": (-0.0055, -0.0052), "std": (0.0869, 0.0870)},
 }
-#: seed eq. (24), printed; SPEC erratum 8: not reproduced by any consistent model
+#: seed eq. (24), printed; §1.2 item 8: not reproduced by any consistent model
 PAPER_EQ24 = np.array([[0.4547, 0.8011, 0.0], [-0.8376, 0.2001, 0.0]])
 
 GPS_ONLY = "SINS/GPS"

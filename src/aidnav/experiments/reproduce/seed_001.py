@@ -1,12 +1,12 @@
-"""Reproduction of seed 001: DGPS/SINS tightly coupled approach and landing (SPEC §2).
+"""Reproduction of seed 001: DGPS/SINS tightly coupled approach and landing (§2).
 
 What is rebuilt:
 
-* **Relative LS (seed eqs. 1–5, SPEC 2.3 targets 1–2)**: a base on the runway and a rover on a 3° glide
+* **Relative LS (seed eqs. 1–5, §2.3 targets 1–2)**: a base on the runway and a rover on a 3° glide
   path at baselines 5–40 km, nominal 24-satellite constellation at ten instants over an hour.
   (a) Common-mode errors only (the same random error per satellite at both receivers, random receiver
   clocks), noise-free: the iterated solution's error (target < 1 mm), and the seed's single
-  linearisation about the base at 20 km (SPEC erratum 2: metres). (b) σ_ρ = 1 m white noise on the
+  linearisation about the base at 20 km (§2.2 item 2: metres). (b) σ_ρ = 1 m white noise on the
   single differences: the Monte Carlo NEES of [Δx_E, Δx_N, Δx_U, cΔT] with the covariance σ²(HᵀH)⁻¹
   against its χ² bounds. (c) With the full simulated error model (ephemeris, satellite clock,
   Klobuchar-residual ionosphere with gradients, troposphere, multipath, noise): relative error vs
@@ -18,17 +18,17 @@ What is rebuilt:
   base. Case A: all satellites: the 17-state tight filter's attitude, position and velocity errors
   (Figs. 2–4) and the DGPS relative position. Case B (seed experiment 2): no satellites in the first
   20 s of the approach, 2 satellites from 20 to 92 s; the relative position is dead-reckoned
-  (eqs. 6–7 with the frame rotation of SPEC 2.2.5) from the last DGPS fix with the filter's velocity
+  (eqs. 6–7 with the frame rotation of §2.2 item 5) from the last DGPS fix with the filter's velocity
   (Fig. 5); the two satellites are those above 15° with the widest azimuth separation. Targets
-  (SPEC 2.3 as restated): (a) over the same window (20–92 s) the DR error of the two-satellite tight
+  (§2.3 as restated): (a) over the same window (20–92 s) the DR error of the two-satellite tight
   filter grows less than that of pure dead reckoning (case C: the outage goes on), paired over the Monte
   Carlo runs (sign test, p < 0.01); (b) the slope of the DR error just after the two satellites return
   (20–25 s) is smaller than just before (15–20 s), paired (sign test, p < 0.01). Sensitivity tables: a
   poor receiver clock and a MEMS IMU. DR of the true velocity is exact to integration order; without the
   rotation (the seed's eq. 6 as printed) it errs by ≈ 4 m in 20 s (erratum 5).
 
-Errata followed (SPEC 2.2): 1 (cΔT with c), 2 (iterated LS), 3 (H of eq. 9 with a_j, b_j of SPEC 2.1,
-z = ρ_GPS − ρ_INS), 4 (F from ins_errors, SPEC §6), 5 (velocity rotated into the base frame),
+Errata followed (§2.2): 1 (cΔT with c), 2 (iterated LS), 3 (H of eq. 9 with a_j, b_j of §2.1,
+z = ρ_GPS − ρ_INS), 4 (F from ins_errors, §6), 5 (velocity rotated into the base frame),
 6 (φ convention). Physics over the seed: the model difference of the tropospheric delays (the rover
 is ≈ 1 km above the base) is removed in the relative solution; the seed assumes it cancels.
 """
@@ -278,7 +278,7 @@ def approach_run(run_seed: int, truth, imu_true, with_figures_data: bool = False
 
 
 def dr_rows(per) -> list[dict]:
-    """The restated DR targets of SPEC 2.3 over paired Monte Carlo runs: (a) growth 20–92 s with two
+    """The restated DR targets of §2.3 over paired Monte Carlo runs: (a) growth 20–92 s with two
     satellites vs pure dead reckoning; (b) slope just after the satellites return vs just before."""
     two = np.array([p["dr_rate_2sat"] for p in per])
     none = np.array([p["dr_rate_0sat_on"] for p in per])
@@ -420,7 +420,7 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
     ]
     ro, r2 = mean("dr_rate_outage"), mean("dr_rate_2sat")
     rows3 = dr_rows(per) + [
-        summary_row("literal reading: DR growth 0–20 s, 0 satellites (SPEC 2.3 before the restatement; "
+        summary_row("literal reading: DR growth 0–20 s, 0 satellites (§2.3 before the restatement; "
                     "an error growing like t² over two different windows)", "m/s", float(ro)),
         summary_row("literal reading: DR growth 20–92 s, 2 satellites", "m/s", float(r2)),
         summary_row("DR error at 20 s (end of the outage), mean |e|", "m", ours=float(mean("dr_err_20"))),
@@ -447,14 +447,14 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
     ]
     tables = [
         summary_table(
-            "Relative LS", "Seed eqs. 1–5 and SPEC 2.3 targets 1–2 (nominal 24-satellite sky)", rows1
+            "Relative LS", "Seed eqs. 1–5 and §2.3 targets 1–2 (nominal 24-satellite sky)", rows1
         ),
         summary_table(
             "Approach, all satellites",
             f"Seed Figs. 2–4: 17-state tight filter, {IMU_GRADE} (fibre-optic class) IMU, TCXO, {runs} runs",
             rows2,
         ),
-        summary_table("Approach, outage and 2 satellites", "Seed Fig. 5 and SPEC 2.3 target 3 as restated: "
+        summary_table("Approach, outage and 2 satellites", "Seed Fig. 5 and §2.3 target 3 as restated: "
                       f"(a) and (b) paired over {runs} runs (sign tests)", rows3),
     ]
     for label, sp in sens.items():
@@ -462,10 +462,10 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
                                     f"{len(sp)} runs, same seeds (paper comparisons, not SPEC rows)",
                                     [dict(r, spec=False) for r in dr_rows(sp)], kind="sensitivity"))
     notes = [
-        "SPEC 2.2 errata followed: 1 (c in cΔT_BK), 2 (Gauss-Newton iteration; the single linearisation is "
-        "reported for comparison), 3 (H rows a_j, b_j of SPEC 2.1 with z = ρ_GPS − ρ_INS), 4 (F_nav of "
-        "SPEC §6 incl. gravity terms), 5 (DR velocity rotated into the base ENU frame), 6.",
-        "The seed prints no numbers: paper = null everywhere; targets are SPEC 2.3's.",
+        "§2.2 errata followed: 1 (c in cΔT_BK), 2 (Gauss-Newton iteration; the single linearisation is "
+        "reported for comparison), 3 (H rows a_j, b_j of §2.1 with z = ρ_GPS − ρ_INS), 4 (F_nav of "
+        "§6 incl. gravity terms), 5 (DR velocity rotated into the base ENU frame), 6.",
+        "The seed prints no numbers: paper = null everywhere; targets are §2.3's.",
         "σ_ρ = 1 m NEES: white noise added to the rover's pseudoranges only, equal weights, covariance "
         "σ²(HᵀH)⁻¹; χ² bounds of the mean NEES at 95 %.",
         "Common-mode study: the same N(0, 10 m) error per satellite at both receivers, random receiver "
@@ -480,7 +480,7 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
         "Case B: no rover satellites 0–20 s into the approach, then two with the widest azimuth separation "
         "above 15° elevation; case C: no satellites for the whole approach (pure dead reckoning on the "
         "same IMU data). DR starts from the DGPS relative position at the approach start.",
-        "DR targets (SPEC 2.3 as restated): the literal reading (growth over 0–20 s without satellites vs "
+        "DR targets (§2.3 as restated): the literal reading (growth over 0–20 s without satellites vs "
         "20–92 s with two) compares an error growing like t² over two different windows and fails even "
         "without aiding; it is shown without a target. (a) compares, run by run, the growth |e(92) − e(20)| "
         "/ 72 s of case B with that of case C; (b) compares, run by run, |e(20) − e(15)| / 5 s with "

@@ -1,5 +1,5 @@
 """Seed 001: the setting of the reproduction (base, glide path, approach, sensors, clock), the relative
-least-squares study of SPEC 2.3 targets 1-2 and the approach scenario and tight-filter configuration.
+least-squares study of §2.3 targets 1-2 and the approach scenario and tight-filter configuration.
 :mod:`.seed_001` re-exports these names."""
 
 from __future__ import annotations
@@ -54,7 +54,7 @@ def relative_ls_study(
     nees_draws: int = 400,
     common_sigma_m: float = 10.0,
 ):
-    """Targets 1–2 of SPEC 2.3 (noise-free common mode; σ = 1 m NEES). Returns a dict of results."""
+    """Targets 1–2 of §2.3 (noise-free common mode; σ = 1 m NEES). Returns a dict of results."""
     eph = nominal_constellation(WEEK, SOW0, 24)
     pb = np.array(lla_to_ecef(BASE_LAT, BASE_LON, BASE_H))
     times = SOW0 + np.linspace(0, 3600, n_times)

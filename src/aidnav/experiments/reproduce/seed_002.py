@@ -1,6 +1,6 @@
-"""Reproduction of seed 002: aircraft attitude from a dipole triad and one base station (SPEC §3).
+"""Reproduction of seed 002: aircraft attitude from a dipole triad and one base station (§3).
 
-What is rebuilt (seed §6, Fig. 2, and SPEC §3.7's acceptance targets):
+What is rebuilt (seed §6, Fig. 2, and §3.7's acceptance targets):
 
 * **Fig. 2** — the seed's flight: heading turning through 90° while the roll oscillates and the pitch
   stays 0; 36 attitude fixes, each from 1000 snapshots of an η = 27° elliptically polarized signal at
@@ -21,9 +21,9 @@ The flight (the seed gives only its shape): 100 m/s level coordinated flight at 
 ±15°), pitch 0; a fix every 5 s (t = 2.5, 7.5, …, 177.5 s). The base station is on the ground 30 km
 North of the start and transmits with its major axis horizontal (γ′ = 0), so that in mid-flight the
 nose points along the line of sight, the major axis lies along the wings and the minor axis is vertical:
-the geometry in which SPEC §3.5 reads the CVAE components (u, ṽ1, ṽ2) as (roll, pitch, heading).
+the geometry in which §3.5 reads the CVAE components (u, ṽ1, ṽ2) as (roll, pitch, heading).
 
-Errata followed (SPEC §3.6): FLU body axes (1), θ ∈ [−π/2, π/2] (2), corrected eq. (3) (3), Stokes tilt
+Errata followed (§3.6): FLU body axes (1), θ ∈ [−π/2, π/2] (2), corrected eq. (3) (3), Stokes tilt
 instead of eq. (4) (4), complex-Gaussian likelihood (5), corrected eq. (9) with Ry(−θ′) (6), CVAE without
 the leading N and with (u, ṽ1, ṽ2) components (7), the line-of-sight ambiguity resolved by "upright" (8).
 Physics over the seed: the base's and the aircraft's geographic frames are related by the exact
@@ -86,7 +86,7 @@ SNR_DB = 10.0
 N_SNAP = 1000
 N_FIXES = 36
 TX_TILT = 0.0
-# SPEC §3.7 CVAE CRB σ [deg] about (u, ṽ1, ṽ2)
+# §3.7 CVAE CRB σ [deg] about (u, ṽ1, ṽ2)
 SPEC_CVAE_DEG = (0.7229, 0.9360, 0.4769)
 ANGLES = ("roll", "pitch", "heading")
 AXES_W = ("u", "ṽ1", "ṽ2")
@@ -445,13 +445,13 @@ def run(out_dir, runs: int | None = 60, base_seed: int = 1, console=None, sweep_
     rows2 = []
     for i in range(3):
         rows2.append(summary_row(f"CVAE CRB σ about {AXES_W[i]} ({ANGLES[i]} in the seed's geometry; "
-                                 "SPEC 3.7)",
+                                 "§3.7)",
                                  "deg", cv[i], SPEC_CVAE_DEG[i], target="abs(ours - paper) <= 0.0005",
                                  spec=True))
     rows2.append(summary_row("max relative |J·CRB_eq7·Jᵀ − CVAE| at mid-flight (eq. 7 through the DOA "
                              "Jacobian = the closed-form CVAE)", "-", float(np.max(np.abs(cv_geo - cv) / cv)),
                              target="ours < 1e-9"))
-    tol = 0.10 if runs * N_FIXES >= 300 else 0.15  # SPEC 3.7: ±15 % for 100 runs, ±10 % for 300
+    tol = 0.10 if runs * N_FIXES >= 300 else 0.15  # §3.7: ±15 % for 100 runs, ±10 % for 300
     n_pool = runs * N_FIXES
     for i in range(3):
         r_ml = float(np.sqrt(np.mean(mc["delta_ml"][:, :, i] ** 2)) / (cv[i] * D2R))
@@ -563,19 +563,19 @@ def run(out_dir, runs: int | None = 60, base_seed: int = 1, console=None, sweep_
                                 rows_f))
 
     notes = [
-        "SPEC 3.6 errata followed: FLU body axes (1), θ ∈ [−90°, 90°] (2), eq. (3) with the minus sign and "
+        "§3.6 errata followed: FLU body axes (1), θ ∈ [−90°, 90°] (2), eq. (3) with the minus sign and "
         "|a_z|² (3), Stokes/Jones tilt instead of eq. (4) (4), circular-complex likelihood (5), eq. (9) with "
         "Ry(−θ′) (6), CVAE without the leading N and with components about (u, ṽ1, ṽ2) (7), line-of-sight "
         "ambiguity resolved by 'upright' (8).",
         "The seed prints no number for Fig. 2 except 'pitch worst, about 1°; heading best'; paper = 1.0 is "
         "that statement, on the pitch row.",
-        "Euler-angle CRBs depend on the geometry (SPEC 3.5); the CVAE bound does not. The flight puts the "
+        "Euler-angle CRBs depend on the geometry (§3.5); the CVAE bound does not. The flight puts the "
         "base ahead of the aircraft so that mid-flight (u, ṽ1, ṽ2) ≈ (nose, wing, vertical).",
         "Physics over the seed: the base's and the aircraft's geographic frames are related by the exact "
         "rotation between them instead of being taken as parallel (flat Earth, ≈ 0.1–0.3° here).",
         "The principal-eigenvector closed form is within ~1e-4 rad of the ML (first-order equivalent) and "
-        "attains the CRB too; 'close to ML' (SPEC 3.7 gives no number) is taken as ≤ 1.25 × the ML ratio.",
-        f"Pooled ML std tolerance ±{tol:.0%} (SPEC 3.7: ±15 % for 100 runs, ±10 % for 300; pooled "
+        "attains the CRB too; 'close to ML' (§3.7 gives no number) is taken as ≤ 1.25 × the ML ratio.",
+        f"Pooled ML std tolerance ±{tol:.0%} (§3.7: ±15 % for 100 runs, ±10 % for 300; pooled "
         f"{runs}×{N_FIXES} samples).",
         "Sweep rows in the threshold region (SNR < 10 dB, N < 300, η outside [10°, 35°]) have no target.",
     ]

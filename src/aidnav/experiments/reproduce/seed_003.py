@@ -2,24 +2,24 @@
 
 The patent prints no numbers (its Fig. 2 is a sketch of the pointing deviation). What is rebuilt:
 
-* **Reference chase** (SPEC §4.5): heading 100°, 5°/s yaw, 10 ms interrupts, T_f = 1 s, w_max = 0.5°/s, a
+* **Reference chase** (§4.5): heading 100°, 5°/s yaw, 10 ms interrupts, T_f = 1 s, w_max = 0.5°/s, a
   correction of (roll, pitch, heading) = (+0.3°, −0.5°, +2°) at t = 1 s. Checked: the total change of the
   antenna attitude per interrupt stays within w_max·dt (issue 27), the angle between q_ant and q_nav falls
   linearly at w_max, every axis closes at the derived time below, no per-interrupt Euler change beyond
-  w_max·dt, q_ant ≡ q_nav before the correction (SPEC §4.2 behaviours 1–3). Figure ``fig1_chase.png`` is
+  w_max·dt, q_ant ≡ q_nav before the correction (§4.2 behaviours 1–3). Figure ``fig1_chase.png`` is
   the patent's Fig. 2 mechanism (navigation jump vs antenna chase).
 * **Driving run, Monte Carlo** (``runs`` realisations of IMU errors, GPS noise and initial attitude
   errors): a vehicle with a MEMS IMU (100 Hz interrupts) and 1 Hz GPS drives a ~10-minute route (start,
   accelerations, turns, S-turns, a hill, a U-turn, stop) near Beijing (the applicant's city) with a GEO
-  satellite at 110.5°E. Navigation: free INS (no filter), the patent's 8-state filter (SPEC §4.1) and the
+  satellite at 110.5°E. Navigation: free INS (no filter), the patent's 8-state filter (§4.1) and the
   15-state loosely coupled filter (:func:`aidnav.filters.loose.run_loose`). Antenna control: direct
-  pointing from the navigation quaternion vs the dual-quaternion control (SPEC §4.2). Each servo axis is a
+  pointing from the navigation quaternion vs the dual-quaternion control (§4.2). Each servo axis is a
   rate- and acceleration-limited second-order loop; the pointing error is the angle between the servo's
   beam and the true line of sight; the signal loss is that of a 2° (3 dB) beam.
 
 Choices where the patent is silent (listed in the summary's notes): the satellite, the route, the IMU
 (``mems`` preset with a 3 deg/h turn-on gyro bias), the initial alignment errors (level 1°, heading 0.3°,
-1σ), w_max = 0.5°/s (the SPEC §4.5 value), the servo limits and the beamwidth.
+1σ), w_max = 0.5°/s (the §4.5 value), the servo limits and the beamwidth.
 
 Closing-time tolerances of the reference chase, derived before the results
 (``docs/seed_003_closing_times.md``). The total rate is bounded (issue 27), so the antenna chases along the
@@ -34,7 +34,7 @@ not move this time: the yaw turns the 0.58° tilt by 5°/s × 4.17 s = 21° rela
 less than the 31° between the tilt and the nearer axis (pitch), so neither level difference crosses zero
 before the closing instant.
 
-Erratum note (disclosed in the summary's notes): SPEC §4.5's "heading closes in 3.99 s" (= 2°/w_max − dt)
+Erratum note (disclosed in the summary's notes): §4.5's "heading closes in 3.99 s" (= 2°/w_max − dt)
 and "pitch and roll ≈ 1 s" (= |Δ|/T_f) come from chasing each Euler angle separately, at a total rate of
 √(0.5² + 0.3² + 0.5²) = 0.77°/s > w_max; the decision of issue 27 replaced that. With the total bound, no
 control law closes the whole difference before |ε_0|/w_max − dt, and the geodesic reaches that limit.
@@ -76,7 +76,7 @@ D = np.pi / 180.0
 SITE = dict(lat_deg=39.9, lon_deg=116.4, height_m=50.0)
 SAT_LON_DEG = 110.5  #: ChinaSat 10 / Zhongxing-10 slot, seen from Beijing at ~43° elevation
 T_F = 1.0  #: filter period [s] (1 Hz GPS)
-W_MAX_DEG_S = 0.5  #: largest pointing-error rate the antenna tolerates [deg/s] (SPEC §4.5)
+W_MAX_DEG_S = 0.5  #: largest pointing-error rate the antenna tolerates [deg/s] (§4.5)
 BEAMWIDTH_DEG = 2.0  #: full half-power beamwidth [deg] (Ku band, ~0.9 m aperture)
 LOSS_LIMIT_DB = 1.0
 INIT_LEVEL_SIGMA_DEG = 1.0
@@ -254,7 +254,7 @@ def _fig_chase(ch, gap_deg, out: Path) -> str:
              label="antenna control (chases along the geodesic, total rate w_max)")
     ax1.set_ylabel("heading − 100° − 5°/s·t [deg]")
     ax1.legend(loc="lower right")
-    ax1.set_title("SPEC §4.5 reference chase: correction (+0.3°, −0.5°, +2°) at t = 1 s")
+    ax1.set_title("§4.5 reference chase: correction (+0.3°, −0.5°, +2°) at t = 1 s")
     d = ch["diff_deg"]
     for i, name in enumerate(("pitch", "roll", "yaw (= −heading)")):
         ax2.plot(t, d[:, i], label=f"{name}: closes in {list(ch['close_time_s'].values())[i]:.2f} s")
@@ -346,8 +346,8 @@ def run(out_dir, runs: int | None = DEFAULT_RUNS, base_seed: int = 1, console=No
     study = Study(SEED, TITLE, out_dir, DEFAULT_RUNS if runs is None else runs, base_seed, console)
     runs, out, say = study.runs, study.out, study.say
 
-    # ---------------------------------------------------------------- reference chase (SPEC §4.5)
-    say("seed 003: reference chase (SPEC 4.5)")
+    # ---------------------------------------------------------------- reference chase (§4.5)
+    say("seed 003: reference chase (§4.5)")
     ch = reference_chase(heading_deg=100.0, yaw_rate_deg_s=5.0, dt=0.01, t_f=T_F, w_max_deg_s=W_MAX_DEG_S,
                          correction_rph_deg=(0.3, -0.5, 2.0), t_correction=1.0, duration=8.0)
     dt = 0.01
@@ -373,7 +373,7 @@ def run(out_dir, runs: int | None = DEFAULT_RUNS, base_seed: int = 1, console=No
     spec_per_axis = {"heading": "3.99 s", "pitch": "≈ 1 s", "roll": "≈ 1 s"}
     rows1 = [
         summary_row(f"{a} difference closes after the correction, with the whole rotation: "
-                    f"[|ε_0|/w_max − dt, |ε_0|/w_max), |ε_0| = {eps0:.4f}° (SPEC 4.5 {spec_per_axis[a]}: "
+                    f"[|ε_0|/w_max − dt, |ε_0|/w_max), |ε_0| = {eps0:.4f}° (§4.5 {spec_per_axis[a]}: "
                     "erratum)", "s", ch["close_time_s"][a], None, "lo <= ours <= hi", {"lo": lo, "hi": hi},
                     spec=True)
         for a in ("heading", "pitch", "roll")
@@ -494,19 +494,19 @@ def run(out_dir, runs: int | None = DEFAULT_RUNS, base_seed: int = 1, console=No
                       "the servos from the filter's correction jumps ([0037])", rows3),
     ]
     notes = [
-        "The patent prints no numbers: 'paper' is null in every row; targets come from SPEC 4.5 (chase), "
-        "SPEC 4.2 behaviours 1-3 and SPEC 4.1, and the patent's qualitative claim of shock isolation "
+        "The patent prints no numbers: 'paper' is null in every row; targets come from §4.5 (chase), "
+        "§4.2 behaviours 1-3 and §4.1, and the patent's qualitative claim of shock isolation "
         "([0037]).",
-        "SPEC 4.4 erratum 2 followed: the command rotates the antenna's virtual platform (+sign(d) "
+        "§4.4 erratum 2 followed: the command rotates the antenna's virtual platform (+sign(d) "
         "decreases the antenna angle). The patent's heading is the counter-clockwise yaw (Qin/PSINS); with "
         "aidnav's clockwise heading the third element is computed on yaw = -heading.",
-        "Issue 27 decision followed (SPEC 4.2 behaviour 3): the total change of the antenna attitude per "
+        "Issue 27 decision followed (§4.2 behaviour 3): the total change of the antenna attitude per "
         "interrupt beyond the vehicle motion is bounded by w_max*dt, not only each Euler angle. The "
         "command is the rotation vector of the geodesic from q_ant to q_nav, scaled to min(w*dt, |angle|) "
         "exactly (the patent's 'three-axis command rotation vector'; its elements carry the signs of "
         "rules a-f). A guard also keeps each Euler angle within w_max*dt, because off level the roll and "
         "heading axes are not orthogonal. A single-axis chase is unchanged.",
-        "SPEC 4.4 erratum 3 / SPEC 4.2 on the total rotation: the rate is latched at each correction at "
+        "§4.4 erratum 3 / §4.2 on the total rotation: the rate is latched at each correction at "
         "|angle|/T_f and capped at w_max when |angle|/T_f > w_max; between corrections it is "
         "max(latched, |angle|/T_f). When the total is feasible every element is at least |d_k|/T_f, so the "
         "claim-2 per-axis bounds hold.",
@@ -517,7 +517,7 @@ def run(out_dir, runs: int | None = DEFAULT_RUNS, base_seed: int = 1, console=No
         f"[|eps0|/w_max - dt, |eps0|/w_max) = [{lo:.3f}, {hi:.3f}) s (|eps0| = {eps0:.4f} deg). The yaw "
         "(5 deg/s) only turns the tilt between the pitch and roll axes, by 21 deg during the chase, which "
         "is less than the 31 deg that would make a level difference cross zero early.",
-        "ERRATUM (SPEC 4.5, departs from the SPEC value): SPEC 4.5's 'heading closes 3.99 s after the "
+        "ERRATUM (§4.5, departs from the SPEC value): §4.5's 'heading closes 3.99 s after the "
         "correction' (2 deg/w_max - dt) and 'pitch and roll close in about 1 s' (|d|/T_f) follow from "
         "chasing each Euler angle separately, at a total rate of sqrt(0.5^2 + 0.3^2 + 0.5^2) = 0.77 deg/s "
         "> w_max. Issue 27 replaced that with the total bound. Under it no control law closes the whole "
@@ -525,7 +525,7 @@ def run(out_dir, runs: int | None = DEFAULT_RUNS, base_seed: int = 1, console=No
         "axis, and the tilt alone would need at least 0.583/0.5 = 1.17 s. Our heading, pitch and roll "
         f"close at {ch['close_time_s']['heading']:.2f}, {ch['close_time_s']['pitch']:.2f} and "
         f"{ch['close_time_s']['roll']:.2f} s.",
-        "SPEC 4.4 erratum 1: the servo angles (missing in the OCR) are those of SPEC 4.3 (WGS-84, R_GEO).",
+        "§4.4 erratum 1: the servo angles (missing in the OCR) are those of §4.3 (WGS-84, R_GEO).",
         "8-state filter: position, height and vertical velocity are taken from each GPS fix outside the "
         "filter (the 8 states have no position); 'free INS' is the same mechanisation without the Kalman "
         "correction.",

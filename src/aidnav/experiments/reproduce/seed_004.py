@@ -1,6 +1,6 @@
-"""Reproduction of seed 004: distributed-POS transfer alignment and flight-trajectory design (SPEC §5).
+"""Reproduction of seed 004: distributed-POS transfer alignment and flight-trajectory design (§5).
 
-What is rebuilt (seed §3, Tables 4–8, Figs. 2–3, and SPEC §5.3's acceptance targets):
+What is rebuilt (seed §3, Tables 4–8, Figs. 2–3, and §5.3's acceptance targets):
 
 * **Table 4** — sub-IMU roll/pitch/heading error STD on the imaging legs for the five motion modes of
   seed Table 3 (``examples/none.yaml``, ``s_turns.yaml``, ``o_circle.yaml``, ``figure8.yaml``,
@@ -33,11 +33,11 @@ Random numbers: ``numpy.random.SeedSequence(base_seed).spawn(runs)``; run i uses
 case (common random numbers: a factor's effect is not hidden by different draws), split into the
 flexure, sub-IMU and master streams by :func:`aidnav.sim.distributed_pos.run_streams`.
 
-SPEC errata followed: 5.2-1 (eqs. 1–10 reconstructed as SPEC §5.1: velocity + attitude matching with
-lever-arm compensation, DCM attitude difference), 5.2-2 (24 states with θ̇; the seed's 21 states run as
-the first-order-flexure variant), 5.2-3 (heading 40° clockwise from North), 5.2-4 (OCR cells read as
-0.0038 and 0.5192). Trajectory details not in the seed (turn rates, S amplitude, climb) are those of the
-example files (SPEC §5.1 suggestions). ``holds`` is the verdict of the SPEC §5.3 predicates, computed.
+models.md errata followed: §5.2 item 1 (eqs. 1–10 reconstructed as §5.1: velocity + attitude matching with
+lever-arm compensation, DCM attitude difference), §5.2 item 2 (24 states with θ̇; the seed's 21 states run as
+the first-order-flexure variant), §5.2 item 3 (heading 40° clockwise from North), §5.2 item 4 (OCR cells
+read as 0.0038 and 0.5192). Trajectory details not in the seed (turn rates, S amplitude, climb) are those of the
+example files (§5.1 suggestions). ``holds`` is the verdict of the §5.3 predicates, computed.
 """
 
 from __future__ import annotations
@@ -277,7 +277,7 @@ def _tables(res: dict, cov_pred: dict, flex: dict, flex_spec: FlexureSpec) -> li
     ]
     tables.append(summary_table("Design tool", "covariance-only prediction of the imaging-leg heading "
                                 "accuracy (aidnav.experiments.design) against the Monte Carlo of Table 4; "
-                                "the SPEC Table 4 ordering applied to the prediction", rows))
+                                "the §5.3 Table 4 ordering applied to the prediction", rows))
     rows = []
     for a in range(3):
         ax = "xyz"[a]
@@ -434,16 +434,16 @@ def run(out_dir, runs: int | None = 10, base_seed: int = 1, console=None, quick:
         "Statistic: per run, the standard deviation over time of each error on AB and on CD (the seed's "
         "STD), averaged over the two legs and then over the runs; errors at the 1-s filter epochs after "
         "the update. runs.csv also has the RMS about zero.",
-        "SPEC 5.2-1: eqs. 1-10 reconstructed as SPEC 5.1 (aidnav.filters.transfer): 15 INS states, "
+        "§5.2 item 1: eqs. 1-10 reconstructed as §5.1 (aidnav.filters.transfer): 15 INS states, "
         "mounting rho, flexure theta and theta-dot; velocity + attitude matching, DCM attitude difference "
         "(formed about the current mounting estimate, left Jacobian of SO(3) in H), master velocity "
         "lever-arm compensated with the master's body rate.",
-        "SPEC 5.2-2: 24 states (second-order flexure) for every table; the seed's 21 states (first-order "
+        "§5.2 item 2: 24 states (second-order flexure) for every table; the seed's 21 states (first-order "
         "flexure with the same sigma and 1/e time) in '21 vs 24 states' (heading STD ratio 21/24 states "
         f"{min(r2124):.3f}-{max(r2124):.3f}).",
-        "SPEC 5.2-3: initial heading 40 deg clockwise from North. SPEC 5.2-4: OCR cells '0. 0038' and "
+        "§5.2 item 3: initial heading 40 deg clockwise from North. §5.2 item 4: OCR cells '0. 0038' and "
         "'0. 519 2' read as 0.0038 and 0.5192.",
-        "Trajectories: examples/{none,s_turns,o_circle,figure8,climb}.yaml (SPEC 5.1 suggestions: U-turn "
+        "Trajectories: examples/{none,s_turns,o_circle,figure8,climb}.yaml (§5.1 suggestions: U-turn "
         "0.9 deg/s, O 360 deg in 400 s, S +-30 deg in two cycles, figure-8 two opposite circles, climb "
         "5 m/s with a 90 deg turn); T1 is a straight leg inserted between the maneuver and AB; T2 sets the "
         "lengths of AB and CD.",
@@ -455,7 +455,7 @@ def run(out_dir, runs: int | None = 10, base_seed: int = 1, console=None, quick:
         "[5, 0.1, 0.1] m, mounting 0.5 deg per axis, flexure sigma (0.01, 0.15, 0.01) deg, tau (2, 5, 2) s.",
         f"Factor-2 cells of Tables 4, 5, 6 and 8 within 2x of the paper: {sum(main4)} of {len(main4)} "
         f"({100 * sum(main4) / max(len(main4), 1):.0f} %).",
-        "Disclosure, sub-IMU noise (decided in issue 27): SPEC 1.1 reads a seed's 'random drift X deg/h' as "
+        "Disclosure, sub-IMU noise (decided in issue 27): §1.1 reads a seed's 'random drift X deg/h' as "
         "a white-noise density; the unit is ambiguous. The tables use the sub-IMU's 'random drift "
         "0.1 deg/h' as an angle random walk of "
         "0.1 deg/sqrt(h) (grade sub_arw; 0.1 deg/h constant bias, 50 ug + 50 ug/sqrt(Hz)). Reason: the "
@@ -475,7 +475,7 @@ def run(out_dir, runs: int | None = 10, base_seed: int = 1, console=None, quick:
         "Table 6: the heading STD changes with T2 by less than the Monte Carlo resolves (see the paired rows "
         "in standard errors); the seed's growth (0.0083, 0.0086, 0.0091 deg) is of the same size as that "
         "noise with its 10 runs, so the 'non-decreasing' predicate compares nearly equal numbers.",
-        "Disclosure, baseline error (the SPEC Table 8 proportionality rows): the master-sub baseline-length "
+        "Disclosure, baseline error (the §5.3 Table 8 proportionality rows): the master-sub baseline-length "
         "error is the difference of the two position errors. The sub's position follows the master's "
         "smooth drift (velocity matching passes the drift rate, which the master's velocity carries), so "
         "the drift cancels in the difference and only the master's white part remains, over a floor of the "

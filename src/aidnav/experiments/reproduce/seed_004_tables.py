@@ -1,4 +1,4 @@
-"""Seed 004: the seed's numbers, the case grid, and the summary tables with their verdicts (SPEC §5.3).
+"""Seed 004: the seed's numbers, the case grid, and the summary tables with their verdicts (§5.3).
 
 Every derived statistic (ratio, spread, successive ratio, T1 of the minimum) gets a Monte Carlo standard
 error by resampling the runs (the same runs in every case: the common random numbers stay paired), and
@@ -99,7 +99,7 @@ def _cells(g: Group, paper: dict, names, label, suffix) -> list[dict]:
 
 
 def t4_rows(g: Group, suffix: str = "", spec: bool = True) -> list[dict]:
-    """Table-4 cells (factor 2) and the SPEC §5.3 Table-4 predicates."""
+    """Table-4 cells (factor 2) and the §5.3 Table-4 predicates."""
     rows = _cells(g, PAPER_T4, ATT, lambda m: LABEL[m], suffix)
     ph = {m: PAPER_T4[m][0] for m in MODES}
     for a, b, lim in (("none", "figure8", 5.0), ("none", "climb", 1.0), ("climb", "o_circle", 1.0),
@@ -136,7 +136,7 @@ def _t1_dip(m) -> float:
 
 
 def t5_rows(g: Group, suffix: str = "", spec: bool = True) -> list[dict]:
-    """Table-5 cells (factor 2) and the SPEC §5.3 Table-5 predicates."""
+    """Table-5 cells (factor 2) and the §5.3 Table-5 predicates."""
     rows = _cells(g, PAPER_T5, ATT, lambda t: f"T1 = {t} s", suffix)
     v = _t1_low(g.means())
     d, dse = g.stat(_t1_dip)
@@ -161,7 +161,7 @@ def t5_rows(g: Group, suffix: str = "", spec: bool = True) -> list[dict]:
 
 
 def t6_rows(g: Group, suffix: str = "", spec: bool = True) -> list[dict]:
-    """Table-6 cells (factor 2) and the SPEC §5.3 Table-6 predicate (heading non-decreasing with T2)."""
+    """Table-6 cells (factor 2) and the §5.3 Table-6 predicate (heading non-decreasing with T2)."""
     rows = _cells(g, PAPER_T6, ATT, lambda t: f"T2 = {t} s", suffix)
     phs = [PAPER_T6[t][0] for t in T2_VALUES]
 
@@ -176,7 +176,7 @@ def t6_rows(g: Group, suffix: str = "", spec: bool = True) -> list[dict]:
 
 
 def t8_rows(g: Group) -> list[dict]:
-    """Table-8 cells (factor 2) and the SPEC §5.3 Table-8 predicates."""
+    """Table-8 cells (factor 2) and the §5.3 Table-8 predicates."""
     rows = []
     m = g.means()
     for q, u in zip(QUANTS, UNITS, strict=True):

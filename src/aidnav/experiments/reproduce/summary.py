@@ -14,7 +14,7 @@ Example::
                         target="none / figure8 >= 5", values={"none": 0.21, "figure8": 0.03})]
     write_summary(out_dir, seed="004", title="Transfer alignment", runs=10, base_seed=1,
                   tables=[summary_table("Table 4", "heading error std by manoeuvre", rows)],
-                  figures=["fig2_heading_error.png"], notes=["follows SPEC erratum E3"])
+                  figures=["fig2_heading_error.png"], notes=["follows §5.2 item 3"])
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """Pseudorange and pseudorange-rate rows (tight coupling) with lever arm and receiver clock states.
 
 Clock states at ``lay[L_CLK]`` (δt_u = b − b̂ [m]) and ``lay[L_CLK] + 1`` (δf = d − d̂ [m/s]), true −
-estimated, fed back b̂ += δt̂_u; the measured ρ = range + b (SPEC 2.1).
+estimated, fed back b̂ += δt̂_u; the measured ρ = range + b (§2.1).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Satellite-antenna pointing vector (SAPV) angles of a GEO satellite (seed 000, SPEC §1.1)."""
+"""Satellite-antenna pointing vector (SAPV) angles of a GEO satellite (seed 000, §1.1)."""
 
 from __future__ import annotations
 
@@ -12,14 +12,14 @@ from ..layout import DP, PHI
 
 @njit(cache=True)
 def sapv_angles(st, Cbn, sat_ecef, az_meas, el_meas, use_position, H, z):
-    """Satellite-antenna pointing vector (seed 000, SPEC §1.1 eq. 29): antenna azimuth and elevation.
+    """Satellite-antenna pointing vector (seed 000, §1.1 eq. 29): antenna azimuth and elevation.
 
     st : strapdown state (lat, lon [rad], h [m], v, q); Cbn : its C_b^n; sat_ecef : GEO satellite ECEF [m];
     az_meas, el_meas : the antenna's axis angles [rad] (az clockwise from body forward, el above the body
     x-y plane, :func:`aidnav.nav.geo_pointing.az_el_from_body`).
     z = [wrap(az_computed − az_meas) to (−π, π], el_computed − el_meas] [rad] ≈ H δx, with the exact
     Jacobians of :func:`aidnav.nav.geo_pointing.az_el_jacobians` at the computed state:
-    H = [−A C_n^b [r_n×], 0, A C_n^b (C_e^n B + [r_n×] D) (only if ``use_position``), 0] (SPEC eq. 23;
+    H = [−A C_n^b [r_n×], 0, A C_n^b (C_e^n B + [r_n×] D) (only if ``use_position``), 0] (§1.1 eq. 23;
     the seed drops the position columns, eq. 26). Fills H (2×n) and z (2,).
     """
     az, el, H_phi, H_pos = az_el_jacobians(st[0], st[1], st[2], Cbn, sat_ecef)

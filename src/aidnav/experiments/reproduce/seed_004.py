@@ -36,8 +36,8 @@ flexure, sub-IMU and master streams by :func:`aidnav.sim.distributed_pos.run_str
 models.md errata followed: §5.2 item 1 (eqs. 1–10 reconstructed as §5.1: velocity + attitude matching with
 lever-arm compensation, DCM attitude difference), §5.2 item 2 (24 states with θ̇; the seed's 21 states run as
 the first-order-flexure variant), §5.2 item 3 (heading 40° clockwise from North), §5.2 item 4 (OCR cells
-read as 0.0038 and 0.5192). Trajectory details not in the seed (turn rates, S amplitude, climb) are those of the
-example files (§5.1 suggestions). ``holds`` is the verdict of the §5.3 predicates, computed.
+read as 0.0038 and 0.5192). Trajectory details not in the seed (turn rates, S amplitude, climb) are those of
+the example files (§5.1 suggestions). ``holds`` is the verdict of the §5.3 predicates, computed.
 """
 
 from __future__ import annotations

@@ -131,7 +131,8 @@ def _imu_extra_column(b: Path, d: Path) -> Path:
 def _cfg(text: str, *extra):
     def build(b, d):
         c = _text(d, "c.yaml", text)
-        return ["process", "--imu", b / IMU, "--gnss", b / GNSS, "--config", c, "-o", d / "out", *extra]
+        return ["process", "--imu", b / IMU, "--gnss", b / GNSS, "--config", c, "-o", d / "out",
+                "--no-figures", *extra]
     return build
 
 
@@ -148,7 +149,7 @@ def _proc(imu, gnss, *extra, cfg=True, out=None):
     def build(b, d):
         i = imu(b, d) if callable(imu) else b / imu
         g = gnss(b, d) if callable(gnss) else b / gnss
-        args = ["process", "--imu", i, "--gnss", g, "-o", out(d) if out else d / "out"]
+        args = ["process", "--imu", i, "--gnss", g, "-o", out(d) if out else d / "out", "--no-figures"]
         if cfg:
             args += ["--config", b / "cfg.yaml"]
         return args + list(extra)

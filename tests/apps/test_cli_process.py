@@ -157,21 +157,17 @@ def test_tight_cli_on_walk_data(data_dir, tmp_path):
 
 @pytest.mark.slow
 def test_tight_cli_smooth_on_walk_data(data_dir, tmp_path):
-    """`aidnav tight --smooth`: the smoothed solution is written and is closer to the RTK reference
-    (fixed epochs) than the forward one."""
+    """`aidnav tight --smooth` writes the smoothed solution (smoothed < forward RMS on the walk is asserted
+    in tests/filters/test_smoothing_all.py): here the CLI path, its summary flag and its reference score."""
     d = data_dir / "rtklibexplorer_walk_0827"
     if not d.is_dir():
         pytest.skip(f"{d} not found")
-    rms = {}
-    for name, extra in (("fwd", []), ("smooth", ["--smooth"])):
-        out = tmp_path / name
-        r = runner.invoke(app, ["tight", "--imu", str(d / "imu_1730.csv"), "--obs",
-                                str(d / "rinex_converted/gnss_1730.obs"), "--nav",
-                                str(d / "rinex_converted/gnss_1730.nav"), "--truth",
-                                str(d / "gnss_1730_sf.pos"), "--truth-height-offset", "-21.4", "--no-figures",
-                                "-o", str(out), *extra])
-        assert r.exit_code == 0, r.output
-        s = json.loads((out / "summary.json").read_text())
-        assert s["smoothed"] is bool(extra)
-        rms[name] = s["reference"]["Q=1"]["horizontal_rms_m"]
-    assert rms["smooth"] < rms["fwd"], rms
+    out = tmp_path / "smooth"
+    r = runner.invoke(app, ["tight", "--imu", str(d / "imu_1730.csv"), "--obs",
+                            str(d / "rinex_converted/gnss_1730.obs"), "--nav",
+                            str(d / "rinex_converted/gnss_1730.nav"), "--truth", str(d / "gnss_1730_sf.pos"),
+                            "--truth-height-offset", "-21.4", "--no-figures", "-o", str(out), "--smooth"])
+    assert r.exit_code == 0, r.output
+    s = json.loads((out / "summary.json").read_text())
+    assert s["smoothed"] is True
+    assert s["reference"]["Q=1"]["horizontal_rms_m"] < 15.0

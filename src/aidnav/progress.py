@@ -161,3 +161,28 @@ def progress_bar(description: str, total: float | None = None, unit: str = "", c
     if not enabled:
         return NullProgress()
     return ProgressBar(description, total, unit, console, transient)
+
+
+def run_on_terminal(cmd: list[str], env: dict | None = None, timeout: float = 300.0) -> tuple[int, str]:
+    """Run ``cmd`` with a POSIX pseudo-terminal as its stdin/stdout/stderr and return (exit status,
+    everything it wrote, decoded): how a user's terminal sees a command's progress bar."""
+    import pty
+    import subprocess
+
+    master, slave = pty.openpty()
+    try:
+        p = subprocess.Popen(cmd, stdin=slave, stdout=slave, stderr=slave, env=env, close_fds=True)
+        os.close(slave)
+        got = []
+        while True:
+            try:
+                data = os.read(master, 65536)
+            except OSError:  # EIO: the child closed the terminal
+                break
+            if not data:
+                break
+            got.append(data)
+        rc = p.wait(timeout=timeout)
+    finally:
+        os.close(master)
+    return rc, b"".join(got).decode("utf-8", "replace")

@@ -42,26 +42,10 @@ def _args(d, out):
 
 
 def test_bar_on_a_pseudo_terminal(sim):
-    import pty
+    from aidnav.progress import run_on_terminal
 
-    master, slave = pty.openpty()
-    try:
-        p = subprocess.Popen(_args(sim, "tty"), stdin=slave, stdout=slave, stderr=slave,
-                             env=_env(TERM="xterm-256color", COLUMNS="120"), close_fds=True)
-        os.close(slave)
-        got = []
-        while True:
-            try:
-                data = os.read(master, 65536)
-            except OSError:  # EIO: the child closed the terminal
-                break
-            if not data:
-                break
-            got.append(data)
-        assert p.wait(timeout=300) == 0
-    finally:
-        os.close(master)
-    out = b"".join(got).decode("utf-8", "replace")
+    rc, out = run_on_terminal(_args(sim, "tty"), env=_env(TERM="xterm-256color", COLUMNS="120"))
+    assert rc == 0, out[-2000:]
     assert "filter" in out and "━" in out and "ETA" in out, out[-2000:]
     assert "aidnav process:" in out  # the summary after the bar
 

@@ -21,6 +21,7 @@ import pytest
 from aidnav.filters import measurements as ms
 from aidnav.filters.engine import _node_rates, feedback
 from aidnav.filters.layout import L_BARO, L_CLK, L_N, L_ODO, make_layout
+from aidnav.filters.measurements.check import check_jacobian
 from aidnav.nav.earth import lla_to_ecef
 from aidnav.nav.rotations import dcm_from_euler, dcm_from_quat, quat_from_euler
 
@@ -53,32 +54,11 @@ def _nav(st, bias, dt_back, rate_from_bias, bias_nominal):
 
 def _check(model, row, par, rate_from_bias=True, dt_back=0.0, allow=None):
     st0, b0 = _nominal()
-    H = np.zeros((ms.MAX_ROWS, N))
-    z = np.zeros(ms.MAX_ROWS)
-    R = np.zeros((ms.MAX_ROWS, ms.MAX_ROWS))
-    m = model(_nav(st0, b0, dt_back, True, b0), row, par, LAY, H, z, R)
-    assert m > 0
-    Hm = H[:m].copy()
-    D = np.zeros((m, N))
-    for j in range(N):
-        zz = []
-        for sgn in (1.0, -1.0):
-            st, b = st0.copy(), b0.copy()
-            dx = np.zeros(N)
-            dx[j] = sgn * STEPS[j]
-            feedback(st, b, dx, N)
-            Hj = np.zeros((ms.MAX_ROWS, N))
-            zj = np.zeros(ms.MAX_ROWS)
-            assert model(_nav(st, b, dt_back, rate_from_bias, b0), row, par, LAY, Hj, zj, R) == m
-            zz.append(zj[:m].copy())
-        D[:, j] = -(zz[0] - zz[1]) / 2.0  # response to a step of STEPS[j]
-    resp = Hm * STEPS
-    tol = 1e-4 * np.abs(D).max(axis=0, keepdims=True) + 1e-6 * np.abs(D).max(axis=1, keepdims=True) + 1e-15
-    if allow is not None:
-        tol = tol + allow
-    bad = np.abs(resp - D) > tol
-    assert not bad.any(), f"H differs at {np.argwhere(bad).tolist()}: H·ε {resp[bad]}, finite diff {D[bad]}"
-    return Hm, R[:m, :m].copy(), z[:m].copy()
+    def nav_of(st, b):
+        return _nav(st, b, dt_back, rate_from_bias, b0)
+
+    return check_jacobian(model, row, par, LAY, st0, b0, nav_of,
+                          STEPS, feedback, allow)
 
 
 LEVER = np.array([0.4, 1.3, -0.9])

@@ -85,26 +85,11 @@ def test_piped_output_stays_clean():
 
 @pytest.mark.skipif(sys.platform == "win32", reason="needs a POSIX pseudo-terminal")
 def test_bar_draws_on_a_pseudo_terminal():
-    import pty
+    from aidnav.progress import run_on_terminal
 
-    master, slave = pty.openpty()
-    try:
-        p = subprocess.Popen([sys.executable, "-c", SCRIPT], stdin=slave, stdout=slave, stderr=slave,
-                             env=_env(TERM="xterm-256color", COLUMNS="120"), close_fds=True)
-        os.close(slave)
-        chunks_read = []
-        while True:
-            try:
-                data = os.read(master, 65536)
-            except OSError:  # EIO: the child closed the terminal
-                break
-            if not data:
-                break
-            chunks_read.append(data)
-        assert p.wait(timeout=120) == 0
-    finally:
-        os.close(master)
-    out = b"".join(chunks_read).decode("utf-8", "replace")
+    rc, out = run_on_terminal([sys.executable, "-c", SCRIPT], env=_env(TERM="xterm-256color", COLUMNS="120"),
+                              timeout=120)
+    assert rc == 0
     assert "filter" in out and "━" in out and "ETA" in out
     assert "smoother" in out and "4/4 chunks" in out
     assert "result 42" in out

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import functools
 import warnings
 
 import numpy as np
@@ -19,11 +18,10 @@ from aidnav.sim.imu import ImuSpec
 from .test_tight import EPH, SOW, TRUTH, _imu, _init
 
 
-def test_tight_smoother_on_the_walk_beats_the_forward_filter(data_dir, monkeypatch):
+def test_tight_smoother_on_the_walk_beats_the_forward_filter(data_dir):
     """``aidnav tight`` as it runs the walk (process_tight, default configuration), with smoothing: the
     smoothed horizontal RMS against the RTK reference (Q = 1) is below the forward one, and every
     smoothed σ is at most the forward σ at the same sample."""
-    import aidnav.apps.tight as app
     from aidnav.apps.tight import compare_with_reference, process_tight
     from aidnav.io.rinex import read_rinex_nav, read_rinex_obs
     from aidnav.io.rtklib import read_pos
@@ -38,8 +36,7 @@ def test_tight_smoother_on_the_walk_beats_the_forward_filter(data_dir, monkeypat
         nav = read_rinex_nav(d / "rinex_converted" / "gnss_1730.nav", ref_week=obs.ref_week)
     ref = read_pos(d / "gnss_1730_sf.pos", height_offset_m=-21.4)
     imu = read_imu_any(d / "imu_1730.csv")
-    monkeypatch.setattr(app, "run_tight", functools.partial(run_tight, smooth=True))
-    res, _ = process_tight(imu, obs, nav, TightConfig())
+    res, _ = process_tight(imu, obs, nav, TightConfig(), smooth=True)
     assert res.smoothed and res.forward_state is not None
     f = compare_with_reference(res.time, *res.forward_state[:, :3].T, ref)
     s = compare_with_reference(res.time, *res.state[:, :3].T, ref)

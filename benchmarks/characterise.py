@@ -129,7 +129,8 @@ def speed(hours: float = 10.0, runs: int = 3, seed: int = 1) -> dict:
         write_imu(static_log(grade_spec("mems"), seed, hours=hours), log)
         out["log_seconds_to_make"] = time.perf_counter() - t0
         out["log_bytes"] = log.stat().st_size
-        cmd = [sys.executable, "-m", "aidnav.cli", "characterise", str(log), "-o", str(Path(tmp) / "out")]
+        cmd = [sys.executable, "-m", "aidnav.cli", "characterise", "--imu", str(log), "-o",
+               str(Path(tmp) / "out")]
         imp = [sys.executable, "-c",
                "import aidnav.cli, aidnav.analysis.characterise, aidnav.report.allan_plot"]
         floor = []

@@ -79,8 +79,8 @@ def main():
             for _ in range(3):
                 cmd = [sys.executable, "-c", PEAK_WRAPPER, "process",
                        "--imu", str(d / c["imu"]), "--gnss", str(d / c["gnss"]), "--config",
-                       str(ROOT / "examples" / c["config"]), "-o", str(Path(tmp) / "out.parquet"), "--smooth",
-                       *c["extra"]]
+                       str(ROOT / "examples" / c["config"]), "-o", str(Path(tmp) / "out"), "--no-figures",
+                       "--smooth", *c["extra"]]
                 t = time.perf_counter()
                 p = subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                                    text=True)

@@ -35,7 +35,7 @@ DEFAULT_RUNS = 20
 SENS_RUNS = 10  #: runs per case of the sensitivity tables (at most ``runs``)
 SLOPE_S = 5.0  #: window before / after the satellites return for the slope comparison (b) [s]
 #: the DR targets (a), (b) run over this many times the runs (one approach run costs ≈ 0.6 s CPU): (b)'s
-#: effect is a few per cent of the slope, and 100 runs bound it to ≈ 5 % (2 standard errors)
+#: effect is within a few per cent of zero, and 100 runs bound it to ≈ 10 % of the slope (2 standard errors)
 DR_RUNS_FACTOR = 5
 P_SIGN = 0.01  #: sign-test level of the DR targets
 DOPPLER_SIGMA_M_S = 0.06  #: σ of a pseudorange rate (Doppler) in the tight filter [m/s]

@@ -567,8 +567,9 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
         "mean, from the per-epoch spread). The centralized filter's NIS is shown beside it against the "
         "χ²(2) band.",
         "Monte Carlo standard errors: ratios of RMS values over runs by the delta method on the per-run "
-        "mean squares (paired runs); a ratio target is 'unresolved' when it is within 2 standard errors of "
-        "its boundary.",
+        "mean squares (paired runs); a ratio target within 2 standard errors of its boundary is "
+        "'unresolved', and a spec row still so at its runs is stated at its resolution (it fails, saying "
+        "the effect is below what the runs resolve).",
         f"Runtime {study.elapsed_s:.0f} s for {runs} runs (numba kernels compiled once and cached).",
     ]
     (out / "statistics.json").write_text(json.dumps(

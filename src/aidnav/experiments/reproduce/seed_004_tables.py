@@ -3,7 +3,9 @@
 Every derived statistic (ratio, spread, successive ratio, T1 of the minimum) gets a Monte Carlo standard
 error by resampling the runs (the same runs in every case: the common random numbers stay paired), and
 every SPEC trend a margin, its signed distance from the target's boundary: a trend within 2 standard
-errors of it is ``unresolved``. The factor-2 cells compare with the paper (``spec`` False).
+errors of it is ``unresolved``, and a spec trend still so at the reproduction's runs is stated at its
+resolution (:func:`resolved_row`: it fails, saying so). The factor-2 cells compare with the paper
+(``spec`` False).
 """
 
 from __future__ import annotations

@@ -87,22 +87,34 @@ def outage_windows(outages: list[Outage], t_first: float, t_last: float) -> list
     return wins
 
 
-def score_outages(traj, gnss: GnssData, wins, withheld) -> dict:
-    """Horizontal errors at the withheld fixes: end-of-outage statistics and RMS over all of them."""
+def outage_errors(traj, gnss: GnssData, withheld, after: float = -np.inf):
+    """(times, horizontal errors) of the output, interpolated to the withheld fixes (quality 1 where the
+    file has a quality column) inside its span and after ``after``."""
     from aidnav.nav.earth import lla_difference_enu
 
     good = withheld.copy()
     if gnss.quality is not None:
         good &= gnss.quality == 1
     t = gnss.time[good]
-    inside = (t >= traj.time[0]) & (t <= traj.time[-1])
+    inside = (t >= traj.time[0]) & (t <= traj.time[-1]) & (t > after)
     t = t[inside]
     if len(t) == 0:
-        return {"n_withheld": int(withheld.sum()), "n_scored": 0}
+        return t, np.zeros(0)
     lat = np.interp(t, traj.time, traj.lat)
     lon = np.interp(t, traj.time, np.unwrap(traj.lon))
     de, dn, _ = lla_difference_enu(lat, lon, 0.0, gnss.lat[good][inside], gnss.lon[good][inside], 0.0)
-    herr = np.hypot(de, dn)
+    return t, np.hypot(de, dn)
+
+
+def score_outages(traj, gnss: GnssData, wins, withheld) -> dict:
+    """Horizontal errors at the withheld fixes: end-of-outage statistics and RMS over all of them."""
+    return outage_score(*outage_errors(traj, gnss, withheld), wins, withheld)
+
+
+def outage_score(t, herr, wins, withheld) -> dict:
+    """:func:`score_outages` from the errors at the withheld fixes (:func:`outage_errors`)."""
+    if len(t) == 0:
+        return {"n_withheld": int(withheld.sum()), "n_scored": 0}
     ends = []
     per = []
     for a, b in wins:
@@ -188,12 +200,27 @@ def process(imu: ImuData, gnss: GnssData, cfg: LooseConfig | None = None, smooth
     t_filt = _time.perf_counter() - t0
     traj = to_trajectory(res)
     check_solution(traj, "the loosely coupled filter")
+    summary = run_summary(res, len(imu), imu.rate_hz, gnss, withheld, wins, imu.events + gnss.events + events,
+                          warnings, t_filt)
+    fwd = None
+    if wins:
+        summary["outage_score"] = score_outages(traj, gnss, wins, withheld)
+        if res.smoothed and res.forward_state is not None:
+            fwd = to_trajectory(LooseResult(res.time, res.forward_state, res.bias, res.forward_pdiag,
+                                            res.node_time))
+            summary["outage_score_forward"] = score_outages(fwd, gnss, wins, withheld)
+    finish_summary(summary, res, applied_offset, warnings)
+    return ProcessRun(traj, summary, res, fwd, withheld, wins, gnss=gnss)
+
+
+def run_summary(res, n_imu, rate_hz, gnss, withheld, wins, events, warnings, t_filt) -> dict:
+    """The summary of a loose-filter run (before the outage scores and the calibration)."""
     rec = res.records
     pos_ok = rec["pos_status"] == 1
-    summary = {
+    return {
         "smoothed": res.smoothed,
         "time_scale": "input (GPS seconds of week for GNSS-timed logs)",
-        "imu_samples": len(imu), "imu_rate_hz": imu.rate_hz, "gnss_fixes": len(gnss),
+        "imu_samples": n_imu, "imu_rate_hz": rate_hz, "gnss_fixes": len(gnss),
         "gnss_withheld": int(withheld.sum()),
         "gnss_position_accepted": int(pos_ok.sum()),
         "gnss_position_rejected": int((rec["pos_status"] == 0).sum()),
@@ -203,17 +230,14 @@ def process(imu: ImuData, gnss: GnssData, cfg: LooseConfig | None = None, smooth
         "counts": res.counts,
         "nis": nis_summary(rec),
         "outage_windows": [[a, b] for a, b in wins],
-        "events": imu.events + gnss.events + events,
+        "events": events,
         "warnings": warnings,
         "timing_s": {"filter": t_filt},
     }
-    fwd = None
-    if wins:
-        summary["outage_score"] = score_outages(traj, gnss, wins, withheld)
-        if res.smoothed and res.forward_state is not None:
-            fwd = to_trajectory(LooseResult(res.time, res.forward_state, res.bias, res.forward_pdiag,
-                                            res.node_time))
-            summary["outage_score_forward"] = score_outages(fwd, gnss, wins, withheld)
+
+
+def finish_summary(summary, res, applied_offset, warnings) -> None:
+    """Calibration and NIS health into the summary (in place)."""
     from aidnav.filters.result import nis_health, summary_calibration
 
     # sensor errors (biases, scale factors) and the self-calibration (time offset added to the IMU
@@ -222,7 +246,6 @@ def process(imu: ImuData, gnss: GnssData, cfg: LooseConfig | None = None, smooth
     health = nis_health(res)  # windows where the innovations say σ is wrong, and which way
     summary["nis_windows_far_out"] = health.get("windows", [])
     warnings += health.get("warnings", [])
-    return ProcessRun(traj, summary, res, fwd, withheld, wins, gnss=gnss)
 
 
 def nis_summary(rec: dict) -> dict:
@@ -307,14 +330,10 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
     bar = progress if progress is not None else NullProgress()
     datum = cfg.gnss.height_offset_m
     bar.stage("reading", total=2, unit="files")
-    imu = read_imu_any(imu_path)
-    bar.advance(1)
     gnss = read_gnss_any(gnss_path, height_offset_m=datum)
     bar.advance(1)
     # the offset is applied by the reader; the filter must not see it again
     cfg = cfg.model_copy(update={"gnss": cfg.gnss.model_copy(update={"height_offset_m": 0.0})})
-    if len(imu) < 2:
-        raise DataError(imu_path, None, "fewer than 2 IMU samples")
     if len(gnss) < 1:
         raise DataError(gnss_path, None, "no GNSS fixes")
     odometer = baro = None
@@ -326,32 +345,59 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
         from aidnav.io.aux_sensors import read_baro_csv
 
         baro = read_baro_csv(baro_path)
-    t_read = _time.perf_counter()
-    bar.stage("filter" + (" + smoother" if smooth else ""), total=len(imu), unit="IMU samples")
-    run = process(imu, gnss, cfg, smooth=smooth, outages=outages, imu_name=str(imu_path),
-                  gnss_name=str(gnss_path), skip_checks=skip_checks, start_s=start_s, end_s=end_s,
-                  odometer=odometer, baro=baro)
-    bar.update(len(imu))
-    t_filt = _time.perf_counter()
-    bar.stage("writing the trajectory", total=1, unit="files")
-    write_trajectory(run.trajectory, traj_path, week=gnss.week)
-    if kfgins_nav:  # KF-GINS navigation text beside it (week, SOW, lat, lon, h, vN, vE, vD, roll, pitch, yaw)
-        write_trajectory(run.trajectory, out_dir / "trajectory.nav", week=gnss.week)
-    bar.advance(1)
-    t_write = _time.perf_counter()
+    from aidnav.apps.process_stream import stream_process, streamable
+
+    if not kfgins_nav and streamable(imu_path, cfg, odometer, start_s, end_s):
+        # chunk by chunk: memory independent of the log length; figures from a decimated copy
+        bar.advance(1)
+        t_read = _time.perf_counter()
+        n_rows = _parquet_rows(imu_path)
+        bar.stage("filter + writing" + (" + smoother" if smooth else ""), total=n_rows, unit="IMU samples")
+        run_s, fig_traj, result = stream_process(
+            imu_path, gnss, cfg, traj_path, gnss.week, smooth=smooth, outages=outages, imu_name=str(imu_path),
+            gnss_name=str(gnss_path), skip_checks=skip_checks, odometer=odometer, baro=baro,
+            progress=bar.update)
+        t_filt = t_write = _time.perf_counter()
+    else:
+        imu = read_imu_any(imu_path)
+        bar.advance(1)
+        if len(imu) < 2:
+            raise DataError(imu_path, None, "fewer than 2 IMU samples")
+        t_read = _time.perf_counter()
+        bar.stage("filter" + (" + smoother" if smooth else ""), total=len(imu), unit="IMU samples")
+        run = process(imu, gnss, cfg, smooth=smooth, outages=outages, imu_name=str(imu_path),
+                      gnss_name=str(gnss_path), skip_checks=skip_checks, start_s=start_s, end_s=end_s,
+                      odometer=odometer, baro=baro)
+        bar.update(len(imu))
+        del imu
+        t_filt = _time.perf_counter()
+        bar.stage("writing the trajectory", total=1, unit="files")
+        write_trajectory(run.trajectory, traj_path, week=gnss.week)
+        if kfgins_nav:  # KF-GINS navigation text (week, SOW, lat, lon, h, vN, vE, vD, roll, pitch, yaw)
+            write_trajectory(run.trajectory, out_dir / "trajectory.nav", week=gnss.week)
+        bar.advance(1)
+        t_write = _time.perf_counter()
+        run_s, fig_traj, result, gnss = run.summary, run.trajectory, run.result, run.gnss
     summary = {"imu": str(imu_path), "gnss": str(gnss_path),
                "odometer": str(odometer_path) if odometer_path else None,
                "baro": str(baro_path) if baro_path else None,
                "config": str(config_path) if config_path else None, "output": str(traj_path),
                "gnss_height_offset_m": datum,
-               **run.summary, "notes": notes}
+               **run_s, "notes": notes}
     summary["timing_s"] = {"read": t_read - t_start, "filter": t_filt - t_read, "write": t_write - t_filt}
     common.write_summary_files(out_dir, summary, format_summary(summary))
     if figures:  # overview.png, trajectory.kml / .geojson, run.html
         from aidnav.report.run_page import write_run_outputs
 
-        write_run_outputs(out_dir, run.trajectory, run.gnss, summary, run.result.records, progress=bar)
+        write_run_outputs(out_dir, fig_traj, gnss, summary, result.records, progress=bar)
     return summary
+
+
+def _parquet_rows(path) -> int:
+    import pyarrow.parquet as pq
+
+    with pq.ParquetFile(path) as pf:
+        return pf.metadata.num_rows
 
 
 #: the self-calibration quantities the text summary prints (all of them are in summary.json)

@@ -19,16 +19,23 @@ from aidnav.apps.common import check_solution
 from aidnav.data import Trajectory
 
 FIGURE_POINTS = 20000  #: at most this many epochs go to overview.png, the maps and run.html
-CHUNK_ROWS = 1 << 16  #: IMU samples per chunk
+CHUNK_ROWS = 1 << 13  #: IMU samples per chunk (the per-chunk buffers are about 1.3 kB per sample)
 
 
 def streamable(imu_path, cfg, odometer=None, start_s=None, end_s=None) -> bool:
     """Whether ``process_logs`` can stream this job (module doc)."""
     from aidnav.filters.stream import needs_whole_log
+    from aidnav.io.formats import detect_imu_format
     from aidnav.io.stream import imu_time_span
 
-    return (start_s is None and end_s is None and not needs_whole_log(cfg, odometer)
-            and imu_time_span(imu_path) is not None)
+    if start_s is not None or end_s is not None or needs_whole_log(cfg, odometer):
+        return False
+    try:
+        if detect_imu_format(imu_path) != "interchange":
+            return False
+    except Exception:  # noqa: BLE001  (the whole-file reader gives the message)
+        return False
+    return imu_time_span(imu_path) is not None
 
 
 def _join(a: Trajectory | None, b: Trajectory) -> Trajectory:
@@ -101,7 +108,7 @@ class _Sink:
 
 def stream_process(imu_path, gnss, cfg, traj_path, week, smooth=False, outages=None, imu_name="imu",
                    gnss_name="gnss", skip_checks=(), odometer=None, baro=None, progress=None,
-                   chunk_rows: int = CHUNK_ROWS):
+                   chunk_rows: int | None = None):
     """The streamed :func:`aidnav.apps.process.process` + writing: returns (summary of the run, decimated
     trajectory for the figures, the filter's :class:`FilterResult` (last epoch, records, counts))."""
     from aidnav.apps.process import finish_summary, outage_windows, parse_outage, run_summary
@@ -112,7 +119,7 @@ def stream_process(imu_path, gnss, cfg, traj_path, week, smooth=False, outages=N
 
     applied = float(cfg.imu.time_offset_s)
     cfg = cfg.model_copy(update={"imu": cfg.imu.model_copy(update={"time_offset_s": 0.0})})
-    chunks = iter_imu(imu_path, chunk_rows)
+    chunks = iter_imu(imu_path, chunk_rows or CHUNK_ROWS)
     head = next(chunks)
     offset_event = [f"IMU time offset {applied:+.4f} s added to the IMU stamps"] if applied else []
 

@@ -201,7 +201,7 @@ def stream_loose(chunks, gnss, cfg, emit, withheld=None, smooth: bool = False, e
                 pd_nodes = np.einsum("kii->ki", Ps)
                 smoothed = True
             nb = n - NAV
-            for rows in spool.read(1 << 16):
+            for rows in spool.read(1 << 13):
                 tt, oi, on = rows[:, 0] + d_hat, rows[:, 1].astype(np.int64), rows[:, 2].astype(np.int64)
                 st, b, pd = rows[:, 3:13], rows[:, 13:13 + nb], rows[:, 13 + nb:]
                 if smoothed:

@@ -77,11 +77,11 @@ def iter_imu(path, chunk_rows: int = 1 << 16, reader=None):
         return
     pf, cols, inc, meta = got
     week = meta.get("gps_week")
-    t_prev, row, events = None, 0, []
+    t_prev, row, events = None, 0, [f"{path.name}: IMU format interchange (detected)"]
     if not inc:
         events.append("rates converted to increments (rate × Δt over (t_{k-1}, t_k])")
     with pf:
-        for batch in pf.iter_batches(batch_size=chunk_rows, columns=cols):
+        for batch in pf.iter_batches(batch_size=chunk_rows, columns=cols, use_threads=False):
             a = np.column_stack([batch.column(i).to_numpy(zero_copy_only=False).astype(np.float64, copy=False)
                                  for i in range(len(cols))])
             bad = ~np.isfinite(a)

@@ -77,7 +77,7 @@ class _Sink:
         self.prev, self.t_err, self.herr, self.dec, self.next_t = None, [], [], [], -np.inf
 
     def __call__(self, traj: Trajectory):
-        from aidnav.apps.process import outage_errors
+        from aidnav.apps.process_parts import outage_errors
 
         j = _join(self.prev, traj)
         check_solution(j, "the loosely coupled filter")
@@ -97,7 +97,7 @@ class _Sink:
         self.prev = _take(traj, slice(len(traj.time) - 1, None))
 
     def score(self, wins):
-        from aidnav.apps.process import outage_score
+        from aidnav.apps.process_parts import outage_score
 
         t = np.concatenate(self.t_err) if self.t_err else np.zeros(0)
         return outage_score(t, np.concatenate(self.herr) if self.herr else np.zeros(0), wins, self.withheld)
@@ -111,7 +111,7 @@ def stream_process(imu_path, gnss, cfg, traj_path, week, smooth=False, outages=N
                    chunk_rows: int | None = None):
     """The streamed :func:`aidnav.apps.process.process` + writing: returns (summary of the run, decimated
     trajectory for the figures, the filter's :class:`FilterResult` (last epoch, records, counts))."""
-    from aidnav.apps.process import finish_summary, outage_windows, parse_outage, run_summary
+    from aidnav.apps.process_parts import finish_summary, outage_windows, parse_outage, run_summary
     from aidnav.filters.result import to_trajectory
     from aidnav.filters.stream import stream_loose
     from aidnav.io.sanity import check_gnss, check_imu, check_overlap

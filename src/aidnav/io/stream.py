@@ -75,6 +75,8 @@ def iter_imu(path, chunk_rows: int = 1 << 16, reader=None):
             yield ImuData(imu.time[a:b], imu.dtheta[a:b], imu.dv[a:b], t0=t0, week=imu.week,
                           events=imu.events if a == 0 else [])
         return
+    from aidnav.io._arrow import column_to_f64
+
     pf, cols, inc, meta = got
     week = meta.get("gps_week")
     t_prev, row, events = None, 0, [f"{path.name}: IMU format interchange (detected)"]
@@ -82,8 +84,7 @@ def iter_imu(path, chunk_rows: int = 1 << 16, reader=None):
         events.append("rates converted to increments (rate × Δt over (t_{k-1}, t_k])")
     with pf:
         for batch in pf.iter_batches(batch_size=chunk_rows, columns=cols, use_threads=False):
-            a = np.column_stack([batch.column(i).to_numpy(zero_copy_only=False).astype(np.float64, copy=False)
-                                 for i in range(len(cols))])
+            a = np.column_stack([column_to_f64(batch.column(i)) for i in range(len(cols))])  # no pandas
             bad = ~np.isfinite(a)
             if bad.any():
                 i, j = np.argwhere(bad)[0]

@@ -219,7 +219,7 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
         run_s, fig_traj, result = stream_process(
             imu_path, gnss, cfg, traj_path, gnss.week, smooth=smooth, outages=outages, imu_name=str(imu_path),
             gnss_name=str(gnss_path), skip_checks=skip_checks, odometer=odometer, baro=baro,
-            progress=bar.update)
+            progress=bar.advance)
         t_filt = t_write = _time.perf_counter()
     else:
         imu = read_imu_any(imu_path)

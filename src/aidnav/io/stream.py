@@ -32,8 +32,8 @@ def _parquet_imu(path: Path):
 
     if path.suffix.lower() not in (".parquet", ".pq"):
         return None
-    try:
-        pf = pq.ParquetFile(path)
+    try:  # no pre-buffering: the reader then holds about one row group's pages, not a growing cache
+        pf = pq.ParquetFile(path, pre_buffer=False, buffer_size=1 << 20)
     except Exception:  # noqa: BLE001  (the whole-file reader gives the message)
         return None
     names = set(pf.schema_arrow.names)

@@ -147,12 +147,11 @@ def stream_process(imu_path, gnss, cfg, traj_path, week, smooth=False, outages=N
     n_imu = [0]
 
     def emit(piece, forward=False):
-        tr = to_trajectory(piece)
-        if forward:
+        if forward:  # the forward solution of a smoothed run: scored at the outages only
             if fwd is not None:
-                fwd(tr)
+                fwd(to_trajectory(piece))
             return
-        sink(tr)
+        sink(to_trajectory(piece))
 
     def count(m):
         n_imu[0] += m

@@ -85,16 +85,22 @@ def iter_imu(path, chunk_rows: int = 1 << 16, reader=None):
     with pf:
         for batch in pf.iter_batches(batch_size=chunk_rows, columns=cols, use_threads=False):
             a = np.column_stack([column_to_f64(batch.column(i)) for i in range(len(cols))])  # no pandas
-            bad = ~np.isfinite(a)
-            if bad.any():
-                i, j = np.argwhere(bad)[0]
-                raise DataError(path, row + int(i) + 1, f"column {cols[j]}: value {a[i, j]} is not finite")
+            for j, c in enumerate(cols):  # the checks and messages of io._table, chunk by chunk
+                bad = ~np.isfinite(a[:, j])
+                if bad.any():
+                    i = int(np.argmax(bad))
+                    v = a[i, j]
+                    what = "missing value or NaN" if np.isnan(v) else v
+                    raise DataError(path, row + i + 1, f"column {c}: {what} (values must be finite numbers)")
             t = a[:, 0].copy()
             tt = t if t_prev is None else np.concatenate([[t_prev], t])
-            dd = np.diff(tt)
-            if (dd <= 0).any():
-                i = int(np.flatnonzero(dd <= 0)[0]) + (0 if t_prev is None else -1) + 1
-                raise DataError(path, row + i + 1, "time not strictly increasing")
+            d = np.diff(tt)
+            if not (d > 0).all():
+                i = int(np.argmax(~(d > 0))) + 1  # index in tt
+                kind = "duplicate time" if d[i - 1] == 0 else "time goes backwards"
+                r = row + i - (0 if t_prev is None else 1)  # 0-based row of the sample
+                raise DataError(path, r + 1, f"time not strictly increasing ({kind}): {tt[i]!r} s after "
+                                f"{tt[i - 1]!r} s at line {r}")
             if t_prev is None:
                 t0 = meta.get("t0_s")
                 t0 = None if t0 is None or not t0 < t[0] else float(t0)

@@ -98,3 +98,17 @@ def test_memory_does_not_grow_with_the_log(tmp_path):
     assert n1[0] == 15000 and n4[0] == 60000
     assert abs(np.degrees(n4[1][0]) - 30.0) < 1e-4  # the static position held (≈ 10 m)
     assert p4 < 1.25 * p1
+
+
+def test_streamed_bad_sample_leaves_no_file(tmp_path, small_chunks):
+    """A NaN deep in the IMU file: the error names the row, and no partial trajectory is left."""
+    from aidnav.io.errors import DataError
+
+    imu_p, gnss_p, cfg_p = static_log(tmp_path, 60)
+    t = pq.read_table(imu_p)
+    dv = t.column("dv_y_m_s").to_numpy().copy()
+    dv[4000] = np.nan
+    pq.write_table(t.set_column(t.schema.get_field_index("dv_y_m_s"), "dv_y_m_s", pa.array(dv)), imu_p)
+    with pytest.raises(DataError, match=r"imu_60\.parquet:4001: column dv_y_m_s: missing value or NaN"):
+        process_logs(imu_p, gnss_p, cfg_p, tmp_path / "o", figures=False)
+    assert not list((tmp_path / "o").glob("trajectory*"))

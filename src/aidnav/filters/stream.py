@@ -29,7 +29,7 @@ import numpy as np
 
 from aidnav.data import ImuData
 
-from .engine import Imu, Output, rts, run_chunk, smooth_outputs, start_carry
+from .engine import Imu, Log, Output, rts, run_chunk, smooth_outputs, start_carry
 from .layout import L_TOFF, NAV, layout_names
 from .loose import _calibration_base, _gnss_records, _log_dict, loose_counts, loose_setup
 from .preprocess import StaticDetector, bridge_gaps
@@ -164,14 +164,14 @@ def stream_loose(chunks, gnss, cfg, emit, withheld=None, smooth: bool = False, e
             imu_k = Imu(t, dth[a:], dv[a:], st_fl[a:], gap_var[a:], np.zeros((0, 2)))
             r = run_chunk(imu_k, su.rec, su.models, su.proc, ini, out, cy)
             g0, cy = cy.gi, r.carry
-            lg = _log_dict(r.log, r.n_log)
+            lg = {k: getattr(r.log, k) for k in r.log._fields}  # (names once, at the end)
             if rec_log is None:
                 rec_log = {k: v[:M].copy() for k, v in lg.items()}
             else:
                 for k in rec_log:
                     rec_log[k][g0:cy.gi] = lg[k][g0:cy.gi]
-            node_model.append(lg["model"][M:].copy())
-            node_status.append(lg["status"][M:].copy())
+            node_model.append(lg["model"][M:r.n_log].copy())
+            node_status.append(lg["status"][M:r.n_log].copy())
             n_nodes += len(r.node_idx)
             if smooth:
                 nodes.append((r.node_idx.copy(), r.S_post.copy(), r.S_prior.copy(), r.S_phi.copy(),
@@ -216,7 +216,7 @@ def stream_loose(chunks, gnss, cfg, emit, withheld=None, smooth: bool = False, e
             spool.close()
     if rec_log is None:
         raise ValueError("no IMU sample after the initialisation")
-    log = rec_log
+    log = _log_dict(Log(**rec_log), M)
     node_m = np.concatenate(node_model) if node_model else np.zeros(0, np.int8)
     node_s = np.concatenate(node_status) if node_status else np.zeros(0, np.int8)
     cnt = loose_counts({"model": np.concatenate([log["model"], node_m]),

@@ -147,21 +147,29 @@ def _increasing(x: np.ndarray) -> bool:
     return len(x) < 2 or bool(np.all(np.diff(x) > 0))
 
 
+def _sniff_container(path, kinds: dict) -> tuple[Path, _Sniff, str | None]:
+    """The first checks of every detector: a ROS bag, a directory, an empty file, a Parquet file.
+
+    Returns the path, its sniffed head and the format when these checks settle it (else None)."""
+    path = Path(path)
+    s = _Sniff(path)
+    if s.rosbag():
+        return path, s, "rosbag"
+    if s.is_dir:
+        _unknown(path, kinds, "a directory without metadata.yaml")
+    if not s.head:
+        raise DataError(path, None, "empty file")
+    return path, s, "interchange" if s.parquet() else None
+
+
 def detect_imu_format(path) -> str:
     """The IMU format of ``path`` (a key of :data:`IMU_FORMATS`), from its content.
 
     Raises DataError "unknown format: expected one of …" (naming what was seen) when none matches, and
     a specific message for a raw rtklibexplorer log whose ``.tag`` file is missing."""
-    path = Path(path)
-    s = _Sniff(path)
-    if s.rosbag():
-        return "rosbag"
-    if s.is_dir:
-        _unknown(path, IMU_FORMATS, "a directory without metadata.yaml")
-    if not s.head:
-        raise DataError(path, None, "empty file")
-    if s.parquet():
-        return "interchange"
+    path, s, fmt = _sniff_container(path, IMU_FORMATS)
+    if fmt:
+        return fmt
     names = s.header_names()
     if names is not None:
         if "time" in names:
@@ -189,16 +197,9 @@ def detect_imu_format(path) -> str:
 
 def detect_gnss_format(path) -> str:
     """The GNSS format of ``path`` (a key of :data:`GNSS_FORMATS`), from its content."""
-    path = Path(path)
-    s = _Sniff(path)
-    if s.rosbag():
-        return "rosbag"
-    if s.is_dir:
-        _unknown(path, GNSS_FORMATS, "a directory without metadata.yaml")
-    if not s.head:
-        raise DataError(path, None, "empty file")
-    if s.parquet():
-        return "interchange"
+    path, s, fmt = _sniff_container(path, GNSS_FORMATS)
+    if fmt:
+        return fmt
     if b"\xb5\x62\x01\x07" in s.head or (s.suffix == ".ubx" and b"\xb5\x62" in s.head):
         return "ubx"
     nmea_lines = sum(bool(_NMEA.match(ln.encode(errors="replace"))) for ln in s.lines[:200])

@@ -32,9 +32,9 @@ def skew(v):
     return m
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def cross(a, b):
-    """Cross product of two length-3 arrays (numba-friendly)."""
+    """Cross product of two length-3 arrays (inlined: the measurement models call it often)."""
     return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
 
 
@@ -188,17 +188,8 @@ def quat_from_dcm(c):
 
 @njit(cache=True)
 def dcm_from_rotvec(r):
-    """DCM of a rotation vector (Rodrigues), series for small angles."""
-    a2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2]
-    if a2 < 1e-8:
-        s = 1.0 - a2 / 6.0 + a2 * a2 / 120.0
-        c = 0.5 - a2 / 24.0 + a2 * a2 / 720.0
-    else:
-        a = np.sqrt(a2)
-        s = np.sin(a) / a
-        c = (1.0 - np.cos(a)) / a2
-    k = skew(r)
-    return np.eye(3) + s * k + c * (k @ k)
+    """DCM of a rotation vector (Rodrigues' formula, through the quaternion and its small-angle series)."""
+    return dcm_from_quat(quat_from_rotvec(r))
 
 
 @njit(cache=True)

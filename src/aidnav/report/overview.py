@@ -9,7 +9,7 @@ normalised innovation squared (NIS) per measurement type against its two-sided 9
 Time axis: seconds since the trajectory's first epoch (stated in the label, on the input's time scale).
 
 Inputs: a :class:`~aidnav.data.Trajectory`, optionally the :class:`~aidnav.data.GnssData` fixes, the
-summary dict of :func:`aidnav.process.process_logs` (``outage_windows``, ``rejected_fix_times``, input
+summary dict of :func:`aidnav.apps.process.process_logs` (``outage_windows``, ``rejected_fix_times``, input
 names) and a records dict of innovations: ``run_loose``'s ``res.records`` (``pos_status``, ``pos_nis``,
 ``pos_innov``, ``vel_status``, ``vel_nis``, ``vel_innov``, aligned with the GNSS fixes) or, for the
 tightly coupled filter, :func:`tight_records` of ``res.epochs``. Generic rule: every ``<type>_nis``
@@ -277,7 +277,7 @@ def write_overview(path, traj: Trajectory, gnss: GnssData | None = None, summary
     """Write ``overview.png`` (see the module docstring) to ``path`` and return the path.
 
     traj : the solution; gnss : the GNSS fixes used (antenna positions); summary : the dict of
-    :func:`aidnav.process.process_logs` (outage windows, rejected fix times, input names); records :
+    :func:`aidnav.apps.process.process_logs` (outage windows, rejected fix times, input names); records :
     innovation records (``res.records`` of ``run_loose``, or :func:`tight_records`); dpi : 100 gives a
     1400-px-wide image.
     """

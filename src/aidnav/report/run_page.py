@@ -5,8 +5,8 @@ timings), the outage score, the comparison with a reference, the calibration est
 notes, the figures (embedded as data URIs) and the whole summary as JSON. Same HTML machinery and
 layout rules as the campaign report (:mod:`aidnav.report.html`).
 
-Input: the summary dict written by :func:`aidnav.process.process_logs` or
-:func:`aidnav.process_tight.process_tight_files` (known keys are laid out, every other key appears in
+Input: the summary dict written by :func:`aidnav.apps.process.process_logs` or
+:func:`aidnav.apps.tight.process_tight_files` (known keys are laid out, every other key appears in
 "Other values" and in the JSON). ``summary["calibration"]`` (optional): a mapping name → value, where a
 value is a number, a list of numbers, or a dict with ``value`` (number or list) and optional ``std``
 (or ``sigma``) and ``unit``; a name ending in a unit (``gyro_bias_x_deg_h``) needs no ``unit``.

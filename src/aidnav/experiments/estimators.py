@@ -41,6 +41,8 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from aidnav.units import DEG
+
 __all__ = [
     "EstimatorOutput", "EstimatorType", "register_estimator", "get_estimator", "estimator_types",
     "BLOCK_UNITS", "state_unit", "state_blocks", "LOOSE_STATES", "LooseEstimatorConfig", "loose_estimator",
@@ -51,7 +53,7 @@ __all__ = [
 BLOCK_UNITS: dict[str, tuple[str, float]] = {
     "pos": ("m", 1.0),
     "vel": ("m_s", 1.0),
-    "att": ("deg", 180.0 / math.pi),
+    "att": ("deg", 1.0 / DEG),
 }
 
 

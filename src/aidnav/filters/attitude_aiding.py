@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from aidnav.nav.rotations import quat_to_euler_batch
+from aidnav.units import DEG, DEG_H, UG
 
 from . import measurements as ms
 from .engine import Imu, Init, Models, Output, Process, Records, rts, run_filter, smooth_outputs
@@ -27,9 +28,6 @@ from .layout import make_layout
 
 __all__ = ["AttitudeFusionResult", "fuse_attitude_fixes", "imu_noise_psd", "initial_covariance_15"]
 
-DEG = np.pi / 180.0
-DEG_H = DEG / 3600.0
-UG = 9.80665e-6
 
 
 @dataclass

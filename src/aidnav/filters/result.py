@@ -7,8 +7,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from aidnav.nav.earth import radii
+from aidnav.units import DEG_H, PPM, UG
 
 from .layout import L_BARO, L_LEVER, L_MOUNT, L_NINS, L_ODO, L_TOFF, L_VDEL, NAV
+
+#: the INS sensor-error states in the file units, by group of three (x, y, z): column name, factor from SI
+SENSOR_ERROR_UNITS = (("gyro_bias_{}_deg_h", 1.0 / DEG_H), ("accel_bias_{}_ug", 1.0 / UG),
+                      ("gyro_sf_{}_ppm", 1.0 / PPM), ("accel_sf_{}_ppm", 1.0 / PPM))
 
 
 @dataclass
@@ -171,13 +176,12 @@ def to_trajectory(res: FilterResult):
     sp = np.sqrt((np.sin(hd) * pd[:, 1]) ** 2 + (np.cos(hd) * pd[:, 0]) ** 2)
     std_att = np.column_stack([sr, sp, pd[:, 2]])
     extra = {}
-    names = ["gyro_bias_{}_deg_h", "accel_bias_{}_ug", "gyro_sf_{}_ppm", "accel_sf_{}_ppm"]
-    scale = [180 / np.pi * 3600, 1 / 9.80665e-6, 1e6, 1e6]
     lay = getattr(res, "layout", None)
     n_groups = res.bias.shape[1] // 3 if lay is None else (int(lay[L_NINS]) - NAV) // 3
     for j in range(n_groups):
         for i, ax in enumerate("xyz"):
-            extra[names[j].format(ax)] = res.bias[:, 3 * j + i] * scale[j]
+            name, scale = SENSOR_ERROR_UNITS[j]
+            extra[name.format(ax)] = res.bias[:, 3 * j + i] * scale
     if lay is not None:
         if lay[L_ODO] >= 0:
             extra["odometer_scale_ppm"] = res.bias[:, lay[L_ODO] - NAV] * 1e6
@@ -249,13 +253,11 @@ def summary_calibration(result, base: dict | None = None) -> dict:
     out = {}
     if len(bias):
         nins = int(lay[L_NINS]) if lay is not None else NAV + 6
-        names = ["gyro_bias_{}_deg_h", "accel_bias_{}_ug", "gyro_sf_{}_ppm", "accel_sf_{}_ppm"]
-        scale = [180 / np.pi * 3600, 1 / 9.80665e-6, 1e6, 1e6]
         for k in range(nins - NAV):
-            g, ax = divmod(k, 3)
+            (name, scale), ax = SENSOR_ERROR_UNITS[k // 3], k % 3
             var = pdiag[-1, NAV + k]
-            out[names[g].format("xyz"[ax])] = {"value": float(bias[-1, k] * scale[g]),
-                                               "std": float(np.sqrt(var) * scale[g]) if var >= 0 else None,
-                                               "estimated": True}
+            out[name.format("xyz"[ax])] = {"value": float(bias[-1, k] * scale),
+                                           "std": float(np.sqrt(var) * scale) if var >= 0 else None,
+                                           "estimated": True}
     out.update(calibration_summary(result, base))
     return out

@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .config import DEG, DEG_H, UG, LooseConfig
+from aidnav.units import DEG, DEG_H, UG
+
+from .config import LooseConfig
 
 
 def loose_config_from_specs(imu_spec, gnss_spec=None, *, init_rph_deg=None, init_lla_deg_m=None,

@@ -17,7 +17,7 @@ from aidnav.io._arrow import column_to_f64
 from aidnav.io.errors import DataError
 from aidnav.io.gpstime import gpst_unix_to_week_sow
 from aidnav.io.timetag import fit_stamp_clock, line_end_offsets, read_timetag
-from aidnav.nav.earth import G0
+from aidnav.units import G0
 
 N_FIELDS = 7
 GAP_FACTOR = 5.0  #: a sample interval above this multiple of the median one is reported as a gap

@@ -38,6 +38,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from aidnav.units import DEG
+
 from .earth import R_GEO, dcm_ecef_to_enu, lla_to_ecef, radii
 from .earth import A as WGS84_A
 from .rotations import dcm_from_euler, skew
@@ -217,7 +219,7 @@ def servo_angles(lat_deg: float, lon_deg: float, height_m: float, roll_deg: floa
     pol = str(polarization).strip().lower()
     if pol not in ("vertical", "horizontal"):
         raise ValueError(f"polarization must be 'vertical' or 'horizontal' (got {polarization!r})")
-    d = np.pi / 180.0
+    d = DEG
     Cbn = dcm_from_euler(float(roll_deg) * d, float(pitch_deg) * d, float(heading_deg) * d)
     sat = geo_sat_ecef(float(sat_lon_deg) * d, float(radius_m))
     az, el, p = servo_angles_rad(float(lat_deg) * d, float(lon_deg) * d, float(height_m), Cbn, sat,

@@ -20,12 +20,12 @@ from pathlib import Path
 
 import numpy as np
 
+from aidnav.filters.result import SENSOR_ERROR_UNITS
+
 from .html import escape, fmt, img_file_tag, kv_table, page, table
 
 __all__ = ["write_run_page", "run_page_html", "write_run_outputs", "calibration_estimates"]
 
-_CAL_NAMES = [("gyro_bias_{}_deg_h", 180.0 / math.pi * 3600.0), ("accel_bias_{}_ug", 1.0 / 9.80665e-6),
-              ("gyro_sf_{}_ppm", 1e6), ("accel_sf_{}_ppm", 1e6)]
 
 
 def calibration_estimates(res) -> dict:
@@ -38,12 +38,12 @@ def calibration_estimates(res) -> dict:
     pdiag = np.asarray(res.pdiag, float)
     if bias.ndim != 2 or len(bias) == 0:
         return {}
-    nb = min(bias.shape[1] // 3, len(_CAL_NAMES)) * 3
+    nb = min(bias.shape[1] // 3, len(SENSOR_ERROR_UNITS)) * 3
     if pdiag.shape[1] < 9 + nb:
         raise ValueError(f"calibration: pdiag has {pdiag.shape[1]} states, fewer than 9 + {nb} bias states")
     out = {}
     for k in range(nb):
-        name, scale = _CAL_NAMES[k // 3]
+        name, scale = SENSOR_ERROR_UNITS[k // 3]
         var = pdiag[-1, 9 + k]
         out[name.format("xyz"[k % 3])] = {
             "value": float(bias[-1, k] * scale),

@@ -9,12 +9,12 @@ import numpy as np
 
 from aidnav.filters.federated import FederatedConfig
 from aidnav.nav.geo_pointing import R_GEO_SEED000
+from aidnav.units import ARCMIN
+from aidnav.units import DEG as D
 
 SEED = "000"
 TITLE = "Satellite antenna pointing vector (SAPV) aiding of SINS/GPS with a federated Kalman filter"
 DEFAULT_RUNS = 30  #: resolves the §1.3 ratio rows within 2 standard errors (20 did not, for vE)
-D = np.pi / 180.0
-ARCMIN = D / 60.0
 
 SITE = dict(lat_deg=39.0, lon_deg=116.0, height_m=0.0)
 HEADING_DEG = 100.0

@@ -54,7 +54,6 @@ from aidnav.experiments.reproduce.seed_001_setup import (
     BASE_LAT,
     BASE_LON,
     CLOCK,
-    D2R,
     DEFAULT_RUNS,
     DOPPLER_SIGMA_M_S,
     GNSS_HZ,
@@ -89,6 +88,7 @@ from aidnav.sim.gnss_raw import (
 )
 from aidnav.sim.imu import corrupt_imu
 from aidnav.sim.trajectory import generate_truth
+from aidnav.units import DEG
 
 
 def approach_run(run_seed: int, truth, imu_true, with_figures_data: bool = False, grade: str = IMU_GRADE,
@@ -115,7 +115,7 @@ def approach_run(run_seed: int, truth, imu_true, with_figures_data: bool = False
         truth.lon[0] + dpos[0] / ((rn + truth.height[0]) * np.cos(truth.lat[0])),
         truth.height[0] + dpos[2],
         truth.vel[0] + r_init.normal(0, 0.3, 3),
-        truth.rph[0] + r_init.normal(0, 1, 3) * np.array([0.5, 0.5, 2]) * D2R,
+        truth.rph[0] + r_init.normal(0, 1, 3) * np.array([0.5, 0.5, 2]) * DEG,
     )
     res_a = run_tight(imu, sim.rover, eph, cfg, init_state=init)
     obs_b = limit_satellites(

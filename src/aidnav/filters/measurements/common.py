@@ -25,6 +25,8 @@ from collections import namedtuple
 
 from numba import njit
 
+from aidnav.nav.rotations import cross, skew  # noqa: F401  (re-exported: the models import them from here)
+
 Nav = namedtuple("Nav", ["st", "C", "w", "dt_back", "bias"])
 W_IB, W_FIX, W_IE, W_IN = 0, 1, 2, 3
 MAX_ROWS = 6  # rows of the largest model (velocity + attitude matching): the engine's work arrays

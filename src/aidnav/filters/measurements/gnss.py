@@ -10,10 +10,9 @@ import numpy as np
 from numba import njit
 
 from aidnav.nav.earth import gravity, gravity_dh, radii
-from aidnav.nav.rotations import cross, skew
 
 from ..layout import BG, DP, DV, L_GPE, L_LEVER, L_TOFF, L_VDEL, NAV, PHI
-from .common import W_FIX, W_IE, W_IN, diag_r, skew_into
+from .common import W_FIX, W_IE, W_IN, cross, diag_r, skew, skew_into
 
 W_FN = 4  # row of ``Nav.w`` holding the interval's mean specific force f^n [m/s²] (engine)
 

@@ -11,10 +11,9 @@ from numba import njit
 
 from aidnav.nav.earth import dcm_ecef_to_enu, lla_to_ecef
 from aidnav.nav.gnss_sat import geo_range, geo_range_rate
-from aidnav.nav.rotations import cross
 
 from ..layout import L_CLK, NAV
-from .common import W_FIX, W_IN
+from .common import W_FIX, W_IN, cross
 from .gnss import gnss_position, gnss_velocity
 
 # row of a satellite: r_s ECEF (3) [m], v_s ECEF (3) [m/s], ρ corrected for the satellite clock and the

@@ -9,10 +9,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from aidnav.nav.rotations import cross, dcm_from_rotvec, skew
+from aidnav.nav.rotations import dcm_from_rotvec
 
 from ..layout import BG, DV, L_MOUNT, L_ODO, NAV, PHI
-from .common import W_IB, W_IE
+from .common import W_IB, W_IE, cross, skew
 
 
 @njit(cache=True)

@@ -49,6 +49,7 @@ from aidnav.nav.gnss_sat import (  # noqa: F401  (satellite helpers re-exported 
     tropo_delay,
 )
 from aidnav.nav.gnss_sat import satellite_states as _satellites  # noqa: F401
+from aidnav.nav.rotations import wrap_2pi
 
 __all__ = [
     "elevation_sigma",
@@ -91,7 +92,7 @@ def range_az_el(enu):
     """Range [m], azimuth (clockwise from North, [0, 2π)) and elevation [rad] of ENU vector(s) (..., 3)."""
     d = np.asarray(enu, float)
     r = np.linalg.norm(d, axis=-1)
-    az = np.mod(np.arctan2(d[..., 0], d[..., 1]), 2 * np.pi)
+    az = wrap_2pi(np.arctan2(d[..., 0], d[..., 1]))
     el = np.arctan2(d[..., 2], np.hypot(d[..., 0], d[..., 1]))
     return r, az, el
 

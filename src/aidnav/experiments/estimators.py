@@ -263,23 +263,17 @@ def loose_errors(res, truth) -> EstimatorOutput:
     misalignment φ of :func:`aidnav.nav.rotations.attitude_error_batch`; the covariance is the filter's
     diagonal (δL, δλ converted to metres with the radii at the truth position).
     """
+    # analysis.errors imports pandas and scipy: loaded when a campaign scores, not with the registry
+    from aidnav.analysis.errors import ins_error_state, truth_index
     from aidnav.nav.earth import lla_difference_enu, radii
-    from aidnav.nav.rotations import attitude_error_batch, euler_to_quat_batch
 
     t = np.asarray(res.time, dtype=float)
-    tt = np.asarray(truth.time, dtype=float)
-    idx = np.clip(np.searchsorted(tt, t), 0, len(tt) - 1)
-    lo = np.clip(idx - 1, 0, len(tt) - 1)
-    idx = np.where(np.abs(tt[lo] - t) < np.abs(tt[idx] - t), lo, idx)
-    if np.any(np.abs(tt[idx] - t) > 1e-6):
-        raise ValueError("loose_errors: filter output epochs are not truth epochs")
+    idx = truth_index(truth.time, t)
+    e = ins_error_state(res, truth)  # φ, δv, δL, δλ, δh at the same truth samples
     st = res.state
     lat, lon, h = truth.lat[idx], truth.lon[idx], truth.height[idx]
     de, dn, du = lla_difference_enu(st[:, 0], st[:, 1], st[:, 2], lat, lon, h)
-    dv = st[:, 3:6] - truth.vel[idx]
-    q_true = euler_to_quat_batch(np.ascontiguousarray(truth.rph[idx]))
-    phi = attitude_error_batch(np.ascontiguousarray(st[:, 6:10]), q_true)
-    err = np.column_stack([de, dn, du, dv, phi])
+    err = np.column_stack([de, dn, du, e[:, 3:6], e[:, 0:3]])
     pd = np.maximum(res.pdiag, 0.0)
     rm, rn = radii(lat)
     var = np.column_stack([pd[:, 7] * ((rn + h) * np.cos(lat)) ** 2, pd[:, 6] * (rm + h) ** 2, pd[:, 8],

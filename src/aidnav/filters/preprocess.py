@@ -9,7 +9,7 @@ import numpy as np
 from aidnav.data import ImuData
 from aidnav.nav.alignment import coarse_align_static
 from aidnav.nav.earth import radii
-from aidnav.nav.rotations import euler_from_dcm
+from aidnav.nav.rotations import euler_from_dcm, wrap_2pi, wrap_pi
 from aidnav.units import DEG, DEG_H, G0, UG
 
 
@@ -33,7 +33,7 @@ def velocity_from_positions(gnss, window_s: float = 1.0, std_pos=None):
     T = t[j] - t[i]
     ok = T >= 0.5 * window_s - 1e-9  # one-sided at the ends of the log
     rm, rn = radii(gnss.lat)
-    dlon = (gnss.lon[j] - gnss.lon[i] + np.pi) % (2 * np.pi) - np.pi
+    dlon = wrap_pi(gnss.lon[j] - gnss.lon[i])
     d = np.column_stack([dlon * (rn + gnss.height) * np.cos(gnss.lat),
                          (gnss.lat[j] - gnss.lat[i]) * (rm + gnss.height), gnss.height[j] - gnss.height[i]])
     Ts = np.where(ok, T, np.nan)[:, None]
@@ -184,7 +184,7 @@ def course_alignment(gnss, cfg, t_start: float, vel=None, std=None):
     if len(idx) == 0:
         return None
     i = idx[0]
-    return float(gnss.time[i]), float(np.arctan2(ve[i], vn[i]) % (2 * np.pi)), int(i)
+    return float(gnss.time[i]), float(wrap_2pi(np.arctan2(ve[i], vn[i]))), int(i)
 
 
 def initial_state(imu, gnss, cfg, t_imu, g, use, events):
@@ -328,8 +328,8 @@ def _moving_start(imu, t_imu, k0, gsub, vel, svel, j0, cfg, events, ainfo):
     sg = float(np.hypot(svel[j0, 0], svel[j0, 1])) if np.all(np.isfinite(svel[j0, :2])) else np.inf
     heading_now = None
     if np.isfinite(sp) and _course_ok(sp, sg, cfg):
-        course = float(np.arctan2(vel[j0, 0], vel[j0, 1]) % (2 * np.pi))
-        h = (course + cfg.imu.mounting_rph_deg[2] * DEG) % (2 * np.pi)
+        course = float(wrap_2pi(np.arctan2(vel[j0, 0], vel[j0, 1])))
+        h = wrap_2pi(course + cfg.imu.mounting_rph_deg[2] * DEG)
         hs = float(np.hypot(cfg.init.course_heading_sigma_deg * DEG, np.arctan2(sg, sp)))
         heading_now = (h, hs)
     a_n = _gnss_acceleration(gsub, vel, j0)

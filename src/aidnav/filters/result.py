@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from aidnav.nav.earth import radii
+from aidnav.nav.rotations import dcm_from_euler, dcm_from_rotvec, euler_from_dcm, quat_to_euler_batch, wrap_pi
 from aidnav.units import DEG_H, PPM, UG
 
 from .layout import L_BARO, L_LEVER, L_MOUNT, L_NINS, L_ODO, L_TOFF, L_VDEL, NAV
@@ -98,8 +99,6 @@ def calibration_summary(result, base: dict | None = None) -> dict:
     caller adds an offset it applied to the stamps itself, e.g. ``aidnav process``'s
     ``imu.time_offset_s``, by passing ``{"time_offset_s": ...}``).
     """
-    from aidnav.nav.rotations import dcm_from_euler, dcm_from_rotvec, euler_from_dcm
-
     b = dict(getattr(result, "calibration_base", None) or {})
     b.update(base or {})
     lay = getattr(result, "layout", None)
@@ -142,7 +141,7 @@ def calibration_summary(result, base: dict | None = None) -> dict:
         for j in range(3):
             e = np.zeros(3)
             e[j] = 1e-6
-            J[:, j] = ((rph_of(v + e) - rph_of(v - e) + np.pi) % (2 * np.pi) - np.pi) / 2e-6
+            J[:, j] = wrap_pi(rph_of(v + e) - rph_of(v - e)) / 2e-6
         sd = np.sqrt(np.diag(J @ np.diag(np.asarray(s, float) ** 2) @ J.T))
         rph = np.degrees(rph)
         rph[2] %= 360.0
@@ -162,8 +161,6 @@ def calibration_summary(result, base: dict | None = None) -> dict:
 def to_trajectory(res: FilterResult):
     """FilterResult → :class:`aidnav.data.Trajectory` with σ columns and bias columns."""
     from aidnav.data import Trajectory
-    from aidnav.nav.rotations import quat_to_euler_batch
-
     s = res.state
     lat, h = s[:, 0], s[:, 2]
     rm, rn = radii(lat)

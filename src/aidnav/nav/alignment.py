@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from aidnav.nav.earth import OMEGA_IE, gravity
-from aidnav.nav.rotations import dcm_from_euler
+from aidnav.nav.rotations import dcm_from_euler, wrap_2pi
 from aidnav.units import DEG_H
 
 
@@ -94,7 +94,7 @@ def coarse_align_static(imu, lat, start=None, stop=None, *, height=0.0, gyro_bia
 
     c_level = dcm_from_euler(roll, pitch, 0.0)  # R1(pitch) R2(roll)
     w_l = c_level @ w
-    cand = float(np.arctan2(-w_l[0], w_l[1]) % (2.0 * np.pi))
+    cand = float(wrap_2pi(np.arctan2(-w_l[0], w_l[1])))
     omega_h = OMEGA_IE * np.cos(lat)
     omega_v = OMEGA_IE * np.sin(lat)
 
@@ -147,6 +147,6 @@ def heading_from_course(ve, vn, min_speed=1.0):
     """
     ve = np.asarray(ve, dtype=float)
     vn = np.asarray(vn, dtype=float)
-    h = np.arctan2(ve, vn) % (2.0 * np.pi)
+    h = wrap_2pi(np.arctan2(ve, vn))
     h = np.where(np.hypot(ve, vn) >= min_speed, h, np.nan)
     return float(h) if h.ndim == 0 else h

@@ -75,9 +75,7 @@ def euler_from_dcm(c):
     else:
         roll = np.arctan2(-c[2, 0], c[2, 2])
         heading = np.arctan2(c[0, 1], c[1, 1])
-    heading = heading % TWO_PI
-    if heading >= TWO_PI:
-        heading -= TWO_PI
+    heading = wrap_2pi(heading)
     if roll <= -np.pi:
         roll += TWO_PI
     return roll, pitch, heading
@@ -264,14 +262,32 @@ def attitude_error_batch(q_est, q_true):
     return out
 
 
+# ------------------------------------------------------------------------------- angle wrapping
+# numba functions for scalars and arrays alike (numpy arrays of any shape, floats), callable from kernels
+@njit(cache=True)
 def wrap_pi(a):
     """Wrap angle(s) [rad] to [-π, π)."""
-    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
+    return (a + np.pi) % TWO_PI - np.pi
 
 
+@njit(cache=True)
 def wrap_180(a):
     """Wrap angle(s) [deg] to [-180, 180)."""
-    return (np.asarray(a) + 180.0) % 360.0 - 180.0
+    return (a + 180.0) % 360.0 - 180.0
+
+
+@njit(cache=True)
+def wrap_2pi(a):
+    """Wrap angle(s) [rad] to [0, 2π) (headings, azimuths)."""
+    r = a % TWO_PI
+    return r - TWO_PI * (r >= TWO_PI)  # a tiny negative angle rounds to 2π
+
+
+@njit(cache=True)
+def wrap_360(a):
+    """Wrap angle(s) [deg] to [0, 360) (headings, azimuths)."""
+    r = a % 360.0
+    return r - 360.0 * (r >= 360.0)
 
 
 def euler_error_map(rph: np.ndarray) -> np.ndarray:

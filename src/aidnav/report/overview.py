@@ -29,6 +29,7 @@ from matplotlib.figure import Figure
 from aidnav.analysis.consistency import chi2_band
 from aidnav.data import GnssData, Trajectory
 from aidnav.nav.earth import lla_to_enu
+from aidnav.nav.rotations import wrap_360
 
 __all__ = ["write_overview", "overview_figure", "nis_series", "tight_records", "NIS_NAMES"]
 
@@ -192,7 +193,7 @@ def overview_figure(traj: Trajectory, gnss: GnssData | None = None, summary: dic
     ax.set_ylabel("roll, pitch [deg]")
     ax.legend(loc="upper right", fontsize=8)
     ax = axes["heading"]
-    ax.plot(t, np.mod(np.degrees(traj.rph[sl, 2]), 360.0), ".", ms=1, color="C2")
+    ax.plot(t, wrap_360(np.degrees(traj.rph[sl, 2])), ".", ms=1, color="C2")
     ax.set_ylabel("heading [deg]")
     ax.set_ylim(0, 360)
     ax.set_yticks([0, 90, 180, 270, 360])

@@ -40,6 +40,7 @@ import numpy as np
 
 from aidnav.data import Trajectory
 from aidnav.nav.geo_pointing import R_GEO, R_GEO_SEED000, az_el_from_body, geo_sat_ecef
+from aidnav.nav.rotations import wrap_2pi
 from aidnav.sim.gnss import time_windows
 from aidnav.units import DEG
 
@@ -234,7 +235,7 @@ def simulate_sapv(truth: Trajectory, spec: SapvSpec, rng: np.random.Generator,
             b = a * b + sb * np.sqrt(1.0 - a * a) * gm[j]
             bias[j] = b
     sig = spec.sigma_deg * DEG
-    az = np.mod(az_t + bias[:, 0] + sig[0] * white[:, 0], 2.0 * np.pi)
+    az = wrap_2pi(az_t + bias[:, 0] + sig[0] * white[:, 0])
     az[az >= 2.0 * np.pi] = 0.0  # np.mod of a tiny negative angle rounds to 2π: keep az in [0, 2π)
     el = el_t + bias[:, 1] + sig[1] * white[:, 1]
     # losses

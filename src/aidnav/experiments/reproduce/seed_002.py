@@ -61,6 +61,7 @@ from aidnav.nav.rotations import (
     euler_from_dcm,
     quat_from_dcm,
     rotvec_from_dcm,
+    wrap_2pi,
     wrap_pi,
 )
 from aidnav.nav.strapdown import make_state
@@ -140,7 +141,7 @@ def seed_flight(rate_hz: float = 100.0, fix_period: float = 5.0, n_fixes: int = 
     y0 = np.array([lat0, lon0, h0, v, -45.0 * DEG, 0.0])
     tr, dth, dvv = generate(tb, half, vals, y0, 0.0, dt, n)
     time = np.arange(n + 1) * dt
-    rph = np.column_stack([tr[:, 7], tr[:, 8], np.mod(tr[:, 9], 2 * np.pi)])
+    rph = np.column_stack([tr[:, 7], tr[:, 8], wrap_2pi(tr[:, 9])])
     imu = ImuData(time=time[1:].copy(), dtheta=dth, dv=dvv, t0=0.0)
     rm, _ = radii(lat0)
     base = (lat0 + 30000.0 / (rm + 0.0), lon0, 0.0)

@@ -107,18 +107,20 @@ def quat_normalize(q):
     return q / n
 
 
+@njit(cache=True, inline="always")
+def _half_angle(a2):
+    """cos(a/2) and sin(a/2)/a of the angle a = √a2 [rad]; 4th-order series for a² < 1e-8 (exact to
+    float64 there, and no loss of relative precision as a → 0)."""
+    if a2 < 1e-8:
+        return 1.0 - a2 / 8.0 + a2 * a2 / 384.0, 0.5 - a2 / 48.0 + a2 * a2 / 3840.0
+    a = np.sqrt(a2)
+    return np.cos(0.5 * a), np.sin(0.5 * a) / a
+
+
 @njit(cache=True)
 def quat_from_rotvec(r):
     """Quaternion of the rotation vector ``r`` [rad]; series for |r| small (exact to float64)."""
-    a2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2]
-    if a2 < 1e-8:
-        # cos(a/2), sin(a/2)/a to 4th order
-        c = 1.0 - a2 / 8.0 + a2 * a2 / 384.0
-        s = 0.5 - a2 / 48.0 + a2 * a2 / 3840.0
-    else:
-        a = np.sqrt(a2)
-        c = np.cos(0.5 * a)
-        s = np.sin(0.5 * a) / a
+    c, s = _half_angle(r[0] * r[0] + r[1] * r[1] + r[2] * r[2])
     return np.array([c, s * r[0], s * r[1], s * r[2]])
 
 
@@ -186,8 +188,10 @@ def quat_from_dcm(c):
 
 @njit(cache=True)
 def dcm_from_rotvec(r):
-    """DCM of a rotation vector (Rodrigues' formula, through the quaternion and its small-angle series)."""
-    return dcm_from_quat(quat_from_rotvec(r))
+    """DCM of a rotation vector (Rodrigues: I + sin a/a [r×] + (1 − cos a)/a² [r×]², by half angles)."""
+    ch, sh = _half_angle(r[0] * r[0] + r[1] * r[1] + r[2] * r[2])
+    k = skew(r)
+    return np.eye(3) + (2.0 * ch * sh) * k + (2.0 * sh * sh) * (k @ k)
 
 
 @njit(cache=True)

@@ -43,6 +43,7 @@ from aidnav.nav.earth import dcm_ecef_to_enu, ecef_to_lla
 from aidnav.nav.gnss_sat import (  # noqa: F401  (satellite helpers re-exported for existing callers)
     C_LIGHT,
     az_el,
+    dop,
     elevation_sigma,
     geo_range,
     satellites_from_pseudoranges,
@@ -191,7 +192,6 @@ def relative_position(
                 corr = tropo_delay(lat_k, h_k, el_k, humidity) - tb[j]
             v[j] = dp[j] - (rk - rho_b[j] + x[3] + corr)
     r, az, el = range_az_el(x[:3])
-    from aidnav.nav.gnss_sat import dop
 
     d = dop(-np.asarray([H[j, :3] for j in np.flatnonzero(use)])) if ok else dop(np.zeros((0, 3)))
     return RelativeSolution(

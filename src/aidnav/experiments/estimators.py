@@ -41,6 +41,11 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from aidnav.filters.loose import run_loose
+from aidnav.filters.tuning import loose_config_from_specs, perturbed_initial_state
+from aidnav.nav.earth import lla_difference_enu, radii
+from aidnav.sim.gnss import GnssSpec
+from aidnav.sim.imu import ImuSpec
 from aidnav.units import DEG
 
 __all__ = [
@@ -211,9 +216,6 @@ class LooseEstimatorConfig(BaseModel):
 
 
 def _specs(scenario):
-    from aidnav.sim.gnss import GnssSpec
-    from aidnav.sim.imu import ImuSpec
-
     return ImuSpec.from_config(scenario.sensors.imu), GnssSpec.from_config(scenario.sensors.gnss)
 
 
@@ -223,8 +225,6 @@ def loose_filter_config(cfg: LooseEstimatorConfig, imu_spec, gnss_spec, imu_rate
     init : (lla_deg_m, vel ENU [m/s], rph_deg) of the filter's initial state, or None (validation only).
     Raises pydantic ValidationError (locations in LooseConfig) for bad ``config`` overrides.
     """
-    from aidnav.filters.tuning import loose_config_from_specs
-
     over = {k: dict(v) for k, v in cfg.config.items()}
     rate = cfg.output_rate_hz if cfg.output_rate_hz is not None else gnss_spec.rate_hz
     filt = {"output_rate_hz": min(float(rate), float(imu_rate_hz)), **over.pop("filter", {})}
@@ -265,7 +265,6 @@ def loose_errors(res, truth) -> EstimatorOutput:
     """
     # analysis.errors imports pandas and scipy: loaded when a campaign scores, not with the registry
     from aidnav.analysis.errors import ins_error_state, truth_index
-    from aidnav.nav.earth import lla_difference_enu, radii
 
     t = np.asarray(res.time, dtype=float)
     idx = truth_index(truth.time, t)
@@ -293,9 +292,6 @@ def loose_estimator(sim, cfg: LooseEstimatorConfig, rng: np.random.Generator) ->
 
     ``rng`` draws the initial-state error (:func:`aidnav.filters.tuning.perturbed_initial_state`).
     """
-    from aidnav.filters.loose import run_loose
-    from aidnav.filters.tuning import perturbed_initial_state
-
     imu_spec, gnss_spec = _specs(sim.scenario)
     init = perturbed_initial_state(sim.truth, rng, cfg.init_position_sigma_m, cfg.init_velocity_sigma_m_s,
                                    cfg.init_attitude_sigma_deg)

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from aidnav.nav.earth import radii
 from aidnav.nav.rotations import quat_to_euler_batch
 from aidnav.units import DEG, DEG_H, UG
 
@@ -71,8 +72,6 @@ def imu_noise_psd(arw_deg_sqrt_h, vrw_m_s_sqrt_h, gyro_bias_instability_deg_h, a
 def initial_covariance_15(att_sigma_rad, vel_sigma_m_s, pos_sigma_m, gyro_bias_deg_h, accel_bias_ug, lat, h):
     """Diagonal P0 (15×15): attitude [rad] (3 or scalar), velocity [m/s], position [m] (E, N, U →
     δL, δλ, δh), gyro bias [deg/h], accelerometer bias [µg]."""
-    from aidnav.nav.earth import radii
-
     rm, rn = radii(lat)
     ps = np.broadcast_to(np.asarray(pos_sigma_m, float), (3,))
     d = np.zeros(15)

@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from aidnav.data import Trajectory
 from aidnav.nav.earth import radii
 from aidnav.nav.rotations import dcm_from_euler, dcm_from_rotvec, euler_from_dcm, quat_to_euler_batch, wrap_pi
 from aidnav.units import DEG_H, PPM, UG
@@ -62,7 +63,7 @@ class FilterResult:
     def to_dataframe(self):
         """pandas DataFrame: time, navigation state, sensor/calibration estimates and 1σ of every error
         state (``sigma_<name>``, in the state's unit: rad, m/s, rad/rad/m for δL δλ δh, …)."""
-        import pandas as pd
+        import pandas as pd  # lazy: pandas is heavy to import
 
         s = self.state
         cols = {"time_s": self.time, "lat_rad": s[:, 0], "lon_rad": s[:, 1], "height_m": s[:, 2],
@@ -160,7 +161,6 @@ def calibration_summary(result, base: dict | None = None) -> dict:
 
 def to_trajectory(res: FilterResult):
     """FilterResult → :class:`aidnav.data.Trajectory` with σ columns and bias columns."""
-    from aidnav.data import Trajectory
     s = res.state
     lat, h = s[:, 0], s[:, 2]
     rm, rn = radii(lat)

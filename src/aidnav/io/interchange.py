@@ -47,6 +47,7 @@ from aidnav.io._table import (  # noqa: F401  (TEXT_COLUMNS, read_table: part of
 )
 from aidnav.io.errors import DataError
 from aidnav.io.gpstime import SECONDS_PER_WEEK, week_sow_to_utc_iso
+from aidnav.io.kfgins import write_nav
 from aidnav.nav.earth import radii
 from aidnav.nav.rotations import wrap_2pi, wrap_360
 
@@ -329,8 +330,6 @@ def write_trajectory(traj: Trajectory, path, week: int | None = None) -> Path:
     (.csv or .parquet); columns as :func:`trajectory_columns` (``week``: add ``gps_week`` and ``utc``).
     A ``.nav`` path writes KF-GINS navigation text instead (:func:`aidnav.io.kfgins.write_nav`)."""
     if str(path).lower().endswith(".nav"):
-        from aidnav.io.kfgins import write_nav
-
         return write_nav(traj, path, week=week)
     week = traj.week if week is None else week
     df = trajectory_columns(traj, week=week)

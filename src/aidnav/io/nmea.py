@@ -57,7 +57,7 @@ def read_nmea(path, date: str | _dt.date | None = None, min_pos_std_m: float = Z
 
     date : UTC date of the first epoch ('YYYY-MM-DD' or a date) for logs without RMC sentences.
     """
-    import pynmea2
+    import pynmea2  # lazy: pynmea2 is heavy to import
 
     path = Path(path)
     name = path.name

@@ -31,6 +31,8 @@ from aidnav.data import GnssData, Trajectory
 from aidnav.nav.earth import lla_to_enu
 from aidnav.nav.rotations import wrap_360
 
+from .maps import _fix_groups
+
 __all__ = ["write_overview", "overview_figure", "nis_series", "tight_records", "NIS_NAMES"]
 
 #: Panel names of the usual measurement types.
@@ -100,7 +102,6 @@ def _rejected_mask(gnss: GnssData, summary: dict, records: dict | None) -> np.nd
     st = None if records is None else records.get("pos_status")
     if st is not None and len(st) == len(gnss):
         return np.asarray(st) == 0
-    from .maps import _fix_groups
 
     return _fix_groups(gnss, summary.get("rejected_fix_times"), None)[0]
 

@@ -23,6 +23,7 @@ import numpy as np
 from aidnav.filters.result import SENSOR_ERROR_UNITS
 
 from .html import escape, fmt, img_file_tag, kv_table, page, table
+from .maps import write_maps
 
 __all__ = ["write_run_page", "run_page_html", "write_run_outputs", "calibration_estimates"]
 
@@ -261,8 +262,7 @@ def write_run_outputs(out_dir, traj, gnss=None, summary: dict | None = None, rec
     (:func:`aidnav.report.maps.write_maps`, when ``maps``) and ``run.html`` embedding the overview
     and the further ``figures``. progress : optional :class:`aidnav.progress.ProgressBar` (one stage
     "figures and maps", 3 steps). Returns {"overview", "run_page", "kml", "geojson"} → paths."""
-    from .maps import write_maps
-    from .overview import write_overview
+    from .overview import write_overview  # lazy: pulls in matplotlib, scipy
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

@@ -519,7 +519,7 @@ def simulate_distributed_pos(scn_or_truth, cfg: DistributedPosConfig | None = No
     if isinstance(scn_or_truth, tuple):
         truth, imu, segments = scn_or_truth
     else:
-        from aidnav.sim.trajectory import generate_truth
+        from aidnav.sim.trajectory import generate_truth  # lazy: pulls in pydantic, yaml
 
         truth, imu, segments = generate_truth(scn_or_truth)
     s_flex, s_imu, s_master = run_streams(seed)

@@ -49,6 +49,9 @@ __all__ = ["SapvSpec", "SapvData", "simulate_sapv", "OK", "BLOCKED", "LOW_ELEVAT
 
 
 from aidnav.models.sapv import BLOCKED, BODY_RATE, LOW_ELEVATION, OK, REACQUIRING, REASONS  # noqa: E402, F401
+from aidnav.nav.geo_pointing import los_enu
+from aidnav.nav.rotations import euler_to_quat_batch
+from aidnav.sim.gnss import interpolate_truth
 
 
 def _pair(x, name: str) -> np.ndarray:
@@ -170,8 +173,6 @@ def _body_rate(truth: Trajectory, times: np.ndarray) -> np.ndarray:
     """|ω_nb^b| [rad/s] at ``times`` from finite differences of the truth attitude: the rotation angle of
     q_k* ⊗ q_{k+1} over each interval; the larger of the two intervals around each time (a loss is not
     hidden by interpolation)."""
-    from aidnav.nav.rotations import euler_to_quat_batch
-
     t = np.asarray(truth.time, float)
     q = euler_to_quat_batch(np.ascontiguousarray(np.asarray(truth.rph, float)))
     p, r = q[:-1], q[1:]
@@ -201,8 +202,6 @@ def simulate_sapv(truth: Trajectory, spec: SapvSpec, rng: np.random.Generator,
     -------
     :class:`SapvData` (model in the module docstring).
     """
-    from aidnav.sim.gnss import interpolate_truth
-
     t = np.asarray(truth.time, dtype=float)
     t_start, t_end = t[0], t[-1]
     if times is None:
@@ -215,7 +214,6 @@ def simulate_sapv(truth: Trajectory, spec: SapvSpec, rng: np.random.Generator,
     gm = rng.standard_normal((m, 2))
     sat = spec.sat_ecef
     _, _, lat, lon, h, _, c_bn, _ = interpolate_truth(truth, np.minimum(times, t_end))
-    from aidnav.nav.geo_pointing import los_enu
 
     az_t = np.empty(m)
     el_t = np.empty(m)

@@ -330,7 +330,7 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
     """Rebuild seed 001's experiments into ``out_dir``: figures, ``summary.json``, ``report.html``.
     ``runs``: approach Monte Carlo runs (None: 20); ``sens_runs``: runs per sensitivity case (None:
     min(runs, 10)). Returns the summary dict."""
-    from scipy.stats import chi2
+    from scipy.stats import chi2  # lazy: scipy is heavy to import
 
     study = Study(SEED, TITLE, out_dir, DEFAULT_RUNS if runs is None else runs, base_seed, console)
     runs = study.runs

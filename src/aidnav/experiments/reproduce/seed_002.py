@@ -53,6 +53,7 @@ from aidnav.estimators.polarization import (
     resolve_line_of_sight,
 )
 from aidnav.experiments.reproduce._study import Study, main, mean_se
+from aidnav.experiments.reproduce.summary import summary_row, summary_table
 from aidnav.filters.attitude_aiding import fuse_attitude_fixes, imu_noise_psd, initial_covariance_15
 from aidnav.nav.earth import radii
 from aidnav.nav.rotations import (
@@ -65,7 +66,7 @@ from aidnav.nav.rotations import (
     wrap_pi,
 )
 from aidnav.nav.strapdown import make_state
-from aidnav.nav.wave_frame import P_SEED, base_wave_dcm
+from aidnav.nav.wave_frame import P_SEED, base_wave_dcm, wave_dcm
 from aidnav.sim.dipole_triad import (
     base_geometry,
     sample_covariance,
@@ -219,8 +220,6 @@ def sweep(rng: np.random.Generator, runs: int, snr_db_list=(SNR_DB,), n_list=(N_
     """Std of the wave-frame rotation errors δ (about u, ṽ1, ṽ2) of closed form and ML vs the CVAE CRB over
     the Cartesian product of SNR [dB], N and η [rad] at one DOA/tilt ``wave`` [rad]. One dict per point:
     snr_db, n, eta_deg, crb (3,), std_cf (3,), std_ml (3,) [rad] (RMS about the truth), bias_ml (3,)."""
-    from aidnav.nav.wave_frame import wave_dcm
-
     C0 = wave_dcm(*wave)
     rows = []
     for s in snr_db_list:
@@ -422,8 +421,6 @@ def run(out_dir, runs: int | None = 60, base_seed: int = 1, console=None, sweep_
     random stream; sweep_runs : per sweep point (default max(200, runs)); fusion_runs : INS-fusion runs
     (default min(runs, 10)). Returns the summary dict.
     """
-    from aidnav.experiments.reproduce.summary import summary_row, summary_table
-
     study = Study(SEED, TITLE, out_dir, 60 if runs is None else runs, base_seed, console)
     runs, out = study.runs, study.out
     sweep_runs = max(200, runs) if sweep_runs is None else int(sweep_runs)

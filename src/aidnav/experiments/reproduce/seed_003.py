@@ -44,6 +44,7 @@ Run: ``python -m aidnav.experiments.reproduce.seed_003 OUT [--runs N]`` or ``aid
 
 from __future__ import annotations
 
+import json
 import sys
 from pathlib import Path
 
@@ -66,6 +67,7 @@ from aidnav.estimators.satcom import (
     signal_loss_db,
 )
 from aidnav.experiments.reproduce._study import Study, main
+from aidnav.experiments.reproduce.summary import summary_row, summary_table
 from aidnav.nav.rotations import attitude_error_batch, euler_to_quat_batch, quat_from_euler
 from aidnav.units import DEG
 
@@ -111,7 +113,7 @@ VARIANTS = ("free INS", "8-state direct", "8-state dual", "15-state direct", "15
 
 def route_scenario(route: str = "full"):
     """The driving scenario (:class:`aidnav.sim.scenario.Scenario`): ``"full"`` (~610 s) or ``"short"``."""
-    from aidnav.sim.scenario import Scenario
+    from aidnav.sim.scenario import Scenario  # lazy: pulls in pydantic, yaml
 
     segs = ROUTE if route == "full" else SHORT_ROUTE
     return Scenario.model_validate(dict(
@@ -132,7 +134,7 @@ def nav8_config() -> Nav8Config:
 
 def loose_config():
     """The 15-state loosely coupled filter with the same IMU model."""
-    from aidnav.filters.config import LooseConfig
+    from aidnav.filters.config import LooseConfig  # lazy: pulls in pydantic
 
     return LooseConfig.model_validate(dict(
         imu=dict(arw_deg_sqrt_h=0.3, vrw_m_s_sqrt_h=0.1, gyro_bias_sigma_deg_h=6.0,
@@ -162,7 +164,7 @@ def _excess_step(cmd, ideal):
 
 def run_once(seed: int, init_rng: np.random.Generator, route: str = "full", keep: bool = False) -> dict:
     """One realisation: simulate, navigate (free INS, 8-state, 15-state), point (direct, dual), score."""
-    from aidnav.sim.run import simulate
+    from aidnav.sim.run import simulate  # lazy: pulls in pydantic, yaml
 
     scn = route_scenario(route)
     sim = simulate(scn, seed=seed)
@@ -339,8 +341,6 @@ def run(out_dir, runs: int | None = DEFAULT_RUNS, base_seed: int = 1, console=No
     runs : Monte Carlo realisations of the driving run (None: ``DEFAULT_RUNS``); base_seed : seeds the
     realisations; route : "full" (~610 s) or "short" (145 s, for quick checks). Returns the summary dict.
     """
-    from aidnav.experiments.reproduce.summary import summary_row, summary_table
-
     if route not in ("full", "short"):
         raise ValueError("route must be 'full' or 'short'")
     study = Study(SEED, TITLE, out_dir, DEFAULT_RUNS if runs is None else runs, base_seed, console)
@@ -541,7 +541,6 @@ def run(out_dir, runs: int | None = DEFAULT_RUNS, base_seed: int = 1, console=No
         "correction by at most T_f, or |d|/w_max); what changes is the servo load: bounded command steps "
         "instead of jumps of the size of the correction.",
     ]
-    import json
 
     (out / "runs.json").write_text(json.dumps(results, indent=1))
     return study.finish(tables, notes)

@@ -165,11 +165,13 @@ def _sniff_container(path, kinds: dict) -> tuple[Path, _Sniff, str | None]:
     return path, s, "interchange" if s.parquet() else None
 
 
-def detect_imu_format(path) -> str:
+def detect_imu_format(path, need_time_tag: bool = True) -> str:
     """The IMU format of ``path`` (a key of :data:`IMU_FORMATS`), from its content.
 
     Raises DataError "unknown format: expected one of …" (naming what was seen) when none matches, and
-    a specific message for a raw rtklibexplorer log whose ``.tag`` file is missing."""
+    a specific message for a raw rtklibexplorer log whose ``.tag`` file is missing (with
+    ``need_time_tag`` False such a log is "rtklibexplorer": for jobs that use only the sample intervals,
+    e.g. the noise characterisation)."""
     path, s, fmt = _sniff_container(path, IMU_FORMATS)
     if fmt:
         return fmt
@@ -191,6 +193,8 @@ def detect_imu_format(path) -> str:
             raise DataError(path, None, "looks like a KF-GINS GNSS file (t lat lon h σN σE σD), not IMU "
                                         "increments: check the file given for the IMU")
         if k == 7 and "," in s.first and _increasing(rows[:, 6]):
+            if not need_time_tag:
+                return "rtklibexplorer"
             raise DataError(path, None, "looks like a raw rtklibexplorer IMU log (7 comma-separated fields, "
                                         f"ms stamp last) but its time tag {tag.name} is missing: it is "
                                         "needed to map the IMU stamps to GPS time")

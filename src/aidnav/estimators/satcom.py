@@ -77,6 +77,7 @@ from aidnav.nav.rotations import (
     quat_mult,
     quat_normalize,
     rotvec_from_quat,
+    wrap_pi,
 )
 from aidnav.nav.strapdown import strapdown_step
 
@@ -311,7 +312,8 @@ def quat_angles_between(p, q):
 
 @njit(cache=True)
 def _wrap_pi(a):
-    r = (a + np.pi) % (2.0 * np.pi) - np.pi
+    """:func:`wrap_pi` onto (-π, π]."""
+    r = wrap_pi(a)
     if r == -np.pi:
         r = np.pi
     return r

@@ -19,7 +19,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from aidnav.nav.earth import radii
 from aidnav.nav.rotations import quat_to_euler_batch
+from aidnav.units import DEG, DEG_H, UG
 
 from . import measurements as ms
 from .engine import Imu, Init, Models, Output, Process, Records, rts, run_filter, smooth_outputs
@@ -27,9 +29,6 @@ from .layout import make_layout
 
 __all__ = ["AttitudeFusionResult", "fuse_attitude_fixes", "imu_noise_psd", "initial_covariance_15"]
 
-DEG = np.pi / 180.0
-DEG_H = DEG / 3600.0
-UG = 9.80665e-6
 
 
 @dataclass
@@ -73,8 +72,6 @@ def imu_noise_psd(arw_deg_sqrt_h, vrw_m_s_sqrt_h, gyro_bias_instability_deg_h, a
 def initial_covariance_15(att_sigma_rad, vel_sigma_m_s, pos_sigma_m, gyro_bias_deg_h, accel_bias_ug, lat, h):
     """Diagonal P0 (15×15): attitude [rad] (3 or scalar), velocity [m/s], position [m] (E, N, U →
     δL, δλ, δh), gyro bias [deg/h], accelerometer bias [µg]."""
-    from aidnav.nav.earth import radii
-
     rm, rn = radii(lat)
     ps = np.broadcast_to(np.asarray(pos_sigma_m, float), (3,))
     d = np.zeros(15)

@@ -283,7 +283,7 @@ def _write(cols: dict, path, comments: list[str], meta: dict) -> Path:
     kind = _kind(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     if kind == "csv":
-        import pandas as pd
+        import pandas as pd  # lazy: pandas is heavy to import
 
         with open(path, "w", encoding="utf-8", newline="") as f:
             for c in comments:

@@ -81,6 +81,7 @@ from aidnav.experiments.reproduce.seed_000_setup import (
     velocity_errors,
 )
 from aidnav.filters.federated import run_federated
+from aidnav.units import M_S_SQRT_H, UG_SQRT_HZ
 
 #: the setting and helpers of seed_000_setup, re-exported (tests and other modules use them from here)
 __all__ = [
@@ -272,7 +273,7 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
         ("gyro random drift (white, per √Hz)", "deg/h", 0.01, u["arw_deg_sqrt_h"][0] * 60.0),
         ("accelerometer bias (1σ, drawn per run)", "ug", 500.0, u["accel_bias_ug"][0]),
         ("accelerometer random (white, per √Hz)", "ug", 100.0,
-         u["vrw_m_s_sqrt_h"][0] / 60.0 / 9.80665e-6),
+         u["vrw_m_s_sqrt_h"][0] * M_S_SQRT_H / UG_SQRT_HZ),
         ("GPS position σ", "m", 10.0, GPS_SIGMA_POS_M),
         ("GPS velocity σ", "m/s", 0.5, GPS_SIGMA_VEL_M_S),
         ("GPS output rate", "Hz", 1.0, GPS_RATE_HZ),

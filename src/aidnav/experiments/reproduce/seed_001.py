@@ -54,7 +54,6 @@ from aidnav.experiments.reproduce.seed_001_setup import (
     BASE_LAT,
     BASE_LON,
     CLOCK,
-    D2R,
     DEFAULT_RUNS,
     DOPPLER_SIGMA_M_S,
     DR_RUNS_FACTOR,
@@ -90,6 +89,7 @@ from aidnav.sim.gnss_raw import (
 )
 from aidnav.sim.imu import corrupt_imu
 from aidnav.sim.trajectory import generate_truth
+from aidnav.units import DEG
 
 
 def approach_run(run_seed: int, truth, imu_true, with_figures_data: bool = False, grade: str = IMU_GRADE,
@@ -116,7 +116,7 @@ def approach_run(run_seed: int, truth, imu_true, with_figures_data: bool = False
         truth.lon[0] + dpos[0] / ((rn + truth.height[0]) * np.cos(truth.lat[0])),
         truth.height[0] + dpos[2],
         truth.vel[0] + r_init.normal(0, 0.3, 3),
-        truth.rph[0] + r_init.normal(0, 1, 3) * np.array([0.5, 0.5, 2]) * D2R,
+        truth.rph[0] + r_init.normal(0, 1, 3) * np.array([0.5, 0.5, 2]) * DEG,
     )
     res_a = run_tight(imu, sim.rover, eph, cfg, init_state=init)
     obs_b = limit_satellites(
@@ -336,7 +336,7 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
     """Rebuild seed 001's experiments into ``out_dir``: figures, ``summary.json``, ``report.html``.
     ``runs``: approach Monte Carlo runs (None: 20); ``sens_runs``: runs per sensitivity case (None:
     min(runs, 10)). Returns the summary dict."""
-    from scipy.stats import chi2
+    from scipy.stats import chi2  # lazy: scipy is heavy to import
 
     study = Study(SEED, TITLE, out_dir, DEFAULT_RUNS if runs is None else runs, base_seed, console)
     runs = study.runs

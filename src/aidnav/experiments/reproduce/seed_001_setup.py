@@ -14,13 +14,13 @@ from aidnav.sim.gnss_constellation import nominal_constellation
 from aidnav.sim.gnss_raw import static_pseudoranges
 from aidnav.sim.imu import ImuSpec
 from aidnav.sim.scenario import parse_scenario
+from aidnav.units import DEG
 
 SEED = "001"
 TITLE = "Key technologies of approach and landing based on tightly integrated DGPS/SINS (Pang et al., 2013)"
-D2R = np.pi / 180.0
 WEEK, SOW0 = 2381, 400000.0
-BASE_LAT, BASE_LON, BASE_H = 34.2 * D2R, 108.9 * D2R, 400.0
-GLIDE = 3.0 * D2R
+BASE_LAT, BASE_LON, BASE_H = 34.2 * DEG, 108.9 * DEG, 400.0
+GLIDE = 3.0 * DEG
 SPEED = 70.0
 PRE_S, APP_S, OUT_S = 120.0, 92.0, 20.0
 START_KM = 25.0

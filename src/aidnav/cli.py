@@ -516,11 +516,12 @@ def _leave(status: int):
     CPU that nothing needs. The atexit handlers run and stdout/stderr are flushed as at a normal exit;
     files are closed by the code that wrote them (every writer uses ``with``). A normal exit is taken
     when another thread is still running (a normal exit would wait for it) or when flushing fails (a
-    closed pipe: Python's own handling)."""
+    closed pipe: Python's own handling) or under a profiler, tracer or debugger (they write their
+    results after the program returns)."""
     import atexit
     import threading
 
-    if threading.active_count() > 1:
+    if threading.active_count() > 1 or sys.getprofile() is not None or sys.gettrace() is not None:
         sys.exit(status)
     atexit._run_exitfuncs()
     try:

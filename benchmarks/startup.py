@@ -38,17 +38,12 @@ ROOT = Path(__file__).resolve().parents[1]
 DATA = Path(os.environ.get("AIDNAV_DATA", ROOT.parent / "shared" / "data"))
 TARGETS = {"help_wall_s": 0.15, "process_wall_s": 0.6}
 
-SCENARIO = """name: startup-60s
-seed: 29
-initial: {lat_deg: 30.44, lon_deg: 114.47, height_m: 20, speed_m_s: 7, heading_deg: 66}
-segments:
-  - {type: straight, duration_s: 20}
-  - {type: turn, angle_deg: 90, duration_s: 20}
-  - {type: straight, duration_s: 20}
-sensors:
-  imu: {grade: tactical}
-  gnss: {rate_hz: 1, sigma_pos_m: [0.5, 0.5, 0.5]}
-"""
+# 60 s of car-like motion at W1's start (used when the data folder is absent)
+SCENARIO = ("name: startup-60s\nseed: 29\n"
+            "initial: {lat_deg: 30.44, lon_deg: 114.47, height_m: 20, speed_m_s: 7, heading_deg: 66}\n"
+            "segments: [{type: turn, angle_deg: 45, duration_s: 15}, {type: straight, duration_s: 30},\n"
+            "           {type: turn, angle_deg: -45, duration_s: 15}]\n"
+            "sensors: {imu: {grade: tactical}, gnss: {rate_hz: 1, sigma_pos_m: [0.5, 0.5, 0.5]}}\n")
 
 
 def make_log(tmp: Path) -> tuple[list[str], str]:

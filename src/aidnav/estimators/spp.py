@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
+from aidnav.filters.chi2 import chi2_isf
 from aidnav.nav.earth import dcm_ecef_to_enu, ecef_to_lla, lla_to_ecef
 from aidnav.nav.gnss_sat import (
     az_el,
@@ -188,8 +189,6 @@ def spp(
     standard atmosphere; mask_deg elevation mask; p_fa false-alarm probability of the residual test;
     exclude (S,) bool of satellites not to use. Method in the module docstring.
     """
-    from scipy.special import chdtri  # lazy: scipy is heavy to import
-
     sat_pos = np.ascontiguousarray(sat_pos, float).reshape(-1, 3)
     s = len(sat_pos)
     prns = np.arange(s) if prns is None else np.asarray(prns)
@@ -232,7 +231,7 @@ def spp(
             break
         w = np.where(used, 1.0 / sig**2, 0.0)
         T = float(np.nansum(w * np.where(used, v, 0.0) ** 2))
-        thr = float(chdtri(dof, p_fa))
+        thr = float(chi2_isf(dof, p_fa))
         if T <= thr:
             status = "ok" if not excluded else "excluded"
             break

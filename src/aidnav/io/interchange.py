@@ -77,7 +77,7 @@ def read_imu(path) -> ImuData:
     ``t0`` (start of the first interval) comes from a ``# t0_s = ...`` comment / Parquet metadata when
     present, otherwise t_0 − (t_1 − t_0). Returns :class:`aidnav.data.ImuData` (time [s]).
     """
-    t = _open(path)
+    t = _open(path, copy=False)  # the columns may be read-only views: copied below, once
     t.require(["time"], "time")
     has_inc = t.has_all(IMU_INCREMENT_COLUMNS, "IMU increment")
     has_rate = t.has_all(IMU_RATE_COLUMNS, "IMU rate")
@@ -90,6 +90,8 @@ def read_imu(path) -> ImuData:
     t.finite(["time", *used])
     t.increasing_time()
     time = t.cols["time"]
+    if not time.flags.writeable:  # a view of the file's buffer
+        time = time.copy()
     events = []
     # the gyro and accelerometer triads as two contiguous (N, 3) arrays (no (N, 6) copy)
     if has_inc:

@@ -14,7 +14,8 @@ The modules, in the order of the data:
 - :mod:`aidnav.analysis.allan` — the overlapping Allan deviation (one fused numba pass per axis);
 - :mod:`.model` — the four-term noise model and the unit constants;
 - :mod:`.allan_cov` — exact covariance of the Allan variance estimates (EDFs and correlations);
-- :mod:`.nnls` — numba kernels of the fit; :mod:`.fit` — the fit with its profile-likelihood intervals;
+- :mod:`.nnls` — numba kernels of the fit; :mod:`.fit` — the fit with its profile-likelihood intervals
+  (:mod:`.roots`: its bracketing root finder);
 - :mod:`.vibration` — sample spread and dominant frequency per axis;
 - :mod:`.analyse` — :func:`characterise_rates` / :func:`characterise_imu`, the whole analysis;
 - :mod:`.results` — the result containers; :mod:`.output` — noise.json, the ``imu:`` section, its YAML;

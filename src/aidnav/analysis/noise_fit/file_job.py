@@ -57,9 +57,7 @@ def _warm_up() -> None:
     """Import the analysis libraries and load the compiled kernels (numba's first call costs a few tenths
     of a second): run in a thread while the log is read, so that it overlaps the reading."""
     try:
-        # the fit's scipy.optimize (~0.3 s with scipy.linalg) and scipy.special, imported here to overlap
-        # the reading
-        from scipy.optimize import brentq  # noqa: F401
+        # the fit's scipy.special (~0.1 s), imported here to overlap the reading
         from scipy.special import digamma, gammaincinv  # noqa: F401
 
         tau = np.array([0.01, 0.02, 0.04])

@@ -41,8 +41,8 @@ from aidnav.analysis.noise_fit.model import (
 )
 from aidnav.analysis.noise_fit.nnls import _columns_nb, _fit_c_nb, _profile_u_nb
 from aidnav.analysis.noise_fit.results import AxisFit, TermEstimate
-from aidnav.units import DEG_H, DEG_SQRT_H, M_S_SQRT_H, UG
 from aidnav.analysis.noise_fit.roots import brentq
+from aidnav.units import DEG_H, DEG_SQRT_H, M_S_SQRT_H, UG
 
 CI_PROB = 0.95  #: two-sided probability of the reported intervals
 MAX_CI_RATIO = 10.0  #: a term whose 95% interval spans more than this factor is "not resolved"

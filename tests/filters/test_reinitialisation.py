@@ -87,7 +87,8 @@ def _cfg(sim, heading_off_deg=0.0, heading_sigma_deg=1.0, **gnss):
     return loose_config_from_specs(
         ImuSpec.grade("mems"), GnssSpec.from_config(sim.scenario.sensors.gnss), init_rph_deg=rph,
         init_lla_deg_m=(np.degrees(t0.lat[0]), np.degrees(t0.lon[0]), t0.height[0]), init_vel=t0.vel[0],
-        attitude_sigma_deg=(0.5, 0.5, heading_sigma_deg), gnss={"gate_probability": 0.9999, **gnss})
+        attitude_sigma_deg=(0.5, 0.5, heading_sigma_deg),
+        gnss={"gate_probability": 0.9999, "nis_window": 10, **gnss})
 
 
 def _errors(res, truth):

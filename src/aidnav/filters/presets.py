@@ -21,7 +21,9 @@ constraint, consumer-MEMS noise). Every number below is physics of the vehicle k
   course above 2 m/s with σ 15° (drift angle).
 
 The engine-driven presets (car, aircraft, ship) estimate the IMU noise from the log's static samples
-(engine vibration); the pedestrian one keeps the defaults (nothing vibrates a phone at rest).
+(engine vibration); the pedestrian one keeps the defaults (nothing vibrates a phone at rest). Every
+preset re-initialises when the NIS of the last 10 accepted fixes of a type is far out of its χ² band
+(``gnss.nis_window``; off without a preset, where the filter keeps the configured model).
 """
 
 from __future__ import annotations
@@ -35,20 +37,24 @@ PRESETS: dict[str, dict] = {
         "calibration": {"mounting": True, "mounting_sigma_deg": 3.0},
         "init": {"course_min_speed_m_s": 2.0, "course_heading_sigma_deg": 5.0},
         "imu": {"noise_from_static": True},
+        "gnss": {"nis_window": 10},
     },
     "aircraft": {
         "constraints": {"nhc": False, "zupt": True},
         "init": {"course_min_speed_m_s": 15.0, "course_heading_sigma_deg": 10.0},
         "imu": {"noise_from_static": True},
+        "gnss": {"nis_window": 10},
     },
     "pedestrian": {
         "constraints": {"nhc": False, "zupt": True},
         "init": {"course_min_speed_m_s": 1.0, "course_heading_sigma_deg": 30.0},
+        "gnss": {"nis_window": 10},
     },
     "ship": {
         "constraints": {"nhc": False, "zupt": False},
         "init": {"course_min_speed_m_s": 2.0, "course_heading_sigma_deg": 15.0},
         "imu": {"noise_from_static": True},
+        "gnss": {"nis_window": 10},
     },
 }
 

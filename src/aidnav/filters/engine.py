@@ -135,7 +135,7 @@ def _nis(x, P, H, R, z):
 
 
 @njit(cache=True)
-def inflate_nav(x, P, H, R, z, heading=True):
+def inflate_nav(x, P, H, R, z):
     """Re-initialisation of the navigation block: P ← D P D with D = diag(√α) on δv (and on δp when the
     measurement sees the position: a velocity fix says nothing of it) and √min(α, (π/2)² / P_ψψ) on the
     heading φ_U (roll and pitch are held by gravity: not touched), a congruence, so P stays positive
@@ -146,27 +146,25 @@ def inflate_nav(x, P, H, R, z, heading=True):
         return 1.0
     P0 = P.copy()
     pos = np.abs(H[:, DP:DP + 3]).max() > 0.0
-    hd = 1.0 if heading else 0.0
     lo, hi = 0.0, np.log(1e12)
     for _ in range(50):
         a = np.exp(0.5 * (lo + hi))
-        if _nis(x, _scaled_nav(P0, a, pos, hd), H, R, z) > m:
+        if _nis(x, _scaled_nav(P0, a, pos), H, R, z) > m:
             lo = np.log(a)
         else:
             hi = np.log(a)
     a = np.exp(hi)
-    P[:, :] = _scaled_nav(P0, a, pos, hd)
+    P[:, :] = _scaled_nav(P0, a, pos)
     return a
 
 
 @njit(cache=True)
-def _scaled_nav(P0, a, pos, hd):
+def _scaled_nav(P0, a, pos):
     """D P0 D of :func:`inflate_nav` for the factor a (``pos``: δp scaled too)."""
     d = np.ones(P0.shape[0])
     for i in range(DV, NAV if pos else DP):
         d[i] = np.sqrt(a)
-    if hd > 0.0:
-        d[PHI + 2] = np.sqrt(min(a, max(1.0, (0.5 * np.pi) ** 2 / max(P0[PHI + 2, PHI + 2], 1e-30))))
+    d[PHI + 2] = np.sqrt(min(a, max(1.0, (0.5 * np.pi) ** 2 / max(P0[PHI + 2, PHI + 2], 1e-30))))
     return P0 * np.outer(d, d)
 
 
@@ -190,7 +188,7 @@ def policy_update(x, P, wk, m, model, mod, rej, win, log, li):
         if c == nw and win[model, :nw].sum() > chi2_quantile(nw * m, Z_999):
             why = 2
     if why > 0:
-        inflate_nav(x, P, H, R, z, why == 1)
+        inflate_nav(x, P, H, R, z)
         win[model, WIN_MAX], win[model, WIN_MAX + 1] = 0.0, 0.0
         log.reinit[li] = why
     nu, sd = np.zeros(m), np.zeros(m)

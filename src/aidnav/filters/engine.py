@@ -523,7 +523,8 @@ def initial_update(rec, mod, proc, ini):
     while g < rec.t.shape[0] and rec.t[g] <= ini.t0:
         g += 1
     log = Log(rec.t[:g].copy(), rec.model[:g].astype(np.int8), np.full(g, -1, np.int8), np.full(g, np.nan),
-              np.full((g, MAX_ROWS), np.nan), np.full((g, MAX_ROWS), np.nan), np.arange(g))
+              np.full((g, MAX_ROWS), np.nan), np.full((g, MAX_ROWS), np.nan), np.arange(g),
+              np.zeros(g, np.int8))
     rej = np.zeros(N_MODELS, np.int64)
     C = dcm_from_quat(st[ST_Q:ST_Q + 4])
     for i in range(g):

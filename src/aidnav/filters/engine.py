@@ -143,35 +143,32 @@ def _nis(x, P, H, R, z):
 
 @njit(cache=True)
 def inflate_nav(x, P, H, R, z):
-    """Re-initialisation of the navigation block: P ← D P D with D = diag(√α) on δv (and on δp when the
-    measurement sees the position: a velocity fix says nothing of it) and √min(α, (π/2)² / P_ψψ) on the
-    heading φ_U (roll and pitch are held by gravity: not touched), a congruence, so P stays positive
+    """Re-initialisation of the navigation block: P ← D P D with D = √α on δv and δp and
+    √min(α, (π/2)² / P_ii) on φ (attitude σ's never grown past 90°), a congruence, so P stays positive
     semi-definite; α ≥ 1 the smallest with NIS(ν, H D P D Hᵀ + R) ≤ m (bisection in log α up to
     1e12). Returns α."""
     m = z.shape[0]
     if _nis(x, P, H, R, z) <= m:
         return 1.0
     P0 = P.copy()
-    pos = np.abs(H[:, DP:DP + 3]).max() > 0.0
     lo, hi = 0.0, np.log(1e12)
     for _ in range(50):
         a = np.exp(0.5 * (lo + hi))
-        if _nis(x, _scaled_nav(P0, a, pos), H, R, z) > m:
+        if _nis(x, _scaled_nav(P0, a), H, R, z) > m:
             lo = np.log(a)
         else:
             hi = np.log(a)
     a = np.exp(hi)
-    P[:, :] = _scaled_nav(P0, a, pos)
+    P[:, :] = _scaled_nav(P0, a)
     return a
 
 
 @njit(cache=True)
-def _scaled_nav(P0, a, pos):
-    """D P0 D of :func:`inflate_nav` for the factor a (``pos``: δp scaled too)."""
+def _scaled_nav(P0, a):
+    """D P0 D of :func:`inflate_nav` for the factor a."""
     d = np.ones(P0.shape[0])
-    for i in range(DV, NAV if pos else DP):
-        d[i] = np.sqrt(a)
-    d[PHI + 2] = np.sqrt(min(a, max(1.0, (0.5 * np.pi) ** 2 / max(P0[PHI + 2, PHI + 2], 1e-30))))
+    for i in range(NAV):
+        d[i] = np.sqrt(a) if i >= DV else np.sqrt(min(a, max(1.0, (0.5 * np.pi) ** 2 / max(P0[i, i], 1e-30))))
     return P0 * np.outer(d, d)
 
 

@@ -180,7 +180,11 @@ def walk_default(data_dir):
     c = compare_with_reference(res.time, res.state[:, 0], res.state[:, 1], res.state[:, 2], ref, quality=None)
     ok = np.isfinite(sp["lat"])
     cs = compare_with_reference(sp["time"][ok], sp["lat"][ok], sp["lon"][ok], sp["h"][ok], ref, quality=None)
+    WALK["tight"], WALK["spp"] = c, cs
     return c["horizontal_rms"], cs["horizontal_rms"]
+
+
+WALK: dict = {}  # the full comparisons of walk_default (diagnosis test below)
 
 
 def test_walk_tight_does_not_diverge(walk_default):
@@ -189,7 +193,20 @@ def test_walk_tight_does_not_diverge(walk_default):
 
 
 @pytest.mark.xfail(strict=True, reason="issue 26 target not reached: tight 8.58 m vs SPP 8.36 m over all "
-                   "reference epochs")
+                   "reference epochs; both are a common offset of about (7.4 E, 4.0 N) m from the reference "
+                   "(see test_walk_error_is_a_common_offset)")
 def test_walk_tight_no_worse_than_spp(walk_default):
     tight, spp = walk_default
     assert tight <= spp
+
+
+def test_walk_error_is_a_common_offset(walk_default):
+    """Diagnosis of the walk's 8.4-8.6 m (issue 26): SPP and tight share one horizontal offset from the RTK
+    reference (their mean errors within 1 m of each other, each over 7 m), and about that offset the
+    tight filter scatters less than SPP (measured 0.75 m vs 1.00 m). With 4 GPS satellites (zero
+    redundancy) a common range error cannot be told from a reference offset; the horizontal RMS compares
+    the offsets, not the filters."""
+    c, s = WALK["tight"], WALK["spp"]
+    assert np.hypot(*(c["mean"][:2] - s["mean"][:2])) < 1.0
+    assert np.hypot(*c["mean"][:2]) > 7.0 and np.hypot(*s["mean"][:2]) > 7.0
+    assert np.hypot(*c["std"][:2]) < np.hypot(*s["std"][:2])

@@ -136,7 +136,21 @@ def finish_summary(summary, res, applied_offset, warnings) -> None:
     summary["calibration"] = summary_calibration(res, {"time_offset_s": applied_offset})
     health = nis_health(res)  # windows where the innovations say σ is wrong, and which way
     summary["nis_windows_far_out"] = health.get("windows", [])
+    summary["reinitialisations"] = reinitialisations(res)
     warnings += health.get("warnings", [])
+
+
+def reinitialisations(res) -> list[dict]:
+    """The filter's re-initialisations (engine policy: consecutive rejections or an NIS window far out of
+    its chi-square band): time, model, why, the NIS of the innovation that triggered it."""
+    from aidnav.filters.loose import REINIT_WHY
+
+    log = getattr(res, "innovations", None) or {}
+    if "reinit" not in log:
+        return []
+    return [{"time": float(log["t"][k]), "model": str(log["model_name"][k]),
+             "why": REINIT_WHY[int(log["reinit"][k])], "nis": float(log["nis"][k])}
+            for k in np.flatnonzero(log["reinit"] > 0)]
 
 
 def nis_summary(rec: dict) -> dict:

@@ -41,6 +41,10 @@ class ImuNoise(_Strict):
     gyro_sf_sigma_ppm: float = Field(1000.0, ge=0)
     accel_sf_sigma_ppm: float = Field(1000.0, ge=0)
     sf_tau_s: float = Field(0.0, description="scale-factor correlation time [s]; <=0: random constant")
+    noise_from_static: bool = Field(
+        False, description="raise the ARW / VRW not stated here to the white-noise equivalent of the rates' "
+        "spread at the log's static samples (engine vibration; filters.preprocess.noise_from_static); on in "
+        "the engine-driven vehicle presets")
     time_offset_s: float = Field(0.0, description="added to IMU time stamps (IMU clock → GNSS time)")
     mounting_rph_deg: tuple[float, float, float] = Field(
         (0.0, 0.0, 0.0), description="IMU body → vehicle frame rotation as roll, pitch, heading [deg] "
@@ -62,7 +66,12 @@ class GnssAiding(_Strict):
     single_std_factor: float = Field(5.0, gt=0, description="σ multiplier for single epochs (Q = 5)")
     height_offset_m: float = Field(0.0, description="added to GNSS heights (e.g. MSL → ellipsoidal)")
     gate_probability: float = Field(0.9999, gt=0, le=1, description="chi-square gate; 1 disables")
-    max_consecutive_rejections: int = Field(10, ge=1, description="then the next fix is accepted")
+    max_consecutive_rejections: int = Field(10, ge=1, description="then the filter re-initialises: its "
+                                            "position/velocity/attitude covariance is inflated to the "
+                                            "innovation and the fix accepted")
+    nis_window: int = Field(0, ge=0, le=64, description="re-initialise as well when the sum of the NIS of "
+                            "the last N accepted fixes of a type is above the 99.9 % quantile of chi-square "
+                            "(N x dof); 0: off (the vehicle presets: 10)")
     error_tau_s: float = Field(0.0, ge=0, description="correlation time of the fixes' position errors [s]: "
                                "> 0 adds 3 first-order Gauss-Markov error states (high-rate receivers whose "
                                "errors are not white); 0: white errors")

@@ -12,6 +12,11 @@ Gauss-Markov / random constant per calibration state) and its measurement models
 * **one update-with-gate policy** (:func:`gated_update`): χ² gate by the number of rows
   (``Models.gate[model, m]``, 0 = ungated), and after ``Models.max_rej[model]`` consecutive rejections
   of a model the next one is accepted ungated (a filter that went wrong must be able to come back);
+  in :func:`run_filter` (:func:`policy_update`) that acceptance is a **re-initialisation**, and so is a
+  window of accepted updates whose NIS is far out of its χ² band (``Models.win_n[model]`` > 0: the sum
+  of the last N accepted NIS above the 99.9 % quantile of χ²(Σ m)): the navigation block of P is scaled
+  (:func:`inflate_nav`) until the innovation that triggered it is consistent (NIS = m), then the update
+  is made ungated; ``Log.reinit`` records why (1: consecutive rejections, 2: NIS window);
 * **one innovation log** (:class:`Log`): time, model id, status (1 accepted, 0 rejected, −1 not used),
   NIS, innovation, diag S (≤ ``MAX_ROWS``), record index (−1: node constraint); rows 0..M−1: records;
 * **re-initialisation event** at sample ``Init.reset_idx``: heading from a GNSS course and, when the
@@ -75,8 +80,10 @@ Imu = namedtuple("Imu", ["t", "dth", "dv", "static", "gap_var", "hold"])
 Records = namedtuple("Records", ["t", "model", "data", "use", "grp"], defaults=(epoch_out(0, 1),))
 # par (N_MODELS, P) model parameters; gate (N_MODELS, MAX_ROWS + 1) χ² thresholds by rows (0: off);
 # max_rej (N_MODELS,) consecutive rejections before an ungated update; node (K, 2): constraints at
-# nodes as (model id, 1: at static samples / 0: at the others)
-Models = namedtuple("Models", ["par", "gate", "max_rej", "node"])
+# nodes as (model id, 1: at static samples / 0: at the others); win_n (N_MODELS,) length of the NIS
+# window of the re-initialisation test (0: off, at most WIN_MAX)
+Models = namedtuple("Models", ["par", "gate", "max_rej", "node", "win_n"],
+                    defaults=(np.zeros(N_MODELS, np.int64),))
 # lay: layout table; q: noise PSDs (INS inputs, then one per calibration state); tau (4,): INS bias/SF
 # correlation times [s]; aux_tau (n − n_ins,) [s] (≤ 0: random walk); prop_dt [s]; sub: a state subset
 # (indices into the INS block; models fill INS rows, the engine takes the subset's columns); reset_pos:
@@ -88,7 +95,12 @@ Process = namedtuple("Process", ["lay", "q", "tau", "aux_tau", "prop_dt", "sub",
 Init = namedtuple("Init", ["t0", "st", "bias", "P", "reset_idx", "reset_heading", "reset_sigma", "reset_nav"])
 # decimation (≤ 0: an output after every node instead); store nodes for RTS; P at samples
 Output = namedtuple("Output", ["every", "smooth", "cov_idx"])
-Log = namedtuple("Log", ["t", "model", "status", "nis", "nu", "s", "ref"])
+# reinit: 0, or why the update was a re-initialisation (1: consecutive rejections, 2: NIS window); a
+# log built without it (length 0) is never written to (no re-initialisation without ``Models.win_n``)
+Log = namedtuple("Log", ["t", "model", "status", "nis", "nu", "s", "ref", "reinit"],
+                 defaults=(np.zeros(0, np.int8),))
+WIN_MAX = 64  # longest NIS window
+Z_999 = 3.090232  # standard normal quantile of 0.999 (the re-initialisation test's χ² band)
 Work = namedtuple("Work", ["H", "z", "R"])
 EngineOut = namedtuple("EngineOut", ["out_idx", "out_st", "out_bias", "out_pdiag", "out_node", "node_idx",
                                      "S_post", "S_prior", "S_phi", "S_dx", "log", "n_log", "reset_node",
@@ -123,6 +135,82 @@ def gated_update(x, P, wk, m, model, mod, rej, log, li):
     ok, nis = update(x, P, wk.H[:m].copy(), wk.R[:m, :m].copy(), wk.z[:m].copy(), gate, nu, sd)
     rej[model] = 0 if ok else rej[model] + 1
     log.status[li], log.nis[li], log.nu[li, :m], log.s[li, :m] = (1 if ok else 0), nis, nu, sd
+    return ok
+
+
+@njit(cache=True)
+def chi2_quantile(k, z):
+    """Wilson–Hilferty approximation of the χ²(k) quantile at the standard normal quantile z
+    (at the 99.9 % point it is above the exact quantile by 0.6 % at k = 10, 0.2 % at k = 30)."""
+    a = 2.0 / (9.0 * k)
+    return k * (1.0 - a + z * np.sqrt(a)) ** 3
+
+
+@njit(cache=True)
+def _nis(x, P, H, R, z):
+    """NIS νᵀ S⁻¹ ν of z − H x with S = H P Hᵀ + R."""
+    nu = z - H @ x
+    return nu @ np.linalg.solve(H @ P @ H.T + R, nu)
+
+
+@njit(cache=True)
+def inflate_nav(x, P, H, R, z):
+    """Re-initialisation of the navigation block: P ← D P D with D = √α on δv and δp and
+    √min(α, (π/2)² / P_ii) on φ (attitude σ's never grown past 90°), a congruence, so P stays positive
+    semi-definite; α ≥ 1 the smallest with NIS(ν, H D P D Hᵀ + R) ≤ m (bisection in log α up to
+    1e12). Returns α."""
+    m = z.shape[0]
+    if _nis(x, P, H, R, z) <= m:
+        return 1.0
+    P0 = P.copy()
+    lo, hi = 0.0, np.log(1e12)
+    for _ in range(50):
+        a = np.exp(0.5 * (lo + hi))
+        if _nis(x, _scaled_nav(P0, a), H, R, z) > m:
+            lo = np.log(a)
+        else:
+            hi = np.log(a)
+    a = np.exp(hi)
+    P[:, :] = _scaled_nav(P0, a)
+    return a
+
+
+@njit(cache=True)
+def _scaled_nav(P0, a):
+    """D P0 D of :func:`inflate_nav` for the factor a."""
+    d = np.ones(P0.shape[0])
+    for i in range(NAV):
+        d[i] = np.sqrt(a) if i >= DV else np.sqrt(min(a, max(1.0, (0.5 * np.pi) ** 2 / max(P0[i, i], 1e-30))))
+    return P0 * np.outer(d, d)
+
+
+@njit(cache=True)
+def policy_update(x, P, wk, m, model, mod, rej, win, log, li):
+    """:func:`gated_update` with the re-initialisation (module doc): after ``mod.max_rej[model]``
+    consecutive rejections, or when the last ``mod.win_n[model]`` accepted NIS (this one included; ``win``
+    (N_MODELS, WIN_MAX + 2): the values, then count and ring position) sum above the 99.9 % χ²(Σ m)
+    quantile, P's navigation block is inflated (:func:`inflate_nav`) and the update is made ungated."""
+    H, R, z = wk.H[:m].copy(), wk.R[:m, :m].copy(), wk.z[:m].copy()
+    nw = mod.win_n[model]
+    why = 1 if rej[model] >= mod.max_rej[model] else 0
+    gate = mod.gate[model, m]
+    nis0 = _nis(x, P, H, R, z)
+    if why == 0 and nw > 0 and (gate <= 0.0 or nis0 <= gate):
+        c, pos = int(win[model, WIN_MAX]), int(win[model, WIN_MAX + 1])
+        win[model, pos] = nis0
+        win[model, WIN_MAX + 1] = (pos + 1) % nw
+        c = min(c + 1, nw)
+        win[model, WIN_MAX] = c
+        if c == nw and win[model, :nw].sum() > chi2_quantile(nw * m, Z_999):
+            why = 2
+    if why > 0:
+        inflate_nav(x, P, H, R, z)
+        win[model, WIN_MAX], win[model, WIN_MAX + 1] = 0.0, 0.0
+        log.reinit[li] = why
+    nu, sd = np.zeros(m), np.zeros(m)
+    ok, nis = update(x, P, H, R, z, 0.0 if why > 0 else gate, nu, sd)
+    rej[model] = 0 if ok else rej[model] + 1
+    log.status[li], log.nis[li], log.nu[li, :m], log.s[li, :m] = (1 if ok else 0), nis0, nu, sd
     return ok
 
 
@@ -250,7 +338,8 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
     cap = M + max_nodes * mod.node.shape[0]
     log = Log(np.full(cap, np.nan), np.full(cap, -1, np.int8), np.full(cap, -1, np.int8),
               np.full(cap, np.nan), np.full((cap, MAX_ROWS), np.nan), np.full((cap, MAX_ROWS), np.nan),
-              np.full(cap, -1, np.int64))
+              np.full(cap, -1, np.int64), np.zeros(cap, np.int8))
+    win = np.zeros((N_MODELS, WIN_MAX + 2))  # NIS windows of the re-initialisation test
     for i in range(M):
         log.t[i], log.model[i], log.ref[i] = rec.t[i], rec.model[i], i
     li = M
@@ -317,7 +406,7 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
                     else:
                         m = fill(md, nav, rec.data[gi], mod.par[md], lay, wk.H, wk.z, wk.R)
                         if m > 0:
-                            gated_update(x, P, _subset(wk, m, sub, ws), m, md, mod, rej, log, gi)
+                            policy_update(x, P, _subset(wk, m, sub, ws), m, md, mod, rej, win, log, gi)
                 gi += 1
             nav = Nav(st, C, w, 0.0, bias)
             for c in range(mod.node.shape[0]):  # node constraints (ZUPT, ZARU at static samples, NHC)
@@ -326,7 +415,7 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
                     m = fill(md, nav, no_row, mod.par[md], lay, wk.H, wk.z, wk.R)
                     if m > 0:
                         log.t[li], log.model[li] = imu.t[k], md
-                        gated_update(x, P, _subset(wk, m, sub, ws), m, md, mod, rej, log, li)
+                        policy_update(x, P, _subset(wk, m, sub, ws), m, md, mod, rej, win, log, li)
                         li += 1
             if nsub:  # the subset's estimate in the INS block
                 dxf[sub] = x
@@ -469,7 +558,8 @@ def initial_update(rec, mod, proc, ini):
     while g < rec.t.shape[0] and rec.t[g] <= ini.t0:
         g += 1
     log = Log(rec.t[:g].copy(), rec.model[:g].astype(np.int8), np.full(g, -1, np.int8), np.full(g, np.nan),
-              np.full((g, MAX_ROWS), np.nan), np.full((g, MAX_ROWS), np.nan), np.arange(g))
+              np.full((g, MAX_ROWS), np.nan), np.full((g, MAX_ROWS), np.nan), np.arange(g),
+              np.zeros(g, np.int8))
     rej = np.zeros(N_MODELS, np.int64)
     C = dcm_from_quat(st[ST_Q:ST_Q + 4])
     for i in range(g):

@@ -105,7 +105,7 @@ def _federated_kernel(imu, gn, sv, mod, lay, fed):
     cap = M + S
     log = Log(np.full(cap, np.nan), np.full(cap, -1, np.int8), np.full(cap, -1, np.int8),
               np.full(cap, np.nan), np.full((cap, MAX_ROWS), np.nan), np.full((cap, MAX_ROWS), np.nan),
-              np.full(cap, -1, np.int64))
+              np.full(cap, -1, np.int64), np.zeros(cap, np.int8))
     for i in range(cap):
         log.t[i] = gn.t[i] if i < M else sv.t[i - M]
         log.model[i], log.ref[i] = (gn.model[i], i) if i < M else (M_SAPV, i - M)

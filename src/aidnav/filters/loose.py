@@ -44,7 +44,14 @@ from .layout import (
     layout_names,
     make_layout,
 )
-from .preprocess import bridge_gaps, course_alignment, gnss_arrays, initial_state, static_flags
+from .preprocess import (
+    bridge_gaps,
+    course_alignment,
+    gnss_arrays,
+    initial_state,
+    noise_from_static,
+    static_flags,
+)
 from .result import FilterResult, LooseResult, to_trajectory
 
 # names kept from before the engine (used by the other filters and the tests)
@@ -177,10 +184,12 @@ def _models(cfg) -> Models:
     par = np.zeros((ms.N_MODELS, 16))
     gate = np.zeros((ms.N_MODELS, ms.MAX_ROWS + 1))
     max_rej = np.full(ms.N_MODELS, NEVER, np.int64)
+    win_n = np.zeros(ms.N_MODELS, np.int64)
     chi2 = np.array([0.0] + [chi2_isf(m, 1.0 - gp) if gp < 1 else 0.0 for m in range(1, ms.MAX_ROWS + 1)])
     for md in (ms.M_GNSS_POS, ms.M_GNSS_VEL, ms.M_ODO, ms.M_BARO):
         gate[md] = chi2
         max_rej[md] = cfg.gnss.max_consecutive_rejections
+        win_n[md] = cfg.gnss.nis_window
         par[md, 0:3] = cfg.gnss.lever_arm_m
     mr = np.array(cfg.imu.mounting_rph_deg) * DEG
     cbv = dcm_from_euler(mr[0], mr[1], mr[2]).ravel()
@@ -198,7 +207,7 @@ def _models(cfg) -> Models:
             node.append((ms.M_ZARU, 1))
     if c.nhc:
         node.append((ms.M_NHC, 0))
-    return Models(par, gate, max_rej, np.array(node, np.int64).reshape(-1, 2))
+    return Models(par, gate, max_rej, np.array(node, np.int64).reshape(-1, 2), win_n)
 
 
 def _records(cfg, g, use, odometer, baro):
@@ -265,6 +274,8 @@ def loose_setup(imu, gnss, cfg, withheld, events, odometer=None, baro=None) -> S
                       f"(first at t={bad_t[0]:.3f})")
         use &= finite
     cfg = _coarse_mounting_if_unknown(cfg, imu, gnss, t_imu, g, use, odometer, events)
+    if cfg.imu.noise_from_static:  # engine vibration: IMU noise from the log's static samples
+        cfg = noise_from_static(imu, static_flags(imu, gnss, cfg), cfg, events)
     i0 = initial_state(imu, gnss, cfg, t_imu, g, use, events)
     rph = i0["rph"]
     q0 = quat_from_euler(rph[0], rph[1], rph[2])
@@ -348,6 +359,7 @@ def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: 
     r = run_filter(imu_in, rec, su.models, su.proc, ini, Output(su.out_every, bool(smooth), cov_idx))
     log = _log_dict(r.log, r.n_log)
     cnt = loose_counts(log, len(r.node_idx), int(static[sl].sum()), len(imu), k0)
+    events += reinit_events(log)
     # the outputs are stamped on the GNSS scale with the final time-offset estimate (CONVENTIONS: the
     # offset is added to the IMU stamps); a forward output at t holds the INS of IMU time t − d̂
     d_hat = float(r.bias[lay[L_TOFF] - NAV]) if lay[L_TOFF] >= 0 else 0.0
@@ -412,10 +424,24 @@ def _log_dict(log, n_log) -> dict:
     return d
 
 
+REINIT_WHY = {1: "consecutive rejections", 2: "NIS window far out of its chi-square band"}
+
+
+def reinit_events(log) -> list[str]:
+    """One event per re-initialisation in the engine's log (:func:`_log_dict`): time, model, why."""
+    out = []
+    for k in np.flatnonzero(log["reinit"] > 0):
+        out.append(f"re-initialisation at t={log['t'][k]:.3f}: {log['model_name'][k]} innovation NIS "
+                   f"{log['nis'][k]:.1f} ({REINIT_WHY[int(log['reinit'][k])]}): position/velocity/attitude "
+                   "covariance inflated to the innovation and the update accepted")
+    return out
+
+
 def _gnss_records(log, rmap, m) -> dict:
     """Per-GNSS-fix view of the log: status (1/0/−1), NIS, innovation and diag S (3 components; a
     velocity component that was not measured is NaN)."""
-    rec = dict(pos_status=np.full(m, -1, np.int8), vel_status=np.full(m, -1, np.int8))
+    rec = dict(pos_status=np.full(m, -1, np.int8), vel_status=np.full(m, -1, np.int8),
+               pos_reinit=np.zeros(m, np.int8), vel_reinit=np.zeros(m, np.int8))
     for k in ("pos_innov", "pos_s", "vel_innov", "vel_s"):
         rec[k] = np.full((m, 3), np.nan)
     rec["pos_nis"], rec["vel_nis"] = np.full(m, np.nan), np.full(m, np.nan)
@@ -426,6 +452,7 @@ def _gnss_records(log, rmap, m) -> dict:
         j = np.flatnonzero(mdl == md)
         i = src[j]
         rec[f"{p}_status"][i] = log["status"][j]
+        rec[f"{p}_reinit"][i] = log["reinit"][j]
         rec[f"{p}_nis"][i] = log["nis"][j]
         rec[f"{p}_innov"][i] = log["nu"][j, :3]
         rec[f"{p}_s"][i] = log["s"][j, :3]

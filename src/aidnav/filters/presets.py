@@ -9,7 +9,9 @@ constraint, consumer-MEMS noise). Every number below is physics of the vehicle k
   known, so its ω × l enters the NHC variance with σ 1 m per axis (an IMU anywhere in a car body is
   within about a metre of the rear axle centre, in height and along the car); the mounting angles
   are estimated (3° σ); ZUPT at standstill; heading from the course above 2 m/s (a car's course equals
-  its heading without slip).
+  its heading without slip); the IMU noise is raised to what the log's static samples show
+  (:func:`aidnav.filters.preprocess.noise_from_static`: a running engine vibrates the IMU far above its
+  datasheet noise, and the filter must cover it).
 * ``aircraft``: no NHC (aircraft sideslip and climb); ZUPT kept (a parked aircraft is still, and the
   static test needs both IMU and GNSS); heading from the course above 15 m/s (taxi and
   crosswind make it meaningless below), course σ 10° (crab angle).
@@ -17,6 +19,11 @@ constraint, consumer-MEMS noise). Every number below is physics of the vehicle k
   1 m/s with σ 30° (a walker's body need not face the walking direction; a phone even less).
 * ``ship``: no NHC (leeway and currents), no ZUPT (a ship at anchor still heaves), heading from the
   course above 2 m/s with σ 15° (drift angle).
+
+The engine-driven presets (car, aircraft, ship) estimate the IMU noise from the log's static samples
+(engine vibration); the pedestrian one keeps the defaults (nothing vibrates a phone at rest). Every
+preset re-initialises when the NIS of the last 10 accepted fixes of a type is far out of its χ² band
+(``gnss.nis_window``; off without a preset, where the filter keeps the configured model).
 """
 
 from __future__ import annotations
@@ -29,18 +36,25 @@ PRESETS: dict[str, dict] = {
                         "nhc_lever_arm_sigma_m": 1.0, "zupt": True},
         "calibration": {"mounting": True, "mounting_sigma_deg": 3.0},
         "init": {"course_min_speed_m_s": 2.0, "course_heading_sigma_deg": 5.0},
+        "imu": {"noise_from_static": True},
+        "gnss": {"nis_window": 10},
     },
     "aircraft": {
         "constraints": {"nhc": False, "zupt": True},
         "init": {"course_min_speed_m_s": 15.0, "course_heading_sigma_deg": 10.0},
+        "imu": {"noise_from_static": True},
+        "gnss": {"nis_window": 10},
     },
     "pedestrian": {
         "constraints": {"nhc": False, "zupt": True},
         "init": {"course_min_speed_m_s": 1.0, "course_heading_sigma_deg": 30.0},
+        "gnss": {"nis_window": 10},
     },
     "ship": {
         "constraints": {"nhc": False, "zupt": False},
         "init": {"course_min_speed_m_s": 2.0, "course_heading_sigma_deg": 15.0},
+        "imu": {"noise_from_static": True},
+        "gnss": {"nis_window": 10},
     },
 }
 

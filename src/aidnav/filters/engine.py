@@ -108,13 +108,20 @@ def gated_update(x, P, wk, m, model, mod, rej, log, li):
 
 
 @njit(cache=True)
-def _reinit(st, P, ini):
+def _var(P, ix, i):
+    """Variance of full-layout state i in the filter's P (index map ``ix``; 0 where it has no such state)."""
+    return P[ix[i], ix[i]] if ix[i] >= 0 else 0.0
+
+
+@njit(cache=True)
+def _reinit(st, P, ini, ix):
     """Re-initialisation event: heading, then (if 3σ off) velocity and position from ``reset_nav`` =
-    [v (3), lat, lon, h, σ_v (3), σ_pos E, N, U, lever (3)] of the fix that gave the course."""
+    [v (3), lat, lon, h, σ_v (3), σ_pos E, N, U, lever (3)] of the fix that gave the course. ``ix``
+    (≥ 15,): index in P of each state of the full INS layout (−1: not in the filter, a state subset)."""
     rn_ = ini.reset_nav
-    set_heading(st, P, ini.reset_heading, ini.reset_sigma)
+    set_heading(st, P, ini.reset_heading, ini.reset_sigma, ix[PHI + 2])
     dvr = np.sqrt((st[ST_VEL] - rn_[0]) ** 2 + (st[ST_VEL + 1] - rn_[1]) ** 2)
-    if np.isnan(rn_[0]) or dvr <= 3.0 * np.sqrt(P[DV, DV] + P[DV + 1, DV + 1] + rn_[6] ** 2):
+    if np.isnan(rn_[0]) or dvr <= 3.0 * np.sqrt(_var(P, ix, DV) + _var(P, ix, DV + 1) + rn_[6] ** 2):
         return
     # velocity and position integrated with the unknown heading: from the fix (antenna → IMU)
     l_n = dcm_from_quat(st[ST_Q:ST_Q + 4]) @ rn_[12:15]
@@ -123,13 +130,21 @@ def _reinit(st, P, ini):
     st[1] = rn_[4] - l_n[0] / ((rn + rn_[5]) * np.cos(rn_[3]))
     st[2] = rn_[5] - l_n[2]
     st[3], st[4], st[5] = rn_[0], rn_[1], rn_[2]
-    P[DV:DP + 3, :] = 0.0
-    P[:, DV:DP + 3] = 0.0
+    var = np.empty(6)
     for i in range(3):
-        P[DV + i, DV + i] = rn_[6 + i] ** 2
-    P[DP, DP] = (rn_[10] / (rm + rn_[5])) ** 2
-    P[DP + 1, DP + 1] = (rn_[9] / ((rn + rn_[5]) * np.cos(rn_[3]))) ** 2
-    P[DP + 2, DP + 2] = rn_[11] ** 2
+        var[i] = rn_[6 + i] ** 2
+    var[3] = (rn_[10] / (rm + rn_[5])) ** 2
+    var[4] = (rn_[9] / ((rn + rn_[5]) * np.cos(rn_[3]))) ** 2
+    var[5] = rn_[11] ** 2
+    for i in range(6):
+        j = ix[DV + i]
+        if j >= 0:
+            P[j, :] = 0.0
+            P[:, j] = 0.0
+    for i in range(6):
+        j = ix[DV + i]
+        if j >= 0:
+            P[j, j] = var[i]
 
 
 @njit(cache=True)
@@ -149,6 +164,16 @@ def _node_rates(st, wb, dthc, dt, w):
 def _rec_time(rec, i, bias, ic):
     """Time of record i: the tag, or with clock states (ic ≥ 0) the tag − b̂/c."""
     return rec.t[i] - bias[ic - NAV] / C_LIGHT if ic >= 0 else rec.t[i]
+
+
+@njit(cache=True)
+def _due_time(rec, i, bias, ic, itoff):
+    """Time on the IMU clock at which record i is due: its receive time (:func:`_rec_time`) − d̂, the
+    time-offset estimate (itoff ≥ 0); +inf past the last record."""
+    if i >= rec.t.shape[0]:
+        return np.inf
+    t = _rec_time(rec, i, bias, ic)
+    return t - bias[itoff - NAV] if itoff >= 0 else t
 
 
 @njit(cache=True)
@@ -175,10 +200,14 @@ def run_filter(imu, rec, mod, proc, ini, out):
     M = rec.t.shape[0]
     st, bias, P, x = ini.st.copy(), ini.bias.copy(), ini.P.copy(), np.zeros(n)
     itoff = lay[L_TOFF]
+    ix = np.full(nfull, -1, np.int64)  # index in P of each state of the full INS layout (−1: not there)
+    for i in range(nsub if nsub else nins):
+        ix[sub[i] if nsub else i] = i
+    iu = ix[PHI + 2]
     # an unknown heading (initial σ above 80°) with an alignment to come (reset_idx > 0; beyond the last
     # sample: none found) stays unknown until then: a linearised filter would otherwise "gyrocompass"
     # from a gyro bias model it cannot separate from the heading (static) or from noise
-    hold_h = nsub == 0 and ini.reset_idx > 0 and ini.P[PHI + 2, PHI + 2] >= 2.0  # (a subset: no φ_U at 2)
+    hold_h = ini.reset_idx > 0 and iu >= 0 and ini.P[iu, iu] >= 2.0
     # INS sensor errors only (nins − 9 = 0, 6 or 12; not nfull): the strapdown must not read clock or
     # calibration states
     ib = bias[:nins - NAV].copy()
@@ -214,9 +243,11 @@ def run_filter(imu, rec, mod, proc, ini, out):
     rej = np.zeros(N_MODELS, np.int64)
     cov_out = np.zeros((out.cov_idx.shape[0], n, n))
     ci, reset_node, gi = 0, -1, 0
-    toff = bias[itoff - NAV] if itoff >= 0 else 0.0
-    while gi < M and _rec_time(rec, gi, bias, ic) - toff <= ini.t0:
+    while _due_time(rec, gi, bias, ic, itoff) <= ini.t0:
         gi += 1
+    # a record is due when its time on the IMU clock has come: its receive time (the tag, or with clock
+    # states tag − b̂/c) − d̂, the time-offset estimate; b̂ changes at every sample, d̂ at the feedback
+    t_due = _due_time(rec, gi, bias, ic, itoff)
     acc = new_accumulator()
     gap_phi, gap_v = 0.0, 0.0
     dthc, dvc, dth_prev, dv_prev = increment_buffers()
@@ -227,17 +258,14 @@ def run_filter(imu, rec, mod, proc, ini, out):
         T = propagate_sample(st, acc, imu.dth[k], imu.dv[k], ib, dt, dthc, dvc, dth_prev, dv_prev)
         if ic >= 0:
             bias[ic - NAV] += bias[ic - NAV + 1] * dt
+            t_due = _due_time(rec, gi, bias, ic, itoff)
         if hold:
             st[ST_POS + 2], st[ST_VEL + 2] = imu.hold[k, 0], imu.hold[k, 1]
         gap_phi, gap_v = gap_phi + imu.gap_var[k, 0], gap_v + imu.gap_var[k, 1]
         if k == ini.reset_idx:
             reset_node = kn  # the next node is the first one after the re-initialisation
-            _reinit(st, P, ini)
-        # a record is due when its time on the IMU clock has come: its receive time (the tag, or with
-        # clock states tag − b̂/c) − d̂, the time-offset estimate
-        toff = bias[itoff - NAV] if itoff >= 0 else 0.0
-        due = gi < M and _rec_time(rec, gi, bias, ic) - toff <= imu.t[k]
-        is_node = T >= prop_dt - 1e-9 or due or k == n_imu - 1
+            _reinit(st, P, ini, ix)
+        is_node = T >= prop_dt - 1e-9 or t_due <= imu.t[k] or k == n_imu - 1
         if is_node and T > 0.0:
             C = dcm_from_quat(st[ST_Q:ST_Q + 4])
             wb = interval_model(Fi, Gi, st, acc, proc.tau[0], proc.tau[1], proc.tau[2], proc.tau[3])
@@ -250,17 +278,20 @@ def run_filter(imu, rec, mod, proc, ini, out):
             discretize(F, G, proc.q, T, Phi, Qd)
             x[:] = 0.0
             predict(x, P, Phi, Qd)
-            if gap_phi > 0.0:
+            if gap_phi > 0.0:  # (indices of the full layout through ix: a subset has its own)
                 for i in range(3):
-                    P[PHI + i, PHI + i] += gap_phi
-                    P[DV + i, DV + i] += gap_v
+                    a, b = ix[PHI + i], ix[DV + i]
+                    if a >= 0:
+                        P[a, a] += gap_phi
+                    if b >= 0:
+                        P[b, b] += gap_v
                 gap_phi, gap_v = 0.0, 0.0
             if out.smooth:
                 S_phi[kn], S_prior[kn] = Phi, P
             _node_rates(st, wb, dthc, dt, w)
             w[W_FN] = acc[ACC_FN] / T
             g0 = gi
-            while gi < M and _rec_time(rec, gi, bias, ic) - toff <= imu.t[k]:  # records in (t_{k-1}, t_k]
+            while _due_time(rec, gi, bias, ic, itoff) <= imu.t[k]:  # records in (t_{k-1}, t_k]
                 tr = _rec_time(rec, gi, bias, ic)  # the models add d̂ to dt_back themselves
                 if rec.use[gi]:
                     md = rec.model[gi]
@@ -289,14 +320,15 @@ def run_filter(imu, rec, mod, proc, ini, out):
             feedback(st, bias, dxf if nsub else x, nh)
             ib[:] = bias[:nins - NAV]
             if hold_h and k < ini.reset_idx:  # heading unknown until the alignment: no information
-                P[PHI + 2, :], P[:, PHI + 2] = 0.0, 0.0
-                P[PHI + 2, PHI + 2] = ini.P[PHI + 2, PHI + 2]
+                P[iu, :], P[:, iu] = 0.0, 0.0
+                P[iu, iu] = ini.P[iu, iu]
             for g in range(g0, gi if proc.reset_pos else g0):
                 st[0], st[1], st[2] = rec.data[g, 6], rec.data[g, 7], rec.data[g, 8]
                 if not np.isnan(rec.data[g, 9]):
                     st[5] = rec.data[g, 9]
             for g in range(g0, gi if grp else g0):
                 epoch_record(rec.grp, g, st, bias, P, lay)
+            t_due = _due_time(rec, gi, bias, ic, itoff)  # d̂ may have changed
             node_idx[kn] = k
             if out.smooth:
                 S_post[kn] = P
@@ -305,7 +337,8 @@ def run_filter(imu, rec, mod, proc, ini, out):
             reset_accumulator(acc)
         if k % out.every == 0:
             out_idx[oi] = k
-            out_st[oi] = st
+            for i in range(10):
+                out_st[oi, i] = st[i]
             for i in range(nb):
                 out_bias[oi, i] = bias[i]
             for i in range(n):

@@ -68,7 +68,7 @@ def fill_transfer_model(F, G, q, lat, h, v, fn, Cbn, wb, fb, beta, sigma, q_gyro
     G[:, :] = 0.0
     F15 = np.zeros((N_INS, N_INS))
     G15 = np.zeros((N_INS, N_NOISE_INS))
-    fill_model(F15, G15, lat, h, v, fn, Cbn, wb, fb, 0.0, 0.0, 0.0, 0.0)
+    fill_model(F15, G15, lat, h, v, fn, Cbn, wb, fb, (0.0, 0.0, 0.0, 0.0))
     F[:N_INS, :N_INS] = F15
     G[:N_INS, :N_NOISE_INS] = G15
     q[:] = 0.0

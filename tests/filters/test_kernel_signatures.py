@@ -14,16 +14,11 @@ import aidnav.estimators
 import aidnav.filters
 
 MAX_ARGS = 10
-# the transfer-alignment modules are being moved onto the engine in their own branch (issue 24's
-# transfer migration); their kernels are counted there
-NOT_YET = {"aidnav.filters.transfer", "aidnav.filters.transfer_model"}
 
 
 def _kernels():
     for pkg in (aidnav.filters, aidnav.estimators):
         for info in pkgutil.walk_packages(pkg.__path__, pkg.__name__ + "."):
-            if info.name in NOT_YET:
-                continue
             mod = importlib.import_module(info.name)
             for name, obj in vars(mod).items():
                 if isinstance(obj, CPUDispatcher) and obj.py_func.__module__ == mod.__name__:

@@ -22,7 +22,10 @@ Gauss-Markov / random constant per calibration state) and its measurement models
 * **epoch records** (tight coupling): with clock states (``lay[L_CLK]``) record times are receiver
   tags, due at t − b̂/c, and b̂ follows d̂ per sample; with ``Records.grp`` a pseudorange record is a
   whole epoch (:func:`.measurements.epoch.epoch_update`: sequential scalar updates, its rejection rule,
-  outputs in ``grp``). An INS block of 9 states (no sensor errors) is allowed.
+  outputs in ``grp``). An INS block of 9 states (no sensor errors) is allowed;
+* **exact Markov blocks and open-loop states** (transfer alignment): ``Process.gm`` blocks get their
+  exact Φ, Qd (:func:`exact_blocks`), ``Process.open`` states are propagated as conditional means and
+  never reset (:func:`carry_estimates`); :func:`initial_update` applies the records at t0.
 
 Inputs: named tuples :class:`Imu`, :class:`Records`, :class:`Models`, :class:`Process`, :class:`Init`,
 :class:`Output`; result :class:`EngineOut`.
@@ -35,6 +38,7 @@ from collections import namedtuple
 import numpy as np
 from numba import njit
 
+from aidnav.models.distributed_pos import flexure_transition
 from aidnav.nav.earth import OMEGA_IE, radii
 from aidnav.nav.gnss_sat import C_LIGHT
 from aidnav.nav.rotations import dcm_from_quat, quat_from_rotvec, quat_mult, quat_normalize
@@ -70,11 +74,14 @@ Models = namedtuple("Models", ["par", "gate", "max_rej", "node"])
 # lay: layout table; q: noise PSDs (INS inputs, then one per calibration state); tau (4,): INS bias/SF
 # correlation times [s]; aux_tau (n − n_ins,) [s] (≤ 0: random walk); prop_dt [s]; sub: a state subset
 # (indices into the INS block; models fill INS rows, the engine takes the subset's columns); reset_pos:
-# after each node, position (and a finite v_U) from data[6:10] of its records (outside the filter)
-Process = namedtuple("Process", ["lay", "q", "tau", "aux_tau", "prop_dt", "sub", "reset_pos"],
-                     defaults=(np.zeros(0, np.int64), False))
+# after each node, position (and a finite v_U) from data[6:10] of its records (outside the filter);
+# gm (K, 4): Gauss-Markov blocks discretised exactly (:func:`exact_blocks`); open (L,): states whose
+# estimate is propagated by Φ at every node (:func:`carry_estimates`; open-loop states, never reset)
+Process = namedtuple("Process", ["lay", "q", "tau", "aux_tau", "prop_dt", "sub", "reset_pos", "gm", "open"],
+                     defaults=(np.zeros(0, np.int64), False, np.zeros((0, 4)), np.zeros(0, np.int64)))
 Init = namedtuple("Init", ["t0", "st", "bias", "P", "reset_idx", "reset_heading", "reset_sigma", "reset_nav"])
-Output = namedtuple("Output", ["every", "smooth", "cov_idx"])  # decimation; store nodes for RTS; P at samples
+# decimation (≤ 0: an output after every node instead); store nodes for RTS; P at samples
+Output = namedtuple("Output", ["every", "smooth", "cov_idx"])
 Log = namedtuple("Log", ["t", "model", "status", "nis", "nu", "s", "ref"])
 Work = namedtuple("Work", ["H", "z", "R"])
 EngineOut = namedtuple("EngineOut", ["out_idx", "out_st", "out_bias", "out_pdiag", "out_node", "node_idx",
@@ -224,11 +231,11 @@ def run_filter(imu, rec, mod, proc, ini, out):
     w = np.zeros((5, 3))  # rows W_IB, W_FIX, W_IE, W_IN and W_FN (mean f^n, models with a time offset)
     no_row = np.zeros(rec.data.shape[1])  # the row of a node constraint (unused)
     prop_dt = proc.prop_dt
-    n_out = (n_imu + out.every - 1) // out.every
-    out_idx, out_st, out_node = np.empty(n_out, np.int64), np.empty((n_out, 10)), np.empty(n_out, np.int64)
-    out_bias, out_pdiag = np.empty((n_out, max(nb, 1))), np.empty((n_out, n))  # out_node: last node ≤ sample
     max_nodes = min(M + int((imu.t[-1] - ini.t0) / prop_dt) + 3 + n_imu // max(1, int(prop_dt * 1000.0)),
                     n_imu + 1)
+    n_out = (n_imu + out.every - 1) // out.every if out.every > 0 else max_nodes
+    out_idx, out_st, out_node = np.empty(n_out, np.int64), np.empty((n_out, 10)), np.empty(n_out, np.int64)
+    out_bias, out_pdiag = np.empty((n_out, max(nb, 1))), np.empty((n_out, n))  # out_node: last node ≤ sample
     node_idx = np.empty(max_nodes, np.int64)
     ns = max_nodes if out.smooth else 1
     S_post, S_prior, S_phi = np.zeros((ns, n, n)), np.zeros((ns, n, n)), np.zeros((ns, n, n))
@@ -276,8 +283,10 @@ def run_filter(imu, rec, mod, proc, ini, out):
                 F[:nins, :nins] = Fi[:nins, :nins]
                 G[:nins, :mins] = Gi[:nins, :mins]
             discretize(F, G, proc.q, T, Phi, Qd)
+            exact_blocks(Phi, Qd, proc.gm, T)
             x[:] = 0.0
             predict(x, P, Phi, Qd)
+            carry_estimates(st, bias, Phi, proc.open, nh)
             if gap_phi > 0.0:  # (indices of the full layout through ix: a subset has its own)
                 for i in range(3):
                     a, b = ix[PHI + i], ix[DV + i]
@@ -335,7 +344,7 @@ def run_filter(imu, rec, mod, proc, ini, out):
                 S_dx[kn] = x
             kn += 1
             reset_accumulator(acc)
-        if k % out.every == 0:
+        if (k % out.every == 0) if out.every > 0 else (kn > 0 and node_idx[kn - 1] == k):
             out_idx[oi] = k
             for i in range(10):
                 out_st[oi, i] = st[i]
@@ -399,3 +408,71 @@ def smooth_outputs(out_idx, out_st, out_bias, out_node, node_idx, ds, S_dx, nsta
         for i in range(nstate - NAV):
             res_b[o, i] = b[i]
     return res_st, res_b
+
+
+# ------------------------------------------- exact Gauss-Markov blocks, open-loop states, update at t0
+@njit(cache=True)
+def exact_blocks(Phi, Qd, gm, T):
+    """Φ, Qd of the Gauss-Markov blocks ``gm`` over T [s], exact, in place of the Taylor series (which
+    fails at ‖F‖T ≈ 1: a wing flexure at β ≈ 1 s⁻¹ and T = 1 s). Rows (i, j, β [1/s], σ): j < 0: first
+    order at state i, ẋ = −βx + w, Φ = e^{−βT}, Qd = σ²(1 − e^{−2βT}); j ≥ 0: second order, x at i and
+    ẋ at j, ẍ + 2βẋ + β²x = η, Q_η = 4β³σ² (:func:`aidnav.models.distributed_pos.flexure_transition`).
+    The blocks must be decoupled in F from the other states (as every calibration state is: the engine
+    gives them only their own dynamics), so their rows and columns are replaced whole."""
+    for r in range(gm.shape[0]):
+        i, j, beta, sig = int(gm[r, 0]), int(gm[r, 1]), gm[r, 2], gm[r, 3]
+        for a in (i, j):
+            if a >= 0:
+                Phi[a, :], Phi[:, a], Qd[a, :], Qd[:, a] = 0.0, 0.0, 0.0, 0.0
+        if j < 0:
+            e = np.exp(-beta * T)
+            Phi[i, i], Qd[i, i] = e, sig * sig * (1.0 - e * e)
+            continue
+        ph, qd = flexure_transition(beta, sig, T)
+        Phi[i, i], Phi[i, j], Phi[j, i], Phi[j, j] = ph[0, 0], ph[0, 1], ph[1, 0], ph[1, 1]
+        Qd[i, i], Qd[i, j], Qd[j, i], Qd[j, j] = qd[0, 0], qd[0, 1], qd[1, 0], qd[1, 1]
+
+
+@njit(cache=True)
+def carry_estimates(st, bias, Phi, opn, nstate):
+    """Open-loop states ``opn`` (indices ≥ 9, no state subset): their estimate, kept in ``bias`` like
+    every calibration state, is propagated as the conditional mean x̂ ← Φ x̂ at each node (the
+    closed-loop engine otherwise holds it: right for a random constant, wrong for a Markov process such
+    as a flexure); the change (and what Φ carries into the other states) is fed back. The updates
+    then add to that estimate and it is never reset: with Φ linear in these states this is the
+    open-loop estimator x̂⁻ = Φ x̂⁺, x̂⁺ = x̂⁻ + K ν, exactly, and the RTS pass sees a prior of zero."""
+    if opn.shape[0] == 0:
+        return
+    xo = np.zeros(nstate)
+    for i in opn:
+        xo[i] = bias[i - NAV]
+    feedback(st, bias, Phi @ xo - xo, nstate)
+
+
+@njit(cache=True)
+def initial_update(rec, mod, proc, ini):
+    """The records at or before ``ini.t0`` (which :func:`run_filter` skips) as one node at t0 without
+    prediction: the update of an initialisation from measurements at t0 (transfer alignment). Returns
+    (st, bias, P) after the updates and their feedback, the :class:`Log` of those records and the
+    update dx (for an RTS pass that includes t0)."""
+    n = proc.lay[L_N]
+    st, bias, P, x = ini.st.copy(), ini.bias.copy(), ini.P.copy(), np.zeros(n)
+    wk = Work(np.zeros((MAX_ROWS, n)), np.zeros(MAX_ROWS), np.zeros((MAX_ROWS, MAX_ROWS)))
+    w = np.zeros((5, 3))
+    _node_rates(st, np.zeros(3), np.zeros(3), 1.0, w)
+    g = 0
+    while g < rec.t.shape[0] and rec.t[g] <= ini.t0:
+        g += 1
+    log = Log(rec.t[:g].copy(), rec.model[:g].astype(np.int8), np.full(g, -1, np.int8), np.full(g, np.nan),
+              np.full((g, MAX_ROWS), np.nan), np.full((g, MAX_ROWS), np.nan), np.arange(g))
+    rej = np.zeros(N_MODELS, np.int64)
+    C = dcm_from_quat(st[ST_Q:ST_Q + 4])
+    for i in range(g):
+        if rec.use[i]:
+            md = rec.model[i]
+            nav = Nav(st, C, w, ini.t0 - rec.t[i], bias)
+            m = fill(md, nav, rec.data[i], mod.par[md], proc.lay, wk.H, wk.z, wk.R)
+            if m > 0:
+                gated_update(x, P, wk, m, md, mod, rej, log, i)
+    feedback(st, bias, x, n)
+    return st, bias, P, log, x

@@ -17,7 +17,8 @@ SA 18:21  accel scale-factor residual [-]             21, 24
 CLK       receiver clock bias [m], drift [m/s]        17 (15:17), 11 (9:11)
 AUX       calibration states (odometer scale factor   after the INS block
           [-], barometer bias [m], GNSS lever arm
-          [m], time offset [s], mounting ρ [rad])
+          [m], time offset [s], mounting ρ [rad],
+          flexure θ [rad] (and θ̇ [rad/s]))
 ========  =========================================  ======================
 
 The named layouts: 15 = navigation + biases; 17 = 15 + receiver clock (tight); 21 = 15 + scale
@@ -38,11 +39,12 @@ N_ST = 10
 # error-state blocks of the INS model (ins_errors)
 NAV = 9  # φ, δv, δp
 __all__ = ["PHI", "DV", "DP", "BG", "BA", "SG", "SA", "ST_POS", "ST_VEL", "ST_Q", "N_ST", "NAV",
-           "AUX_NAMES", "L_TOFF", "L_MOUNT", "L_VDEL", "L_GPE", "make_layout", "layout_names", "LAYOUTS"]
+           "AUX_NAMES", "L_TOFF", "L_MOUNT", "L_VDEL", "L_GPE", "L_FLEX", "make_layout", "layout_names",
+           "LAYOUTS"]
 
 # calibration (auxiliary) states the engine knows: name -> width
 AUX_NAMES = {"odometer_scale": 1, "baro_bias": 1, "clock": 2, "lever_arm": 3, "time_offset": 1, "mounting": 3,
-             "velocity_delay": 1, "gnss_pos_error": 3}
+             "velocity_delay": 1, "gnss_pos_error": 3, "flexure": 6, "flexure_angle": 3}
 
 # entries of the int64 layout table (kernels read these)
 L_N = 0  # total number of error states
@@ -55,7 +57,8 @@ L_TOFF = 6  # index of the IMU-GNSS time-offset residual [s] (added to the IMU s
 L_MOUNT = 7  # index of the 3-state mounting residual ρ [rad] (vehicle frame), -1: none
 L_VDEL = 8  # index of the GNSS velocity delay residual [s] (velocity older than its stamp), -1: none
 L_GPE = 9  # index of the 3 Gauss-Markov GNSS position-error states ENU [m] (time-correlated), -1: none
-L_SIZE = 10
+L_FLEX = 10  # index of the flexure angle θ (3) [rad] (θ̇ (3) [rad/s] at +3 for "flexure"), -1: none
+L_SIZE = 11
 
 LAYOUTS = {15: dict(scale_factors=False), 17: dict(scale_factors=False, aux=("clock",)),
            21: dict(scale_factors=True), 24: dict(scale_factors=True, aux=("lever_arm",))}
@@ -68,7 +71,8 @@ def make_layout(scale_factors: bool = False, aux: tuple[str, ...] = ()) -> np.nd
     n = 21 if scale_factors else 15
     lay[L_NINS] = n
     slot = {"odometer_scale": L_ODO, "baro_bias": L_BARO, "clock": L_CLK, "lever_arm": L_LEVER,
-            "time_offset": L_TOFF, "mounting": L_MOUNT, "velocity_delay": L_VDEL, "gnss_pos_error": L_GPE}
+            "time_offset": L_TOFF, "mounting": L_MOUNT, "velocity_delay": L_VDEL, "gnss_pos_error": L_GPE,
+            "flexure": L_FLEX, "flexure_angle": L_FLEX}
     for name in aux:
         if name not in AUX_NAMES:
             raise ValueError(f"unknown calibration state {name!r}; known: {sorted(AUX_NAMES)}")
@@ -80,6 +84,12 @@ def make_layout(scale_factors: bool = False, aux: tuple[str, ...] = ()) -> np.nd
     return lay
 
 
+def _width(lay: np.ndarray, slot: int) -> int:
+    """Number of states of the block at ``lay[slot]`` (up to the next block or the end)."""
+    after = [int(lay[s]) for s in range(L_ODO, L_SIZE) if lay[s] > lay[slot]]
+    return min(after + [int(lay[L_N])]) - int(lay[slot])
+
+
 def layout_names(lay: np.ndarray) -> list[str]:
     """One name per error state of layout ``lay`` (for tables and data frames)."""
     names = [f"{b}_{a}" for b in ("phi", "dv") for a in "enu"] + ["dlat", "dlon", "dh"]
@@ -88,9 +98,12 @@ def layout_names(lay: np.ndarray) -> list[str]:
     aux = sorted((int(lay[s]), nm) for s, nm in ((L_ODO, "odometer_scale"), (L_BARO, "baro_bias"),
                                                   (L_CLK, "clock"), (L_LEVER, "lever_arm"),
                                                   (L_TOFF, "time_offset"), (L_MOUNT, "mounting"),
-                                                  (L_VDEL, "velocity_delay"), (L_GPE, "gnss_pos_error"))
+                                                  (L_VDEL, "velocity_delay"), (L_GPE, "gnss_pos_error"),
+                                                  (L_FLEX, "flexure_angle" if _width(lay, L_FLEX) == 3 else
+                                                   "flexure"))
                  if lay[s] >= 0)
     for _, nm in aux:
         names += ([nm] if AUX_NAMES[nm] == 1 else
                   (["clock_bias", "clock_drift"] if nm == "clock" else [f"{nm}_{a}" for a in "xyz"]))
+        names += [f"flexure_rate_{a}" for a in "xyz"] if nm == "flexure" else []
     return names

@@ -1,90 +1,47 @@
-"""Transfer alignment of a sub-IMU to a master POS by velocity + attitude matching (seed 004, §5.1).
+"""Transfer alignment of a sub-IMU to a master POS by velocity + attitude matching (seed 004, §5.1), on
+the filter engine (:mod:`aidnav.filters.engine`): the driver, the RTS smoother and the covariance
+analysis. The state layout, the process model and the settings are in :mod:`.transfer_model` (names
+re-exported here), the errors against a simulation's truth in :mod:`.transfer_errors`.
 
-Frames and units: n = ENU (master and sub navigation frames taken equal, §5.1), b_m / b_s the
-master / sub body frames (RFU); radians, metres, seconds; sub state as in
-:mod:`aidnav.nav.strapdown` (lat, lon, h, v^n, q_bs^n).
+Frames and units: n = ENU, b = RFU; radians, metres, seconds (:mod:`.transfer_model`).
 
-State (errors are computed − true, as in :mod:`aidnav.filters.ins_errors`):
-
-=======  =============================================================  ============
-0:3      φ, sub misalignment in n: C̃_bs^n = (I − [φ×]) C_bs^n             rad
-3:6      δv^n                                                          m/s
-6:9      δL, δλ, δh                                                    rad, rad, m
-9:12     ε, gyro bias residual (true − estimated), b_s                 rad/s
-12:15    ∇, accelerometer bias residual, b_s                            m/s²
-15:18    ρ, fixed mounting misalignment, C_bs^bm = exp(−[(ρ+θ)×])      rad
-18:21    θ, wing flexure angle                                         rad
-21:24    θ̇, flexure rate (24-state model only)                         rad/s
-=======  =============================================================  ============
-
-* **24 states** (§5.1 item 9, recommended): θ is the second-order Markov process of the truth,
-  θ̈ + 2βθ̇ + β²θ = η, Q_η = 4β³σ², β = 2.146/τ.
-* **21 states** (the seed's count): x₂ = (ρ, θ) only, which cannot carry a second-order process, so θ
-  is modelled as first-order Gauss-Markov θ̇ = −θ/τ + w with the same σ and τ (τ is then also its 1/e
-  time), Q_w = 2σ²/τ. The truth stays second order: this variant is the seed's model mismatch.
-
-Process model: the 15 INS error states from :func:`aidnav.filters.ins_errors.fill_model` (biases
-random constants, white gyro/accelerometer noise of the sub-IMU grade), ρ̇ = 0, the flexure block
-above. F is block diagonal between (INS, ρ) and the flexure, so the transition is discretised per
-block: :func:`aidnav.filters.kalman.discretize` (third-order Taylor of Van Loan) for the INS+ρ block,
-the exact matrix exponential for the flexure block (‖F_flex‖·T ≈ 2βT ≈ 2 at T = 1 s, far too large
-for a Taylor series): :func:`aidnav.models.distributed_pos.flexure_transition`.
-
-Measurements, every filter epoch (§5.1 item 10), one batch update of six rows with
-:func:`aidnav.filters.kalman.update` (Joseph form, optional χ² gate):
-
-* attitude: D = C̃_bs^n (C̃_bm^n)ᵀ ≈ I − [z_a×], z_a = φ + C̃_bm^n (ρ + θ) + v_a
-  (:func:`aidnav.filters.measurements.attitude` gives z_a and the φ columns; the ρ and θ columns are
-  C̃_bm^n J, J the left Jacobian of SO(3) at −(ρ̂ + θ̂)): the residual is formed about the current
-  estimate of ρ + θ (EKF, see :func:`_measurement`). R_a = M diag(σ_roll², σ_pitch², σ_heading²) Mᵀ
-  maps the master's Euler-angle errors into n (:func:`aidnav.nav.rotations.euler_error_map`).
-* velocity: z_v = ṽ_s − (ṽ_m + C̃_bm^n (ω_eb^bm × r^bm)) = δv + v_v: the master velocity after lever-arm
-  compensation, ω_eb^bm = ω_ib^bm − C_n^bm ω_ie^n (the master IMU's rate). R_v = σ_v² I.
-
-Closed-loop feedback after each update of φ, δv, δp, ε, ∇ into the strapdown state and the bias
-estimates (:func:`aidnav.filters.loose._apply_correction`); ρ, θ, θ̇ stay in the state vector and
-are propagated by Φ. The strapdown (:func:`aidnav.nav.strapdown.strapdown_step`) runs at the IMU rate
-(0.01 s) and the filter at the master output rate (1 s) inside one numba kernel per run.
+The engine runs the strapdown (:func:`aidnav.nav.strapdown.strapdown_step`) at the IMU rate
+(0.01 s) and a node at each master output (1 s): prediction (the flexure block exact, ρ, θ, θ̇
+open-loop), one 6-row velocity + attitude matching update (Joseph form, optional χ² gate) and the
+closed-loop feedback of φ, δv, δp, ε, ∇ into the strapdown state and the bias estimates.
 
 Initialisation (transfer of the master's output at t₀): position = master position + C̃_bm^n r,
 velocity = lever-arm-compensated master velocity, attitude = master attitude (nominal mounting I),
 biases 0. P₀ is diagonal with a diffuse φ and δv (``att_prior_deg``, ``vel_prior_m_s``), the master's
 position accuracy, the sensor grade's bias σ, ``mounting_sigma_deg`` for ρ and the stationary flexure
-covariance; the first update at t₀ then ties φ + C(ρ + θ) and δv to the master's output, which is the
-joint prior of an initialisation from that output (φ₀ = −C(ρ+θ₀) − master error).
+covariance; the first update at t₀ (:func:`aidnav.filters.engine.initial_update`) then ties
+φ + C(ρ + θ) and δv to the master's output, which is the joint prior of an initialisation from that
+output (φ₀ = −C(ρ+θ₀) − master error).
 
 Consistency: with these choices the filter's NEES is within its χ² band over the whole run (tests).
 Two details matter for that: the attitude residual uses the exact composition about the current
-ρ̂ + θ̂ with the left Jacobian of SO(3) in H (:func:`_measurement`), and ρ, θ, θ̇ are never reset.
+ρ̂ + θ̂ with the left Jacobian of SO(3) in H, and ρ, θ, θ̇ are never reset. ``smooth=True`` adds
+the engine's RTS pass over the epochs (t₀ included).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from types import SimpleNamespace
 from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit
 
-from aidnav.models.distributed_pos import FlexureSpec, MasterPosSpec
-from aidnav.nav.earth import OMEGA_IE, lla_difference_enu, radii
-from aidnav.nav.rotations import (
-    dcm_from_euler,
-    euler_error_map,
-    quat_from_dcm,
-    quat_to_euler_batch,
-)
+from aidnav.models.distributed_pos import MasterPosSpec
+from aidnav.nav.earth import OMEGA_IE, radii
+from aidnav.nav.rotations import dcm_from_euler, euler_error_map, quat_from_dcm, quat_to_euler_batch
 from aidnav.nav.strapdown import make_state
 
-if TYPE_CHECKING:  # the simulator's containers, for annotations only (filters do not import sim)
-    from aidnav.sim.distributed_pos import DistributedPosConfig, DistributedPosRun
-
-from .ins_errors import (
-    measurement_arrays,
-    model_arrays,
-)
-from .kalman import predict, update
+from . import measurements as ms
+from .engine import Imu, Init, Output, Records, initial_update, rts, run_filter, smooth_outputs
+from .transfer_errors import TransferErrors, segment_statistic, transfer_errors
 from .transfer_model import (  # noqa: F401  (re-exported: the model is part of this module's API)
     BA,
     BG,
@@ -92,80 +49,25 @@ from .transfer_model import (  # noqa: F401  (re-exported: the model is part of 
     DP,
     DV,
     N_INS,
-    N_NOISE_INS,
     PHI,
     RHO,
     THETA,
     THETA_DOT,
-    _measurement,
-    _transfer_kernel,
+    TransferConfig,
     discretize_transfer,
     fill_transfer_model,
     left_jacobian,
     state_labels,
+    transfer_models,
+    transfer_process,
 )
+
+if TYPE_CHECKING:  # the simulator's containers, for annotations only (filters do not import sim)
+    from aidnav.sim.distributed_pos import DistributedPosRun
 
 __all__ = ["PHI", "DV", "DP", "BG", "BA", "RHO", "THETA", "THETA_DOT", "TransferConfig", "TransferResult",
            "TransferErrors", "fill_transfer_model", "discretize_transfer", "run_transfer", "transfer_errors",
            "segment_statistic", "covariance_analysis", "CovarianceAnalysis", "state_labels", "left_jacobian"]
-
-# -------------------------------------------------------------------------------------- driver
-@dataclass(frozen=True)
-class TransferConfig:
-    """Settings of the transfer-alignment filter (SI units unless the name says otherwise).
-
-    nstate: 24 (second-order flexure) or 21 (first-order, the seed's count). lever_arm_m: r^bm [m].
-    flexure: flexure model (σ, τ). gyro_bias_sigma [rad/s], accel_bias_sigma [m/s²]: P₀ of the biases;
-    gyro_arw [rad/√s], accel_vrw [m/s/√s]: white-noise densities (per axis, the largest of the three).
-    mounting_sigma_deg: P₀ of ρ. att_prior_deg, vel_prior_m_s: diffuse P₀ of φ and δv before the
-    first update. master: accuracy of the master output (R and the position part of P₀).
-    gate: χ² gate of the 6-row update (≤ 0: none).
-    """
-
-    nstate: int = 24
-    lever_arm_m: tuple[float, float, float] = (5.0, 0.1, 0.1)
-    flexure: FlexureSpec = FlexureSpec()
-    gyro_bias_sigma: float = 0.1 * DEG / 3600.0
-    accel_bias_sigma: float = 50.0 * 9.80665e-6
-    gyro_arw: float = 0.1 * DEG / 3600.0
-    accel_vrw: float = 50.0 * 9.80665e-6
-    mounting_sigma_deg: float = 1.0
-    att_prior_deg: float = 3.0
-    vel_prior_m_s: float = 1.0
-    master: MasterPosSpec = MasterPosSpec()
-    gate: float = 0.0
-
-    def __post_init__(self):
-        if self.nstate not in (21, 24):
-            raise ValueError(f"TransferConfig.nstate must be 21 or 24, got {self.nstate}")
-
-    @classmethod
-    def from_sim(cls, cfg: DistributedPosConfig, nstate: int = 24, **kw) -> TransferConfig:
-        """A filter matched to a simulation config (sensor grade, lever arm, flexure, master accuracy)."""
-        imu = cfg.sub_imu
-        return cls(nstate=nstate, lever_arm_m=tuple(float(v) for v in cfg.lever_arm_m), flexure=cfg.flexure,
-                   gyro_bias_sigma=float(np.max(np.abs(imu.gyro_bias))),
-                   accel_bias_sigma=float(np.max(np.abs(imu.accel_bias))),
-                   gyro_arw=float(np.max(imu.gyro_arw)), accel_vrw=float(np.max(imu.accel_vrw)),
-                   master=cfg.master, **kw)
-
-    def initial_covariance(self, lat: float, h: float) -> np.ndarray:
-        """Diagonal P₀ (n×n) at latitude ``lat`` [rad], height ``h`` [m]."""
-        n = self.nstate
-        rm, rn = radii(lat)
-        sp = self.master.pos_sigma_m
-        d = np.zeros(n)
-        d[PHI:PHI + 3] = (self.att_prior_deg * DEG) ** 2
-        d[DV:DV + 3] = self.vel_prior_m_s**2
-        d[DP:DP + 3] = [(sp[1] / (rm + h)) ** 2, (sp[0] / ((rn + h) * math.cos(lat))) ** 2, sp[2] ** 2]
-        d[BG:BG + 3] = max(self.gyro_bias_sigma, 1e-12) ** 2
-        d[BA:BA + 3] = max(self.accel_bias_sigma, 1e-12) ** 2
-        d[RHO:RHO + 3] = (self.mounting_sigma_deg * DEG) ** 2
-        sig = self.flexure.sigma
-        d[THETA:THETA + 3] = np.maximum(sig, 1e-12) ** 2
-        if n == 24:
-            d[THETA_DOT:THETA_DOT + 3] = np.maximum(self.flexure.beta * sig, 1e-12) ** 2
-        return np.diag(d)
 
 
 @dataclass
@@ -176,7 +78,9 @@ class TransferResult:
     pitch, heading [rad]; bias (M, 6) gyro [rad/s] and accelerometer [m/s²] bias estimates; rho (M, 3)
     ρ̂ [rad]; theta (M, 3) θ̂ [rad]; theta_dot (M, 3) θ̂̇ [rad/s] (NaN for 21 states); pdiag (M, n)
     covariance diagonal; cov (M, n, n) full covariance (only with ``keep_cov``); nis (M,) 6-row NIS;
-    accepted (M,) gate verdicts; innov, s_diag (M, 6) innovations and diag of their covariance.
+    accepted (M,) gate verdicts; innov, s_diag (M, 6) innovations and diag of their covariance
+    (attitude, then velocity). Smoothed (``smooth=True``): state, rph, bias, ρ̂, θ̂, θ̂̇, pdiag and cov
+    are the RTS solution and ``forward`` holds the filter's.
     """
 
     time: np.ndarray
@@ -193,6 +97,7 @@ class TransferResult:
     innov: np.ndarray
     s_diag: np.ndarray
     config: TransferConfig
+    forward: TransferResult | None = None
 
 
 @njit(cache=True)
@@ -204,32 +109,28 @@ def _dcm_batch(rph):
     return out
 
 
-def _master_arrays(master):
-    """C̃_bm^n (M, 3, 3) and R_a (M, 3, 3) from the master output."""
-    Cm = _dcm_batch(np.ascontiguousarray(master.rph))
-    Mmap = euler_error_map(master.rph)
+def _records(master, M: int) -> tuple[Records, np.ndarray]:
+    """Velocity + attitude matching records of the first M master outputs (30-entry rows of
+    :func:`aidnav.filters.measurements.attitude.velocity_attitude_matching`) and C̃_bm^n (M, 3, 3)."""
+    rph = np.ascontiguousarray(master.rph[:M])
+    Cm = _dcm_batch(rph)
+    Mmap = euler_error_map(rph)
     Ra = Mmap @ np.diag(master.spec.att_sigma_rad**2) @ np.swapaxes(Mmap, -1, -2)
-    return Cm, Ra
+    data = np.zeros((M, 30))
+    data[:, 0:3], data[:, 3:12] = master.vel[:M], Cm.reshape(M, 9)
+    data[:, 12:15] = float(master.spec.sigma_vel_m_s)
+    data[:, 18:27], data[:, 27:30] = Ra.reshape(M, 9), master.w_ib[:M]
+    rec = Records(np.ascontiguousarray(master.time[:M], float), np.full(M, ms.M_VATT, np.int64), data,
+                  np.ones(M, np.bool_))
+    return rec, Cm
 
 
-def run_transfer(run: DistributedPosRun, cfg: TransferConfig | None = None, keep_cov: bool = False,
-                 imu=None) -> TransferResult:
-    """Transfer-align the sub-IMU of ``run`` to its master POS output.
-
-    cfg: filter settings (default :meth:`TransferConfig.from_sim` of the run's config, 24 states).
-    keep_cov: keep the full covariance at every epoch. imu: sub-IMU increments to use instead of
-    ``run.sub.imu`` (e.g. the error-free ones).
-    """
-    cfg = cfg or TransferConfig.from_sim(run.config)
-    imu = imu if imu is not None else run.sub.imu
-    master = run.master
-    dt = float(imu.time[1] - imu.time[0])
-    ratio = int(master.index[1] - master.index[0]) if len(master.index) > 1 else 1
-    if master.index[0] != 0:
-        raise ValueError("run_transfer: the master output must start at the first truth point")
-    M = int(min(len(master.time), len(imu) // ratio + 1))
-    r = np.asarray(cfg.lever_arm_m, float)
-    Cm, Ra = _master_arrays(master)
+def _align(imu, master, cfg: TransferConfig, ratio: int, M: int, keep_cov: bool, smooth: bool,
+           lever=None) -> TransferResult:
+    """The engine run over M master epochs (epoch j at IMU sample boundary j·ratio)."""
+    n = cfg.nstate
+    r = np.asarray(cfg.lever_arm_m if lever is None else lever, float)
+    rec, Cm = _records(master, M)
     # initial sub state from the master output at t0
     rm, rn = radii(master.lat[0])
     h0 = master.height[0]
@@ -237,171 +138,76 @@ def run_transfer(run: DistributedPosRun, cfg: TransferConfig | None = None, keep
     lat0 = master.lat[0] + dn[1] / (rm + h0)
     lon0 = master.lon[0] + dn[0] / ((rn + h0) * math.cos(master.lat[0]))
     wie = np.array([0.0, OMEGA_IE * math.cos(master.lat[0]), OMEGA_IE * math.sin(master.lat[0])])
-    web = master.w_ib[0] - Cm[0].T @ wie
-    v0 = master.vel[0] + Cm[0] @ np.cross(web, r)
+    v0 = master.vel[0] + Cm[0] @ np.cross(master.w_ib[0] - Cm[0].T @ wie, r)
     st0 = make_state(lat0, lon0, h0 + dn[2], v0, quat_from_dcm(Cm[0]))
-    P0 = cfg.initial_covariance(lat0, h0)
-    fl = cfg.flexure
-    out = _transfer_kernel(imu.dtheta, imu.dv, dt, ratio, st0, P0, fl.beta, np.maximum(fl.sigma, 1e-12),
-                           cfg.gyro_arw**2, cfg.accel_vrw**2, r, Cm[:M], np.ascontiguousarray(master.vel[:M]),
-                           np.ascontiguousarray(master.w_ib[:M]), Ra[:M], float(master.spec.sigma_vel_m_s),
-                           float(cfg.gate), bool(keep_cov))
-    st, bias, xo, pd, P, nis, ok, innov, sd = out
-    n = cfg.nstate
-    rph = quat_to_euler_batch(np.ascontiguousarray(st[:, 6:10]))
-    tdot = xo[:, 6:9] if n == 24 else np.full((M, 3), np.nan)
-    return TransferResult(time=master.time[:M].copy(), state=st, rph=rph, bias=bias, rho=xo[:, 0:3],
-                          theta=xo[:, 3:6], theta_dot=tdot, pdiag=pd, cov=P if keep_cov else None, nis=nis,
-                          accepted=ok, innov=innov, s_diag=sd, config=cfg)
+    dt = float(imu.time[1] - imu.time[0])
+    proc = transfer_process(cfg, ratio * dt)
+    mod = transfer_models(cfg, r)
+    ini = Init(float(master.time[0]), st0, np.zeros(n - 9), cfg.initial_covariance(lat0, h0), -1, 0.0, 0.0,
+               np.full(15, np.nan))
+    st0, b0, P0, log0, dx0 = initial_update(rec, mod, proc, ini)
+    ns = (M - 1) * ratio
+    c = np.ascontiguousarray
+    imu_in = Imu(c(imu.time[:ns], float), c(imu.dtheta[:ns]), c(imu.dv[:ns]), np.zeros(ns, np.bool_),
+                 np.zeros((ns, 2)), np.zeros((0, 2)))
+    cov_idx = np.arange(1, M, dtype=np.int64) * ratio - 1 if keep_cov else np.zeros(0, np.int64)
+    o = run_filter(imu_in, rec, mod, proc, ini._replace(st=st0, bias=b0, P=P0), Output(0, smooth, cov_idx))
+    if len(o.node_idx) != M - 1:
+        raise RuntimeError(f"transfer: {len(o.node_idx)} engine nodes for {M - 1} master epochs")
+    st, bias = np.vstack([st0, o.out_st]), np.vstack([b0, o.out_bias])
+    pd = np.vstack([np.diag(P0), o.out_pdiag])
+    cov = np.concatenate([P0[None], o.cov]) if keep_cov else None
+    lg = o.log
+    for k in ("nis", "nu", "s", "status"):
+        getattr(lg, k)[0] = getattr(log0, k)[0]
+    att_vel = [3, 4, 5, 0, 1, 2]  # the model's rows are velocity, then attitude
+    res = _result(master.time[:M], st, bias, pd, cov, cfg)
+    res.nis, res.accepted = lg.nis[:M].copy(), lg.status[:M] == 1
+    res.innov, res.s_diag = lg.nu[:M][:, att_vel], lg.s[:M][:, att_vel]
+    if not smooth:
+        return res
+    # the RTS pass over t0 and the engine's nodes (t0: no prediction before it, Φ = I unused)
+    S_post, S_prior = np.concatenate([P0[None], o.S_post]), np.concatenate([P0[None], o.S_prior])
+    S_phi = np.concatenate([np.eye(n)[None], o.S_phi])
+    S_dx = np.concatenate([dx0[None], o.S_dx])
+    ds, Ps = rts(S_post, S_prior, S_phi, S_dx, -1)
+    k = np.arange(M, dtype=np.int64)
+    sm_st, sm_b = smooth_outputs(k, st, bias, k, k, ds, S_dx, n)
+    sm = _result(master.time[:M], sm_st, sm_b, np.einsum("kii->ki", Ps), Ps if keep_cov else None, cfg)
+    return replace(sm, nis=res.nis, accepted=res.accepted, innov=res.innov, s_diag=res.s_diag, forward=res)
 
 
-@dataclass
-class TransferErrors:
-    """Errors (estimate − truth) of a transfer alignment at its epochs.
+def _result(time, st, bias, pd, cov, cfg) -> TransferResult:
+    """A :class:`TransferResult` from the engine's state and sensor/calibration estimates at the epochs."""
+    M = len(time)
+    tdot = bias[:, 12:15] if cfg.nstate == 24 else np.full((M, 3), np.nan)
+    empty = np.zeros(0)
+    return TransferResult(time=np.array(time, float), state=st, rph=quat_to_euler_batch(np.ascontiguousarray(
+        st[:, 6:10])), bias=bias[:, :6].copy(), rho=bias[:, 6:9].copy(), theta=bias[:, 9:12].copy(),
+        theta_dot=tdot.copy(), pdiag=pd, cov=cov, nis=empty, accepted=empty, innov=empty, s_diag=empty,
+        config=cfg)
 
-    time (M,) [s]; rph (M, 3) roll, pitch, heading errors [rad] (wrapped); phi (M, 3) misalignment φ
-    [rad] (rotation vector, CONVENTIONS sign); vel (M, 3) ENU [m/s]; pos (M, 3) E, N, U [m]
-    (lat error as N, lon error as E); baseline (M,) error of the master–sub distance |p̃_s − p̃_m| [m]
-    (master output position against the sub estimate); rho (M, 3), theta (M, 3), theta_dot (M, 3)
-    errors of the estimates [rad, rad, rad/s]; state (M, n) errors of the full state vector in the
-    filter's definition (for NEES).
+
+def run_transfer(run: DistributedPosRun, cfg: TransferConfig | None = None, keep_cov: bool = False,
+                 imu=None, smooth: bool = False) -> TransferResult:
+    """Transfer-align the sub-IMU of ``run`` to its master POS output.
+
+    cfg: filter settings (default :meth:`TransferConfig.from_sim` of the run's config, 24 states).
+    keep_cov: keep the full covariance at every epoch. imu: sub-IMU increments to use instead of
+    ``run.sub.imu`` (e.g. the error-free ones). smooth: return the RTS solution (the filter's in
+    ``forward``).
     """
-
-    time: np.ndarray
-    rph: np.ndarray
-    phi: np.ndarray
-    vel: np.ndarray
-    pos: np.ndarray
-    baseline: np.ndarray
-    rho: np.ndarray
-    theta: np.ndarray
-    theta_dot: np.ndarray
-    state: np.ndarray
-
-
-def transfer_errors(res: TransferResult, run: DistributedPosRun) -> TransferErrors:
-    """Errors of ``res`` against the truth of ``run`` at the filter epochs."""
-    from aidnav.nav.earth import lla_to_ecef
-    from aidnav.nav.rotations import attitude_error_batch, euler_to_quat_batch
-
-    idx = run.master.index[:len(res.time)]
-    s = run.sub.truth
-    d_rph = res.rph - s.rph[idx]
-    d_rph = (d_rph + np.pi) % (2 * np.pi) - np.pi
-    phi = attitude_error_batch(np.ascontiguousarray(res.state[:, 6:10]), euler_to_quat_batch(s.rph[idx]))
-    dvel = res.state[:, 3:6] - s.vel[idx]
-    de, dn, du = lla_difference_enu(res.state[:, 0], res.state[:, 1], res.state[:, 2], s.lat[idx], s.lon[idx],
-                                    s.height[idx])
-    pos = np.column_stack([de, dn, du])
-    m = run.master
-    M = len(res.time)
-    ps = np.column_stack(lla_to_ecef(res.state[:, 0], res.state[:, 1], res.state[:, 2]))
-    pm = np.column_stack(lla_to_ecef(m.lat[:M], m.lon[:M], m.height[:M]))
-    ts = np.column_stack(lla_to_ecef(s.lat[idx], s.lon[idx], s.height[idx]))
-    tm = np.column_stack(lla_to_ecef(run.master_truth.lat[idx], run.master_truth.lon[idx],
-                                     run.master_truth.height[idx]))
-    base = np.linalg.norm(ps - pm, axis=1) - np.linalg.norm(ts - tm, axis=1)
-    drho = res.rho - run.sub.rho[None, :]
-    dth = res.theta - run.sub.theta[idx]
-    dthd = res.theta_dot - run.sub.theta_dot[idx]
-    n = res.config.nstate
-    x = np.zeros((M, n))
-    x[:, PHI:PHI + 3] = phi
-    x[:, DV:DV + 3] = dvel
-    x[:, DP] = res.state[:, 0] - s.lat[idx]
-    x[:, DP + 1] = res.state[:, 1] - s.lon[idx]
-    x[:, DP + 2] = res.state[:, 2] - s.height[idx]
-    # bias residual states are true − estimated
-    x[:, BG:BG + 3] = run.sub.imu_errors["gyro_bias"][None, :] - res.bias[:, :3]
-    x[:, BA:BA + 3] = run.sub.imu_errors["accel_bias"][None, :] - res.bias[:, 3:]
-    # the filter's residual states are zero after feedback, so the error of the estimate is −(state)
-    x[:, :N_INS] = -x[:, :N_INS]
-    x[:, RHO:RHO + 3] = drho
-    x[:, THETA:THETA + 3] = dth
-    if n == 24:
-        x[:, THETA_DOT:THETA_DOT + 3] = dthd
-    return TransferErrors(time=res.time, rph=d_rph, phi=phi, vel=dvel, pos=pos, baseline=base, rho=drho,
-                          theta=dth, theta_dot=dthd, state=x)
-
-
-def segment_statistic(time: np.ndarray, err: np.ndarray, segments: list[dict], names=("AB", "CD"),
-                      stat: str = "std") -> np.ndarray:
-    """Mean over the named segments of a per-segment statistic of ``err`` ((M,) or (M, k)) over time.
-
-    stat: "std" (standard deviation over the segment, about its mean: the seed's "STD") or "rms"
-    (root mean square about zero). Epochs with start ≤ t ≤ end of a segment belong to it.
-    """
-    e = np.asarray(err, float)
-    vals = []
-    for name in names:
-        row = next((r for r in segments if r["name"] == name), None)
-        if row is None:
-            raise KeyError(f"segment_statistic: no segment named {name!r}")
-        msk = (time >= row["start_s"] - 1e-9) & (time <= row["end_s"] + 1e-9)
-        seg = e[msk]
-        if stat == "std":
-            vals.append(np.std(seg, axis=0))
-        elif stat == "rms":
-            vals.append(np.sqrt(np.mean(seg**2, axis=0)))
-        else:
-            raise ValueError(f"segment_statistic: stat must be 'std' or 'rms', got {stat!r}")
-    return np.mean(vals, axis=0)
+    cfg = cfg or TransferConfig.from_sim(run.config)
+    imu = imu if imu is not None else run.sub.imu
+    master = run.master
+    ratio = int(master.index[1] - master.index[0]) if len(master.index) > 1 else 1
+    if master.index[0] != 0:
+        raise ValueError("run_transfer: the master output must start at the first truth point")
+    M = int(min(len(master.time), len(imu) // ratio + 1))
+    return _align(imu, master, cfg, ratio, M, keep_cov, smooth)
 
 
 # --------------------------------------------------------------------------- covariance analysis
-@njit(cache=True)
-def _interval_means(c_m, dth, dv, ratio):
-    """Per filter interval: mean C_b^n, mean f^n [m/s²], mean ω_ib^b and f^b (sample-level C at starts)."""
-    n = dth.shape[0]
-    M = n // ratio
-    Cmean = np.zeros((M, 3, 3))
-    fn = np.zeros((M, 3))
-    wb = np.zeros((M, 3))
-    fb = np.zeros((M, 3))
-    for j in range(M):
-        for kk in range(ratio):
-            i = j * ratio + kk
-            C = c_m[i]
-            Cmean[j] += C
-            fn[j] += C @ dv[i]
-            wb[j] += dth[i]
-            fb[j] += dv[i]
-        Cmean[j] /= ratio
-    return Cmean, fn, wb, fb
-
-
-@njit(cache=True)
-def _covariance_kernel(lat, h, vel, Cm, Cmean, fn, wb, fb, T, P0, beta, sigma, q_gyro, q_accel, Ra, sig_v):
-    """Covariance-only recursion along a known trajectory (no strapdown, no noise): P⁺ at each epoch."""
-    M = lat.shape[0]
-    n = P0.shape[0]
-    P = P0.copy()
-    x = np.zeros(n)
-    F, G, Phi, Qd = model_arrays(n, 15)
-    q = np.zeros(15)
-    H, z, R, innov, sd = measurement_arrays(6, n)
-    out = np.empty((M, n, n))
-    for j in range(M):
-        if j > 0:
-            fill_transfer_model(F, G, q, lat[j], h[j], vel[j], fn[j - 1] / T, Cmean[j - 1], wb[j - 1] / T,
-                                fb[j - 1] / T, beta, sigma, q_gyro, q_accel)
-            discretize_transfer(F, G, q, T, beta, sigma, Phi, Qd)
-            predict(x, P, Phi, Qd)
-        H[:, :] = 0.0
-        R[:, :] = 0.0
-        for i in range(3):
-            H[i, PHI + i] = 1.0
-            H[3 + i, DV + i] = 1.0
-            for k in range(3):
-                H[i, RHO + k] = Cm[j, i, k]
-                H[i, THETA + k] = Cm[j, i, k]
-                R[i, k] = Ra[j, i, k]
-            R[3 + i, 3 + i] = sig_v * sig_v
-        update(x, P, H, R, z, 0.0, innov, sd)
-        out[j] = P
-    return out
-
-
 @dataclass
 class CovarianceAnalysis:
     """Predicted accuracy of the transfer alignment along a trajectory (no Monte Carlo).
@@ -431,9 +237,10 @@ def covariance_analysis(truth_bundle, cfg: TransferConfig | None = None,
     """Covariance analysis of the transfer alignment along a trajectory, without Monte Carlo.
 
     truth_bundle: ``(truth, imu, segments)`` of :func:`aidnav.sim.trajectory.generate_truth` (the master
-    truth; the sub's own motion differs only by the lever-arm terms, ignored here). The filter's F and
-    H are evaluated on the truth (the covariance of a filter that linearises about a near-truth
-    estimate), Φ, Qd and the updates use the same functions as :func:`run_transfer`.
+    truth; the sub's own motion differs only by the lever-arm terms, ignored here). The engine runs the
+    filter on the error-free increments with the master's error-free output as measurements: its F and
+    H are those of the truth (the covariance of a filter that linearises about a near-truth estimate),
+    and Φ, Qd and the updates are those of :func:`run_transfer`.
     """
     truth, imu, segments = truth_bundle
     cfg = cfg or TransferConfig()
@@ -441,23 +248,13 @@ def covariance_analysis(truth_bundle, cfg: TransferConfig | None = None,
     dt = float(truth.time[1] - truth.time[0])
     ratio = int(round(1.0 / (rate_hz * dt)))
     idx = np.arange(0, len(truth.time), ratio)
-    M = len(idx)
-    n_s = (M - 1) * ratio
-    c_all = _dcm_batch(np.ascontiguousarray(truth.rph[:n_s]))
-    Cmean, fn, wb, fb = _interval_means(c_all, imu.dtheta[:n_s], imu.dv[:n_s], ratio)
-    Cm = _dcm_batch(np.ascontiguousarray(truth.rph[idx]))
-    Mmap = euler_error_map(truth.rph[idx])
-    Ra = Mmap @ np.diag(master.att_sigma_rad**2) @ np.swapaxes(Mmap, -1, -2)
     cfg_m = cfg if cfg.master == master else replace(cfg, master=master)
-    P0 = cfg_m.initial_covariance(truth.lat[0], truth.height[0])
-    fl = cfg.flexure
-    T = ratio * dt
-    cov = _covariance_kernel(truth.lat[idx], truth.height[idx], np.ascontiguousarray(truth.vel[idx]), Cm,
-                             Cmean, fn, wb, fb, T, P0, fl.beta, np.maximum(fl.sigma, 1e-12), cfg.gyro_arw**2,
-                             cfg.accel_vrw**2, Ra, float(master.sigma_vel_m_s))
+    out = SimpleNamespace(time=truth.time[idx], lat=truth.lat[idx], lon=truth.lon[idx],
+                          height=truth.height[idx], vel=truth.vel[idx], rph=truth.rph[idx],
+                          w_ib=np.zeros((len(idx), 3)), spec=master)
+    res = _align(imu, out, cfg_m, ratio, len(idx), True, False, lever=np.zeros(3))
     # Euler-angle σ: δe = M⁻¹ φ
-    Minv = np.linalg.inv(Mmap)
-    Pphi = cov[:, :3, :3]
-    Pe = Minv @ Pphi @ np.swapaxes(Minv, -1, -2)
+    Minv = np.linalg.inv(euler_error_map(truth.rph[idx]))
+    Pe = Minv @ res.cov[:, :3, :3] @ np.swapaxes(Minv, -1, -2)
     sig = np.sqrt(np.maximum(np.diagonal(Pe, axis1=1, axis2=2), 0.0))
-    return CovarianceAnalysis(time=truth.time[idx].copy(), cov=cov, rph_sigma=sig, segments=segments)
+    return CovarianceAnalysis(time=truth.time[idx].copy(), cov=res.cov, rph_sigma=sig, segments=segments)

@@ -1,47 +1,76 @@
-"""Transfer-alignment model (seed 004, §5.1): the 24-state (21-state variant) error state, its process
-model F, G with the flexure block discretized exactly, and the velocity + attitude matching
-measurement, in numba. Frames and units as :mod:`aidnav.filters.transfer` (ENU, body RFU; radians,
-metres, seconds). The driver, the error analysis and the covariance analysis are in that module."""
+"""Transfer alignment of a sub-IMU to a master POS (seed 004, §5.1): the state layout, the process model
+and the settings, for the filter engine (:mod:`aidnav.filters.engine`).
+
+Frames and units: n = ENU (master and sub navigation frames taken equal, §5.1), b_m / b_s the
+master / sub body frames (RFU); radians, metres, seconds; sub state as in
+:mod:`aidnav.nav.strapdown` (lat, lon, h, v^n, q_bs^n).
+
+State (layout ``make_layout(False, ("mounting", "flexure"))``; errors computed − true for the
+navigation block, true − estimated for the others, as in :mod:`aidnav.filters.layout`):
+
+=======  =============================================================  ============
+0:3      φ, sub misalignment in n: C̃_bs^n = (I − [φ×]) C_bs^n             rad
+3:6      δv^n                                                          m/s
+6:9      δL, δλ, δh                                                    rad, rad, m
+9:12     ε, gyro bias residual (true − estimated), b_s                 rad/s
+12:15    ∇, accelerometer bias residual, b_s                            m/s²
+15:18    ρ, fixed mounting misalignment, C_bs^bm = exp(−[(ρ+θ)×])      rad
+18:21    θ, wing flexure angle                                         rad
+21:24    θ̇, flexure rate (24-state model only)                         rad/s
+=======  =============================================================  ============
+
+* **24 states** (§5.1 item 9, recommended): θ is the second-order Markov process of the truth,
+  θ̈ + 2βθ̇ + β²θ = η, Q_η = 4β³σ², β = 2.146/τ.
+* **21 states** (the seed's count): x₂ = (ρ, θ) only, which cannot carry a second-order process, so θ
+  is modelled as first-order Gauss-Markov θ̇ = −θ/τ + w with the same σ and τ (τ is then also its 1/e
+  time), Q_w = 2σ²/τ. The truth stays second order: this variant is the seed's model mismatch.
+
+Process model: the 15 INS error states of :func:`aidnav.filters.ins_errors.fill_model` (biases random
+constants, white gyro/accelerometer noise of the sub-IMU grade), ρ̇ = 0, the flexure block above.
+F is block diagonal between (INS, ρ) and the flexure, so the engine discretises the INS+ρ block with
+:func:`aidnav.filters.kalman.discretize` (third-order Taylor of Van Loan) and the flexure block
+exactly (``Process.gm``, :func:`aidnav.filters.engine.exact_blocks`: ‖F_flex‖·T ≈ 2βT ≈ 2 at T = 1 s,
+far too large for a Taylor series). ρ, θ, θ̇ are open-loop states (``Process.open``): their estimate
+is propagated as x̂ ← Φ x̂ and never reset (:func:`aidnav.filters.engine.carry_estimates`).
+
+Measurement, every filter epoch (§5.1 item 10): velocity + attitude matching, one 6-row batch update
+(:func:`aidnav.filters.measurements.attitude.velocity_attitude_matching`, with the master's lever-arm
+velocity, the full attitude covariance R_a = M diag(σ_roll², σ_pitch², σ_heading²) Mᵀ of
+:func:`aidnav.nav.rotations.euler_error_map`, and the exact composition about the current ρ̂ + θ̂ with
+the left Jacobian of SO(3) in H). :func:`fill_transfer_model` and :func:`discretize_transfer` give the
+continuous model with its 15 noise inputs and its discretisation for checks against Van Loan.
+"""
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
-from numba import njit
 
-from aidnav.models.distributed_pos import flexure_transition
-from aidnav.nav.earth import OMEGA_IE
-from aidnav.nav.rotations import (
-    dcm_from_quat,
-    dcm_from_rotvec,
-)
+from aidnav.models.distributed_pos import FlexureSpec, MasterPosSpec
+from aidnav.nav.earth import radii
+
+from . import measurements as ms
+from .engine import Models, Process, exact_blocks
+from .ins_errors import fill_model
+from .kalman import discretize
+from .layout import L_FLEX, make_layout
+from .measurements.attitude import left_jacobian
 
 if TYPE_CHECKING:  # the simulator's containers, for annotations only (filters do not import sim)
-    pass
+    from aidnav.sim.distributed_pos import DistributedPosConfig
 
-from .ins_errors import (
-    fill_model,
-    increment_buffers,
-    interval_means,
-    measurement_arrays,
-    model_arrays,
-    new_accumulator,
-    propagate_sample,
-    reset_accumulator,
-)
-from .kalman import discretize, predict, update
-from .loose import _apply_correction
-from .measurements import attitude as attitude_measurement
-
-__all__ = ["PHI", "DV", "DP", "BG", "BA", "RHO", "THETA", "THETA_DOT", "fill_transfer_model",
-           "discretize_transfer", "state_labels", "left_jacobian"]
+__all__ = ["PHI", "DV", "DP", "BG", "BA", "RHO", "THETA", "THETA_DOT", "TransferConfig",
+           "fill_transfer_model", "discretize_transfer", "state_labels", "left_jacobian", "transfer_layout",
+           "transfer_process", "transfer_models"]
 
 PHI, DV, DP, BG, BA, RHO, THETA, THETA_DOT = 0, 3, 6, 9, 12, 15, 18, 21
 DEG = math.pi / 180.0
 N_INS = 15
 N_NOISE_INS = 12  # fill_model's noise inputs for 15 states
+NEVER = 2**62  # no consecutive-rejection rule
 
 
 def state_labels(nstate: int = 24) -> list[str]:
@@ -53,8 +82,105 @@ def state_labels(nstate: int = 24) -> list[str]:
     return names[:nstate]
 
 
-# ---------------------------------------------------------------------------------------- model
-@njit(cache=True)
+@dataclass(frozen=True)
+class TransferConfig:
+    """Settings of the transfer-alignment filter (SI units unless the name says otherwise).
+
+    nstate: 24 (second-order flexure) or 21 (first-order, the seed's count). lever_arm_m: r^bm [m].
+    flexure: flexure model (σ, τ). gyro_bias_sigma [rad/s], accel_bias_sigma [m/s²]: P₀ of the biases;
+    gyro_arw [rad/√s], accel_vrw [m/s/√s]: white-noise densities (per axis, the largest of the three).
+    mounting_sigma_deg: P₀ of ρ. att_prior_deg, vel_prior_m_s: diffuse P₀ of φ and δv before the
+    first update. master: accuracy of the master output (R and the position part of P₀).
+    gate: χ² gate of the 6-row update (≤ 0: none).
+    """
+
+    nstate: int = 24
+    lever_arm_m: tuple[float, float, float] = (5.0, 0.1, 0.1)
+    flexure: FlexureSpec = FlexureSpec()
+    gyro_bias_sigma: float = 0.1 * DEG / 3600.0
+    accel_bias_sigma: float = 50.0 * 9.80665e-6
+    gyro_arw: float = 0.1 * DEG / 3600.0
+    accel_vrw: float = 50.0 * 9.80665e-6
+    mounting_sigma_deg: float = 1.0
+    att_prior_deg: float = 3.0
+    vel_prior_m_s: float = 1.0
+    master: MasterPosSpec = MasterPosSpec()
+    gate: float = 0.0
+
+    def __post_init__(self):
+        if self.nstate not in (21, 24):
+            raise ValueError(f"TransferConfig.nstate must be 21 or 24, got {self.nstate}")
+
+    @classmethod
+    def from_sim(cls, cfg: DistributedPosConfig, nstate: int = 24, **kw) -> TransferConfig:
+        """A filter matched to a simulation config (sensor grade, lever arm, flexure, master accuracy)."""
+        imu = cfg.sub_imu
+        return cls(nstate=nstate, lever_arm_m=tuple(float(v) for v in cfg.lever_arm_m), flexure=cfg.flexure,
+                   gyro_bias_sigma=float(np.max(np.abs(imu.gyro_bias))),
+                   accel_bias_sigma=float(np.max(np.abs(imu.accel_bias))),
+                   gyro_arw=float(np.max(imu.gyro_arw)), accel_vrw=float(np.max(imu.accel_vrw)),
+                   master=cfg.master, **kw)
+
+    def initial_covariance(self, lat: float, h: float) -> np.ndarray:
+        """Diagonal P₀ (n×n) at latitude ``lat`` [rad], height ``h`` [m]."""
+        n = self.nstate
+        rm, rn = radii(lat)
+        sp = self.master.pos_sigma_m
+        d = np.zeros(n)
+        d[PHI:PHI + 3] = (self.att_prior_deg * DEG) ** 2
+        d[DV:DV + 3] = self.vel_prior_m_s**2
+        d[DP:DP + 3] = [(sp[1] / (rm + h)) ** 2, (sp[0] / ((rn + h) * math.cos(lat))) ** 2, sp[2] ** 2]
+        d[BG:BG + 3] = max(self.gyro_bias_sigma, 1e-12) ** 2
+        d[BA:BA + 3] = max(self.accel_bias_sigma, 1e-12) ** 2
+        d[RHO:RHO + 3] = (self.mounting_sigma_deg * DEG) ** 2
+        sig = self.flexure.sigma
+        d[THETA:THETA + 3] = np.maximum(sig, 1e-12) ** 2
+        if n == 24:
+            d[THETA_DOT:THETA_DOT + 3] = np.maximum(self.flexure.beta * sig, 1e-12) ** 2
+        return np.diag(d)
+
+
+# ------------------------------------------------------------------------------ engine pieces
+def transfer_layout(nstate: int = 24) -> np.ndarray:
+    """The engine layout: 15 INS states, mounting ρ (3), flexure θ (3) and, for 24 states, θ̇ (3)."""
+    return make_layout(False, ("mounting", "flexure" if nstate == 24 else "flexure_angle"))
+
+
+def gm_blocks(nstate: int, beta, sigma) -> np.ndarray:
+    """``Process.gm`` rows of the flexure: per axis (θ, θ̇, β, σ) (24 states) or (θ, −1, 1/τ, σ) (21)."""
+    lay = transfer_layout(nstate)
+    rows = []
+    for j in range(3):
+        i = int(lay[L_FLEX]) + j
+        s = max(float(sigma[j]), 1e-12)
+        if nstate == 24:
+            rows.append((i, i + 3, float(beta[j]), s))
+        else:
+            rows.append((i, -1, float(beta[j]) / 2.146, s))  # 1/τ, τ = 2.146/β
+    return np.array(rows, float)
+
+
+def transfer_process(cfg: TransferConfig, T: float) -> Process:
+    """Engine process model at the filter interval T [s]: INS white noise of the sub-IMU grade (biases
+    random constants), ρ constant, the flexure exact (``gm``); ρ, θ, θ̇ open-loop (``open``)."""
+    n = cfg.nstate
+    q = np.zeros(N_NOISE_INS + n - N_INS)
+    q[0:3], q[3:6] = cfg.gyro_arw**2, cfg.accel_vrw**2
+    return Process(transfer_layout(n), q, np.zeros(4), np.zeros(n - N_INS), float(T), np.zeros(0, np.int64),
+                   False, gm_blocks(n, cfg.flexure.beta, cfg.flexure.sigma), np.arange(RHO, n))
+
+
+def transfer_models(cfg: TransferConfig, lever=None) -> Models:
+    """Engine models: velocity + attitude matching with the lever arm (``lever`` or ``cfg.lever_arm_m``),
+    gated at ``cfg.gate`` (6 rows; ≤ 0: ungated), no consecutive-rejection rule, no node constraints."""
+    par = np.zeros((ms.N_MODELS, 3))
+    par[ms.M_VATT] = cfg.lever_arm_m if lever is None else lever
+    gate = np.zeros((ms.N_MODELS, ms.MAX_ROWS + 1))
+    gate[ms.M_VATT, 6] = max(float(cfg.gate), 0.0)
+    return Models(par, gate, np.full(ms.N_MODELS, NEVER, np.int64), np.zeros((0, 2), np.int64))
+
+
+# ------------------------------------------------------------- continuous model (reference, checks)
 def fill_transfer_model(F, G, q, lat, h, v, fn, Cbn, wb, fb, beta, sigma, q_gyro, q_accel):
     """Continuous model of the 24- or 21-state transfer alignment (n = F.shape[0]), filled in place.
 
@@ -62,19 +188,15 @@ def fill_transfer_model(F, G, q, lat, h, v, fn, Cbn, wb, fb, beta, sigma, q_gyro
     accel-bias driving (6, zero PSD: random constants), flexure driving (3)], q (m,) PSD.
     lat [rad], h [m], v^n [m/s], fn mean specific force in n [m/s²], Cbn C_bs^n, wb [rad/s], fb [m/s²],
     beta (3,) [1/s], sigma (3,) [rad] flexure parameters, q_gyro [rad²/s], q_accel [m²/s³] white PSDs.
+    (The engine builds the same INS block with :func:`aidnav.filters.ins_errors.interval_model`.)
     """
     n = F.shape[0]
-    F[:, :] = 0.0
-    G[:, :] = 0.0
-    F15 = np.zeros((N_INS, N_INS))
-    G15 = np.zeros((N_INS, N_NOISE_INS))
-    fill_model(F15, G15, lat, h, v, fn, Cbn, wb, fb, (0.0, 0.0, 0.0, 0.0))
-    F[:N_INS, :N_INS] = F15
-    G[:N_INS, :N_NOISE_INS] = G15
-    q[:] = 0.0
-    for i in range(3):
-        q[i] = q_gyro
-        q[3 + i] = q_accel
+    F[:, :], G[:, :], q[:] = 0.0, 0.0, 0.0
+    F15, G15 = np.zeros((N_INS, N_INS)), np.zeros((N_INS, N_NOISE_INS))
+    fill_model(F15, G15, lat, h, np.asarray(v, float), np.asarray(fn, float), np.asarray(Cbn, float),
+               np.asarray(wb, float), np.asarray(fb, float), (0.0, 0.0, 0.0, 0.0))
+    F[:N_INS, :N_INS], G[:N_INS, :N_NOISE_INS] = F15, G15
+    q[0:3], q[3:6] = q_gyro, q_accel
     for j in range(3):
         if n == 24:
             F[THETA + j, THETA_DOT + j] = 1.0
@@ -89,151 +211,10 @@ def fill_transfer_model(F, G, q, lat, h, v, fn, Cbn, wb, fb, beta, sigma, q_gyro
             q[12 + j] = 2.0 * sigma[j] ** 2 / tau
 
 
-@njit(cache=True)
 def discretize_transfer(F, G, q, T, beta, sigma, Phi, Qd):
-    """Φ, Qd (n×n) over ``T`` [s] of the model of :func:`fill_transfer_model`.
-
-    INS + ρ block (18 states): :func:`aidnav.filters.kalman.discretize`; flexure block: exact
-    (:func:`aidnav.models.distributed_pos.flexure_transition` for 24 states, e^{−T/τ} for 21 states).
-    """
-    n = F.shape[0]
-    m = 18
-    Phi[:, :] = 0.0
-    Qd[:, :] = 0.0
-    Pb = np.zeros((m, m))
-    Qb = np.zeros((m, m))
-    discretize(np.ascontiguousarray(F[:m, :m]), np.ascontiguousarray(G[:m, :N_NOISE_INS]),
-               np.ascontiguousarray(q[:N_NOISE_INS]), T, Pb, Qb)
-    Phi[:m, :m] = Pb
-    Qd[:m, :m] = Qb
-    for j in range(3):
-        if n == 24:
-            ph, qd = flexure_transition(beta[j], sigma[j], T)
-            a, b = THETA + j, THETA_DOT + j
-            Phi[a, a], Phi[a, b], Phi[b, a], Phi[b, b] = ph[0, 0], ph[0, 1], ph[1, 0], ph[1, 1]
-            Qd[a, a], Qd[a, b], Qd[b, a], Qd[b, b] = qd[0, 0], qd[0, 1], qd[1, 0], qd[1, 1]
-        else:
-            tau = 2.146 / beta[j]
-            e = np.exp(-T / tau)
-            Phi[THETA + j, THETA + j] = e
-            Qd[THETA + j, THETA + j] = sigma[j] ** 2 * (1.0 - e * e)
-
-
-@njit(cache=True)
-def left_jacobian(v):
-    """Left Jacobian of SO(3) at the rotation vector ``v`` [rad]:
-    exp([(v + δ)×]) ≈ exp([(J δ)×]) exp([v×]) for small δ.
-
-    J = I + (1 − cos a)/a² [v×] + (a − sin a)/a³ [v×]², a = |v| (series below 1e-4 rad).
-    """
-    a2 = v[0] * v[0] + v[1] * v[1] + v[2] * v[2]
-    if a2 < 1e-8:
-        c1 = 0.5 - a2 / 24.0
-        c2 = 1.0 / 6.0 - a2 / 120.0
-    else:
-        a = np.sqrt(a2)
-        c1 = (1.0 - np.cos(a)) / a2
-        c2 = (a - np.sin(a)) / (a2 * a)
-    k = np.zeros((3, 3))
-    k[0, 1], k[0, 2] = -v[2], v[1]
-    k[1, 0], k[1, 2] = v[2], -v[0]
-    k[2, 0], k[2, 1] = -v[1], v[0]
-    return np.eye(3) + c1 * k + c2 * (k @ k)
-
-
-@njit(cache=True)
-def _measurement(st, x, Cm, vm, wm, lever, Ra, sig_v, H, z, R):
-    """Fill the 6-row velocity + attitude matching (H, z, R) for sub state ``st`` and master output.
-
-    The attitude residual is formed about the current mounting estimate α̂ = ρ̂ + θ̂ (EKF):
-    D = C̃_bs^n (C̃_bm^n exp(−[α̂×]))ᵀ ≈ I − [(φ + C̃_bm^n J (α − α̂))×] with J the left Jacobian of SO(3)
-    at −α̂ (exp(−[α×]) exp([α̂×]) = exp(−[(J(α − α̂))×]) to first order in α − α̂), so the ρ and θ
-    columns of H are C̃_bm^n J and z_a = axial(D) + C̃_bm^n J α̂: the innovation z − Hx̂ is axial(D)
-    (φ̂ = 0 after feedback). J = I − ½[α̂×] + … differs from I by ≈ 1 % here, but before the heading is
-    observable α − α̂ holds ~1° about the vertical, and the term ½ α̂ × (α − α̂) (≈ 8e-5 rad with 0.7°
-    of tilt mounting) would otherwise bias the tilt part of ρ̂ by more than its σ.
-    """
-    n = H.shape[1]
-    H3 = np.zeros((3, n))
-    z3 = np.zeros(3)
-    ahat = x[RHO:RHO + 3] + x[THETA:THETA + 3]
-    Cmount = dcm_from_rotvec(-ahat)  # C_bs^bm estimate
-    attitude_measurement(dcm_from_quat(st[6:10]), Cm @ Cmount, H3, z3)
-    CJ = Cm @ left_jacobian(-ahat)
-    ca = CJ @ ahat
-    H[:, :] = 0.0
-    R[:, :] = 0.0
-    for i in range(3):
-        z[i] = z3[i] + ca[i]
-        for j in range(n):
-            H[i, j] = H3[i, j]
-        for j in range(3):
-            H[i, RHO + j] = CJ[i, j]
-            H[i, THETA + j] = CJ[i, j]
-            R[i, j] = Ra[i, j]
-        H[3 + i, DV + i] = 1.0
-        R[3 + i, 3 + i] = sig_v * sig_v
-    lat = st[0]
-    wie = np.array([0.0, OMEGA_IE * np.cos(lat), OMEGA_IE * np.sin(lat)])
-    web = wm - Cm.T @ wie
-    wxr = np.array([web[1] * lever[2] - web[2] * lever[1], web[2] * lever[0] - web[0] * lever[2],
-                    web[0] * lever[1] - web[1] * lever[0]])
-    vs = vm + Cm @ wxr
-    for i in range(3):
-        z[3 + i] = st[3 + i] - vs[i]
-
-
-@njit(cache=True)
-def _transfer_kernel(dth, dvel, dt, ratio, st0, P0, beta, sigma, q_gyro, q_accel, lever,
-                     m_C, m_vel, m_w, m_Ra, sig_v, gate, keep_cov):
-    """Forward filter over M epochs (epoch j at sample boundary j·ratio; see the module doc)."""
-    M = m_C.shape[0]
-    n = P0.shape[0]
-    nn = 15
-    st = st0.copy()
-    bias = np.zeros(6)
-    P = P0.copy()
-    x = np.zeros(n)
-    F, G, Phi, Qd = model_arrays(n, nn)
-    q = np.zeros(nn)
-    H, z, R, innov, sdiag = measurement_arrays(6, n)  # attitude (3) + velocity (3) matching
-    out_st = np.empty((M, 10))
-    out_bias = np.empty((M, 6))
-    out_x = np.empty((M, n - N_INS))
-    out_pd = np.empty((M, n))
-    out_P = np.zeros((M if keep_cov else 1, n, n))
-    out_nis = np.empty(M)
-    out_ok = np.empty(M, np.bool_)
-    out_innov = np.empty((M, 6))
-    out_s = np.empty((M, 6))
-    dthc, dvc, dth_prev, dv_prev = increment_buffers()  # corrected increments: this / previous sample
-    acc = new_accumulator()  # sums over the samples of one epoch interval (ins_errors.ACC_*)
-    for j in range(M):
-        if j > 0:
-            reset_accumulator(acc)
-            for kk in range(ratio):
-                i = (j - 1) * ratio + kk
-                propagate_sample(st, acc, dth[i], dvel[i], bias, dt, dthc, dvc, dth_prev, dv_prev)
-            # epochs are exactly ``ratio`` samples apart: the interval is ratio·dt (not the summed dt)
-            T = ratio * dt
-            fn, Cbn, wb, fb = interval_means(acc, T)
-            fill_transfer_model(F, G, q, st[0], st[2], st[3:6], fn, Cbn, wb, fb, beta, sigma, q_gyro, q_accel)
-            discretize_transfer(F, G, q, T, beta, sigma, Phi, Qd)
-            predict(x, P, Phi, Qd)
-        _measurement(st, x, m_C[j], m_vel[j], m_w[j], lever, m_Ra[j], sig_v, H, z, R)
-        ok, nis = update(x, P, H, R, z, gate, innov, sdiag)
-        out_nis[j] = nis
-        out_ok[j] = ok
-        out_innov[j] = innov
-        out_s[j] = sdiag
-        _apply_correction(st, bias, x[:N_INS].copy(), N_INS)
-        for a in range(N_INS):
-            x[a] = 0.0
-        out_st[j] = st
-        out_bias[j] = bias
-        out_x[j] = x[N_INS:]
-        for a in range(n):
-            out_pd[j, a] = P[a, a]
-        if keep_cov:
-            out_P[j] = P
-    return out_st, out_bias, out_x, out_pd, out_P, out_nis, out_ok, out_innov, out_s
+    """Φ, Qd (n×n) over ``T`` [s] of the model of :func:`fill_transfer_model`, as the engine forms
+    them: :func:`aidnav.filters.kalman.discretize` for the whole model, then the flexure block exact
+    (:func:`aidnav.filters.engine.exact_blocks`; F is block diagonal, so the INS + ρ block is that of
+    the Taylor series alone)."""
+    discretize(F, G, q, T, Phi, Qd)
+    exact_blocks(Phi, Qd, gm_blocks(F.shape[0], beta, sigma), float(T))

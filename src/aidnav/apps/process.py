@@ -20,6 +20,17 @@ import numpy as np
 
 from aidnav.apps import common
 from aidnav.apps.common import ConfigError, check_solution, load_model, prepare_out_dir
+from aidnav.apps.process_parts import (  # noqa: F401  (names of this module's API)
+    Outage,
+    finish_summary,
+    nis_summary,
+    outage_errors,
+    outage_score,
+    outage_windows,
+    parse_outage,
+    run_summary,
+    score_outages,
+)
 from aidnav.data import GnssData, ImuData
 from aidnav.errors import InputError
 from aidnav.filters.config import LooseConfig
@@ -46,80 +57,6 @@ def read_gnss_any(path, height_offset_m: float = 0.0) -> GnssData:
     from aidnav.io.formats import read_gnss
 
     return read_gnss(path, height_offset_m=height_offset_m)
-
-
-@dataclass
-class Outage:
-    start_s: float
-    length_s: float
-    period_s: float | None = None
-
-
-def parse_outage(text: str) -> Outage:
-    """``START:LENGTH[:PERIOD]`` in seconds → :class:`Outage` (clear error on bad text)."""
-    parts = text.split(":")
-    try:
-        vals = [float(p) for p in parts]
-    except ValueError:
-        raise InputError(f"--outage {text!r}: expected START:LENGTH[:PERIOD] in seconds") from None
-    if (len(vals) not in (2, 3) or not np.isfinite(vals).all() or vals[0] < 0 or vals[1] <= 0
-            or (len(vals) == 3 and vals[2] <= vals[1])):
-        raise InputError(f"--outage {text!r}: expected START:LENGTH[:PERIOD] with START >= 0, LENGTH > 0 "
-                         "and PERIOD > LENGTH")
-    return Outage(vals[0], vals[1], vals[2] if len(vals) == 3 else None)
-
-
-def outage_windows(outages: list[Outage], t_first: float, t_last: float) -> list[tuple[float, float]]:
-    """Absolute [start, end) windows of the outages (repeated ones while they fit before t_last).
-
-    An outage that does not fit inside the GNSS span is an error (it would withhold nothing)."""
-    wins = []
-    for o in outages:
-        s = t_first + o.start_s
-        if s + o.length_s > t_last + 1e-9:
-            raise InputError(f"--outage {o.start_s:g}:{o.length_s:g}: ends {s + o.length_s - t_first:.1f} s "
-                             f"after the first fix but the GNSS fixes span only {t_last - t_first:.1f} s")
-        while s + o.length_s <= t_last + 1e-9:
-            wins.append((s, s + o.length_s))
-            if not o.period_s:
-                break
-            s += o.period_s
-    return wins
-
-
-def score_outages(traj, gnss: GnssData, wins, withheld) -> dict:
-    """Horizontal errors at the withheld fixes: end-of-outage statistics and RMS over all of them."""
-    from aidnav.nav.earth import lla_difference_enu
-
-    good = withheld.copy()
-    if gnss.quality is not None:
-        good &= gnss.quality == 1
-    t = gnss.time[good]
-    inside = (t >= traj.time[0]) & (t <= traj.time[-1])
-    t = t[inside]
-    if len(t) == 0:
-        return {"n_withheld": int(withheld.sum()), "n_scored": 0}
-    lat = np.interp(t, traj.time, traj.lat)
-    lon = np.interp(t, traj.time, np.unwrap(traj.lon))
-    de, dn, _ = lla_difference_enu(lat, lon, 0.0, gnss.lat[good][inside], gnss.lon[good][inside], 0.0)
-    herr = np.hypot(de, dn)
-    ends = []
-    per = []
-    for a, b in wins:
-        m = (t >= a) & (t < b)
-        if m.any():
-            ends.append(float(herr[m][-1]))
-            per.append({"start": a, "end": b, "n": int(m.sum()), "end_error_m": float(herr[m][-1]),
-                        "rms_m": float(np.sqrt(np.mean(herr[m] ** 2)))})
-    ends = np.array(ends)
-    return {
-        "n_outages": len(wins), "n_withheld": int(withheld.sum()), "n_scored": int(len(herr)),
-        "end_error_median_m": float(np.median(ends)) if len(ends) else None,
-        "end_error_p95_m": float(np.percentile(ends, 95)) if len(ends) else None,
-        "end_error_max_m": float(ends.max()) if len(ends) else None,
-        "rms_m": float(np.sqrt(np.mean(herr**2))),
-        "outages": per,
-    }
 
 
 @dataclass
@@ -188,25 +125,8 @@ def process(imu: ImuData, gnss: GnssData, cfg: LooseConfig | None = None, smooth
     t_filt = _time.perf_counter() - t0
     traj = to_trajectory(res)
     check_solution(traj, "the loosely coupled filter")
-    rec = res.records
-    pos_ok = rec["pos_status"] == 1
-    summary = {
-        "smoothed": res.smoothed,
-        "time_scale": "input (GPS seconds of week for GNSS-timed logs)",
-        "imu_samples": len(imu), "imu_rate_hz": imu.rate_hz, "gnss_fixes": len(gnss),
-        "gnss_withheld": int(withheld.sum()),
-        "gnss_position_accepted": int(pos_ok.sum()),
-        "gnss_position_rejected": int((rec["pos_status"] == 0).sum()),
-        "gnss_velocity_accepted": int((rec["vel_status"] == 1).sum()),
-        "gnss_velocity_rejected": int((rec["vel_status"] == 0).sum()),
-        "rejected_fix_times": [float(t) for t in gnss.time[rec["pos_status"] == 0]][:100],
-        "counts": res.counts,
-        "nis": nis_summary(rec),
-        "outage_windows": [[a, b] for a, b in wins],
-        "events": imu.events + gnss.events + events,
-        "warnings": warnings,
-        "timing_s": {"filter": t_filt},
-    }
+    summary = run_summary(res, len(imu), imu.rate_hz, gnss, withheld, wins, imu.events + gnss.events + events,
+                          warnings, t_filt)
     fwd = None
     if wins:
         summary["outage_score"] = score_outages(traj, gnss, wins, withheld)
@@ -214,42 +134,8 @@ def process(imu: ImuData, gnss: GnssData, cfg: LooseConfig | None = None, smooth
             fwd = to_trajectory(LooseResult(res.time, res.forward_state, res.bias, res.forward_pdiag,
                                             res.node_time))
             summary["outage_score_forward"] = score_outages(fwd, gnss, wins, withheld)
-    from aidnav.filters.result import nis_health, summary_calibration
-
-    # sensor errors (biases, scale factors) and the self-calibration (time offset added to the IMU
-    # stamps, lever arm, mounting, odometer scale) with σ, under the names of docs/conventions.md
-    summary["calibration"] = summary_calibration(res, {"time_offset_s": applied_offset})
-    health = nis_health(res)  # windows where the innovations say σ is wrong, and which way
-    summary["nis_windows_far_out"] = health.get("windows", [])
-    warnings += health.get("warnings", [])
+    finish_summary(summary, res, applied_offset, warnings)
     return ProcessRun(traj, summary, res, fwd, withheld, wins, gnss=gnss)
-
-
-def nis_summary(rec: dict) -> dict:
-    """Mean NIS per measurement type over accepted updates, with its degrees of freedom and the
-    two-sided 95 % band of the mean of N χ²(dof) draws (normal approximation, 2·dof/N variance)."""
-    out = {}
-    for name, st, nis, dof in (("gnss_position", "pos_status", "pos_nis", 3),
-                               ("gnss_velocity", "vel_status", "vel_nis", None)):
-        if st not in rec or nis not in rec:
-            continue
-        ok = (rec[st] == 1) & np.isfinite(rec[nis])
-        n = int(ok.sum())
-        if n == 0:
-            continue
-        if dof is None:  # velocity fixes may lack components: dof from the recorded innovations
-            inn = rec.get("vel_innov")
-            d = (np.isfinite(inn[ok]).sum(axis=1).astype(float) if inn is not None
-                 else np.full(n, 3.0))
-        else:
-            d = np.full(n, float(dof))
-        mean_dof = float(d.mean())
-        half = 1.96 * np.sqrt(2.0 * mean_dof / n)
-        m = float(rec[nis][ok].mean())
-        out[name] = {"mean": m, "dof": mean_dof, "n": n,
-                     "band95": [mean_dof - half, mean_dof + half],
-                     "in_band": bool(mean_dof - half <= m <= mean_dof + half)}
-    return out
 
 
 def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=False,
@@ -307,14 +193,10 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
     bar = progress if progress is not None else NullProgress()
     datum = cfg.gnss.height_offset_m
     bar.stage("reading", total=2, unit="files")
-    imu = read_imu_any(imu_path)
-    bar.advance(1)
     gnss = read_gnss_any(gnss_path, height_offset_m=datum)
     bar.advance(1)
     # the offset is applied by the reader; the filter must not see it again
     cfg = cfg.model_copy(update={"gnss": cfg.gnss.model_copy(update={"height_offset_m": 0.0})})
-    if len(imu) < 2:
-        raise DataError(imu_path, None, "fewer than 2 IMU samples")
     if len(gnss) < 1:
         raise DataError(gnss_path, None, "no GNSS fixes")
     odometer = baro = None
@@ -326,32 +208,59 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
         from aidnav.io.aux_sensors import read_baro_csv
 
         baro = read_baro_csv(baro_path)
-    t_read = _time.perf_counter()
-    bar.stage("filter" + (" + smoother" if smooth else ""), total=len(imu), unit="IMU samples")
-    run = process(imu, gnss, cfg, smooth=smooth, outages=outages, imu_name=str(imu_path),
-                  gnss_name=str(gnss_path), skip_checks=skip_checks, start_s=start_s, end_s=end_s,
-                  odometer=odometer, baro=baro)
-    bar.update(len(imu))
-    t_filt = _time.perf_counter()
-    bar.stage("writing the trajectory", total=1, unit="files")
-    write_trajectory(run.trajectory, traj_path, week=gnss.week)
-    if kfgins_nav:  # KF-GINS navigation text beside it (week, SOW, lat, lon, h, vN, vE, vD, roll, pitch, yaw)
-        write_trajectory(run.trajectory, out_dir / "trajectory.nav", week=gnss.week)
-    bar.advance(1)
-    t_write = _time.perf_counter()
+    from aidnav.apps.process_stream import stream_process, streamable
+
+    if not kfgins_nav and streamable(imu_path, cfg, odometer, start_s, end_s):
+        # chunk by chunk: memory independent of the log length; figures from a decimated copy
+        bar.advance(1)
+        t_read = _time.perf_counter()
+        n_rows = _parquet_rows(imu_path)
+        bar.stage("filter + writing" + (" + smoother" if smooth else ""), total=n_rows, unit="IMU samples")
+        run_s, fig_traj, result = stream_process(
+            imu_path, gnss, cfg, traj_path, gnss.week, smooth=smooth, outages=outages, imu_name=str(imu_path),
+            gnss_name=str(gnss_path), skip_checks=skip_checks, odometer=odometer, baro=baro,
+            progress=bar.advance)
+        t_filt = t_write = _time.perf_counter()
+    else:
+        imu = read_imu_any(imu_path)
+        bar.advance(1)
+        if len(imu) < 2:
+            raise DataError(imu_path, None, "fewer than 2 IMU samples")
+        t_read = _time.perf_counter()
+        bar.stage("filter" + (" + smoother" if smooth else ""), total=len(imu), unit="IMU samples")
+        run = process(imu, gnss, cfg, smooth=smooth, outages=outages, imu_name=str(imu_path),
+                      gnss_name=str(gnss_path), skip_checks=skip_checks, start_s=start_s, end_s=end_s,
+                      odometer=odometer, baro=baro)
+        bar.update(len(imu))
+        del imu
+        t_filt = _time.perf_counter()
+        bar.stage("writing the trajectory", total=1, unit="files")
+        write_trajectory(run.trajectory, traj_path, week=gnss.week)
+        if kfgins_nav:  # KF-GINS navigation text (week, SOW, lat, lon, h, vN, vE, vD, roll, pitch, yaw)
+            write_trajectory(run.trajectory, out_dir / "trajectory.nav", week=gnss.week)
+        bar.advance(1)
+        t_write = _time.perf_counter()
+        run_s, fig_traj, result, gnss = run.summary, run.trajectory, run.result, run.gnss
     summary = {"imu": str(imu_path), "gnss": str(gnss_path),
                "odometer": str(odometer_path) if odometer_path else None,
                "baro": str(baro_path) if baro_path else None,
                "config": str(config_path) if config_path else None, "output": str(traj_path),
                "gnss_height_offset_m": datum,
-               **run.summary, "notes": notes}
+               **run_s, "notes": notes}
     summary["timing_s"] = {"read": t_read - t_start, "filter": t_filt - t_read, "write": t_write - t_filt}
     common.write_summary_files(out_dir, summary, format_summary(summary))
     if figures:  # overview.png, trajectory.kml / .geojson, run.html
         from aidnav.report.run_page import write_run_outputs
 
-        write_run_outputs(out_dir, run.trajectory, run.gnss, summary, run.result.records, progress=bar)
+        write_run_outputs(out_dir, fig_traj, gnss, summary, result.records, progress=bar)
     return summary
+
+
+def _parquet_rows(path) -> int:
+    import pyarrow.parquet as pq
+
+    with pq.ParquetFile(path) as pf:
+        return pf.metadata.num_rows
 
 
 #: the self-calibration quantities the text summary prints (all of them are in summary.json)

@@ -29,6 +29,13 @@ Gauss-Markov / random constant per calibration state) and its measurement models
 
 Inputs: named tuples :class:`Imu`, :class:`Records`, :class:`Models`, :class:`Process`, :class:`Init`,
 :class:`Output`; result :class:`EngineOut`.
+
+**Chunks** (streaming, :mod:`aidnav.filters.stream`): :func:`run_chunk` runs the same pass over a part
+of the samples from a :class:`Carry` (:func:`start_carry` before the first) and returns the carry to
+continue from in ``EngineOut.carry``; sample indices (``out_idx``, ``node_idx``, ``Init.reset_idx``,
+``Output.cov_idx``) and node numbers (``out_node``, ``reset_node``) are global, node arrays hold this
+chunk's nodes and the log's node-constraint rows only this chunk's. Chunk by chunk gives exactly the
+one-call result (:func:`run_filter` is one chunk).
 """
 
 from __future__ import annotations
@@ -45,7 +52,6 @@ from aidnav.nav.rotations import dcm_from_quat, quat_from_rotvec, quat_mult, qua
 
 from .ins_errors import (
     ACC_FN,
-    increment_buffers,
     interval_model,
     model_arrays,
     new_accumulator,
@@ -86,7 +92,13 @@ Log = namedtuple("Log", ["t", "model", "status", "nis", "nu", "s", "ref"])
 Work = namedtuple("Work", ["H", "z", "R"])
 EngineOut = namedtuple("EngineOut", ["out_idx", "out_st", "out_bias", "out_pdiag", "out_node", "node_idx",
                                      "S_post", "S_prior", "S_phi", "S_dx", "log", "n_log", "reset_node",
-                                     "st", "bias", "P", "cov"])
+                                     "st", "bias", "P", "cov", "carry"])
+# what a pass carries from one chunk of samples to the next: k0 (global index of the chunk's first
+# sample), last (the chunk ends the log), tp (time of the previous sample), kn (nodes so far), gi (next
+# record), ci (next cov_idx), reset_node; st, bias, P (updated in place), rej (consecutive rejections),
+# acc (interval accumulator), gap (bridged-gap variance not yet added), buf (4, 3) increment buffers
+Carry = namedtuple("Carry", ["k0", "last", "tp", "kn", "gi", "ci", "reset_node", "st", "bias", "P", "rej",
+                             "acc", "gap", "buf"])
 
 
 @njit(cache=True)
@@ -195,8 +207,27 @@ def _subset(wk, m, sub, ws):
 
 
 @njit(cache=True)
+def start_carry(rec, proc, ini, last):
+    """The :class:`Carry` before the first sample (``last``: the first chunk is the whole log)."""
+    bias = ini.bias.copy()
+    itoff, ic = proc.lay[L_TOFF], proc.lay[L_CLK]
+    gi = 0
+    while _due_time(rec, gi, bias, ic, itoff) <= ini.t0:
+        gi += 1
+    return Carry(0, last, ini.t0, 0, gi, 0, -1, ini.st.copy(), bias, ini.P.copy(),
+                 np.zeros(N_MODELS, np.int64), new_accumulator(), np.zeros(2), np.zeros((4, 3)))
+
+
+@njit(cache=True)
 def run_filter(imu, rec, mod, proc, ini, out):
-    """Forward pass of the closed-loop error-state filter (module doc); returns :class:`EngineOut`."""
+    """Forward pass of the closed-loop error-state filter (module doc) over all samples in one call;
+    returns :class:`EngineOut`."""
+    return run_chunk(imu, rec, mod, proc, ini, out, start_carry(rec, proc, ini, True))
+
+
+@njit(cache=True)
+def run_chunk(imu, rec, mod, proc, ini, out, cy):
+    """The forward pass over the samples ``imu`` from the carry ``cy`` (module doc: chunks)."""
     n_imu = imu.t.shape[0]
     lay = proc.lay
     n, nins = lay[L_N], lay[L_NINS]
@@ -205,7 +236,8 @@ def run_filter(imu, rec, mod, proc, ini, out):
     n = nsub if nsub else n
     nb, naux, nh = (nins if nsub else n) - NAV, 0 if nsub else n - nins, nins if nsub else n
     M = rec.t.shape[0]
-    st, bias, P, x = ini.st.copy(), ini.bias.copy(), ini.P.copy(), np.zeros(n)
+    st, bias, P, x = cy.st, cy.bias, cy.P, np.zeros(n)
+    k0, kn0 = cy.k0, cy.kn
     itoff = lay[L_TOFF]
     ix = np.full(nfull, -1, np.int64)  # index in P of each state of the full INS layout (−1: not there)
     for i in range(nsub if nsub else nins):
@@ -231,7 +263,10 @@ def run_filter(imu, rec, mod, proc, ini, out):
     w = np.zeros((5, 3))  # rows W_IB, W_FIX, W_IE, W_IN and W_FN (mean f^n, models with a time offset)
     no_row = np.zeros(rec.data.shape[1])  # the row of a node constraint (unused)
     prop_dt = proc.prop_dt
-    max_nodes = min(M + int((imu.t[-1] - ini.t0) / prop_dt) + 3 + n_imu // max(1, int(prop_dt * 1000.0)),
+    # records that can fall due in this chunk: all (one call), else those stamped up to 100 s after its
+    # last sample (a time offset or receiver clock bias beyond 100 s is refused below)
+    m_due = M if cy.last else min(M, np.searchsorted(rec.t, imu.t[-1] + 100.0, side="right") + 1) - cy.gi
+    max_nodes = min(m_due + int((imu.t[-1] - cy.tp) / prop_dt) + 3 + n_imu // max(1, int(prop_dt * 1000.0)),
                     n_imu + 1)
     n_out = (n_imu + out.every - 1) // out.every if out.every > 0 else max_nodes
     out_idx, out_st, out_node = np.empty(n_out, np.int64), np.empty((n_out, 10)), np.empty(n_out, np.int64)
@@ -247,19 +282,17 @@ def run_filter(imu, rec, mod, proc, ini, out):
     for i in range(M):
         log.t[i], log.model[i], log.ref[i] = rec.t[i], rec.model[i], i
     li = M
-    rej = np.zeros(N_MODELS, np.int64)
+    rej = cy.rej
     cov_out = np.zeros((out.cov_idx.shape[0], n, n))
-    ci, reset_node, gi = 0, -1, 0
-    while _due_time(rec, gi, bias, ic, itoff) <= ini.t0:
-        gi += 1
+    ci, reset_node, gi = cy.ci, cy.reset_node, cy.gi
+    acc = cy.acc
+    gap_phi, gap_v = cy.gap[0], cy.gap[1]
+    dthc, dvc, dth_prev, dv_prev = cy.buf[0], cy.buf[1], cy.buf[2], cy.buf[3]
+    tp, kn, oi = cy.tp, cy.kn, 0
+    hold = imu.hold.shape[0] == n_imu
     # a record is due when its time on the IMU clock has come: its receive time (the tag, or with clock
     # states tag − b̂/c) − d̂, the time-offset estimate; b̂ changes at every sample, d̂ at the feedback
     t_due = _due_time(rec, gi, bias, ic, itoff)
-    acc = new_accumulator()
-    gap_phi, gap_v = 0.0, 0.0
-    dthc, dvc, dth_prev, dv_prev = increment_buffers()
-    tp, kn, oi = ini.t0, 0, 0
-    hold = imu.hold.shape[0] == n_imu
     for k in range(n_imu):
         dt, tp = imu.t[k] - tp, imu.t[k]
         T = propagate_sample(st, acc, imu.dth[k], imu.dv[k], ib, dt, dthc, dvc, dth_prev, dv_prev)
@@ -269,11 +302,13 @@ def run_filter(imu, rec, mod, proc, ini, out):
         if hold:
             st[ST_POS + 2], st[ST_VEL + 2] = imu.hold[k, 0], imu.hold[k, 1]
         gap_phi, gap_v = gap_phi + imu.gap_var[k, 0], gap_v + imu.gap_var[k, 1]
-        if k == ini.reset_idx:
+        if k0 + k == ini.reset_idx:
             reset_node = kn  # the next node is the first one after the re-initialisation
             _reinit(st, P, ini, ix)
-        is_node = T >= prop_dt - 1e-9 or t_due <= imu.t[k] or k == n_imu - 1
+        is_node = T >= prop_dt - 1e-9 or t_due <= imu.t[k] or (cy.last and k == n_imu - 1)
         if is_node and T > 0.0:
+            if kn - kn0 >= max_nodes:
+                raise ValueError("run_chunk: more nodes than a chunk can hold (record times > 100 s late)")
             C = dcm_from_quat(st[ST_Q:ST_Q + 4])
             wb = interval_model(Fi, Gi, st, acc, proc.tau[0], proc.tau[1], proc.tau[2], proc.tau[3])
             if nsub:
@@ -296,7 +331,7 @@ def run_filter(imu, rec, mod, proc, ini, out):
                         P[b, b] += gap_v
                 gap_phi, gap_v = 0.0, 0.0
             if out.smooth:
-                S_phi[kn], S_prior[kn] = Phi, P
+                S_phi[kn - kn0], S_prior[kn - kn0] = Phi, P
             _node_rates(st, wb, dthc, dt, w)
             w[W_FN] = acc[ACC_FN] / T
             g0 = gi
@@ -328,7 +363,7 @@ def run_filter(imu, rec, mod, proc, ini, out):
                 dxf[sub] = x
             feedback(st, bias, dxf if nsub else x, nh)
             ib[:] = bias[:nins - NAV]
-            if hold_h and k < ini.reset_idx:  # heading unknown until the alignment: no information
+            if hold_h and k0 + k < ini.reset_idx:  # heading unknown until the alignment: no information
                 P[iu, :], P[:, iu] = 0.0, 0.0
                 P[iu, iu] = ini.P[iu, iu]
             for g in range(g0, gi if proc.reset_pos else g0):
@@ -338,14 +373,14 @@ def run_filter(imu, rec, mod, proc, ini, out):
             for g in range(g0, gi if grp else g0):
                 epoch_record(rec.grp, g, st, bias, P, lay)
             t_due = _due_time(rec, gi, bias, ic, itoff)  # d̂ may have changed
-            node_idx[kn] = k
+            node_idx[kn - kn0] = k0 + k
             if out.smooth:
-                S_post[kn] = P
-                S_dx[kn] = x
+                S_post[kn - kn0] = P
+                S_dx[kn - kn0] = x
             kn += 1
             reset_accumulator(acc)
-        if (k % out.every == 0) if out.every > 0 else (kn > 0 and node_idx[kn - 1] == k):
-            out_idx[oi] = k
+        if ((k0 + k) % out.every == 0) if out.every > 0 else (kn > kn0 and node_idx[kn - 1 - kn0] == k0 + k):
+            out_idx[oi] = k0 + k
             for i in range(10):
                 out_st[oi, i] = st[i]
             for i in range(nb):
@@ -354,12 +389,15 @@ def run_filter(imu, rec, mod, proc, ini, out):
                 out_pdiag[oi, i] = P[i, i]
             out_node[oi] = kn - 1
             oi += 1
-        while ci < out.cov_idx.shape[0] and out.cov_idx[ci] == k:
+        while ci < out.cov_idx.shape[0] and out.cov_idx[ci] == k0 + k:
             cov_out[ci] = P
             ci += 1
-    return EngineOut(out_idx[:oi], out_st[:oi], out_bias[:oi], out_pdiag[:oi], out_node[:oi], node_idx[:kn],
-                     S_post[:kn], S_prior[:kn], S_phi[:kn], S_dx[:kn], log, li, reset_node, st, bias, P,
-                     cov_out)
+    cy.gap[0], cy.gap[1] = gap_phi, gap_v
+    nxt = Carry(k0 + n_imu, cy.last, tp, kn, gi, ci, reset_node, st, bias, P, rej, acc, cy.gap, cy.buf)
+    nk = kn - kn0
+    return EngineOut(out_idx[:oi], out_st[:oi], out_bias[:oi], out_pdiag[:oi], out_node[:oi], node_idx[:nk],
+                     S_post[:nk], S_prior[:nk], S_phi[:nk], S_dx[:nk], log, li, reset_node, st, bias, P,
+                     cov_out, nxt)
 
 
 @njit(cache=True)

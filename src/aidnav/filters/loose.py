@@ -15,6 +15,8 @@ the feedback and the smoother. Input preparation (static detection, IMU gaps, al
 
 from __future__ import annotations
 
+from collections import namedtuple
+
 import numpy as np
 
 from . import measurements as ms
@@ -150,6 +152,74 @@ def _records(cfg, g, use, odometer, baro):
     return rec, (mdl[o], src[o])
 
 
+Setup = namedtuple("Setup", ["cfg", "lay", "n", "k0", "t_imu", "proc", "ini", "models", "rec", "rmap",
+                             "out_every", "reset_time"])
+
+
+def loose_setup(imu, gnss, cfg, withheld, events, odometer=None, baro=None) -> Setup:
+    """Everything :func:`run_loose` gives the engine except the per-sample IMU arrays: the configuration
+    (with a coarse mounting where it is unknown), layout, process model, initial state (``ini``;
+    ``reset_idx`` relative to ``k0``, the first IMU sample used; ``reset_time`` the time of the course
+    alignment or None), models, records (``rmap``: their GNSS fix of origin) and the output decimation.
+    ``imu`` may be the head of the log (:mod:`aidnav.filters.stream`) when no coarse mounting is needed."""
+    from aidnav.nav.rotations import quat_from_euler
+
+    from .config import DEG
+
+    has_vel = gnss.vel is not None and bool(np.any(np.isfinite(gnss.vel)))
+    lay = loose_layout(cfg, odometer, baro, gnss=len(gnss) > 0, gnss_velocity=has_vel)
+    n_ins, n = cfg.nstate, int(lay[L_N])
+    t_imu = imu.time + cfg.imu.time_offset_s
+    g = gnss_arrays(gnss, cfg)
+    g_t, g_lat, g_lon, g_h, g_vel, g_spos, g_svel = g
+    use = np.ones(len(gnss), dtype=np.bool_) if withheld is None else ~np.asarray(withheld, bool)
+    finite = np.isfinite(g_lat) & np.isfinite(g_lon) & np.isfinite(g_h) & np.all(np.isfinite(g_spos), axis=1)
+    if not finite.all():
+        bad_t = g_t[~finite]
+        events.append(f"{int((~finite).sum())} GNSS fixes with NaN/inf position or sigma not used "
+                      f"(first at t={bad_t[0]:.3f})")
+        use &= finite
+    cfg = _coarse_mounting_if_unknown(cfg, imu, gnss, t_imu, g, use, odometer, events)
+    i0 = initial_state(imu, gnss, cfg, t_imu, g, use, events)
+    rph = i0["rph"]
+    q0 = quat_from_euler(rph[0], rph[1], rph[2])
+    v0 = i0["v0"]
+    st0 = np.array([i0["lat0"], i0["lon0"], i0["h0"], v0[0], v0[1], v0[2], *q0], float)
+    aux = calibration_prior(cfg, lay)
+    P0 = np.zeros((n, n))
+    P0[:n_ins, :n_ins] = initial_covariance(cfg, n_ins, i0["lat0"], i0["h0"], i0["att_sig"])
+    if i0.get("vel_sig") is not None:  # in-motion start: velocity from GNSS with its σ
+        for i in range(3):
+            P0[DV + i, DV + i] = max(P0[DV + i, DV + i], float(i0["vel_sig"][i]) ** 2)
+    P0[n_ins:, n_ins:] = np.diag(aux[:, 0])
+    q_psd = np.concatenate([process_noise(cfg, n_ins), aux[:, 1]])
+    taus = np.array([cfg.imu.gyro_bias_tau_s, cfg.imu.accel_bias_tau_s, cfg.imu.sf_tau_s, cfg.imu.sf_tau_s])
+    proc = Process(lay, q_psd, taus, np.ascontiguousarray(aux[:, 2]), float(cfg.filter.prop_dt_s))
+    out_every = 1
+    if cfg.filter.output_rate_hz:
+        out_every = max(1, int(round(imu.rate_hz / cfg.filter.output_rate_hz)))
+    rec, rmap = _records(cfg, g, use, odometer, baro)
+    reset_nav = np.concatenate([i0["reset_nav"], cfg.gnss.lever_arm_m])
+    ini = Init(float(i0["t0"]), st0, np.zeros(n - 9), P0, int(i0["reset_idx"]), float(i0["reset_heading"]),
+               cfg.init.course_heading_sigma_deg * DEG, reset_nav)
+    return Setup(cfg, lay, n, int(i0["k0"]), t_imu, proc, ini, _models(cfg), rec, rmap, out_every,
+                 i0.get("reset_time"))
+
+
+def loose_counts(log, n_nodes, static_used, n_imu, k0) -> dict:
+    """``FilterResult.counts`` of the loose filter from its innovation log (:func:`_log_dict`)."""
+    mdl = log["model"]
+    cnt = dict(zupt_updates=int((mdl == ms.M_ZUPT).sum()),
+               nhc_updates=int(((mdl == ms.M_NHC) & (log["status"] == 1)).sum()),
+               nhc_rejected=int(((mdl == ms.M_NHC) & (log["status"] == 0)).sum()),
+               nodes=n_nodes, static_samples=static_used, imu_samples_used=n_imu - k0, imu_samples_skipped=k0)
+    for md, name in ((ms.M_ODO, "odometer"), (ms.M_BARO, "baro")):
+        if np.any(mdl == md):
+            cnt[f"{name}_updates"] = int(((mdl == md) & (log["status"] == 1)).sum())
+            cnt[f"{name}_rejected"] = int(((mdl == md) & (log["status"] == 0)).sum())
+    return cnt
+
+
 def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: list | None = None,
               cov_times=None, odometer=None, baro=None):
     """Loosely coupled GNSS/INS over whole logs.
@@ -173,71 +243,26 @@ def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: 
     baro : optional object with ``time`` [s], ``height`` [m] and ``std`` [m] or None
         (:class:`aidnav.io.aux_sensors.BaroData`); settings ``cfg.baro``.
     """
-    from aidnav.nav.rotations import quat_from_euler
-
-    from .config import DEG, LooseConfig
+    from .config import LooseConfig
 
     cfg = cfg or LooseConfig()
     events = events if events is not None else []
-    has_vel = gnss.vel is not None and bool(np.any(np.isfinite(gnss.vel)))
-    lay = loose_layout(cfg, odometer, baro, gnss=len(gnss) > 0, gnss_velocity=has_vel)
-    n_ins, n = cfg.nstate, int(lay[L_N])
-    t_imu = imu.time + cfg.imu.time_offset_s
-    g = gnss_arrays(gnss, cfg)
-    g_t, g_lat, g_lon, g_h, g_vel, g_spos, g_svel = g
-    use = np.ones(len(gnss), dtype=np.bool_) if withheld is None else ~np.asarray(withheld, bool)
-    finite = np.isfinite(g_lat) & np.isfinite(g_lon) & np.isfinite(g_h) & np.all(np.isfinite(g_spos), axis=1)
-    if not finite.all():
-        bad_t = g_t[~finite]
-        events.append(f"{int((~finite).sum())} GNSS fixes with NaN/inf position or sigma not used "
-                      f"(first at t={bad_t[0]:.3f})")
-        use &= finite
-    cfg = _coarse_mounting_if_unknown(cfg, imu, gnss, t_imu, g, use, odometer, events)
-    i0 = initial_state(imu, gnss, cfg, t_imu, g, use, events)
-    k0 = i0["k0"]
+    su = loose_setup(imu, gnss, cfg, withheld, events, odometer, baro)
+    cfg, lay, n, k0, t_imu = su.cfg, su.lay, su.n, su.k0, su.t_imu
     dth_in, dv_in, gap_var = bridge_gaps(imu, events)
-    rph = i0["rph"]
-    q0 = quat_from_euler(rph[0], rph[1], rph[2])
-    v0 = i0["v0"]
-    st0 = np.array([i0["lat0"], i0["lon0"], i0["h0"], v0[0], v0[1], v0[2], *q0], float)
-    aux = calibration_prior(cfg, lay)
-    P0 = np.zeros((n, n))
-    P0[:n_ins, :n_ins] = initial_covariance(cfg, n_ins, i0["lat0"], i0["h0"], i0["att_sig"])
-    if i0.get("vel_sig") is not None:  # in-motion start: velocity from GNSS with its σ
-        for i in range(3):
-            P0[DV + i, DV + i] = max(P0[DV + i, DV + i], float(i0["vel_sig"][i]) ** 2)
-    P0[n_ins:, n_ins:] = np.diag(aux[:, 0])
-    q_psd = np.concatenate([process_noise(cfg, n_ins), aux[:, 1]])
-    taus = np.array([cfg.imu.gyro_bias_tau_s, cfg.imu.accel_bias_tau_s, cfg.imu.sf_tau_s, cfg.imu.sf_tau_s])
-    proc = Process(lay, q_psd, taus, np.ascontiguousarray(aux[:, 2]), float(cfg.filter.prop_dt_s))
     static = static_flags(imu, gnss, cfg) if cfg.constraints.zupt else np.zeros(len(imu), np.bool_)
-    out_every = 1
-    if cfg.filter.output_rate_hz:
-        out_every = max(1, int(round(imu.rate_hz / cfg.filter.output_rate_hz)))
     cov_idx = np.zeros(0, np.int64)
     if cov_times is not None:
         ct = np.sort(np.atleast_1d(np.asarray(cov_times, float)))
         # first sample at or after each time (1 µs tolerance for times computed as k·dt)
         cov_idx = np.searchsorted(t_imu[k0:], ct - 1e-6, side="left").astype(np.int64)
         cov_idx = cov_idx[cov_idx < len(t_imu) - k0]
-    rec, rmap = _records(cfg, g, use, odometer, baro)
-    reset_nav = np.concatenate([i0["reset_nav"], cfg.gnss.lever_arm_m])
-    ini = Init(float(i0["t0"]), st0, np.zeros(n - 9), P0, int(i0["reset_idx"]), float(i0["reset_heading"]),
-               cfg.init.course_heading_sigma_deg * DEG, reset_nav)
+    rec, rmap, ini = su.rec, su.rmap, su.ini
     sl = slice(k0, None)
     imu_in = Imu(t_imu[sl], dth_in[sl], dv_in[sl], static[sl], gap_var[sl], np.zeros((0, 2)))
-    r = run_filter(imu_in, rec, _models(cfg), proc, ini, Output(out_every, bool(smooth), cov_idx))
+    r = run_filter(imu_in, rec, su.models, su.proc, ini, Output(su.out_every, bool(smooth), cov_idx))
     log = _log_dict(r.log, r.n_log)
-    mdl = log["model"]
-    cnt = dict(zupt_updates=int((mdl == ms.M_ZUPT).sum()),
-               nhc_updates=int(((mdl == ms.M_NHC) & (log["status"] == 1)).sum()),
-               nhc_rejected=int(((mdl == ms.M_NHC) & (log["status"] == 0)).sum()),
-               nodes=len(r.node_idx), static_samples=int(static[sl].sum()), imu_samples_used=len(imu) - k0,
-               imu_samples_skipped=k0)
-    for md, name in ((ms.M_ODO, "odometer"), (ms.M_BARO, "baro")):
-        if np.any(mdl == md):
-            cnt[f"{name}_updates"] = int(((mdl == md) & (log["status"] == 1)).sum())
-            cnt[f"{name}_rejected"] = int(((mdl == md) & (log["status"] == 0)).sum())
+    cnt = loose_counts(log, len(r.node_idx), int(static[sl].sum()), len(imu), k0)
     # the outputs are stamped on the GNSS scale with the final time-offset estimate (CONVENTIONS: the
     # offset is added to the IMU stamps); a forward output at t holds the INS of IMU time t − d̂
     d_hat = float(r.bias[lay[L_TOFF] - NAV]) if lay[L_TOFF] >= 0 else 0.0

@@ -50,45 +50,63 @@ def gnss_velocity_for_init(gnss, g, window_s: float = 1.0):
 def static_flags(imu, gnss, cfg, window_s: float = 1.0) -> np.ndarray:
     """Per-IMU-sample static detection: low gyro and accel spread over ``window_s`` and, where GNSS
     velocity exists, GNSS speed below ``cfg.constraints.static_gnss_speed_m_s``."""
-    c = cfg.constraints
-    dt = np.diff(np.concatenate([[imu.t0], imu.time]))
-    dt[dt <= 0] = np.nan
-    w = imu.dtheta / dt[:, None]
-    f = imu.dv / dt[:, None]
-    n = max(2, int(round(window_s * imu.rate_hz)))
+    return StaticDetector(gnss, cfg, imu.rate_hz, window_s)(imu.time, imu.dtheta, imu.dv, imu.t0)
 
-    def rolling_std(a):
+
+class StaticDetector:
+    """:func:`static_flags` over consecutive chunks of a log (call it with each chunk in order: the
+    running sums carry over, so the flags are the whole-log ones)."""
+
+    def __init__(self, gnss, cfg, rate_hz: float, window_s: float = 1.0):
+        c = self.c = cfg.constraints
+        self.n = max(2, int(round(window_s * rate_hz)))
+        self.gnss, self.k = gnss, 0
+        self.head = [np.zeros((1, 3)) for _ in range(4)]  # last ≤ n + 1 rows of the running sums
+        gv = gnss.vel if gnss is not None else None
+        if gnss is not None and len(gnss) > 1 and (gv is None or np.all(np.isnan(gv[:, :2]))):
+            # no receiver velocity: from position differences, and "static" only where their σ can tell
+            # the threshold apart (σ_v <= threshold / 2): noisy fixes never say static
+            vd, sd = velocity_from_positions(gnss, 1.0)
+            sig = np.hypot(sd[:, 0], sd[:, 1])
+            gv = np.where((sig <= 0.5 * c.static_gnss_speed_m_s)[:, None], vd, np.inf)
+            gv = np.where(np.isnan(gv), np.inf, gv)
+        self.sp = None if gnss is None or gv is None or len(gnss) == 0 else np.hypot(gv[:, 0], gv[:, 1])
+
+    def _rolling_std(self, a, j):
+        """Spread over the last n samples (the largest of the 3 axes), running sums from the log start."""
         a = np.nan_to_num(a)
-        cs = np.cumsum(np.vstack([np.zeros((1, a.shape[1])), a]), axis=0)
-        cs2 = np.cumsum(np.vstack([np.zeros((1, a.shape[1])), a * a]), axis=0)
-        idx = np.arange(1, len(a) + 1)
-        lo = np.maximum(idx - n, 0)
+        h, h2 = self.head[j], self.head[j + 1]
+        cs = np.vstack([h[:-1], np.cumsum(np.vstack([h[-1:], a]), axis=0)])
+        cs2 = np.vstack([h2[:-1], np.cumsum(np.vstack([h2[-1:], a * a]), axis=0)])
+        base = self.k - (len(h) - 1)  # global index of cs[0]
+        idx = np.arange(self.k + 1, self.k + len(a) + 1)
+        lo = np.maximum(idx - self.n, 0)
         cnt = (idx - lo)[:, None]
-        mean = (cs[idx] - cs[lo]) / cnt
-        var = (cs2[idx] - cs2[lo]) / cnt - mean**2
+        mean = (cs[idx - base] - cs[lo - base]) / cnt
+        var = (cs2[idx - base] - cs2[lo - base]) / cnt - mean**2
+        self.head[j], self.head[j + 1] = cs[-(self.n + 1):], cs2[-(self.n + 1):]
         return np.sqrt(np.maximum(var, 0.0)).max(axis=1)
 
-    ok = (rolling_std(w) < c.static_gyro_std_deg_s * np.pi / 180) & (rolling_std(f) < c.static_accel_std_m_s2)
-    gv = gnss.vel if gnss is not None else None
-    if gnss is not None and len(gnss) > 1 and (gv is None or np.all(np.isnan(gv[:, :2]))):
-        # no receiver velocity: from position differences, and "static" only where their σ can tell
-        # the threshold apart (σ_v <= threshold / 2): noisy fixes never say static
-        vd, sd = velocity_from_positions(gnss, 1.0)
-        sig = np.hypot(sd[:, 0], sd[:, 1])
-        gv = np.where((sig <= 0.5 * c.static_gnss_speed_m_s)[:, None], vd, np.inf)
-        gv = np.where(np.isnan(gv), np.inf, gv)
-    if gnss is not None and gv is not None and len(gnss) > 0:
-        sp = np.hypot(gv[:, 0], gv[:, 1])
-        j = np.clip(np.searchsorted(gnss.time, imu.time), 0, len(gnss) - 1)
-        jp = np.clip(j - 1, 0, len(gnss) - 1)
-        near = (np.abs(gnss.time[j] - imu.time) < 1.0) | (np.abs(gnss.time[jp] - imu.time) < 1.0)
-        ok &= near & (np.maximum(sp[j], sp[jp]) < c.static_gnss_speed_m_s)
-    else:
-        ok &= False
-    return ok
+    def __call__(self, time, dtheta, dv, t_prev):
+        c = self.c
+        dt = np.diff(np.concatenate([[t_prev], time]))
+        dt[dt <= 0] = np.nan
+        ok = ((self._rolling_std(dtheta / dt[:, None], 0) < c.static_gyro_std_deg_s * np.pi / 180)
+              & (self._rolling_std(dv / dt[:, None], 2) < c.static_accel_std_m_s2))
+        self.k += len(time)
+        gnss = self.gnss
+        if self.sp is not None:
+            j = np.clip(np.searchsorted(gnss.time, time), 0, len(gnss) - 1)
+            jp = np.clip(j - 1, 0, len(gnss) - 1)
+            near = (np.abs(gnss.time[j] - time) < 1.0) | (np.abs(gnss.time[jp] - time) < 1.0)
+            ok &= near & (np.maximum(self.sp[j], self.sp[jp]) < c.static_gnss_speed_m_s)
+        else:
+            ok &= False
+        return ok
 
 
-def bridge_gaps(imu, events: list, factor: float = 5.0, window_s: float = 1.0):
+def bridge_gaps(imu, events: list, factor: float = 5.0, window_s: float = 1.0, med: float | None = None,
+                start: int = 0):
     """Increments ready for the kernel, with IMU time gaps (interval > ``factor`` × median) bridged.
 
     A sample after a gap either already spans the gap (e.g. rates × Δt from a reader: |Δv|/Δt ≈ g)
@@ -102,13 +120,17 @@ def bridge_gaps(imu, events: list, factor: float = 5.0, window_s: float = 1.0):
     end anywhere in the gap: uniform between 0 and the held rate). Each gap and the decision go into
     ``events``.
     Returns (dtheta, dv, gap_var); the arrays are copies only when something was changed.
+    Streaming (:mod:`aidnav.filters.stream`): ``med`` the nominal interval (default: the median here),
+    ``start`` the first sample to look at (the ones before it are the window of the previous chunk);
+    the arrays returned begin at ``start``.
     """
     dt = np.diff(np.concatenate([[imu.t0], imu.time]))
-    med = float(np.median(dt))
+    med = float(np.median(dt)) if med is None else med
     gaps = np.flatnonzero(dt > factor * med)
-    gap_var = np.zeros((len(imu), 2))
+    gaps = gaps[gaps >= start]
+    gap_var = np.zeros((len(imu) - start, 2))
     if len(gaps) == 0:
-        return imu.dtheta, imu.dv, gap_var
+        return imu.dtheta[start:], imu.dv[start:], gap_var
     dth, dv = imu.dtheta.copy(), imu.dv.copy()
     nwin = max(2, int(round(window_s / med)))
     for k in gaps:
@@ -134,11 +156,11 @@ def bridge_gaps(imu, events: list, factor: float = 5.0, window_s: float = 1.0):
             dth[k] = w_mean * T
             dv[k] = f_mean * T
             how = f"bridged with the mean rates of the {nwin * med:.2f} s before it"
-        gap_var[k] = [(s_w * T) ** 2, (s_f * T) ** 2]
+        gap_var[k - start] = [(s_w * T) ** 2, (s_f * T) ** 2]
         events.append(f"IMU gap of {T:.3f} s before t={imu.time[k]:.3f} ({T / med:.0f} nominal intervals); "
                       f"{how}; attitude/velocity variance inflated by ({np.degrees(s_w * T):.2f} deg)^2, "
                       f"({s_f * T:.2f} m/s)^2 for the unknown motion")
-    return dth, dv, gap_var
+    return dth[start:], dv[start:], gap_var
 
 
 def gnss_arrays(gnss, cfg):
@@ -193,7 +215,8 @@ def initial_state(imu, gnss, cfg, t_imu, g, use, events):
 
     g : the arrays of :func:`gnss_arrays`; use : bool mask of the usable fixes. Returns a dict with t0,
     k0 (first IMU sample used), lat0, lon0, h0, v0, rph, att_sig [rad], reset_idx (sample index of the
-    course alignment, −1: none; relative to k0), reset_heading [rad], reset_nav (12,) of the course fix,
+    course alignment, −1: none; relative to k0), reset_time (its time, inf: never, None: none),
+    reset_heading [rad], reset_nav (12,) of the course fix,
     vel_sig (3,) [m/s] of an in-motion start (None: the configured σ).
     """
     from aidnav.data import ImuData
@@ -213,7 +236,7 @@ def initial_state(imu, gnss, cfg, t_imu, g, use, events):
         v0 = np.array(ini.velocity_m_s, float)
         rph = np.array([ini.roll_deg, ini.pitch_deg, ini.heading_deg]) * DEG
         att_sig = np.array(ini.attitude_sigma_deg) * DEG
-        reset_idx, reset_heading = -1, 0.0
+        reset_idx, reset_heading, reset_time = -1, 0.0, None
         reset_nav = np.full(12, np.nan)
         k0 = 0
         vsig0 = None
@@ -287,7 +310,7 @@ def initial_state(imu, gnss, cfg, t_imu, g, use, events):
             att_sig[2] = heading_now[1]
         elif ini.heading_deg is None:
             events.append(f"no gyrocompass heading ({ainfo['heading_reason']}): heading from GNSS course")
-        reset_idx, reset_heading = -1, 0.0
+        reset_idx, reset_heading, reset_time = -1, 0.0, None
         reset_nav = np.full(12, np.nan)
         if ini.heading_deg is None and gc_heading is None and heading_now is None:
             ca = course_alignment(gsub, cfg, t0, vel=vel_u, std=svel_u)
@@ -295,6 +318,7 @@ def initial_state(imu, gnss, cfg, t_imu, g, use, events):
                 events.append("heading never aligned: no GNSS course above init.course_min_speed_m_s with "
                               "a speed well above its sigma")
                 reset_idx = len(t_imu) + 1  # never: the heading stays unknown (engine: no information)
+                reset_time = np.inf
             else:
                 tca, course, ica_u = ca[:3]
                 ica = iu[ica_u]
@@ -306,13 +330,15 @@ def initial_state(imu, gnss, cfg, t_imu, g, use, events):
                 # vehicle heading = course; IMU heading = vehicle heading + mounting heading
                 reset_heading = (course + mount_h) % (2 * np.pi)
                 reset_idx = int(np.searchsorted(t_imu[k0:], tca, side="left"))
+                reset_time = float(tca)
                 events.append(f"heading from GNSS course at t={tca:.3f}: {np.degrees(reset_heading):.2f} deg")
             att_sig[2] = np.pi  # unknown until the course alignment
         if vsig0 is not None:
             events.append(f"in-motion start: velocity from GNSS {np.round(v0, 2)} m/s (sigma "
                           f"{np.round(vsig0, 3)} m/s)")
     return dict(t0=t0, k0=k0, lat0=lat0, lon0=lon0, h0=h0, v0=v0, rph=rph, att_sig=att_sig,
-                reset_idx=reset_idx, reset_heading=reset_heading, reset_nav=reset_nav, vel_sig=vsig0)
+                reset_idx=reset_idx, reset_heading=reset_heading, reset_nav=reset_nav, vel_sig=vsig0,
+                reset_time=reset_time)
 
 
 def _course_ok(speed, sig_h, cfg):

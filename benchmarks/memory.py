@@ -1,0 +1,126 @@
+"""Peak memory of ``aidnav process`` against the log length (issue 29, "Scale").
+
+Runs the command (a child process each; its maximum resident set from ``wait4``) on:
+
+* W1 (``../shared/data/sim_w1_pyins``, one hour at 100 Hz, ``examples/sim_w1_pyins.yaml``), forward and
+  with ``--smooth``; targets ≤ 200 MiB and ≤ 250 MiB;
+* a synthetic static log of 1 h and of 10 h at 100 Hz (level IMU at rest: gravity and the Earth rate plus
+  white noise; GNSS at 1 Hz on the spot; given initial state, ZUPT on), made in a temporary directory
+  chunk by chunk; targets: 10 h ≤ 250 MiB, memory at 10 h within 10 % of memory at 1 h, wall at 10 h ≤ 5 s.
+
+Also printed: the floor (the interpreter with the imports and the first numba dispatch of the filter
+path, on a 60-s piece of the 1-h log) and the load average (the machine is shared: wall times move with
+it; memory does not). ``--figures`` keeps the figures (default ``--no-figures``: the figures are a
+separate cost, made from a decimated copy). Run: ``python benchmarks/memory.py [--hours-long 10]``.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+W1 = Path(__file__).resolve().parents[2] / "shared" / "data" / "sim_w1_pyins"
+W1_CFG = Path(__file__).resolve().parents[1] / "examples" / "sim_w1_pyins.yaml"
+MIB = 1024 * 1024
+
+
+def run(args, figures=False) -> tuple[float, float, float]:
+    """(peak RSS [MiB], wall [s], CPU user + system [s]) of ``aidnav process ARGS`` in a child process."""
+    env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1")
+    cmd = [sys.executable, "-c", "from aidnav.cli import main; main()", "process", *map(str, args)]
+    if not figures:
+        cmd.append("--no-figures")
+    t0 = time.perf_counter()
+    p = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    _, status, ru = os.wait4(p.pid, 0)
+    wall = time.perf_counter() - t0
+    err = p.stderr.read().decode()
+    p.stderr.close()
+    if status != 0:
+        raise SystemExit(f"aidnav process {' '.join(map(str, args))} failed:\n{err}")
+    return ru.ru_maxrss / 1024.0, wall, ru.ru_utime + ru.ru_stime
+
+
+def static_log(d: Path, hours: float, rate: float = 100.0, seed: int = 1) -> tuple[Path, Path, Path]:
+    """IMU (Parquet, written in row groups), GNSS (CSV) and a configuration of a static log."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    lat = np.radians(30.0)
+    g, om = 9.79, 7.292115e-5
+    dt = 1.0 / rate
+    n = int(round(hours * 3600 * rate))
+    rng = np.random.default_rng(seed)
+    imu = d / f"imu_{hours:g}h.parquet"
+    names = ["time", "dtheta_x_rad", "dtheta_y_rad", "dtheta_z_rad", "dv_x_m_s", "dv_y_m_s", "dv_z_m_s"]
+    w = None
+    for a in range(0, n, 1 << 18):
+        m = min(1 << 18, n - a)
+        t = (np.arange(a, a + m) + 1) * dt
+        dth = np.array([0.0, om * np.cos(lat), om * np.sin(lat)]) * dt + rng.normal(0, 1e-5, (m, 3))
+        dv = np.array([0.0, 0.0, g]) * dt + rng.normal(0, 1e-4, (m, 3))
+        tbl = pa.table([t, *dth.T, *dv.T], names=names)
+        if w is None:
+            w = pq.ParquetWriter(imu, tbl.schema)
+        w.write_table(tbl)
+    w.close()
+    gnss = d / f"gnss_{hours:g}h.csv"
+    k = int(hours * 3600)
+    tg = np.arange(1, k + 1, dtype=float)
+    e = rng.normal(0, 0.5, (k, 3))
+    cols = np.column_stack([tg, 30.0 + e[:, 1] / 111e3, 114.0 + e[:, 0] / 96e3, 50.0 + e[:, 2],
+                            np.full((k, 3), 0.5)])
+    np.savetxt(gnss, cols, delimiter=",", fmt="%.10f",
+               header="time,lat_deg,lon_deg,height_m,std_e_m,std_n_m,std_u_m", comments="")
+    cfg = d / "static.yaml"
+    cfg.write_text("imu: {arw_deg_sqrt_h: 0.1, vrw_m_s_sqrt_h: 0.05}\n"
+                   "gnss: {use: position}\n"
+                   "init: {mode: given, lat_deg: 30.0, lon_deg: 114.0, height_m: 50.0,"
+                   " velocity_m_s: [0, 0, 0], roll_deg: 0, pitch_deg: 0, heading_deg: 0}\n"
+                   "filter: {prop_dt_s: 1.0}\n")
+    return imu, gnss, cfg
+
+
+def floor(d: Path, imu: Path, gnss: Path, cfg: Path) -> float:
+    """Peak RSS on the first 60 s of the log (imports, numba dispatch, fixed buffers)."""
+    import pyarrow.parquet as pq
+
+    small = d / "imu_60s.parquet"
+    pq.write_table(pq.read_table(imu).slice(0, 6000), small)
+    return run(["--imu", small, "--gnss", gnss, "--config", cfg, "-o", d / "o60"])[0]
+
+
+def main() -> None:
+    long_h = float(sys.argv[sys.argv.index("--hours-long") + 1]) if "--hours-long" in sys.argv else 10.0
+    figures = "--figures" in sys.argv
+    print(f"load average {os.getloadavg()[0]:.1f} (2 cores shared)")
+    with tempfile.TemporaryDirectory() as td:
+        d = Path(td)
+        rows = []
+        if W1.exists():
+            a = ["--imu", W1 / "imu.parquet", "--gnss", W1 / "gnss.csv", "--config", W1_CFG, "-o", d / "w1"]
+            run(a)  # warm the numba cache
+            rows.append(("W1 forward", *run(a, figures), "≤ 200 MiB"))
+            rows.append(("W1 --smooth", *run([*a, "--smooth"], figures), "≤ 250 MiB"))
+        i1, g1, c1 = static_log(d, 1.0)
+        fl = floor(d, i1, g1, c1)
+        rows.append(("floor: 60 s of the static log", fl, float("nan"), float("nan"), "(numba + imports)"))
+        r1 = run(["--imu", i1, "--gnss", g1, "--config", c1, "-o", d / "s1"], figures)
+        rows.append(("static 1 h, 100 Hz", *r1, ""))
+        il, gl, cl = static_log(d, long_h, seed=2)
+        rl = run(["--imu", il, "--gnss", gl, "--config", cl, "-o", d / "sl"], figures)
+        rows.append((f"static {long_h:g} h, 100 Hz", *rl, "≤ 250 MiB, wall ≤ 5 s (CPU on a loaded machine)"))
+        for name, mem, wall, cpu, target in rows:
+            print(f"{name:30s} peak RSS {mem:7.1f} MiB  wall {wall:6.2f} s  CPU {cpu:6.2f} s  {target}")
+        print(f"memory {long_h:g} h / 1 h: {rl[0] / r1[0]:.3f} (target ≤ 1.10)")
+        print(f"load average {os.getloadavg()[0]:.1f}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,166 @@
+"""The parts of ``aidnav process`` shared by the in-memory job (:mod:`aidnav.apps.process`) and the
+streamed one (:mod:`aidnav.apps.process_stream`): simulated outages (parse, windows, scores) and the
+summary of a run.
+
+Outages are given in seconds after the first GNSS epoch: ``START:LENGTH[:PERIOD]``; with a period they
+repeat while the whole outage fits before the last GNSS epoch. Withheld fixes are kept aside and scored
+(horizontal error of the output, interpolated to each withheld epoch, against the withheld fix; fixes
+with quality Q = 1 only when the file has a quality column).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from aidnav.data import GnssData
+from aidnav.errors import InputError
+
+
+@dataclass
+class Outage:
+    start_s: float
+    length_s: float
+    period_s: float | None = None
+
+
+def parse_outage(text: str) -> Outage:
+    """``START:LENGTH[:PERIOD]`` in seconds → :class:`Outage` (clear error on bad text)."""
+    parts = text.split(":")
+    try:
+        vals = [float(p) for p in parts]
+    except ValueError:
+        raise InputError(f"--outage {text!r}: expected START:LENGTH[:PERIOD] in seconds") from None
+    if (len(vals) not in (2, 3) or not np.isfinite(vals).all() or vals[0] < 0 or vals[1] <= 0
+            or (len(vals) == 3 and vals[2] <= vals[1])):
+        raise InputError(f"--outage {text!r}: expected START:LENGTH[:PERIOD] with START >= 0, LENGTH > 0 "
+                         "and PERIOD > LENGTH")
+    return Outage(vals[0], vals[1], vals[2] if len(vals) == 3 else None)
+
+
+def outage_windows(outages: list[Outage], t_first: float, t_last: float) -> list[tuple[float, float]]:
+    """Absolute [start, end) windows of the outages (repeated ones while they fit before t_last).
+
+    An outage that does not fit inside the GNSS span is an error (it would withhold nothing)."""
+    wins = []
+    for o in outages:
+        s = t_first + o.start_s
+        if s + o.length_s > t_last + 1e-9:
+            raise InputError(f"--outage {o.start_s:g}:{o.length_s:g}: ends {s + o.length_s - t_first:.1f} s "
+                             f"after the first fix but the GNSS fixes span only {t_last - t_first:.1f} s")
+        while s + o.length_s <= t_last + 1e-9:
+            wins.append((s, s + o.length_s))
+            if not o.period_s:
+                break
+            s += o.period_s
+    return wins
+
+
+def outage_errors(traj, gnss: GnssData, withheld, after: float = -np.inf):
+    """(times, horizontal errors) of the output, interpolated to the withheld fixes (quality 1 where the
+    file has a quality column) inside its span and after ``after``."""
+    from aidnav.nav.earth import lla_difference_enu
+
+    good = withheld.copy()
+    if gnss.quality is not None:
+        good &= gnss.quality == 1
+    t = gnss.time[good]
+    inside = (t >= traj.time[0]) & (t <= traj.time[-1]) & (t > after)
+    t = t[inside]
+    if len(t) == 0:
+        return t, np.zeros(0)
+    lat = np.interp(t, traj.time, traj.lat)
+    lon = np.interp(t, traj.time, np.unwrap(traj.lon))
+    de, dn, _ = lla_difference_enu(lat, lon, 0.0, gnss.lat[good][inside], gnss.lon[good][inside], 0.0)
+    return t, np.hypot(de, dn)
+
+
+def score_outages(traj, gnss: GnssData, wins, withheld) -> dict:
+    """Horizontal errors at the withheld fixes: end-of-outage statistics and RMS over all of them."""
+    return outage_score(*outage_errors(traj, gnss, withheld), wins, withheld)
+
+
+def outage_score(t, herr, wins, withheld) -> dict:
+    """:func:`score_outages` from the errors at the withheld fixes (:func:`outage_errors`)."""
+    if len(t) == 0:
+        return {"n_withheld": int(withheld.sum()), "n_scored": 0}
+    ends = []
+    per = []
+    for a, b in wins:
+        m = (t >= a) & (t < b)
+        if m.any():
+            ends.append(float(herr[m][-1]))
+            per.append({"start": a, "end": b, "n": int(m.sum()), "end_error_m": float(herr[m][-1]),
+                        "rms_m": float(np.sqrt(np.mean(herr[m] ** 2)))})
+    ends = np.array(ends)
+    return {
+        "n_outages": len(wins), "n_withheld": int(withheld.sum()), "n_scored": int(len(herr)),
+        "end_error_median_m": float(np.median(ends)) if len(ends) else None,
+        "end_error_p95_m": float(np.percentile(ends, 95)) if len(ends) else None,
+        "end_error_max_m": float(ends.max()) if len(ends) else None,
+        "rms_m": float(np.sqrt(np.mean(herr**2))),
+        "outages": per,
+    }
+
+
+def run_summary(res, n_imu, rate_hz, gnss, withheld, wins, events, warnings, t_filt) -> dict:
+    """The summary of a loose-filter run (before the outage scores and the calibration)."""
+    rec = res.records
+    pos_ok = rec["pos_status"] == 1
+    return {
+        "smoothed": res.smoothed,
+        "time_scale": "input (GPS seconds of week for GNSS-timed logs)",
+        "imu_samples": n_imu, "imu_rate_hz": rate_hz, "gnss_fixes": len(gnss),
+        "gnss_withheld": int(withheld.sum()),
+        "gnss_position_accepted": int(pos_ok.sum()),
+        "gnss_position_rejected": int((rec["pos_status"] == 0).sum()),
+        "gnss_velocity_accepted": int((rec["vel_status"] == 1).sum()),
+        "gnss_velocity_rejected": int((rec["vel_status"] == 0).sum()),
+        "rejected_fix_times": [float(t) for t in gnss.time[rec["pos_status"] == 0]][:100],
+        "counts": res.counts,
+        "nis": nis_summary(rec),
+        "outage_windows": [[a, b] for a, b in wins],
+        "events": events,
+        "warnings": warnings,
+        "timing_s": {"filter": t_filt},
+    }
+
+
+def finish_summary(summary, res, applied_offset, warnings) -> None:
+    """Calibration and NIS health into the summary (in place)."""
+    from aidnav.filters.result import nis_health, summary_calibration
+
+    # sensor errors (biases, scale factors) and the self-calibration (time offset added to the IMU
+    # stamps, lever arm, mounting, odometer scale) with σ, under the names of docs/conventions.md
+    summary["calibration"] = summary_calibration(res, {"time_offset_s": applied_offset})
+    health = nis_health(res)  # windows where the innovations say σ is wrong, and which way
+    summary["nis_windows_far_out"] = health.get("windows", [])
+    warnings += health.get("warnings", [])
+
+
+def nis_summary(rec: dict) -> dict:
+    """Mean NIS per measurement type over accepted updates, with its degrees of freedom and the
+    two-sided 95 % band of the mean of N χ²(dof) draws (normal approximation, 2·dof/N variance)."""
+    out = {}
+    for name, st, nis, dof in (("gnss_position", "pos_status", "pos_nis", 3),
+                               ("gnss_velocity", "vel_status", "vel_nis", None)):
+        if st not in rec or nis not in rec:
+            continue
+        ok = (rec[st] == 1) & np.isfinite(rec[nis])
+        n = int(ok.sum())
+        if n == 0:
+            continue
+        if dof is None:  # velocity fixes may lack components: dof from the recorded innovations
+            inn = rec.get("vel_innov")
+            d = (np.isfinite(inn[ok]).sum(axis=1).astype(float) if inn is not None
+                 else np.full(n, 3.0))
+        else:
+            d = np.full(n, float(dof))
+        mean_dof = float(d.mean())
+        half = 1.96 * np.sqrt(2.0 * mean_dof / n)
+        m = float(rec[nis][ok].mean())
+        out[name] = {"mean": m, "dof": mean_dof, "n": n,
+                     "band95": [mean_dof - half, mean_dof + half],
+                     "in_band": bool(mean_dof - half <= m <= mean_dof + half)}
+    return out

@@ -1,0 +1,189 @@
+"""``aidnav process`` with memory independent of the log length (issue 29).
+
+The IMU file is read in batches (:func:`aidnav.io.stream.iter_imu`), the filter runs chunk by chunk
+(:func:`aidnav.filters.stream.stream_loose`), each piece of the solution is checked
+(:func:`aidnav.apps.common.check_solution`, joined to the last epoch before it), scored at the withheld
+fixes and written (:class:`aidnav.io.stream.TrajectoryWriter`); the figures and maps get a decimated
+copy (at most :data:`FIGURE_POINTS` epochs). The numbers are :func:`aidnav.apps.process.process`'s.
+:func:`streamable` says when this path applies (interchange Parquet IMU, no ``--start/--end``, no
+whole-log mounting fit); :func:`aidnav.apps.process.process_logs` takes it then.
+"""
+
+from __future__ import annotations
+
+import time as _time
+
+import numpy as np
+
+from aidnav.apps.common import check_solution
+from aidnav.data import Trajectory
+
+FIGURE_POINTS = 20000  #: at most this many epochs go to overview.png, the maps and run.html
+CHUNK_ROWS = 1 << 13  #: IMU samples per chunk (the per-chunk buffers are about 1.3 kB per sample)
+
+
+def streamable(imu_path, cfg, odometer=None, start_s=None, end_s=None) -> bool:
+    """Whether ``process_logs`` can stream this job (module doc)."""
+    from aidnav.filters.stream import needs_whole_log
+    from aidnav.io.formats import detect_imu_format
+    from aidnav.io.stream import imu_time_span
+
+    if start_s is not None or end_s is not None or needs_whole_log(cfg, odometer):
+        return False
+    try:
+        if detect_imu_format(imu_path) != "interchange":
+            return False
+    except Exception:  # noqa: BLE001  (the whole-file reader gives the message)
+        return False
+    return imu_time_span(imu_path) is not None
+
+
+def _join(a: Trajectory | None, b: Trajectory) -> Trajectory:
+    """The last epoch of ``a`` followed by ``b`` (checks and interpolation across a chunk boundary)."""
+    if a is None:
+        return b
+
+    def cat(x, y):
+        return None if x is None else np.concatenate([x[-1:], y])
+
+    names = ("time", "lat", "lon", "height", "vel", "rph", "std_pos", "std_vel", "std_att")
+    return Trajectory(*(cat(getattr(a, k), getattr(b, k)) for k in names),
+                      extra={k: cat(a.extra[k], v) for k, v in b.extra.items()})
+
+
+def _take(tr: Trajectory, m) -> Trajectory:
+    def f(x):
+        return None if x is None else x[m]
+
+    return Trajectory(tr.time[m], tr.lat[m], tr.lon[m], tr.height[m], tr.vel[m], tr.rph[m], f(tr.std_pos),
+                      f(tr.std_vel), f(tr.std_att), {k: v[m] for k, v in tr.extra.items()})
+
+
+def _concat(parts: list[Trajectory]) -> Trajectory:
+    def c(name):
+        xs = [getattr(p, name) for p in parts]
+        return None if xs[0] is None else np.concatenate(xs)
+
+    extra = {k: np.concatenate([p.extra[k] for p in parts]) for k in parts[0].extra}
+    names = ("time", "lat", "lon", "height", "vel", "rph", "std_pos", "std_vel", "std_att")
+    return Trajectory(*(c(k) for k in names), extra=extra)
+
+
+class _Sink:
+    """Check, score, decimate and (unless ``write`` is None) write the pieces of one solution."""
+
+    def __init__(self, gnss, withheld, fig_dt, write=None):
+        self.gnss, self.withheld, self.fig_dt, self.write = gnss, withheld, fig_dt, write
+        self.prev, self.t_err, self.herr, self.dec, self.next_t = None, [], [], [], -np.inf
+
+    def __call__(self, traj: Trajectory):
+        from aidnav.apps.process_parts import outage_errors
+
+        j = _join(self.prev, traj)
+        check_solution(j, "the loosely coupled filter")
+        if self.withheld.any():
+            t, e = outage_errors(j, self.gnss, self.withheld,
+                                 after=-np.inf if self.prev is None else float(self.prev.time[-1]))
+            self.t_err.append(t)
+            self.herr.append(e)
+        if self.write is not None:
+            self.write(traj)
+        # decimated copy: the first epoch at or after each multiple of fig_dt
+        b = np.floor(traj.time / self.fig_dt)
+        keep = np.concatenate([[b[0] > self.next_t], b[1:] > b[:-1]])
+        if keep.any():
+            self.dec.append(_take(traj, keep))
+        self.next_t = b[-1]
+        self.prev = _take(traj, slice(len(traj.time) - 1, None))
+
+    def score(self, wins):
+        from aidnav.apps.process_parts import outage_score
+
+        t = np.concatenate(self.t_err) if self.t_err else np.zeros(0)
+        return outage_score(t, np.concatenate(self.herr) if self.herr else np.zeros(0), wins, self.withheld)
+
+    def decimated(self) -> Trajectory:
+        return _concat(self.dec)
+
+
+def stream_process(imu_path, gnss, cfg, traj_path, week, smooth=False, outages=None, imu_name="imu",
+                   gnss_name="gnss", skip_checks=(), odometer=None, baro=None, progress=None,
+                   chunk_rows: int | None = None):
+    """The streamed :func:`aidnav.apps.process.process` + writing: returns (summary of the run, decimated
+    trajectory for the figures, the filter's :class:`FilterResult` (last epoch, records, counts))."""
+    from aidnav.apps.process_parts import finish_summary, outage_windows, parse_outage, run_summary
+    from aidnav.filters.result import to_trajectory
+    from aidnav.filters.stream import stream_loose
+    from aidnav.io.sanity import check_gnss, check_imu, check_overlap
+    from aidnav.io.stream import TrajectoryWriter, imu_time_span, iter_imu
+
+    applied = float(cfg.imu.time_offset_s)
+    cfg = cfg.model_copy(update={"imu": cfg.imu.model_copy(update={"time_offset_s": 0.0})})
+    chunks = iter_imu(imu_path, chunk_rows or CHUNK_ROWS)
+    head = next(chunks)
+    offset_event = [f"IMU time offset {applied:+.4f} s added to the IMU stamps"] if applied else []
+
+    def shifted(first, rest):
+        yield _shift(first, applied)
+        for c in rest:
+            yield _shift(c, applied)
+
+    warnings = check_imu(_shift(head, applied), imu_name, skip_checks)  # the first chunk
+    warnings += check_gnss(gnss, gnss_name, skip_checks)
+    ta, tb = imu_time_span(imu_path)
+
+    class _Span:
+        time = np.array([ta + applied, tb + applied])
+
+    warnings += check_overlap(_Span, gnss, imu_name, gnss_name, skip_checks)
+    wins = outage_windows([parse_outage(o) for o in (outages or [])], gnss.time[0], gnss.time[-1])
+    withheld = np.zeros(len(gnss), bool)
+    for a, b in wins:
+        withheld |= (gnss.time >= a) & (gnss.time < b)
+    fig_dt = max((tb - ta) / FIGURE_POINTS, 1e-9)
+    writer = TrajectoryWriter(traj_path, week=week)
+    sink = _Sink(gnss, withheld, fig_dt, writer.write)
+    fwd = _Sink(gnss, withheld, np.inf) if smooth and wins else None
+    n_imu = [0]
+
+    def emit(piece, forward=False):
+        if forward:  # the forward solution of a smoothed run: scored at the outages only
+            if fwd is not None:
+                fwd(to_trajectory(piece))
+            return
+        sink(to_trajectory(piece))
+
+    def count(m):
+        n_imu[0] += m
+        if progress is not None:
+            progress(m)
+
+    events: list[str] = []
+    t0 = _time.perf_counter()
+    try:
+        res = stream_loose(shifted(head, chunks), gnss, cfg, emit, withheld=withheld, smooth=smooth,
+                           events=events, odometer=odometer, baro=baro, spool_dir=writer.path.parent,
+                           progress=count)
+        writer.close()
+    except BaseException:
+        writer.abort()
+        raise
+    t_filt = _time.perf_counter() - t0
+    rate = 1.0 / float(np.median(np.diff(head.time)))
+    summary = run_summary(res, n_imu[0], rate, gnss, withheld, wins, head.events + offset_event + gnss.events
+                          + events, warnings, t_filt)
+    if wins:
+        summary["outage_score"] = sink.score(wins)
+        if fwd is not None:
+            summary["outage_score_forward"] = fwd.score(wins)
+    finish_summary(summary, res, applied, warnings)
+    return summary, sink.decimated(), res
+
+
+def _shift(c, offset):
+    from aidnav.data import ImuData
+
+    if not offset:
+        return c
+    return ImuData(c.time + offset, c.dtheta, c.dv, t0=None if c.t0 is None else c.t0 + offset,
+                   events=c.events, week=c.week)

@@ -1,0 +1,239 @@
+"""The loose filter chunk by chunk (issue 29): memory independent of the log length.
+
+:func:`stream_loose` takes the IMU log as an iterator of :class:`aidnav.data.ImuData` chunks (IMU
+stamps on the GNSS time scale, in order) and hands the solution on chunk by chunk to a callback, as
+:class:`aidnav.filters.result.FilterResult` pieces (``time``, ``state``, ``bias``, ``pdiag``). The
+engine runs each chunk from the carried state of the one before (:func:`aidnav.filters.engine.run_chunk`);
+the static detection carries its running sums (:class:`.preprocess.StaticDetector`) and the gap bridge
+the window before each chunk, so the solution is the one :func:`aidnav.filters.loose.run_loose` gives
+on the whole log, number for number, with two whole-log statistics taken from the head of the log
+instead (the first ``head_s`` seconds, at least one chunk): the nominal sample interval of the gap
+bridge and the rate of the static window (equal on a regularly sampled log).
+
+With the smoother, or with an estimated IMU time offset (output times are shifted by its final
+estimate), the forward outputs go to a spool file (float64 rows) and are read back chunk by chunk
+after the pass: the RTS pass keeps O(nodes) (``S_post``, ``S_prior``, ``Φ``, ``δx`` per node).
+
+What stays whole-log: the GNSS fixes and the per-fix record log (1 Hz: 100 times fewer rows than the
+IMU), the model id and status of every node-constraint update (2 bytes per node). A log that needs a
+whole-log fit before filtering (the coarse mounting: NHC or odometer with no mounting configured) or
+full covariances at given times is for :func:`run_loose` (:func:`needs_whole_log`).
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+
+import numpy as np
+
+from aidnav.data import ImuData
+
+from .engine import Imu, Log, Output, rts, run_chunk, smooth_outputs, start_carry
+from .layout import L_TOFF, NAV, layout_names
+from .loose import _calibration_base, _gnss_records, _log_dict, loose_counts, loose_setup
+from .preprocess import StaticDetector, bridge_gaps
+from .result import FilterResult
+
+NEVER = 2**62  # a course alignment not yet reached (its sample is found when its chunk comes)
+
+
+def needs_whole_log(cfg, odometer=None) -> bool:
+    """Whether the loose filter needs the whole log in memory (the coarse mounting is a whole-log fit)."""
+    return bool(cfg.constraints.nhc or odometer is not None) and "mounting_rph_deg" not in \
+        cfg.imu.model_fields_set
+
+
+def _concat(chunks):
+    if len(chunks) == 1:
+        return chunks[0]
+    return ImuData(np.concatenate([c.time for c in chunks]), np.concatenate([c.dtheta for c in chunks]),
+                   np.concatenate([c.dv for c in chunks]), t0=chunks[0].t0, events=list(chunks[0].events))
+
+
+def _head(chunks, gnss, head_s):
+    """(head ImuData, the chunks it was made of, the iterator): at least ``head_s`` s past the later of
+    the first IMU sample and the first GNSS fix (the initialisation looks there)."""
+    got = [next(chunks)]
+    t_start = max(float(got[0].time[0]), float(gnss.time[0]) if len(gnss) else -np.inf)
+    while got[-1].time[-1] < t_start + head_s:
+        try:
+            got.append(next(chunks))
+        except StopIteration:
+            break
+    return _concat(got), got, chunks
+
+
+def _lookahead(first, rest):
+    """(chunk, is_last) over the chunks ``first`` then the iterator ``rest``."""
+    pend = None
+    for c in first:
+        if pend is not None:
+            yield pend, False
+        pend = c
+    for c in rest:
+        yield pend, False
+        pend = c
+    yield pend, True
+
+
+class _Spool:
+    """Forward outputs as float64 rows in a temporary file, read back in chunks."""
+
+    def __init__(self, directory, width):
+        fd, self.path = tempfile.mkstemp(suffix=".spool", dir=directory)
+        self.f, self.width, self.rows = os.fdopen(fd, "wb"), width, 0
+
+    def write(self, rows):
+        np.ascontiguousarray(rows, np.float64).tofile(self.f)
+        self.rows += len(rows)
+
+    def read(self, chunk):
+        self.f.close()
+        with open(self.path, "rb") as f:
+            for a in range(0, self.rows, chunk):
+                m = min(chunk, self.rows - a)
+                yield np.fromfile(f, np.float64, m * self.width).reshape(m, self.width)
+
+    def close(self):
+        self.f.close()
+        if os.path.exists(self.path):
+            os.remove(self.path)
+
+
+def stream_loose(chunks, gnss, cfg, emit, withheld=None, smooth: bool = False, events: list | None = None,
+                 odometer=None, baro=None, head_s: float = 60.0, spool_dir=None, progress=None):
+    """Loosely coupled GNSS/INS (and RTS smoother) over a log given in chunks (module doc).
+
+    chunks : iterator of :class:`aidnav.data.ImuData` (consecutive, ``t0`` of the first one the start
+        of its first interval); cfg : :class:`aidnav.filters.config.LooseConfig` with
+        ``imu.time_offset_s`` already applied to the stamps (0); emit : called with each piece of the
+        solution (a :class:`FilterResult` with ``time``, ``state``, ``bias``, ``pdiag``, ``layout``,
+        ``smoothed``) in time order; with the smoother also ``emit(piece, forward=True)`` first for the
+        forward pieces. progress : called with the number of IMU samples of each chunk done.
+    Returns a :class:`FilterResult` whose arrays hold the last output epoch only, with ``records``,
+    ``counts``, ``innovations`` (the record rows), ``final_P``, ``events`` as :func:`run_loose`.
+    """
+    events = events if events is not None else []
+    chunks = iter(chunks)
+    head, first, rest = _head(chunks, gnss, head_s)
+    su = loose_setup(head, gnss, cfg, withheld, events, odometer, baro)
+    cfg, lay, n, k0 = su.cfg, su.lay, su.n, su.k0
+    ini = su.ini
+    rt = su.reset_time
+    if rt is not None and not rt <= head.time[-1]:
+        ini = ini._replace(reset_idx=NEVER)  # found below in its chunk (inf: never)
+    dt_head = np.diff(np.concatenate([[head.t0], head.time]))
+    med, rate = float(np.median(dt_head)), head.rate_hz
+    nwin = max(2, int(round(1.0 / med)))
+    static = StaticDetector(gnss, cfg, rate) if cfg.constraints.zupt else None
+    out = Output(su.out_every, bool(smooth), np.zeros(0, np.int64))
+    M = len(su.rec.t)
+    rec_log = None
+    node_model, node_status, nodes, static_used, n_nodes = [], [], [], 0, 0
+    spool = None
+    if smooth or lay[L_TOFF] >= 0:
+        spool = _Spool(spool_dir, 3 + 10 + (n - NAV) + n)
+    cy = start_carry(su.rec, su.proc, ini, False)
+    tail, n_seen, t_prev, last_piece = None, 0, head.t0, None
+    try:
+        for ch, last in _lookahead(first, rest):
+            m = len(ch)
+            # gap bridge with the window before the chunk; static flags with the carried sums
+            if tail is None:
+                dth, dv, gap_var = bridge_gaps(ch, events, med=med)
+            else:
+                j = ImuData(np.concatenate([tail.time, ch.time]), np.concatenate([tail.dtheta, ch.dtheta]),
+                            np.concatenate([tail.dv, ch.dv]), t0=tail.t0)
+                dth, dv, gap_var = bridge_gaps(j, events, med=med, start=len(tail))
+            st_fl = static(ch.time, ch.dtheta, ch.dv, t_prev) if static is not None else np.zeros(m, np.bool_)
+            keep = max(0, min(nwin, m))
+            tail = ImuData(ch.time[m - keep:], ch.dtheta[m - keep:], ch.dv[m - keep:],
+                           t0=float(ch.time[m - keep - 1]) if m - keep > 0 else t_prev)
+            t_prev = float(ch.time[-1])
+            a = max(0, k0 - n_seen)  # samples before the first one used (automatic initialisation)
+            n_seen += m
+            if a >= m:
+                continue
+            t = ch.time[a:]
+            kb = cy.k0
+            if ini.reset_idx == NEVER and rt is not None and np.isfinite(rt) and t[-1] >= rt:
+                ini = ini._replace(reset_idx=kb + int(np.searchsorted(t, rt, side="left")))
+            static_used += int(st_fl[a:].sum())
+            cy = cy._replace(last=last)
+            imu_k = Imu(t, dth[a:], dv[a:], st_fl[a:], gap_var[a:], np.zeros((0, 2)))
+            r = run_chunk(imu_k, su.rec, su.models, su.proc, ini, out, cy)
+            g0, cy = cy.gi, r.carry
+            lg = {k: getattr(r.log, k) for k in r.log._fields}  # (names once, at the end)
+            if rec_log is None:
+                rec_log = {k: v[:M].copy() for k, v in lg.items()}
+            else:
+                for k in rec_log:
+                    rec_log[k][g0:cy.gi] = lg[k][g0:cy.gi]
+            node_model.append(lg["model"][M:r.n_log].copy())
+            node_status.append(lg["status"][M:r.n_log].copy())
+            n_nodes += len(r.node_idx)
+            if smooth:
+                nodes.append((r.node_idx.copy(), r.S_post.copy(), r.S_prior.copy(), r.S_phi.copy(),
+                               r.S_dx.copy()))
+            if len(r.out_idx):
+                tt = t[r.out_idx - kb]
+                if spool is not None:
+                    spool.write(np.column_stack([tt, r.out_idx, r.out_node, r.out_st, r.out_bias,
+                                                 r.out_pdiag]))
+                else:
+                    last_piece = _piece(tt, r.out_st, r.out_bias, r.out_pdiag, lay)
+                    emit(last_piece)
+            if progress is not None:
+                progress(m)
+        d_hat = float(cy.bias[lay[L_TOFF] - NAV]) if lay[L_TOFF] >= 0 else 0.0
+        if d_hat:
+            sd = float(np.sqrt(cy.P[lay[L_TOFF], lay[L_TOFF]]))
+            events.append(f"IMU time offset estimated {d_hat:+.4f} s (sigma {sd:.4f} s): output times "
+                          "shifted by it")
+        smoothed = False
+        if spool is not None:
+            ds = Ps = None
+            if smooth and n_nodes > 1:
+                node_idx, S_post, S_prior, S_phi, S_dx = (np.concatenate([x[i] for x in nodes])
+                                                          for i in range(5))
+                ds, Ps = rts(S_post, S_prior, S_phi, S_dx, cy.reset_node)
+                pd_nodes = np.einsum("kii->ki", Ps)
+                smoothed = True
+            nb = n - NAV
+            for rows in spool.read(1 << 13):
+                tt, oi, on = rows[:, 0] + d_hat, rows[:, 1].astype(np.int64), rows[:, 2].astype(np.int64)
+                st, b, pd = rows[:, 3:13], rows[:, 13:13 + nb], rows[:, 13 + nb:]
+                if smoothed:
+                    emit(_piece(tt, st, b, pd, lay), forward=True)
+                    st, b = smooth_outputs(oi, np.ascontiguousarray(st), np.ascontiguousarray(b), on,
+                                           node_idx, ds, S_dx, n)
+                    pd = pd_nodes[np.clip(on, 0, len(node_idx) - 1)]
+                last_piece = _piece(tt, st, b, pd, lay, smoothed)
+                emit(last_piece)
+    finally:
+        if spool is not None:
+            spool.close()
+    if rec_log is None:
+        raise ValueError("no IMU sample after the initialisation")
+    log = _log_dict(Log(**rec_log), M)
+    node_m = np.concatenate(node_model) if node_model else np.zeros(0, np.int8)
+    node_s = np.concatenate(node_status) if node_status else np.zeros(0, np.int8)
+    cnt = loose_counts({"model": np.concatenate([log["model"], node_m]),
+                        "status": np.concatenate([log["status"], node_s])},
+                       n_nodes, static_used, n_seen, k0)
+    if smoothed:
+        cnt["smoother_memory_mb"] = (S_post.nbytes + S_prior.nbytes + S_phi.nbytes + Ps.nbytes) / 1e6
+    res = last_piece if last_piece is not None else _piece(np.zeros(0), np.zeros((0, 10)),
+                                                           np.zeros((0, n - NAV)), np.zeros((0, n)), lay)
+    res.records = _gnss_records(log, su.rmap, len(gnss))
+    res.counts, res.final_P, res.innovations, res.events = cnt, cy.P.copy(), log, events
+    res.state_names, res.calibration_base = layout_names(lay), _calibration_base(cfg)
+    res.gnss_time = np.asarray(gnss.time, float)
+    res.node_time = np.zeros(0)
+    return res
+
+
+def _piece(t, st, b, pd, lay, smoothed=False) -> FilterResult:
+    return FilterResult(time=t, state=st, bias=b, pdiag=pd, node_time=np.zeros(0), layout=lay,
+                        smoothed=smoothed)

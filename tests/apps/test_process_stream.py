@@ -1,0 +1,114 @@
+"""``aidnav process`` streamed (:mod:`aidnav.apps.process_stream`, chunks far smaller than the log) writes
+what the in-memory job writes, and its memory does not grow with the log (issue 29)."""
+
+from __future__ import annotations
+
+import json
+import tracemalloc
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+import pytest
+
+import aidnav.apps.process_stream as ps
+from aidnav.apps.process import load_config, process, process_logs
+from aidnav.io.formats import read_gnss, read_imu
+from aidnav.io.interchange import read_trajectory, write_trajectory
+
+LAT, G, OM = np.radians(30.0), 9.79, 7.292115e-5
+
+
+def static_log(d, seconds, rate=100.0, seed=0, row_group=5000):
+    """A level IMU at rest (gravity and the Earth rate, white noise) and 1-Hz fixes on the spot."""
+    rng = np.random.default_rng(seed)
+    n = int(seconds * rate)
+    t = np.arange(1, n + 1) / rate
+    dth = np.array([0.0, OM * np.cos(LAT), OM * np.sin(LAT)]) / rate + rng.normal(0, 1e-5, (n, 3))
+    dv = np.array([0.0, 0.0, G]) / rate + rng.normal(0, 1e-4, (n, 3))
+    names = ["time", "dtheta_x_rad", "dtheta_y_rad", "dtheta_z_rad", "dv_x_m_s", "dv_y_m_s", "dv_z_m_s"]
+    imu = d / f"imu_{seconds}.parquet"
+    pq.write_table(pa.table([t, *dth.T, *dv.T], names=names), imu, row_group_size=row_group)
+    k = int(seconds)
+    e = rng.normal(0, 0.5, (k, 3))
+    gnss = d / f"gnss_{seconds}.csv"
+    np.savetxt(gnss, np.column_stack([np.arange(1, k + 1.0), 30.0 + e[:, 1] / 111e3, 114.0 + e[:, 0] / 96e3,
+                                      50.0 + e[:, 2], np.full((k, 3), 0.5), rng.normal(0, 0.02, (k, 3)),
+                                      np.full((k, 3), 0.05)]), delimiter=",", fmt="%.10f",
+               header="time,lat_deg,lon_deg,height_m,std_e_m,std_n_m,std_u_m,ve,vn,vu,std_ve,std_vn,std_vu",
+               comments="")
+    cfg = d / "static.yaml"
+    cfg.write_text("imu: {arw_deg_sqrt_h: 0.1, vrw_m_s_sqrt_h: 0.05}\ngnss: {use: position}\n"
+                   "init: {mode: given, lat_deg: 30.0, lon_deg: 114.0, height_m: 50.0,\n"
+                   "  velocity_m_s: [0, 0, 0], roll_deg: 0, pitch_deg: 0, heading_deg: 0}\n"
+                   "filter: {prop_dt_s: 0.5}\n")
+    return imu, gnss, cfg
+
+
+@pytest.fixture
+def small_chunks(monkeypatch):
+    monkeypatch.setattr(ps, "CHUNK_ROWS", 1500)
+
+
+@pytest.mark.parametrize("smooth,fmt", [(False, "parquet"), (True, "csv")])
+def test_streamed_job_equals_in_memory(tmp_path, small_chunks, smooth, fmt):
+    imu_p, gnss_p, cfg_p = static_log(tmp_path, 120)
+    out = tmp_path / "o"
+    s = process_logs(imu_p, gnss_p, cfg_p, out, smooth=smooth, fmt=fmt, outages=["30:20"], figures=False)
+    assert ps.streamable(imu_p, load_config(cfg_p))
+    run = process(read_imu(imu_p), read_gnss(gnss_p), load_config(cfg_p), smooth=smooth, outages=["30:20"])
+    assert run.summary["counts"]["static_samples"] > 0  # ZUPT at the static samples, flags carried
+    ref = tmp_path / f"ref.{fmt}"
+    write_trajectory(run.trajectory, ref)
+    a, b = read_trajectory(out / f"trajectory.{fmt}"), read_trajectory(ref)
+    assert len(a.time) == len(b.time) == 12000
+    for k in ("time", "lat", "lon", "height", "vel", "rph", "std_pos", "std_vel", "std_att"):
+        np.testing.assert_allclose(getattr(a, k), getattr(b, k), rtol=0, atol=1e-12, err_msg=k)
+    for k in ("counts", "nis", "outage_score", "calibration", "gnss_position_accepted"):
+        assert s[k] == json.loads(json.dumps(run.summary[k])), k
+    if smooth:
+        assert s["outage_score_forward"] == json.loads(json.dumps(run.summary["outage_score_forward"]))
+
+
+def _peak_stream(d, seconds):
+    from aidnav.filters.stream import stream_loose
+    from aidnav.io.stream import iter_imu
+
+    imu_p, gnss_p, cfg_p = static_log(d, seconds, seed=1)
+    gnss, cfg = read_gnss(gnss_p), load_config(cfg_p)
+    n = [0, None]
+
+    def emit(piece, forward=False):
+        n[0] += len(piece.time)
+        n[1] = piece.state[-1]
+
+    tracemalloc.start()
+    tracemalloc.reset_peak()
+    stream_loose(iter_imu(imu_p, 2000), gnss, cfg, emit, head_s=5.0)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    return peak, n
+
+
+def test_memory_does_not_grow_with_the_log(tmp_path):
+    """Chunks of 2000 samples: the Python-side peak on a log 4 times longer stays within 25 % (the
+    GNSS fixes and per-fix records, 1 Hz, are the only whole-log arrays), and every sample comes out."""
+    p1, n1 = _peak_stream(tmp_path, 150)
+    p4, n4 = _peak_stream(tmp_path, 600)
+    assert n1[0] == 15000 and n4[0] == 60000
+    assert abs(np.degrees(n4[1][0]) - 30.0) < 1e-4  # the static position held (≈ 10 m)
+    assert p4 < 1.25 * p1
+
+
+def test_streamed_bad_sample_leaves_no_file(tmp_path, small_chunks):
+    """A NaN deep in the IMU file: the error names the row, and no partial trajectory is left."""
+    from aidnav.io.errors import DataError
+
+    imu_p, gnss_p, cfg_p = static_log(tmp_path, 60)
+    t = pq.read_table(imu_p)
+    dv = t.column("dv_y_m_s").to_numpy().copy()
+    dv[4000] = np.nan
+    pq.write_table(t.set_column(t.schema.get_field_index("dv_y_m_s"), "dv_y_m_s", pa.array(dv)), imu_p)
+    with pytest.raises(DataError, match=r"imu_60\.parquet:4001: column dv_y_m_s: missing value or NaN"):
+        process_logs(imu_p, gnss_p, cfg_p, tmp_path / "o", figures=False)
+    assert not list((tmp_path / "o").glob("trajectory*"))

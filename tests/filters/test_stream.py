@@ -1,0 +1,147 @@
+"""The loose filter chunk by chunk (:mod:`aidnav.filters.stream`) gives the whole-log result
+(:func:`aidnav.filters.loose.run_loose`) number for number: forward, smoothed, with ZUPT/static flags,
+an automatic initialisation with a course alignment, a time-offset state and a bridged IMU gap, in
+chunks far smaller than the log."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from aidnav.data import ImuData
+from aidnav.filters.engine import Output, run_chunk, run_filter, start_carry
+from aidnav.filters.layout import L_TOFF
+from aidnav.filters.loose import run_loose
+from aidnav.filters.stream import needs_whole_log, stream_loose
+from aidnav.filters.tuning import loose_config_from_specs, perturbed_initial_state
+from aidnav.sim.gnss import GnssSpec, simulate_gnss
+from aidnav.sim.imu import ImuSpec, corrupt_imu
+from aidnav.sim.scenario import parse_scenario
+from aidnav.sim.trajectory import generate_truth
+
+
+def _log(static_s=0.0, seed=3):
+    segs = ([dict(type="static", duration_s=static_s),
+             dict(type="accelerate", to_speed_m_s=10.0, duration_s=5)] if static_s else []) + [
+        dict(type="straight", duration_s=40), dict(type="turn", angle_deg=90, rate_deg_s=6),
+        dict(type="s_turns", duration_s=60, amplitude_deg=20), dict(type="straight", duration_s=20)]
+    sc = parse_scenario(dict(name="stream", seed=seed, imu_rate_hz=50.0,
+                             initial=dict(lat_deg=30.0, lon_deg=114.0, height_m=50.0, heading_deg=30.0,
+                                          speed_m_s=0.0 if static_s else 10.0), segments=segs))
+    truth, imu_true, _ = generate_truth(sc)
+    spec = ImuSpec.from_units(gyro_bias_deg_h=10.0, arw_deg_sqrt_h=0.2, accel_bias_ug=500.0,
+                              vrw_m_s_sqrt_h=0.05, bias_corr_time_s=np.inf)
+    gs = GnssSpec(rate_hz=1.0, sigma_pos_enu=[0.5, 0.5, 1.0], sigma_vel_enu=[0.05, 0.05, 0.1])
+    rng = np.random.default_rng(seed)
+    imu, _ = corrupt_imu(imu_true, spec, rng)
+    gnss = simulate_gnss(truth, gs, rng)
+    lla, vel, rph = perturbed_initial_state(truth, rng)
+    return truth, imu, gnss, spec, gs, (lla, vel, rph)
+
+
+def _chunks(imu, size):
+    for a in range(0, len(imu), size):
+        b = min(a + size, len(imu))
+        t0 = imu.t0 if a == 0 else float(imu.time[a - 1])
+        yield ImuData(imu.time[a:b], imu.dtheta[a:b], imu.dv[a:b], t0=t0)
+
+
+def _streamed(imu, gnss, cfg, size, **kw):
+    fwd, sm = [], []
+
+    def emit(p, forward=False):
+        (fwd if forward or not p.smoothed else sm).append(p)
+
+    res = stream_loose(_chunks(imu, size), gnss, cfg, emit, head_s=5.0, **kw)
+    cat = {k: (np.concatenate([getattr(p, k) for p in ps]) if ps else None)
+           for ps, k in ((fwd, "time"), (fwd, "state"), (fwd, "bias"), (fwd, "pdiag"))}
+    if sm:
+        cat.update({"s_" + k: np.concatenate([getattr(p, k) for p in sm]) for k in ("state", "pdiag")})
+    return res, cat
+
+
+def _same(a, b):
+    assert a.shape == b.shape
+    np.testing.assert_allclose(a, b, rtol=0, atol=1e-12)
+
+
+@pytest.fixture(scope="module")
+def given_init():
+    truth, imu, gnss, spec, gs, (lla, vel, rph) = _log(static_s=10.0)
+    cfg = loose_config_from_specs(spec, gs, init_rph_deg=rph, init_lla_deg_m=lla, init_vel=vel)
+    return imu, gnss, cfg
+
+
+def test_engine_chunks_equal_one_call(given_init):
+    """run_chunk over pieces with the carry = run_filter in one call (every output, node and log row)."""
+    from aidnav.filters.loose import Imu, loose_setup
+
+    imu, gnss, cfg = given_init
+    su = loose_setup(imu, gnss, cfg, None, [])
+    n = len(imu)
+    z = np.zeros(n, np.bool_)
+    whole = Imu(su.t_imu, imu.dtheta, imu.dv, z, np.zeros((n, 2)), np.zeros((0, 2)))
+    out = Output(3, True, np.zeros(0, np.int64))
+    r1 = run_filter(whole, su.rec, su.models, su.proc, su.ini, out)
+    cy = start_carry(su.rec, su.proc, su.ini, False)
+    parts = []
+    for a in range(0, n, 777):
+        b = min(n, a + 777)
+        cy = cy._replace(last=b == n)
+        r = run_chunk(Imu(su.t_imu[a:b], imu.dtheta[a:b], imu.dv[a:b], z[a:b], np.zeros((b - a, 2)),
+                          np.zeros((0, 2))), su.rec, su.models, su.proc, su.ini, out, cy)
+        cy = r.carry
+        parts.append(r)
+    for f in ("out_idx", "out_st", "out_bias", "out_pdiag", "out_node", "node_idx", "S_post", "S_prior",
+              "S_phi", "S_dx"):
+        got = np.concatenate([getattr(p, f) for p in parts])
+        np.testing.assert_array_equal(got, getattr(r1, f), err_msg=f)
+    M = len(su.rec.t)
+    np.testing.assert_array_equal(r1.st, cy.st)
+    np.testing.assert_array_equal(r1.P, cy.P)
+    np.testing.assert_array_equal(r1.log.status[:M], np.max([p.log.status[:M] for p in parts], axis=0))
+
+
+@pytest.mark.parametrize("smooth", [False, True])
+def test_stream_equals_whole_log(given_init, smooth):
+    imu, gnss, cfg = given_init
+    cfg = cfg.model_copy(update={"constraints": cfg.constraints.model_copy(update={"zupt": True})})
+    assert not needs_whole_log(cfg)
+    withheld = (gnss.time >= 60) & (gnss.time < 80)
+    ref = run_loose(imu, gnss, cfg, withheld=withheld, smooth=smooth)
+    res, cat = _streamed(imu, gnss, cfg, 1000, withheld=withheld, smooth=smooth)  # ≈ 20 s chunks of 140 s
+    assert ref.counts["static_samples"] > 0 and res.counts == ref.counts
+    if smooth:
+        _same(cat["time"], ref.time)
+        _same(cat["state"], ref.forward_state)
+        _same(cat["s_state"], ref.state)
+        _same(cat["s_pdiag"], ref.pdiag)
+    else:
+        _same(cat["time"], ref.time)
+        _same(cat["state"], ref.state)
+        _same(cat["bias"], ref.bias)
+        _same(cat["pdiag"], ref.pdiag)
+    for k, v in ref.records.items():
+        np.testing.assert_array_equal(res.records[k], v, err_msg=k)
+    np.testing.assert_array_equal(res.final_P, ref.final_P)
+
+
+def test_stream_automatic_init_time_offset_and_gap():
+    """Automatic initialisation (first fix, course alignment found in a later chunk), the IMU–GNSS
+    time-offset state (outputs shifted by its final estimate: spooled) and a bridged IMU gap."""
+    truth, imu, gnss, spec, gs, _ = _log(seed=5)
+    keep = np.ones(len(imu), bool)
+    keep[3000:3010] = False  # a 0.2 s gap at 60 s
+    imu = ImuData(imu.time[keep], imu.dtheta[keep], imu.dv[keep], t0=imu.t0)
+    cfg = loose_config_from_specs(spec, gs)
+    cfg = cfg.model_copy(update={"init": cfg.init.model_copy(update={"mode": "auto"}),
+                                 "calibration": cfg.calibration.model_copy(update={"time_offset": True})})
+    ev_ref, ev = [], []
+    ref = run_loose(imu, gnss, cfg, events=ev_ref)
+    res, cat = _streamed(imu, gnss, cfg, 700, events=ev)
+    assert any("IMU gap" in e for e in ev_ref) and ref.layout[L_TOFF] >= 0
+    assert sorted(ev) == sorted(ev_ref)
+    _same(cat["time"], ref.time)
+    _same(cat["state"], ref.state)
+    _same(cat["pdiag"], ref.pdiag)
+    assert res.counts == ref.counts

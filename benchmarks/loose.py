@@ -59,8 +59,8 @@ def main():
     if not DATA.is_dir():
         print(f"data folder {DATA} not found: set AIDNAV_DATA")
         return 2
+    from aidnav.apps.process import load_config, read_gnss_any, read_imu_any
     from aidnav.filters.loose import run_loose
-    from aidnav.process import load_config, read_gnss_any, read_imu_any
 
     rows = []
     for name, c in CASES.items():
@@ -104,8 +104,8 @@ def main():
 
 def self_calibration_rate() -> float:
     """Forward filter on sim_w1 with the lever-arm and time-offset states on: samples/s, best of 5."""
+    from aidnav.apps.process import load_config, read_gnss_any, read_imu_any
     from aidnav.filters.loose import run_loose
-    from aidnav.process import load_config, read_gnss_any, read_imu_any
 
     d = DATA / "sim_w1_pyins"
     cfg = load_config(ROOT / "examples" / "sim_w1_pyins.yaml")

@@ -26,7 +26,7 @@ import os as _os
 
 
 def _gettempdir() -> str:
-    import tempfile
+    import tempfile  # lazy: only on a read-only install; `import aidnav` stays fast
 
     return tempfile.gettempdir()
 
@@ -51,7 +51,7 @@ def _numba_cache_dir() -> str | None:
             continue
         if _os.access(d, _os.W_OK | _os.X_OK):
             _os.environ["NUMBA_CACHE_DIR"] = d
-            import warnings
+            import warnings  # lazy: only on a read-only install
 
             warnings.warn(f"aidnav: the package directory is not writable; numba caches compiled code in {d}",
                           stacklevel=2)
@@ -64,7 +64,7 @@ NUMBA_CACHE_FALLBACK = _numba_cache_dir()
 def __getattr__(name: str):
     # the version is looked up on first use: importlib.metadata costs ~20 ms of every command's start
     if name == "__version__":
-        from importlib.metadata import PackageNotFoundError, version
+        from importlib.metadata import PackageNotFoundError, version  # lazy: ~20 ms of start-up
 
         try:
             v = version("aidnav")

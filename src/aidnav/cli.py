@@ -16,23 +16,38 @@ import os
 # Small matrices: single-threaded BLAS is faster than threaded (must be set before numpy loads).
 for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
+# numpy asks the kernel for transparent huge pages on large arrays (madvise); where the kernel then
+# compacts memory on the page fault (THP defrag "madvise", a common default) a large log's arrays cost
+# seconds of system time (characterise on a 10-h log: 2.4 s of system CPU, 1.3 s without). Read by numpy
+# when it loads; NUMPY_MADVISE_HUGEPAGE=1 in the environment restores numpy's default.
+os.environ.setdefault("NUMPY_MADVISE_HUGEPAGE", "0")
 
+import sys  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import typer  # noqa: E402
-from rich.console import Console  # noqa: E402
 
 # rich_markup_mode=None: help texts are printed as written ("[deg]" would otherwise vanish)
 app = typer.Typer(add_completion=False, no_args_is_help=True, rich_markup_mode=None,
                   pretty_exceptions_enable=False,
                   help="aidnav: aided inertial navigation (simulate, process, evaluate).")
-# markup off: file names and messages with brackets are printed as they are
-console = Console(markup=False, highlight=False, soft_wrap=True)
-err_console = Console(stderr=True, markup=False, highlight=False, soft_wrap=True)
+
+
+@functools.cache
+def _console(stderr: bool = False):
+    """The rich console of stdout (or stderr), made on first use."""
+    from rich.console import Console  # rich: ~40 ms of import that --help and --version never need
+
+    # markup off: file names and messages with brackets are printed as they are
+    return Console(stderr=stderr, markup=False, highlight=False, soft_wrap=True)
+
+
+#: True in the ``aidnav`` command itself (:func:`main`), False where ``app`` is called in-process (tests)
+_CONSOLE_SCRIPT = False
 
 
 def _fail(msg: str, code: int = 2):
-    err_console.print(f"error: {msg}")
+    _console(stderr=True).print(f"error: {msg}")
     raise typer.Exit(code)
 
 
@@ -56,6 +71,8 @@ def guarded(fn):
 
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
+        if _CONSOLE_SCRIPT:  # a command runs (not --help): numba will start
+            _preload_scipy_blas()
         try:
             return fn(*args, **kwargs)
         except (typer.Exit, typer.Abort, KeyboardInterrupt, SystemExit):
@@ -70,8 +87,8 @@ def guarded(fn):
         except Exception as e:  # a bug: say so, exit 1
             if os.environ.get("AIDNAV_DEBUG"):
                 raise
-            err_console.print(f"internal error (a bug in aidnav, please report it): {type(e).__name__}: {e} "
-                              "(set AIDNAV_DEBUG=1 for the traceback)")
+            _console(stderr=True).print(f"internal error (a bug in aidnav, please report it): "
+                                        f"{type(e).__name__}: {e} (set AIDNAV_DEBUG=1 for the traceback)")
             raise typer.Exit(1) from None
 
     return wrapper
@@ -106,7 +123,7 @@ def _print_summary(summary: dict, text: str, as_json: bool):
     if as_json:
         typer.echo(json.dumps(summary, indent=2, default=float))
     else:
-        console.print(text)
+        _console().print(text)
 
 
 @_command()
@@ -123,9 +140,9 @@ def simulate(
     if fmt not in ("csv", "parquet", "both"):
         _fail(f"--format {fmt}: expected csv, parquet or both")
     prepare_out_dir(out)
-    written = simulate_to_dir(scenario, out, seed=seed, fmt=fmt, console=console)
+    written = simulate_to_dir(scenario, out, seed=seed, fmt=fmt, console=_console())
     for p in written:
-        console.print(f"wrote {p}")
+        _console().print(f"wrote {p}")
 
 
 @_command()
@@ -144,10 +161,10 @@ def evaluate(
 
     if out is not None:
         prepare_out_dir(out)
-    _, written = evaluate_files(estimate, truth, out_dir=out, console=console,
+    _, written = evaluate_files(estimate, truth, out_dir=out, console=_console(),
                                 truth_height_offset_m=truth_height_offset)
     for p in written:
-        console.print(f"wrote {p}")
+        _console().print(f"wrote {p}")
 
 
 @_command()
@@ -195,7 +212,7 @@ def process(
     from aidnav.progress import progress_bar
 
     with progress_bar("aidnav process") as bar:
-        s = process_logs(imu, gnss, config, out, smooth=smooth, outages=outage, console=console, fmt=fmt,
+        s = process_logs(imu, gnss, config, out, smooth=smooth, outages=outage, console=_console(), fmt=fmt,
                          height_offset_m=height_offset, time_offset_s=time_offset, start_s=start, end_s=end,
                          skip_checks=skip_check, progress=bar, figures=not no_figures,
                          odometer_path=odometer, baro_path=baro, kfgins_nav=kfgins_nav,
@@ -233,9 +250,9 @@ def convert(
             continue
         s = convert_file(src, out / f"{kind}.{fmt}", kind=kind,
                          height_offset_m=height_offset if kind == "gnss" else 0.0)
-        console.print(f"wrote {s['output']}: {s['samples']} {kind} samples from {src} ({s['format']})")
+        _console().print(f"wrote {s['output']}: {s['samples']} {kind} samples from {src} ({s['format']})")
         for n in s["notes"]:
-            console.print(f"  {n}")
+            _console().print(f"  {n}")
 
 
 satcom_app = typer.Typer(no_args_is_help=True, help="Satcom on the move (seed 003): antenna servo angles.")
@@ -274,7 +291,7 @@ def satcom_point(
     tab.add_column("deg", justify="right")
     for k in ("azimuth_deg", "elevation_deg", "polarization_deg"):
         tab.add_row(k.removesuffix("_deg"), f"{r[k]:.4f}")
-    console.print(tab)
+    _console().print(tab)
 
 
 @_command("run")
@@ -296,12 +313,12 @@ def run_experiment_cmd(
     try:
         res = run_experiment(experiment, out, workers=workers, scheduler=scheduler, max_runs=max_runs,
                              backend="processes" if no_dask and workers > 1 and not scheduler else None,
-                             console=console)
+                             console=_console())
     except ExperimentError as e:
         _fail(str(e))
     except CampaignInterrupted as e:
         _fail(str(e), 130)
-    console.print(format_result(res), markup=False, highlight=False, soft_wrap=True)
+    _console().print(format_result(res), markup=False, highlight=False, soft_wrap=True)
 
 
 @_command("report")
@@ -316,13 +333,13 @@ def report_cmd(directory: Path = typer.Argument(..., help="campaign directory wr
         except ReproductionError as e:
             _fail(str(e))
         for p in paths:
-            console.print(f"wrote {p}", markup=False, highlight=False)
+            _console().print(f"wrote {p}", markup=False, highlight=False)
         return
     try:
         path = write_report(directory)
     except ReportError as e:
         _fail(str(e))
-    console.print(f"wrote {path}")
+    _console().print(f"wrote {path}")
 
 
 @_command("reproduce")
@@ -342,15 +359,15 @@ def reproduce_cmd(
 
     from aidnav.experiments.reproduce.page import write_index
 
-    outcomes = reproduce(seed, out, runs=runs, console=console)
+    outcomes = reproduce(seed, out, runs=runs, console=_console())
     for o in outcomes:
         if o.ok:
-            console.print(f"seed {o.seed}: done; {o.summary or o.out_dir}", markup=False, highlight=False)
+            _console().print(f"seed {o.seed}: done; {o.summary or o.out_dir}", markup=False, highlight=False)
         else:
-            console.print(Text.assemble((f"seed {o.seed}", "bold red"),
+            _console().print(Text.assemble((f"seed {o.seed}", "bold red"),
                                         f": cannot be reproduced yet: {o.reason}"), highlight=False)
     if len(outcomes) > 1 and any(o.ok for o in outcomes):
-        console.print(f"wrote {write_index(out, outcomes)}", markup=False, highlight=False)
+        _console().print(f"wrote {write_index(out, outcomes)}", markup=False, highlight=False)
     if not all(o.ok for o in outcomes):
         raise typer.Exit(2)
 
@@ -410,9 +427,9 @@ def characterise(
 
     prepare_out_dir(out)
     ch, written = characterise_file(imu, out, static=static, grade=grade)
-    print_characterisation(ch, console)
+    print_characterisation(ch, _console())
     for p in written:
-        console.print(f"wrote {p}")
+        _console().print(f"wrote {p}")
 
 
 @_command("design-trajectory")
@@ -446,15 +463,90 @@ def design_trajectory_cmd(
                               baseline_km=baseline_km, mc_runs=mc_runs)
     except (ValueError, OSError) as e:
         _fail(str(e))
-    print_design(d, console)
+    print_design(d, _console())
     for p in write_design(d, out):
-        console.print(f"wrote {p}")
+        _console().print(f"wrote {p}")
     if not d.summary["feasible"]:
         raise typer.Exit(3)
 
 
-def main():  # pragma: no cover
-    app()
+def _preload_scipy_blas() -> None:
+    """Load scipy's two Cython BLAS/LAPACK modules on their own, before numba's first dispatch.
+
+    numba sets up its CPU target when the first jitted function is called or loaded from its cache,
+    whatever that function does, and the set-up imports ``scipy.linalg.cython_blas`` (numba.np.arraymath
+    asks whether BLAS is there). That import runs all of ``scipy/linalg/__init__``: ~0.15 s of every
+    command (scipy.linalg, scipy's array-API layer, numpy.f2py, numpy.testing), although numba only ever
+    uses the two extension modules, through their C API. Loaded here under their own names (~2 ms), they
+    are what numba's import finds in ``sys.modules``; ``import scipy.linalg`` later still works and finds
+    them too (only the attribute ``scipy.linalg.cython_blas`` is not set on the package). Nothing is done
+    when scipy.linalg is already imported, and on any surprise the normal import happens later."""
+    import importlib.machinery
+    import importlib.util
+
+    names = [f"scipy.linalg.{m}" for m in ("cython_blas", "cython_lapack")]
+    if "scipy.linalg" in sys.modules or any(n in sys.modules for n in names):
+        return
+    try:
+        scipy_spec = importlib.util.find_spec("scipy")
+        folder = Path(scipy_spec.submodule_search_locations[0]) / "linalg"
+        for name in names:
+            leaf = name.rsplit(".", 1)[1]
+            path = next(folder / (leaf + s) for s in importlib.machinery.EXTENSION_SUFFIXES
+                        if (folder / (leaf + s)).is_file())
+            spec = importlib.util.spec_from_file_location(name, path)
+            module = importlib.util.module_from_spec(spec)
+            sys.modules[name] = module
+            spec.loader.exec_module(module)
+    except Exception:  # any surprise (no scipy, another layout): leave it to the normal import
+        for name in names:
+            sys.modules.pop(name, None)
+
+
+def _exit_status(code) -> int:
+    """The exit status Python gives ``SystemExit(code)``: None → 0, an int as it is, else 1 (the code is
+    printed to stderr, as Python does)."""
+    if code is None:
+        return 0
+    if isinstance(code, int):
+        return code
+    print(code, file=sys.stderr)
+    return 1
+
+
+def _leave(status: int):
+    """End the process now, as a normal exit would but without the interpreter's teardown.
+
+    Tearing down the modules a command loaded (numba's and LLVM's objects above all) costs ~0.2 s of
+    CPU that nothing needs. The atexit handlers run and stdout/stderr are flushed as at a normal exit;
+    files are closed by the code that wrote them (every writer uses ``with``). A normal exit is taken
+    when another thread is still running (a normal exit would wait for it) or when flushing fails (a
+    closed pipe: Python's own handling) or under a profiler, tracer or debugger (they write their
+    results after the program returns)."""
+    import atexit
+    import threading
+
+    if threading.active_count() > 1 or sys.getprofile() is not None or sys.gettrace() is not None:
+        sys.exit(status)
+    atexit._run_exitfuncs()
+    try:
+        sys.stdout.flush()
+        sys.stderr.flush()
+    except (OSError, ValueError):
+        sys.exit(status)
+    os._exit(status)
+
+
+def main():  # pragma: no cover - the console script (tests call `app` in-process, and main in a subprocess)
+    """The ``aidnav`` command: the typer app, with numba's start-up made cheaper and a quick exit."""
+    global _CONSOLE_SCRIPT
+    _CONSOLE_SCRIPT = True
+    try:
+        app()
+        status = 0
+    except SystemExit as e:
+        status = _exit_status(e.code)
+    _leave(status)
 
 
 if __name__ == "__main__":  # pragma: no cover

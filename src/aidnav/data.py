@@ -57,7 +57,7 @@ class ImuData:
     def to_dataframe(self):
         """A pandas DataFrame in the interchange columns: ``time`` [s], ``dtheta_{x,y,z}_rad`` [rad],
         ``dv_{x,y,z}_m_s`` [m/s] (body RFU)."""
-        import pandas as pd
+        import pandas as pd  # lazy: pandas is heavy to import
 
         cols = {"time": self.time}
         for j, a in enumerate("xyz"):
@@ -119,7 +119,7 @@ class GnssData:
         """A pandas DataFrame in the interchange columns: ``time`` [s], ``lat_deg, lon_deg`` [deg],
         ``height_m`` [m], then where present ``ve, vn, vu`` [m/s], ``std_e_m, std_n_m, std_u_m`` [m],
         ``std_ve, std_vn, std_vu`` [m/s], ``quality``."""
-        import pandas as pd
+        import pandas as pd  # lazy: pandas is heavy to import
 
         cols = {"time": self.time, "lat_deg": np.degrees(self.lat), "lon_deg": np.degrees(self.lon),
                 "height_m": self.height}
@@ -167,7 +167,7 @@ class Trajectory:
         """A pandas DataFrame with the interchange trajectory columns (degrees, m, m/s; heading in
         [0, 360)), the σ columns as :func:`aidnav.io.interchange.write_trajectory` writes them (including
         ``std_e_m, std_n_m, std_u_m`` [m]) and ``extra``; with ``week`` also ``gps_week`` and ``utc``."""
-        import pandas as pd
+        import pandas as pd  # lazy: pandas is heavy to import
 
         # the unit conversions to file columns have one owner, aidnav.io (imported here, not at the top:
         # aidnav.io imports this module)

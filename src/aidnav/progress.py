@@ -95,8 +95,8 @@ class ProgressBar:
 
     def __init__(self, description: str, total: float | None = None, unit: str = "", console=None,
                  transient: bool = False):
-        from rich.console import Console
-        from rich.progress import (
+        from rich.console import Console  # lazy: rich is heavy to import
+        from rich.progress import (  # lazy: rich is heavy to import
             BarColumn,
             Progress,
             TaskProgressColumn,
@@ -166,8 +166,8 @@ def progress_bar(description: str, total: float | None = None, unit: str = "", c
 def run_on_terminal(cmd: list[str], env: dict | None = None, timeout: float = 300.0) -> tuple[int, str]:
     """Run ``cmd`` with a POSIX pseudo-terminal as its stdin/stdout/stderr and return (exit status,
     everything it wrote, decoded): how a user's terminal sees a command's progress bar."""
-    import pty
-    import subprocess
+    import pty  # lazy: POSIX only, and only the terminal check of the tests uses it
+    import subprocess  # lazy: with pty, for the terminal check only
 
     master, slave = pty.openpty()
     try:

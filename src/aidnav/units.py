@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 
 __all__ = ["DEG", "ARCMIN", "ARCSEC", "DEG_H", "DEG_S", "DEG_SQRT_H", "DEG_H_SQRT_H", "G0", "MG", "UG",
-           "UG_SQRT_H", "PPM", "HOUR", "SQRT_H", "UG_SQRT_HZ", "M_S_SQRT_H"]
+           "UG_SQRT_H", "PPM", "HOUR", "SQRT_H", "UG_SQRT_HZ", "M_S_SQRT_H", "KNOT"]
 
 DEG = math.pi / 180.0  #: 1 degree [rad]
 ARCMIN = DEG / 60.0  #: 1 arcminute [rad]
@@ -28,3 +28,4 @@ UG_SQRT_HZ = UG  #: 1 µg/√Hz [m/s²/√Hz] = [m/s/√s]
 UG_SQRT_H = UG / SQRT_H  #: 1 µg/√h (accelerometer bias random walk) [m/s²/√s]
 DEG_H_SQRT_H = DEG_H / SQRT_H  #: 1 deg/h/√h (gyro bias random walk) [rad/s/√s]
 PPM = 1e-6  #: 1 ppm [-]
+KNOT = 1852.0 / HOUR  #: 1 knot (NMEA speed over ground) [m/s]

@@ -124,9 +124,9 @@ def test_gnss_outlier_is_rejected_and_reported(simdir, tmp_path):
 
 
 def test_nan_gnss_fix_is_skipped_and_reported(simdir):
+    from aidnav.apps.process import load_config
     from aidnav.filters.loose import run_loose
     from aidnav.io.interchange import read_gnss, read_imu
-    from aidnav.process import load_config
 
     g = read_gnss(simdir / "sim/gnss.csv")
     g.lat[60] = np.nan

@@ -13,9 +13,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from aidnav.apps.process import load_config, process_logs
 from aidnav.io.interchange import read_trajectory
 from aidnav.io.rtklib import read_pos
-from aidnav.process import load_config, process_logs
 
 REPO = Path(__file__).resolve().parents[2]
 

@@ -233,3 +233,27 @@ def test_report_fits_a_1400_px_browser_window(tmp_path):
     maxright, scrollw, imgs, shot = got
     assert imgs == 1 and shot.stat().st_size > 10_000
     assert maxright <= 1400 and scrollw <= 1400, (maxright, scrollw)
+
+
+def test_resolved_row_states_a_spec_trend_at_its_resolution(tmp_path):
+    from aidnav.experiments.reproduce.summary import resolved_row
+
+    # within 2 se: not unresolved but 'fails', with the bound the runs give on the effect
+    r = resolved_row(summary_row("a / b", "-", ours=1.1, target="ours >= 1", stderr=0.1, margin=(0.1, 0.1),
+                                 spec=True), 30, "physics")
+    assert (r["verdict"], r["holds"], r["spec"], r["margin"]) == ("fails", False, True, None)
+    assert r["target"] == "d >= 2 * se" and r["values"] == {"d": 0.1, "se": 0.1}
+    assert "not resolvable at 30 runs" in r["reason"] and "±0.3" in r["reason"]
+    assert r["reason"].endswith("physics")
+    assert "[ours >= 1, resolved at 2 se over 30 runs]" in r["quantity"]
+    # resolved on the holding side: holds; resolved on the failing side: fails, and says so
+    ok = resolved_row(summary_row("x", "-", ours=1.5, target="ours >= 1", margin=(0.5, 0.1), spec=True), 30)
+    assert ok["verdict"] == "holds" and ok["reason"] is None
+    bad = resolved_row(summary_row("x", "-", ours=0.5, target="ours >= 1", margin=(-0.5, 0.1), spec=True), 30)
+    assert bad["verdict"] == "fails" and "failing side" in bad["reason"]
+    # a row without a margin is left alone; the rows pass write_summary's checks
+    plain = summary_row("x", "-", ours=1.0, target="ours < 2", spec=True)
+    assert resolved_row(plain, 30) is plain
+    _write_one(tmp_path / "w", r)
+    d = json.loads((tmp_path / "w" / "summary.json").read_text())
+    assert d["verdicts"]["spec"] == {"holds": 0, "fails": 1, "unresolved": 0}

@@ -56,3 +56,27 @@ def test_initial_heading_sweep_physics():
     assert sw[2.0]["vN"] < sw[0.1]["vN"] < 1.0
     for p in (0.1, 2.0):
         assert abs(sw[p]["vU"] - 1.0) < 0.01
+
+
+def test_pitch_claim_reading_and_bias_model():
+    """The seed's run has Table 1's biases as values on every axis; the bias-tied share of the pitch error
+    follows the closed form k·sin α·(∇x cos α − ∇y sin α)/g, small for equal biases and ≈ 1.65′ for
+    horizontal biases of opposite sign."""
+    import math
+
+    import numpy as np
+
+    from aidnav.experiments.reproduce import seed_000_pitch as sp
+    from aidnav.experiments.reproduce import seed_000_setup as st
+
+    sim, _, _ = st.simulate_case(np.random.SeedSequence(3), 40.0, imu=st.SEED_RUN_IMU)
+    assert np.allclose(sim.imu_errors["accel_bias"], 500e-6 * 9.80665, rtol=1e-9)
+    assert np.allclose(sim.imu_errors["gyro_bias"], math.radians(0.1) / 3600.0, rtol=1e-9)
+    pb = sp.pitch_bias_model()
+    a = math.radians(st.geometry_check()["az_deg"])
+    tilt = 500e-6 * 180 * 60 / math.pi  # 500 µg of standard gravity as a tilt [arcmin]
+    k = 6.0**2 / (6.0**2 + tilt**2)  # level-tilt prior 0.1° = 6′
+    assert pb["k"] == pytest.approx(k, rel=1e-12)
+    assert pb["sigma"] == pytest.approx(k * math.sin(a) * tilt, rel=1e-12)
+    assert pb["seed"] < 0.1 < 1.6 < pb["adverse"] < 1.7
+    assert pb["seed"] ** 2 + pb["adverse"] ** 2 == pytest.approx(2 * pb["sigma"] ** 2, rel=1e-12)

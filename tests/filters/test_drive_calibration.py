@@ -14,9 +14,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from aidnav.apps.process import load_config, process, read_gnss_any, read_imu_any
 from aidnav.filters.result import calibration_summary
 from aidnav.nav.earth import lla_difference_enu
-from aidnav.process import load_config, process, read_gnss_any, read_imu_any
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 

@@ -10,9 +10,7 @@ import numpy as np
 import pytest
 
 from aidnav.analysis.errors import error_statistics, trajectory_errors
-from aidnav.filters.loose import LooseResult, run_loose, to_trajectory
-from aidnav.nav.rotations import dcm_from_euler, dcm_from_quat
-from aidnav.process import (
+from aidnav.apps.process import (
     load_config,
     outage_windows,
     parse_outage,
@@ -20,6 +18,8 @@ from aidnav.process import (
     read_imu_any,
     score_outages,
 )
+from aidnav.filters.loose import LooseResult, run_loose, to_trajectory
+from aidnav.nav.rotations import dcm_from_euler, dcm_from_quat
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 

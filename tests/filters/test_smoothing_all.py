@@ -22,10 +22,10 @@ def test_tight_smoother_on_the_walk_beats_the_forward_filter(data_dir):
     """``aidnav tight`` as it runs the walk (process_tight, default configuration), with smoothing: the
     smoothed horizontal RMS against the RTK reference (Q = 1) is below the forward one, and every
     smoothed σ is at most the forward σ at the same sample."""
+    from aidnav.apps.process import read_imu_any
     from aidnav.apps.tight import compare_with_reference, process_tight
     from aidnav.io.rinex import read_rinex_nav, read_rinex_obs
     from aidnav.io.rtklib import read_pos
-    from aidnav.process import read_imu_any
 
     d = data_dir / "rtklibexplorer_walk_0827"
     if not d.is_dir():

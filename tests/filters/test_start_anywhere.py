@@ -162,11 +162,11 @@ def walk_default(data_dir):
     reference epoch (issue 26: before, the heading came from an SPP speed spike and it diverged to 21 m)."""
     import warnings
 
+    from aidnav.apps.process import read_imu_any
+    from aidnav.apps.tight import compare_with_reference, process_tight
     from aidnav.filters.tight import TightConfig
     from aidnav.io.rinex import read_rinex_nav, read_rinex_obs
     from aidnav.io.rtklib import read_pos
-    from aidnav.process import read_imu_any
-    from aidnav.process_tight import compare_with_reference, process_tight
 
     d = data_dir / "rtklibexplorer_walk_0827"
     if not d.is_dir():

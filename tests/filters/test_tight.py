@@ -187,10 +187,10 @@ def test_walk_data_tight_coupling(data_dir):
         pytest.skip("walk data set not found")
     import yaml
 
+    from aidnav.apps.process import read_imu_any
+    from aidnav.apps.tight import compare_with_reference, process_tight
     from aidnav.io.rinex import read_rinex_nav, read_rinex_obs
     from aidnav.io.rtklib import read_pos
-    from aidnav.process import read_imu_any
-    from aidnav.process_tight import compare_with_reference, process_tight
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FutureWarning)

@@ -10,7 +10,8 @@ import pytest
 
 from aidnav.io import formats
 from aidnav.io.errors import DataError
-from aidnav.io.nmea import KNOT_M_S, read_nmea
+from aidnav.io.nmea import read_nmea
+from aidnav.units import KNOT as KNOT_M_S
 
 
 def gga(t, lat="4020.17357194", ns="N", lon="11637.64500807", ew="E", q="4", alt="57.4034", sep="-8.4438"):

@@ -9,10 +9,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from aidnav.apps.process import load_config, outage_windows, parse_outage, score_outages
 from aidnav.filters.loose import run_loose, to_trajectory
 from aidnav.io import formats
 from aidnav.io.convert import convert
-from aidnav.process import load_config, outage_windows, parse_outage, score_outages
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 

@@ -17,6 +17,7 @@ from scipy.optimize import least_squares
 
 from aidnav.nav import earth, rotations, strapdown
 from aidnav.sim import motion
+from aidnav.units import UG
 
 DEG = np.pi / 180.0
 ARCSEC = DEG / 3600.0
@@ -188,7 +189,7 @@ def test_schuler_period():
     lat, lon, h = 40.0 * DEG, 10.0 * DEG, 100.0
     dt, n = 0.1, 108_000  # 3 h at 10 Hz
     bg = 0.01 * DEG / 3600.0 * np.ones(3)  # 0.01 deg/h [rad/s]
-    ba = 10e-6 * earth.G0 * np.ones(3)  # 10 ug [m/s^2]
+    ba = 10.0 * UG * np.ones(3)  # 10 ug [m/s^2]
     heading = 30.0 * DEG
     dth, dv = static_increments(lat, h, 0.0, 0.0, heading, dt, n, bg, ba)
     t = dt * np.arange(1, n + 1)

@@ -30,9 +30,8 @@ import numpy as np
 from numba import njit
 
 from aidnav.data import ImuData
-from aidnav.nav.earth import G0
+from aidnav.units import DEG_H, UG
 
-_DEG_H = np.pi / 180.0 / 3600.0
 #: samples per block of the fused pass: three slices of every cluster size stay in the L2 cache
 _BLOCK = 16384
 
@@ -213,7 +212,7 @@ def imu_allan(imu: ImuData, taus=None, max_gap_ratio: float = 1.5) -> dict:
         "taus_s": taus_s,
         "gyro_adev_rad_s": adev[:, :3], "gyro_adev_err_rad_s": err[:, :3],
         "accel_adev_m_s2": adev[:, 3:], "accel_adev_err_m_s2": err[:, 3:],
-        "gyro_adev_deg_h": adev[:, :3] / _DEG_H, "accel_adev_ug": adev[:, 3:] / (G0 * 1e-6),
+        "gyro_adev_deg_h": adev[:, :3] / DEG_H, "accel_adev_ug": adev[:, 3:] / UG,
         "n_clusters": n, "fs_hz": fs,
     }
 

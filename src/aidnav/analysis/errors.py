@@ -33,7 +33,7 @@ from scipy.special import erf
 
 from aidnav.data import Trajectory
 from aidnav.nav.earth import lla_difference_enu
-from aidnav.nav.rotations import euler_to_quat_batch, quat_to_euler_batch, wrap_pi
+from aidnav.nav.rotations import attitude_error_batch, euler_to_quat_batch, quat_to_euler_batch, wrap_pi
 
 #: ``max_dt=None`` means this many median estimate sampling intervals.
 AUTO_GAP_FACTOR = 5.0
@@ -362,24 +362,34 @@ def fraction_within_sigma(errors: ErrorSeries, k: float = 1.0,
     return df.set_index("quantity")
 
 
-def ins_error_state(res, truth: Trajectory, sensor_errors: dict, idx=None) -> np.ndarray:
+def truth_index(truth_time, t, atol: float = 1e-6) -> np.ndarray:
+    """Indices of the truth samples nearest to the epochs ``t`` (filter outputs of simulated data are at
+    truth samples); raises ValueError when one is farther than ``atol`` [s] from every truth sample."""
+    tt = np.asarray(truth_time, dtype=float)
+    t = np.asarray(t, dtype=float)
+    i = np.clip(np.searchsorted(tt, t), 0, len(tt) - 1)
+    lo = np.clip(i - 1, 0, len(tt) - 1)
+    i = np.where(np.abs(tt[lo] - t) < np.abs(tt[i] - t), lo, i)
+    if np.any(np.abs(tt[i] - t) > atol):
+        raise ValueError("filter output epochs are not truth samples")
+    return i
+
+
+def ins_error_state(res, truth: Trajectory, sensor_errors: dict | None = None, idx=None) -> np.ndarray:
     """(K, 15) error of an INS filter result against the simulation truth, in the filter's error state
     (:mod:`aidnav.filters.layout`): φ [rad] with C_est = (I − [φ×]) C_true; δv = v_est − v_true [m/s];
     δL, δλ [rad], δh [m] estimate − truth; gyro/accel bias residual = true − estimated [rad/s, m/s²]
     (what is left in the compensated measurement, the sign of the filter's bias states).
 
+    The one "error state vs truth" of the package (experiments and seed studies build on it).
     res : a filter result with ``time``, ``state`` (N, 10: lat, lon, h, v, q) and ``bias`` (N, ≥6);
     truth : the IMU truth at the IMU samples (same time scale); sensor_errors : the ``realised`` dict
-    of :func:`aidnav.sim.imu.corrupt_imu` (constant biases ``gyro_bias``, ``accel_bias``); idx : output
-    indices (default: all). Raises ValueError when an output epoch is not a truth sample.
+    of :func:`aidnav.sim.imu.corrupt_imu` (constant biases ``gyro_bias``, ``accel_bias``; None: the bias
+    columns are NaN); idx : output indices (default: all). Raises ValueError when an output epoch is
+    not a truth sample (:func:`truth_index`).
     """
-    from aidnav.nav.rotations import attitude_error_batch
-
     idx = np.arange(len(res.time)) if idx is None else np.asarray(idx)
-    t = np.asarray(res.time)[idx]
-    ti = np.clip(np.searchsorted(truth.time, t), 0, len(truth.time) - 1)
-    if not np.allclose(truth.time[ti], t, rtol=0, atol=1e-9):
-        raise ValueError("ins_error_state: filter outputs are not on truth samples")
+    ti = truth_index(truth.time, np.asarray(res.time)[idx])
     st = res.state[idx]
     e = np.zeros((len(idx), 15))
     q_true = euler_to_quat_batch(np.ascontiguousarray(truth.rph[ti]))
@@ -388,6 +398,9 @@ def ins_error_state(res, truth: Trajectory, sensor_errors: dict, idx=None) -> np
     e[:, 6] = st[:, 0] - truth.lat[ti]
     e[:, 7] = wrap_pi(st[:, 1] - truth.lon[ti])
     e[:, 8] = st[:, 2] - truth.height[ti]
-    e[:, 9:12] = sensor_errors["gyro_bias"] - res.bias[idx, 0:3]
-    e[:, 12:15] = sensor_errors["accel_bias"] - res.bias[idx, 3:6]
+    if sensor_errors is None:
+        e[:, 9:15] = np.nan
+    else:
+        e[:, 9:12] = sensor_errors["gyro_bias"] - res.bias[idx, 0:3]
+        e[:, 12:15] = sensor_errors["accel_bias"] - res.bias[idx, 3:6]
     return e

@@ -43,12 +43,14 @@ from aidnav.nav.earth import dcm_ecef_to_enu, ecef_to_lla
 from aidnav.nav.gnss_sat import (  # noqa: F401  (satellite helpers re-exported for existing callers)
     C_LIGHT,
     az_el,
+    dop,
     elevation_sigma,
     geo_range,
     satellites_from_pseudoranges,
     tropo_delay,
 )
 from aidnav.nav.gnss_sat import satellite_states as _satellites  # noqa: F401
+from aidnav.nav.rotations import wrap_2pi
 
 __all__ = [
     "elevation_sigma",
@@ -91,7 +93,7 @@ def range_az_el(enu):
     """Range [m], azimuth (clockwise from North, [0, 2π)) and elevation [rad] of ENU vector(s) (..., 3)."""
     d = np.asarray(enu, float)
     r = np.linalg.norm(d, axis=-1)
-    az = np.mod(np.arctan2(d[..., 0], d[..., 1]), 2 * np.pi)
+    az = wrap_2pi(np.arctan2(d[..., 0], d[..., 1]))
     el = np.arctan2(d[..., 2], np.hypot(d[..., 0], d[..., 1]))
     return r, az, el
 
@@ -190,7 +192,6 @@ def relative_position(
                 corr = tropo_delay(lat_k, h_k, el_k, humidity) - tb[j]
             v[j] = dp[j] - (rk - rho_b[j] + x[3] + corr)
     r, az, el = range_az_el(x[:3])
-    from aidnav.nav.gnss_sat import dop
 
     d = dop(-np.asarray([H[j, :3] for j in np.flatnonzero(use)])) if ok else dop(np.zeros((0, 3)))
     return RelativeSolution(

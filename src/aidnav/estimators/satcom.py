@@ -78,6 +78,7 @@ from aidnav.nav.rotations import (
     quat_mult,
     quat_normalize,
     rotvec_from_quat,
+    wrap_pi,
 )
 from aidnav.nav.strapdown import strapdown_step
 
@@ -322,7 +323,8 @@ def quat_angles_between(p, q):
 
 @njit(cache=True)
 def _wrap_pi(a):
-    r = (a + np.pi) % (2.0 * np.pi) - np.pi
+    """:func:`wrap_pi` onto (-π, π]."""
+    r = wrap_pi(a)
     if r == -np.pi:
         r = np.pi
     return r

@@ -11,7 +11,7 @@ import numpy as np
 from numba import njit
 
 from aidnav.nav.geo_pointing import beam_body, geo_sat_ecef, servo_angles_rad, wrap_pol
-from aidnav.nav.rotations import dcm_from_euler, dcm_from_quat
+from aidnav.nav.rotations import dcm_from_euler, dcm_from_quat, wrap_2pi, wrap_pi
 from aidnav.units import DEG
 
 __all__ = ["servo_commands", "ServoAxis", "default_servo_axes", "servo_track", "ServoResult", "beam_errors",
@@ -60,7 +60,7 @@ def default_servo_axes() -> tuple[ServoAxis, ServoAxis, ServoAxis]:
 @njit(cache=True)
 def _wrapdiff(a, mode):
     if mode == 1:
-        return (a + np.pi) % (2.0 * np.pi) - np.pi
+        return wrap_pi(a)
     if mode == 2:
         return (a + 0.5 * np.pi) % np.pi - 0.5 * np.pi
     return a
@@ -101,7 +101,7 @@ def _servo_kernel(dts, cmd, theta0, rate_max, acc_max, wn, zeta, mode, n_sub):
                 th[i] += om_new * hs
                 om[i] = om_new
             if mode[i] == 1:
-                th[i] = th[i] % (2.0 * np.pi)
+                th[i] = wrap_2pi(th[i])
             elif mode[i] == 2:
                 th[i] = (th[i] + 0.5 * np.pi) % np.pi - 0.5 * np.pi
             prev[i] = cmd[k, i]

@@ -24,9 +24,12 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
+from aidnav.filters.chi2 import chi2_isf
 from aidnav.nav.earth import dcm_ecef_to_enu, ecef_to_lla, lla_to_ecef
 from aidnav.nav.gnss_sat import (
     az_el,
+    dop,
+    dual_frequency_iono,
     elevation_sigma,
     geo_range,
     geo_range_rate,
@@ -159,8 +162,6 @@ class SppResult:
 
 
 def _dop_from_geometry(el, az, used):
-    from aidnav.nav.gnss_sat import dop
-
     u = np.column_stack([np.cos(el) * np.sin(az), np.cos(el) * np.cos(az), np.sin(el)])[used]
     return dop(u)
 
@@ -192,8 +193,6 @@ def spp(
     standard atmosphere; mask_deg elevation mask; p_fa false-alarm probability of the residual test;
     exclude (S,) bool of satellites not to use. Method in the module docstring.
     """
-    from scipy.special import chdtri
-
     sat_pos = np.ascontiguousarray(sat_pos, float).reshape(-1, 3)
     s = len(sat_pos)
     prns = np.arange(s) if prns is None else np.asarray(prns)
@@ -231,7 +230,7 @@ def spp(
             break
         w = np.where(used, 1.0 / sig**2, 0.0)
         T = float(np.nansum(w * np.where(used, v, 0.0) ** 2))
-        thr = float(chdtri(dof, p_fa))
+        thr = float(chi2_isf(dof, p_fa))
         if T <= thr:
             status = "ok" if not excluded else "excluded"
             break
@@ -335,8 +334,6 @@ def spp_series(
     lat, lon, h, clock_m, vel_enu (T, 3), clock_drift, n_used, status (list), pdop, excluded (list),
     residuals (T, S), events (list of str: satellites without ephemeris, exclusions, epochs without a fix).
     """
-    from aidnav.nav.gnss_sat import dual_frequency_iono
-
     eph = eph.to_week(obs.ref_week) if eph.ref_week != obs.ref_week else eph
     T, S = obs.code1.shape
     pr_all = obs.code1.copy()

@@ -63,6 +63,9 @@ from typing import Annotated, Any, Literal
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
+from aidnav.filters.config import LooseConfig
+from aidnav.sim.gnss import GnssSpec
+from aidnav.sim.imu import ImuSpec
 from aidnav.sim.scenario import (
     _SEGMENT_TYPES,
     Initial,
@@ -78,8 +81,10 @@ from aidnav.sim.scenario import (
 from aidnav.sim.scenario import (
     error_message as scenario_error_message,
 )
+from aidnav.sim.trajectory import compile_segments
 
 from . import estimators as est_mod
+from .reproduce.summary import check_expression
 from .statistics_spec import (
     NonNegative,
     Positive,
@@ -390,10 +395,6 @@ def build_scenario(exp: Experiment, name: str = "experiment", where: str | None 
 def _check_point(exp: Experiment, doc: dict, where: str, root=None) -> tuple[Scenario, list[dict], float]:
     """Checks that need more than the schema (before any computation): flyable motion, sensor specs,
     estimator configurations, statistics windows and quantities."""
-    from aidnav.sim.gnss import GnssSpec
-    from aidnav.sim.imu import ImuSpec
-    from aidnav.sim.trajectory import compile_segments
-
     scn = build_scenario(exp, exp.name, where)
     try:
         cm = compile_segments(scn)
@@ -421,8 +422,6 @@ def _check_point(exp: Experiment, doc: dict, where: str, root=None) -> tuple[Sce
             et.check(cfg, scn)
         except ValidationError as e:
             def expected(raw, _type=entry["type"]):
-                from aidnav.filters.config import LooseConfig
-
                 m = _model_at(tuple(raw[3:]), LooseConfig) if _type == "loose" else None
                 return list(m.model_fields) if m is not None else None
             raise ExperimentError(_format_validation(e, where, root, None, prefix=("estimators", i, "config"),
@@ -566,8 +565,6 @@ def _check_paper(exp: Experiment, doc: dict, points: list[SweepPoint], where: st
         if not any(all(p.values.get(k) == v for k, v in pv.point.items()) for p in points):
             raise ExperimentError(f"{where}: paper.{j}.point: no sweep point matches {pv.point}")
         if pv.target is not None:
-            from .reproduce.summary import check_expression
-
             try:
                 check_expression(pv.target, {"ours", "paper"})
             except ValueError as e:

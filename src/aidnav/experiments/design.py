@@ -24,21 +24,29 @@ Units: angles in degrees in the returned rows (``*_deg``), radians inside.
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from aidnav.filters.transfer import CovarianceAnalysis, TransferConfig, covariance_analysis
-from aidnav.sim.distributed_pos import MasterPosSpec
+from aidnav.filters.transfer import (
+    CovarianceAnalysis,
+    TransferConfig,
+    covariance_analysis,
+    run_transfer,
+    segment_statistic,
+    transfer_errors,
+)
+from aidnav.sim.distributed_pos import MasterPosSpec, simulate_distributed_pos, sub_geometry
 
 __all__ = ["predict_accuracy", "rank_trajectories", "TrajectoryDesign", "design_trajectory", "write_design",
            "print_design", "DESIGN_MODES"]
 
 
 def _bundle(candidate):
-    from aidnav.sim.scenario import Scenario, load_scenario
-    from aidnav.sim.trajectory import generate_truth
+    from aidnav.sim.scenario import Scenario, load_scenario  # lazy: pulls in pydantic, yaml
+    from aidnav.sim.trajectory import generate_truth  # lazy: pulls in pydantic, yaml
 
     if isinstance(candidate, tuple):
         return candidate
@@ -90,7 +98,7 @@ _AXES = ("heading_deg", "pitch_deg", "roll_deg")
 
 def _grade_key(grade: str) -> str:
     """'seed004_high' / 'high' / 'sub_arw' … → the key of ``seed_004.GRADES``."""
-    from aidnav.experiments.transfer_cases import GRADES
+    from aidnav.experiments.transfer_cases import GRADES  # lazy: pulls in pydantic, yaml
 
     g = str(grade).strip().lower()
     g = g[len("seed004_"):] if g.startswith("seed004_") else g
@@ -142,8 +150,9 @@ def design_trajectory(requirement: dict, grade: str = "sub_arw", modes=DESIGN_MO
     run_transfer` (RMS and STD of the errors on the legs, mean over the legs, RMS over the runs).
     Returns a :class:`TrajectoryDesign`; angles in degrees, times in seconds.
     """
+    # lazy: pulls in pydantic, yaml
     from aidnav.experiments.transfer_cases import LABEL, Case, imu_spec, load_mode, sim_config, variant
-    from aidnav.sim.trajectory import generate_truth
+    from aidnav.sim.trajectory import generate_truth  # lazy: pulls in pydantic, yaml
 
     say = say or (lambda msg: None)
     req = {k: float(requirement[k]) for k in _AXES}
@@ -218,10 +227,9 @@ def design_trajectory(requirement: dict, grade: str = "sub_arw", modes=DESIGN_MO
 def _confirm(plan: dict, gkey: str, baseline_km: float, nstate: int, legs, runs: int, base_seed: int,
              req: dict) -> dict:
     """Monte Carlo of the recommended plan: RMS over runs of the per-run leg RMS and mean per-run leg STD."""
+    # lazy: pulls in pydantic, yaml
     from aidnav.experiments.transfer_cases import Case, load_mode, sim_config, variant
-    from aidnav.filters.transfer import run_transfer, segment_statistic, transfer_errors
-    from aidnav.sim.distributed_pos import simulate_distributed_pos, sub_geometry
-    from aidnav.sim.trajectory import generate_truth
+    from aidnav.sim.trajectory import generate_truth  # lazy: pulls in pydantic, yaml
 
     cfg = sim_config(Case(mode=plan["mode"], t1=plan["t1_s"], t2=plan["t2_s"], grade=gkey,
                           baseline_km=baseline_km))
@@ -247,10 +255,8 @@ def _confirm(plan: dict, gkey: str, baseline_km: float, nstate: int, legs, runs:
 def write_design(design: TrajectoryDesign, out_dir) -> list[Path]:
     """Write ``design.json`` (the summary) and ``design.png`` (predicted σ of the recommended or closest
     plan against the requirement; longest feasible T2 per mode) into ``out_dir``. Returns the paths."""
-    import json
-
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
+    from matplotlib.backends.backend_agg import FigureCanvasAgg  # lazy: matplotlib is heavy to import
+    from matplotlib.figure import Figure  # lazy: matplotlib is heavy to import
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -292,7 +298,7 @@ def write_design(design: TrajectoryDesign, out_dir) -> list[Path]:
 
 def print_design(design: TrajectoryDesign, console) -> None:
     """Print the per-mode plans, the recommendation and the Monte Carlo check as rich tables."""
-    from rich.table import Table
+    from rich.table import Table  # lazy: rich is heavy to import
 
     s = design.summary
     rq = s["requirement"]
@@ -311,7 +317,7 @@ def print_design(design: TrajectoryDesign, console) -> None:
         t.add_row(m["label"] + star, f"{p['t1_s']:g}", f"{p['t2_s']:g}", f"{p['flight_time_s']:g}",
                   *(f"{p['predicted'][k]:.4f}" for k in _AXES), f"{p['worst_ratio']:.2f}")
     console.print(t)
-    from rich.text import Text
+    from rich.text import Text  # lazy: rich is heavy to import
 
     console.print(Text(s["message"], style="bold green" if s["feasible"] else "bold red"))
     mc = s["monte_carlo"]

@@ -41,6 +41,13 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from aidnav.filters.loose import run_loose
+from aidnav.filters.tuning import loose_config_from_specs, perturbed_initial_state
+from aidnav.nav.earth import lla_difference_enu, radii
+from aidnav.sim.gnss import GnssSpec
+from aidnav.sim.imu import ImuSpec
+from aidnav.units import DEG
+
 __all__ = [
     "EstimatorOutput", "EstimatorType", "register_estimator", "get_estimator", "estimator_types",
     "BLOCK_UNITS", "state_unit", "state_blocks", "LOOSE_STATES", "LooseEstimatorConfig", "loose_estimator",
@@ -51,7 +58,7 @@ __all__ = [
 BLOCK_UNITS: dict[str, tuple[str, float]] = {
     "pos": ("m", 1.0),
     "vel": ("m_s", 1.0),
-    "att": ("deg", 180.0 / math.pi),
+    "att": ("deg", 1.0 / DEG),
 }
 
 
@@ -209,9 +216,6 @@ class LooseEstimatorConfig(BaseModel):
 
 
 def _specs(scenario):
-    from aidnav.sim.gnss import GnssSpec
-    from aidnav.sim.imu import ImuSpec
-
     return ImuSpec.from_config(scenario.sensors.imu), GnssSpec.from_config(scenario.sensors.gnss)
 
 
@@ -221,8 +225,6 @@ def loose_filter_config(cfg: LooseEstimatorConfig, imu_spec, gnss_spec, imu_rate
     init : (lla_deg_m, vel ENU [m/s], rph_deg) of the filter's initial state, or None (validation only).
     Raises pydantic ValidationError (locations in LooseConfig) for bad ``config`` overrides.
     """
-    from aidnav.filters.tuning import loose_config_from_specs
-
     over = {k: dict(v) for k, v in cfg.config.items()}
     rate = cfg.output_rate_hz if cfg.output_rate_hz is not None else gnss_spec.rate_hz
     filt = {"output_rate_hz": min(float(rate), float(imu_rate_hz)), **over.pop("filter", {})}
@@ -261,23 +263,16 @@ def loose_errors(res, truth) -> EstimatorOutput:
     misalignment φ of :func:`aidnav.nav.rotations.attitude_error_batch`; the covariance is the filter's
     diagonal (δL, δλ converted to metres with the radii at the truth position).
     """
-    from aidnav.nav.earth import lla_difference_enu, radii
-    from aidnav.nav.rotations import attitude_error_batch, euler_to_quat_batch
+    # analysis.errors imports pandas and scipy: loaded when a campaign scores, not with the registry
+    from aidnav.analysis.errors import ins_error_state, truth_index
 
     t = np.asarray(res.time, dtype=float)
-    tt = np.asarray(truth.time, dtype=float)
-    idx = np.clip(np.searchsorted(tt, t), 0, len(tt) - 1)
-    lo = np.clip(idx - 1, 0, len(tt) - 1)
-    idx = np.where(np.abs(tt[lo] - t) < np.abs(tt[idx] - t), lo, idx)
-    if np.any(np.abs(tt[idx] - t) > 1e-6):
-        raise ValueError("loose_errors: filter output epochs are not truth epochs")
+    idx = truth_index(truth.time, t)
+    e = ins_error_state(res, truth)  # φ, δv, δL, δλ, δh at the same truth samples
     st = res.state
     lat, lon, h = truth.lat[idx], truth.lon[idx], truth.height[idx]
     de, dn, du = lla_difference_enu(st[:, 0], st[:, 1], st[:, 2], lat, lon, h)
-    dv = st[:, 3:6] - truth.vel[idx]
-    q_true = euler_to_quat_batch(np.ascontiguousarray(truth.rph[idx]))
-    phi = attitude_error_batch(np.ascontiguousarray(st[:, 6:10]), q_true)
-    err = np.column_stack([de, dn, du, dv, phi])
+    err = np.column_stack([de, dn, du, e[:, 3:6], e[:, 0:3]])
     pd = np.maximum(res.pdiag, 0.0)
     rm, rn = radii(lat)
     var = np.column_stack([pd[:, 7] * ((rn + h) * np.cos(lat)) ** 2, pd[:, 6] * (rm + h) ** 2, pd[:, 8],
@@ -297,9 +292,6 @@ def loose_estimator(sim, cfg: LooseEstimatorConfig, rng: np.random.Generator) ->
 
     ``rng`` draws the initial-state error (:func:`aidnav.filters.tuning.perturbed_initial_state`).
     """
-    from aidnav.filters.loose import run_loose
-    from aidnav.filters.tuning import perturbed_initial_state
-
     imu_spec, gnss_spec = _specs(sim.scenario)
     init = perturbed_initial_state(sim.truth, rng, cfg.init_position_sigma_m, cfg.init_velocity_sigma_m_s,
                                    cfg.init_attitude_sigma_deg)

@@ -30,20 +30,33 @@ running the estimators (numba kernels).
 
 from __future__ import annotations
 
+import hashlib
+import importlib
+import json
+import logging
+import multiprocessing
 import os
 import platform
 import sys
 import time
 from collections import OrderedDict
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+import numba
 import numpy as np
 
+from aidnav.data import GnssData
+from aidnav.nav.earth import radii
 from aidnav.nav.rotations import wrap_pi
+from aidnav.sim.gnss import GnssSpec, simulate_gnss
+from aidnav.sim.imu import ImuSpec, corrupt_imu
+from aidnav.sim.run import SimulationResult
+from aidnav.sim.trajectory import generate_truth
 
 from . import store
-from .config import ExperimentPlan, build_scenario, load_experiment
+from .config import Experiment, ExperimentPlan, build_scenario, load_experiment
 from .estimators import get_estimator, state_blocks, state_unit
 
 __all__ = ["run_experiment", "run_task", "RunTask", "CampaignResult", "CampaignInterrupted", "GnssTemplate",
@@ -118,15 +131,6 @@ def _cached(cache: OrderedDict, key, make):
 
 def _context(key: str, doc: dict) -> _Context:
     def make():
-        import hashlib
-        import importlib
-        import json
-
-        from aidnav.sim.gnss import GnssSpec
-        from aidnav.sim.imu import ImuSpec
-
-        from .config import Experiment
-
         for mod in doc.get("imports", []):
             importlib.import_module(mod)
         exp = Experiment.model_validate(doc)
@@ -146,8 +150,6 @@ def _context(key: str, doc: dict) -> _Context:
 
 
 def _truth(ctx: _Context):
-    from aidnav.sim.trajectory import generate_truth
-
     return _cached(_TRUTH, ctx.sim_key, lambda: generate_truth(ctx.scenario))
 
 
@@ -167,8 +169,6 @@ class GnssTemplate:
 
     @classmethod
     def build(cls, truth, spec) -> GnssTemplate:
-        from aidnav.sim.gnss import simulate_gnss
-
         spec0 = replace(spec, sigma_pos_enu=np.zeros(3), sigma_vel_enu=np.zeros(3))
         base = simulate_gnss(truth, spec0, np.random.default_rng(0))
         t = np.asarray(truth.time, dtype=float)
@@ -179,9 +179,6 @@ class GnssTemplate:
 
     def draw(self, rng: np.random.Generator):
         """Noisy fixes (:class:`aidnav.data.GnssData`) with the noise drawn from ``rng``."""
-        from aidnav.data import GnssData
-        from aidnav.nav.earth import radii
-
         m_all = len(self.keep)
         zp = rng.standard_normal((m_all, 3))[self.keep]
         zv = rng.standard_normal((m_all, 3))[self.keep]
@@ -217,9 +214,6 @@ def _streams(base_seed: int, run: int):
 
 def simulate_run(ctx: _Context, run: int):
     """The :class:`aidnav.sim.run.SimulationResult` of run ``run`` of a point (and the estimator stream)."""
-    from aidnav.sim.imu import corrupt_imu
-    from aidnav.sim.run import SimulationResult
-
     truth, imu_true, segments = _truth(ctx)
     tmpl = _gnss_template(ctx, truth)
     s_imu, s_gnss, s_est = _streams(ctx.base_seed, run)
@@ -231,7 +225,7 @@ def simulate_run(ctx: _Context, run: int):
 
 def _process(out, name: str) -> dict:
     """EstimatorOutput → boundary-unit arrays and NEES per block."""
-    from aidnav.analysis.consistency import nees
+    from aidnav.analysis.consistency import nees  # lazy: pulls in scipy
 
     out.check(name)
     blocks = state_blocks(out.states)
@@ -283,9 +277,6 @@ def _serial(tasks, on_result):
 
 
 def _processes(tasks, on_result, workers: int):
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor, as_completed
-
     ex = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
     futs = [ex.submit(run_task, t) for t in tasks]
     try:
@@ -300,9 +291,7 @@ def _processes(tasks, on_result, workers: int):
 
 
 def _dask(tasks, on_result, workers: int, scheduler: str | None, info: dict):
-    import logging
-
-    from distributed import Client, LocalCluster, as_completed
+    from distributed import Client, LocalCluster, as_completed  # lazy: distributed is heavy to import
 
     cluster = None
     if scheduler:
@@ -335,8 +324,6 @@ def _host() -> dict:
 
 
 def _versions() -> dict:
-    import numba
-
     return {"aidnav": store.package_version(), "numpy": np.__version__, "numba": numba.__version__}
 
 
@@ -360,7 +347,9 @@ def run_experiment(experiment, out_dir, *, workers: int = 1, scheduler: str | No
     Raises :class:`~aidnav.experiments.config.ExperimentError` (before computing anything) for a bad
     experiment and :class:`CampaignInterrupted` on Ctrl-C (finished runs stay on disk).
     """
-    from rich.console import Console
+    from rich.console import Console  # lazy: rich is heavy to import
+
+    # lazy: rich is heavy to import
     from rich.progress import (
         BarColumn,
         MofNCompleteColumn,

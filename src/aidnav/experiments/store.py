@@ -39,6 +39,8 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+import aidnav
+
 from . import statistics_spec as _config
 from .estimators import state_blocks, state_unit
 from .statistics_spec import (
@@ -55,8 +57,6 @@ __all__ = ["package_version", "run_path", "save_run", "load_run", "existing_runs
 
 def package_version() -> str:
     """Installed version of aidnav (:data:`aidnav.__version__`)."""
-    import aidnav
-
     return aidnav.__version__
 
 
@@ -262,7 +262,7 @@ def epoch_summary(err: np.ndarray, sig: np.ndarray, nees: np.ndarray, states,
 
 
 def _consistency(t, nees, blocks, states, spec) -> list[dict]:
-    from aidnav.analysis.consistency import chi2_band, consistency_report
+    from aidnav.analysis.consistency import chi2_band, consistency_report  # lazy: pulls in scipy
 
     out = []
     if len(t) == 0:

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from aidnav.nav.rotations import quat_to_euler_batch
+from aidnav.units import DEG, DEG_H, UG
 
 from . import measurements as ms
 from .engine import Imu, Init, Models, Output, Process, Records, rts, run_filter, smooth_outputs
@@ -28,9 +29,6 @@ from .prior import ins_p0_diag, ins_psd, markov_psd
 
 __all__ = ["AttitudeFusionResult", "fuse_attitude_fixes", "imu_noise_psd", "initial_covariance_15"]
 
-DEG = np.pi / 180.0
-DEG_H = DEG / 3600.0
-UG = 9.80665e-6
 
 
 @dataclass

@@ -9,12 +9,9 @@ from __future__ import annotations
 
 from typing import Literal
 
-import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-DEG = np.pi / 180.0
-DEG_H = DEG / 3600.0
-UG = 9.80665e-6
+from aidnav.units import DEG, DEG_H, UG  # noqa: F401  (re-exported: the filters import them from here)
 
 
 class _Strict(BaseModel):

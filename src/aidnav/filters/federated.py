@@ -31,6 +31,7 @@ from aidnav.nav.geo_pointing import los_enu
 from aidnav.nav.rotations import dcm_from_quat
 
 from . import ins_errors as ie
+from .chi2 import chi2_isf
 from .engine import Imu, Log, Models, Records, Work, _node_rates, feedback, gated_update, rts, smooth_outputs
 from .kalman import discretize, predict
 from .measurements import M_GNSS_POS, M_GNSS_VEL, M_SAPV, MAX_ROWS, N_MODELS, Nav, fill
@@ -275,8 +276,6 @@ def run_federated(imu, gnss, sapv, cfg, fed: FederatedConfig | None = None, *, k
         β = 1/2, 1/2). keep_cov : keep the full forward fused covariance at every node.
     smooth : RTS smoother over the fused nodes (module doc); the forward solution stays in ``forward_*``.
     """
-    from scipy.special import chdtri
-
     from aidnav.nav.rotations import quat_from_euler, quat_to_euler_batch
 
     from .config import DEG
@@ -307,8 +306,8 @@ def run_federated(imu, gnss, sapv, cfg, fed: FederatedConfig | None = None, *, k
     par[M_SAPV, 0] = fed.sapv_position_columns
     gate = np.zeros((N_MODELS, MAX_ROWS + 1))
     if gp < 1:
-        gate[M_GNSS_POS, 1:4] = gate[M_GNSS_VEL, 1:4] = chdtri(3, 1.0 - gp)  # one χ²(3) gate (as before)
-        gate[M_SAPV, 2] = chdtri(2, 1.0 - gp)
+        gate[M_GNSS_POS, 1:4] = gate[M_GNSS_VEL, 1:4] = chi2_isf(3, 1.0 - gp)  # one χ²(3) gate (as before)
+        gate[M_SAPV, 2] = chi2_isf(2, 1.0 - gp)
     mod = Models(par, gate, np.full(N_MODELS, NEVER, np.int64), np.zeros((0, 2), np.int64))
     t_imu = np.ascontiguousarray(imu.time, dtype=float)
     no = np.zeros((0, 2))

@@ -121,7 +121,7 @@ def rts_gain(P_post, Phi, P_prior_next):
 
 def van_loan(F: np.ndarray, G: np.ndarray, q: np.ndarray, T: float) -> tuple[np.ndarray, np.ndarray]:
     """Exact Φ and Qd for constant F, G, diag PSD q over T (Van Loan 1978, via scipy expm)."""
-    from scipy.linalg import expm
+    from scipy.linalg import expm  # lazy: scipy is heavy to import
 
     n = F.shape[0]
     GQG = (G * q) @ G.T

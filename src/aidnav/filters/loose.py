@@ -20,6 +20,7 @@ from collections import namedtuple
 import numpy as np
 
 from . import measurements as ms
+from .chi2 import chi2_isf
 from .engine import Imu, Init, Models, Output, Process, Records, feedback, rts, run_filter, smooth_outputs
 from .layout import (
     DV,
@@ -82,8 +83,6 @@ def _models(cfg) -> Models:
     feeds: GNSS position/velocity gated at ``gnss.gate_probability`` with the consecutive-rejection rule;
     NHC gated at 25 (the χ²(2) quantile of 1 − e^(−12.5)) when GNSS gating is on; ZUPT and ZARU
     ungated; odometer and barometer gated like GNSS."""
-    from scipy.special import chdtri  # chi-square quantile (scipy.stats costs 1 s of start-up)
-
     from aidnav.nav.rotations import dcm_from_euler
 
     from .config import DEG
@@ -92,7 +91,7 @@ def _models(cfg) -> Models:
     par = np.zeros((ms.N_MODELS, 16))
     gate = np.zeros((ms.N_MODELS, ms.MAX_ROWS + 1))
     max_rej = np.full(ms.N_MODELS, NEVER, np.int64)
-    chi2 = np.array([0.0] + [chdtri(m, 1.0 - gp) if gp < 1 else 0.0 for m in range(1, ms.MAX_ROWS + 1)])
+    chi2 = np.array([0.0] + [chi2_isf(m, 1.0 - gp) if gp < 1 else 0.0 for m in range(1, ms.MAX_ROWS + 1)])
     for md in (ms.M_GNSS_POS, ms.M_GNSS_VEL, ms.M_ODO, ms.M_BARO):
         gate[md] = chi2
         max_rej[md] = cfg.gnss.max_consecutive_rejections

@@ -6,6 +6,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from aidnav.data import ImuData
+from aidnav.nav.alignment import coarse_align_static
+from aidnav.nav.earth import radii
+from aidnav.nav.rotations import euler_from_dcm, wrap_2pi, wrap_pi
+from aidnav.units import DEG, DEG_H, G0, UG
+
 
 def velocity_from_positions(gnss, window_s: float = 1.0, std_pos=None):
     """Velocity ENU [m/s] and its 1σ per axis from central differences of the GNSS positions.
@@ -15,8 +21,6 @@ def velocity_from_positions(gnss, window_s: float = 1.0, std_pos=None):
     per axis (σ: ``std_pos`` (m, 3), else the file's σ, else 1 m; white position noise assumed).
     Returns (vel (m, 3), std (m, 3)); NaN where no baseline exists.
     """
-    from aidnav.nav.earth import radii
-
     t = np.asarray(gnss.time, float)
     m = len(t)
     vel = np.full((m, 3), np.nan)
@@ -29,7 +33,7 @@ def velocity_from_positions(gnss, window_s: float = 1.0, std_pos=None):
     T = t[j] - t[i]
     ok = T >= 0.5 * window_s - 1e-9  # one-sided at the ends of the log
     rm, rn = radii(gnss.lat)
-    dlon = (gnss.lon[j] - gnss.lon[i] + np.pi) % (2 * np.pi) - np.pi
+    dlon = wrap_pi(gnss.lon[j] - gnss.lon[i])
     d = np.column_stack([dlon * (rn + gnss.height) * np.cos(gnss.lat),
                          (gnss.lat[j] - gnss.lat[i]) * (rm + gnss.height), gnss.height[j] - gnss.height[i]])
     Ts = np.where(ok, T, np.nan)[:, None]
@@ -202,7 +206,7 @@ def course_alignment(gnss, cfg, t_start: float, vel=None, std=None):
     if len(idx) == 0:
         return None
     i = idx[0]
-    return float(gnss.time[i]), float(np.arctan2(ve[i], vn[i]) % (2 * np.pi)), int(i)
+    return float(gnss.time[i]), float(wrap_2pi(np.arctan2(ve[i], vn[i]))), int(i)
 
 
 def initial_state(imu, gnss, cfg, t_imu, g, use, events):
@@ -219,10 +223,6 @@ def initial_state(imu, gnss, cfg, t_imu, g, use, events):
     reset_heading [rad], reset_nav (12,) of the course fix,
     vel_sig (3,) [m/s] of an in-motion start (None: the configured σ).
     """
-    from aidnav.data import ImuData
-
-    from .config import DEG
-
     g_t, g_lat, g_lon, g_h, g_vel, g_spos, g_svel = g
     ini = cfg.init
     # ---- initial state
@@ -261,11 +261,9 @@ def initial_state(imu, gnss, cfg, t_imu, g, use, events):
         v_first = vel_u[j0]
         # static coarse alignment (aidnav.nav.alignment): roll/pitch from the mean specific force over
         # the static window; heading by gyrocompassing where the gyro grade resolves the Earth rate
-        from aidnav.nav.alignment import coarse_align_static
-
         t_a = t_imu[k0]
         win_imu = ImuData(t_imu, imu.dtheta, imu.dv, t0=imu.t0 + cfg.imu.time_offset_s)
-        gb = cfg.imu.gyro_bias_sigma_deg_h * DEG / 3600.0
+        gb = cfg.imu.gyro_bias_sigma_deg_h * DEG_H
         roll, pitch, gc_heading, ainfo = coarse_align_static(win_imu, lat0, t_a, t_a + ini.static_window_s,
                                                              height=h0, gyro_bias_std=gb)
         heading = 0.0
@@ -298,7 +296,7 @@ def initial_state(imu, gnss, cfg, t_imu, g, use, events):
         if ini.pitch_deg is not None:
             pitch = ini.pitch_deg * DEG
         rph = np.array([roll, pitch, heading])
-        f = ainfo["mean_f"] / 9.80665
+        f = ainfo["mean_f"] / G0
         if not moving:
             events.append(f"coarse alignment over {ini.static_window_s:g} s: roll {np.degrees(roll):.2f} "
                           f"deg, pitch {np.degrees(pitch):.2f} deg (mean specific force {np.round(f, 4)} g)")
@@ -352,14 +350,12 @@ def _moving_start(imu, t_imu, k0, gsub, vel, svel, j0, cfg, events, ainfo):
     roll and pitch from the mean specific force over 1 s corrected by the GNSS-derived acceleration
     (rotated into the IMU's level frame with that heading; without it only the magnitude is known and
     enters the tilt σ). Returns (roll, pitch, None, (heading, σ) or None, σ_v (3,))."""
-    from .config import DEG
-
     sp = float(np.hypot(vel[j0, 0], vel[j0, 1]))
     sg = float(np.hypot(svel[j0, 0], svel[j0, 1])) if np.all(np.isfinite(svel[j0, :2])) else np.inf
     heading_now = None
     if np.isfinite(sp) and _course_ok(sp, sg, cfg):
-        course = float(np.arctan2(vel[j0, 0], vel[j0, 1]) % (2 * np.pi))
-        h = (course + cfg.imu.mounting_rph_deg[2] * DEG) % (2 * np.pi)
+        course = float(wrap_2pi(np.arctan2(vel[j0, 0], vel[j0, 1])))
+        h = wrap_2pi(course + cfg.imu.mounting_rph_deg[2] * DEG)
         hs = float(np.hypot(cfg.init.course_heading_sigma_deg * DEG, np.arctan2(sg, sp)))
         heading_now = (h, hs)
     a_n = _gnss_acceleration(gsub, vel, j0)
@@ -396,9 +392,7 @@ def _moving_tilt_sigma(gsub, vel, svel, j0, cfg):
     """Roll/pitch σ of an in-motion start [rad]: the error of the acceleration correction (velocity σ
     over the 1 s baseline) and the accelerometer bias, over g; with no heading the whole horizontal
     acceleration (its direction in the body is unknown); at least 2°."""
-    from .config import DEG, UG
-
-    g = 9.80665
+    g = G0
     a = _gnss_acceleration(gsub, vel, j0)
     sa = float(np.nan_to_num(np.hypot(svel[j0, 0], svel[j0, 1]), nan=1.0)) * np.sqrt(2.0)
     sig = np.hypot(sa, cfg.imu.accel_bias_sigma_ug * UG) / g
@@ -418,8 +412,6 @@ def coarse_mounting(imu, t_imu, gnss, vel, min_speed_m_s: float = 3.0, window_s:
     C_b^v = C(r, p, h) as the NHC uses it, the number of epochs used) or None with fewer than 20 epochs
     above ``min_speed_m_s`` or a fit that does not explain the acceleration (|Σ z_v z̄_b| < 0.5 Σ|z_v||z_b|).
     """
-    from aidnav.nav.rotations import euler_from_dcm
-
     t = np.asarray(gnss.time, float)
     s = np.hypot(vel[:, 0], vel[:, 1])
     chi = np.unwrap(np.arctan2(vel[:, 0], np.where(np.isfinite(vel[:, 1]), vel[:, 1], 0.0)))

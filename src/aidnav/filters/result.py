@@ -6,9 +6,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from aidnav.data import Trajectory
 from aidnav.nav.earth import radii
+from aidnav.nav.rotations import dcm_from_euler, dcm_from_rotvec, euler_from_dcm, quat_to_euler_batch, wrap_pi
+from aidnav.units import DEG_H, PPM, UG
 
 from .layout import L_BARO, L_LEVER, L_MOUNT, L_NINS, L_ODO, L_TOFF, L_VDEL, NAV
+
+#: the INS sensor-error states in the file units, by group of three (x, y, z): column name, factor from SI
+SENSOR_ERROR_UNITS = (("gyro_bias_{}_deg_h", 1.0 / DEG_H), ("accel_bias_{}_ug", 1.0 / UG),
+                      ("gyro_sf_{}_ppm", 1.0 / PPM), ("accel_sf_{}_ppm", 1.0 / PPM))
 
 
 @dataclass
@@ -56,7 +63,7 @@ class FilterResult:
     def to_dataframe(self):
         """pandas DataFrame: time, navigation state, sensor/calibration estimates and 1σ of every error
         state (``sigma_<name>``, in the state's unit: rad, m/s, rad/rad/m for δL δλ δh, …)."""
-        import pandas as pd
+        import pandas as pd  # lazy: pandas is heavy to import
 
         s = self.state
         cols = {"time_s": self.time, "lat_rad": s[:, 0], "lon_rad": s[:, 1], "height_m": s[:, 2],
@@ -93,8 +100,6 @@ def calibration_summary(result, base: dict | None = None) -> dict:
     caller adds an offset it applied to the stamps itself, e.g. ``aidnav process``'s
     ``imu.time_offset_s``, by passing ``{"time_offset_s": ...}``).
     """
-    from aidnav.nav.rotations import dcm_from_euler, dcm_from_rotvec, euler_from_dcm
-
     b = dict(getattr(result, "calibration_base", None) or {})
     b.update(base or {})
     lay = getattr(result, "layout", None)
@@ -137,7 +142,7 @@ def calibration_summary(result, base: dict | None = None) -> dict:
         for j in range(3):
             e = np.zeros(3)
             e[j] = 1e-6
-            J[:, j] = ((rph_of(v + e) - rph_of(v - e) + np.pi) % (2 * np.pi) - np.pi) / 2e-6
+            J[:, j] = wrap_pi(rph_of(v + e) - rph_of(v - e)) / 2e-6
         sd = np.sqrt(np.diag(J @ np.diag(np.asarray(s, float) ** 2) @ J.T))
         rph = np.degrees(rph)
         rph[2] %= 360.0
@@ -156,9 +161,6 @@ def calibration_summary(result, base: dict | None = None) -> dict:
 
 def to_trajectory(res: FilterResult):
     """FilterResult → :class:`aidnav.data.Trajectory` with σ columns and bias columns."""
-    from aidnav.data import Trajectory
-    from aidnav.nav.rotations import quat_to_euler_batch
-
     s = res.state
     lat, h = s[:, 0], s[:, 2]
     rm, rn = radii(lat)
@@ -171,13 +173,12 @@ def to_trajectory(res: FilterResult):
     sp = np.sqrt((np.sin(hd) * pd[:, 1]) ** 2 + (np.cos(hd) * pd[:, 0]) ** 2)
     std_att = np.column_stack([sr, sp, pd[:, 2]])
     extra = {}
-    names = ["gyro_bias_{}_deg_h", "accel_bias_{}_ug", "gyro_sf_{}_ppm", "accel_sf_{}_ppm"]
-    scale = [180 / np.pi * 3600, 1 / 9.80665e-6, 1e6, 1e6]
     lay = getattr(res, "layout", None)
     n_groups = res.bias.shape[1] // 3 if lay is None else (int(lay[L_NINS]) - NAV) // 3
     for j in range(n_groups):
         for i, ax in enumerate("xyz"):
-            extra[names[j].format(ax)] = res.bias[:, 3 * j + i] * scale[j]
+            name, scale = SENSOR_ERROR_UNITS[j]
+            extra[name.format(ax)] = res.bias[:, 3 * j + i] * scale
     if lay is not None:
         if lay[L_ODO] >= 0:
             extra["odometer_scale_ppm"] = res.bias[:, lay[L_ODO] - NAV] * 1e6
@@ -249,13 +250,11 @@ def summary_calibration(result, base: dict | None = None) -> dict:
     out = {}
     if len(bias):
         nins = int(lay[L_NINS]) if lay is not None else NAV + 6
-        names = ["gyro_bias_{}_deg_h", "accel_bias_{}_ug", "gyro_sf_{}_ppm", "accel_sf_{}_ppm"]
-        scale = [180 / np.pi * 3600, 1 / 9.80665e-6, 1e6, 1e6]
         for k in range(nins - NAV):
-            g, ax = divmod(k, 3)
+            (name, scale), ax = SENSOR_ERROR_UNITS[k // 3], k % 3
             var = pdiag[-1, NAV + k]
-            out[names[g].format("xyz"[ax])] = {"value": float(bias[-1, k] * scale[g]),
-                                               "std": float(np.sqrt(var) * scale[g]) if var >= 0 else None,
-                                               "estimated": True}
+            out[name.format("xyz"[ax])] = {"value": float(bias[-1, k] * scale),
+                                           "std": float(np.sqrt(var) * scale) if var >= 0 else None,
+                                           "estimated": True}
     out.update(calibration_summary(result, base))
     return out

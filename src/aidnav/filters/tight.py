@@ -36,6 +36,7 @@ from aidnav.nav.earth import radii
 from aidnav.nav.gnss_sat import C_LIGHT, dual_frequency_iono
 
 from . import measurements as ms
+from .chi2 import chi2_isf
 from .config import Constraints, FilterSettings, ImuNoise, Initialisation
 from .engine import Imu, Init, Models, Output, Process, Records, rts, run_filter, smooth_outputs
 from .layout import L_CLK, L_N, L_NINS, L_SIZE
@@ -190,8 +191,6 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     heading_reset : optional (t [s], heading [rad]) to set the heading at (e.g. a GNSS course).
     smooth : also run the RTS smoother (``state``, ``clock``, ``pdiag`` are then the smoothed ones).
     """
-    from scipy.special import chdtri
-
     from aidnav.nav.rotations import quat_from_euler
 
     from .config import DEG
@@ -214,7 +213,7 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     q0 = quat_from_euler(rph0[0], rph0[1], rph0[2])
     st0 = np.array([lat0, lon0, h0, *np.asarray(v0, float), *q0], float)
     P0 = _initial_P(cfg, lat0, h0, np.array(cfg.init.attitude_sigma_deg) * DEG)
-    gate = chdtri(1, 1.0 - g.gate_probability) if g.gate_probability < 1 else 0.0
+    gate = chi2_isf(1, 1.0 - g.gate_probability) if g.gate_probability < 1 else 0.0
     use_iono = g.iono == "klobuchar" and eph.iono_alpha is not None
     if g.iono == "klobuchar" and eph.iono_alpha is None:
         events.append("no Klobuchar coefficients: no ionospheric correction")

@@ -9,7 +9,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from aidnav.nav.earth import lla_difference_enu
+from aidnav.nav.earth import lla_difference_enu, lla_to_ecef
+from aidnav.nav.rotations import attitude_error_batch, euler_to_quat_batch, wrap_pi
 
 from .transfer_model import BA, BG, DP, DV, N_INS, PHI, RHO, THETA, THETA_DOT
 
@@ -47,13 +48,10 @@ class TransferErrors:
 
 def transfer_errors(res: TransferResult, run: DistributedPosRun) -> TransferErrors:
     """Errors of ``res`` against the truth of ``run`` at the filter epochs."""
-    from aidnav.nav.earth import lla_to_ecef
-    from aidnav.nav.rotations import attitude_error_batch, euler_to_quat_batch
-
     idx = run.master.index[:len(res.time)]
     s = run.sub.truth
     d_rph = res.rph - s.rph[idx]
-    d_rph = (d_rph + np.pi) % (2 * np.pi) - np.pi
+    d_rph = wrap_pi(d_rph)
     phi = attitude_error_batch(np.ascontiguousarray(res.state[:, 6:10]), euler_to_quat_batch(s.rph[idx]))
     dvel = res.state[:, 3:6] - s.vel[idx]
     de, dn, du = lla_difference_enu(res.state[:, 0], res.state[:, 1], res.state[:, 2], s.lat[idx], s.lon[idx],

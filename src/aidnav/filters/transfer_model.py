@@ -51,6 +51,7 @@ import numpy as np
 
 from aidnav.models.distributed_pos import FlexureSpec, MasterPosSpec
 from aidnav.nav.earth import radii
+from aidnav.units import DEG, DEG_H, UG
 
 from . import measurements as ms
 from .engine import Models, Process, exact_blocks
@@ -67,7 +68,6 @@ __all__ = ["PHI", "DV", "DP", "BG", "BA", "RHO", "THETA", "THETA_DOT", "Transfer
            "transfer_process", "transfer_models"]
 
 PHI, DV, DP, BG, BA, RHO, THETA, THETA_DOT = 0, 3, 6, 9, 12, 15, 18, 21
-DEG = math.pi / 180.0
 N_INS = 15
 N_NOISE_INS = 12  # fill_model's noise inputs for 15 states
 NEVER = 2**62  # no consecutive-rejection rule
@@ -97,10 +97,10 @@ class TransferConfig:
     nstate: int = 24
     lever_arm_m: tuple[float, float, float] = (5.0, 0.1, 0.1)
     flexure: FlexureSpec = FlexureSpec()
-    gyro_bias_sigma: float = 0.1 * DEG / 3600.0
-    accel_bias_sigma: float = 50.0 * 9.80665e-6
-    gyro_arw: float = 0.1 * DEG / 3600.0
-    accel_vrw: float = 50.0 * 9.80665e-6
+    gyro_bias_sigma: float = 0.1 * DEG_H
+    accel_bias_sigma: float = 50.0 * UG
+    gyro_arw: float = 0.1 * DEG_H
+    accel_vrw: float = 50.0 * UG
     mounting_sigma_deg: float = 1.0
     att_prior_deg: float = 3.0
     vel_prior_m_s: float = 1.0

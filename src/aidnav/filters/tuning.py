@@ -9,7 +9,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from .config import DEG, DEG_H, UG, LooseConfig
+from aidnav.nav.earth import radii
+from aidnav.nav.rotations import dcm_from_euler, dcm_from_rotvec, euler_from_dcm
+from aidnav.units import DEG, DEG_H, UG
+
+from .config import LooseConfig
 
 
 def loose_config_from_specs(imu_spec, gnss_spec=None, *, init_rph_deg=None, init_lla_deg_m=None,
@@ -77,9 +81,6 @@ def perturbed_initial_state(truth, rng, position_sigma_m=(1.0, 1.0, 1.0), veloci
     The attitude error is applied as a misalignment φ in n (C_est = (I − [φ×]) C_true), so the filter's
     error state starts exactly as drawn.
     """
-    from aidnav.nav.earth import radii
-    from aidnav.nav.rotations import dcm_from_euler, dcm_from_rotvec, euler_from_dcm
-
     lat, lon, h = truth.lat[index], truth.lon[index], truth.height[index]
     rm, rn = radii(lat)
     dp = rng.normal(0.0, position_sigma_m)

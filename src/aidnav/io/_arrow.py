@@ -14,9 +14,15 @@ _NUMPY = {pa.float64(): np.float64, pa.float32(): np.float32, pa.int64(): np.int
           pa.uint8(): np.uint8, pa.uint64(): np.uint64}
 
 
-def column_to_f64(col) -> np.ndarray:
-    """A numeric Arrow (chunked) array as a float64 numpy array; nulls become NaN."""
+def column_to_f64(col, copy: bool = True) -> np.ndarray:
+    """A numeric Arrow (chunked) array as a float64 numpy array; nulls become NaN.
+
+    copy=False: a float64 column of one chunk without nulls is returned as a read-only view of the Arrow
+    buffer (no copy; the buffer lives as long as the view), anything else as a new array."""
     chunks = col.chunks if isinstance(col, pa.ChunkedArray) else [col]
+    if not copy and len(chunks) == 1 and chunks[0].type == pa.float64() and not chunks[0].null_count:
+        c = chunks[0]
+        return np.frombuffer(c.buffers()[1], dtype=np.float64)[c.offset:c.offset + len(c)]
     parts = []
     for c in chunks:
         dt = _NUMPY.get(c.type)

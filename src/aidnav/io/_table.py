@@ -225,7 +225,7 @@ def _read_csv(path: Path) -> _Table:
     return _Table(path, cols, first, "csv", meta)
 
 
-def _read_parquet(path: Path) -> _Table:
+def _read_parquet(path: Path, copy: bool = True) -> _Table:
     try:
         # ParquetFile.read, not pq.read_table: the latter goes through pyarrow.dataset, which imports
         # pandas, and returns one chunk per row group (3x slower on a 10-h IMU log)
@@ -241,7 +241,7 @@ def _read_parquet(path: Path) -> _Table:
             continue
         col = tbl.column(n)
         if pa.types.is_integer(col.type) or pa.types.is_floating(col.type):
-            cols[n] = column_to_f64(col)
+            cols[n] = column_to_f64(col, copy=copy)
         else:
             import pandas as pd  # only for columns that are not plain numbers
 
@@ -271,9 +271,11 @@ def read_table(path) -> tuple[dict[str, np.ndarray], dict]:
     return t.cols, t.meta
 
 
-def _open(path) -> _Table:
+def _open(path, copy: bool = True) -> _Table:
+    """The table of a CSV/Parquet file; copy=False: Parquet float64 columns may be read-only views of the
+    Arrow buffers (for a reader that copies what it keeps: one pass less over a large file)."""
     path = Path(path)
-    return _read_csv(path) if _kind(path) == "csv" else _read_parquet(path)
+    return _read_csv(path) if _kind(path) == "csv" else _read_parquet(path, copy=copy)
 
 
 def _write(cols: dict, path, comments: list[str], meta: dict) -> Path:
@@ -283,7 +285,7 @@ def _write(cols: dict, path, comments: list[str], meta: dict) -> Path:
     kind = _kind(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     if kind == "csv":
-        import pandas as pd
+        import pandas as pd  # lazy: pandas is heavy to import
 
         with open(path, "w", encoding="utf-8", newline="") as f:
             for c in comments:

@@ -43,7 +43,7 @@ def read_numeric_text(path, allowed_columns: tuple[int, ...], what: str) -> tupl
     if bad.any():
         j = int(np.argmax(bad))
         raise DataError(path, int(line_no[j]), f"{counts[j]} fields, expected {k} (as on line {line_no[0]})")
-    import pandas as pd
+    import pandas as pd  # lazy: pandas is heavy to import
 
     df = pd.read_csv(io.StringIO(body), sep=" ", header=None, dtype=str, engine="c", keep_default_na=False)
     vals = np.column_stack([pd.to_numeric(df[c], errors="coerce").to_numpy(float) for c in df.columns])

@@ -14,6 +14,7 @@ from pathlib import Path
 
 from aidnav.io import formats
 from aidnav.io.errors import DataError
+from aidnav.io.rosbag import FIX_TYPE, IMU_TYPE, _reader
 
 KINDS = ("auto", "imu", "gnss")
 
@@ -38,15 +39,13 @@ def detect_kind(path) -> str:
     except DataError as e:
         fg, gnss_err = None, e
     if fi == "rosbag":
-        from aidnav.io.rosbag import FIX_TYPE, IMU_TYPE, _reader
-
         with _reader(path) as rd:
             types = {c.msgtype for c in rd.connections}
         if IMU_TYPE in types and FIX_TYPE in types:
             raise DataError(path, None, "the bag holds IMU and GNSS messages: choose kind 'imu' or 'gnss'")
         return "imu" if IMU_TYPE in types else "gnss"
     if fi == "interchange" and fg == "interchange":
-        from aidnav.io.interchange import read_table
+        from aidnav.io.interchange import read_table  # lazy: pulls in pyarrow
 
         cols, _ = read_table(path)
         return "gnss" if "lat_deg" in cols else "imu"
@@ -74,7 +73,7 @@ def convert(in_path, out_path, kind: str = "auto", fmt: str | None = None, heigh
     reader of that kind does not take is a ValueError).
     Returns a summary: ``{"kind", "format", "input", "output", "samples", "week", "notes"}``.
     """
-    from aidnav.io import interchange
+    from aidnav.io import interchange  # lazy: pulls in pyarrow
 
     in_path, out_path = Path(in_path), Path(out_path)
     if kind not in KINDS:

@@ -33,8 +33,13 @@ from pathlib import Path
 import numpy as np
 
 from aidnav.data import GnssData, ImuData, Trajectory
+from aidnav.io import kfgins, rosbag
 from aidnav.io._std import ZERO_POS_STD_FLOOR_M, ZERO_VEL_STD_FLOOR_M_S
 from aidnav.io.errors import DataError
+from aidnav.io.nmea import read_nmea
+from aidnav.io.rosbag import is_rosbag
+from aidnav.io.rtklib import read_pos
+from aidnav.io.ubx import read_ubx
 
 __all__ = ["IMU_FORMATS", "GNSS_FORMATS", "TRAJECTORY_FORMATS", "detect_imu_format", "detect_gnss_format",
            "detect_trajectory_format", "read_imu", "read_gnss", "read_trajectory_any", "gnss_to_trajectory"]
@@ -100,8 +105,6 @@ class _Sniff:
         self.binary = b"\x00" in h or (bool(h) and sum(b < 9 or 13 < b < 32 for b in h) > 0.05 * len(h))
 
     def rosbag(self) -> bool:
-        from aidnav.io.rosbag import is_rosbag
-
         return is_rosbag(self.path)
 
     def parquet(self) -> bool:
@@ -147,21 +150,31 @@ def _increasing(x: np.ndarray) -> bool:
     return len(x) < 2 or bool(np.all(np.diff(x) > 0))
 
 
-def detect_imu_format(path) -> str:
-    """The IMU format of ``path`` (a key of :data:`IMU_FORMATS`), from its content.
+def _sniff_container(path, kinds: dict) -> tuple[Path, _Sniff, str | None]:
+    """The first checks of every detector: a ROS bag, a directory, an empty file, a Parquet file.
 
-    Raises DataError "unknown format: expected one of …" (naming what was seen) when none matches, and
-    a specific message for a raw rtklibexplorer log whose ``.tag`` file is missing."""
+    Returns the path, its sniffed head and the format when these checks settle it (else None)."""
     path = Path(path)
     s = _Sniff(path)
     if s.rosbag():
-        return "rosbag"
+        return path, s, "rosbag"
     if s.is_dir:
-        _unknown(path, IMU_FORMATS, "a directory without metadata.yaml")
+        _unknown(path, kinds, "a directory without metadata.yaml")
     if not s.head:
         raise DataError(path, None, "empty file")
-    if s.parquet():
-        return "interchange"
+    return path, s, "interchange" if s.parquet() else None
+
+
+def detect_imu_format(path, need_time_tag: bool = True) -> str:
+    """The IMU format of ``path`` (a key of :data:`IMU_FORMATS`), from its content.
+
+    Raises DataError "unknown format: expected one of …" (naming what was seen) when none matches, and
+    a specific message for a raw rtklibexplorer log whose ``.tag`` file is missing (with
+    ``need_time_tag`` False such a log is "rtklibexplorer": for jobs that use only the sample intervals,
+    e.g. the noise characterisation)."""
+    path, s, fmt = _sniff_container(path, IMU_FORMATS)
+    if fmt:
+        return fmt
     names = s.header_names()
     if names is not None:
         if "time" in names:
@@ -180,6 +193,8 @@ def detect_imu_format(path) -> str:
             raise DataError(path, None, "looks like a KF-GINS GNSS file (t lat lon h σN σE σD), not IMU "
                                         "increments: check the file given for the IMU")
         if k == 7 and "," in s.first and _increasing(rows[:, 6]):
+            if not need_time_tag:
+                return "rtklibexplorer"
             raise DataError(path, None, "looks like a raw rtklibexplorer IMU log (7 comma-separated fields, "
                                         f"ms stamp last) but its time tag {tag.name} is missing: it is "
                                         "needed to map the IMU stamps to GPS time")
@@ -189,16 +204,9 @@ def detect_imu_format(path) -> str:
 
 def detect_gnss_format(path) -> str:
     """The GNSS format of ``path`` (a key of :data:`GNSS_FORMATS`), from its content."""
-    path = Path(path)
-    s = _Sniff(path)
-    if s.rosbag():
-        return "rosbag"
-    if s.is_dir:
-        _unknown(path, GNSS_FORMATS, "a directory without metadata.yaml")
-    if not s.head:
-        raise DataError(path, None, "empty file")
-    if s.parquet():
-        return "interchange"
+    path, s, fmt = _sniff_container(path, GNSS_FORMATS)
+    if fmt:
+        return fmt
     if b"\xb5\x62\x01\x07" in s.head or (s.suffix == ".ubx" and b"\xb5\x62" in s.head):
         return "ubx"
     nmea_lines = sum(bool(_NMEA.match(ln.encode(errors="replace"))) for ln in s.lines[:200])
@@ -238,7 +246,7 @@ def detect_trajectory_format(path) -> str:
         if rows is not None and rows.shape[1] == 11 and _increasing(rows[:, 1]):
             return "kfgins-nav"
     if s.parquet():
-        import pyarrow.parquet as pq
+        import pyarrow.parquet as pq  # lazy: pyarrow is heavy to import
 
         try:
             names = pq.ParquetFile(path).schema_arrow.names
@@ -273,20 +281,16 @@ def read_imu(path, fmt: str | None = None, *, topic: str | None = None, axes: st
         fmt, how = detect_imu_format(path), "detected"
     _check_fmt(fmt, IMU_FORMATS, "IMU")
     if fmt == "interchange":
-        from aidnav.io import interchange
+        from aidnav.io import interchange  # lazy: pulls in pyarrow
 
         imu = interchange.read_imu(path)
     elif fmt == "rtklibexplorer":
-        from aidnav.io.logs import read_rtklibexplorer_imu
+        from aidnav.io.logs import read_rtklibexplorer_imu  # lazy: pulls in pyarrow
 
         imu = read_rtklibexplorer_imu(path, tag_path=tag_path, axes=axes or "RFU")
     elif fmt == "kfgins":
-        from aidnav.io import kfgins
-
         imu = kfgins.read_imu(path)
     else:
-        from aidnav.io import rosbag
-
         imu = rosbag.read_imu(path, topic=topic, axes=axes or "FLU", stamps=stamps)
     imu.events.insert(0, f"{path.name}: IMU format {fmt} ({how})")
     return imu
@@ -310,28 +314,18 @@ def read_gnss(path, fmt: str | None = None, height_offset_m: float = 0.0, *,
         fmt, how = detect_gnss_format(path), "detected"
     _check_fmt(fmt, GNSS_FORMATS, "GNSS")
     if fmt == "interchange":
-        from aidnav.io import interchange
+        from aidnav.io import interchange  # lazy: pulls in pyarrow
 
         g = interchange.read_gnss(path, min_pos_std_m=min_pos_std_m, min_vel_std_m_s=min_vel_std_m_s)
     elif fmt == "rtklib-pos":
-        from aidnav.io.rtklib import read_pos
-
         g = read_pos(path, min_pos_std_m=min_pos_std_m, min_vel_std_m_s=min_vel_std_m_s)
     elif fmt == "kfgins":
-        from aidnav.io import kfgins
-
         g = kfgins.read_gnss(path, min_pos_std_m=min_pos_std_m)
     elif fmt == "nmea":
-        from aidnav.io.nmea import read_nmea
-
         g = read_nmea(path, date=date, min_pos_std_m=min_pos_std_m)
     elif fmt == "ubx":
-        from aidnav.io.ubx import read_ubx
-
         g = read_ubx(path, min_pos_std_m=min_pos_std_m, min_vel_std_m_s=min_vel_std_m_s)
     else:
-        from aidnav.io import rosbag
-
         g = rosbag.read_gnss(path, topic=topic, vel_topic=vel_topic, stamps=stamps,
                              min_pos_std_m=min_pos_std_m)
     g.events.insert(0, f"{path.name}: GNSS format {fmt} ({how})")
@@ -364,7 +358,7 @@ def read_trajectory_any(path, fmt: str | None = None, height_offset_m: float = 0
         fmt = detect_trajectory_format(path)
     _check_fmt(fmt, TRAJECTORY_FORMATS, "trajectory")
     if fmt == "interchange":
-        from aidnav.io import interchange
+        from aidnav.io import interchange  # lazy: pulls in pyarrow
 
         traj = interchange.read_trajectory(path)
         if height_offset_m:
@@ -374,8 +368,6 @@ def read_trajectory_any(path, fmt: str | None = None, height_offset_m: float = 0
                              "height")
         return traj
     if fmt == "kfgins-nav":
-        from aidnav.io import kfgins
-
         traj = kfgins.read_nav(path)
         if height_offset_m:
             traj.height = traj.height + float(height_offset_m)

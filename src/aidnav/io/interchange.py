@@ -47,7 +47,9 @@ from aidnav.io._table import (  # noqa: F401  (TEXT_COLUMNS, read_table: part of
 )
 from aidnav.io.errors import DataError
 from aidnav.io.gpstime import SECONDS_PER_WEEK, week_sow_to_utc_iso
+from aidnav.io.kfgins import write_nav
 from aidnav.nav.earth import radii
+from aidnav.nav.rotations import wrap_2pi, wrap_360
 
 __all__ = ["read_imu", "write_imu", "read_gnss", "write_gnss", "read_trajectory", "write_trajectory",
            "read_table", "IMU_RATE_COLUMNS", "IMU_INCREMENT_COLUMNS", "GNSS_COLUMNS", "TRAJECTORY_COLUMNS"]
@@ -75,7 +77,7 @@ def read_imu(path) -> ImuData:
     ``t0`` (start of the first interval) comes from a ``# t0_s = ...`` comment / Parquet metadata when
     present, otherwise t_0 − (t_1 − t_0). Returns :class:`aidnav.data.ImuData` (time [s]).
     """
-    t = _open(path)
+    t = _open(path, copy=False)  # the columns may be read-only views: copied below, once
     t.require(["time"], "time")
     has_inc = t.has_all(IMU_INCREMENT_COLUMNS, "IMU increment")
     has_rate = t.has_all(IMU_RATE_COLUMNS, "IMU rate")
@@ -88,6 +90,8 @@ def read_imu(path) -> ImuData:
     t.finite(["time", *used])
     t.increasing_time()
     time = t.cols["time"]
+    if not time.flags.writeable:  # a view of the file's buffer
+        time = time.copy()
     events = []
     # the gyro and accelerometer triads as two contiguous (N, 3) arrays (no (N, 6) copy)
     if has_inc:
@@ -254,7 +258,7 @@ def read_trajectory(path) -> Trajectory:
     t.increasing_time()
     c = t.cols
     lat, lon, h = np.radians(c["lat_deg"]), np.radians(c["lon_deg"]), c["height_m"]
-    heading = np.mod(np.radians(c["heading_deg"]), 2 * np.pi)
+    heading = wrap_2pi(np.radians(c["heading_deg"]))
     heading[heading >= 2 * np.pi] = 0.0
     rph = np.column_stack([np.radians(c["roll_deg"]), np.radians(c["pitch_deg"]), heading])
     std_pos = std_vel = std_att = None
@@ -290,7 +294,7 @@ def trajectory_columns(traj: Trajectory, week: int | None = None) -> dict[str, n
     ``utc`` (ISO 8601 UTC, microseconds, leap seconds applied by :mod:`aidnav.io.gpstime`).
     """
     week = traj.week if week is None else week
-    heading = np.mod(np.degrees(traj.rph[:, 2]), 360.0)
+    heading = wrap_360(np.degrees(traj.rph[:, 2]))
     heading[heading >= 360.0] = 0.0
     df = {"time": traj.time}
     if week is not None:
@@ -328,8 +332,6 @@ def write_trajectory(traj: Trajectory, path, week: int | None = None) -> Path:
     (.csv or .parquet); columns as :func:`trajectory_columns` (``week``: add ``gps_week`` and ``utc``).
     A ``.nav`` path writes KF-GINS navigation text instead (:func:`aidnav.io.kfgins.write_nav`)."""
     if str(path).lower().endswith(".nav"):
-        from aidnav.io.kfgins import write_nav
-
         return write_nav(traj, path, week=week)
     week = traj.week if week is None else week
     df = trajectory_columns(traj, week=week)

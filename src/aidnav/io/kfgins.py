@@ -30,6 +30,7 @@ from aidnav.data import GnssData, ImuData, Trajectory
 from aidnav.io._std import DEFAULT_POS_STD_M, ZERO_POS_STD_FLOOR_M, check_std
 from aidnav.io._text import check_increasing, read_numeric_text
 from aidnav.io.errors import DataError
+from aidnav.nav.rotations import wrap_2pi, wrap_360
 
 __all__ = ["read_imu", "read_gnss", "read_nav", "write_nav", "write_imu", "write_gnss", "FRD_TO_RFU"]
 
@@ -94,7 +95,7 @@ def read_nav(path) -> Trajectory:
     time = v[:, 1] + np.where(v[:, 0] > 0, v[:, 0] - v[0, 0], 0.0) * 604800.0
     check_increasing(path, time, ln)
     _check_lat(path, v[:, 2], ln)
-    heading = np.mod(np.radians(v[:, 10]), 2 * np.pi)
+    heading = wrap_2pi(np.radians(v[:, 10]))
     heading[heading >= 2 * np.pi] = 0.0
     return Trajectory(time=time, lat=np.radians(v[:, 2]), lon=np.radians(v[:, 3]), height=v[:, 4],
                       vel=np.column_stack([v[:, 6], v[:, 5], -v[:, 7]]),
@@ -117,7 +118,7 @@ def write_nav(traj: Trajectory, path, week: int | None = None) -> Path:
     week : the GPS week of ``traj.time`` (default ``traj.week``; written as 0 when unknown, as KF-GINS
     data sets do).
     Full float64 precision (``%.17g``): reading it back gives the same numbers."""
-    heading = np.mod(np.degrees(traj.rph[:, 2]), 360.0)
+    heading = wrap_360(np.degrees(traj.rph[:, 2]))
     heading[heading >= 360.0] = 0.0
     week = traj.week if week is None else week
     roll = np.floor(np.asarray(traj.time) / 604800.0) if week is not None else 0.0  # past the week end

@@ -11,13 +11,15 @@ import io
 from pathlib import Path
 
 import numpy as np
+import pyarrow as pa
+import pyarrow.csv as pacsv
 
 from aidnav.data import ImuData
 from aidnav.io._arrow import column_to_f64
 from aidnav.io.errors import DataError
 from aidnav.io.gpstime import gpst_unix_to_week_sow
 from aidnav.io.timetag import fit_stamp_clock, line_end_offsets, read_timetag
-from aidnav.nav.earth import G0
+from aidnav.units import G0
 
 N_FIELDS = 7
 GAP_FACTOR = 5.0  #: a sample interval above this multiple of the median one is reported as a gap
@@ -143,8 +145,6 @@ def read_rtklibexplorer_imu(path, tag_path=None, axes: str = "RFU", mounting=Non
         raise DataError(path, None, "no readable IMU lines")
     cols = list(range(N_FIELDS))
     text = buf[byte_keep].tobytes()
-    import pyarrow as pa
-    import pyarrow.csv as pacsv
 
     try:
         tbl = pacsv.read_csv(io.BytesIO(text),
@@ -153,7 +153,7 @@ def read_rtklibexplorer_imu(path, tag_path=None, axes: str = "RFU", mounting=Non
                                  column_types={f"f{i}": pa.float64() for i in cols}))
         arr = np.column_stack([column_to_f64(tbl.column(i)) for i in cols])
     except (pa.ArrowInvalid, ValueError):  # a field that is not a number: find it (slow path, pandas)
-        import pandas as pd
+        import pandas as pd  # lazy: pandas is heavy to import
 
         raw = pd.read_csv(io.BytesIO(text), header=None, names=cols, dtype=str, engine="c",
                           keep_default_na=False)

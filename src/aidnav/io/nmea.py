@@ -33,8 +33,8 @@ from aidnav.data import GnssData
 from aidnav.io._std import DEFAULT_POS_STD_M, ZERO_POS_STD_FLOOR_M, check_std
 from aidnav.io.errors import DataError
 from aidnav.io.gpstime import GPS_EPOCH_UNIX, SECONDS_PER_WEEK, gpst_unix_to_week_sow, leap_seconds
+from aidnav.units import KNOT
 
-KNOT_M_S = 1852.0 / 3600.0  #: [m/s] per knot
 _GGA_Q = {1: 5, 2: 4, 3: 5, 4: 1, 5: 2, 9: 3}  # GGA fix quality → RTKLIB Q
 MAX_LISTED = 5
 
@@ -57,7 +57,7 @@ def read_nmea(path, date: str | _dt.date | None = None, min_pos_std_m: float = Z
 
     date : UTC date of the first epoch ('YYYY-MM-DD' or a date) for logs without RMC sentences.
     """
-    import pynmea2
+    import pynmea2  # lazy: pynmea2 is heavy to import
 
     path = Path(path)
     name = path.name
@@ -165,11 +165,11 @@ def read_nmea(path, date: str | _dt.date | None = None, min_pos_std_m: float = Z
             sep = 0.0
         ve = vn = math.nan
         if "rmc" in e and e["rmc"].status == "A" and e["rmc"].spd_over_grnd is not None:
-            spd, crs = _f(e["rmc"].spd_over_grnd) * KNOT_M_S, _f(e["rmc"].true_course)
+            spd, crs = _f(e["rmc"].spd_over_grnd) * KNOT, _f(e["rmc"].true_course)
         elif "vtg" in e:
             spd, crs = _f(e["vtg"].spd_over_grnd_kmph) / 3.6, _f(e["vtg"].true_track)
             if math.isnan(spd):
-                spd = _f(e["vtg"].spd_over_grnd_kts) * KNOT_M_S
+                spd = _f(e["vtg"].spd_over_grnd_kts) * KNOT
         else:
             spd = crs = math.nan
         if not math.isnan(spd):

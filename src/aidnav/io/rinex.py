@@ -61,7 +61,7 @@ __all__ = ["GpsEphemerides", "GnssObservations", "read_rinex_nav", "read_rinex_o
 
 
 def _load(path: Path, **kw):
-    import georinex as gr
+    import georinex as gr  # lazy: georinex is heavy to import
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FutureWarning)

@@ -68,8 +68,8 @@ def is_rosbag(path) -> bool:
 
 
 def _reader(path):
-    from rosbags.highlevel import AnyReader
-    from rosbags.typesys import Stores, get_typestore
+    from rosbags.highlevel import AnyReader  # lazy: rosbags is heavy to import
+    from rosbags.typesys import Stores, get_typestore  # lazy: rosbags is heavy to import
 
     path = _bag_path(path)
     if not is_rosbag(path):

@@ -50,7 +50,7 @@ def read_ubx(path, min_pos_std_m: float = ZERO_POS_STD_FLOOR_M,
     """Read the NAV-PVT fixes of a UBX log → GnssData (GPS seconds of week [s], lat/lon [rad],
     ellipsoidal height [m], ENU velocity [m/s], σ ENU [m], [m/s], RTKLIB-style quality). See the module
     docstring for the fields and the time conversion."""
-    from pyubx2 import ERR_LOG, UBX_PROTOCOL, UBXReader
+    from pyubx2 import ERR_LOG, UBX_PROTOCOL, UBXReader  # lazy: pyubx2 is heavy to import
 
     path = Path(path)
     name = path.name

@@ -26,7 +26,8 @@ from __future__ import annotations
 import numpy as np
 
 from aidnav.nav.earth import OMEGA_IE, gravity
-from aidnav.nav.rotations import dcm_from_euler
+from aidnav.nav.rotations import dcm_from_euler, wrap_2pi
+from aidnav.units import DEG_H
 
 
 def _window(imu, start, stop):
@@ -93,7 +94,7 @@ def coarse_align_static(imu, lat, start=None, stop=None, *, height=0.0, gyro_bia
 
     c_level = dcm_from_euler(roll, pitch, 0.0)  # R1(pitch) R2(roll)
     w_l = c_level @ w
-    cand = float(np.arctan2(-w_l[0], w_l[1]) % (2.0 * np.pi))
+    cand = float(wrap_2pi(np.arctan2(-w_l[0], w_l[1])))
     omega_h = OMEGA_IE * np.cos(lat)
     omega_v = OMEGA_IE * np.sin(lat)
 
@@ -113,16 +114,16 @@ def coarse_align_static(imu, lat, start=None, stop=None, *, height=0.0, gyro_bia
         reasons.append(f"too few samples ({len(t)}) to estimate the gyro noise")
     elif heading_std > max_heading_std:
         reasons.append(f"heading σ {np.degrees(heading_std):.1f}° > {np.degrees(max_heading_std):.1f}°: "
-                       f"gyro uncertainty {np.degrees(sig_h) * 3600:.2f} °/h vs horizontal Earth rate "
-                       f"Ω cos L = {np.degrees(omega_h) * 3600:.2f} °/h")
+                       f"gyro uncertainty {sig_h / DEG_H:.2f} °/h vs horizontal Earth rate "
+                       f"Ω cos L = {omega_h / DEG_H:.2f} °/h")
     tol_h = 3.0 * sig_h + 0.1 * omega_h
     if np.isfinite(tol_h) and abs(w_h - omega_h) > tol_h:
-        reasons.append(f"measured horizontal rate {np.degrees(w_h) * 3600:.2f} °/h is not the Earth rate "
-                       f"Ω cos L = {np.degrees(omega_h) * 3600:.2f} °/h (gyro bias or motion)")
+        reasons.append(f"measured horizontal rate {w_h / DEG_H:.2f} °/h is not the Earth rate "
+                       f"Ω cos L = {omega_h / DEG_H:.2f} °/h (gyro bias or motion)")
     tol_v = 3.0 * sig_v + 0.1 * OMEGA_IE
     if np.isfinite(tol_v) and abs(w_l[2] - omega_v) > tol_v:
-        reasons.append(f"measured vertical rate {np.degrees(w_l[2]) * 3600:.2f} °/h is not "
-                       f"Ω sin L = {np.degrees(omega_v) * 3600:.2f} °/h (gyro bias or motion)")
+        reasons.append(f"measured vertical rate {w_l[2] / DEG_H:.2f} °/h is not "
+                       f"Ω sin L = {omega_v / DEG_H:.2f} °/h (gyro bias or motion)")
     heading = None if reasons else cand
 
     info = {
@@ -146,6 +147,6 @@ def heading_from_course(ve, vn, min_speed=1.0):
     """
     ve = np.asarray(ve, dtype=float)
     vn = np.asarray(vn, dtype=float)
-    h = np.arctan2(ve, vn) % (2.0 * np.pi)
+    h = wrap_2pi(np.arctan2(ve, vn))
     h = np.where(np.hypot(ve, vn) >= min_speed, h, np.nan)
     return float(h) if h.ndim == 0 else h

@@ -13,7 +13,6 @@ import numpy as np
 from numba import njit
 
 from aidnav.nav.rotations import wrap_pi
-from aidnav.units import G0 as _G0
 
 A = 6378137.0  #: semi-major axis [m]
 F = 1.0 / 298.257223563  #: flattening [-]
@@ -21,7 +20,6 @@ B = A * (1.0 - F)  #: semi-minor axis [m]
 E2 = F * (2.0 - F)  #: first eccentricity squared [-]
 OMEGA_IE = 7.2921151467e-5  #: Earth rotation rate [rad/s]
 GM = 3.986004418e14  #: gravitational constant [m^3/s^2]
-G0 = _G0  #: standard gravity, only for unit conversion (mg, ug) [m/s^2] (aidnav.units)
 R_GEO = 42164.17e3  #: geostationary orbit radius [m]
 
 # Somigliana normal gravity (WGS-84)

@@ -38,9 +38,11 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from aidnav.units import DEG
+
 from .earth import R_GEO, dcm_ecef_to_enu, lla_to_ecef, radii
 from .earth import A as WGS84_A
-from .rotations import dcm_from_euler, skew
+from .rotations import dcm_from_euler, skew, wrap_360
 
 __all__ = [
     "R_GEO", "H_GEO_SEED000", "R_GEO_SEED000", "geo_radius_from_height", "geo_sat_ecef", "los_ecef",
@@ -217,11 +219,10 @@ def servo_angles(lat_deg: float, lon_deg: float, height_m: float, roll_deg: floa
     pol = str(polarization).strip().lower()
     if pol not in ("vertical", "horizontal"):
         raise ValueError(f"polarization must be 'vertical' or 'horizontal' (got {polarization!r})")
-    d = np.pi / 180.0
+    d = DEG
     Cbn = dcm_from_euler(float(roll_deg) * d, float(pitch_deg) * d, float(heading_deg) * d)
     sat = geo_sat_ecef(float(sat_lon_deg) * d, float(radius_m))
     az, el, p = servo_angles_rad(float(lat_deg) * d, float(lon_deg) * d, float(height_m), Cbn, sat,
                                  pol == "horizontal")
-    az_deg = float(np.degrees(az)) % 360.0
-    return {"azimuth_deg": 0.0 if az_deg >= 360.0 else az_deg, "elevation_deg": float(np.degrees(el)),
+    return {"azimuth_deg": float(wrap_360(np.degrees(az))), "elevation_deg": float(np.degrees(el)),
             "polarization_deg": float(np.degrees(p))}

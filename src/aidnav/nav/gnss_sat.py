@@ -27,6 +27,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from aidnav.units import DEG
+
 from .earth import OMEGA_IE, ecef_to_lla
 
 C_LIGHT = 299792458.0  #: speed of light [m/s]
@@ -251,7 +253,7 @@ def saastamoinen_zenith(lat, h, p_hpa, t_k, e_hpa):
 def trop_mapping(el):
     """Tropospheric mapping function of Black & Eisner (1984), m(E) = 1.001/√(0.002001 + sin²E), as in
     RTCA DO-229 (valid above ~3°; elevations below 2° are clamped to 2°)."""
-    s = np.sin(max(el, 2.0 * np.pi / 180.0))
+    s = np.sin(max(el, 2.0 * DEG))
     return 1.001 / np.sqrt(0.002001 + s * s)
 
 

@@ -32,9 +32,9 @@ def skew(v):
     return m
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def cross(a, b):
-    """Cross product of two length-3 arrays (numba-friendly)."""
+    """Cross product of two length-3 arrays (inlined: the measurement models call it often)."""
     return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
 
 
@@ -75,9 +75,7 @@ def euler_from_dcm(c):
     else:
         roll = np.arctan2(-c[2, 0], c[2, 2])
         heading = np.arctan2(c[0, 1], c[1, 1])
-    heading = heading % TWO_PI
-    if heading >= TWO_PI:
-        heading -= TWO_PI
+    heading = wrap_2pi(heading)
     if roll <= -np.pi:
         roll += TWO_PI
     return roll, pitch, heading
@@ -109,18 +107,20 @@ def quat_normalize(q):
     return q / n
 
 
+@njit(cache=True, inline="always")
+def _half_angle(a2):
+    """cos(a/2) and sin(a/2)/a of the angle a = √a2 [rad]; 4th-order series for a² < 1e-8 (exact to
+    float64 there, and no loss of relative precision as a → 0)."""
+    if a2 < 1e-8:
+        return 1.0 - a2 / 8.0 + a2 * a2 / 384.0, 0.5 - a2 / 48.0 + a2 * a2 / 3840.0
+    a = np.sqrt(a2)
+    return np.cos(0.5 * a), np.sin(0.5 * a) / a
+
+
 @njit(cache=True)
 def quat_from_rotvec(r):
     """Quaternion of the rotation vector ``r`` [rad]; series for |r| small (exact to float64)."""
-    a2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2]
-    if a2 < 1e-8:
-        # cos(a/2), sin(a/2)/a to 4th order
-        c = 1.0 - a2 / 8.0 + a2 * a2 / 384.0
-        s = 0.5 - a2 / 48.0 + a2 * a2 / 3840.0
-    else:
-        a = np.sqrt(a2)
-        c = np.cos(0.5 * a)
-        s = np.sin(0.5 * a) / a
+    c, s = _half_angle(r[0] * r[0] + r[1] * r[1] + r[2] * r[2])
     return np.array([c, s * r[0], s * r[1], s * r[2]])
 
 
@@ -189,17 +189,10 @@ def quat_from_dcm(c):
 
 @njit(cache=True)
 def dcm_from_rotvec(r):
-    """DCM of a rotation vector (Rodrigues), series for small angles."""
-    a2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2]
-    if a2 < 1e-8:
-        s = 1.0 - a2 / 6.0 + a2 * a2 / 120.0
-        c = 0.5 - a2 / 24.0 + a2 * a2 / 720.0
-    else:
-        a = np.sqrt(a2)
-        s = np.sin(a) / a
-        c = (1.0 - np.cos(a)) / a2
+    """DCM of a rotation vector (Rodrigues: I + sin a/a [r×] + (1 − cos a)/a² [r×]², by half angles)."""
+    ch, sh = _half_angle(r[0] * r[0] + r[1] * r[1] + r[2] * r[2])
     k = skew(r)
-    return np.eye(3) + s * k + c * (k @ k)
+    return np.eye(3) + (2.0 * ch * sh) * k + (2.0 * sh * sh) * (k @ k)
 
 
 @njit(cache=True)
@@ -274,14 +267,32 @@ def attitude_error_batch(q_est, q_true):
     return out
 
 
+# ------------------------------------------------------------------------------- angle wrapping
+# numba functions for scalars and arrays alike (numpy arrays of any shape, floats), callable from kernels
+@njit(cache=True)
 def wrap_pi(a):
     """Wrap angle(s) [rad] to [-π, π)."""
-    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
+    return (a + np.pi) % TWO_PI - np.pi
 
 
+@njit(cache=True)
 def wrap_180(a):
     """Wrap angle(s) [deg] to [-180, 180)."""
-    return (np.asarray(a) + 180.0) % 360.0 - 180.0
+    return (a + 180.0) % 360.0 - 180.0
+
+
+@njit(cache=True)
+def wrap_2pi(a):
+    """Wrap angle(s) [rad] to [0, 2π) (headings, azimuths)."""
+    r = a % TWO_PI
+    return r - TWO_PI * (r >= TWO_PI)  # a tiny negative angle rounds to 2π
+
+
+@njit(cache=True)
+def wrap_360(a):
+    """Wrap angle(s) [deg] to [0, 360) (headings, azimuths)."""
+    r = a % 360.0
+    return r - 360.0 * (r >= 360.0)
 
 
 def euler_error_map(rph: np.ndarray) -> np.ndarray:

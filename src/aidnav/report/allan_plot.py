@@ -25,6 +25,7 @@ from matplotlib.ticker import LogLocator, NullLocator
 
 from aidnav.analysis.noise_fit import model as C
 from aidnav.analysis.noise_fit.results import Characterisation
+from aidnav.units import DEG_H, DEG_H_SQRT_H, DEG_SQRT_H, M_S_SQRT_H, UG, UG_SQRT_H
 
 __all__ = ["plot_allan"]
 
@@ -34,11 +35,11 @@ _COLORS = {"Q": "tab:purple", "N": "tab:green", "GM": "tab:orange", "K": "tab:re
 
 def _term_labels(a, sensor: str, span_s: float | None = None) -> dict:
     if sensor == "gyro":
-        u = {"Q": (1.0, "rad", "quantisation"), "N": (C.DEG_SQRT_H, "deg/√h", "ARW"),
-             "GM": (C.DEG_H, "deg/h", "bias instability B"), "K": (C.DEG_H_SQRT_H, "deg/h/√h", "RRW")}
+        u = {"Q": (1.0, "rad", "quantisation"), "N": (DEG_SQRT_H, "deg/√h", "ARW"),
+             "GM": (DEG_H, "deg/h", "bias instability B"), "K": (DEG_H_SQRT_H, "deg/h/√h", "RRW")}
     else:
-        u = {"Q": (1.0, "m/s", "quantisation"), "N": (C.M_S_SQRT_H, "m/s/√h", "VRW"),
-             "GM": (C.UG, "µg", "bias instability B"), "K": (C.UG_SQRT_H, "µg/√h", "acc. RW")}
+        u = {"Q": (1.0, "m/s", "quantisation"), "N": (M_S_SQRT_H, "m/s/√h", "VRW"),
+             "GM": (UG, "µg", "bias instability B"), "K": (UG_SQRT_H, "µg/√h", "acc. RW")}
     keys = {"Q": "quantisation", "N": "white", "GM": "bias_instability", "K": "rrw"}
     slope = {"Q": "−1", "N": "−1/2", "GM": "bump", "K": "+1/2"}
     white_only = getattr(a, "white_only", False)
@@ -89,7 +90,7 @@ def plot_allan(ch: Characterisation, path, title: str | None = None) -> Path:
     for i, a in enumerate(ch.axes):
         ax = axs[i // 3, i % 3]
         sensor = a.sensor
-        f, unit = (C.DEG_H, "deg/h") if sensor == "gyro" else (C.UG, "µg")
+        f, unit = (DEG_H, "deg/h") if sensor == "gyro" else (UG, "µg")
         tau = a.taus
         y = a.adev / f
         lo = np.where(np.isfinite(a.adev_lo), a.adev_lo / f, y)

@@ -199,7 +199,7 @@ def _fix_text(g: GnssData, i: int, rejected: bool, withheld: bool) -> dict:
 
 
 def _kml_colour(hex_rgb: str, alpha: int = 255) -> str:
-    import simplekml
+    import simplekml  # lazy: simplekml is heavy to import
 
     r, g, b = int(hex_rgb[1:3], 16), int(hex_rgb[3:5], 16), int(hex_rgb[5:7], 16)
     return simplekml.Color.rgb(r, g, b, alpha)
@@ -216,7 +216,7 @@ def write_kml(path, traj: Trajectory, gnss: GnssData | None = None, outages=None
     (``summary["rejected_fix_times"]``), matched to the fixes within 1 µs; color_by : "auto" (quality
     when present, else σ), "sigma" or "quality"; max_points / max_fixes : decimation limits.
     """
-    import simplekml
+    import simplekml  # lazy: simplekml is heavy to import
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

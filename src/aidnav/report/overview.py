@@ -9,7 +9,7 @@ normalised innovation squared (NIS) per measurement type against its two-sided 9
 Time axis: seconds since the trajectory's first epoch (stated in the label, on the input's time scale).
 
 Inputs: a :class:`~aidnav.data.Trajectory`, optionally the :class:`~aidnav.data.GnssData` fixes, the
-summary dict of :func:`aidnav.process.process_logs` (``outage_windows``, ``rejected_fix_times``, input
+summary dict of :func:`aidnav.apps.process.process_logs` (``outage_windows``, ``rejected_fix_times``, input
 names) and a records dict of innovations: ``run_loose``'s ``res.records`` (``pos_status``, ``pos_nis``,
 ``pos_innov``, ``vel_status``, ``vel_nis``, ``vel_innov``, aligned with the GNSS fixes) or, for the
 tightly coupled filter, :func:`tight_records` of ``res.epochs``. Generic rule: every ``<type>_nis``
@@ -29,6 +29,9 @@ from matplotlib.figure import Figure
 from aidnav.analysis.consistency import chi2_band
 from aidnav.data import GnssData, Trajectory
 from aidnav.nav.earth import lla_to_enu
+from aidnav.nav.rotations import wrap_360
+
+from .maps import _fix_groups
 
 __all__ = ["write_overview", "overview_figure", "nis_series", "tight_records", "NIS_NAMES"]
 
@@ -99,7 +102,6 @@ def _rejected_mask(gnss: GnssData, summary: dict, records: dict | None) -> np.nd
     st = None if records is None else records.get("pos_status")
     if st is not None and len(st) == len(gnss):
         return np.asarray(st) == 0
-    from .maps import _fix_groups
 
     return _fix_groups(gnss, summary.get("rejected_fix_times"), None)[0]
 
@@ -192,7 +194,7 @@ def overview_figure(traj: Trajectory, gnss: GnssData | None = None, summary: dic
     ax.set_ylabel("roll, pitch [deg]")
     ax.legend(loc="upper right", fontsize=8)
     ax = axes["heading"]
-    ax.plot(t, np.mod(np.degrees(traj.rph[sl, 2]), 360.0), ".", ms=1, color="C2")
+    ax.plot(t, wrap_360(np.degrees(traj.rph[sl, 2])), ".", ms=1, color="C2")
     ax.set_ylabel("heading [deg]")
     ax.set_ylim(0, 360)
     ax.set_yticks([0, 90, 180, 270, 360])
@@ -277,7 +279,7 @@ def write_overview(path, traj: Trajectory, gnss: GnssData | None = None, summary
     """Write ``overview.png`` (see the module docstring) to ``path`` and return the path.
 
     traj : the solution; gnss : the GNSS fixes used (antenna positions); summary : the dict of
-    :func:`aidnav.process.process_logs` (outage windows, rejected fix times, input names); records :
+    :func:`aidnav.apps.process.process_logs` (outage windows, rejected fix times, input names); records :
     innovation records (``res.records`` of ``run_loose``, or :func:`tight_records`); dpi : 100 gives a
     1400-px-wide image.
     """

@@ -5,8 +5,8 @@ timings), the outage score, the comparison with a reference, the calibration est
 notes, the figures (embedded as data URIs) and the whole summary as JSON. Same HTML machinery and
 layout rules as the campaign report (:mod:`aidnav.report.html`).
 
-Input: the summary dict written by :func:`aidnav.process.process_logs` or
-:func:`aidnav.process_tight.process_tight_files` (known keys are laid out, every other key appears in
+Input: the summary dict written by :func:`aidnav.apps.process.process_logs` or
+:func:`aidnav.apps.tight.process_tight_files` (known keys are laid out, every other key appears in
 "Other values" and in the JSON). ``summary["calibration"]`` (optional): a mapping name → value, where a
 value is a number, a list of numbers, or a dict with ``value`` (number or list) and optional ``std``
 (or ``sigma``) and ``unit``; a name ending in a unit (``gyro_bias_x_deg_h``) needs no ``unit``.
@@ -20,12 +20,13 @@ from pathlib import Path
 
 import numpy as np
 
+from aidnav.filters.result import SENSOR_ERROR_UNITS
+
 from .html import escape, fmt, img_file_tag, kv_table, page, table
+from .maps import write_maps
 
 __all__ = ["write_run_page", "run_page_html", "write_run_outputs", "calibration_estimates"]
 
-_CAL_NAMES = [("gyro_bias_{}_deg_h", 180.0 / math.pi * 3600.0), ("accel_bias_{}_ug", 1.0 / 9.80665e-6),
-              ("gyro_sf_{}_ppm", 1e6), ("accel_sf_{}_ppm", 1e6)]
 
 
 def calibration_estimates(res) -> dict:
@@ -38,12 +39,12 @@ def calibration_estimates(res) -> dict:
     pdiag = np.asarray(res.pdiag, float)
     if bias.ndim != 2 or len(bias) == 0:
         return {}
-    nb = min(bias.shape[1] // 3, len(_CAL_NAMES)) * 3
+    nb = min(bias.shape[1] // 3, len(SENSOR_ERROR_UNITS)) * 3
     if pdiag.shape[1] < 9 + nb:
         raise ValueError(f"calibration: pdiag has {pdiag.shape[1]} states, fewer than 9 + {nb} bias states")
     out = {}
     for k in range(nb):
-        name, scale = _CAL_NAMES[k // 3]
+        name, scale = SENSOR_ERROR_UNITS[k // 3]
         var = pdiag[-1, 9 + k]
         out[name.format("xyz"[k % 3])] = {
             "value": float(bias[-1, k] * scale),
@@ -261,8 +262,7 @@ def write_run_outputs(out_dir, traj, gnss=None, summary: dict | None = None, rec
     (:func:`aidnav.report.maps.write_maps`, when ``maps``) and ``run.html`` embedding the overview
     and the further ``figures``. progress : optional :class:`aidnav.progress.ProgressBar` (one stage
     "figures and maps", 3 steps). Returns {"overview", "run_page", "kml", "geojson"} → paths."""
-    from .maps import write_maps
-    from .overview import write_overview
+    from .overview import write_overview  # lazy: pulls in matplotlib, scipy
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

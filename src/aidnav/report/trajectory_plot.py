@@ -15,6 +15,7 @@ from matplotlib.figure import Figure
 
 from aidnav.data import GnssData, Trajectory
 from aidnav.nav.earth import lla_to_enu
+from aidnav.nav.rotations import wrap_360
 
 __all__ = ["plot_trajectory"]
 
@@ -74,7 +75,7 @@ def plot_trajectory(traj: Trajectory, path, title: str | None = None, segments: 
     ax_rp.plot(t, np.degrees(traj.rph[sl, 1]), label="pitch")
     ax_rp.set_ylabel("[deg]")
     ax_rp.legend(loc="best", fontsize=8)
-    ax_y.plot(t, np.mod(np.degrees(traj.rph[sl, 2]), 360.0), ".", ms=1, color="C2")
+    ax_y.plot(t, wrap_360(np.degrees(traj.rph[sl, 2])), ".", ms=1, color="C2")
     ax_y.set_ylabel("heading [deg]")
     ax_y.set_ylim(0, 360)
     ax_y.set_yticks([0, 90, 180, 270, 360])

@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from aidnav.nav.earth import lla_to_enu
+from aidnav.nav.rotations import wrap_2pi
 from aidnav.nav.wave_frame import (
     P_SEED,
     base_wave_dcm_enu,
@@ -97,6 +98,6 @@ def base_geometry(lat_base, lon_base, h_base, lat, lon, h):
     [m], and C_{n_base}^{n} (base ENU → aircraft ENU). Positions geodetic [rad, rad, m]."""
     e, n_, u = lla_to_enu(lat, lon, h, lat_base, lon_base, h_base)
     rng_ = float(np.sqrt(e * e + n_ * n_ + u * u))
-    bearing = float(np.arctan2(e, n_) % (2 * np.pi))
+    bearing = float(wrap_2pi(np.arctan2(e, n_)))
     elev = float(np.arcsin(u / rng_))
     return bearing, elev, rng_, enu_rotation_between(lat_base, lon_base, lat, lon)

@@ -67,6 +67,7 @@ from aidnav.nav.rotations import (
     euler_error_map,  # noqa: F401  (re-exported)
     euler_from_dcm,
     rotvec_from_dcm,
+    wrap_2pi,
 )
 from aidnav.sim.imu import ImuSpec, corrupt_imu
 from aidnav.units import DEG
@@ -469,7 +470,7 @@ def simulate_master_pos(truth: Trajectory, imu: ImuData, spec: MasterPosSpec,
             for k in range(1, m):
                 z[k] = a * z[k - 1] + b * z[k]
     rph = truth.rph[idx] + za * spec.att_sigma_rad
-    rph[:, 2] = np.mod(rph[:, 2], 2 * np.pi)
+    rph[:, 2] = wrap_2pi(rph[:, 2])
     drift, drift_rate = second_order_markov(spec.pos_drift_sigma_m, np.full(3, spec.pos_drift_tau_s),
                                             ratio * dt, m - 1, rng)
     vel = truth.vel[idx] + zv * spec.sigma_vel_m_s + drift_rate
@@ -518,7 +519,7 @@ def simulate_distributed_pos(scn_or_truth, cfg: DistributedPosConfig | None = No
     if isinstance(scn_or_truth, tuple):
         truth, imu, segments = scn_or_truth
     else:
-        from aidnav.sim.trajectory import generate_truth
+        from aidnav.sim.trajectory import generate_truth  # lazy: pulls in pydantic, yaml
 
         truth, imu, segments = generate_truth(scn_or_truth)
     s_flex, s_imu, s_master = run_streams(seed)

@@ -39,7 +39,7 @@ from aidnav.nav.gnss_sat import (
     visible,
 )
 from aidnav.nav.gnss_types import GpsEphemerides
-from aidnav.nav.rotations import wrap_pi
+from aidnav.nav.rotations import wrap_360, wrap_pi
 
 __all__ = ["SLOTS_24", "nominal_constellation", "visible_satellites"]
 
@@ -92,7 +92,7 @@ def _slots(n_sats: int):
                 plane,
                 5 + sum(1 for p, *_ in slots[24:] if p == plane),
                 raan,
-                float((us[i] + gaps[i] / 2) % 360.0),
+                float(wrap_360(us[i] + gaps[i] / 2)),
             )
         )
     return slots[:n_sats]

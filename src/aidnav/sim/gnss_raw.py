@@ -62,7 +62,7 @@ import numpy as np
 from numba import njit
 
 from aidnav.data import Trajectory
-from aidnav.nav.earth import ecef_to_lla, lla_to_ecef
+from aidnav.nav.earth import ecef_to_lla, lla_to_ecef, radii
 from aidnav.nav.gnss_sat import (
     C_LIGHT,
     PI_GPS,
@@ -75,6 +75,7 @@ from aidnav.nav.gnss_sat import (
 )
 from aidnav.nav.gnss_types import GnssObservations, GpsEphemerides
 from aidnav.nav.rotations import wrap_pi
+from aidnav.sim.gnss import interpolate_truth  # the same interpolation as the PV fixes
 
 __all__ = [
     "RawGnssSpec",
@@ -348,8 +349,6 @@ def simulate_raw_gnss(
     the truth's time (default: one epoch interval after its start).
     Returns :class:`RawGnssSim`; observation times are the receivers' tags on the ephemeris scale.
     """
-    from aidnav.sim.gnss import interpolate_truth  # same interpolation as the PV fixes
-
     t = np.asarray(truth.time, float)
     dt = 1.0 / spec.rate_hz
     first = t[0] + (dt if start_s is None else start_s)
@@ -395,7 +394,6 @@ def simulate_raw_gnss(
         ref_lat, ref_lon, ref_h = (float(x) for x in base_lla)
     else:
         ref_lat, ref_lon, ref_h = float(lat[0]), float(lon[0]), float(h[0])
-    from aidnav.nav.earth import radii
 
     rm, rn = radii(ref_lat)
     dlon = wrap_pi(lon - ref_lon)

@@ -25,7 +25,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from aidnav.nav.earth import E2, G0, OMEGA_IE, A, gravity
+from aidnav.nav.earth import E2, OMEGA_IE, A, gravity
+from aidnav.units import G0
 
 
 @njit(cache=True)

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from aidnav.io.aux_sensors import OdometerData
-from aidnav.nav.rotations import dcm_from_euler, euler_to_quat_batch
+from aidnav.nav.rotations import dcm_from_euler, dcm_from_quat, euler_to_quat_batch
 
 
 def simulate_odometer(truth, rate_hz: float, scale_factor: float, sigma_m_s: float, rng: np.random.Generator,
@@ -20,8 +20,6 @@ def simulate_odometer(truth, rate_hz: float, scale_factor: float, sigma_m_s: flo
     scale_factor : k [-] (e.g. 0.01 = reads 1 % high); sigma_m_s : white-noise σ [m/s] (also the
     ``std`` column). Returns :class:`aidnav.io.aux_sensors.OdometerData`.
     """
-    from aidnav.nav.rotations import dcm_from_quat
-
     dt = float(np.median(np.diff(truth.time)))
     step = max(1, int(round(1.0 / (rate_hz * dt))))
     idx = np.arange(step, len(truth.time), step)

@@ -11,7 +11,10 @@ from importlib import resources
 import numpy as np
 
 from aidnav.data import GnssData, ImuData, Trajectory
+from aidnav.sim import gnss as gnss_mod
+from aidnav.sim import imu as imu_mod
 from aidnav.sim.scenario import Scenario, ScenarioError, load_scenario
+from aidnav.sim.trajectory import generate_truth
 
 __all__ = ["ScenarioError", "simulate", "load_default_scenario", "default_scenario_path",
            "SimulationResult"]
@@ -61,10 +64,6 @@ def simulate(scn: Scenario, seed: int | None = None, status=None) -> SimulationR
     its first spawned child drives the IMU errors, the second the GNSS noise, so changing one sensor's
     settings never changes the other's draws. ``status`` is an optional callable(str) for progress.
     """
-    from aidnav.sim import gnss as gnss_mod
-    from aidnav.sim import imu as imu_mod
-    from aidnav.sim.trajectory import generate_truth
-
     say = status or (lambda msg: None)
     seed = int(scn.seed if seed is None else seed)
     where = _where(scn)

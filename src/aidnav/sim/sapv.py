@@ -40,6 +40,7 @@ import numpy as np
 
 from aidnav.data import Trajectory
 from aidnav.nav.geo_pointing import R_GEO, R_GEO_SEED000, az_el_from_body, geo_sat_ecef
+from aidnav.nav.rotations import wrap_2pi
 from aidnav.sim.gnss import time_windows
 from aidnav.units import DEG
 
@@ -48,6 +49,9 @@ __all__ = ["SapvSpec", "SapvData", "simulate_sapv", "OK", "BLOCKED", "LOW_ELEVAT
 
 
 from aidnav.models.sapv import BLOCKED, BODY_RATE, LOW_ELEVATION, OK, REACQUIRING, REASONS  # noqa: E402, F401
+from aidnav.nav.geo_pointing import los_enu
+from aidnav.nav.rotations import euler_to_quat_batch
+from aidnav.sim.gnss import interpolate_truth
 
 
 def _pair(x, name: str) -> np.ndarray:
@@ -169,8 +173,6 @@ def _body_rate(truth: Trajectory, times: np.ndarray) -> np.ndarray:
     """|ω_nb^b| [rad/s] at ``times`` from finite differences of the truth attitude: the rotation angle of
     q_k* ⊗ q_{k+1} over each interval; the larger of the two intervals around each time (a loss is not
     hidden by interpolation)."""
-    from aidnav.nav.rotations import euler_to_quat_batch
-
     t = np.asarray(truth.time, float)
     q = euler_to_quat_batch(np.ascontiguousarray(np.asarray(truth.rph, float)))
     p, r = q[:-1], q[1:]
@@ -200,8 +202,6 @@ def simulate_sapv(truth: Trajectory, spec: SapvSpec, rng: np.random.Generator,
     -------
     :class:`SapvData` (model in the module docstring).
     """
-    from aidnav.sim.gnss import interpolate_truth
-
     t = np.asarray(truth.time, dtype=float)
     t_start, t_end = t[0], t[-1]
     if times is None:
@@ -214,7 +214,6 @@ def simulate_sapv(truth: Trajectory, spec: SapvSpec, rng: np.random.Generator,
     gm = rng.standard_normal((m, 2))
     sat = spec.sat_ecef
     _, _, lat, lon, h, _, c_bn, _ = interpolate_truth(truth, np.minimum(times, t_end))
-    from aidnav.nav.geo_pointing import los_enu
 
     az_t = np.empty(m)
     el_t = np.empty(m)
@@ -234,7 +233,7 @@ def simulate_sapv(truth: Trajectory, spec: SapvSpec, rng: np.random.Generator,
             b = a * b + sb * np.sqrt(1.0 - a * a) * gm[j]
             bias[j] = b
     sig = spec.sigma_deg * DEG
-    az = np.mod(az_t + bias[:, 0] + sig[0] * white[:, 0], 2.0 * np.pi)
+    az = wrap_2pi(az_t + bias[:, 0] + sig[0] * white[:, 0])
     az[az >= 2.0 * np.pi] = 0.0  # np.mod of a tiny negative angle rounds to 2π: keep az in [0, 2π)
     el = el_t + bias[:, 1] + sig[1] * white[:, 1]
     # losses

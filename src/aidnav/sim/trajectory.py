@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from aidnav.data import ImuData, Trajectory
+from aidnav.nav.rotations import wrap_2pi
 from aidnav.sim import scenario as sc
 from aidnav.sim.motion import generate, half_widths
 from aidnav.sim.scenario import Scenario, ScenarioError
@@ -214,8 +215,7 @@ def generate_truth(scn: Scenario) -> tuple[Trajectory, ImuData, list[dict]]:
     tr, dth, dv = generate(cm.tb, cm.half, cm.vals, cm.y0, cm.roll0, cm.dt, cm.n)
     # exact sample times k·dt (the kernel accumulates the same values; recompute for tidiness)
     t = np.arange(cm.n + 1) * cm.dt
-    heading = np.mod(tr[:, 9], _TWO_PI)
-    heading[heading >= _TWO_PI] = 0.0
+    heading = wrap_2pi(tr[:, 9])
     rph = np.column_stack([tr[:, 7], tr[:, 8], heading])
     truth = Trajectory(time=t, lat=tr[:, 1].copy(), lon=tr[:, 2].copy(), height=tr[:, 3].copy(),
                        vel=np.ascontiguousarray(tr[:, 4:7]), rph=rph)

@@ -14,7 +14,8 @@ The modules, in the order of the data:
 - :mod:`aidnav.analysis.allan` — the overlapping Allan deviation (one fused numba pass per axis);
 - :mod:`.model` — the four-term noise model and the unit constants;
 - :mod:`.allan_cov` — exact covariance of the Allan variance estimates (EDFs and correlations);
-- :mod:`.nnls` — numba kernels of the fit; :mod:`.fit` — the fit with its profile-likelihood intervals;
+- :mod:`.nnls` — numba kernels of the fit; :mod:`.fit` — the fit with its profile-likelihood intervals
+  (:mod:`.roots`: its bracketing root finder);
 - :mod:`.vibration` — sample spread and dominant frequency per axis;
 - :mod:`.analyse` — :func:`characterise_rates` / :func:`characterise_imu`, the whole analysis;
 - :mod:`.results` — the result containers; :mod:`.output` — noise.json, the ``imu:`` section, its YAML;
@@ -33,15 +34,9 @@ from aidnav.analysis.noise_fit.fit import fit_allan
 from aidnav.analysis.noise_fit.model import (
     AXES,
     B_PER_GM_SIGMA,
-    DEG_H,
-    DEG_H_SQRT_H,
-    DEG_SQRT_H,
     FLICKER_ADEV,
     GM_PEAK_ADEV,
     GM_PEAK_X,
-    M_S_SQRT_H,
-    UG,
-    UG_SQRT_H,
     gm_avar,
     model_avar,
 )
@@ -50,6 +45,9 @@ from aidnav.analysis.noise_fit.prepare import resampled_min_m, trapezoid_samples
 from aidnav.analysis.noise_fit.results import AxisFit, Characterisation, NotStaticError, TermEstimate
 from aidnav.analysis.noise_fit.static import static_check
 from aidnav.analysis.noise_fit.vibration import vibration_report
+
+# re-exported: the units of the results
+from aidnav.units import DEG_H, DEG_H_SQRT_H, DEG_SQRT_H, M_S_SQRT_H, UG, UG_SQRT_H
 
 __all__ = ["characterise_imu", "characterise_rates", "fit_allan", "merge_gm_rw", "print_characterisation",
            "Characterisation", "AxisFit", "TermEstimate", "NotStaticError", "static_check", "uniform_rates",

@@ -25,28 +25,22 @@ from aidnav.analysis.noise_fit.static import _window_stats
 from aidnav.analysis.noise_fit.timing import Stages
 from aidnav.data import ImuData
 from aidnav.io.errors import DataError
+from aidnav.io.formats import detect_imu_format
 from aidnav.io.interchange import read_imu
 from aidnav.io.logs import read_rtklibexplorer_imu
 
 
-# -------------------------------------------------------------------------------------- format detection
-# FORMAT DETECTION: the one place this job tells IMU log formats apart. Replace the body by the call to
-# ``aidnav.io.formats`` (being written) when it lands; the reader and the increment rule follow from it.
 def imu_log_format(path) -> str:
-    """Format of an IMU log: "interchange" (Parquet, or a CSV whose header names ``time``) or
-    "rtklibexplorer" (a raw CSV without header: point samples of the rates). DataError when the file is
-    missing or empty."""
+    """Format of an IMU log the characterisation reads (:func:`aidnav.io.formats.detect_imu_format`):
+    "interchange" or "rtklibexplorer" (a raw log needs no ``.tag`` here: only the sample intervals
+    matter). DataError when the file is missing, empty, of another or of no known format."""
     path = Path(path)
     if not path.exists():
         raise DataError(path, None, "file not found")
-    if path.suffix.lower() in (".parquet", ".pq"):
-        return "interchange"
-    with open(path, "rb") as f:
-        head = f.read(4096).decode("utf-8", "replace")
-    first = next((ln for ln in head.splitlines() if ln.strip() and not ln.startswith("#")), "")
-    if not first:
-        raise DataError(path, 1, "empty file")
-    return "interchange" if "time" in first else "rtklibexplorer"
+    fmt = detect_imu_format(path, need_time_tag=False)
+    if fmt not in _READERS:
+        raise DataError(path, None, f"a {fmt} log: the characterisation reads {' and '.join(_READERS)} logs")
+    return fmt
 
 
 #: reader of each format (increments Δθ [rad], Δv [m/s], body RFU)
@@ -63,9 +57,7 @@ def _warm_up() -> None:
     """Import the analysis libraries and load the compiled kernels (numba's first call costs a few tenths
     of a second): run in a thread while the log is read, so that it overlaps the reading."""
     try:
-        # the fit's scipy.optimize (~0.3 s with scipy.linalg) and scipy.special, imported here to overlap
-        # the reading
-        from scipy.optimize import brentq  # noqa: F401
+        # the fit's scipy.special (~0.1 s), imported here to overlap the reading
         from scipy.special import digamma, gammaincinv  # noqa: F401
 
         tau = np.array([0.01, 0.02, 0.04])

@@ -34,17 +34,15 @@ from aidnav.analysis.noise_fit.allan_cov import _estimate_stats
 from aidnav.analysis.noise_fit.model import (
     _TERM_ORDER,
     B_PER_GM_SIGMA,
-    DEG_H,
-    DEG_SQRT_H,
     FLICKER_ADEV,
     GM_PEAK_X,
-    M_S_SQRT_H,
-    UG,
     _gm_shape,
     _logchi2_moments,
 )
 from aidnav.analysis.noise_fit.nnls import _columns_nb, _fit_c_nb, _profile_u_nb
 from aidnav.analysis.noise_fit.results import AxisFit, TermEstimate
+from aidnav.analysis.noise_fit.roots import brentq
+from aidnav.units import DEG_H, DEG_SQRT_H, M_S_SQRT_H, UG
 
 CI_PROB = 0.95  #: two-sided probability of the reported intervals
 MAX_CI_RATIO = 10.0  #: a term whose 95% interval spans more than this factor is "not resolved"
@@ -110,8 +108,6 @@ class _Profile:
 
 def _interval(prof: _Profile, idx: int, c_hat: float, d_min: float, crit: float, cap: float):
     """Profile-likelihood interval (lo, hi) of coefficient ``idx``: where D − D_min = crit."""
-    from scipy.optimize import brentq  # scipy.optimize: ~0.3 s to import (scipy.linalg); on first use
-
     def f(v):
         return prof.best(idx, v)[0] - d_min - crit
 
@@ -138,8 +134,6 @@ def _interval(prof: _Profile, idx: int, c_hat: float, d_min: float, crit: float,
 
 def _u_interval(prof: _Profile, d_min: float, crit: float):
     """Profile interval of u = ln T over the grid range (None at an end that reaches the range end)."""
-    from scipy.optimize import brentq  # scipy.optimize: ~0.3 s to import (scipy.linalg); on first use
-
     us = np.linspace(prof.u_lo, prof.u_hi, 4 * _NGRID)
     d = np.array([prof.at_u(u)[0] for u in us]) - d_min - crit
     inside = d <= 0

@@ -30,17 +30,7 @@ import math
 
 import numpy as np
 
-from aidnav.nav.earth import G0
-
 # ------------------------------------------------------------------------------------------ constants
-DEG = math.pi / 180.0
-DEG_H = DEG / 3600.0  #: 1 deg/h in rad/s
-DEG_SQRT_H = DEG / 60.0  #: 1 deg/√h in rad/√s
-UG = G0 * 1e-6  #: 1 µg in m/s²
-M_S_SQRT_H = 1.0 / 60.0  #: 1 m/s/√h in m/s/√s
-DEG_H_SQRT_H = DEG_H / 60.0  #: 1 deg/h/√h in rad/s/√s
-UG_SQRT_H = UG / 60.0  #: 1 µg/√h in m/s²/√s
-
 GM_PEAK_X = 1.8926178354517893  #: τ of the Gauss-Markov ADEV peak / T
 GM_PEAK_ADEV = 0.6173642831444415  #: peak ADEV of a Gauss-Markov process / σ_GM
 FLICKER_ADEV = math.sqrt(2.0 * math.log(2.0) / math.pi)  #: ADEV of a flicker floor / B (0.6643)

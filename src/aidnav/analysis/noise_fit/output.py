@@ -7,9 +7,9 @@ import math
 
 import numpy as np
 
-from aidnav.analysis.noise_fit.model import DEG_H, DEG_H_SQRT_H, DEG_SQRT_H, M_S_SQRT_H, UG, UG_SQRT_H
 from aidnav.analysis.noise_fit.results import Characterisation, json_float
 from aidnav.sim.imu import ImuSpec
+from aidnav.units import DEG_H, DEG_H_SQRT_H, DEG_SQRT_H, M_S_SQRT_H, UG, UG_SQRT_H
 
 # ------------------------------------------------------------------------------------------ outputs
 _UNITS = {

@@ -10,9 +10,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from aidnav.analysis.noise_fit.model import DEG
 from aidnav.analysis.noise_fit.prepare import resampled_min_m
 from aidnav.analysis.noise_fit.results import NotStaticError
+from aidnav.units import DEG
 
 #: a moving span of the static check is "motion" (never analysed) when its window means depart by more than
 #: this rate [deg/s], rotate by more than this angle [deg] or depart by more than this specific force

@@ -10,9 +10,9 @@ import math
 
 import numpy as np
 
-from aidnav.analysis.noise_fit.model import DEG
 from aidnav.analysis.noise_fit.results import AxisFit, json_float
 from aidnav.analysis.noise_fit.static import _window_stats
+from aidnav.units import DEG
 
 
 def _psd_peak(x: np.ndarray, fs: float, f_min: float = 1.0, nseg: int = 512, max_segs: int = 256):

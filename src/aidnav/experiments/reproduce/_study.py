@@ -77,7 +77,7 @@ def runs_needed(d: float, se: float, runs: int, k: float = 2.0) -> int:
 def sign_test(a, b) -> tuple[int, int, float]:
     """Paired sign test of a > b: (runs with a > b, runs with a ≠ b, one-sided p-value of at least that
     many under P(a > b) = 1/2)."""
-    from scipy.stats import binom
+    from scipy.stats import binom  # lazy: scipy is heavy to import
 
     d = np.asarray(a, float) - np.asarray(b, float)
     k, n = int(np.sum(d > 0)), int(np.sum(d != 0))
@@ -87,8 +87,8 @@ def sign_test(a, b) -> tuple[int, int, float]:
 
 def figure(nrows: int = 1, ncols: int = 1, w: float = 8.0, h: float = 4.5):
     """A matplotlib figure (Agg canvas, no pyplot state) and its (nrows, ncols) axes array."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
+    from matplotlib.backends.backend_agg import FigureCanvasAgg  # lazy: matplotlib is heavy to import
+    from matplotlib.figure import Figure  # lazy: matplotlib is heavy to import
 
     fig = Figure(figsize=(w, h))
     FigureCanvasAgg(fig)
@@ -162,7 +162,7 @@ def main(run, seed: str, default_runs: int | None, argv=None) -> int:
     """``python -m aidnav.experiments.reproduce.seed_XXX OUT_DIR [--runs N] [--base-seed S]``.
 
     Exit status 0 when every spec row holds, 1 otherwise."""
-    from rich.console import Console
+    from rich.console import Console  # lazy: rich is heavy to import
 
     ap = argparse.ArgumentParser(prog=f"python -m aidnav.experiments.reproduce.seed_{seed}",
                                  description=f"Reproduce seed {seed}: summary.json, report.html, figures.")

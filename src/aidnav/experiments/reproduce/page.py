@@ -18,6 +18,8 @@ import shutil
 import subprocess
 from pathlib import Path
 
+from .summary import count_verdicts
+
 __all__ = ["write_seed_page", "write_index", "print_summary", "report_folder", "ReproductionError",
            "browser_layout", "is_reproduction"]
 
@@ -59,8 +61,6 @@ def _e(x) -> str:
 
 
 def _counts(doc: dict) -> dict:
-    from .summary import count_verdicts
-
     return doc.get("verdicts") or count_verdicts(doc.get("tables", []))
 
 
@@ -224,8 +224,8 @@ def print_summary(console, doc: dict, tables=None, sensitivity: bool = False) ->
     """The paper-vs-ours tables of ``doc`` on a rich console (data strings are not read as markup):
     ``tables`` (names; None: all), the sensitivity studies only with ``sensitivity`` (they are in
     report.html)."""
-    from rich.table import Table
-    from rich.text import Text
+    from rich.table import Table  # lazy: rich is heavy to import
+    from rich.text import Text  # lazy: rich is heavy to import
 
     skipped = 0
     for t in doc["tables"]:

@@ -53,6 +53,7 @@ from aidnav.estimators.polarization import (
     resolve_line_of_sight,
 )
 from aidnav.experiments.reproduce._study import Study, main, mean_se
+from aidnav.experiments.reproduce.summary import summary_row, summary_table
 from aidnav.filters.attitude_aiding import fuse_attitude_fixes, imu_noise_psd, initial_covariance_15
 from aidnav.nav.earth import radii
 from aidnav.nav.rotations import (
@@ -61,10 +62,11 @@ from aidnav.nav.rotations import (
     euler_from_dcm,
     quat_from_dcm,
     rotvec_from_dcm,
+    wrap_2pi,
     wrap_pi,
 )
 from aidnav.nav.strapdown import make_state
-from aidnav.nav.wave_frame import P_SEED, base_wave_dcm
+from aidnav.nav.wave_frame import P_SEED, base_wave_dcm, wave_dcm
 from aidnav.sim.dipole_triad import (
     base_geometry,
     sample_covariance,
@@ -73,15 +75,14 @@ from aidnav.sim.dipole_triad import (
 )
 from aidnav.sim.imu import ImuSpec, corrupt_imu
 from aidnav.sim.motion import generate, half_widths
+from aidnav.units import DEG
 
 SEED = "002"
 TITLE = ("Aircraft attitude/heading estimation using a dipole triad antenna (He, Chen, Zhang; "
          "J. Radars 2012)")
-D2R = np.pi / 180.0
-R2D = 180.0 / np.pi
 
 # the seed's simulation (§6)
-ETA = 27.0 * D2R
+ETA = 27.0 * DEG
 SNR_DB = 10.0
 N_SNAP = 1000
 N_FIXES = 36
@@ -125,8 +126,8 @@ class SeedFlight:
 
 def seed_flight(rate_hz: float = 100.0, fix_period: float = 5.0, n_fixes: int = N_FIXES) -> SeedFlight:
     """The flight of the module docstring: truth, exact IMU increments and the geometry at the fixes."""
-    lat0, lon0, h0, v = 32.0 * D2R, 118.8 * D2R, 1000.0, 100.0
-    rate = 1.5 * D2R
+    lat0, lon0, h0, v = 32.0 * DEG, 118.8 * DEG, 1000.0, 100.0
+    rate = 1.5 * DEG
     n_cycles = int(np.ceil(n_fixes * fix_period / 30.0))
     durs, turns = [], []
     for _ in range(n_cycles):
@@ -138,10 +139,10 @@ def seed_flight(rate_hz: float = 100.0, fix_period: float = 5.0, n_fixes: int = 
     half = half_widths(tb, 4.0)
     dt = 1.0 / rate_hz
     n = int(round(sum(durs) * rate_hz))
-    y0 = np.array([lat0, lon0, h0, v, -45.0 * D2R, 0.0])
+    y0 = np.array([lat0, lon0, h0, v, -45.0 * DEG, 0.0])
     tr, dth, dvv = generate(tb, half, vals, y0, 0.0, dt, n)
     time = np.arange(n + 1) * dt
-    rph = np.column_stack([tr[:, 7], tr[:, 8], np.mod(tr[:, 9], 2 * np.pi)])
+    rph = np.column_stack([tr[:, 7], tr[:, 8], wrap_2pi(tr[:, 9])])
     imu = ImuData(time=time[1:].copy(), dtheta=dth, dv=dvv, t0=0.0)
     rm, _ = radii(lat0)
     base = (lat0 + 30000.0 / (rm + 0.0), lon0, 0.0)
@@ -215,12 +216,10 @@ def monte_carlo_fixes(fl: SeedFlight, runs: int, rng: np.random.Generator, eta=E
 
 
 def sweep(rng: np.random.Generator, runs: int, snr_db_list=(SNR_DB,), n_list=(N_SNAP,), eta_list=(ETA,),
-          wave=(30 * D2R, 20 * D2R, 15 * D2R)) -> list[dict]:
+          wave=(30 * DEG, 20 * DEG, 15 * DEG)) -> list[dict]:
     """Std of the wave-frame rotation errors δ (about u, ṽ1, ṽ2) of closed form and ML vs the CVAE CRB over
     the Cartesian product of SNR [dB], N and η [rad] at one DOA/tilt ``wave`` [rad]. One dict per point:
     snr_db, n, eta_deg, crb (3,), std_cf (3,), std_ml (3,) [rad] (RMS about the truth), bias_ml (3,)."""
-    from aidnav.nav.wave_frame import wave_dcm
-
     C0 = wave_dcm(*wave)
     rows = []
     for s in snr_db_list:
@@ -237,7 +236,7 @@ def sweep(rng: np.random.Generator, runs: int, snr_db_list=(SNR_DB,), n_list=(N_
                         dl = [-rotvec_from_dcm(np.ascontiguousarray(X @ C0.T)) for X in (Ce, Cf)]
                         d[m][r] = min(dl, key=np.linalg.norm)
                 crb = np.sqrt(np.diag(cvae_bound(eta, 10 ** (s / 10), n)))
-                rows.append({"snr_db": float(s), "n": int(n), "eta_deg": float(eta * R2D), "crb": crb,
+                rows.append({"snr_db": float(s), "n": int(n), "eta_deg": float(eta / DEG), "crb": crb,
                              "std_cf": np.sqrt(np.mean(d["cf"] ** 2, 0)),
                              "std_ml": np.sqrt(np.mean(d["ml"] ** 2, 0)), "bias_ml": np.mean(d["ml"], 0),
                              "runs": runs})
@@ -255,7 +254,7 @@ def fusion_case(fl: SeedFlight, runs: int, rng: np.random.Generator, eta=ETA, sn
     spec = ImuSpec.from_units(gyro_bias_deg_h=50.0, arw_deg_sqrt_h=0.3, accel_bias_ug=1000.0,
                               vrw_m_s_sqrt_h=0.1)
     q = imu_noise_psd(0.3, 0.1, 1.0, 10.0, 3600.0)
-    P0 = initial_covariance_15(1.0 * D2R, 0.1, 1.0, 50.0, 1000.0, fl.lat[0], fl.h[0])
+    P0 = initial_covariance_15(1.0 * DEG, 0.1, 1.0, 50.0, 1000.0, fl.lat[0], fl.h[0])
     N = len(fl.imu.time)
     K = len(fl.fix_idx)
     res = {"fused": np.empty((runs, N, 3)), "ins": np.empty((runs, N, 3)), "std": np.empty((runs, N, 3)),
@@ -264,7 +263,7 @@ def fusion_case(fl: SeedFlight, runs: int, rng: np.random.Generator, eta=ETA, sn
     for r in range(runs):
         imu, _ = corrupt_imu(fl.imu, spec, rng)
         att0 = dcm_from_euler(*fl.rph[0])
-        e0 = rng.standard_normal(3) * D2R
+        e0 = rng.standard_normal(3) * DEG
         C0 = (np.eye(3) - np.array([[0, -e0[2], e0[1]], [e0[2], 0, -e0[0]], [-e0[1], e0[0], 0]])) @ att0
         C0 = dcm_from_quat(quat_from_dcm(C0))
         st0 = make_state(fl.lat[0], fl.lon[0], fl.h[0], fl.vel[0], quat_from_dcm(C0))
@@ -321,9 +320,9 @@ def _plot_fig2(mc, fl, out: Path) -> list[str]:
     for c, i in enumerate(order):
         a = ax[0, c]
         wrap = wrap_pi if i == 2 else np.asarray  # heading shown in [−180°, 180°)
-        a.plot(x, wrap(true[:, i]) * R2D, ".-", color="k", lw=0.8, label="true")
-        a.plot(x, wrap(mc["rph_cf"][0, :, i]) * R2D, "x", color="tab:blue", label="closed form (eigenvector)")
-        a.plot(x, wrap(mc["rph_ml"][0, :, i]) * R2D, "o", mfc="none", color="tab:red", label="ML")
+        a.plot(x, wrap(true[:, i]) / DEG, ".-", color="k", lw=0.8, label="true")
+        a.plot(x, wrap(mc["rph_cf"][0, :, i]) / DEG, "x", color="tab:blue", label="closed form (eigenvector)")
+        a.plot(x, wrap(mc["rph_ml"][0, :, i]) / DEG, "o", mfc="none", color="tab:red", label="ML")
         a.set_title(f"({'abc'[c]}) {ANGLES[i]}")
         a.set_xlabel("fix number")
         a.set_ylabel(f"{ANGLES[i]} [deg]")
@@ -336,11 +335,11 @@ def _plot_fig2(mc, fl, out: Path) -> list[str]:
     runs = mc["rph_err_ml"].shape[0]
     for c, i in enumerate(order):
         a = ax[0, c]
-        a.plot(x, mc["crb_rph"][:, i] * R2D, ".-", color="k", label="CRB")
+        a.plot(x, mc["crb_rph"][:, i] / DEG, ".-", color="k", label="CRB")
         for m, sty, col, lab in (("snap", "+", "0.6", "closed form, 1 snapshot (seed eqs. 2–4)"),
                                  ("cf", "x", "tab:blue", "closed form, eigenvector"),
                                  ("ml", "o", "tab:red", "ML")):
-            a.plot(x, np.sqrt(np.mean(mc[f"rph_err_{m}"][:, :, i] ** 2, 0)) * R2D, sty, color=col,
+            a.plot(x, np.sqrt(np.mean(mc[f"rph_err_{m}"][:, :, i] ** 2, 0)) / DEG, sty, color=col,
                    mfc="none", label=lab)
         a.set_yscale("log")
         a.set_title(f"({'def'[c]}) {ANGLES[i]} std, {runs} runs")
@@ -352,13 +351,13 @@ def _plot_fig2(mc, fl, out: Path) -> list[str]:
     fig.savefig(out / "fig2_attitude_std.png", dpi=110)
 
     fig, ax = _fig(1, 3, h=3.6)
-    cv = np.sqrt(np.diag(cvae_bound(ETA, 10 ** (SNR_DB / 10), N_SNAP))) * R2D
+    cv = np.sqrt(np.diag(cvae_bound(ETA, 10 ** (SNR_DB / 10), N_SNAP))) / DEG
     for i in range(3):
         a = ax[0, i]
         a.axhline(cv[i], color="k", label="CVAE CRB")
         for m, sty, col, lab in (("cf", "x", "tab:blue", "closed form, eigenvector"),
                                  ("ml", "o", "tab:red", "ML")):
-            a.plot(x, np.sqrt(np.mean(mc[f"delta_{m}"][:, :, i] ** 2, 0)) * R2D, sty, color=col, mfc="none",
+            a.plot(x, np.sqrt(np.mean(mc[f"delta_{m}"][:, :, i] ** 2, 0)) / DEG, sty, color=col, mfc="none",
                    label=lab)
         a.set_title(f"rotation about {AXES_W[i]}")
         a.set_xlabel("fix number")
@@ -376,9 +375,9 @@ def _plot_sweep(rows, key, xlabel, fname, out: Path, logx=False):
     xs = np.array([r[key] for r in rows])
     for i in range(3):
         a = ax[0, i]
-        a.plot(xs, [r["crb"][i] * R2D for r in rows], "-", color="k", label="CRB")
-        a.plot(xs, [r["std_cf"][i] * R2D for r in rows], "x", color="tab:blue", label="closed form")
-        a.plot(xs, [r["std_ml"][i] * R2D for r in rows], "o", mfc="none", color="tab:red", label="ML")
+        a.plot(xs, [r["crb"][i] / DEG for r in rows], "-", color="k", label="CRB")
+        a.plot(xs, [r["std_cf"][i] / DEG for r in rows], "x", color="tab:blue", label="closed form")
+        a.plot(xs, [r["std_ml"][i] / DEG for r in rows], "o", mfc="none", color="tab:red", label="ML")
         a.set_yscale("log")
         if logx:
             a.set_xscale("log")
@@ -397,11 +396,11 @@ def _plot_fusion(fu, out: Path) -> str:
     t = fu["time"]
     for i, name in enumerate(("East", "North", "Up (≈ heading)")):
         a = ax[i, 0]
-        a.plot(t, fu["ins"][0, :, i] * R2D, color="0.5", lw=0.9, label="INS only")
-        a.plot(t, fu["fused"][0, :, i] * R2D, color="tab:red", lw=0.9, label="INS + polarization fixes")
-        a.fill_between(t, -3 * fu["std"][0, :, i] * R2D, 3 * fu["std"][0, :, i] * R2D, color="tab:red",
+        a.plot(t, fu["ins"][0, :, i] / DEG, color="0.5", lw=0.9, label="INS only")
+        a.plot(t, fu["fused"][0, :, i] / DEG, color="tab:red", lw=0.9, label="INS + polarization fixes")
+        a.fill_between(t, -3 * fu["std"][0, :, i] / DEG, 3 * fu["std"][0, :, i] / DEG, color="tab:red",
                        alpha=0.15, lw=0, label="±3σ (filter)")
-        a.plot(fu["fix_time"], fu["fix_err"][0, :, i] * R2D, "o", ms=3, mfc="none", color="tab:blue",
+        a.plot(fu["fix_time"], fu["fix_err"][0, :, i] / DEG, "o", ms=3, mfc="none", color="tab:blue",
                label="fix error (ML)")
         a.set_ylabel(f"ε {name} [deg]")
         a.grid(alpha=0.3)
@@ -422,8 +421,6 @@ def run(out_dir, runs: int | None = 60, base_seed: int = 1, console=None, sweep_
     random stream; sweep_runs : per sweep point (default max(200, runs)); fusion_runs : INS-fusion runs
     (default min(runs, 10)). Returns the summary dict.
     """
-    from aidnav.experiments.reproduce.summary import summary_row, summary_table
-
     study = Study(SEED, TITLE, out_dir, 60 if runs is None else runs, base_seed, console)
     runs, out = study.runs, study.out
     sweep_runs = max(200, runs) if sweep_runs is None else int(sweep_runs)
@@ -440,8 +437,8 @@ def run(out_dir, runs: int | None = 60, base_seed: int = 1, console=None, sweep_
     figures = study.figures
     figures += _plot_fig2(mc, fl, out)
     rho = 10 ** (SNR_DB / 10)
-    cv = np.sqrt(np.diag(cvae_bound(ETA, rho, N_SNAP))) * R2D
-    cv_geo = np.sqrt(np.diag(crb_rotation_vector(*fl.wave[N_FIXES // 2], ETA, rho, N_SNAP))) * R2D
+    cv = np.sqrt(np.diag(cvae_bound(ETA, rho, N_SNAP))) / DEG
+    cv_geo = np.sqrt(np.diag(crb_rotation_vector(*fl.wave[N_FIXES // 2], ETA, rho, N_SNAP))) / DEG
     rows2 = []
     for i in range(3):
         rows2.append(summary_row(f"CVAE CRB σ about {AXES_W[i]} ({ANGLES[i]} in the seed's geometry; "
@@ -454,7 +451,7 @@ def run(out_dir, runs: int | None = 60, base_seed: int = 1, console=None, sweep_
     tol = 0.10 if runs * N_FIXES >= 300 else 0.15  # §3.7: ±15 % for 100 runs, ±10 % for 300
     n_pool = runs * N_FIXES
     for i in range(3):
-        r_ml = float(np.sqrt(np.mean(mc["delta_ml"][:, :, i] ** 2)) / (cv[i] * D2R))
+        r_ml = float(np.sqrt(np.mean(mc["delta_ml"][:, :, i] ** 2)) / (cv[i] * DEG))
         se = r_ml / np.sqrt(2 * n_pool)  # a std estimated from n Gaussian samples: relative se 1/√(2n)
         rows2.append(summary_row(f"ML std / CVAE CRB about {AXES_W[i]} (pooled {N_FIXES} fixes × "
                                  f"{runs} runs)",
@@ -466,11 +463,11 @@ def run(out_dir, runs: int | None = 60, base_seed: int = 1, console=None, sweep_
         rows2.append(summary_row(f"ML {ANGLES[i]} std / Euler-angle CRB of each fix (pooled)", "-",
                                  zr, target=f"abs(ours - 1) <= {tol}", stderr=zr / np.sqrt(2 * n_pool)))
     for i in range(3):
-        b, se = mean_se(mc["rph_err_ml"][:, :, i].ravel() * R2D)
+        b, se = mean_se(mc["rph_err_ml"][:, :, i].ravel() / DEG)
         rows2.append(summary_row(f"ML {ANGLES[i]} bias (pooled)", "deg", b, target="abs(ours) < 0.1",
                                  spec=True, stderr=se))
-    std_ml = np.sqrt(np.mean(mc["rph_err_ml"] ** 2, axis=(0, 1))) * R2D
-    std_sn = np.sqrt(np.mean(mc["rph_err_snap"] ** 2, axis=(0, 1))) * R2D
+    std_ml = np.sqrt(np.mean(mc["rph_err_ml"] ** 2, axis=(0, 1))) / DEG
+    std_sn = np.sqrt(np.mean(mc["rph_err_snap"] ** 2, axis=(0, 1))) / DEG
     se_ml = std_ml / np.sqrt(2 * n_pool)
     for i in range(3):
         extra = " (seed: pitch worst ≈ 1°)" if i == 1 else ""
@@ -487,8 +484,8 @@ def run(out_dir, runs: int | None = 60, base_seed: int = 1, console=None, sweep_
                              margin=(float(g[0]), float(g[1]))))
     lo, _ = chi2_std_bounds(runs * N_FIXES, 0.99)
     for i in range(3):
-        z_cf = float(np.sqrt(np.mean((mc["delta_cf"][:, :, i] / (cv[i] * D2R)) ** 2)))
-        z_ml = float(np.sqrt(np.mean((mc["delta_ml"][:, :, i] / (cv[i] * D2R)) ** 2)))
+        z_cf = float(np.sqrt(np.mean((mc["delta_cf"][:, :, i] / (cv[i] * DEG)) ** 2)))
+        z_ml = float(np.sqrt(np.mean((mc["delta_ml"][:, :, i] / (cv[i] * DEG)) ** 2)))
         rows2.append(summary_row(f"closed form (principal eigenvector) std / CVAE CRB about {AXES_W[i]} "
                                  "(≥ CRB within χ² 99 % sampling, close to ML)", "-", z_cf,
                                  target=f"ours >= {_lit(lo)} and ours <= 1.25 * {_lit(z_ml)}", spec=True,
@@ -504,7 +501,7 @@ def run(out_dir, runs: int | None = 60, base_seed: int = 1, console=None, sweep_
     rng_s = np.random.default_rng(ss[1])
     sw_snr = sweep(rng_s, sweep_runs, snr_db_list=(-5, 0, 5, 10, 15, 20, 25, 30))
     sw_n = sweep(rng_s, sweep_runs, n_list=(10, 30, 100, 300, 1000, 3000, 10000))
-    sw_eta = sweep(rng_s, sweep_runs, eta_list=tuple(np.array([5, 10, 15, 20, 27, 30, 35, 40]) * D2R))
+    sw_eta = sweep(rng_s, sweep_runs, eta_list=tuple(np.array([5, 10, 15, 20, 27, 30, 35, 40]) * DEG))
     figures += [_plot_sweep(sw_snr, "snr_db", "SNR [dB]", "sweep_snr.png", out),
                 _plot_sweep(sw_n, "n", "snapshots N", "sweep_n.png", out, logx=True),
                 _plot_sweep(sw_eta, "eta_deg", "η [deg]", "sweep_eta.png", out)]
@@ -537,11 +534,11 @@ def run(out_dir, runs: int | None = 60, base_seed: int = 1, console=None, sweep_
     fu = fusion_case(fl, fusion_runs, np.random.default_rng(ss[2]))
     figures.append(_plot_fusion(fu, out))
     late = fu["time"] > fl.fix_time[1]
-    rms_f = np.sqrt(np.mean(fu["fused"][:, late] ** 2, axis=(0, 1))) * R2D
-    rms_fix = np.sqrt(np.mean(fu["fix_err"] ** 2, axis=(0, 1))) * R2D
-    end_f = np.sqrt(np.mean(fu["fused"][:, -1] ** 2, 0)) * R2D
-    end_i = np.sqrt(np.mean(fu["ins"][:, -1] ** 2, 0)) * R2D
-    max_f = np.max(np.abs(fu["fused"][:, late]), axis=(0, 1)) * R2D
+    rms_f = np.sqrt(np.mean(fu["fused"][:, late] ** 2, axis=(0, 1))) / DEG
+    rms_fix = np.sqrt(np.mean(fu["fix_err"] ** 2, axis=(0, 1))) / DEG
+    end_f = np.sqrt(np.mean(fu["fused"][:, -1] ** 2, 0)) / DEG
+    end_i = np.sqrt(np.mean(fu["ins"][:, -1] ** 2, 0)) / DEG
+    max_f = np.max(np.abs(fu["fused"][:, late]), axis=(0, 1)) / DEG
     nees_r = np.sqrt(np.mean((fu["fused"][:, late] / fu["std"][:, late]) ** 2, axis=(0, 1)))
     rows_f = []
     for i, ax in enumerate(("E", "N", "U")):

@@ -44,6 +44,7 @@ Run: ``python -m aidnav.experiments.reproduce.seed_003 OUT [--runs N]`` or ``aid
 
 from __future__ import annotations
 
+import json
 import sys
 from pathlib import Path
 
@@ -66,12 +67,13 @@ from aidnav.estimators.satcom import (
     signal_loss_db,
 )
 from aidnav.experiments.reproduce._study import Study, main
+from aidnav.experiments.reproduce.summary import summary_row, summary_table
 from aidnav.nav.rotations import attitude_error_batch, euler_to_quat_batch, quat_from_euler
+from aidnav.units import DEG
 
 SEED = "003"
 TITLE = "MEMS-INS dual-quaternion satcom-on-the-move antenna control (patent CN104064869)"
 DEFAULT_RUNS = 10
-D = np.pi / 180.0
 
 SITE = dict(lat_deg=39.9, lon_deg=116.4, height_m=50.0)
 SAT_LON_DEG = 110.5  #: ChinaSat 10 / Zhongxing-10 slot, seen from Beijing at ~43° elevation
@@ -111,7 +113,7 @@ VARIANTS = ("free INS", "8-state direct", "8-state dual", "15-state direct", "15
 
 def route_scenario(route: str = "full"):
     """The driving scenario (:class:`aidnav.sim.scenario.Scenario`): ``"full"`` (~610 s) or ``"short"``."""
-    from aidnav.sim.scenario import Scenario
+    from aidnav.sim.scenario import Scenario  # lazy: pulls in pydantic, yaml
 
     segs = ROUTE if route == "full" else SHORT_ROUTE
     return Scenario.model_validate(dict(
@@ -132,7 +134,7 @@ def nav8_config() -> Nav8Config:
 
 def loose_config():
     """The 15-state loosely coupled filter with the same IMU model."""
-    from aidnav.filters.config import LooseConfig
+    from aidnav.filters.config import LooseConfig  # lazy: pulls in pydantic
 
     return LooseConfig.model_validate(dict(
         imu=dict(arw_deg_sqrt_h=0.3, vrw_m_s_sqrt_h=0.1, gyro_bias_sigma_deg_h=6.0,
@@ -162,26 +164,26 @@ def _excess_step(cmd, ideal):
 
 def run_once(seed: int, init_rng: np.random.Generator, route: str = "full", keep: bool = False) -> dict:
     """One realisation: simulate, navigate (free INS, 8-state, 15-state), point (direct, dual), score."""
-    from aidnav.sim.run import simulate
+    from aidnav.sim.run import simulate  # lazy: pulls in pydantic, yaml
 
     scn = route_scenario(route)
     sim = simulate(scn, seed=seed)
     tr = sim.truth
     sig = np.array([INIT_LEVEL_SIGMA_DEG, INIT_LEVEL_SIGMA_DEG, INIT_HEADING_SIGMA_DEG])
     err = init_rng.normal(size=3) * sig
-    rph0 = tr.rph[0] + err * D
+    rph0 = tr.rph[0] + err * DEG
     args = (sim.imu, sim.gnss, tr.lat[0], tr.lon[0], tr.height[0], tr.vel[0], rph0)
     navs = {"free INS": run_nav8(*args, cfg=nav8_config(), use_filter=False),
             "8-state": run_nav8(*args, cfg=nav8_config()),
             "15-state": run_loose_nav(*args, cfg=loose_config())}
-    sat_lon = SAT_LON_DEG * D
+    sat_lon = SAT_LON_DEG * DEG
     t = sim.imu.time
     q_true = euler_to_quat_batch(np.ascontiguousarray(tr.rph[1:]))
     ideal = _ideal_commands(tr, sat_lon)
     late = t >= SETTLE_S
     out = {"init_error_deg": err.tolist(), "variants": {}, "nav": {}}
     arrays = {"time": t, "ideal": ideal}
-    w_max = W_MAX_DEG_S * D
+    w_max = W_MAX_DEG_S * DEG
     for name, nav in navs.items():
         phi = attitude_error_batch(np.ascontiguousarray(nav.state[:, 6:10]), q_true)
         level = np.hypot(phi[:, 0], phi[:, 1])
@@ -213,7 +215,7 @@ def run_once(seed: int, init_rng: np.random.Generator, route: str = "full", keep
             sv = servo_track(nav.dt, cmd, default_servo_axes())
             e, pe = beam_errors(tr.lat[1:], tr.lon[1:], tr.height[1:], tr.rph[1:], sv.angle, sat_lon)
             e_cmd, _ = beam_errors(tr.lat[1:], tr.lon[1:], tr.height[1:], tr.rph[1:], cmd, sat_lon)
-            loss = signal_loss_db(e, BEAMWIDTH_DEG * D, pe)
+            loss = signal_loss_db(e, BEAMWIDTH_DEG * DEG, pe)
             xs = _excess_step(cmd, ideal)
             out["variants"][label] = {
                 "point_rms_deg": float(np.degrees(np.sqrt(np.mean(e**2)))),
@@ -339,8 +341,6 @@ def run(out_dir, runs: int | None = DEFAULT_RUNS, base_seed: int = 1, console=No
     runs : Monte Carlo realisations of the driving run (None: ``DEFAULT_RUNS``); base_seed : seeds the
     realisations; route : "full" (~610 s) or "short" (145 s, for quick checks). Returns the summary dict.
     """
-    from aidnav.experiments.reproduce.summary import summary_row, summary_table
-
     if route not in ("full", "short"):
         raise ValueError("route must be 'full' or 'short'")
     study = Study(SEED, TITLE, out_dir, DEFAULT_RUNS if runs is None else runs, base_seed, console)
@@ -357,12 +357,12 @@ def run(out_dir, runs: int | None = DEFAULT_RUNS, base_seed: int = 1, console=No
     # the angle of the correction: the navigation attitude just before (heading 100° + 5°/s · 1 s, level)
     # and just after it (computed from the correction, not from the chase)
     h_c = 100.0 + 5.0 * ch["t_correction"]
-    eps0 = float(np.degrees(quat_angle_between(quat_from_euler(0.0, 0.0, h_c * D),
-                                               quat_from_euler(0.3 * D, -0.5 * D, (h_c + 2.0) * D))))
+    eps0 = float(np.degrees(quat_angle_between(quat_from_euler(0.0, 0.0, h_c * DEG),
+                                               quat_from_euler(0.3 * DEG, -0.5 * DEG, (h_c + 2.0) * DEG))))
     t_exp = eps0 / W_MAX_DEG_S
     # the angle between q_ant and q_nav after each command (from the Euler angles of the chase)
-    q_ant = euler_to_quat_batch(np.ascontiguousarray(ch["ant_rph_deg"] * D))
-    q_nav = euler_to_quat_batch(np.ascontiguousarray(ch["nav_rph_deg"] * D))
+    q_ant = euler_to_quat_batch(np.ascontiguousarray(ch["ant_rph_deg"] * DEG))
+    q_nav = euler_to_quat_batch(np.ascontiguousarray(ch["nav_rph_deg"] * DEG))
     gap = np.degrees(quat_angles_between(q_ant, q_nav))
     angle_dev = float(np.abs(gap[k0:] - np.maximum(eps0 - W_MAX_DEG_S * (tt + dt), 0.0)).max())
     # heading: ε_U up to second order, falling at w_max·2°/|ε_0| (the first step is taken at the correction)
@@ -541,7 +541,6 @@ def run(out_dir, runs: int | None = DEFAULT_RUNS, base_seed: int = 1, console=No
         "correction by at most T_f, or |d|/w_max); what changes is the servo load: bounded command steps "
         "instead of jumps of the size of the correction.",
     ]
-    import json
 
     (out / "runs.json").write_text(json.dumps(results, indent=1))
     return study.finish(tables, notes)

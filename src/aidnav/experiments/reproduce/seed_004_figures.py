@@ -10,7 +10,8 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from aidnav.sim.distributed_pos import FlexureSpec
+from aidnav.nav.earth import lla_to_enu
+from aidnav.sim.distributed_pos import FlexureSpec, flexure_autocorrelation
 
 from .seed_004_tables import LABEL, MODES
 
@@ -31,8 +32,6 @@ def _legs(ax, segments, names=("AB", "CD")):
 
 
 def fig_trajectories(out: Path, bundles: dict) -> str:
-    from aidnav.nav.earth import lla_to_enu
-
     fig = Figure(figsize=(15, 3.6))
     for i, mode in enumerate(MODES):
         ax = fig.add_subplot(1, 5, i + 1)
@@ -131,8 +130,6 @@ def fig_design(out: Path, analyses: dict, pred: dict, mc_std: dict, mc_rms: dict
 
 
 def fig_flexure(out: Path, chk: dict, spec: FlexureSpec) -> str:
-    from aidnav.sim.distributed_pos import flexure_autocorrelation
-
     fig = Figure(figsize=(7, 4))
     ax = fig.add_subplot(1, 1, 1)
     th = flexure_autocorrelation(spec, chk["lags"]) / spec.sigma[None, :] ** 2

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 __all__ = ["Target", "summary_row", "summary_table", "write_summary", "evaluate_target", "check_expression",
-           "check_row", "count_verdicts", "SummaryError", "VERDICTS"]
+           "check_row", "count_verdicts", "SummaryError", "VERDICTS", "resolved_row"]
 
 
 class SummaryError(ValueError):
@@ -210,6 +210,36 @@ def _verdict(holds: bool, margin: dict | None) -> str:
         if d is None or se is None or abs(d) < RESOLVE_SE * se:
             return "unresolved"
     return "holds" if holds else "fails"
+
+
+def resolved_row(row: dict, runs: int, why: str = "") -> dict:
+    """A spec trend stated at the resolution of ``runs`` runs: the row ``row`` (made with a ``margin``
+    ``(d, se)``) becomes "resolved on the holding side": target ``d >= 2 * se`` over the values ``d``, ``se``
+    (no margin). It holds when the trend is resolved and on its holding side; otherwise it ``fails`` with a
+    reason that says whether the runs resolve the trend on its failing side or do not resolve it at all
+    (the effect is then below what ``runs`` runs resolve: its distance from the boundary is below
+    |d| + 2 se). Used for a spec row that the most runs the time budget allows leave within 2 standard
+    errors: a spec row is never ``unresolved`` (issue 27). ``why``: the physics argument appended to the
+    reason. A row without a margin, or whose margin is unknown, is returned unchanged."""
+    mg = row.get("margin")
+    if mg is None or mg["value"] is None or mg["stderr"] is None:
+        return row
+    d, se = mg["value"], mg["stderr"]
+    k = RESOLVE_SE
+    if d >= k * se:
+        reason = None
+    elif d <= -k * se:
+        reason = (f"resolved on the failing side at {runs} runs: {_g(d)} ± {_g(se)} (1 se) from the boundary "
+                  f"of {row['target']}")
+    else:
+        reason = (f"not resolvable at {runs} runs: the effect is {_g(d)} ± {_g(se)} (1 se) from the boundary "
+                  f"of {row['target']}, i.e. within ±{_g(abs(d) + k * se)} of it (2 se); the trend is not "
+                  "shown")
+    if reason and why:
+        reason = f"{reason}. {why}"
+    return summary_row(f"{row['quantity']} [{row['target']}, resolved at {k:g} se over {runs} runs]",
+                       row["unit"], row["ours"], row["paper"], f"d >= {k:g} * se", {"d": d, "se": se},
+                       spec=row["spec"], stderr=row["stderr"], reason=reason)
 
 
 def summary_table(name: str, caption: str, rows: list[dict], kind: str = "results") -> dict:

@@ -2,7 +2,7 @@
 
 Every model has the uniform signature of :mod:`.common` (``m = model(nav, row, par, lay, H, z, R)``)
 and an id below; :func:`fill` dispatches on the id (the engine's only coupling to the models: a new
-aid is a module function plus one line here). The explicit-argument core functions
+aid is a module function plus one entry in the table here). The explicit-argument core functions
 (:func:`gnss_position`, :func:`gnss_velocity`, :func:`zero_velocity`, :func:`nonholonomic`,
 :func:`attitude`, :func:`sapv_angles`) stay importable for the kernels not on the engine.
 
@@ -12,7 +12,8 @@ Conventions: state layout of :mod:`aidnav.filters.layout`; z = (value predicted 
 
 from __future__ import annotations
 
-from numba import njit
+from numba import njit, types
+from numba.extending import overload
 
 from ..layout import BA
 from .attitude import attitude, attitude_model, velocity_attitude_matching
@@ -23,38 +24,44 @@ from .ranging import pseudorange_model
 from .sapv import sapv_angles, sapv_model
 from .vehicle import nhc_model, nonholonomic, odometer_model, zaru_model, zero_velocity, zupt_model
 
-M_GNSS_POS, M_GNSS_VEL, M_ZUPT, M_ZARU, M_NHC, M_ODO, M_BARO, M_ATT, M_SAPV, M_PR, M_VATT = range(11)
-N_MODELS = 11
-MODEL_NAMES = ("gnss_position", "gnss_velocity", "zupt", "zaru", "nhc", "odometer", "baro", "attitude",
-               "sapv", "pseudorange", "velocity_attitude")
+# the model table: the index is the model id (the M_* constants), the name is the one in innovation logs
+_TABLE = (("gnss_position", gnss_position_model), ("gnss_velocity", gnss_velocity_model),
+          ("zupt", zupt_model), ("zaru", zaru_model), ("nhc", nhc_model), ("odometer", odometer_model),
+          ("baro", baro_model), ("attitude", attitude_model), ("sapv", sapv_model),
+          ("pseudorange", pseudorange_model), ("velocity_attitude", velocity_attitude_matching))
+M_GNSS_POS, M_GNSS_VEL, M_ZUPT, M_ZARU, M_NHC, M_ODO, M_BARO, M_ATT, M_SAPV, M_PR, M_VATT = range(len(_TABLE))
+N_MODELS = len(_TABLE)
+MODEL_NAMES = tuple(name for name, _ in _TABLE)
+_MODELS = tuple(model for _, model in _TABLE)
+
+
+def _fill_from(first, model, args):
+    """Call ``_MODELS[model](*args)`` searching from id ``first`` (numba only: see the overload)."""
+
+
+@overload(_fill_from)
+def _fill_from_impl(first, model, args):
+    # compiled once per table entry (``first`` a compile-time constant): the same code as a hand-written
+    # if-chain over the ids, each call direct (no function pointers)
+    if not isinstance(first, types.IntegerLiteral):
+        return None  # numba retries with the literal
+    i = first.literal_value
+    if i == N_MODELS:
+        return lambda first, model, args: 0
+    fn, nxt = _MODELS[i], i + 1
+
+    def impl(first, model, args):
+        if model == first:
+            return fn(*args)
+        return _fill_from(nxt, model, args)
+
+    return impl
 
 
 @njit(cache=True)
 def fill(model, nav, row, par, lay, H, z, R):
     """Fill H, z, R with model ``model`` (an ``M_*`` id); returns the number of rows (0: no update)."""
-    if model == M_GNSS_POS:
-        return gnss_position_model(nav, row, par, lay, H, z, R)
-    if model == M_GNSS_VEL:
-        return gnss_velocity_model(nav, row, par, lay, H, z, R)
-    if model == M_ZUPT:
-        return zupt_model(nav, row, par, lay, H, z, R)
-    if model == M_ZARU:
-        return zaru_model(nav, row, par, lay, H, z, R)
-    if model == M_NHC:
-        return nhc_model(nav, row, par, lay, H, z, R)
-    if model == M_ODO:
-        return odometer_model(nav, row, par, lay, H, z, R)
-    if model == M_BARO:
-        return baro_model(nav, row, par, lay, H, z, R)
-    if model == M_ATT:
-        return attitude_model(nav, row, par, lay, H, z, R)
-    if model == M_SAPV:
-        return sapv_model(nav, row, par, lay, H, z, R)
-    if model == M_PR:
-        return pseudorange_model(nav, row, par, lay, H, z, R)
-    if model == M_VATT:
-        return velocity_attitude_matching(nav, row, par, lay, H, z, R)
-    return 0
+    return _fill_from(0, model, (nav, row, par, lay, H, z, R))
 
 
 __all__ = ["gnss_position", "gnss_velocity", "zero_velocity", "nonholonomic", "attitude", "sapv_angles", "BA",

@@ -23,8 +23,9 @@ from __future__ import annotations
 
 from collections import namedtuple
 
-import numpy as np
 from numba import njit
+
+from aidnav.nav.rotations import cross, skew  # noqa: F401  (re-exported: the models import them from here)
 
 Nav = namedtuple("Nav", ["st", "C", "w", "dt_back", "bias"])
 W_IB, W_FIX, W_IE, W_IN = 0, 1, 2, 3
@@ -40,22 +41,6 @@ def skew_into(H, r0, c0, a, sign):
     H[r0 + 1, c0 + 2] += -sign * a[0]
     H[r0 + 2, c0 + 0] += -sign * a[1]
     H[r0 + 2, c0 + 1] += sign * a[0]
-
-
-@njit(cache=True, inline="always")
-def cross(a, b):
-    """a × b for (3,) arrays."""
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
-
-
-@njit(cache=True)
-def skew(a):
-    """[a×] (3×3)."""
-    m = np.zeros((3, 3))
-    m[0, 1], m[0, 2] = -a[2], a[1]
-    m[1, 0], m[1, 2] = a[2], -a[0]
-    m[2, 0], m[2, 1] = -a[1], a[0]
-    return m
 
 
 @njit(cache=True)

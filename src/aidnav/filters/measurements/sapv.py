@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from aidnav.models.sapv import OK
 from aidnav.nav.geo_pointing import az_el_from_body, az_el_jacobians, beam_body
 
 from ..layout import DP, PHI
@@ -74,8 +75,6 @@ def sapv_input_check(sapv) -> np.ndarray:
     The angles follow :func:`aidnav.nav.geo_pointing.az_el_from_body`: az ∈ [0, 2π), el ∈ [−π/2, π/2]
     [rad]; anything else is a unit or convention error in the data (e.g. degrees), not a measurement.
     """
-    from aidnav.models.sapv import OK
-
     az, el = np.asarray(sapv.az, float), np.asarray(sapv.el, float)
     out = np.full(len(az), "", "<U20")
     finite = np.isfinite(az) & np.isfinite(el)

@@ -81,3 +81,65 @@ def test_aux_readers(tmp_path):
         read_baro_csv(back)
     with pytest.raises(DataError, match="none of the columns"):
         read_baro_csv(p)
+
+
+def _subset_case():
+    """A 60-s MEMS car run as engine inputs (loose records, no node constraints) with IMU-gap variance
+    at a few samples, a heading hold until a re-initialisation event that resets heading, velocity and
+    position (the fix's velocity is 2 m/s off the INS's)."""
+    from aidnav.filters import engine as eng
+    from aidnav.filters.config import LooseConfig
+    from aidnav.filters.loose import _models, _records, gnss_arrays, initial_covariance, process_noise
+    from aidnav.nav.rotations import quat_from_euler
+    from aidnav.sim.run import simulate
+    from aidnav.sim.scenario import Scenario
+
+    scn = Scenario.model_validate(dict(
+        name="subset", seed=3, initial=dict(lat_deg=39.9, lon_deg=116.4, height_m=50.0, heading_deg=60.0),
+        imu_rate_hz=100.0, transition_s=2.0,
+        segments=[dict(type="accelerate", duration_s=10, to_speed_m_s=10),
+                  dict(type="straight", duration_s=20), dict(type="turn", angle_deg=90, rate_deg_s=6),
+                  dict(type="straight", duration_s=15)],
+        sensors=dict(imu=dict(grade="mems"), gnss=dict(rate_hz=1.0))))
+    sim = simulate(scn, seed=5)
+    tr, imu = sim.truth, sim.imu
+    cfg = LooseConfig()
+    rec, _ = _records(cfg, gnss_arrays(sim.gnss, cfg), np.ones(len(sim.gnss), bool), None, None)
+    mod = _models(cfg)._replace(node=np.zeros((0, 2), np.int64))
+    n = len(imu)
+    gap = np.zeros((n, 2))
+    gap[[500, 1800, 3700], 0], gap[[500, 1800, 3700], 1] = 1e-5, 1e-2
+    imu_in = eng.Imu(np.asarray(imu.time, float), imu.dtheta, imu.dv, np.zeros(n, np.bool_), gap,
+                     np.zeros((0, 2)))
+    q = quat_from_euler(*tr.rph[0])
+    st0 = np.array([tr.lat[0], tr.lon[0], tr.height[0], *tr.vel[0], *q])
+    P0 = initial_covariance(cfg, 15, tr.lat[0], tr.height[0], np.radians([1.0, 1.0, 90.0]))  # φ_U var 2.47
+    k = 2500  # re-initialisation: heading from a "course", velocity and position from its fix
+    j = int(np.searchsorted(tr.time, imu.time[k]))
+    reset_nav = np.array([tr.vel[j, 0] + 2.0, tr.vel[j, 1], tr.vel[j, 2], tr.lat[j], tr.lon[j], tr.height[j],
+                          0.1, 0.1, 0.1, 1.0, 1.0, 2.0, 0.0, 0.0, 0.0])
+    ini = eng.Init(float(imu.t0), st0, np.zeros(6), P0, k, float(tr.rph[j, 2]), np.radians(2.0), reset_nav)
+    taus = np.array([3600.0, 3600.0, 0.0, 0.0])
+    proc = eng.Process(make_layout(), process_noise(cfg, 15), taus, np.zeros(0), 1.0)
+    return eng, imu_in, rec, mod, proc, ini
+
+
+def test_state_subset_uses_its_own_indices():
+    """A state subset that holds every INS state in another order is the full filter with its states
+    permuted: same trajectory, same variances (permuted). The IMU-gap variance, the heading hold and the
+    re-initialisation event act on the states by name, through the subset's index map."""
+    eng, imu_in, rec, mod, proc, ini = _subset_case()
+    out = eng.Output(1, False, np.zeros(0, np.int64))
+    full = eng.run_filter(imu_in, rec, mod, proc, ini, out)
+    sub = np.random.default_rng(1).permutation(15).astype(np.int64)
+    assert sub[2] != 2 and sub[0] != 0
+    ini_s = ini._replace(P=ini.P[np.ix_(sub, sub)].copy())
+    part = eng.run_filter(imu_in, rec, mod, proc._replace(sub=sub), ini_s, out)
+    assert full.reset_node > 0 and part.reset_node == full.reset_node
+    np.testing.assert_allclose(part.out_st[:, :3], full.out_st[:, :3], rtol=0, atol=1e-11)  # ~0.1 mm
+    np.testing.assert_allclose(part.out_st[:, 3:], full.out_st[:, 3:], rtol=0, atol=1e-7)
+    np.testing.assert_allclose(part.out_bias, full.out_bias, rtol=1e-6, atol=1e-12)
+    np.testing.assert_allclose(part.out_pdiag, full.out_pdiag[:, sub], rtol=1e-6, atol=0)
+    # the events did act: φ_U held at its initial variance until the reset, then the course's σ²
+    pu = full.out_pdiag[:, 2]
+    assert np.all(pu[:2400] == ini.P[2, 2]) and pu[2500] == pytest.approx(np.radians(2.0) ** 2, rel=1e-2)

@@ -97,7 +97,7 @@ def _numerical_jacobian(frozen, pt=(LAT, W_IB, F_B)):
 def _analytic(tau_g=0.0, tau_a=0.0, n=15, pt=(LAT, W_IB, F_B)):
     lat, w_ib, f_b = pt
     F, G = np.zeros((n, n)), np.zeros((n, noise_count(n)))
-    fill_model(F, G, lat, H, VEL, C_BN @ f_b, C_BN, w_ib, f_b, tau_g, tau_a, 0.0, 0.0)
+    fill_model(F, G, lat, H, VEL, C_BN @ f_b, C_BN, w_ib, f_b, (tau_g, tau_a, 0.0, 0.0))
     return F, G
 
 
@@ -183,7 +183,7 @@ def test_transition_matrix_matches_strapdown_step():
                 mid = 0.5 * (st + nxt)
                 Cm = 0.5 * (dcm_from_quat(st[6:10]) + dcm_from_quat(nxt[6:10]))
                 F, G = np.zeros((15, 15)), np.zeros((15, 12))
-                fill_model(F, G, mid[0], mid[2], mid[3:6], Cm @ F_B, Cm, W_IB, F_B, 0.0, 0.0, 0.0, 0.0)
+                fill_model(F, G, mid[0], mid[2], mid[3:6], Cm @ F_B, Cm, W_IB, F_B, (0.0, 0.0, 0.0, 0.0))
                 Phi = expm(F * dt) @ Phi
             strapdown_step(st, th, dvb, pt, pv, dt)
             pt, pv = th, dvb
@@ -264,7 +264,7 @@ def test_propagate_sample_accumulates_means_and_matches_strapdown():
     assert F.shape == Phi.shape == Qd.shape == (n, n) and G.shape == (n, 18) and not F.any()
     w = ins_errors.interval_model(F, G, st, acc, 300.0, 600.0, 0.0, 1000.0)
     F_ref, G_ref = np.zeros((n, n)), np.zeros((n, 18))
-    fill_model(F_ref, G_ref, st[0], st[2], st[3:6], fn, Cbn, wb, fb, 300.0, 600.0, 0.0, 1000.0)
+    fill_model(F_ref, G_ref, st[0], st[2], st[3:6], fn, Cbn, wb, fb, (300.0, 600.0, 0.0, 1000.0))
     np.testing.assert_array_equal(F, F_ref)
     np.testing.assert_array_equal(G, G_ref)
     np.testing.assert_array_equal(w, wb)

@@ -101,7 +101,7 @@ def test_discretize_ins_model_at_one_second():
     v = np.array([120.0, 80.0, 2.0])
     fn = np.array([1.5, -2.0, 9.9])
     C = np.eye(3)
-    fill_model(F, G, lat, h, v, fn, C, np.zeros(3), C.T @ fn, 3600.0, 3600.0, 0.0, 0.0)
+    fill_model(F, G, lat, h, v, fn, C, np.zeros(3), C.T @ fn, (3600.0, 3600.0, 0.0, 0.0))
     q = np.array([(0.1 * np.pi / 180 / 60) ** 2] * 3 + [(0.03 / 60) ** 2] * 3
                  + [2 * (0.3 * np.pi / 180 / 3600) ** 2 / 3600] * 3 + [2 * (50e-6 * 9.8) ** 2 / 3600] * 3)
     Phi, Qd = np.zeros((n, n)), np.zeros((n, n))

@@ -143,7 +143,7 @@ def finish_summary(summary, res, applied_offset, warnings) -> None:
 def reinitialisations(res) -> list[dict]:
     """The filter's re-initialisations (engine policy: consecutive rejections or an NIS window far out of
     its chi-square band): time, model, why, the NIS of the innovation that triggered it."""
-    from aidnav.filters.loose import REINIT_WHY
+    from aidnav.filters.run_log import REINIT_WHY
 
     log = getattr(res, "innovations", None) or {}
     if "reinit" not in log:

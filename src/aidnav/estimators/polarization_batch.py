@@ -25,6 +25,7 @@ naming the fix index, unless ``on_zenith="nan"``, which returns NaN for that fix
 
 from __future__ import annotations
 
+from collections import namedtuple
 from dataclasses import dataclass
 
 import numpy as np
@@ -227,11 +228,20 @@ def _euler_jacobian(roll, pitch, heading):
     return J
 
 
+# the batch kernel's inputs and (preallocated) outputs
+BatchIn = namedtuple("BatchIn", ["R", "n", "eta", "bearing", "elevation", "tx_tilt", "B2L", "prior",
+                                 "has_prior"])
+BatchOut = namedtuple("BatchOut", ["wave", "snr", "objective", "nit", "converged", "flipped", "C_out", "rph",
+                                   "cov_eps", "cov_rph", "status"])
+
+
 @njit(cache=True)
-def batch_kernel(R, n, eta, bearing, elevation, tx_tilt, B2L, prior, has_prior,
-                 wave, snr, objective, nit, converged, flipped, C_out, rph, cov_eps, cov_rph, status):
-    """K fixes. R (K, 3, 3) complex; n snapshots; bearing/elevation/tx_tilt (K,) [rad]; B2L (K, 3, 3);
-    prior (K, 3, 3) used where has_prior. Outputs per fix; status 0 ok, 1 source at θ = ±90°."""
+def batch_kernel(inp, out):
+    """K fixes; ``inp`` :data:`BatchIn`: R (K, 3, 3) complex; n snapshots; bearing/elevation/tx_tilt (K,)
+    [rad]; B2L (K, 3, 3); prior (K, 3, 3) used where has_prior. ``out`` :data:`BatchOut`: outputs per
+    fix, filled in place; status 0 ok, 1 source at θ = ±90°."""
+    R, n, eta, bearing, elevation, tx_tilt, B2L, prior, has_prior = inp
+    wave, snr, objective, nit, converged, flipped, C_out, rph, cov_eps, cov_rph, status = out
     K = R.shape[0]
     ce2 = np.cos(2.0 * eta) ** 2
     se2, c2e = np.sin(eta) ** 2, np.cos(eta) ** 2
@@ -401,8 +411,8 @@ def estimate_attitude_batch(R, n, eta, bearing, elevation, tx_tilt, prior=None, 
     cov_eps = np.full((K, 3, 3), np.nan)
     cov_rph = np.full((K, 3, 3), np.nan)
     status = np.zeros(K, np.int64)
-    batch_kernel(R, float(n), float(eta), brg, el, tx, B2L, pri, has_prior, wave, snr, obj, nit, conv,
-                 flipped, C, rph, cov_eps, cov_rph, status)
+    batch_kernel(BatchIn(R, float(n), float(eta), brg, el, tx, B2L, pri, has_prior),
+                 BatchOut(wave, snr, obj, nit, conv, flipped, C, rph, cov_eps, cov_rph, status))
     valid = status == 0
     if on_zenith == "raise" and not np.all(valid):
         k = int(np.argmin(valid))

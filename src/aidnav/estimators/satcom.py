@@ -68,6 +68,7 @@ from aidnav.filters.ins_errors import (
     correct_increments,
     increment_buffers,
 )
+from aidnav.filters.prior import ins_p0_diag, ins_psd, markov_psd
 from aidnav.nav.geo_pointing import servo_angles
 from aidnav.nav.rotations import (
     euler_from_quat,
@@ -128,16 +129,15 @@ class Nav8Config:
 
     def q_psd(self) -> np.ndarray:
         """Continuous PSD of the 12 noise inputs of the 15-state model (SI units)."""
-        arw = self.arw_deg_sqrt_h * DEG / 60.0
-        vrw = self.vrw_m_s_sqrt_h / 60.0
-        qg = 2.0 * (self.gyro_bias_instability_deg_h * DEG_H) ** 2 / self.bias_tau_s
-        qa = 2.0 * (self.accel_bias_instability_ug * UG) ** 2 / self.bias_tau_s
-        return np.array([arw**2] * 3 + [vrw**2] * 3 + [qg] * 3 + [qa] * 3, float)
+        return ins_psd(self.arw_deg_sqrt_h * DEG / 60.0, self.vrw_m_s_sqrt_h / 60.0,
+                       markov_psd(self.gyro_bias_instability_deg_h * DEG_H, self.bias_tau_s),
+                       markov_psd(self.accel_bias_instability_ug * UG, self.bias_tau_s))
 
     def p0(self) -> np.ndarray:
-        d = [self.init_vel_sigma_m_s**2] * 2 + [(self.init_level_sigma_deg * DEG) ** 2] * 2 \
-            + [(self.gyro_bias_sigma_deg_h * DEG_H) ** 2] * 2 + [(self.accel_bias_sigma_ug * UG) ** 2] * 2
-        return np.diag(np.array(d, float))
+        """Initial covariance (8×8) of the filter's states (``NAV8_STATES``)."""
+        d = ins_p0_diag(15, 0.0, 0.0, self.init_level_sigma_deg * DEG, self.init_vel_sigma_m_s, 0.0,
+                        self.gyro_bias_sigma_deg_h * DEG_H, self.accel_bias_sigma_ug * UG)
+        return np.diag(d[_IDX15])
 
 
 @dataclass
@@ -229,7 +229,7 @@ def run_nav8(imu, gnss, lat: float, lon: float, h: float, vel, rph, cfg: Nav8Con
 @njit(cache=True)
 def _replay_increments(imu_t, dth, dvel, t0, st0, states, bias, nb):
     """ΔΘ of every interrupt of a closed-loop run: replay one strapdown step from the previous output
-    with the same bias-compensated increments, q_pre = q_prev ⊗ q(ΔΘ)."""
+    with the same bias-compensated increments, q_pre = q_prev ⊗ q(ΔΘ) (scalar code: no temporaries)."""
     n = imu_t.shape[0]
     out = np.empty((n, 3))
     dts = np.empty(n)
@@ -241,13 +241,24 @@ def _replay_increments(imu_t, dth, dvel, t0, st0, states, bias, nb):
         dt = imu_t[k] - tp
         tp = imu_t[k]
         correct_increments(dth[k], dvel[k], b, dt, dthc, dvc)
-        q_prev = st[6:10].copy()
+        p0, p1, p2, p3 = st[6], -st[7], -st[8], -st[9]  # q_prev*
         strapdown_step(st, dthc, dvc, dth_prev, dv_prev, dt)
-        out[k] = rotvec_from_quat(quat_mult(quat_conj(q_prev), st[6:10]))
+        q0, q1, q2, q3 = st[6], st[7], st[8], st[9]
+        r0 = p0 * q0 - p1 * q1 - p2 * q2 - p3 * q3  # q_prev* ⊗ q (rotations.quat_mult)
+        r1 = p0 * q1 + p1 * q0 + p2 * q3 - p3 * q2
+        r2 = p0 * q2 - p1 * q3 + p2 * q0 + p3 * q1
+        r3 = p0 * q3 + p1 * q2 - p2 * q1 + p3 * q0
+        if r0 < 0:  # its rotation vector (rotations.rotvec_from_quat)
+            r0, r1, r2, r3 = -r0, -r1, -r2, -r3
+        s = np.sqrt(r1 ** 2 + r2 ** 2 + r3 ** 2)
+        f = 2.0 / r0 * (1.0 - s * s / (3.0 * r0 * r0)) if s < 1e-8 else 2.0 * np.arctan2(s, r0) / s
+        out[k, 0], out[k, 1], out[k, 2] = f * r1, f * r2, f * r3
         dts[k] = dt
-        dth_prev[:] = dthc
-        dv_prev[:] = dvc
-        st[:] = states[k]
+        for i in range(3):
+            dth_prev[i] = dthc[i]
+            dv_prev[i] = dvc[i]
+        for i in range(10):
+            st[i] = states[k, i]
         for i in range(nb):
             b[i] = bias[k, i]
     return out, dts

@@ -18,6 +18,7 @@ the residuals are zero and nothing can be checked: ``status`` says so.
 
 from __future__ import annotations
 
+from collections import namedtuple
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -40,13 +41,16 @@ from aidnav.nav.gnss_sat import (
 __all__ = ["SppResult", "spp", "spp_velocity", "spp_series", "lla_ecef"]
 
 _ZERO4 = np.zeros(4)
+# settings of the atmospheric corrections and the mask of :func:`_wls`: Klobuchar α, β (4,), use_iono,
+# use_tropo, humidity [0-1], elevation mask [rad], GPS time of week [s]
+Atmosphere = namedtuple("Atmosphere", ["alpha", "beta", "use_iono", "use_tropo", "humidity", "mask", "t_sow"])
 
 
 @njit(cache=True)
-def _wls(
-    sat_pos, pr_corr, sigma0, x0, alpha, beta, use_iono, use_tropo, humidity, mask, t_sow, use, max_iter
-):
-    """Weighted Gauss-Newton SPP core. Returns (x, Q, v, el, az, sig, used, iters, ok)."""
+def _wls(sat_pos, pr_corr, sigma0, x0, atm, use, max_iter):
+    """Weighted Gauss-Newton SPP core; ``atm``: :data:`Atmosphere` settings. Returns (x, Q, v, el, az,
+    sig, used, iters, ok)."""
+    alpha, beta, use_iono, use_tropo, humidity, mask, t_sow = atm
     s = sat_pos.shape[0]
     x = x0.copy()
     v = np.full(s, np.nan)
@@ -207,13 +211,8 @@ def spp(
             pr_corr,
             float(sigma0),
             start,
-            alpha,
-            beta,
-            use_iono,
-            bool(tropo),
-            float(humidity),
-            np.radians(mask_deg),
-            float(t_sow),
+            Atmosphere(alpha, beta, use_iono, bool(tropo), float(humidity), np.radians(mask_deg),
+                       float(t_sow)),
             use,
             max_iter,
         )

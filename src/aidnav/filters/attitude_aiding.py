@@ -19,13 +19,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aidnav.nav.earth import radii
 from aidnav.nav.rotations import quat_to_euler_batch
 from aidnav.units import DEG, DEG_H, UG
 
 from . import measurements as ms
 from .engine import Imu, Init, Models, Output, Process, Records, rts, run_filter, smooth_outputs
 from .layout import make_layout
+from .prior import ins_p0_diag, ins_psd, markov_psd
 
 __all__ = ["AttitudeFusionResult", "fuse_attitude_fixes", "imu_noise_psd", "initial_covariance_15"]
 
@@ -58,31 +58,20 @@ class AttitudeFusionResult:
 
 def imu_noise_psd(arw_deg_sqrt_h, vrw_m_s_sqrt_h, gyro_bias_instability_deg_h, accel_bias_instability_ug,
                   tau_s):
-    """Continuous process-noise PSD vector (12,) of the 15-state model from boundary units.
-
-    [ARW² ×3 (rad²/s), VRW² ×3 (m²/s³), 2σ_g²/τ ×3, 2σ_a²/τ ×3] (first-order Gauss–Markov biases).
-    """
-    arw = arw_deg_sqrt_h * DEG / 60.0
-    vrw = vrw_m_s_sqrt_h / 60.0
-    qg = 2.0 * (gyro_bias_instability_deg_h * DEG_H) ** 2 / tau_s
-    qa = 2.0 * (accel_bias_instability_ug * UG) ** 2 / tau_s
-    return np.array([arw**2] * 3 + [vrw**2] * 3 + [qg] * 3 + [qa] * 3)
+    """Continuous process-noise PSD vector (12,) of the 15-state model from boundary units
+    (:func:`aidnav.filters.prior.ins_psd`): [ARW² ×3 (rad²/s), VRW² ×3 (m²/s³), 2σ_g²/τ ×3, 2σ_a²/τ ×3]
+    (first-order Gauss–Markov biases)."""
+    return ins_psd(arw_deg_sqrt_h * DEG / 60.0, vrw_m_s_sqrt_h / 60.0,
+                   markov_psd(gyro_bias_instability_deg_h * DEG_H, tau_s),
+                   markov_psd(accel_bias_instability_ug * UG, tau_s))
 
 
 def initial_covariance_15(att_sigma_rad, vel_sigma_m_s, pos_sigma_m, gyro_bias_deg_h, accel_bias_ug, lat, h):
-    """Diagonal P0 (15×15): attitude [rad] (3 or scalar), velocity [m/s], position [m] (E, N, U →
-    δL, δλ, δh), gyro bias [deg/h], accelerometer bias [µg]."""
-    rm, rn = radii(lat)
-    ps = np.broadcast_to(np.asarray(pos_sigma_m, float), (3,))
-    d = np.zeros(15)
-    d[0:3] = np.broadcast_to(np.asarray(att_sigma_rad, float), (3,)) ** 2
-    d[3:6] = np.broadcast_to(np.asarray(vel_sigma_m_s, float), (3,)) ** 2
-    d[6] = (ps[1] / (rm + h)) ** 2
-    d[7] = (ps[0] / ((rn + h) * np.cos(lat))) ** 2
-    d[8] = ps[2] ** 2
-    d[9:12] = (np.broadcast_to(np.asarray(gyro_bias_deg_h, float), (3,)) * DEG_H) ** 2
-    d[12:15] = (np.broadcast_to(np.asarray(accel_bias_ug, float), (3,)) * UG) ** 2
-    return np.diag(d)
+    """Diagonal P0 (15×15) (:func:`aidnav.filters.prior.ins_p0_diag`): attitude [rad] (3 or scalar),
+    velocity [m/s], position [m] (E, N, U → δL, δλ, δh), gyro bias [deg/h], accelerometer bias [µg]."""
+    gb = np.broadcast_to(np.asarray(gyro_bias_deg_h, float), (3,)) * DEG_H
+    ab = np.broadcast_to(np.asarray(accel_bias_ug, float), (3,)) * UG
+    return np.diag(ins_p0_diag(15, lat, h, att_sigma_rad, vel_sigma_m_s, pos_sigma_m, gb, ab))
 
 
 def fuse_attitude_fixes(imu, state0, fix_time, fix_C_bn, fix_cov, q_psd, P0, tau_g=3600.0, tau_a=3600.0,

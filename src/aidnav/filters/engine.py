@@ -71,6 +71,7 @@ from .measurements import M_PR, MAX_ROWS, N_MODELS, Nav, fill
 from .measurements.common import W_FIX, W_IB, W_IE, W_IN
 from .measurements.epoch import epoch_out, epoch_record, epoch_update
 from .measurements.gnss import W_FN
+from .reinit import _nis, chi2_quantile, inflate_nav
 
 # t (N,) [s]; dth, dv (N, 3) raw increments [rad, m/s]; static (N,) bool; gap_var (N, 2) [rad², (m/s)²];
 # hold (N, 2) height [m] and up velocity [m/s] the strapdown is held to after each sample, or (0, 2)
@@ -139,52 +140,6 @@ def gated_update(x, P, wk, m, model, mod, rej, log, li):
 
 
 @njit(cache=True)
-def chi2_quantile(k, z):
-    """Wilson–Hilferty approximation of the χ²(k) quantile at the standard normal quantile z
-    (at the 99.9 % point it is above the exact quantile by 0.6 % at k = 10, 0.2 % at k = 30)."""
-    a = 2.0 / (9.0 * k)
-    return k * (1.0 - a + z * np.sqrt(a)) ** 3
-
-
-@njit(cache=True)
-def _nis(x, P, H, R, z):
-    """NIS νᵀ S⁻¹ ν of z − H x with S = H P Hᵀ + R."""
-    nu = z - H @ x
-    return nu @ np.linalg.solve(H @ P @ H.T + R, nu)
-
-
-@njit(cache=True)
-def inflate_nav(x, P, H, R, z):
-    """Re-initialisation of the navigation block: P ← D P D with D = √α on δv and δp and
-    √min(α, (π/2)² / P_ii) on φ (attitude σ's never grown past 90°), a congruence, so P stays positive
-    semi-definite; α ≥ 1 the smallest with NIS(ν, H D P D Hᵀ + R) ≤ m (bisection in log α up to
-    1e12). Returns α."""
-    m = z.shape[0]
-    if _nis(x, P, H, R, z) <= m:
-        return 1.0
-    P0 = P.copy()
-    lo, hi = 0.0, np.log(1e12)
-    for _ in range(50):
-        a = np.exp(0.5 * (lo + hi))
-        if _nis(x, _scaled_nav(P0, a), H, R, z) > m:
-            lo = np.log(a)
-        else:
-            hi = np.log(a)
-    a = np.exp(hi)
-    P[:, :] = _scaled_nav(P0, a)
-    return a
-
-
-@njit(cache=True)
-def _scaled_nav(P0, a):
-    """D P0 D of :func:`inflate_nav` for the factor a."""
-    d = np.ones(P0.shape[0])
-    for i in range(NAV):
-        d[i] = np.sqrt(a) if i >= DV else np.sqrt(min(a, max(1.0, (0.5 * np.pi) ** 2 / max(P0[i, i], 1e-30))))
-    return P0 * np.outer(d, d)
-
-
-@njit(cache=True)
 def policy_update(x, P, wk, m, model, mod, rej, win, log, li):
     """:func:`gated_update` with the re-initialisation (module doc): after ``mod.max_rej[model]``
     consecutive rejections, or when the last ``mod.win_n[model]`` accepted NIS (this one included; ``win``
@@ -215,13 +170,20 @@ def policy_update(x, P, wk, m, model, mod, rej, win, log, li):
 
 
 @njit(cache=True)
-def _reinit(st, P, ini):
+def _var(P, ix, i):
+    """Variance of full-layout state i in the filter's P (index map ``ix``; 0 where it has no such state)."""
+    return P[ix[i], ix[i]] if ix[i] >= 0 else 0.0
+
+
+@njit(cache=True)
+def _reinit(st, P, ini, ix):
     """Re-initialisation event: heading, then (if 3σ off) velocity and position from ``reset_nav`` =
-    [v (3), lat, lon, h, σ_v (3), σ_pos E, N, U, lever (3)] of the fix that gave the course."""
+    [v (3), lat, lon, h, σ_v (3), σ_pos E, N, U, lever (3)] of the fix that gave the course. ``ix``
+    (≥ 15,): index in P of each state of the full INS layout (−1: not in the filter, a state subset)."""
     rn_ = ini.reset_nav
-    set_heading(st, P, ini.reset_heading, ini.reset_sigma)
+    set_heading(st, P, ini.reset_heading, ini.reset_sigma, ix[PHI + 2])
     dvr = np.sqrt((st[ST_VEL] - rn_[0]) ** 2 + (st[ST_VEL + 1] - rn_[1]) ** 2)
-    if np.isnan(rn_[0]) or dvr <= 3.0 * np.sqrt(P[DV, DV] + P[DV + 1, DV + 1] + rn_[6] ** 2):
+    if np.isnan(rn_[0]) or dvr <= 3.0 * np.sqrt(_var(P, ix, DV) + _var(P, ix, DV + 1) + rn_[6] ** 2):
         return
     # velocity and position integrated with the unknown heading: from the fix (antenna → IMU)
     l_n = dcm_from_quat(st[ST_Q:ST_Q + 4]) @ rn_[12:15]
@@ -230,13 +192,21 @@ def _reinit(st, P, ini):
     st[1] = rn_[4] - l_n[0] / ((rn + rn_[5]) * np.cos(rn_[3]))
     st[2] = rn_[5] - l_n[2]
     st[3], st[4], st[5] = rn_[0], rn_[1], rn_[2]
-    P[DV:DP + 3, :] = 0.0
-    P[:, DV:DP + 3] = 0.0
+    var = np.empty(6)
     for i in range(3):
-        P[DV + i, DV + i] = rn_[6 + i] ** 2
-    P[DP, DP] = (rn_[10] / (rm + rn_[5])) ** 2
-    P[DP + 1, DP + 1] = (rn_[9] / ((rn + rn_[5]) * np.cos(rn_[3]))) ** 2
-    P[DP + 2, DP + 2] = rn_[11] ** 2
+        var[i] = rn_[6 + i] ** 2
+    var[3] = (rn_[10] / (rm + rn_[5])) ** 2
+    var[4] = (rn_[9] / ((rn + rn_[5]) * np.cos(rn_[3]))) ** 2
+    var[5] = rn_[11] ** 2
+    for i in range(6):
+        j = ix[DV + i]
+        if j >= 0:
+            P[j, :] = 0.0
+            P[:, j] = 0.0
+    for i in range(6):
+        j = ix[DV + i]
+        if j >= 0:
+            P[j, j] = var[i]
 
 
 @njit(cache=True)
@@ -259,6 +229,16 @@ def _rec_time(rec, i, bias, ic):
 
 
 @njit(cache=True)
+def _due_time(rec, i, bias, ic, itoff):
+    """Time on the IMU clock at which record i is due: its receive time (:func:`_rec_time`) − d̂, the
+    time-offset estimate (itoff ≥ 0); +inf past the last record."""
+    if i >= rec.t.shape[0]:
+        return np.inf
+    t = _rec_time(rec, i, bias, ic)
+    return t - bias[itoff - NAV] if itoff >= 0 else t
+
+
+@njit(cache=True)
 def _subset(wk, m, sub, ws):
     """The Work whose H the update uses: wk, or with a state subset its columns ``sub`` (in ws)."""
     if sub.shape[0] == 0:
@@ -274,9 +254,8 @@ def start_carry(rec, proc, ini, last):
     """The :class:`Carry` before the first sample (``last``: the first chunk is the whole log)."""
     bias = ini.bias.copy()
     itoff, ic = proc.lay[L_TOFF], proc.lay[L_CLK]
-    toff = bias[itoff - NAV] if itoff >= 0 else 0.0
     gi = 0
-    while gi < rec.t.shape[0] and _rec_time(rec, gi, bias, ic) - toff <= ini.t0:
+    while _due_time(rec, gi, bias, ic, itoff) <= ini.t0:
         gi += 1
     return Carry(0, last, ini.t0, 0, gi, 0, -1, ini.st.copy(), bias, ini.P.copy(),
                  np.zeros(N_MODELS, np.int64), new_accumulator(), np.zeros(2), np.zeros((4, 3)))
@@ -303,10 +282,14 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
     st, bias, P, x = cy.st, cy.bias, cy.P, np.zeros(n)
     k0, kn0 = cy.k0, cy.kn
     itoff = lay[L_TOFF]
+    ix = np.full(nfull, -1, np.int64)  # index in P of each state of the full INS layout (−1: not there)
+    for i in range(nsub if nsub else nins):
+        ix[sub[i] if nsub else i] = i
+    iu = ix[PHI + 2]
     # an unknown heading (initial σ above 80°) with an alignment to come (reset_idx > 0; beyond the last
     # sample: none found) stays unknown until then: a linearised filter would otherwise "gyrocompass"
     # from a gyro bias model it cannot separate from the heading (static) or from noise
-    hold_h = nsub == 0 and ini.reset_idx > 0 and ini.P[PHI + 2, PHI + 2] >= 2.0  # (a subset: no φ_U at 2)
+    hold_h = ini.reset_idx > 0 and iu >= 0 and ini.P[iu, iu] >= 2.0
     # INS sensor errors only (nins − 9 = 0, 6 or 12; not nfull): the strapdown must not read clock or
     # calibration states
     ib = bias[:nins - NAV].copy()
@@ -351,22 +334,22 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
     dthc, dvc, dth_prev, dv_prev = cy.buf[0], cy.buf[1], cy.buf[2], cy.buf[3]
     tp, kn, oi = cy.tp, cy.kn, 0
     hold = imu.hold.shape[0] == n_imu
+    # a record is due when its time on the IMU clock has come: its receive time (the tag, or with clock
+    # states tag − b̂/c) − d̂, the time-offset estimate; b̂ changes at every sample, d̂ at the feedback
+    t_due = _due_time(rec, gi, bias, ic, itoff)
     for k in range(n_imu):
         dt, tp = imu.t[k] - tp, imu.t[k]
         T = propagate_sample(st, acc, imu.dth[k], imu.dv[k], ib, dt, dthc, dvc, dth_prev, dv_prev)
         if ic >= 0:
             bias[ic - NAV] += bias[ic - NAV + 1] * dt
+            t_due = _due_time(rec, gi, bias, ic, itoff)
         if hold:
             st[ST_POS + 2], st[ST_VEL + 2] = imu.hold[k, 0], imu.hold[k, 1]
         gap_phi, gap_v = gap_phi + imu.gap_var[k, 0], gap_v + imu.gap_var[k, 1]
         if k0 + k == ini.reset_idx:
             reset_node = kn  # the next node is the first one after the re-initialisation
-            _reinit(st, P, ini)
-        # a record is due when its time on the IMU clock has come: its receive time (the tag, or with
-        # clock states tag − b̂/c) − d̂, the time-offset estimate
-        toff = bias[itoff - NAV] if itoff >= 0 else 0.0
-        due = gi < M and _rec_time(rec, gi, bias, ic) - toff <= imu.t[k]
-        is_node = T >= prop_dt - 1e-9 or due or (cy.last and k == n_imu - 1)
+            _reinit(st, P, ini, ix)
+        is_node = T >= prop_dt - 1e-9 or t_due <= imu.t[k] or (cy.last and k == n_imu - 1)
         if is_node and T > 0.0:
             if kn - kn0 >= max_nodes:
                 raise ValueError("run_chunk: more nodes than a chunk can hold (record times > 100 s late)")
@@ -383,17 +366,20 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
             x[:] = 0.0
             predict(x, P, Phi, Qd)
             carry_estimates(st, bias, Phi, proc.open, nh)
-            if gap_phi > 0.0:
+            if gap_phi > 0.0:  # (indices of the full layout through ix: a subset has its own)
                 for i in range(3):
-                    P[PHI + i, PHI + i] += gap_phi
-                    P[DV + i, DV + i] += gap_v
+                    a, b = ix[PHI + i], ix[DV + i]
+                    if a >= 0:
+                        P[a, a] += gap_phi
+                    if b >= 0:
+                        P[b, b] += gap_v
                 gap_phi, gap_v = 0.0, 0.0
             if out.smooth:
                 S_phi[kn - kn0], S_prior[kn - kn0] = Phi, P
             _node_rates(st, wb, dthc, dt, w)
             w[W_FN] = acc[ACC_FN] / T
             g0 = gi
-            while gi < M and _rec_time(rec, gi, bias, ic) - toff <= imu.t[k]:  # records in (t_{k-1}, t_k]
+            while _due_time(rec, gi, bias, ic, itoff) <= imu.t[k]:  # records in (t_{k-1}, t_k]
                 tr = _rec_time(rec, gi, bias, ic)  # the models add d̂ to dt_back themselves
                 if rec.use[gi]:
                     md = rec.model[gi]
@@ -422,14 +408,15 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
             feedback(st, bias, dxf if nsub else x, nh)
             ib[:] = bias[:nins - NAV]
             if hold_h and k0 + k < ini.reset_idx:  # heading unknown until the alignment: no information
-                P[PHI + 2, :], P[:, PHI + 2] = 0.0, 0.0
-                P[PHI + 2, PHI + 2] = ini.P[PHI + 2, PHI + 2]
+                P[iu, :], P[:, iu] = 0.0, 0.0
+                P[iu, iu] = ini.P[iu, iu]
             for g in range(g0, gi if proc.reset_pos else g0):
                 st[0], st[1], st[2] = rec.data[g, 6], rec.data[g, 7], rec.data[g, 8]
                 if not np.isnan(rec.data[g, 9]):
                     st[5] = rec.data[g, 9]
             for g in range(g0, gi if grp else g0):
                 epoch_record(rec.grp, g, st, bias, P, lay)
+            t_due = _due_time(rec, gi, bias, ic, itoff)  # d̂ may have changed
             node_idx[kn - kn0] = k0 + k
             if out.smooth:
                 S_post[kn - kn0] = P
@@ -438,7 +425,8 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
             reset_accumulator(acc)
         if ((k0 + k) % out.every == 0) if out.every > 0 else (kn > kn0 and node_idx[kn - 1 - kn0] == k0 + k):
             out_idx[oi] = k0 + k
-            out_st[oi] = st
+            for i in range(10):
+                out_st[oi, i] = st[i]
             for i in range(nb):
                 out_bias[oi, i] = bias[i]
             for i in range(n):

@@ -280,7 +280,9 @@ def run_federated(imu, gnss, sapv, cfg, fed: FederatedConfig | None = None, *, k
 
     from .config import DEG
     from .layout import make_layout
-    from .loose import NEVER, _log_dict, gnss_arrays, initial_covariance, process_noise
+    from .loose import NEVER, gnss_arrays
+    from .prior import given_initial_state, initial_covariance, process_noise
+    from .run_log import _log_dict
 
     fed = fed or FederatedConfig()
     if cfg.nstate != 15:
@@ -288,13 +290,9 @@ def run_federated(imu, gnss, sapv, cfg, fed: FederatedConfig | None = None, *, k
     ini = cfg.init
     if ini.mode != "given":
         raise ValueError("run_federated needs cfg.init.mode = 'given' (initial position, velocity, attitude)")
-    missing = [k for k in ("lat_deg", "lon_deg", "height_m", "roll_deg", "pitch_deg", "heading_deg")
-               if getattr(ini, k) is None]
-    if missing:
-        raise ValueError(f"init.mode = given needs init.{', init.'.join(missing)}")
-    lat0, lon0, h0 = ini.lat_deg * DEG, ini.lon_deg * DEG, ini.height_m
-    q0 = quat_from_euler(ini.roll_deg * DEG, ini.pitch_deg * DEG, ini.heading_deg * DEG)
-    st0 = np.array([lat0, lon0, h0, *ini.velocity_m_s, *q0], float)
+    lat0, lon0, h0, v0, rph0 = given_initial_state(ini, "run_federated")
+    q0 = quat_from_euler(rph0[0], rph0[1], rph0[2])
+    st0 = np.array([lat0, lon0, h0, *v0, *q0], float)
     P0 = initial_covariance(cfg, 15, lat0, h0, np.array(ini.attitude_sigma_deg) * DEG)
     m = 0 if gnss is None else len(gnss)
     use_g = fed.use_gps and m > 0

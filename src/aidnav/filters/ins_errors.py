@@ -35,7 +35,7 @@ import numpy as np
 from numba import njit
 
 from aidnav.nav.earth import OMEGA_IE, gravity, gravity_dh, radii
-from aidnav.nav.rotations import dcm_from_quat, quat_mult, quat_normalize
+from aidnav.nav.rotations import dcm_entries, dcm_from_quat, quat_mult, quat_normalize
 from aidnav.nav.strapdown import strapdown_step
 
 PHI, DV, DP, BG, BA, SG, SA = 0, 3, 6, 9, 12, 15, 18
@@ -56,13 +56,15 @@ def noise_count(nstate):
 
 
 @njit(cache=True)
-def fill_model(F, G, lat, h, v, fn, Cbn, wb, fb, tau_g, tau_a, tau_sg, tau_sa):
+def fill_model(F, G, lat, h, v, fn, Cbn, wb, fb, tau):
     """Fill F (n×n) and G (n×m) in place.
 
     lat [rad], h [m], v^n [m/s], f^n [m/s²] (mean specific force over the interval, nav frame),
     Cbn (3×3), wb ω_ib^b [rad/s] and fb f^b [m/s²] (body, for the scale-factor columns),
-    tau_* correlation times [s] (≤ 0: random walk).
+    tau (4,) correlation times [s] of the gyro bias, accel bias, gyro and accel scale factors (≤ 0:
+    random walk; an array or a tuple).
     """
+    tau_g, tau_a, tau_sg, tau_sa = tau[0], tau[1], tau[2], tau[3]
     n = F.shape[0]
     F[:, :] = 0.0
     G[:, :] = 0.0
@@ -231,40 +233,54 @@ def propagate_sample(st, acc, dth, dv, bias, dt, dthc, dvc, dth_prev, dv_prev):
     Returns T [s], the length of the interval accumulated so far.
 
     Inlined into the kernels (numba IR): as a call it costs ~25 % of the loose filter's throughput.
-    Its order of operations is that of the kernels before the helper existed (bit-identical results).
+    Scalar code only (C_b^n element by element, no temporary arrays, no BLAS call for C Δv_c): the
+    per-sample path allocates nothing.
     """
     correct_increments(dth, dv, bias, dt, dthc, dvc)
-    C = dcm_from_quat(st[6:10])
-    fn = C @ dvc
-    for i in range(3):  # element loops: no array views in the per-sample path
-        for j in range(3):
-            acc[ACC_C + i, j] += C[i, j]
-        acc[ACC_FN, i] += fn[i]
+    c00, c01, c02, c10, c11, c12, c20, c21, c22 = dcm_entries(st[6], st[7], st[8], st[9])
+    v0, v1, v2 = dvc[0], dvc[1], dvc[2]
+    acc[ACC_C, 0] += c00
+    acc[ACC_C, 1] += c01
+    acc[ACC_C, 2] += c02
+    acc[ACC_C + 1, 0] += c10
+    acc[ACC_C + 1, 1] += c11
+    acc[ACC_C + 1, 2] += c12
+    acc[ACC_C + 2, 0] += c20
+    acc[ACC_C + 2, 1] += c21
+    acc[ACC_C + 2, 2] += c22
+    acc[ACC_FN, 0] += c00 * v0 + c01 * v1 + c02 * v2
+    acc[ACC_FN, 1] += c10 * v0 + c11 * v1 + c12 * v2
+    acc[ACC_FN, 2] += c20 * v0 + c21 * v1 + c22 * v2
+    for i in range(3):
         acc[ACC_WB, i] += dthc[i]
         acc[ACC_FB, i] += dvc[i]
     acc[ACC_TN, 0] += dt
     acc[ACC_TN, 1] += 1.0
     strapdown_step(st, dthc, dvc, dth_prev, dv_prev, dt)
-    dth_prev[:] = dthc
-    dv_prev[:] = dvc
+    for i in range(3):
+        dth_prev[i] = dthc[i]
+        dv_prev[i] = dvc[i]
     return acc[ACC_TN, 0]
 
 
 @njit(cache=True)
-def set_heading(st, P, heading, sigma):
+def set_heading(st, P, heading, sigma, iu=PHI + 2):
     """Heading (re)initialisation, in place: keep roll and pitch of q_b^n in ``st``, set the heading to
-    ``heading`` [rad, from North, clockwise] and reset the row and column of φ_U (index 2) of the
-    covariance ``P`` (n×n) to the variance sigma² [rad²] (no correlation with the other errors).
+    ``heading`` [rad, from North, clockwise] and reset the row and column of φ_U (index ``iu`` of the
+    covariance ``P`` (n×n); 2 in the full layout, −1: P has no φ_U) to the variance sigma² [rad²] (no
+    correlation with the other errors).
     """
     Cn = dcm_from_quat(st[6:10])
     from_h = np.arctan2(Cn[0, 1], Cn[1, 1])
     dpsi = -(heading - from_h)  # rotation about Up by yaw = -heading change
     qz = np.array([np.cos(0.5 * dpsi), 0.0, 0.0, np.sin(0.5 * dpsi)])
     st[6:10] = quat_normalize(quat_mult(qz, st[6:10]))
+    if iu < 0:
+        return
     for j in range(P.shape[0]):
-        P[PHI + 2, j] = 0.0
-        P[j, PHI + 2] = 0.0
-    P[PHI + 2, PHI + 2] = sigma * sigma
+        P[iu, j] = 0.0
+        P[j, iu] = 0.0
+    P[iu, iu] = sigma * sigma
 
 
 @njit(cache=True)
@@ -286,5 +302,5 @@ def interval_model(F, G, st, acc, tau_g, tau_a, tau_sg, tau_sa):
     correlation times (≤ 0: random walk). Returns the mean body rate ω_ib^b [rad/s] (3,).
     """
     fn, Cbn, wb, fb = interval_means(acc, acc[ACC_TN, 0])
-    fill_model(F, G, st[0], st[2], st[3:6], fn, Cbn, wb, fb, tau_g, tau_a, tau_sg, tau_sa)
+    fill_model(F, G, st[0], st[2], st[3:6], fn, Cbn, wb, fb, (tau_g, tau_a, tau_sg, tau_sa))
     return wb

@@ -39,18 +39,23 @@ def discretize(F, G, q, T, Phi, Qd):
     FQ = F @ Q
     FFQ = F @ FQ
     FQF = FQ @ F.T
-    # Qd = Q T + (FQ + QFᵀ) T²/2 + (F²Q + 2 F Q Fᵀ + Q F²ᵀ) T³/6
-    Qd[:, :] = Q * T + (FQ + FQ.T) * (0.5 * T * T) + (FFQ + FFQ.T + 2.0 * FQF) * (T * T * T / 6.0)
+    # Qd = Q T + (FQ + QFᵀ) T²/2 + (F²Q + 2 F Q Fᵀ + Q F²ᵀ) T³/6 (element loop: no temporaries)
+    c2, c3 = 0.5 * T * T, T * T * T / 6.0
+    for i in range(n):
+        for j in range(n):
+            Qd[i, j] = (Q[i, j] * T + (FQ[i, j] + FQ[j, i]) * c2
+                        + (FFQ[i, j] + FFQ[j, i] + 2.0 * FQF[i, j]) * c3)
 
 
 @njit(cache=True)
 def predict(x, P, Phi, Qd):
     """x ← Φ x, P ← Φ P Φᵀ + Qd (symmetrised). In place."""
     x[:] = Phi @ x
-    P[:, :] = Phi @ P @ Phi.T + Qd
-    Pt = P.T.copy()
-    P += Pt
-    P *= 0.5
+    A = Phi @ P @ Phi.T
+    n = P.shape[0]
+    for i in range(n):  # P = ½ (A + Qd + (A + Qd)ᵀ), no temporaries
+        for j in range(n):
+            P[i, j] = ((A[i, j] + Qd[i, j]) + (A[j, i] + Qd[j, i])) * 0.5
 
 
 @njit(cache=True)

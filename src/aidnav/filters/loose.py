@@ -19,28 +19,14 @@ from collections import namedtuple
 
 import numpy as np
 
-from aidnav.nav.earth import radii
-
 from . import measurements as ms
 from .chi2 import chi2_isf
 from .engine import Imu, Init, Models, Output, Process, Records, feedback, rts, run_filter, smooth_outputs
 from .layout import (
-    BA,
-    BG,
-    DP,
     DV,
-    L_BARO,
-    L_GPE,
-    L_LEVER,
-    L_MOUNT,
     L_N,
-    L_ODO,
     L_TOFF,
-    L_VDEL,
     NAV,
-    PHI,
-    SA,
-    SG,
     layout_names,
     make_layout,
 )
@@ -52,7 +38,9 @@ from .preprocess import (
     noise_from_static,
     static_flags,
 )
+from .prior import calibration_prior, initial_covariance, process_noise
 from .result import FilterResult, LooseResult, to_trajectory
+from .run_log import _calibration_base, _gnss_records, _log_dict, loose_counts, reinit_events
 
 # names kept from before the engine (used by the other filters and the tests)
 _apply_correction = feedback
@@ -61,49 +49,6 @@ _smooth_outputs = smooth_outputs
 __all__ = ["run_loose", "LooseResult", "FilterResult", "to_trajectory", "process_noise", "initial_covariance",
            "static_flags", "bridge_gaps", "gnss_arrays", "course_alignment", "loose_layout"]
 NEVER = 2**62  # max_rej of a model without the consecutive-rejection rule
-
-
-def process_noise(cfg, nstate: int) -> np.ndarray:
-    """Continuous process-noise PSD vector q (SI units) from the configuration."""
-    from .config import DEG, DEG_H, UG
-
-    im = cfg.imu
-    arw = im.arw_deg_sqrt_h * DEG / 60.0
-    vrw = im.vrw_m_s_sqrt_h / 60.0
-
-    def bias_q(sigma, tau, rw):
-        return 2.0 * sigma**2 / tau if tau > 0 else rw**2
-
-    sg = im.gyro_bias_instability_deg_h
-    sg = im.gyro_bias_sigma_deg_h if sg is None else sg
-    sa = im.accel_bias_sigma_ug if im.accel_bias_instability_ug is None else im.accel_bias_instability_ug
-    qg = bias_q(sg * DEG_H, im.gyro_bias_tau_s, im.gyro_bias_rw_deg_h_sqrt_h * DEG_H / 60)
-    qa = bias_q(sa * UG, im.accel_bias_tau_s, im.accel_bias_rw_ug_sqrt_h * UG / 60)
-    q = [arw**2] * 3 + [vrw**2] * 3 + [qg] * 3 + [qa] * 3
-    if nstate == 21:
-        qs = 2.0 * (1e-6) ** 2 / im.sf_tau_s if im.sf_tau_s > 0 else 0.0
-        q += [qs * im.gyro_sf_sigma_ppm**2] * 3 + [qs * im.accel_sf_sigma_ppm**2] * 3
-    return np.array(q, dtype=float)
-
-
-def initial_covariance(cfg, nstate: int, lat: float, h: float, att_sigma_rad) -> np.ndarray:
-    """Diagonal P0 from the configuration (position σ converted from metres to δL, δλ, δh)."""
-    from .config import DEG_H, UG
-
-    rm, rn = radii(lat)
-    ps = cfg.init.position_sigma_m
-    d = np.zeros(nstate)
-    d[PHI:PHI + 3] = np.asarray(att_sigma_rad) ** 2
-    d[DV:DV + 3] = np.asarray(cfg.init.velocity_sigma_m_s) ** 2
-    d[DP] = (ps[1] / (rm + h)) ** 2
-    d[DP + 1] = (ps[0] / ((rn + h) * np.cos(lat))) ** 2
-    d[DP + 2] = ps[2] ** 2
-    d[BG:BG + 3] = (cfg.imu.gyro_bias_sigma_deg_h * DEG_H) ** 2
-    d[BA:BA + 3] = (cfg.imu.accel_bias_sigma_ug * UG) ** 2
-    if nstate >= 21:
-        d[SG:SG + 3] = (cfg.imu.gyro_sf_sigma_ppm * 1e-6) ** 2
-        d[SA:SA + 3] = (cfg.imu.accel_sf_sigma_ppm * 1e-6) ** 2
-    return np.diag(d)
 
 
 def loose_layout(cfg, odometer=None, baro=None, gnss=True, gnss_velocity=True) -> np.ndarray:
@@ -139,36 +84,6 @@ def calibration_switches(cfg, odometer: bool = False, gnss_velocity: bool = True
     out["velocity_delay"] = vd and vel
     out["mounting"] &= bool(cfg.constraints.nhc or odometer)
     return out
-
-
-def _aux_model(cfg, lay):
-    """(initial variance, noise PSD, τ) of each calibration state of ``lay``, in layout order."""
-    rows = []
-    if lay[L_ODO] >= 0:
-        o = cfg.odometer
-        s = o.scale_factor_instability_ppm * 1e-6
-        tau = o.scale_factor_tau_s
-        q = 2 * s * s / tau if tau > 0 else 0.0
-        rows.append((lay[L_ODO], (o.scale_factor_sigma_ppm * 1e-6) ** 2, q, tau))
-    if lay[L_BARO] >= 0:
-        b = cfg.baro
-        qb = 2 * b.bias_instability_m ** 2 / b.bias_tau_s if b.bias_tau_s > 0 else b.bias_rw_m_sqrt_s ** 2
-        rows.append((lay[L_BARO], b.bias_sigma_m ** 2, qb, b.bias_tau_s))
-    c = cfg.calibration
-    for j in range(3):
-        if lay[L_LEVER] >= 0:
-            rows.append((lay[L_LEVER] + j, c.lever_arm_sigma_m ** 2, 0.0, 0.0))
-        if lay[L_MOUNT] >= 0:
-            rows.append((lay[L_MOUNT] + j, (c.mounting_sigma_deg * np.pi / 180) ** 2, 0.0, 0.0))
-    if lay[L_TOFF] >= 0:
-        rows.append((lay[L_TOFF], c.time_offset_sigma_s ** 2, c.time_offset_rw_s_sqrt_s ** 2, 0.0))
-    if lay[L_VDEL] >= 0:
-        rows.append((lay[L_VDEL], c.velocity_delay_sigma_s ** 2, 0.0, 0.0))
-    if lay[L_GPE] >= 0:
-        tau = cfg.gnss.error_tau_s
-        for j, sg in enumerate(cfg.gnss.error_sigma_m):
-            rows.append((lay[L_GPE] + j, sg ** 2, 2.0 * sg ** 2 / tau, tau))
-    return np.array([r[1:] for r in sorted(rows)], float).reshape(-1, 3)
 
 
 def _models(cfg) -> Models:
@@ -281,7 +196,7 @@ def loose_setup(imu, gnss, cfg, withheld, events, odometer=None, baro=None) -> S
     q0 = quat_from_euler(rph[0], rph[1], rph[2])
     v0 = i0["v0"]
     st0 = np.array([i0["lat0"], i0["lon0"], i0["h0"], v0[0], v0[1], v0[2], *q0], float)
-    aux = _aux_model(cfg, lay)
+    aux = calibration_prior(cfg, lay)
     P0 = np.zeros((n, n))
     P0[:n_ins, :n_ins] = initial_covariance(cfg, n_ins, i0["lat0"], i0["h0"], i0["att_sig"])
     if i0.get("vel_sig") is not None:  # in-motion start: velocity from GNSS with its σ
@@ -300,20 +215,6 @@ def loose_setup(imu, gnss, cfg, withheld, events, odometer=None, baro=None) -> S
                cfg.init.course_heading_sigma_deg * DEG, reset_nav)
     return Setup(cfg, lay, n, int(i0["k0"]), t_imu, proc, ini, _models(cfg), rec, rmap, out_every,
                  i0.get("reset_time"))
-
-
-def loose_counts(log, n_nodes, static_used, n_imu, k0) -> dict:
-    """``FilterResult.counts`` of the loose filter from its innovation log (:func:`_log_dict`)."""
-    mdl = log["model"]
-    cnt = dict(zupt_updates=int((mdl == ms.M_ZUPT).sum()),
-               nhc_updates=int(((mdl == ms.M_NHC) & (log["status"] == 1)).sum()),
-               nhc_rejected=int(((mdl == ms.M_NHC) & (log["status"] == 0)).sum()),
-               nodes=n_nodes, static_samples=static_used, imu_samples_used=n_imu - k0, imu_samples_skipped=k0)
-    for md, name in ((ms.M_ODO, "odometer"), (ms.M_BARO, "baro")):
-        if np.any(mdl == md):
-            cnt[f"{name}_updates"] = int(((mdl == md) & (log["status"] == 1)).sum())
-            cnt[f"{name}_rejected"] = int(((mdl == md) & (log["status"] == 0)).sum())
-    return cnt
 
 
 def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: list | None = None,
@@ -409,51 +310,3 @@ def _coarse_mounting_if_unknown(cfg, imu, gnss, t_imu, g, use, odometer, events)
     events.append(f"mounting not given: coarse IMU->vehicle mounting from the log's accelerations "
                   f"(roll {rph[0]:.1f}, pitch {rph[1]:.1f}, heading {rph[2]:.1f} deg, {cm[4]} epochs)")
     return cfg.model_copy(update={"imu": cfg.imu.model_copy(update={"mounting_rph_deg": rph})})
-
-
-def _calibration_base(cfg) -> dict:
-    """The configured values the calibration states correct (their estimates are added to these)."""
-    return {"time_offset_s": float(cfg.imu.time_offset_s), "lever_arm_m": list(cfg.gnss.lever_arm_m),
-            "mounting_rph_deg": list(cfg.imu.mounting_rph_deg), "odometer_scale": 0.0}
-
-
-def _log_dict(log, n_log) -> dict:
-    """The engine's innovation log (first ``n_log`` rows) as a dict of arrays, with model names."""
-    d = {k: getattr(log, k)[:n_log] for k in log._fields}
-    d["model_name"] = np.array(ms.MODEL_NAMES, dtype=object)[np.maximum(d["model"], 0)]
-    return d
-
-
-REINIT_WHY = {1: "consecutive rejections", 2: "NIS window far out of its chi-square band"}
-
-
-def reinit_events(log) -> list[str]:
-    """One event per re-initialisation in the engine's log (:func:`_log_dict`): time, model, why."""
-    out = []
-    for k in np.flatnonzero(log["reinit"] > 0):
-        out.append(f"re-initialisation at t={log['t'][k]:.3f}: {log['model_name'][k]} innovation NIS "
-                   f"{log['nis'][k]:.1f} ({REINIT_WHY[int(log['reinit'][k])]}): position/velocity/attitude "
-                   "covariance inflated to the innovation and the update accepted")
-    return out
-
-
-def _gnss_records(log, rmap, m) -> dict:
-    """Per-GNSS-fix view of the log: status (1/0/−1), NIS, innovation and diag S (3 components; a
-    velocity component that was not measured is NaN)."""
-    rec = dict(pos_status=np.full(m, -1, np.int8), vel_status=np.full(m, -1, np.int8),
-               pos_reinit=np.zeros(m, np.int8), vel_reinit=np.zeros(m, np.int8))
-    for k in ("pos_innov", "pos_s", "vel_innov", "vel_s"):
-        rec[k] = np.full((m, 3), np.nan)
-    rec["pos_nis"], rec["vel_nis"] = np.full(m, np.nan), np.full(m, np.nan)
-    if rmap is None:
-        return rec
-    mdl, src = rmap
-    for md, p in ((ms.M_GNSS_POS, "pos"), (ms.M_GNSS_VEL, "vel")):
-        j = np.flatnonzero(mdl == md)
-        i = src[j]
-        rec[f"{p}_status"][i] = log["status"][j]
-        rec[f"{p}_reinit"][i] = log["reinit"][j]
-        rec[f"{p}_nis"][i] = log["nis"][j]
-        rec[f"{p}_innov"][i] = log["nu"][j, :3]
-        rec[f"{p}_s"][i] = log["s"][j, :3]
-    return rec

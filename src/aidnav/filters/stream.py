@@ -31,9 +31,10 @@ from aidnav.data import ImuData
 
 from .engine import Imu, Log, Output, rts, run_chunk, smooth_outputs, start_carry
 from .layout import L_TOFF, NAV, layout_names
-from .loose import _calibration_base, _gnss_records, _log_dict, loose_counts, loose_setup
+from .loose import loose_setup
 from .preprocess import StaticDetector, bridge_gaps
 from .result import FilterResult
+from .run_log import _calibration_base, _gnss_records, _log_dict, loose_counts
 
 NEVER = 2**62  # a course alignment not yet reached (its sample is found when its chunk comes)
 

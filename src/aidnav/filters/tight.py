@@ -135,7 +135,7 @@ def tight_layout(states: int) -> np.ndarray:
 
 def _noise_vector(cfg: TightConfig) -> np.ndarray:
     from .config import LooseConfig
-    from .loose import process_noise
+    from .prior import process_noise
 
     lc = LooseConfig(imu=cfg.imu)
     q = np.zeros(N_NOISE)
@@ -148,7 +148,7 @@ def _noise_vector(cfg: TightConfig) -> np.ndarray:
 
 def _initial_P(cfg: TightConfig, lat, h, att_sig) -> np.ndarray:
     from .config import LooseConfig
-    from .loose import initial_covariance
+    from .prior import initial_covariance
 
     n = cfg.states
     P15 = initial_covariance(LooseConfig(imu=cfg.imu, init=cfg.init), 15, lat, h, att_sig)
@@ -194,7 +194,9 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     from aidnav.nav.rotations import quat_from_euler
 
     from .config import DEG
-    from .loose import NEVER, _log_dict, bridge_gaps
+    from .loose import NEVER, bridge_gaps
+    from .prior import given_initial_state
+    from .run_log import _log_dict
 
     cfg = cfg or TightConfig()
     events = events if events is not None else []
@@ -205,14 +207,8 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     nnav = int(lay[L_NINS])
     t_imu = imu.time + cfg.imu.time_offset_s
     if init_state is None:
-        ini = cfg.init
-        missing = [k for k in ("lat_deg", "lon_deg", "height_m", "roll_deg", "pitch_deg", "heading_deg")
-                   if getattr(ini, k) is None]
-        if missing:
-            raise ValueError("run_tight needs init_state or init.mode = given with " + ", ".join(missing))
-        init_state = (float(imu.t0 + cfg.imu.time_offset_s), ini.lat_deg * DEG, ini.lon_deg * DEG,
-                      ini.height_m, np.array(ini.velocity_m_s, float),
-                      np.array([ini.roll_deg, ini.pitch_deg, ini.heading_deg]) * DEG)
+        init_state = (float(imu.t0 + cfg.imu.time_offset_s),
+                      *given_initial_state(cfg.init, "run_tight without init_state"))
     t0, lat0, lon0, h0, v0, rph0 = init_state
     k0 = int(np.searchsorted(t_imu, t0, side="right"))
     q0 = quat_from_euler(rph0[0], rph0[1], rph0[2])

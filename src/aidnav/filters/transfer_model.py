@@ -194,7 +194,7 @@ def fill_transfer_model(F, G, q, lat, h, v, fn, Cbn, wb, fb, beta, sigma, q_gyro
     F[:, :], G[:, :], q[:] = 0.0, 0.0, 0.0
     F15, G15 = np.zeros((N_INS, N_INS)), np.zeros((N_INS, N_NOISE_INS))
     fill_model(F15, G15, lat, h, np.asarray(v, float), np.asarray(fn, float), np.asarray(Cbn, float),
-               np.asarray(wb, float), np.asarray(fb, float), 0.0, 0.0, 0.0, 0.0)
+               np.asarray(wb, float), np.asarray(fb, float), (0.0, 0.0, 0.0, 0.0))
     F[:N_INS, :N_INS], G[:N_INS, :N_NOISE_INS] = F15, G15
     q[0:3], q[3:6] = q_gyro, q_accel
     for j in range(3):

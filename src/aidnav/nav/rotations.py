@@ -137,20 +137,21 @@ def rotvec_from_quat(q):
     return np.array([k * q[1], k * q[2], k * q[3]])
 
 
+@njit(cache=True, inline="always")
+def dcm_entries(q0, q1, q2, q3):
+    """The entries of C_b^n of q_b^n = (q0, q1, q2, q3), row by row, as nine scalars (no array: for
+    the per-sample paths of the kernels)."""
+    return (q0 * q0 + q1 * q1 - q2 * q2 - q3 * q3, 2 * (q1 * q2 - q0 * q3), 2 * (q1 * q3 + q0 * q2),
+            2 * (q1 * q2 + q0 * q3), q0 * q0 - q1 * q1 + q2 * q2 - q3 * q3, 2 * (q2 * q3 - q0 * q1),
+            2 * (q1 * q3 - q0 * q2), 2 * (q2 * q3 + q0 * q1), q0 * q0 - q1 * q1 - q2 * q2 + q3 * q3)
+
+
 @njit(cache=True)
 def dcm_from_quat(q):
     """DCM of quaternion ``q`` (q_b^n → C_b^n)."""
-    q0, q1, q2, q3 = q[0], q[1], q[2], q[3]
     c = np.empty((3, 3))
-    c[0, 0] = q0 * q0 + q1 * q1 - q2 * q2 - q3 * q3
-    c[0, 1] = 2 * (q1 * q2 - q0 * q3)
-    c[0, 2] = 2 * (q1 * q3 + q0 * q2)
-    c[1, 0] = 2 * (q1 * q2 + q0 * q3)
-    c[1, 1] = q0 * q0 - q1 * q1 + q2 * q2 - q3 * q3
-    c[1, 2] = 2 * (q2 * q3 - q0 * q1)
-    c[2, 0] = 2 * (q1 * q3 - q0 * q2)
-    c[2, 1] = 2 * (q2 * q3 + q0 * q1)
-    c[2, 2] = q0 * q0 - q1 * q1 - q2 * q2 + q3 * q3
+    c[0, 0], c[0, 1], c[0, 2], c[1, 0], c[1, 1], c[1, 2], c[2, 0], c[2, 1], c[2, 2] = dcm_entries(
+        q[0], q[1], q[2], q[3])
     return c
 
 

@@ -24,6 +24,7 @@ import numpy as np
 from numba import njit
 
 from .earth import E2, OMEGA_IE, A, gravity
+from .rotations import dcm_entries
 
 LAT, LON, HGT, VE, VN, VU, Q0 = 0, 1, 2, 3, 4, 5, 6
 NSTATE = 10
@@ -85,15 +86,7 @@ def strapdown_step(st, dth, dvb, dth_prev, dv_prev, dt):
     sz = vz + 0.5 * (ax * vy - ay * vx) + ((px * vy - py * vx) + (ux * ay - uy * ax)) / 12.0
 
     # C_b^n(k-1) * dv_sf^b
-    c00 = q0 * q0 + q1 * q1 - q2 * q2 - q3 * q3
-    c01 = 2 * (q1 * q2 - q0 * q3)
-    c02 = 2 * (q1 * q3 + q0 * q2)
-    c10 = 2 * (q1 * q2 + q0 * q3)
-    c11 = q0 * q0 - q1 * q1 + q2 * q2 - q3 * q3
-    c12 = 2 * (q2 * q3 - q0 * q1)
-    c20 = 2 * (q1 * q3 - q0 * q2)
-    c21 = 2 * (q2 * q3 + q0 * q1)
-    c22 = q0 * q0 - q1 * q1 - q2 * q2 + q3 * q3
+    c00, c01, c02, c10, c11, c12, c20, c21, c22 = dcm_entries(q0, q1, q2, q3)
     fe = c00 * sx + c01 * sy + c02 * sz
     fn = c10 * sx + c11 * sy + c12 * sz
     fu = c20 * sx + c21 * sy + c22 * sz

@@ -1,0 +1,55 @@
+"""Re-initialisation of the filter engine (:func:`aidnav.filters.engine.policy_update`): the χ² band of
+an NIS window and the scaling of the navigation block of P that makes a triggering innovation consistent."""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from .layout import DV, NAV
+
+
+@njit(cache=True)
+def chi2_quantile(k, z):
+    """Wilson–Hilferty approximation of the χ²(k) quantile at the standard normal quantile z
+    (at the 99.9 % point it is above the exact quantile by 0.6 % at k = 10, 0.2 % at k = 30)."""
+    a = 2.0 / (9.0 * k)
+    return k * (1.0 - a + z * np.sqrt(a)) ** 3
+
+
+@njit(cache=True)
+def _nis(x, P, H, R, z):
+    """NIS νᵀ S⁻¹ ν of z − H x with S = H P Hᵀ + R."""
+    nu = z - H @ x
+    return nu @ np.linalg.solve(H @ P @ H.T + R, nu)
+
+
+@njit(cache=True)
+def inflate_nav(x, P, H, R, z):
+    """Re-initialisation of the navigation block: P ← D P D with D = √α on δv and δp and
+    √min(α, (π/2)² / P_ii) on φ (attitude σ's never grown past 90°), a congruence, so P stays positive
+    semi-definite; α ≥ 1 the smallest with NIS(ν, H D P D Hᵀ + R) ≤ m (bisection in log α up to
+    1e12). Returns α."""
+    m = z.shape[0]
+    if _nis(x, P, H, R, z) <= m:
+        return 1.0
+    P0 = P.copy()
+    lo, hi = 0.0, np.log(1e12)
+    for _ in range(50):
+        a = np.exp(0.5 * (lo + hi))
+        if _nis(x, _scaled_nav(P0, a), H, R, z) > m:
+            lo = np.log(a)
+        else:
+            hi = np.log(a)
+    a = np.exp(hi)
+    P[:, :] = _scaled_nav(P0, a)
+    return a
+
+
+@njit(cache=True)
+def _scaled_nav(P0, a):
+    """D P0 D of :func:`inflate_nav` for the factor a."""
+    d = np.ones(P0.shape[0])
+    for i in range(min(NAV, P0.shape[0])):  # a state subset's first states (satcom: never triggered)
+        d[i] = np.sqrt(a) if i >= DV else np.sqrt(min(a, max(1.0, (0.5 * np.pi) ** 2 / max(P0[i, i], 1e-30))))
+    return P0 * np.outer(d, d)

@@ -20,12 +20,8 @@ import numpy as np
 
 from aidnav.apps import common
 from aidnav.apps.common import ConfigError, check_solution, load_model, prepare_out_dir
-from aidnav.apps.process_parts import (  # noqa: F401  (names of this module's API)
-    Outage,
+from aidnav.apps.process_parts import (
     finish_summary,
-    nis_summary,
-    outage_errors,
-    outage_score,
     outage_windows,
     parse_outage,
     run_summary,

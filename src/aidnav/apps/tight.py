@@ -15,6 +15,8 @@ import numpy as np
 
 from aidnav.data import GnssData
 from aidnav.filters.tight import TightConfig, run_tight
+from aidnav.nav.rotations import wrap_2pi
+from aidnav.units import DEG
 
 __all__ = ["process_tight", "compare_with_reference", "process_tight_files", "score_against_reference"]
 
@@ -23,7 +25,7 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
                   smooth: bool = False):
     """Run the tightly coupled filter on real data; returns (TightResult, spp dict)."""
     from aidnav.estimators.dgps import spp_series
-    from aidnav.filters.config import DEG, LooseConfig
+    from aidnav.filters.config import LooseConfig
     from aidnav.filters.loose import static_flags
 
     cfg = cfg or TightConfig()
@@ -59,7 +61,7 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
         found = _meaningful_course(g.time, g.vel, ini.course_min_speed_m_s)
         if found is not None:
             tc, course, spd, se = found
-            heading_reset = (tc, float((course + cfg.imu.mounting_rph_deg[2] * DEG) % (2 * np.pi)))
+            heading_reset = (tc, float(wrap_2pi(course + cfg.imu.mounting_rph_deg[2] * DEG)))
             events.append(f"heading from the SPP course at t={tc:.2f}: {np.degrees(heading_reset[1]):.1f} "
                           "deg "
                           f"(2 s mean speed {spd:.2f} m/s, standard error {se:.2f} m/s)")
@@ -109,7 +111,7 @@ def _meaningful_course(t, vel, min_speed, window_s: float = 2.0, k_sigma: float 
         spd = float(np.hypot(me, mn))
         se = float(np.sqrt((ve[m].var(ddof=1) + vn[m].var(ddof=1)) / n))
         if spd > min_speed and spd > k_sigma * se:
-            return float(t[i]), float(np.arctan2(me, mn) % (2 * np.pi)), spd, se
+            return float(t[i]), float(wrap_2pi(np.arctan2(me, mn))), spd, se
     return None
 
 

@@ -95,7 +95,7 @@ class StaticDetector:
         c = self.c
         dt = np.diff(np.concatenate([[t_prev], time]))
         dt[dt <= 0] = np.nan
-        ok = ((self._rolling_std(dtheta / dt[:, None], 0) < c.static_gyro_std_deg_s * np.pi / 180)
+        ok = ((self._rolling_std(dtheta / dt[:, None], 0) < c.static_gyro_std_deg_s * DEG)
               & (self._rolling_std(dv / dt[:, None], 2) < c.static_accel_std_m_s2))
         self.k += len(time)
         gnss = self.gnss
@@ -326,7 +326,7 @@ def initial_state(imu, gnss, cfg, t_imu, g, use, events):
                 reset_nav = np.array([*vel_g, g_lat[ica], g_lon[ica], g_h[ica], *svel, *g_spos[ica]])
                 mount_h = cfg.imu.mounting_rph_deg[2] * DEG
                 # vehicle heading = course; IMU heading = vehicle heading + mounting heading
-                reset_heading = (course + mount_h) % (2 * np.pi)
+                reset_heading = float(wrap_2pi(course + mount_h))
                 reset_idx = int(np.searchsorted(t_imu[k0:], tca, side="left"))
                 reset_time = float(tca)
                 events.append(f"heading from GNSS course at t={tca:.3f}: {np.degrees(reset_heading):.2f} deg")
@@ -455,7 +455,7 @@ def coarse_mounting(imu, t_imu, gnss, vel, min_speed_m_s: float = 3.0, window_s:
     Rz = np.array([[np.cos(th), -np.sin(th), 0.0], [np.sin(th), np.cos(th), 0.0], [0.0, 0.0, 1.0]])
     cbv = Rz @ np.vstack([e1, e2, up])
     r, p, h = euler_from_dcm(np.ascontiguousarray(cbv))
-    return cbv, float(r), float(p), float(h % (2 * np.pi)), len(zv)
+    return cbv, float(r), float(p), float(wrap_2pi(h)), len(zv)
 
 
 def noise_from_static(imu, static, cfg, events, min_s: float = 5.0):

@@ -82,7 +82,8 @@ Records = namedtuple("Records", ["t", "model", "data", "use", "grp"], defaults=(
 # par (N_MODELS, P) model parameters; gate (N_MODELS, MAX_ROWS + 1) χ² thresholds by rows (0: off);
 # max_rej (N_MODELS,) consecutive rejections before an ungated update; node (K, 2): constraints at
 # nodes as (model id, 1: at static samples / 0: at the others); win_n (N_MODELS,) length of the NIS
-# window of the re-initialisation test (0: off, at most WIN_MAX)
+# window of the re-initialisation test (0: off, at most WIN_MAX; −1: the model never re-initialises the
+# navigation block — after max_rej rejections its next update is only accepted ungated)
 Models = namedtuple("Models", ["par", "gate", "max_rej", "node", "win_n"],
                     defaults=(np.zeros(N_MODELS, np.int64),))
 # lay: layout table; q: noise PSDs (INS inputs, then one per calibration state); tau (4,): INS bias/SF
@@ -144,7 +145,9 @@ def policy_update(x, P, wk, m, model, mod, rej, win, log, li):
     """:func:`gated_update` with the re-initialisation (module doc): after ``mod.max_rej[model]``
     consecutive rejections, or when the last ``mod.win_n[model]`` accepted NIS (this one included; ``win``
     (N_MODELS, WIN_MAX + 2): the values, then count and ring position) sum above the 99.9 % χ²(Σ m)
-    quantile, P's navigation block is inflated (:func:`inflate_nav`) and the update is made ungated."""
+    quantile, P's navigation block is inflated (:func:`inflate_nav`) and the update is made ungated. A model
+    with ``win_n`` −1 (an aid that sees only part of the motion: odometer speed, barometric height) never
+    inflates: after ``max_rej`` rejections its update is accepted ungated, nothing more."""
     H, R, z = wk.H[:m].copy(), wk.R[:m, :m].copy(), wk.z[:m].copy()
     nw = mod.win_n[model]
     why = 1 if rej[model] >= mod.max_rej[model] else 0
@@ -158,7 +161,7 @@ def policy_update(x, P, wk, m, model, mod, rej, win, log, li):
         win[model, WIN_MAX] = c
         if c == nw and win[model, :nw].sum() > chi2_quantile(nw * m, Z_999):
             why = 2
-    if why > 0:
+    if why > 0 and nw >= 0:
         inflate_nav(x, P, H, R, z)
         win[model, WIN_MAX], win[model, WIN_MAX + 1] = 0.0, 0.0
         log.reinit[li] = why

@@ -104,7 +104,9 @@ def _models(cfg) -> Models:
     for md in (ms.M_GNSS_POS, ms.M_GNSS_VEL, ms.M_ODO, ms.M_BARO):
         gate[md] = chi2
         max_rej[md] = cfg.gnss.max_consecutive_rejections
-        win_n[md] = cfg.gnss.nis_window
+        # odometer and barometer see one component of the motion: an inconsistency there is as much their
+        # calibration state's as the navigation's, so they never re-initialise the navigation block
+        win_n[md] = cfg.gnss.nis_window if md in (ms.M_GNSS_POS, ms.M_GNSS_VEL) else -1
         par[md, 0:3] = cfg.gnss.lever_arm_m
     mr = np.array(cfg.imu.mounting_rph_deg) * DEG
     cbv = dcm_from_euler(mr[0], mr[1], mr[2]).ravel()

@@ -152,7 +152,9 @@ def policy_update(x, P, wk, m, model, mod, rej, win, log, li):
     nw = mod.win_n[model]
     why = 1 if rej[model] >= mod.max_rej[model] else 0
     gate = mod.gate[model, m]
-    nis0 = _nis(x, P, H, R, z)
+    # the pre-update NIS is computed here only when the window or a re-initialisation needs it before the
+    # update; otherwise the update's own NIS (the same νᵀS⁻¹ν) is logged
+    nis0 = _nis(x, P, H, R, z) if (nw > 0 or why > 0) else -1.0
     if why == 0 and nw > 0 and (gate <= 0.0 or nis0 <= gate):
         c, pos = int(win[model, WIN_MAX]), int(win[model, WIN_MAX + 1])
         win[model, pos] = nis0
@@ -168,7 +170,8 @@ def policy_update(x, P, wk, m, model, mod, rej, win, log, li):
     nu, sd = np.zeros(m), np.zeros(m)
     ok, nis = update(x, P, H, R, z, 0.0 if why > 0 else gate, nu, sd)
     rej[model] = 0 if ok else rej[model] + 1
-    log.status[li], log.nis[li], log.nu[li, :m], log.s[li, :m] = (1 if ok else 0), nis0, nu, sd
+    log.nis[li] = nis0 if nis0 >= 0.0 else nis
+    log.status[li], log.nu[li, :m], log.s[li, :m] = (1 if ok else 0), nu, sd
     return ok
 
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import os
+import queue
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -70,11 +71,20 @@ def characterise_rates(rates, fs: float, t_start: float = 0.0, min_m: int = 1, c
         n_fit = sum(1 for k in range(int(math.log2(n)) + 1) if 2**k >= min_m and n >= MIN_CLUSTERS * 2**k)
         white_only = n_fit < MIN_FULL_POINTS
 
+    nw = max(1, min(6, workers if workers is not None else (os.cpu_count() or 1)))
+    phases: queue.SimpleQueue = queue.SimpleQueue()  # the phase arrays of the threads, reused by the axes
+    for _ in range(nw):
+        phases.put(None)
+
     def one_axis(c):
-        taus, adev, _, _ = allan_deviation(y[:, c], fs, taus="octave", workers=1)
+        ph = phases.get()
+        ph = np.empty(n + 1) if ph is None else ph
+        try:
+            taus, adev, _, _ = allan_deviation(y[:, c], fs, taus="octave", workers=1, work=ph)
+        finally:
+            phases.put(ph)
         return fit_allan(taus, adev, n, fs, axis=AXES[c], min_m=min_m, white_only=white_only)
 
-    nw = max(1, min(6, workers if workers is not None else (os.cpu_count() or 1)))
     if nw == 1:
         axes = [one_axis(c) for c in range(6)]
     else:

@@ -89,13 +89,13 @@ def test_resume_after_limit(tiny_file, tiny_serial, tmp_path, monkeypatch):
     assert len(files) == 4
     before = {f: (f.stat().st_mtime_ns, f.read_bytes()) for f in files}
     calls = []
-    real = runner.run_task
+    real = runner.run_batch_task
 
-    def spy(task):
-        calls.append((task.key, task.run))
+    def spy(task):  # the runs computed (a task is a batch of runs of one point)
+        calls.extend((task.key, r) for r in task.runs)
         return real(task)
 
-    monkeypatch.setattr(runner, "run_task", spy)
+    monkeypatch.setattr(runner, "run_batch_task", spy)
     r2 = run_experiment(tiny_file, out, progress=False)
     assert r2.complete and r2.computed == 2 and r2.reused == 4
     assert len(calls) == 2

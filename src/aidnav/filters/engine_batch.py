@@ -14,7 +14,7 @@ functions take: every operation on a run is the engine's (:func:`.ins_errors.pro
 :func:`.engine.policy_update` with the measurement models of :func:`.measurements.fill`,
 :func:`.engine.feedback`), called in the same order with the same arguments as in
 :func:`.engine.run_chunk`: each run's result is bit-identical to a one-run call of
-:func:`.engine.run_filter` (``tests/filters/test_engine_batch.py``).
+:func:`.engine.run_filter` (``tests/experiments/test_batch_runs.py``).
 
 Scope (what a Monte Carlo campaign of the loose filter uses; :func:`batchable` says whether a set of
 one-run inputs qualifies, else run them one by one): the INS block only (15 or 21 states, no

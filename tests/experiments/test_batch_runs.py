@@ -48,7 +48,8 @@ def test_batch_task_equals_run_by_run(point):
         assert a["info"] == b["info"]
         assert r["imu_samples"] == one["imu_samples"]
     # the runs differ (their own sensor errors and initial states): the comparison is not vacuous
-    assert not np.array_equal(batch[0]["estimators"]["loose"]["error"], batch[1]["estimators"]["loose"]["error"])
+    e0, e1 = (batch[i]["estimators"]["loose"]["error"] for i in (0, 1))
+    assert not np.array_equal(e0, e1)
 
 
 def test_batched_filter_equals_run_loose(sims):

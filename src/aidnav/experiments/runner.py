@@ -272,7 +272,7 @@ def run_batch_task(task: BatchTask, batched: bool = True) -> list[dict]:
     its runs in the timing breakdown."""
     for v in _THREAD_VARS:
         os.environ.setdefault(v, "1")
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     ctx = _context(task.key, task.doc)
     truth = _truth(ctx)[0]
     _gnss_template(ctx, truth)
@@ -305,8 +305,10 @@ def run_batch_task(task: BatchTask, batched: bool = True) -> list[dict]:
             b = time.perf_counter()
             res[i][name] = _process(out, name)
             tm[i]["errors_s"] += time.perf_counter() - b
+    cpu = (time.process_time() - c0) / nr  # CPU time of this process, shared equally
     for t in tm:
         t["total_s"] = t["setup_s"] + t["sim_s"] + sum(t["estimators_s"].values()) + t["errors_s"]
+        t["cpu_s"] = cpu
     return [{"key": task.key, "point": task.point, "run": run, "imu_samples": len(sims[i].imu),
              "timing": tm[i], "estimators": res[i]} for i, run in enumerate(task.runs)]
 
@@ -440,7 +442,7 @@ def run_experiment(experiment, out_dir, *, workers: int = 1, scheduler: str | No
     for v in _THREAD_VARS:  # single-threaded BLAS in the workers (inherited by spawned processes)
         os.environ.setdefault(v, "1")
     agg = {"setup_s": 0.0, "sim_s": 0.0, "errors_s": 0.0, "estimators_s": {}, "worker_total_s": 0.0,
-           "imu_samples": 0}
+           "worker_cpu_s": 0.0, "imu_samples": 0}
     info = {"kind": backend, "workers": workers if backend != "serial" else 1}
     computed = 0
 
@@ -458,6 +460,7 @@ def run_experiment(experiment, out_dir, *, workers: int = 1, scheduler: str | No
             for k in ("setup_s", "sim_s", "errors_s"):
                 agg[k] += tm[k]
             agg["worker_total_s"] += tm["total_s"]
+            agg["worker_cpu_s"] += tm.get("cpu_s", 0.0)
             for k, v in tm["estimators_s"].items():
                 agg["estimators_s"][k] = agg["estimators_s"].get(k, 0.0) + v
             agg["imu_samples"] += res["imu_samples"]

@@ -225,12 +225,13 @@ def _streams(base_seed: int, run: int):
     return ss.spawn(3)
 
 
-def simulate_run(ctx: _Context, run: int):
-    """The :class:`aidnav.sim.run.SimulationResult` of run ``run`` of a point (and the estimator stream)."""
+def simulate_run(ctx: _Context, run: int, out=None):
+    """The :class:`aidnav.sim.run.SimulationResult` of run ``run`` of a point (and the estimator stream);
+    ``out``: where to write the corrupted increments (:func:`aidnav.sim.imu.corrupt_imu`)."""
     truth, imu_true, segments = _truth(ctx)
     tmpl = _gnss_template(ctx, truth)
     s_imu, s_gnss, s_est = _streams(ctx.base_seed, run)
-    imu, realised = corrupt_imu(imu_true, ctx.imu_spec, np.random.default_rng(s_imu))
+    imu, realised = corrupt_imu(imu_true, ctx.imu_spec, np.random.default_rng(s_imu), out=out)
     gnss = tmpl.draw(np.random.default_rng(s_gnss))
     sim = SimulationResult(ctx.scenario, ctx.base_seed, truth, imu_true, imu, gnss, segments, realised)
     return sim, s_est
@@ -280,9 +281,12 @@ def run_batch_task(task: BatchTask, batched: bool = True) -> list[dict]:
     setup = (time.perf_counter() - t0) / nr
     tm = [{"setup_s": setup, "estimators_s": {}, "errors_s": 0.0} for _ in task.runs]
     sims, seeds = [], []
+    # the runs' increments as rows of (R, N, 3) arrays: the batched filter reads them there, no copy
+    n_imu = len(_truth(ctx)[1])
+    inc = [np.empty((nr, n_imu, 3)) for _ in range(2)] if batched and nr > 1 else None
     for i, run in enumerate(task.runs):
         a = time.perf_counter()
-        sim, s_est = simulate_run(ctx, run)
+        sim, s_est = simulate_run(ctx, run, None if inc is None else (inc[0][i], inc[1][i]))
         sims.append(sim)
         seeds.append(s_est)
         tm[i]["sim_s"] = time.perf_counter() - a

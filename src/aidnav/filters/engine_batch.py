@@ -7,13 +7,13 @@ over the samples, and inside it one loop over the runs, so that the per-run work
 strapdown of :func:`.ins_errors.propagate_sample`) of independent runs overlaps in the processor, and
 the node schedule, the record search and the output decimation are done once for the batch.
 
-Per-run state is held in contiguous arrays with the run as the leading index (``st`` (R, 10), ``P``
-(R, n, n), ...), so that each run's slice is exactly the C-contiguous vector or matrix the engine's own
-functions take: every operation on a run is the engine's (:func:`.ins_errors.propagate_sample`,
-:func:`.ins_errors.interval_model`, :func:`.kalman.discretize`, :func:`.kalman.predict`,
-:func:`.engine.policy_update` with the measurement models of :func:`.measurements.fill`,
-:func:`.engine.feedback`), called in the same order with the same arguments as in
-:func:`.engine.run_chunk`: each run's result is bit-identical to a one-run call of
+Per-run state and inputs are held in contiguous arrays with the run as the leading index (``st`` (R, 10),
+``P`` (R, n, n), increments (R, N, 3), ...), so that each run's slice is exactly the C-contiguous vector
+or matrix the engine's own functions take: every operation on a run is the engine's
+(:func:`.ins_errors.propagate_sample`, :func:`.ins_errors.interval_model`, :func:`.kalman.discretize`,
+:func:`.kalman.predict`, :func:`.engine.policy_update` with the measurement models of
+:func:`.measurements.fill`, :func:`.engine.feedback`), called in the same order with the same arguments
+as in :func:`.engine.run_chunk`: each run's result is bit-identical to a one-run call of
 :func:`.engine.run_filter` (``tests/experiments/test_batch_runs.py``).
 
 Scope (what a Monte Carlo campaign of the loose filter uses; :func:`batchable` says whether a set of
@@ -99,13 +99,13 @@ def _node(st, bias, ib, P, acc, buf, x, Fi, Gi, Phi, Qd, proc, mod, wk, w, rec_t
 def run_batch(t, t0, dth, dv, rec_t, rec_model, rec_data, rec_use, mod, proc, st0, bias0, P0, every):
     """Forward pass of R runs together (module doc).
 
-    t (N,) sample times [s], t0 [s] the time before the first sample; dth, dv (N, R, 3) raw increments of
-    each run; rec_t (M,), rec_model (M,) the shared record times and models, rec_data (R, M, W) and
-    rec_use (R, M) each run's rows and flags; mod, proc: the engine's :class:`.engine.Models`,
-    :class:`.engine.Process`; st0 (R, 10), bias0 (R, n − 9), P0 (R, n, n) initial states; every: output
-    decimation (> 0). Returns :class:`BatchOut`.
+    t (N,) sample times [s], t0 [s] the time before the first sample; dth, dv (R, N, 3) raw increments of
+    each run (a run's rows are its one-run arrays: simulated in place, no copy); rec_t (M,), rec_model
+    (M,) the shared record times and models, rec_data (R, M, W) and rec_use (R, M) each run's rows and
+    flags; mod, proc: the engine's :class:`.engine.Models`, :class:`.engine.Process`; st0 (R, 10), bias0
+    (R, n − 9), P0 (R, n, n) initial states; every: output decimation (> 0). Returns :class:`BatchOut`.
     """
-    N, R = dth.shape[0], dth.shape[1]
+    R, N = dth.shape[0], dth.shape[1]
     n, M = proc.lay[L_N], rec_t.shape[0]
     nins = proc.lay[L_NINS]
     st, bias, P = st0.copy(), bias0.copy(), P0.copy()
@@ -131,7 +131,7 @@ def run_batch(t, t0, dth, dv, rec_t, rec_model, rec_data, rec_use, mod, proc, st
         dt, tp = t[k] - tp, t[k]
         for r in range(R):  # the per-sample path of every run (T: the same interval for all)
             b = buf[r]
-            T = propagate_sample(st[r], acc[r], dth[k, r], dv[k, r], ib[r], dt, b[0], b[1], b[2], b[3])
+            T = propagate_sample(st[r], acc[r], dth[r, k], dv[r, k], ib[r], dt, b[0], b[1], b[2], b[3])
         t_due = rec_t[gi] if gi < M else np.inf
         if (T >= proc.prop_dt - 1e-9 or t_due <= t[k] or k == N - 1) and T > 0.0:
             g1 = gi
@@ -190,11 +190,19 @@ def batchable(imus, recs, mods, procs, inis, every) -> str | None:
     return None
 
 
+def _rows(arrs):
+    """arrs as one (R, ...) array: the array they are the consecutive rows of (no copy), else a stack."""
+    b = arrs[0].base
+    if (isinstance(b, np.ndarray) and b.flags.c_contiguous and b.shape == (len(arrs),) + arrs[0].shape
+            and all(a.base is b and a.ctypes.data == b[i].ctypes.data for i, a in enumerate(arrs))):
+        return b
+    return np.stack(arrs)
+
+
 def stack_inputs(imus, recs, inis):
-    """The arrays :func:`run_batch` takes after (t, t0): dth, dv (N, R, 3), rec_t, rec_model, rec_data
+    """The arrays :func:`run_batch` takes after (t, t0): dth, dv (R, N, 3), rec_t, rec_model, rec_data
     (R, M, W), rec_use (R, M); and st0, bias0, P0."""
-    dth = np.stack([im.dth for im in imus], axis=1)
-    dv = np.stack([im.dv for im in imus], axis=1)
+    dth, dv = _rows([im.dth for im in imus]), _rows([im.dv for im in imus])
     return (dth, dv, recs[0].t, recs[0].model, np.stack([r.data for r in recs]),
             np.stack([r.use for r in recs]), np.stack([i.st for i in inis]), np.stack([i.bias for i in inis]),
             np.stack([i.P for i in inis]))

@@ -428,7 +428,7 @@ def _intervals(imu: ImuData) -> np.ndarray:
 
 
 def corrupt_imu(imu: ImuData, spec: ImuSpec, rng: np.random.Generator,
-                return_drift: bool = False) -> tuple[ImuData, dict]:
+                return_drift: bool = False, out=None) -> tuple[ImuData, dict]:
     """Add the errors of ``spec`` to exact IMU increments.
 
     Parameters
@@ -438,6 +438,8 @@ def corrupt_imu(imu: ImuData, spec: ImuSpec, rng: np.random.Generator,
     spec : error model in SI units (see module docstring for the equation).
     rng : the random generator (its state advances).
     return_drift : also return the time-varying bias (Gauss-Markov + random walk) at each t_k.
+    out : optional (Δθ, Δv) C-contiguous (N, 3) arrays to write the corrupted increments into (the
+        returned ImuData holds them), e.g. rows of a Monte Carlo batch's (R, N, 3) arrays.
 
     Returns
     -------
@@ -484,8 +486,7 @@ def corrupt_imu(imu: ImuData, spec: ImuSpec, rng: np.random.Generator,
         "gyro_bias_gm0": state[0, :3].copy(), "accel_bias_gm0": state[0, 3:].copy(),
     }
 
-    out_g = np.empty((n, 3))
-    out_a = np.empty((n, 3))
+    out_g, out_a = (np.empty((n, 3)), np.empty((n, 3))) if out is None else out
     drift = np.zeros((n if return_drift else 1, 6))
     _corrupt_kernel(imu.dtheta, imu.dv, dt, mat_g, mat_a, b_g, b_a, gm_sig, gm_tau, white, rrw, quant, rng,
                     state, out_g, out_a, drift, return_drift)

@@ -56,66 +56,75 @@ from .layout import L_N, L_NINS, L_SIZE, NAV, ST_Q
 from .measurements import MAX_ROWS, N_MODELS, Nav, fill
 from .measurements.gnss import W_FN
 
-__all__ = ["BatchOut", "run_batch", "batchable", "stack_inputs", "run_outputs"]
+__all__ = ["BatchIn", "BatchInit", "BatchOut", "run_batch", "batchable", "stack_inputs", "run_outputs"]
 
+# inputs of a batch: t (N,) sample times [s], t0 [s] the time before the first sample; dth, dv (R, N, 3) raw
+# increments of each run (a run's rows are its one-run arrays: simulated in place, no copy); rec_t (M,),
+# rec_model (M,) the shared record times and models, rec_data (R, M, W) and rec_use (R, M) each run's rows
+# and flags; every: output decimation (> 0)
+BatchIn = namedtuple("BatchIn", ["t", "t0", "dth", "dv", "rec_t", "rec_model", "rec_data", "rec_use",
+                                 "every"])
+# initial states: st (R, 10), bias (R, n − 9), P (R, n, n)
+BatchInit = namedtuple("BatchInit", ["st", "bias", "P"])
 # per run r: out_st[r] (n_out, 10), out_bias[r], out_pdiag[r], the log's per-run columns, final st, bias, P;
 # shared: out_idx, out_node, node_idx, the log's t, model and ref columns, n_log
 BatchOut = namedtuple("BatchOut", ["out_idx", "out_st", "out_bias", "out_pdiag", "out_node", "node_idx",
                                    "log_t", "log_model", "log_ref", "status", "nis", "nu", "s", "reinit",
                                    "n_log", "st", "bias", "P"])
+# one run's slices at a node (its strapdown state, sensor errors and their copy for the strapdown, P,
+# accumulator, increment buffers, rejection counters, NIS windows, log, records) and the node's shared work
+# arrays (error state, F, G, Φ, Qd of the INS block, measurement work arrays, rates)
+_Run = namedtuple("_Run", ["st", "bias", "ib", "P", "acc", "buf", "rej", "win", "log", "data", "use"])
+_NodeWork = namedtuple("_NodeWork", ["x", "F", "G", "Phi", "Qd", "wk", "w"])
 
 
 @njit(cache=True)
-def _node(st, bias, ib, P, acc, buf, x, Fi, Gi, Phi, Qd, proc, mod, wk, w, rec_t, rec_model, data, use, g0,
-          tk, dt, log, rej, win):
+def _node(ru, wo, proc, mod, rec_t, rec_model, g0, tk, dt):
     """One run's node at sample time tk (the node block of :func:`.engine.run_chunk` for the scope of
     this module): predict, the records g0.. due by tk, feedback. Returns the next record."""
+    st, bias, P, acc, x, wk, w = ru.st, ru.bias, ru.P, ru.acc, wo.x, wo.wk, wo.w
     lay, nins = proc.lay, proc.lay[L_NINS]
     T = acc[ACC_TN, 0]
     C = dcm_from_quat(st[ST_Q:ST_Q + 4])
-    wb = interval_model(Fi, Gi, st, acc, proc.tau[0], proc.tau[1], proc.tau[2], proc.tau[3])
-    discretize(Fi, Gi, proc.q, T, Phi, Qd)
-    exact_blocks(Phi, Qd, proc.gm, T)
+    wb = interval_model(wo.F, wo.G, st, acc, proc.tau[0], proc.tau[1], proc.tau[2], proc.tau[3])
+    discretize(wo.F, wo.G, proc.q, T, wo.Phi, wo.Qd)
+    exact_blocks(wo.Phi, wo.Qd, proc.gm, T)
     x[:] = 0.0
-    predict(x, P, Phi, Qd)
-    carry_estimates(st, bias, Phi, proc.open, nins)
-    _node_rates(st, wb, buf[0], dt, w)
+    predict(x, P, wo.Phi, wo.Qd)
+    carry_estimates(st, bias, wo.Phi, proc.open, nins)
+    _node_rates(st, wb, ru.buf[0], dt, w)
     w[W_FN] = acc[ACC_FN] / T
     gi = g0
     while gi < rec_t.shape[0] and rec_t[gi] <= tk:
-        if use[gi]:
+        if ru.use[gi]:
             md = rec_model[gi]
-            m = fill(md, Nav(st, C, w, tk - rec_t[gi], bias), data[gi], mod.par[md], lay, wk.H, wk.z, wk.R)
+            m = fill(md, Nav(st, C, w, tk - rec_t[gi], bias), ru.data[gi], mod.par[md], lay, wk.H, wk.z, wk.R)
             if m > 0:
-                policy_update(x, P, wk, m, md, mod, rej, win, log, gi)
+                policy_update(x, P, wk, m, md, mod, ru.rej, ru.win, ru.log, gi)
         gi += 1
     feedback(st, bias, x, nins)
-    ib[:] = bias[:nins - NAV]
+    ru.ib[:] = bias[:nins - NAV]
     reset_accumulator(acc)
     return gi
 
 
 @njit(cache=True)
-def run_batch(t, t0, dth, dv, rec_t, rec_model, rec_data, rec_use, mod, proc, st0, bias0, P0, every):
-    """Forward pass of R runs together (module doc).
-
-    t (N,) sample times [s], t0 [s] the time before the first sample; dth, dv (R, N, 3) raw increments of
-    each run (a run's rows are its one-run arrays: simulated in place, no copy); rec_t (M,), rec_model
-    (M,) the shared record times and models, rec_data (R, M, W) and rec_use (R, M) each run's rows and
-    flags; mod, proc: the engine's :class:`.engine.Models`, :class:`.engine.Process`; st0 (R, 10), bias0
-    (R, n − 9), P0 (R, n, n) initial states; every: output decimation (> 0). Returns :class:`BatchOut`.
-    """
-    R, N = dth.shape[0], dth.shape[1]
+def run_batch(inp, mod, proc, ini):
+    """Forward pass of R runs together (module doc): inputs :class:`BatchIn`, the engine's
+    :class:`.engine.Models` and :class:`.engine.Process` (shared), initial states :class:`BatchInit`.
+    Returns :class:`BatchOut`."""
+    t, rec_t, every, dth, dv = inp.t, inp.rec_t, inp.every, inp.dth, inp.dv
+    R, N = inp.dth.shape[0], inp.dth.shape[1]
     n, M = proc.lay[L_N], rec_t.shape[0]
     nins = proc.lay[L_NINS]
-    st, bias, P = st0.copy(), bias0.copy(), P0.copy()
+    st, bias, P = ini.st.copy(), ini.bias.copy(), ini.P.copy()
     ib = bias[:, :nins - NAV].copy()
     acc, buf = np.zeros((R, 7, 3)), np.zeros((R, 4, 3))
-    Fi, Gi, Phi, Qd = model_arrays(n, noise_count(n))
-    x, w = np.zeros(n), np.zeros((5, 3))
+    F, G, Phi, Qd = model_arrays(n, noise_count(n))
     wk = Work(np.zeros((MAX_ROWS, n)), np.zeros(MAX_ROWS), np.zeros((MAX_ROWS, MAX_ROWS)))
+    wo = _NodeWork(np.zeros(n), F, G, Phi, Qd, wk, np.zeros((5, 3)))
     rej, win = np.zeros((R, N_MODELS), np.int64), np.zeros((R, N_MODELS, WIN_MAX + 2))
-    log_t, log_model, log_ref = rec_t.copy(), rec_model.astype(np.int8), np.arange(M)
+    log_t, log_model, log_ref = rec_t.copy(), inp.rec_model.astype(np.int8), np.arange(M)
     status, nis, reinit = np.full((R, M), -1, np.int8), np.full((R, M), np.nan), np.zeros((R, M), np.int8)
     nu, s = np.full((R, M, MAX_ROWS), np.nan), np.full((R, M, MAX_ROWS), np.nan)
     n_out = (N + every - 1) // every
@@ -124,9 +133,9 @@ def run_batch(t, t0, dth, dv, rec_t, rec_model, rec_data, rec_use, mod, proc, st
     out_pdiag = np.empty((R, n_out, n))
     node_idx = np.empty(N, np.int64)
     gi = 0
-    while gi < M and rec_t[gi] <= t0:
+    while gi < M and rec_t[gi] <= inp.t0:
         gi += 1
-    tp, kn, oi, T = t0, 0, 0, 0.0
+    tp, kn, oi, T = inp.t0, 0, 0, 0.0
     for k in range(N):
         dt, tp = t[k] - tp, t[k]
         for r in range(R):  # the per-sample path of every run (T: the same interval for all)
@@ -137,8 +146,9 @@ def run_batch(t, t0, dth, dv, rec_t, rec_model, rec_data, rec_use, mod, proc, st
             g1 = gi
             for r in range(R):
                 log = Log(log_t, log_model, status[r], nis[r], nu[r], s[r], log_ref, reinit[r])
-                g1 = _node(st[r], bias[r], ib[r], P[r], acc[r], buf[r], x, Fi, Gi, Phi, Qd, proc, mod, wk, w,
-                           rec_t, rec_model, rec_data[r], rec_use[r], gi, t[k], dt, log, rej[r], win[r])
+                ru = _Run(st[r], bias[r], ib[r], P[r], acc[r], buf[r], rej[r], win[r], log, inp.rec_data[r],
+                          inp.rec_use[r])
+                g1 = _node(ru, wo, proc, mod, rec_t, inp.rec_model, gi, t[k], dt)
             gi = g1
             node_idx[kn] = k
             kn += 1
@@ -199,13 +209,14 @@ def _rows(arrs):
     return np.stack(arrs)
 
 
-def stack_inputs(imus, recs, inis):
-    """The arrays :func:`run_batch` takes after (t, t0): dth, dv (R, N, 3), rec_t, rec_model, rec_data
-    (R, M, W), rec_use (R, M); and st0, bias0, P0."""
-    dth, dv = _rows([im.dth for im in imus]), _rows([im.dv for im in imus])
-    return (dth, dv, recs[0].t, recs[0].model, np.stack([r.data for r in recs]),
-            np.stack([r.use for r in recs]), np.stack([i.st for i in inis]), np.stack([i.bias for i in inis]),
-            np.stack([i.P for i in inis]))
+def stack_inputs(imus, recs, inis, every):
+    """The :class:`BatchIn` and :class:`BatchInit` of :func:`run_batch` from one-run inputs (engine
+    :class:`.engine.Imu`, records and init per run) and the output decimation."""
+    inp = BatchIn(imus[0].t, inis[0].t0, _rows([im.dth for im in imus]), _rows([im.dv for im in imus]),
+                  recs[0].t, recs[0].model, np.stack([r.data for r in recs]), np.stack([r.use for r in recs]),
+                  every)
+    return inp, BatchInit(np.stack([i.st for i in inis]), np.stack([i.bias for i in inis]),
+                          np.stack([i.P for i in inis]))
 
 
 def run_outputs(b: BatchOut, r: int) -> EngineOut:

@@ -328,8 +328,8 @@ def run_loose_batch(imus, gnss_list, cfgs):
     why = batchable(imu_ins, recs, [su.models for su in sus], [su.proc for su in sus], inis, every)
     if why is not None or any(su.out_every != every for su in sus):
         return None
-    a = stack_inputs(imu_ins, recs, inis)
-    b = run_batch(imu_ins[0].t, sus[0].ini.t0, *a[:6], sus[0].models, sus[0].proc, *a[6:], every)
+    inp, ini = stack_inputs(imu_ins, recs, inis, every)
+    b = run_batch(inp, sus[0].models, sus[0].proc, ini)
     return [loose_result(su, run_outputs(b, r), imu, gnss, used, events)
             for r, ((su, _, used, events), imu, gnss) in enumerate(zip(ins, imus, gnss_list, strict=True))]
 

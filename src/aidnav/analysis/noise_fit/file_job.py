@@ -137,7 +137,11 @@ def characterise_file(imu_path, out_dir, static: str | None = None, grade: str |
     :class:`NotStaticError` / ValueError with a clear message for a moving log, bad option or unusable data.
 
     Speed: the analysis libraries are imported (and the compiled kernels loaded) in a thread while the
-    log is read; the reader holds no reference to the log after the analysis has taken its rates.
+    log is read; the reader holds no reference to the log after the analysis has taken its rates. An
+    interchange Parquet log with uniform intervals (and no ``static``) is read in batches straight into its
+    rates (:func:`_uniform_rates_streamed`: the log's increments never are in memory whole, the same
+    numbers); any other log is read whole. Fresh memory costs system time (page faults): on a 10-h log the
+    peak falls from 818 to 497 MB and the system CPU from 1.6-2.3 to 0.7 s.
     """
     st = Stages(timings)
     rng = None

@@ -73,6 +73,9 @@ def guarded(fn):
     def wrapper(*args, **kwargs):
         if _CONSOLE_SCRIPT:  # a command runs (not --help): numba will start
             _preload_scipy_blas()
+            from aidnav.numba_load import install
+
+            install()  # the cached kernels' bitcode parsed only if something compiles against it
         try:
             return fn(*args, **kwargs)
         except (typer.Exit, typer.Abort, KeyboardInterrupt, SystemExit):

@@ -12,7 +12,7 @@ Also printed: the floor, step by step (the peak RSS of ``python -c "import numpy
 same plus numba's first dispatch of a cached trivial kernel, and ``aidnav process`` on a 60-s piece of
 the 1-h log), and the load average (the machine is shared: wall times move with it; memory does not).
 The console script loads numba's cache without parsing the kernels' bitcode (:mod:`aidnav.numba_load`)
-and uses Arrow's system allocator (:mod:`aidnav.cli`). ``--figures`` keeps the figures (default
+and uses Arrow's jemalloc pool (:mod:`aidnav.cli`). ``--figures`` keeps the figures (default
 ``--no-figures``: the figures are a separate cost, made from a decimated copy).
 Run: ``python benchmarks/memory.py [--hours-long 10]``.
 """

@@ -80,9 +80,10 @@ def guarded(fn):
     def wrapper(*args, **kwargs):
         if _CONSOLE_SCRIPT:  # a command runs (not --help): numba will start
             _preload_scipy_blas()
-            from aidnav.numba_load import install
+            if os.environ.get("AIDNAV_NUMBA_LAZY_BITCODE", "1") != "0":  # 0: numba's own cache loader
+                from aidnav.numba_load import install
 
-            install()  # the cached kernels' bitcode parsed only if something compiles against it
+                install()  # the cached kernels' bitcode parsed only if something compiles against it
         try:
             return fn(*args, **kwargs)
         except (typer.Exit, typer.Abort, KeyboardInterrupt, SystemExit):

@@ -12,7 +12,8 @@ milliseconds per process, although a command only runs the cached machine code.
 numba asks for the module to link it into a new compilation (``_get_module_for_linking``, which also
 re-serialises it). Anything unexpected (not an x86-64/ELF64 little-endian object, another numba
 internals layout) leaves numba's own path in place. The ``aidnav`` console script installs it before a
-command runs (:mod:`aidnav.cli`); library users and the tests keep numba as it is unless they call it.
+command runs (:mod:`aidnav.cli`; ``AIDNAV_NUMBA_LAZY_BITCODE=0`` in the environment keeps numba's own
+loader); library users and the tests keep numba as it is unless they call it.
 """
 
 from __future__ import annotations

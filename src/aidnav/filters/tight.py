@@ -39,7 +39,7 @@ from . import measurements as ms
 from .chi2 import chi2_isf
 from .config import Constraints, FilterSettings, ImuNoise, Initialisation
 from .engine import Imu, Init, Models, Output, Process, Records, rts, run_filter, smooth_outputs
-from .layout import L_CLK, L_N, L_NINS, L_SIZE
+from .layout import L_CLK, L_N, L_NINS, L_RERR, L_SIZE
 from .measurements import epoch as ep
 
 __all__ = ["RawGnssAiding", "TightConfig", "TightResult", "run_tight", "tight_layout",
@@ -80,6 +80,10 @@ class RawGnssAiding(_Strict):
     clock_drift_sigma_m_s: float = Field(1.0, gt=0, description="σ of the initial clock drift [m/s]")
     clock_jump_m: float = Field(1.0e4, gt=0, description="median residual that re-initialises the clock [m]")
     max_eph_age_s: float = Field(7200.0, gt=0, description="|t − toe| limit of an ephemeris [s]")
+    range_errors: bool = Field(
+        True, description="per-satellite Gauss-Markov range-error states with the σ of RTKLIB's "
+        "single-frequency error budget (URA, ionosphere, troposphere, code bias; docs/models.md)")
+    range_error_tau_s: float = Field(1800.0, gt=0, description="correlation time of the range errors [s]")
 
 
 class TightConfig(_Strict):
@@ -124,43 +128,51 @@ class TightResult:
     smoothed_cov: np.ndarray | None = None  # (K, n, n) smoothed covariance at the nodes (``smooth``)
 
 
-def tight_layout(states: int) -> np.ndarray:
-    """Layout table (:mod:`aidnav.filters.layout`): INS block of 9 (11 states) or 15, then the clock."""
+def tight_layout(states: int, n_range: int = 0) -> np.ndarray:
+    """Layout table (:mod:`aidnav.filters.layout`): INS block of 9 (11 states) or 15, then the clock,
+    then ``n_range`` per-satellite range-error states (none: 0)."""
     lay = np.full(L_SIZE, -1, np.int64)
     lay[L_NINS] = 9 if states == 11 else 15
     lay[L_CLK] = lay[L_NINS]
     lay[L_N] = lay[L_NINS] + 2
+    if n_range:
+        lay[L_RERR] = lay[L_N]
+        lay[L_N] += n_range
     return lay
 
 
-def _noise_vector(cfg: TightConfig) -> np.ndarray:
+def _noise_vector(cfg: TightConfig, n_range: int = 0) -> np.ndarray:
     from .config import LooseConfig
     from .prior import process_noise
 
     lc = LooseConfig(imu=cfg.imu)
-    q = np.zeros(N_NOISE)
+    q = np.zeros(N_NOISE + n_range)
     q[:12] = process_noise(lc, 15)
     g = cfg.gnss
     q[12] = C_LIGHT**2 * g.clock_h0 / 2.0
     q[13] = C_LIGHT**2 * 2.0 * np.pi**2 * g.clock_hm2
+    q[N_NOISE:] = 2.0 / g.range_error_tau_s  # unit-variance first-order Gauss-Markov: q = 2σ²/τ
     return q
 
 
-def _initial_P(cfg: TightConfig, lat, h, att_sig) -> np.ndarray:
+def _initial_P(cfg: TightConfig, lat, h, att_sig, n_range: int = 0) -> np.ndarray:
     from .config import LooseConfig
     from .prior import initial_covariance
 
-    n = cfg.states
+    nn = 9 if cfg.states == 11 else 15
+    n = nn + 2 + n_range
     P15 = initial_covariance(LooseConfig(imu=cfg.imu, init=cfg.init), 15, lat, h, att_sig)
-    P = np.zeros((n, n))
-    nn = 9 if n == 11 else 15
+    P = np.eye(n)  # range-error states: unit variance (stationary)
     P[:nn, :nn] = P15[:nn, :nn]
-    P[n - 2, n - 2] = cfg.gnss.clock_bias_sigma_m**2
-    P[n - 1, n - 1] = cfg.gnss.clock_drift_sigma_m_s**2
+    P[nn, nn] = cfg.gnss.clock_bias_sigma_m**2
+    P[nn + 1, nn + 1] = cfg.gnss.clock_drift_sigma_m_s**2
     return P
 
 
 def _satellite_arrays(obs, eph, use_tgd, max_age):
+    """Satellite positions, velocities, clocks, clock rates (M, S, ...) and the URA [m] of the
+    ephemeris used (M, S)."""
+    from aidnav.nav.gnss_sat import E_URA, select_ephemeris
     from aidnav.nav.gnss_sat import satellite_states as _satellites
 
     M, S = obs.code1.shape
@@ -168,12 +180,15 @@ def _satellite_arrays(obs, eph, use_tgd, max_age):
     sv = np.full((M, S, 3), np.nan)
     sc = np.full((M, S), np.nan)
     scr = np.full((M, S), np.nan)
+    ura = np.full((M, S), np.nan)
     prn = np.asarray(obs.prn, np.int64)
     for k in range(M):
         sp[k], sv[k], sc[k], scr[k] = _satellites(
             eph.table, prn, float(obs.time[k]), obs.code1[k], use_tgd, float(max_age)
         )
-    return sp, sv, sc, scr
+        for j in np.flatnonzero(np.isfinite(sp[k, :, 0])):
+            ura[k, j] = eph.table[select_ephemeris(eph.table, prn[j], float(obs.time[k]), float(max_age)), E_URA]
+    return sp, sv, sc, scr, ura
 
 
 def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, static=None, heading_reset=None,
@@ -213,7 +228,6 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     k0 = int(np.searchsorted(t_imu, t0, side="right"))
     q0 = quat_from_euler(rph0[0], rph0[1], rph0[2])
     st0 = np.array([lat0, lon0, h0, *np.asarray(v0, float), *q0], float)
-    P0 = _initial_P(cfg, lat0, h0, np.array(cfg.init.attitude_sigma_deg) * DEG)
     gate = chi2_isf(1, 1.0 - g.gate_probability) if g.gate_probability < 1 else 0.0
     use_iono = g.iono == "klobuchar" and eph.iono_alpha is not None
     if g.iono == "klobuchar" and eph.iono_alpha is None:
@@ -241,7 +255,7 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
         ion_dual = dual_frequency_iono(obs.time, obs.code1, obs.code2, g.iono_window_s)
     else:
         ion_dual = np.full(obs.code1.shape, np.nan)
-    sp, sv, sc, scr = _satellite_arrays(obs, eph, g.iono != "dual", g.max_eph_age_s)
+    sp, sv, sc, scr, ura = _satellite_arrays(obs, eph, g.iono != "dual", g.max_eph_age_s)
     no_eph = (np.isfinite(obs.code1) & ~np.isfinite(sp[:, :, 0])).sum(axis=0)
     for j in np.flatnonzero(no_eph):
         events.append(f"G{int(obs.prn[j]):02d}: {int(no_eph[j])} epoch(s) with a pseudorange but no usable "
@@ -250,7 +264,13 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     rows = np.full((M, S, ep.E_W), np.nan)
     rows[:, :, 0:3], rows[:, :, 3:6] = sp, sv
     rows[:, :, 6] = np.where(np.isfinite(sp[:, :, 0]), obs.code1 + sc, np.nan)
-    rows[:, :, 7], rows[:, :, 8] = obs.range_rate() + scr, ion_dual
+    rows[:, :, 7], rows[:, :, 8], rows[:, :, 9] = obs.range_rate() + scr, ion_dual, ura
+    # range-error states: one per satellite with a usable ephemeris somewhere in the log
+    with_eph = np.flatnonzero(np.isfinite(sp[:, :, 0]).any(axis=0)) if g.range_errors else np.zeros(0, int)
+    rows[:, with_eph, 10] = np.arange(len(with_eph))
+    lay = tight_layout(cfg.states, len(with_eph))
+    n, nr = int(lay[L_N]), len(with_eph)
+    P0 = _initial_P(cfg, lat0, h0, np.array(cfg.init.attitude_sigma_deg) * DEG, nr)
     rec = Records(np.asarray(obs.time, float), np.full(M, ms.M_PR, np.int64), rows.reshape(M, S * ep.E_W),
                   np.ones(M, np.bool_), ep.epoch_out(M, S))
     stat = np.zeros(len(t_imu), np.bool_) if static is None else np.asarray(static, np.bool_)
@@ -264,7 +284,9 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     sl = slice(k0, None)
     imu_in = Imu(t_imu[sl], dth_in[sl], dv_in[sl], stat[sl], np.zeros((len(t_imu) - k0, 2)), np.zeros((0, 2)))
     taus = np.array([cfg.imu.gyro_bias_tau_s, cfg.imu.accel_bias_tau_s, 0.0, 0.0])
-    proc = Process(lay, _noise_vector(cfg), taus, np.array([0.0, g.clock_tau_s]), float(cfg.filter.prop_dt_s))
+    # range-error estimates decay as the Gauss-Markov conditional mean between updates (open-loop states)
+    proc = Process(lay, _noise_vector(cfg, nr), taus, np.r_[0.0, g.clock_tau_s, np.full(nr, g.range_error_tau_s)],
+                   float(cfg.filter.prop_dt_s), open=np.arange(n - nr, n, dtype=np.int64))
     init = Init(float(t0), st0, np.zeros(n - 9), P0, reset_idx, reset_heading,
                 cfg.init.course_heading_sigma_deg * DEG, np.full(15, np.nan))
     r = run_filter(imu_in, rec, mod, proc, init, Output(out_every, bool(smooth), np.zeros(0, np.int64)))

@@ -210,10 +210,11 @@ def test_walk_tight_does_not_diverge(walk_default):
     assert tight <= 1.1 * spp  # measured 8.83 m vs SPP 8.36 m (8.58 m without range-error states)
 
 
-@pytest.mark.xfail(strict=True, reason="issue 26 target not reached: tight 8.83 m (8.58 m without range-error "
-                   "states) vs SPP 8.36 m over all reference epochs; both are a common offset of about "
-                   "(7.4 E, 4.0 N) m from the reference (see test_walk_error_is_a_common_offset); with the "
-                   "range errors modelled the tight north error wanders by ~3 m within its σ of ~11 m")
+@pytest.mark.xfail(strict=True, reason="issue 26 target not reached: tight 8.83 m (8.58 m without "
+                   "range-error states) vs SPP 8.36 m over all reference epochs; both are a common offset "
+                   "of about (7.4 E, 4.0 N) m from the reference (see test_walk_error_is_a_common_offset); "
+                   "with the range errors modelled the tight north error wanders by ~3 m within its σ of "
+                   "~11 m (the RTS-smoothed solution: 8.22 m)")
 def test_walk_tight_no_worse_than_spp(walk_default):
     tight, spp = walk_default
     assert tight <= spp

@@ -40,8 +40,8 @@ N_ST = 10
 # error-state blocks of the INS model (ins_errors)
 NAV = 9  # φ, δv, δp
 __all__ = ["PHI", "DV", "DP", "BG", "BA", "SG", "SA", "ST_POS", "ST_VEL", "ST_Q", "N_ST", "NAV",
-           "AUX_NAMES", "L_RERR", "L_TOFF", "L_MOUNT", "L_VDEL", "L_GPE", "L_FLEX", "make_layout", "layout_names",
-           "LAYOUTS"]
+           "AUX_NAMES", "L_RERR", "L_TOFF", "L_MOUNT", "L_VDEL", "L_GPE", "L_FLEX", "make_layout",
+           "layout_names", "LAYOUTS"]
 
 # calibration (auxiliary) states the engine knows: name -> width
 AUX_NAMES = {"odometer_scale": 1, "baro_bias": 1, "clock": 2, "lever_arm": 3, "time_offset": 1, "mounting": 3,

@@ -10,7 +10,11 @@ reference-week scale, IMU times on the same GPS scale.
 :mod:`aidnav.filters.layout` with the clock block (``L_CLK``) after the INS block of 9 or 15 states;
 δt_u = b − b̂ [m], δf = d − d̂ [m/s] (true − estimated, ρ_GPS = ρ_true + b). Clock dynamics: δṫ_u = δf +
 w_b, δḟ = −δf/τ_f + w_d (τ_f ≤ 0: random walk), PSDs S_b = c²h₀/2, S_d = c²·2π²h₋₂ (Allan
-coefficients of the receiver oscillator).
+coefficients of the receiver oscillator). With ``gnss.range_errors`` (default) one more state per satellite
+with a usable ephemeris (``L_RERR``): its pseudorange error in units of σ_j(E), RTKLIB's single-frequency
+budget (:func:`aidnav.nav.gnss_sat.range_error_sigma`), a unit-variance Gauss-Markov process of
+correlation time ``range_error_tau_s`` (docs/models.md §6.3); with four satellites the position σ then
+says what the range errors can do to it.
 
 **Measurements**: each GNSS epoch is one engine record (:mod:`aidnav.filters.measurements.epoch`): due at
 the receive time t_tag − b̂/c, the INS antenna moved back to it; clock start and jumps (median residual
@@ -126,6 +130,8 @@ class TightResult:
     forward_clock: np.ndarray | None = None
     node_time: np.ndarray | None = None  # (K,) times of the filter's nodes [s]
     smoothed_cov: np.ndarray | None = None  # (K, n, n) smoothed covariance at the nodes (``smooth``)
+    range_error: np.ndarray | None = None  # (N, R) forward range-error estimates û [-] (σ units), R states
+    range_error_prn: np.ndarray | None = None  # (R,) PRN of each range-error state
 
 
 def tight_layout(states: int, n_range: int = 0) -> np.ndarray:
@@ -187,7 +193,8 @@ def _satellite_arrays(obs, eph, use_tgd, max_age):
             eph.table, prn, float(obs.time[k]), obs.code1[k], use_tgd, float(max_age)
         )
         for j in np.flatnonzero(np.isfinite(sp[k, :, 0])):
-            ura[k, j] = eph.table[select_ephemeris(eph.table, prn[j], float(obs.time[k]), float(max_age)), E_URA]
+            i = select_ephemeris(eph.table, prn[j], float(obs.time[k]), float(max_age))
+            ura[k, j] = eph.table[i, E_URA]
     return sp, sv, sc, scr, ura
 
 
@@ -285,8 +292,9 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     imu_in = Imu(t_imu[sl], dth_in[sl], dv_in[sl], stat[sl], np.zeros((len(t_imu) - k0, 2)), np.zeros((0, 2)))
     taus = np.array([cfg.imu.gyro_bias_tau_s, cfg.imu.accel_bias_tau_s, 0.0, 0.0])
     # range-error estimates decay as the Gauss-Markov conditional mean between updates (open-loop states)
-    proc = Process(lay, _noise_vector(cfg, nr), taus, np.r_[0.0, g.clock_tau_s, np.full(nr, g.range_error_tau_s)],
-                   float(cfg.filter.prop_dt_s), open=np.arange(n - nr, n, dtype=np.int64))
+    aux_tau = np.r_[0.0, g.clock_tau_s, np.full(nr, g.range_error_tau_s)]
+    proc = Process(lay, _noise_vector(cfg, nr), taus, aux_tau, float(cfg.filter.prop_dt_s),
+                   open=np.arange(n - nr, n, dtype=np.int64))
     init = Init(float(t0), st0, np.zeros(n - 9), P0, reset_idx, reset_heading,
                 cfg.init.course_heading_sigma_deg * DEG, np.full(15, np.nan))
     r = run_filter(imu_in, rec, mod, proc, init, Output(out_every, bool(smooth), np.zeros(0, np.int64)))
@@ -308,7 +316,8 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     ck = slice(int(lay[L_CLK]) - 9, int(lay[L_CLK]) - 7)
     res = TightResult(time=t_imu[sl][r.out_idx], state=r.out_st, bias=r.out_bias[:, :nnav - 9],
                       clock=r.out_bias[:, ck], pdiag=r.out_pdiag, epochs=epochs, counts=cnt, events=events,
-                      nstate=n, final_P=r.P)
+                      nstate=n, final_P=r.P, range_error=r.out_bias[:, n - nr - 9:n - 9],
+                      range_error_prn=np.asarray(obs.prn)[with_eph])
     if smooth and len(r.node_idx) > 1:
         ds, Ps = rts(r.S_post, r.S_prior, r.S_phi, r.S_dx, r.reset_node)
         sm_st, sm_b = smooth_outputs(r.out_idx, r.out_st, r.out_bias, r.out_node, r.node_idx, ds, r.S_dx, n)

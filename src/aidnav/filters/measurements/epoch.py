@@ -14,9 +14,9 @@ atmosphere switches, Klobuchar α β, the clock-jump threshold and the clock σ'
   gated by the χ²(1) threshold ``gate`` (0: not gated), σ(E) = σ0 √(½ + ½/sin²E);
 * with range-error states (``lay[L_RERR]`` ≥ 0, slot k of a satellite in its row): the pseudorange of
   satellite j is ρ + σ_j(E)·u_j, u_j a unit-variance Gauss-Markov state (true − estimated like the
-  clock; state lay[L_RERR] + k), σ_j(E) the single-frequency error budget (:func:`aidnav.nav.gnss_sat.range_error_sigma`) at
-  the satellite's elevation, URA and applied ionospheric delay: the row gains σ_j at u_j and the
-  prediction σ_j·û_j;
+  clock; state lay[L_RERR] + k), σ_j(E) the single-frequency error budget
+  (:func:`aidnav.nav.gnss_sat.range_error_sigma`) at the satellite's elevation, URA and applied
+  ionospheric delay: the row gains σ_j at u_j and the prediction σ_j·û_j;
 * the epoch counts as rejected (the engine's consecutive-rejection rule) when some row was rejected
   and no pseudorange accepted.
 

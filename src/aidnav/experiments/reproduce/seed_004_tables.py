@@ -21,8 +21,8 @@ T1_VALUES = (0, 100, 200, 300, 400, 500)
 T2_VALUES = (100, 200, 400)
 BASELINES = (20, 40, 60)
 MASTER_TAU_S = 100.0
-#: Tables 4, 5 and 6 (the maneuver, T1 and T2 orderings, a few percent apart) run this many times the runs of
-#: the other cases (the first runs are shared: common random numbers)
+#: Tables 4, 5, 6 and 8 (the maneuver, T1, T2 and baseline orderings, a few percent apart) run this many times
+#: the runs of the other cases (the first runs are shared: common random numbers)
 TREND_RUNS_FACTOR = 3
 #: the master-error models of the baseline-error study: label -> (position-drift fraction f, white velocity
 #: σ [m/s], baselines [km]); None = the reproduction's (f = 0.5, the seed's 0.03 m/s)
@@ -125,6 +125,11 @@ def t4_rows(g: Group, suffix: str = "", spec: bool = True) -> list[dict]:
         rows.append(trend_row(g, f"heading {LABEL[a]} / {LABEL[b]}{suffix}", "-",
                               lambda m, a=a, b=b: m[a]["heading"] / m[b]["heading"], ph[a] / ph[b],
                               f"ours {op} {lim:g}", lambda v, lim=lim: v - lim, spec))
+    if rows[-1]["verdict"] == "fails":  # O / S
+        rows[-1]["reason"] = (rows[-1]["reason"] or "O / S not above 1") + (
+            ". Our O and S leave the same heading STD on the legs (the paper's O is 1.74x S): both turn "
+            "the heading far enough (360 deg, ±30 deg over 700 s) to separate the heading error from the "
+            "mounting, after which the legs' STD is set by the same noise (the same draws on AB, U and CD)")
     rows.append(trend_row(g, f"heading S / 8 (S ≈ 8: within 30 %){suffix}", "-",
                           lambda m: m["s_turns"]["heading"] / m["figure8"]["heading"],
                           ph["s_turns"] / ph["figure8"], "abs(ours - 1) <= 0.3", lambda v: 0.3 - abs(v - 1),
@@ -169,6 +174,13 @@ def t5_rows(g: Group, suffix: str = "", spec: bool = True) -> list[dict]:
     rows.append(_resolved(summary_row(f"T1 of the lowest heading STD{suffix} (margin: lowest outside "
                                       "100-300 s − lowest inside)", "s", v, 200, "100 <= ours <= 300",
                                       spec=spec, margin=(d, dse), reason=reason), g.runs, reason or ""))
+    if rows[-1]["verdict"] == "fails" and reason is None:
+        flat = 100 * _spread([g.means()[t]["heading"] for t in T1_VALUES])
+        rows[-1]["reason"] = (
+            f"no dip: our heading STD is flat across T1 within {flat:.1f} % (the paper's dip is 22 %) and "
+            f"lowest at T1 = {v:g} s ({d:+.2g} ± {dse:.2g} deg from the lowest inside 100-300 s, paired "
+            "runs). The filter has converged by the end of the 900-s figure-8, and the STD over a leg removes the "
+            "constant error the maneuver leaves, so no settling time after the maneuver shows in it")
     for k, q, tol in ((0, "heading", 0.3), (1, "pitch", 0.1), (2, "roll", 0.1)):
         rows.append(trend_row(g, f"{q}: largest deviation across T1 from the mean{suffix}", "-",
                               lambda m, q=q: _spread([m[t][q] for t in T1_VALUES]),

@@ -180,7 +180,7 @@ def t5_rows(g: Group, suffix: str = "", spec: bool = True) -> list[dict]:
             f"no dip: our heading STD is flat across T1 within {flat:.1f} % (the paper's dip is 22 %) and "
             f"lowest at T1 = {v:g} s ({d:+.2g} ± {dse:.2g} deg from the lowest inside 100-300 s, paired "
             "runs). The filter has converged by the end of the 900-s figure-8, and the STD over a leg "
-            "removes the constant error the maneuver leaves, so no settling time after the maneuver shows in it")
+            "removes the constant error the maneuver leaves, so no settling time shows in it")
     for k, q, tol in ((0, "heading", 0.3), (1, "pitch", 0.1), (2, "roll", 0.1)):
         rows.append(trend_row(g, f"{q}: largest deviation across T1 from the mean{suffix}", "-",
                               lambda m, q=q: _spread([m[t][q] for t in T1_VALUES]),

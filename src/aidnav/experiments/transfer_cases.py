@@ -43,6 +43,7 @@ class Case:
     nstate: int = 24
     master_tau: float = 0.0
     drift_fraction: float | None = None  #: master position-drift fraction (None: MasterPosSpec's 0.5)
+    master_vel_sigma: float | None = None  #: master white velocity σ [m/s] (None: MasterPosSpec's 0.03)
     runs: int | None = None  #: the first ``runs`` of the runner's run seeds (None: all)
 
     @property
@@ -102,4 +103,6 @@ def sim_config(case: Case) -> DistributedPosConfig:
     master = MasterPosSpec.for_gnss_baseline(case.baseline_km, corr_time_s=case.master_tau)
     if case.drift_fraction is not None:
         master = replace(master, pos_drift_fraction=float(case.drift_fraction))
+    if case.master_vel_sigma is not None:
+        master = replace(master, sigma_vel_m_s=float(case.master_vel_sigma))
     return DistributedPosConfig(sub_imu=imu_spec(case.grade), master=master)

@@ -42,12 +42,14 @@ The process starts from its stationary distribution. Defaults τ_x = τ_z = 2 s,
 Random streams: a run seed (int or ``numpy.random.SeedSequence``) gives three children, in this order:
 flexure, sub-IMU errors, master POS errors; the children are derived without mutating the parent, so
 the same seed gives the same draws whatever else changes (common random numbers across cases).
+:func:`simulate_distributed_pos` draws the white and driving noises per flight segment instead
+(:mod:`aidnav.sim.segment_noise`): common random numbers across trajectory variants too.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numba import njit
@@ -70,6 +72,7 @@ from aidnav.nav.rotations import (
     wrap_2pi,
 )
 from aidnav.sim.imu import ImuSpec, corrupt_imu
+from aidnav.sim.segment_noise import segment_normals
 from aidnav.units import DEG
 
 __all__ = [
@@ -123,36 +126,36 @@ def _flexure_kernel(phi, lch, z, x0, theta, theta_dot):
             theta_dot[k + 1, a] = t1
 
 
-def second_order_markov(sigma, tau, dt: float, n: int, rng: np.random.Generator) -> tuple[np.ndarray,
-                                                                                       np.ndarray]:
+def second_order_markov(sigma, tau, dt: float, n: int, rng: np.random.Generator | None,
+                        normals=None) -> tuple[np.ndarray, np.ndarray]:
     """Second-order Gauss-Markov processes x (and ẋ), one per entry of ``sigma``/``tau`` (3 each, any unit
     of x per σ; τ [s] the 1/e correlation time, β = 2.146/τ), sampled at t = 0, dt, …, n·dt [s]: arrays
     (n+1, 3) each. Exact discretisation (:func:`flexure_transition`), stationary start. Draws: 6 normals
-    for the start, then (n, 3, 2) normals.
+    for the start, then (n, 3, 2) normals; or ``normals`` = (z0 (3, 2), z (n, 3, 2)) given (``rng`` unused).
     """
     sigma = np.asarray(sigma, float)
     beta = BETA_FACTOR / np.asarray(tau, float)
     phi = np.empty((3, 2, 2))
     lch = np.zeros((3, 2, 2))
     x0 = np.empty((3, 2))
-    z0 = rng.standard_normal((3, 2))
+    z0 = rng.standard_normal((3, 2)) if normals is None else np.asarray(normals[0], float)
     for a in range(3):
         phi[a], qd = flexure_transition(beta[a], sigma[a], dt)
         if sigma[a] > 0:
             lch[a] = np.linalg.cholesky(qd)
         x0[a] = [sigma[a] * z0[a, 0], beta[a] * sigma[a] * z0[a, 1]]
-    z = rng.standard_normal((int(n), 3, 2))
+    z = rng.standard_normal((int(n), 3, 2)) if normals is None else np.ascontiguousarray(normals[1], float)
     x = np.empty((int(n) + 1, 3))
     x_dot = np.empty((int(n) + 1, 3))
     _flexure_kernel(phi, lch, z, x0, x, x_dot)
     return x, x_dot
 
 
-def simulate_flexure(spec: FlexureSpec, dt: float, n: int, rng: np.random.Generator) -> tuple[np.ndarray,
-                                                                                              np.ndarray]:
+def simulate_flexure(spec: FlexureSpec, dt: float, n: int, rng: np.random.Generator | None,
+                     normals=None) -> tuple[np.ndarray, np.ndarray]:
     """Flexure angle θ [rad] and rate θ̇ [rad/s], (n+1, 3) each at t = 0, dt, …, n·dt [s]
-    (:func:`second_order_markov` with the spec's σ and τ)."""
-    return second_order_markov(spec.sigma, spec.tau, dt, n, rng)
+    (:func:`second_order_markov` with the spec's σ and τ; ``normals`` as there)."""
+    return second_order_markov(spec.sigma, spec.tau, dt, n, rng, normals)
 
 
 # -------------------------------------------------------------------------------------- lever arm
@@ -446,13 +449,14 @@ def run_streams(seed) -> list[np.random.SeedSequence]:
 
 
 def simulate_master_pos(truth: Trajectory, imu: ImuData, spec: MasterPosSpec,
-                        rng: np.random.Generator) -> MasterPosOutput:
+                        rng: np.random.Generator | None, normals=None) -> MasterPosOutput:
     """Master POS output at ``spec.rate_hz`` (epochs at multiples of the period from the truth start).
 
     truth, imu: master truth and error-free increments on a uniform grid (from ``generate_truth``).
     Draws, fixed order: (M, 3) attitude, (M, 3) velocity, (M, 3) position unit normals (made
     Gauss-Markov, stationary from the first epoch, when ``spec.corr_time_s`` > 0), then the position
-    drift's draws (:func:`second_order_markov`; see :class:`MasterPosSpec`).
+    drift's draws (:func:`second_order_markov`; see :class:`MasterPosSpec`). Or ``normals`` given
+    (``rng`` unused): (z (M, 9) attitude|velocity|position, drift start (3, 2), drift (M-1, 3, 2)).
     """
     dt = float(truth.time[1] - truth.time[0])
     ratio = int(round(1.0 / (spec.rate_hz * dt)))
@@ -460,9 +464,11 @@ def simulate_master_pos(truth: Trajectory, imu: ImuData, spec: MasterPosSpec,
         raise ValueError("simulate_master_pos: the output period must be a multiple of the IMU interval")
     idx = np.arange(0, len(truth.time), ratio)
     m = len(idx)
-    za = rng.standard_normal((m, 3))
-    zv = rng.standard_normal((m, 3))
-    zp = rng.standard_normal((m, 3))
+    if normals is None:
+        za, zv, zp = (rng.standard_normal((m, 3)) for _ in range(3))
+    else:
+        z = np.array(normals[0], float)
+        za, zv, zp = z[:, 0:3], z[:, 3:6], z[:, 6:9]
     if spec.corr_time_s > 0:
         a = math.exp(-ratio * dt / spec.corr_time_s)
         b = math.sqrt(1.0 - a * a)
@@ -472,7 +478,7 @@ def simulate_master_pos(truth: Trajectory, imu: ImuData, spec: MasterPosSpec,
     rph = truth.rph[idx] + za * spec.att_sigma_rad
     rph[:, 2] = wrap_2pi(rph[:, 2])
     drift, drift_rate = second_order_markov(spec.pos_drift_sigma_m, np.full(3, spec.pos_drift_tau_s),
-                                            ratio * dt, m - 1, rng)
+                                            ratio * dt, m - 1, rng, None if normals is None else normals[1:])
     vel = truth.vel[idx] + zv * spec.sigma_vel_m_s + drift_rate
     lat, h = truth.lat[idx], truth.height[idx]
     rm, rn = radii(lat)
@@ -484,24 +490,39 @@ def simulate_master_pos(truth: Trajectory, imu: ImuData, spec: MasterPosSpec,
 
 
 def simulate_sub_imu(truth: Trajectory, imu: ImuData, cfg: DistributedPosConfig,
-                     rng_flex: np.random.Generator, rng_imu: np.random.Generator,
-                     geometry: SubGeometry | None = None) -> SubImuOutput:
+                     rng_flex: np.random.Generator | None, rng_imu: np.random.Generator,
+                     geometry: SubGeometry | None = None, normals=None) -> SubImuOutput:
     """Sub-IMU truth and increments for a master truth trajectory and its error-free increments.
 
     ``truth`` must hold the points t_0..t_N of the N intervals of ``imu`` (as ``generate_truth`` gives).
     ``geometry``: :func:`sub_geometry` of this truth and ``cfg.lever_arm`` (computed when None).
+    ``normals``: None (the flexure draws from ``rng_flex``, every IMU error from ``rng_imu``) or
+    (flexure start (3, 2), flexure (N, 3, 2), IMU white noise (N, 6) gyro|accel): the white noise is then
+    added from these (exactly as :func:`~aidnav.sim.imu.corrupt_imu` adds it, which needs no
+    quantisation), the turn-on errors still from ``rng_imu``.
     """
     geo = geometry if geometry is not None else sub_geometry(truth, imu, cfg.lever_arm)
     if not np.array_equal(geo.lever_arm, cfg.lever_arm) or len(geo.lat) != len(truth.time):
         raise ValueError("simulate_sub_imu: geometry was computed for another truth or lever arm")
     n = len(imu)
-    theta, theta_dot = simulate_flexure(cfg.flexure, geo.dt, n, rng_flex)
+    theta, theta_dot = simulate_flexure(cfg.flexure, geo.dt, n, rng_flex, None if normals is None
+                                        else normals[:2])
     rho = cfg.mounting
     dth_s, dv_s, s_rph = _sub_run_kernel(geo.c_m, geo.c_ms, imu.dtheta, geo.dvb, rho, theta)
     sub_truth = Trajectory(time=truth.time.copy(), lat=geo.lat, lon=geo.lon, height=geo.height, vel=geo.vel,
                            rph=s_rph)
     imu_true = ImuData(imu.time.copy(), dth_s, dv_s, t0=imu.t0)
-    imu_c, realised = corrupt_imu(imu_true, cfg.sub_imu, rng_imu)
+    spec = cfg.sub_imu
+    if normals is None:
+        imu_c, realised = corrupt_imu(imu_true, spec, rng_imu)
+    else:
+        if spec.gyro_quant > 0 or spec.accel_quant > 0:
+            raise ValueError("simulate_sub_imu: keyed white noise needs an IMU spec without quantisation")
+        imu_c, realised = corrupt_imu(imu_true, replace(spec, gyro_arw=np.zeros(3), accel_vrw=np.zeros(3)),
+                                      rng_imu)
+        sh = np.sqrt(geo.dt)
+        imu_c.dtheta[:] += spec.gyro_arw * sh * normals[2][:, :3]
+        imu_c.dv[:] += spec.accel_vrw * sh * normals[2][:, 3:]
     return SubImuOutput(truth=sub_truth, imu_true=imu_true, imu=imu_c, theta=theta, theta_dot=theta_dot,
                         rho=rho, lever_arm=geo.lever_arm, imu_errors=realised)
 
@@ -514,6 +535,12 @@ def simulate_distributed_pos(scn_or_truth, cfg: DistributedPosConfig | None = No
     that :func:`aidnav.sim.trajectory.generate_truth` returns (pass it to reuse one truth for many
     runs). cfg: :class:`DistributedPosConfig` (default: seed §3.1). seed: int or SeedSequence
     (see :func:`run_streams`). geometry: :func:`sub_geometry` of this truth (reused across runs).
+
+    Common random numbers across trajectory variants: the flexure, the sub-IMU white noise and every
+    master error are drawn per flight segment (:func:`aidnav.sim.segment_noise.segment_normals`), so two
+    variants flying a segment of the same name get the same noise on it over the time they share (a
+    leg inserted or lengthened shifts nothing after it); the sub-IMU's turn-on errors come from the
+    run's sub-IMU stream (:func:`run_streams`).
     """
     cfg = cfg or DistributedPosConfig()
     if isinstance(scn_or_truth, tuple):
@@ -522,9 +549,17 @@ def simulate_distributed_pos(scn_or_truth, cfg: DistributedPosConfig | None = No
         from aidnav.sim.trajectory import generate_truth  # lazy: pulls in pydantic, yaml
 
         truth, imu, segments = generate_truth(scn_or_truth)
-    s_flex, s_imu, s_master = run_streams(seed)
-    sub = simulate_sub_imu(truth, imu, cfg, np.random.default_rng(s_flex), np.random.default_rng(s_imu),
-                           geometry)
-    master = simulate_master_pos(truth, imu, cfg.master, np.random.default_rng(s_master))
+    ss = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(int(seed))
+    _, s_imu, _ = run_streams(ss)
+    dt = _uniform_dt(imu)
+    ratio = int(round(1.0 / (cfg.master.rate_hz * dt)))
+    t_m = truth.time[::ratio]
+    flex = (segment_normals(ss, 10, [0.0], None, (3, 2))[0],
+            segment_normals(ss, 11, imu.time, segments, (3, 2)),
+            segment_normals(ss, 12, imu.time, segments, (6,)))
+    sub = simulate_sub_imu(truth, imu, cfg, None, np.random.default_rng(s_imu), geometry, normals=flex)
+    mst = (segment_normals(ss, 13, t_m, segments, (9,)), segment_normals(ss, 14, [0.0], None, (3, 2))[0],
+           segment_normals(ss, 15, t_m[1:], segments, (3, 2)))
+    master = simulate_master_pos(truth, imu, cfg.master, None, normals=mst)
     return DistributedPosRun(master_truth=truth, master_imu=imu, segments=segments, sub=sub, master=master,
                              config=cfg)

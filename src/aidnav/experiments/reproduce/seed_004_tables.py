@@ -21,11 +21,15 @@ T1_VALUES = (0, 100, 200, 300, 400, 500)
 T2_VALUES = (100, 200, 400)
 BASELINES = (20, 40, 60)
 MASTER_TAU_S = 100.0
-#: Tables 4 and 5 (the maneuver and T1 orderings, a few percent apart) run this many times the runs of the
-#: other cases (the first runs are shared: common random numbers)
+#: Tables 4, 5, 6 and 8 (the maneuver, T1, T2 and baseline orderings, a few percent apart) run this many times
+#: the runs of the other cases (the first runs are shared: common random numbers)
 TREND_RUNS_FACTOR = 3
-#: master position-drift fractions of the baseline-error study (0.5 = the reproduction's model)
-DRIFT_FRACTIONS = (0.0, 0.5, 0.9)
+#: the master-error models of the baseline-error study: label -> (position-drift fraction f, white velocity
+#: σ [m/s], baselines [km]); None = the reproduction's (f = 0.5, the seed's 0.03 m/s)
+MASTER_MODELS = {"f = 0 (white position), σ_v = 0.03": (0.0, None, BASELINES),
+                 "f = 0.5 (the reproduction), σ_v = 0.03": (None, None, BASELINES),
+                 "f = 0 (white position), σ_v = 0.015": (0.0, 0.015, (20, 60)),
+                 "f = 0.1, σ_v = 0.015": (0.1, 0.015, (20, 60))}
 #: the per-run statistics, in this order: attitude [deg], velocity [m/s], position [m], baseline [m]
 QUANTS = ("heading", "pitch", "roll", "vE", "vN", "vU", "lat", "lon", "h", "baseline")
 UNITS = ("deg", "deg", "deg", "m/s", "m/s", "m/s", "m", "m", "m", "m")
@@ -121,6 +125,11 @@ def t4_rows(g: Group, suffix: str = "", spec: bool = True) -> list[dict]:
         rows.append(trend_row(g, f"heading {LABEL[a]} / {LABEL[b]}{suffix}", "-",
                               lambda m, a=a, b=b: m[a]["heading"] / m[b]["heading"], ph[a] / ph[b],
                               f"ours {op} {lim:g}", lambda v, lim=lim: v - lim, spec))
+    if rows[-1]["verdict"] == "fails":  # O / S
+        rows[-1]["reason"] = (rows[-1]["reason"] or "O / S not above 1") + (
+            ". Our O and S leave the same heading STD on the legs (the paper's O is 1.74x S): both turn "
+            "the heading far enough (360 deg, ±30 deg over 700 s) to separate the heading error from the "
+            "mounting, after which the legs' STD is set by the same noise (the same draws on AB, U and CD)")
     rows.append(trend_row(g, f"heading S / 8 (S ≈ 8: within 30 %){suffix}", "-",
                           lambda m: m["s_turns"]["heading"] / m["figure8"]["heading"],
                           ph["s_turns"] / ph["figure8"], "abs(ours - 1) <= 0.3", lambda v: 0.3 - abs(v - 1),
@@ -165,6 +174,13 @@ def t5_rows(g: Group, suffix: str = "", spec: bool = True) -> list[dict]:
     rows.append(_resolved(summary_row(f"T1 of the lowest heading STD{suffix} (margin: lowest outside "
                                       "100-300 s − lowest inside)", "s", v, 200, "100 <= ours <= 300",
                                       spec=spec, margin=(d, dse), reason=reason), g.runs, reason or ""))
+    if rows[-1]["verdict"] == "fails" and reason is None:
+        flat = 100 * _spread([g.means()[t]["heading"] for t in T1_VALUES])
+        rows[-1]["reason"] = (
+            f"no dip: our heading STD is flat across T1 within {flat:.1f} % (the paper's dip is 22 %) and "
+            f"lowest at T1 = {v:g} s ({d:+.2g} ± {dse:.2g} deg from the lowest inside 100-300 s, paired "
+            "runs). The filter has converged by the end of the 900-s figure-8, and the STD over a leg "
+            "removes the constant error the maneuver leaves, so no settling time shows in it")
     for k, q, tol in ((0, "heading", 0.3), (1, "pitch", 0.1), (2, "roll", 0.1)):
         rows.append(trend_row(g, f"{q}: largest deviation across T1 from the mean{suffix}", "-",
                               lambda m, q=q: _spread([m[t][q] for t in T1_VALUES]),
@@ -209,45 +225,57 @@ def t8_rows(g: Group) -> list[dict]:
     pb = PAPER_T8["baseline"]
     reason = ("the baseline-length error is the difference of the sub's and the master's position "
               "errors: the sub follows the master's smooth position drift (the velocity matching passes its "
-              "rate), so "
-              "only the master's white part stays in it, over a floor of the sub's own errors that does not "
-              "scale with the GNSS accuracy (see 'Master-error model'); a proportional baseline error and "
-              "the growth of velocity and position with L0 pull the drift fraction in opposite directions")
-    for b in (40, 60):
-        rows.append(trend_row(g, f"baseline error ratio {b} / 20 km over GPS accuracy ratio "
-                              f"{gps[b] / gps[20]:g} (about proportional: 0.5 … 2)", "-",
-                              lambda m, b=b: m[b]["baseline"] / m[20]["baseline"] / (gps[b] / gps[20]),
-                              pb[BASELINES.index(b)] / pb[0] / (gps[b] / gps[20]), "0.5 <= ours <= 2",
-                              lambda v: min(v - 0.5, 2.0 - v)))
-        if rows[-1]["verdict"] == "fails":
-            rows[-1]["reason"] = reason
+              "rate), so only the master's white part stays in it, over a floor that does not scale with the "
+              "GNSS accuracy: the sub's own position error over a leg, the integral of the master's white "
+              "velocity error (0.03 m/s) that velocity matching passes to it, ≈ 0.24 m over a 400-s leg. "
+              "Master attitude and flexure act only through the 5-m lever arm (≈ 2 mm). 'Master-error "
+              "model': a proportional baseline error needs a mostly white master position and about half "
+              "the seed's velocity error; with the seed's 0.03 m/s no master position model gives it")
+    ratios = {b: gps[b] / gps[20] for b in (40, 60)}
+
+    def binding(m):  # the ratio (40/20 or 60/20 km, over the GPS ratio) nearest to leaving 0.5 … 2
+        v = [m[b]["baseline"] / m[20]["baseline"] / r for b, r in ratios.items()]
+        return min(v, key=lambda x: min(x - 0.5, 2.0 - x))
+
+    pv = [pb[BASELINES.index(b)] / pb[0] / r for b, r in ratios.items()]
+    # one SPEC predicate, one row (as the velocity and position rows take the smaller of their two steps)
+    rows.append(trend_row(g, "baseline error: the ratio 40 / 20 or 60 / 20 km over the GPS accuracy ratio 5 "
+                          "or 10 nearest to the bounds (about proportional: 0.5 … 2)", "-", binding,
+                          min(pv, key=lambda x: min(x - 0.5, 2.0 - x)), "0.5 <= ours <= 2",
+                          lambda v: min(v - 0.5, 2.0 - v)))
+    if rows[-1]["verdict"] == "fails":
+        rows[-1]["reason"] = reason
     return rows
 
 
-def drift_rows(groups: dict) -> list[dict]:
-    """The master-error study: for each position-drift fraction f of the master, the baseline error's
-    proportionality and the growth of vE and lat with L0 (a sensitivity study: no SPEC rows)."""
+def master_model_rows(groups: dict) -> list[dict]:
+    """The master-error study of Table 8 (a sensitivity study: no SPEC rows). For each master-error model
+    (``MASTER_MODELS``: position-drift fraction f, white velocity σ_v), the baseline error's ratio 60 / 20 km
+    (and 40 / 20 km) over the GPS ratio (the SPEC row's quantity) and the growth of vE and lat with L0."""
     rows = []
-    for f, g in groups.items():
+    gps = {20: 0.1, 40: 0.5, 60: 1.0}
+    pb = PAPER_T8["baseline"]
+    for label, g in groups.items():
         m = g.means()
-        v, se = g.stat(lambda m: m[60]["baseline"] / m[20]["baseline"] / 10.0)
-        b = [m[x]["baseline"] for x in BASELINES]
-        pb = PAPER_T8["baseline"]
-        rows.append(summary_row(f"f = {f:g}: baseline error ratio 60 / 20 km over the GPS ratio 10 (STD "
-                                f"{b[0]:.3f} / {b[1]:.3f} / {b[2]:.3f} m at 20 / 40 / 60 km)", "-", v,
-                                pb[2] / pb[0] / 10.0, "0.5 <= ours <= 2", stderr=se,
-                                margin=(min(v - 0.5, 2.0 - v), se)))
+        b = " / ".join(f"{m[x]['baseline']:.3f}" for x in g.keys)
+        for x in [k for k in (40, 60) if k in g.keys]:
+            r = gps[x] / gps[20]
+            v, se = g.stat(lambda m, x=x, r=r: m[x]["baseline"] / m[20]["baseline"] / r)
+            rows.append(summary_row(f"{label}: baseline error ratio {x} / 20 km over the GPS ratio {r:g} "
+                                    f"(STD {b} m at {' / '.join(str(k) for k in g.keys)} km)", "-", v,
+                                    pb[BASELINES.index(x)] / pb[0] / r, "0.5 <= ours <= 2", stderr=se,
+                                    margin=(min(v - 0.5, 2.0 - v), se)))
         for q in ("vE", "lat"):
             v, se = g.stat(lambda m, q=q: m[60][q] / m[20][q])
-            rows.append(summary_row(f"f = {f:g}: {q} STD ratio 60 / 20 km (grows: > 1)", "-", v,
-                                    PAPER_T8[q][2] / PAPER_T8[q][0], "ours > 1", stderr=se,
-                                    margin=(v - 1.0, se)))
+            rows.append(summary_row(f"{label}: {q} STD ratio 60 / 20 km (grows: > 1; STD at 20 km "
+                                    f"{m[20][q]:.4g})", "-", v, PAPER_T8[q][2] / PAPER_T8[q][0], "ours > 1",
+                                    stderr=se, margin=(v - 1.0, se)))
     return rows
 
 
 __all__ = [
-    "Group", "trend_row", "t4_rows", "t5_rows", "t6_rows", "t8_rows", "drift_rows", "MODES", "LABEL",
+    "Group", "trend_row", "t4_rows", "t5_rows", "t6_rows", "t8_rows", "master_model_rows", "MODES", "LABEL",
     "GRADES", "BASE_GRADE", "SWEEP_GRADES", "T1_VALUES", "T2_VALUES", "BASELINES", "MASTER_TAU_S",
-    "DRIFT_FRACTIONS", "TREND_RUNS_FACTOR", "QUANTS", "UNITS", "PAPER_T4", "PAPER_T5", "PAPER_T6",
+    "MASTER_MODELS", "TREND_RUNS_FACTOR", "QUANTS", "UNITS", "PAPER_T4", "PAPER_T5", "PAPER_T6",
     "PAPER_T8", "FACTOR2", "summary_table",
 ]

@@ -308,6 +308,8 @@ class _FileChunks(TrajectoryChunks):
         co = pacsv.ConvertOptions(column_types={n: pa.float64() for n in cols}, include_columns=cols)
         with pacsv.open_csv(self.path, read_options=ro, parse_options=po, convert_options=co) as r:
             for b in r:
+                if any(b.column(i).null_count for i in range(b.num_columns)):  # empty field or line
+                    raise ValueError("empty field")
                 yield b
 
     def __iter__(self):

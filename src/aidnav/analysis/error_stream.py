@@ -54,7 +54,7 @@ from aidnav.analysis.errors import (
 )
 
 CAP = 1 << 20  #: values of one row summarised in memory (exactly as the whole-array path) up to this many
-FIGURE_POINTS = 20000  #: at most about this many epochs go to the figures
+FIGURE_POINTS = 4000  #: at most this many epochs go to the figures (about 4 per pixel column of the PNGs)
 _READ = 1 << 16  #: values per read of a spool
 _BINS = 4096
 

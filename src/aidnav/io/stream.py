@@ -469,6 +469,16 @@ class Spool:
                 m = min(chunk, self.rows - a)
                 yield np.fromfile(f, np.float64, m * self.width).reshape(m, self.width)
 
+    def read_reverse(self, chunk: int):
+        """(first row, rows) of blocks of at most ``chunk`` rows, the last block first."""
+        if not self.f.closed:
+            self.f.close()
+        with open(self.path, "rb") as f:
+            for a in reversed(range(0, self.rows, chunk)):
+                m = min(chunk, self.rows - a)
+                f.seek(a * self.width * 8)
+                yield a, np.fromfile(f, np.float64, m * self.width).reshape(m, self.width)
+
     def close(self) -> None:
         self.f.close()
         if os.path.exists(self.path):

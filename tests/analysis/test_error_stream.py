@@ -132,7 +132,9 @@ def test_order_statistics_exact_with_small_cap():
         ks = [0, 17, len(x) // 2, len(x) - 1]
         got = order_statistics(read, len(x), ks, 0.0, float(x.max()), cap=64)
         assert [got[k] for k in ks] == [srt[k] for k in ks]
-        p = percentile_of(lambda k: order_statistics(read, len(x), k, 0.0, float(x.max()), cap=64), len(x), 95)
+        n, top = len(x), float(x.max())
+        p = percentile_of(lambda k, n=n, top=top, read=read: order_statistics(read, n, k, 0.0, top, cap=64),
+                          n, 95)
         assert p == np.percentile(x, 95)
 
 

@@ -22,6 +22,7 @@ def no_compute(monkeypatch):
         raise AssertionError("a run was computed")
 
     monkeypatch.setattr(runner, "run_task", boom)
+    monkeypatch.setattr(runner, "run_batch_task", boom)
 
 
 @pytest.mark.parametrize("mutate, expected", [

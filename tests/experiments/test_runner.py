@@ -89,13 +89,13 @@ def test_resume_after_limit(tiny_file, tiny_serial, tmp_path, monkeypatch):
     assert len(files) == 4
     before = {f: (f.stat().st_mtime_ns, f.read_bytes()) for f in files}
     calls = []
-    real = runner.run_task
+    real = runner.run_batch_task
 
-    def spy(task):
-        calls.append((task.key, task.run))
+    def spy(task):  # the runs computed (a task is a batch of runs of one point)
+        calls.extend((task.key, r) for r in task.runs)
         return real(task)
 
-    monkeypatch.setattr(runner, "run_task", spy)
+    monkeypatch.setattr(runner, "run_batch_task", spy)
     r2 = run_experiment(tiny_file, out, progress=False)
     assert r2.complete and r2.computed == 2 and r2.reused == 4
     assert len(calls) == 2
@@ -129,7 +129,7 @@ def test_resume_from_prepopulated_runs(tiny_file, tiny_serial, tmp_path):
 
 def test_keyboard_interrupt_keeps_finished_runs(tiny_file, tmp_path, monkeypatch):
     out = tmp_path / "k"
-    real = runner.run_task
+    real = runner.run_batch_task
     n = {"calls": 0}
 
     def flaky(task):
@@ -138,11 +138,11 @@ def test_keyboard_interrupt_keeps_finished_runs(tiny_file, tmp_path, monkeypatch
             raise KeyboardInterrupt
         return real(task)
 
-    monkeypatch.setattr(runner, "run_task", flaky)
+    monkeypatch.setattr(runner, "run_batch_task", flaky)
     with pytest.raises(CampaignInterrupted, match="2 of 6 runs"):
-        run_experiment(tiny_file, out, progress=False)
+        run_experiment(tiny_file, out, progress=False, batch=1)  # one run a task: interrupted at the third
     assert len(list((out / "runs").rglob("*.npz"))) == 2
-    monkeypatch.setattr(runner, "run_task", real)
+    monkeypatch.setattr(runner, "run_batch_task", real)
     r = run_experiment(tiny_file, out, progress=False)
     assert r.complete and r.computed == 4 and r.reused == 2
 

@@ -80,3 +80,24 @@ def test_pitch_claim_reading_and_bias_model():
     assert pb["sigma"] == pytest.approx(k * math.sin(a) * tilt, rel=1e-12)
     assert pb["seed"] < 0.1 < 1.6 < pb["adverse"] < 1.7
     assert pb["seed"] ** 2 + pb["adverse"] ** 2 == pytest.approx(2 * pb["sigma"] ** 2, rel=1e-12)
+
+
+def test_pitch_accuracy_runs_and_gps_velocity_covariance():
+    """The pitch claim's per-run statistics are consistent (mean square ≤ largest² after 30 s), and the
+    filter's own pitch σ at 30 s falls with the GPS velocity σ towards the bias-tied floor k·sin α·σ∇/g
+    (the tilt the antenna does not see converges through the GPS velocity only), and falls with time."""
+    import numpy as np
+
+    from aidnav.experiments.reproduce import seed_000_pitch as sp
+
+    r = sp.fixed_bias_pitch(2, 3, 40.0)
+    assert r["max"].shape == r["ms"].shape == (2,)
+    assert np.all(r["ms"] > 0) and np.all(r["ms"] <= r["max"] ** 2 * (1 + 1e-12))
+    sw = sp.pitch_sigma_vs_gps_velocity(1, 500.0, sigmas=(0.5, 0.25, 0.1))
+    floor = sp.pitch_bias_model()["sigma"]
+    s30 = [sw[v][30.0] for v in (0.5, 0.25, 0.1)]
+    assert s30[0] > s30[1] > s30[2] > floor
+    assert s30[0] > 2.0 > s30[2]  # 0.5 m/s cannot settle the tilt below 2′ (1σ) by 30 s; 0.1 m/s can
+    assert s30[2] < 1.25 * floor  # at 0.1 m/s what is left at 30 s is mostly the bias-tied tilt
+    for v in sw:
+        assert sw[v][60.0] < sw[v][30.0]

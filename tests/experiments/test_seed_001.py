@@ -46,3 +46,31 @@ def test_cli_reproduce_001_end_to_end(tmp_path):
     r = subprocess.run([sys.executable, "-m", "aidnav.cli", "report", str(out)], capture_output=True,
                        text=True, env=env, timeout=300)
     assert r.returncode == 0 and (out / "report.html").read_text() == html
+
+
+def test_dr_rows_paired_statistics_known_answers():
+    """The DR rows (a), (b) over paired runs: sign-test counts, paired differences and their standard errors
+    are those of the per-run values given (a constructed set: 2 satellites always lower the pure-DR slope of
+    the same window, but the slope after the return is above the slope before in 7 of 10 runs)."""
+    import numpy as np
+
+    from aidnav.experiments.reproduce.seed_001 import dr_rows
+
+    before = np.linspace(0.04, 0.06, 10)
+    after = before + np.r_[[0.002] * 7, [-0.001] * 3]
+    after_c = after + 0.01
+    per = [{"dr_rate_2sat": 0.1, "dr_rate_0sat_on": 0.2 + 0.001 * i, "slope_before": b, "slope_after": a,
+            "slope_after_0sat": c} for i, (b, a, c) in enumerate(zip(before, after, after_c, strict=True))]
+    rows = {r["quantity"]: r for r in dr_rows(per)}
+    sb = next(r for q, r in rows.items() if q.startswith("(b) sign test"))
+    assert "in 3 of 10 runs" in sb["quantity"] and sb["verdict"] == "fails" and sb["spec"]
+    assert "3 of 10 runs" in sb["reason"] and "pure DR" in sb["reason"]
+    d = before - after
+    pb = next(r for q, r in rows.items() if q.startswith("(b) paired: slope before"))
+    assert pb["ours"] == pytest.approx(d.mean(), rel=1e-12)
+    assert pb["stderr"] == pytest.approx(d.std(ddof=1) / np.sqrt(10), rel=1e-12)
+    pc = next(r for q, r in rows.items() if q.startswith("(b) paired, same window"))
+    assert pc["ours"] == pytest.approx(0.01, rel=1e-9) and "in 10 of 10 runs" in pc["quantity"]
+    assert not pc["spec"] and pc["target"] is None
+    sa = next(r for q, r in rows.items() if q.startswith("(a) sign test"))
+    assert sa["verdict"] == "holds" and "in 10 of 10 runs" in sa["quantity"]  # p = 2^-10 < 0.01

@@ -78,10 +78,29 @@ def test_aided_epoch_rms(nominal):
     assert nominal[1] <= 0.15
 
 
-@pytest.mark.xfail(strict=True, reason="issue 26 target not reached: with the GNSS velocity delay "
-                   "state (0.129 s) the position-referenced offset is -0.260 s")
+@pytest.mark.xfail(strict=True, reason="issue 26 target is velocity-referenced: the filter's offset is "
+                   "referenced to the GNSS positions (-0.260 s), and the filter-free turn-rate lags put the "
+                   "receiver's velocity 0.13 s behind its positions (test below); a question for the owner")
 def test_time_offset_in_the_independent_range(nominal):
     assert -0.17 <= nominal[2]["time_offset_s"]["value"] <= -0.09
+
+
+def test_time_offset_agrees_with_the_filter_free_lags(drive, nominal):
+    """The filter's offset (referenced to the GNSS positions) and its GNSS velocity delay agree with the
+    turn-rate cross-correlation (aidnav.analysis.timing, no filter): IMU lateness against the centred
+    position differences, and its difference to the lateness against the reported velocity. Bound: 5
+    combined σ (filter σ and the jackknife σ of the lags)."""
+    from aidnav.analysis.timing import imu_gnss_lag
+
+    _, imu, gnss = drive
+    cal = nominal[2]
+    rp = imu_gnss_lag(imu, gnss, reference="position")
+    rv = imu_gnss_lag(imu, gnss, reference="velocity")
+    t, d = cal["time_offset_s"], cal["gnss_velocity_delay_s"]
+    assert abs(t["value"] - rp["time_offset_s"]) < 5 * np.hypot(t["std"], rp["sigma_s"]), (t, rp)
+    d_free = rp["lag_s"] - rv["lag_s"]
+    s_free = np.hypot(rp["sigma_s"], rv["sigma_s"])
+    assert abs(d["value"] - d_free) < 5 * np.hypot(d["std"], s_free), (d, rp, rv)
 
 
 @pytest.mark.parametrize("shift", [0.1, -0.1])

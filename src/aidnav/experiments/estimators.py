@@ -41,7 +41,7 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from aidnav.filters.loose import run_loose
+from aidnav.filters.loose import run_loose, run_loose_batch
 from aidnav.filters.tuning import loose_config_from_specs, perturbed_initial_state
 from aidnav.nav.earth import lla_difference_enu, radii
 from aidnav.sim.gnss import GnssSpec
@@ -126,6 +126,9 @@ class EstimatorType:
     states : names of the error states it returns (for validating the statistics of an experiment).
     check : optional ``check(cfg, scenario)`` run for every sweep point before any computation; raises
         ValueError (message) or pydantic ValidationError (locations relative to the entry).
+    batch : optional ``batch(sim_results, cfg, rngs) -> list[EstimatorOutput] | None``: the same
+        estimator on runs of one sweep point together, each output identical to ``fn(sim, cfg, rng)``;
+        None when these runs cannot be batched (the runner then calls ``fn`` run by run).
     """
 
     name: str
@@ -133,17 +136,19 @@ class EstimatorType:
     config_model: type[BaseModel]
     states: tuple[str, ...]
     check: Callable[[BaseModel, Any], None] | None = None
+    batch: Callable[[list, BaseModel, list], list | None] | None = None
 
 
 _REGISTRY: dict[str, EstimatorType] = {}
 
 
 def register_estimator(name: str, config_model: type[BaseModel], states: tuple[str, ...] | list[str],
-                       check: Callable[[BaseModel, Any], None] | None = None):
-    """Decorator registering ``fn(sim_result, cfg, rng) -> EstimatorOutput`` under ``name``."""
+                       check: Callable[[BaseModel, Any], None] | None = None, batch=None):
+    """Decorator registering ``fn(sim_result, cfg, rng) -> EstimatorOutput`` under ``name`` (``batch``:
+    see :class:`EstimatorType`)."""
 
     def deco(fn):
-        _REGISTRY[name] = EstimatorType(name, fn, config_model, tuple(states), check)
+        _REGISTRY[name] = EstimatorType(name, fn, config_model, tuple(states), check, batch)
         return fn
 
     return deco
@@ -286,15 +291,31 @@ def _loose_check(cfg: LooseEstimatorConfig, scenario) -> None:
     loose_filter_config(cfg, imu_spec, gnss_spec, scenario.imu_rate_hz)
 
 
-@register_estimator("loose", config_model=LooseEstimatorConfig, states=LOOSE_STATES, check=_loose_check)
+def _loose_run_config(sim, cfg: LooseEstimatorConfig, rng: np.random.Generator):
+    """The filter configuration of one run: tuned to the sensors, started from an initial state drawn from
+    ``rng`` (:func:`aidnav.filters.tuning.perturbed_initial_state`)."""
+    imu_spec, gnss_spec = _specs(sim.scenario)
+    init = perturbed_initial_state(sim.truth, rng, cfg.init_position_sigma_m, cfg.init_velocity_sigma_m_s,
+                                   cfg.init_attitude_sigma_deg)
+    return loose_filter_config(cfg, imu_spec, gnss_spec, sim.scenario.imu_rate_hz, init=init)
+
+
+def loose_estimator_batch(sims, cfg: LooseEstimatorConfig, rngs) -> list[EstimatorOutput] | None:
+    """:func:`loose_estimator` on runs of one sweep point together
+    (:func:`aidnav.filters.loose.run_loose_batch`); None with the smoother or when they cannot be batched."""
+    if cfg.smooth:
+        return None
+    cfgs = [_loose_run_config(sim, cfg, rng) for sim, rng in zip(sims, rngs, strict=True)]
+    res = run_loose_batch([s.imu for s in sims], [s.gnss for s in sims], cfgs)
+    return None if res is None else [loose_errors(r, s.truth) for r, s in zip(res, sims, strict=True)]
+
+
+@register_estimator("loose", config_model=LooseEstimatorConfig, states=LOOSE_STATES, check=_loose_check,
+                    batch=loose_estimator_batch)
 def loose_estimator(sim, cfg: LooseEstimatorConfig, rng: np.random.Generator) -> EstimatorOutput:
     """Loosely coupled GNSS/INS on one simulated run (see :class:`LooseEstimatorConfig`).
 
     ``rng`` draws the initial-state error (:func:`aidnav.filters.tuning.perturbed_initial_state`).
     """
-    imu_spec, gnss_spec = _specs(sim.scenario)
-    init = perturbed_initial_state(sim.truth, rng, cfg.init_position_sigma_m, cfg.init_velocity_sigma_m_s,
-                                   cfg.init_attitude_sigma_deg)
-    lcfg = loose_filter_config(cfg, imu_spec, gnss_spec, sim.scenario.imu_rate_hz, init=init)
-    res = run_loose(sim.imu, sim.gnss, lcfg, smooth=cfg.smooth)
+    res = run_loose(sim.imu, sim.gnss, _loose_run_config(sim, cfg, rng), smooth=cfg.smooth)
     return loose_errors(res, sim.truth)

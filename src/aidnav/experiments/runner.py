@@ -59,9 +59,11 @@ from . import store
 from .config import Experiment, ExperimentPlan, build_scenario, load_experiment
 from .estimators import get_estimator, state_blocks, state_unit
 
-__all__ = ["run_experiment", "run_task", "RunTask", "CampaignResult", "CampaignInterrupted", "GnssTemplate",
-           "point_truth", "simulate_run", "format_result"]
+__all__ = ["run_experiment", "run_task", "RunTask", "run_batch_task", "BatchTask", "make_batches",
+           "CampaignResult", "CampaignInterrupted", "GnssTemplate", "point_truth", "simulate_run",
+           "format_result"]
 
+BATCH_RUNS = 8  # runs of a sweep point per task (run_experiment's default batch)
 _THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
 
 
@@ -76,6 +78,17 @@ class RunTask:
     key: str
     point: int
     run: int
+    doc: dict
+
+
+@dataclass(frozen=True)
+class BatchTask:
+    """Runs ``runs`` of one sweep point (``key``/``index``, canonical document ``doc``), computed together
+    (:func:`run_batch_task`)."""
+
+    key: str
+    point: int
+    runs: tuple[int, ...]
     doc: dict
 
 
@@ -212,12 +225,13 @@ def _streams(base_seed: int, run: int):
     return ss.spawn(3)
 
 
-def simulate_run(ctx: _Context, run: int):
-    """The :class:`aidnav.sim.run.SimulationResult` of run ``run`` of a point (and the estimator stream)."""
+def simulate_run(ctx: _Context, run: int, out=None):
+    """The :class:`aidnav.sim.run.SimulationResult` of run ``run`` of a point (and the estimator stream);
+    ``out``: where to write the corrupted increments (:func:`aidnav.sim.imu.corrupt_imu`)."""
     truth, imu_true, segments = _truth(ctx)
     tmpl = _gnss_template(ctx, truth)
     s_imu, s_gnss, s_est = _streams(ctx.base_seed, run)
-    imu, realised = corrupt_imu(imu_true, ctx.imu_spec, np.random.default_rng(s_imu))
+    imu, realised = corrupt_imu(imu_true, ctx.imu_spec, np.random.default_rng(s_imu), out=out)
     gnss = tmpl.draw(np.random.default_rng(s_gnss))
     sim = SimulationResult(ctx.scenario, ctx.base_seed, truth, imu_true, imu, gnss, segments, realised)
     return sim, s_est
@@ -247,41 +261,86 @@ def _process(out, name: str) -> dict:
 def run_task(task: RunTask) -> dict:
     """Compute one run (in whatever process): simulate the sensors, run every estimator, return the
     per-epoch arrays (see :func:`aidnav.experiments.store.save_run`) and a timing breakdown [s]."""
+    return run_batch_task(BatchTask(task.key, task.point, (task.run,), task.doc))[0]
+
+
+def run_batch_task(task: BatchTask, batched: bool = True) -> list[dict]:
+    """Compute runs ``task.runs`` of one sweep point (in whatever process): simulate each run's sensors,
+    then run every estimator on all of them together where it has a batched form
+    (:attr:`aidnav.experiments.estimators.EstimatorType.batch`, e.g. the loose filter on
+    :mod:`aidnav.filters.engine_batch`: its outputs identical to run by run; ``batched`` False: run by run
+    always); one result per run, as :func:`run_task`. A batch's estimator time is shared equally among
+    its runs in the timing breakdown."""
     for v in _THREAD_VARS:
         os.environ.setdefault(v, "1")
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     ctx = _context(task.key, task.doc)
     truth = _truth(ctx)[0]
     _gnss_template(ctx, truth)
-    t1 = time.perf_counter()
-    sim, s_est = simulate_run(ctx, task.run)
-    t2 = time.perf_counter()
-    res, t_est, t_err = {}, {}, 0.0
+    nr = len(task.runs)
+    setup = (time.perf_counter() - t0) / nr
+    tm = [{"setup_s": setup, "estimators_s": {}, "errors_s": 0.0} for _ in task.runs]
+    sims, seeds = [], []
+    # the runs' increments as rows of (R, N, 3) arrays: the batched filter reads them there, no copy
+    n_imu = len(_truth(ctx)[1])
+    inc = [np.empty((nr, n_imu, 3)) for _ in range(2)] if batched and nr > 1 else None
+    for i, run in enumerate(task.runs):
+        a = time.perf_counter()
+        sim, s_est = simulate_run(ctx, run, None if inc is None else (inc[0][i], inc[1][i]))
+        sims.append(sim)
+        seeds.append(s_est)
+        tm[i]["sim_s"] = time.perf_counter() - a
+    res = [{} for _ in task.runs]
     for name, et, cfg in ctx.estimators:
         a = time.perf_counter()
-        out = et.fn(sim, cfg, np.random.default_rng(s_est))
-        b = time.perf_counter()
-        res[name] = _process(out, name)
-        t_est[name] = b - a
-        t_err += time.perf_counter() - b
-    timing = {"setup_s": t1 - t0, "sim_s": t2 - t1, "estimators_s": t_est, "errors_s": t_err,
-              "total_s": time.perf_counter() - t0}
-    return {"key": task.key, "point": task.point, "run": task.run, "imu_samples": len(sim.imu),
-            "timing": timing, "estimators": res}
+        outs = None
+        if batched and et.batch is not None and nr > 1:
+            outs = et.batch(sims, cfg, [np.random.default_rng(s) for s in seeds])
+        if outs is not None:
+            for t in tm:
+                t["estimators_s"][name] = (time.perf_counter() - a) / nr
+        else:
+            outs = []
+            for i in range(nr):
+                a = time.perf_counter()
+                outs.append(et.fn(sims[i], cfg, np.random.default_rng(seeds[i])))
+                tm[i]["estimators_s"][name] = time.perf_counter() - a
+        for i, out in enumerate(outs):
+            b = time.perf_counter()
+            res[i][name] = _process(out, name)
+            tm[i]["errors_s"] += time.perf_counter() - b
+    cpu = (time.process_time() - c0) / nr  # CPU time of this process, shared equally
+    for t in tm:
+        t["total_s"] = t["setup_s"] + t["sim_s"] + sum(t["estimators_s"].values()) + t["errors_s"]
+        t["cpu_s"] = cpu
+    return [{"key": task.key, "point": task.point, "run": run, "imu_samples": len(sims[i].imu),
+             "timing": tm[i], "estimators": res[i]} for i, run in enumerate(task.runs)]
+
+
+def make_batches(tasks: list[RunTask], size: int) -> list[BatchTask]:
+    """Consecutive runs of the same sweep point in batches of at most ``size`` runs."""
+    out: list[list[RunTask]] = []
+    for t in tasks:
+        if not out or out[-1][0].key != t.key or len(out[-1]) >= size:
+            out.append([])
+        out[-1].append(t)
+    return [BatchTask(b[0].key, b[0].point, tuple(t.run for t in b), b[0].doc) for b in out]
 
 
 # ----------------------------------------------------------------------------------- backends
 def _serial(tasks, on_result):
     for t in tasks:
-        on_result(run_task(t))
+        for r in run_batch_task(t):
+            on_result(r)
 
 
 def _processes(tasks, on_result, workers: int):
     ex = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
-    futs = [ex.submit(run_task, t) for t in tasks]
+    futs = [ex.submit(run_batch_task, t) for t in tasks]
     try:
         for f in as_completed(futs):
-            on_result(f.result())
+            for r in f.result():
+                on_result(r)
     except BaseException:
         for f in futs:
             f.cancel()
@@ -305,9 +364,10 @@ def _dask(tasks, on_result, workers: int, scheduler: str | None, info: dict):
     info["dask_workers"] = len(client.scheduler_info().get("workers", {}))
     futs = []
     try:
-        futs = [client.submit(run_task, t, pure=False) for t in tasks]
+        futs = [client.submit(run_batch_task, t, pure=False) for t in tasks]
         for f in as_completed(futs):
-            on_result(f.result())
+            for r in f.result():
+                on_result(r)
     except BaseException:
         client.cancel(futs)
         raise
@@ -329,7 +389,7 @@ def _versions() -> dict:
 
 def run_experiment(experiment, out_dir, *, workers: int = 1, scheduler: str | None = None,
                    backend: str | None = None, max_runs: int | None = None, console=None,
-                   progress: bool = True) -> CampaignResult:
+                   progress: bool = True, batch: int | None = None) -> CampaignResult:
     """Run (or resume) a campaign into ``out_dir`` (see the module docstring).
 
     Parameters
@@ -343,6 +403,9 @@ def run_experiment(experiment, out_dir, *, workers: int = 1, scheduler: str | No
     max_runs : compute at most this many new runs, then stop without merging (a campaign cut short on
         purpose; rerun to complete it).
     console : rich console for the progress bar and messages; progress : show the bar.
+    batch : runs of a sweep point computed together in one task (:func:`run_batch_task`; they share the
+        trajectory); default :data:`BATCH_RUNS`, fewer where that leaves a worker fewer than two tasks;
+        1: one run per task.
 
     Raises :class:`~aidnav.experiments.config.ExperimentError` (before computing anything) for a bad
     experiment and :class:`CampaignInterrupted` on Ctrl-C (finished runs stay on disk).
@@ -383,7 +446,7 @@ def run_experiment(experiment, out_dir, *, workers: int = 1, scheduler: str | No
     for v in _THREAD_VARS:  # single-threaded BLAS in the workers (inherited by spawned processes)
         os.environ.setdefault(v, "1")
     agg = {"setup_s": 0.0, "sim_s": 0.0, "errors_s": 0.0, "estimators_s": {}, "worker_total_s": 0.0,
-           "imu_samples": 0}
+           "worker_cpu_s": 0.0, "imu_samples": 0}
     info = {"kind": backend, "workers": workers if backend != "serial" else 1}
     computed = 0
 
@@ -401,17 +464,23 @@ def run_experiment(experiment, out_dir, *, workers: int = 1, scheduler: str | No
             for k in ("setup_s", "sim_s", "errors_s"):
                 agg[k] += tm[k]
             agg["worker_total_s"] += tm["total_s"]
+            agg["worker_cpu_s"] += tm.get("cpu_s", 0.0)
             for k, v in tm["estimators_s"].items():
                 agg["estimators_s"][k] = agg["estimators_s"].get(k, 0.0) + v
             agg["imu_samples"] += res["imu_samples"]
             bar.advance(task_id)
 
+        par = backend != "serial"
+        size = batch or max(1, min(BATCH_RUNS, -(-len(todo) // (2 * workers)) if par else BATCH_RUNS))
         try:
-            if len(todo) > 1 and backend != "serial" and not scheduler:
-                # the first run here: numba compiles (or loads) its kernels once and caches them on disk,
+            if len(todo) > 1 and par and not scheduler:
+                # the first runs here: numba compiles (or loads) its kernels once and caches them on disk,
                 # so that the local workers load them instead of each compiling them again
-                on_result(run_task(todo[0]))
-                todo = todo[1:]
+                first = make_batches(todo[:min(2, size)], size)
+                for r in run_batch_task(first[0]):
+                    on_result(r)
+                todo = todo[len(first[0].runs):]
+            todo = make_batches(todo, size)
             if not todo:
                 pass
             elif backend == "serial":

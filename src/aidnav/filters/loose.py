@@ -22,6 +22,7 @@ import numpy as np
 from . import measurements as ms
 from .chi2 import chi2_isf
 from .engine import Imu, Init, Models, Output, Process, Records, feedback, rts, run_filter, smooth_outputs
+from .engine_batch import batchable, run_batch, run_outputs, stack_inputs
 from .layout import (
     DV,
     L_N,
@@ -47,7 +48,8 @@ _apply_correction = feedback
 _rts_kernel = rts
 _smooth_outputs = smooth_outputs
 __all__ = ["run_loose", "LooseResult", "FilterResult", "to_trajectory", "process_noise", "initial_covariance",
-           "static_flags", "bridge_gaps", "gnss_arrays", "course_alignment", "loose_layout"]
+           "static_flags", "bridge_gaps", "gnss_arrays", "course_alignment", "loose_layout",
+           "run_loose_batch", "loose_inputs", "loose_result"]
 NEVER = 2**62  # max_rej of a model without the consecutive-rejection rule
 
 
@@ -246,38 +248,13 @@ def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: 
 
     cfg = cfg or LooseConfig()
     events = events if events is not None else []
-    su = loose_setup(imu, gnss, cfg, withheld, events, odometer, baro)
-    cfg, lay, n, k0, t_imu = su.cfg, su.lay, su.n, su.k0, su.t_imu
-    dth_in, dv_in, gap_var = bridge_gaps(imu, events)
-    static = static_flags(imu, gnss, cfg) if cfg.constraints.zupt else np.zeros(len(imu), np.bool_)
-    cov_idx = np.zeros(0, np.int64)
+    su, imu_in, static_used, cov_idx = loose_inputs(imu, gnss, cfg, withheld, events, cov_times, odometer,
+                                                    baro)
+    r = run_filter(imu_in, su.rec, su.models, su.proc, su.ini, Output(su.out_every, bool(smooth), cov_idx))
+    res = loose_result(su, r, imu, gnss, static_used, events)
     if cov_times is not None:
-        ct = np.sort(np.atleast_1d(np.asarray(cov_times, float)))
-        # first sample at or after each time (1 µs tolerance for times computed as k·dt)
-        cov_idx = np.searchsorted(t_imu[k0:], ct - 1e-6, side="left").astype(np.int64)
-        cov_idx = cov_idx[cov_idx < len(t_imu) - k0]
-    rec, rmap, ini = su.rec, su.rmap, su.ini
-    sl = slice(k0, None)
-    imu_in = Imu(t_imu[sl], dth_in[sl], dv_in[sl], static[sl], gap_var[sl], np.zeros((0, 2)))
-    r = run_filter(imu_in, rec, su.models, su.proc, ini, Output(su.out_every, bool(smooth), cov_idx))
-    log = _log_dict(r.log, r.n_log)
-    cnt = loose_counts(log, len(r.node_idx), int(static[sl].sum()), len(imu), k0)
-    events += reinit_events(log)
-    # the outputs are stamped on the GNSS scale with the final time-offset estimate (CONVENTIONS: the
-    # offset is added to the IMU stamps); a forward output at t holds the INS of IMU time t − d̂
-    d_hat = float(r.bias[lay[L_TOFF] - NAV]) if lay[L_TOFF] >= 0 else 0.0
-    if d_hat:
-        sd = float(np.sqrt(r.P[lay[L_TOFF], lay[L_TOFF]]))
-        events.append(f"IMU time offset estimated {d_hat:+.4f} s (sigma {sd:.4f} s): output times shifted "
-                      "by it")
-    res = FilterResult(time=t_imu[sl][r.out_idx] + d_hat, state=r.out_st, bias=r.out_bias, pdiag=r.out_pdiag,
-                       node_time=t_imu[sl][r.node_idx], records=_gnss_records(log, rmap, len(gnss)),
-                       counts=cnt, final_P=r.P, innovations=log, events=events, layout=lay,
-                       state_names=layout_names(lay))
-    res.calibration_base = _calibration_base(cfg)
-    res.gnss_time = np.asarray(gnss.time, float)
-    if cov_times is not None:
-        res.cov_time, res.cov = t_imu[sl][cov_idx], r.cov
+        res.cov_time, res.cov = imu_in.t[cov_idx], r.cov
+    n = su.n
     if smooth and len(r.node_idx) > 1:
         ds, Ps = rts(r.S_post, r.S_prior, r.S_phi, r.S_dx, r.reset_node)
         sm_st, sm_b = smooth_outputs(r.out_idx, r.out_st, r.out_bias, r.out_node, r.node_idx, ds, r.S_dx, n)
@@ -289,6 +266,72 @@ def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: 
         mem = r.S_post.nbytes + r.S_prior.nbytes + r.S_phi.nbytes + Ps.nbytes
         res.counts["smoother_memory_mb"] = mem / 1e6
     return res
+
+
+def loose_inputs(imu, gnss, cfg, withheld=None, events=None, cov_times=None, odometer=None, baro=None):
+    """What :func:`run_loose` gives the engine: (:class:`Setup`, the engine's :class:`.engine.Imu` from the
+    first sample used, the number of static samples among them, the sample indices of ``cov_times``)."""
+    events = events if events is not None else []
+    su = loose_setup(imu, gnss, cfg, withheld, events, odometer, baro)
+    cfg, k0, t_imu = su.cfg, su.k0, su.t_imu
+    dth_in, dv_in, gap_var = bridge_gaps(imu, events)
+    static = static_flags(imu, gnss, cfg) if cfg.constraints.zupt else np.zeros(len(imu), np.bool_)
+    cov_idx = np.zeros(0, np.int64)
+    if cov_times is not None:
+        ct = np.sort(np.atleast_1d(np.asarray(cov_times, float)))
+        # first sample at or after each time (1 µs tolerance for times computed as k·dt)
+        cov_idx = np.searchsorted(t_imu[k0:], ct - 1e-6, side="left").astype(np.int64)
+        cov_idx = cov_idx[cov_idx < len(t_imu) - k0]
+    sl = slice(k0, None)
+    imu_in = Imu(t_imu[sl], dth_in[sl], dv_in[sl], static[sl], gap_var[sl], np.zeros((0, 2)))
+    return su, imu_in, int(static[sl].sum()), cov_idx
+
+
+def loose_result(su, r, imu, gnss, static_used, events) -> FilterResult:
+    """The :class:`FilterResult` of a forward pass ``r`` (:class:`.engine.EngineOut`) of the loose filter
+    set up by ``su`` (:func:`loose_setup`) on ``imu``, ``gnss`` (no smoother, no kept covariances)."""
+    cfg, lay, k0, t_imu = su.cfg, su.lay, su.k0, su.t_imu
+    log = _log_dict(r.log, r.n_log)
+    cnt = loose_counts(log, len(r.node_idx), static_used, len(imu), k0)
+    events += reinit_events(log)
+    # the outputs are stamped on the GNSS scale with the final time-offset estimate (CONVENTIONS: the
+    # offset is added to the IMU stamps); a forward output at t holds the INS of IMU time t − d̂
+    d_hat = float(r.bias[lay[L_TOFF] - NAV]) if lay[L_TOFF] >= 0 else 0.0
+    if d_hat:
+        sd = float(np.sqrt(r.P[lay[L_TOFF], lay[L_TOFF]]))
+        events.append(f"IMU time offset estimated {d_hat:+.4f} s (sigma {sd:.4f} s): output times shifted "
+                      "by it")
+    ts = t_imu[k0:]
+    res = FilterResult(time=ts[r.out_idx] + d_hat, state=r.out_st, bias=r.out_bias, pdiag=r.out_pdiag,
+                       node_time=ts[r.node_idx], records=_gnss_records(log, su.rmap, len(gnss)),
+                       counts=cnt, final_P=r.P, innovations=log, events=events, layout=lay,
+                       state_names=layout_names(lay))
+    res.calibration_base = _calibration_base(cfg)
+    res.gnss_time = np.asarray(gnss.time, float)
+    return res
+
+
+def run_loose_batch(imus, gnss_list, cfgs):
+    """:func:`run_loose` (forward pass, no smoother) of runs that share a trajectory (the same IMU sample
+    times and GNSS fix times; their own increments, fixes and configurations, e.g. initial states),
+    advanced together by :func:`aidnav.filters.engine_batch.run_batch`: each result is bit-identical to
+    ``run_loose(imu, gnss, cfg)``. Returns the list of :class:`FilterResult`, or None when the runs
+    cannot be batched (:func:`aidnav.filters.engine_batch.batchable`: then run them one by one)."""
+    ins = []
+    for imu, gnss, cfg in zip(imus, gnss_list, cfgs, strict=True):
+        events = []
+        su, imu_in, static_used, _ = loose_inputs(imu, gnss, cfg, events=events)
+        ins.append((su, imu_in, static_used, events))
+    sus, imu_ins = [i[0] for i in ins], [i[1] for i in ins]
+    every = sus[0].out_every
+    recs, inis = [su.rec for su in sus], [su.ini for su in sus]
+    why = batchable(imu_ins, recs, [su.models for su in sus], [su.proc for su in sus], inis, every)
+    if why is not None or any(su.out_every != every for su in sus):
+        return None
+    inp, ini = stack_inputs(imu_ins, recs, inis, every)
+    b = run_batch(inp, sus[0].models, sus[0].proc, ini)
+    return [loose_result(su, run_outputs(b, r), imu, gnss, used, events)
+            for r, ((su, _, used, events), imu, gnss) in enumerate(zip(ins, imus, gnss_list, strict=True))]
 
 
 def _coarse_mounting_if_unknown(cfg, imu, gnss, t_imu, g, use, odometer, events):

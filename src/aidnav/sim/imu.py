@@ -24,9 +24,11 @@ Error model, per sensor triad (gyro shown; the accelerometer triad is the same w
   is uniform in [-q/2, q/2), so the running sum of the output equals the running sum of the input plus
   r_0 - r_k, within q.
 
-All random numbers are drawn with the caller's ``numpy.random.Generator`` in numpy (vectorised) and
-passed to a numba kernel. The draws are made in a fixed order whatever the spec, so the same seed gives
-the same unit-variance draws for every grade (common random numbers across grades).
+All random numbers are drawn from the caller's ``numpy.random.Generator``: the turn-on draws in numpy,
+the per-sample unit normals inside the numba kernel (numba's ``Generator.standard_normal``: the same
+stream as numpy's ``standard_normal`` on that generator, 18 a sample: white gyro, white accel, GM gyro,
+GM accel, RW gyro, RW accel). The draws are made in a fixed order whatever the spec, so the same seed
+gives the same unit-variance draws for every grade (common random numbers across grades).
 """
 
 from __future__ import annotations
@@ -51,8 +53,6 @@ from aidnav.units import (  # noqa: E402, F401
     UG,
     UG_SQRT_H,
 )
-
-_CHUNK = 1 << 16  # samples per block of random draws (bounded memory, fixed for reproducibility)
 
 
 def _vec3(x, name: str) -> np.ndarray:
@@ -361,22 +361,34 @@ GRADES = tuple(_PRESETS)  #: names accepted by :meth:`ImuSpec.grade`
 
 # ------------------------------------------------------------------------------------------ kernel
 @njit(cache=True)
-def _corrupt_kernel(dth, dv, dt, mat_g, mat_a, b_g, b_a, gm_sig, gm_tau, white, rrw, quant, z, state,
-                    out_g, out_a, drift, keep_drift, k0):
-    """Corrupt one block of samples in place.
+def _corrupt_kernel(dth, dv, dt, mat_g, mat_a, b_g, b_a, gm_sig, gm_tau, white, rrw, quant, rng, state,
+                    out_g, out_a, drift, keep_drift):
+    """Corrupt the samples.
 
     dth, dv, dt : (n, 3), (n, 3), (n,) true increments [rad], [m/s] and intervals [s].
     mat_g, mat_a : (3, 3) I + S + M.  b_g, b_a : (3,) constant biases [rad/s], [m/s²].
     gm_sig, gm_tau, white, rrw : (6,) gyro then accel GM σ, τ [s], white density, RRW density.
-    quant : (2,) quanta [rad], [m/s].  z : (n, 18) unit normals (white g, white a, GM g, GM a, RW g, RW a).
+    quant : (2,) quanta [rad], [m/s].  rng : the Generator of the 18 unit normals of each sample (white g,
+    white a, GM g, GM a, RW g, RW a).
     state : (3, 6) GM state, RW state, quantisation residual (gyro then accel), updated in place.
-    out_g, out_a : (n, 3) outputs. drift : (N, 6) time-varying bias (GM + RW) at t_k if keep_drift,
-    written from row k0.
+    out_g, out_a : (n, 3) outputs. drift : (n, 6) time-varying bias (GM + RW) at t_k if keep_drift.
     """
     n = dth.shape[0]
+    # the factors of an interval length h (exp, square roots), computed again only when h changes: the
+    # same values as computing them at every sample
+    h_last, sh = np.nan, 0.0
+    g_fac, r_fac, w_fac, phis, z = np.empty(6), np.empty(6), np.empty(6), np.empty(6), np.empty(18)
     for k in range(n):
+        for j in range(18):
+            z[j] = rng.standard_normal()
         h = dt[k]
-        sh = np.sqrt(h)
+        if h != h_last:
+            h_last, sh = h, np.sqrt(h)
+            for c in range(6):
+                phis[c] = np.exp(-h / gm_tau[c])
+                g_fac[c] = gm_sig[c] * np.sqrt(max(0.0, 1.0 - phis[c] * phis[c]))
+                r_fac[c] = rrw[c] * sh
+                w_fac[c] = white[c] * sh
         for s in range(2):
             inc = dth[k] if s == 0 else dv[k]
             mat = mat_g if s == 0 else mat_a
@@ -384,14 +396,13 @@ def _corrupt_kernel(dth, dv, dt, mat_g, mat_a, b_g, b_a, gm_sig, gm_tau, white, 
             q = quant[s]
             for i in range(3):
                 c = 3 * s + i
-                phi = np.exp(-h / gm_tau[c])
-                state[0, c] = phi * state[0, c] + gm_sig[c] * np.sqrt(max(0.0, 1.0 - phi * phi)) * z[k, 6 + c]
-                state[1, c] += rrw[c] * sh * z[k, 12 + c]
+                state[0, c] = phis[c] * state[0, c] + g_fac[c] * z[6 + c]
+                state[1, c] += r_fac[c] * z[12 + c]
                 dr = state[0, c] + state[1, c]
                 if keep_drift:
-                    drift[k0 + k, c] = dr
+                    drift[k, c] = dr
                 x = mat[i, 0] * inc[0] + mat[i, 1] * inc[1] + mat[i, 2] * inc[2]
-                x += (b[i] + dr) * h + white[c] * sh * z[k, c]
+                x += (b[i] + dr) * h + w_fac[c] * z[c]
                 if q > 0.0:
                     y = x + state[2, c]
                     xq = np.floor(y / q + 0.5) * q
@@ -417,7 +428,7 @@ def _intervals(imu: ImuData) -> np.ndarray:
 
 
 def corrupt_imu(imu: ImuData, spec: ImuSpec, rng: np.random.Generator,
-                return_drift: bool = False) -> tuple[ImuData, dict]:
+                return_drift: bool = False, out=None) -> tuple[ImuData, dict]:
     """Add the errors of ``spec`` to exact IMU increments.
 
     Parameters
@@ -427,6 +438,8 @@ def corrupt_imu(imu: ImuData, spec: ImuSpec, rng: np.random.Generator,
     spec : error model in SI units (see module docstring for the equation).
     rng : the random generator (its state advances).
     return_drift : also return the time-varying bias (Gauss-Markov + random walk) at each t_k.
+    out : optional (Δθ, Δv) C-contiguous (N, 3) arrays to write the corrupted increments into (the
+        returned ImuData holds them), e.g. rows of a Monte Carlo batch's (R, N, 3) arrays.
 
     Returns
     -------
@@ -473,14 +486,10 @@ def corrupt_imu(imu: ImuData, spec: ImuSpec, rng: np.random.Generator,
         "gyro_bias_gm0": state[0, :3].copy(), "accel_bias_gm0": state[0, 3:].copy(),
     }
 
-    out_g = np.empty((n, 3))
-    out_a = np.empty((n, 3))
+    out_g, out_a = (np.empty((n, 3)), np.empty((n, 3))) if out is None else out
     drift = np.zeros((n if return_drift else 1, 6))
-    for k0 in range(0, n, _CHUNK):
-        k1 = min(n, k0 + _CHUNK)
-        z = rng.standard_normal((k1 - k0, 18))
-        _corrupt_kernel(imu.dtheta[k0:k1], imu.dv[k0:k1], dt[k0:k1], mat_g, mat_a, b_g, b_a, gm_sig, gm_tau,
-                        white, rrw, quant, z, state, out_g[k0:k1], out_a[k0:k1], drift, return_drift, k0)
+    _corrupt_kernel(imu.dtheta, imu.dv, dt, mat_g, mat_a, b_g, b_a, gm_sig, gm_tau, white, rrw, quant, rng,
+                    state, out_g, out_a, drift, return_drift)
     if return_drift:
         realised["gyro_drift"] = drift[:, :3]
         realised["accel_drift"] = drift[:, 3:]

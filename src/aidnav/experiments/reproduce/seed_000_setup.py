@@ -25,6 +25,8 @@ DURATION_S = 500.0
 IMU_RATE_HZ = 100.0
 GPS_SIGMA_POS_M = 10.0
 GPS_SIGMA_VEL_M_S = 0.5
+#: GPS velocity σ [m/s] of the covariance study of the pitch claim (how fast the level tilt converges)
+GPS_VEL_SWEEP_M_S = (0.5, 0.25, 0.1)
 GPS_RATE_HZ = 1.0
 SAPV_SIGMA_DEG = 0.05
 ACCEL_BIAS_UG = 500.0  #: accelerometer constant bias σ of Table 1 [µg] (the seed000 IMU preset)

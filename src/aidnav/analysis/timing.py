@@ -1,0 +1,134 @@
+"""IMU–GNSS time lag from the turn rate, without a filter (a check on the filter's ``time_offset_s``).
+
+The yaw rate the gyros measure about the local vertical must equal the rate of the GNSS course over
+ground while the vehicle drives (a car does not side-slip much), so the lag that best aligns the two
+series is the IMU's lateness relative to the GNSS time base — independent of any filter tuning, lever
+arm or mounting knowledge. The course is taken from one of two GNSS references, which need not share a
+time base inside the receiver:
+
+- ``"velocity"``: the receiver's velocity (ENU) as given in the file;
+- ``"position"``: velocities from central differences of the positions, (p[k+1] − p[k−1]) / (t[k+1] −
+  t[k−1]), which carry no lag at t[k] (the difference is centred).
+
+A receiver whose velocity comes out of its own navigation filter reports it late relative to its
+positions; the two lags then differ by that velocity delay.
+
+Sign convention (docs/conventions.md): ``lag_s`` > 0 means the IMU is late: an event at GNSS time t
+appears in the IMU stamps at t + lag. The correction that aligns the IMU with the GNSS is
+``time_offset_s = −lag_s`` (added to the IMU stamps, the convention of ``calibration.time_offset``).
+
+Method: the gyro rate is projected on the body "up" axis (the mean specific force over the whole log:
+no mounting needed), averaged over the same window the GNSS course rate spans (a central difference
+over t[k−1]…t[k+1]), shifted by each candidate lag on a grid, and compared with the course rate by a
+least-squares fit with a free gain; the lag minimising the residual, refined by a parabola through the
+three best grid points, is returned. The σ is a block-jackknife over 10 contiguous blocks of the
+epochs used (turns are sparse events, so the blocks are the independent units).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..data import GnssData, ImuData
+from ..nav.earth import lla_to_enu
+
+
+def _course_rate(time, v_e, v_n):
+    """Rate of the course over ground about the up axis [rad/s] (counter-clockwise positive), centred."""
+    course = np.arctan2(v_n, v_e)  # angle from east, counter-clockwise = yaw about up
+    fin = np.isfinite(course)
+    course[fin] = np.unwrap(course[fin])  # missing velocities stay NaN (their neighbours' rates too)
+    rate = np.full_like(course, np.nan)
+    rate[1:-1] = (course[2:] - course[:-2]) / (time[2:] - time[:-2])
+    return rate
+
+
+def _centred_velocity(gnss: GnssData):
+    e, n, _ = lla_to_enu(gnss.lat, gnss.lon, gnss.height, gnss.lat[0], gnss.lon[0], gnss.height[0])
+    t = gnss.time
+    v_e, v_n = np.full_like(e, np.nan), np.full_like(n, np.nan)
+    v_e[1:-1] = (e[2:] - e[:-2]) / (t[2:] - t[:-2])
+    v_n[1:-1] = (n[2:] - n[:-2]) / (t[2:] - t[:-2])
+    v_e[[0, -1]], v_n[[0, -1]] = v_e[[1, -2]], v_n[[1, -2]]  # ends: never used (no centred course rate)
+    return v_e, v_n
+
+
+def _residual_curve(lags, imu_time, cum_up, t_lo, t_hi, rate):
+    """Mean squared residual of rate_imu(window shifted by lag) = gain × rate, for each lag."""
+    cost = np.empty(lags.size)
+    gains = np.empty(lags.size)
+    xx = float(rate @ rate)
+    for i, lag in enumerate(lags):
+        a = np.interp(t_lo + lag, imu_time, cum_up)
+        b = np.interp(t_hi + lag, imu_time, cum_up)
+        y = (b - a) / (t_hi - t_lo)
+        k = float(rate @ y) / xx
+        cost[i] = np.mean((y - k * rate) ** 2)
+        gains[i] = k
+    return cost, gains
+
+
+def _refine(lags, cost):
+    i = int(np.clip(np.argmin(cost), 1, lags.size - 2))
+    c0, c1, c2 = cost[i - 1], cost[i], cost[i + 1]
+    den = c0 - 2.0 * c1 + c2
+    step = lags[1] - lags[0]
+    shift = 0.5 * (c0 - c2) / den if den > 0 else 0.0
+    return float(lags[i] + np.clip(shift, -1.0, 1.0) * step), i
+
+
+def imu_gnss_lag(imu: ImuData, gnss: GnssData, reference: str = "velocity", max_lag_s: float = 0.5,
+                 step_s: float = 0.005, min_speed_m_s: float = 3.0, min_turn_rate_deg_s: float = 0.0,
+                 skip_s: float = 0.0) -> dict:
+    """Estimate the IMU's lateness relative to a GNSS reference from the turn rate (module docstring).
+
+    imu : increments on GNSS time (stamps as read, before any configured time offset).
+    gnss : fixes with ENU velocity (reference "velocity") or positions (reference "position").
+    reference : "velocity" or "position".
+    max_lag_s, step_s : the lag grid, ±max_lag_s in steps of step_s [s].
+    min_speed_m_s : epochs slower than this are left out (the course is noise at low speed) [m/s].
+    skip_s : leave out the first skip_s seconds of GNSS (a start-up transient) [s].
+
+    Returns a dict: ``lag_s`` (IMU lateness [s]), ``sigma_s`` (block-jackknife 1σ [s]), ``time_offset_s``
+    (= −lag_s, the correction to add to the IMU stamps), ``gain`` (IMU turn rate / course rate at the
+    lag; ≈ 1 when the up axis and the scale are right), ``epochs`` (number used), ``reference``.
+    Raises ValueError when too few moving epochs remain (fewer than 20).
+    """
+    if reference not in ("velocity", "position"):
+        raise ValueError(f"reference must be 'velocity' or 'position', not {reference!r}")
+    t_g = np.asarray(gnss.time, dtype=float)
+    if reference == "velocity":
+        if gnss.vel is None:
+            raise ValueError("reference 'velocity' needs GNSS velocities; this file has none: use 'position'")
+        v_e, v_n = gnss.vel[:, 0], gnss.vel[:, 1]
+    else:
+        v_e, v_n = _centred_velocity(gnss)
+    rate = _course_rate(t_g, v_e, v_n)
+    speed = np.hypot(v_e, v_n)
+    t_imu = np.asarray(imu.time, dtype=float)
+    ok = (np.isfinite(rate) & (speed > min_speed_m_s) & (t_g >= t_g[0] + skip_s)
+          & (np.abs(rate) >= np.radians(min_turn_rate_deg_s)))
+    idx = np.flatnonzero(ok)
+    idx = idx[(idx >= 1) & (idx <= t_g.size - 2)]
+    idx = idx[(t_g[idx - 1] - max_lag_s >= t_imu[0]) & (t_g[idx + 1] + max_lag_s <= t_imu[-1])]
+    if idx.size < 20:
+        raise ValueError(f"only {idx.size} GNSS epochs faster than {min_speed_m_s} m/s overlap the IMU log: "
+                         "the lag needs a drive with turns")
+    up = imu.dv.sum(axis=0)
+    up = up / np.linalg.norm(up)  # the specific force points up on average (it is −gravity)
+    cum_up = np.cumsum(imu.dtheta @ up)  # ∫ω·up dt up to each stamp (a constant offset cancels)
+    lags = np.arange(-max_lag_s, max_lag_s + 0.5 * step_s, step_s)
+    t_lo, t_hi, r = t_g[idx - 1], t_g[idx + 1], rate[idx]
+
+    cost, gains = _residual_curve(lags, t_imu, cum_up, t_lo, t_hi, r)
+    lag, i_best = _refine(lags, cost)
+    blocks = np.array_split(np.arange(idx.size), 10)
+    jack = []
+    for b in blocks:
+        keep = np.setdiff1d(np.arange(idx.size), b)
+        c_b, _ = _residual_curve(lags, t_imu, cum_up, t_lo[keep], t_hi[keep], r[keep])
+        jack.append(_refine(lags, c_b)[0])
+    jack = np.asarray(jack)
+    sigma = float(np.sqrt((jack.size - 1) / jack.size * np.sum((jack - jack.mean()) ** 2)))
+    return {"lag_s": lag, "sigma_s": sigma, "time_offset_s": -lag, "gain": float(gains[i_best]),
+            "epochs": int(idx.size), "reference": reference}

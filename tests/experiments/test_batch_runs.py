@@ -1,0 +1,95 @@
+"""Monte Carlo runs of one sweep point computed together (:func:`aidnav.experiments.runner.run_batch_task`,
+:mod:`aidnav.filters.engine_batch`) give exactly the arrays of the one-run-per-call path."""
+
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+import pytest
+
+from aidnav.experiments import runner
+from aidnav.experiments.config import parse_experiment
+from aidnav.experiments.estimators import _loose_run_config
+from aidnav.filters.loose import run_loose, run_loose_batch
+
+from .conftest import TINY
+
+#: one sweep point, 4 runs of a 40 s flight (straight, U-turn, straight), 15-state loose filter
+BATCH = {**copy.deepcopy(TINY), "runs": 4, "sweep": {}}
+BATCH["sensors"] = {"imu": {"grade": "tactical"}, "gnss": {"rate_hz": 1}}
+
+
+@pytest.fixture(scope="module")
+def point():
+    return parse_experiment(copy.deepcopy(BATCH), "batch").points[0]
+
+
+@pytest.fixture(scope="module")
+def sims(point):
+    """Simulated runs 0..3 of the point and their filter configurations (initial states drawn per run)."""
+    ctx = runner._context(point.key, point.doc)
+    out = []
+    for run in range(4):
+        sim, s_est = runner.simulate_run(ctx, run)
+        out.append((sim, _loose_run_config(sim, ctx.estimators[0][2], np.random.default_rng(s_est))))
+    return out
+
+
+def test_batch_task_equals_run_by_run(point):
+    """A batch task's per-run results (errors, σ, NEES, counters) equal run_task's, bit for bit."""
+    batch = runner.run_batch_task(runner.BatchTask(point.key, point.index, (0, 1, 2, 3), point.doc))
+    assert [r["run"] for r in batch] == [0, 1, 2, 3]
+    for r in batch:
+        one = runner.run_task(runner.RunTask(point.key, point.index, r["run"], point.doc))
+        a, b = one["estimators"]["loose"], r["estimators"]["loose"]
+        for k in ("time", "error", "sigma", "nees"):
+            assert a[k].shape == b[k].shape and np.array_equal(a[k], b[k]), k
+        assert a["info"] == b["info"]
+        assert r["imu_samples"] == one["imu_samples"]
+    # the runs differ (their own sensor errors and initial states): the comparison is not vacuous
+    e0, e1 = (batch[i]["estimators"]["loose"]["error"] for i in (0, 1))
+    assert not np.array_equal(e0, e1)
+
+
+def test_batched_filter_equals_run_loose(sims):
+    """States, covariance diagonals, final covariances and the innovation log (NIS, innovations, S) of
+    run_loose_batch equal run_loose's for every run."""
+    res = run_loose_batch([s.imu for s, _ in sims], [s.gnss for s, _ in sims], [c for _, c in sims])
+    assert res is not None and len(res) == len(sims)
+    for (sim, cfg), b in zip(sims, res, strict=True):
+        a = run_loose(sim.imu, sim.gnss, cfg)
+        for f in ("time", "state", "bias", "pdiag", "node_time", "final_P"):
+            assert np.array_equal(getattr(a, f), getattr(b, f)), f
+        for k in ("t", "model", "status", "nis", "nu", "s", "ref", "reinit"):
+            assert np.array_equal(a.innovations[k], b.innovations[k], equal_nan=True), k
+        for k in a.records:
+            assert np.array_equal(a.records[k], b.records[k], equal_nan=True), k
+        assert a.counts == b.counts and a.events == b.events
+        assert np.isfinite(a.innovations["nis"]).sum() > 0
+
+
+def test_not_batchable_falls_back(sims):
+    """Runs with different fix times cannot share a batch: run_loose_batch says so (None), and the batch
+    task computes them run by run."""
+    (s0, c0), (s1, c1) = sims[0], sims[1]
+    g1 = s1.gnss.subset(np.arange(len(s1.gnss)) != 5)
+    assert run_loose_batch([s0.imu, s1.imu], [s0.gnss, g1], [c0, c1]) is None
+    assert run_loose_batch([s0.imu, s1.imu], [s0.gnss, s1.gnss], [c0, c1]) is not None
+
+
+def test_campaign_batched_equals_one_run_per_task(tiny_file, tiny_serial, tmp_path):
+    """The campaign (batched by default) writes the same tables as with one run per task."""
+    from .test_runner import _same_tables
+
+    out = tmp_path / "one"
+    r = runner.run_experiment(tiny_file, out, progress=False, batch=1)
+    assert r.complete and r.computed == 6
+    _same_tables(tiny_serial[0], out)
+
+
+def test_make_batches():
+    t = [runner.RunTask(k, i, r, {}) for k, i in (("a", 0), ("b", 1)) for r in range(5)]
+    b = runner.make_batches(t, 2)
+    assert [(x.key, x.runs) for x in b] == [("a", (0, 1)), ("a", (2, 3)), ("a", (4,)), ("b", (0, 1)),
+                                            ("b", (2, 3)), ("b", (4,))]

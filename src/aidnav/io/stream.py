@@ -54,13 +54,23 @@ def _parquet_imu(path: Path):
 
 
 def imu_time_span(path) -> tuple[float, float] | None:
-    """(first, last) IMU time of an interchange Parquet IMU file from its first and last rows, None when
-    the file is not one."""
+    """(first, last) IMU time of an interchange Parquet IMU file, None when the file is not one.
+
+    From the ``time`` column's statistics in the file's metadata (the minimum of the first row group,
+    the maximum of the last): no data page is read, so nothing is decompressed (the whole ``time`` column
+    of a one-row-group log would be). On a log whose time increases (:func:`iter_imu` checks it) these are
+    its first and last stamps. Without statistics the first and last row groups' ``time`` are read."""
     got = _parquet_imu(Path(path))
     if got is None:
         return None
     pf = got[0]
     with pf:
+        md, j = pf.metadata, pf.schema.names.index("time")
+        first = md.row_group(0).column(j).statistics
+        last = md.row_group(md.num_row_groups - 1).column(j).statistics
+        if all(s is not None and s.has_min_max and s.physical_type in ("DOUBLE", "FLOAT")
+               and s.logical_type.type == "NONE" for s in (first, last)):
+            return float(first.min), float(last.max)
         a = pf.read_row_group(0, columns=["time"]).column(0)
         b = pf.read_row_group(pf.num_row_groups - 1, columns=["time"]).column(0)
         return float(a[0].as_py()), float(b[len(b) - 1].as_py())

@@ -63,7 +63,8 @@ def test_nees_of_the_tight_smoother_within_chi_square_bounds():
                       init={"attitude_sigma_deg": (0.05, 0.05, 0.3), "position_sigma_m": (2, 2, 2),
                             "velocity_sigma_m_s": (0.1, 0.1, 0.1)},
                       gnss={"code_sigma_m": 0.5, "rate_sigma_m_s": 0.05, "mask_deg": 5.0,
-                            "gate_probability": 1.0, "clock_bias_sigma_m": 5.0, "clock_drift_sigma_m_s": 0.2})
+                            "range_errors": False, "gate_probability": 1.0, "clock_bias_sigma_m": 5.0,
+                            "clock_drift_sigma_m_s": 0.2})
     runs = 12
     instants = (30.0, 90.0, 150.0, 200.0, 260.0)
     nees = np.zeros((runs, len(instants)))

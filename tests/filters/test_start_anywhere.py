@@ -156,15 +156,13 @@ def test_spp_course_only_when_meaningful():
     assert abs(np.degrees(course) - 40.0) < 3.0 * np.degrees(se / spd) + 1.0
 
 
-@pytest.fixture(scope="module")
-def walk_default(data_dir):
-    """``aidnav tight`` on the walk with no configuration: (tight, SPP) horizontal RMS over every
-    reference epoch (issue 26: before, the heading came from an SPP speed spike and it diverged to 21 m)."""
+def _walk_run(data_dir, cfg):
+    """``process_tight`` on the walk with ``cfg``: (TightResult, tight comparison, SPP comparison) over
+    every reference epoch."""
     import warnings
 
     from aidnav.apps.process import read_imu_any
     from aidnav.apps.tight import compare_with_reference, process_tight
-    from aidnav.filters.tight import TightConfig
     from aidnav.io.rinex import read_rinex_nav, read_rinex_obs
     from aidnav.io.rtklib import read_pos
 
@@ -176,12 +174,32 @@ def walk_default(data_dir):
         nav = read_rinex_nav(d / "rinex_converted" / "gnss_1730.nav")
         obs = read_rinex_obs(d / "rinex_converted" / "gnss_1730.obs")
     ref = read_pos(d / "gnss_1730_sf.pos", height_offset_m=-21.4)
-    res, sp = process_tight(read_imu_any(d / "imu_1730.csv"), obs, nav, TightConfig())
+    res, sp = process_tight(read_imu_any(d / "imu_1730.csv"), obs, nav, cfg)
     c = compare_with_reference(res.time, res.state[:, 0], res.state[:, 1], res.state[:, 2], ref, quality=None)
     ok = np.isfinite(sp["lat"])
     cs = compare_with_reference(sp["time"][ok], sp["lat"][ok], sp["lon"][ok], sp["h"][ok], ref, quality=None)
-    WALK["tight"], WALK["spp"] = c, cs
+    return res, c, cs, ref
+
+
+@pytest.fixture(scope="module")
+def walk_default(data_dir):
+    """``aidnav tight`` on the walk with no configuration: (tight, SPP) horizontal RMS over every
+    reference epoch (issue 26: before, the heading came from an SPP speed spike and it diverged to 21 m)."""
+    from aidnav.filters.tight import TightConfig
+
+    res, c, cs, ref = _walk_run(data_dir, TightConfig())
+    WALK["tight"], WALK["spp"], WALK["res"], WALK["ref"] = c, cs, res, ref
     return c["horizontal_rms"], cs["horizontal_rms"]
+
+
+@pytest.fixture(scope="module")
+def walk_white(data_dir):
+    """The walk with white-noise pseudoranges only (``range_errors`` off: the filter before the
+    range-error states): (tight comparison, SPP comparison)."""
+    from aidnav.filters.tight import TightConfig
+
+    _, c, cs, _ = _walk_run(data_dir, TightConfig(gnss={"range_errors": False}))
+    return c, cs
 
 
 WALK: dict = {}  # the full comparisons of walk_default (diagnosis test below)
@@ -189,24 +207,51 @@ WALK: dict = {}  # the full comparisons of walk_default (diagnosis test below)
 
 def test_walk_tight_does_not_diverge(walk_default):
     tight, spp = walk_default
-    assert tight <= 1.1 * spp  # measured 8.58 m vs SPP 8.36 m
+    assert tight <= 1.1 * spp  # measured 8.83 m vs SPP 8.36 m (8.58 m without range-error states)
 
 
-@pytest.mark.xfail(strict=True, reason="issue 26 target not reached: tight 8.58 m vs SPP 8.36 m over all "
-                   "reference epochs; both are a common offset of about (7.4 E, 4.0 N) m from the reference "
-                   "(see test_walk_error_is_a_common_offset)")
+@pytest.mark.xfail(strict=True, reason="issue 26 target not reached: tight 8.83 m (8.58 m without "
+                   "range-error states) vs SPP 8.36 m over all reference epochs; both are a common offset "
+                   "of about (7.4 E, 4.0 N) m from the reference (see test_walk_error_is_a_common_offset); "
+                   "with the range errors modelled the tight north error wanders by ~3 m within its σ of "
+                   "~11 m (the RTS-smoothed solution: 8.22 m)")
 def test_walk_tight_no_worse_than_spp(walk_default):
     tight, spp = walk_default
     assert tight <= spp
 
 
-def test_walk_error_is_a_common_offset(walk_default):
+def test_walk_error_is_a_common_offset(walk_default, walk_white):
     """Diagnosis of the walk's 8.4-8.6 m (issue 26): SPP and tight share one horizontal offset from the RTK
     reference (their mean errors within 1 m of each other, each over 7 m), and about that offset the
     tight filter scatters less than SPP (measured 0.75 m vs 1.00 m). With 4 GPS satellites (zero
     redundancy) a common range error cannot be told from a reference offset; the horizontal RMS compares
-    the offsets, not the filters."""
-    c, s = WALK["tight"], WALK["spp"]
-    assert np.hypot(*(c["mean"][:2] - s["mean"][:2])) < 1.0
-    assert np.hypot(*c["mean"][:2]) > 7.0 and np.hypot(*s["mean"][:2]) > 7.0
+    the offsets, not the filters. The scatter comparison is of the filter with white-noise
+    pseudoranges only (``walk_white``, 0.75 m): with the range-error states on, the filter lets the
+    position wander within the range errors' σ (scatter 1.13 m vs SPP 0.98 m, measured)."""
+    s = WALK["spp"]
+    for c in (WALK["tight"], walk_white[0]):
+        assert np.hypot(*(c["mean"][:2] - s["mean"][:2])) < 1.0
+        assert np.hypot(*c["mean"][:2]) > 7.0 and np.hypot(*s["mean"][:2]) > 7.0
+    c = walk_white[0]
     assert np.hypot(*c["std"][:2]) < np.hypot(*s["std"][:2])
+
+
+def test_walk_tight_three_sigma_covers_the_horizontal_error(walk_default):
+    """Honest covariance on the walk (issue 26): at every reference epoch (all qualities) inside the
+    solution, the horizontal error is inside the 3σ envelope 3·√(σ_E² + σ_N²) of ``aidnav tight`` at
+    ≥ 95 % of the epochs. The σ comes from the per-satellite range-error states with RTKLIB's published
+    single-frequency budget (URA 2 m from the broadcast ephemeris, 5 m ionosphere as this navigation
+    file has no Klobuchar coefficients, Saastamoinen residual, code bias: docs/models.md), nothing fitted
+    here. Before: 0 % (σ 0.24/0.35 m vs an 8.5 m error). Measured: 100 % (median σ_h 12.8 m)."""
+    from aidnav.filters.tight import to_trajectory
+    from aidnav.nav.earth import lla_difference_enu
+
+    res, ref = WALK["res"], WALK["ref"]
+    tr = to_trajectory(res)
+    m = (ref.time >= tr.time[0]) & (ref.time <= tr.time[-1])
+    t = ref.time[m]
+    la, lo = np.interp(t, tr.time, tr.lat), np.interp(t, tr.time, tr.lon)
+    e, n, _ = lla_difference_enu(la, lo, 0.0 * la, ref.lat[m], ref.lon[m], 0.0 * la)
+    sig = np.hypot(np.interp(t, tr.time, tr.std_pos[:, 0]), np.interp(t, tr.time, tr.std_pos[:, 1]))
+    assert m.sum() > 500
+    assert np.mean(np.hypot(e, n) <= 3.0 * sig) >= 0.95

@@ -77,7 +77,7 @@ def test_three_satellites_keep_the_error_bounded_where_loose_coupling_has_no_fix
             "position_sigma_m": (3, 3, 3),
             "velocity_sigma_m_s": (0.2, 0.2, 0.2),
         },
-        gnss={"code_sigma_m": 1.0, "rate_sigma_m_s": 0.06, "mask_deg": 5.0},
+        gnss={"code_sigma_m": 1.0, "rate_sigma_m_s": 0.06, "mask_deg": 5.0, "range_errors": False},
     )
     init = _init(np.random.default_rng(5))
     t0 = SOW + TRUTH.time[0]
@@ -142,6 +142,7 @@ def test_nees_of_the_tight_filter_within_chi_square_bounds():
             "gate_probability": 1.0,
             "clock_bias_sigma_m": 5.0,
             "clock_drift_sigma_m_s": 0.2,
+            "range_errors": False,
         },
     )
     runs = 12

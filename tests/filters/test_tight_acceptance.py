@@ -58,7 +58,7 @@ def _cfg():
             "position_sigma_m": (3, 3, 3),
             "velocity_sigma_m_s": (0.1, 0.1, 0.1),
         },
-        gnss={"code_sigma_m": 1.0, "rate_sigma_m_s": 0.06, "mask_deg": 5.0},
+        gnss={"code_sigma_m": 1.0, "rate_sigma_m_s": 0.06, "mask_deg": 5.0, "range_errors": False},
     )
 
 

@@ -24,6 +24,7 @@ allantools at run time.
 from __future__ import annotations
 
 import os
+import queue
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -119,7 +120,8 @@ def _cluster_sizes(n_phase: int, fs: float, taus) -> np.ndarray:
     return m
 
 
-def allan_deviation(rate_samples, fs: float, taus=None, workers: int | None = None):
+def allan_deviation(rate_samples, fs: float, taus=None, workers: int | None = None,
+                    work: np.ndarray | None = None):
     """Overlapping Allan deviation of uniformly sampled rate data.
 
     Parameters
@@ -129,6 +131,8 @@ def allan_deviation(rate_samples, fs: float, taus=None, workers: int | None = No
     taus : averaging times [s] (array), or "octave" / "decade" / "log10" / "all" (allantools' lists);
         None = "octave" (τ = 2^j / fs).
     workers : threads for the channels (None: as many as CPUs, at most k); the kernels release the GIL.
+    work : float64 array of at least N + 1 values for the phase (one thread; a caller that computes many
+        deviations passes one array to all, so that the memory is not asked of the system each time).
 
     Returns
     -------
@@ -162,12 +166,22 @@ def allan_deviation(rate_samples, fs: float, taus=None, workers: int | None = No
     k = x2.shape[1]
     dt = 1.0 / float(fs)
 
+    nw = max(1, min(k, workers if workers is not None else (os.cpu_count() or 1)))
+    bufs: queue.SimpleQueue = queue.SimpleQueue()  # one phase array per thread, reused for its channels
+    for _ in range(nw):
+        bufs.put(work if nw == 1 and work is not None and len(work) >= n_phase else None)
+
     def one_channel(c):
         col = x2[:, c]  # a strided column of (N, k): read in place, not copied
-        ph = _phase_nb(col, float(np.mean(col)), dt, np.empty(n_phase))
-        return _oadev_sums(ph, ms)
+        buf = bufs.get()
+        if buf is None:
+            buf = np.empty(n_phase)
+        try:
+            ph = _phase_nb(col, float(np.mean(col)), dt, buf[:n_phase])
+            return _oadev_sums(ph, ms)
+        finally:
+            bufs.put(buf)
 
-    nw = max(1, min(k, workers if workers is not None else (os.cpu_count() or 1)))
     if nw == 1:
         sums = [one_channel(c) for c in range(k)]
     else:

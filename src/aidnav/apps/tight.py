@@ -18,6 +18,8 @@ from aidnav.filters.tight import TightConfig, run_tight
 from aidnav.nav.rotations import wrap_2pi
 from aidnav.units import DEG
 
+SPP_START_SIGMA_M = 100.0  # start-position σ with range-error states [m] (far above any SPP error)
+
 __all__ = ["process_tight", "compare_with_reference", "process_tight_files", "score_against_reference"]
 
 
@@ -73,6 +75,11 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
         sig[2] = 180.0
         cfg = cfg.model_copy(update={"init": ini.model_copy(update={"attitude_sigma_deg": tuple(sig)})})
         ini = cfg.init
+    if cfg.gnss.range_errors:
+        # the SPP start fix is a linearisation point, not information: its error is the range errors the
+        # filter estimates (correlated with them), so the first epoch's pseudoranges must place it
+        ini = ini.model_copy(update={"position_sigma_m": (SPP_START_SIGMA_M,) * 3})
+        cfg = cfg.model_copy(update={"init": ini})
     lc = LooseConfig(imu=cfg.imu, constraints=cfg.constraints, init=cfg.init)
     static = static_flags(imu, g, lc) if cfg.constraints.zupt else None
     init_state = (

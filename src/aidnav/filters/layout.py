@@ -15,6 +15,7 @@ BA 12:15  accel bias residual [m/s²]                  15, 17, 21, 24
 SG 15:18  gyro scale-factor residual [-]              21, 24
 SA 18:21  accel scale-factor residual [-]             21, 24
 CLK       receiver clock bias [m], drift [m/s]        17 (15:17), 11 (9:11)
+RERR      per-satellite range errors [-] (tight)      after CLK when switched on
 AUX       calibration states (odometer scale factor   after the INS block
           [-], barometer bias [m], GNSS lever arm
           [m], time offset [s], mounting ρ [rad],
@@ -39,8 +40,8 @@ N_ST = 10
 # error-state blocks of the INS model (ins_errors)
 NAV = 9  # φ, δv, δp
 __all__ = ["PHI", "DV", "DP", "BG", "BA", "SG", "SA", "ST_POS", "ST_VEL", "ST_Q", "N_ST", "NAV",
-           "AUX_NAMES", "L_TOFF", "L_MOUNT", "L_VDEL", "L_GPE", "L_FLEX", "make_layout", "layout_names",
-           "LAYOUTS"]
+           "AUX_NAMES", "L_RERR", "L_TOFF", "L_MOUNT", "L_VDEL", "L_GPE", "L_FLEX", "make_layout",
+           "layout_names", "LAYOUTS"]
 
 # calibration (auxiliary) states the engine knows: name -> width
 AUX_NAMES = {"odometer_scale": 1, "baro_bias": 1, "clock": 2, "lever_arm": 3, "time_offset": 1, "mounting": 3,
@@ -58,7 +59,9 @@ L_MOUNT = 7  # index of the 3-state mounting residual ρ [rad] (vehicle frame), 
 L_VDEL = 8  # index of the GNSS velocity delay residual [s] (velocity older than its stamp), -1: none
 L_GPE = 9  # index of the 3 Gauss-Markov GNSS position-error states ENU [m] (time-correlated), -1: none
 L_FLEX = 10  # index of the flexure angle θ (3) [rad] (θ̇ (3) [rad/s] at +3 for "flexure"), -1: none
-L_SIZE = 11
+L_RERR = 11  # index of the per-satellite range-error states (tight coupling: one per satellite column of
+# an epoch record, normalised: unit-variance Gauss-Markov, range error = σ_j(E) × state), -1: none
+L_SIZE = 12
 
 LAYOUTS = {15: dict(scale_factors=False), 17: dict(scale_factors=False, aux=("clock",)),
            21: dict(scale_factors=True), 24: dict(scale_factors=True, aux=("lever_arm",))}

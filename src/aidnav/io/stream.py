@@ -93,23 +93,28 @@ def iter_imu(path, chunk_rows: int = 1 << 16, reader=None):
                           events=imu.events if a == 0 else [])
         return
     from aidnav.io._arrow import column_to_f64
+    from aidnav.io.interchange import IMU_RATE_COLUMNS
 
     pf, cols, inc, meta = got
     week = meta.get("gps_week")
     t_prev, row, events = None, 0, [f"{path.name}: IMU format interchange (detected)"]
+    if inc and set(IMU_RATE_COLUMNS) <= set(pf.schema_arrow.names):
+        events.append("file has both rate and increment columns; the increments were used")
     if not inc:
         events.append("rates converted to increments (rate × Δt over (t_{k-1}, t_k])")
     with pf:
         for batch in pf.iter_batches(batch_size=chunk_rows, columns=cols, use_threads=False):
-            a = np.column_stack([column_to_f64(batch.column(i)) for i in range(len(cols))])  # no pandas
+            # read-only views of the batch's buffers where they are plain float64 (no pandas, no copy):
+            # each column is copied once, into the chunk's arrays
+            v = [column_to_f64(batch.column(i), copy=False) for i in range(len(cols))]
             for j, c in enumerate(cols):  # the checks and messages of io._table, chunk by chunk
-                bad = ~np.isfinite(a[:, j])
+                bad = ~np.isfinite(v[j])
                 if bad.any():
                     i = int(np.argmax(bad))
-                    v = a[i, j]
-                    what = "missing value or NaN" if np.isnan(v) else v
+                    x = v[j][i]
+                    what = "missing value or NaN" if np.isnan(x) else x
                     raise DataError(path, row + i + 1, f"column {c}: {what} (values must be finite numbers)")
-            t = a[:, 0].copy()
+            t = np.array(v[0], dtype=np.float64)
             tt = t if t_prev is None else np.concatenate([[t_prev], t])
             d = np.diff(tt)
             if not (d > 0).all():
@@ -125,7 +130,10 @@ def iter_imu(path, chunk_rows: int = 1 << 16, reader=None):
                     t0 = float(t[0] - (t[1] - t[0]))
             else:
                 t0 = t_prev
-            dth, dv = np.ascontiguousarray(a[:, 1:4]), np.ascontiguousarray(a[:, 4:7])
+            dth, dv = np.empty((len(t), 3)), np.empty((len(t), 3))
+            for j in range(3):
+                dth[:, j] = v[1 + j]
+                dv[:, j] = v[4 + j]
             if not inc:
                 dt = np.diff(np.concatenate([[t0], t]))[:, None]
                 dth *= dt

@@ -398,6 +398,12 @@ __all__ = [
     "dop",
     "visible",
     "OMEGA_IE",
+    "range_error_sigma",
+    "ERR_BRDCI",
+    "ERR_ION",
+    "ERR_SAAS",
+    "ERR_TROP",
+    "ERR_CBIAS",
 ]
 
 
@@ -446,3 +452,31 @@ def satellites_from_pseudoranges(eph_table, prns, t_rx, pr, use_tgd: bool = True
         bool(use_tgd),
         float(max_age_s),
     )
+
+
+# ------------------------------------------- single-frequency range-error budget (RTKLIB pntpos.c)
+ERR_BRDCI = 0.5  #: broadcast (Klobuchar) ionosphere residual, fraction of the delay [-]
+ERR_ION = 5.0  #: ionospheric delay σ with no ionospheric model [m]
+ERR_SAAS = 0.3  #: Saastamoinen model residual σ at zenith [m]
+ERR_TROP = 3.0  #: tropospheric delay σ with no tropospheric model [m]
+ERR_CBIAS = 0.3  #: code bias σ [m]
+
+
+@njit(cache=True)
+def range_error_sigma(el, ura, iono_mode, iono_delay, tropo):
+    """σ [m] of the time-correlated part of one L1 pseudorange error, RTKLIB's single-point budget
+    (``pntpos.c``: ``ERR_*`` constants above, ``var_uraeph``, ``ionocorr``, ``tropcorr``):
+    σ² = URA² + σ_ion² + σ_trop² + ERR_CBIAS², with σ_ion = ERR_BRDCI·I_Klobuchar (``iono_mode`` 1),
+    ERR_ION (0: no ionospheric model) or 0 (2: dual-frequency delay removed); σ_trop =
+    ERR_SAAS/(sin E + 0.1) with the Saastamoinen model (``tropo``), ERR_TROP/(sin E + 0.1) without.
+    ura : the ephemeris' user range accuracy [m] (NaN or ≤ 0: 6144 m, RTKLIB's unknown-accuracy value);
+    el [rad]; iono_delay [m] (the Klobuchar delay applied)."""
+    u = ura if ura > 0.0 else 6144.0
+    if iono_mode == 1:
+        si = ERR_BRDCI * iono_delay
+    elif iono_mode == 0:
+        si = ERR_ION
+    else:
+        si = 0.0
+    st = (ERR_SAAS if tropo else ERR_TROP) / (np.sin(max(el, 0.0)) + 0.1)
+    return np.sqrt(u * u + si * si + st * st + ERR_CBIAS * ERR_CBIAS)

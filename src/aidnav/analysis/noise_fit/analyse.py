@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import os
+import queue
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -70,11 +71,20 @@ def characterise_rates(rates, fs: float, t_start: float = 0.0, min_m: int = 1, c
         n_fit = sum(1 for k in range(int(math.log2(n)) + 1) if 2**k >= min_m and n >= MIN_CLUSTERS * 2**k)
         white_only = n_fit < MIN_FULL_POINTS
 
+    nw = max(1, min(6, workers if workers is not None else (os.cpu_count() or 1)))
+    phases: queue.SimpleQueue = queue.SimpleQueue()  # the phase arrays of the threads, reused by the axes
+    for _ in range(nw):
+        phases.put(None)
+
     def one_axis(c):
-        taus, adev, _, _ = allan_deviation(y[:, c], fs, taus="octave", workers=1)
+        ph = phases.get()
+        ph = np.empty(n + 1) if ph is None else ph
+        try:
+            taus, adev, _, _ = allan_deviation(y[:, c], fs, taus="octave", workers=1, work=ph)
+        finally:
+            phases.put(ph)
         return fit_allan(taus, adev, n, fs, axis=AXES[c], min_m=min_m, white_only=white_only)
 
-    nw = max(1, min(6, workers if workers is not None else (os.cpu_count() or 1)))
     if nw == 1:
         axes = [one_axis(c) for c in range(6)]
     else:
@@ -161,20 +171,8 @@ def characterise_imu(imu: ImuData, static: tuple[float | None, float | None] | N
     notes += n2
     fs = 1.0 / dt
     stg.lap("uniform rates")
-    st = None
-    if check_static:
-        st = static_check(rates, fs, t_start - base0)
-        if not st["usable"]:
-            i0, i1 = _longest_static(rates, fs, t_start - base0, resampled, st, chosen=static is not None)
-            why = st["message"].split(": ", 1)[1].split(". Allan analysis")[0]
-            what = "chosen part" if static is not None else "log"
-            warns.append(f"the {what} is not static ({why}; times in s after the first sample): analysed "
-                         "its longest static part, "
-                         f"{t_start - base0 + i0 * dt:.1f}-{t_start - base0 + i1 * dt:.1f} s "
-                         f"({100.0 * (i1 - i0) / len(rates):.0f}% of its samples); motion is never analysed")
-            rates = rates[i0:i1]
-            t_start = t_start + i0 * dt
-            st = None  # another part: checked again by characterise_rates
+    rates, t_start, st = _static_part(rates, dt, t_start, base0, resampled, warns, chosen=static is not None,
+                                      check_static=check_static)
     stg.lap("static check")
     min_m = resampled_min_m(len(rates)) if resampled else 1
     if resampled:
@@ -200,3 +198,41 @@ def characterise_imu(imu: ImuData, static: tuple[float | None, float | None] | N
     return characterise_rates(rates, fs, t_start=t_start, min_m=min_m, check_static=check_static, notes=notes,
                               resampled=resampled, sensor=sensor, warnings=warns, workers=workers,
                               time_origin=base0, timings=timings, static_result=st)
+
+
+def _static_part(rates, dt: float, t_start: float, base0: float, resampled: bool, warns: list[str],
+                 chosen: bool, check_static: bool):
+    """The static check of uniform rates and, when they are not usable as a whole, their longest static
+    part (a warning in ``warns``). Returns (rates, t_start, static check of those rates or None)."""
+    fs = 1.0 / dt
+    if not check_static:
+        return rates, t_start, None
+    st = static_check(rates, fs, t_start - base0)
+    if st["usable"]:
+        return rates, t_start, st
+    i0, i1 = _longest_static(rates, fs, t_start - base0, resampled, st, chosen=chosen)
+    why = st["message"].split(": ", 1)[1].split(". Allan analysis")[0]
+    what = "chosen part" if chosen else "log"
+    warns.append(f"the {what} is not static ({why}; times in s after the first sample): analysed "
+                 "its longest static part, "
+                 f"{t_start - base0 + i0 * dt:.1f}-{t_start - base0 + i1 * dt:.1f} s "
+                 f"({100.0 * (i1 - i0) / len(rates):.0f}% of its samples); motion is never analysed")
+    # another part: checked again by characterise_rates
+    return rates[i0:i1], t_start + i0 * dt, None
+
+
+def characterise_uniform(rates, dt: float, t_start: float, base0: float, notes: list[str] | None = None,
+                         workers: int | None = None, timings: dict | None = None) -> Characterisation:
+    """:func:`characterise_imu` of a log whose increments were uniformly spaced (no gap, no jitter) and
+    are given as their rates already (``rates`` (M, 6) = increments / ``dt``, what :func:`uniform_rates`
+    gives for such a log): the same static check, longest static part and analysis, the same results.
+    t_start : start of the first interval [s]; base0 : time of the first sample [s] (the static check's
+    times are after it); notes : the reader's events."""
+    stg = Stages(timings)
+    warns: list[str] = []
+    rates, t_start, st = _static_part(rates, dt, t_start, base0, False, warns, chosen=False,
+                                      check_static=True)
+    stg.lap("static check")
+    return characterise_rates(rates, 1.0 / dt, t_start=t_start, min_m=1, notes=list(notes or []),
+                              warnings=warns, workers=workers, time_origin=base0, timings=timings,
+                              static_result=st)

@@ -17,9 +17,10 @@ import numpy as np
 
 from aidnav.analysis.allan import allan_deviation
 from aidnav.analysis.noise_fit.allan_cov import _avar_cov_nb
-from aidnav.analysis.noise_fit.analyse import characterise_imu
+from aidnav.analysis.noise_fit.analyse import characterise_imu, characterise_uniform
 from aidnav.analysis.noise_fit.nnls import _columns_nb, _fit_c_nb, _profile_u_nb
 from aidnav.analysis.noise_fit.output import auto_grade, imu_yaml, noise_dict
+from aidnav.analysis.noise_fit.prepare import uniform_interval
 from aidnav.analysis.noise_fit.results import Characterisation
 from aidnav.analysis.noise_fit.static import _window_stats
 from aidnav.analysis.noise_fit.timing import Stages
@@ -51,6 +52,56 @@ _READERS: dict[str, Callable[[Path], ImuData]] = {"interchange": read_imu,
 #: (:func:`aidnav.io.logs.read_rtklibexplorer_imu`); interchange files give rates × Δt or increments as
 #: they are
 INCREMENT_RULE = {"interchange": "interval", "rtklibexplorer": "trapezoid"}
+
+
+#: rows per batch when an interchange Parquet log is read straight into its rates (3 MB of rates; larger
+#: batches hold more of the Parquet reader's buffers: 1 << 18 rows cost 60 MB more on a 10-h log)
+STREAM_ROWS = 1 << 16
+
+
+def _uniform_rates_streamed(path: Path):
+    """(rates (M, 6) [rad/s, m/s²], dt [s], t_start [s], time of the first sample [s], the reader's events)
+    of an interchange Parquet IMU log with uniform intervals, read in batches
+    (:func:`aidnav.io.stream.iter_imu`) straight into the rates: increments / their own intervals, the
+    numbers :func:`uniform_rates` gives for such a log, without the whole log's increments in memory
+    (and their copies). None for any other log (gaps or jitter, another format): the whole-log path."""
+    from aidnav.io.stream import imu_time_span, iter_imu
+
+    span = imu_time_span(path)
+    if span is None:
+        return None
+    chunks = iter_imu(path, STREAM_ROWS)
+    rates = dt = None
+    n = cap = 0
+    t0 = prev = base0 = 0.0
+    events: list[str] = []
+    for ch in chunks:
+        k = len(ch.time)
+        if rates is None:
+            if k < 3:
+                break
+            t0 = ch.t0 if ch.t0 is not None else 2 * ch.time[0] - ch.time[1]  # as uniform_rates
+            step = float(np.median(np.diff(ch.time)))
+            # rows of a uniform log over the span, with room: the pages never written are never mapped
+            cap = int((span[1] - span[0]) / step * 1.01) + 2 * STREAM_ROWS
+            rates, dt = np.empty((cap, 6)), np.empty(cap)
+            prev, base0, events = t0, float(ch.time[0]), list(ch.events[1:])  # [0]: the detected format
+        if n + k > cap:  # far more rows than a uniform log holds: not uniform
+            rates = None
+            break
+        d = dt[n:n + k]
+        d[0] = ch.time[0] - prev
+        np.subtract(ch.time[1:], ch.time[:-1], out=d[1:])
+        np.divide(ch.dtheta, d[:, None], out=rates[n:n + k, :3])
+        np.divide(ch.dv, d[:, None], out=rates[n:n + k, 3:])
+        prev, n = ch.time[-1], n + k
+    chunks.close()
+    if rates is None or n < 3:
+        return None
+    med = uniform_interval(dt[:n])
+    if med is None:
+        return None
+    return rates[:n], med, float(t0), base0, events
 
 
 def _warm_up() -> None:
@@ -86,7 +137,11 @@ def characterise_file(imu_path, out_dir, static: str | None = None, grade: str |
     :class:`NotStaticError` / ValueError with a clear message for a moving log, bad option or unusable data.
 
     Speed: the analysis libraries are imported (and the compiled kernels loaded) in a thread while the
-    log is read; the reader holds no reference to the log after the analysis has taken its rates.
+    log is read; the reader holds no reference to the log after the analysis has taken its rates. An
+    interchange Parquet log with uniform intervals (and no ``static``) is read in batches straight into its
+    rates (:func:`_uniform_rates_streamed`: the log's increments never are in memory whole, the same
+    numbers); any other log is read whole. Fresh memory costs system time (page faults): on a 10-h log the
+    peak falls from 818 to 497 MB and the system CPU from 1.6-2.3 to 0.7 s.
     """
     st = Stages(timings)
     rng = None
@@ -106,21 +161,35 @@ def characterise_file(imu_path, out_dir, static: str | None = None, grade: str |
     warm.start()
     st.lap("start")
 
-    def read():
-        imu = _READERS[fmt](Path(imu_path))
+    def release_arrow():
         pa = sys.modules.get("pyarrow")
         if pa is not None and hasattr(pa, "default_memory_pool"):  # the Parquet/CSV buffers the reader freed
             try:
                 pa.default_memory_pool().release_unused()
             except AttributeError:
                 pass
+
+    def read():
+        imu = _READERS[fmt](Path(imu_path))
+        release_arrow()
         st.lap("read")
         warm.join()
         st.lap("imports not overlapped by the reading")
         return imu
 
-    # no reference to the log is held here: characterise_imu lets it go once it has the rates
-    ch = characterise_imu(read(), static=rng, increments=INCREMENT_RULE[fmt], timings=timings)
+    got = _uniform_rates_streamed(Path(imu_path)) if fmt == "interchange" and rng is None else None
+    if got is not None:  # a uniform interchange Parquet log: read in batches straight into its rates
+        release_arrow()
+        st.lap("read")
+        warm.join()
+        st.lap("imports not overlapped by the reading")
+        rates, dt, t_start, base0, events = got
+        got = None
+        ch = characterise_uniform(rates, dt, t_start, base0, notes=events, timings=timings)
+        rates = None
+    else:
+        # no reference to the log is held here: characterise_imu lets it go once it has the rates
+        ch = characterise_imu(read(), static=rng, increments=INCREMENT_RULE[fmt], timings=timings)
     st.lap("characterise")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

@@ -96,6 +96,18 @@ def uniform_rates(imu: ImuData, max_gap_ratio: float = 1.5, jitter_tol: float = 
     return rates, med, t_first, True, notes
 
 
+def uniform_interval(dt: np.ndarray, max_gap_ratio: float = 1.5, jitter_tol: float = 1e-3) -> float | None:
+    """The median of the sample intervals ``dt`` [s] when :func:`uniform_rates` (same tolerances) would
+    take them as they are, without gap or jitter (its rates are then the increments / their intervals,
+    its interval that median); None otherwise. ``dt`` is reordered (its median is taken in place)."""
+    lo, hi = float(dt.min()), float(dt.max())
+    med = float(np.median(dt, overwrite_input=True))
+    if not (lo > 0 and med > 0) or hi > max_gap_ratio * med:
+        return None
+    # = max |dt − med| / med (the rounded difference is monotonic in dt)
+    return med if max(hi - med, med - lo) / med <= jitter_tol else None
+
+
 def resampled_min_m(n: int) -> int:
     """First cluster size fitted on a resampled log of ``n`` samples.
 

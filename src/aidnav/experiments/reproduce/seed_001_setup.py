@@ -152,5 +152,6 @@ def _tight_cfg(spec, clock=None):
             "velocity_sigma_m_s": (0.3, 0.3, 0.3),
             "attitude_sigma_deg": (0.5, 0.5, 2.0),
         },
-        gnss={"code_sigma_m": 1.0, "rate_sigma_m_s": DOPPLER_SIGMA_M_S, "mask_deg": 5.0, **(clock or CLOCK)},
+        gnss={"code_sigma_m": 1.0, "rate_sigma_m_s": DOPPLER_SIGMA_M_S, "mask_deg": 5.0,
+              "range_errors": False, **(clock or CLOCK)},
     )

@@ -2,7 +2,8 @@
 
 Row of an epoch (``S`` satellites × ``E_W`` values): per satellite r_s ECEF (3) [m], v_s ECEF (3)
 [m/s], ρ + c·dt_s [m] (NaN: no pseudorange or no ephemeris), ρ̇ + c·ḋt_s [m/s] (NaN: no rate), the
-dual-frequency ionospheric delay [m] (NaN: none). Parameters (``E_*``): lever arm, mask, zenith σ's,
+dual-frequency ionospheric delay [m] (NaN: none), the ephemeris' URA [m], the satellite's slot in the
+range-error states (NaN: none). Parameters (``E_*``): lever arm, mask, zenith σ's,
 atmosphere switches, Klobuchar α β, the clock-jump threshold and the clock σ's.
 
 :func:`epoch_update` does, at the INS antenna moved back to the receive time t_tag − b̂/c:
@@ -11,6 +12,11 @@ atmosphere switches, Klobuchar α β, the clock-jump threshold and the clock σ'
 * mask and ionosphere (Klobuchar or dual) and troposphere (Saastamoinen) at the INS position;
 * one scalar row per pseudorange and per rate (:func:`aidnav.filters.kalman.update_scalar`), each
   gated by the χ²(1) threshold ``gate`` (0: not gated), σ(E) = σ0 √(½ + ½/sin²E);
+* with range-error states (``lay[L_RERR]`` ≥ 0, slot k of a satellite in its row): the pseudorange of
+  satellite j is ρ + σ_j(E)·u_j, u_j a unit-variance Gauss-Markov state (true − estimated like the
+  clock; state lay[L_RERR] + k), σ_j(E) the single-frequency error budget
+  (:func:`aidnav.nav.gnss_sat.range_error_sigma`) at the satellite's elevation, URA and applied
+  ionospheric delay: the row gains σ_j at u_j and the prediction σ_j·û_j;
 * the epoch counts as rejected (the engine's consecutive-rejection rule) when some row was rejected
   and no pseudorange accepted.
 
@@ -27,14 +33,14 @@ import numpy as np
 from numba import njit
 
 from aidnav.nav.earth import dcm_ecef_to_enu, lla_to_ecef
-from aidnav.nav.gnss_sat import az_el, geo_range, geo_range_rate, klobuchar, tropo_delay
+from aidnav.nav.gnss_sat import az_el, geo_range, geo_range_rate, klobuchar, range_error_sigma, tropo_delay
 
 from ..kalman import update_scalar
-from ..layout import L_CLK, NAV
+from ..layout import L_CLK, L_RERR, NAV
 from .common import W_IB, W_IN
 from .gnss import gnss_position, gnss_velocity
 
-E_W = 9  # values per satellite in a row
+E_W = 11  # values per satellite in a row
 E_LEVER, E_MASK, E_SIG_CODE, E_SIG_RATE, E_IONO, E_TROPO, E_HUMID, E_RATE = 0, 3, 4, 5, 6, 7, 8, 9
 E_JUMP, E_SIG_B, E_SIG_D, E_CODE_MIN, E_ALPHA, E_BETA, E_NPAR = 10, 11, 12, 13, 14, 18, 22
 # per-epoch outputs (filled in place): GPS receive time, satellites above the mask, pseudoranges and
@@ -135,6 +141,7 @@ def epoch_update(x, P, nav, row, par, lay, gate, grp, g, t_gps):
             if az_el(e, lat, lon)[1] >= par[E_MASK]:
                 n_vis += 1
     use_code = n_vis >= par[E_CODE_MIN]
+    ir = lay[L_RERR]
     h = np.zeros(n)
     nrej = 0
     for j in range(S):
@@ -148,19 +155,26 @@ def epoch_update(x, P, nav, row, par, lay, gate, grp, g, t_gps):
         if el < par[E_MASK]:
             continue
         grp.navail[g] += 1
-        corr = 0.0
+        corr, i_mode = 0.0, 0
         if par[E_IONO] > 0:
             corr += klobuchar(lat, lon, az, el, t_gps, alpha, beta)
-        if par[E_TROPO] > 0:
-            corr += tropo_delay(lat, hh, el, par[E_HUMID])
+            i_mode = 1
         if not np.isnan(row[o + 8]):
             corr += row[o + 8]
+            i_mode = 2
+        i_delay = corr
+        if par[E_TROPO] > 0:
+            corr += tropo_delay(lat, hh, el, par[E_HUMID])
         s_el = np.sin(max(el, 0.035))
         mfac = 0.5 + 0.5 / (s_el * s_el)
         if use_code:
             _row(h, en, Hp, nn, ib)
-            ok, nu, s = update_scalar(x, P, h, par[E_SIG_CODE] ** 2 * mfac,
-                                      row[o + 6] - corr - (rho + nav.bias[bi]), gate)
+            pred = rho + nav.bias[bi]
+            if ir >= 0 and not np.isnan(row[o + 10]):
+                iu = ir + int(row[o + 10])
+                h[iu] = range_error_sigma(el, row[o + 9], i_mode, i_delay, par[E_TROPO] > 0)
+                pred += h[iu] * nav.bias[iu - NAV]
+            ok, nu, s = update_scalar(x, P, h, par[E_SIG_CODE] ** 2 * mfac, row[o + 6] - corr - pred, gate)
             grp.pr_nu[g, j], grp.pr_s[g, j] = nu, s
             grp.npr[g] += ok
             nrej += not ok

@@ -1,4 +1,4 @@
-"""Peak memory of ``aidnav process`` against the log length (issue 29, "Scale").
+"""Peak memory of ``aidnav process`` and ``aidnav evaluate`` against the log length (issue 29, "Scale").
 
 Runs the command (a child process each; its maximum resident set from ``wait4``) on:
 
@@ -8,13 +8,18 @@ Runs the command (a child process each; its maximum resident set from ``wait4``)
   white noise; GNSS at 1 Hz on the spot; given initial state, ZUPT on), made in a temporary directory
   chunk by chunk; targets: 10 h ≤ 250 MiB, memory at 10 h within 10 % of memory at 1 h, wall at 10 h ≤ 5 s.
 
+``aidnav evaluate`` (streamed: memory independent of the lengths): W1's forward trajectory against its 10-Hz
+truth, and a synthetic 100-Hz estimate (Parquet, σ columns) of 1 h and of 10 h against a 10-Hz reference
+(Parquet; ``--eval-csv``: the estimate as CSV too); target: memory at 10 h within 10 % of memory at 1 h.
+
 Also printed: the floor, step by step (the peak RSS of ``python -c "import numpy, pyarrow, numba"``, the
 same plus numba's first dispatch of a cached trivial kernel, and ``aidnav process`` on a 60-s piece of
 the 1-h log), and the load average (the machine is shared: wall times move with it; memory does not).
 The console script loads numba's cache without parsing the kernels' bitcode (:mod:`aidnav.numba_load`)
-and uses Arrow's jemalloc pool (:mod:`aidnav.cli`). ``--figures`` keeps the figures (default
-``--no-figures``: the figures are a separate cost, made from a decimated copy).
-Run: ``python benchmarks/memory.py [--hours-long 10]``.
+and uses Arrow's jemalloc pool (:mod:`aidnav.cli`). ``--evaluate-only`` runs the evaluate rows alone.
+``--figures`` keeps the figures (default ``--no-figures``: the figures are a separate cost, made from a
+decimated copy).
+Run: ``python benchmarks/memory.py [--hours-long 10] [--evaluate-only] [--eval-csv]``.
 """
 
 from __future__ import annotations
@@ -31,11 +36,11 @@ W1_CFG = Path(__file__).resolve().parents[1] / "examples" / "sim_w1_pyins.yaml"
 MIB = 1024 * 1024
 
 
-def run(args, figures=False) -> tuple[float, float, float]:
-    """(peak RSS [MiB], wall [s], CPU user + system [s]) of ``aidnav process ARGS`` in a child process."""
+def run(args, figures=False, command="process") -> tuple[float, float, float]:
+    """(peak RSS [MiB], wall [s], CPU user + system [s]) of ``aidnav COMMAND ARGS`` in a child process."""
     env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1")
-    cmd = [sys.executable, "-c", "from aidnav.cli import main; main()", "process", *map(str, args)]
-    if not figures:
+    cmd = [sys.executable, "-c", "from aidnav.cli import main; main()", command, *map(str, args)]
+    if not figures and command == "process":
         cmd.append("--no-figures")
     t0 = time.perf_counter()
     p = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
@@ -44,7 +49,7 @@ def run(args, figures=False) -> tuple[float, float, float]:
     err = p.stderr.read().decode()
     p.stderr.close()
     if status != 0:
-        raise SystemExit(f"aidnav process {' '.join(map(str, args))} failed:\n{err}")
+        raise SystemExit(f"aidnav {command} {' '.join(map(str, args))} failed:\n{err}")
     return ru.ru_maxrss / 1024.0, wall, ru.ru_utime + ru.ru_stime
 
 
@@ -89,6 +94,54 @@ def static_log(d: Path, hours: float, rate: float = 100.0, seed: int = 1) -> tup
     return imu, gnss, cfg
 
 
+def trajectory_logs(d: Path, hours: float, csv: bool = False, rate: float = 100.0, ref_rate: float = 10.0,
+                    seed: int = 1) -> tuple[Path, Path]:
+    """A synthetic estimate (``rate`` Hz, with σ; Parquet or CSV) and reference (``ref_rate`` Hz, Parquet) of
+    a vehicle driving circles, written piece by piece (:class:`aidnav.io.stream.TrajectoryWriter`)."""
+    import numpy as np
+
+    from aidnav.io.stream import TrajectoryWriter
+
+    rng = np.random.default_rng(seed)
+    n = int(round(hours * 3600 * rate))
+    step = int(round(rate / ref_rate))
+    est = TrajectoryWriter(d / f"est_{hours:g}h.{'csv' if csv else 'parquet'}")
+    ref = TrajectoryWriter(d / f"ref_{hours:g}h.parquet")
+    for a in range(0, n, 1 << 18):
+        k = np.arange(a, min(a + (1 << 18), n))
+        est.write(_circles(1000.0 + k / rate, rng, 1.0))
+        sel = k % step == 0
+        ref.write(_circles(1000.0 + k[sel] / rate, rng, 0.0))
+    return est.close(), ref.close()
+
+
+def make_trajectory_logs(d: Path, hours: float, csv: bool) -> tuple[Path, Path]:
+    """:func:`trajectory_logs` in a child process (the parent stays small: see :func:`make_log`)."""
+    code = ("import sys; sys.path.insert(0, sys.argv[1]); from pathlib import Path; import memory; "
+            "memory.trajectory_logs(Path(sys.argv[2]), float(sys.argv[3]), csv=sys.argv[4] == '1')")
+    args = [str(Path(__file__).parent), str(d), str(hours), str(int(csv))]
+    subprocess.run([sys.executable, "-c", code, *args], check=True)
+    return d / f"est_{hours:g}h.{'csv' if csv else 'parquet'}", d / f"ref_{hours:g}h.parquet"
+
+
+def _circles(t, rng, noise: float):
+    """A vehicle on a 300-s circle at times ``t``; with ``noise``: estimation noise and σ columns."""
+    import numpy as np
+
+    from aidnav.data import Trajectory
+
+    m = len(t)
+    w = 2 * np.pi * t / 300.0
+    e = rng.normal(0, 1, (m, 9)) * noise
+    std = np.full((m, 3), 0.3) if noise else None
+    return Trajectory(t, np.radians(30.0) + 2e-5 * np.sin(w) + 5e-8 * e[:, 0],
+                      np.radians(114.0) + 2e-5 * np.cos(w) + 5e-8 * e[:, 1], 50.0 + np.sin(w) + 0.3 * e[:, 2],
+                      np.column_stack([-np.sin(w), np.cos(w), np.zeros(m)]) * 2.6 + 0.05 * e[:, 3:6],
+                      (np.column_stack([0 * w, 0 * w, w + np.pi / 2]) + 1e-3 * e[:, 6:9]) % (2 * np.pi),
+                      std_pos=std, std_vel=None if std is None else std / 6,
+                      std_att=None if std is None else std / 300)
+
+
 def make_log(d: Path, hours: float, seed: int) -> tuple[Path, Path, Path]:
     """:func:`static_log` in a child process (and the 60-s piece ``imu_60s.parquet`` of the IMU file).
 
@@ -129,6 +182,12 @@ def python_rss(code: str, cwd: Path) -> float:
 
 def main() -> None:
     long_h = float(sys.argv[sys.argv.index("--hours-long") + 1]) if "--hours-long" in sys.argv else 10.0
+    if "--evaluate-only" in sys.argv:  # only the evaluate rows (no W1)
+        with tempfile.TemporaryDirectory() as td:
+            print(f"load average {os.getloadavg()[0]:.1f} (2 cores shared)")
+            evaluate_rows(Path(td), long_h, "--eval-csv" in sys.argv)
+            print(f"load average {os.getloadavg()[0]:.1f}")
+        return
     figures = "--figures" in sys.argv
     print(f"load average {os.getloadavg()[0]:.1f} (2 cores shared)")
     with tempfile.TemporaryDirectory() as td:
@@ -163,7 +222,31 @@ def main() -> None:
         checks.append((f"memory {long_h:g} h / 1 h", rl[0] / r1[0], 1.10))
         for name, got, target in checks:
             print(f"  {name}: {got:.2f} against ≤ {target:g}: {'PASS' if got <= target else 'FAIL'}")
+        evaluate_rows(d, long_h, "--eval-csv" in sys.argv)
         print(f"load average {os.getloadavg()[0]:.1f}")
+
+
+def evaluate_rows(d: Path, long_h: float, csv: bool) -> None:
+    """``aidnav evaluate``: W1 (when its forward trajectory was made above) and the synthetic logs."""
+    rows = []
+    w1 = d / "w1" / "trajectory.parquet"
+    if w1.exists():
+        args = ["--estimate", w1, "--truth", W1 / "truth_10hz.parquet", "-o", d / "ew1"]
+        rows.append(("evaluate W1 (1 h, 10-Hz truth)", *run(args, command="evaluate")))
+    got = {}
+    for fmt in (["parquet", "csv"] if csv else ["parquet"]):
+        for hours in (1.0, long_h):
+            e, r = make_trajectory_logs(d, hours, fmt == "csv")
+            got[fmt, hours] = run(["--estimate", e, "--truth", r, "-o", d / f"ev_{fmt}_{hours:g}"],
+                                  command="evaluate")
+            rows.append((f"evaluate {hours:g} h {fmt} (100 Hz vs 10 Hz)", *got[fmt, hours]))
+            e.unlink()
+            r.unlink()
+    for name, mem, wall, cpu in rows:
+        print(f"{name:36s} peak RSS {mem:7.1f} MiB  wall {wall:6.2f} s  CPU {cpu:6.2f} s")
+    for fmt in (["parquet", "csv"] if csv else ["parquet"]):
+        print(f"evaluate memory {long_h:g} h / 1 h ({fmt}): {got[fmt, long_h][0] / got[fmt, 1.0][0]:.3f} "
+              "(target ≤ 1.10)")
 
 
 if __name__ == "__main__":

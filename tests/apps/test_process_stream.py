@@ -70,7 +70,7 @@ def test_streamed_job_equals_in_memory(tmp_path, small_chunks, smooth, fmt):
         assert s["outage_score_forward"] == json.loads(json.dumps(run.summary["outage_score_forward"]))
 
 
-def _peak_stream(d, seconds):
+def _peak_stream(d, seconds, smooth=False):
     from aidnav.filters.stream import stream_loose
     from aidnav.io.stream import iter_imu
 
@@ -84,7 +84,7 @@ def _peak_stream(d, seconds):
 
     tracemalloc.start()
     tracemalloc.reset_peak()
-    stream_loose(iter_imu(imu_p, 2000), gnss, cfg, emit, head_s=5.0)
+    stream_loose(iter_imu(imu_p, 2000), gnss, cfg, emit, head_s=5.0, smooth=smooth, spool_dir=d)
     peak = tracemalloc.get_traced_memory()[1]
     tracemalloc.stop()
     return peak, n
@@ -112,3 +112,32 @@ def test_streamed_bad_sample_leaves_no_file(tmp_path, small_chunks):
     with pytest.raises(DataError, match=r"imu_60\.parquet:4001: column dv_y_m_s: missing value or NaN"):
         process_logs(imu_p, gnss_p, cfg_p, tmp_path / "o", figures=False)
     assert not list((tmp_path / "o").glob("trajectory*"))
+
+
+def test_smoother_memory_does_not_grow_with_the_nodes(tmp_path, monkeypatch):
+    """With the smoother: the node matrices are on disk (read back in blocks of 64 nodes here), so the
+    Python-side peak on a log 4 times longer (300 → 1200 nodes) stays within 25 % (in memory per node: its
+    index, δx, ds and diag Ps; the matrices held in memory would add 3n² + n² floats, ≈ 8 MB here)."""
+    import aidnav.filters.stream as fs
+
+    monkeypatch.setattr(fs, "RTS_BLOCK", 64)
+    p1, n1 = _peak_stream(tmp_path, 150, smooth=True)
+    p4, n4 = _peak_stream(tmp_path, 600, smooth=True)
+    assert n1[0] == 2 * 15000 and n4[0] == 2 * 60000  # forward and smoothed pieces
+    assert abs(np.degrees(n4[1][0]) - 30.0) < 1e-4
+    assert p4 < 1.25 * p1
+
+
+def test_streamed_output_rate(tmp_path, small_chunks):
+    """``--output-rate`` on the streamed path (smoothed, CSV): the in-memory job's epochs and numbers."""
+    imu_p, gnss_p, cfg_p = static_log(tmp_path, 60)
+    out = tmp_path / "o"
+    process_logs(imu_p, gnss_p, cfg_p, out, smooth=True, fmt="csv", figures=False, output_rate_hz=10.0)
+    cfg = load_config(cfg_p)
+    cfg = cfg.model_copy(update={"filter": cfg.filter.model_copy(update={"output_rate_hz": 10.0})})
+    run = process(read_imu(imu_p), read_gnss(gnss_p), cfg, smooth=True)
+    a, b = read_trajectory(out / "trajectory.csv"), run.trajectory
+    assert len(a.time) == len(b.time) == 600
+    np.testing.assert_allclose(np.diff(a.time), 0.1, atol=1e-9)
+    for k in ("time", "lat", "lon", "height", "vel", "rph", "std_pos"):
+        np.testing.assert_allclose(getattr(a, k), getattr(b, k), rtol=0, atol=1e-12, err_msg=k)

@@ -145,3 +145,17 @@ def test_stream_automatic_init_time_offset_and_gap():
     _same(cat["state"], ref.state)
     _same(cat["pdiag"], ref.pdiag)
     assert res.counts == ref.counts
+
+
+def test_stream_smoother_blocks_of_spooled_nodes(given_init, monkeypatch):
+    """The RTS pass over node matrices read back from disk in blocks (of 7 nodes here, so that many block
+    boundaries fall inside the log) gives the smoothed solution of run_loose number for number."""
+    import aidnav.filters.stream as fs
+
+    imu, gnss, cfg = given_init
+    ref = run_loose(imu, gnss, cfg, smooth=True)
+    monkeypatch.setattr(fs, "RTS_BLOCK", 7)
+    res, cat = _streamed(imu, gnss, cfg, 1000, smooth=True)
+    assert res.counts == ref.counts and res.counts["nodes"] > 10 * 7  # many block boundaries
+    _same(cat["s_state"], ref.state)
+    _same(cat["s_pdiag"], ref.pdiag)

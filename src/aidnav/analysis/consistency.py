@@ -141,7 +141,6 @@ def consistency_report(values: np.ndarray, dof: int, prob: float = 0.95, kind: s
     if v.ndim != 2:
         raise ValueError(f"consistency_report: values must be (N,) or (R, N), got shape {v.shape}")
     r, n_ep = v.shape
-    band = chi2_band(dof, r, prob)
     with np.errstate(invalid="ignore"):
         cnt = np.sum(np.isfinite(v), axis=0)
         epoch_mean = np.where(cnt > 0, np.nansum(v, axis=0) / np.maximum(cnt, 1), np.nan)
@@ -151,18 +150,27 @@ def consistency_report(values: np.ndarray, dof: int, prob: float = 0.95, kind: s
     for c in np.unique(cnt[cnt > 0]):
         lo[cnt == c], hi[cnt == c] = chi2_band(dof, int(c), prob)
     fin = cnt > 0
-    n_fin = int(fin.sum())
     inside = fin & (epoch_mean >= lo) & (epoch_mean <= hi)
     above = fin & (epoch_mean > hi)
     below = fin & (epoch_mean < lo)
-    f_in = float(inside.sum() / n_fin) if n_fin else np.nan
-    f_above = float(above.sum() / n_fin) if n_fin else np.nan
-    f_below = float(below.sum() / n_fin) if n_fin else np.nan
-    f_min = float(binom.ppf(alpha, n_fin, prob) / n_fin) if n_fin else np.nan
-
     allv = v[np.isfinite(v)]
     nv = int(allv.size)
-    mean = float(allv.mean()) if nv else np.nan
+    return report_from_counts(kind, dof, r, n_ep, prob, epoch_mean, int(fin.sum()), int(inside.sum()),
+                              int(above.sum()), int(below.sum()), float(allv.mean()) if nv else np.nan, nv,
+                              alpha)
+
+
+def report_from_counts(kind: str, dof: int, r: int, n_ep: int, prob: float, epoch_mean: np.ndarray,
+                       n_fin: int, n_in: int, n_above: int, n_below: int, mean: float, nv: int,
+                       alpha: float = 1e-3) -> ConsistencyReport:
+    """The :class:`ConsistencyReport` of :func:`consistency_report` from its counts: ``n_fin`` epochs with
+    a finite average, ``n_in``/``n_above``/``n_below`` of them inside/above/below the band, the grand
+    ``mean`` of the ``nv`` finite values (a streamed evaluation accumulates these chunk by chunk)."""
+    band = chi2_band(dof, r, prob)
+    f_in = float(n_in / n_fin) if n_fin else np.nan
+    f_above = float(n_above / n_fin) if n_fin else np.nan
+    f_below = float(n_below / n_fin) if n_fin else np.nan
+    f_min = float(binom.ppf(alpha, n_fin, prob) / n_fin) if n_fin else np.nan
     mean_band = chi2_band(dof, nv, prob) if nv else (np.nan, np.nan)
 
     verdict = "consistent"

@@ -113,6 +113,10 @@ class ErrorSeries:
     def to_dataframe(self) -> pd.DataFrame:
         """Per-epoch table: ``time`` [s], errors with units in the names (angles in degrees), and the
         estimate's σ as ``<column>_std`` columns (CONVENTIONS interchange style)."""
+        return pd.DataFrame(self.columns())
+
+    def columns(self) -> dict[str, np.ndarray]:
+        """The columns of :meth:`to_dataframe` as a dict of arrays."""
         cols: dict[str, np.ndarray] = {"time": self.time}
         for i, c in enumerate(("de_m", "dn_m", "du_m")):
             cols[c] = self.pos[:, i]
@@ -133,7 +137,7 @@ class ErrorSeries:
         if self.std_att is not None and self.att is not None:
             for i, c in enumerate(("droll_deg", "dpitch_deg", "dheading_deg")):
                 cols[c + "_std"] = np.degrees(self.std_att[:, i])
-        return pd.DataFrame(cols)
+        return cols
 
     def components(self) -> dict[str, tuple[np.ndarray, np.ndarray | None, str]]:
         """Signed component errors keyed by quantity name: (error, σ or None, unit), angles in deg."""
@@ -212,14 +216,52 @@ def trajectory_errors(est: Trajectory, ref: Trajectory, max_dt: float | None = N
     tr = np.asarray(ref.time, dtype=float)
     _check_time(te, "estimate")
     _check_time(tr, "reference")
-    nref = len(tr)
     if len(te) == 0:
         raise ValueError("estimate trajectory is empty")
-
     if max_dt is None:
         max_dt = AUTO_GAP_FACTOR * float(np.median(np.diff(te))) if len(te) > 1 else np.inf
-    max_dt = float(max_dt)
+    present = ErrorParts(vel=_has(est.vel) and _has(ref.vel), att=_has(est.rph) and _has(ref.rph),
+                         std_pos=_has(est.std_pos), std_vel=_has(est.std_vel), std_att=_has(est.std_att))
+    e = errors_at(est, ref, float(max_dt), np.unwrap(np.asarray(est.lon, dtype=float)), present)
+    e.notes = exclusion_notes(e.n_reference, e.n_outside, e.n_gap, e.n_invalid, float(te[0]), float(te[-1]),
+                              e.max_dt)
+    return e
 
+
+@dataclass(frozen=True)
+class ErrorParts:
+    """Which parts :func:`errors_at` computes (velocity, attitude, the estimate's σ of each)."""
+
+    vel: bool = True
+    att: bool = True
+    std_pos: bool = True
+    std_vel: bool = True
+    std_att: bool = True
+
+
+def exclusion_notes(nref: int, n_out: int, n_gap: int, n_inv: int, t_first: float, t_last: float,
+                    max_dt: float) -> list[str]:
+    """The human-readable notes of :class:`ErrorSeries` on the excluded reference epochs."""
+    notes = []
+    if n_out:
+        notes.append(f"{n_out} of {nref} reference epochs outside the estimate's span "
+                     f"[{t_first!r}, {t_last!r}] s excluded")
+    if n_gap:
+        notes.append(f"{n_gap} reference epochs inside estimate gaps > {max_dt:g} s excluded")
+    if n_inv:
+        notes.append(f"{n_inv} reference epochs with non-finite position excluded")
+    return notes
+
+
+def errors_at(est: Trajectory, ref: Trajectory, max_dt: float, lon_e: np.ndarray, parts: ErrorParts
+              ) -> ErrorSeries:
+    """The errors of :func:`trajectory_errors` with the gap threshold ``max_dt`` [s], the estimate's
+    unwrapped longitude ``lon_e`` [rad] and the ``parts`` given (no checks, no notes). A piece of the
+    estimate gives the errors of the whole one at the reference epochs it brackets (the streamed
+    evaluation, :mod:`aidnav.analysis.error_stream`)."""
+    te = np.asarray(est.time, dtype=float)
+    tr = np.asarray(ref.time, dtype=float)
+    nref = len(tr)
     # bracketing estimate epoch i0 with te[i0] <= t < te[i0+1] (or t == te[-1])
     outside = (tr < te[0]) | (tr > te[-1])
     i0 = np.clip(np.searchsorted(te, tr, side="right") - 1, 0, len(te) - 1)
@@ -230,15 +272,6 @@ def trajectory_errors(est: Trajectory, ref: Trajectory, max_dt: float | None = N
     invalid = ~outside & ~gap & ~np.all(np.isfinite(ref_pos), axis=1)
     used = ~(outside | gap | invalid)
 
-    notes = []
-    if outside.any():
-        notes.append(f"{int(outside.sum())} of {nref} reference epochs outside the estimate's span "
-                     f"[{float(te[0])!r}, {float(te[-1])!r}] s excluded")
-    if gap.any():
-        notes.append(f"{int(gap.sum())} reference epochs inside estimate gaps > {max_dt:g} s excluded")
-    if invalid.any():
-        notes.append(f"{int(invalid.sum())} reference epochs with non-finite position excluded")
-
     idx = i0[used]
     t = tr[used]
     den = te[np.minimum(idx + 1, len(te) - 1)] - te[idx]
@@ -246,7 +279,6 @@ def trajectory_errors(est: Trajectory, ref: Trajectory, max_dt: float | None = N
     u = np.clip(u, 0.0, 1.0)
     u[te[idx] == t] = 0.0
 
-    lon_e = np.unwrap(np.asarray(est.lon, dtype=float))
     lat_i = _lerp(np.asarray(est.lat, dtype=float), idx, u)
     lon_i = _lerp(lon_e, idx, u)
     h_i = _lerp(np.asarray(est.height, dtype=float), idx, u)
@@ -255,12 +287,12 @@ def trajectory_errors(est: Trajectory, ref: Trajectory, max_dt: float | None = N
     pos = np.column_stack([de, dn, du])
 
     vel = None
-    if _has(est.vel) and _has(ref.vel):
+    if parts.vel:
         vel = _lerp(np.asarray(est.vel, dtype=float).reshape(-1, 3), idx, u) \
             - np.asarray(ref.vel, dtype=float).reshape(-1, 3)[used]
 
     att = None
-    if _has(est.rph) and _has(ref.rph):
+    if parts.att:
         rph_e = np.asarray(est.rph, dtype=float).reshape(-1, 3)
         ok = np.all(np.isfinite(rph_e), axis=1)
         q = np.full((len(rph_e), 4), np.nan)
@@ -280,13 +312,14 @@ def trajectory_errors(est: Trajectory, ref: Trajectory, max_dt: float | None = N
                 rph_i[interp] = sub
         att = wrap_pi(rph_i - np.asarray(ref.rph, dtype=float).reshape(-1, 3)[used])
 
-    def _std(a):
-        return _lerp(np.asarray(a, dtype=float).reshape(-1, 3), idx, u) if _has(a) else None
+    def _std(a, want):
+        return _lerp(np.asarray(a, dtype=float).reshape(-1, 3), idx, u) if want else None
 
     return ErrorSeries(time=t, pos=pos, vel=vel, att=att,
-                       std_pos=_std(est.std_pos), std_vel=_std(est.std_vel), std_att=_std(est.std_att),
+                       std_pos=_std(est.std_pos, parts.std_pos), std_vel=_std(est.std_vel, parts.std_vel),
+                       std_att=_std(est.std_att, parts.std_att),
                        n_reference=nref, n_outside=int(outside.sum()), n_gap=int(gap.sum()),
-                       n_invalid=int(invalid.sum()), max_dt=max_dt, used=used, notes=notes)
+                       n_invalid=int(invalid.sum()), max_dt=max_dt, used=used)
 
 
 # ----------------------------------------------------------------------------------- statistics
@@ -301,7 +334,7 @@ def _select(errors: ErrorSeries, window) -> np.ndarray:
     return m
 
 
-def _series(errors: ErrorSeries) -> dict[str, tuple[np.ndarray, str]]:
+def statistics_series(errors: ErrorSeries) -> dict[str, tuple[np.ndarray, str]]:
     """Error series per statistics row: (values, unit); angles in degrees."""
     s = {q: (e, unit) for q, (e, _, unit) in errors.components().items()}
     s["pos horizontal"] = (errors.horizontal, "m")
@@ -324,20 +357,30 @@ def error_statistics(errors: ErrorSeries, window: tuple[float | None, float | No
     """
     m = _select(errors, window)
     rows = []
-    for q, (e, unit) in _series(errors).items():
+    for q, (e, unit) in statistics_series(errors).items():
         v = np.asarray(e)[m]
-        v = v[np.isfinite(v)]
-        n = len(v)
-        if n:
-            a = np.abs(v)
-            rows.append({"quantity": q, "RMS": float(np.sqrt(np.mean(v * v))), "mean": float(np.mean(v)),
-                         "std": float(np.std(v)), "p95": float(np.percentile(a, 95)),
-                         "max": float(np.max(a)), "n": n, "unit": unit})
-        else:
-            rows.append({"quantity": q, "RMS": np.nan, "mean": np.nan, "std": np.nan, "p95": np.nan,
-                         "max": np.nan, "n": 0, "unit": unit})
-    df = pd.DataFrame(rows, columns=["quantity", "RMS", "mean", "std", "p95", "max", "n", "unit"])
-    return df.set_index("quantity")
+        rows.append(statistics_row(q, unit, v[np.isfinite(v)]))
+    return statistics_frame(rows)
+
+
+STAT_COLUMNS = ["quantity", "RMS", "mean", "std", "p95", "max", "n", "unit"]
+
+
+def statistics_row(q: str, unit: str, v: np.ndarray) -> dict:
+    """One row of :func:`error_statistics` from the finite values ``v`` of quantity ``q``."""
+    n = len(v)
+    if not n:
+        return {"quantity": q, "RMS": np.nan, "mean": np.nan, "std": np.nan, "p95": np.nan, "max": np.nan,
+                "n": 0, "unit": unit}
+    a = np.abs(v)
+    return {"quantity": q, "RMS": float(np.sqrt(np.mean(v * v))), "mean": float(np.mean(v)),
+            "std": float(np.std(v)), "p95": float(np.percentile(a, 95)), "max": float(np.max(a)), "n": n,
+            "unit": unit}
+
+
+def statistics_frame(rows: list[dict]) -> pd.DataFrame:
+    """The DataFrame of :func:`error_statistics` from its rows."""
+    return pd.DataFrame(rows, columns=STAT_COLUMNS).set_index("quantity")
 
 
 def fraction_within_sigma(errors: ErrorSeries, k: float = 1.0,
@@ -349,17 +392,26 @@ def fraction_within_sigma(errors: ErrorSeries, k: float = 1.0,
     ``expected`` = erf(k/√2), the probability for a consistent Gaussian estimator (0.683 at k=1).
     """
     m = _select(errors, window)
-    rows = []
+    fractions = {}
     for q, (e, s, _) in errors.components().items():
-        if s is None:
-            continue
-        e, s = np.asarray(e)[m], np.asarray(s)[m]
-        ok = np.isfinite(e) & np.isfinite(s)
-        n = int(ok.sum())
-        frac = float(np.mean(np.abs(e[ok]) <= k * s[ok])) if n else np.nan
-        rows.append({"quantity": q, "fraction": frac, "n": n, "expected": float(erf(k / np.sqrt(2.0)))})
-    df = pd.DataFrame(rows, columns=["quantity", "fraction", "n", "expected"])
-    return df.set_index("quantity")
+        if s is not None:
+            a = within_flags(np.asarray(e)[m], np.asarray(s)[m], k)
+            fractions[q] = (float(np.mean(a)) if a.size else np.nan, a.size)
+    return within_frame(fractions, k)
+
+
+def within_flags(e: np.ndarray, s: np.ndarray, k: float) -> np.ndarray:
+    """|e| ≤ k·σ at the epochs where the error ``e`` and its σ ``s`` are both finite."""
+    e, s = np.asarray(e), np.asarray(s)
+    ok = np.isfinite(e) & np.isfinite(s)
+    return np.abs(e[ok]) <= k * s[ok]
+
+
+def within_frame(fractions: dict[str, tuple[float, int]], k: float) -> pd.DataFrame:
+    """The DataFrame of :func:`fraction_within_sigma` from {quantity: (fraction, n)}."""
+    rows = [{"quantity": q, "fraction": f, "n": int(n), "expected": float(erf(k / np.sqrt(2.0)))}
+            for q, (f, n) in fractions.items()]
+    return pd.DataFrame(rows, columns=["quantity", "fraction", "n", "expected"]).set_index("quantity")
 
 
 def truth_index(truth_time, t, atol: float = 1e-6) -> np.ndarray:

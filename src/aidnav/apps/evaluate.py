@@ -6,6 +6,12 @@ Files: interchange trajectories (CSV/Parquet, CONVENTIONS "Interchange files") r
 week). Both files must share a time scale; errors are estimate − reference at the reference epochs
 (:func:`aidnav.analysis.errors.trajectory_errors`). An RTKLIB reference describes the antenna: no
 lever arm is applied, so the position errors then contain the IMU–antenna lever arm.
+
+Memory does not grow with the files (issue 29): interchange trajectories are read in batches
+(:func:`aidnav.io.stream.trajectory_chunks`; other formats are read whole and cut), the errors are
+computed, written to ``errors.csv`` and summarised chunk by chunk
+(:func:`aidnav.analysis.error_stream.stream_errors`: the numbers of the whole-trajectory functions), and
+the figures are drawn from a decimated copy of the error series.
 """
 
 from __future__ import annotations
@@ -17,17 +23,14 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from aidnav.analysis.consistency import consistency_report, nees
-from aidnav.analysis.errors import (
-    ErrorSeries,
-    error_statistics,
-    fraction_within_sigma,
-    trajectory_errors,
-)
+from aidnav.analysis.error_stream import StreamedErrors, stream_errors
+from aidnav.analysis.errors import ErrorSeries
 from aidnav.data import GnssData, Trajectory
 from aidnav.report.error_plots import plot_errors, plot_nees
 
 #: Row order of the printed table (position N/E/U first, as navigation reports usually list them).
+CHUNK_ROWS = 1 << 15  #: estimate/reference epochs per piece
+
 TABLE_ORDER = ["pos N", "pos E", "pos U", "pos horizontal", "pos 3D", "vel N", "vel E", "vel U",
                "roll", "pitch", "heading"]
 
@@ -65,8 +68,10 @@ def _records(df: pd.DataFrame) -> list[dict]:
     return [_clean({"quantity": q, **row}) for q, row in df.to_dict(orient="index").items()]
 
 
-def print_table(stats: pd.DataFrame, errors: ErrorSeries, console=None, title: str = "Errors") -> None:
-    """Rich table of RMS, 95th percentile of |e| and max |e| per quantity, with the epoch counts."""
+def print_table(stats: pd.DataFrame, errors: ErrorSeries | StreamedErrors, console=None,
+                title: str = "Errors") -> None:
+    """Rich table of RMS, 95th percentile of |e| and max |e| per quantity, with the epoch counts and notes of
+    ``errors``."""
     from rich.console import Console
     from rich.table import Table
 
@@ -88,10 +93,21 @@ def print_table(stats: pd.DataFrame, errors: ErrorSeries, console=None, title: s
         console.print(f"note: {note}", markup=False)
 
 
+def _pieces(path, notes: list[str], height_offset_m: float, chunk_rows: int):
+    """The trajectory of ``path`` in pieces: an interchange file read in batches, any other read whole
+    (:func:`read_any_trajectory`) and cut."""
+    from aidnav.io.stream import TrajectoryChunks, trajectory_chunks
+
+    src = trajectory_chunks(path, chunk_rows, height_offset_m, notes)
+    if src is None:
+        src = TrajectoryChunks(read_any_trajectory(path, notes, height_offset_m=height_offset_m), chunk_rows)
+    return src
+
+
 def evaluate_files(estimate_path, truth_path, out_dir=None, console=None, max_dt: float | None = None,
-                   time_scale: str = "GPS SOW",
-                   truth_height_offset_m: float = 0.0) -> tuple[pd.DataFrame, list[Path]]:
-    """Compare an estimate file with a reference ("truth") file.
+                   time_scale: str = "GPS SOW", truth_height_offset_m: float = 0.0,
+                   chunk_rows: int = CHUNK_ROWS) -> tuple[pd.DataFrame, list[Path]]:
+    """Compare an estimate file with a reference ("truth") file, chunk by chunk (module doc).
 
     estimate_path, truth_path : interchange trajectory files, or RTKLIB ``.pos`` (see module doc).
     out_dir : when given, writes ``errors.json`` (statistics, epoch counts, fraction within 1σ/3σ,
@@ -100,57 +116,65 @@ def evaluate_files(estimate_path, truth_path, out_dir=None, console=None, max_dt
     console : rich Console for the table (a new one if None).
     max_dt : gap threshold for :func:`trajectory_errors` [s]; time_scale : label of the time axis.
     truth_height_offset_m : added to the reference heights [m] (datum of the reference file).
+    chunk_rows : epochs per piece of either file.
 
     Returns (statistics DataFrame of :func:`error_statistics`, list of files written).
     Raises ``ValueError`` when no reference epoch falls inside the estimate's span (e.g. files in
     different time scales).
     """
+    from aidnav.io.stream import CsvColumnsWriter
+
     read_notes: list[str] = []
-    est = read_any_trajectory(estimate_path, read_notes)
-    ref = read_any_trajectory(truth_path, read_notes, height_offset_m=truth_height_offset_m)
-    errors = trajectory_errors(est, ref, max_dt=max_dt)
+    est = _pieces(estimate_path, read_notes, 0.0, chunk_rows)
+    ref = _pieces(truth_path, read_notes, truth_height_offset_m, chunk_rows)
+    out = None if out_dir is None else Path(out_dir)
+    csv = None
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        csv = CsvColumnsWriter(out / "errors.csv")
+    try:
+        errors = stream_errors(est, ref, max_dt=max_dt, spool_dir=out,
+                               on_piece=None if csv is None else (lambda e: csv.write(e.columns())))
+    except BaseException:
+        if csv is not None:
+            csv.close()
+            csv.path.unlink(missing_ok=True)
+        raise
+    if csv is not None:
+        csv.close()
     errors.notes[:0] = read_notes
     if errors.n_used == 0:
-        te, tr = np.asarray(est.time), np.asarray(ref.time)
+        if csv is not None:
+            csv.path.unlink(missing_ok=True)
 
-        def span(t):
-            return f"[{float(t[0])!r}, {float(t[-1])!r}]" if len(t) else "[]"
+        def span(s):
+            return f"[{s[0]!r}, {s[1]!r}]" if s else "[]"
 
-        raise ValueError(f"no reference epoch can be evaluated: estimate spans {span(te)} s, reference "
-                         f"{span(tr)} s ({'; '.join(errors.notes)}); are both in the same time scale?")
-    stats = error_statistics(errors)
+        raise ValueError(f"no reference epoch can be evaluated: estimate spans {span(errors.est_span)} s, "
+                         f"reference {span(errors.ref_span)} s ({'; '.join(errors.notes)}); are both in the "
+                         "same time scale?")
+    stats = errors.statistics
     print_table(stats, errors, console, title=f"{Path(estimate_path).name} vs {Path(truth_path).name}")
 
     written: list[Path] = []
-    if out_dir is None:
+    if out is None:
         return stats, written
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-
     summary = {"estimate": str(estimate_path), "truth": str(truth_path), "time_scale": time_scale,
-               "t0": float(errors.time[0]), "t1": float(errors.time[-1]), "epochs": errors.counts(),
+               "t0": errors.t0, "t1": errors.t1, "epochs": errors.counts(),
                "notes": list(errors.notes), "statistics": _records(stats),
-               "within_1sigma": _records(fraction_within_sigma(errors, 1.0)),
-               "within_3sigma": _records(fraction_within_sigma(errors, 3.0))}
+               "within_1sigma": _records(errors.within[1.0]),
+               "within_3sigma": _records(errors.within[3.0])}
 
-    figs = plot_errors(errors, out, time_scale=time_scale)
-    if errors.std_pos is not None:
+    figs = plot_errors(errors.figure, out, time_scale=time_scale)
+    if errors.nees is not None:
         # diagonal covariance from the estimate's σ only (its cross-correlations are not in the file)
-        sp = np.where(errors.std_pos > 0, errors.std_pos, np.nan)  # σ = 0 or NaN: epoch left out
-        cov = np.zeros((len(errors), 3, 3))
-        idx = np.arange(3)
-        cov[:, idx, idx] = sp**2
-        v = nees(errors.pos, cov)
-        if np.any(np.isfinite(v)):
-            summary["position_nees"] = _clean(
-                {**consistency_report(v, 3).to_dict(), "covariance": "diagonal from the estimate's σ"})
-            figs.append(plot_nees(errors.time, v, 3, out / "position_nees.png",
-                                  label="position NEES (diagonal σ)", time_scale=time_scale))
+        summary["position_nees"] = _clean({**errors.nees.to_dict(),
+                                           "covariance": "diagonal from the estimate's σ"})
+        figs.append(plot_nees(errors.figure.time, errors.figure_nees, 3, out / "position_nees.png",
+                              label="position NEES (diagonal σ)", time_scale=time_scale))
 
     summary["figures"] = [p.name for p in figs]
     jpath = out / "errors.json"
     jpath.write_text(json.dumps(_clean(summary), indent=2) + "\n")
-    cpath = out / "errors.csv"
-    errors.to_dataframe().to_csv(cpath, index=False, float_format="%.17g")
-    written += [jpath, cpath, *figs]
+    written += [jpath, csv.path, *figs]
     return stats, written

@@ -17,6 +17,7 @@ import numpy as np
 
 from aidnav.apps.common import check_solution
 from aidnav.data import Trajectory
+from aidnav.io.stream import concat_rows, take_rows
 
 FIGURE_POINTS = 20000  #: at most this many epochs go to overview.png, the maps and run.html
 CHUNK_ROWS = 1 << 13  #: IMU samples per chunk (the per-chunk buffers are about 1.3 kB per sample)
@@ -40,33 +41,7 @@ def streamable(imu_path, cfg, odometer=None, start_s=None, end_s=None) -> bool:
 
 def _join(a: Trajectory | None, b: Trajectory) -> Trajectory:
     """The last epoch of ``a`` followed by ``b`` (checks and interpolation across a chunk boundary)."""
-    if a is None:
-        return b
-
-    def cat(x, y):
-        return None if x is None else np.concatenate([x[-1:], y])
-
-    names = ("time", "lat", "lon", "height", "vel", "rph", "std_pos", "std_vel", "std_att")
-    return Trajectory(*(cat(getattr(a, k), getattr(b, k)) for k in names),
-                      extra={k: cat(a.extra[k], v) for k, v in b.extra.items()})
-
-
-def _take(tr: Trajectory, m) -> Trajectory:
-    def f(x):
-        return None if x is None else x[m]
-
-    return Trajectory(tr.time[m], tr.lat[m], tr.lon[m], tr.height[m], tr.vel[m], tr.rph[m], f(tr.std_pos),
-                      f(tr.std_vel), f(tr.std_att), {k: v[m] for k, v in tr.extra.items()})
-
-
-def _concat(parts: list[Trajectory]) -> Trajectory:
-    def c(name):
-        xs = [getattr(p, name) for p in parts]
-        return None if xs[0] is None else np.concatenate(xs)
-
-    extra = {k: np.concatenate([p.extra[k] for p in parts]) for k in parts[0].extra}
-    names = ("time", "lat", "lon", "height", "vel", "rph", "std_pos", "std_vel", "std_att")
-    return Trajectory(*(c(k) for k in names), extra=extra)
+    return b if a is None else concat_rows([take_rows(a, slice(len(a.time) - 1, None)), b])
 
 
 class _Sink:
@@ -92,9 +67,9 @@ class _Sink:
         b = np.floor(traj.time / self.fig_dt)
         keep = np.concatenate([[b[0] > self.next_t], b[1:] > b[:-1]])
         if keep.any():
-            self.dec.append(_take(traj, keep))
+            self.dec.append(take_rows(traj, keep))
         self.next_t = b[-1]
-        self.prev = _take(traj, slice(len(traj.time) - 1, None))
+        self.prev = take_rows(traj, slice(len(traj.time) - 1, None))
 
     def score(self, wins):
         from aidnav.apps.process_parts import outage_score
@@ -103,7 +78,7 @@ class _Sink:
         return outage_score(t, np.concatenate(self.herr) if self.herr else np.zeros(0), wins, self.withheld)
 
     def decimated(self) -> Trajectory:
-        return _concat(self.dec)
+        return concat_rows(self.dec)
 
 
 def stream_process(imu_path, gnss, cfg, traj_path, week, smooth=False, outages=None, imu_name="imu",

@@ -314,7 +314,7 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
     prop_dt = proc.prop_dt
     # records that can fall due in this chunk: all (one call), else those stamped up to 100 s after its
     # last sample (a time offset or receiver clock bias beyond 100 s is refused below)
-    m_due = M if cy.last else min(M, np.searchsorted(rec.t, imu.t[-1] + 100.0, side="right") + 1) - cy.gi
+    m_due = (M if cy.last else min(M, np.searchsorted(rec.t, imu.t[-1] + 100.0, side="right") + 1)) - cy.gi
     max_nodes = min(m_due + int((imu.t[-1] - cy.tp) / prop_dt) + 3 + n_imu // max(1, int(prop_dt * 1000.0)),
                     n_imu + 1)
     n_out = (n_imu + out.every - 1) // out.every if out.every > 0 else max_nodes

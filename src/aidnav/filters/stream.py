@@ -12,7 +12,9 @@ bridge and the rate of the static window (equal on a regularly sampled log).
 
 With the smoother, or with an estimated IMU time offset (output times are shifted by its final
 estimate), the forward outputs go to a spool file (float64 rows) and are read back chunk by chunk
-after the pass: the RTS pass keeps O(nodes) (``S_post``, ``S_prior``, ``Φ``, ``δx`` per node).
+after the pass. The node matrices of the smoother (P⁺, P⁻, Φ: 3n² floats a node) go to a second spool
+and the RTS pass reads them backwards in blocks (:func:`_rts_spooled`); what stays in memory per node is
+its sample index, δx, the smoothed ds and diag Ps (3n + 1 floats, ≈ 0.5 kB at n = 21).
 
 What stays whole-log: the GNSS fixes and the per-fix record log (1 Hz: 100 times fewer rows than the
 IMU), the model id and status of every node-constraint update (2 bytes per node). A log that needs a
@@ -22,12 +24,10 @@ full covariances at given times is for :func:`run_loose` (:func:`needs_whole_log
 
 from __future__ import annotations
 
-import os
-import tempfile
-
 import numpy as np
 
 from aidnav.data import ImuData
+from aidnav.io.stream import Spool
 
 from .engine import Imu, Log, Output, rts, run_chunk, smooth_outputs, start_carry
 from .layout import L_TOFF, NAV, layout_names
@@ -78,30 +78,6 @@ def _lookahead(first, rest):
     yield pend, True
 
 
-class _Spool:
-    """Forward outputs as float64 rows in a temporary file, read back in chunks."""
-
-    def __init__(self, directory, width):
-        fd, self.path = tempfile.mkstemp(suffix=".spool", dir=directory)
-        self.f, self.width, self.rows = os.fdopen(fd, "wb"), width, 0
-
-    def write(self, rows):
-        np.ascontiguousarray(rows, np.float64).tofile(self.f)
-        self.rows += len(rows)
-
-    def read(self, chunk):
-        self.f.close()
-        with open(self.path, "rb") as f:
-            for a in range(0, self.rows, chunk):
-                m = min(chunk, self.rows - a)
-                yield np.fromfile(f, np.float64, m * self.width).reshape(m, self.width)
-
-    def close(self):
-        self.f.close()
-        if os.path.exists(self.path):
-            os.remove(self.path)
-
-
 def stream_loose(chunks, gnss, cfg, emit, withheld=None, smooth: bool = False, events: list | None = None,
                  odometer=None, baro=None, head_s: float = 60.0, spool_dir=None, progress=None):
     """Loosely coupled GNSS/INS (and RTS smoother) over a log given in chunks (module doc).
@@ -131,10 +107,13 @@ def stream_loose(chunks, gnss, cfg, emit, withheld=None, smooth: bool = False, e
     out = Output(su.out_every, bool(smooth), np.zeros(0, np.int64))
     M = len(su.rec.t)
     rec_log = None
-    node_model, node_status, nodes, static_used, n_nodes = [], [], [], 0, 0
-    spool = None
+    node_model, node_status, static_used, n_nodes = [], [], 0, 0
+    spool = node_spool = None
+    node_idx_l, node_dx = [], []  # with the smoother: per node its sample and δx; Φ, P⁻, P⁺ on disk
     if smooth or lay[L_TOFF] >= 0:
-        spool = _Spool(spool_dir, 3 + 10 + (n - NAV) + n)
+        spool = Spool(spool_dir, 3 + 10 + (n - NAV) + n)
+    if smooth:
+        node_spool = Spool(spool_dir, 3 * n * n)
     cy = start_carry(su.rec, su.proc, ini, False)
     tail, n_seen, t_prev, last_piece = None, 0, head.t0, None
     try:
@@ -174,9 +153,12 @@ def stream_loose(chunks, gnss, cfg, emit, withheld=None, smooth: bool = False, e
             node_model.append(lg["model"][M:r.n_log].copy())
             node_status.append(lg["status"][M:r.n_log].copy())
             n_nodes += len(r.node_idx)
-            if smooth:
-                nodes.append((r.node_idx.copy(), r.S_post.copy(), r.S_prior.copy(), r.S_phi.copy(),
-                               r.S_dx.copy()))
+            if smooth and len(r.node_idx):
+                node_idx_l.append(r.node_idx.copy())
+                node_dx.append(r.S_dx.copy())
+                k = len(r.node_idx)
+                node_spool.write(np.concatenate([r.S_post.reshape(k, -1), r.S_prior.reshape(k, -1),
+                                                 r.S_phi.reshape(k, -1)], axis=1))
             if len(r.out_idx):
                 tt = t[r.out_idx - kb]
                 if spool is not None:
@@ -194,12 +176,10 @@ def stream_loose(chunks, gnss, cfg, emit, withheld=None, smooth: bool = False, e
                           "shifted by it")
         smoothed = False
         if spool is not None:
-            ds = Ps = None
+            ds = None
             if smooth and n_nodes > 1:
-                node_idx, S_post, S_prior, S_phi, S_dx = (np.concatenate([x[i] for x in nodes])
-                                                          for i in range(5))
-                ds, Ps = rts(S_post, S_prior, S_phi, S_dx, cy.reset_node)
-                pd_nodes = np.einsum("kii->ki", Ps)
+                node_idx, S_dx = np.concatenate(node_idx_l), np.concatenate(node_dx)
+                ds, pd_nodes = _rts_spooled(node_spool, S_dx, n, cy.reset_node)
                 smoothed = True
             nb = n - NAV
             for rows in spool.read(1 << 13):
@@ -213,8 +193,9 @@ def stream_loose(chunks, gnss, cfg, emit, withheld=None, smooth: bool = False, e
                 last_piece = _piece(tt, st, b, pd, lay, smoothed)
                 emit(last_piece)
     finally:
-        if spool is not None:
-            spool.close()
+        for sp in (spool, node_spool):
+            if sp is not None:
+                sp.close()
     if rec_log is None:
         raise ValueError("no IMU sample after the initialisation")
     log = _log_dict(Log(**rec_log), M)
@@ -223,8 +204,8 @@ def stream_loose(chunks, gnss, cfg, emit, withheld=None, smooth: bool = False, e
     cnt = loose_counts({"model": np.concatenate([log["model"], node_m]),
                         "status": np.concatenate([log["status"], node_s])},
                        n_nodes, static_used, n_seen, k0)
-    if smoothed:
-        cnt["smoother_memory_mb"] = (S_post.nbytes + S_prior.nbytes + S_phi.nbytes + Ps.nbytes) / 1e6
+    if smoothed:  # the size of the node matrices (of run_loose; here on disk, read back in blocks)
+        cnt["smoother_memory_mb"] = 4 * n_nodes * n * n * 8 / 1e6
     res = last_piece if last_piece is not None else _piece(np.zeros(0), np.zeros((0, 10)),
                                                            np.zeros((0, n - NAV)), np.zeros((0, n)), lay)
     res.records = _gnss_records(log, su.rmap, len(gnss))
@@ -233,6 +214,30 @@ def stream_loose(chunks, gnss, cfg, emit, withheld=None, smooth: bool = False, e
     res.gnss_time = np.asarray(gnss.time, float)
     res.node_time = np.zeros(0)
     return res
+
+
+RTS_BLOCK = 1024  #: nodes per block of the spooled RTS pass (3n² floats each: 10.6 MB at n = 21)
+
+
+def _rts_spooled(node_spool, S_dx, n, brk, block: int | None = None):
+    """:func:`.engine.rts` over the node matrices (P⁺, P⁻, Φ rows of ``node_spool``) read backwards in
+    blocks of ``block`` nodes: (ds (K, n), diag Ps (K, n)), the numbers of one call on all nodes. A block
+    is extended by the smoothed node after it, its P⁺ replaced by that node's Ps and its δx by δx + ds
+    (so the recursion steps over the boundary exactly as it does inside a block)."""
+    K, nn, block = len(S_dx), n * n, block or RTS_BLOCK
+    ds, pd = np.zeros((K, n)), np.empty((K, n))
+    after = None  # (P_s, P⁻, Φ, δx + ds) of the node after the block
+    for a, rows in node_spool.read_reverse(block):
+        m = len(rows)
+        mats = [np.ascontiguousarray(rows[:, i * nn:(i + 1) * nn]).reshape(m, n, n) for i in range(3)]
+        post, prior, phi, dx = *mats, S_dx[a:a + m]
+        if after is not None:
+            post, prior, phi, dx = (np.concatenate([x, y[None]])
+                                    for x, y in zip([*mats, dx], after, strict=True))
+        d, P = rts(post, prior, phi, np.ascontiguousarray(dx), brk - a if a <= brk <= a + m else -1)
+        ds[a:a + m], pd[a:a + m] = d[:m], np.einsum("kii->ki", P[:m])
+        after = (P[0], prior[0], phi[0], S_dx[a] + d[0])
+    return ds, pd
 
 
 def _piece(t, st, b, pd, lay, smoothed=False) -> FilterResult:

@@ -246,7 +246,12 @@ def read_trajectory(path) -> Trajectory:
     ``height_m_std`` → U [m] (``std_e_m, std_n_m, std_u_m`` [m] are preferred when present); ``ve_std ...`` →
     ``std_vel`` [m/s]; ``roll_deg_std ...`` → ``std_att`` [rad]. Other columns → ``extra`` as read.
     """
-    t = _open(path)
+    return trajectory_from_table(_open(path))
+
+
+def trajectory_from_table(t: _Table) -> Trajectory:
+    """The :class:`Trajectory` of :func:`read_trajectory` from a table of interchange columns (a whole file,
+    or a piece of one read in batches by :mod:`aidnav.io.stream`), with the same checks."""
     t.require(TRAJECTORY_COLUMNS, "trajectory")
     has_sp = t.has_all(_TRAJ_STD_POS, "position std")
     has_sv = t.has_all(_TRAJ_STD_VEL, "velocity std")

@@ -1,17 +1,23 @@
-"""Interchange files chunk by chunk (issue 29): IMU increments read from Parquet in batches, trajectories
-written in pieces (Parquet row groups, CSV through pyarrow's writer), so memory does not grow with the log.
+"""Interchange files chunk by chunk (issue 29): IMU increments and trajectories read in batches (Parquet
+row groups; trajectory CSV through pyarrow's streaming reader), trajectories and tables written in pieces
+(Parquet row groups, CSV through pyarrow's writer), rows spooled to disk, so memory does not grow with the
+log.
 
 :func:`iter_imu` yields :class:`aidnav.data.ImuData` chunks with exactly what :func:`.interchange.read_imu`
 gives on the whole file (the same checks, row numbers in the messages); other formats and CSV are read
 whole and then cut into chunks. :class:`TrajectoryWriter` writes the columns of
 :func:`.interchange.trajectory_columns` piece by piece; the file appears under its name only when
-closed (``abort`` removes the partial one).
+closed (``abort`` removes the partial one). :func:`trajectory_chunks` gives the pieces of a trajectory
+file (:func:`.interchange.read_trajectory`'s numbers, checks and messages; other formats read whole by
+the caller and cut by :class:`TrajectoryChunks`); :class:`CsvColumnsWriter` writes named columns;
+:class:`Spool` keeps float64 rows in a temporary file and reads them back in chunks, as often as needed.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -19,7 +25,8 @@ import numpy as np
 from aidnav.data import ImuData
 from aidnav.io.errors import DataError
 
-__all__ = ["iter_imu", "TrajectoryWriter", "imu_time_span"]
+__all__ = ["iter_imu", "TrajectoryWriter", "imu_time_span", "trajectory_chunks", "TrajectoryChunks",
+           "CsvColumnsWriter", "Spool", "take_rows", "concat_rows"]
 
 
 def _parquet_imu(path: Path):
@@ -180,7 +187,8 @@ class TrajectoryWriter:
             self.f.write(("# aidnav trajectory; time [s], lat/lon [deg], height [m] ellipsoidal, velocity "
                           "ENU [m/s], roll/pitch/heading [deg] (heading clockwise from North); std_e_m/"
                           "std_n_m/std_u_m [m]" + wk + "\n").encode())
-            self.w = pacsv.CSVWriter(self.f, schema, write_options=pacsv.WriteOptions(quoting_style="none"))
+            opts = pacsv.WriteOptions(quoting_style="none", quoting_header="none")
+            self.w = pacsv.CSVWriter(self.f, schema, write_options=opts)
 
     def close(self) -> Path:
         if self.w is not None:
@@ -199,3 +207,297 @@ class TrajectoryWriter:
                     pass
         if self.part.exists():
             self.part.unlink()
+
+
+# ================================================================================= trajectory pieces
+_TRAJ_FIELDS = ("time", "lat", "lon", "height", "vel", "rph", "std_pos", "std_vel", "std_att")
+
+
+def take_rows(tr, m):
+    """The rows ``m`` (slice, indices or mask) of a :class:`aidnav.data.Trajectory`."""
+    from aidnav.data import Trajectory
+
+    def f(x):
+        return None if x is None else x[m]
+
+    return Trajectory(*(f(getattr(tr, k)) for k in _TRAJ_FIELDS),
+                      extra={k: v[m] for k, v in tr.extra.items()}, week=tr.week)
+
+
+def concat_rows(parts):
+    """The :class:`aidnav.data.Trajectory` of ``parts`` one after the other (same columns)."""
+    from aidnav.data import Trajectory
+
+    def c(name):
+        xs = [getattr(p, name) for p in parts]
+        return None if xs[0] is None else np.concatenate(xs)
+
+    extra = {k: np.concatenate([p.extra[k] for p in parts]) for k in parts[0].extra}
+    return Trajectory(*(c(k) for k in _TRAJ_FIELDS), extra=extra, week=parts[0].week)
+
+
+def _has(a) -> bool:
+    return a is not None and np.size(a) > 0 and bool(np.any(np.isfinite(a)))
+
+
+class TrajectoryChunks:
+    """A trajectory as consecutive pieces of about ``chunk_rows`` epochs, as often as iterated.
+
+    ``has`` : {"vel", "rph", "std_pos", "std_vel", "std_att"} → whether the trajectory has finite values
+    of it anywhere (a file: whether it has the columns, which the reader requires finite). This class
+    cuts a trajectory held whole; :func:`trajectory_chunks` makes the ones that read a file in batches.
+    """
+
+    def __init__(self, traj=None, chunk_rows: int = 1 << 15, has: dict | None = None):
+        self.traj, self.chunk_rows = traj, int(chunk_rows)
+        self.has = has if has is not None else {k: _has(getattr(traj, k)) for k in
+                                                ("vel", "rph", "std_pos", "std_vel", "std_att")}
+
+    def _batches(self):
+        n = len(self.traj.time)
+        for a in range(0, n, self.chunk_rows):
+            yield take_rows(self.traj, slice(a, min(a + self.chunk_rows, n)))
+
+    def __iter__(self):
+        return self._batches()
+
+    def times(self):
+        """The ``time`` column [s], piece by piece."""
+        for c in self:
+            yield np.asarray(c.time, dtype=float)
+
+
+class _FileChunks(TrajectoryChunks):
+    """An interchange trajectory file (CSV or Parquet) read in batches."""
+
+    def __init__(self, path: Path, names: list[str], kind: str, csv_head, meta: dict, chunk_rows: int,
+                 height_offset_m: float):
+        from aidnav.io.interchange import _TRAJ_STD_ATT, _TRAJ_STD_POS, _TRAJ_STD_VEL, GNSS_STD_POS_COLUMNS
+
+        have = set(names)
+        super().__init__(None, chunk_rows, {"vel": True, "rph": True,
+                                            "std_pos": set(_TRAJ_STD_POS) <= have or
+                                            set(GNSS_STD_POS_COLUMNS) <= have,
+                                            "std_vel": set(_TRAJ_STD_VEL) <= have,
+                                            "std_att": set(_TRAJ_STD_ATT) <= have})
+        self.path, self.names, self.kind, self.csv_head, self.meta = path, names, kind, csv_head, meta
+        self.offset = float(height_offset_m)
+
+    def _tables(self, columns=None):
+        """(row of the first record, {name: float64 column}) per batch; a CSV the streaming reader cannot
+        parse is read whole by the file reader (which names the problem, or reads what is left)."""
+        from aidnav.io._arrow import column_to_f64
+        from aidnav.io._table import TEXT_COLUMNS
+
+        cols = [c for c in (columns or self.names) if c not in TEXT_COLUMNS]
+        row = 0
+        try:
+            for b in self._arrow_batches(cols):
+                d = {c: column_to_f64(b.column(c)) for c in cols}
+                yield row, d
+                row += b.num_rows
+        except DataError:
+            raise
+        except Exception:  # noqa: BLE001  (the whole-file reader gives the message or the values)
+            from aidnav.io._table import _open
+
+            t = _open(self.path)
+            n = len(t)
+            for a in range(row, n, self.chunk_rows):
+                yield a, {c: t.cols[c][a:a + self.chunk_rows] for c in cols if c in t.cols}
+
+    def _arrow_batches(self, cols):
+        if self.kind == "parquet":
+            import pyarrow.parquet as pq
+
+            with pq.ParquetFile(self.path, pre_buffer=False, buffer_size=1 << 20) as pf:
+                for b in pf.iter_batches(batch_size=self.chunk_rows, columns=cols, use_threads=False):
+                    if not all(_numeric(b.schema.field(c).type) for c in cols):
+                        raise ValueError("non-numeric column")
+                    yield b
+            return
+        import pyarrow as pa
+        import pyarrow.csv as pacsv
+
+        skip, delim, line_len = self.csv_head
+        ro = pacsv.ReadOptions(skip_rows=skip, column_names=self.names, use_threads=True,
+                               block_size=max(1 << 16, int(self.chunk_rows * line_len)))
+        po = pacsv.ParseOptions(delimiter=delim, ignore_empty_lines=False)
+        co = pacsv.ConvertOptions(column_types={n: pa.float64() for n in cols}, include_columns=cols)
+        with pacsv.open_csv(self.path, read_options=ro, parse_options=po, convert_options=co) as r:
+            for b in r:
+                if any(b.column(i).null_count for i in range(b.num_columns)):  # empty field or line
+                    raise ValueError("empty field")
+                yield b
+
+    def __iter__(self):
+        from aidnav.io._table import _Table
+        from aidnav.io.interchange import trajectory_from_table
+
+        first = 1 if self.kind == "parquet" else self.csv_head[0] + 1
+        last_t = None
+        for row, d in self._tables():
+            t = _Table(self.path, d, first + row, self.kind, self.meta)
+            if last_t is not None and len(t):  # the check of the whole-file reader across batches
+                _Table(self.path, {"time": np.array([last_t, d["time"][0]])}, first + row - 1,
+                       self.kind).increasing_time()
+            tr = trajectory_from_table(t)
+            if self.offset:
+                tr.height = tr.height + self.offset
+            last_t = float(tr.time[-1])
+            yield tr
+
+    def times(self):
+        for _, d in self._tables(["time"]):
+            yield d["time"]
+
+
+def _numeric(t) -> bool:
+    import pyarrow as pa
+
+    return pa.types.is_integer(t) or pa.types.is_floating(t)
+
+
+def _csv_head(path: Path):
+    """(lines before the first record, delimiter, bytes per line) of an interchange CSV file, and its
+    header names and comment metadata; None when it has no header."""
+    from aidnav.io._table import _T0_RE, _WEEK_RE, _delimiter
+
+    with open(path, "rb") as f:
+        head = f.read(1 << 16)
+    if head.startswith(b"\xef\xbb\xbf"):
+        head = head[3:]
+    lines = head.split(b"\n")
+    meta, header, k = {}, None, 0
+    for i, ln in enumerate(lines[:-1]):
+        k = i
+        text = ln.decode("utf-8", errors="replace").strip()
+        if text.startswith("#"):
+            for rx, key, conv in ((_T0_RE, "t0_s", float), (_WEEK_RE, "gps_week", int)):
+                m = rx.match(text)
+                if m:
+                    try:
+                        meta[key] = conv(m.group(1))
+                    except ValueError:
+                        pass
+            continue
+        if text:
+            header = text
+            break
+    if header is None:
+        return None
+    delim = _delimiter(path, header, k + 1)
+    names = [h.strip().strip('"').strip() for h in header.split(delim)]
+    body = lines[k + 1:-1]
+    line_len = (sum(len(x) + 1 for x in body) / len(body)) if body else 200.0
+    return (k + 1, delim, line_len), names, meta
+
+
+def trajectory_chunks(path, chunk_rows: int = 1 << 15, height_offset_m: float = 0.0,
+                      notes: list[str] | None = None) -> TrajectoryChunks | None:
+    """An interchange trajectory file (CSV/Parquet with ``heading_deg``) as :class:`TrajectoryChunks` read in
+    batches (``height_offset_m`` added to the heights, as :func:`aidnav.io.formats.read_trajectory_any`;
+    ``notes`` gets its note), or None when ``path`` is not one (the caller reads it whole)."""
+    path = Path(path)
+    try:
+        if not path.is_file():
+            return None
+        suf = path.suffix.lower()
+        if suf in (".parquet", ".pq"):
+            import pyarrow.parquet as pq
+
+            from aidnav.io._table import _META_KEY
+
+            with pq.ParquetFile(path) as pf:
+                schema, rows = pf.schema_arrow, pf.metadata.num_rows
+            names, kind, head = schema.names, "parquet", None
+            md = schema.metadata or {}
+            meta = json.loads(md[_META_KEY]) if _META_KEY in md else {}
+            if rows == 0:
+                return None
+        elif suf == ".csv":
+            got = _csv_head(path)
+            if got is None:
+                return None
+            head, names, meta = got
+            kind = "csv"
+        else:
+            return None
+    except Exception:  # noqa: BLE001  (not readable here: the whole-file reader names the problem)
+        return None
+    from aidnav.io.interchange import TRAJECTORY_COLUMNS
+
+    if not set(TRAJECTORY_COLUMNS) <= set(names) or len(set(names)) != len(names):
+        return None
+    if height_offset_m and notes is not None:
+        notes.append(f"{path.name}: datum offset {float(height_offset_m):+.3f} m added to every height")
+    return _FileChunks(path, list(names), kind, head, meta, chunk_rows, height_offset_m)
+
+
+class CsvColumnsWriter:
+    """A CSV file of named float columns written piece by piece through pyarrow's writer (header line, no
+    quotes, NaN as an empty field, floats as their shortest exact decimal)."""
+
+    def __init__(self, path):
+        self.path, self.w, self.f = Path(path), None, None
+
+    def write(self, cols: dict) -> None:
+        import pyarrow as pa
+        import pyarrow.csv as pacsv
+
+        arrays = []
+        for v in cols.values():  # NaN → null (an empty field), without pa.array (it imports pandas)
+            a = np.ascontiguousarray(v, dtype=float)
+            ok = ~np.isnan(a)
+            valid = None if ok.all() else pa.py_buffer(np.packbits(ok, bitorder="little"))
+            arrays.append(pa.Array.from_buffers(pa.float64(), len(a), [valid, pa.py_buffer(a)]))
+        tbl = pa.Table.from_arrays(arrays, names=list(cols))
+        if self.w is None:
+            self.f = open(self.path, "wb")
+            opts = pacsv.WriteOptions(quoting_style="none", quoting_header="none")
+            self.w = pacsv.CSVWriter(self.f, tbl.schema, write_options=opts)
+        self.w.write_table(tbl)
+
+    def close(self) -> Path:
+        if self.w is not None:
+            self.w.close()
+            self.f.close()
+        return self.path
+
+
+class Spool:
+    """float64 rows of ``width`` columns in a temporary file (``directory``), read back in chunks of rows
+    any number of times (after the last ``write``); ``close`` removes the file."""
+
+    def __init__(self, directory, width: int):
+        fd, self.path = tempfile.mkstemp(suffix=".spool", dir=directory)
+        self.f, self.width, self.rows = os.fdopen(fd, "wb"), int(width), 0
+
+    def write(self, rows) -> None:
+        rows = np.ascontiguousarray(rows, np.float64)
+        rows.tofile(self.f)
+        self.rows += rows.size // self.width
+
+    def read(self, chunk: int):
+        """The rows as (m, width) arrays of at most ``chunk`` rows."""
+        if not self.f.closed:
+            self.f.close()
+        with open(self.path, "rb") as f:
+            for a in range(0, self.rows, chunk):
+                m = min(chunk, self.rows - a)
+                yield np.fromfile(f, np.float64, m * self.width).reshape(m, self.width)
+
+    def read_reverse(self, chunk: int):
+        """(first row, rows) of blocks of at most ``chunk`` rows, the last block first."""
+        if not self.f.closed:
+            self.f.close()
+        with open(self.path, "rb") as f:
+            for a in reversed(range(0, self.rows, chunk)):
+                m = min(chunk, self.rows - a)
+                f.seek(a * self.width * 8)
+                yield a, np.fromfile(f, np.float64, m * self.width).reshape(m, self.width)
+
+    def close(self) -> None:
+        self.f.close()
+        if os.path.exists(self.path):
+            os.remove(self.path)

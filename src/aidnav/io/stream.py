@@ -28,6 +28,9 @@ from aidnav.io.errors import DataError
 __all__ = ["iter_imu", "TrajectoryWriter", "imu_time_span", "trajectory_chunks", "TrajectoryChunks",
            "CsvColumnsWriter", "Spool", "take_rows", "concat_rows"]
 
+# the largest block of a trajectory CSV read in batches (Arrow holds up to 32 of them: _FileChunks)
+CSV_BLOCK_BYTES = 1 << 20
+
 
 def _parquet_imu(path: Path):
     """(ParquetFile, columns used, increments?, metadata dict) of an interchange IMU Parquet file, or None
@@ -290,12 +293,16 @@ class _FileChunks(TrajectoryChunks):
         from aidnav.io._table import TEXT_COLUMNS
 
         cols = [c for c in (columns or self.names) if c not in TEXT_COLUMNS]
-        row = 0
+        row, held, n_held = 0, [], 0  # rows yielded; batches held for the next piece (CSV: small blocks)
         try:
             for b in self._arrow_batches(cols):
-                d = {c: column_to_f64(b.column(c)) for c in cols}
-                yield row, d
-                row += b.num_rows
+                if held and n_held + b.num_rows > self.chunk_rows:
+                    yield row, _joined(held, cols)
+                    row, held, n_held = row + n_held, [], 0
+                held.append({c: column_to_f64(b.column(c)) for c in cols})
+                n_held += b.num_rows
+            if held:
+                yield row, _joined(held, cols)
         except DataError:
             raise
         except Exception:  # noqa: BLE001  (the whole-file reader gives the message or the values)
@@ -320,8 +327,12 @@ class _FileChunks(TrajectoryChunks):
         import pyarrow.csv as pacsv
 
         skip, delim, line_len = self.csv_head
+        # Arrow's streaming reader reads up to 32 blocks ahead of its consumer (its background read-ahead
+        # queue): a block of a piece's size (32,768 rows, ≈ 12 MiB) held up to ≈ 390 MiB, or the whole
+        # file when shorter. Blocks of at most CSV_BLOCK_BYTES bound that (≈ 35 MiB of Arrow pool at
+        # 1 MiB, 1 h or 3 h alike); _tables joins the small batches into pieces of about chunk_rows.
         ro = pacsv.ReadOptions(skip_rows=skip, column_names=self.names, use_threads=True,
-                               block_size=max(1 << 16, int(self.chunk_rows * line_len)))
+                               block_size=min(CSV_BLOCK_BYTES, max(1 << 16, int(self.chunk_rows * line_len))))
         po = pacsv.ParseOptions(delimiter=delim, ignore_empty_lines=False)
         co = pacsv.ConvertOptions(column_types={n: pa.float64() for n in cols}, include_columns=cols)
         with pacsv.open_csv(self.path, read_options=ro, parse_options=po, convert_options=co) as r:
@@ -350,6 +361,13 @@ class _FileChunks(TrajectoryChunks):
     def times(self):
         for _, d in self._tables(["time"]):
             yield d["time"]
+
+
+def _joined(held: list[dict], cols) -> dict:
+    """The float64 columns of consecutive batches, one array each."""
+    if len(held) == 1:
+        return held[0]
+    return {c: np.concatenate([h[c] for h in held]) for c in cols}
 
 
 def _numeric(t) -> bool:

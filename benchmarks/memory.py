@@ -10,7 +10,8 @@ Runs the command (a child process each; its maximum resident set from ``wait4``)
 
 ``aidnav evaluate`` (streamed: memory independent of the lengths): W1's forward trajectory against its 10-Hz
 truth, and a synthetic 100-Hz estimate (Parquet, σ columns) of 1 h and of 10 h against a 10-Hz reference
-(Parquet; ``--eval-csv``: the estimate as CSV too); target: memory at 10 h within 10 % of memory at 1 h.
+(Parquet; ``--eval-csv``: the estimate as CSV too, ``--eval-csv-only``: as CSV only); target: memory at
+10 h within 10 % of memory at 1 h.
 
 Also printed: the floor, step by step (the peak RSS of ``python -c "import numpy, pyarrow, numba"``, the
 same plus numba's first dispatch of a cached trivial kernel, and ``aidnav process`` on a 60-s piece of
@@ -19,7 +20,7 @@ The console script loads numba's cache without parsing the kernels' bitcode (:mo
 and uses Arrow's jemalloc pool (:mod:`aidnav.cli`). ``--evaluate-only`` runs the evaluate rows alone.
 ``--figures`` keeps the figures (default ``--no-figures``: the figures are a separate cost, made from a
 decimated copy).
-Run: ``python benchmarks/memory.py [--hours-long 10] [--evaluate-only] [--eval-csv]``.
+Run: ``python benchmarks/memory.py [--hours-long 10] [--evaluate-only] [--eval-csv | --eval-csv-only]``.
 """
 
 from __future__ import annotations
@@ -185,7 +186,7 @@ def main() -> None:
     if "--evaluate-only" in sys.argv:  # only the evaluate rows (no W1)
         with tempfile.TemporaryDirectory() as td:
             print(f"load average {os.getloadavg()[0]:.1f} (2 cores shared)")
-            evaluate_rows(Path(td), long_h, "--eval-csv" in sys.argv)
+            evaluate_rows(Path(td), long_h, _eval_formats())
             print(f"load average {os.getloadavg()[0]:.1f}")
         return
     figures = "--figures" in sys.argv
@@ -222,11 +223,17 @@ def main() -> None:
         checks.append((f"memory {long_h:g} h / 1 h", rl[0] / r1[0], 1.10))
         for name, got, target in checks:
             print(f"  {name}: {got:.2f} against ≤ {target:g}: {'PASS' if got <= target else 'FAIL'}")
-        evaluate_rows(d, long_h, "--eval-csv" in sys.argv)
+        evaluate_rows(d, long_h, _eval_formats())
         print(f"load average {os.getloadavg()[0]:.1f}")
 
 
-def evaluate_rows(d: Path, long_h: float, csv: bool) -> None:
+def _eval_formats() -> list[str]:
+    if "--eval-csv-only" in sys.argv:
+        return ["csv"]
+    return ["parquet", "csv"] if "--eval-csv" in sys.argv else ["parquet"]
+
+
+def evaluate_rows(d: Path, long_h: float, formats: list[str]) -> None:
     """``aidnav evaluate``: W1 (when its forward trajectory was made above) and the synthetic logs."""
     rows = []
     w1 = d / "w1" / "trajectory.parquet"
@@ -234,7 +241,7 @@ def evaluate_rows(d: Path, long_h: float, csv: bool) -> None:
         args = ["--estimate", w1, "--truth", W1 / "truth_10hz.parquet", "-o", d / "ew1"]
         rows.append(("evaluate W1 (1 h, 10-Hz truth)", *run(args, command="evaluate")))
     got = {}
-    for fmt in (["parquet", "csv"] if csv else ["parquet"]):
+    for fmt in formats:
         for hours in (1.0, long_h):
             e, r = make_trajectory_logs(d, hours, fmt == "csv")
             got[fmt, hours] = run(["--estimate", e, "--truth", r, "-o", d / f"ev_{fmt}_{hours:g}"],
@@ -244,7 +251,7 @@ def evaluate_rows(d: Path, long_h: float, csv: bool) -> None:
             r.unlink()
     for name, mem, wall, cpu in rows:
         print(f"{name:36s} peak RSS {mem:7.1f} MiB  wall {wall:6.2f} s  CPU {cpu:6.2f} s")
-    for fmt in (["parquet", "csv"] if csv else ["parquet"]):
+    for fmt in formats:
         print(f"evaluate memory {long_h:g} h / 1 h ({fmt}): {got[fmt, long_h][0] / got[fmt, 1.0][0]:.3f} "
               "(target ≤ 1.10)")
 

@@ -19,8 +19,11 @@ the 1-h log), and the load average (the machine is shared: wall times move with 
 The console script loads numba's cache without parsing the kernels' bitcode (:mod:`aidnav.numba_load`)
 and uses Arrow's jemalloc pool (:mod:`aidnav.cli`). ``--evaluate-only`` runs the evaluate rows alone.
 ``--figures`` keeps the figures (default ``--no-figures``: the figures are a separate cost, made from a
-decimated copy).
-Run: ``python benchmarks/memory.py [--hours-long 10] [--evaluate-only] [--eval-csv | --eval-csv-only]``.
+decimated copy). ``--process-only``: the static-log ``process`` rows alone (no W1, no floor, no evaluate).
+The streamed ``process`` converts and writes its output in a background thread while the filter runs
+(:class:`aidnav.io.stream.Background`): its wall time depends on a second core being free.
+Run: ``python benchmarks/memory.py [--hours-long 10] [--evaluate-only] [--process-only]
+[--eval-csv | --eval-csv-only]``.
 """
 
 from __future__ import annotations
@@ -189,26 +192,19 @@ def main() -> None:
             evaluate_rows(Path(td), long_h, _eval_formats())
             print(f"load average {os.getloadavg()[0]:.1f}")
         return
-    figures = "--figures" in sys.argv
+    figures, only = "--figures" in sys.argv, "--process-only" in sys.argv
     print(f"load average {os.getloadavg()[0]:.1f} (2 cores shared)")
     with tempfile.TemporaryDirectory() as td:
         d = Path(td)
         rows = []
-        if W1.exists():
+        if W1.exists() and not only:
             a = ["--imu", W1 / "imu.parquet", "--gnss", W1 / "gnss.csv", "--config", W1_CFG, "-o", d / "w1"]
             run(a)  # warm the numba cache
             rows.append(("W1 forward", *run(a, figures), "≤ 200 MiB"))
             rows.append(("W1 --smooth", *run([*a, "--smooth"], figures), "≤ 250 MiB"))
         i1, g1, c1 = make_log(d, 1.0, 1)
-        nan = float("nan")
-        imports = "import numpy, pyarrow, numba"
-        rows.append((f"floor: {imports}", python_rss(imports, d), nan, nan, "(interpreter + imports)"))
-        (d / "fd.py").write_text(FIRST_DISPATCH)
-        python_rss("import fd", d)  # writes the trivial kernel's cache
-        rows.append(("floor: + numba's first dispatch", python_rss("import fd", d), nan, nan,
-                     "(a cached trivial kernel)"))
-        fl = floor(d, g1, c1)
-        rows.append(("floor: 60 s of the static log", fl, nan, nan, "(aidnav process, fixed part)"))
+        if not only:
+            floor_rows(d, g1, c1, rows)
         r1 = run(["--imu", i1, "--gnss", g1, "--config", c1, "-o", d / "s1"], figures)
         rows.append(("static 1 h, 100 Hz", *r1, ""))
         il, gl, cl = make_log(d, long_h, 2)
@@ -223,7 +219,8 @@ def main() -> None:
         checks.append((f"memory {long_h:g} h / 1 h", rl[0] / r1[0], 1.10))
         for name, got, target in checks:
             print(f"  {name}: {got:.2f} against ≤ {target:g}: {'PASS' if got <= target else 'FAIL'}")
-        evaluate_rows(d, long_h, _eval_formats())
+        if not only:
+            evaluate_rows(d, long_h, _eval_formats())
         print(f"load average {os.getloadavg()[0]:.1f}")
 
 
@@ -231,6 +228,19 @@ def _eval_formats() -> list[str]:
     if "--eval-csv-only" in sys.argv:
         return ["csv"]
     return ["parquet", "csv"] if "--eval-csv" in sys.argv else ["parquet"]
+
+
+def floor_rows(d: Path, gnss: Path, cfg: Path, rows: list) -> None:
+    """The floor rows: imports, numba's first dispatch, ``aidnav process`` on 60 s of the log."""
+    nan = float("nan")
+    imports = "import numpy, pyarrow, numba"
+    rows.append((f"floor: {imports}", python_rss(imports, d), nan, nan, "(interpreter + imports)"))
+    (d / "fd.py").write_text(FIRST_DISPATCH)
+    python_rss("import fd", d)  # writes the trivial kernel's cache
+    rows.append(("floor: + numba's first dispatch", python_rss("import fd", d), nan, nan,
+                 "(a cached trivial kernel)"))
+    rows.append(("floor: 60 s of the static log", floor(d, gnss, cfg), nan, nan,
+                 "(aidnav process, fixed part)"))
 
 
 def evaluate_rows(d: Path, long_h: float, formats: list[str]) -> None:

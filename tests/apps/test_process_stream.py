@@ -141,3 +141,42 @@ def test_streamed_output_rate(tmp_path, small_chunks):
     np.testing.assert_allclose(np.diff(a.time), 0.1, atol=1e-9)
     for k in ("time", "lat", "lon", "height", "vel", "rph", "std_pos"):
         np.testing.assert_allclose(getattr(a, k), getattr(b, k), rtol=0, atol=1e-12, err_msg=k)
+
+
+@pytest.mark.parametrize("smooth", [False, True])
+def test_background_writer_gives_the_same_file(tmp_path, small_chunks, smooth):
+    """The pieces converted, checked, scored and written in the background thread: the same Parquet file,
+    byte for byte, and the same summary as in the caller's thread."""
+    imu_p, gnss_p, cfg_p = static_log(tmp_path, 60)
+    gnss, cfg = read_gnss(gnss_p), load_config(cfg_p)
+    got = {}
+    for bg in (False, True):
+        p = tmp_path / f"traj_{bg}.parquet"
+        s, dec, _ = ps.stream_process(imu_p, gnss, cfg, p, None, smooth=smooth, outages=["20:10"],
+                                      background=bg)
+        s.pop("timing_s")
+        got[bg] = p.read_bytes(), json.dumps(s, sort_keys=True, default=str), dec.time
+    assert len(read_trajectory(tmp_path / "traj_True.parquet").time) == 6000
+    assert got[True][0] == got[False][0]
+    assert got[True][1] == got[False][1]
+    np.testing.assert_array_equal(got[True][2], got[False][2])
+
+
+def test_background_writer_error_reaches_the_caller(tmp_path, small_chunks, monkeypatch):
+    """A failure while writing (here the third piece) is raised by the job, and no file is left."""
+    from aidnav.io.stream import TrajectoryWriter
+
+    calls, write = [0], TrajectoryWriter.write
+
+    def failing(self, traj):
+        calls[0] += 1
+        if calls[0] == 3:
+            raise OSError("disk full")
+        write(self, traj)
+
+    monkeypatch.setattr(TrajectoryWriter, "write", failing)
+    imu_p, gnss_p, cfg_p = static_log(tmp_path, 60)
+    with pytest.raises(OSError, match="disk full"):
+        process_logs(imu_p, gnss_p, cfg_p, tmp_path / "o", figures=False)
+    assert calls[0] == 3  # nothing written after the failure
+    assert not list((tmp_path / "o").glob("trajectory*"))

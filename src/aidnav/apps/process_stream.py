@@ -83,14 +83,19 @@ class _Sink:
 
 def stream_process(imu_path, gnss, cfg, traj_path, week, smooth=False, outages=None, imu_name="imu",
                    gnss_name="gnss", skip_checks=(), odometer=None, baro=None, progress=None,
-                   chunk_rows: int | None = None):
+                   chunk_rows: int | None = None, background: bool = True):
     """The streamed :func:`aidnav.apps.process.process` + writing: returns (summary of the run, decimated
-    trajectory for the figures, the filter's :class:`FilterResult` (last epoch, records, counts))."""
+    trajectory for the figures, the filter's :class:`FilterResult` (last epoch, records, counts)).
+
+    ``background``: each piece of the solution is converted, checked, scored and written in one
+    background thread (:class:`aidnav.io.stream.Background`, at most 2 pieces waiting) while the filter
+    runs the next chunk (the engine releases the GIL) — the same pieces in the same order, so the same
+    file and numbers; a failure there is raised here and the partial file removed."""
     from aidnav.apps.process_parts import finish_summary, outage_windows, parse_outage, run_summary
     from aidnav.filters.result import to_trajectory
     from aidnav.filters.stream import stream_loose
     from aidnav.io.sanity import check_gnss, check_imu, check_overlap
-    from aidnav.io.stream import TrajectoryWriter, imu_time_span, iter_imu
+    from aidnav.io.stream import Background, TrajectoryWriter, imu_time_span, iter_imu
 
     applied = float(cfg.imu.time_offset_s)
     cfg = cfg.model_copy(update={"imu": cfg.imu.model_copy(update={"time_offset_s": 0.0})})
@@ -121,12 +126,15 @@ def stream_process(imu_path, gnss, cfg, traj_path, week, smooth=False, outages=N
     fwd = _Sink(gnss, withheld, np.inf) if smooth and wins else None
     n_imu = [0]
 
-    def emit(piece, forward=False):
+    def consume(piece, forward=False):
         if forward:  # the forward solution of a smoothed run: scored at the outages only
             if fwd is not None:
                 fwd(to_trajectory(piece))
             return
         sink(to_trajectory(piece))
+
+    bg = Background(consume) if background else None
+    emit = consume if bg is None else bg.put
 
     def count(m):
         n_imu[0] += m
@@ -139,8 +147,12 @@ def stream_process(imu_path, gnss, cfg, traj_path, week, smooth=False, outages=N
         res = stream_loose(shifted(head, chunks), gnss, cfg, emit, withheld=withheld, smooth=smooth,
                            events=events, odometer=odometer, baro=baro, spool_dir=writer.path.parent,
                            progress=count)
+        if bg is not None:
+            bg.close()  # every piece written (or its error raised)
         writer.close()
     except BaseException:
+        if bg is not None:
+            bg.abort()  # the thread stopped before the writer is closed
         writer.abort()
         raise
     t_filt = _time.perf_counter() - t0

@@ -274,7 +274,7 @@ def run_filter(imu, rec, mod, proc, ini, out):
     return run_chunk(imu, rec, mod, proc, ini, out, start_carry(rec, proc, ini, True))
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)  # the streamed job overlaps writing with it (issue 29)
 def run_chunk(imu, rec, mod, proc, ini, out, cy):
     """The forward pass over the samples ``imu`` from the carry ``cy`` (module doc: chunks)."""
     n_imu = imu.t.shape[0]

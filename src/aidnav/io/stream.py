@@ -10,7 +10,8 @@ whole and then cut into chunks. :class:`TrajectoryWriter` writes the columns of
 closed (``abort`` removes the partial one). :func:`trajectory_chunks` gives the pieces of a trajectory
 file (:func:`.interchange.read_trajectory`'s numbers, checks and messages; other formats read whole by
 the caller and cut by :class:`TrajectoryChunks`); :class:`CsvColumnsWriter` writes named columns;
-:class:`Spool` keeps float64 rows in a temporary file and reads them back in chunks, as often as needed.
+:class:`Spool` keeps float64 rows in a temporary file and reads them back in chunks, as often as needed;
+:class:`Background` runs a consumer of pieces (converting and writing them) in one background thread.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ from aidnav.data import ImuData
 from aidnav.io.errors import DataError
 
 __all__ = ["iter_imu", "TrajectoryWriter", "imu_time_span", "trajectory_chunks", "TrajectoryChunks",
-           "CsvColumnsWriter", "Spool", "take_rows", "concat_rows"]
+           "CsvColumnsWriter", "Spool", "take_rows", "concat_rows", "Background"]
 
 # the largest block of a trajectory CSV read in batches (Arrow holds up to 32 of them: _FileChunks)
 CSV_BLOCK_BYTES = 1 << 20
@@ -210,6 +211,56 @@ class TrajectoryWriter:
                     pass
         if self.part.exists():
             self.part.unlink()
+
+
+class Background:
+    """``fn(*args, **kw)`` for each ``put(*args, **kw)``, in order, in one background thread, with at most
+    ``maxsize`` calls waiting (``put`` blocks until one is done: memory stays bounded). The work overlaps
+    the caller's where it releases the GIL (Arrow's encoding, compression and file writes; numpy; numba
+    kernels compiled with ``nogil``).
+
+    An exception in ``fn`` is raised in the caller at the next ``put`` or at ``close`` (the calls after
+    it are skipped); ``close`` waits for every call; ``abort`` (the caller's error path) skips the calls
+    still waiting and waits for the one running, so that what ``fn`` writes to can then be closed."""
+
+    _END = object()
+
+    def __init__(self, fn, maxsize: int = 2):
+        import queue
+        import threading
+
+        self.fn, self.q, self.error, self.stop = fn, queue.Queue(maxsize), None, False
+        self.t = threading.Thread(target=self._run, name="aidnav-background", daemon=True)
+        self.t.start()
+
+    def _run(self) -> None:
+        while (item := self.q.get()) is not self._END:
+            if self.error is None and not self.stop:
+                try:
+                    self.fn(*item[0], **item[1])
+                except BaseException as e:  # noqa: BLE001  (raised in the caller)
+                    self.error = e
+
+    def _raise(self) -> None:
+        if self.error is not None:
+            raise self.error
+
+    def put(self, *args, **kw) -> None:
+        self._raise()
+        self.q.put((args, kw))
+
+    def _end(self) -> None:
+        if self.t.is_alive():
+            self.q.put(self._END)
+            self.t.join()
+
+    def close(self) -> None:
+        self._end()
+        self._raise()
+
+    def abort(self) -> None:
+        self.stop = True
+        self._end()
 
 
 # ================================================================================= trajectory pieces

@@ -59,6 +59,9 @@ def test_lag_rejects_a_log_without_motion(drive):
     imu, gnss = drive
     with pytest.raises(ValueError, match="drive with turns"):
         imu_gnss_lag(imu, gnss, min_speed_m_s=1e3)
+    straight = dataclasses.replace(gnss, vel=np.tile(gnss.vel[:1], (len(gnss.time), 1)))
+    with pytest.raises(ValueError, match="drive with turns"):
+        imu_gnss_lag(imu, straight)  # constant course: no turn to align
     with pytest.raises(ValueError, match="'velocity' or 'position'"):
         imu_gnss_lag(imu, gnss, reference="course")
 

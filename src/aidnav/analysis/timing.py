@@ -57,7 +57,7 @@ def _residual_curve(lags, imu_time, cum_up, t_lo, t_hi, rate):
     """Mean squared residual of rate_imu(window shifted by lag) = gain × rate, for each lag."""
     cost = np.empty(lags.size)
     gains = np.empty(lags.size)
-    xx = float(rate @ rate)
+    xx = float(rate @ rate)  # > 0: imu_gnss_lag refuses a log without turns
     for i, lag in enumerate(lags):
         a = np.interp(t_lo + lag, imu_time, cum_up)
         b = np.interp(t_hi + lag, imu_time, cum_up)
@@ -119,6 +119,9 @@ def imu_gnss_lag(imu: ImuData, gnss: GnssData, reference: str = "velocity", max_
     cum_up = np.cumsum(imu.dtheta @ up)  # ∫ω·up dt up to each stamp (a constant offset cancels)
     lags = np.arange(-max_lag_s, max_lag_s + 0.5 * step_s, step_s)
     t_lo, t_hi, r = t_g[idx - 1], t_g[idx + 1], rate[idx]
+    if np.sqrt(np.mean(r * r)) < np.radians(0.5):
+        raise ValueError(f"the course rate over the {idx.size} moving epochs is below 0.5 deg/s RMS: "
+                         "the lag needs a drive with turns")
 
     cost, gains = _residual_curve(lags, t_imu, cum_up, t_lo, t_hi, r)
     lag, i_best = _refine(lags, cost)

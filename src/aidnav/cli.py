@@ -78,12 +78,8 @@ def guarded(fn):
 
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
-        if _CONSOLE_SCRIPT:  # a command runs (not --help): numba will start
-            _preload_scipy_blas()
-            if os.environ.get("AIDNAV_NUMBA_LAZY_BITCODE", "1") != "0":  # 0: numba's own cache loader
-                from aidnav.numba_load import install
-
-                install()  # the cached kernels' bitcode parsed only if something compiles against it
+        if _CONSOLE_SCRIPT:  # a command runs (not --help): kernels from a build, or numba starts
+            _start_kernels()
         try:
             return fn(*args, **kwargs)
         except (typer.Exit, typer.Abort, KeyboardInterrupt, SystemExit):
@@ -154,6 +150,27 @@ def simulate(
     written = simulate_to_dir(scenario, out, seed=seed, fmt=fmt, console=_console())
     for p in written:
         _console().print(f"wrote {p}")
+
+
+@_command(name="compile")
+def compile_cmd(
+    also: list[str] = typer.Option([], "--also", help="another aidnav command line (quoted) whose kernel "
+                                   "calls the build should cover too; repeatable"),
+    status: bool = typer.Option(False, "--status", help="only say whether a build matches this installation"),
+):
+    """Ahead-of-time build of the kernels (once per install): commands then start without numba/LLVM."""
+    import shlex
+
+    from aidnav.apps.kernels import build_status, compile_kernels
+
+    st = build_status()
+    if status:
+        _console().print(f"build for this installation: {'present' if st['matches'] else 'none'} "
+                         f"({st['folder']})")
+        raise typer.Exit(0 if st["matches"] else 1)
+    summary = compile_kernels([shlex.split(a) for a in also], progress=lambda m: _console().print(m))
+    _console().print(f"built {summary['entry_points']} entry points of {summary['kernels']} kernels in "
+                     f"{summary['seconds']:.0f} s: {summary['folder']}")
 
 
 @_command()
@@ -479,6 +496,22 @@ def design_trajectory_cmd(
         _console().print(f"wrote {p}")
     if not d.summary["feasible"]:
         raise typer.Exit(3)
+
+
+def _start_kernels() -> None:
+    """Kernels for this command (:mod:`aidnav.jit`): from the ahead-of-time build that matches this
+    source tree (``aidnav compile``), else numba's JIT. numba's own start is made cheaper either way,
+    when it happens: scipy's BLAS modules loaded alone, the cached kernels' bitcode left unparsed."""
+    from aidnav import jit
+
+    jit.start(on_numba=[_preload_scipy_blas, _lazy_bitcode])
+
+
+def _lazy_bitcode() -> None:
+    if os.environ.get("AIDNAV_NUMBA_LAZY_BITCODE", "1") != "0":  # 0: numba's own cache loader
+        from aidnav.numba_load import install
+
+        install()  # the cached kernels' bitcode parsed only if something compiles against it
 
 
 def _preload_scipy_blas() -> None:

@@ -501,10 +501,14 @@ def design_trajectory_cmd(
 def _start_kernels() -> None:
     """Kernels for this command (:mod:`aidnav.jit`): from the ahead-of-time build that matches this
     source tree (``aidnav compile``), else numba's JIT. numba's own start is made cheaper either way,
-    when it happens: scipy's BLAS modules loaded alone, the cached kernels' bitcode left unparsed."""
+    when it happens: the cached kernels' bitcode left unparsed; scipy's BLAS modules loaded alone."""
     from aidnav import jit
 
-    jit.start(on_numba=[_preload_scipy_blas, _lazy_bitcode])
+    _preload_scipy_blas()  # the kernels' BLAS calls (numba's JIT and the build alike) import it at first use
+    mode = jit.start(on_numba=[_lazy_bitcode])
+    if mode == "jit" and "AIDNAV_KERNELS" not in os.environ and sys.stderr.isatty():
+        _console(stderr=True).print("[dim]tip: `aidnav compile` (once, 1–3 min) makes every command start "
+                                    "faster and use less memory[/dim]")
 
 
 def _lazy_bitcode() -> None:
@@ -515,7 +519,7 @@ def _lazy_bitcode() -> None:
 
 
 def _preload_scipy_blas() -> None:
-    """Load scipy's two Cython BLAS/LAPACK modules on their own, before numba's first dispatch.
+    """Load scipy's two Cython BLAS/LAPACK modules on their own, before the first kernel call.
 
     numba sets up its CPU target when the first jitted function is called or loaded from its cache,
     whatever that function does, and the set-up imports ``scipy.linalg.cython_blas`` (numba.np.arraymath

@@ -104,6 +104,9 @@ class Kernel:
             f = built.get(typekey(args))
             if f is not None:
                 return f(*args)
+        if _mode == "aot" and os.environ.get("AIDNAV_KERNELS_VERBOSE"):
+            print(f"aidnav.jit: {self.name}{' with these argument types' if built else ''} not in the build "
+                  f"(numba's JIT): {typekey(args)!r}", file=sys.stderr)
         d = self.dispatcher
         if _records is not None and not kwargs:
             _record(self, d, args)
@@ -113,8 +116,6 @@ class Kernel:
     def dispatcher(self):
         """numba's JIT dispatcher of this kernel (numba started on the first call)."""
         if self._dispatcher is None:
-            if _mode == "aot" and os.environ.get("AIDNAV_KERNELS_VERBOSE"):
-                print(f"aidnav.jit: {self.name} not in the build: numba's JIT", file=sys.stderr)
             _start_numba()
             import numba  # lazy: only a call the build does not cover gets here
 

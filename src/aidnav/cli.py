@@ -168,7 +168,10 @@ def compile_cmd(
         _console().print(f"build for this installation: {'present' if st['matches'] else 'none'} "
                          f"({st['folder']})")
         raise typer.Exit(0 if st["matches"] else 1)
-    summary = compile_kernels([shlex.split(a) for a in also], progress=lambda m: _console().print(m))
+    try:
+        summary = compile_kernels([shlex.split(a) for a in also], progress=lambda m: _console().print(m))
+    except RuntimeError as e:  # a workload or the C compiler failed: say what, exit 2
+        _fail(f"aidnav compile: {e}")
     _console().print(f"built {summary['entry_points']} entry points of {summary['kernels']} kernels in "
                      f"{summary['seconds']:.0f} s: {summary['folder']}")
 

@@ -2,7 +2,8 @@
 
 1. **Record.** The built-in workloads (below) run as ``aidnav`` commands in child processes with
    ``AIDNAV_KERNELS=record``: a short simulated flight, then ``process`` on it (streamed Parquet and
-   in-memory CSV, forward and ``--smooth``), ``evaluate``; each call of a kernel from Python is
+   in-memory CSV, forward and ``--smooth``), ``evaluate``, ``characterise`` on a 2-h static MEMS log;
+   each call of a kernel from Python is
    written down with its argument types. A user's own command can be added with ``--also "ARGS"``
    (its kernel calls recorded the same way).
 2. **Build.** One CPython extension module (``numba.pycc``) exports a trampoline per recorded
@@ -46,7 +47,22 @@ def workloads(data: Path, out: Path) -> list[list[str]]:
          "--format", "csv"],
         ["evaluate", "--estimate", str(out / "p1" / "trajectory.parquet"), "--truth",
          str(data / "truth.parquet"), "-o", str(out / "e1")],
+        ["characterise", "--imu", str(data / "static.parquet"), "-o", str(out / "c1")],
     ]
+
+
+#: a static MEMS log for the ``characterise`` workload: 2 h at 100 Hz (long enough for every fitted term)
+_STATIC_LOG = """
+import sys
+import numpy as np
+from aidnav.data import ImuData
+from aidnav.io.interchange import write_imu
+from aidnav.sim.imu import ImuSpec, corrupt_imu
+n, dt = 720_000, 0.01
+t = dt * np.arange(1, n + 1)
+truth = ImuData(t, np.zeros((n, 3)), np.tile([0.0, 0.0, 9.80665 * dt], (n, 1)), t0=0.0)
+write_imu(corrupt_imu(truth, ImuSpec.grade("mems"), np.random.default_rng(29))[0], sys.argv[1])
+"""
 
 
 def _run(args: list[str], env: dict) -> None:
@@ -62,6 +78,8 @@ def record(commands: list[list[str]], record_file: Path, progress=None) -> dict:
     for args in commands:
         if progress:
             progress(f"recording: aidnav {args[0]}")
+        if args[0] == "characterise" and not Path(args[2]).exists():
+            subprocess.run([sys.executable, "-c", _STATIC_LOG, args[2]], env=env, check=True)
         _run(args, env)
     return pickle.loads(record_file.read_bytes()) if record_file.is_file() else {}
 
@@ -150,14 +168,29 @@ def compile_kernels(also: list[list[str]] = (), progress=None, keep: Path | None
                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         if p.returncode != 0:
             raise RuntimeError(f"the ahead-of-time build failed:\n{p.stdout[-4000:]}")
+        if jit.build_key() != key:  # a source file changed while recording/building
+            raise RuntimeError("aidnav's source files changed during the build: run `aidnav compile` again")
         if keep is not None:
             shutil.copytree(out, keep, dirs_exist_ok=True)
         if target.exists():
             shutil.rmtree(target)
         staging.rename(target)
+    _prune(target.parent, keep=KEEP_BUILDS)
     table = json.loads((target / "table.json").read_text())
     return {"folder": str(target), "kernels": len({e[0] for e in table["exports"]}),
             "entry_points": len(table["exports"]), "seconds": time.perf_counter() - t0}
+
+
+#: builds kept in the cache folder (the newest; other source trees or Python/numpy versions may use them)
+KEEP_BUILDS = 4
+
+
+def _prune(base: Path, keep: int) -> None:
+    """Remove all but the ``keep`` newest builds under ``base``."""
+    builds = sorted((p for p in base.iterdir() if (p / "table.json").is_file()),
+                    key=lambda p: (p / "table.json").stat().st_mtime, reverse=True)
+    for old in builds[keep:]:
+        shutil.rmtree(old, ignore_errors=True)
 
 
 def build_status() -> dict:

@@ -1,20 +1,34 @@
 """``aidnav characterise``: a static IMU log → Allan deviation → fitted noise terms, written as
 DIR/noise.json, DIR/imu.yaml (the filter's ``imu:`` section) and the figure DIR/allan.png.
 
-Speed: the figure module (matplotlib, ~0.3 s of import) is imported in a thread started with the job, so
-that it overlaps the reading of the log; the figure is drawn after the analysis, as before."""
+Speed (issue 29). The figure's work (matplotlib's import, ~0.3 s CPU, and the drawing, ~0.5 s) holds
+Python's lock for most of it, so a thread does not run it beside the analysis. On Linux the figure is
+drawn by a child process forked when the job starts (:class:`FigureProcess`): the child imports
+matplotlib and warms its text and font caches while the parent reads the log and fits, then draws the
+figure from the pickled characterisation (13 kB) while the parent writes noise.json and imu.yaml. The
+file is the one :func:`aidnav.report.allan_plot.plot_allan` writes in-process (tests compare the bytes);
+an error in the child is raised in the parent with the child's traceback. Elsewhere (no ``fork``) the
+figure module is imported in a thread started with the job and the figure is drawn after the analysis.
+"""
 
 from __future__ import annotations
 
+import os
+import pickle
+import signal
+import sys
 import threading
+import traceback
 
 from aidnav.analysis.noise_fit import characterise_file as _characterise_file
 from aidnav.analysis.noise_fit import print_characterisation
 
-__all__ = ["characterise_file", "print_characterisation"]
+__all__ = ["characterise_file", "print_characterisation", "FigureProcess"]
 
 #: the default of ``plot``: the Allan figure of :mod:`aidnav.report.allan_plot`
 FIGURE = "allan.png"
+#: draw the figure in a forked child process (Linux; elsewhere: in this process after the analysis)
+FORK_FIGURE = sys.platform.startswith("linux") and hasattr(os, "fork")
 
 
 def _import_figure_module() -> None:
@@ -39,11 +53,119 @@ def _figure_in_background():
     return plot
 
 
+def _draw_in_child(job_fd: int):
+    """The child's work: import the figure module and warm it up, read the job (ch, path, title) from
+    ``job_fd``, draw. Returns ("ok", path), ("error", pickled exception or None, traceback text) or None
+    (no job: the parent closed the pipe without one)."""
+    try:
+        from aidnav.report.allan_plot import warm_up
+
+        warm_up()
+    except Exception:  # noqa: BLE001  (the import is made again below, and its error then reported)
+        pass
+    with os.fdopen(job_fd, "rb") as f:
+        try:
+            job = pickle.load(f)
+        except EOFError:
+            return None
+    try:
+        from aidnav.report.allan_plot import plot_allan
+
+        ch, path, title = job
+        return "ok", plot_allan(ch, path, title)
+    except BaseException as e:  # noqa: BLE001  (raised in the parent)
+        try:
+            exc = pickle.dumps(e)
+        except Exception:  # noqa: BLE001  (an exception that does not pickle: its text only)
+            exc = None
+        return "error", exc, traceback.format_exc()
+
+
+class FigureProcess:
+    """``plot(ch, path, title) -> path`` (:func:`aidnav.report.allan_plot.plot_allan`) served by a child
+    process forked now, which imports matplotlib and warms it up at once (module docstring).
+
+    Call it once (it then waits for the child's answer and raises its error, with the child's traceback
+    as a note), or ``close()`` it without a figure (the child is ended). Linux only (``fork`` of a process
+    whose other threads, if any, the child never needs: it runs Python, numpy and matplotlib only).
+    ``draw(job_fd)`` : the child's work (tests)."""
+
+    def __init__(self, draw=_draw_in_child):
+        job_r, job_w = os.pipe()
+        res_r, res_w = os.pipe()
+        pid = os.fork()
+        if pid == 0:  # the child: never returns
+            status = 1
+            try:
+                os.close(job_w)
+                os.close(res_r)
+                res = draw(job_r)
+                with os.fdopen(res_w, "wb") as f:
+                    f.write(pickle.dumps(res))
+                status = 0
+            finally:
+                os._exit(status)
+        os.close(job_r)
+        os.close(res_w)
+        self.pid, self._job_w, self._res_r, self._reaped = pid, job_w, res_r, False
+
+    def __call__(self, ch, path, title):
+        if self._job_w is None:
+            raise RuntimeError("FigureProcess: called twice or after close()")
+        data = pickle.dumps((ch, path, title))
+        job_w, self._job_w = self._job_w, None
+        try:
+            with os.fdopen(job_w, "wb") as f:
+                f.write(data)
+        except BrokenPipeError:  # the child is gone: its status is reported below
+            pass
+        res_r, self._res_r = self._res_r, None
+        with os.fdopen(res_r, "rb") as f:
+            out = f.read()
+        _, status = os.waitpid(self.pid, 0)
+        self._reaped = True
+        res = pickle.loads(out) if out else None
+        if not res:
+            raise RuntimeError(f"the figure process ended without drawing {path} (wait status {status})")
+        if res[0] == "ok":
+            return res[1]
+        _, exc, tb = res
+        try:
+            exc = pickle.loads(exc)
+        except Exception:  # noqa: BLE001  (None, or an exception that does not unpickle)
+            exc = RuntimeError(f"the figure process failed:\n{tb}")
+        else:
+            exc.add_note(f"(raised in the figure process)\n{tb}")
+        raise exc
+
+    def close(self) -> None:
+        """End the child without a figure (after an error of the analysis); nothing after a call."""
+        for fd in (self._job_w, self._res_r):
+            if fd is not None:
+                os.close(fd)
+        self._job_w = self._res_r = None
+        if not self._reaped:
+            self._reaped = True
+            try:
+                os.kill(self.pid, signal.SIGKILL)  # it may be importing matplotlib: no need to wait for it
+                os.waitpid(self.pid, 0)
+            except (ChildProcessError, ProcessLookupError):
+                pass
+
+
 def characterise_file(imu_path, out_dir, static: str | None = None, grade: str | None = None,
                       timings: dict | None = None, plot=FIGURE) -> tuple:
     """:func:`aidnav.analysis.noise_fit.characterise_file` with the figure drawn by
     :func:`aidnav.report.allan_plot.plot_allan` (``plot=None``: no figure; a function
-    ``plot(ch, path, title) -> path``: that one)."""
-    if plot == FIGURE:
-        plot = _figure_in_background()
-    return _characterise_file(imu_path, out_dir, static=static, grade=grade, timings=timings, plot=plot)
+    ``plot(ch, path, title) -> path``: that one). The default figure is drawn by a forked child process
+    on Linux (:class:`FigureProcess`)."""
+    if plot != FIGURE:
+        return _characterise_file(imu_path, out_dir, static=static, grade=grade, timings=timings, plot=plot)
+    if not FORK_FIGURE:
+        return _characterise_file(imu_path, out_dir, static=static, grade=grade, timings=timings,
+                                  plot=_figure_in_background())
+    fig = FigureProcess()
+    try:
+        return _characterise_file(imu_path, out_dir, static=static, grade=grade, timings=timings, plot=fig)
+    finally:
+        fig.close()

@@ -20,15 +20,20 @@ import sys
 import threading
 import traceback
 
-from aidnav.analysis.noise_fit import characterise_file as _characterise_file
-from aidnav.analysis.noise_fit import print_characterisation
-
 __all__ = ["characterise_file", "print_characterisation", "FigureProcess"]
 
 #: the default of ``plot``: the Allan figure of :mod:`aidnav.report.allan_plot`
 FIGURE = "allan.png"
 #: draw the figure in a forked child process (Linux; elsewhere: in this process after the analysis)
 FORK_FIGURE = sys.platform.startswith("linux") and hasattr(os, "fork")
+
+
+def print_characterisation(ch, console=None) -> None:
+    """:func:`aidnav.analysis.noise_fit.print_characterisation` (the analysis modules are imported when
+    the job runs, after the figure's process is forked: see :func:`characterise_file`)."""
+    from aidnav.analysis.noise_fit import print_characterisation as _print
+
+    _print(ch, console)
 
 
 def _import_figure_module() -> None:
@@ -158,14 +163,18 @@ def characterise_file(imu_path, out_dir, static: str | None = None, grade: str |
     """:func:`aidnav.analysis.noise_fit.characterise_file` with the figure drawn by
     :func:`aidnav.report.allan_plot.plot_allan` (``plot=None``: no figure; a function
     ``plot(ch, path, title) -> path``: that one). The default figure is drawn by a forked child process
-    on Linux (:class:`FigureProcess`)."""
-    if plot != FIGURE:
-        return _characterise_file(imu_path, out_dir, static=static, grade=grade, timings=timings, plot=plot)
-    if not FORK_FIGURE:
-        return _characterise_file(imu_path, out_dir, static=static, grade=grade, timings=timings,
-                                  plot=_figure_in_background())
-    fig = FigureProcess()
-    try:
-        return _characterise_file(imu_path, out_dir, static=static, grade=grade, timings=timings, plot=fig)
-    finally:
-        fig.close()
+    on Linux (:class:`FigureProcess`), forked before this module imports the analysis (numba, scipy): the
+    child imports them with matplotlib on the other core while this process does the same."""
+    if plot == FIGURE and FORK_FIGURE:
+        fig = FigureProcess()
+        try:
+            from aidnav.analysis.noise_fit import characterise_file as _characterise_file
+
+            return _characterise_file(imu_path, out_dir, static=static, grade=grade, timings=timings, plot=fig)
+        finally:
+            fig.close()
+    from aidnav.analysis.noise_fit import characterise_file as _characterise_file
+
+    if plot == FIGURE:
+        plot = _figure_in_background()
+    return _characterise_file(imu_path, out_dir, static=static, grade=grade, timings=timings, plot=plot)

@@ -170,7 +170,8 @@ def characterise_file(imu_path, out_dir, static: str | None = None, grade: str |
         try:
             from aidnav.analysis.noise_fit import characterise_file as _characterise_file
 
-            return _characterise_file(imu_path, out_dir, static=static, grade=grade, timings=timings, plot=fig)
+            return _characterise_file(imu_path, out_dir, static=static, grade=grade, timings=timings,
+                                      plot=fig)
         finally:
             fig.close()
     from aidnav.analysis.noise_fit import characterise_file as _characterise_file

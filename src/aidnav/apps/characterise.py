@@ -4,8 +4,9 @@ DIR/noise.json, DIR/imu.yaml (the filter's ``imu:`` section) and the figure DIR/
 Speed (issue 29). The figure's work (matplotlib's import, ~0.3 s CPU, and the drawing, ~0.5 s) holds
 Python's lock for most of it, so a thread does not run it beside the analysis. On Linux the figure is
 drawn by a child process forked when the job starts (:class:`FigureProcess`): the child imports
-matplotlib and warms its text and font caches while the parent reads the log and fits, then draws the
-figure from the pickled characterisation (13 kB) while the parent writes noise.json and imu.yaml. The
+matplotlib and warms its text and font caches while the parent reads the log, draws each axis's panel as
+soon as the parent has fitted it (the pickled fit, ~2 kB, sent through a pipe), and finishes the figure
+(its title, the PNG) from the final characterisation while the parent writes noise.json and imu.yaml. The
 file is the one :func:`aidnav.report.allan_plot.plot_allan` writes in-process (tests compare the bytes);
 an error in the child is raised in the parent with the child's traceback. Elsewhere (no ``fork``) the
 figure module is imported in a thread started with the job and the figure is drawn after the analysis.
@@ -59,24 +60,49 @@ def _figure_in_background():
 
 
 def _draw_in_child(job_fd: int):
-    """The child's work: import the figure module and warm it up, read the job (ch, path, title) from
-    ``job_fd``, draw. Returns ("ok", path), ("error", pickled exception or None, traceback text) or None
-    (no job: the parent closed the pipe without one)."""
+    """The child's work: import the figure module and warm it up, then read the messages of
+    :class:`FigureProcess` from ``job_fd``: ("axis", c, axis fit, duration [s], title) as each axis is
+    fitted (its panel is built and drawn at once: :class:`aidnav.report.allan_plot.AllanFigure`), then
+    ("job", ch, path, title, changed) (changed: the axes whose fit changed after their message). The
+    figure is finished from the panels drawn, or drawn again whole from ``ch`` when any panel differs
+    from the final characterisation's (vibration found on its axis, a changed fit, a message missing).
+    Returns ("ok", path), ("error", pickled exception or None, traceback text) or None (no job: the parent
+    closed the pipe without one)."""
     try:
         from aidnav.report.allan_plot import warm_up
 
         warm_up()
     except Exception:  # noqa: BLE001  (the import is made again below, and its error then reported)
         pass
+    fig = early = None
     with os.fdopen(job_fd, "rb") as f:
-        try:
-            job = pickle.load(f)
-        except EOFError:
-            return None
-    try:
-        from aidnav.report.allan_plot import plot_allan
+        while True:
+            try:
+                msg = pickle.load(f)
+            except EOFError:
+                return None
+            if msg[0] != "axis":
+                break
+            if early is False:
+                continue
+            try:  # any failure here: the figure is drawn whole at the end (where an error is reported)
+                from aidnav.report.allan_plot import AllanFigure
 
-        ch, path, title = job
+                _, c, a, dur, title = msg
+                if fig is None:
+                    fig, early = AllanFigure(title, dur), {}
+                early[c] = title
+                fig.panel(c, a)
+            except Exception:  # noqa: BLE001
+                early = False
+    try:
+        from aidnav.report.allan_plot import panel_title, plot_allan
+
+        _, ch, path, title, changed = msg
+        if (fig is not None and early and set(early) == set(range(len(ch.axes))) and not any(changed)
+                and all(t == title for t in early.values()) and fig.span_s == ch.duration_s
+                and all(fig.title(c) == panel_title(a, ch.vibration) for c, a in enumerate(ch.axes))):
+            return "ok", fig.save(path)
         return "ok", plot_allan(ch, path, title)
     except BaseException as e:  # noqa: BLE001  (raised in the parent)
         try:
@@ -90,9 +116,11 @@ class FigureProcess:
     """``plot(ch, path, title) -> path`` (:func:`aidnav.report.allan_plot.plot_allan`) served by a child
     process forked now, which imports matplotlib and warms it up at once (module docstring).
 
-    Call it once (it then waits for the child's answer and raises its error, with the child's traceback
-    as a note), or ``close()`` it without a figure (the child is ended). Linux only (``fork`` of a process
-    whose other threads, if any, the child never needs: it runs Python, numpy and matplotlib only).
+    ``axis_done(c, axis_fit, duration_s, title)`` (from the analysis's worker threads) sends each axis as
+    soon as it is fitted: the child draws its panel while the other axes are fitted. Call it once (it
+    then waits for the child's answer and raises its error, with the child's traceback as a note), or
+    ``close()`` it without a figure (the child is ended). Linux only (``fork`` of a process whose other
+    threads, if any, the child never needs: it runs Python, numpy and matplotlib only).
     ``draw(job_fd)`` : the child's work (tests)."""
 
     def __init__(self, draw=_draw_in_child):
@@ -112,16 +140,35 @@ class FigureProcess:
                 os._exit(status)
         os.close(job_r)
         os.close(res_w)
-        self.pid, self._job_w, self._res_r, self._reaped = pid, job_w, res_r, False
+        self.pid, self._res_r, self._reaped = pid, res_r, False
+        self._job_w = os.fdopen(job_w, "wb")
+        self._lock = threading.Lock()
+        self._sent: dict[int, bytes] = {}  # each axis as sent (pickled), to tell whether it changed after
+
+    def axis_done(self, c: int, a, duration_s: float, title: str) -> None:
+        """Send axis c's fit to the child (never raises: the figure is then drawn whole at the end)."""
+        try:
+            data = pickle.dumps(a)
+            msg = pickle.dumps(("axis", c, a, duration_s, title))
+            with self._lock:
+                if self._job_w is None:
+                    return
+                self._sent[c] = data
+                self._job_w.write(msg)
+                self._job_w.flush()
+        except Exception:  # noqa: BLE001  (a child gone: reported by the call)
+            pass
 
     def __call__(self, ch, path, title):
         if self._job_w is None:
             raise RuntimeError("FigureProcess: called twice or after close()")
-        data = pickle.dumps((ch, path, title))
-        job_w, self._job_w = self._job_w, None
+        changed = [pickle.dumps(a) != self._sent.get(c) for c, a in enumerate(ch.axes)]
+        data = pickle.dumps(("job", ch, path, title, changed))
+        with self._lock:
+            job_w, self._job_w = self._job_w, None
         try:
-            with os.fdopen(job_w, "wb") as f:
-                f.write(data)
+            with job_w:
+                job_w.write(data)
         except BrokenPipeError:  # the child is gone: its status is reported below
             pass
         res_r, self._res_r = self._res_r, None
@@ -145,10 +192,16 @@ class FigureProcess:
 
     def close(self) -> None:
         """End the child without a figure (after an error of the analysis); nothing after a call."""
-        for fd in (self._job_w, self._res_r):
-            if fd is not None:
-                os.close(fd)
-        self._job_w = self._res_r = None
+        with self._lock:
+            job_w, self._job_w = self._job_w, None
+        if job_w is not None:
+            try:
+                job_w.close()
+            except OSError:  # a write the child did not read
+                pass
+        if self._res_r is not None:
+            os.close(self._res_r)
+            self._res_r = None
         if not self._reaped:
             self._reaped = True
             try:

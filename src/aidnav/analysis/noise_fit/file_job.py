@@ -132,7 +132,9 @@ def characterise_file(imu_path, out_dir, static: str | None = None, grade: str |
     static : "START:END" seconds after the first sample (either may be empty); None: the whole log (its
     longest static part when it moves: see :func:`characterise_imu`). timings : a dict that receives the
     wall time of each stage [s]. plot : ``plot(ch, path, title) -> path`` that draws the Allan deviation
-    figure (:func:`aidnav.report.allan_plot.plot_allan`) into DIR/allan.png; None: no figure. Returns
+    figure (:func:`aidnav.report.allan_plot.plot_allan`) into DIR/allan.png; None: no figure. A ``plot``
+    with a method ``axis_done(c, axis_fit, duration_s, title)`` is told of each axis as soon as it is
+    fitted (``on_axis`` of :func:`characterise_rates`; the figure's title is the one ``plot`` gets). Returns
     (Characterisation, list of written paths). Raises
     :class:`NotStaticError` / ValueError with a clear message for a moving log, bad option or unusable data.
 
@@ -157,6 +159,9 @@ def characterise_file(imu_path, out_dir, static: str | None = None, grade: str |
         if rng[0] is not None and rng[1] is not None and rng[1] <= rng[0]:
             raise ValueError(f"--static {static!r}: END must be after START")
     fmt = imu_log_format(imu_path)
+    title = f"Allan deviation: {Path(imu_path).name}"
+    axis_done = getattr(plot, "axis_done", None)
+    on_axis = None if axis_done is None else (lambda c, a, dur: axis_done(c, a, dur, title))
     warm = threading.Thread(target=_warm_up, name="aidnav-characterise-warm-up", daemon=True)
     warm.start()
     st.lap("start")
@@ -185,11 +190,12 @@ def characterise_file(imu_path, out_dir, static: str | None = None, grade: str |
         st.lap("imports not overlapped by the reading")
         rates, dt, t_start, base0, events = got
         got = None
-        ch = characterise_uniform(rates, dt, t_start, base0, notes=events, timings=timings)
+        ch = characterise_uniform(rates, dt, t_start, base0, notes=events, timings=timings, on_axis=on_axis)
         rates = None
     else:
         # no reference to the log is held here: characterise_imu lets it go once it has the rates
-        ch = characterise_imu(read(), static=rng, increments=INCREMENT_RULE[fmt], timings=timings)
+        ch = characterise_imu(read(), static=rng, increments=INCREMENT_RULE[fmt], timings=timings,
+                              on_axis=on_axis)
     st.lap("characterise")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -203,6 +209,6 @@ def characterise_file(imu_path, out_dir, static: str | None = None, grade: str |
     st.lap("noise.json + imu.yaml")
     written = [p_json, p_yaml]
     if plot is not None:
-        written.insert(0, plot(ch, out / "allan.png", f"Allan deviation: {Path(imu_path).name}"))
+        written.insert(0, plot(ch, out / "allan.png", title))
         st.lap("allan.png")
     return ch, written

@@ -10,6 +10,7 @@ import sys
 import numpy as np
 import pytest
 
+from aidnav.analysis.noise_fit.results import TermEstimate
 from aidnav.apps import characterise as A
 from aidnav.data import ImuData
 from aidnav.io.interchange import write_imu
@@ -134,3 +135,56 @@ def test_warm_up_leaves_the_figure_unchanged(log, tmp_path):
         subprocess.run([sys.executable, "-c", code, str(tmp_path / "ch.pkl"), str(tmp_path / f"{warm}.png"),
                         warm], check=True)
     assert (tmp_path / "0.png").read_bytes() == (tmp_path / "1.png").read_bytes()
+
+
+def test_panels_drawn_as_the_axes_come_are_the_figure(log, tmp_path, monkeypatch):
+    """The child finishes the figure from the panels it drew as the axes came ("panels"), or draws it
+    whole when an axis changed after it was sent (vibration: its quantisation term and its title) —
+    either way the file of plot_allan."""
+    import copy
+
+    made = _recorded(monkeypatch)
+    ch, _ = A.characterise_file(log, tmp_path / "a")
+    assert made[0].drawn_from == "panels"
+    title = f"Allan deviation: {log.name}"
+    # the axes sent in another order, then a characterisation whose axis 4 changed after it was sent
+    changed = copy.deepcopy(ch)
+    changed.vibration = {"axes": {"accel_y": {"vibration": True, "std_m_s2": 0.5, "peak_hz": 30.0}}}
+    changed.axes[4].terms["quantisation"] = TermEstimate("not resolved", upper=1e-3, note="vibration's tail")
+    for final, how in ((ch, "panels"), (changed, "whole")):
+        fig = A.FigureProcess()
+        for c in (1, 0, 3, 2, 5, 4):
+            fig.axis_done(c, ch.axes[c], ch.duration_s, title)
+        out = fig(final, tmp_path / f"{how}.png", title)
+        assert fig.drawn_from == how
+        allan_plot.plot_allan(final, tmp_path / f"{how}_ref.png", title)
+        assert out.read_bytes() == (tmp_path / f"{how}_ref.png").read_bytes()
+    assert (tmp_path / "whole.png").read_bytes() != (tmp_path / "panels.png").read_bytes()
+    # an axis never sent: drawn whole
+    fig = A.FigureProcess()
+    for c in range(5):
+        fig.axis_done(c, ch.axes[c], ch.duration_s, title)
+    fig(ch, tmp_path / "five.png", title)
+    assert fig.drawn_from == "whole"
+    assert (tmp_path / "five.png").read_bytes() == (tmp_path / "panels.png").read_bytes()
+
+
+def test_allan_figure_panels_in_any_order_are_the_saved_figure(log, tmp_path):
+    from matplotlib.figure import Figure
+
+    ch, _ = A.characterise_file(log, tmp_path / "a", plot=None)
+    fig = allan_plot.AllanFigure("t", ch.duration_s, ch.vibration)
+    for c in (5, 3, 4, 1, 2):
+        fig.panel(c, ch.axes[c])
+    assert fig.drawn == 0
+    with pytest.raises(ValueError, match="not built"):
+        fig.save(tmp_path / "x.png")
+    fig.panel(0, ch.axes[0])
+    assert fig.drawn == 6
+    fig.save(tmp_path / "a.png")
+    # Figure.savefig of the same figure, built whole
+    ref = allan_plot.AllanFigure("t", ch.duration_s, ch.vibration)
+    for c, a in enumerate(ch.axes):
+        allan_plot._panel(ref.axs[c // 3, c % 3], a, ch.vibration, ch.duration_s)
+    Figure.savefig(ref.fig, tmp_path / "b.png", dpi=allan_plot.DPI)
+    assert (tmp_path / "a.png").read_bytes() == (tmp_path / "b.png").read_bytes()

@@ -66,8 +66,8 @@ def _draw_in_child(job_fd: int):
     ("job", ch, path, title, changed) (changed: the axes whose fit changed after their message). The
     figure is finished from the panels drawn, or drawn again whole from ``ch`` when any panel differs
     from the final characterisation's (vibration found on its axis, a changed fit, a message missing).
-    Returns ("ok", path), ("error", pickled exception or None, traceback text) or None (no job: the parent
-    closed the pipe without one)."""
+    Returns ("ok", path, "panels" | "whole"), ("error", pickled exception or None, traceback text) or None
+    (no job: the parent closed the pipe without one)."""
     try:
         from aidnav.report.allan_plot import warm_up
 
@@ -102,8 +102,8 @@ def _draw_in_child(job_fd: int):
         if (fig is not None and early and set(early) == set(range(len(ch.axes))) and not any(changed)
                 and all(t == title for t in early.values()) and fig.span_s == ch.duration_s
                 and all(fig.title(c) == panel_title(a, ch.vibration) for c, a in enumerate(ch.axes))):
-            return "ok", fig.save(path)
-        return "ok", plot_allan(ch, path, title)
+            return "ok", fig.save(path), "panels"
+        return "ok", plot_allan(ch, path, title), "whole"
     except BaseException as e:  # noqa: BLE001  (raised in the parent)
         try:
             exc = pickle.dumps(e)
@@ -144,6 +144,8 @@ class FigureProcess:
         self._job_w = os.fdopen(job_w, "wb")
         self._lock = threading.Lock()
         self._sent: dict[int, bytes] = {}  # each axis as sent (pickled), to tell whether it changed after
+        #: after the call: "panels" (the figure finished from the panels drawn as the axes came) or "whole"
+        self.drawn_from: str | None = None
 
     def axis_done(self, c: int, a, duration_s: float, title: str) -> None:
         """Send axis c's fit to the child (never raises: the figure is then drawn whole at the end)."""
@@ -162,7 +164,7 @@ class FigureProcess:
     def __call__(self, ch, path, title):
         if self._job_w is None:
             raise RuntimeError("FigureProcess: called twice or after close()")
-        changed = [pickle.dumps(a) != self._sent.get(c) for c, a in enumerate(ch.axes)]
+        changed = [pickle.dumps(a) != self._sent.get(c) for c, a in enumerate(getattr(ch, "axes", ()))]
         data = pickle.dumps(("job", ch, path, title, changed))
         with self._lock:
             job_w, self._job_w = self._job_w, None
@@ -180,6 +182,7 @@ class FigureProcess:
         if not res:
             raise RuntimeError(f"the figure process ended without drawing {path} (wait status {status})")
         if res[0] == "ok":
+            self.drawn_from = res[2] if len(res) > 2 else None
             return res[1]
         _, exc, tb = res
         try:

@@ -68,13 +68,15 @@ def _draw_in_child(job_fd: int):
     from the final characterisation's (vibration found on its axis, a changed fit, a message missing).
     Returns ("ok", path, "panels" | "whole"), ("error", pickled exception or None, traceback text) or None
     (no job: the parent closed the pipe without one)."""
-    try:
-        from aidnav.report.allan_plot import warm_up
+    fig = early = None
+    try:  # matplotlib imported and warmed up, the figure and its image made ahead of the data
+        from aidnav.report.allan_plot import AllanFigure, warm_up
 
         warm_up()
-    except Exception:  # noqa: BLE001  (the import is made again below, and its error then reported)
-        pass
-    fig = early = None
+        fig = AllanFigure("Allan deviation")
+        fig._draw_ready()
+    except Exception:  # noqa: BLE001  (the figure is then drawn whole at the end, and an error reported)
+        early = False
     with os.fdopen(job_fd, "rb") as f:
         while True:
             try:
@@ -86,11 +88,10 @@ def _draw_in_child(job_fd: int):
             if early is False:
                 continue
             try:  # any failure here: the figure is drawn whole at the end (where an error is reported)
-                from aidnav.report.allan_plot import AllanFigure
-
                 _, c, a, dur, title = msg
-                if fig is None:
-                    fig, early = AllanFigure(title, dur), {}
+                if early is None:
+                    fig.span_s, early = dur, {}
+                    fig.set_title(title)
                 early[c] = title
                 fig.panel(c, a)
             except Exception:  # noqa: BLE001

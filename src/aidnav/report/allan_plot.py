@@ -96,29 +96,31 @@ def _decade_grid(ax, lo: float, hi: float, axis: str) -> None:
 
 
 def warm_up() -> None:
-    """Draw a small figure of the same kinds of artists into memory (log axes with their tick
-    labels, error bars, lines, a legend, titles): the first figure of a process pays for matplotlib's
-    font loading and its text caches (~0.1 s CPU), which this moves ahead of the
-    data (:class:`aidnav.apps.characterise.FigureProcess` runs it while the log is read). The figures
-    drawn afterwards are the same, byte for byte (tests)."""
+    """Draw one panel of a made-up axis (white noise, a Gauss-Markov bump, a random walk) into memory and
+    write it as a PNG: the first panel of a process pays for matplotlib's font loading, its text and
+    tick machinery and the PNG writer (~0.1 s CPU), which this moves ahead of the data
+    (:class:`aidnav.apps.characterise.FigureProcess` runs it while the log is read). The figures drawn
+    afterwards are the same, byte for byte (tests)."""
     import io
 
-    fig = Figure(figsize=(3.0, 2.0))
+    from aidnav.analysis.noise_fit.results import AxisFit, TermEstimate
+
+    tau = 2.0 ** np.arange(20) / 100.0
+    coef = np.array([0.0, 2.5e-9, 1e-10, 1e-14])
+    t_corr = 100.0
+    adev = np.sqrt(C.model_avar(tau, coef, t_corr))
+    used = np.arange(20) < 18
+    fit = TermEstimate("fitted", 1.0, 0.9, 1.1)
+    terms = {"white": TermEstimate("fitted", 5e-5, 4.9e-5, 5.1e-5), "quantisation": TermEstimate(
+        "not resolved", upper=1e-7), "gm_sigma": fit, "gm_tau": TermEstimate("fitted", 100.0, 50.0, 200.0),
+        "bias_instability": fit, "rrw": TermEstimate("not resolved", upper=1e-6)}
+    a = AxisFit("gyro_x", tau, adev, adev * 0.9, adev * 1.1, np.full(20, 10.0), np.zeros(20, int), used,
+                terms, coef, t_corr, 10.0, 10, 1.0)
+    fig = Figure(figsize=(5.0, 4.0), dpi=DPI)
     FigureCanvasAgg(fig)
     ax = fig.subplots()
-    tau = np.array([0.01, 1.0, 100.0])
-    ax.errorbar(tau, [3.0, 1.0, 2.0], yerr=[[0.5] * 3, [0.5] * 3], fmt="o", ms=4, capsize=2,
-                label="ADEV (95%)")
-    ax.plot(tau, [2.0, 1.0, 3.0], ls="--", label="ARW 0.1 [0.09, 0.11] deg/√h (slope −1/2)")
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    for axis in (ax.xaxis, ax.yaxis):
-        axis.set_major_formatter(_DECADE_LABELS)
-    ax.set_xlabel("τ [s]")
-    ax.set_ylabel("Allan deviation [µg]")
-    ax.set_title("gyro x", fontsize="medium")
-    ax.legend(fontsize="x-small", loc="best")
-    fig.suptitle("Allan deviation")
+    _panel(ax, a, {}, 3600.0)
+    fig.suptitle("Allan deviation: warm-up")
     fig.savefig(io.BytesIO(), dpi=DPI, format="png")
 
 
@@ -213,10 +215,18 @@ class AllanFigure:
         self.built.add(i)
         self._draw_ready()
 
+    def set_title(self, title: str) -> None:
+        """Change the figure's title (a figure made with one: the layout leaves room for it)."""
+        if self.fig._suptitle is None:
+            raise ValueError("AllanFigure.set_title: a figure made without a title")
+        self.fig.suptitle(title)
+
     def title(self, i: int) -> str:
         return self.axs[i // 3, i % 3].get_title()
 
     def _draw_ready(self) -> None:
+        """Draw the built panels that follow the drawn ones (the image and its background are made by the
+        first call: a caller may make them ahead of the panels, ``_draw_ready()`` before any)."""
         fig = self.fig
         if self._renderer is None:
             self._renderer = fig.canvas.get_renderer()

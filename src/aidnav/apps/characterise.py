@@ -37,6 +37,13 @@ def print_characterisation(ch, console=None) -> None:
     _print(ch, console)
 
 
+def _import_console() -> None:
+    try:
+        import aidnav.analysis.noise_fit.console  # noqa: F401  rich: ~40 ms, the summary printed next
+    except Exception:  # noqa: BLE001  (imported again, with its error, when the summary is printed)
+        pass
+
+
 def _import_figure_module() -> None:
     try:
         import aidnav.report.allan_plot  # noqa: F401  matplotlib: ~0.3 s, imported while the log is read
@@ -147,6 +154,7 @@ class FigureProcess:
         self._sent: dict[int, bytes] = {}  # each axis as sent (pickled), to tell whether it changed after
         #: after the call: "panels" (the figure finished from the panels drawn as the axes came) or "whole"
         self.drawn_from: str | None = None
+        self._path = None
 
     def axis_done(self, c: int, a, duration_s: float, title: str) -> None:
         """Send axis c's fit to the child (never raises: the figure is then drawn whole at the end)."""
@@ -163,6 +171,11 @@ class FigureProcess:
             pass
 
     def __call__(self, ch, path, title):
+        self.send(ch, path, title)
+        return self.result()
+
+    def send(self, ch, path, title) -> None:
+        """Send the job (the final characterisation) to the child; :meth:`result` waits for its answer."""
         if self._job_w is None:
             raise RuntimeError("FigureProcess: called twice or after close()")
         changed = [pickle.dumps(a) != self._sent.get(c) for c, a in enumerate(getattr(ch, "axes", ()))]
@@ -172,8 +185,12 @@ class FigureProcess:
         try:
             with job_w:
                 job_w.write(data)
-        except BrokenPipeError:  # the child is gone: its status is reported below
+        except BrokenPipeError:  # the child is gone: its status is reported by result()
             pass
+        self._path = path
+
+    def result(self):
+        """The figure's path once the child has written it; the child's error raised here."""
         res_r, self._res_r = self._res_r, None
         with os.fdopen(res_r, "rb") as f:
             out = f.read()
@@ -181,7 +198,8 @@ class FigureProcess:
         self._reaped = True
         res = pickle.loads(out) if out else None
         if not res:
-            raise RuntimeError(f"the figure process ended without drawing {path} (wait status {status})")
+            raise RuntimeError(f"the figure process ended without drawing {self._path} (wait status "
+                               f"{status})")
         if res[0] == "ok":
             self.drawn_from = res[2] if len(res) > 2 else None
             return res[1]
@@ -224,11 +242,18 @@ def characterise_file(imu_path, out_dir, static: str | None = None, grade: str |
     child imports them with matplotlib on the other core while this process does the same."""
     if plot == FIGURE and FORK_FIGURE:
         fig = FigureProcess()
+
+        def draw(ch, path, title):
+            fig.send(ch, path, title)
+            _import_console()  # while the child finishes the figure: the summary's module (rich) is next
+            return fig.result()
+
+        draw.axis_done = fig.axis_done
         try:
             from aidnav.analysis.noise_fit import characterise_file as _characterise_file
 
             return _characterise_file(imu_path, out_dir, static=static, grade=grade, timings=timings,
-                                      plot=fig)
+                                      plot=draw)
         finally:
             fig.close()
     from aidnav.analysis.noise_fit import characterise_file as _characterise_file

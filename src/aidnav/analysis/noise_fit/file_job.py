@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from aidnav.analysis.allan import allan_deviation
-from aidnav.analysis.noise_fit.allan_cov import _avar_cov_nb
+from aidnav.analysis.noise_fit.allan_cov import _avar_cov_nb, _avar_var_nb
 from aidnav.analysis.noise_fit.analyse import characterise_imu, characterise_uniform
 from aidnav.analysis.noise_fit.nnls import _columns_nb, _fit_c_nb, _profile_u_nb
 from aidnav.analysis.noise_fit.output import auto_grade, imu_yaml, noise_dict
@@ -114,6 +114,7 @@ def _warm_up() -> None:
         tau = np.array([0.01, 0.02, 0.04])
         _window_stats(np.zeros((20, 6)), 10, 2)
         _avar_cov_nb(tau / 0.01, 100.0, 0.01, np.array([0.0, 1.0, 0.0, 0.0]), 1.0)
+        _avar_var_nb(tau / 0.01, 100.0, 0.01, np.array([0.0, 1.0, 0.0, 0.0]), 1.0)
         _profile_u_nb(tau, np.zeros(3), np.ones(3), np.eye(3), np.zeros(4, np.bool_), np.zeros(4), -1.0, 1.0,
                       3, np.zeros(4), math.nan)
         _fit_c_nb(_columns_nb(tau, 0.0), np.zeros(3), np.ones(3), np.eye(3), np.zeros(4, np.bool_),

@@ -60,7 +60,8 @@ STREAM_ROWS = 1 << 16
 
 
 def _uniform_rates_streamed(path: Path):
-    """(rates (M, 6) [rad/s, m/s²], dt [s], t_start [s], time of the first sample [s], the reader's events)
+    """(rates (M, 6) [rad/s, m/s²], dt [s], t_start [s], time of the first sample [s], the reader's events,
+    an array of M + 1 values (or more) the caller may use as it likes: the intervals' memory)
     of an interchange Parquet IMU log with uniform intervals, read in batches
     (:func:`aidnav.io.stream.iter_imu`) straight into the rates: increments / their own intervals, the
     numbers :func:`uniform_rates` gives for such a log, without the whole log's increments in memory
@@ -84,7 +85,7 @@ def _uniform_rates_streamed(path: Path):
             step = float(np.median(np.diff(ch.time)))
             # rows of a uniform log over the span, with room: the pages never written are never mapped
             cap = int((span[1] - span[0]) / step * 1.01) + 2 * STREAM_ROWS
-            rates, dt = np.empty((cap, 6)), np.empty(cap)
+            rates, dt = np.empty((cap, 6)), np.empty(cap + 1)  # dt: the work array of an ADEV thread after
             prev, base0, events = t0, float(ch.time[0]), list(ch.events[1:])  # [0]: the detected format
         if n + k > cap:  # far more rows than a uniform log holds: not uniform
             rates = None
@@ -101,7 +102,7 @@ def _uniform_rates_streamed(path: Path):
     med = uniform_interval(dt[:n])
     if med is None:
         return None
-    return rates[:n], med, float(t0), base0, events
+    return rates[:n], med, float(t0), base0, events, dt
 
 
 def _warm_up() -> None:
@@ -189,10 +190,11 @@ def characterise_file(imu_path, out_dir, static: str | None = None, grade: str |
         st.lap("read")
         warm.join()
         st.lap("imports not overlapped by the reading")
-        rates, dt, t_start, base0, events = got
+        rates, dt, t_start, base0, events, work = got
         got = None
-        ch = characterise_uniform(rates, dt, t_start, base0, notes=events, timings=timings, on_axis=on_axis)
-        rates = None
+        ch = characterise_uniform(rates, dt, t_start, base0, notes=events, timings=timings, on_axis=on_axis,
+                                  work=work)
+        rates = work = None
     else:
         # no reference to the log is held here: characterise_imu lets it go once it has the rates
         ch = characterise_imu(read(), static=rng, increments=INCREMENT_RULE[fmt], timings=timings,

@@ -14,8 +14,12 @@ source change, compiles) numba's cache and is not counted.
 The machine is shared: the load average is printed with the figures; the CPU time is the steadier figure
 (on an idle machine the wall time of these single-threaded commands is about their CPU time).
 
-Run: ``python benchmarks/startup.py [--runs N] [--json out.json]``  (needs ../shared/data or $AIDNAV_DATA
-for the W1 slice).
+``aidnav process`` runs with the kernels of the ahead-of-time build when one matches the tree
+(``aidnav compile``; ``--compile`` makes it first when missing) and again with ``AIDNAV_KERNELS=jit``
+(numba's JIT from its cache) for comparison; which one the first row used is printed.
+
+Run: ``python benchmarks/startup.py [--runs N] [--compile] [--json out.json]``  (needs ../shared/data or
+$AIDNAV_DATA for the W1 slice).
 """
 
 from __future__ import annotations
@@ -68,10 +72,10 @@ def make_log(tmp: Path) -> tuple[list[str], str]:
             "a simulated 60-s scenario (no data folder)")
 
 
-def timed(cmd: list[str]) -> tuple[float, float]:
+def timed(cmd: list[str], env: dict | None = None) -> tuple[float, float]:
     """(wall, CPU) of one child process; raises if it fails."""
     t = time.perf_counter()
-    p = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    p = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env)
     _, status, ru = os.wait4(p.pid, 0)
     wall = time.perf_counter() - t
     err = p.stderr.read().decode(errors="replace")
@@ -103,15 +107,22 @@ def main(argv: list[str]) -> int:
         tmp = Path(tmp)
         opts, what = make_log(tmp)
         process = [py, "-m", "aidnav", "process", *opts, "-o", str(tmp / "out"), "--no-figures"]
-        cases = {"aidnav --help": [py, "-m", "aidnav", "--help"],
-                 "aidnav process (60-s log)": process,
-                 "python -c 'import aidnav.cli'": [py, "-c", "import aidnav.cli"],
-                 "python -c pass (interpreter)": [py, "-c", "pass"]}
-        timed(process)  # numba's cache: loaded (or compiled) once, not counted
+        status = subprocess.run([py, "-m", "aidnav", "compile", "--status"], capture_output=True)
+        built = status.returncode == 0
+        if not built and "--compile" in argv:
+            subprocess.run([py, "-m", "aidnav", "compile"], check=True, stdout=subprocess.DEVNULL)
+            built = True
+        jit_env = dict(os.environ, AIDNAV_KERNELS="jit")
+        cases = {"aidnav --help": ([py, "-m", "aidnav", "--help"], None),
+                 "aidnav process (60-s log)": (process, None),
+                 "aidnav process, JIT kernels": (process, jit_env),
+                 "python -c 'import aidnav.cli'": ([py, "-c", "import aidnav.cli"], None),
+                 "python -c pass (interpreter)": ([py, "-c", "pass"], None)}
+        timed(process, jit_env)  # numba's cache: loaded (or compiled) once, not counted
         res = {k: [] for k in cases}
         for _ in range(runs):
-            for k, cmd in cases.items():
-                res[k].append(timed(cmd))
+            for k, (cmd, env) in cases.items():
+                res[k].append(timed(cmd, env))
         imp_cli = importtime(["-c", "import aidnav.cli"])
         imp_proc = importtime(process[1:])
     out = {"log": what, "runs": runs, "load_average": os.getloadavg(), "cpus": os.cpu_count(),
@@ -120,6 +131,9 @@ def main(argv: list[str]) -> int:
                          "cpu_s": statistics.median(c for _, c in v),
                          "wall_min_s": min(w for w, _ in v)} for k, v in res.items()},
            "importtime_cli": imp_cli, "importtime_process": imp_proc}
+    out["kernels"] = ("ahead-of-time build (aidnav compile)" if built
+                      else "numba JIT: no build for this tree (run `aidnav compile`, or pass --compile)")
+    print(f"kernels of 'aidnav process (60-s log)': {out['kernels']}")
     print(f"fixed cost of a command; {out['cpus']} CPUs, load average "
           + " ".join(f"{x:.2f}" for x in out["load_average"]) + f"; median of {runs} warm runs; log: {what}")
     for k, v in out["cases"].items():

@@ -78,12 +78,8 @@ def guarded(fn):
 
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
-        if _CONSOLE_SCRIPT:  # a command runs (not --help): numba will start
-            _preload_scipy_blas()
-            if os.environ.get("AIDNAV_NUMBA_LAZY_BITCODE", "1") != "0":  # 0: numba's own cache loader
-                from aidnav.numba_load import install
-
-                install()  # the cached kernels' bitcode parsed only if something compiles against it
+        if _CONSOLE_SCRIPT:  # a command runs (not --help): kernels from a build, or numba starts
+            _start_kernels()
         try:
             return fn(*args, **kwargs)
         except (typer.Exit, typer.Abort, KeyboardInterrupt, SystemExit):
@@ -154,6 +150,30 @@ def simulate(
     written = simulate_to_dir(scenario, out, seed=seed, fmt=fmt, console=_console())
     for p in written:
         _console().print(f"wrote {p}")
+
+
+@_command(name="compile")
+def compile_cmd(
+    also: list[str] = typer.Option([], "--also", help="another aidnav command line (quoted) whose kernel "
+                                   "calls the build should cover too; repeatable"),
+    status: bool = typer.Option(False, "--status", help="only say whether a build matches this installation"),
+):
+    """Ahead-of-time build of the kernels (once per install): commands then start without numba/LLVM."""
+    import shlex
+
+    from aidnav.apps.kernels import build_status, compile_kernels
+
+    st = build_status()
+    if status:
+        _console().print(f"build for this installation: {'present' if st['matches'] else 'none'} "
+                         f"({st['folder']})")
+        raise typer.Exit(0 if st["matches"] else 1)
+    try:
+        summary = compile_kernels([shlex.split(a) for a in also], progress=lambda m: _console().print(m))
+    except RuntimeError as e:  # a workload or the C compiler failed: say what, exit 2
+        _fail(f"aidnav compile: {e}")
+    _console().print(f"built {summary['entry_points']} entry points of {summary['kernels']} kernels in "
+                     f"{summary['seconds']:.0f} s: {summary['folder']}")
 
 
 @_command()
@@ -481,8 +501,28 @@ def design_trajectory_cmd(
         raise typer.Exit(3)
 
 
+def _start_kernels() -> None:
+    """Kernels for this command (:mod:`aidnav.jit`): from the ahead-of-time build that matches this
+    source tree (``aidnav compile``), else numba's JIT. numba's own start is made cheaper either way,
+    when it happens: the cached kernels' bitcode left unparsed; scipy's BLAS modules loaded alone."""
+    from aidnav import jit
+
+    _preload_scipy_blas()  # the kernels' BLAS calls (numba's JIT and the build alike) import it at first use
+    mode = jit.start(on_numba=[_lazy_bitcode])
+    if mode == "jit" and "AIDNAV_KERNELS" not in os.environ and sys.stderr.isatty():
+        _console(stderr=True).print("[dim]tip: `aidnav compile` (once, 1–3 min) makes every command start "
+                                    "faster and use less memory[/dim]")
+
+
+def _lazy_bitcode() -> None:
+    if os.environ.get("AIDNAV_NUMBA_LAZY_BITCODE", "1") != "0":  # 0: numba's own cache loader
+        from aidnav.numba_load import install
+
+        install()  # the cached kernels' bitcode parsed only if something compiles against it
+
+
 def _preload_scipy_blas() -> None:
-    """Load scipy's two Cython BLAS/LAPACK modules on their own, before numba's first dispatch.
+    """Load scipy's two Cython BLAS/LAPACK modules on their own, before the first kernel call.
 
     numba sets up its CPU target when the first jitted function is called or loaded from its cache,
     whatever that function does, and the set-up imports ``scipy.linalg.cython_blas`` (numba.np.arraymath

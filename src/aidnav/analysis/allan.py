@@ -28,9 +28,9 @@ import queue
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
-from numba import njit
 
 from aidnav.data import ImuData
+from aidnav.jit import njit
 from aidnav.units import DEG_H, UG
 
 #: samples per block of the fused pass: three slices of every cluster size stay in the L2 cache

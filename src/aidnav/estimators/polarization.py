@@ -48,9 +48,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 from scipy.optimize import minimize
 
+from aidnav.jit import njit
 from aidnav.nav.rotations import dcm_from_euler, euler_from_dcm, rotvec_from_dcm
 from aidnav.nav.wave_frame import (
     P_SEED,

@@ -29,7 +29,6 @@ from collections import namedtuple
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from aidnav.estimators.polarization import (
     ZENITH_TOL,
@@ -38,6 +37,7 @@ from aidnav.estimators.polarization import (
     _zenith_error,
 )
 from aidnav.estimators.polarization import objective_gradient as _objective_gradient
+from aidnav.jit import njit
 from aidnav.nav.rotations import euler_from_dcm
 from aidnav.nav.wave_frame import P_SEED
 

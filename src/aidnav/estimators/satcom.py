@@ -62,13 +62,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
 
 from aidnav.filters.ins_errors import (
     correct_increments,
     increment_buffers,
 )
 from aidnav.filters.prior import ins_p0_diag, ins_psd, markov_psd
+from aidnav.jit import njit
 from aidnav.nav.geo_pointing import servo_angles
 from aidnav.nav.rotations import (
     euler_from_quat,

@@ -8,8 +8,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
+from aidnav.jit import njit
 from aidnav.nav.geo_pointing import beam_body, geo_sat_ecef, servo_angles_rad, wrap_pol
 from aidnav.nav.rotations import dcm_from_euler, dcm_from_quat, wrap_2pi, wrap_pi
 from aidnav.units import DEG

@@ -22,9 +22,9 @@ from collections import namedtuple
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
 
 from aidnav.filters.chi2 import chi2_isf
+from aidnav.jit import njit
 from aidnav.nav.earth import dcm_ecef_to_enu, ecef_to_lla, lla_to_ecef
 from aidnav.nav.gnss_sat import (
     az_el,

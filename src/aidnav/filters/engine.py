@@ -48,8 +48,8 @@ from __future__ import annotations
 from collections import namedtuple
 
 import numpy as np
-from numba import njit
 
+from aidnav.jit import njit
 from aidnav.models.distributed_pos import flexure_transition
 from aidnav.nav.earth import OMEGA_IE, radii
 from aidnav.nav.gnss_sat import C_LIGHT

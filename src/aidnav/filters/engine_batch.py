@@ -27,8 +27,8 @@ from __future__ import annotations
 from collections import namedtuple
 
 import numpy as np
-from numba import njit
 
+from aidnav.jit import njit
 from aidnav.nav.rotations import dcm_from_quat
 
 from .engine import (

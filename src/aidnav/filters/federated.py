@@ -25,8 +25,8 @@ from collections import namedtuple
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
 
+from aidnav.jit import njit
 from aidnav.nav.geo_pointing import los_enu
 from aidnav.nav.rotations import dcm_from_quat
 

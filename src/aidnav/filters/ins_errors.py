@@ -32,8 +32,8 @@ means and :func:`reset_accumulator` starts the next interval. :func:`model_array
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from aidnav.jit import njit
 from aidnav.nav.earth import OMEGA_IE, gravity, gravity_dh, radii
 from aidnav.nav.rotations import dcm_entries, dcm_from_quat, quat_mult, quat_normalize
 from aidnav.nav.strapdown import strapdown_step

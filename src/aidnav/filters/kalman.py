@@ -21,7 +21,8 @@ Update: Joseph form P = (I − K H) P (I − K H)ᵀ + K R Kᵀ, then symmetrise
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from aidnav.jit import njit
 
 
 @njit(cache=True)

@@ -4,7 +4,8 @@ an NIS window and the scaling of the navigation block of P that makes a triggeri
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from aidnav.jit import njit
 
 from .layout import DV, NAV
 

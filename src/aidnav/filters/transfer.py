@@ -32,8 +32,8 @@ from types import SimpleNamespace
 from typing import TYPE_CHECKING
 
 import numpy as np
-from numba import njit
 
+from aidnav.jit import njit
 from aidnav.models.distributed_pos import MasterPosSpec
 from aidnav.nav.earth import OMEGA_IE, radii
 from aidnav.nav.rotations import dcm_from_euler, euler_error_map, quat_from_dcm, quat_to_euler_batch

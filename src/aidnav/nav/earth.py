@@ -10,8 +10,8 @@ function takes scalars (inside other numba kernels) or numpy arrays (from Python
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from aidnav.jit import njit
 from aidnav.nav.rotations import wrap_pi
 
 A = 6378137.0  #: semi-major axis [m]

@@ -36,8 +36,8 @@ entry point in degrees used by the CLI.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from aidnav.jit import njit
 from aidnav.units import DEG
 
 from .earth import R_GEO, dcm_ecef_to_enu, lla_to_ecef, radii

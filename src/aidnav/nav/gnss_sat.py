@@ -25,8 +25,8 @@ its rate adds ω_e/c (v_sy x_r + y_s v_rx − v_sx y_r − x_s v_ry) to e·(v_s 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from aidnav.jit import njit
 from aidnav.units import DEG
 
 from .earth import OMEGA_IE, ecef_to_lla

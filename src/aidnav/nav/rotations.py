@@ -17,7 +17,8 @@ All functions are numba-compiled; the ``*_batch`` functions take ``(N, 3)`` / ``
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from aidnav.jit import njit
 
 TWO_PI = 2.0 * np.pi
 

@@ -21,7 +21,8 @@ The state vector used by the kernels is a float64 array of 10 numbers
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from aidnav.jit import njit
 
 from .earth import E2, OMEGA_IE, A, gravity
 from .rotations import dcm_entries

@@ -52,9 +52,9 @@ import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from numba import njit
 
 from aidnav.data import ImuData, Trajectory
+from aidnav.jit import njit
 from aidnav.models.distributed_pos import (  # noqa: F401  (re-exported: the shared error model)
     BETA_FACTOR,
     GNSS_BASELINE_ACCURACY_M,

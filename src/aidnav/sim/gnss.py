@@ -36,9 +36,9 @@ from dataclasses import dataclass, field, fields
 from typing import Any
 
 import numpy as np
-from numba import njit
 
 from aidnav.data import GnssData, Trajectory
+from aidnav.jit import njit
 from aidnav.nav.earth import OMEGA_IE, ecef_to_lla, lla_to_ecef, radii
 from aidnav.nav.rotations import (
     dcm_from_quat,

@@ -59,9 +59,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
 
 from aidnav.data import Trajectory
+from aidnav.jit import njit
 from aidnav.nav.earth import ecef_to_lla, lla_to_ecef, radii
 from aidnav.nav.gnss_sat import (
     C_LIGHT,

@@ -37,9 +37,9 @@ from dataclasses import dataclass, field, fields, replace
 from typing import Any
 
 import numpy as np
-from numba import njit
 
 from aidnav.data import ImuData
+from aidnav.jit import njit
 
 # unit factors (aidnav.units), re-exported: sensor specs below are written with them
 from aidnav.units import (  # noqa: E402, F401

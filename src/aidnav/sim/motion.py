@@ -23,8 +23,8 @@ Frames and units: n = ENU, b = RFU, radians, metres, seconds.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from aidnav.jit import njit
 from aidnav.nav.earth import E2, OMEGA_IE, A, gravity
 from aidnav.units import G0
 

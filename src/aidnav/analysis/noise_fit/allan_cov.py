@@ -9,9 +9,9 @@ depend on the number of samples (see the comment below).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from aidnav.analysis.noise_fit.model import model_avar
+from aidnav.jit import njit
 
 # ------------------------------------------------------- covariance of the Allan variance estimates
 # For Gaussian noise the overlapping Allan variances are quadratic forms of the phase x (the running

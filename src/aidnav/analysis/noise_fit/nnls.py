@@ -11,9 +11,9 @@ the loops compile in a fraction of the time) and release the GIL, so the six axe
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from aidnav.analysis.noise_fit.model import _GM_SERIES
+from aidnav.jit import njit
 
 
 # ------------------------------------------------------------------------------ fitting kernels (numba)

@@ -8,10 +8,10 @@ is kept and reported as a warning, with the physics of its bounded effect (:func
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from aidnav.analysis.noise_fit.prepare import resampled_min_m
 from aidnav.analysis.noise_fit.results import NotStaticError
+from aidnav.jit import njit
 from aidnav.units import DEG
 
 #: a moving span of the static check is "motion" (never analysed) when its window means depart by more than

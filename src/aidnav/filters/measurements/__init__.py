@@ -12,8 +12,7 @@ Conventions: state layout of :mod:`aidnav.filters.layout`; z = (value predicted 
 
 from __future__ import annotations
 
-from numba import njit, types
-from numba.extending import overload
+from aidnav.jit import njit, overload
 
 from ..layout import BA
 from .attitude import attitude, attitude_model, velocity_attitude_matching
@@ -43,6 +42,8 @@ def _fill_from(first, model, args):
 def _fill_from_impl(first, model, args):
     # compiled once per table entry (``first`` a compile-time constant): the same code as a hand-written
     # if-chain over the ids, each call direct (no function pointers)
+    from numba import types  # lazy: runs when numba compiles (aidnav.jit: no numba import in the aot mode)
+
     if not isinstance(first, types.IntegerLiteral):
         return None  # numba retries with the literal
     i = first.literal_value

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from aidnav.jit import njit
 from aidnav.nav.rotations import dcm_from_rotvec
 
 from ..layout import DV, L_FLEX, L_MOUNT, NAV, PHI

@@ -23,8 +23,7 @@ from __future__ import annotations
 
 from collections import namedtuple
 
-from numba import njit
-
+from aidnav.jit import njit
 from aidnav.nav.rotations import cross, skew  # noqa: F401  (re-exported: the models import them from here)
 
 Nav = namedtuple("Nav", ["st", "C", "w", "dt_back", "bias"])

@@ -7,8 +7,8 @@ the ``*_model`` functions are their uniform-signature forms (:mod:`.common`).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from aidnav.jit import njit
 from aidnav.nav.earth import gravity, gravity_dh, radii
 
 from ..layout import BG, DP, DV, L_GPE, L_LEVER, L_TOFF, L_VDEL, NAV, PHI

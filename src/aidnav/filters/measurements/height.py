@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from numba import njit
+from aidnav.jit import njit
 
 from ..layout import DP, L_BARO, NAV
 

@@ -7,8 +7,8 @@ estimated, fed back b̂ += δt̂_u; the measured ρ = range + b (§2.1).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from aidnav.jit import njit
 from aidnav.nav.earth import dcm_ecef_to_enu, lla_to_ecef
 from aidnav.nav.gnss_sat import geo_range, geo_range_rate
 

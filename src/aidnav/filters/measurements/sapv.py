@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from aidnav.jit import njit
 from aidnav.models.sapv import OK
 from aidnav.nav.geo_pointing import az_el_from_body, az_el_jacobians, beam_body
 

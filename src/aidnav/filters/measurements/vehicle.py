@@ -7,8 +7,8 @@ Vehicle frame v: RFU like the body (x right, y forward, z up), C_b^v from the mo
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from aidnav.jit import njit
 from aidnav.nav.rotations import dcm_from_rotvec
 
 from ..layout import BG, DV, L_MOUNT, L_ODO, NAV, PHI

@@ -1,0 +1,301 @@
+"""Where aidnav's kernels come from: numba's JIT, or an ahead-of-time build of the same kernels.
+
+Every kernel in aidnav is written once, as a numba function decorated with :func:`njit` from here
+(numba's own ``njit`` options: ``cache``, ``nogil``, ``inline``, ``fastmath``). What the decorator
+returns depends on the mode this module is in when the kernel's module is imported:
+
+* ``"jit"`` (the default, and always in library use and in the tests): numba's own dispatcher,
+  exactly as ``numba.njit`` gives it. Nothing else in this module is involved.
+* ``"aot"`` (the ``aidnav`` console script, when an ahead-of-time build for this exact source tree,
+  Python, numpy and CPU exists: ``aidnav compile`` makes it, :mod:`aidnav.apps.kernels`): a
+  :class:`Kernel`. A call from Python looks up the types of its arguments (:func:`typekey`) in the
+  build's table and runs the compiled function of that extension module: no numba, no LLVM in the
+  process (≈ 150 MiB and ≈ 0.6 s of start-up less per command with numba 0.68). A call the build does
+  not cover (other argument types, a kernel no built-in workload reached) starts numba there and
+  then and runs the JIT dispatcher of the same function, from numba's cache: slower to start, never
+  a different result (the build's functions are the same numba compilations, linked into one module;
+  ``tests/test_jit.py`` checks the outputs are bit-identical).
+* ``"record"`` (the workloads of ``aidnav compile``): a :class:`Kernel` that runs the JIT dispatcher
+  and writes down, for each call from Python, the kernel, its :func:`typekey` and numba's argument
+  types; the build exports exactly those.
+
+A build is a CPython extension module made by ``numba.pycc`` (one exported trampoline per recorded
+signature, calling the kernel; the kernel itself compiled with its own options and linked in), with a
+``table.json`` that maps (kernel, typekey) to the exported name. It lives in the user's cache
+(``$AIDNAV_KERNEL_DIR``, else ``$XDG_CACHE_HOME/aidnav/kernels``, else ``~/.cache/aidnav/kernels``)
+under a key hashed from every aidnav source file, the Python and numpy versions and the CPU: a
+changed source tree simply has no build until ``aidnav compile`` runs again. ``AIDNAV_KERNELS=jit``
+in the environment keeps the JIT even when a build exists; ``AIDNAV_KERNELS_VERBOSE=1`` names each
+kernel a build did not cover (numba started for it).
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import json
+import os
+import platform
+import sys
+from pathlib import Path
+
+import numpy as np
+
+_mode = "jit"
+_table: dict[str, dict] = {}  # kernel name -> {typekey: compiled function} (aot)
+_records: dict | None = None  # kernel name -> {typekey: numba argument types} (record)
+_record_path: str | None = None
+_pending_overloads: list = []  # (function, implementation) registered when numba starts (aot/record)
+_numba_started = False
+_started = False
+_numba_hooks: list = []  # called once, just before numba is imported for a kernel (cli: its start-up)
+build_loaded: str | None = None  # the build directory in use (aot), for messages and tests
+
+
+def mode() -> str:
+    """The mode kernels are made in now: ``"jit"``, ``"aot"`` or ``"record"``."""
+    return _mode
+
+
+def njit(*args, **options):
+    """numba's ``njit`` (same options), or a :class:`Kernel` in the aot/record modes (module doc)."""
+    if args:  # @njit without parentheses
+        (fn,) = args
+        return njit(**options)(fn)
+
+    def decorate(fn):
+        if _mode == "jit":
+            import numba  # lazy: numba (and LLVM) only where a kernel is made in the JIT mode
+
+            return numba.njit(**options)(fn)
+        return Kernel(fn, options)
+
+    return decorate
+
+
+def overload(fn):
+    """``numba.extending.overload(fn)``; in the aot/record modes registered when numba starts."""
+
+    def decorate(impl):
+        if _mode == "jit" or _numba_started:
+            from numba.extending import overload as numba_overload  # lazy: as njit
+
+            return numba_overload(fn)(impl)
+        _pending_overloads.append((fn, impl))
+        return impl
+
+    return decorate
+
+
+class Kernel:
+    """A numba kernel in the aot/record modes: served by the ahead-of-time build where it covers the
+    call, else by numba's JIT dispatcher of the same function (made on first need)."""
+
+    def __init__(self, fn, options: dict):
+        functools.update_wrapper(self, fn)
+        self.py_func = fn
+        self.options = dict(options)
+        self.name = f"{fn.__module__}:{fn.__qualname__}"
+        self._dispatcher = None
+
+    def __call__(self, *args, **kwargs):
+        built = _table.get(self.name)
+        if built is not None and not kwargs:
+            f = built.get(typekey(args))
+            if f is not None:
+                return f(*args)
+        if _mode == "aot" and os.environ.get("AIDNAV_KERNELS_VERBOSE"):
+            print(f"aidnav.jit: {self.name}{' with these argument types' if built else ''} not in the build "
+                  f"(numba's JIT): {typekey(args)!r}", file=sys.stderr)
+        d = self.dispatcher
+        if _records is not None and not kwargs:
+            _record(self, d, args)
+        return d(*args, **kwargs)
+
+    @property
+    def dispatcher(self):
+        """numba's JIT dispatcher of this kernel (numba started on the first call)."""
+        if self._dispatcher is None:
+            _start_numba()
+            import numba  # lazy: only a call the build does not cover gets here
+
+            self._dispatcher = numba.njit(**self.options)(self.py_func)
+        return self._dispatcher
+
+    def __getattr__(self, name):  # signatures, overloads, targetoptions, ...: the dispatcher's
+        if name.startswith("__"):
+            raise AttributeError(name)
+        return getattr(self.dispatcher, name)
+
+    def __repr__(self):
+        return f"<aidnav kernel {self.name} ({_mode})>"
+
+
+def _start_numba() -> None:
+    """Import numba for the kernels of the aot/record modes: the start-up hooks, the typing of a
+    :class:`Kernel` as its dispatcher (kernels call kernels), the overloads waiting to be registered."""
+    global _numba_started
+    if _numba_started:
+        return
+    _numba_started = True
+    for hook in _numba_hooks:
+        hook()
+    from numba.core.typing.typeof import typeof_impl  # lazy: numba's start
+
+    @typeof_impl.register(Kernel)
+    def _typeof_kernel(val, c):
+        return typeof_impl(val.dispatcher, c)
+
+    from numba.extending import overload as numba_overload  # lazy: numba's start
+
+    for fn, impl in _pending_overloads:
+        numba_overload(fn)(impl)
+    _pending_overloads.clear()
+
+
+def typekey(value):
+    """A hashable key that is equal for two values exactly when numba types them the same as
+    arguments (arrays: dtype, dimensions, layout, writeable, aligned; scalars; tuples and named
+    tuples element by element); None for a value this module does not serve from a build."""
+    if isinstance(value, np.ndarray):
+        f = value.flags
+        layout = "C" if f.c_contiguous else ("F" if f.f_contiguous else "A")
+        dt = value.dtype
+        return ("a", dt.str if dt.fields is None else str(dt.descr), value.ndim, layout, f.writeable,
+                f.aligned)
+    if isinstance(value, bool | np.bool_):
+        return "b"
+    if isinstance(value, float):  # also numpy.float64
+        return "f8"
+    if isinstance(value, int):
+        return "i8" if -(2**63) <= value < 2**63 else None
+    if isinstance(value, tuple):
+        keys = tuple(typekey(v) for v in value)
+        if any(k is None for k in keys):
+            return None
+        cls = type(value)
+        return ("t", None if cls is tuple else f"{cls.__module__}.{cls.__qualname__}", keys)
+    if isinstance(value, np.generic):
+        return ("g", value.dtype.str)
+    if value is None:
+        return "n"
+    return None
+
+
+def _record(kernel: Kernel, dispatcher, args) -> None:
+    key = typekey(args)
+    if key is None:
+        return
+    from numba.core import types  # lazy: record mode only
+
+    argtypes = tuple(dispatcher.typeof_pyval(a) for a in args)
+    if any(isinstance(t, types.Omitted) for t in argtypes):
+        return
+    seen = _records.setdefault(kernel.name, {})
+    if key in seen and seen[key] != argtypes:
+        raise AssertionError(f"typekey {key!r} of {kernel.name} stands for two numba signatures: "
+                             f"{seen[key]} and {argtypes}")
+    seen[key] = argtypes
+
+
+def _write_records() -> None:
+    """Merge this process's records into the record file (record mode, at exit)."""
+    if not _records or not _record_path:
+        return
+    import pickle
+
+    path = Path(_record_path)
+    merged = pickle.loads(path.read_bytes()) if path.is_file() else {}
+    for name, sigs in _records.items():
+        merged.setdefault(name, {}).update(sigs)
+    path.write_bytes(pickle.dumps(merged))
+
+
+def kernel_dir() -> Path:
+    """The folder holding the ahead-of-time builds (module doc)."""
+    if os.environ.get("AIDNAV_KERNEL_DIR"):
+        return Path(os.environ["AIDNAV_KERNEL_DIR"])
+    cache = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(cache) / "aidnav" / "kernels"
+
+
+def _cpu() -> str:
+    try:
+        with open("/proc/cpuinfo") as f:
+            lines = [ln for ln in f.read().splitlines() if ln.startswith(("model name", "flags"))]
+        return "\n".join(sorted(set(lines)))
+    except OSError:
+        return platform.processor()
+
+
+def build_key() -> str:
+    """Hash of every aidnav source file, the Python and numpy versions and the CPU: the name of the
+    build that matches this process."""
+    h = hashlib.sha256()
+    root = Path(__file__).resolve().parent
+    for p in sorted(root.rglob("*.py")):
+        h.update(str(p.relative_to(root)).encode())
+        h.update(p.read_bytes())
+    h.update(f"{sys.version}|{np.__version__}|{platform.machine()}|{_cpu()}".encode())
+    return h.hexdigest()[:20]
+
+
+def build_path(key: str | None = None) -> Path:
+    """The folder of the build for ``key`` (default: this process's :func:`build_key`)."""
+    return kernel_dir() / (key or build_key())
+
+
+def load_build(folder: Path) -> bool:
+    """Serve kernels from the build in ``folder`` (its extension module and ``table.json``); False when
+    there is none or it cannot be loaded (the JIT is used then)."""
+    global build_loaded
+    import importlib.util
+
+    try:
+        meta = json.loads((folder / "table.json").read_text())
+        spec = importlib.util.spec_from_file_location(meta["module"], folder / meta["file"])
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+    except (OSError, ValueError, KeyError, ImportError):
+        return False
+    for name, key, export in meta["exports"]:
+        _table.setdefault(name, {})[_as_key(key)] = getattr(module, export)
+    build_loaded = str(folder)
+    return True
+
+
+def _as_key(k):
+    """A typekey back from JSON (lists to tuples)."""
+    return tuple(_as_key(v) for v in k) if isinstance(k, list) else k
+
+
+def start(requested: str | None = None, on_numba=(), build: Path | None = None) -> str:
+    """Choose the mode before any kernel module is imported (the console script): ``requested`` or
+    ``$AIDNAV_KERNELS``: ``jit``; ``record`` (records to ``$AIDNAV_KERNEL_RECORD``); ``aot`` (the build
+    in ``build``, default the one matching this process: an error when there is none); ``auto`` (the
+    default: ``aot`` when a build matches, else ``jit``). ``on_numba``: called once before numba is
+    imported (at once in the jit mode). Returns the mode."""
+    global _mode, _records, _record_path, _started
+    if _started:
+        return _mode
+    _started = True
+    requested = requested or os.environ.get("AIDNAV_KERNELS", "auto")
+    _numba_hooks.extend(on_numba)
+    if requested == "record":
+        import atexit
+
+        _mode, _records = "record", {}
+        _record_path = os.environ.get("AIDNAV_KERNEL_RECORD") or str(kernel_dir() / "record.pkl")
+        atexit.register(_write_records)
+    elif requested in ("auto", "aot") and load_build(build or build_path()):
+        _mode = "aot"
+    elif requested == "aot":
+        raise RuntimeError(f"AIDNAV_KERNELS=aot: no ahead-of-time build in {build or build_path()} "
+                           "(run `aidnav compile`)")
+    elif requested not in ("auto", "jit"):
+        raise ValueError(f"AIDNAV_KERNELS={requested}: expected auto, jit, aot or record")
+    else:
+        _mode = "jit"
+        for hook in on_numba:
+            hook()
+    return _mode

@@ -10,17 +10,22 @@ was resolved ("fitted"), the coverage among those, and the largest ARW / VRW err
 
 Run: ``python benchmarks/characterise.py [N_LOGS] [--json out.json]`` (about 1 s per log).
 
-Speed (``--speed [--hours H] [--runs R] [--json out.json]``): a static MEMS log of H hours (default 10) at
+Speed (``--speed [--hours H] [--runs R] [--against SRC] [--json out.json]``): a static MEMS log of H hours
+(default 10) at
 100 Hz, 3.6 million samples per axis, made as above and written as an interchange Parquet file; then
-``aidnav characterise LOG -o DIR`` is run R times (default 3) as a command. Printed: the wall time, the CPU
-time (user + system) and the peak memory (maximum resident set) of each run, and the wall time of each
-stage of the same command run in this process, and the floor of the command: the interpreter with the
-imports it needs (``python -c "import aidnav.cli, aidnav.analysis.characterise, aidnav.report.allan_plot"``).
+``aidnav characterise LOG -o DIR`` is run R times (default 3) as a command (with ``--against SRC``, e.g.
+``/work/main/src``: each run paired with one of the package in SRC, alternating, the same log; printed
+side by side with the medians, and whether the two wrote the same noise.json and imu.yaml). Printed: the
+wall time, the CPU time (user + system) and the peak memory (maximum resident set) of each run, and the
+wall time of each stage of the same command run in this process, and the floor of the command: the
+interpreter with the imports it needs
+(``python -c "import aidnav.cli, aidnav.analysis.characterise, aidnav.report.allan_plot"``).
 Target (issue 29): wall time ≤ 2 s on the 2-core machine. The first run after the package's source changes
 compiles the numba kernels (tens of seconds, once: numba caches them); the target is for the runs after it.
 The machine is shared: the load average is printed with the figures, and the CPU time is the steadier one.
 References, the same machine: 33 s (with compilation; 11 s without) and 1.26 GB before issue 19's work;
-4.2-6.2 s with allantools (issue 29).
+4.2-6.2 s with allantools (issue 29). The figure is drawn by a forked child process (Linux:
+:class:`aidnav.apps.characterise.FigureProcess`); the CPU time of a run includes the child's (``wait4``).
 """
 
 from __future__ import annotations
@@ -31,6 +36,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import json  # noqa: E402
+import subprocess  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 
@@ -113,9 +119,22 @@ def coverage(grade: str, n_logs: int, seed0: int = 19_000, hours: float = 2.0) -
     return out
 
 
-def speed(hours: float = 10.0, runs: int = 3, seed: int = 1) -> dict:
+def _run_cli(cmd: list[str], env: dict | None = None) -> dict:
+    """Wall, CPU (user + system, the figure's child process included) and peak memory of one command."""
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env)
+    _, status, ru = os.wait4(proc.pid, 0)
+    wall = time.perf_counter() - t0
+    err = proc.stderr.read().decode(errors="replace")
+    proc.stderr.close()
+    if os.waitstatus_to_exitcode(status) != 0:
+        raise RuntimeError(f"aidnav characterise failed: {err[-2000:]}")
+    return {"wall_s": wall, "cpu_s": ru.ru_utime + ru.ru_stime, "user_s": ru.ru_utime,
+            "system_s": ru.ru_stime, "peak_memory_mb": ru.ru_maxrss / 1024.0, "load_1min": os.getloadavg()[0]}
+
+
+def speed(hours: float = 10.0, runs: int = 3, seed: int = 1, against: str | None = None) -> dict:
     """Time ``aidnav characterise`` on a static log of ``hours`` at 100 Hz (see the module docstring)."""
-    import subprocess
     import tempfile
     from pathlib import Path
 
@@ -130,8 +149,11 @@ def speed(hours: float = 10.0, runs: int = 3, seed: int = 1) -> dict:
         subprocess.run([sys.executable, __file__, "--make-log", str(log), repr(hours), str(seed)], check=True)
         out["log_seconds_to_make"] = time.perf_counter() - t0
         out["log_bytes"] = log.stat().st_size
-        cmd = [sys.executable, "-m", "aidnav.cli", "characterise", "--imu", str(log), "-o",
-               str(Path(tmp) / "out")]
+
+        def cmd(d):
+            return [sys.executable, "-m", "aidnav.cli", "characterise", "--imu", str(log), "-o",
+                    str(Path(tmp) / d)]
+
         imp = [sys.executable, "-c",
                "import aidnav.cli, aidnav.analysis.characterise, aidnav.report.allan_plot"]
         floor = []
@@ -140,17 +162,18 @@ def speed(hours: float = 10.0, runs: int = 3, seed: int = 1) -> dict:
             subprocess.run(imp, check=True)
             floor.append(time.perf_counter() - t0)
         out["imports_wall_s"] = float(np.median(floor))
+        env_b = None
+        if against:
+            env_b = dict(os.environ, PYTHONPATH=os.pathsep.join([against, os.environ.get("PYTHONPATH", "")]))
+            out["against"], out["runs_against"] = against, []
         for _ in range(runs):
-            t0 = time.perf_counter()
-            proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-            _, status, ru = os.wait4(proc.pid, 0)
-            wall = time.perf_counter() - t0
-            err = proc.stderr.read().decode(errors="replace")
-            proc.stderr.close()
-            if os.waitstatus_to_exitcode(status) != 0:
-                raise RuntimeError(f"aidnav characterise failed: {err[-2000:]}")
-            out["runs"].append({"wall_s": wall, "cpu_s": ru.ru_utime + ru.ru_stime, "user_s": ru.ru_utime,
-                                "system_s": ru.ru_stime, "peak_memory_mb": ru.ru_maxrss / 1024.0})
+            if against:
+                out["runs_against"].append(_run_cli(cmd("out_against"), env_b))
+            out["runs"].append(_run_cli(cmd("out")))
+        if against:
+            out["same_outputs_as_against"] = all(
+                (Path(tmp) / "out" / f).read_bytes() == (Path(tmp) / "out_against" / f).read_bytes()
+                for f in ("noise.json", "imu.yaml"))
         stages: dict = {}
         t0, c0 = time.perf_counter(), time.process_time()
         characterise_file(log, Path(tmp) / "out_inproc", timings=stages)
@@ -169,7 +192,8 @@ def main_speed(argv: list[str]) -> int:
     hours = float(argv[argv.index("--hours") + 1]) if "--hours" in argv else 10.0
     runs = int(argv[argv.index("--runs") + 1]) if "--runs" in argv else 3
     path = argv[argv.index("--json") + 1] if "--json" in argv else None
-    r = speed(hours, runs)
+    against = argv[argv.index("--against") + 1] if "--against" in argv else None
+    r = speed(hours, runs, against=against)
     print(f"\naidnav characterise, static MEMS log of {hours:g} h at 100 Hz ({r['samples_per_axis']} samples "
           f"per axis, Parquet {r['log_bytes'] / 1e6:.0f} MB); {r['cpus']} CPUs, load average "
           + " ".join(f"{x:.2f}" for x in r["load_average"]))
@@ -178,6 +202,14 @@ def main_speed(argv: list[str]) -> int:
         print(f"  run {i + 1}: wall {run['wall_s']:6.2f} s   CPU {run['cpu_s']:6.2f} s (user "
               f"{run['user_s']:.2f}, system {run['system_s']:.2f})   peak memory "
               f"{run['peak_memory_mb']:6.0f} MB   {tag}")
+    if against:
+        for name, rows in (("this tree", r["runs"]), (f"against {against}", r["runs_against"])):
+            w = rows[1:] or rows
+            print(f"  paired, {name:30s}: wall median {np.median([x['wall_s'] for x in w]):.2f} s (min "
+                  f"{min(x['wall_s'] for x in w):.2f}), CPU median "
+                  f"{np.median([x['cpu_s'] for x in w]):.2f} s, peak "
+                  f"{max(x['peak_memory_mb'] for x in rows):.0f} MB (runs after the first)")
+        print(f"  same noise.json and imu.yaml as {against}: {r['same_outputs_as_against']}")
     print(f"  floor: interpreter + imports of the command {r['imports_wall_s']:.2f} s (median of {runs})")
     print(f"  stages (the same command in this process, {r['in_process_s']:.2f} s wall, "
           f"{r['in_process_cpu_s']:.2f} s CPU; wall time of each stage):")

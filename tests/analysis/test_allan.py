@@ -132,3 +132,17 @@ def test_no_allantools_at_run_time():
             "print('allantools' in sys.modules)\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False", out.stderr
+
+
+def test_unchecked_samples_and_a_work_array_give_the_same_numbers():
+    """``check_finite=False`` (a caller that checked the samples) and a caller's work array for the phase
+    (the streamed characterisation hands over its intervals' memory) change nothing; the check is on by
+    default."""
+    x = np.random.default_rng(29).standard_normal((5000, 3))[:, 1]  # a strided column
+    a = allan_deviation(x, 100.0)
+    b = allan_deviation(x, 100.0, workers=1, work=np.full(6000, np.nan), check_finite=False)
+    for u, v in zip(a, b, strict=True):
+        np.testing.assert_array_equal(u, v)
+    x[7] = np.nan
+    with pytest.raises(ValueError, match="NaN"):
+        allan_deviation(x, 100.0)

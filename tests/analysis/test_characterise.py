@@ -372,6 +372,22 @@ def test_estimate_covariance_equals_the_brute_force_double_sum(coef, t_corr, tol
     assert np.max(np.abs(got - want) / scale) < tol
 
 
+@pytest.mark.parametrize("coef, t_corr", [((1e-8, 1e-4, 0.0, 0.0), 1.0), ((1e-8, 1e-4, 2e-4, 1e-5), 2.0),
+                                           ((0.0, 1e-4, 4e-4, 3e-6), 300.0)])
+def test_estimate_variances_alone_are_the_covariance_diagonal_to_the_bit(coef, t_corr):
+    """``_avar_var_nb`` (the EDFs of every τ shown, issue 29: without the covariances) gives the diagonal
+    of ``_avar_cov_nb`` bit for bit, on the octave τ of a 10-h log at 100 Hz (short cores summed exactly,
+    long ones and the Gauss-Markov tails integrated), and ν of ``_estimate_stats``."""
+    n, tau0 = 3_600_000, 0.01
+    ms = 2.0 ** np.arange(21)
+    coef = np.array(coef)
+    np.testing.assert_array_equal(AC._avar_var_nb(ms, float(n + 1), tau0, coef, t_corr),
+                                  np.diag(AC._avar_cov_nb(ms, float(n + 1), tau0, coef, t_corr)))
+    tau = ms * tau0
+    np.testing.assert_array_equal(AC._estimate_edf(tau, ms, n + 1, coef, t_corr),
+                                  AC._estimate_stats(tau, ms, n + 1, coef, t_corr)[0])
+
+
 def test_continuum_lag_sum_is_the_large_m_limit_of_the_exact_sum():
     """Cores longer than ``EXACT_LAGS`` lags use the continuum form ∫ n(ℓ) c₁₂(ℓ)² dℓ. Against the exact
     sum over the integer lags its relative error is −1.25/m² for white noise (the kinks of c₁₂ at integer

@@ -50,7 +50,8 @@ def test_streamed_rates_equal_the_whole_log_path(tmp_path, monkeypatch):
     imu = _log(1)
     streamed, (ch1, j1), (ch2, j2) = _both_paths(tmp_path, monkeypatch, imu)
     assert streamed is not None
-    rates, dt, t_start, base0, events = streamed
+    rates, dt, t_start, base0, events, work = streamed
+    assert work.dtype == np.float64 and len(work) >= len(rates) + 1
     # the rates are the increments over their own intervals, bit for bit (13 batches of 7000 rows)
     d = np.diff(np.r_[imu.t0, imu.time])
     np.testing.assert_array_equal(rates, np.column_stack([imu.dtheta, imu.dv]) / d[:, None])

@@ -121,7 +121,7 @@ def _cluster_sizes(n_phase: int, fs: float, taus) -> np.ndarray:
 
 
 def allan_deviation(rate_samples, fs: float, taus=None, workers: int | None = None,
-                    work: np.ndarray | None = None):
+                    work: np.ndarray | None = None, check_finite: bool = True):
     """Overlapping Allan deviation of uniformly sampled rate data.
 
     Parameters
@@ -133,6 +133,7 @@ def allan_deviation(rate_samples, fs: float, taus=None, workers: int | None = No
     workers : threads for the channels (None: as many as CPUs, at most k); the kernels release the GIL.
     work : float64 array of at least N + 1 values for the phase (one thread; a caller that computes many
         deviations passes one array to all, so that the memory is not asked of the system each time).
+    check_finite : False when the caller has checked the samples already (a pass over them less).
 
     Returns
     -------
@@ -153,7 +154,7 @@ def allan_deviation(rate_samples, fs: float, taus=None, workers: int | None = No
         raise ValueError("allan_deviation: need (N,) or (N, k) samples with N >= 3")
     if not fs > 0:
         raise ValueError("allan_deviation: fs must be > 0")
-    if not np.all(np.isfinite(x2)):
+    if check_finite and not np.all(np.isfinite(x2)):
         raise ValueError("allan_deviation: samples contain NaN or inf")
     n_phase = x2.shape[0] + 1
     m = _cluster_sizes(n_phase, fs, taus)

@@ -23,31 +23,32 @@ The modules, in the order of the data:
 
 The figure (allan.png) is drawn by :func:`aidnav.report.allan_plot.plot_allan`, passed to
 :func:`characterise_file` by its caller: analysis does not import report.
+
+The names below are imported from their modules on first use (PEP 562): importing one module of the
+package (the result containers and the model, for the figure's process of ``aidnav characterise``) does
+not import the others (numba, scipy, rich: ~0.3 s).
 """
 
 from __future__ import annotations
 
-from aidnav.analysis.noise_fit.analyse import characterise_imu, characterise_rates
-from aidnav.analysis.noise_fit.console import print_characterisation
-from aidnav.analysis.noise_fit.file_job import characterise_file, imu_log_format
-from aidnav.analysis.noise_fit.fit import fit_allan
-from aidnav.analysis.noise_fit.model import (
-    AXES,
-    B_PER_GM_SIGMA,
-    FLICKER_ADEV,
-    GM_PEAK_ADEV,
-    GM_PEAK_X,
-    gm_avar,
-    model_avar,
-)
-from aidnav.analysis.noise_fit.output import auto_grade, imu_section, imu_yaml, merge_gm_rw, noise_dict
-from aidnav.analysis.noise_fit.prepare import resampled_min_m, trapezoid_samples, uniform_rates
-from aidnav.analysis.noise_fit.results import AxisFit, Characterisation, NotStaticError, TermEstimate
-from aidnav.analysis.noise_fit.static import static_check
-from aidnav.analysis.noise_fit.vibration import vibration_report
+import importlib
 
-# re-exported: the units of the results
-from aidnav.units import DEG_H, DEG_H_SQRT_H, DEG_SQRT_H, M_S_SQRT_H, UG, UG_SQRT_H
+#: where each name of the package is defined (imported on first use)
+_WHERE = {
+    "characterise_imu": "analyse", "characterise_rates": "analyse",
+    "print_characterisation": "console",
+    "characterise_file": "file_job", "imu_log_format": "file_job",
+    "fit_allan": "fit",
+    **dict.fromkeys(("AXES", "B_PER_GM_SIGMA", "FLICKER_ADEV", "GM_PEAK_ADEV", "GM_PEAK_X", "gm_avar",
+                     "model_avar"), "model"),
+    **dict.fromkeys(("auto_grade", "imu_section", "imu_yaml", "merge_gm_rw", "noise_dict"), "output"),
+    **dict.fromkeys(("resampled_min_m", "trapezoid_samples", "uniform_rates"), "prepare"),
+    **dict.fromkeys(("AxisFit", "Characterisation", "NotStaticError", "TermEstimate"), "results"),
+    "static_check": "static",
+    "vibration_report": "vibration",
+    # re-exported: the units of the results
+    **dict.fromkeys(("DEG_H", "DEG_H_SQRT_H", "DEG_SQRT_H", "M_S_SQRT_H", "UG", "UG_SQRT_H"), "aidnav.units"),
+}
 
 __all__ = ["characterise_imu", "characterise_rates", "fit_allan", "merge_gm_rw", "print_characterisation",
            "Characterisation", "AxisFit", "TermEstimate", "NotStaticError", "static_check", "uniform_rates",
@@ -55,3 +56,24 @@ __all__ = ["characterise_imu", "characterise_rates", "fit_allan", "merge_gm_rw",
            "model_avar", "auto_grade", "resampled_min_m", "trapezoid_samples", "vibration_report", "AXES",
            "B_PER_GM_SIGMA", "GM_PEAK_X", "GM_PEAK_ADEV", "FLICKER_ADEV", "DEG_H", "DEG_SQRT_H",
            "DEG_H_SQRT_H", "UG", "UG_SQRT_H", "M_S_SQRT_H"]
+
+
+def __getattr__(name: str):
+    where = _WHERE.get(name)
+    if where is None:  # a module of the package not imported yet (``noise_fit.fit``, as before)
+        if name.startswith("_"):
+            raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+        try:
+            return importlib.import_module(f"{__name__}.{name}")
+        except ModuleNotFoundError as e:
+            if e.name != f"{__name__}.{name}":
+                raise
+            raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
+    mod = importlib.import_module(where if "." in where else f"{__name__}.{where}")
+    value = getattr(mod, name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(__all__))

@@ -207,6 +207,38 @@ def _avar_cov_nb(m, n_phase, tau0, coef, t_corr):
     return C
 
 
+@njit(cache=True, nogil=True)
+def _avar_var_nb(m, n_phase, tau0, coef, t_corr):
+    """The diagonal of :func:`_avar_cov_nb` (the variances of the estimates), each entry the same number:
+    the same lag sums, with the table of S over the lags the diagonal's exact cores reach."""
+    k = m.shape[0]
+    out = np.zeros(k)
+    tail = 12.0 * t_corr / tau0 if coef[2] > 0.0 else 0.0
+    h_max = 0
+    for p in range(k):
+        if 4.0 * m[p] + 2.0 <= EXACT_LAGS:
+            h_max = max(h_max, int(4.0 * m[p]) + 2)
+    S = np.empty(h_max + 1)
+    for h in range(h_max + 1):
+        S[h] = _phase_sf(tau0 * float(h), coef, t_corr)
+    for p in range(k):
+        m1 = float(m[p])
+        M1 = n_phase - 2.0 * m1
+        t1 = m1 * tau0
+        out[p] = 2.0 * _lag_sum(m1, m1, M1, M1, tau0, coef, t_corr, tail, S) / (
+            4.0 * t1 * t1 * t1 * t1 * M1 * M1)
+    return out
+
+
+def _estimate_edf(tau, m, n_phase, coef, t_corr):
+    """ν of :func:`_estimate_stats` alone (the variances only: the same numbers, without the covariances)."""
+    tau0 = float(tau[0] / m[0])
+    var = _avar_var_nb(np.asarray(m, np.float64), float(n_phase), tau0, np.asarray(coef, float),
+                       float(t_corr))
+    avar = model_avar(tau, coef, t_corr)
+    return 2.0 * avar**2 / np.maximum(var, 1e-300)
+
+
 def _estimate_stats(tau, m, n_phase, coef, t_corr):
     """EDF of each Allan variance estimate and the whitener of their correlation, for the model (coef, T).
 

@@ -29,7 +29,8 @@ def characterise_rates(rates, fs: float, t_start: float = 0.0, min_m: int = 1, c
                        white_only: bool | None = None, sensor: dict | None = None,
                        warnings: list[str] | None = None,
                        workers: int | None = None, time_origin: float = 0.0,
-                       timings: dict | None = None, static_result: dict | None = None) -> Characterisation:
+                       timings: dict | None = None, static_result: dict | None = None,
+                       on_axis=None, work: np.ndarray | None = None) -> Characterisation:
     """Characterise uniformly sampled rates (the Python API on arrays).
 
     rates : (M, 6) gyro x, y, z [rad/s] then accel x, y, z [m/s²], body frame, uniform at ``fs`` [Hz]
@@ -41,7 +42,11 @@ def characterise_rates(rates, fs: float, t_start: float = 0.0, min_m: int = 1, c
     time_origin : the static check's spans and messages are in seconds after it [s]
     (``static["time_origin_s"]``). timings : a dict that receives the wall time of the stages [s].
     static_result : :func:`static_check` of these very rates (same t_start and time_origin) when the caller
-    has it already (it is not run again).
+    has it already (it is not run again). on_axis : ``on_axis(c, axis_fit, duration_s)`` called (in the
+    worker thread) as soon as axis c (0-5, ``AXES``) is fitted, before the vibration report (which may
+    still change its quantisation term: see below); the figure's process of ``aidnav characterise``
+    draws its panel meanwhile. work : a float64 array of at least M + 1 values that one thread takes for
+    its Allan deviations' phase (memory the caller has no more use for: fresh memory costs page faults).
     Returns a :class:`Characterisation` (ADEV at octave-spaced τ = 2^j/fs and the fitted terms, SI).
     """
     y = np.asarray(rates, float)
@@ -73,17 +78,22 @@ def characterise_rates(rates, fs: float, t_start: float = 0.0, min_m: int = 1, c
 
     nw = max(1, min(6, workers if workers is not None else (os.cpu_count() or 1)))
     phases: queue.SimpleQueue = queue.SimpleQueue()  # the phase arrays of the threads, reused by the axes
-    for _ in range(nw):
-        phases.put(None)
+    for i in range(nw):
+        phases.put(work if i == 0 and work is not None and work.dtype == np.float64 and work.ndim == 1
+                   and len(work) >= n + 1 else None)
 
     def one_axis(c):
         ph = phases.get()
         ph = np.empty(n + 1) if ph is None else ph
         try:
-            taus, adev, _, _ = allan_deviation(y[:, c], fs, taus="octave", workers=1, work=ph)
+            taus, adev, _, _ = allan_deviation(y[:, c], fs, taus="octave", workers=1, work=ph,
+                                               check_finite=False)  # y was checked above
         finally:
             phases.put(ph)
-        return fit_allan(taus, adev, n, fs, axis=AXES[c], min_m=min_m, white_only=white_only)
+        a = fit_allan(taus, adev, n, fs, axis=AXES[c], min_m=min_m, white_only=white_only)
+        if on_axis is not None:
+            on_axis(c, a, dur)
+        return a
 
     if nw == 1:
         axes = [one_axis(c) for c in range(6)]
@@ -122,7 +132,8 @@ def characterise_rates(rates, fs: float, t_start: float = 0.0, min_m: int = 1, c
 
 def characterise_imu(imu: ImuData, static: tuple[float | None, float | None] | None = None,
                      check_static: bool = True, increments: str = "interval",
-                     workers: int | None = None, timings: dict | None = None) -> Characterisation:
+                     workers: int | None = None, timings: dict | None = None,
+                     on_axis=None) -> Characterisation:
     """Characterise an IMU log (increments with their own Δt; rates, any rate, jitter and gaps allowed).
 
     static : (start, end) [s] after the log's first time stamp (either None = open) to analyse only that
@@ -140,7 +151,7 @@ def characterise_imu(imu: ImuData, static: tuple[float | None, float | None] | N
     the reported intervals through the fit's dispersion. Vibration (zero-mean, large sample spread) is
     not motion: it is kept and reported by :func:`vibration_report` (std per axis, dominant frequency).
 
-    workers, timings : see :func:`characterise_rates` (timings: wall time of the stages [s]).
+    workers, timings, on_axis : see :func:`characterise_rates` (timings: wall time of the stages [s]).
     increments : how the increments relate to the sensor's samples, for the vibration report only:
     "interval" (Δθ/Δt is the sensor's output: rate logs, simulated increments) or "trapezoid"
     (Δθ_k = ½(ω_{k−1} + ω_k)Δt_k, as raw rtklibexplorer logs are read; :func:`trapezoid_samples`).
@@ -197,7 +208,7 @@ def characterise_imu(imu: ImuData, static: tuple[float | None, float | None] | N
     imu = samples = None  # the log is no longer needed (memory: the caller holds no reference either)
     return characterise_rates(rates, fs, t_start=t_start, min_m=min_m, check_static=check_static, notes=notes,
                               resampled=resampled, sensor=sensor, warnings=warns, workers=workers,
-                              time_origin=base0, timings=timings, static_result=st)
+                              time_origin=base0, timings=timings, static_result=st, on_axis=on_axis)
 
 
 def _static_part(rates, dt: float, t_start: float, base0: float, resampled: bool, warns: list[str],
@@ -222,12 +233,13 @@ def _static_part(rates, dt: float, t_start: float, base0: float, resampled: bool
 
 
 def characterise_uniform(rates, dt: float, t_start: float, base0: float, notes: list[str] | None = None,
-                         workers: int | None = None, timings: dict | None = None) -> Characterisation:
+                         workers: int | None = None, timings: dict | None = None,
+                         on_axis=None, work: np.ndarray | None = None) -> Characterisation:
     """:func:`characterise_imu` of a log whose increments were uniformly spaced (no gap, no jitter) and
     are given as their rates already (``rates`` (M, 6) = increments / ``dt``, what :func:`uniform_rates`
     gives for such a log): the same static check, longest static part and analysis, the same results.
     t_start : start of the first interval [s]; base0 : time of the first sample [s] (the static check's
-    times are after it); notes : the reader's events."""
+    times are after it); notes : the reader's events; on_axis, work : see :func:`characterise_rates`."""
     stg = Stages(timings)
     warns: list[str] = []
     rates, t_start, st = _static_part(rates, dt, t_start, base0, False, warns, chosen=False,
@@ -235,4 +247,4 @@ def characterise_uniform(rates, dt: float, t_start: float, base0: float, notes: 
     stg.lap("static check")
     return characterise_rates(rates, 1.0 / dt, t_start=t_start, min_m=1, notes=list(notes or []),
                               warnings=warns, workers=workers, time_origin=base0, timings=timings,
-                              static_result=st)
+                              static_result=st, on_axis=on_axis, work=work)

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from aidnav.analysis.allan import allan_deviation
-from aidnav.analysis.noise_fit.allan_cov import _avar_cov_nb
+from aidnav.analysis.noise_fit.allan_cov import _avar_cov_nb, _avar_var_nb
 from aidnav.analysis.noise_fit.analyse import characterise_imu, characterise_uniform
 from aidnav.analysis.noise_fit.nnls import _columns_nb, _fit_c_nb, _profile_u_nb
 from aidnav.analysis.noise_fit.output import auto_grade, imu_yaml, noise_dict
@@ -60,7 +60,8 @@ STREAM_ROWS = 1 << 16
 
 
 def _uniform_rates_streamed(path: Path):
-    """(rates (M, 6) [rad/s, m/s²], dt [s], t_start [s], time of the first sample [s], the reader's events)
+    """(rates (M, 6) [rad/s, m/s²], dt [s], t_start [s], time of the first sample [s], the reader's events,
+    an array of M + 1 values (or more) the caller may use as it likes: the intervals' memory)
     of an interchange Parquet IMU log with uniform intervals, read in batches
     (:func:`aidnav.io.stream.iter_imu`) straight into the rates: increments / their own intervals, the
     numbers :func:`uniform_rates` gives for such a log, without the whole log's increments in memory
@@ -84,7 +85,7 @@ def _uniform_rates_streamed(path: Path):
             step = float(np.median(np.diff(ch.time)))
             # rows of a uniform log over the span, with room: the pages never written are never mapped
             cap = int((span[1] - span[0]) / step * 1.01) + 2 * STREAM_ROWS
-            rates, dt = np.empty((cap, 6)), np.empty(cap)
+            rates, dt = np.empty((cap, 6)), np.empty(cap + 1)  # dt: the work array of an ADEV thread after
             prev, base0, events = t0, float(ch.time[0]), list(ch.events[1:])  # [0]: the detected format
         if n + k > cap:  # far more rows than a uniform log holds: not uniform
             rates = None
@@ -101,7 +102,7 @@ def _uniform_rates_streamed(path: Path):
     med = uniform_interval(dt[:n])
     if med is None:
         return None
-    return rates[:n], med, float(t0), base0, events
+    return rates[:n], med, float(t0), base0, events, dt
 
 
 def _warm_up() -> None:
@@ -114,6 +115,7 @@ def _warm_up() -> None:
         tau = np.array([0.01, 0.02, 0.04])
         _window_stats(np.zeros((20, 6)), 10, 2)
         _avar_cov_nb(tau / 0.01, 100.0, 0.01, np.array([0.0, 1.0, 0.0, 0.0]), 1.0)
+        _avar_var_nb(tau / 0.01, 100.0, 0.01, np.array([0.0, 1.0, 0.0, 0.0]), 1.0)
         _profile_u_nb(tau, np.zeros(3), np.ones(3), np.eye(3), np.zeros(4, np.bool_), np.zeros(4), -1.0, 1.0,
                       3, np.zeros(4), math.nan)
         _fit_c_nb(_columns_nb(tau, 0.0), np.zeros(3), np.ones(3), np.eye(3), np.zeros(4, np.bool_),
@@ -132,7 +134,9 @@ def characterise_file(imu_path, out_dir, static: str | None = None, grade: str |
     static : "START:END" seconds after the first sample (either may be empty); None: the whole log (its
     longest static part when it moves: see :func:`characterise_imu`). timings : a dict that receives the
     wall time of each stage [s]. plot : ``plot(ch, path, title) -> path`` that draws the Allan deviation
-    figure (:func:`aidnav.report.allan_plot.plot_allan`) into DIR/allan.png; None: no figure. Returns
+    figure (:func:`aidnav.report.allan_plot.plot_allan`) into DIR/allan.png; None: no figure. A ``plot``
+    with a method ``axis_done(c, axis_fit, duration_s, title)`` is told of each axis as soon as it is
+    fitted (``on_axis`` of :func:`characterise_rates`; the figure's title is the one ``plot`` gets). Returns
     (Characterisation, list of written paths). Raises
     :class:`NotStaticError` / ValueError with a clear message for a moving log, bad option or unusable data.
 
@@ -157,6 +161,9 @@ def characterise_file(imu_path, out_dir, static: str | None = None, grade: str |
         if rng[0] is not None and rng[1] is not None and rng[1] <= rng[0]:
             raise ValueError(f"--static {static!r}: END must be after START")
     fmt = imu_log_format(imu_path)
+    title = f"Allan deviation: {Path(imu_path).name}"
+    axis_done = getattr(plot, "axis_done", None)
+    on_axis = None if axis_done is None else (lambda c, a, dur: axis_done(c, a, dur, title))
     warm = threading.Thread(target=_warm_up, name="aidnav-characterise-warm-up", daemon=True)
     warm.start()
     st.lap("start")
@@ -183,13 +190,15 @@ def characterise_file(imu_path, out_dir, static: str | None = None, grade: str |
         st.lap("read")
         warm.join()
         st.lap("imports not overlapped by the reading")
-        rates, dt, t_start, base0, events = got
+        rates, dt, t_start, base0, events, work = got
         got = None
-        ch = characterise_uniform(rates, dt, t_start, base0, notes=events, timings=timings)
-        rates = None
+        ch = characterise_uniform(rates, dt, t_start, base0, notes=events, timings=timings, on_axis=on_axis,
+                                  work=work)
+        rates = work = None
     else:
         # no reference to the log is held here: characterise_imu lets it go once it has the rates
-        ch = characterise_imu(read(), static=rng, increments=INCREMENT_RULE[fmt], timings=timings)
+        ch = characterise_imu(read(), static=rng, increments=INCREMENT_RULE[fmt], timings=timings,
+                              on_axis=on_axis)
     st.lap("characterise")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -203,6 +212,6 @@ def characterise_file(imu_path, out_dir, static: str | None = None, grade: str |
     st.lap("noise.json + imu.yaml")
     written = [p_json, p_yaml]
     if plot is not None:
-        written.insert(0, plot(ch, out / "allan.png", f"Allan deviation: {Path(imu_path).name}"))
+        written.insert(0, plot(ch, out / "allan.png", title))
         st.lap("allan.png")
     return ch, written

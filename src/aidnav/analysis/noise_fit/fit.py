@@ -30,7 +30,7 @@ import math
 
 import numpy as np
 
-from aidnav.analysis.noise_fit.allan_cov import _estimate_stats
+from aidnav.analysis.noise_fit.allan_cov import _estimate_edf, _estimate_stats
 from aidnav.analysis.noise_fit.model import (
     _TERM_ORDER,
     B_PER_GM_SIGMA,
@@ -256,7 +256,7 @@ def fit_allan(taus, adev, n_samples: int, fs: float, axis: str = "gyro_x", min_m
         d_full, u_hat, c_hat = full.best()
     full.u_hint, full.c0 = u_hat, c_hat.copy()
     nu_all = np.full(len(tau), np.nan)
-    nu_all[ok], _ = _estimate_stats(tau[ok], m[ok], n_phase, c_hat, math.exp(u_hat))
+    nu_all[ok] = _estimate_edf(tau[ok], m[ok], n_phase, c_hat, math.exp(u_hat))  # ν only
     parts = np.column_stack([3.0 * c_hat[0] / tau**2, c_hat[1] / tau,
                              c_hat[2] * _gm_shape(tau / math.exp(u_hat)), c_hat[3] * tau / 3.0])
     alpha = np.array([(2, 0, -1, -2)[k] for k in np.argmax(parts, axis=1)])

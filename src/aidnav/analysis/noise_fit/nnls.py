@@ -47,10 +47,9 @@ def _columns_nb(tau, u):
 
 
 @njit(cache=True, nogil=True)
-def _solve_small(G, r, idx, n):
-    """Solve G[idx, idx] x = r[idx] (n ≤ 4) by Gaussian elimination with partial pivoting; ok=False if
-    (nearly) singular."""
-    M = np.empty((n, n + 1))
+def _solve_small(G, r, idx, n, M, x):
+    """Solve G[idx, idx] x = r[idx] (n ≤ 4) by Gaussian elimination with partial pivoting into x[:n]
+    (M: a work array of at least n × (n + 1)); False if (nearly) singular (x[:n] = 0)."""
     for i in range(n):
         for j in range(n):
             M[i, j] = G[idx[i], idx[j]]
@@ -61,7 +60,8 @@ def _solve_small(G, r, idx, n):
             if abs(M[i, col]) > abs(M[p, col]):
                 p = i
         if abs(M[p, col]) < 1e-13:
-            return np.zeros(n), False
+            x[:n] = 0.0
+            return False
         if p != col:
             for j in range(n + 1):
                 tmp = M[col, j]
@@ -71,22 +71,22 @@ def _solve_small(G, r, idx, n):
             f = M[i, col] / M[col, col]
             for j in range(col, n + 1):
                 M[i, j] -= f * M[col, j]
-    x = np.zeros(n)
+    for i in range(n):
+        x[i] = 0.0
     for i in range(n - 1, -1, -1):
         acc = M[i, n]
         for j in range(i + 1, n):
             acc -= M[i, j] * x[j]
         x[i] = acc / M[i, i]
-    return x, True
+    return True
 
 
 @njit(cache=True, nogil=True)
-def _nnls_enum(A, b, free):
+def _nnls_enum(A, b, free, G, r, M, x, idx):
     """min ||A c − b|| over c ≥ 0 with c_i = 0 where not free[i] (k ≤ 4: every active set is tried; the
-    columns of A should have comparable norms)."""
+    columns of A should have comparable norms). G (k, k), r (k), M (k, k + 1), x (k), idx (k, int64):
+    work arrays."""
     n, k = A.shape
-    G = np.zeros((k, k))
-    r = np.zeros(k)
     for i in range(k):
         for j in range(k):
             acc = 0.0
@@ -102,7 +102,6 @@ def _nnls_enum(A, b, free):
         bb += b[q] * b[q]
     best = np.zeros(k)
     best_r = bb
-    idx = np.empty(k, np.int64)
     for mask in range(1, 1 << k):
         nsel = 0
         ok = True
@@ -114,8 +113,7 @@ def _nnls_enum(A, b, free):
                 nsel += 1
         if not ok:
             continue
-        x, good = _solve_small(G, r, idx, nsel)
-        if not good:
+        if not _solve_small(G, r, idx, nsel, M, x):
             continue
         neg = False
         for i in range(nsel):
@@ -138,10 +136,9 @@ def _nnls_enum(A, b, free):
 
 
 @njit(cache=True, nogil=True)
-def _objective(y, s, Linv, M):
-    """‖L⁻¹ (y − ln M)/s‖² (L⁻¹ lower triangular)."""
+def _objective(y, s, Linv, M, r):
+    """‖L⁻¹ (y − ln M)/s‖² (L⁻¹ lower triangular; r: a work array of n values)."""
     n = y.shape[0]
-    r = np.empty(n)
     for j in range(n):
         r[j] = (y[j] - np.log(M[j])) / s[j]
     q = 0.0
@@ -173,6 +170,12 @@ def _fit_c_nb(A, y, s, Linv, fixed, fixv, c0, iters):
     Returns (objective, c)."""
     n, k = A.shape
     free = ~fixed
+    res = np.empty(n)  # the objective's residuals
+    G = np.empty((k, k))  # the NNLS's work arrays
+    rg = np.empty(k)
+    Ms = np.empty((k, k + 1))
+    xs = np.empty(k)
+    idx = np.empty(k, np.int64)
     off = np.zeros(n)
     c = c0.copy()
     for i in range(k):
@@ -196,7 +199,7 @@ def _fit_c_nb(A, y, s, Linv, fixed, fixv, c0, iters):
     else:
         for j in range(n):
             M[j] = max(M[j], 1e-300)
-        q_old = _objective(y, s, Linv, M)
+        q_old = _objective(y, s, Linv, M, res)
     scale = np.empty(k)
     Aw = np.empty((n, k))
     bw = np.empty(n)
@@ -227,14 +230,14 @@ def _fit_c_nb(A, y, s, Linv, fixed, fixv, c0, iters):
         for j in range(n):
             for i in range(k):
                 Aw[j, i] /= scale[i]
-        c_new = _nnls_enum(Aw, bw, free) / scale
+        c_new = _nnls_enum(Aw, bw, free, G, rg, Ms, xs, idx) / scale
         lam = 1.0
         c_try = c_new
         q_try = np.inf
         for _h in range(12):
             c_try = c + lam * (c_new - c) if q_old < np.inf else c_new
             _model_nb(A, c_try, off, M_try)
-            q_try = _objective(y, s, Linv, M_try)
+            q_try = _objective(y, s, Linv, M_try, res)
             if q_try < q_old:
                 break
             lam *= 0.5

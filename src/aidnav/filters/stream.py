@@ -32,6 +32,7 @@ from aidnav.io.stream import Spool
 from .engine import Imu, Log, Output, rts, run_chunk, smooth_outputs, start_carry
 from .layout import L_TOFF, NAV, layout_names
 from .loose import loose_setup
+from .measurements import MAX_ROWS
 from .preprocess import StaticDetector, bridge_gaps
 from .result import FilterResult
 from .run_log import _calibration_base, _gnss_records, _log_dict, loose_counts
@@ -107,6 +108,7 @@ def stream_loose(chunks, gnss, cfg, emit, withheld=None, smooth: bool = False, e
     out = Output(su.out_every, bool(smooth), np.zeros(0, np.int64))
     M = len(su.rec.t)
     rec_log = None
+    window = su.rec.grp.t.shape[0] == 0  # (epoch records index the whole log: not windowed)
     node_model, node_status, static_used, n_nodes = [], [], 0, 0
     spool = node_spool = None
     node_idx_l, node_dx = [], []  # with the smoother: per node its sample and δx; Φ, P⁻, P⁺ on disk
@@ -140,18 +142,25 @@ def stream_loose(chunks, gnss, cfg, emit, withheld=None, smooth: bool = False, e
             if ini.reset_idx == NEVER and rt is not None and np.isfinite(rt) and t[-1] >= rt:
                 ini = ini._replace(reset_idx=kb + int(np.searchsorted(t, rt, side="left")))
             static_used += int(st_fl[a:].sum())
-            cy = cy._replace(last=last)
+            # the records this chunk can reach (the engine's own bound, with a margin): its log then
+            # holds those rows, not the whole log's (memory and time independent of the log length)
+            g0 = cy.gi
+            g1 = M if last or not window else min(M, int(np.searchsorted(su.rec.t, t[-1] + REC_AHEAD_S,
+                                                                              side="right")) + 1)
+            rec_k = _rec_window(su.rec, g0, g1) if window else su.rec
+            gb = g0 if window else 0  # global index of the window's first record
+            cy = cy._replace(last=last, gi=cy.gi - gb)
             imu_k = Imu(t, dth[a:], dv[a:], st_fl[a:], gap_var[a:], np.zeros((0, 2)))
-            r = run_chunk(imu_k, su.rec, su.models, su.proc, ini, out, cy)
-            g0, cy = cy.gi, r.carry
-            lg = {k: getattr(r.log, k) for k in r.log._fields}  # (names once, at the end)
+            r = run_chunk(imu_k, rec_k, su.models, su.proc, ini, out, cy)
+            cy = r.carry._replace(gi=r.carry.gi + gb)
             if rec_log is None:
-                rec_log = {k: v[:M].copy() for k, v in lg.items()}
-            else:
-                for k in rec_log:
-                    rec_log[k][g0:cy.gi] = lg[k][g0:cy.gi]
-            node_model.append(lg["model"][M:r.n_log].copy())
-            node_status.append(lg["status"][M:r.n_log].copy())
+                rec_log = _new_rec_log(su.rec)
+            m_k = len(rec_k.t)
+            for k in rec_log:  # the rows of the records done in this chunk
+                if k != "ref":
+                    rec_log[k][g0:cy.gi] = getattr(r.log, k)[g0 - gb:cy.gi - gb]
+            node_model.append(r.log.model[m_k:r.n_log].copy())
+            node_status.append(r.log.status[m_k:r.n_log].copy())
             n_nodes += len(r.node_idx)
             if smooth and len(r.node_idx):
                 node_idx_l.append(r.node_idx.copy())
@@ -214,6 +223,24 @@ def stream_loose(chunks, gnss, cfg, emit, withheld=None, smooth: bool = False, e
     res.gnss_time = np.asarray(gnss.time, float)
     res.node_time = np.zeros(0)
     return res
+
+
+#: the records given to a chunk: those stamped up to this long after its last sample (the engine looks
+#: 100 s ahead: a time offset or clock bias beyond that is refused there)
+REC_AHEAD_S = 200.0
+
+
+def _rec_window(rec, a, b):
+    """The records ``a:b`` (views: the engine's types are unchanged)."""
+    return rec._replace(t=rec.t[a:b], model=rec.model[a:b], data=rec.data[a:b], use=rec.use[a:b])
+
+
+def _new_rec_log(rec) -> dict:
+    """The engine's log rows of every record before any is done (its fields; :class:`.engine.Log`)."""
+    M = len(rec.t)
+    return dict(t=rec.t.copy(), model=rec.model.astype(np.int8), status=np.full(M, -1, np.int8),
+                nis=np.full(M, np.nan), nu=np.full((M, MAX_ROWS), np.nan), s=np.full((M, MAX_ROWS), np.nan),
+                ref=np.arange(M, dtype=np.int64), reinit=np.zeros(M, np.int8))
 
 
 RTS_BLOCK = 1024  #: nodes per block of the spooled RTS pass (3n² floats each: 10.6 MB at n = 21)

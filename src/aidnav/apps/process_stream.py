@@ -42,9 +42,17 @@ def streamable(imu_path, cfg, odometer=None, start_s=None, end_s=None) -> bool:
     return imu_time_span(imu_path) is not None
 
 
+_CHECKED = ("time", "lat", "lon", "height", "vel", "rph", "std_pos")  # what the checks and scores read
+
+
 def _join(a: Trajectory | None, b: Trajectory) -> Trajectory:
-    """The last epoch of ``a`` followed by ``b`` (checks and interpolation across a chunk boundary)."""
-    return b if a is None else concat_rows([take_rows(a, slice(len(a.time) - 1, None)), b])
+    """The last epoch of ``a`` followed by ``b`` (checks and interpolation across a chunk boundary): the
+    columns of :data:`_CHECKED` only."""
+    if a is None:
+        return b
+    k = len(a.time) - 1
+    return Trajectory(*(None if getattr(b, c) is None else np.concatenate([getattr(a, c)[k:], getattr(b, c)])
+                        for c in _CHECKED))
 
 
 class _Sink:
@@ -72,7 +80,7 @@ class _Sink:
         if keep.any():
             self.dec.append(take_rows(traj, keep))
         self.next_t = b[-1]
-        self.prev = take_rows(traj, slice(len(traj.time) - 1, None))
+        self.prev = take_rows(traj, [len(traj.time) - 1])  # (a copy: the piece is not kept)
 
     def score(self, wins):
         from aidnav.apps.process_parts import outage_score

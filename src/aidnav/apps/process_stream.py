@@ -3,8 +3,10 @@
 The IMU file is read in batches (:func:`aidnav.io.stream.iter_imu`), the filter runs chunk by chunk
 (:func:`aidnav.filters.stream.stream_loose`), each piece of the solution is checked
 (:func:`aidnav.apps.common.check_solution`, joined to the last epoch before it), scored at the withheld
-fixes and written (:class:`aidnav.io.stream.TrajectoryWriter`); the figures and maps get a decimated
-copy (at most :data:`FIGURE_POINTS` epochs). The numbers are :func:`aidnav.apps.process.process`'s.
+fixes and written (:class:`aidnav.io.stream.TrajectoryWriter`, row groups of :data:`ROW_GROUP_ROWS`
+epochs); the figures and maps get a decimated copy (at most :data:`FIGURE_POINTS` epochs). The numbers
+are :func:`aidnav.apps.process.process`'s. After the first chunk (the whole-log set-up done) the freed
+heap is given back to the system (:func:`trim_heap`).
 :func:`streamable` says when this path applies (interchange Parquet IMU, no ``--start/--end``, no
 whole-log mounting fit); :func:`aidnav.apps.process.process_logs` takes it then.
 """

@@ -22,6 +22,9 @@ from aidnav.data import Trajectory
 from aidnav.io.stream import concat_rows, take_rows
 
 FIGURE_POINTS = 20000  #: at most this many epochs go to overview.png, the maps and run.html
+#: the decimated rows of the latest pieces are joined into one block when there are this many pieces or
+#: rows (a long log gives a few rows a piece, 28 small arrays each; the join's copy stays small)
+DEC_JOIN, DEC_JOIN_ROWS = 32, 2048
 CHUNK_ROWS = 1 << 13  #: IMU samples per chunk (the per-chunk buffers are about 1.3 kB per sample)
 #: epochs per row group of a Parquet trajectory (pieces held until then: 28 columns, ≈ 7 MB; the writer
 #: keeps ≈ 24 kB of metadata per row group until the end, ≈ 10 MB over 10 h at one row group a chunk)
@@ -63,6 +66,7 @@ class _Sink:
     def __init__(self, gnss, withheld, fig_dt, write=None):
         self.gnss, self.withheld, self.fig_dt, self.write = gnss, withheld, fig_dt, write
         self.prev, self.t_err, self.herr, self.dec, self.next_t = None, [], [], [], -np.inf
+        self.recent, self.n_recent = [], 0  # decimated rows of the latest pieces (joined into dec: DEC_JOIN)
 
     def __call__(self, traj: Trajectory):
         from aidnav.apps.process_parts import outage_errors
@@ -80,7 +84,11 @@ class _Sink:
         b = np.floor(traj.time / self.fig_dt)
         keep = np.concatenate([[b[0] > self.next_t], b[1:] > b[:-1]])
         if keep.any():
-            self.dec.append(take_rows(traj, keep))
+            self.recent.append(take_rows(traj, keep))
+            self.n_recent += len(self.recent[-1].time)
+            if len(self.recent) >= DEC_JOIN or self.n_recent >= DEC_JOIN_ROWS:
+                self.dec.append(concat_rows(self.recent))
+                self.recent, self.n_recent = [], 0
         self.next_t = b[-1]
         self.prev = take_rows(traj, [len(traj.time) - 1])  # (a copy: the piece is not kept)
 
@@ -91,7 +99,7 @@ class _Sink:
         return outage_score(t, np.concatenate(self.herr) if self.herr else np.zeros(0), wins, self.withheld)
 
     def decimated(self) -> Trajectory:
-        return concat_rows(self.dec)
+        return concat_rows(self.dec + self.recent)
 
 
 def stream_process(imu_path, gnss, cfg, traj_path, week, smooth=False, outages=None, imu_name="imu",

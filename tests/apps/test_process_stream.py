@@ -180,3 +180,39 @@ def test_background_writer_error_reaches_the_caller(tmp_path, small_chunks, monk
         process_logs(imu_p, gnss_p, cfg_p, tmp_path / "o", figures=False)
     assert calls[0] == 3  # nothing written after the failure
     assert not list((tmp_path / "o").glob("trajectory*"))
+
+
+def test_trim_heap_is_harmless():
+    """Giving the freed heap back (glibc's malloc_trim after the set-up; nothing elsewhere) leaves the
+    process working: numpy arrays made before and after are intact."""
+    from aidnav.apps.process_stream import trim_heap
+
+    a = np.arange(1_000_000, dtype=float)
+    b = [np.ones(1000) for _ in range(100)]
+    del b
+    trim_heap()
+    assert a.sum() == 499999500000.0 and np.ones(10).sum() == 10.0
+
+
+@pytest.mark.parametrize("piece", [7, 450, 5000])
+def test_decimated_copy_joined_in_blocks(piece):
+    """The figures' copy (the first epoch at or after each multiple of fig_dt), kept in joined blocks:
+    the rows of the whole-log rule, whatever the piece size."""
+    from aidnav.data import GnssData, Trajectory
+
+    n, fig_dt = 40000, 0.37
+    t = 10.0 + 0.01 * np.arange(n)
+    rng = np.random.default_rng(1)
+    lat, lon = 0.5 + 1e-9 * np.arange(n), 2.0 + 1e-9 * rng.normal(size=n)
+    tr = Trajectory(t, lat, lon, rng.normal(size=n), rng.normal(size=(n, 3)), rng.normal(size=(n, 3)),
+                    std_pos=rng.uniform(size=(n, 3)), extra={"x": np.arange(float(n))})
+    gnss = GnssData(time=np.array([0.0]), lat=np.zeros(1), lon=np.zeros(1), height=np.zeros(1))
+    sink = ps._Sink(gnss, np.zeros(1, bool), fig_dt)
+    for a in range(0, n, piece):
+        sink(ps.take_rows(tr, slice(a, min(a + piece, n))))
+    b = np.floor(t / fig_dt)
+    want = np.flatnonzero(np.concatenate([[True], b[1:] > b[:-1]]))
+    dec = sink.decimated()
+    np.testing.assert_array_equal(dec.extra["x"], want)
+    np.testing.assert_array_equal(dec.std_pos, tr.std_pos[want])
+    assert len(sink.dec) <= n // piece // ps.DEC_JOIN + n // ps.DEC_JOIN_ROWS + 2

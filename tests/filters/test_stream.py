@@ -124,6 +124,16 @@ def test_stream_equals_whole_log(given_init, smooth):
     for k, v in ref.records.items():
         np.testing.assert_array_equal(res.records[k], v, err_msg=k)
     np.testing.assert_array_equal(res.final_P, ref.final_P)
+    # the per-record log (each chunk's engine call saw only the records it could reach): the record rows
+    # of the whole-log run, nu and s in their first REC_ROWS columns (the rest unused by records)
+    M = len(res.innovations["t"])
+    for k in ("t", "model", "status", "nis", "reinit", "ref"):
+        np.testing.assert_array_equal(res.innovations[k], ref.innovations[k][:M], err_msg=k)
+    for k in ("nu", "s"):
+        w = res.innovations[k].shape[1]
+        np.testing.assert_array_equal(res.innovations[k], ref.innovations[k][:M, :w], err_msg=k)
+        assert np.isnan(ref.innovations[k][:M, w:]).all()
+    assert (res.innovations["status"] == 1).sum() > 100
 
 
 def test_stream_automatic_init_time_offset_and_gap():
@@ -159,3 +169,27 @@ def test_stream_smoother_blocks_of_spooled_nodes(given_init, monkeypatch):
     assert res.counts == ref.counts and res.counts["nodes"] > 10 * 7  # many block boundaries
     _same(cat["s_state"], ref.state)
     _same(cat["s_pdiag"], ref.pdiag)
+
+
+def test_record_log_widens_for_wider_records():
+    """A record row with more than REC_ROWS innovation rows widens nu and s (no value dropped)."""
+    from aidnav.filters.engine import Log, Records
+    from aidnav.filters.measurements import MAX_ROWS
+    from aidnav.filters.stream import REC_ROWS, _keep_rows, _new_rec_log
+
+    rec = Records(np.arange(10.0), np.zeros(10, np.int64), np.zeros((10, 6)), np.ones(10, bool))
+    rl = _new_rec_log(rec)
+    assert rl["nu"].shape == (10, REC_ROWS)
+    cap = 4  # the chunk's log: records 3..6 (window base 3)
+    log = Log(np.zeros(cap), np.zeros(cap, np.int8), np.ones(cap, np.int8), np.arange(cap, dtype=float),
+              np.full((cap, MAX_ROWS), np.nan), np.full((cap, MAX_ROWS), np.nan), np.zeros(cap, np.int64),
+              np.zeros(cap, np.int8))
+    log.nu[1, :3] = [1.0, 2.0, 3.0]
+    _keep_rows(rl, log, 3, 5, 3)
+    assert rl["nu"].shape == (10, REC_ROWS) and rl["nu"][4, 2] == 3.0
+    assert list(rl["status"][2:6]) == [-1, 1, 1, -1]
+    log.nu[2, 4] = 5.0
+    _keep_rows(rl, log, 5, 7, 3)
+    assert rl["nu"].shape == (10, MAX_ROWS) and rl["s"].shape == (10, MAX_ROWS)
+    assert rl["nu"][5, 4] == 5.0 and rl["nu"][4, 2] == 3.0 and np.isnan(rl["nu"][4, 4])
+    np.testing.assert_array_equal(rl["nis"][3:7], [0.0, 1.0, 2.0, 3.0])

@@ -105,3 +105,24 @@ def test_empty_field_after_joined_blocks_is_the_whole_readers_error(tmp_path, sm
     with pytest.raises(DataError) as ei:
         list(trajectory_chunks(bad, 1000))
     assert str(ei.value) == str(whole.value) and ei.value.line == k + 1
+
+
+def test_writer_row_groups_of_held_pieces(tmp_path):
+    """row_group_rows: pieces held until a row group has that many rows (the last one smaller); the same
+    table as one row group per piece."""
+    import pyarrow.parquet as pq
+
+    n = 1000
+    tr = _traj(n)
+    tr.extra = {"x": np.arange(float(n))}
+    tabs = {}
+    for rg in (None, 250):
+        w = stream.TrajectoryWriter(tmp_path / f"t{rg}.parquet", week=2300, row_group_rows=rg)
+        for a in range(0, n, 90):
+            w.write(stream.take_rows(tr, slice(a, min(a + 90, n))))
+        p = w.close()
+        with pq.ParquetFile(p) as pf:
+            rows = [pf.metadata.row_group(i).num_rows for i in range(pf.num_row_groups)]
+        assert rows == ([90] * 11 + [10] if rg is None else [270, 270, 270, 190])
+        tabs[rg] = pq.read_table(p)
+    assert tabs[None].equals(tabs[250], check_metadata=True)

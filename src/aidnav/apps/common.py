@@ -106,31 +106,23 @@ def check_solution(traj, what: str = "filter") -> None:
     :data:`MAX_PLAUSIBLE_SPEED_M_S` and longer than :data:`MIN_JUMP_M`, position σ beyond
     :data:`MAX_PLAUSIBLE_POS_STD_M`.
 
-    Raises :class:`DivergenceError` naming the first bad epoch and what to check."""
-    from aidnav.nav.earth import lla_difference_enu
+    Raises :class:`DivergenceError` naming the first bad epoch and what to check (one pass of a numba
+    kernel over the rows for the NaN and jump tests: :mod:`aidnav.apps.check_kernels`)."""
+    from aidnav.apps.check_kernels import first_jump, nonfinite_rows
 
-    cols = [traj.lat, traj.lon, traj.height, traj.vel, traj.rph]
-    bad = np.zeros(len(traj.time), bool)
-    for c in cols:
-        c = np.asarray(c)
-        bad |= ~np.isfinite(c).reshape(len(traj.time), -1).all(axis=1)
-    if bad.any():
-        i = int(np.flatnonzero(bad)[0])
+    f = [np.ascontiguousarray(x, dtype=np.float64) for x in (traj.time, traj.lat, traj.lon, traj.height)]
+    vel, rph = (np.ascontiguousarray(np.asarray(x, dtype=np.float64).reshape(len(f[0]), -1))
+                for x in (traj.vel, traj.rph))
+    n_bad, i = nonfinite_rows(f[1], f[2], f[3], vel, rph)
+    if n_bad:
         raise DivergenceError(f"{what} diverged: NaN/inf in the solution from t={traj.time[i]:.3f} s "
-                              f"({int(bad.sum())} samples); check the IMU units and the noise "
+                              f"({n_bad} samples); check the IMU units and the noise "
                               "configuration; nothing was written")
-    if len(traj.time) > 1:
-        de, dn, du = lla_difference_enu(traj.lat[1:], traj.lon[1:], traj.height[1:],
-                                        traj.lat[:-1], traj.lon[:-1], traj.height[:-1])
-        dt = np.diff(traj.time)
-        step = np.sqrt(de**2 + dn**2 + du**2)
-        sp = step / np.maximum(dt, 1e-9)
-        jump = (sp > MAX_PLAUSIBLE_SPEED_M_S) & (step > MIN_JUMP_M)
-        if jump.any():
-            i = int(np.flatnonzero(jump)[0])
-            raise DivergenceError(f"{what} diverged: the position jumps {sp[i] * dt[i]:.1f} m in "
-                                  f"{dt[i]:.3f} s at t={traj.time[i + 1]:.3f} s; check the GNSS file and "
-                                  "the IMU units; nothing was written")
+    i, step, dt = first_jump(*f, MAX_PLAUSIBLE_SPEED_M_S, MIN_JUMP_M)
+    if i >= 0:
+        raise DivergenceError(f"{what} diverged: the position jumps {step / max(dt, 1e-9) * dt:.1f} m in "
+                              f"{dt:.3f} s at t={traj.time[i + 1]:.3f} s; check the GNSS file and "
+                              "the IMU units; nothing was written")
     if traj.std_pos is not None:
         sp = np.asarray(traj.std_pos)
         if np.isfinite(sp).all() and sp.size and float(sp.max()) > MAX_PLAUSIBLE_POS_STD_M:
@@ -138,3 +130,4 @@ def check_solution(traj, what: str = "filter") -> None:
             raise DivergenceError(f"{what} diverged: position σ {sp[i].max():.3g} m at "
                                   f"t={traj.time[i]:.3f} s "
                                   "(no aiding reached the filter?); nothing was written")
+

@@ -5,6 +5,7 @@ heading alignment from the GNSS course (moved here from :mod:`aidnav.filters.loo
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from aidnav.data import ImuData
 from aidnav.nav.alignment import coarse_align_static
@@ -57,6 +58,51 @@ def static_flags(imu, gnss, cfg, window_s: float = 1.0) -> np.ndarray:
     return StaticDetector(gnss, cfg, imu.rate_hz, window_s)(imu.time, imu.dtheta, imu.dv, imu.t0)
 
 
+F64_MAX = np.finfo(np.float64).max
+
+
+@njit(cache=True, nogil=True)
+def _spread_flags(time, dtheta, dv, t_prev, ring, k, n, thr_w, thr_f, ok):
+    """``ok[i]``: the spread (σ, the largest of the 3 axes) of the gyro rates below ``thr_w`` and of the
+    specific forces below ``thr_f`` over the last ``n`` samples (fewer at the log start), for the samples
+    ``k``, ``k + 1``, … of a log. The rates are the increments over Δt (NaN where Δt ≤ 0, then 0; ±inf
+    the largest float: ``np.nan_to_num``); their running sums and sums of squares from the log start are
+    kept for the last n + 1 samples in ``ring`` (4, n + 1, 3): sum ω, sum ω², sum f, sum f² at global
+    index g (0: before the first sample) in row g mod (n + 1); updated in place (the next chunk goes on
+    from them). The numbers of a cumulative sum over the whole log (``np.cumsum``: added in order)."""
+    R = n + 1
+    tp = t_prev
+    for i in range(time.shape[0]):
+        dt = time[i] - tp
+        tp = time[i]
+        if dt <= 0.0:
+            dt = np.nan
+        g = k + i + 1
+        cur, prv = g % R, (g - 1) % R
+        lo = max(g - n, 0)
+        lr = lo % R
+        cnt = g - lo
+        good = True
+        for j in range(6):
+            q = 2 * (j // 3)
+            a = (dtheta[i, j] if j < 3 else dv[i, j - 3]) / dt
+            if np.isnan(a):
+                a = 0.0
+            elif a == np.inf:
+                a = F64_MAX
+            elif a == -np.inf:
+                a = -F64_MAX
+            jj = j % 3
+            c = ring[q, prv, jj] + a
+            c2 = ring[q + 1, prv, jj] + a * a
+            ring[q, cur, jj], ring[q + 1, cur, jj] = c, c2
+            mean = (c - ring[q, lr, jj]) / cnt
+            var = (c2 - ring[q + 1, lr, jj]) / cnt - mean * mean
+            if np.isnan(var) or not np.sqrt(max(var, 0.0)) < (thr_w if j < 3 else thr_f):
+                good = False
+        ok[i] = good
+
+
 class StaticDetector:
     """:func:`static_flags` over consecutive chunks of a log (call it with each chunk in order: the
     running sums carry over, so the flags are the whole-log ones)."""
@@ -64,8 +110,7 @@ class StaticDetector:
     def __init__(self, gnss, cfg, rate_hz: float, window_s: float = 1.0):
         c = self.c = cfg.constraints
         self.n = max(2, int(round(window_s * rate_hz)))
-        self.gnss, self.k = gnss, 0
-        self.head = [np.zeros((1, 3)) for _ in range(4)]  # last ≤ n + 1 rows of the running sums
+        self.gnss, self.k, self.ring = gnss, 0, None
         gv = gnss.vel if gnss is not None else None
         if gnss is not None and len(gnss) > 1 and (gv is None or np.all(np.isnan(gv[:, :2]))):
             # no receiver velocity: from position differences, and "static" only where their σ can tell
@@ -76,27 +121,14 @@ class StaticDetector:
             gv = np.where(np.isnan(gv), np.inf, gv)
         self.sp = None if gnss is None or gv is None or len(gnss) == 0 else np.hypot(gv[:, 0], gv[:, 1])
 
-    def _rolling_std(self, a, j):
-        """Spread over the last n samples (the largest of the 3 axes), running sums from the log start."""
-        a = np.nan_to_num(a)
-        h, h2 = self.head[j], self.head[j + 1]
-        cs = np.vstack([h[:-1], np.cumsum(np.vstack([h[-1:], a]), axis=0)])
-        cs2 = np.vstack([h2[:-1], np.cumsum(np.vstack([h2[-1:], a * a]), axis=0)])
-        base = self.k - (len(h) - 1)  # global index of cs[0]
-        idx = np.arange(self.k + 1, self.k + len(a) + 1)
-        lo = np.maximum(idx - self.n, 0)
-        cnt = (idx - lo)[:, None]
-        mean = (cs[idx - base] - cs[lo - base]) / cnt
-        var = (cs2[idx - base] - cs2[lo - base]) / cnt - mean**2
-        self.head[j], self.head[j + 1] = cs[-(self.n + 1):], cs2[-(self.n + 1):]
-        return np.sqrt(np.maximum(var, 0.0)).max(axis=1)
-
     def __call__(self, time, dtheta, dv, t_prev):
         c = self.c
-        dt = np.diff(np.concatenate([[t_prev], time]))
-        dt[dt <= 0] = np.nan
-        ok = ((self._rolling_std(dtheta / dt[:, None], 0) < c.static_gyro_std_deg_s * DEG)
-              & (self._rolling_std(dv / dt[:, None], 2) < c.static_accel_std_m_s2))
+        ok = np.empty(len(time), np.bool_)
+        if self.ring is None:  # running sums of the rates and their squares at the last n + 1 samples
+            self.ring = np.zeros((4, self.n + 1, 3))
+        _spread_flags(np.ascontiguousarray(time, np.float64), np.ascontiguousarray(dtheta, np.float64),
+                      np.ascontiguousarray(dv, np.float64), float(t_prev), self.ring, self.k, self.n,
+                      c.static_gyro_std_deg_s * DEG, float(c.static_accel_std_m_s2), ok)
         self.k += len(time)
         gnss = self.gnss
         if self.sp is not None:

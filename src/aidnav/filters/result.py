@@ -5,10 +5,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import njit
 
 from aidnav.data import Trajectory
-from aidnav.nav.earth import radii
-from aidnav.nav.rotations import dcm_from_euler, dcm_from_rotvec, euler_from_dcm, quat_to_euler_batch, wrap_pi
+from aidnav.nav.earth import E2, A
+from aidnav.nav.rotations import dcm_entries, dcm_from_euler, dcm_from_rotvec, euler_from_dcm, wrap_pi
 from aidnav.units import DEG_H, PPM, UG
 
 from .layout import L_BARO, L_LEVER, L_MOUNT, L_NINS, L_ODO, L_TOFF, L_VDEL, NAV
@@ -160,32 +161,74 @@ def calibration_summary(result, base: dict | None = None) -> dict:
 
 
 def to_trajectory(res: FilterResult):
-    """FilterResult → :class:`aidnav.data.Trajectory` with σ columns and bias columns."""
-    s = res.state
-    lat, h = s[:, 0], s[:, 2]
-    rm, rn = radii(lat)
-    pd = np.sqrt(np.maximum(res.pdiag, 0.0))
-    std_pos = np.column_stack([pd[:, 7] * (rn + h) * np.cos(lat), pd[:, 6] * (rm + h), pd[:, 8]])
-    rph = quat_to_euler_batch(np.ascontiguousarray(s[:, 6:10]))
-    hd = rph[:, 2]
-    # φ (E, N, U) → roll/pitch/heading σ (diagonal approximation about the current heading)
-    sr = np.sqrt((np.cos(hd) * pd[:, 1]) ** 2 + (np.sin(hd) * pd[:, 0]) ** 2)
-    sp = np.sqrt((np.sin(hd) * pd[:, 1]) ** 2 + (np.cos(hd) * pd[:, 0]) ** 2)
-    std_att = np.column_stack([sr, sp, pd[:, 2]])
-    extra = {}
+    """FilterResult → :class:`aidnav.data.Trajectory` with σ columns and bias columns (one pass of
+    :func:`_trajectory_arrays` over the rows)."""
+    s = np.ascontiguousarray(res.state, dtype=np.float64)
+    pdiag = np.ascontiguousarray(res.pdiag, dtype=np.float64)
+    bias = np.ascontiguousarray(res.bias, dtype=np.float64)
+    names, cols, scales = [], [], []
     lay = getattr(res, "layout", None)
     n_groups = res.bias.shape[1] // 3 if lay is None else (int(lay[L_NINS]) - NAV) // 3
     for j in range(n_groups):
         for i, ax in enumerate("xyz"):
             name, scale = SENSOR_ERROR_UNITS[j]
-            extra[name.format(ax)] = res.bias[:, 3 * j + i] * scale
+            names.append(name.format(ax)), cols.append(3 * j + i), scales.append(scale)
     if lay is not None:
         if lay[L_ODO] >= 0:
-            extra["odometer_scale_ppm"] = res.bias[:, lay[L_ODO] - NAV] * 1e6
+            names.append("odometer_scale_ppm"), cols.append(int(lay[L_ODO]) - NAV), scales.append(1e6)
         if lay[L_BARO] >= 0:
-            extra["baro_bias_m"] = res.bias[:, lay[L_BARO] - NAV]
-    return Trajectory(time=res.time, lat=lat, lon=s[:, 1], height=h, vel=s[:, 3:6], rph=rph,
-                      std_pos=std_pos, std_vel=pd[:, 3:6], std_att=std_att, extra=extra)
+            names.append("baro_bias_m"), cols.append(int(lay[L_BARO]) - NAV), scales.append(1.0)
+    N = len(s)
+    if s.shape[1] < 10 or pdiag.shape[1] < 9 or len(pdiag) != N or len(bias) != N:
+        raise ValueError("to_trajectory: state (N, 10), pdiag (N, >= 9) and bias (N, ·) expected")
+    if cols and max(cols) >= bias.shape[1]:
+        raise ValueError("to_trajectory: the layout names bias columns the result does not have")
+    rph, std_pos, std_vel, std_att = (np.empty((N, 3)) for _ in range(4))
+    extra = np.empty((len(names), N))
+    _trajectory_arrays(s, pdiag, bias, np.array(cols, np.int64), np.array(scales, np.float64), rph, std_pos,
+                       std_vel, std_att, extra)
+    return Trajectory(time=res.time, lat=s[:, 0], lon=s[:, 1], height=s[:, 2], vel=s[:, 3:6], rph=rph,
+                      std_pos=std_pos, std_vel=std_vel, std_att=std_att,
+                      extra={k: extra[j] for j, k in enumerate(names)})
+
+
+@njit(cache=True, nogil=True)
+def _trajectory_arrays(st, pdiag, bias, cols, scales, rph, std_pos, std_vel, std_att, extra):
+    """The columns of :func:`to_trajectory` row by row, into the arrays given: σ = √max(P_ii, 0) (NaN
+    stays NaN); std_pos E, N, U [m] from σ δλ, δL, δh with R_N, R_M (:func:`aidnav.nav.earth.radii`);
+    roll/pitch/heading of the quaternion (:func:`aidnav.nav.rotations.euler_from_dcm`); φ (E, N, U) →
+    roll/pitch/heading σ (diagonal approximation about the current heading); ``extra[j]`` the bias
+    column ``cols[j]`` × ``scales[j]``. The operations of the former whole-array version, in its order
+    (the same numbers)."""
+    c = np.empty((3, 3))
+    p = np.empty(9)
+    for k in range(st.shape[0]):
+        for i in range(9):
+            v = pdiag[k, i]
+            p[i] = np.sqrt(v if (v > 0.0 or np.isnan(v)) else 0.0)  # np.maximum(v, 0.0) (−0 → 0)
+        lat, h = st[k, 0], st[k, 2]
+        sl = np.sin(lat)
+        w2 = 1.0 - E2 * sl * sl
+        w = np.sqrt(w2)
+        rn = A / w
+        rm = A * (1.0 - E2) / (w2 * w)
+        std_pos[k, 0] = p[7] * (rn + h) * np.cos(lat)
+        std_pos[k, 1] = p[6] * (rm + h)
+        std_pos[k, 2] = p[8]
+        c[0, 0], c[0, 1], c[0, 2], c[1, 0], c[1, 1], c[1, 2], c[2, 0], c[2, 1], c[2, 2] = dcm_entries(
+            st[k, 6], st[k, 7], st[k, 8], st[k, 9])
+        r, pt, hd = euler_from_dcm(c)
+        rph[k, 0], rph[k, 1], rph[k, 2] = r, pt, hd
+        ch, sh = np.cos(hd), np.sin(hd)
+        a, b = ch * p[1], sh * p[0]
+        std_att[k, 0] = np.sqrt(a * a + b * b)
+        a, b = sh * p[1], ch * p[0]
+        std_att[k, 1] = np.sqrt(a * a + b * b)
+        std_att[k, 2] = p[2]
+        for i in range(3):
+            std_vel[k, i] = p[3 + i]
+        for j in range(cols.shape[0]):
+            extra[j, k] = bias[k, cols[j]] * scales[j]
 
 
 def nis_health(result, window_s: float = 30.0, far_ratio: float = 2.0) -> dict:

@@ -16,8 +16,11 @@ after the pass. The node matrices of the smoother (P⁺, P⁻, Φ: 3n² floats a
 and the RTS pass reads them backwards in blocks (:func:`_rts_spooled`); what stays in memory per node is
 its sample index, δx, the smoothed ds and diag Ps (3n + 1 floats, ≈ 0.5 kB at n = 21).
 
-What stays whole-log: the GNSS fixes and the per-fix record log (1 Hz: 100 times fewer rows than the
-IMU), the model id and status of every node-constraint update (2 bytes per node). A log that needs a
+Each chunk's engine call gets only the records it can reach (:data:`REC_AHEAD_S`), so its log is the
+size of the chunk's, not the whole log's. What stays whole-log: the GNSS fixes, their records and the
+per-record log (1 Hz: 100 times fewer rows than the IMU; status, NIS, innovation and diag S of at most
+:data:`REC_ROWS` rows: ≈ 60 bytes a record), the model id and status of every node-constraint update
+(2 bytes per node). A log that needs a
 whole-log fit before filtering (the coarse mounting: NHC or odometer with no mounting configured) or
 full covariances at given times is for :func:`run_loose` (:func:`needs_whole_log`).
 """
@@ -32,6 +35,7 @@ from aidnav.io.stream import Spool
 from .engine import Imu, Log, Output, rts, run_chunk, smooth_outputs, start_carry
 from .layout import L_TOFF, NAV, layout_names
 from .loose import loose_setup
+from .measurements import MAX_ROWS
 from .preprocess import StaticDetector, bridge_gaps
 from .result import FilterResult
 from .run_log import _calibration_base, _gnss_records, _log_dict, loose_counts
@@ -89,7 +93,8 @@ def stream_loose(chunks, gnss, cfg, emit, withheld=None, smooth: bool = False, e
         ``smoothed``) in time order; with the smoother also ``emit(piece, forward=True)`` first for the
         forward pieces. progress : called with the number of IMU samples of each chunk done.
     Returns a :class:`FilterResult` whose arrays hold the last output epoch only, with ``records``,
-    ``counts``, ``innovations`` (the record rows), ``final_P``, ``events`` as :func:`run_loose`.
+    ``counts``, ``innovations`` (the record rows; ``nu`` and ``s`` :data:`REC_ROWS` columns wide unless a
+    record used more), ``final_P``, ``events`` as :func:`run_loose`.
     """
     events = events if events is not None else []
     chunks = iter(chunks)
@@ -107,6 +112,7 @@ def stream_loose(chunks, gnss, cfg, emit, withheld=None, smooth: bool = False, e
     out = Output(su.out_every, bool(smooth), np.zeros(0, np.int64))
     M = len(su.rec.t)
     rec_log = None
+    window = su.rec.grp.t.shape[0] == 0  # (epoch records index the whole log: not windowed)
     node_model, node_status, static_used, n_nodes = [], [], 0, 0
     spool = node_spool = None
     node_idx_l, node_dx = [], []  # with the smoother: per node its sample and δx; Φ, P⁻, P⁺ on disk
@@ -140,18 +146,23 @@ def stream_loose(chunks, gnss, cfg, emit, withheld=None, smooth: bool = False, e
             if ini.reset_idx == NEVER and rt is not None and np.isfinite(rt) and t[-1] >= rt:
                 ini = ini._replace(reset_idx=kb + int(np.searchsorted(t, rt, side="left")))
             static_used += int(st_fl[a:].sum())
-            cy = cy._replace(last=last)
+            # the records this chunk can reach (the engine's own bound, with a margin): its log then
+            # holds those rows, not the whole log's (memory and time independent of the log length)
+            g0 = cy.gi
+            g1 = M if last or not window else min(M, int(np.searchsorted(su.rec.t, t[-1] + REC_AHEAD_S,
+                                                                              side="right")) + 1)
+            rec_k = _rec_window(su.rec, g0, g1) if window else su.rec
+            gb = g0 if window else 0  # global index of the window's first record
+            cy = cy._replace(last=last, gi=cy.gi - gb)
             imu_k = Imu(t, dth[a:], dv[a:], st_fl[a:], gap_var[a:], np.zeros((0, 2)))
-            r = run_chunk(imu_k, su.rec, su.models, su.proc, ini, out, cy)
-            g0, cy = cy.gi, r.carry
-            lg = {k: getattr(r.log, k) for k in r.log._fields}  # (names once, at the end)
+            r = run_chunk(imu_k, rec_k, su.models, su.proc, ini, out, cy)
+            cy = r.carry._replace(gi=r.carry.gi + gb)
             if rec_log is None:
-                rec_log = {k: v[:M].copy() for k, v in lg.items()}
-            else:
-                for k in rec_log:
-                    rec_log[k][g0:cy.gi] = lg[k][g0:cy.gi]
-            node_model.append(lg["model"][M:r.n_log].copy())
-            node_status.append(lg["status"][M:r.n_log].copy())
+                rec_log = _new_rec_log(su.rec)
+            m_k = len(rec_k.t)
+            _keep_rows(rec_log, r.log, g0, cy.gi, gb)
+            node_model.append(r.log.model[m_k:r.n_log].copy())
+            node_status.append(r.log.status[m_k:r.n_log].copy())
             n_nodes += len(r.node_idx)
             if smooth and len(r.node_idx):
                 node_idx_l.append(r.node_idx.copy())
@@ -198,6 +209,7 @@ def stream_loose(chunks, gnss, cfg, emit, withheld=None, smooth: bool = False, e
                 sp.close()
     if rec_log is None:
         raise ValueError("no IMU sample after the initialisation")
+    rec_log["ref"] = np.arange(M, dtype=np.int64)
     log = _log_dict(Log(**rec_log), M)
     node_m = np.concatenate(node_model) if node_model else np.zeros(0, np.int8)
     node_s = np.concatenate(node_status) if node_status else np.zeros(0, np.int8)
@@ -214,6 +226,48 @@ def stream_loose(chunks, gnss, cfg, emit, withheld=None, smooth: bool = False, e
     res.gnss_time = np.asarray(gnss.time, float)
     res.node_time = np.zeros(0)
     return res
+
+
+#: the records given to a chunk: those stamped up to this long after its last sample (the engine looks
+#: 100 s ahead: a time offset or clock bias beyond that is refused there)
+REC_AHEAD_S = 200.0
+
+
+def _rec_window(rec, a, b):
+    """The records ``a:b`` (views: the engine's types are unchanged)."""
+    return rec._replace(t=rec.t[a:b], model=rec.model[a:b], data=rec.data[a:b], use=rec.use[a:b])
+
+
+#: innovation columns kept per record row: the record models of the loose filter (GNSS position and
+#: velocity, odometer, barometer) have at most 3 rows (the engine's log has MAX_ROWS; widened if needed)
+REC_ROWS = 3
+
+
+def _new_rec_log(rec) -> dict:
+    """The engine's log rows of every record before any is done (the fields of :class:`.engine.Log`
+    but ``ref``, added at the end; ``t`` the records' own array; ``nu`` and ``s`` :data:`REC_ROWS`
+    wide): the only per-record whole-log arrays (≈ 60 bytes a record)."""
+    M = len(rec.t)
+    return dict(t=rec.t, model=rec.model.astype(np.int8), status=np.full(M, -1, np.int8),
+                nis=np.full(M, np.nan), nu=np.full((M, REC_ROWS), np.nan), s=np.full((M, REC_ROWS), np.nan),
+                reinit=np.zeros(M, np.int8))
+
+
+def _keep_rows(rec_log, log, a, b, base) -> None:
+    """Rows ``a:b`` (whole-log record indices) of ``rec_log`` from the engine's ``log`` of a chunk whose
+    first record is ``base``; ``nu``/``s`` widened to the engine's width when a row uses more columns."""
+    for k in ("status", "nis", "nu", "s", "reinit"):
+        v = getattr(log, k)[a - base:b - base]
+        if v.ndim == 2:
+            w = rec_log[k].shape[1]
+            if w < v.shape[1] and not np.isnan(v[:, w:]).all():
+                for kk in ("nu", "s"):
+                    old = rec_log[kk]
+                    rec_log[kk] = np.full((len(old), MAX_ROWS), np.nan)
+                    rec_log[kk][:, :w] = old
+                w = rec_log[k].shape[1]
+            v = v[:, :w]
+        rec_log[k][a:b] = v
 
 
 RTS_BLOCK = 1024  #: nodes per block of the spooled RTS pass (3n² floats each: 10.6 MB at n = 21)

@@ -36,8 +36,10 @@ import json
 import logging
 import multiprocessing
 import os
+import pickle
 import platform
 import sys
+import tempfile
 import time
 from collections import OrderedDict
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -55,7 +57,6 @@ from aidnav.sim.imu import ImuSpec, corrupt_imu
 from aidnav.sim.run import SimulationResult
 from aidnav.sim.trajectory import generate_truth
 
-from . import store
 from .config import Experiment, ExperimentPlan, build_scenario, load_experiment
 from .estimators import get_estimator, state_blocks, state_unit
 
@@ -317,12 +318,20 @@ def run_batch_task(task: BatchTask, batched: bool = True) -> list[dict]:
              "timing": tm[i], "estimators": res[i]} for i, run in enumerate(task.runs)]
 
 
-def make_batches(tasks: list[RunTask], size: int) -> list[BatchTask]:
-    """Consecutive runs of the same sweep point in batches of at most ``size`` runs."""
+def make_batches(tasks: list[RunTask], size: int, workers: int | None = None) -> list[BatchTask]:
+    """Consecutive runs of the same sweep point in batches of at most ``size`` runs.
+
+    workers : for that many parallel workers, batches that shrink towards the end of the campaign (at most
+        ⌈remaining runs / (2 workers)⌉ runs each, down to one): the workers finish together instead of one
+        computing a last full batch while the others wait. None: all batches of ``size``.
+    """
     out: list[list[RunTask]] = []
-    for t in tasks:
-        if not out or out[-1][0].key != t.key or len(out[-1]) >= size:
+    cap = size
+    for i, t in enumerate(tasks):
+        if not out or out[-1][0].key != t.key or len(out[-1]) >= cap:
             out.append([])
+            if workers:
+                cap = max(1, min(size, -(-(len(tasks) - i) // (2 * workers))))
         out[-1].append(t)
     return [BatchTask(b[0].key, b[0].point, tuple(t.run for t in b), b[0].doc) for b in out]
 
@@ -334,19 +343,65 @@ def _serial(tasks, on_result):
             on_result(r)
 
 
-def _processes(tasks, on_result, workers: int):
-    ex = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
-    futs = [ex.submit(run_batch_task, t) for t in tasks]
-    try:
-        for f in as_completed(futs):
-            for r in f.result():
-                on_result(r)
-    except BaseException:
-        for f in futs:
-            f.cancel()
-        ex.shutdown(wait=False, cancel_futures=True)
-        raise
-    ex.shutdown(wait=True)
+def _worker_init(seed: str | None):
+    """Start-up of a local worker process: the truth and noise-free GNSS fixes that the main process already
+    generated (pickled to the file ``seed``) fill this process's caches, and the modules a run needs are
+    imported, while the main process computes the first batch."""
+    for v in _THREAD_VARS:
+        os.environ.setdefault(v, "1")
+    if seed:
+        with open(seed, "rb") as f:
+            truth, gnss = pickle.load(f)
+        for cache, items in ((_TRUTH, truth), (_GNSS, gnss)):
+            for k, v in items.items():
+                _cached(cache, k, lambda v=v: v)
+    importlib.import_module("aidnav.analysis.consistency")
+    importlib.import_module("aidnav.analysis.errors")
+
+
+def _worker_ready() -> int:
+    return os.getpid()
+
+
+def _seed_file(task: BatchTask, folder: Path) -> Path:
+    """The truth and GNSS template of ``task``'s point (generated here, cached) pickled for the workers."""
+    ctx = _context(task.key, task.doc)
+    truth = _truth(ctx)
+    gk = (ctx.sim_key, ctx.gnss_key)
+    tmpl = _gnss_template(ctx, truth[0])
+    path = folder / "point.pickle"
+    with open(path, "wb") as f:
+        pickle.dump(({ctx.sim_key: truth}, {gk: tmpl}), f, protocol=pickle.HIGHEST_PROTOCOL)
+    return path
+
+
+def _processes(tasks, on_result, workers: int, first: BatchTask | None = None):
+    """A local process pool. ``first``: a batch computed here while the workers start (their interpreter,
+    imports and caches: :func:`_worker_init`); the other tasks are submitted after it, so that numba's
+    on-disk cache is written (when it had to compile) before the workers load the kernels."""
+    with tempfile.TemporaryDirectory(prefix="aidnav_pool_") as tmp:
+        seed = str(_seed_file(first, Path(tmp))) if first is not None else None
+        ex = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
+                                 initializer=_worker_init, initargs=(seed,))
+        futs = []
+        try:
+            # each submit to a pool without an idle worker starts one: all of them start now
+            ready = [ex.submit(_worker_ready) for _ in range(workers)]
+            if first is not None:
+                for r in run_batch_task(first):
+                    on_result(r)
+            futs = [ex.submit(run_batch_task, t) for t in tasks]
+            for f in as_completed(futs):
+                for r in f.result():
+                    on_result(r)
+            for f in ready:
+                f.result()
+        except BaseException:
+            for f in futs:
+                f.cancel()
+            ex.shutdown(wait=False, cancel_futures=True)
+            raise
+        ex.shutdown(wait=True)
 
 
 def _dask(tasks, on_result, workers: int, scheduler: str | None, info: dict):
@@ -384,6 +439,8 @@ def _host() -> dict:
 
 
 def _versions() -> dict:
+    from . import store
+
     return {"aidnav": store.package_version(), "numpy": np.__version__, "numba": numba.__version__}
 
 
@@ -421,6 +478,8 @@ def run_experiment(experiment, out_dir, *, workers: int = 1, scheduler: str | No
         TimeElapsedColumn,
         TimeRemainingColumn,
     )
+
+    from . import store  # lazy: pyarrow; the workers do not write the tables
 
     t_start = time.perf_counter()
     plan = experiment if isinstance(experiment, ExperimentPlan) else load_experiment(experiment)
@@ -473,22 +532,24 @@ def run_experiment(experiment, out_dir, *, workers: int = 1, scheduler: str | No
         par = backend != "serial"
         size = batch or max(1, min(BATCH_RUNS, -(-len(todo) // (2 * workers)) if par else BATCH_RUNS))
         try:
+            first = None
             if len(todo) > 1 and par and not scheduler:
                 # the first runs here: numba compiles (or loads) its kernels once and caches them on disk,
                 # so that the local workers load them instead of each compiling them again
-                first = make_batches(todo[:min(2, size)], size)
-                for r in run_batch_task(first[0]):
-                    on_result(r)
-                todo = todo[len(first[0].runs):]
-            todo = make_batches(todo, size)
-            if not todo:
-                pass
-            elif backend == "serial":
-                _serial(todo, on_result)
-            elif backend == "processes":
-                _processes(todo, on_result, workers)
+                first = make_batches(todo[:min(2, size)], size)[0]
+                todo = todo[len(first.runs):]
+            todo = make_batches(todo, size, workers if par else None)
+            if backend == "processes":
+                _processes(todo, on_result, workers, first)
             else:
-                _dask(todo, on_result, workers, scheduler, info)
+                for r in run_batch_task(first) if first is not None else []:
+                    on_result(r)
+                if not todo:
+                    pass
+                elif backend == "serial":
+                    _serial(todo, on_result)
+                else:
+                    _dask(todo, on_result, workers, scheduler, info)
         except KeyboardInterrupt:
             raise CampaignInterrupted(f"interrupted: {n_reused + computed} of {n_total} runs are in "
                                       f"{out / 'runs'}; run the same command again to resume") from None

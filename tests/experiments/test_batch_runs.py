@@ -93,3 +93,37 @@ def test_make_batches():
     b = runner.make_batches(t, 2)
     assert [(x.key, x.runs) for x in b] == [("a", (0, 1)), ("a", (2, 3)), ("a", (4,)), ("b", (0, 1)),
                                             ("b", (2, 3)), ("b", (4,))]
+
+
+def test_make_batches_shrink_for_workers():
+    """For parallel workers the batches shrink towards the end (at most ⌈remaining / (2 workers)⌉ runs), keep
+    the runs in order and never span two sweep points."""
+    t = [runner.RunTask("a", 0, r, {}) for r in range(98)] + [runner.RunTask("b", 1, r, {}) for r in range(5)]
+    b = runner.make_batches(t, 8, workers=2)
+    assert [r for x in b for r in x.runs] == [x.run for x in t]
+    assert all(len({x.key}) == 1 for x in b)
+    sizes = [len(x.runs) for x in b]
+    assert max(sizes) == 8 and sizes[-3:] == [1, 1, 1]
+    left = len(t)
+    for x in b:  # the cap at each batch's start
+        assert len(x.runs) <= max(1, -(-left // 4))
+        left -= len(x.runs)
+    assert [len(x.runs) for x in runner.make_batches(t[:10], 8)] == [8, 2]  # no workers: fixed size
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("method", ["spawn", "fork"])
+def test_process_pool_start_methods(tiny_file, tiny_serial, tmp_path, monkeypatch, method):
+    """The local process pool gives the serial tables whether its workers are forked (Linux default: they
+    inherit the loaded kernels and truth) or spawned (they get the truth pickled from the main process)."""
+    import multiprocessing
+
+    from .test_runner import _same_tables
+
+    if method not in multiprocessing.get_all_start_methods():
+        pytest.skip(f"no {method} here")
+    monkeypatch.setattr(runner, "START_METHOD", method)
+    out = tmp_path / method
+    r = runner.run_experiment(tiny_file, out, workers=2, backend="processes", progress=False, batch=2)
+    assert r.complete and r.computed == 6
+    _same_tables(tiny_serial[0], out)

@@ -344,9 +344,10 @@ def _serial(tasks, on_result):
 
 
 def _worker_init(seed: str | None):
-    """Start-up of a local worker process: the truth and noise-free GNSS fixes that the main process already
-    generated (pickled to the file ``seed``) fill this process's caches, and the modules a run needs are
-    imported, while the main process computes the first batch."""
+    """Start-up of a local worker process (:class:`_Pool`): single-threaded BLAS; with spawn, the truth and
+    noise-free GNSS fixes that the main process already generated (pickled to the file ``seed``) fill this
+    process's caches and the modules a run needs are imported, while the main process computes the first
+    batch."""
     for v in _THREAD_VARS:
         os.environ.setdefault(v, "1")
     if seed:
@@ -375,33 +376,60 @@ def _seed_file(task: BatchTask, folder: Path) -> Path:
     return path
 
 
-def _processes(tasks, on_result, workers: int, first: BatchTask | None = None):
-    """A local process pool. ``first``: a batch computed here while the workers start (their interpreter,
-    imports and caches: :func:`_worker_init`); the other tasks are submitted after it, so that numba's
-    on-disk cache is written (when it had to compile) before the workers load the kernels."""
-    with tempfile.TemporaryDirectory(prefix="aidnav_pool_") as tmp:
-        seed = str(_seed_file(first, Path(tmp))) if first is not None else None
-        ex = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-                                 initializer=_worker_init, initargs=(seed,))
-        futs = []
+#: how the local process pool starts its workers: fork where the platform has it safely (Linux): a worker is
+#: then a copy of this process, with its imported modules, loaded numba kernels and cached truth (no
+#: start-up); spawn elsewhere (:func:`_worker_init`)
+START_METHOD = "fork" if sys.platform.startswith("linux") else "spawn"
+
+
+class _Pool:
+    """The local process pool of a campaign (``backend="processes"``), started before the progress bar (no
+    other thread in this process when it forks).
+
+    ``first`` : a batch computed here (numba compiles or loads its kernels once, and with spawn caches them
+    on disk before the workers load them); its results are in ``early``. With fork it is computed before the
+    workers start (they inherit the loaded kernels and the truth); with spawn while they start (interpreter,
+    imports, and the truth pickled from here: :func:`_worker_init`).
+    """
+
+    def __init__(self, workers: int, first: BatchTask | None, method: str | None = None):
+        method = method or START_METHOD
+        self.early, self._tmp, self.ex = [], None, None
         try:
-            # each submit to a pool without an idle worker starts one: all of them start now
-            ready = [ex.submit(_worker_ready) for _ in range(workers)]
-            if first is not None:
-                for r in run_batch_task(first):
-                    on_result(r)
-            futs = [ex.submit(run_batch_task, t) for t in tasks]
+            if method == "fork" and first is not None:
+                self.early = run_batch_task(first)
+            seed = None
+            if method != "fork" and first is not None:
+                self._tmp = tempfile.TemporaryDirectory(prefix="aidnav_pool_")
+                seed = str(_seed_file(first, Path(self._tmp.name)))
+            self.ex = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context(method),
+                                          initializer=_worker_init, initargs=(seed,))
+            # all workers start now (fork: at the first submit; spawn: one per submit while none is idle)
+            self._ready = [self.ex.submit(_worker_ready) for _ in range(workers)]
+            if method != "fork" and first is not None:
+                self.early = run_batch_task(first)
+        except BaseException:
+            self.close(wait=False)
+            raise
+
+    def run(self, tasks, on_result):
+        futs = [self.ex.submit(run_batch_task, t) for t in tasks]
+        try:
             for f in as_completed(futs):
                 for r in f.result():
                     on_result(r)
-            for f in ready:
+            for f in self._ready:
                 f.result()
         except BaseException:
             for f in futs:
                 f.cancel()
-            ex.shutdown(wait=False, cancel_futures=True)
             raise
-        ex.shutdown(wait=True)
+
+    def close(self, wait: bool = True):
+        if self.ex is not None:
+            self.ex.shutdown(wait=wait, cancel_futures=not wait)
+        if self._tmp is not None:
+            self._tmp.cleanup()
 
 
 def _dask(tasks, on_result, workers: int, scheduler: str | None, info: dict):
@@ -509,9 +537,25 @@ def run_experiment(experiment, out_dir, *, workers: int = 1, scheduler: str | No
     info = {"kind": backend, "workers": workers if backend != "serial" else 1}
     computed = 0
 
+    par = backend != "serial"
+    size = batch or max(1, min(BATCH_RUNS, -(-len(todo) // (2 * workers)) if par else BATCH_RUNS))
+    first = pool = None
+    if len(todo) > 1 and par and not scheduler:
+        # the first runs here: numba compiles (or loads) its kernels once and caches them on disk, so that the
+        # local workers load them (or, forked, inherit them) instead of each compiling them again
+        first = make_batches(todo[:min(2, size)], size)[0]
+        todo = todo[len(first.runs):]
+    todo = make_batches(todo, size, workers if par else None)
+    t_comp = time.perf_counter()
+    if backend == "processes":
+        try:
+            pool = _Pool(workers, first)
+        except KeyboardInterrupt:
+            raise CampaignInterrupted(f"interrupted: {n_reused} of {n_total} runs are in {out / 'runs'}; run "
+                                      "the same command again to resume") from None
+
     cols = [TextColumn("{task.description}", markup=False), BarColumn(), MofNCompleteColumn(),
             TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn()]
-    t_comp = time.perf_counter()
     with Progress(*cols, console=console, disable=not progress or not todo, transient=False) as bar:
         task_id = bar.add_task(f"{plan.experiment.name}: runs", total=n_total, completed=n_reused)
 
@@ -529,30 +573,28 @@ def run_experiment(experiment, out_dir, *, workers: int = 1, scheduler: str | No
             agg["imu_samples"] += res["imu_samples"]
             bar.advance(task_id)
 
-        par = backend != "serial"
-        size = batch or max(1, min(BATCH_RUNS, -(-len(todo) // (2 * workers)) if par else BATCH_RUNS))
+        ok = False
         try:
-            first = None
-            if len(todo) > 1 and par and not scheduler:
-                # the first runs here: numba compiles (or loads) its kernels once and caches them on disk,
-                # so that the local workers load them instead of each compiling them again
-                first = make_batches(todo[:min(2, size)], size)[0]
-                todo = todo[len(first.runs):]
-            todo = make_batches(todo, size, workers if par else None)
-            if backend == "processes":
-                _processes(todo, on_result, workers, first)
-            else:
-                for r in run_batch_task(first) if first is not None else []:
+            for r in pool.early if pool is not None else []:
+                on_result(r)
+            if first is not None and pool is None:
+                for r in run_batch_task(first):
                     on_result(r)
-                if not todo:
-                    pass
-                elif backend == "serial":
-                    _serial(todo, on_result)
-                else:
-                    _dask(todo, on_result, workers, scheduler, info)
+            if not todo:
+                pass
+            elif backend == "serial":
+                _serial(todo, on_result)
+            elif backend == "processes":
+                pool.run(todo, on_result)
+            else:
+                _dask(todo, on_result, workers, scheduler, info)
+            ok = True
         except KeyboardInterrupt:
             raise CampaignInterrupted(f"interrupted: {n_reused + computed} of {n_total} runs are in "
                                       f"{out / 'runs'}; run the same command again to resume") from None
+        finally:
+            if pool is not None:
+                pool.close(wait=ok)
     t_compute = time.perf_counter() - t_comp
 
     complete = n_reused + computed == n_total

@@ -112,10 +112,11 @@ def test_make_batches_shrink_for_workers():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("method", ["spawn", "fork"])
-def test_process_pool_start_methods(tiny_file, tiny_serial, tmp_path, monkeypatch, method):
+@pytest.mark.parametrize("method,warm", [("spawn", True), ("fork", True), ("fork", False)])
+def test_process_pool_start_methods(tiny_file, tiny_serial, tmp_path, monkeypatch, method, warm):
     """The local process pool gives the serial tables whether its workers are forked (Linux default: they
-    inherit the loaded kernels and truth) or spawned (they get the truth pickled from the main process)."""
+    inherit the loaded kernels and truth; after a first batch here unless this process has computed the
+    point before) or spawned (they get the truth pickled from the main process)."""
     import multiprocessing
 
     from .test_runner import _same_tables
@@ -123,7 +124,18 @@ def test_process_pool_start_methods(tiny_file, tiny_serial, tmp_path, monkeypatc
     if method not in multiprocessing.get_all_start_methods():
         pytest.skip(f"no {method} here")
     monkeypatch.setattr(runner, "START_METHOD", method)
+    if not warm:
+        monkeypatch.setattr(runner, "_COMPUTED", set())
+    seen = []
+
+    class Pool(runner._Pool):  # records the runs computed in this process before the workers take over
+        def __init__(self, *a, **k):
+            super().__init__(*a, **k)
+            seen.append([r["run"] for r in self.early])
+
+    monkeypatch.setattr(runner, "_Pool", Pool)
     out = tmp_path / method
     r = runner.run_experiment(tiny_file, out, workers=2, backend="processes", progress=False, batch=2)
     assert r.complete and r.computed == 6
     _same_tables(tiny_serial[0], out)
+    assert seen == [[] if method == "fork" and warm else [0, 1]]

@@ -9,8 +9,11 @@
 3. the remaining runs are computed — in this process (``workers=1``), on a local Dask cluster
    (``workers > 1``; ``backend="processes"`` uses a ``concurrent.futures`` process pool instead) or on
    an existing Dask scheduler (``scheduler="tcp://host:8786"``) — each result is written to ``DIR/runs``
-   as it arrives (a rich progress bar shows the ETA); with local workers the first run is computed in
-   this process, so that numba's on-disk cache is warm before the workers start;
+   as it arrives (a rich progress bar shows the ETA); with local workers the first batch is computed in
+   this process, so that numba's on-disk cache is warm before the workers load it; the local process pool
+   forks its workers after that batch where the platform allows (Linux: they start with this process's
+   imports, loaded kernels and truth), else spawns them while it runs (:class:`_Pool`); the batches shrink
+   towards the end of the campaign so that the workers finish together (:func:`make_batches`);
 4. when all runs exist, they are merged into ``runs.parquet``, ``epochs.parquet``, ``consistency.json``
    and ``trajectories.parquet``, and ``manifest.json`` is written.
 
@@ -24,8 +27,8 @@ differences between points are not blurred by different draws.
 
 Work per run: the truth trajectory and the noise-free GNSS fixes depend only on the sweep point's
 motion and receiver settings: each worker process generates them once per point (and keeps the last
-few), and a run only redraws the sensor errors (:func:`aidnav.sim.imu.corrupt_imu`, GNSS noise) before
-running the estimators (numba kernels).
+few; a local worker gets the first point's from this process), and a run only redraws the sensor
+errors (:func:`aidnav.sim.imu.corrupt_imu`, GNSS noise) before running the estimators (numba kernels).
 """
 
 from __future__ import annotations
@@ -130,6 +133,7 @@ _CONTEXTS: OrderedDict[str, _Context] = OrderedDict()
 _TRUTH: OrderedDict[str, tuple] = OrderedDict()
 _GNSS: OrderedDict[tuple, GnssTemplate] = OrderedDict()
 _CACHE_SIZE = 3
+_COMPUTED: set[str] = set()  # sweep points (keys) whose runs this process has computed: kernels loaded
 
 
 def _cached(cache: OrderedDict, key, make):
@@ -275,6 +279,7 @@ def run_batch_task(task: BatchTask, batched: bool = True) -> list[dict]:
     for v in _THREAD_VARS:
         os.environ.setdefault(v, "1")
     t0, c0 = time.perf_counter(), time.process_time()
+    _COMPUTED.add(task.key)
     ctx = _context(task.key, task.doc)
     truth = _truth(ctx)[0]
     _gnss_template(ctx, truth)
@@ -540,7 +545,10 @@ def run_experiment(experiment, out_dir, *, workers: int = 1, scheduler: str | No
     par = backend != "serial"
     size = batch or max(1, min(BATCH_RUNS, -(-len(todo) // (2 * workers)) if par else BATCH_RUNS))
     first = pool = None
-    if len(todo) > 1 and par and not scheduler:
+    # a forked worker inherits what this process has loaded: when it has already computed this point (a
+    # second campaign in one session), the first batch need not be computed here first
+    inherited = backend == "processes" and START_METHOD == "fork" and bool(todo) and todo[0].key in _COMPUTED
+    if len(todo) > 1 and par and not scheduler and not inherited:
         # the first runs here: numba compiles (or loads) its kernels once and caches them on disk, so that the
         # local workers load them (or, forked, inherit them) instead of each compiling them again
         first = make_batches(todo[:min(2, size)], size)[0]

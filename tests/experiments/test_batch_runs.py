@@ -139,3 +139,31 @@ def test_process_pool_start_methods(tiny_file, tiny_serial, tmp_path, monkeypatc
     assert r.complete and r.computed == 6
     _same_tables(tiny_serial[0], out)
     assert seen == [[] if method == "fork" and warm else [0, 1]]
+
+
+@pytest.mark.parametrize("case", ["plain", "nan rows", "zero variance", "negative variance"])
+def test_nees_of_diagonal_covariance_equals_solve(case):
+    """The runner's NEES of a diagonal covariance (a division) equals nees() on the (N, k, k) matrices (a
+    solve) bit for bit; a zero variance falls back to the same path as before (None here)."""
+    from aidnav.analysis.consistency import nees
+
+    rng = np.random.default_rng(5)
+    n = 20000
+    e = rng.normal(size=(n, 3)) * 10.0 ** rng.uniform(-4, 4, (n, 3))
+    var = 10.0 ** rng.uniform(-8, 6, (n, 3))
+    if case == "nan rows":
+        e[::7, 1] = np.nan
+        var[::11, 2] = np.inf
+    if case == "negative variance":
+        var[::5, 0] *= -1.0
+    if case == "zero variance":
+        var[3, 1] = 0.0
+        assert runner._nees_diagonal(e, var) is None
+        with pytest.raises(np.linalg.LinAlgError):
+            nees(e, np.einsum("ki,ij->kij", var, np.eye(3)))
+        return
+    P = np.zeros((n, 3, 3))
+    P[:, np.arange(3), np.arange(3)] = var
+    a, b = runner._nees_diagonal(e, var), nees(e, P)
+    assert np.array_equal(a, b, equal_nan=True)
+    assert np.isfinite(a).sum() > n // 2

@@ -242,6 +242,21 @@ def simulate_run(ctx: _Context, run: int, out=None):
     return sim, s_est
 
 
+def _nees_diagonal(e: np.ndarray, var: np.ndarray) -> np.ndarray | None:
+    """:func:`aidnav.analysis.consistency.nees` of errors ``e`` (N, k) with the diagonal covariances of
+    variances ``var`` (N, k), without building the (N, k, k) matrices: the solve of a diagonal system is
+    the division (the same values, ``tests/experiments/test_batch_runs.py``); NaN where e or var is not
+    finite; None where nees would meet a singular matrix (a zero variance)."""
+    out = np.full(len(e), np.nan)
+    ok = np.all(np.isfinite(e), axis=1) & np.all(np.isfinite(var), axis=1)
+    if np.any(ok):
+        ee, vv = e[ok], var[ok]
+        if np.any(vv == 0.0):
+            return None
+        out[ok] = np.sum(ee * (ee / vv), axis=-1)
+    return out
+
+
 def _process(out, name: str) -> dict:
     """EstimatorOutput → boundary-unit arrays and NEES per block."""
     from aidnav.analysis.consistency import nees  # lazy: pulls in scipy
@@ -252,6 +267,10 @@ def _process(out, name: str) -> dict:
     nv = np.full((n_ep, len(blocks)), np.nan)
     for j, idx in enumerate(blocks.values()):
         with np.errstate(all="ignore"):
+            v = _nees_diagonal(out.error[:, idx], out.cov[:, idx]) if out.cov.ndim == 2 else None
+            if v is not None:
+                nv[:, j] = v
+                continue
             try:
                 nv[:, j] = nees(out.error[:, idx], out.block_cov(idx))
             except np.linalg.LinAlgError:

@@ -11,9 +11,14 @@ corruption + GNSS noise), the filter, the error/NEES evaluation, and the merge. 
 preceded by one warm-up run in the same process (numba compilation or cache load, reported apart);
 the workers of the parallel cases start cold (their start-up is part of the wall time).
 
-The machine is often shared: beside the wall figures each case prints a CPU-time figure, the samples per
-CPU-second of the processes that computed the runs (their ``time.process_time``) times the number of
-workers — what the case would give with that many free cores — and the load average.
+The machine is often shared: beside the wall figures each case prints CPU-time figures — the runs' own
+(``time.process_time`` inside the tasks) and the whole campaign's: this process plus the worker processes'
+whole CPU time, their start-up included (``RUSAGE_CHILDREN``, the workers having ended) — with the samples
+per campaign CPU-second times the number of cores (what the case would give with that many free cores,
+serial phases such as the merge aside), and the load average. Wall figures of the parallel cases are the
+machine's share unless the campaign gets both cores (e.g. ``chrt -f 1``). The warm-up imports what the
+merge needs (pyarrow's pandas, scipy.stats) so that trees which import them at different times compare
+alike.
 
 Stretch target: >= 3,000,000 samples/s overall on this 2-core machine.
 

@@ -11,9 +11,14 @@ corruption + GNSS noise), the filter, the error/NEES evaluation, and the merge. 
 preceded by one warm-up run in the same process (numba compilation or cache load, reported apart);
 the workers of the parallel cases start cold (their start-up is part of the wall time).
 
-The machine is often shared: beside the wall figures each case prints a CPU-time figure, the samples per
-CPU-second of the processes that computed the runs (their ``time.process_time``) times the number of
-workers — what the case would give with that many free cores — and the load average.
+The machine is often shared: beside the wall figures each case prints CPU-time figures — the runs' own
+(``time.process_time`` inside the tasks) and the whole campaign's: this process plus the worker processes'
+whole CPU time, their start-up included (``RUSAGE_CHILDREN``, the workers having ended) — with the samples
+per campaign CPU-second times the number of cores (what the case would give with that many free cores,
+serial phases such as the merge aside), and the load average. Wall figures of the parallel cases are the
+machine's share unless the campaign gets both cores (e.g. ``chrt -f 1``). The warm-up imports what the
+merge needs (pyarrow's pandas, scipy.stats) so that trees which import them at different times compare
+alike.
 
 Stretch target: >= 3,000,000 samples/s overall on this 2-core machine.
 
@@ -31,6 +36,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMB
 import argparse  # noqa: E402
 import json  # noqa: E402
 import platform  # noqa: E402
+import resource  # noqa: E402
 import shutil  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
@@ -68,9 +74,13 @@ def bench(plan, out: Path, **kw) -> dict:
     from aidnav.experiments.runner import run_experiment
 
     shutil.rmtree(out, ignore_errors=True)
+    ch0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0, c0 = time.perf_counter(), time.process_time()
     res = run_experiment(plan, out, progress=False, **kw)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    ch1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    # the worker processes (ended and waited for by the time run_experiment returns): start-up included
+    children = (ch1.ru_utime + ch1.ru_stime) - (ch0.ru_utime + ch0.ru_stime)
     assert res.complete
     tm = res.timings
     s = tm["per_run_sums"]
@@ -82,9 +92,9 @@ def bench(plan, out: Path, **kw) -> dict:
             "errors_nees_s": s["errors_s"], "worker_total_s": s["worker_total_s"],
             "filter_samples_per_s": samples / max(sum(s["estimators_s"].values()), 1e-9),
             "sensor_sim_samples_per_s": samples / max(s["sim_s"], 1e-9), "worker_cpu_s": s["worker_cpu_s"],
-            # this process (all of a serial campaign) plus the workers' run CPU time (the runs computed here
-            # before the workers start are counted twice: a bound from above)
-            "campaign_cpu_s": cpu + (s["worker_cpu_s"] if kw.get("backend") != "serial" else 0.0),
+            # this process (all of a serial campaign) plus the worker processes' whole CPU time (their
+            # start-up: interpreter, imports, numba cache loads, truth; and their runs)
+            "campaign_cpu_s": cpu + children, "children_cpu_s": children,
             "samples_per_cpu_s": samples / max(s["worker_cpu_s"], 1e-9), "load": os.getloadavg()[0]}
 
 
@@ -108,6 +118,12 @@ def main():
     # numba compile / cache load (one-run and batched kernels), truth
     runner.run_batch_task(runner.BatchTask(p.key, p.index, (0, 1), p.doc))
     runner.run_task(runner.RunTask(p.key, p.index, 0, p.doc))
+    # what the main process imports for the merge (already imported here by older trees' runner): the same
+    # for every tree measured
+    import pandas  # noqa: F401  (pyarrow's table writer imports it)
+    import scipy.stats  # noqa: F401
+
+    from aidnav.experiments import store  # noqa: F401
     warm = time.perf_counter() - t0
     print(f"host {platform.node()}, {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f}; "
           f"warm-up run (compile/cache load + truth) {warm:.2f} s")
@@ -128,9 +144,11 @@ def main():
                   f"{'meets' if r['samples_per_s'] >= TARGET else 'below'} the {TARGET:,} target)")
             c_all = r["samples"] / max(r["campaign_cpu_s"], 1e-9)
             sc = r["samples_per_cpu_s"]
+            own = r["campaign_cpu_s"] - r["children_cpu_s"]
             print(f"  CPU time: runs {r['worker_cpu_s']:.2f} s ({sc:,.0f} samples/CPU-s), "
-                  f"whole campaign {r['campaign_cpu_s']:.2f} s ({c_all:,.0f} samples/CPU-s): on {cores} free "
-                  f"core(s) {c_all * cores:,.0f} samples/s, on 2 free cores {2 * c_all:,.0f} "
+                  f"whole campaign {r['campaign_cpu_s']:.2f} s (this process {own:.2f} s, worker processes "
+                  f"with their start-up {r['children_cpu_s']:.2f} s; {c_all:,.0f} samples/CPU-s): "
+                  f"on {cores} free core(s) {c_all * cores:,.0f} samples/s, on 2 free cores {2 * c_all:,.0f} "
                   f"({'meets' if 2 * c_all >= TARGET else 'below'} the {TARGET:,} target)")
             print(f"  summed over runs: filter {r['filter_s']:.2f} s "
                   f"({r['filter_samples_per_s']:,.0f} samples/s), "

@@ -93,3 +93,77 @@ def test_make_batches():
     b = runner.make_batches(t, 2)
     assert [(x.key, x.runs) for x in b] == [("a", (0, 1)), ("a", (2, 3)), ("a", (4,)), ("b", (0, 1)),
                                             ("b", (2, 3)), ("b", (4,))]
+
+
+def test_make_batches_shrink_for_workers():
+    """For parallel workers the batches shrink towards the end (at most ⌈remaining / (2 workers)⌉ runs), keep
+    the runs in order and never span two sweep points."""
+    t = [runner.RunTask("a", 0, r, {}) for r in range(98)] + [runner.RunTask("b", 1, r, {}) for r in range(5)]
+    b = runner.make_batches(t, 8, workers=2)
+    assert [r for x in b for r in x.runs] == [x.run for x in t]
+    assert all(len({x.key}) == 1 for x in b)
+    sizes = [len(x.runs) for x in b]
+    assert max(sizes) == 8 and sizes[-3:] == [1, 1, 1]
+    left = len(t)
+    for x in b:  # the cap at each batch's start
+        assert len(x.runs) <= max(1, -(-left // 4))
+        left -= len(x.runs)
+    assert [len(x.runs) for x in runner.make_batches(t[:10], 8)] == [8, 2]  # no workers: fixed size
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("method,warm", [("spawn", True), ("fork", True), ("fork", False)])
+def test_process_pool_start_methods(tiny_file, tiny_serial, tmp_path, monkeypatch, method, warm):
+    """The local process pool gives the serial tables whether its workers are forked (Linux default: they
+    inherit the loaded kernels and truth; after a first batch here unless this process has computed the
+    point before) or spawned (they get the truth pickled from the main process)."""
+    import multiprocessing
+
+    from .test_runner import _same_tables
+
+    if method not in multiprocessing.get_all_start_methods():
+        pytest.skip(f"no {method} here")
+    monkeypatch.setattr(runner, "START_METHOD", method)
+    if not warm:
+        monkeypatch.setattr(runner, "_COMPUTED", set())
+    seen = []
+
+    class Pool(runner._Pool):  # records the runs computed in this process before the workers take over
+        def __init__(self, *a, **k):
+            super().__init__(*a, **k)
+            seen.append([r["run"] for r in self.early])
+
+    monkeypatch.setattr(runner, "_Pool", Pool)
+    out = tmp_path / method
+    r = runner.run_experiment(tiny_file, out, workers=2, backend="processes", progress=False, batch=2)
+    assert r.complete and r.computed == 6
+    _same_tables(tiny_serial[0], out)
+    assert seen == [[] if method == "fork" and warm else [0, 1]]
+
+
+@pytest.mark.parametrize("case", ["plain", "nan rows", "zero variance", "negative variance"])
+def test_nees_of_diagonal_covariance_equals_solve(case):
+    """The runner's NEES of a diagonal covariance (a division) equals nees() on the (N, k, k) matrices (a
+    solve) bit for bit; a zero variance falls back to the same path as before (None here)."""
+    from aidnav.analysis.consistency import nees
+
+    rng = np.random.default_rng(5)
+    n = 20000
+    e = rng.normal(size=(n, 3)) * 10.0 ** rng.uniform(-4, 4, (n, 3))
+    var = 10.0 ** rng.uniform(-8, 6, (n, 3))
+    if case == "nan rows":
+        e[::7, 1] = np.nan
+        var[::11, 2] = np.inf
+    if case == "negative variance":
+        var[::5, 0] *= -1.0
+    if case == "zero variance":
+        var[3, 1] = 0.0
+        assert runner._nees_diagonal(e, var) is None
+        with pytest.raises(np.linalg.LinAlgError):
+            nees(e, np.einsum("ki,ij->kij", var, np.eye(3)))
+        return
+    P = np.zeros((n, 3, 3))
+    P[:, np.arange(3), np.arange(3)] = var
+    a, b = runner._nees_diagonal(e, var), nees(e, P)
+    assert np.array_equal(a, b, equal_nan=True)
+    assert np.isfinite(a).sum() > n // 2

@@ -17,7 +17,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import binom, chi2
 
 
 def _quadratic_form(e: np.ndarray, p: np.ndarray, what: str) -> np.ndarray:
@@ -71,6 +70,8 @@ def chi2_band(dof: int, n_runs: int = 1, prob: float = 0.95) -> tuple[float, flo
         raise ValueError("chi2_band: dof and n_runs must be positive")
     if not 0.0 < prob < 1.0:
         raise ValueError("chi2_band: prob must be in (0, 1)")
+    from scipy.stats import chi2  # lazy: scipy.stats takes ~0.4 s to import (NEES alone does not need it)
+
     k = dof * n_runs
     lo = chi2.ppf(0.5 * (1.0 - prob), k) / n_runs
     hi = chi2.ppf(0.5 * (1.0 + prob), k) / n_runs
@@ -166,6 +167,8 @@ def report_from_counts(kind: str, dof: int, r: int, n_ep: int, prob: float, epoc
     """The :class:`ConsistencyReport` of :func:`consistency_report` from its counts: ``n_fin`` epochs with
     a finite average, ``n_in``/``n_above``/``n_below`` of them inside/above/below the band, the grand
     ``mean`` of the ``nv`` finite values (a streamed evaluation accumulates these chunk by chunk)."""
+    from scipy.stats import binom
+
     band = chi2_band(dof, r, prob)
     f_in = float(n_in / n_fin) if n_fin else np.nan
     f_above = float(n_above / n_fin) if n_fin else np.nan

@@ -26,14 +26,16 @@ is not finite.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
-from scipy.special import erf
 
 from aidnav.data import Trajectory
 from aidnav.nav.earth import lla_difference_enu
 from aidnav.nav.rotations import attitude_error_batch, euler_to_quat_batch, quat_to_euler_batch, wrap_pi
+
+if TYPE_CHECKING:  # pandas and scipy are imported where a table is built: the error arrays (a Monte Carlo
+    import pandas as pd  # worker's evaluation) do not need them
 
 #: ``max_dt=None`` means this many median estimate sampling intervals.
 AUTO_GAP_FACTOR = 5.0
@@ -113,6 +115,8 @@ class ErrorSeries:
     def to_dataframe(self) -> pd.DataFrame:
         """Per-epoch table: ``time`` [s], errors with units in the names (angles in degrees), and the
         estimate's σ as ``<column>_std`` columns (CONVENTIONS interchange style)."""
+        import pandas as pd
+
         return pd.DataFrame(self.columns())
 
     def columns(self) -> dict[str, np.ndarray]:
@@ -380,6 +384,8 @@ def statistics_row(q: str, unit: str, v: np.ndarray) -> dict:
 
 def statistics_frame(rows: list[dict]) -> pd.DataFrame:
     """The DataFrame of :func:`error_statistics` from its rows."""
+    import pandas as pd
+
     return pd.DataFrame(rows, columns=STAT_COLUMNS).set_index("quantity")
 
 
@@ -409,6 +415,9 @@ def within_flags(e: np.ndarray, s: np.ndarray, k: float) -> np.ndarray:
 
 def within_frame(fractions: dict[str, tuple[float, int]], k: float) -> pd.DataFrame:
     """The DataFrame of :func:`fraction_within_sigma` from {quantity: (fraction, n)}."""
+    import pandas as pd
+    from scipy.special import erf
+
     rows = [{"quantity": q, "fraction": f, "n": int(n), "expected": float(erf(k / np.sqrt(2.0)))}
             for q, (f, n) in fractions.items()]
     return pd.DataFrame(rows, columns=["quantity", "fraction", "n", "expected"]).set_index("quantity")

@@ -9,8 +9,11 @@
 3. the remaining runs are computed — in this process (``workers=1``), on a local Dask cluster
    (``workers > 1``; ``backend="processes"`` uses a ``concurrent.futures`` process pool instead) or on
    an existing Dask scheduler (``scheduler="tcp://host:8786"``) — each result is written to ``DIR/runs``
-   as it arrives (a rich progress bar shows the ETA); with local workers the first run is computed in
-   this process, so that numba's on-disk cache is warm before the workers start;
+   as it arrives (a rich progress bar shows the ETA); with local workers the first batch is computed in
+   this process, so that numba's on-disk cache is warm before the workers load it; the local process pool
+   forks its workers after that batch where the platform allows (Linux: they start with this process's
+   imports, loaded kernels and truth), else spawns them while it runs (:class:`_Pool`); the batches shrink
+   towards the end of the campaign so that the workers finish together (:func:`make_batches`);
 4. when all runs exist, they are merged into ``runs.parquet``, ``epochs.parquet``, ``consistency.json``
    and ``trajectories.parquet``, and ``manifest.json`` is written.
 
@@ -24,8 +27,8 @@ differences between points are not blurred by different draws.
 
 Work per run: the truth trajectory and the noise-free GNSS fixes depend only on the sweep point's
 motion and receiver settings: each worker process generates them once per point (and keeps the last
-few), and a run only redraws the sensor errors (:func:`aidnav.sim.imu.corrupt_imu`, GNSS noise) before
-running the estimators (numba kernels).
+few; a local worker gets the first point's from this process), and a run only redraws the sensor
+errors (:func:`aidnav.sim.imu.corrupt_imu`, GNSS noise) before running the estimators (numba kernels).
 """
 
 from __future__ import annotations
@@ -36,8 +39,10 @@ import json
 import logging
 import multiprocessing
 import os
+import pickle
 import platform
 import sys
+import tempfile
 import time
 from collections import OrderedDict
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -55,7 +60,6 @@ from aidnav.sim.imu import ImuSpec, corrupt_imu
 from aidnav.sim.run import SimulationResult
 from aidnav.sim.trajectory import generate_truth
 
-from . import store
 from .config import Experiment, ExperimentPlan, build_scenario, load_experiment
 from .estimators import get_estimator, state_blocks, state_unit
 
@@ -129,6 +133,7 @@ _CONTEXTS: OrderedDict[str, _Context] = OrderedDict()
 _TRUTH: OrderedDict[str, tuple] = OrderedDict()
 _GNSS: OrderedDict[tuple, GnssTemplate] = OrderedDict()
 _CACHE_SIZE = 3
+_COMPUTED: set[str] = set()  # sweep points (keys) whose runs this process has computed: kernels loaded
 
 
 def _cached(cache: OrderedDict, key, make):
@@ -237,6 +242,21 @@ def simulate_run(ctx: _Context, run: int, out=None):
     return sim, s_est
 
 
+def _nees_diagonal(e: np.ndarray, var: np.ndarray) -> np.ndarray | None:
+    """:func:`aidnav.analysis.consistency.nees` of errors ``e`` (N, k) with the diagonal covariances of
+    variances ``var`` (N, k), without building the (N, k, k) matrices: the solve of a diagonal system is
+    the division (the same values, ``tests/experiments/test_batch_runs.py``); NaN where e or var is not
+    finite; None where nees would meet a singular matrix (a zero variance)."""
+    out = np.full(len(e), np.nan)
+    ok = np.all(np.isfinite(e), axis=1) & np.all(np.isfinite(var), axis=1)
+    if np.any(ok):
+        ee, vv = e[ok], var[ok]
+        if np.any(vv == 0.0):
+            return None
+        out[ok] = np.sum(ee * (ee / vv), axis=-1)
+    return out
+
+
 def _process(out, name: str) -> dict:
     """EstimatorOutput → boundary-unit arrays and NEES per block."""
     from aidnav.analysis.consistency import nees  # lazy: pulls in scipy
@@ -247,6 +267,10 @@ def _process(out, name: str) -> dict:
     nv = np.full((n_ep, len(blocks)), np.nan)
     for j, idx in enumerate(blocks.values()):
         with np.errstate(all="ignore"):
+            v = _nees_diagonal(out.error[:, idx], out.cov[:, idx]) if out.cov.ndim == 2 else None
+            if v is not None:
+                nv[:, j] = v
+                continue
             try:
                 nv[:, j] = nees(out.error[:, idx], out.block_cov(idx))
             except np.linalg.LinAlgError:
@@ -274,6 +298,7 @@ def run_batch_task(task: BatchTask, batched: bool = True) -> list[dict]:
     for v in _THREAD_VARS:
         os.environ.setdefault(v, "1")
     t0, c0 = time.perf_counter(), time.process_time()
+    _COMPUTED.add(task.key)
     ctx = _context(task.key, task.doc)
     truth = _truth(ctx)[0]
     _gnss_template(ctx, truth)
@@ -317,12 +342,20 @@ def run_batch_task(task: BatchTask, batched: bool = True) -> list[dict]:
              "timing": tm[i], "estimators": res[i]} for i, run in enumerate(task.runs)]
 
 
-def make_batches(tasks: list[RunTask], size: int) -> list[BatchTask]:
-    """Consecutive runs of the same sweep point in batches of at most ``size`` runs."""
+def make_batches(tasks: list[RunTask], size: int, workers: int | None = None) -> list[BatchTask]:
+    """Consecutive runs of the same sweep point in batches of at most ``size`` runs.
+
+    workers : for that many parallel workers, batches that shrink towards the end of the campaign (at most
+        ⌈remaining runs / (2 workers)⌉ runs each, down to one): the workers finish together instead of one
+        computing a last full batch while the others wait. None: all batches of ``size``.
+    """
     out: list[list[RunTask]] = []
-    for t in tasks:
-        if not out or out[-1][0].key != t.key or len(out[-1]) >= size:
+    cap = size
+    for i, t in enumerate(tasks):
+        if not out or out[-1][0].key != t.key or len(out[-1]) >= cap:
             out.append([])
+            if workers:
+                cap = max(1, min(size, -(-(len(tasks) - i) // (2 * workers))))
         out[-1].append(t)
     return [BatchTask(b[0].key, b[0].point, tuple(t.run for t in b), b[0].doc) for b in out]
 
@@ -334,19 +367,93 @@ def _serial(tasks, on_result):
             on_result(r)
 
 
-def _processes(tasks, on_result, workers: int):
-    ex = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
-    futs = [ex.submit(run_batch_task, t) for t in tasks]
-    try:
-        for f in as_completed(futs):
-            for r in f.result():
-                on_result(r)
-    except BaseException:
-        for f in futs:
-            f.cancel()
-        ex.shutdown(wait=False, cancel_futures=True)
-        raise
-    ex.shutdown(wait=True)
+def _worker_init(seed: str | None):
+    """Start-up of a local worker process (:class:`_Pool`): single-threaded BLAS; with spawn, the truth and
+    noise-free GNSS fixes that the main process already generated (pickled to the file ``seed``) fill this
+    process's caches and the modules a run needs are imported, while the main process computes the first
+    batch."""
+    for v in _THREAD_VARS:
+        os.environ.setdefault(v, "1")
+    if seed:
+        with open(seed, "rb") as f:
+            truth, gnss = pickle.load(f)
+        for cache, items in ((_TRUTH, truth), (_GNSS, gnss)):
+            for k, v in items.items():
+                _cached(cache, k, lambda v=v: v)
+    importlib.import_module("aidnav.analysis.consistency")
+    importlib.import_module("aidnav.analysis.errors")
+
+
+def _worker_ready() -> int:
+    return os.getpid()
+
+
+def _seed_file(task: BatchTask, folder: Path) -> Path:
+    """The truth and GNSS template of ``task``'s point (generated here, cached) pickled for the workers."""
+    ctx = _context(task.key, task.doc)
+    truth = _truth(ctx)
+    gk = (ctx.sim_key, ctx.gnss_key)
+    tmpl = _gnss_template(ctx, truth[0])
+    path = folder / "point.pickle"
+    with open(path, "wb") as f:
+        pickle.dump(({ctx.sim_key: truth}, {gk: tmpl}), f, protocol=pickle.HIGHEST_PROTOCOL)
+    return path
+
+
+#: how the local process pool starts its workers: fork where the platform has it safely (Linux): a worker is
+#: then a copy of this process, with its imported modules, loaded numba kernels and cached truth (no
+#: start-up); spawn elsewhere (:func:`_worker_init`)
+START_METHOD = "fork" if sys.platform.startswith("linux") else "spawn"
+
+
+class _Pool:
+    """The local process pool of a campaign (``backend="processes"``), started before the progress bar (no
+    other thread in this process when it forks).
+
+    ``first`` : a batch computed here (numba compiles or loads its kernels once, and with spawn caches them
+    on disk before the workers load them); its results are in ``early``. With fork it is computed before the
+    workers start (they inherit the loaded kernels and the truth); with spawn while they start (interpreter,
+    imports, and the truth pickled from here: :func:`_worker_init`).
+    """
+
+    def __init__(self, workers: int, first: BatchTask | None, method: str | None = None):
+        method = method or START_METHOD
+        self.early, self._tmp, self.ex = [], None, None
+        try:
+            if method == "fork" and first is not None:
+                self.early = run_batch_task(first)
+            seed = None
+            if method != "fork" and first is not None:
+                self._tmp = tempfile.TemporaryDirectory(prefix="aidnav_pool_")
+                seed = str(_seed_file(first, Path(self._tmp.name)))
+            self.ex = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context(method),
+                                          initializer=_worker_init, initargs=(seed,))
+            # all workers start now (fork: at the first submit; spawn: one per submit while none is idle)
+            self._ready = [self.ex.submit(_worker_ready) for _ in range(workers)]
+            if method != "fork" and first is not None:
+                self.early = run_batch_task(first)
+        except BaseException:
+            self.close(wait=False)
+            raise
+
+    def run(self, tasks, on_result):
+        futs = [self.ex.submit(run_batch_task, t) for t in tasks]
+        try:
+            for f in as_completed(futs):
+                for r in f.result():
+                    on_result(r)
+            for f in self._ready:
+                f.result()
+        except BaseException:
+            for f in futs:
+                f.cancel()
+            raise
+
+    def close(self, wait: bool = True):
+        if self.ex is not None:
+            self.ex.shutdown(wait=wait, cancel_futures=not wait)
+        if self._tmp is not None:
+            self._tmp.cleanup()
 
 
 def _dask(tasks, on_result, workers: int, scheduler: str | None, info: dict):
@@ -384,6 +491,8 @@ def _host() -> dict:
 
 
 def _versions() -> dict:
+    from . import store
+
     return {"aidnav": store.package_version(), "numpy": np.__version__, "numba": numba.__version__}
 
 
@@ -422,6 +531,8 @@ def run_experiment(experiment, out_dir, *, workers: int = 1, scheduler: str | No
         TimeRemainingColumn,
     )
 
+    from . import store  # lazy: pyarrow; the workers do not write the tables
+
     t_start = time.perf_counter()
     plan = experiment if isinstance(experiment, ExperimentPlan) else load_experiment(experiment)
     console = console or Console(stderr=True)
@@ -450,9 +561,28 @@ def run_experiment(experiment, out_dir, *, workers: int = 1, scheduler: str | No
     info = {"kind": backend, "workers": workers if backend != "serial" else 1}
     computed = 0
 
+    par = backend != "serial"
+    size = batch or max(1, min(BATCH_RUNS, -(-len(todo) // (2 * workers)) if par else BATCH_RUNS))
+    first = pool = None
+    # a forked worker inherits what this process has loaded: when it has already computed this point (a
+    # second campaign in one session), the first batch need not be computed here first
+    inherited = backend == "processes" and START_METHOD == "fork" and bool(todo) and todo[0].key in _COMPUTED
+    if len(todo) > 1 and par and not scheduler and not inherited:
+        # the first runs here: numba compiles (or loads) its kernels once and caches them on disk, so that the
+        # local workers load them (or, forked, inherit them) instead of each compiling them again
+        first = make_batches(todo[:min(2, size)], size)[0]
+        todo = todo[len(first.runs):]
+    todo = make_batches(todo, size, workers if par else None)
+    t_comp = time.perf_counter()
+    if backend == "processes":
+        try:
+            pool = _Pool(workers, first)
+        except KeyboardInterrupt:
+            raise CampaignInterrupted(f"interrupted: {n_reused} of {n_total} runs are in {out / 'runs'}; run "
+                                      "the same command again to resume") from None
+
     cols = [TextColumn("{task.description}", markup=False), BarColumn(), MofNCompleteColumn(),
             TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn()]
-    t_comp = time.perf_counter()
     with Progress(*cols, console=console, disable=not progress or not todo, transient=False) as bar:
         task_id = bar.add_task(f"{plan.experiment.name}: runs", total=n_total, completed=n_reused)
 
@@ -470,28 +600,28 @@ def run_experiment(experiment, out_dir, *, workers: int = 1, scheduler: str | No
             agg["imu_samples"] += res["imu_samples"]
             bar.advance(task_id)
 
-        par = backend != "serial"
-        size = batch or max(1, min(BATCH_RUNS, -(-len(todo) // (2 * workers)) if par else BATCH_RUNS))
+        ok = False
         try:
-            if len(todo) > 1 and par and not scheduler:
-                # the first runs here: numba compiles (or loads) its kernels once and caches them on disk,
-                # so that the local workers load them instead of each compiling them again
-                first = make_batches(todo[:min(2, size)], size)
-                for r in run_batch_task(first[0]):
+            for r in pool.early if pool is not None else []:
+                on_result(r)
+            if first is not None and pool is None:
+                for r in run_batch_task(first):
                     on_result(r)
-                todo = todo[len(first[0].runs):]
-            todo = make_batches(todo, size)
             if not todo:
                 pass
             elif backend == "serial":
                 _serial(todo, on_result)
             elif backend == "processes":
-                _processes(todo, on_result, workers)
+                pool.run(todo, on_result)
             else:
                 _dask(todo, on_result, workers, scheduler, info)
+            ok = True
         except KeyboardInterrupt:
             raise CampaignInterrupted(f"interrupted: {n_reused + computed} of {n_total} runs are in "
                                       f"{out / 'runs'}; run the same command again to resume") from None
+        finally:
+            if pool is not None:
+                pool.close(wait=ok)
     t_compute = time.perf_counter() - t_comp
 
     complete = n_reused + computed == n_total

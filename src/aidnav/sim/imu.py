@@ -378,6 +378,7 @@ def _corrupt_kernel(dth, dv, dt, mat_g, mat_a, b_g, b_a, gm_sig, gm_tau, white, 
     # same values as computing them at every sample
     h_last, sh = np.nan, 0.0
     g_fac, r_fac, w_fac, phis, z = np.empty(6), np.empty(6), np.empty(6), np.empty(6), np.empty(18)
+    drs = np.empty(6)
     for k in range(n):
         for j in range(18):
             z[j] = rng.standard_normal()
@@ -389,29 +390,33 @@ def _corrupt_kernel(dth, dv, dt, mat_g, mat_a, b_g, b_a, gm_sig, gm_tau, white, 
                 g_fac[c] = gm_sig[c] * np.sqrt(max(0.0, 1.0 - phis[c] * phis[c]))
                 r_fac[c] = rrw[c] * sh
                 w_fac[c] = white[c] * sh
-        for s in range(2):
-            inc = dth[k] if s == 0 else dv[k]
-            mat = mat_g if s == 0 else mat_a
-            b = b_g if s == 0 else b_a
-            q = quant[s]
-            for i in range(3):
-                c = 3 * s + i
-                state[0, c] = phis[c] * state[0, c] + g_fac[c] * z[6 + c]
-                state[1, c] += r_fac[c] * z[12 + c]
-                dr = state[0, c] + state[1, c]
-                if keep_drift:
-                    drift[k, c] = dr
-                x = mat[i, 0] * inc[0] + mat[i, 1] * inc[1] + mat[i, 2] * inc[2]
-                x += (b[i] + dr) * h + w_fac[c] * z[c]
-                if q > 0.0:
-                    y = x + state[2, c]
-                    xq = np.floor(y / q + 0.5) * q
-                    state[2, c] = y - xq
-                    x = xq
-                if s == 0:
-                    out_g[k, i] = x
-                else:
-                    out_a[k, i] = x
+        # Gauss-Markov and random-walk states (gyro then accel), then each triad's samples
+        for c in range(6):
+            state[0, c] = phis[c] * state[0, c] + g_fac[c] * z[6 + c]
+            state[1, c] += r_fac[c] * z[12 + c]
+            dr = state[0, c] + state[1, c]
+            drs[c] = dr
+            if keep_drift:
+                drift[k, c] = dr
+        _triad(dth, k, mat_g, b_g, drs, w_fac, z, h, quant[0], state, out_g, 0)
+        _triad(dv, k, mat_a, b_a, drs, w_fac, z, h, quant[1], state, out_a, 3)
+
+
+@njit(cache=True, inline="always")
+def _triad(inc, k, mat, b, drs, w_fac, z, h, q, state, out, c0):
+    """Sample k of one triad (columns c0..c0+2 of the (6,) factors and states): the error model on the
+    true increments ``inc[k]``, quantised with residual carry, into ``out[k]`` (element by element: no
+    array views in the per-sample loop)."""
+    for i in range(3):
+        c = c0 + i
+        x = mat[i, 0] * inc[k, 0] + mat[i, 1] * inc[k, 1] + mat[i, 2] * inc[k, 2]
+        x += (b[i] + drs[c]) * h + w_fac[c] * z[c]
+        if q > 0.0:
+            y = x + state[2, c]
+            xq = np.floor(y / q + 0.5) * q
+            state[2, c] = y - xq
+            x = xq
+        out[k, i] = x
 
 
 def _intervals(imu: ImuData) -> np.ndarray:

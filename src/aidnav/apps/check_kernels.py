@@ -4,8 +4,8 @@ rows, no temporaries; imported when a solution is checked, so that the light com
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from aidnav.jit import njit
 from aidnav.nav.earth import E2, A
 from aidnav.nav.rotations import TWO_PI
 

@@ -5,9 +5,9 @@ heading alignment from the GNSS course (moved here from :mod:`aidnav.filters.loo
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from aidnav.data import ImuData
+from aidnav.jit import njit
 from aidnav.nav.alignment import coarse_align_static
 from aidnav.nav.earth import radii
 from aidnav.nav.rotations import euler_from_dcm, wrap_2pi, wrap_pi

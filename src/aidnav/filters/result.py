@@ -5,9 +5,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
 
 from aidnav.data import Trajectory
+from aidnav.jit import njit
 from aidnav.nav.earth import E2, A
 from aidnav.nav.rotations import dcm_entries, dcm_from_euler, dcm_from_rotvec, euler_from_dcm, wrap_pi
 from aidnav.units import DEG_H, PPM, UG

@@ -239,8 +239,10 @@ def characterise_file(imu_path, out_dir, static: str | None = None, grade: str |
     :func:`aidnav.report.allan_plot.plot_allan` (``plot=None``: no figure; a function
     ``plot(ch, path, title) -> path``: that one). The default figure is drawn by a forked child process
     on Linux (:class:`FigureProcess`), forked before this module imports the analysis (numba, scipy): the
-    child imports them with matplotlib on the other core while this process does the same."""
-    if plot == FIGURE and FORK_FIGURE:
+    child imports them with matplotlib on the other core while this process does the same. Only from a
+    process with no other thread (a fork there could copy a lock another thread holds: notebooks, servers);
+    otherwise the figure is drawn here, the same file."""
+    if plot == FIGURE and FORK_FIGURE and threading.active_count() == 1:
         fig = FigureProcess()
 
         def draw(ch, path, title):

@@ -189,3 +189,12 @@ def test_the_build_key_follows_the_sources(tmp_path, monkeypatch):
     key = jit.build_key()
     assert len(key) == 20 and jit.build_path(key) == Path(tmp_path) / key
     assert jit.build_key() == key  # deterministic
+
+
+@pytest.mark.parametrize("value, message", [("bogus", "expected auto, jit, aot or record"),
+                                            ("aot", "no ahead-of-time build")])
+def test_a_bad_kernel_mode_is_a_clear_error(tmp_path, value, message):
+    env = dict(os.environ, AIDNAV_KERNELS=value, AIDNAV_KERNEL_DIR=str(tmp_path / "none"))
+    p = subprocess.run([sys.executable, "-m", "aidnav", "simulate", "-o", str(tmp_path / "o")], env=env,
+                       capture_output=True, text=True)
+    assert p.returncode == 2 and message in p.stderr and "Traceback" not in p.stderr

@@ -34,6 +34,11 @@ from pathlib import Path  # noqa: E402
 
 import typer  # noqa: E402
 
+from aidnav.console_script import exit_status as _exit_status  # noqa: E402
+from aidnav.console_script import lazy_bitcode  # noqa: E402
+from aidnav.console_script import leave as _leave  # noqa: E402
+from aidnav.console_script import preload_scipy_blas as _preload_scipy_blas  # noqa: E402
+
 # rich_markup_mode=None: help texts are printed as written ("[deg]" would otherwise vanish)
 app = typer.Typer(add_completion=False, no_args_is_help=True, rich_markup_mode=None,
                   pretty_exceptions_enable=False,
@@ -508,84 +513,13 @@ def _start_kernels() -> None:
     from aidnav import jit
 
     _preload_scipy_blas()  # the kernels' BLAS calls (numba's JIT and the build alike) import it at first use
-    mode = jit.start(on_numba=[_lazy_bitcode])
+    try:
+        mode = jit.start(on_numba=[lazy_bitcode])
+    except (ValueError, RuntimeError) as e:  # AIDNAV_KERNELS unknown, or aot without a build
+        _fail(str(e))
     if mode == "jit" and "AIDNAV_KERNELS" not in os.environ and sys.stderr.isatty():
-        _console(stderr=True).print("[dim]tip: `aidnav compile` (once, 1–3 min) makes every command start "
-                                    "faster and use less memory[/dim]")
-
-
-def _lazy_bitcode() -> None:
-    if os.environ.get("AIDNAV_NUMBA_LAZY_BITCODE", "1") != "0":  # 0: numba's own cache loader
-        from aidnav.numba_load import install
-
-        install()  # the cached kernels' bitcode parsed only if something compiles against it
-
-
-def _preload_scipy_blas() -> None:
-    """Load scipy's two Cython BLAS/LAPACK modules on their own, before the first kernel call.
-
-    numba sets up its CPU target when the first jitted function is called or loaded from its cache,
-    whatever that function does, and the set-up imports ``scipy.linalg.cython_blas`` (numba.np.arraymath
-    asks whether BLAS is there). That import runs all of ``scipy/linalg/__init__``: ~0.15 s of every
-    command (scipy.linalg, scipy's array-API layer, numpy.f2py, numpy.testing), although numba only ever
-    uses the two extension modules, through their C API. Loaded here under their own names (~2 ms), they
-    are what numba's import finds in ``sys.modules``; ``import scipy.linalg`` later still works and finds
-    them too (only the attribute ``scipy.linalg.cython_blas`` is not set on the package). Nothing is done
-    when scipy.linalg is already imported, and on any surprise the normal import happens later."""
-    import importlib.machinery
-    import importlib.util
-
-    names = [f"scipy.linalg.{m}" for m in ("cython_blas", "cython_lapack")]
-    if "scipy.linalg" in sys.modules or any(n in sys.modules for n in names):
-        return
-    try:
-        scipy_spec = importlib.util.find_spec("scipy")
-        folder = Path(scipy_spec.submodule_search_locations[0]) / "linalg"
-        for name in names:
-            leaf = name.rsplit(".", 1)[1]
-            path = next(folder / (leaf + s) for s in importlib.machinery.EXTENSION_SUFFIXES
-                        if (folder / (leaf + s)).is_file())
-            spec = importlib.util.spec_from_file_location(name, path)
-            module = importlib.util.module_from_spec(spec)
-            sys.modules[name] = module
-            spec.loader.exec_module(module)
-    except Exception:  # any surprise (no scipy, another layout): leave it to the normal import
-        for name in names:
-            sys.modules.pop(name, None)
-
-
-def _exit_status(code) -> int:
-    """The exit status Python gives ``SystemExit(code)``: None → 0, an int as it is, else 1 (the code is
-    printed to stderr, as Python does)."""
-    if code is None:
-        return 0
-    if isinstance(code, int):
-        return code
-    print(code, file=sys.stderr)
-    return 1
-
-
-def _leave(status: int):
-    """End the process now, as a normal exit would but without the interpreter's teardown.
-
-    Tearing down the modules a command loaded (numba's and LLVM's objects above all) costs ~0.2 s of
-    CPU that nothing needs. The atexit handlers run and stdout/stderr are flushed as at a normal exit;
-    files are closed by the code that wrote them (every writer uses ``with``). A normal exit is taken
-    when another thread is still running (a normal exit would wait for it) or when flushing fails (a
-    closed pipe: Python's own handling) or under a profiler, tracer or debugger (they write their
-    results after the program returns)."""
-    import atexit
-    import threading
-
-    if threading.active_count() > 1 or sys.getprofile() is not None or sys.gettrace() is not None:
-        sys.exit(status)
-    atexit._run_exitfuncs()
-    try:
-        sys.stdout.flush()
-        sys.stderr.flush()
-    except (OSError, ValueError):
-        sys.exit(status)
-    os._exit(status)
+        _console(stderr=True).print("[dim]tip: `aidnav compile` (once per install, about a minute) makes "
+                                    "every command start faster and use less memory[/dim]")
 
 
 def main():  # pragma: no cover - the console script (tests call `app` in-process, and main in a subprocess)

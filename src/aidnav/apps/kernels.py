@@ -35,7 +35,8 @@ __all__ = ["compile_kernels", "workloads", "build_from_records", "build_status"]
 
 
 def workloads(data: Path, out: Path) -> list[list[str]]:
-    """The commands whose kernel calls the build covers (``data``: the simulated flight's folder)."""
+    """The commands whose kernel calls the build covers (``data``: the folder of the simulated flight,
+    written by the first command, and of the static log, written before: :data:`_STATIC_LOG`)."""
     imu_pq, imu_csv, gnss = data / "imu.parquet", data / "imu.csv", data / "gnss.csv"
     return [
         ["simulate", "-o", str(data), "--format", "both"],
@@ -78,8 +79,6 @@ def record(commands: list[list[str]], record_file: Path, progress=None) -> dict:
     for args in commands:
         if progress:
             progress(f"recording: aidnav {args[0]}")
-        if args[0] == "characterise" and not Path(args[2]).exists():
-            subprocess.run([sys.executable, "-c", _STATIC_LOG, args[2]], env=env, check=True)
         _run(args, env)
     return pickle.loads(record_file.read_bytes()) if record_file.is_file() else {}
 
@@ -153,6 +152,9 @@ def compile_kernels(also: list[list[str]] = (), progress=None, keep: Path | None
     with tempfile.TemporaryDirectory(prefix="aidnav-compile-", dir=target.parent) as tmp:
         tmp = Path(tmp)
         data, out = tmp / "data", tmp / "out"
+        data.mkdir()
+        subprocess.run([sys.executable, "-c", _STATIC_LOG, str(data / "static.parquet")], check=True,
+                       env=dict(os.environ, AIDNAV_KERNELS="jit"))
         records = record([*workloads(data, out), *also], tmp / "record.pkl", progress)
         if not records:
             raise RuntimeError("the workloads recorded no kernel call")

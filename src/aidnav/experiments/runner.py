@@ -33,9 +33,7 @@ errors (:func:`aidnav.sim.imu.corrupt_imu`, GNSS noise) before running the estim
 
 from __future__ import annotations
 
-import hashlib
 import importlib
-import json
 import logging
 import multiprocessing
 import os
@@ -44,30 +42,34 @@ import platform
 import sys
 import tempfile
 import time
-from collections import OrderedDict
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numba
 import numpy as np
 
-from aidnav.data import GnssData
-from aidnav.nav.earth import radii
-from aidnav.nav.rotations import wrap_pi
-from aidnav.sim.gnss import GnssSpec, simulate_gnss
-from aidnav.sim.imu import ImuSpec, corrupt_imu
-from aidnav.sim.run import SimulationResult
-from aidnav.sim.trajectory import generate_truth
-
-from .config import Experiment, ExperimentPlan, build_scenario, load_experiment
-from .estimators import get_estimator, state_blocks, state_unit
+from .config import ExperimentPlan, load_experiment
+from .estimators import state_blocks, state_unit
+from .run_inputs import (  # noqa: F401  (re-exported: the runner's API and its tests)
+    _GNSS,
+    _TRUTH,
+    GnssTemplate,
+    _cached,
+    _context,
+    _gnss_template,
+    _streams,
+    _truth,
+    point_truth,
+    simulate_run,
+)
 
 __all__ = ["run_experiment", "run_task", "RunTask", "run_batch_task", "BatchTask", "make_batches",
            "CampaignResult", "CampaignInterrupted", "GnssTemplate", "point_truth", "simulate_run",
            "format_result"]
 
 BATCH_RUNS = 8  # runs of a sweep point per task (run_experiment's default batch)
+_COMPUTED: set[str] = set()  # sweep points (keys) whose runs this process has computed: kernels loaded
 _THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
 
 
@@ -114,132 +116,6 @@ class CampaignResult:
     paths: list[Path] = field(default_factory=list)
     consistency: list[dict] = field(default_factory=list)
     timings: dict = field(default_factory=dict)
-
-
-# ----------------------------------------------------------------------------- per-process caches
-@dataclass
-class _Context:
-    key: str
-    base_seed: int
-    scenario: object
-    imu_spec: object
-    gnss_spec: object
-    estimators: list
-    sim_key: str
-    gnss_key: str
-
-
-_CONTEXTS: OrderedDict[str, _Context] = OrderedDict()
-_TRUTH: OrderedDict[str, tuple] = OrderedDict()
-_GNSS: OrderedDict[tuple, GnssTemplate] = OrderedDict()
-_CACHE_SIZE = 3
-_COMPUTED: set[str] = set()  # sweep points (keys) whose runs this process has computed: kernels loaded
-
-
-def _cached(cache: OrderedDict, key, make):
-    if key in cache:
-        cache.move_to_end(key)
-        return cache[key]
-    val = make()
-    cache[key] = val
-    while len(cache) > _CACHE_SIZE:
-        cache.popitem(last=False)
-    return val
-
-
-def _context(key: str, doc: dict) -> _Context:
-    def make():
-        for mod in doc.get("imports", []):
-            importlib.import_module(mod)
-        exp = Experiment.model_validate(doc)
-        scn = build_scenario(exp, exp.name)
-        ests = []
-        for entry in doc["estimators"]:
-            et = get_estimator(entry["type"])
-            cfg = et.config_model.model_validate({k: v for k, v in entry.items()
-                                                  if k not in ("name", "type")})
-            ests.append((entry["name"], et, cfg))
-        sim_key = hashlib.sha256(json.dumps(doc["scenario"], sort_keys=True).encode()).hexdigest()
-        gnss_key = json.dumps(doc["sensors"]["gnss"], sort_keys=True)
-        return _Context(key, int(doc["base_seed"]), scn, ImuSpec.from_config(exp.sensors.imu),
-                        GnssSpec.from_config(exp.sensors.gnss), ests, sim_key, gnss_key)
-
-    return _cached(_CONTEXTS, key, make)
-
-
-def _truth(ctx: _Context):
-    return _cached(_TRUTH, ctx.sim_key, lambda: generate_truth(ctx.scenario))
-
-
-@dataclass
-class GnssTemplate:
-    """Noise-free GNSS fixes of one trajectory and receiver (generated once per sweep point), to which
-    each run adds its noise exactly as :func:`aidnav.sim.gnss.simulate_gnss` does (same draws: position
-    then velocity unit normals for every tag, before outages are removed).
-
-    base : fixes simulated with zero σ (antenna lat/lon [rad], height [m], ENU velocity [m/s]);
-    keep : (M_all,) which of all tags survive outages and latency; spec : the receiver.
-    """
-
-    base: object
-    keep: np.ndarray
-    spec: object
-
-    @classmethod
-    def build(cls, truth, spec) -> GnssTemplate:
-        spec0 = replace(spec, sigma_pos_enu=np.zeros(3), sigma_vel_enu=np.zeros(3))
-        base = simulate_gnss(truth, spec0, np.random.default_rng(0))
-        t = np.asarray(truth.time, dtype=float)
-        n_tags = int(np.floor((t[-1] - t[0]) * spec.rate_hz + 1e-9))
-        tags = t[0] + np.arange(1, n_tags + 1) / spec.rate_hz
-        tags = tags[tags <= t[-1] + 1e-9]
-        return cls(base=base, keep=np.isin(tags, base.time), spec=spec)
-
-    def draw(self, rng: np.random.Generator):
-        """Noisy fixes (:class:`aidnav.data.GnssData`) with the noise drawn from ``rng``."""
-        m_all = len(self.keep)
-        zp = rng.standard_normal((m_all, 3))[self.keep]
-        zv = rng.standard_normal((m_all, 3))[self.keep]
-        b, sp = self.base, self.spec.sigma_pos_enu
-        m = len(b.time)
-        ne = zp * sp
-        rm, rn = radii(b.lat)
-        lat = b.lat + ne[:, 1] / (rm + b.height)
-        lon = b.lon + ne[:, 0] / ((rn + b.height) * np.cos(b.lat))
-        lon = wrap_pi(lon)
-        h = b.height + ne[:, 2]
-        vel = std_vel = None
-        if self.spec.velocity:
-            vel = b.vel + zv * self.spec.sigma_vel_enu
-            std_vel = np.tile(self.spec.sigma_vel_enu, (m, 1))
-        return GnssData(b.time.copy(), lat, lon, h, vel, np.tile(sp, (m, 1)), std_vel, None, list(b.events))
-
-
-def _gnss_template(ctx: _Context, truth) -> GnssTemplate:
-    return _cached(_GNSS, (ctx.sim_key, ctx.gnss_key), lambda: GnssTemplate.build(truth, ctx.gnss_spec))
-
-
-def point_truth(point):
-    """Truth trajectory of a sweep point (cached per process)."""
-    return _truth(_context(point.key, point.doc))[0]
-
-
-# ----------------------------------------------------------------------------------- one run
-def _streams(base_seed: int, run: int):
-    ss = np.random.SeedSequence(base_seed, spawn_key=(run,))
-    return ss.spawn(3)
-
-
-def simulate_run(ctx: _Context, run: int, out=None):
-    """The :class:`aidnav.sim.run.SimulationResult` of run ``run`` of a point (and the estimator stream);
-    ``out``: where to write the corrupted increments (:func:`aidnav.sim.imu.corrupt_imu`)."""
-    truth, imu_true, segments = _truth(ctx)
-    tmpl = _gnss_template(ctx, truth)
-    s_imu, s_gnss, s_est = _streams(ctx.base_seed, run)
-    imu, realised = corrupt_imu(imu_true, ctx.imu_spec, np.random.default_rng(s_imu), out=out)
-    gnss = tmpl.draw(np.random.default_rng(s_gnss))
-    sim = SimulationResult(ctx.scenario, ctx.base_seed, truth, imu_true, imu, gnss, segments, realised)
-    return sim, s_est
 
 
 def _nees_diagonal(e: np.ndarray, var: np.ndarray) -> np.ndarray | None:

@@ -56,6 +56,14 @@ def _console(stderr: bool = False):
 
 #: True in the ``aidnav`` command itself (:func:`main`), False where ``app`` is called in-process (tests)
 _CONSOLE_SCRIPT = False
+#: the formats the readers know (aidnav.io.formats IMU_FORMATS / GNSS_FORMATS / TRAJECTORY_FORMATS), written
+#: out here so that --help needs no numpy; a test checks they name every format
+_IMU_FORMATS_HELP = ("aidnav interchange CSV/Parquet, raw rtklibexplorer CSV + its .tag, KF-GINS IMU text, "
+                     "ROS 1/2 bag (sensor_msgs/Imu)")
+_GNSS_FORMATS_HELP = ("aidnav interchange CSV/Parquet, RTKLIB .pos, KF-GINS GNSS text, NMEA 0183 "
+                      "(GGA + RMC/VTG, GST), u-blox UBX (NAV-PVT), ROS 1/2 bag (sensor_msgs/NavSatFix)")
+_TRAJECTORY_FORMATS_HELP = ("aidnav interchange trajectory CSV/Parquet, KF-GINS .nav, or GNSS fixes in any "
+                            "GNSS format: " + _GNSS_FORMATS_HELP)
 
 
 def _fail(msg: str, code: int = 2):
@@ -183,12 +191,13 @@ def compile_cmd(
 
 @_command()
 def evaluate(
-    estimate: Path = typer.Option(..., "--estimate", help="estimated trajectory (interchange CSV/Parquet or "
-                                  ".pos)"),
-    truth: Path = typer.Option(..., "--truth", help="reference trajectory (interchange or RTKLIB .pos)"),
+    estimate: Path = typer.Option(..., "--estimate", help="estimated trajectory: "
+                                  + _TRAJECTORY_FORMATS_HELP),
+    truth: Path = typer.Option(..., "--truth", help="reference trajectory: " + _TRAJECTORY_FORMATS_HELP),
     truth_height_offset: float = typer.Option(0.0, "--truth-height-offset",
                                               help="added to the reference heights, e.g. a geoid undulation "
-                                              "for a .pos above mean sea level [m]"),
+                                              "for a .pos above mean sea level [m]; not applied to a file "
+                                              "that declares ellipsoidal heights (a warning says so)"),
     out: Path | None = typer.Option(None, "-o", "--out", help="directory for errors.json/.csv and figures"),
 ):
     """Errors of an estimate against a reference: table of RMS/95%/max; JSON, CSV and figures with -o."""
@@ -205,8 +214,8 @@ def evaluate(
 
 @_command()
 def process(
-    imu: Path = typer.Option(..., "--imu", help="IMU log: interchange CSV/Parquet or raw rtklibexplorer CSV"),
-    gnss: Path = typer.Option(..., "--gnss", help="GNSS fixes: RTKLIB .pos or interchange CSV/Parquet"),
+    imu: Path = typer.Option(..., "--imu", help="IMU log: " + _IMU_FORMATS_HELP),
+    gnss: Path = typer.Option(..., "--gnss", help="GNSS fixes: " + _GNSS_FORMATS_HELP),
     config: Path | None = typer.Option(None, "--config", help="filter configuration YAML"),
     odometer: Path | None = typer.Option(None, "--odometer", help="odometer CSV (time_s, speed_m_s or "
                                          "speed_km_h [, speed_std_m_s]) on the GNSS time scale"),
@@ -241,6 +250,12 @@ def process(
                                              "IMU sample; overrides filter.output_rate_hz)"),
     vehicle: str | None = typer.Option(None, "--vehicle", help="vehicle preset under the configuration: car "
                                        "(NHC), aircraft, pedestrian, ship; none: conservative defaults"),
+    imu_topic: str | None = typer.Option(None, "--imu-topic", help="ROS bag: the sensor_msgs/Imu topic "
+                                         "(needed when the bag has several)"),
+    gnss_topic: str | None = typer.Option(None, "--gnss-topic", help="ROS bag: the sensor_msgs/NavSatFix "
+                                          "topic (needed when the bag has several)"),
+    gnss_vel_topic: str | None = typer.Option(None, "--gnss-vel-topic", help="ROS bag: the TwistStamped / "
+                                              "TwistWithCovarianceStamped velocity topic"),
 ):
     """Loosely coupled GNSS/INS on logs: DIR/trajectory with σ columns, summary, overview.png, maps
     (KML, GeoJSON) and run.html."""
@@ -252,7 +267,8 @@ def process(
                          height_offset_m=height_offset, time_offset_s=time_offset, start_s=start, end_s=end,
                          skip_checks=skip_check, progress=bar, figures=not no_figures,
                          odometer_path=odometer, baro_path=baro, kfgins_nav=kfgins_nav,
-                         output_rate_hz=output_rate, vehicle=vehicle)
+                         output_rate_hz=output_rate, vehicle=vehicle, imu_topic=imu_topic,
+                         gnss_topic=gnss_topic, gnss_vel_topic=gnss_vel_topic)
     _print_summary(s, format_summary(s), as_json)
 
 

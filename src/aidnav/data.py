@@ -77,6 +77,10 @@ class GnssData:
     quality : (M,) integer quality flag (RTKLIB Q: 1 fix, 2 float, 5 single; 0 unknown) or None.
     A velocity component that is NaN was not measured (e.g. vu of a speed/course fix).
     week : GPS week of ``time`` when it is GPS seconds of week (None: unknown).
+    height_datum : what the file says its heights are: ``"ellipsoid"`` (WGS-84 ellipsoidal: ROS NavSatFix,
+        UBX NAV-PVT ``height``, NMEA GGA MSL + its geoid separation), ``"msl"`` (above mean sea level, the
+        separation unknown) or ``"unknown"`` (the file does not say). Set by the reader.
+    height_offset_m : the datum offset :func:`aidnav.io.formats.read_gnss` added to ``height`` [m].
     """
 
     time: np.ndarray
@@ -89,6 +93,8 @@ class GnssData:
     quality: np.ndarray | None = None
     events: list[str] = field(default_factory=list)
     week: int | None = None
+    height_datum: str = "unknown"
+    height_offset_m: float = 0.0
 
     def __post_init__(self):
         self.time = np.ascontiguousarray(self.time, dtype=float)
@@ -113,7 +119,7 @@ class GnssData:
 
         return GnssData(self.time[mask], self.lat[mask], self.lon[mask], self.height[mask],
                         pick(self.vel), pick(self.std_pos), pick(self.std_vel), pick(self.quality),
-                        week=self.week)
+                        week=self.week, height_datum=self.height_datum, height_offset_m=self.height_offset_m)
 
     def to_dataframe(self):
         """A pandas DataFrame in the interchange columns: ``time`` [s], ``lat_deg, lon_deg`` [deg],

@@ -55,7 +55,9 @@ def test_gga_rmc_known_answers(tmp_path):
     assert np.isnan(g.vel[:, 2]).all()  # speed/course: vertical velocity not measured
     assert g.quality.tolist() == [1, 1]  # GGA 4 = RTK fixed → Q 1
     np.testing.assert_allclose(g.std_pos[0], [0.2, 0.3, 0.6])  # GST σlon, σlat, σalt → E, N, U
-    assert np.allclose(g.std_pos[1], [1.0, 1.0, 2.0])  # no GST for that epoch: the named default
+    # no GST for that epoch: σ from the GGA HDOP 0.9 with the stated UERE (aidnav.io._std.NMEA_UERE_M)
+    np.testing.assert_allclose(g.std_pos[1], [0.9, 0.9, 1.8])
+    assert g.height_datum == "ellipsoid"
     assert any("UTC → GPST (+18 s" in e for e in g.events)
 
 
@@ -79,8 +81,10 @@ def test_invalid_fixes_bad_checksum_and_missing_geoid_separation(tmp_path):
     assert len(g) == 2 and g.quality.tolist() == [1, 5]  # GGA 4 (RTK fixed), 1 (single)
     ev = " | ".join(g.events)
     assert "fix quality 0" in ev and "bad checksum" in ev and "not NMEA" in ev
-    assert "without geoid separation" in ev and "height_offset_m" in ev
-    np.testing.assert_allclose(g.height, [57.4034, 57.4034 - 8.4438])
+    assert "without geoid separation" in ev and "nearest given separation" in ev
+    # the GGA without separation takes its neighbour's: both ellipsoidal
+    np.testing.assert_allclose(g.height, [57.4034 - 8.4438, 57.4034 - 8.4438])
+    assert g.height_datum == "ellipsoid"
 
 
 def test_no_gga_is_an_error(tmp_path):

@@ -41,18 +41,20 @@ def load_config(path) -> LooseConfig:
     return load_model(path, LooseConfig)
 
 
-def read_imu_any(path) -> ImuData:
-    """IMU log of any known format (:func:`aidnav.io.formats.read_imu`)."""
+def read_imu_any(path, topic: str | None = None) -> ImuData:
+    """IMU log of any known format (:func:`aidnav.io.formats.read_imu`; topic: of a ROS bag)."""
     from aidnav.io.formats import read_imu
 
-    return read_imu(path)
+    return read_imu(path, topic=topic)
 
 
-def read_gnss_any(path, height_offset_m: float = 0.0) -> GnssData:
-    """GNSS fixes of any known format, the datum offset added once (:func:`aidnav.io.formats.read_gnss`)."""
+def read_gnss_any(path, height_offset_m: float = 0.0, topic: str | None = None,
+                  vel_topic: str | None = None) -> GnssData:
+    """GNSS fixes of any known format, the datum offset added once where the file does not declare
+    ellipsoidal heights (:func:`aidnav.io.formats.read_gnss`; topic, vel_topic: of a ROS bag)."""
     from aidnav.io.formats import read_gnss
 
-    return read_gnss(path, height_offset_m=height_offset_m)
+    return read_gnss(path, height_offset_m=height_offset_m, topic=topic, vel_topic=vel_topic)
 
 
 @dataclass
@@ -140,7 +142,8 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
                  start_s: float | None = None, end_s: float | None = None, skip_checks=(),
                  progress=None, figures: bool = True, odometer_path=None, baro_path=None,
                  kfgins_nav: bool = False, output_rate_hz: float | None = None,
-                 vehicle: str | None = None) -> dict:
+                 vehicle: str | None = None, imu_topic: str | None = None, gnss_topic: str | None = None,
+                 gnss_vel_topic: str | None = None) -> dict:
     """Run the whole ``aidnav process`` job into the directory ``out_dir``; returns the summary dict
     (also written as ``summary.json`` and ``summary.txt`` beside ``trajectory.<fmt>``).
 
@@ -148,7 +151,8 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
     configuration (``--height-offset``, ``--time-offset``). progress : an
     :class:`aidnav.progress.ProgressBar` (stages: reading, filter, writing, figures). figures : also write
     ``overview.png``, ``trajectory.kml``, ``trajectory.geojson`` and ``run.html``. kfgins_nav : also write
-    ``trajectory.nav`` in KF-GINS's navigation-result format."""
+    ``trajectory.nav`` in KF-GINS's navigation-result format. imu_topic, gnss_topic, gnss_vel_topic :
+    the topics of ROS bags (``--imu-topic``, ``--gnss-topic``, ``--gnss-vel-topic``)."""
     from aidnav.io.interchange import write_trajectory
     from aidnav.io.sanity import validate_skip
     from aidnav.progress import NullProgress
@@ -189,7 +193,13 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
     bar = progress if progress is not None else NullProgress()
     datum = cfg.gnss.height_offset_m
     bar.stage("reading", total=2, unit="files")
-    gnss = read_gnss_any(gnss_path, height_offset_m=datum)
+    gnss = read_gnss_any(gnss_path, height_offset_m=datum, topic=gnss_topic, vel_topic=gnss_vel_topic)
+    datum, height_datum = gnss.height_offset_m, gnss.height_datum  # the offset the reader applied
+    if imu_topic is not None:
+        from aidnav.io.formats import detect_imu_format
+
+        if detect_imu_format(imu_path) != "rosbag":
+            raise InputError(f"--imu-topic {imu_topic}: {imu_path} is not a ROS bag (topics are for bags)")
     bar.advance(1)
     # the offset is applied by the reader; the filter must not see it again
     cfg = cfg.model_copy(update={"gnss": cfg.gnss.model_copy(update={"height_offset_m": 0.0})})
@@ -218,7 +228,7 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
             progress=bar.advance)
         t_filt = t_write = _time.perf_counter()
     else:
-        imu = read_imu_any(imu_path)
+        imu = read_imu_any(imu_path, topic=imu_topic)
         bar.advance(1)
         if len(imu) < 2:
             raise DataError(imu_path, None, "fewer than 2 IMU samples")
@@ -241,7 +251,7 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
                "odometer": str(odometer_path) if odometer_path else None,
                "baro": str(baro_path) if baro_path else None,
                "config": str(config_path) if config_path else None, "output": str(traj_path),
-               "gnss_height_offset_m": datum,
+               "gnss_height_offset_m": datum, "gnss_height_datum": height_datum,
                **run_s, "notes": notes}
     summary["timing_s"] = {"read": t_read - t_start, "filter": t_filt - t_read, "write": t_write - t_filt}
     common.write_summary_files(out_dir, summary, format_summary(summary))
@@ -295,7 +305,7 @@ def format_summary(s: dict) -> str:
                 lines.append(f"{title}: {o['n_outages']} outages, end-of-outage horizontal error median "
                              f"{o['end_error_median_m']:.2f} m, p95 {o['end_error_p95_m']:.2f} m, max "
                              f"{o['end_error_max_m']:.2f} m; RMS over {o['n_scored']} withheld fixes "
-                             f"{o['rms_m']:.3f} m")
+                             f"{o['rms_m']:.3f} m" + (f" ({o['reference']})" if o.get("reference") else ""))
     lines += [f"warning: {w}" for w in s.get("warnings", [])]
     lines += [f"event: {e}" for e in s["events"]] + [f"note: {n}" for n in s["notes"]]
     return "\n".join(lines) + "\n"

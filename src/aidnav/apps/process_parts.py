@@ -57,14 +57,21 @@ def outage_windows(outages: list[Outage], t_first: float, t_last: float) -> list
     return wins
 
 
+def scored_fixes(gnss: GnssData, withheld) -> np.ndarray:
+    """The withheld fixes an outage is scored on: those of quality 1 (RTK fixed) when any withheld fix
+    has it, else all withheld fixes (a log without RTK fixes, e.g. a ROS bag: GBAS → Q 4)."""
+    good = withheld.copy()
+    if gnss.quality is not None and (withheld & (gnss.quality == 1)).any():
+        good &= gnss.quality == 1
+    return good
+
+
 def outage_errors(traj, gnss: GnssData, withheld, after: float = -np.inf):
-    """(times, horizontal errors) of the output, interpolated to the withheld fixes (quality 1 where the
-    file has a quality column) inside its span and after ``after``."""
+    """(times, horizontal errors) of the output, interpolated to the withheld fixes of
+    :func:`scored_fixes` inside its span and after ``after``."""
     from aidnav.nav.earth import lla_difference_enu
 
-    good = withheld.copy()
-    if gnss.quality is not None:
-        good &= gnss.quality == 1
+    good = scored_fixes(gnss, withheld)
     t = gnss.time[good]
     inside = (t >= traj.time[0]) & (t <= traj.time[-1]) & (t > after)
     t = t[inside]
@@ -78,13 +85,25 @@ def outage_errors(traj, gnss: GnssData, withheld, after: float = -np.inf):
 
 def score_outages(traj, gnss: GnssData, wins, withheld) -> dict:
     """Horizontal errors at the withheld fixes: end-of-outage statistics and RMS over all of them."""
-    return outage_score(*outage_errors(traj, gnss, withheld), wins, withheld)
+    return outage_score(*outage_errors(traj, gnss, withheld), wins, withheld, gnss)
 
 
-def outage_score(t, herr, wins, withheld) -> dict:
-    """:func:`score_outages` from the errors at the withheld fixes (:func:`outage_errors`)."""
+def outage_score(t, herr, wins, withheld, gnss: GnssData | None = None) -> dict:
+    """:func:`score_outages` from the errors at the withheld fixes (:func:`outage_errors`); with ``gnss``
+    the fixes scored are named (``reference``) and, where the file has qualities, the RMS per quality."""
+    ref = {}
+    if gnss is not None:
+        q1 = gnss.quality is not None and bool((withheld & (gnss.quality == 1)).any())
+        ref["reference"] = ("withheld fixes of quality 1 (RTK fixed)" if q1 else
+                            "all withheld fixes (none of quality 1)")
     if len(t) == 0:
-        return {"n_withheld": int(withheld.sum()), "n_scored": 0}
+        return {"n_withheld": int(withheld.sum()), "n_scored": 0, **ref}
+    if gnss is not None and gnss.quality is not None:
+        idx = np.clip(np.searchsorted(gnss.time, t), 0, len(gnss.time) - 1)
+        q = np.asarray(gnss.quality)[idx]
+        ref["per_quality"] = {str(int(k)): {"n": int((q == k).sum()),
+                                            "rms_m": float(np.sqrt(np.mean(herr[q == k] ** 2)))}
+                              for k in np.unique(q)}
     ends = []
     per = []
     for a, b in wins:
@@ -101,6 +120,7 @@ def outage_score(t, herr, wins, withheld) -> dict:
         "end_error_max_m": float(ends.max()) if len(ends) else None,
         "rms_m": float(np.sqrt(np.mean(herr**2))),
         "outages": per,
+        **ref,
     }
 
 

@@ -96,7 +96,8 @@ class _Sink:
         from aidnav.apps.process_parts import outage_score
 
         t = np.concatenate(self.t_err) if self.t_err else np.zeros(0)
-        return outage_score(t, np.concatenate(self.herr) if self.herr else np.zeros(0), wins, self.withheld)
+        return outage_score(t, np.concatenate(self.herr) if self.herr else np.zeros(0), wins, self.withheld,
+                            self.gnss)
 
     def decimated(self) -> Trajectory:
         return concat_rows(self.dec + self.recent)

@@ -62,9 +62,12 @@ class GnssAiding(_Strict):
     min_vel_std_m_s: float = Field(0.02, gt=0, description="floor on velocity σ [m/s]")
     default_pos_std_m: tuple[float, float, float] = (1.0, 1.0, 2.0)
     default_vel_std_m_s: tuple[float, float, float] = (0.1, 0.1, 0.2)
-    float_std_factor: float = Field(2.0, gt=0, description="σ multiplier for RTK-float epochs (Q = 2)")
-    single_std_factor: float = Field(5.0, gt=0, description="σ multiplier for single epochs (Q = 5)")
-    height_offset_m: float = Field(0.0, description="added to GNSS heights (e.g. MSL → ellipsoidal)")
+    float_std_factor: float = Field(2.0, gt=0, description="σ multiplier for RTK-float epochs (Q = 2); "
+                                    "the quality rules: aidnav.io._std")
+    single_std_factor: float = Field(5.0, gt=0, description="σ multiplier for single epochs (Q = 5 only; "
+                                     "fixed, SBAS, DGPS, PPP: 1)")
+    height_offset_m: float = Field(0.0, description="added to GNSS heights (e.g. MSL → ellipsoidal) where "
+                                   "the file does not declare ellipsoidal heights (aidnav.io.formats)")
     gate_probability: float = Field(0.9999, gt=0, le=1, description="chi-square gate; 1 disables")
     max_consecutive_rejections: int = Field(10, ge=1, description="then the filter re-initialises: its "
                                             "position/velocity/attitude covariance is inflated to the "

@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from aidnav.data import ImuData
+from aidnav.io._std import quality_std_factor
 from aidnav.jit import njit
 from aidnav.nav.alignment import coarse_align_static
 from aidnav.nav.earth import radii
@@ -205,9 +206,8 @@ def gnss_arrays(gnss, cfg):
     m = len(gnss)
     spos = (np.tile(g.default_pos_std_m, (m, 1)) if gnss.std_pos is None else gnss.std_pos.copy())
     svel = (np.tile(g.default_vel_std_m_s, (m, 1)) if gnss.std_vel is None else gnss.std_vel.copy())
-    if gnss.quality is not None:
-        fac = np.where(gnss.quality == 2, g.float_std_factor,
-                       np.where(gnss.quality >= 4, g.single_std_factor, 1.0))
+    if gnss.quality is not None:  # the quality rules of aidnav.io._std: float ×f, single ×s, others ×1
+        fac = quality_std_factor(gnss.quality, g.float_std_factor, g.single_std_factor)
         spos *= fac[:, None]
         svel *= fac[:, None]
     spos = np.maximum(spos, g.min_pos_std_m)

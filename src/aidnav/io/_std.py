@@ -12,6 +12,25 @@ Rules (issue 25, "partial and optional GNSS content"), applied by every GNSS rea
   of the filter configuration, ``gnss.min_pos_std_m`` / ``gnss.min_vel_std_m_s``) with a warning event:
   a zero σ claims a perfect measurement and makes the update singular (KF-GINS, OB_GINS users' reports).
 * σ < 0 (or ±inf) is refused with :class:`DataError` naming the file, line and column.
+
+**Quality and σ** (issue 38; the one statement of these rules, used by the readers and by
+``filters.preprocess.gnss_arrays``). Every reader gives a quality in RTKLIB's code (:data:`QUALITY_NAMES`):
+
+=============  ===  ================================================================================
+format         Q    from
+=============  ===  ================================================================================
+RTKLIB .pos    Q    the file's Q column as it is
+NMEA GGA       Q    GGA fix quality 4 → 1, 5 → 2, 9 → 3, 2 → 4, 1 and 3 → 5 (0, 6, 7, 8: not a fix)
+UBX NAV-PVT    Q    carrSoln 2 → 1, 1 → 2, diffSoln → 4, else 5
+ROS NavSatFix  Q    status GBAS_FIX (2) → 4, SBAS_FIX (1) → 3, FIX (0) → 5 (NO_FIX −1: skipped)
+=============  ===  ================================================================================
+
+σ, in this order: the σ the file states (RTKLIB sdn/sde/sdu, UBX hAcc/vAcc, NMEA GST, ROS
+``position_covariance`` when ``position_covariance_type`` > 0: its diagonal, ENU); else, for NMEA, from
+the GGA HDOP: σE = σN = HDOP × :data:`NMEA_UERE_M`, σU = 2 × HDOP × :data:`NMEA_UERE_M` (stated in the
+events); else the filter's ``gnss.default_pos_std_m``. The filter then multiplies σ by
+:func:`quality_std_factor`: ``gnss.float_std_factor`` for Q = 2 (RTK float), ``gnss.single_std_factor``
+for Q = 5 (single), 1 for every other quality (fixed, SBAS, DGPS, PPP) — as the configuration documents.
 """
 
 from __future__ import annotations
@@ -26,6 +45,20 @@ DEFAULT_VEL_STD_M_S = (0.1, 0.1, 0.2)
 #: a σ of exactly 0 in a file is replaced by this value (``LooseConfig().gnss.min_*`` defaults)
 ZERO_POS_STD_FLOOR_M = 0.05
 ZERO_VEL_STD_FLOOR_M_S = 0.02
+#: user equivalent range error [m] that turns an NMEA GGA HDOP into a position σ when the log has no GST
+#: (σE = σN = HDOP·UERE, σU = 2·HDOP·UERE; the quality factors of the filter apply on top). A stated
+#: assumption, not fitted on any data: the order of a single-frequency code range error after the
+#: broadcast corrections.
+NMEA_UERE_M = 1.0
+#: RTKLIB's quality codes, the one quality scale of aidnav
+QUALITY_NAMES = {1: "fixed", 2: "float", 3: "SBAS", 4: "DGPS", 5: "single", 6: "PPP"}
+
+
+def quality_std_factor(quality, float_factor: float, single_factor: float) -> np.ndarray:
+    """The σ multiplier per fix (see the module docstring): ``float_factor`` for Q = 2,
+    ``single_factor`` for Q = 5, 1 otherwise."""
+    q = np.asarray(quality)
+    return np.where(q == 2, float(float_factor), np.where(q == 5, float(single_factor), 1.0))
 
 
 def _where(ref) -> str:

@@ -22,7 +22,11 @@ only where the content is ambiguous; ``fmt=`` overrides it. A file that matches 
 :class:`DataError` "unknown format: expected one of …" naming what was seen.
 
 The **datum (height) offset** of GNSS data is applied here, once, for every format
-(:func:`read_gnss` ``height_offset_m``: h_ellipsoidal = h_file + offset); no other code adds it.
+(:func:`read_gnss` ``height_offset_m``: h_ellipsoidal = h_file + offset); no other code adds it. Each
+reader says what its heights are (``GnssData.height_datum``, :data:`HEIGHT_DATUM`): the offset is added
+only where the file does not declare ellipsoidal heights; given for a file that does (a ROS NavSatFix,
+UBX NAV-PVT ``height``, NMEA GGA with its geoid separation, an RTKLIB ``.pos`` whose header says
+``ellipsoidal``) it is not applied and a warning names both.
 """
 
 from __future__ import annotations
@@ -41,8 +45,9 @@ from aidnav.io.rosbag import is_rosbag
 from aidnav.io.rtklib import read_pos
 from aidnav.io.ubx import read_ubx
 
-__all__ = ["IMU_FORMATS", "GNSS_FORMATS", "TRAJECTORY_FORMATS", "detect_imu_format", "detect_gnss_format",
-           "detect_trajectory_format", "read_imu", "read_gnss", "read_trajectory_any", "gnss_to_trajectory"]
+__all__ = ["IMU_FORMATS", "GNSS_FORMATS", "TRAJECTORY_FORMATS", "HEIGHT_DATUM", "apply_height_offset",
+           "detect_imu_format", "detect_gnss_format", "detect_trajectory_format", "read_imu", "read_gnss",
+           "read_trajectory_any", "gnss_to_trajectory"]
 
 IMU_FORMATS = {
     "interchange": "aidnav interchange CSV/Parquet (header with time and gyro_*_rad_s/accel_*_m_s2 or "
@@ -59,6 +64,16 @@ GNSS_FORMATS = {
     "nmea": "NMEA 0183 log (GGA + RMC/VTG, optional GST)",
     "ubx": "u-blox UBX log with NAV-PVT",
     "rosbag": "ROS 1 .bag / ROS 2 bag directory with sensor_msgs/NavSatFix",
+}
+#: What the heights of each GNSS format are (the reader sets ``GnssData.height_datum`` per file)
+HEIGHT_DATUM = {
+    "interchange": "unknown (the file does not say; aidnav writes ellipsoidal heights)",
+    "rtklib-pos": "ellipsoidal or geodetic (MSL) as the header line '(lat/lon/height=WGS84/…)' says; "
+                  "unknown without it",
+    "kfgins": "unknown (the file does not say)",
+    "nmea": "ellipsoidal: GGA altitude (MSL) + the GGA geoid separation; MSL when the field is empty",
+    "ubx": "ellipsoidal (NAV-PVT height; hMSL not used)",
+    "rosbag": "ellipsoidal (sensor_msgs/NavSatFix altitude, by the message definition)",
 }
 TRAJECTORY_FORMATS = {
     "interchange": "aidnav interchange trajectory CSV/Parquet",
@@ -146,6 +161,24 @@ class _Sniff:
         return f"first data line {self.first[:80]!r}"
 
 
+def _ubx_nav_pvt(head: bytes) -> bool:
+    """True when ``head`` holds a whole UBX NAV-PVT frame with a valid checksum (not just its sync bytes,
+    which binary junk in an NMEA stream may contain)."""
+    i = head.find(b"\xb5\x62\x01\x07")
+    while 0 <= i <= len(head) - 8:
+        n = int.from_bytes(head[i + 4:i + 6], "little")
+        frame = head[i + 2:i + 6 + n]
+        if len(frame) == 4 + n and i + 8 + n <= len(head):
+            a = b = 0
+            for c in frame:
+                a = (a + c) & 0xFF
+                b = (b + a) & 0xFF
+            if head[i + 6 + n:i + 8 + n] == bytes((a, b)):
+                return True
+        i = head.find(b"\xb5\x62\x01\x07", i + 1)
+    return False
+
+
 def _increasing(x: np.ndarray) -> bool:
     return len(x) < 2 or bool(np.all(np.diff(x) > 0))
 
@@ -207,7 +240,7 @@ def detect_gnss_format(path) -> str:
     path, s, fmt = _sniff_container(path, GNSS_FORMATS)
     if fmt:
         return fmt
-    if b"\xb5\x62\x01\x07" in s.head or (s.suffix == ".ubx" and b"\xb5\x62" in s.head):
+    if _ubx_nav_pvt(s.head) or (s.suffix == ".ubx" and b"\xb5\x62" in s.head):
         return "ubx"
     nmea_lines = sum(bool(_NMEA.match(ln.encode(errors="replace"))) for ln in s.lines[:200])
     if nmea_lines and nmea_lines >= 0.5 * min(len([x for x in s.lines[:200] if x]), 200):
@@ -280,6 +313,9 @@ def read_imu(path, fmt: str | None = None, *, topic: str | None = None, axes: st
     if fmt is None:
         fmt, how = detect_imu_format(path), "detected"
     _check_fmt(fmt, IMU_FORMATS, "IMU")
+    if topic is not None and fmt != "rosbag":
+        raise DataError(path, None, f"an IMU topic ({topic}) was given but this is a {fmt} file, not a "
+                                    "ROS bag")
     if fmt == "interchange":
         from aidnav.io import interchange  # lazy: pulls in pyarrow
 
@@ -313,6 +349,9 @@ def read_gnss(path, fmt: str | None = None, height_offset_m: float = 0.0, *,
     if fmt is None:
         fmt, how = detect_gnss_format(path), "detected"
     _check_fmt(fmt, GNSS_FORMATS, "GNSS")
+    if (topic is not None or vel_topic is not None) and fmt != "rosbag":
+        raise DataError(path, None, f"a GNSS topic ({topic or vel_topic}) was given but this is a {fmt} "
+                                    "file, not a ROS bag")
     if fmt == "interchange":
         from aidnav.io import interchange  # lazy: pulls in pyarrow
 
@@ -329,11 +368,35 @@ def read_gnss(path, fmt: str | None = None, height_offset_m: float = 0.0, *,
         g = rosbag.read_gnss(path, topic=topic, vel_topic=vel_topic, stamps=stamps,
                              min_pos_std_m=min_pos_std_m)
     g.events.insert(0, f"{path.name}: GNSS format {fmt} ({how})")
-    if height_offset_m:
-        g.height = g.height + float(height_offset_m)
-        g.events.append(f"{path.name}: datum offset {float(height_offset_m):+.3f} m added to every height "
-                        "(h_ellipsoidal = h_file + gnss.height_offset_m), once, by the reader")
+    apply_height_offset(g, height_offset_m, path.name, fmt)
     return g
+
+
+def apply_height_offset(g: GnssData, height_offset_m: float, name: str, fmt: str) -> None:
+    """Add the configured datum offset to ``g.height`` unless the file declares ellipsoidal heights
+    (then a warning names the file's datum and the offset not applied). Records the offset applied in
+    ``g.height_offset_m`` and says what was done in ``g.events``."""
+    off = float(height_offset_m or 0.0)
+    if g.height_datum == "ellipsoid":
+        if off:
+            g.events.append(f"warning: {name}: the file gives ellipsoidal heights ({fmt}: "
+                            f"{HEIGHT_DATUM.get(fmt, 'declared by the file')}); the height offset "
+                            f"{off:+.3f} m "
+                            "(gnss.height_offset_m / --height-offset) is NOT applied: remove it from the "
+                            "configuration for this file")
+        else:
+            g.events.append(f"{name}: heights are ellipsoidal as the file declares ({fmt}); no offset")
+        return
+    if off:
+        g.height = g.height + off
+        g.height_offset_m = float(g.height_offset_m) + off
+        kind = "above mean sea level" if g.height_datum == "msl" else "of a datum the file does not state"
+        g.events.append(f"{name}: heights {kind}: datum offset {off:+.3f} m added to every height "
+                        "(h_ellipsoidal = h_file + gnss.height_offset_m), once, by the reader")
+    elif g.height_datum == "msl":
+        g.events.append(f"warning: {name}: heights are above mean sea level with the geoid separation "
+                        "unknown, and no height offset is configured: they are taken as ellipsoidal "
+                        "(set gnss.height_offset_m / --height-offset to the geoid undulation)")
 
 
 def gnss_to_trajectory(g: GnssData) -> Trajectory:

@@ -9,12 +9,20 @@ Messages read:
   accepted). Rates become increments over (t_{k-1}, t_k] exactly as the interchange reader forms them
   from rate columns: Δθ_k = ω_k·(t_k − t_{k-1}), the first interval taking the length of the second.
 * ``sensor_msgs/NavSatFix``: ``latitude, longitude`` [deg], ``altitude`` [m] above the WGS-84
-  **ellipsoid** (the message definition), σ = √diag(``position_covariance``) (ENU, m²) unless the
-  covariance type is 0 (unknown: σ absent, the filter default is used); fixes with status −1 (no fix)
-  are skipped (counted). quality (RTKLIB Q): status 0 → 5 (single), 1 (SBAS) → 3, 2 (GBAS) → 4.
-* optional ``geometry_msgs/TwistStamped`` velocity (``twist.linear`` taken as ENU x East, y North,
-  z Up [m/s], as GNSS drivers publish it) matched to the fixes by header stamp (within ``match_s``);
-  fixes without a velocity message get NaN (not measured).
+  **ellipsoid** (the message definition: ``height_datum = "ellipsoid"``, a configured height offset is
+  not applied, :mod:`aidnav.io.formats`). σ = √diag(``position_covariance``) (ENU [m²], row-major, as
+  the message defines it) when ``position_covariance_type`` is 1 (approximated), 2 (diagonal known) or
+  3 (known; the off-diagonal terms are not used); type 0 (unknown): σ absent, the filter default is
+  used. The types seen are stated in the events. Fixes with status −1 (NO_FIX) are skipped (counted).
+  quality (RTKLIB Q, the rules of :mod:`aidnav.io._std`): status 0 FIX → 5 (single), 1 SBAS_FIX → 3,
+  2 GBAS_FIX → 4 (ground-based augmentation: DGPS or RTK; σ from the covariance, factor 1).
+* optional velocity, ``geometry_msgs/TwistStamped`` or ``TwistWithCovarianceStamped`` (σ from the
+  diagonal of the linear block of its covariance when positive), matched to the fixes by header stamp
+  (within ``match_s``); fixes without a velocity message get NaN (not measured). Its frame is the
+  header's ``frame_id``: one naming NED (``…ned…``) is converted NED → ENU; a body frame
+  (:data:`BODY_FRAMES`) is refused (a body velocity is not a GNSS velocity); any other (``enu``, ``map``,
+  ``gps``, ``gnss``, empty, …) is taken as ENU (x East, y North, z Up), as GNSS drivers publish it
+  (``nmea_navsat_driver``, ``ublox_gps``); the frame used is stated in the events.
 
 Time: the header stamps (``sec + nanosec·1e-9``). ``stamps="utc"`` (default; ROS time is POSIX/UTC):
 converted to GPST with the leap seconds and returned as GPS seconds of week of the first sample's week;
@@ -36,6 +44,10 @@ from aidnav.io.gpstime import GPS_EPOCH_UNIX, SECONDS_PER_WEEK, leap_seconds
 IMU_TYPE = "sensor_msgs/msg/Imu"
 FIX_TYPE = "sensor_msgs/msg/NavSatFix"
 TWIST_TYPE = "geometry_msgs/msg/TwistStamped"
+TWIST_COV_TYPE = "geometry_msgs/msg/TwistWithCovarianceStamped"
+#: frame ids of a vehicle/sensor body frame: a velocity there is refused for GNSS
+BODY_FRAMES = ("base_link", "base_footprint", "body", "imu", "imu_link", "vehicle")
+_COV_TYPES = {0: "unknown", 1: "approximated", 2: "diagonal known", 3: "known"}
 
 #: v_RFU = AXES[name] @ v_sensor
 AXES = {
@@ -81,22 +93,26 @@ def _reader(path):
         raise DataError(path, None, f"cannot open ROS bag: {e}") from None
 
 
-def _pick(path, reader, msgtype: str, topic: str | None, required: bool = True):
-    conns = [c for c in reader.connections if c.msgtype == msgtype]
+def _pick(path, reader, msgtype: str | tuple[str, ...], topic: str | None, required: bool = True,
+          option: str = "topic="):
+    types = (msgtype,) if isinstance(msgtype, str) else tuple(msgtype)
+    what = " or ".join(types)
+    conns = [c for c in reader.connections if c.msgtype in types]
     topics = sorted({c.topic for c in conns})
     if topic is not None:
         conns = [c for c in conns if c.topic == topic]
         if not conns:
-            raise DataError(path, None, f"no {msgtype} messages on topic {topic!r} (topics of that type: "
-                                        f"{', '.join(topics) or 'none'})")
+            have = sorted({f"{c.topic} ({c.msgtype})" for c in reader.connections})
+            raise DataError(path, None, f"no {what} messages on topic {topic!r} (topics of that type: "
+                                        f"{', '.join(topics) or 'none'}; all topics: {', '.join(have)})")
         return conns
     if not conns:
         if required:
             have = sorted({f"{c.topic} ({c.msgtype})" for c in reader.connections})
-            raise DataError(path, None, f"no {msgtype} topic in the bag (have: {', '.join(have) or 'none'})")
+            raise DataError(path, None, f"no {what} topic in the bag (have: {', '.join(have) or 'none'})")
         return []
     if len(topics) > 1:
-        raise DataError(path, None, f"several {msgtype} topics: {', '.join(topics)}; choose one (topic=)")
+        raise DataError(path, None, f"several {what} topics: {', '.join(topics)}; choose one ({option})")
     return conns
 
 
@@ -145,7 +161,7 @@ def read_imu(path, topic: str | None = None, axes: str = "FLU", stamps: str = "u
         raise ValueError(f"axes must be one of {sorted(AXES)}, got {axes!r}")
     path = Path(path)
     with _reader(path) as rd:
-        conns = _pick(path, rd, IMU_TYPE, topic)
+        conns = _pick(path, rd, IMU_TYPE, topic, option="--imu-topic")
         t, w, f = [], [], []
         for conn, _ts, raw in rd.messages(connections=conns):
             m = rd.deserialize(raw, conn.msgtype)
@@ -182,24 +198,35 @@ def read_gnss(path, topic: str | None = None, vel_topic: str | None = None, stam
     events: list[str] = []
     name = path.name
     with _reader(path) as rd:
-        conns = _pick(path, rd, FIX_TYPE, topic)
-        vconns = _pick(path, rd, TWIST_TYPE, vel_topic, required=vel_topic is not None)
+        conns = _pick(path, rd, FIX_TYPE, topic, option="--gnss-topic")
+        vconns = _pick(path, rd, (TWIST_TYPE, TWIST_COV_TYPE), vel_topic, required=vel_topic is not None,
+                       option="--gnss-vel-topic")
         rows, n_nofix = [], 0
+        cov_types: dict[int, int] = {}
         for conn, _ts, raw in rd.messages(connections=conns):
             m = rd.deserialize(raw, conn.msgtype)
             if m.status.status < 0:
                 n_nofix += 1
                 continue
+            ct = int(m.position_covariance_type)
+            cov_types[ct] = cov_types.get(ct, 0) + 1
             cov = np.asarray(m.position_covariance, dtype=float).reshape(3, 3)
-            sd = np.sqrt(np.diag(cov)) if m.position_covariance_type > 0 else np.full(3, np.nan)
+            sd = np.sqrt(np.abs(np.diag(cov))) * np.sign(np.diag(cov)) if ct > 0 else np.full(3, np.nan)
             rows.append((*_stamp(m), m.latitude, m.longitude, m.altitude, *sd,
                          _FIX_Q.get(int(m.status.status), 5)))
-        vt, vv = [], []
+        vt, vv, vs, frames = [], [], [], set()
         for conn, _ts, raw in (rd.messages(connections=vconns) if vconns else ()):  # [] would mean all
             m = rd.deserialize(raw, conn.msgtype)
             vt.append(_stamp(m))
-            lin = m.twist.linear
+            frames.add(str(m.header.frame_id))
+            tw = m.twist.twist if conn.msgtype == TWIST_COV_TYPE else m.twist
+            lin = tw.linear
             vv.append((lin.x, lin.y, lin.z))
+            if conn.msgtype == TWIST_COV_TYPE:
+                d = np.diag(np.asarray(m.twist.covariance, dtype=float).reshape(6, 6))[:3]
+                vs.append(tuple(np.sqrt(d) if np.all(d > 0) else (np.nan,) * 3))
+            else:
+                vs.append((np.nan,) * 3)
         fix_topic = conns[0].topic
     if n_nofix:
         events.append(f"{name}: {n_nofix} NavSatFix message(s) with status NO_FIX skipped")
@@ -222,17 +249,47 @@ def read_gnss(path, topic: str | None = None, vel_topic: str | None = None, stam
         j = np.clip(np.searchsorted(vt, time), 1, len(vt) - 1) if len(vt) > 1 else np.zeros(len(a), int)
         if len(vt) > 1:
             j = np.where(np.abs(vt[j - 1] - time) < np.abs(vt[j] - time), j - 1, j)
+        vs = np.asarray(vs, dtype=float).reshape(-1, 3)[order]
         ok = np.abs(vt[j] - time) <= match_s
+        frame = _velocity_frame(path, vconns[0].topic, frames)
+        if frame == "NED":
+            vv = vv[:, [1, 0, 2]] * np.array([1.0, 1.0, -1.0])
+            vs = vs[:, [1, 0, 2]]
         vel = np.full((len(a), 3), np.nan)
         vel[ok] = vv[j[ok]]
-        events.append(f"{name}: velocity from TwistStamped on {vconns[0].topic} (twist.linear as ENU); "
-                      f"{int(ok.sum())} of {len(a)} fixes matched within {match_s:g} s, others not measured")
-        std_vel = check_std(path, None, ["σve", "σvn", "σvu"], lambda i: i, "velocity", DEFAULT_VEL_STD_M_S,
-                            0.0, "m/s", events)
+        kind = vconns[0].msgtype.rsplit("/", 1)[-1]
+        events.append(f"{name}: velocity from {kind} on {vconns[0].topic} (frame_id "
+                      f"{', '.join(sorted(frames)) or 'empty'} → twist.linear as {frame}"
+                      f"{' → ENU' if frame == 'NED' else ''}); {int(ok.sum())} of {len(a)} fixes matched "
+                      f"within {match_s:g} s, others not measured")
+        sv = np.full((len(a), 3), np.nan)
+        sv[ok] = vs[j[ok]]
+        std_vel = check_std(path, None if np.isnan(sv).all() else sv, ["σve", "σvn", "σvu"],
+                            lambda i: f"{vconns[0].topic} velocity {i + 1}", "velocity", DEFAULT_VEL_STD_M_S,
+                            0.0, "m/s", events, measured=~np.isnan(vel))
     sp = a[:, 3:6]
     std_pos = check_std(path, None if np.isnan(sp).all() else sp, ["σE", "σN", "σU"],
                         lambda i: f"{fix_topic} fix {i + 1}", "position", DEFAULT_POS_STD_M, min_pos_std_m,
                         "m", events)
-    events.append(f"{name}: {len(a)} NavSatFix on {fix_topic}; ellipsoidal altitude")
+    cts = ", ".join(f"{n} × {k} ({_COV_TYPES.get(k, '?')})" for k, n in sorted(cov_types.items()))
+    qs = {int(q): int((a[:, 6] == q).sum()) for q in np.unique(a[:, 6])}
+    events.append(f"{name}: {len(a)} NavSatFix on {fix_topic}; ellipsoidal altitude; position_covariance_"
+                  f"type {cts}: σ from the covariance diagonal where the type is > 0; quality "
+                  + ", ".join(f"Q{q} ({n})" for q, n in qs.items()) + " (status FIX → 5, SBAS → 3, GBAS → 4)")
     return GnssData(time, np.radians(a[:, 0]), np.radians(a[:, 1]), a[:, 2], vel=vel, std_pos=std_pos,
-                    std_vel=std_vel, quality=a[:, 6].astype(np.int64), events=events, week=week)
+                    std_vel=std_vel, quality=a[:, 6].astype(np.int64), events=events, week=week,
+                    height_datum="ellipsoid")
+
+
+def _velocity_frame(path, topic: str, frames: set[str]) -> str:
+    """"ENU" or "NED" from the velocity messages' frame ids (module docstring); a body frame is refused."""
+    low = {f.lower().lstrip("/") for f in frames}
+    body = sorted(f for f in low if f in BODY_FRAMES)
+    if body:
+        raise DataError(path, None, f"{topic}: velocity in the body frame {body[0]!r}: a GNSS velocity must "
+                                    "be in an Earth frame (ENU or NED); choose the receiver's velocity topic "
+                                    "(--gnss-vel-topic)")
+    ned = {f for f in low if "ned" in f}
+    if ned and len(ned) < len(low):
+        raise DataError(path, None, f"{topic}: velocity frame ids mix NED and others: {sorted(frames)}")
+    return "NED" if ned else "ENU"

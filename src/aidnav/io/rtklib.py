@@ -193,5 +193,10 @@ def read_pos(path, height_offset_m: float = 0.0, min_pos_std_m: float = ZERO_POS
                             DEFAULT_VEL_STD_M_S, min_vel_std_m_s, "m/s", events)
     events.append(f"{name}: time = GPS seconds of week {week}; {n} epochs"
                   + (f"; height offset {height_offset_m:+.3f} m added" if height_offset_m else ""))
+    # RTKLIB's header states the height kind: "(lat/lon/height=WGS84/ellipsoidal,…)" or ".../geodetic"
+    # (above the geoid, i.e. MSL); a file without that line does not say
+    head = " ".join(h for _, h in header).lower()
+    datum = "ellipsoid" if "/ellipsoidal" in head else "msl" if "/geodetic" in head else "unknown"
     return GnssData(sow, lat, lon, height, vel=vel, std_pos=std_pos, std_vel=std_vel,
-                    quality=quality, events=events, week=week)
+                    quality=quality, events=events, week=week, height_datum=datum,
+                    height_offset_m=float(height_offset_m))

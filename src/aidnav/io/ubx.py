@@ -143,4 +143,5 @@ def read_ubx(path, min_pos_std_m: float = ZERO_POS_STD_FLOOR_M,
     events.append(f"{name}: UBX NAV-PVT; {wmsg}; {len(a)} epochs; ellipsoidal height; σ = hAcc (E, N), vAcc "
                   "(U), sAcc (velocity)")
     return GnssData(sow, np.radians(a[:, 2]), np.radians(a[:, 3]), a[:, 4], vel=a[:, 5:8], std_pos=std_pos,
-                 std_vel=std_vel, quality=a[:, 11].astype(np.int64), events=events, week=week)
+                 std_vel=std_vel, quality=a[:, 11].astype(np.int64), events=events, week=week,
+                 height_datum="ellipsoid")

@@ -129,6 +129,10 @@ def _score_table(o: dict) -> str:
             ["end-of-outage horizontal error, 95th percentile [m]", fmt(o.get("end_error_p95_m"))],
             ["end-of-outage horizontal error, max [m]", fmt(o.get("end_error_max_m"))],
             ["RMS over the withheld fixes [m]", fmt(o.get("rms_m"))]]
+    if o.get("reference"):
+        head.insert(3, ["fixes scored are", str(o["reference"])])
+    for q, v in (o.get("per_quality") or {}).items():
+        head.append([f"RMS at quality {q} fixes [m] ({v.get('n')} fixes)", fmt(v.get("rms_m"))])
     parts.append(kv_table(head))
     per = o.get("outages") or []
     if per:

@@ -10,12 +10,23 @@ Layers (KML folders; GeoJSON features with a ``layer`` property):
 * ``rejected`` — the fixes the filter rejected (points, red);
 * ``outage`` — the track during each GNSS outage window (lines), with the window's start/end times.
 
-Coordinates: WGS-84 longitude, latitude [deg] and ellipsoidal height [m], written with Python's
-shortest round-trip float text (``repr``), so they read back to the same double (far below the 1e-9°
-tested). GeoJSON follows RFC 7946 ([lon, lat, height]). KML altitudes are ellipsoidal heights and the
-placemarks use the default ``clampToGround`` mode (KML altitudes would be above mean sea level).
-Long tracks are decimated to at most ``max_points`` points (every k-th sample plus the last); epochs
-with a non-finite position are left out of the lines and counted in the document description.
+* ``track`` (KML) — the same trajectory as one timed ``gx:Track`` (a ``when`` per point), so Google
+  Earth's time slider replays it; GeoJSON gives each piece and fix its times instead.
+
+Coordinates: WGS-84 longitude, latitude [deg] and height [m], written with Python's shortest round-trip
+float text (``repr``), so they read back to the same double (far below the 1e-9° tested). GeoJSON follows
+RFC 7946 ([lon, lat, height], height ellipsoidal). KML geometries use ``altitudeMode`` **absolute**
+(a flight is drawn at its altitude, not clamped to the ground); KML's absolute altitude is above mean sea
+level, so with ``geoid_undulation_m`` N (the configured datum offset of a log whose heights were above
+MSL) the KML altitude is h − N, else the ellipsoidal height is written and the description says so.
+
+Times: where the GPS week is known, ISO 8601 UTC (``2025-07-08T19:34:18.499000Z``; leap seconds from
+:mod:`aidnav.io.gpstime`): KML ``TimeStamp``/``TimeSpan``/``gx:Track`` ``when``; GeoJSON properties
+``time``/``time_start``/``time_end`` beside ``gps_week`` and the seconds of week (``time_s``,
+``time_start_s``, ``time_end_s``). Styles are shared (one per colour class, referenced by ``styleUrl``),
+not written per point. Long tracks are decimated to at most ``max_points`` points (every k-th sample
+plus the last); epochs with a non-finite position are left out of the lines and counted in the document
+description.
 """
 
 from __future__ import annotations
@@ -27,6 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from aidnav.data import GnssData, Trajectory
+from aidnav.io.gpstime import week_sow_to_utc_iso
 from aidnav.nav.rotations import wrap_pi
 
 __all__ = ["write_kml", "write_geojson", "write_maps", "SIGMA_CLASSES_M", "QUALITY_NAMES", "track_pieces"]
@@ -177,15 +189,25 @@ def _outage_idx(traj: Trajectory, a: float, b: float, max_points: int) -> np.nda
     return m
 
 
-def _coords(traj_or_gnss, idx) -> list[tuple[float, float, float]]:
+def _coords(traj_or_gnss, idx, dh: float = 0.0) -> list[tuple[float, float, float]]:
     la, lo = _deg(traj_or_gnss.lat[idx], traj_or_gnss.lon[idx])
-    h = np.asarray(traj_or_gnss.height, float)[idx]
+    h = np.asarray(traj_or_gnss.height, float)[idx] - dh
     return [(float(x), float(y), float(z) if math.isfinite(z) else 0.0) for x, y, z in zip(lo, la, h,
                                                                                             strict=True)]
 
 
-def _fix_text(g: GnssData, i: int, rejected: bool, withheld: bool) -> dict:
+def _iso(week, t) -> list[str] | None:
+    """ISO 8601 UTC strings of the seconds of week ``t`` (None when the week is unknown)."""
+    if week is None:
+        return None
+    return [str(x) for x in np.atleast_1d(week_sow_to_utc_iso(int(week), np.asarray(t, float)))]
+
+
+def _fix_text(g: GnssData, i: int, rejected: bool, withheld: bool, week=None) -> dict:
     p = {"time_s": float(g.time[i])}
+    if week is not None:
+        p["time"] = _iso(week, [g.time[i]])[0]
+        p["gps_week"] = int(week)
     if g.quality is not None:
         q = int(g.quality[i])
         p["quality"] = q
@@ -205,38 +227,62 @@ def _kml_colour(hex_rgb: str, alpha: int = 255) -> str:
     return simplekml.Color.rgb(r, g, b, alpha)
 
 
+def _week(traj: Trajectory, gnss: GnssData | None):
+    w = getattr(traj, "week", None)
+    return w if w is not None else (gnss.week if gnss is not None else None)
+
+
 def write_kml(path, traj: Trajectory, gnss: GnssData | None = None, outages=None, rejected_times=None,
               color_by: str = "auto", max_points: int = 20000, max_fixes: int = 20000,
-              name: str | None = None) -> Path:
-    """Write a KML file of ``traj`` (folders ``trajectory``, ``gnss``, ``rejected``, ``outage``; see the
-    module docstring) and return its path.
+              name: str | None = None, geoid_undulation_m: float | None = None) -> Path:
+    """Write a KML file of ``traj`` (folders ``trajectory``, ``track``, ``gnss``, ``rejected``,
+    ``outage``; see the module docstring) and return its path.
 
     gnss : GNSS fixes (optional); outages : [(start, end)] windows [s, on the trajectory's time scale],
     e.g. ``summary["outage_windows"]``; rejected_times : times [s] of the fixes the filter rejected
     (``summary["rejected_fix_times"]``), matched to the fixes within 1 µs; color_by : "auto" (quality
-    when present, else σ), "sigma" or "quality"; max_points / max_fixes : decimation limits.
+    when present, else σ), "sigma" or "quality"; max_points / max_fixes : decimation limits;
+    geoid_undulation_m : N [m] (ellipsoidal − MSL) so that the absolute altitudes are above MSL.
     """
     import simplekml  # lazy: simplekml is heavy to import
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     kml = simplekml.Kml(name=name or path.stem)
+    absolute = simplekml.AltitudeMode.absolute
+    dh = float(geoid_undulation_m or 0.0)
+    week = _week(traj, gnss)
     pieces, mode, n_drop = track_pieces(traj, color_by, max_points)
     desc = [f"{len(traj.time)} epochs, {sum(len(p['idx']) for p in pieces)} points drawn, coloured by "
-            f"{mode}"]
+            f"{mode}",
+            "altitudes absolute: " + (f"ellipsoidal height − geoid undulation {dh:+.3f} m (above MSL)" if dh
+                                      else "WGS-84 ellipsoidal heights (the geoid undulation is not known "
+                                      "here: Google Earth reads them as above MSL)"),
+            "times UTC" if week is not None else "no GPS week: no time stamps"]
     if n_drop:
         desc.append(f"{n_drop} epochs without a finite position left out")
     ftr = kml.newfolder(name="trajectory")
     styles: dict[str, simplekml.Style] = {}
     for k, p in enumerate(pieces):
-        ls = ftr.newlinestring(name=p["label"], coords=_coords(traj, p["idx"]),
+        ls = ftr.newlinestring(name=p["label"], coords=_coords(traj, p["idx"], dh),
                                description=f"piece {k}: {p['label']}, t = {p['t0']:.3f} … {p['t1']:.3f} s")
+        ls.altitudemode = absolute
+        if week is not None:
+            ls.timespan.begin, ls.timespan.end = _iso(week, [p["t0"], p["t1"]])
         if p["colour"] not in styles:
             st = simplekml.Style()
             st.linestyle.color = _kml_colour(p["colour"])
             st.linestyle.width = 3
             styles[p["colour"]] = st
         ls.style = styles[p["colour"]]
+    if week is not None:  # one timed track for the time slider
+        ii = np.flatnonzero(np.isfinite(traj.lat) & np.isfinite(traj.lon) & np.isfinite(traj.height))
+        ii = ii[_decimate(len(ii), max_points)] if len(ii) else ii
+        if len(ii) >= 2:
+            trk = kml.newfolder(name="track").newgxtrack(name="trajectory (timed)")
+            trk.altitudemode = absolute
+            trk.newwhen(_iso(week, traj.time[ii]))
+            trk.newgxcoord(_coords(traj, ii, dh))
     if gnss is not None and len(gnss):
         rej, wh = _fix_groups(gnss, rejected_times, outages)
         cls, gmode = _classes(gnss, color_by if color_by != "quality" or gnss.quality is not None else "auto")
@@ -257,9 +303,12 @@ def write_kml(path, traj: Trajectory, gnss: GnssData | None = None, outages=None
                 st.iconstyle.icon.href = "http://maps.google.com/mapfiles/kml/shapes/placemark_circle.png"
                 st.labelstyle.scale = 0
                 pstyles[colour] = st
-            info = _fix_text(gnss, int(i), rej[i], wh[i])
-            pt = (fr if rej[i] else fg).newpoint(coords=_coords(gnss, [i]),
+            info = _fix_text(gnss, int(i), rej[i], wh[i], week)
+            pt = (fr if rej[i] else fg).newpoint(coords=_coords(gnss, [i], dh),
                                                  description=json.dumps(info))
+            pt.altitudemode = absolute
+            if week is not None:
+                pt.timestamp.when = info["time"]
             pt.style = pstyles[colour]
     fo = kml.newfolder(name="outage")
     ost = simplekml.Style()
@@ -269,8 +318,11 @@ def write_kml(path, traj: Trajectory, gnss: GnssData | None = None, outages=None
         ii = _outage_idx(traj, a, b, max_points)
         if len(ii) < 2:
             continue
-        ls = fo.newlinestring(name=f"outage {k + 1}", coords=_coords(traj, ii),
+        ls = fo.newlinestring(name=f"outage {k + 1}", coords=_coords(traj, ii, dh),
                               description=f"GNSS outage {a:.3f} – {b:.3f} s ({b - a:g} s)")
+        ls.altitudemode = absolute
+        if week is not None:
+            ls.timespan.begin, ls.timespan.end = _iso(week, [a, b])
         ls.style = ost
     kml.document.description = "; ".join(desc)
     kml.save(str(path))
@@ -285,10 +337,18 @@ def geojson_dict(traj: Trajectory, gnss: GnssData | None = None, outages=None, r
                  color_by: str = "auto", max_points: int = 20000, max_fixes: int = 20000) -> dict:
     """The GeoJSON FeatureCollection (a dict) written by :func:`write_geojson`."""
     feats = []
+    week = _week(traj, gnss)
+
+    def times(t0, t1, stem="time"):
+        if week is None:
+            return {}
+        a, b = _iso(week, [t0, t1])
+        return {f"{stem}_start": a, f"{stem}_end": b, "gps_week": int(week)}
+
     pieces, mode, n_drop = track_pieces(traj, color_by, max_points)
     for p in pieces:
         props = {"layer": "trajectory", "class": p["label"], "color_by": mode, "stroke": p["colour"],
-                 "stroke-width": 3, "time_start_s": p["t0"], "time_end_s": p["t1"]}
+                 "stroke-width": 3, **times(p["t0"], p["t1"]), "time_start_s": p["t0"], "time_end_s": p["t1"]}
         feats.append(_feature("LineString", [list(c) for c in _coords(traj, p["idx"])], props))
     if gnss is not None and len(gnss):
         rej, wh = _fix_groups(gnss, rejected_times, outages)
@@ -299,18 +359,20 @@ def geojson_dict(traj: Trajectory, gnss: GnssData | None = None, outages=None, r
         for i in sel:
             colour = _REJECTED_COLOUR if rej[i] else ("#bbbbbb" if wh[i] else _colour(cls[i], gmode))
             props = {"layer": "rejected" if rej[i] else "gnss", "marker-color": colour,
-                     "marker-size": "small", **_fix_text(gnss, int(i), rej[i], wh[i])}
+                     "marker-size": "small", **_fix_text(gnss, int(i), rej[i], wh[i], week)}
             feats.append(_feature("Point", list(_coords(gnss, [i])[0]), props))
     for k, (a, b) in enumerate(outages or []):
         ii = _outage_idx(traj, a, b, max_points)
         if len(ii) < 2:
             continue
-        props = {"layer": "outage", "outage": k + 1, "start_s": float(a), "end_s": float(b),
+        props = {"layer": "outage", "outage": k + 1, **times(a, b), "start_s": float(a), "end_s": float(b),
                  "length_s": float(b - a), "stroke": _OUTAGE_COLOUR, "stroke-width": 6}
         feats.append(_feature("LineString", [list(c) for c in _coords(traj, ii)], props))
     return {"type": "FeatureCollection", "features": feats,
             "properties": {"epochs": len(traj.time), "non_finite_epochs_left_out": n_drop, "color_by": mode,
-                           "sigma_classes_m": list(SIGMA_CLASSES_M)}}
+                           "sigma_classes_m": list(SIGMA_CLASSES_M), "height": "WGS-84 ellipsoidal [m]",
+                           "times": ("ISO 8601 UTC (time*, from GPS week + seconds of week *_s)"
+                                     if week is not None else "seconds (*_s); GPS week unknown")}}
 
 
 def write_geojson(path, traj: Trajectory, gnss: GnssData | None = None, outages=None, rejected_times=None,
@@ -336,7 +398,12 @@ def write_maps(base, traj: Trajectory, gnss: GnssData | None = None, summary: di
     rejected = summary.get("rejected_fix_times")
     out = []
     if kml:
-        out.append(write_kml(base.with_suffix(".kml"), traj, gnss, outages, rejected, **kw))
+        if "geoid_undulation_m" not in kw and summary.get("gnss_height_offset_m"):
+            # the configured datum offset of a log above MSL is its geoid undulation N: KML altitude h − N
+            kw_kml = {**kw, "geoid_undulation_m": float(summary["gnss_height_offset_m"])}
+        else:
+            kw_kml = kw
+        out.append(write_kml(base.with_suffix(".kml"), traj, gnss, outages, rejected, **kw_kml))
     if geojson:
         out.append(write_geojson(base.with_suffix(".geojson"), traj, gnss, outages, rejected, **kw))
     return out

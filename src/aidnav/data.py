@@ -150,8 +150,8 @@ class Trajectory:
     extra : further per-epoch columns keyed by their interchange name with units
     (e.g. ``"gyro_bias_x_deg_h"``).
     week : GPS week of ``time`` when it is GPS seconds of week (None: unknown).
-    The interchange writer turns std_* into the ``<column>_std`` columns of CONVENTIONS
-    (``lat_deg_std``, ``lon_deg_std``, ``height_m_std``, ``ve_std`` ... ``heading_deg_std``).
+    The interchange writer turns std_* into the σ columns of docs/conventions.md
+    (``std_e_m`` … ``std_u_m``, ``std_ve`` … ``std_vu``, ``std_roll_deg`` … ``std_heading_deg``).
     """
 
     time: np.ndarray

@@ -141,7 +141,8 @@ def test_trajectory_metres_week_and_utc_columns(tmp_path):
     p = write_trajectory(t, tmp_path / "t.csv", week=2238)
     df = pd.read_csv(p, comment="#")
     np.testing.assert_array_equal(df[["std_e_m", "std_n_m", "std_u_m"]].to_numpy(), t.std_pos)
-    assert {"lat_deg_std", "lon_deg_std", "height_m_std"} <= set(df.columns)
+    # one σ naming scheme (issue 38): the degree σ columns are no longer written
+    assert not {"lat_deg_std", "lon_deg_std", "height_m_std"} & set(df.columns)
     assert (df["gps_week"] == 2238).all()
     assert df["utc"][0] == "2022-12-01T11:25:25.400000Z"  # 18 leap seconds: 11:25:43.4 GPST
     for ext in ("csv", "parquet"):

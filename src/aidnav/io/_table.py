@@ -19,7 +19,67 @@ import pyarrow.parquet as pq
 from aidnav.io._arrow import column_to_f64, f64_to_arrow
 from aidnav.io.errors import DataError
 
-TEXT_COLUMNS = ("utc",)  #: columns of text (not read as data): ISO UTC time
+TEXT_COLUMNS = ("utc",)  #: columns of text (not read as data): ISO UTC time (Parquet: a UTC timestamp)
+
+#: unit and frame of the interchange columns, written as Parquet field metadata (``unit``, ``frame``);
+#: a column not listed here takes its unit from its name's suffix (:func:`column_unit`)
+COLUMN_META = {
+    "time": ("s", "GPS seconds of week where gps_week is given (else the input's time scale)"),
+    "gps_week": ("week", "GPS week of the epoch"),
+    "utc": ("UTC", "UTC instant (leap seconds applied), timestamp[us, UTC]"),
+    "lat_deg": ("deg", "WGS-84 geodetic latitude"), "lon_deg": ("deg", "WGS-84 longitude"),
+    "height_m": ("m", "WGS-84 ellipsoidal height"),
+    "ve": ("m/s", "ENU east"), "vn": ("m/s", "ENU north"), "vu": ("m/s", "ENU up"),
+    "roll_deg": ("deg", "body RFU w.r.t. local ENU (docs/conventions.md)"),
+    "pitch_deg": ("deg", "body RFU w.r.t. local ENU (docs/conventions.md)"),
+    "heading_deg": ("deg", "clockwise from north, [0, 360)"),
+    "std_e_m": ("m", "1σ ENU east"), "std_n_m": ("m", "1σ ENU north"), "std_u_m": ("m", "1σ ENU up"),
+    "std_ve": ("m/s", "1σ ENU east"), "std_vn": ("m/s", "1σ ENU north"), "std_vu": ("m/s", "1σ ENU up"),
+    "std_roll_deg": ("deg", "1σ roll"), "std_pitch_deg": ("deg", "1σ pitch"),
+    "std_heading_deg": ("deg", "1σ heading"),
+    "quality": ("-", "RTKLIB Q: 1 fixed, 2 float, 3 SBAS, 4 DGPS, 5 single, 6 PPP"),
+    **{f"gyro_{a}_rad_s": ("rad/s", "body RFU") for a in "xyz"},
+    **{f"accel_{a}_m_s2": ("m/s^2", "body RFU") for a in "xyz"},
+    **{f"dtheta_{a}_rad": ("rad", "body RFU") for a in "xyz"},
+    **{f"dv_{a}_m_s": ("m/s", "body RFU") for a in "xyz"},
+}
+_SUFFIX_UNITS = (("_deg_sqrt_h", "deg/sqrt(h)"), ("_deg_h", "deg/h"), ("_deg_s", "deg/s"), ("_ug", "ug"),
+                 ("_ppm", "ppm"), ("_m_s2", "m/s^2"), ("_rad_s", "rad/s"), ("_m_s", "m/s"), ("_deg", "deg"),
+                 ("_rad", "rad"), ("_m", "m"), ("_s", "s"))
+
+
+def column_unit(name: str) -> tuple[str, str]:
+    """(unit, frame) of an interchange column: :data:`COLUMN_META`, else the unit its name ends with
+    (``gyro_bias_x_deg_h`` → deg/h, body RFU for ``_x/_y/_z`` axes), else ("", "")."""
+    if name in COLUMN_META:
+        return COLUMN_META[name]
+    for suf, unit in _SUFFIX_UNITS:
+        if name.endswith(suf):
+            stem = name[: -len(suf)]
+            frame = "body RFU" if stem.endswith(("_x", "_y", "_z")) else ""
+            return unit, frame
+    return "", ""
+
+
+def arrow_table(cols: dict, parquet: bool = True) -> pa.Table:
+    """Named 1-D columns as an Arrow table; for Parquet each field carries ``unit`` and ``frame``
+    metadata (:func:`column_unit`) and ``utc`` (ISO 8601 text) becomes a timestamp[us, UTC] column."""
+    fields, arrays = [], []
+    for n, v in cols.items():
+        v = np.asarray(v)
+        if v.dtype.kind in "USO":
+            if parquet and n == "utc":
+                us = np.array([str(x).rstrip("Z") for x in v], dtype="datetime64[us]")
+                arr = pa.array(us, type=pa.timestamp("us", tz="UTC"))
+            else:
+                arr = pa.array([str(x) for x in v], type=pa.string())
+        else:
+            arr = f64_to_arrow(v)
+        unit, frame = column_unit(n)
+        md = {b"unit": unit.encode(), b"frame": frame.encode()} if parquet and (unit or frame) else None
+        fields.append(pa.field(n, arr.type, metadata=md))
+        arrays.append(arr)
+    return pa.Table.from_arrays(arrays, schema=pa.schema(fields))
 _META_KEY = b"aidnav"
 _T0_RE = re.compile(r"^#\s*t0_s\s*[=:]\s*(\S+)")
 _WEEK_RE = re.compile(r"^#\s*gps_week\s*[=:]\s*(\d+)\s*$")
@@ -292,9 +352,7 @@ def _write(cols: dict, path, comments: list[str], meta: dict) -> Path:
                 f.write(f"# {c}\n")
             pd.DataFrame(cols).to_csv(f, index=False, lineterminator="\n")  # shortest exact round trip
     else:
-        arrays = [pa.array([str(x) for x in v], type=pa.string()) if np.asarray(v).dtype.kind in "US"
-                  else f64_to_arrow(v) for v in cols.values()]
-        tbl = pa.Table.from_arrays(arrays, names=list(cols))
+        tbl = arrow_table(cols)
         md = dict(tbl.schema.metadata or {})
         md[_META_KEY] = json.dumps(meta).encode()
         pq.write_table(tbl.replace_schema_metadata(md), path)

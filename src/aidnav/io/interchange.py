@@ -1,4 +1,4 @@
-"""Readers and writers of aidnav's interchange files (``CONVENTIONS.md``, "Interchange files").
+"""Readers and writers of aidnav's interchange files (``docs/conventions.md``, "Interchange files").
 
 CSV (comma-separated, one header line, ``#`` comment lines allowed before it) or Parquet with the same
 columns, chosen by the file extension (``.csv``; ``.parquet`` / ``.pq``). Column order does not matter
@@ -9,8 +9,16 @@ when reading; names do, and they carry the units:
 * GNSS: ``time`` [s], ``lat_deg``, ``lon_deg`` [deg], ``height_m`` [m]; optional ``ve, vn, vu``
   [m/s ENU], ``std_e_m, std_n_m, std_u_m`` [m], ``std_ve, std_vn, std_vu`` [m/s], ``quality`` [-].
 * Trajectory: ``time, lat_deg, lon_deg, height_m, ve, vn, vu, roll_deg, pitch_deg, heading_deg``,
-  optional standard deviations ``<column>_std`` in the unit of their column (``lat_deg_std`` [deg of
-  latitude] ...), any further columns (units in their names) kept in ``Trajectory.extra``.
+  optional standard deviations, one scheme for every file (issue 38): ``std_e_m, std_n_m, std_u_m``
+  [m], ``std_ve, std_vn, std_vu`` [m/s], ``std_roll_deg, std_pitch_deg, std_heading_deg`` [deg]; any
+  further columns (units in their names) kept in ``Trajectory.extra``. **Renamed** (issue 38; the old
+  names are still read): ``ve_std, vn_std, vu_std`` → ``std_ve, std_vn, std_vu``; ``roll_deg_std,
+  pitch_deg_std, heading_deg_std`` → ``std_roll_deg, std_pitch_deg, std_heading_deg``; the degree σ
+  ``lat_deg_std, lon_deg_std, height_m_std`` are no longer written (``std_n_m, std_e_m, std_u_m`` say
+  the same in metres).
+
+Parquet files carry per field ``unit`` and ``frame`` metadata (:data:`aidnav.io._table.COLUMN_META`),
+and ``utc`` is a ``timestamp[us, UTC]`` column there (ISO 8601 text in CSV).
 
 Inside aidnav angles are radians and positions/velocities SI (``aidnav.data``); the conversion
 happens here. CSV numbers are written at full float64 precision (shortest round-trip ``repr``) and
@@ -63,9 +71,12 @@ GNSS_STD_POS_COLUMNS = ["std_e_m", "std_n_m", "std_u_m"]
 GNSS_STD_VEL_COLUMNS = ["std_ve", "std_vn", "std_vu"]
 TRAJECTORY_COLUMNS = ["time", "lat_deg", "lon_deg", "height_m", "ve", "vn", "vu", "roll_deg", "pitch_deg",
                       "heading_deg"]
+STD_VEL_COLUMNS = GNSS_STD_VEL_COLUMNS
+STD_ATT_COLUMNS = ["std_roll_deg", "std_pitch_deg", "std_heading_deg"]
+#: names before issue 38, still read
 _TRAJ_STD_POS = ["lat_deg_std", "lon_deg_std", "height_m_std"]
-_TRAJ_STD_VEL = ["ve_std", "vn_std", "vu_std"]
-_TRAJ_STD_ATT = ["roll_deg_std", "pitch_deg_std", "heading_deg_std"]
+_OLD_STD_VEL = ["ve_std", "vn_std", "vu_std"]
+_OLD_STD_ATT = ["roll_deg_std", "pitch_deg_std", "heading_deg_std"]
 
 
 def read_imu(path) -> ImuData:
@@ -243,8 +254,9 @@ def read_trajectory(path) -> Trajectory:
     Columns ``time`` [s], ``lat_deg, lon_deg`` [deg → rad], ``height_m`` [m], ``ve, vn, vu`` [m/s ENU],
     ``roll_deg, pitch_deg, heading_deg`` [deg → rad; heading wrapped to [0, 2π)]. Optional standard
     deviations: ``lat_deg_std, lon_deg_std`` [deg] → ``std_pos`` E/N [m] (via R_N, R_M),
-    ``height_m_std`` → U [m] (``std_e_m, std_n_m, std_u_m`` [m] are preferred when present); ``ve_std ...`` →
-    ``std_vel`` [m/s]; ``roll_deg_std ...`` → ``std_att`` [rad]. Other columns → ``extra`` as read.
+    ``height_m_std`` → U [m] (``std_e_m, std_n_m, std_u_m`` [m] are preferred when present); ``std_ve ...``
+    (or the old ``ve_std ...``) → ``std_vel`` [m/s]; ``std_roll_deg ...`` (or ``roll_deg_std ...``) →
+    ``std_att`` [rad]. Other columns → ``extra`` as read.
     """
     return trajectory_from_table(_open(path))
 
@@ -254,11 +266,13 @@ def trajectory_from_table(t: _Table) -> Trajectory:
     or a piece of one read in batches by :mod:`aidnav.io.stream`), with the same checks."""
     t.require(TRAJECTORY_COLUMNS, "trajectory")
     has_sp = t.has_all(_TRAJ_STD_POS, "position std")
-    has_sv = t.has_all(_TRAJ_STD_VEL, "velocity std")
-    has_sa = t.has_all(_TRAJ_STD_ATT, "attitude std")
+    sv_cols = STD_VEL_COLUMNS if t.has_all(STD_VEL_COLUMNS, "velocity std") else _OLD_STD_VEL
+    sa_cols = STD_ATT_COLUMNS if t.has_all(STD_ATT_COLUMNS, "attitude std") else _OLD_STD_ATT
+    has_sv = t.has_all(sv_cols, "velocity std")
+    has_sa = t.has_all(sa_cols, "attitude std")
     has_sp_m = t.has_all(GNSS_STD_POS_COLUMNS, "position std")
     std_cols = (_TRAJ_STD_POS if has_sp else []) + (GNSS_STD_POS_COLUMNS if has_sp_m else []) \
-        + (_TRAJ_STD_VEL if has_sv else []) + (_TRAJ_STD_ATT if has_sa else [])
+        + (sv_cols if has_sv else []) + (sa_cols if has_sa else [])
     t.finite(TRAJECTORY_COLUMNS + std_cols)
     t.increasing_time()
     c = t.cols
@@ -274,9 +288,9 @@ def trajectory_from_table(t: _Table) -> Trajectory:
         std_pos = np.column_stack([np.radians(c["lon_deg_std"]) * se, np.radians(c["lat_deg_std"]) * sn,
                                    c["height_m_std"]])
     if has_sv:
-        std_vel = t.get(_TRAJ_STD_VEL)
+        std_vel = t.get(sv_cols)
     if has_sa:
-        std_att = np.radians(t.get(_TRAJ_STD_ATT))
+        std_att = np.radians(t.get(sa_cols))
     known = set(TRAJECTORY_COLUMNS) | set(std_cols) | {"gps_week"}
     extra = {k: v for k, v in c.items() if k not in known}
     week = t.meta.get("gps_week")
@@ -290,9 +304,9 @@ def trajectory_from_table(t: _Table) -> Trajectory:
 def trajectory_columns(traj: Trajectory, week: int | None = None) -> dict[str, np.ndarray]:
     """The interchange columns of ``traj`` (degrees, m, m/s at the boundary) as a dict of arrays.
 
-    ``std_pos`` E/N/U [m] becomes ``lon_deg_std, lat_deg_std`` [deg] and ``height_m_std`` [m] (kept
-    for compatibility) **and** ``std_e_m, std_n_m, std_u_m`` [m]; ``std_vel`` → ``ve_std, vn_std,
-    vu_std`` [m/s]; ``std_att`` → ``roll_deg_std ...`` [deg]; ``extra`` columns as they are. With
+    ``std_pos`` E/N/U [m] becomes ``std_e_m, std_n_m, std_u_m`` [m]; ``std_vel`` → ``std_ve, std_vn,
+    std_vu`` [m/s]; ``std_att`` → ``std_roll_deg ...`` [deg] (the one σ naming scheme, issue 38);
+    ``extra`` columns as they are. With
     ``week`` (the GPS week of ``traj.time``, which is then GPS seconds of week; default ``traj.week``,
     None when the trajectory does not know it) two columns follow
     ``time``: ``gps_week`` (the week of each epoch: a time past 604800 s belongs to the next week) and
@@ -313,17 +327,13 @@ def trajectory_columns(traj: Trajectory, week: int | None = None) -> dict[str, n
         "heading_deg": heading,
     })
     if traj.std_pos is not None:
-        sn, se = _pos_std_scale(traj.lat, traj.height)
-        df["lat_deg_std"] = np.degrees(traj.std_pos[:, 1] / sn)
-        df["lon_deg_std"] = np.degrees(traj.std_pos[:, 0] / se)
-        df["height_m_std"] = traj.std_pos[:, 2]
         for j, c in enumerate(GNSS_STD_POS_COLUMNS):
             df[c] = traj.std_pos[:, j]
     if traj.std_vel is not None:
-        for j, c in enumerate(_TRAJ_STD_VEL):
+        for j, c in enumerate(STD_VEL_COLUMNS):
             df[c] = traj.std_vel[:, j]
     if traj.std_att is not None:
-        for j, c in enumerate(_TRAJ_STD_ATT):
+        for j, c in enumerate(STD_ATT_COLUMNS):
             df[c] = np.degrees(traj.std_att[:, j])
     for k, v in traj.extra.items():
         if k in df:
@@ -333,7 +343,7 @@ def trajectory_columns(traj: Trajectory, week: int | None = None) -> dict[str, n
 
 
 def write_trajectory(traj: Trajectory, path, week: int | None = None) -> Path:
-    """Write a trajectory (``CONVENTIONS.md`` trajectory columns, degrees at the boundary) to ``path``
+    """Write a trajectory (``docs/conventions.md`` trajectory columns, degrees at the boundary) to ``path``
     (.csv or .parquet); columns as :func:`trajectory_columns` (``week``: add ``gps_week`` and ``utc``).
     A ``.nav`` path writes KF-GINS navigation text instead (:func:`aidnav.io.kfgins.write_nav`)."""
     if str(path).lower().endswith(".nav"):

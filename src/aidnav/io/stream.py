@@ -165,15 +165,11 @@ class TrajectoryWriter:
         self.path.parent.mkdir(parents=True, exist_ok=True)
 
     def write(self, traj) -> None:
-        import pyarrow as pa
-
-        from aidnav.io._arrow import f64_to_arrow
+        from aidnav.io._table import arrow_table
         from aidnav.io.interchange import trajectory_columns
 
         cols = trajectory_columns(traj, week=self.week)
-        arrays = [pa.array(v, type=pa.string()) if np.asarray(v).dtype.kind in "USO" else f64_to_arrow(v)
-                  for v in cols.values()]
-        tbl = pa.Table.from_arrays(arrays, names=list(cols))
+        tbl = arrow_table(cols, parquet=self.kind == "parquet")  # units per field, utc a timestamp
         if self.w is None:
             self._open(tbl.schema)
         if not self.rg:
@@ -349,14 +345,24 @@ class _FileChunks(TrajectoryChunks):
 
     def __init__(self, path: Path, names: list[str], kind: str, csv_head, meta: dict, chunk_rows: int,
                  height_offset_m: float):
-        from aidnav.io.interchange import _TRAJ_STD_ATT, _TRAJ_STD_POS, _TRAJ_STD_VEL, GNSS_STD_POS_COLUMNS
+        from aidnav.io.interchange import (
+            _OLD_STD_ATT,
+            _OLD_STD_VEL,
+            _TRAJ_STD_POS,
+            GNSS_STD_POS_COLUMNS,
+            STD_ATT_COLUMNS,
+            STD_VEL_COLUMNS,
+        )
 
         have = set(names)
+
+        def has(*sets):
+            return any(set(x) <= have for x in sets)
+
         super().__init__(None, chunk_rows, {"vel": True, "rph": True,
-                                            "std_pos": set(_TRAJ_STD_POS) <= have or
-                                            set(GNSS_STD_POS_COLUMNS) <= have,
-                                            "std_vel": set(_TRAJ_STD_VEL) <= have,
-                                            "std_att": set(_TRAJ_STD_ATT) <= have})
+                                            "std_pos": has(_TRAJ_STD_POS, GNSS_STD_POS_COLUMNS),
+                                            "std_vel": has(STD_VEL_COLUMNS, _OLD_STD_VEL),
+                                            "std_att": has(STD_ATT_COLUMNS, _OLD_STD_ATT)})
         self.path, self.names, self.kind, self.csv_head, self.meta = path, names, kind, csv_head, meta
         self.offset = float(height_offset_m)
 

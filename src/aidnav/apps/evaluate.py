@@ -16,8 +16,10 @@ the figures are drawn from a decimated copy of the error series.
 
 from __future__ import annotations
 
+import html
 import json
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -27,6 +29,8 @@ from aidnav.analysis.error_stream import StreamedErrors, stream_errors
 from aidnav.analysis.errors import ErrorSeries
 from aidnav.data import GnssData, Trajectory
 from aidnav.report.error_plots import plot_errors, plot_nees
+from aidnav.report.html import img_file_tag, kv_table, page, table
+from aidnav.report.run_page import write_run_page
 
 #: Row order of the printed table (position N/E/U first, as navigation reports usually list them).
 CHUNK_ROWS = 1 << 15  #: estimate/reference epochs per piece
@@ -104,8 +108,16 @@ def _pieces(path, notes: list[str], height_offset_m: float, chunk_rows: int):
     return src
 
 
+def _week_of(src):
+    """The GPS week a trajectory source knows (file metadata or the trajectory held), else None."""
+    meta = getattr(src, "meta", None) or {}
+    if meta.get("gps_week") is not None:
+        return meta["gps_week"]
+    return getattr(getattr(src, "traj", None), "week", None)
+
+
 def evaluate_files(estimate_path, truth_path, out_dir=None, console=None, max_dt: float | None = None,
-                   time_scale: str = "GPS SOW", truth_height_offset_m: float = 0.0,
+                   time_scale: str | None = None, truth_height_offset_m: float = 0.0,
                    chunk_rows: int = CHUNK_ROWS) -> tuple[pd.DataFrame, list[Path]]:
     """Compare an estimate file with a reference ("truth") file, chunk by chunk (module doc).
 
@@ -114,7 +126,9 @@ def evaluate_files(estimate_path, truth_path, out_dir=None, console=None, max_dt
         position NEES summary), ``errors.csv`` (per-epoch errors, angles in deg, ``_std`` columns)
         and the PNG figures of :mod:`aidnav.report.error_plots`.
     console : rich Console for the table (a new one if None).
-    max_dt : gap threshold for :func:`trajectory_errors` [s]; time_scale : label of the time axis.
+    max_dt : gap threshold for :func:`trajectory_errors` [s]; time_scale : label of the time axis
+    (default: "GPS SOW" when either file knows its GPS week, else "s, the files' time scale" — a
+    simulated clock is not labelled GPS time).
     truth_height_offset_m : added to the reference heights [m] (datum of the reference file).
     chunk_rows : epochs per piece of either file.
 
@@ -155,6 +169,9 @@ def evaluate_files(estimate_path, truth_path, out_dir=None, console=None, max_dt
                          "same time scale?")
     stats = errors.statistics
     print_table(stats, errors, console, title=f"{Path(estimate_path).name} vs {Path(truth_path).name}")
+    if time_scale is None:
+        gps = _week_of(est) is not None or _week_of(ref) is not None
+        time_scale = "GPS SOW" if gps else "s, the files' time scale"
 
     written: list[Path] = []
     if out is None:
@@ -177,4 +194,41 @@ def evaluate_files(estimate_path, truth_path, out_dir=None, console=None, max_dt
     jpath = out / "errors.json"
     jpath.write_text(json.dumps(_clean(summary), indent=2) + "\n")
     written += [jpath, csv.path, *figs]
+    written += write_evaluation_page(out, summary, stats, figs, estimate_path)
     return stats, written
+
+
+def write_evaluation_page(out: Path, summary: dict, stats, figs, estimate_path) -> list[Path]:
+    """``OUT/evaluation.html`` (the error table, epoch counts, notes and figures) and, when the estimate
+    is the trajectory of an ``aidnav process`` run (its folder has ``summary.json`` and ``run.html``),
+    a link to it on that run's page (``summary.json`` gains ``evaluation``; ``run.html`` is rewritten
+    with its figures). Returns the files written."""
+    rows = [[str(i)] + [f"{v:.4g}" if isinstance(v, float) else str(v) for v in r]
+            for i, r in zip(stats.index, stats.itertuples(index=False), strict=True)]
+    body = [f"<h1>Errors of {Path(summary['estimate']).name} against {Path(summary['truth']).name}</h1>",
+            kv_table([["estimate", summary["estimate"]], ["reference", summary["truth"]],
+                ["time axis", summary["time_scale"]], ["epochs", json.dumps(summary["epochs"])]]),
+            "<h2>Statistics</h2>", table(["quantity", *map(str, stats.columns)], rows)]
+    if summary.get("notes"):
+        body.append("<h2>Notes</h2><ul>" + "".join(f"<li>{_esc(n)}</li>" for n in summary["notes"]) + "</ul>")
+    for f in figs:
+        body.append(img_file_tag(f, f.stem.replace("_", " ")))
+    ep = out / "evaluation.html"
+    ep.write_text(page(f"evaluation: {Path(summary['estimate']).name}", body), encoding="utf-8")
+    written = [ep]
+    run_dir = Path(estimate_path).resolve().parent
+    sj, rp = run_dir / "summary.json", run_dir / "run.html"
+    if sj.exists() and rp.exists():
+        try:
+            s = json.loads(sj.read_text())
+        except ValueError:
+            return written
+        s["evaluation"] = {"page": os.path.relpath(ep.resolve(), run_dir), "truth": summary["truth"]}
+        sj.write_text(json.dumps(s, indent=2) + "\n")
+        figs_run = [(p, "Overview") for p in [run_dir / "overview.png"] if p.exists()]
+        written.append(write_run_page(rp, s, figs_run))
+    return written
+
+
+def _esc(x) -> str:
+    return html.escape(str(x))

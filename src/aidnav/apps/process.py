@@ -166,7 +166,8 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
         cfg = LooseConfig()
         notes.append("no --config: defaults for a consumer MEMS IMU (ARW 0.3 deg/sqrt(h), "
                      "VRW 0.1 m/s/sqrt(h), "
-                     "gyro bias 100 deg/h, accel bias 5 mg), no lever arm, automatic alignment "
+                     "gyro bias 100 deg/h, accel bias 5 mg), IMU→antenna lever arm estimated (from 0, "
+                     "σ 0.3 m per axis), automatic alignment "
                      "(static roll/pitch, heading from GNSS course), ZUPT on, NHC off")
     else:
         cfg = load_config(config_path)
@@ -196,7 +197,7 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
     gnss = read_gnss_any(gnss_path, height_offset_m=datum, topic=gnss_topic, vel_topic=gnss_vel_topic)
     datum, height_datum = gnss.height_offset_m, gnss.height_datum  # the offset the reader applied
     if imu_topic is not None:
-        from aidnav.io.formats import detect_imu_format
+        from aidnav.io.formats import detect_imu_format  # lazy: only with --imu-topic
 
         if detect_imu_format(imu_path) != "rosbag":
             raise InputError(f"--imu-topic {imu_topic}: {imu_path} is not a ROS bag (topics are for bags)")

@@ -165,8 +165,8 @@ class TrajectoryWriter:
         self.path.parent.mkdir(parents=True, exist_ok=True)
 
     def write(self, traj) -> None:
-        from aidnav.io._table import arrow_table
-        from aidnav.io.interchange import trajectory_columns
+        from aidnav.io._table import arrow_table  # lazy: pyarrow is heavy to import
+        from aidnav.io.interchange import trajectory_columns  # lazy: pulls in pyarrow
 
         cols = trajectory_columns(traj, week=self.week)
         tbl = arrow_table(cols, parquet=self.kind == "parquet")  # units per field, utc a timestamp

@@ -53,7 +53,8 @@ def calibration_estimates(res) -> dict:
 
 _INPUT_KEYS = [("imu", "IMU log"), ("gnss", "GNSS fixes"), ("obs", "RINEX observations"),
                ("nav", "RINEX navigation"), ("config", "configuration"), ("output", "trajectory written"),
-               ("gnss_height_offset_m", "GNSS height offset added [m]"), ("smoothed", "smoothed (RTS)"),
+               ("gnss_height_offset_m", "GNSS height offset added [m]"),
+               ("gnss_height_datum", "GNSS heights in the file"), ("smoothed", "smoothed (RTS)"),
                ("states", "filter states"), ("time_scale", "time scale")]
 _COUNT_KEYS = [("imu_samples", "IMU samples"), ("imu_rate_hz", "IMU rate [Hz]"),
                ("gnss_fixes", "GNSS fixes"),
@@ -64,7 +65,35 @@ _COUNT_KEYS = [("imu_samples", "IMU samples"), ("imu_rate_hz", "IMU rate [Hz]"),
                ("gnss_velocity_rejected", "GNSS velocities rejected")]
 _LAID_OUT = {k for k, _ in _INPUT_KEYS + _COUNT_KEYS} | {
     "counts", "timing_s", "outage_windows", "outage_score", "outage_score_forward", "reference",
-    "calibration", "events", "notes", "warnings", "rejected_fix_times", "title", "nis"}
+    "calibration", "events", "notes", "warnings", "rejected_fix_times", "title", "nis", "nis_windows_far_out",
+    "reinitialisations", "evaluation"}
+
+
+def _t(x) -> str:
+    """A time [s] as written in the files (seconds of week with ms), never in e-notation."""
+    try:
+        return f"{float(x):.3f}"
+    except (TypeError, ValueError):
+        return str(x)
+
+
+def _windows_table(ws: list) -> str:
+    """``nis_windows_far_out``: one row per window, times readable."""
+    rows = []
+    for w in ws:
+        band = w.get("band") or [None, None]
+        rows.append([str(w.get("model", "")).replace("_", " "), _t(w.get("start")), _t(w.get("end")),
+                     fmt(w.get("n")), fmt(w.get("mean_nis")), fmt(w.get("dof")),
+                     f"{fmt(band[0])} – {fmt(band[1])}" if len(band) == 2 else _val(band),
+                     fmt(w.get("rejected"))])
+    return table(["measurement", "start [s]", "end [s]", "fixes", "mean NIS", "dof", "99.9 % band",
+                  "rejected"], rows)
+
+
+def _reinit_table(rs: list) -> str:
+    rows = [[_t(r.get("time")), str(r.get("model", "")).replace("_", " "), str(r.get("why", "")),
+             fmt(r.get("nis"))] for r in rs]
+    return table(["time [s]", "measurement", "why", "NIS"], rows)
 
 
 def _val(x) -> str:
@@ -189,6 +218,24 @@ def run_page_html(summary: dict, figures=(), title: str | None = None) -> str:
             rows.append([name.replace("_", " "), fmt(v.get("mean")), fmt(v.get("dof")), fmt(v.get("n")),
                          f"{fmt(band[0])} – {fmt(band[1])}", verdict])
         parts.append(table(["measurement", "mean NIS", "dof", "updates", "95 % band", "verdict"], rows))
+
+    ws = s.get("nis_windows_far_out") or []
+    if ws:
+        parts.append(f"<h2>NIS windows far out of their band ({len(ws)})</h2>")
+        parts.append('<p class="note">Windows where the mean NIS of the GNSS innovations is far outside '
+                     "its χ² band: the σ of the fixes or of the filter is wrong there (times as in the "
+                     "files).</p>")
+        parts.append(_windows_table(ws))
+    ri = s.get("reinitialisations") or []
+    if ri:
+        parts.append(f"<h2>Re-initialisations ({len(ri)})</h2>")
+        parts.append(_reinit_table(ri))
+
+    ev = s.get("evaluation")
+    if isinstance(ev, dict) and ev.get("page"):
+        parts.append("<h2>Evaluation against a reference</h2>")
+        parts.append(f'<p><a href="{escape(str(ev["page"]))}">{escape(str(ev["page"]))}</a> '
+                     f'({escape(str(ev.get("truth", "")))})</p>')
 
     ref = s.get("reference")
     if isinstance(ref, dict):

@@ -39,7 +39,7 @@ def _check_schema(path):
     tbl = pq.read_table(path)
     first = tbl.column("utc")[0].as_py()
     # 2022-12-01 11:25:43.4 GPST − 18 s
-    assert first == dt.datetime(2022, 12, 1, 11, 25, 25, 400000, tzinfo=dt.timezone.utc)
+    assert first == dt.datetime(2022, 12, 1, 11, 25, 25, 400000, tzinfo=dt.UTC)
 
 
 def test_parquet_fields_carry_units_and_utc_is_a_timestamp(tmp_path):

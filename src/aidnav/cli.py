@@ -459,6 +459,29 @@ def tight(
 
 
 @_command()
+def spp(
+    obs: Path = typer.Option(..., "--obs", help="RINEX observation file (GPS L1 C/A code and Doppler)"),
+    nav: Path = typer.Option(..., "--nav", help="RINEX navigation file (GPS broadcast ephemerides)"),
+    out: Path = typer.Option(Path("spp"), "-o", "--out", help="output directory: solution.parquet|csv, "
+                             "summary.json, summary.txt, run.html, maps"),
+    fmt: str = typer.Option("parquet", "--format", help="solution file format: parquet or csv"),
+    iono: str = typer.Option("klobuchar", "--iono", help="ionosphere: klobuchar (the navigation file's "
+                             "coefficients), none, or dual (L1/L2 code combination)"),
+    mask: float = typer.Option(10.0, "--mask", help="elevation mask [deg]"),
+    code_sigma: float = typer.Option(3.0, "--code-sigma", help="code range σ [m]: the fixes' σ = DOP × it"),
+    as_json: bool = typer.Option(False, "--json", help="print the JSON summary instead of the text"),
+    no_figures: bool = typer.Option(False, "--no-figures", help="skip overview.png, maps and run.html"),
+):
+    """Single point positioning on RINEX files: a GNSS solution file (interchange: process --gnss and
+    evaluate read it), a summary and run.html."""
+    from aidnav.apps.spp import format_spp_summary, spp_files
+
+    s = spp_files(obs, nav, out, fmt=fmt, iono=iono, mask_deg=mask, code_sigma_m=code_sigma,
+                  figures=not no_figures)
+    _print_summary(s, format_spp_summary(s), as_json)
+
+
+@_command()
 def characterise(
     imu: Path = typer.Option(..., "--imu", help="static IMU log: interchange CSV/Parquet (rates or "
                              "increments) "

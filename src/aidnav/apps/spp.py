@@ -76,9 +76,8 @@ def spp_files(obs_path, nav_path, out_dir="spp", fmt: str = "parquet", iono: str
     if figures:
         from aidnav.report.run_page import write_run_outputs  # lazy: matplotlib
 
-        write_run_outputs(out, gnss_to_trajectory(g), g, {**summary, "title": f"aidnav spp: "
-                                                          f"{Path(obs_path).name}"},
-                          base="solution")
+        page = {**summary, "gnss_label": "SPP fixes (aidnav)", "title": f"aidnav spp: {Path(obs_path).name}"}
+        write_run_outputs(out, gnss_to_trajectory(g), g, page, base="solution")
     return summary
 
 

@@ -11,6 +11,8 @@ Times stay GPS seconds of the observations' reference week.
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 from aidnav.data import GnssData
@@ -218,11 +220,21 @@ def process_tight_files(imu_path, obs_path, nav_path, config_path=None, out_dir=
     write_summary_files(out_dir, summary, format_tight_summary(summary))
     if figures:
         from aidnav.report.overview import tight_records
+        from aidnav.report.reference_plot import nis_table, write_reference_figure
         from aidnav.report.run_page import write_run_outputs
 
         ok = np.isfinite(sp["lat"])
         spp = GnssData(sp["time"][ok], sp["lat"][ok], sp["lon"][ok], sp["h"][ok])
-        write_run_outputs(out_dir, traj, spp, summary, tight_records(res.epochs), progress=progress)
+        records = tight_records(res.epochs)
+        # the page: aidnav's own SPP fixes named as such, the NIS table, and with --truth the reference
+        # track and the differences from it against time (issue 38)
+        page = {**summary, "gnss_label": "SPP fixes (aidnav)", "nis": nis_table(records)}
+        extra = []
+        if truth is not None:
+            fig = write_reference_figure(out_dir / "reference.png", traj, ref, spp, "SPP fixes (aidnav)",
+                                         f"reference {os.path.basename(str(truth))}")
+            extra.append((fig, "Solution against the reference: tracks and E/N/U differences"))
+        write_run_outputs(out_dir, traj, spp, page, records, figures=extra, progress=progress)
     return summary
 
 

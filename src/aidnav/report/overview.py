@@ -166,7 +166,7 @@ def overview_figure(traj: Trajectory, gnss: GnssData | None = None, summary: dic
             wh |= (gnss.time >= a) & (gnss.time < b)
         used = ~rej & ~wh
         ax_map.plot(ge[used], gn[used], ".", ms=2.5, color="C1", alpha=0.7,
-                    label=f"GNSS fixes ({used.sum()})", zorder=2)
+                    label=f"{(summary or {}).get('gnss_label', 'GNSS fixes')} ({used.sum()})", zorder=2)
         if wh.any():
             ax_map.plot(ge[wh], gn[wh], "o", ms=3, mfc="none", mec="0.55", mew=0.6,
                         label=f"withheld ({wh.sum()})", zorder=2)

@@ -66,7 +66,7 @@ _COUNT_KEYS = [("imu_samples", "IMU samples"), ("imu_rate_hz", "IMU rate [Hz]"),
 _LAID_OUT = {k for k, _ in _INPUT_KEYS + _COUNT_KEYS} | {
     "counts", "timing_s", "outage_windows", "outage_score", "outage_score_forward", "reference",
     "calibration", "events", "notes", "warnings", "rejected_fix_times", "title", "nis", "nis_windows_far_out",
-    "reinitialisations", "evaluation"}
+    "reinitialisations", "evaluation", "gnss_label"}
 
 
 def _t(x) -> str:

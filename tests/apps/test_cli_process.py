@@ -153,6 +153,11 @@ def test_tight_cli_on_walk_data(data_dir, tmp_path):
     assert s["reference"]["Q=1"]["horizontal_rms_m"] < 15.0
     # every reference epoch is scored too, not only the fixed ones
     assert s["reference"]["all"]["epochs"] >= s["reference"]["Q=1"]["epochs"]
+    # the page (issue 38): the reference track and the differences against time, the NIS table, and
+    # aidnav's own SPP fixes not called "GNSS fixes"
+    page = (out / "run.html").read_text()
+    assert (out / "reference.png").exists() and "Solution against the reference" in page
+    assert "Filter consistency (NIS)" in page
 
 
 @pytest.mark.slow

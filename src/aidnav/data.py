@@ -1,6 +1,6 @@
 """In-memory containers shared by every package: IMU samples, GNSS fixes, trajectories.
 
-Plain numpy arrays in aidnav's conventions (``CONVENTIONS.md``): SI units, radians, body RFU,
+Plain numpy arrays in aidnav's conventions (``docs/conventions.md``): SI units, radians, body RFU,
 nav ENU. Files in other units and frames are converted by :mod:`aidnav.io` before they get here.
 """
 

@@ -5,7 +5,7 @@ core IMU model (tactical and MEMS presets plus a random walk) → each term's 95
 value, ARW/VRW within 10%; the ``imu:`` section it writes gives a filter whose NEES on a simulated flight
 with the same IMU is inside its chi-square band. Guard rails: moving logs, gaps, jitter, short logs.
 
-Frames and units as in CONVENTIONS (body RFU; rad, m/s inside; deg/√h, m/s/√h, deg/h, µg at the boundary).
+Frames and units as in docs/conventions.md (body RFU; rad, m/s inside; deg/√h, m/s/√h, deg/h, µg outside).
 """
 
 from __future__ import annotations

@@ -27,7 +27,7 @@ simulated data whose error model the filter knows exactly ("truth model = filter
     otherwise; an IMU gap of 10 s is bridged (event 'gap'), and the position error is back under
     a bound once GNSS resumes.
 
-Frames and units as in ``CONVENTIONS.md`` (ENU, RFU, radians inside, metres, seconds).
+Frames and units as in ``docs/conventions.md`` (ENU, RFU, radians inside, metres, seconds).
 """
 
 from __future__ import annotations

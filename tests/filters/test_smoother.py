@@ -14,7 +14,7 @@ withheld (during S-turns). Per run, new IMU errors, GNSS noise and initial error
 * The smoothed variances never exceed the forward ones; at the last sample the smoothed solution
   equals the forward one.
 
-Frames and units as in ``CONVENTIONS.md``.
+Frames and units as in ``docs/conventions.md``.
 """
 
 from __future__ import annotations

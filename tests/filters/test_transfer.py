@@ -1,7 +1,7 @@
 """Transfer alignment (seed 004): model, discretisation, consistency on a maneuvering flight, the seed's
 main claim (a maneuver before the imaging leg makes the heading far better), and the design tool.
 
-Frames and units as in ``CONVENTIONS.md``: n = ENU, b = RFU, radians, metres, seconds.
+Frames and units as in ``docs/conventions.md``: n = ENU, b = RFU, radians, metres, seconds.
 """
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 the velocity + attitude matching model's Jacobian (lever arm, mounting and flexure columns), and the RTS
 smoother of the transfer filter on a simulated maneuvering flight.
 
-Frames and units as in ``CONVENTIONS.md``: n = ENU, b = RFU, radians, metres, seconds.
+Frames and units as in ``docs/conventions.md``: n = ENU, b = RFU, radians, metres, seconds.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Property tests of ``aidnav.nav.rotations`` against ``scipy.spatial.transform.Rotation``.
 
-Conventions under test (``CONVENTIONS.md``): C = C_b^n (body RFU → nav ENU),
+Conventions under test (``docs/conventions.md``): C = C_b^n (body RFU → nav ENU),
 C_b^n = R3(-heading) · R1(pitch) · R2(roll) with active elementary rotations, which is scipy's
 *intrinsic* ``Rotation.from_euler('ZXY', [-heading, pitch, roll])``; Hamilton quaternions, scalar
 first (scipy's are scalar last); attitude error φ with C_est = (I - [φ×]) C_true.

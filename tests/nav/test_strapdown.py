@@ -6,7 +6,7 @@
     the Schuler period 2π √(R/g), R = √(R_M R_N) (≈ 84.4 min);
 (c) a static, level IMU at rest does not drift.
 
-Frames and units as in ``CONVENTIONS.md``: n = ENU, b = RFU, radians, metres, seconds.
+Frames and units as in ``docs/conventions.md``: n = ENU, b = RFU, radians, metres, seconds.
 """
 
 from __future__ import annotations

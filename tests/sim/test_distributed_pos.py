@@ -1,6 +1,6 @@
 """Distributed POS simulation (seed 004): flexure generator, lever-arm terms, sub-IMU, master output.
 
-Frames and units as in ``CONVENTIONS.md``: n = ENU, b = RFU, radians, metres, seconds.
+Frames and units as in ``docs/conventions.md``: n = ENU, b = RFU, radians, metres, seconds.
 """
 
 from __future__ import annotations

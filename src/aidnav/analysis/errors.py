@@ -1,6 +1,6 @@
 """Navigation errors of an estimated trajectory against a reference, and their statistics.
 
-Conventions (``CONVENTIONS.md``): errors are **estimate − reference**, evaluated at the reference's
+Conventions (``docs/conventions.md``): errors are **estimate − reference**, evaluated at the reference's
 epochs, in the local-level ENU frame at the reference position:
 
 * position dE, dN, dU [m]: small geodetic differences turned into metres with the WGS-84 radii at
@@ -11,7 +11,7 @@ epochs, in the local-level ENU frame at the reference position:
   (so heading 0.1° vs 359.9° is +0.2°). Only when both trajectories carry attitude.
 
 Both trajectories must use the same time scale (an estimate of a GNSS-timed log is in GPS seconds of
-week, CONVENTIONS "Time"); nothing is re-zeroed here. No lever arm is applied: the reference is taken
+week, docs/conventions.md "Time"); nothing is re-zeroed here. No lever arm is applied: the reference is taken
 to describe the same point as the estimate (the IMU); for an antenna reference (RTKLIB ``.pos``) the
 position errors include the lever arm.
 
@@ -114,7 +114,7 @@ class ErrorSeries:
 
     def to_dataframe(self) -> pd.DataFrame:
         """Per-epoch table: ``time`` [s], errors with units in the names (angles in degrees), and the
-        estimate's σ as ``<column>_std`` columns (CONVENTIONS interchange style)."""
+        estimate's σ as ``<column>_std`` columns (docs/conventions.md interchange style)."""
         import pandas as pd
 
         return pd.DataFrame(self.columns())

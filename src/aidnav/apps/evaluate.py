@@ -1,6 +1,6 @@
 """``aidnav evaluate``: an estimated trajectory file against a reference file: statistics, tables, figures.
 
-Files: interchange trajectories (CSV/Parquet, CONVENTIONS "Interchange files") read by
+Files: interchange trajectories (CSV/Parquet, docs/conventions.md "Interchange files") read by
 :func:`aidnav.io.interchange.read_trajectory`, or an RTKLIB ``.pos`` solution read by
 :func:`aidnav.io.rtklib.read_pos` (a position/velocity reference without attitude, GPS seconds of
 week). Both files must share a time scale; errors are estimate − reference at the reference epochs

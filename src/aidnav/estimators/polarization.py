@@ -4,7 +4,7 @@ Estimators of the wave parameters, their Cramér–Rao bounds and the attitude s
 
 Frames (see :mod:`aidnav.nav.wave_frame`): the wave parameters (φ, θ, γ) are angles in the seed's
 antenna frame I (FLU); η is the (known) ellipticity. Everything returned to the user is in our
-conventions: C_b^n (RFU → ENU), (roll, pitch, heading) as in ``CONVENTIONS.md``, misalignment ε in n
+conventions: C_b^n (RFU → ENU), (roll, pitch, heading) as in ``docs/conventions.md``, misalignment ε in n
 with C_b^n(est) = (I − [ε×]) C_b^n(true). Angles in radians.
 
 * :func:`closed_form` — seed eqs. (2)–(4) as corrected in §3.3 (eq. (3) gets its minus sign and

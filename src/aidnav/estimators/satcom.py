@@ -1,7 +1,7 @@
 """Satcom on the move (seed 003, patent CN104064869): MEMS-INS/GPS navigation, dual-quaternion antenna
 control, servo model and pointing error (models.md §4).
 
-Frames and units (``CONVENTIONS.md``): n = ENU, b = body RFU, antenna frame v (y_v beam, z_v on the
+Frames and units (``docs/conventions.md``): n = ENU, b = body RFU, antenna frame v (y_v beam, z_v on the
 azimuth-axis side); position (lat, lon [rad], h [m]), velocity ENU [m/s], attitude q_b^n (Hamilton,
 scalar first); angles in radians inside, degrees only where a name says ``_deg``. Times in seconds on the
 input's scale.
@@ -15,7 +15,7 @@ What is here, in the order of the patent's system (its Fig. 3):
   (:func:`aidnav.filters.ins_errors.fill_model`, §6) restricted to these states (φ_U dropped); the
   filter is the one Kalman core (:mod:`aidnav.filters.kalman`: ``discretize``, ``predict``, ``update``).
   Only the level attitude (and the E/N velocity, the x/y sensor biases) is corrected; heading comes from
-  the initial alignment and gyro integration. The correction convention is that of CONVENTIONS:
+  the initial alignment and gyro integration. The correction convention is that of docs/conventions.md:
   C_b^n(computed) = (I − [φ×]) C_b^n(true), corrected by q ← q(φ̂) ⊗ q. Outside the filter, position,
   height and vertical velocity are taken from each GPS fix (the 8 states have no position; a free
   vertical channel diverges); ``use_filter=False`` gives the same mechanisation without the Kalman

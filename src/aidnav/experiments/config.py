@@ -5,7 +5,7 @@ whose message names the file, the line (when known) and the key path, e.g.
 ``quick.yaml:12: sensors.imu.arw_deg_sqrt: unknown key 'arw_deg_sqrt' (expected one of: ...)`` or
 ``quick.yaml: sweep: 'sensors.imu.grad': sensors.imu has no parameter 'grad' (expected one of: ...)``.
 
-Example (units in the key names, ``CONVENTIONS.md``)::
+Example (units in the key names, ``docs/conventions.md``)::
 
     name: quick
     description: tactical vs MEMS IMU, tuned and mis-tuned filter

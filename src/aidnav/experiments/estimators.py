@@ -22,7 +22,7 @@ worker processes import it too)::
 A type may also be named ``"package.module:function"`` in an experiment: the module is imported (which
 registers it) and the function is looked up in the registry.
 
-Conventions of :class:`EstimatorOutput` (``CONVENTIONS.md``): errors are **estimate − truth** in SI units
+Conventions of :class:`EstimatorOutput` (``docs/conventions.md``): errors are **estimate − truth** in SI units
 (position in ENU metres, velocity ENU m/s, attitude as the misalignment φ in n [rad] with
 C_b^n(est) = (I − [φ×]) C_b^n(true)), times in the simulation's time scale (seconds since its start).
 State names are ``<block>_<component>`` (``pos_e``, ``vel_u``, ``att_n``, ...); states sharing a block

@@ -6,7 +6,7 @@ and feedback) with the attitude model :func:`aidnav.filters.measurements.attitud
 C_computed C_measuredᵀ ≈ I − [z×], z ≈ φ − ε, the fix's full covariance as R) and the engine's
 height / up-velocity hold (a baro-like aid).
 
-Frames and units (``CONVENTIONS.md``): n = ENU, b = RFU, positions (lat, lon [rad], h [m]), velocity
+Frames and units (``docs/conventions.md``): n = ENU, b = RFU, positions (lat, lon [rad], h [m]), velocity
 ENU [m/s], attitude q_b^n; misalignment φ in n with C_b^n(computed) = (I − [φ×]) C_b^n(true); the
 measurement noise of a fix is the covariance of ε with C_b^n(fix) = (I − [ε×]) C_b^n(true).
 Closed-loop feedback after an update (as the loosely coupled filter, same function):

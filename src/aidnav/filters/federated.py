@@ -1,6 +1,6 @@
 """Federated Kalman filter SINS/GPS + SINS/SAPV (seed 000), and the centralized filter it is compared with.
 
-Frames and units (``CONVENTIONS.md``): n = ENU, b = RFU; strapdown state [lat, lon (rad), h (m), v^n (m/s),
+Frames and units (docs/conventions.md): n = ENU, b = RFU; strapdown state [lat, lon (rad), h (m), v^n (m/s),
 q_b^n]; the 15-state INS error layout of :mod:`aidnav.filters.layout`. GNSS: antenna position/velocity
 (:class:`aidnav.data.GnssData`); SAPV: antenna axis angles [rad] (:class:`aidnav.sim.sapv.SapvData`). A
 measurement is used at the first IMU sample at or after its time (GPS: the INS moved back along its

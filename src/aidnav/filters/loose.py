@@ -294,7 +294,7 @@ def loose_result(su, r, imu, gnss, static_used, events) -> FilterResult:
     log = _log_dict(r.log, r.n_log)
     cnt = loose_counts(log, len(r.node_idx), static_used, len(imu), k0)
     events += reinit_events(log)
-    # the outputs are stamped on the GNSS scale with the final time-offset estimate (CONVENTIONS: the
+    # the outputs are stamped on the GNSS scale with the final time-offset estimate (docs/conventions.md: the
     # offset is added to the IMU stamps); a forward output at t holds the INS of IMU time t − d̂
     d_hat = float(r.bias[lay[L_TOFF] - NAV]) if lay[L_TOFF] >= 0 else 0.0
     if d_hat:

@@ -27,7 +27,7 @@ class TransferErrors:
     """Errors (estimate − truth) of a transfer alignment at its epochs.
 
     time (M,) [s]; rph (M, 3) roll, pitch, heading errors [rad] (wrapped); phi (M, 3) misalignment φ
-    [rad] (rotation vector, CONVENTIONS sign); vel (M, 3) ENU [m/s]; pos (M, 3) E, N, U [m]
+    [rad] (rotation vector, docs/conventions.md sign); vel (M, 3) ENU [m/s]; pos (M, 3) E, N, U [m]
     (lat error as N, lon error as E); baseline (M,) error of the master–sub distance |p̃_s − p̃_m| [m]
     (master output position against the sub estimate); rho (M, 3), theta (M, 3), theta_dot (M, 3)
     errors of the estimates [rad, rad, rad/s]; state (M, n) errors of the full state vector in the

@@ -1,6 +1,6 @@
 """GPS time helpers: GPST counted like Unix time ↔ (GPS week, seconds of week), calendar strings.
 
-Time scales (``CONVENTIONS.md``): GNSS-timed data carry GPS time as (week, seconds of week). RTKLIB
+Time scales (``docs/conventions.md``): GNSS-timed data carry GPS time as (week, seconds of week). RTKLIB
 stores GPS time internally as ``gtime_t.time``: whole seconds of **GPST counted like Unix time**, i.e.
 seconds since 1970-01-01 00:00:00 *on the GPS time scale*. Both that count and GPS weeks are on the
 GPST scale, so no leap seconds enter anywhere here: the GPS epoch 1980-01-06 00:00:00 GPST is simply

@@ -14,7 +14,7 @@ All are headerless numeric text, fields separated by spaces, tabs or commas (KF-
   (0 in some data sets), seconds of week [s], [deg], [deg], [m], NED velocity [m/s], attitude [deg]
   (yaw clockwise from North, ZYX order).
 
-Conversions to aidnav (``CONVENTIONS.md``): b_RFU = [y_FRD, x_FRD, −z_FRD]; v_ENU = [vE, vN, −vD];
+Conversions to aidnav (``docs/conventions.md``): b_RFU = [y_FRD, x_FRD, −z_FRD]; v_ENU = [vE, vN, −vD];
 σ_ENU = [σE, σN, σD]; radians inside. KF-GINS's roll/pitch/yaw of the FRD body in NED are the same
 physical angles as aidnav's roll (right wing down), pitch (nose up) and heading (clockwise from North)
 of the RFU body in ENU, so they are taken as they are (heading wrapped to [0, 360) deg).

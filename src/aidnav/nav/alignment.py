@@ -1,6 +1,6 @@
 """Initial attitude: static coarse alignment (levelling + gyrocompassing) and heading from GNSS course.
 
-Frames and conventions (``CONVENTIONS.md``): body b = RFU (x right, y forward, z up), navigation
+Frames and conventions (``docs/conventions.md``): body b = RFU (x right, y forward, z up), navigation
 n = ENU; ``C_b^n = R3(−heading) · R1(pitch) · R2(roll)``; roll positive right wing down, pitch
 positive nose up, heading clockwise from true North in [0, 2π). Angles in radians.
 

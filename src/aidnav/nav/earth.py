@@ -1,6 +1,6 @@
 """WGS-84 Earth model and frame conversions.
 
-Conventions (``CONVENTIONS.md``): geodetic latitude ``lat`` and longitude ``lon`` in **radians**,
+Conventions (``docs/conventions.md``): geodetic latitude ``lat`` and longitude ``lon`` in **radians**,
 ellipsoidal height ``h`` in metres; navigation frame n = ENU; Earth frame e = ECEF WGS-84.
 
 Every function here is compiled with numba and written with element-wise operations, so the same

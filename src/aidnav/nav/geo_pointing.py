@@ -3,7 +3,7 @@
 One module serves seed 000 (SAPV aiding: antenna az/el as a measurement of the attitude) and seed 003
 (satcom on the move: servo azimuth, elevation and polarization). models.md §1.1 and §4.3.
 
-Frames and units (``CONVENTIONS.md``): e = ECEF WGS-84, n = ENU, b = body RFU (x right, y forward, z up),
+Frames and units (``docs/conventions.md``): e = ECEF WGS-84, n = ENU, b = body RFU (x right, y forward, z up),
 antenna frame v (y_v along the beam, z_v on the azimuth-axis side, x_v = y_v × z_v). Latitude, longitude
 and angles in **radians** inside this module (degrees only in :func:`servo_angles`); heights, positions
 and lines of sight in metres.
@@ -208,7 +208,7 @@ def servo_angles(lat_deg: float, lon_deg: float, height_m: float, roll_deg: floa
     """Servo azimuth, elevation and polarization [deg] of a satcom antenna (§4.3).
 
     Vehicle at geodetic (lat_deg, lon_deg [deg], height_m [m] WGS-84) with attitude (roll, pitch, heading
-    [deg], CONVENTIONS); GEO satellite at longitude ``sat_lon_deg`` [deg, east +] and radius ``radius_m``
+    [deg], docs/conventions.md); GEO satellite at longitude ``sat_lon_deg`` [deg E] and radius ``radius_m``
     [m] (default R_GEO = 42164.17 km). ``polarization``: "vertical" or "horizontal".
 
     Returns ``{"azimuth_deg": [0, 360), "elevation_deg": [-90, 90], "polarization_deg": (-90, 90]}``:

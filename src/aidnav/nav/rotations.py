@@ -1,6 +1,6 @@
 """Attitude algebra: DCM, quaternion, Euler angles, rotation vector.
 
-Conventions (stated once, used everywhere; ``CONVENTIONS.md``):
+Conventions (stated once, used everywhere; ``docs/conventions.md``):
 
 * ``C`` is ``C_b^n``: maps body (RFU) vectors to nav (ENU) vectors, v^n = C v^b.
 * Quaternions are Hamilton, scalar first ``[q0, q1, q2, q3]``, ``q = q_b^n`` with
@@ -299,7 +299,7 @@ def wrap_360(a):
 def euler_error_map(rph: np.ndarray) -> np.ndarray:
     """M (…, 3, 3) with φ = M·[δroll, δpitch, δheading] for small Euler-angle errors (rad).
 
-    φ is the misalignment of CONVENTIONS (C_computed = (I − [φ×]) C_true). With C = R3(ψ)R1(p)R2(r),
+    φ is the misalignment of docs/conventions.md (C_computed = (I − [φ×]) C_true). With C = R3(ψ)R1(p)R2(r),
     ψ = −heading: columns −R3R1·e_y (roll), −R3·e_x (pitch), +e_z (heading).
     """
     rph = np.asarray(rph, float)

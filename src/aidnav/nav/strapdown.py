@@ -1,6 +1,6 @@
 """Strapdown INS mechanization in the local-level ENU frame, from IMU increments.
 
-Frames and units (``CONVENTIONS.md``): body b = RFU, nav n = ENU, position (lat, lon [rad], h [m]),
+Frames and units (``docs/conventions.md``): body b = RFU, nav n = ENU, position (lat, lon [rad], h [m]),
 velocity v^n [m/s], attitude q_b^n (Hamilton, scalar first). IMU input: increments Δθ [rad] and
 Δv [m/s] over (t_{k-1}, t_k], body frame.
 

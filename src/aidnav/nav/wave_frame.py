@@ -11,7 +11,7 @@ Seed-002 frames (converted at this boundary, never inside an algorithm):
 * W: wave-structure frame with axes (u, ṽ1, ṽ2): u the unit vector from the antenna **toward** the
   source (the wave travels along −u), ṽ1 the major and ṽ2 the minor axis of the E-field ellipse.
 
-Ours (``CONVENTIONS.md``): body b = RFU, nav n = ENU. ``P_SEED = [[0,−1,0],[1,0,0],[0,0,1]]`` maps
+Ours (``docs/conventions.md``): body b = RFU, nav n = ENU. ``P_SEED = [[0,−1,0],[1,0,0],[0,0,1]]`` maps
 both: v_ENU = P v_NWU, v_RFU = P v_FLU, C_b^n = P C_I^B Pᵀ. P is a proper rotation (+90° about z).
 
 Wave parameters (§3.2): direction of arrival φ (azimuth, from the I/B x axis toward y, in

@@ -1,7 +1,7 @@
 """Figure of an IMU characterisation: the six Allan deviation curves with the fitted noise terms.
 
 Matplotlib object API on the Agg canvas (no pyplot state). Units: τ in seconds; gyro ADEV in deg/h,
-accelerometer ADEV in µg (CONVENTIONS boundary units). Each panel shows the overlapping ADEV with its 95%
+accelerometer ADEV in µg (docs/conventions.md boundary units). Each panel: the overlapping ADEV with its 95%
 chi-square interval (filled markers: fitted; open: shown only), the maximum-likelihood model, and each
 term's own ADEV with its slope: quantisation −1, white noise (ARW/VRW) −1/2, the Gauss-Markov bias
 instability (its bump; the dotted line at 0.6643·B is the flicker floor with the same height), random

@@ -5,7 +5,7 @@ it changes no global backend or state and works headless.
 
 Time axis of every figure: seconds since the first plotted epoch; the absolute time of that epoch is
 stated in the axis label, in the inputs' time scale (``time_scale``, default "GPS SOW": GPS seconds
-of week, CONVENTIONS "Time"), e.g. ``time since 345600.000 s (GPS SOW) [s]``.
+of week, docs/conventions.md "Time"), e.g. ``time since 345600.000 s (GPS SOW) [s]``.
 Errors are estimate − reference (see :mod:`aidnav.analysis.errors`); envelopes are ±k·σ from the
 estimate's own standard deviations (k = 3 by default) where the estimate has them.
 

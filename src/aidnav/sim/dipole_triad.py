@@ -10,7 +10,7 @@ S ~ CN(0, R), R = P A Aᴴ + σ² I. SNR ρ = P/σ² (per dipole; signal power o
 channel), SNR_dB = 10 log10 ρ.
 
 The geometry helpers compute the wave parameters (φ, θ, γ) that an aircraft with attitude C_b^n
-(ENU/RFU, ``CONVENTIONS.md``) sees from a base station at a given bearing/elevation, transmitting a
+(ENU/RFU, ``docs/conventions.md``) sees from a base station at a given bearing/elevation, transmitting a
 wave with tilt γ′ (the inverse of the attitude steps of §3.4, exact for any distance: the
 base's and the aircraft's geographic frames are related by ``base_to_local``).
 

@@ -1,6 +1,6 @@
 """Airborne distributed POS (seed 004, §5): master POS output and a wing-mounted sub-IMU.
 
-Frames and units (``CONVENTIONS.md``): n = ENU, b = RFU; radians, metres, seconds inside; the
+Frames and units (``docs/conventions.md``): n = ENU, b = RFU; radians, metres, seconds inside; the
 boundary specs carry their units in their names (``*_deg``, ``*_m``, ``*_s``). ``b_m`` is the master
 body frame, ``b_s`` the sub-IMU body frame.
 

@@ -1,6 +1,6 @@
 """GNSS position/velocity receiver simulation from a truth trajectory (loosely coupled PV fixes).
 
-Frames and units (``CONVENTIONS.md``): truth and output positions geodetic (lat, lon [rad], h [m],
+Frames and units (``docs/conventions.md``): truth and output positions geodetic (lat, lon [rad], h [m],
 WGS-84); velocities ENU [m/s]; lever arm in the body frame RFU [m] from the IMU to the antenna phase
 centre; times [s] in the truth's time scale.
 

@@ -1,6 +1,6 @@
 """IMU error model: corrupt exact IMU increments with biases, noise, scale factor, misalignment, quantisation.
 
-Frames and units (``CONVENTIONS.md``): body frame b = RFU; increments Δθ [rad] and Δv [m/s] over
+Frames and units (``docs/conventions.md``): body frame b = RFU; increments Δθ [rad] and Δv [m/s] over
 (t_{k-1}, t_k], time-tagged at t_k. :class:`ImuSpec` holds **SI units** (rad/s, m/s², rad/√s, m/s/√s,
 s, dimensionless ratios, rad); the boundary units (deg/h, deg/√h, µg, m/s/√h, ppm, arcsec) are accepted
 by :meth:`ImuSpec.from_units` and :meth:`ImuSpec.from_config` and given back by :meth:`ImuSpec.to_units`.
@@ -167,7 +167,7 @@ class ImuSpec:
         bias_mode: str = "random",
         name: str = "custom",
     ) -> ImuSpec:
-        """Spec from the boundary units of ``CONVENTIONS.md`` (each value a scalar or 3 per-axis values).
+        """Spec from the boundary units of ``docs/conventions.md`` (each value a scalar or 3 per-axis values).
 
         gyro_bias_deg_h [deg/h], arw_deg_sqrt_h [deg/√h], accel_bias_ug [µg], vrw_m_s_sqrt_h [m/s/√h],
         gyro_bias_instability_deg_h [deg/h], accel_bias_instability_ug [µg] (Gauss-Markov σ),

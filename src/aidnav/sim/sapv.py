@@ -5,7 +5,7 @@ it by self-search (step tracking); its azimuth- and elevation-axis angle sensors
 satellite's direction in the body (platform) frame to within a fraction of the beamwidth. Those two
 angles are a measurement of the vehicle attitude.
 
-Frames and units (``CONVENTIONS.md``, :mod:`aidnav.nav.geo_pointing`): body b = RFU; antenna azimuth
+Frames and units (``docs/conventions.md``, :mod:`aidnav.nav.geo_pointing`): body b = RFU; antenna azimuth
 az ∈ [0, 2π) clockwise (seen from above) from the body forward axis in the body x-y plane, elevation
 el ∈ [−π/2, π/2] above that plane (:func:`aidnav.nav.geo_pointing.az_el_from_body`); angles in radians
 inside (degrees in :class:`SapvSpec`, the boundary); times in seconds on the truth's time scale.

@@ -3,7 +3,7 @@
 A scenario gives the initial state, a list of motion *segments* (compiled by
 :mod:`aidnav.sim.trajectory`) and the sensor settings (:class:`ImuConfig`, :class:`GnssConfig`).
 
-Units and frames (``CONVENTIONS.md``): degrees and metres at this boundary (the names carry the
+Units and frames (``docs/conventions.md``): degrees and metres at this boundary (the names carry the
 units: ``*_deg``, ``*_m``, ``*_s``, ``*_m_s``, ``*_deg_s``); the trajectory code converts to radians.
 Headings are clockwise from true North; turn angles are signed, **positive = clockwise (right)**;
 flight-path angles are positive up. Lever arms are in the body frame RFU (x right, y forward, z up).
@@ -235,7 +235,7 @@ _Err = NonNegative | NonNegVec3 | None  # one value for the three axes, or [x, y
 class ImuConfig(_Model):
     """IMU error settings. ``grade`` picks a preset (see :mod:`aidnav.sim.imu`); any value given
     here overrides the preset, either one value for all three axes or ``[x, y, z]`` (body RFU).
-    Units at this boundary (``CONVENTIONS.md``):
+    Units at this boundary (``docs/conventions.md``):
 
     gyro_bias_deg_h [deg/h], arw_deg_sqrt_h [deg/√h], accel_bias_ug [μg], vrw_m_s_sqrt_h [m/s/√h],
     gyro_bias_instability_deg_h [deg/h], accel_bias_instability_ug [μg], bias_corr_time_s [s],

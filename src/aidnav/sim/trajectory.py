@@ -26,7 +26,7 @@ How the segments are compiled (angles signed, + = clockwise/right):
   simultaneous turn through ``angle_deg`` at a constant rate over the whole segment. Altitude change
   ≈ V·sin γ·(duration − pull_s).
 
-Outputs follow ``CONVENTIONS.md``: n = ENU, b = RFU, radians, metres, seconds since the start.
+Outputs follow ``docs/conventions.md``: n = ENU, b = RFU, radians, metres, seconds since the start.
 """
 
 from __future__ import annotations

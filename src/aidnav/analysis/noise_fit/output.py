@@ -24,7 +24,7 @@ _ADEV_UNIT = {"gyro": ("deg_h", DEG_H), "accel": ("ug", UG)}
 
 
 def noise_dict(ch: Characterisation) -> dict:
-    """noise.json content: per axis, every term in the boundary units of CONVENTIONS with its status and
+    """noise.json content: per axis, each term in the boundary units of docs/conventions.md with status and
     95% interval, the maximum-likelihood model (all four terms, resolved or not), the ADEV table (deg/h
     for gyros, µg for accelerometers, with 95% limits and EDFs) and the notes."""
     axes = {}

@@ -414,7 +414,7 @@ def _plot_fusion(fu, out: Path) -> str:
 # ============================================================================ run
 def run(out_dir, runs: int | None = 60, base_seed: int = 1, console=None, sweep_runs: int | None = None,
         fusion_runs: int | None = None) -> dict:
-    """Reproduce seed 002 into ``out_dir``: PNG figures and ``summary.json`` (CONVENTIONS schema, written by
+    """Reproduce seed 002 into ``out_dir``: PNGs and ``summary.json`` (docs/conventions.md schema, written by
     :func:`aidnav.experiments.reproduce.summary.write_summary`; every ``holds`` is evaluated from its target).
 
     runs : Monte Carlo realisations per fix for Fig. 2 (None: 60, as in the seed); base_seed : seeds every

@@ -336,7 +336,7 @@ def _fig_level(a, out: Path) -> str:
 # ============================================================================================== run
 def run(out_dir, runs: int | None = DEFAULT_RUNS, base_seed: int = 1, console=None,
         route: str = "full") -> dict:
-    """Reproduce seed 003 into ``out_dir``: figures (PNG) and ``summary.json`` (CONVENTIONS schema).
+    """Reproduce seed 003 into ``out_dir``: figures (PNG) and ``summary.json`` (docs/conventions.md schema).
 
     runs : Monte Carlo realisations of the driving run (None: ``DEFAULT_RUNS``); base_seed : seeds the
     realisations; route : "full" (~610 s) or "short" (145 s, for quick checks). Returns the summary dict.

@@ -210,6 +210,9 @@ def process_tight_files(imu_path, obs_path, nav_path, config_path=None, out_dir=
     write_trajectory(traj, traj_path, week=getattr(obs, "ref_week", None))
     summary = {"imu": str(imu_path), "obs": str(obs_path), "nav": str(nav_path), "output": str(traj_path),
                "states": cfg.states, "smoothed": bool(smooth), "events": imu.events + events}
+    # what changes the solution by metres is said where the user looks: the summary's warnings (issue 38)
+    summary["warnings"] = [e.removeprefix("warning: ") for e in summary["events"]
+                           if e.startswith("warning:") or _iono_note(e)]
     if truth is not None:
         ref = read_gnss_any(truth, truth_height_offset_m)
         summary["reference"] = {"file": str(truth), "height_offset_m": truth_height_offset_m,
@@ -238,6 +241,12 @@ def process_tight_files(imu_path, obs_path, nav_path, config_path=None, out_dir=
     return summary
 
 
+def _iono_note(event: str) -> bool:
+    """An event saying the ionosphere is not corrected or corrected with default coefficients."""
+    e = f" {event.lower()} "
+    return ("ionosph" in e or "klobuchar" in e) and (" no " in e or "default" in e)
+
+
 def format_tight_summary(s: dict) -> str:
     """Human-readable summary of ``aidnav tight``."""
     lines = [f"aidnav tight: {s['imu']} + {s['obs']} + {s['nav']}", f"output: {s['output']}",
@@ -250,5 +259,6 @@ def format_tight_summary(s: dict) -> str:
                              f"{v['horizontal_rms_m']:.3f} m, p95 {v['horizontal_p95_m']:.3f} m, "
                              "vertical RMS "
                              f"{v['vertical_rms_m']:.3f} m")
+    lines += [f"warning: {w}" for w in s.get("warnings", [])]
     lines += [f"event: {e}" for e in s["events"]]
     return "\n".join(lines) + "\n"

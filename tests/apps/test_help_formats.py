@@ -30,3 +30,16 @@ def test_evaluate_help_names_every_trajectory_format():
     text = _help("evaluate")
     for k in TRAJECTORY_FORMATS:
         assert NAMES[k.removeprefix("gnss:")] in text, (k, text[:3000])
+
+
+def test_topic_options_refuse_a_file_that_is_not_a_bag(tmp_path):
+    imu = tmp_path / "imu.csv"
+    imu.write_text("time,gyro_x_rad_s,gyro_y_rad_s,gyro_z_rad_s,accel_x_m_s2,accel_y_m_s2,accel_z_m_s2\n"
+                   + "".join(f"{100 + 0.01 * k:.2f},0,0,0,0,0,9.8\n" for k in range(10)))
+    gnss = tmp_path / "gnss.csv"
+    gnss.write_text("time,lat_deg,lon_deg,height_m\n100.0,40.0,-105.0,1600.0\n")
+    for opt, msg in (("--imu-topic", "is not a ROS bag"), ("--gnss-topic", "not a ROS bag")):
+        r = CliRunner().invoke(app, ["process", "--imu", str(imu), "--gnss", str(gnss), opt, "/x", "-o",
+                                     str(tmp_path / "o"), "--no-figures"], terminal_width=400)
+        assert r.exit_code == 2, r.output
+        assert msg in " ".join(r.output.split()), r.output

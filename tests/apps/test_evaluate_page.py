@@ -34,4 +34,4 @@ def test_evaluation_page_linked_from_run_page(tmp_path):
     assert "Evaluation against a reference" in run_html and "../ev/evaluation.html" in run_html
     assert json.loads((run / "summary.json").read_text())["evaluation"]["page"] == "../ev/evaluation.html"
     ej = json.loads((tmp_path / "ev" / "errors.json").read_text())
-    assert ej["time_scale"] == "s, the files' time scale"  # no GPS week in either file
+    assert ej["time_scale"] == "the files' own clock, no GPS week"  # no GPS week in either file

@@ -127,7 +127,7 @@ def evaluate_files(estimate_path, truth_path, out_dir=None, console=None, max_dt
         and the PNG figures of :mod:`aidnav.report.error_plots`.
     console : rich Console for the table (a new one if None).
     max_dt : gap threshold for :func:`trajectory_errors` [s]; time_scale : label of the time axis
-    (default: "GPS SOW" when either file knows its GPS week, else "s, the files' time scale" — a
+    (default: "GPS SOW" when either file knows its GPS week, else "the files' own clock, no GPS week" — a
     simulated clock is not labelled GPS time).
     truth_height_offset_m : added to the reference heights [m] (datum of the reference file).
     chunk_rows : epochs per piece of either file.
@@ -171,7 +171,7 @@ def evaluate_files(estimate_path, truth_path, out_dir=None, console=None, max_dt
     print_table(stats, errors, console, title=f"{Path(estimate_path).name} vs {Path(truth_path).name}")
     if time_scale is None:
         gps = _week_of(est) is not None or _week_of(ref) is not None
-        time_scale = "GPS SOW" if gps else "s, the files' time scale"
+        time_scale = "GPS SOW" if gps else "the files' own clock, no GPS week"
 
     written: list[Path] = []
     if out is None:

@@ -306,7 +306,8 @@ def format_summary(s: dict) -> str:
                 lines.append(f"{title}: {o['n_outages']} outages, end-of-outage horizontal error median "
                              f"{o['end_error_median_m']:.2f} m, p95 {o['end_error_p95_m']:.2f} m, max "
                              f"{o['end_error_max_m']:.2f} m; RMS over {o['n_scored']} withheld fixes "
-                             f"{o['rms_m']:.3f} m" + (f" ({o['reference']})" if o.get("reference") else ""))
+                             f"{o['rms_m']:.3f} m"
+                             + (f"; scored on {o['reference']}" if o.get("reference") else ""))
     lines += [f"warning: {w}" for w in s.get("warnings", [])]
     lines += [f"event: {e}" for e in s["events"]] + [f"note: {n}" for n in s["notes"]]
     return "\n".join(lines) + "\n"

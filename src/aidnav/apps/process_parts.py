@@ -94,8 +94,8 @@ def outage_score(t, herr, wins, withheld, gnss: GnssData | None = None) -> dict:
     ref = {}
     if gnss is not None:
         q1 = gnss.quality is not None and bool((withheld & (gnss.quality == 1)).any())
-        ref["reference"] = ("withheld fixes of quality 1 (RTK fixed)" if q1 else
-                            "all withheld fixes (none of quality 1)")
+        ref["reference"] = ("the withheld fixes of quality 1, RTK fixed" if q1 else
+                            "all withheld fixes, none being of quality 1")
     if len(t) == 0:
         return {"n_withheld": int(withheld.sum()), "n_scored": 0, **ref}
     if gnss is not None and gnss.quality is not None:

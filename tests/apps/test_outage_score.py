@@ -1,0 +1,40 @@
+"""The outage score without RTK-fixed fixes (issue 38): scored on all withheld fixes, the RMS per quality
+beside it; with quality-1 fixes withheld, on those only (as before)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from aidnav.apps.process_parts import score_outages
+from aidnav.data import GnssData, Trajectory
+from aidnav.nav.earth import radii
+
+
+def _case(quality):
+    n = 101
+    t = np.arange(n, dtype=float)
+    lat = np.full(n, np.radians(30.0))
+    tr = Trajectory(t, lat, np.zeros(n), np.zeros(n), np.zeros((n, 3)), np.zeros((n, 3)))
+    rm, _ = radii(np.radians(30.0))
+    # the fixes 1 m (quality 4) or 2 m (quality 5) north of the solution
+    off = np.where(quality == 4, 1.0, 2.0) / rm
+    g = GnssData(t, lat + off, np.zeros(n), np.zeros(n), quality=quality)
+    withheld = (t >= 20) & (t < 40)
+    return tr, g, withheld
+
+
+def test_score_without_quality_1_uses_all_withheld_fixes_per_quality():
+    q = np.where(np.arange(101) % 2 == 0, 4, 5)
+    tr, g, wh = _case(q)
+    s = score_outages(tr, g, [(20.0, 40.0)], wh)
+    assert s["n_scored"] == 20 and s["reference"].startswith("all withheld")
+    assert s["per_quality"]["4"]["n"] == 10 and abs(s["per_quality"]["4"]["rms_m"] - 1.0) < 1e-6
+    assert abs(s["per_quality"]["5"]["rms_m"] - 2.0) < 1e-6
+    assert abs(s["rms_m"] - np.sqrt(2.5)) < 1e-6
+
+
+def test_score_with_quality_1_uses_those_only():
+    q = np.where(np.arange(101) % 2 == 0, 1, 5)
+    tr, g, wh = _case(q)
+    s = score_outages(tr, g, [(20.0, 40.0)], wh)
+    assert s["n_scored"] == 10 and set(s["per_quality"]) == {"1"} and "quality 1" in s["reference"]

@@ -42,6 +42,11 @@ def test_nav_pvt_known_answers(tmp_path):
     np.testing.assert_allclose(g.std_pos[0], [0.014, 0.014, 0.010])
     np.testing.assert_allclose(g.std_vel[0], [0.07, 0.07, 0.07])
     assert g.quality.tolist() == [1, 2]  # carrSoln fixed, float
+    # NAV-PVT heights are ellipsoidal: a configured MSL offset is not applied, and a warning says so
+    g2 = formats.read_gnss(p, height_offset_m=-21.4)
+    assert g2.height_datum == "ellipsoid" and g2.height_offset_m == 0.0
+    np.testing.assert_array_equal(g2.height, g.height)
+    assert any(e.startswith("warning:") and "NOT applied" in e for e in g2.events)
 
 
 def test_invalid_fixes_skipped_and_counted(tmp_path):

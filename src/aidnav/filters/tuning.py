@@ -20,7 +20,7 @@ def loose_config_from_specs(imu_spec, gnss_spec=None, *, init_rph_deg=None, init
                             init_vel=None, position_sigma_m=(1.0, 1.0, 1.0),
                             velocity_sigma_m_s=(0.1, 0.1, 0.1),
                             attitude_sigma_deg=(0.1, 0.1, 1.0), states: int = 15, prop_dt_s: float = 1.0,
-                            floor_bias: bool = True, **overrides) -> LooseConfig:
+                            floor_bias: bool = True, sensor_model: bool = True, **overrides) -> LooseConfig:
     """LooseConfig whose noise model matches ``imu_spec`` (SI) and ``gnss_spec``.
 
     The filter's bias state models the sum of the turn-on constant and the Gauss-Markov instability:

@@ -77,6 +77,7 @@ class Condition:
 
     segments : scenario segments (:mod:`aidnav.sim.scenario`); speed_m_s : the speed at the start;
     grade : IMU grade (:meth:`aidnav.sim.imu.ImuSpec.grade`, with its scale factors and misalignments);
+    imu : (key, value) pairs overriding the grade (``sensors.imu`` keys of a scenario);
     rate_hz : GNSS fix rate; velocity : fixes carry velocity; correlated : position errors are first-order
     Gauss–Markov (σ ``GM_SIGMA_M``, τ ``GM_TAU_S``) plus ``GM_WHITE_M`` white, the fixes' σ the total
     (what a receiver that does not know the correlation reports); imu_gap, outage : (start, duration) [s]
@@ -88,6 +89,7 @@ class Condition:
     segments: tuple = tuple(_START + _DRIVE)
     speed_m_s: float = 0.0
     grade: str = "consumer"
+    imu: tuple = ()
     rate_hz: float = 1.0
     velocity: bool = True
     correlated: bool = False
@@ -100,7 +102,8 @@ class Condition:
 
 CONDITIONS: tuple[Condition, ...] = (
     Condition("gnss 1 Hz white", note="position + velocity fixes, white errors"),
-    Condition("gnss 1 Hz correlated", correlated=True, note=f"Gauss-Markov position errors, τ {GM_TAU_S:g} s"),
+    Condition("gnss 1 Hz correlated", correlated=True,
+              note=f"Gauss-Markov position errors, τ {GM_TAU_S:g} s"),
     Condition("gnss 10 Hz white", rate_hz=10.0),
     Condition("gnss 10 Hz correlated", rate_hz=10.0, correlated=True),
     Condition("imu gap 30 s in a turn", segments=tuple(_START + _GAP_DRIVE), imu_gap=(95.0, 30.0),
@@ -156,7 +159,7 @@ def _scenario(cond: Condition, seed: int):
         "initial": {"lat_deg": 40.0, "lon_deg": 116.0, "height_m": 50.0, "speed_m_s": cond.speed_m_s,
                     "heading_deg": 20.0},
         "segments": [dict(s) for s in cond.segments],
-        "sensors": {"imu": {"grade": cond.grade}, "gnss": gnss}})
+        "sensors": {"imu": {"grade": cond.grade, **dict(cond.imu)}, "gnss": gnss}})
 
 
 def add_gauss_markov(gnss, sigma_m, tau_s: float, rng: np.random.Generator) -> None:

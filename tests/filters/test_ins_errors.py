@@ -336,7 +336,7 @@ def test_scale_factor_and_misalignment_columns_match_numerical_jacobian():
 
 
 def test_correct_increments_removes_the_misalignment():
-    """nb = 18: Δθ_c = Δθ − b_g Δt − s_g∘Δθ − M Δθ (the misalignment state order of ``MIS_OUT``/``MIS_IN``)."""
+    """nb = 18: Δθ_c = Δθ − b_g Δt − s_g∘Δθ − M Δθ (misalignment states in ``MIS_OUT``/``MIS_IN`` order)."""
     dt = 0.01
     dth, dv = W_IB * dt, F_B * dt
     bias = np.array([1e-4, -2e-4, 3e-4, 0.02, -0.01, 0.03, 1e-3, -2e-3, 5e-4, 2e-3, 1e-3, -1e-3,

@@ -26,9 +26,10 @@ def loose_config_from_specs(imu_spec, gnss_spec=None, *, init_rph_deg=None, init
     ``sensor_model`` (default): the sensor errors as :func:`sensor_error_model` says (turn-on bias plus
     instability, scale factors and misalignment, issue 35; ``states`` then only asks for at least that
     many); False: the model before it (:func:`_one_markov_bias`: one Gauss-Markov bias state of initial
-    σ² = σ_const² + σ_GM², driving noise q = 2σ_GM²/τ; scale factors only with ``states = 21``). ``init_*`` give the filter's initial state (``mode = given``); the σ's its
-    initial covariance (position ENU [m], velocity [m/s], roll/pitch/heading [deg]). ``floor_bias``
-    keeps a tiny positive bias σ so that P stays positive definite for an error-free IMU.
+    σ² = σ_const² + σ_GM², driving noise q = 2σ_GM²/τ; scale factors only with ``states = 21``).
+    ``init_*`` give the filter's initial state (``mode = given``); the σ's its initial covariance
+    (position ENU [m], velocity [m/s], roll/pitch/heading [deg]). ``floor_bias`` keeps a
+    tiny positive bias σ so that P stays positive definite for an error-free IMU.
     ``overrides``: section dicts merged into the configuration (e.g. ``constraints={"zupt": False}``).
     The self-calibration states are off (the simulated lever arm, zero time offset and mounting are
     given exactly); switch them on with ``calibration={...}``.

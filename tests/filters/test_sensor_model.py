@@ -28,7 +28,8 @@ def test_consumer_grade_known_answers():
     assert m["accel_bias_rw_ug_sqrt_h"] == pytest.approx(np.sqrt(2 * 500.0 ** 2 / 100.0) * 60.0)
     # misalignment × 1 g as a bias (scale factors are states: no s·g term)
     mis_ug = 1800 * ARCSEC * G0 / (G0 * 1e-6)
-    assert m["accel_bias_sigma_ug"] == pytest.approx(np.sqrt(10000.0 ** 2 + 500.0 ** 2 + mis_ug ** 2), rel=1e-9)
+    total = np.sqrt(10000.0 ** 2 + 500.0 ** 2 + mis_ug ** 2)
+    assert m["accel_bias_sigma_ug"] == pytest.approx(total, rel=1e-9)
     assert m["scale_factors"] and m["gyro_misalignment"]
     assert m["gyro_sf_sigma_ppm"] == pytest.approx(5000.0)
     assert m["gyro_misalignment_sigma_deg"] == pytest.approx(0.5)

@@ -4,7 +4,7 @@ and NEES (:mod:`aidnav.experiments.consistency_matrix`).
 
 Targets (issue 35): every cell ≥ 95 % 3σ coverage on every axis and RMS(error)/RMS(σ) ≥ 0.3; a cell that
 misses either is flagged ``FAIL``. Prints the matrix, the targets, the machine load and the time taken;
-writes an HTML page (``--html``, default ``consistency_matrix.html`` in the working directory) and the
+writes an HTML page (``--html``, default ``out/consistency_matrix.html``) and the
 figures as JSON (``--json``).
 
 Run: ``python benchmarks/consistency_matrix.py`` (the whole matrix, ~10 CPU-min);
@@ -34,7 +34,7 @@ def main(argv=None):
     ap.add_argument("--conditions", default="", help="comma-separated names (default: all)")
     ap.add_argument("--configs", default="", help="comma-separated: none, presets, matched (default: all)")
     ap.add_argument("--legacy-sensor-model", action="store_true")
-    ap.add_argument("--html", default="consistency_matrix.html")
+    ap.add_argument("--html", default="out/consistency_matrix.html")
     ap.add_argument("--json", default="")
     a = ap.parse_args(argv)
     conds = [cm.condition(n.strip()) for n in a.conditions.split(",") if n.strip()] or list(cm.CONDITIONS)
@@ -64,6 +64,7 @@ def main(argv=None):
              f"{len(cells) - n_fail} of {len(cells)} cells pass",
              "coverage: fraction of 1-s epochs with |error| ≤ 3σ (all seeds); ratio: RMS(error)/RMS(σ); "
              "NEES/9: mean NEES of the 9 navigation error states with the full covariance, per dof"]
+    Path(a.html).parent.mkdir(parents=True, exist_ok=True)
     Path(a.html).write_text(cm.matrix_page(cells, "aidnav consistency matrix", notes), encoding="utf-8")
     print(f"page: {a.html}")
     if a.json:

@@ -44,7 +44,7 @@ from aidnav.sim.scenario import parse_scenario
 
 __all__ = ["AXES", "COVERAGE_TARGET", "RATIO_TARGET", "GM_TAU_S", "Condition", "CellResult", "CONDITIONS",
            "configurations", "condition", "simulate_condition", "config_for", "run_cell", "run_matrix",
-           "flags", "format_matrix", "matrix_page"]
+           "flags", "format_matrix", "matrix_page", "variant", "add_gauss_markov"]
 
 AXES = ("E", "N", "U", "roll", "pitch", "heading")
 COVERAGE_TARGET = 0.95  #: the issue's acceptance: ≥ 95 % of the epochs within 3σ on every axis
@@ -370,6 +370,6 @@ def matrix_page(cells: list[CellResult], title: str, notes: list[str]) -> str:
     return H.page(title, parts)
 
 
-def with_seeds(cond: Condition, **changes) -> Condition:
+def variant(cond: Condition, **changes) -> Condition:
     """``cond`` with fields changed (e.g. a shorter drive for a test)."""
     return replace(cond, **changes)

@@ -1,11 +1,13 @@
 """Cells of the consistency matrix (issue 35, :mod:`aidnav.experiments.consistency_matrix`) that run in
 seconds: the matched configuration on every IMU grade, with its scale factors and misalignments, 10 seeds.
 
-Bound. An honest Gaussian σ leaves |error| > 3σ with probability p = 0.0027. The evaluation epochs of a
-run (1 s apart, ~280 s) are correlated, but each run holds at least 10 independent stretches (the
-slowest error in these cells, attitude under GNSS aiding, decorrelates within 30 s), so 10 seeds give
-N ≥ 100 independent samples; P(coverage < 95 %) ≤ P(Binomial(100, 0.0027) ≥ 5) ≈ 1e-5. A cell below
-95 % is a σ that is wrong, not bad luck. RMS(error)/RMS(σ) ≥ 0.3: the issue's bound on a σ that is
+Bound. An honest Gaussian σ leaves |error| > 3σ with probability p = 0.0027. The white errors
+decorrelate within a run (each run of ~280 epochs holds ≥ 10 independent stretches), but the sensor
+constants (biases, scale factors, misalignments) are drawn once per seed, so for them the 10 seeds are the
+sample: a seed that draws one of its ~30 constants beyond 3σ (probability ≈ 8 %) can leave a large part of
+its epochs uncovered (mems seed 4: a 3.4σ gyro misalignment, pitch 61 % of that run). The seeds are fixed,
+so the test is deterministic; 95 % over the 10 seeds is the issue's acceptance, and a model that leaves a
+sensor error out misses it by far (below). RMS(error)/RMS(σ) ≥ 0.3: the issue's bound on a σ that is
 uselessly large. The model before issue 35 (one Gauss–Markov bias state, no scale-factor or
 misalignment states) fails the consumer cell's roll/pitch (the test that the check can fail).
 """
@@ -22,8 +24,8 @@ from aidnav.nav.earth import radii
 SEEDS = range(10)
 
 
-MEMS_PITCH = pytest.mark.xfail(strict=True, reason="mems pitch coverage 93.5 % (issue 35: measured, not yet "
-                                "explained; docs/results.md)")
+MEMS_PITCH = pytest.mark.xfail(strict=True, reason="mems pitch coverage 93.5 %: seeds 4 and 9 (61, 74 %; "
+                                "seed 4 draws a 3.4σ gyro misalignment), docs/results.md issue 35")
 
 
 @pytest.mark.parametrize("grade", ["navigation", "tactical", pytest.param("mems", marks=MEMS_PITCH),

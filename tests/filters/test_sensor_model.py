@@ -9,8 +9,8 @@ import pytest
 
 from aidnav.experiments import consistency_matrix as cm
 from aidnav.filters.config import LooseConfig
-from aidnav.filters.loose import run_loose
 from aidnav.filters.layout import L_LEVER, L_N, L_NINS, MG, layout_names, make_layout
+from aidnav.filters.loose import run_loose
 from aidnav.filters.prior import initial_covariance, process_noise
 from aidnav.filters.tuning import loose_config_from_specs, sensor_error_model
 from aidnav.sim.imu import ImuSpec

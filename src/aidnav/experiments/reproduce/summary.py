@@ -172,7 +172,7 @@ def summary_row(quantity: str, unit: str, ours, paper=None, target=None,
     ``|d| < 2 se``, and ``structural-null`` when ``d`` and ``se`` are both exactly 0 (an effect that is zero
     by construction). ``holds`` is True exactly when the verdict is ``holds``. ``reason``: why a row fails
     or is unresolved (a default is written when not given). ``runs``: the Monte Carlo runs behind ``ours``
-    (None: the table's, see :func:`summary_table`).
+    (None: the table's, see :func:`summary_table`; 0: not a Monte Carlo number, e.g. a formula check).
     """
     o, p = _num(ours), _num(paper)
     holds = None

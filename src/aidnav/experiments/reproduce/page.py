@@ -21,7 +21,7 @@ from pathlib import Path
 from .summary import STRUCTURAL_NULL, count_verdicts, target_shown
 
 __all__ = ["write_seed_page", "write_index", "print_summary", "report_folder", "ReproductionError",
-           "browser_layout", "is_reproduction"]
+           "browser_layout", "browser_check", "is_reproduction", "CHROMIUM_FLAGS"]
 
 CSS = """
 *{box-sizing:border-box}
@@ -350,3 +350,77 @@ def browser_layout(page, work_dir, width: int = 1400):
     subprocess.run(args + [f"--screenshot={shot}", page.as_uri()], capture_output=True, timeout=120)
     got = dict(re.findall(r'data-(maxright|scrollw|imgs)="([0-9.]+)"', dom))
     return float(got["maxright"]), float(got["scrollw"]), int(got["imgs"]), shot
+
+
+#: the headless-Chromium flags of the page checks (a fresh --user-data-dir is added per call)
+CHROMIUM_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+                  "--no-first-run", "--hide-scrollbars")
+
+#: run at window "load": layout (widest element not inside a scrolling box, scroll width), every table and
+#: image (visible: a non-zero box inside the document; images decoded) and the CJK glyphs of the page. The
+#: glyph test draws each CJK character of the page, a second CJK character and a character no font has
+#: (U+10FFFD, private use: always a missing-glyph box) on a canvas in the body's font: a character that
+#: renders as a box draws the same pixels as that character, and two boxes draw the same pixels as each
+#: other.
+_CHECK_JS = r"""<script>window.addEventListener("load",()=>{
+const W=window.innerWidth;let maxr=0;
+for(const e of document.querySelectorAll("body *")){
+ if(e.closest(".scroll")&&e.closest(".scroll")!==e)continue;
+ const r=e.getBoundingClientRect();if(r.width===0&&r.height===0)continue;if(r.right>maxr)maxr=r.right;}
+const vis=e=>{const r=e.getBoundingClientRect();return r.width>0&&r.height>0&&
+ getComputedStyle(e).visibility!=="hidden"&&getComputedStyle(e).display!=="none";};
+const tabs=[...document.querySelectorAll("table")];const imgs=[...document.images];
+const txt=document.body.innerText;const cjk=[...new Set(txt.match(/[\u3400-\u9fff]/g)||[])];
+const font=getComputedStyle(document.body).fontFamily;
+const draw=ch=>{const c=document.createElement("canvas");c.width=48;c.height=48;
+ const x=c.getContext("2d");x.font="40px "+font;x.fillStyle="#000";x.textBaseline="top";x.fillText(ch,2,2);
+ return Array.from(x.getImageData(0,0,48,48).data).join(",");};
+const tofu=draw(String.fromCodePoint(0x10FFFD));const bad=[];
+for(const ch of cjk){const d=draw(ch);const other=draw(ch==="\u7cbe"?"\u5ea6":"\u7cbe");
+ if(d===tofu||d===other)bad.push(ch);}
+const res={width:W,docheight:document.documentElement.scrollHeight,maxright:maxr,
+ scrollw:document.documentElement.scrollWidth,tables:tabs.length,tables_visible:tabs.filter(vis).length,
+ imgs:imgs.length,imgs_ok:imgs.filter(i=>i.complete&&i.naturalWidth>0&&vis(i)).length,
+ cjk:cjk.join(""),cjk_boxes:bad.join(""),font:font};
+const p=document.createElement("pre");p.id="reproduce-check";p.style.display="none";
+p.textContent=JSON.stringify(res);document.body.appendChild(p);});</script>"""
+
+
+def browser_check(page, work_dir, width: int = 1400, height: int = 1000):
+    """Open ``page`` (a report.html) in headless Chromium (a fresh profile, ``CHROMIUM_FLAGS``) with a
+    ``width`` × ``height`` window; write a full-page screenshot ``work_dir/<stem>_shot.png``. Returns a dict:
+    ``maxright`` (largest right edge of an element outside a scrolling box, px), ``scrollw`` (the document's
+    scroll width, px), ``tables`` / ``tables_visible``, ``imgs`` / ``imgs_ok`` (decoded and visible),
+    ``cjk`` (the CJK characters of the page), ``cjk_boxes`` (those that render as a missing-glyph box),
+    ``font``, ``shot`` (the screenshot's path) — or None when Chromium is not installed. For tests."""
+    import json as _json  # lazy: only the checks need it here
+    import tempfile  # lazy: only the checks need it
+
+    found = [shutil.which(n) for n in ("chromium", "chromium-browser", "google-chrome")]
+    exe = next((f for f in found if f), None)
+    if exe is None:
+        return None
+    work = Path(work_dir)
+    work.mkdir(parents=True, exist_ok=True)
+    page = Path(page)
+    probe = work / f"{page.parent.name}_{page.stem}_check.html"
+    probe.write_text(page.read_text(encoding="utf-8").replace("</body>", _CHECK_JS + "</body>"),
+                     encoding="utf-8")
+    shot = work / f"{page.parent.name}_{page.stem}_shot.png"
+    with tempfile.TemporaryDirectory(dir=work) as prof:
+        args = [exe, *CHROMIUM_FLAGS, f"--user-data-dir={prof}", f"--window-size={width},{height}",
+                "--virtual-time-budget=10000"]
+        dom = subprocess.run(args + ["--dump-dom", probe.as_uri()], capture_output=True, text=True,
+                             timeout=180).stdout
+    m = re.search(r'<pre id="reproduce-check"[^>]*>(.*?)</pre>', dom, re.S)
+    if m is None:
+        raise RuntimeError(f"{page}: the page check did not run in Chromium")
+    res = _json.loads(html.unescape(m.group(1)))
+    # the full page: a window as tall as the document (capped), so that every table and figure is on it
+    tall = min(max(height, int(res.get("docheight", 0)) or height * 8), 30000)
+    with tempfile.TemporaryDirectory(dir=work) as prof:
+        subprocess.run([exe, *CHROMIUM_FLAGS, f"--user-data-dir={prof}", f"--window-size={width},{tall}",
+                        "--virtual-time-budget=10000", f"--screenshot={shot}", page.as_uri()],
+                       capture_output=True, timeout=180)
+    res["shot"] = shot
+    return res

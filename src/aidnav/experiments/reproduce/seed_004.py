@@ -53,7 +53,7 @@ import csv
 import math
 import sys
 import time
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -64,6 +64,7 @@ from aidnav.experiments.reproduce.seed_004_figures import (
     fig_attitude,
     fig_design,
     fig_flexure,
+    fig_heading_sigma,
     fig_sweeps,
     fig_trajectories,
 )
@@ -72,6 +73,7 @@ from aidnav.experiments.reproduce.seed_004_tables import (
     FACTOR2,
     GRADES,
     LABEL,
+    MASTER_DRIFT,
     MASTER_MODELS,
     MASTER_TAU_S,
     MODES,
@@ -115,6 +117,28 @@ from aidnav.sim.trajectory import generate_truth
 SEED = "004"
 TITLE = ("Design and comparative analysis of flight trajectories for airborne Earth observation "
          "(distributed POS transfer alignment)")
+
+
+@dataclass(frozen=True)
+class Case4(Case):
+    """A seed-004 Monte Carlo cell: :class:`aidnav.experiments.transfer_cases.Case` with the master POS white
+    by default (``drift_fraction = 0``: truth plus the POS's measurement noise, as the seed says; SPEC §5.1,
+    2026-12-06) and ``filter_grade``: the grade whose gyro noise the filter assumes (None: matched to the
+    truth's; e.g. ``"sub_arw"`` over a ``"sub"`` truth is the density-level truth with the filter's Q
+    inflated, the usual tuning of such studies)."""
+
+    drift_fraction: float | None = 0.0
+    filter_grade: str | None = None
+
+
+#: the reproduction's baseline case (figure-8, T1 = 200 s, T2 = 400 s, 20 km, white master)
+BASE4 = Case4(**{**asdict(BASE), "drift_fraction": 0.0})
+#: the drifting master of the former default (position drift fraction 0.5, τ 300 s): a sensitivity case
+DRIFT_FRACTION_SENS = 0.5
+#: the three noise configurations compared side by side (label -> (truth grade, filter grade or None))
+NOISE_CONFIGS = {"ARW reading (default)": ("sub_arw", None),
+                 "density reading": ("sub", None),
+                 "density truth, filter Q inflated": ("sub", "sub_arw")}
 
 
 # ------------------------------------------------------------------------------------- Monte Carlo
@@ -166,6 +190,9 @@ class _Runner:
         tb, geo = self.bundle(case.traj_key)
         cfg = sim_config(case)
         fcfg = TransferConfig.from_sim(cfg, nstate=case.nstate)
+        fg = getattr(case, "filter_grade", None)
+        if fg is not None:  # the filter's gyro noise from another grade (Q inflated over the truth's)
+            fcfg = replace(fcfg, gyro_arw=float(np.max(imu_spec(fg).gyro_arw)))
         S, R, first = [], [], {}
         for i, ss in enumerate(self.run_seeds if case.runs is None else self.run_seeds[:case.runs]):
             run = simulate_distributed_pos(tb, cfg, ss, geo)
@@ -261,6 +288,18 @@ def _tables(res: dict, cov_pred: dict, flex: dict, flex_spec: FlexureSpec) -> li
                                 "assumes white", t4_rows(Group(res["T4-GM"]), ", GM master", spec=False),
                                 kind="sensitivity"))
     sfx = ", ARW 0.0017°/√h"
+    qfx = ", density truth, Q inflated"
+    tables += [summary_table("Table 4, Q inflated", "Table 4 with the density reading in the truth (ARW "
+                             "0.0017°/√h) and the filter's gyro noise inflated to the ARW reading (0.1°/√h), "
+                             "the usual tuning of such "
+                             "studies", t4_rows(Group(res["T4-qinf"]), qfx, spec=False),
+                             kind="sensitivity"),
+               summary_table("Table 5, Q inflated", "Table 5 with the density truth and the filter's Q "
+                             "inflated",
+                             t5_rows(Group(res["T5-qinf"]), qfx, spec=False), kind="sensitivity"),
+               summary_table("Table 6, Q inflated", "Table 6 with the density truth and the filter's Q "
+                             "inflated",
+                             t6_rows(Group(res["T6-qinf"]), qfx, spec=False), kind="sensitivity")]
     tables += [summary_table("Table 4, density reading", "Table 4 with the sub-IMU's 'random drift 0.1°/h' "
                              "read as a white-noise density of 0.1°/h/√Hz (ARW 0.0017°/√h, the seed004_sub "
                              "preset) instead of an ARW of 0.1°/√h (filter matched)",
@@ -269,6 +308,15 @@ def _tables(res: dict, cov_pred: dict, flex: dict, flex_spec: FlexureSpec) -> li
                              t5_rows(Group(res["T5-density"]), sfx, spec=False), kind="sensitivity"),
                summary_table("Table 6, density reading", "Table 6 with the density reading of the sub-IMU",
                              t6_rows(Group(res["T6-density"]), sfx, spec=False), kind="sensitivity")]
+    tables.insert(4, noise_comparison(tables))
+    mg = {k: Group(v) for k, v in res["master"].items()}
+    tables.append(summary_table("Table 8, drifting master", "Table 8's predicates with the former drifting "
+                                "master "
+                                "(position drift fraction 0.5, τ 300 s, its rate in the master velocity) "
+                                "instead "
+                                "of the white master of the seed's "
+                                "text", t8_rows(mg[MASTER_DRIFT], spec=False),
+                                kind="sensitivity"))
     # ---------------------------------------------------------------- design tool (checks of our own)
     pr = {m: cov_pred[m]["heading_deg"] for m in MODES}
     ph = {m: PAPER_T4[m][0] for m in MODES}
@@ -301,6 +349,50 @@ def _tables(res: dict, cov_pred: dict, flex: dict, flex_spec: FlexureSpec) -> li
     tables.append(summary_table("Flexure", "second-order Markov flexure generator (exact discretisation): σ "
                                 "and 1/e lag against the seed's values", rows))
     return tables
+
+
+def _config_counts(tables: list[dict], names) -> tuple[int, int, int, int]:
+    """(factor-2 cells within 2x, factor-2 cells, ordering predicates holding, predicates) of the tables
+    ``names``: what a configuration reproduces of the paper's magnitudes and of its orderings."""
+    rows = [r for t in tables if t["name"] in names for r in t["rows"]]
+    cells = [r for r in rows if r["target"] == FACTOR2]
+    preds = [r for r in rows if r["target"] is not None and r["target"] != FACTOR2]
+    return (sum(r["verdict"] == "holds" for r in cells), len(cells),
+            sum(r["verdict"] == "holds" for r in preds), len(preds))
+
+
+def noise_comparison(tables: list[dict]) -> dict:
+    """The three noise configurations side by side (SPEC §5.1, 2026-12-06): for each, the share of the
+    paper's Table 4-6 attitude cells reproduced within 2x (magnitudes) and of the §5.3 Table 4-6 orderings
+    that hold (orderings), and which of the two it reproduces (≥ 80 % of the cells; every ordering)."""
+    names = {"ARW reading (default)": ("Table 4", "Table 5", "Table 6"),
+             "density reading": ("Table 4, density reading", "Table 5, density reading",
+                                 "Table 6, density reading"),
+             "density truth, filter Q inflated": ("Table 4, Q inflated", "Table 5, Q inflated",
+                                                  "Table 6, Q inflated")}
+    rows = []
+    for label, tabs in names.items():
+        c_ok, c_n, p_ok, p_n = _config_counts(tables, tabs)
+        mag, order = c_ok >= 0.8 * c_n, p_ok == p_n
+        what = ("magnitudes and orderings" if mag and order else "magnitudes" if mag else
+                "orderings" if order else "neither")
+        rows.append(summary_row(f"{label}: Tables 4-6 attitude cells within 2x of the paper ({c_ok} of "
+                                f"{c_n}); "
+                                f"reproduces: {what}", "-", c_ok / max(c_n, 1), None, "ours >= 0.8",
+                                reason=None if mag else f"{label}: only {c_ok} of {c_n} cells within 2x"))
+        rows.append(summary_row(f"{label}: §5.3 Tables 4-6 orderings that hold ({p_ok} of {p_n})", "-",
+                                p_ok / max(p_n, 1), None, "ours >= 1",
+                                reason=None if order else f"{label}: {p_n - p_ok} of {p_n} orderings do not "
+                                "hold (the tables of this configuration give each reason)"))
+    return summary_table("Noise configurations", "the sub-IMU's 'random drift 0.1°/h' read as an ARW of "
+                         "0.1°/√h (the default), as a white-noise density (ARW 0.0017°/√h), and the density "
+                         "reading in the truth with the filter's Q inflated to the ARW reading, side by "
+                         "side: "
+                         "which reproduces the paper's magnitudes (≥ 80 % of the Table 4-6 attitude cells "
+                         "within "
+                         "2x) and which its orderings (every §5.3 Table 4-6 predicate); paper comparisons, "
+                         "not "
+                         "SPEC rows", rows)
 
 
 def _spearman(a, b) -> float:
@@ -348,29 +440,34 @@ def run(out_dir, runs: int | None = 10, base_seed: int = 1, console=None, quick:
 
     # Monte Carlo cases, grouped by trajectory so that each trajectory is generated once
     res: dict[str, dict] = {k: {} for k in ("T4", "T4-21", "T4-GM", "T4-density", "T5", "T6", "T8", "grade",
-                                            "T5-density", "T6-density", "master")}
+                                            "T5-density", "T6-density", "master", "T4-qinf", "T5-qinf",
+                                            "T6-qinf")}
     bundles = {}
+    qinf = dict(grade="sub", filter_grade="sub_arw")  # density truth, the filter's Q inflated
     for m in MODES:
-        base = Case(mode=m, t1=0.0, t2=400.0)
+        base = Case4(mode=m, t1=0.0, t2=400.0)
         bundles[m] = runner.bundle(base.traj_key)[0]
         res["T4"][m] = mc(base, trend_runs)
         res["T4-21"][m] = mc(replace(base, nstate=21))
         res["T4-GM"][m] = mc(replace(base, master_tau=MASTER_TAU_S), sens_runs)
         res["T4-density"][m] = mc(replace(base, grade="sub"))
+        res["T4-qinf"][m] = mc(replace(base, **qinf))
     for t1 in T1_VALUES:
-        c = Case(mode="figure8", t1=float(t1), t2=400.0)
+        c = Case4(mode="figure8", t1=float(t1), t2=400.0)
         res["T5"][t1] = mc(c, trend_runs)
         res["T5-density"][t1] = mc(replace(c, grade="sub"), sens_runs)
+        res["T5-qinf"][t1] = mc(replace(c, **qinf), sens_runs)
     for t2 in T2_VALUES:
-        c = Case(mode="figure8", t1=200.0, t2=float(t2))
+        c = Case4(mode="figure8", t1=200.0, t2=float(t2))
         res["T6"][t2] = mc(c, trend_runs)
         res["T6-density"][t2] = mc(replace(c, grade="sub"), sens_runs)
+        res["T6-qinf"][t2] = mc(replace(c, **qinf), sens_runs)
     for b in BASELINES:
-        res["T8"][b] = mc(replace(BASE, baseline_km=float(b)), trend_runs)
+        res["T8"][b] = mc(replace(BASE4, baseline_km=float(b)), trend_runs)
     for g in SWEEP_GRADES:
-        res["grade"][g] = mc(replace(BASE, grade=g))
+        res["grade"][g] = mc(replace(BASE4, grade=g))
     for label, (f, sv, bls) in MASTER_MODELS.items():  # the master-error study of Table 8
-        res["master"][label] = {b: mc(replace(BASE, baseline_km=float(b), drift_fraction=f,
+        res["master"][label] = {b: mc(replace(BASE4, baseline_km=float(b), drift_fraction=f,
                                               master_vel_sigma=sv)) for b in bls}
     t_mc = time.perf_counter() - t_start
 
@@ -417,6 +514,7 @@ def run(out_dir, runs: int | None = 10, base_seed: int = 1, console=None, quick:
     mc_rms = {m: float(res["T4"][m].rms.mean(axis=0)[0]) for m in MODES}
     figures.append(fig_design(out, analyses, {m: cov_pred[m]["heading_deg"] for m in MODES}, mc_std, mc_rms))
     figures.append(fig_flexure(out, flex, flex_spec))
+    figures.append(fig_heading_sigma(out, res["T5"]))
     _write_runs(out, runner)
 
     elapsed = study.elapsed_s

@@ -309,6 +309,7 @@ def _tables(res: dict, cov_pred: dict, flex: dict, flex_spec: FlexureSpec) -> li
                summary_table("Table 6, density reading", "Table 6 with the density reading of the sub-IMU",
                              t6_rows(Group(res["T6-density"]), sfx, spec=False), kind="sensitivity")]
     tables.insert(4, noise_comparison(tables))
+    _point_to_alternatives(tables)
     mg = {k: Group(v) for k, v in res["master"].items()}
     tables.append(summary_table("Table 8, drifting master", "Table 8's predicates with the former drifting "
                                 "master "
@@ -349,6 +350,51 @@ def _tables(res: dict, cov_pred: dict, flex: dict, flex_spec: FlexureSpec) -> li
     tables.append(summary_table("Flexure", "second-order Markov flexure generator (exact discretisation): σ "
                                 "and 1/e lag against the seed's values", rows))
     return tables
+
+
+#: for a failing SPEC row of a table, the modelling choice behind it and the sensitivity tables that show the
+#: alternatives (their row of the same quantity is quoted in the reason)
+ALTERNATIVES = {
+    "Table "
+    "4": ("the sub-IMU noise reading (ARW 0.1°/√h)", ("Table 4, density reading", "Table 4, Q inflated")),
+    "Table "
+    "5": ("the sub-IMU noise reading (ARW 0.1°/√h)", ("Table 5, density reading", "Table 5, Q inflated")),
+    "Table "
+    "6": ("the sub-IMU noise reading (ARW 0.1°/√h)", ("Table 6, density reading", "Table 6, Q inflated")),
+    "Table 8": ("the white master of the seed's text (truth + the POS/AV610 noise, σ_v = 0.03 m/s)",
+                ("Table 8, drifting master", "Master-error model")),
+}
+
+
+def _base_quantity(q: str) -> str:
+    return q.split(" [", 1)[0] if ", resolved at" in q else q
+
+
+def _point_to_alternatives(tables: list[dict]) -> None:
+    """Append to the reason of every SPEC row that fails the modelling choice that causes it and what the
+    sensitivity tables give for the same quantity under the alternatives (issue 39)."""
+    by_name = {t["name"]: t for t in tables}
+    for name, (choice, alts) in ALTERNATIVES.items():
+        if name not in by_name:
+            continue
+        for r in by_name[name]["rows"]:
+            if not r["spec"] or r["verdict"] == "holds":
+                continue
+            base = _base_quantity(r["quantity"])
+            seen = []
+            for a in alts:
+                t = by_name.get(a)
+                if t is None:
+                    continue
+                hit = next((x for x in t["rows"] if x["quantity"].startswith(base) and x["target"]), None)
+                if hit is not None:
+                    v = "–" if hit["ours"] is None else f"{hit['ours']:.3g}"
+                    seen.append(f"'{a}': {v} ({hit['verdict']})")
+                else:
+                    seen.append(f"'{a}'")
+            r["reason"] = (f"{r['reason']}. Modelling choice behind it: {choice}; the alternatives: "
+                           + "; ".join(seen) + " (sensitivity tables; 'Noise configurations' compares the "
+                           "three noise configurations side by side)")
 
 
 def _config_counts(tables: list[dict], names) -> tuple[int, int, int, int]:

@@ -469,6 +469,7 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
             "m",
             ours=rel["err_iter"][b],
             target="ours < 1e-3",
+            spec=True,
         )
         for b in sorted(rel["err_iter"])
     ]
@@ -490,6 +491,7 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
             ours=float(nees.mean()),
             target="ours >= lo and ours <= hi",
             values={"lo": lo, "hi": hi},
+            spec=True,
         ),
     ]
     dg, sp = mean("dgps_rms_m"), mean("spp_rms_m")

@@ -291,3 +291,30 @@ def test_holds_is_the_verdict_and_targets_show_their_numbers(tmp_path):
     text = write_seed_page(tmp_path).read_text()
     assert "0.95 &lt;= 1.02 &lt;= 1.05" in text and "structural-null" in text
     assert text.count("<table>") == 2  # the grid and the rows outside it
+
+
+def test_seed_004_table_8_structural_null_is_its_own_verdict():
+    """A factor that does not act on a quantity in every run (per-run ratios within NULL_TOL of 1) gives the
+    verdict structural-null (not holds, not fails, not unresolved); a real Monte Carlo effect does not."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from aidnav.experiments.reproduce.seed_004_tables import QUANTS, Group, structural_null, t8_rows
+
+    rng = np.random.default_rng(3)
+    base = rng.uniform(0.5, 1.5, (8, len(QUANTS)))
+    cases = {}
+    for i, b in enumerate((20, 40, 60)):
+        a = base * (1.0 + 1e-7 * i)  # velocity and position: the same in every run (to rounding)
+        a[:, QUANTS.index("baseline")] *= (1.0, 4.0, 9.0)[i]
+        a[:, QUANTS.index("lat")] = base[:, QUANTS.index("lat")] * rng.uniform(0.8, 1.2, 8)  # a noisy effect
+        cases[b] = SimpleNamespace(std=a)
+    g = Group(cases)
+    assert structural_null(g, "vE", (20, 40, 60)) < 1e-6 and structural_null(g, "lat", (20, 40, 60)) is None
+    rows = {r["quantity"].split(" [")[0]: r for r in t8_rows(g)}
+    ve = rows["vE: smallest ratio of successive L0 (non-decreasing: >= 1)"]
+    assert (ve["verdict"], ve["holds"], ve["spec"]) == ("structural-null", False, True)
+    assert "structural null" in ve["reason"] and "drifting master" in ve["reason"]
+    lat = next(r for q, r in rows.items() if q.startswith("lat: smallest ratio"))
+    assert lat["verdict"] != "structural-null"

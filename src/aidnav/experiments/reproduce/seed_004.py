@@ -380,7 +380,7 @@ def _point_to_alternatives(tables: list[dict]) -> None:
         for r in by_name[name]["rows"]:
             if not r["spec"] or r["verdict"] == "holds":
                 continue
-            base = _base_quantity(r["quantity"])
+            base = _base_quantity(r["quantity"]).split(" (")[0]
             seen = []
             for a in alts:
                 t = by_name.get(a)

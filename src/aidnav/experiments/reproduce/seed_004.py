@@ -392,9 +392,10 @@ def _point_to_alternatives(tables: list[dict]) -> None:
                     seen.append(f"'{a}': {v} ({hit['verdict']})")
                 else:
                     seen.append(f"'{a}'")
+            side = ("; 'Noise configurations' compares the three noise configurations side by side"
+                    if name != "Table 8" else "")
             r["reason"] = (f"{r['reason']}. Modelling choice behind it: {choice}; the alternatives: "
-                           + "; ".join(seen) + " (sensitivity tables; 'Noise configurations' compares the "
-                           "three noise configurations side by side)")
+                           + "; ".join(seen) + f" (sensitivity tables{side})")
 
 
 def _config_counts(tables: list[dict], names) -> tuple[int, int, int, int]:

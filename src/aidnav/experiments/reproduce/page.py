@@ -104,7 +104,8 @@ def _grid_cell(r: dict | None) -> str:
     v = r.get("verdict")
     cls = f' class="g {v}"' if v else ' class="g"'
     tip = _e(f"{r['quantity']} [{r.get('unit', '')}]" + (f"; {r['target']}: {r.get('check')}" if v else ""))
-    return (f'<td{cls} title="{tip}">{_fmt(r.get("paper"))} <small>paper</small><br>'
+    paper = "" if r.get("paper") is None else f'{_fmt(r.get("paper"))} <small>paper</small><br>'
+    return (f'<td{cls} title="{tip}">{paper}'
             f"<b>{_fmt(r.get('ours'))}</b>{_e(se_t)} <small>ours</small></td>")
 
 

@@ -51,6 +51,7 @@ from __future__ import annotations
 
 import csv
 import math
+import re
 import sys
 import time
 from dataclasses import asdict, dataclass, replace
@@ -349,7 +350,56 @@ def _tables(res: dict, cov_pred: dict, flex: dict, flex_spec: FlexureSpec) -> li
                                 "abs(ours - paper) <= 0.05 * paper", spec=True))
     tables.append(summary_table("Flexure", "second-order Markov flexure generator (exact discretisation): σ "
                                 "and 1/e lag against the seed's values", rows))
+
+    def n_of(d):
+        return int(next(iter(d.values())).std.shape[0])
+
+    runs_map = {"Table 4": g4.runs, "Table 5": n_of(res["T5"]), "Table 6": n_of(res["T6"]),
+                "Table 8": n_of(res["T8"]), "Master-error model": n_of(res["master"][MASTER_DRIFT]),
+                "Grade sweep": n_of(res["grade"]), "21 vs 24 states": g21.runs,
+                "Table 4, GM master": n_of(res["T4-GM"]), "Table 4, Q inflated": n_of(res["T4-qinf"]),
+                "Table 5, Q inflated": n_of(res["T5-qinf"]), "Table 6, Q inflated": n_of(res["T6-qinf"]),
+                "Table 4, density reading": n_of(res["T4-density"]),
+                "Table 5, density reading": n_of(res["T5-density"]),
+                "Table 6, density reading": n_of(res["T6-density"]),
+                "Table 8, drifting master": n_of(res["master"][MASTER_DRIFT]), "Design tool": g4.runs,
+                "Flexure": 0}
+    _finalize(tables, runs_map)
     return tables
+
+
+_GRID_CELL = re.compile(r"^(\w+) STD, (.+)$")
+_SUFFIXES = (", ARW 0.0017°/√h", ", density truth, Q inflated", ", GM master", ", 21 states")
+
+
+def _finalize(tables: list[dict], runs_map: dict) -> None:
+    """Give every row of a table the runs behind it (``runs_map``: table name → runs) and shape the
+    tables of per-case cells (rows named "<quantity> STD, <case>") like the paper's: one row per case,
+    one column per quantity (:func:`aidnav.experiments.reproduce.summary.grid_table`'s ``grid``)."""
+    for t in tables:
+        n = runs_map.get(t["name"])
+        if n is not None:
+            for r in t["rows"]:
+                if r.get("runs") is None:
+                    r["runs"] = int(n)
+        cells = {}
+        for i, r in enumerate(t["rows"]):
+            m = _GRID_CELL.match(r["quantity"])
+            if m is None:
+                continue
+            case = m.group(2)
+            for sfx in _SUFFIXES:
+                case = case.removesuffix(sfx)
+            cells.setdefault(case, {})[m.group(1)] = i
+        if len(cells) < 2:
+            continue
+        cols = list(dict.fromkeys(q for c in cells.values() for q in c))
+        if len(cols) > 5:  # many quantities (Table 8): one row per quantity, one column per case
+            t["grid"] = {"rows": [f"{q} STD" for q in cols], "cols": list(cells),
+                         "index": [[c.get(q) for c in cells.values()] for q in cols]}
+        else:
+            t["grid"] = {"rows": list(cells), "cols": [f"{q} STD" for q in cols],
+                         "index": [[c.get(q) for q in cols] for c in cells.values()]}
 
 
 #: for a failing SPEC row of a table, the modelling choice behind it and the sensitivity tables that show the

@@ -310,7 +310,6 @@ def _tables(res: dict, cov_pred: dict, flex: dict, flex_spec: FlexureSpec) -> li
                summary_table("Table 6, density reading", "Table 6 with the density reading of the sub-IMU",
                              t6_rows(Group(res["T6-density"]), sfx, spec=False), kind="sensitivity")]
     tables.insert(4, noise_comparison(tables))
-    _point_to_alternatives(tables)
     mg = {k: Group(v) for k, v in res["master"].items()}
     tables.append(summary_table("Table 8, drifting master", "Table 8's predicates with the former drifting "
                                 "master "
@@ -364,6 +363,7 @@ def _tables(res: dict, cov_pred: dict, flex: dict, flex_spec: FlexureSpec) -> li
                 "Table 6, density reading": n_of(res["T6-density"]),
                 "Table 8, drifting master": n_of(res["master"][MASTER_DRIFT]), "Design tool": g4.runs,
                 "Flexure": 0}
+    _point_to_alternatives(tables)
     _finalize(tables, runs_map)
     return tables
 

@@ -85,8 +85,11 @@ def _spread(vals) -> float:
     return float(np.max(np.abs(v / v.mean() - 1.0)))
 
 
-def trend_row(g: Group, quantity: str, unit: str, fn, paper, target: str, dist, spec: bool = True) -> dict:
-    """A SPEC trend: value fn(means), target, margin = dist(value) with the bootstrap se of dist(fn)."""
+def trend_row(g: Group, quantity: str, unit: str, fn, paper, target: str, dist, spec: bool = True,
+              resolve: bool = True) -> dict:
+    """A SPEC trend: value fn(means), target, margin = dist(value) with the bootstrap se of dist(fn).
+    ``resolve`` False keeps a spec row that the runs leave within 2 standard errors ``unresolved`` (SPEC
+    §5.1 decision 3 allows it for the baseline-proportionality row only)."""
     v, se = g.stat(fn)
     d, dse = g.stat(lambda m: dist(fn(m)))
     reason = None
@@ -99,7 +102,7 @@ def trend_row(g: Group, quantity: str, unit: str, fn, paper, target: str, dist, 
                   "per case (if the effect is what these runs estimate), beyond the reproduction's time "
                   "budget")
     row = summary_row(quantity, unit, v, paper, target, spec=spec, stderr=se, margin=(d, dse), reason=reason)
-    return _resolved(row, g.runs)
+    return _resolved(row, g.runs) if resolve else row
 
 
 def _resolved(row: dict, runs: int, why: str = "") -> dict:
@@ -284,9 +287,23 @@ def t8_rows(g: Group, spec: bool = True) -> list[dict]:
     rows.append(trend_row(g, "baseline error: the ratio 40 / 20 or 60 / 20 km over the GPS accuracy ratio 5 "
                           "or 10 nearest to the bounds (about proportional: 0.5 … 2)", "-", binding,
                           min(pv, key=lambda x: min(x - 0.5, 2.0 - x)), "0.5 <= ours <= 2",
-                          lambda v: min(v - 0.5, 2.0 - v), spec))
+                          lambda v: min(v - 0.5, 2.0 - v), spec, resolve=False))
     if rows[-1]["verdict"] == "fails":
         rows[-1]["reason"] = reason
+    elif rows[-1]["verdict"] == "unresolved":  # SPEC §5.1 decision 3: reported at its resolution
+        rows[-1]["reason"] = (f"{rows[-1]['reason']}. SPEC §5.1 (2026-12-06, decision 3) allows this row "
+                              "to stay "
+                              f"unresolved when the runs cannot resolve it within the time budget. {reason}")
+    for r in rows:  # the sub's horizontal position: what the white master gives it
+        q = r["quantity"].split(":")[0]
+        if q in ("lat", "lon") and r["spec"] and r["verdict"] == "fails":
+            r["reason"] += (". Physics: velocity + attitude matching does not measure position, so the "
+                            f"sub's {q} error is the integral of its matched velocity error, which the white "
+                            "master gives "
+                            "the same at every L0; the master's position accuracy (which scales with L0) "
+                            "reaches "
+                            "it only through the filter's initial position covariance: the effect is a few "
+                            "hundredths of a percent (the paper's is 19-65 %)")
     return rows
 
 

@@ -318,3 +318,20 @@ def test_seed_004_table_8_structural_null_is_its_own_verdict():
     assert "structural null" in ve["reason"] and "drifting master" in ve["reason"]
     lat = next(r for q, r in rows.items() if q.startswith("lat: smallest ratio"))
     assert lat["verdict"] != "structural-null"
+
+
+def test_seed_004_cases_white_master_and_inflated_q():
+    """Seed 004's default case has the white master (SPEC §5.1, 2026-12-06); the third noise configuration
+    keeps the density reading in the truth and gives the filter the ARW reading's gyro noise (60× the
+    density's ARW: 0.1°/√h against 0.1°/h/√Hz)."""
+    import numpy as np
+
+    from aidnav.experiments.reproduce import seed_004 as s4
+
+    base = s4.sim_config(s4.BASE4)
+    assert base.master.pos_drift_fraction == 0.0
+    q = s4.Case4(grade="sub", filter_grade="sub_arw")
+    truth, filt = s4.sim_config(q), s4.filter_config(q)
+    arw_truth = float(np.max(truth.sub_imu.gyro_arw))
+    assert filt.gyro_arw == pytest.approx(60.0 * arw_truth, rel=1e-12)
+    assert s4.filter_config(s4.Case4(grade="sub")).gyro_arw == pytest.approx(arw_truth, rel=1e-12)

@@ -132,6 +132,18 @@ class Case4(Case):
     filter_grade: str | None = None
 
 
+def filter_config(case: Case, cfg: DistributedPosConfig | None = None) -> TransferConfig:
+    """The transfer-alignment filter of a case: matched to its simulation (``cfg``, default
+    ``sim_config(case)``), except the gyro noise of ``case.filter_grade`` when a :class:`Case4` names one
+    (the filter's Q inflated over the truth's)."""
+    cfg = sim_config(case) if cfg is None else cfg
+    fcfg = TransferConfig.from_sim(cfg, nstate=case.nstate)
+    fg = getattr(case, "filter_grade", None)
+    if fg is not None:
+        fcfg = replace(fcfg, gyro_arw=float(np.max(imu_spec(fg).gyro_arw)))
+    return fcfg
+
+
 #: the reproduction's baseline case (figure-8, T1 = 200 s, T2 = 400 s, 20 km, white master)
 BASE4 = Case4(**{**asdict(BASE), "drift_fraction": 0.0})
 #: the drifting master of the former default (position drift fraction 0.5, τ 300 s): a sensitivity case
@@ -190,10 +202,7 @@ class _Runner:
                 return CaseResult(case, r.std[:n], r.rms[:n], r.first)
         tb, geo = self.bundle(case.traj_key)
         cfg = sim_config(case)
-        fcfg = TransferConfig.from_sim(cfg, nstate=case.nstate)
-        fg = getattr(case, "filter_grade", None)
-        if fg is not None:  # the filter's gyro noise from another grade (Q inflated over the truth's)
-            fcfg = replace(fcfg, gyro_arw=float(np.max(imu_spec(fg).gyro_arw)))
+        fcfg = filter_config(case, cfg)
         S, R, first = [], [], {}
         for i, ss in enumerate(self.run_seeds if case.runs is None else self.run_seeds[:case.runs]):
             run = simulate_distributed_pos(tb, cfg, ss, geo)

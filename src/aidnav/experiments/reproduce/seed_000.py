@@ -435,8 +435,9 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
                    "initial heading error tilts the platform through the Earth rate (φ̇_E = −Ω cosL·φ_U) and "
                    "the tilt drives the north velocity error (δv̇_N = +g·φ_E); the SAPV elevation observes "
                    "that tilt and removes it. The seed's own up-velocity ratio (0.79) is outside ±15 % too. "
-                   f"The 'Initial heading' sensitivity table shows the ratio at φ_U0 = {PHI0_DEG[2]:g}° "
-                   "(the former decision), where it holds") if q == "vN" else (
+                   "The 'Initial heading' sensitivity table shows the ratio against φ_U0: "
+                   + ", ".join(f"{p:g}° {sweep[p]['vN']:.2f} ± {sweep[p]['se']['vN']:.2f}" for p in sweep)
+                   + f" ({n_sweep} runs each; {PHI0_DEG[2]:g}° is the former decision)") if q == "vN" else (
                    "outside ±15 %: SAPV changes this velocity component by more than the seed's Table 2 "
                    "shows; see the 'Initial heading' sensitivity table for its dependence on φ_U0")
         vel_paper.append(summary_row(

@@ -256,6 +256,35 @@ def process(
     _print_summary(s, format_summary(s), as_json)
 
 
+@_command("fleet")
+def fleet_cmd(
+    manifest: Path = typer.Argument(..., help="CSV: name,imu,gnss[,config,truth,vehicle,vehicle_id,"
+                                    "time_offset,height_offset,smooth], paths relative to the manifest"),
+    out: Path = typer.Option(..., "-o", "--out", help="output directory: DIR/<name>/ per log, fleet.parquet, "
+                             "fleet.html (what is already done there is kept)"),
+    workers: int | None = typer.Option(None, "--workers", min=1, help="worker processes of a local Dask "
+                                       "cluster (default: the CPUs; 1: this process alone)"),
+    scheduler: str | None = typer.Option(None, "--scheduler", help="address of an existing Dask scheduler"),
+    figures: bool = typer.Option(True, "--figures/--no-figures", help="each log's overview.png, maps and "
+                                 "run.html"),
+    retry_failed: bool = typer.Option(False, "--retry-failed", help="process the logs that failed before "
+                                      "again"),
+):
+    """Process every log of a manifest in parallel (Dask): DIR/<name>/ as `aidnav process` writes it,
+    DIR/fleet.parquet and DIR/fleet.html. Exit status 3 when a log failed (the others are done)."""
+    from aidnav.apps.fleet import format_fleet, run_fleet
+    from aidnav.progress import progress_bar
+
+    if scheduler and workers is not None:
+        _fail("give --workers or --scheduler, not both")
+    with progress_bar("aidnav fleet", unit="logs") as bar:
+        res = run_fleet(manifest, out, workers=workers, scheduler=scheduler, figures=figures,
+                        retry_failed=retry_failed, progress=bar)
+    _console().print(format_fleet(res), end="")
+    if res.failed:
+        raise typer.Exit(3)
+
+
 @_command()
 def convert(
     imu: Path | None = typer.Option(None, "--imu", help="IMU log of any known format (interchange, raw "

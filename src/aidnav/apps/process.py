@@ -140,7 +140,7 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
                  start_s: float | None = None, end_s: float | None = None, skip_checks=(),
                  progress=None, figures: bool = True, odometer_path=None, baro_path=None,
                  kfgins_nav: bool = False, output_rate_hz: float | None = None,
-                 vehicle: str | None = None) -> dict:
+                 vehicle: str | None = None, timings: bool = True) -> dict:
     """Run the whole ``aidnav process`` job into the directory ``out_dir``; returns the summary dict
     (also written as ``summary.json`` and ``summary.txt`` beside ``trajectory.<fmt>``).
 
@@ -148,7 +148,8 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
     configuration (``--height-offset``, ``--time-offset``). progress : an
     :class:`aidnav.progress.ProgressBar` (stages: reading, filter, writing, figures). figures : also write
     ``overview.png``, ``trajectory.kml``, ``trajectory.geojson`` and ``run.html``. kfgins_nav : also write
-    ``trajectory.nav`` in KF-GINS's navigation-result format."""
+    ``trajectory.nav`` in KF-GINS's navigation-result format. timings : the stages' wall times in the
+    summary (``timing_s``); without them the outputs depend on the inputs only (``aidnav fleet``)."""
     from aidnav.io.interchange import write_trajectory
     from aidnav.io.sanity import validate_skip
     from aidnav.progress import NullProgress
@@ -244,6 +245,8 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
                "gnss_height_offset_m": datum,
                **run_s, "notes": notes}
     summary["timing_s"] = {"read": t_read - t_start, "filter": t_filt - t_read, "write": t_write - t_filt}
+    if not timings:
+        del summary["timing_s"]
     common.write_summary_files(out_dir, summary, format_summary(summary))
     if figures:  # overview.png, trajectory.kml / .geojson, run.html
         from aidnav.report.run_page import write_run_outputs

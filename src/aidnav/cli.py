@@ -363,9 +363,11 @@ def satcom_point(
 def run_experiment_cmd(
     experiment: Path = typer.Argument(..., help="experiment YAML (see aidnav.experiments.config)"),
     out: Path = typer.Option(..., "-o", "--out", help="campaign directory (what is already there is reused)"),
-    workers: int = typer.Option(1, "--workers", min=1, help="worker processes (> 1: a local Dask cluster)"),
+    workers: int = typer.Option(1, "--workers", min=1, help="worker processes (> 1: a local process pool)"),
     scheduler: str | None = typer.Option(None, "--scheduler", help="address of an existing Dask scheduler"),
-    no_dask: bool = typer.Option(False, "--no-dask", help="--workers > 1: a process pool instead of Dask"),
+    dask: bool = typer.Option(False, "--dask", help="--workers > 1: a local Dask cluster instead of the "
+                              "process pool"),
+    no_dask: bool = typer.Option(False, "--no-dask", hidden=True, help="the process pool (the default)"),
     max_runs: int | None = typer.Option(None, "--max-runs", min=0,
                                         help="compute at most this many runs, then stop (rerun to resume)"),
 ):
@@ -377,7 +379,7 @@ def run_experiment_cmd(
         _fail("give --workers or --scheduler, not both")
     try:
         res = run_experiment(experiment, out, workers=workers, scheduler=scheduler, max_runs=max_runs,
-                             backend="processes" if no_dask and workers > 1 and not scheduler else None,
+                             backend="dask" if dask and not no_dask and workers > 1 else None,
                              console=_console())
     except ExperimentError as e:
         _fail(str(e))

@@ -245,12 +245,14 @@ def process(
     """Loosely coupled GNSS/INS on logs: DIR/trajectory with σ columns, summary, overview.png, maps
     (KML, GeoJSON) and run.html."""
     from aidnav.apps.process import format_summary, process_logs
+    from aidnav.apps.run_outputs import start_outputs
     from aidnav.progress import progress_bar
 
+    figures = start_outputs(not no_figures)  # the figures' process forked before the bar's thread starts
     with progress_bar("aidnav process") as bar:
         s = process_logs(imu, gnss, config, out, smooth=smooth, outages=outage, console=_console(), fmt=fmt,
                          height_offset_m=height_offset, time_offset_s=time_offset, start_s=start, end_s=end,
-                         skip_checks=skip_check, progress=bar, figures=not no_figures,
+                         skip_checks=skip_check, progress=bar, figures=figures,
                          odometer_path=odometer, baro_path=baro, kfgins_nav=kfgins_nav,
                          output_rate_hz=output_rate, vehicle=vehicle)
     _print_summary(s, format_summary(s), as_json)

@@ -131,7 +131,7 @@ def _number(v: str | None, where: str) -> float | None:
 
 # ------------------------------------------------------------------------------------------ one log
 def _error_text(e: BaseException) -> str:
-    from aidnav.io.errors import DataError
+    from aidnav.io.errors import DataError  # lazy: with the job's modules, on a failure only
 
     user = isinstance(e, (InputError, DataError, ValueError, OSError))
     msg = str(e) or type(e).__name__
@@ -150,7 +150,7 @@ def _write_row(folder: Path, row: dict) -> None:
 def run_log(log: FleetLog, out_dir: str, figures: bool = True) -> dict:
     """Process one log into ``out_dir/<name>/`` (a Dask task; also called in-process): its row, also
     written to ``out_dir/<name>/fleet_row.json``. Never raises for the log's own failure."""
-    from aidnav.apps.process import process_logs
+    from aidnav.apps.process import process_logs  # lazy: the job's modules, in the worker
 
     folder = Path(out_dir) / log.name
     t0 = _time.perf_counter()
@@ -207,7 +207,7 @@ def summary_row(s: dict) -> dict:
 def truth_row(estimate, truth) -> dict:
     """Accuracy against a reference file: RMS and 95th percentile of the horizontal, vertical and 3-D
     position errors, heading RMS (:func:`aidnav.apps.evaluate.evaluate_files`, nothing printed)."""
-    import io
+    import io  # lazy: with rich, for the quiet console
 
     from rich.console import Console  # lazy: rich is heavy to import
 

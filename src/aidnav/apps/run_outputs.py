@@ -29,22 +29,25 @@ FORK_OUTPUTS = sys.platform.startswith("linux") and hasattr(os, "fork")
 
 
 def _warm_up() -> None:
-    """Import the page's modules and draw a small figure with text (fonts loaded, glyph caches filled,
-    the PNG writer loaded)."""
+    """Import the page's modules and draw the overview of a small made-up run at a low resolution: the
+    fonts, the glyph and text caches, the log axes' tick labels (mathtext), the legends and the PNG
+    writer loaded before the run's own figure is drawn."""
     import io  # lazy: the warm-up's image, in the child only
 
-    from matplotlib.backends.backend_agg import FigureCanvasAgg  # lazy: matplotlib is heavy to import
-    from matplotlib.figure import Figure  # lazy: matplotlib is heavy to import
+    import numpy as np  # lazy: (loaded by the parent already)
 
-    import aidnav.report.overview  # noqa: F401  lazy: matplotlib and the page's modules, ~0.3-0.5 s
-    import aidnav.report.run_page  # noqa: F401  lazy: the page (in the child)
+    from aidnav.data import Trajectory  # lazy: (loaded by the parent already)
+    from aidnav.report.overview import overview_figure  # lazy: matplotlib and the figure's modules
 
-    fig = Figure(figsize=(2, 1))
-    FigureCanvasAgg(fig)
-    ax = fig.add_subplot()
-    ax.plot([0, 1], [0, 1], ".", label="σ χ² 0123456789")
-    ax.set_title("warm-up", fontsize=9)
-    ax.legend(fontsize=7)
+    n = 60
+    t = np.arange(n, dtype=float)
+    z = np.zeros(n)
+    lat, lon = np.radians(30.0) + 1e-7 * t, np.radians(114.0) + 1e-7 * np.sin(t)
+    sig = np.column_stack([0.5 + z, 0.5 + z, 0.8 + z])
+    traj = Trajectory(t, lat, lon, 50.0 + z, np.zeros((n, 3)), np.column_stack([z, z, 0.1 * t]), sig,
+                      sig * 0.1, np.radians(sig))
+    rec = {"time": t[::5], "pos_nis": 1.0 + (t[::5] % 7), "pos_status": np.ones(12, int)}
+    fig = overview_figure(traj, None, {"outage_windows": [[10.0, 20.0]]}, rec, title="warm-up σ χ²")
     fig.savefig(io.BytesIO(), format="png", dpi=20)
 
 

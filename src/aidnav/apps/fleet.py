@@ -151,12 +151,14 @@ def run_log(log: FleetLog, out_dir: str, figures: bool = True) -> dict:
     """Process one log into ``out_dir/<name>/`` (a Dask task; also called in-process): its row, also
     written to ``out_dir/<name>/fleet_row.json``. Never raises for the log's own failure."""
     from aidnav.apps.process import process_logs  # lazy: the job's modules, in the worker
+    from aidnav.apps.run_outputs import IN_PROCESS  # lazy: with the job's modules
 
     folder = Path(out_dir) / log.name
     t0 = _time.perf_counter()
     row = {"name": log.name, "vehicle_id": log.vehicle_id or log.vehicle or "all", "key": log.key(figures)}
     try:
-        s = process_logs(log.imu, log.gnss, log.config, folder, smooth=log.smooth, figures=figures,
+        s = process_logs(log.imu, log.gnss, log.config, folder, smooth=log.smooth,
+                         figures=IN_PROCESS if figures else False,
                          height_offset_m=log.height_offset, time_offset_s=log.time_offset,
                          vehicle=log.vehicle, timings=False)
         row.update(status="ok", error="", **summary_row(s))

@@ -22,10 +22,13 @@ import threading
 import traceback
 import weakref
 
-__all__ = ["OutputsProcess", "start_outputs", "write_outputs", "FORK_OUTPUTS"]
+__all__ = ["OutputsProcess", "start_outputs", "write_outputs", "FORK_OUTPUTS", "IN_PROCESS"]
 
 #: draw in a forked child process (Linux; elsewhere: in this process after the filter)
 FORK_OUTPUTS = sys.platform.startswith("linux") and hasattr(os, "fork")
+#: ``figures=IN_PROCESS``: drawn in this process, no child (``aidnav fleet``'s workers draw log after log
+#: with matplotlib loaded once)
+IN_PROCESS = "in-process"
 
 
 def _warm_up() -> None:
@@ -164,7 +167,8 @@ class OutputsProcess:
 
 def start_outputs(figures=True):
     """What ``process_logs(figures=...)`` draws with: an :class:`OutputsProcess` forked now where that is
-    possible (Linux, no other thread), else ``figures`` itself (True: in this process; False: none). An
+    possible (Linux, no other thread), else ``figures`` itself (True or :data:`IN_PROCESS`: in this process;
+    False: none). An
     :class:`OutputsProcess` given is returned as it is (the command forks before its progress bar's
     thread starts)."""
     if figures is True and FORK_OUTPUTS and threading.active_count() == 1:

@@ -6,10 +6,12 @@ windows overlap: 200 minutes out of one hour). Without the data folder the bench
 
 Printed: the command's wall time (from its start to its exit, Dask's cluster start and the workers' numba
 load included) and CPU time (its own and its workers'), per log, against the target (≤ 0.3 s per log), once
-with ``--no-figures`` and once with each log's figures (overview, maps, page: ``--figures``, the command's
-default); and, for reference, the median wall of separate ``aidnav process`` commands on a few of the logs
-(what a fleet costs without ``aidnav fleet``). The machine is shared: the load average is printed with the
-figures.
+with ``--no-figures`` and once with each log's figures (overview, maps, page: ``--figures``; the command's
+default is without); and, for reference, the median wall of separate ``aidnav process`` commands on a few of
+the logs (what a fleet costs without ``aidnav fleet``). The machine is shared: the load average is printed
+with the figures. The target is met when the command's CPU time per log divided by the workers is within it
+(what two free cores give) and the wall time is too on an idle machine; the per-log figures cost about 1
+CPU-s each (hence off by default).
 
 Run: ``python benchmarks/fleet.py [--logs N] [--workers N] [--only-no-figures] [--json out.json]``
 """

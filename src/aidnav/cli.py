@@ -267,8 +267,8 @@ def fleet_cmd(
     workers: int | None = typer.Option(None, "--workers", min=1, help="worker processes of a local Dask "
                                        "cluster (default: the CPUs; 1: this process alone)"),
     scheduler: str | None = typer.Option(None, "--scheduler", help="address of an existing Dask scheduler"),
-    figures: bool = typer.Option(True, "--figures/--no-figures", help="each log's overview.png, maps and "
-                                 "run.html"),
+    figures: bool = typer.Option(False, "--figures/--no-figures", help="also each log's overview.png, maps "
+                                 "and run.html (about 1 CPU-s a log)"),
     retry_failed: bool = typer.Option(False, "--retry-failed", help="process the logs that failed before "
                                       "again"),
 ):

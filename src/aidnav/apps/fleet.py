@@ -250,7 +250,7 @@ def _done_row(folder: Path, key: str, retry_failed: bool) -> dict | None:
 
 
 def run_fleet(manifest, out_dir, *, workers: int | None = None, scheduler: str | None = None,
-              figures: bool = True, retry_failed: bool = False, progress=None) -> FleetResult:
+              figures: bool = False, retry_failed: bool = False, progress=None) -> FleetResult:
     """Process every log of ``manifest`` into ``out_dir`` (module doc). ``workers``: processes of the local
     Dask cluster (default: the CPUs, at most the logs to do; 1: in this process, no cluster);
     ``scheduler``: the address of an existing Dask scheduler instead. ``progress``: a

@@ -55,9 +55,9 @@ def _figure(rows: list[dict], panels, groups: list[str]):
     from matplotlib.backends.backend_agg import FigureCanvasAgg  # lazy: matplotlib is heavy to import
     from matplotlib.figure import Figure  # lazy: matplotlib is heavy to import
 
-    ncol = 2
+    ncol = min(2, len(panels))
     nrow = (len(panels) + ncol - 1) // ncol
-    fig = Figure(figsize=(12, 3.0 * nrow), layout="constrained")
+    fig = Figure(figsize=(6 * ncol, 3.0 * nrow), layout="constrained")
     FigureCanvasAgg(fig)
     ok = [r for r in rows if r.get("status") == "ok"]
     for k, (title, cols) in enumerate(panels):

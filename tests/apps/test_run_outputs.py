@@ -22,19 +22,17 @@ FILES = ("overview.png", "run.html", "trajectory.kml", "trajectory.geojson", "su
 @pytest.mark.skipif(not ro.FORK_OUTPUTS, reason="the figures' process is forked on Linux only")
 def test_forked_outputs_are_the_in_process_bytes(tmp_path):
     imu, gnss, cfg = static_log(tmp_path, 30)
-    assert threading.active_count() == 1
-    child = ro.start_outputs(True)
-    assert isinstance(child, ro.OutputsProcess)  # the path under test: a child draws
+    child = ro.OutputsProcess()  # the path under test: a forked child draws
     out = tmp_path / "o"  # (the page names the output folder: the same folder for both)
     process_logs(imu, gnss, cfg, out, outages=["10:5"], figures=child, timings=False)
     forked = {name: (out / name).read_bytes() for name in FILES}
     shutil.rmtree(out)
+    process_logs(imu, gnss, cfg, out, outages=["10:5"], figures=ro.IN_PROCESS, timings=False)
     hold = threading.Event()
     other = threading.Thread(target=hold.wait)  # another thread running: no fork, drawn here
     other.start()
     try:
-        assert ro.start_outputs(True) is True
-        process_logs(imu, gnss, cfg, out, outages=["10:5"], figures=True, timings=False)
+        assert ro.start_outputs(True) is True and ro.start_outputs(False) is False
     finally:
         hold.set()
         other.join()

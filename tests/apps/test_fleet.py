@@ -89,7 +89,7 @@ def test_fleet_local_and_external_scheduler_same_bytes(tmp_path):
 
     m = fleet(tmp_path)
     out = tmp_path / "out"
-    res = run_fleet(m, out, workers=2, figures=False)
+    res = run_fleet(m, out, workers=2, figures=True)  # each log's figures too: the same bytes as well
     assert res.backend["kind"] == "dask" and res.computed == 4
     rows = {r["name"]: r for r in pq.read_table(out / "fleet.parquet").to_pylist()}
     assert [r["status"] for r in rows.values()] == ["ok", "ok", "failed", "ok"]
@@ -101,7 +101,7 @@ def test_fleet_local_and_external_scheduler_same_bytes(tmp_path):
         assert r["err_h_rms_m"] < 0.71
         assert 0.5 < r["nis_gnss_position_ratio"] < 2.0
         assert r["imu_samples"] == 100 * int(name != "log3" and 20 or 30)
-        assert (out / name / "trajectory.parquet").is_file()
+        assert (out / name / "trajectory.parquet").is_file() and (out / name / "overview.png").is_file()
         assert r["vehicle_id"] == ("car-a" if name in ("log1", "log3") else "car-b")
     html = (out / "fleet.html").read_text()
     assert "Failed logs (1)" in html and "log2" in html and "fleet distributions" in html
@@ -110,13 +110,13 @@ def test_fleet_local_and_external_scheduler_same_bytes(tmp_path):
 
     shutil.rmtree(out)
     with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None) as cl:
-        res2 = run_fleet(m, out, scheduler=cl.scheduler_address, figures=False)
+        res2 = run_fleet(m, out, scheduler=cl.scheduler_address, figures=True)
     assert res2.backend["scheduler"] == cl.scheduler_address
     second = outputs(out)
     assert sorted(first) == sorted(second)
     assert [k for k in first if first[k] != second[k]] == []
 
-    again = run_fleet(m, out, workers=2, figures=False)  # nothing to do: every log has its row
+    again = run_fleet(m, out, workers=2, figures=True)  # nothing to do: every log has its row
     assert again.computed == 0 and again.reused == 4 and again.backend["kind"] == "none"
     assert filecmp.cmp(out / "log0" / "trajectory.parquet", tmp_path / "out" / "log0" / "trajectory.parquet")
 

@@ -148,7 +148,8 @@ def filter_config(truth, rng, phi0_deg=PHI0_DEG, draw_attitude: bool = False,
     return loose_config_from_specs(ImuSpec.grade("seed000"), gspec, init_rph_deg=rph, init_lla_deg_m=lla,
                                    init_vel=truth.vel[0] + dv, position_sigma_m=(pos_sigma_m,) * 3,
                                    velocity_sigma_m_s=(vel_sigma_m_s,) * 3,
-                                   attitude_sigma_deg=tuple(float(x) for x in np.abs(phi0_deg)))
+                                   attitude_sigma_deg=tuple(float(x) for x in np.abs(phi0_deg)),
+                                   sensor_model=False)  # SPEC §1.1: the 15-state model
 
 
 def simulate_case(seed_seq: np.random.SeedSequence, duration_s: float = DURATION_S, gps_outages=(),

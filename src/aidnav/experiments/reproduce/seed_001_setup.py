@@ -151,7 +151,9 @@ def _imu_spec(grade: str = IMU_GRADE):
 
 
 def _tight_cfg(spec, clock=None):
-    lc = loose_config_from_specs(spec)
+    # the SPEC §2.1 model (17 states: 15 + clock): one Gauss-Markov bias per axis, no scale-factor or
+    # misalignment states (issue 35's sensor model is the tuning default for the loose filter, not this one)
+    lc = loose_config_from_specs(spec, sensor_model=False)
     return TightConfig(
         states=17,
         imu=lc.imu,

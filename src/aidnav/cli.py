@@ -35,7 +35,6 @@ from pathlib import Path  # noqa: E402
 import typer  # noqa: E402
 
 from aidnav.console_script import exit_status as _exit_status  # noqa: E402
-from aidnav.console_script import lazy_bitcode  # noqa: E402
 from aidnav.console_script import leave as _leave  # noqa: E402
 from aidnav.console_script import preload_scipy_blas as _preload_scipy_blas  # noqa: E402
 
@@ -163,7 +162,8 @@ def compile_cmd(
                                    "calls the build should cover too; repeatable"),
     status: bool = typer.Option(False, "--status", help="only say whether a build matches this installation"),
 ):
-    """Ahead-of-time build of the kernels (once per install): commands then start without numba/LLVM."""
+    """Optional ahead-of-time build of the kernels (once per install; needs `pip install 'aidnav[compile]'`
+    and a C compiler): commands then start without numba/LLVM, with the same results."""
     import shlex
 
     from aidnav.apps.kernels import build_status, compile_kernels
@@ -508,18 +508,18 @@ def design_trajectory_cmd(
 
 def _start_kernels() -> None:
     """Kernels for this command (:mod:`aidnav.jit`): from the ahead-of-time build that matches this
-    source tree (``aidnav compile``), else numba's JIT. numba's own start is made cheaper either way,
-    when it happens: the cached kernels' bitcode left unparsed; scipy's BLAS modules loaded alone."""
+    source tree, Python, numpy, numba, llvmlite and CPU (``aidnav compile``, optional), else numba's JIT
+    (the same results). scipy's BLAS modules are loaded alone either way."""
     from aidnav import jit
 
     _preload_scipy_blas()  # the kernels' BLAS calls (numba's JIT and the build alike) import it at first use
     try:
-        mode = jit.start(on_numba=[lazy_bitcode])
+        mode = jit.start()
     except (ValueError, RuntimeError) as e:  # AIDNAV_KERNELS unknown, or aot without a build
         _fail(str(e))
     if mode == "jit" and "AIDNAV_KERNELS" not in os.environ and sys.stderr.isatty():
-        _console(stderr=True).print("[dim]tip: `aidnav compile` (once per install, about a minute) makes "
-                                    "every command start faster and use less memory[/dim]")
+        _console(stderr=True).print("[dim]tip: `aidnav compile` (optional: aidnav[compile] and a C compiler; "
+                                    "once per install) makes every command start faster[/dim]")
 
 
 def main():  # pragma: no cover - the console script (tests call `app` in-process, and main in a subprocess)

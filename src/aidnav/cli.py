@@ -208,10 +208,11 @@ def process(
     imu: Path = typer.Option(..., "--imu", help="IMU log: interchange CSV/Parquet or raw rtklibexplorer CSV"),
     gnss: Path = typer.Option(..., "--gnss", help="GNSS fixes: RTKLIB .pos or interchange CSV/Parquet"),
     config: Path | None = typer.Option(None, "--config", help="filter configuration YAML"),
-    odometer: Path | None = typer.Option(None, "--odometer", help="odometer CSV (time_s, speed_m_s or "
-                                         "speed_km_h [, speed_std_m_s]) on the GNSS time scale"),
-    baro: Path | None = typer.Option(None, "--baro", help="barometer CSV (time_s, height_m or height_ft "
-                                     "[, height_std_m]) on the GNSS time scale"),
+    odometer: Path | None = typer.Option(None, "--odometer", help="odometer CSV: the same as --aid "
+                                         "odometer=FILE"),
+    baro: Path | None = typer.Option(None, "--baro", help="barometer CSV: the same as --aid baro=FILE"),
+    aid: list[str] = typer.Option([], "--aid", help="an aid's file as NAME=FILE, repeatable; NAME an aid "
+                                  "of aidnav.filters.aids.AIDS (files and settings: docs/adding-an-aid.md)"),
     out: Path = typer.Option(Path("out"), "-o", "--out", help="output directory: trajectory.parquet|csv, "
                              "summary.json, summary.txt"),
     fmt: str = typer.Option("parquet", "--format", help="trajectory file format: parquet or csv"),
@@ -245,13 +246,16 @@ def process(
     """Loosely coupled GNSS/INS on logs: DIR/trajectory with σ columns, summary, overview.png, maps
     (KML, GeoJSON) and run.html."""
     from aidnav.apps.process import format_summary, process_logs
+    from aidnav.filters.aids import parse_aid  # lazy: numpy and the filters only when a command runs
     from aidnav.progress import progress_bar
 
+    aid_paths = [("odometer", odometer)] * (odometer is not None) + [("baro", baro)] * (baro is not None)
+    aid_paths += [parse_aid(a) for a in aid]
     with progress_bar("aidnav process") as bar:
         s = process_logs(imu, gnss, config, out, smooth=smooth, outages=outage, console=_console(), fmt=fmt,
                          height_offset_m=height_offset, time_offset_s=time_offset, start_s=start, end_s=end,
                          skip_checks=skip_check, progress=bar, figures=not no_figures,
-                         odometer_path=odometer, baro_path=baro, kfgins_nav=kfgins_nav,
+                         aid_paths=aid_paths, kfgins_nav=kfgins_nav,
                          output_rate_hz=output_rate, vehicle=vehicle)
     _print_summary(s, format_summary(s), as_json)
 

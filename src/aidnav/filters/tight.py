@@ -218,7 +218,7 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     from .config import DEG
     from .loose import NEVER, bridge_gaps
     from .prior import given_initial_state
-    from .run_log import _log_dict
+    from .run_log import log_dict
 
     cfg = cfg or TightConfig()
     events = events if events is not None else []
@@ -309,7 +309,7 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
         for j in np.flatnonzero(rej_pr + rej_rate):
             events.append(f"G{int(obs.prn[j]):02d}: {int(rej_pr[j])} pseudorange(s) and {int(rej_rate[j])} "
                           "rate(s) outside the innovation gate (rejected unless the gate was suspended)")
-    log = _log_dict(r.log, r.n_log)
+    log = log_dict(r.log, r.n_log)
     cnt = dict(zupt_updates=int((log["model"] == ms.M_ZUPT).sum()), clock_jumps=int(ge.flags[1]),
                epochs=int(np.isfinite(ge.t).sum()), pr_used=int(ge.npr.sum()), rate_used=int(ge.nrate.sum()),
                rejected=int(ge.nrej.sum()), imu_samples_skipped=k0, nodes=len(r.node_idx))

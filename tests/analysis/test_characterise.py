@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 
 import numpy as np
 import pytest
@@ -285,7 +286,7 @@ def test_static_option_errors(tmp_path):
 
 
 # ---------------------------------------------------------------------------------------- outputs
-def test_cli_writes_allan_png_noise_json_and_imu_yaml(tmp_path):
+def test_cli_writes_allan_png_noise_json_and_imu_yaml(tmp_path, drawn_png):
     """`aidnav characterise LOG --static A:B -o DIR` on a rate CSV; imu.yaml validates as the imu: section."""
     import pandas as pd
     import yaml
@@ -307,7 +308,7 @@ def test_cli_writes_allan_png_noise_json_and_imu_yaml(tmp_path):
     out = tmp_path / "char"
     res = CliRunner().invoke(app, ["characterise", "--imu", str(log), "--static", "100:", "-o", str(out)])
     assert res.exit_code == 0, res.output
-    assert (out / "allan.png").stat().st_size > 10_000
+    drawn_png(out / "allan.png")
     nd = json.loads((out / "noise.json").read_text())
     gx = nd["axes"]["gyro_x"]
     assert gx["arw_deg_sqrt_h"]["status"] == "fitted"
@@ -519,7 +520,7 @@ def test_trapezoid_samples_invert_the_raw_log_increments():
     np.testing.assert_allclose(C.trapezoid_samples(imu), w, rtol=0, atol=1e-11)
 
 
-def test_real_drive_log_static_start(data_dir, tmp_path):
+def test_real_drive_log_static_start(data_dir, tmp_path, drawn_png):
     """rtklibexplorer_drive_0708: the car is parked with the engine running until it drives off about 34 s
     after the first IMU sample (38 s after the first GNSS epoch: the IMU log starts 3.5 s later).
 
@@ -540,8 +541,7 @@ def test_real_drive_log_static_start(data_dir, tmp_path):
     out = tmp_path / "drive"
     res = CliRunner().invoke(app, ["characterise", "--imu", str(log), "--static", "0:38", "-o", str(out)])
     assert res.exit_code == 0, res.output
-    for f in ("allan.png", "noise.json", "imu.yaml"):
-        assert (out / f).stat().st_size > 1000, f
+    drawn_png(out / "allan.png")
     nd = json.loads((out / "noise.json").read_text())
     t_first = nd["static_check"]["time_origin_s"]
     assert nd["span_s"][0] - t_first == pytest.approx(0.0, abs=0.05)
@@ -584,9 +584,11 @@ def test_real_drive_log_static_start(data_dir, tmp_path):
         d = vib["axes"][ax]
         assert 0.6 <= d["std_deg_s"] <= 2.4 and d["vibration"], (ax, d)
         assert d["peak_hz"] == pytest.approx(31.0, abs=1.0) and d["peak_share"] > 0.5
-    assert vib["axes"]["gyro_x"]["std_deg_s"] == pytest.approx(0.63, abs=0.03)
-    assert vib["axes"]["gyro_y"]["std_deg_s"] == pytest.approx(2.33, abs=0.05)
-    assert any(w.startswith("vibration") and "31.1 Hz" in w for w in warn)
+    # the data README's figures (0.64 / 2.37 deg/s over the first 30 s; ours over 38 s): within 5 %
+    assert vib["axes"]["gyro_x"]["std_deg_s"] == pytest.approx(0.64, rel=0.05)
+    assert vib["axes"]["gyro_y"]["std_deg_s"] == pytest.approx(2.37, rel=0.05)
+    peaks = [float(m) for w in warn if w.startswith("vibration") for m in re.findall(r"([0-9.]+) Hz", w)]
+    assert peaks and all(abs(f - 31.0) <= 1.0 for f in peaks), warn
     assert "vibration" in res.output and "slow motion" in res.output
     # no --static: the parked start is found (the drive, cruising included, is not "static")
     ch = C.characterise_file(log, tmp_path / "auto")[0]

@@ -14,7 +14,7 @@ from .seed_000_setup import FED, GPS_ONLY, GPS_OUTAGE, SAPV_LOSS, VARIANTS
 _fig = figure
 
 
-def _plot_seed_figs(mc, out: Path) -> list[str]:
+def plot_seed_figs(mc, out: Path) -> list[str]:
     """Figs. 1-6 of the seed: run 0, SINS/GPS vs SINS/GPS/SAPV (federated, fusion-reset, β = 1/2)."""
     names = [("heading", "Fig. 1 azimuth (heading) error", "arcmin", "fig1_heading_error.png"),
              ("roll", "Fig. 2 roll error", "arcmin", "fig2_roll_error.png"),
@@ -51,7 +51,7 @@ def _plot_seed_figs(mc, out: Path) -> list[str]:
     return files
 
 
-def _plot_variants(mc, out: Path) -> str:
+def plot_variants(mc, out: Path) -> str:
     fig, axs = _fig(1, 1, h=4.5)
     ax = axs[0, 0]
     for i, k in enumerate(VARIANTS):
@@ -68,7 +68,7 @@ def _plot_variants(mc, out: Path) -> str:
     return "fig7_heading_rms_variants.png"
 
 
-def _plot_loss(mc, out: Path) -> list[str]:
+def plot_loss(mc, out: Path) -> list[str]:
     fig, axs = _fig(1, 1, h=4.5)
     ax = axs[0, 0]
     for key, lab in (("none", "no loss"), ("reset", "SAPV lost, fusion-reset"),

@@ -136,11 +136,11 @@ def approach_scenario():
     )
 
 
-def _imu_spec(grade: str = IMU_GRADE):
+def imu_spec(grade: str = IMU_GRADE):
     return ImuSpec.grade(grade)
 
 
-def _tight_cfg(spec, clock=None):
+def tight_cfg(spec, clock=None):
     lc = loose_config_from_specs(spec)
     return TightConfig(
         states=17,

@@ -65,7 +65,7 @@ def truth_terms(spec: ImuSpec) -> dict:
 # ------------------------------------------------------------------------------------- model pieces
 def test_gauss_markov_constants():
     """ADEV of a first-order GM peaks at 0.6174 σ at τ = 1.8926 T; flicker floor 0.6643 B; B = 0.9294 σ."""
-    r = minimize_scalar(lambda x: -NFM._gm_shape(np.array([x]))[0], bounds=(0.5, 5.0), method="bounded",
+    r = minimize_scalar(lambda x: -NFM.gm_shape(np.array([x]))[0], bounds=(0.5, 5.0), method="bounded",
                         options={"xatol": 1e-10})
     assert r.x == pytest.approx(C.GM_PEAK_X, rel=1e-6)
     assert math.sqrt(-r.fun) == pytest.approx(C.GM_PEAK_ADEV, rel=1e-9)
@@ -73,9 +73,9 @@ def test_gauss_markov_constants():
     assert C.B_PER_GM_SIGMA == pytest.approx(0.9294, abs=1e-4)
     # series branch joins the closed form; RRW-like and white-like limits (El-Sheimy 2008)
     x = np.array([0.05 - 1e-12, 0.05 + 1e-12])
-    assert NFM._gm_shape(x)[0] == pytest.approx(NFM._gm_shape(x)[1], rel=1e-9)
-    assert NFM._gm_shape(np.array([1e-4]))[0] == pytest.approx(2e-4 / 3, rel=1e-3)
-    assert NFM._gm_shape(np.array([1e4]))[0] == pytest.approx(2e-4, rel=1e-3)
+    assert NFM.gm_shape(x)[0] == pytest.approx(NFM.gm_shape(x)[1], rel=1e-9)
+    assert NFM.gm_shape(np.array([1e-4]))[0] == pytest.approx(2e-4 / 3, rel=1e-3)
+    assert NFM.gm_shape(np.array([1e4]))[0] == pytest.approx(2e-4, rel=1e-3)
 
 
 def test_estimate_statistics_match_greenhall_and_simulation():
@@ -87,7 +87,7 @@ def test_estimate_statistics_match_greenhall_and_simulation():
     n = 1 << 15
     ms = 2 ** np.arange(0, 13)
     taus = ms * 0.01
-    nu, _ = AC._estimate_stats(taus, ms, n + 1, np.array([0.0, 1.0, 0.0, 0.0]), 600.0)
+    nu, _ = AC.estimate_stats(taus, ms, n + 1, np.array([0.0, 1.0, 0.0, 0.0]), 600.0)
     gh = np.array([allantools.edf_greenhall(0, 2, int(m), n + 1, overlapping=True) for m in ms])
     np.testing.assert_allclose(nu[6:], gh[6:], rtol=0.01)
     np.testing.assert_allclose(nu[3:6], gh[3:6], rtol=0.1)
@@ -106,8 +106,8 @@ def test_estimate_statistics_match_greenhall_and_simulation():
         logs.append([np.log(np.mean((x[2 * m:] - 2 * x[m:-m] + x[:-2 * m]) ** 2) / (2 * (m * 0.01) ** 2))
                      for m in ms])
     logs = np.array(logs)
-    nu, linv = AC._estimate_stats(taus, ms, n + 1, coef, t_corr)
-    b, sd = NFM._logchi2_moments(nu)
+    nu, linv = AC.estimate_stats(taus, ms, n + 1, coef, t_corr)
+    b, sd = NFM.logchi2_moments(nu)
     z = ((logs - np.log(C.model_avar(taus, coef, t_corr)) - b) / sd) @ linv.T
     per_tau = (z**2).mean(axis=0)
     assert np.all((per_tau > 0.6) & (per_tau < 1.5)), per_tau
@@ -368,7 +368,7 @@ def test_estimate_covariance_equals_the_brute_force_double_sum(coef, t_corr, tol
     ms = 2.0 ** np.arange(8)
     coef = np.array(coef)
     want = _brute_force_cov(ms, n, tau0, coef, t_corr)
-    got = AC._avar_cov_nb(ms, float(n + 1), tau0, coef, t_corr)
+    got = AC.avar_cov_nb(ms, float(n + 1), tau0, coef, t_corr)
     scale = np.sqrt(np.outer(np.diag(want), np.diag(want)))
     assert np.max(np.abs(got - want) / scale) < tol
 
@@ -382,11 +382,11 @@ def test_estimate_variances_alone_are_the_covariance_diagonal_to_the_bit(coef, t
     n, tau0 = 3_600_000, 0.01
     ms = 2.0 ** np.arange(21)
     coef = np.array(coef)
-    np.testing.assert_array_equal(AC._avar_var_nb(ms, float(n + 1), tau0, coef, t_corr),
-                                  np.diag(AC._avar_cov_nb(ms, float(n + 1), tau0, coef, t_corr)))
+    np.testing.assert_array_equal(AC.avar_var_nb(ms, float(n + 1), tau0, coef, t_corr),
+                                  np.diag(AC.avar_cov_nb(ms, float(n + 1), tau0, coef, t_corr)))
     tau = ms * tau0
-    np.testing.assert_array_equal(AC._estimate_edf(tau, ms, n + 1, coef, t_corr),
-                                  AC._estimate_stats(tau, ms, n + 1, coef, t_corr)[0])
+    np.testing.assert_array_equal(AC.estimate_edf(tau, ms, n + 1, coef, t_corr),
+                                  AC.estimate_stats(tau, ms, n + 1, coef, t_corr)[0])
 
 
 def test_continuum_lag_sum_is_the_large_m_limit_of_the_exact_sum():

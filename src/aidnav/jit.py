@@ -23,8 +23,10 @@ A build is a CPython extension module made by ``numba.pycc`` (one exported tramp
 signature, calling the kernel; the kernel itself compiled with its own options and linked in), with a
 ``table.json`` that maps (kernel, typekey) to the exported name. It lives in the user's cache
 (``$AIDNAV_KERNEL_DIR``, else ``$XDG_CACHE_HOME/aidnav/kernels``, else ``~/.cache/aidnav/kernels``)
-under a key hashed from every aidnav source file, the Python and numpy versions and the CPU: a
-changed source tree simply has no build until ``aidnav compile`` runs again. ``AIDNAV_KERNELS=jit``
+under a key hashed from every aidnav source file, the Python, numpy, numba and llvmlite versions and
+the CPU: a changed source tree or an upgraded numba simply has no build until ``aidnav compile`` runs
+again. The build is optional (``aidnav[compile]``: setuptools, and a C compiler); numba's JIT gives the
+same results without it. ``AIDNAV_KERNELS=jit``
 in the environment keeps the JIT even when a build exists; ``AIDNAV_KERNELS_VERBOSE=1`` names each
 kernel a build did not cover (numba started for it).
 """

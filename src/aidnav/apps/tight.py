@@ -207,7 +207,8 @@ def process_tight_files(imu_path, obs_path, nav_path, config_path=None, out_dir=
     check_solution(traj, "the tightly coupled filter")
     write_trajectory(traj, traj_path, week=getattr(obs, "ref_week", None))
     summary = {"imu": str(imu_path), "obs": str(obs_path), "nav": str(nav_path), "output": str(traj_path),
-               "states": cfg.states, "smoothed": bool(smooth), "events": imu.events + events}
+               "states": cfg.states, "smoothed": bool(smooth), "ionosphere": res.iono_model,
+               "events": imu.events + events}
     if truth is not None:
         ref = read_gnss_any(truth, truth_height_offset_m)
         summary["reference"] = {"file": str(truth), "height_offset_m": truth_height_offset_m,
@@ -230,6 +231,8 @@ def format_tight_summary(s: dict) -> str:
     """Human-readable summary of ``aidnav tight``."""
     lines = [f"aidnav tight: {s['imu']} + {s['obs']} + {s['nav']}", f"output: {s['output']}",
              f"states: {s['states']}"]
+    if s.get("ionosphere"):
+        lines.append(f"ionosphere: {s['ionosphere']}")
     ref = s.get("reference")
     if ref:
         for k, v in ref.items():

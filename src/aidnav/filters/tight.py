@@ -18,7 +18,8 @@ says what the range errors can do to it.
 
 **Measurements**: each GNSS epoch is one engine record (:mod:`aidnav.filters.measurements.epoch`): due at
 the receive time t_tag − b̂/c, the INS antenna moved back to it; clock start and jumps (median residual
-beyond ``clock_jump_m``) re-initialise b̂; mask, Klobuchar / dual-frequency ionosphere and Saastamoinen
+beyond ``clock_jump_m``) re-initialise b̂; mask, Klobuchar (RTKLIB's default coefficients when the
+navigation file has none; σ 50 % of the delay) / dual-frequency ionosphere and Saastamoinen
 troposphere at the INS position; one scalar row per pseudorange and per rate, gated by the χ²(1)
 quantile of ``gate_probability``; after ``max_consecutive_rejections`` rejected epochs the next epoch is
 not gated (the engine's rule). Any number of satellites is used: with fewer than four the clock and the
@@ -37,7 +38,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from aidnav.nav.earth import radii
-from aidnav.nav.gnss_sat import C_LIGHT, dual_frequency_iono
+from aidnav.nav.gnss_sat import C_LIGHT, dual_frequency_iono, iono_fallback_note, klobuchar_coefficients
 
 from . import measurements as ms
 from .chi2 import chi2_isf
@@ -132,6 +133,7 @@ class TightResult:
     smoothed_cov: np.ndarray | None = None  # (K, n, n) smoothed covariance at the nodes (``smooth``)
     range_error: np.ndarray | None = None  # (N, R) forward range-error estimates û [-] (σ units), R states
     range_error_prn: np.ndarray | None = None  # (R,) PRN of each range-error state
+    iono_model: str = ""  # the ionospheric correction applied and its σ (for the summary)
 
 
 def tight_layout(states: int, n_range: int = 0) -> np.ndarray:
@@ -236,9 +238,12 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     q0 = quat_from_euler(rph0[0], rph0[1], rph0[2])
     st0 = np.array([lat0, lon0, h0, *np.asarray(v0, float), *q0], float)
     gate = chi2_isf(1, 1.0 - g.gate_probability) if g.gate_probability < 1 else 0.0
-    use_iono = g.iono == "klobuchar" and eph.iono_alpha is not None
-    if g.iono == "klobuchar" and eph.iono_alpha is None:
-        events.append("no Klobuchar coefficients: no ionospheric correction")
+    use_iono = g.iono == "klobuchar"
+    alpha, beta, iono_src = klobuchar_coefficients(eph.iono_alpha, eph.iono_beta)
+    iono_model = {"klobuchar": f"Klobuchar ({iono_src} coefficients), sigma 50 % of the delay",
+                  "dual": "dual-frequency code (L1/L2)", "none": "none"}[g.iono]
+    if use_iono and iono_src == "default":
+        events.append(iono_fallback_note())
     par = np.zeros((ms.N_MODELS, 24))
     e = par[ms.M_PR]
     e[ep.E_LEVER:ep.E_LEVER + 3] = g.lever_arm_m
@@ -247,7 +252,7 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     e[[ep.E_JUMP, ep.E_SIG_B, ep.E_SIG_D, ep.E_CODE_MIN]] = (
         g.clock_jump_m, g.clock_bias_sigma_m, g.clock_drift_sigma_m_s, g.code_min_sats)
     if use_iono:
-        e[ep.E_ALPHA:ep.E_ALPHA + 4], e[ep.E_BETA:ep.E_BETA + 4] = eph.iono_alpha, eph.iono_beta
+        e[ep.E_ALPHA:ep.E_ALPHA + 4], e[ep.E_BETA:ep.E_BETA + 4] = alpha, beta
     gates = np.zeros((ms.N_MODELS, ms.MAX_ROWS + 1))
     gates[ms.M_PR, 1] = gate
     max_rej = np.full(ms.N_MODELS, NEVER, np.int64)
@@ -317,7 +322,7 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     res = TightResult(time=t_imu[sl][r.out_idx], state=r.out_st, bias=r.out_bias[:, :nnav - 9],
                       clock=r.out_bias[:, ck], pdiag=r.out_pdiag, epochs=epochs, counts=cnt, events=events,
                       nstate=n, final_P=r.P, range_error=r.out_bias[:, n - nr - 9:n - 9],
-                      range_error_prn=np.asarray(obs.prn)[with_eph])
+                      range_error_prn=np.asarray(obs.prn)[with_eph], iono_model=iono_model)
     if smooth and len(r.node_idx) > 1:
         ds, Ps = rts(r.S_post, r.S_prior, r.S_phi, r.S_dx, r.reset_node)
         sm_st, sm_b = smooth_outputs(r.out_idx, r.out_st, r.out_bias, r.out_node, r.node_idx, ds, r.S_dx, n)

@@ -329,8 +329,9 @@ def spp_series(
 ):
     """SPP (and Doppler velocity) for every epoch of :class:`aidnav.io.rinex.GnssObservations`.
 
-    iono : "klobuchar" (header coefficients; RTKLIB's default ones when the file has none), "none", or "dual": L1
-    delay from the geometry-free code combination I₁ = (P₂ − P₁)/(γ − 1), γ = (f₁/f₂)², averaged over a
+    iono : "klobuchar" (header coefficients; RTKLIB's default ones when the file has none), "none",
+    or "dual": L1 delay from the geometry-free code combination I₁ = (P₂ − P₁)/(γ − 1), γ = (f₁/f₂)²,
+    averaged over a
     centred window of ``iono_window_s`` seconds per satellite (the combination's noise is ≈ 2.3× the code
     noise; the ionosphere changes little over a minute). Returns a dict of arrays: time, ecef (T, 3),
     lat, lon, h, clock_m, vel_enu (T, 3), clock_drift, n_used, status (list), pdop, excluded (list),

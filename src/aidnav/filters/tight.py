@@ -47,9 +47,16 @@ from .engine import Imu, Init, Models, Output, Process, Records, rts, run_filter
 from .layout import L_CLK, L_N, L_NINS, L_RERR, L_SIZE
 from .measurements import epoch as ep
 
-__all__ = ["RawGnssAiding", "TightConfig", "TightResult", "run_tight", "tight_layout",
+__all__ = ["CLOCK_GRADES", "RawGnssAiding", "TightConfig", "TightResult", "apply_vehicle", "clock_allan",
+           "run_tight", "tight_layout",
            "tight_nav_covariance_m", "to_trajectory"]
 N_NOISE = 14  # 12 INS noise inputs of ins_errors (15-state) + clock bias + clock drift
+
+
+# Allan-variance coefficients (h0 [s], h-2 [1/s]) of receiver oscillators: Brown & Hwang, "Introduction to
+# Random Signals and Applied Kalman Filtering", Table 9.1 (temperature-compensated crystal, ovenized
+# crystal, rubidium); flicker (h-1) is not modelled
+CLOCK_GRADES = {"tcxo": (2e-19, 2e-20), "ocxo": (8e-20, 4e-23), "rubidium": (2e-20, 4e-29)}
 
 
 class _Strict(BaseModel):
@@ -76,8 +83,12 @@ class RawGnssAiding(_Strict):
     iono_window_s: float = Field(60.0, gt=0, description="smoothing window of the dual-frequency delay [s]")
     tropo: bool = True
     humidity: float = Field(0.7, ge=0, le=1)
-    clock_h0: float = Field(2e-19, ge=0, description="white-frequency Allan coefficient h0 [s]")
-    clock_hm2: float = Field(2e-20, ge=0, description="random-walk-frequency Allan coefficient h-2 [1/s]")
+    clock_grade: Literal["tcxo", "ocxo", "rubidium"] = Field(
+        "tcxo", description="receiver oscillator: its Allan coefficients h0, h-2 (CLOCK_GRADES) unless "
+        "clock_h0 / clock_hm2 are given; consumer receivers have a TCXO")
+    clock_h0: float | None = Field(None, ge=0, description="white-frequency Allan coefficient h0 [s]")
+    clock_hm2: float | None = Field(None, ge=0,
+                                    description="random-walk-frequency Allan coefficient h-2 [1/s]")
     clock_tau_s: float = Field(
         0.0, description="drift correlation time τ_f [s] (seed: Markov); <= 0 random walk"
     )
@@ -89,6 +100,12 @@ class RawGnssAiding(_Strict):
         True, description="per-satellite Gauss-Markov range-error states with the σ of RTKLIB's "
         "single-frequency error budget (URA, ionosphere, troposphere, code bias; docs/models.md)")
     range_error_tau_s: float = Field(1800.0, gt=0, description="correlation time of the range errors [s]")
+
+
+def clock_allan(g: RawGnssAiding) -> tuple[float, float]:
+    """(h0, h-2) of the receiver clock: the configured ones, else those of ``clock_grade``."""
+    h0, hm2 = CLOCK_GRADES[g.clock_grade]
+    return (h0 if g.clock_h0 is None else g.clock_h0), (hm2 if g.clock_hm2 is None else g.clock_hm2)
 
 
 class TightConfig(_Strict):
@@ -157,8 +174,9 @@ def _noise_vector(cfg: TightConfig, n_range: int = 0) -> np.ndarray:
     q = np.zeros(N_NOISE + n_range)
     q[:12] = process_noise(lc, 15)
     g = cfg.gnss
-    q[12] = C_LIGHT**2 * g.clock_h0 / 2.0
-    q[13] = C_LIGHT**2 * 2.0 * np.pi**2 * g.clock_hm2
+    h0, hm2 = clock_allan(g)
+    q[12] = C_LIGHT**2 * h0 / 2.0
+    q[13] = C_LIGHT**2 * 2.0 * np.pi**2 * hm2
     q[N_NOISE:] = 2.0 / g.range_error_tau_s  # unit-variance first-order Gauss-Markov: q = 2σ²/τ
     return q
 
@@ -175,6 +193,59 @@ def _initial_P(cfg: TightConfig, lat, h, att_sig, n_range: int = 0) -> np.ndarra
     P[nn, nn] = cfg.gnss.clock_bias_sigma_m**2
     P[nn + 1, nn + 1] = cfg.gnss.clock_drift_sigma_m_s**2
     return P
+
+
+def _vehicle_models(cfg: TightConfig, par, gates, have_static: bool, gated: bool) -> np.ndarray:
+    """Node constraints of ``cfg.constraints`` (the loosely coupled filter's schema and models): ZUPT
+    (and ZARU) at static samples, the NHC (no mounting states here: the configured mounting is exact).
+    Fills their parameters and gates; returns the (model, static-only) pairs."""
+    from aidnav.nav.rotations import dcm_from_euler
+
+    from .config import DEG
+
+    c = cfg.constraints
+    V = ms.vehicle
+    par[ms.M_ZUPT, 0], par[ms.M_ZARU, 0] = c.zupt_sigma_m_s, c.zaru_sigma_deg_s * DEG
+    mr = np.array(cfg.imu.mounting_rph_deg) * DEG
+    par[ms.M_NHC, V.V_SIG], par[ms.M_NHC, V.V_MIN_SPEED] = c.nhc_sigma_m_s, c.nhc_min_speed_m_s
+    par[ms.M_NHC, V.V_LEVER:V.V_LEVER + 3] = c.nhc_lever_arm_m
+    par[ms.M_NHC, V.V_CBV:V.V_CBV + 9] = dcm_from_euler(mr[0], mr[1], mr[2]).ravel()
+    par[ms.M_NHC, V.V_LEVER_SIG] = c.nhc_lever_arm_sigma_m
+    gates[ms.M_NHC, 1:] = 25.0 if gated else 0.0
+    node = []
+    if c.zupt and have_static:
+        node.append((ms.M_ZUPT, 1))
+        if c.zaru_sigma_deg_s > 0:
+            node.append((ms.M_ZARU, 1))
+    if c.nhc:
+        node.append((ms.M_NHC, 0))
+    return np.array(node, np.int64).reshape(-1, 2)
+
+
+def apply_vehicle(cfg: TightConfig, name: str | None, events: list | None = None) -> TightConfig:
+    """``cfg`` with the vehicle preset ``name`` of ``aidnav process --vehicle``
+    (:data:`aidnav.filters.presets.PRESETS`) applied under it: the sections the two schemas share
+    (``imu``, ``init``, ``constraints``); a key the configuration states explicitly wins. Preset keys
+    of sections tight does not have (loose-only GNSS fix settings, mounting calibration) are listed in
+    ``events``. Unknown names raise ValueError naming the known ones."""
+    from .presets import PRESETS, preset_names
+
+    if name is None:
+        return cfg
+    if name not in PRESETS:
+        raise ValueError(f"--vehicle {name!r}: unknown vehicle; known: {', '.join(preset_names())}")
+    data = cfg.model_dump(exclude_unset=True)
+    merged: dict = {k: v for k, v in data.items()}
+    skipped = []
+    for section, vals in PRESETS[name].items():
+        if section not in ("imu", "init", "constraints"):
+            skipped += [f"{section}.{k}" for k in vals]
+            continue
+        merged[section] = {**vals, **data.get(section, {})}
+    if events is not None and skipped:
+        events.append(f"--vehicle {name}: {', '.join(skipped)} of the preset not used by the tightly coupled "
+                      "filter (no such state or setting here)")
+    return TightConfig.model_validate(merged)
 
 
 def _satellite_arrays(obs, eph, use_tgd, max_age):
@@ -257,10 +328,7 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     gates[ms.M_PR, 1] = gate
     max_rej = np.full(ms.N_MODELS, NEVER, np.int64)
     max_rej[ms.M_PR] = g.max_consecutive_rejections
-    c = cfg.constraints
-    zupt = c.zupt and static is not None
-    par[ms.M_ZUPT, 0] = c.zupt_sigma_m_s
-    mod = Models(par, gates, max_rej, np.array([(ms.M_ZUPT, 1)] if zupt else [], np.int64).reshape(-1, 2))
+    mod = Models(par, gates, max_rej, _vehicle_models(cfg, par, gates, static is not None, gate > 0))
     if g.iono == "dual":
         if obs.code2 is None:
             raise ValueError("iono = dual needs an L2 code")

@@ -1,0 +1,167 @@
+"""A partial sky in tight coupling (issue 40): the receiver-clock grade prior, the vehicle presets of
+``process`` in ``tight``, heading from IMU/GNSS velocity matching, and the walk with satellites removed
+from its RINEX observation file for 40 s (3, 2 and 0 satellites)."""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from aidnav.data import ImuData
+from aidnav.filters.heading_match import velocity_match_heading
+from aidnav.filters.tight import CLOCK_GRADES, TightConfig, apply_vehicle, clock_allan
+from aidnav.sim.scenario import parse_scenario
+from aidnav.sim.trajectory import generate_truth
+
+ROOT = Path(__file__).resolve().parents[2]
+WALK_PRNS = ["G10", "G23", "G27", "G32"]  # the walk's satellites with an ephemeris
+T0, T1 = 45.0, 85.0  # the 40 s window (seconds from the first epoch), while walking
+
+
+def test_clock_grade_prior_tcxo_by_default_and_given_coefficients_win():
+    g = TightConfig().gnss
+    assert g.clock_grade == "tcxo" and clock_allan(g) == CLOCK_GRADES["tcxo"] == (2e-19, 2e-20)
+    assert clock_allan(TightConfig(gnss={"clock_grade": "ocxo"}).gnss) == (8e-20, 4e-23)
+    assert clock_allan(TightConfig(gnss={"clock_grade": "ocxo", "clock_hm2": 1e-21}).gnss) == (8e-20, 1e-21)
+
+
+def test_vehicle_presets_apply_to_the_shared_sections_and_the_config_wins():
+    ev: list[str] = []
+    c = apply_vehicle(TightConfig(), "car", ev)
+    assert c.constraints.nhc and c.constraints.nhc_sigma_m_s == 0.05 and c.init.course_min_speed_m_s == 2.0
+    assert c.imu.noise_from_static
+    assert any("calibration.mounting" in e for e in ev)  # tight has no mounting states: said, not dropped
+    c = apply_vehicle(TightConfig(init={"course_min_speed_m_s": 0.7}), "pedestrian")
+    assert c.init.course_min_speed_m_s == 0.7 and c.constraints.zupt and not c.constraints.nhc
+    assert apply_vehicle(TightConfig(), None) == TightConfig()
+    with pytest.raises(ValueError, match="unknown vehicle"):
+        apply_vehicle(TightConfig(), "bicycle")
+
+
+@pytest.mark.parametrize("heading_deg", [30.0, 200.0])
+def test_velocity_matching_recovers_the_heading_of_a_simulated_imu(heading_deg):
+    """Truth IMU of a walk-like path (speed changes and turns); the heading at the start is recovered from
+    noisy GNSS velocities (σ 0.1 m/s) within 3σ of its stated σ, and that σ is a few degrees."""
+    scn = parse_scenario({
+        "initial": {"lat_deg": 40.1, "lon_deg": -105.1, "height_m": 1600, "speed_m_s": 1.4,
+                    "heading_deg": heading_deg},
+        "imu_rate_hz": 100, "transition_s": 1.0,
+        "segments": [{"type": "straight", "duration_s": 5},
+                     {"type": "turn", "angle_deg": 90, "rate_deg_s": 30},
+                     {"type": "straight", "duration_s": 5},
+                     {"type": "turn", "angle_deg": -120, "rate_deg_s": 40},
+                     {"type": "straight", "duration_s": 5},
+                     {"type": "turn", "angle_deg": 180, "rate_deg_s": 45},
+                     {"type": "straight", "duration_s": 5}]})
+    truth, imu_true, _ = generate_truth(scn)
+    imu = ImuData(imu_true.time, imu_true.dtheta, imu_true.dv, t0=imu_true.t0)
+    rng = np.random.default_rng(7)
+    tg = np.arange(truth.time[0], truth.time[-1], 0.25)
+    vg = np.column_stack([np.interp(tg, truth.time, truth.vel[:, i]) for i in range(3)])
+    vg += rng.normal(0, 0.1, vg.shape)
+    r, p = truth.rph[0, 0], truth.rph[0, 1]
+    psi, sig, n = velocity_match_heading(imu, float(imu.t0), r, p, tg, vg)
+    err = np.degrees(np.angle(np.exp(1j * (psi - truth.rph[0, 2]))))
+    assert n >= 5 and np.degrees(sig) < 5.0
+    assert abs(err) < 3 * np.degrees(sig) + 0.5, (err, np.degrees(sig))
+
+
+# ------------------------------------------------------------------ the walk, satellites removed
+def edit_obs(src: Path, dst: Path, t0: float, t1: float, drop: list[str]) -> None:
+    """Copy a RINEX 3 observation file without the satellites ``drop`` at the epochs t0 ≤ t − t_first < t1
+    (the epoch line's satellite count rewritten)."""
+    lines = src.read_text().splitlines(keepends=True)
+    i = next(k for k, ln in enumerate(lines) if "END OF HEADER" in ln) + 1
+    out, first = lines[:i], None
+    while i < len(lines):
+        ln = lines[i]
+        if not ln.startswith(">"):
+            out.append(ln)
+            i += 1
+            continue
+        n = int(ln[32:35])
+        f = ln.split()
+        sec = int(f[4]) * 3600 + int(f[5]) * 60 + float(f[6])
+        first = sec if first is None else first
+        sats = lines[i + 1:i + 1 + n]
+        if t0 <= sec - first < t1:
+            sats = [s for s in sats if s[:3] not in drop]
+        out += [ln[:32] + f"{len(sats):3d}" + ln[35:], *sats]
+        i += 1 + n
+    dst.write_text("".join(out))
+
+
+@pytest.fixture(scope="module")
+def walk_partial(data_dir, tmp_path_factory):
+    """Full-sky run and runs with 3, 2, 0 satellites in the window: per case the ENU deviation from the
+    full-sky solution and its σ at the output samples inside the window, and the pseudoranges used."""
+    d = data_dir / "rtklibexplorer_walk_0827"
+    if not d.is_dir():
+        pytest.skip("walk data set not found")
+    from aidnav.apps.process import read_imu_any
+    from aidnav.apps.tight import process_tight
+    from aidnav.filters.tight import to_trajectory
+    from aidnav.io.rinex import read_rinex_nav, read_rinex_obs
+    from aidnav.nav.earth import lla_difference_enu
+
+    y = yaml.safe_load((ROOT / "examples" / "rtklibexplorer_walk_0827.yaml").read_text())
+    cfg = TightConfig(imu=y["imu"])  # the walk example's IMU model; the rest defaults
+    src = d / "rinex_converted" / "gnss_1730.obs"
+    imu = read_imu_any(d / "imu_1730.csv")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FutureWarning)
+        nav = read_rinex_nav(d / "rinex_converted" / "gnss_1730.nav")
+
+        def run(path):
+            obs = read_rinex_obs(path)
+            res, _ = process_tight(imu, obs, nav, cfg)
+            return res, obs
+
+        full, obs = run(src)
+        trf = to_trajectory(full)
+        out = {}
+        tmp = tmp_path_factory.mktemp("walk_obs")
+        for keep in (3, 2, 0):
+            p = tmp / f"keep{keep}.obs"
+            edit_obs(src, p, T0, T1, WALK_PRNS[keep:])
+            res, _ = run(p)
+            tr = to_trajectory(res)
+            w = (tr.time >= obs.time[0] + T0) & (tr.time < obs.time[0] + T1)
+            de, dn, du = lla_difference_enu(
+                tr.lat[w], tr.lon[w], tr.height[w], np.interp(tr.time[w], trf.time, trf.lat),
+                np.interp(tr.time[w], trf.time, trf.lon), np.interp(tr.time[w], trf.time, trf.height))
+            ge = res.epochs
+            in_w = (ge["time"] >= obs.time[0] + T0) & (ge["time"] < obs.time[0] + T1)
+            out[keep] = (np.column_stack([de, dn, du]), tr.std_pos[w], int(ge["n_pr"][in_w].max()))
+    return out
+
+
+def test_walk_three_and_two_satellites_stay_within_their_3_sigma(walk_partial):
+    for keep in (3, 2):
+        dev, sig, npr = walk_partial[keep]
+        assert npr == keep
+        assert np.all(np.abs(dev) <= 3 * sig), keep
+
+
+def test_walk_two_satellites_within_25_m(walk_partial):
+    dev, _, _ = walk_partial[2]
+    assert np.linalg.norm(dev, axis=1).max() <= 25.0
+
+
+@pytest.mark.xfail(strict=True, reason="issue 40 target not reached: 11.8 m measured with 3 satellites "
+                   "(21.9 m with the default IMU model)")
+def test_walk_three_satellites_within_10_m(walk_partial):
+    dev, _, _ = walk_partial[3]
+    assert np.linalg.norm(dev, axis=1).max() <= 10.0
+
+
+@pytest.mark.xfail(strict=True, reason="issue 40 target not reached: free inertia on the walk drifts ~60 m "
+                   "east in 40 s (a nav-fixed 0.08 m/s^2 error) against a 3-sigma of 20-35 m: 53 % coverage")
+def test_walk_no_satellites_3_sigma_coverage(walk_partial):
+    dev, sig, npr = walk_partial[0]
+    assert npr == 0
+    assert np.all(np.mean(np.abs(dev) <= 3 * sig, axis=0) >= 0.95)

@@ -165,3 +165,67 @@ def test_walk_no_satellites_3_sigma_coverage(walk_partial):
     dev, sig, npr = walk_partial[0]
     assert npr == 0
     assert np.all(np.mean(np.abs(dev) <= 3 * sig, axis=0) >= 0.95)
+
+
+# ------------------------------------------------------------------ the walk, no configuration
+@pytest.fixture(scope="module")
+def walk_default(data_dir):
+    """`aidnav tight`'s processing with no configuration: ENU errors against the RTK reference at every
+    reference epoch, their σ, and the summary of the run."""
+    d = data_dir / "rtklibexplorer_walk_0827"
+    if not d.is_dir():
+        pytest.skip("walk data set not found")
+    from aidnav.apps.process import read_imu_any
+    from aidnav.apps.tight import process_tight
+    from aidnav.filters.tight import to_trajectory
+    from aidnav.io.rinex import read_rinex_nav, read_rinex_obs
+    from aidnav.io.rtklib import read_pos
+    from aidnav.nav.earth import lla_difference_enu
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FutureWarning)
+        nav = read_rinex_nav(d / "rinex_converted" / "gnss_1730.nav")
+        obs = read_rinex_obs(d / "rinex_converted" / "gnss_1730.obs")
+    ref = read_pos(d / "gnss_1730_sf.pos", height_offset_m=-21.4)
+    ev: list[str] = []
+    res, _ = process_tight(read_imu_any(d / "imu_1730.csv"), obs, nav, None, events=ev)
+    tr = to_trajectory(res)
+    sel = (ref.time >= tr.time[0]) & (ref.time <= tr.time[-1])
+    j = np.clip(np.searchsorted(tr.time, ref.time[sel]), 0, len(tr.time) - 1)
+    de, dn, du = lla_difference_enu(tr.lat[j], tr.lon[j], tr.height[j], ref.lat[sel], ref.lon[sel],
+                                    ref.height[sel])
+    return np.column_stack([de, dn, du]), tr.std_pos[j], res, ev
+
+
+def test_walk_default_vertical_and_coverage(walk_default):
+    """No config: RTKLIB's default ionosphere, heading from velocity matching; vertical RMS ≤ 3.5 m
+    (measured 3.21 m; 6.84 m before the ionospheric fallback) and 3σ coverage ≥ 95 % per axis."""
+    d, s, res, ev = walk_default
+    assert len(d) > 500
+    assert np.sqrt(np.mean(d[:, 2] ** 2)) <= 3.5
+    assert np.all(np.mean(np.abs(d) <= 3 * s, axis=0) >= 0.95)
+    assert "default coefficients" in res.iono_model
+    assert any("matching IMU and SPP velocity" in e for e in ev)
+
+
+@pytest.mark.xfail(strict=True, reason="issue 40 target not reached: 8.84 m horizontal RMS measured against "
+                   "RTKLIB SPP's 8.50 m (aidnav's own SPP: 8.51 m)")
+def test_walk_default_horizontal_rms_at_most_rtklib_spp(walk_default):
+    d = walk_default[0]
+    assert np.sqrt(np.mean(d[:, 0] ** 2 + d[:, 1] ** 2)) <= 8.50
+
+
+def test_summary_states_the_ionosphere_and_a_bad_vehicle_exits_2(tmp_path):
+    from typer.testing import CliRunner
+
+    from aidnav.apps.tight import format_tight_summary
+    from aidnav.cli import app
+
+    txt = format_tight_summary({"imu": "i", "obs": "o", "nav": "n", "output": "t", "states": 17,
+                                "ionosphere": "Klobuchar (default coefficients), sigma 50 % of the delay",
+                                "events": []})
+    assert "ionosphere: Klobuchar (default coefficients), sigma 50 % of the delay" in txt
+    r = CliRunner().invoke(app, ["tight", "--imu", str(tmp_path / "i.csv"), "--obs", str(tmp_path / "o.obs"),
+                                 "--nav", str(tmp_path / "n.nav"), "--vehicle", "bicycle", "-o",
+                                 str(tmp_path / "out")])
+    assert r.exit_code == 2 and "unknown vehicle" in r.output

@@ -3,7 +3,9 @@ its comparison with a reference solution (RTKLIB ``.pos``, fixed epochs only).
 
 Steps of :func:`process_tight`: SPP with Doppler velocity on every epoch (:func:`aidnav.estimators.dgps.
 spp_series`) gives the start position and the GNSS course; roll and pitch from the mean specific force
-over ``init.static_window_s`` (static start); heading from the first SPP course above
+over ``init.static_window_s`` (static start); heading (unless configured) by matching the IMU's
+velocity changes to the SPP velocity changes (:func:`aidnav.filters.heading_match.velocity_match_heading`:
+no mounting or vehicle assumed; used when its σ ≤ 30°), else from the first SPP course above
 ``init.course_min_speed_m_s`` (plus the IMU mounting heading); ZUPTs where the IMU is still and the
 SPP speed is low (:func:`aidnav.filters.loose.static_flags`); then :func:`aidnav.filters.tight.run_tight`.
 Times stay GPS seconds of the observations' reference week.

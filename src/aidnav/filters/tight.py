@@ -383,7 +383,8 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
             events.append(f"G{int(obs.prn[j]):02d}: {int(rej_pr[j])} pseudorange(s) and {int(rej_rate[j])} "
                           "rate(s) outside the innovation gate (rejected unless the gate was suspended)")
     log = _log_dict(r.log, r.n_log)
-    cnt = dict(zupt_updates=int((log["model"] == ms.M_ZUPT).sum()), clock_jumps=int(ge.flags[1]),
+    cnt = dict(zupt_updates=int((log["model"] == ms.M_ZUPT).sum()),
+               nhc_updates=int((log["model"] == ms.M_NHC).sum()), clock_jumps=int(ge.flags[1]),
                epochs=int(np.isfinite(ge.t).sum()), pr_used=int(ge.npr.sum()), rate_used=int(ge.nrate.sum()),
                rejected=int(ge.nrej.sum()), imu_samples_skipped=k0, nodes=len(r.node_idx))
     ck = slice(int(lay[L_CLK]) - 9, int(lay[L_CLK]) - 7)

@@ -125,11 +125,39 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
         f"start at t={init_state[0]:.3f} from SPP; roll {np.degrees(roll):.2f}, pitch "
         f"{np.degrees(pitch):.2f} deg from the mean specific force over {ini.static_window_s:g} s"
     )
+    vfix = _tdcp_velocities(imu, obs, eph, sp, cfg, events)
     res = run_tight(
         imu, obs, eph, cfg, init_state=init_state, static=static, heading_reset=heading_reset, events=events,
-        smooth=smooth,
+        smooth=smooth, velocity_fixes=vfix,
     )
     return res, sp
+
+
+def _tdcp_velocities(imu, obs, eph, sp, cfg, events):
+    """TDCP mean velocities (:func:`aidnav.estimators.tdcp.tdcp_series`) as velocity records at the middle
+    of each interval, or None (``gnss.use_phase`` off or no phase). Their σ per axis: the TDCP σ and the
+    difference between the interval's mean velocity and the velocity at its middle, Δt²/24 times the jerk,
+    the jerk taken as the change of the IMU's specific force over the interval divided by Δt (the change of
+    gravity's projection when the body turns counts too: conservative)."""
+    from aidnav.estimators.tdcp import tdcp_series
+
+    g = cfg.gnss
+    if not g.use_phase or obs.phase1 is None:
+        return None
+    r = tdcp_series(obs, eph, sp["ecef"], g.phase_sigma_m, g.slip_threshold_cycles)
+    t0, t1 = obs.time[:-1], obs.time[1:]
+    t_imu = imu.time + cfg.imu.time_offset_s
+    dt_imu = np.diff(np.concatenate([[imu.t0], imu.time]))
+    f = imu.dv / dt_imu[:, None]
+    fi = np.column_stack([np.interp(np.concatenate([t0, t1]), t_imu, f[:, i]) for i in range(3)])
+    jerk_dt = np.linalg.norm(fi[len(t0):] - fi[:len(t0)], axis=1)  # |Δf| over the interval [m/s²]
+    dyn = (t1 - t0) * jerk_dt / 24.0
+    sig = np.sqrt(np.einsum("kii->ki", r["vel_cov_enu"]) + dyn[:, None] ** 2)
+    n_ok = int(np.isfinite(r["vel_enu"][:, 0]).sum())
+    n_slip = int((r["slips"] != 0).sum())
+    events.append(f"carrier phase: {n_ok} TDCP velocities of {len(t0)} intervals (4+ satellites without a "
+                  f"slip); {n_slip} cycle slip(s) flagged (loss-of-lock indicator or phase-Doppler test)")
+    return r["t_mid"], r["vel_enu"], sig
 
 
 def _meaningful_course(t, vel, min_speed, window_s: float = 2.0, k_sigma: float = 5.0):

@@ -100,6 +100,11 @@ class RawGnssAiding(_Strict):
         True, description="per-satellite Gauss-Markov range-error states with the σ of RTKLIB's "
         "single-frequency error budget (URA, ionosphere, troposphere, code bias; docs/models.md)")
     range_error_tau_s: float = Field(1800.0, gt=0, description="correlation time of the range errors [s]")
+    use_phase: bool = Field(True, description="time-differenced L1 carrier phase (where the observations "
+                            "have it): mean velocities between epochs as velocity records (aidnav tight)")
+    phase_sigma_m: float = Field(0.005, gt=0, description="carrier-phase σ per epoch [m]")
+    slip_threshold_cycles: float = Field(0.5, gt=0, description="phase-Doppler disagreement that is a "
+                                         "cycle slip [cycles]")
 
 
 def clock_allan(g: RawGnssAiding) -> tuple[float, float]:
@@ -248,6 +253,27 @@ def apply_vehicle(cfg: TightConfig, name: str | None, events: list | None = None
     return TightConfig.model_validate(merged)
 
 
+def _records(t_obs, rows, velocity_fixes, S):
+    """Engine records: one whole-epoch pseudorange record per epoch and, with ``velocity_fixes``, velocity
+    records among them in time order. Returns (Records, indices of the epoch records)."""
+    M = len(t_obs)
+    if velocity_fixes is None:
+        return Records(np.asarray(t_obs, float), np.full(M, ms.M_PR, np.int64), rows, np.ones(M, np.bool_),
+                       ep.epoch_out(M, S)), np.arange(M)
+    tv, vv, sv = (np.asarray(a, float) for a in velocity_fixes)
+    ok = np.isfinite(tv) & np.isfinite(vv).all(axis=1) & np.isfinite(sv).all(axis=1)
+    tv, vv, sv = tv[ok], vv[ok], sv[ok]
+    K = len(tv)
+    vrows = np.full((K, rows.shape[1]), np.nan)
+    vrows[:, 0:3], vrows[:, 3:6] = vv, sv
+    t_all = np.concatenate([np.asarray(t_obs, float), tv])
+    order = np.argsort(t_all, kind="stable")
+    model = np.concatenate([np.full(M, ms.M_PR, np.int64), np.full(K, ms.M_GNSS_VEL, np.int64)])[order]
+    rec = Records(t_all[order], model, np.vstack([rows, vrows])[order], np.ones(M + K, np.bool_),
+                  ep.epoch_out(M + K, S))
+    return rec, np.flatnonzero(model == ms.M_PR)
+
+
 def _satellite_arrays(obs, eph, use_tgd, max_age):
     """Satellite positions, velocities, clocks, clock rates (M, S, ...) and the URA [m] of the
     ephemeris used (M, S)."""
@@ -273,7 +299,7 @@ def _satellite_arrays(obs, eph, use_tgd, max_age):
 
 def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, static=None, heading_reset=None,
               events: list | None = None, output_rate_hz: float | None = None,
-              smooth: bool = False) -> TightResult:
+              smooth: bool = False, velocity_fixes=None) -> TightResult:
     """Tightly coupled GNSS/INS over whole logs.
 
     imu : :class:`aidnav.data.ImuData` (increments, body RFU; time on the GNSS scale: GPS seconds on the
@@ -284,6 +310,9 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     default: ``cfg.init`` in "given" mode (degrees) at the IMU's first time.
     static : optional (N,) bool per IMU sample for ZUPTs (``cfg.constraints.zupt``).
     heading_reset : optional (t [s], heading [rad]) to set the heading at (e.g. a GNSS course).
+    velocity_fixes : optional (t (K,) receiver tags [s], v_ENU (K, 3) [m/s], σ (K, 3) [m/s]) velocity
+    records of the antenna (e.g. time-differenced carrier phase, :mod:`aidnav.estimators.tdcp`, at the
+    middle of each interval), the loosely coupled filter's velocity model, gated by ``gate_probability``.
     smooth : also run the RTS smoother (``state``, ``clock``, ``pdiag`` are then the smoothed ones).
     """
     from aidnav.nav.rotations import quat_from_euler
@@ -351,8 +380,12 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     lay = tight_layout(cfg.states, len(with_eph))
     n, nr = int(lay[L_N]), len(with_eph)
     P0 = _initial_P(cfg, lat0, h0, np.array(cfg.init.attitude_sigma_deg) * DEG, nr)
-    rec = Records(np.asarray(obs.time, float), np.full(M, ms.M_PR, np.int64), rows.reshape(M, S * ep.E_W),
-                  np.ones(M, np.bool_), ep.epoch_out(M, S))
+    rec, sel = _records(obs.time, rows.reshape(M, S * ep.E_W), velocity_fixes, S)
+    if velocity_fixes is not None:
+        par[ms.M_GNSS_VEL, 0:3] = g.lever_arm_m
+        gates[ms.M_GNSS_VEL, 1:4] = [chi2_isf(m, 1.0 - g.gate_probability) if g.gate_probability < 1 else 0.0
+                                     for m in (1, 2, 3)]
+        max_rej[ms.M_GNSS_VEL] = g.max_consecutive_rejections
     stat = np.zeros(len(t_imu), np.bool_) if static is None else np.asarray(static, np.bool_)
     reset_idx, reset_heading = -1, 0.0
     if heading_reset is not None:
@@ -371,7 +404,7 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     init = Init(float(t0), st0, np.zeros(n - 9), P0, reset_idx, reset_heading,
                 cfg.init.course_heading_sigma_deg * DEG, np.full(15, np.nan))
     r = run_filter(imu_in, rec, mod, proc, init, Output(out_every, bool(smooth), np.zeros(0, np.int64)))
-    ge = rec.grp
+    ge = rec.grp._replace(**{k: getattr(rec.grp, k)[sel] for k in rec.grp._fields if k != "flags"})
     epochs = dict(time=ge.t, n_avail=ge.navail, n_pr=ge.npr, n_rate=ge.nrate, n_rejected=ge.nrej,
                   pr_innov=ge.pr_nu, pr_s=ge.pr_s, rate_innov=ge.rate_nu, rate_s=ge.rate_s, elevation=ge.el,
                   P_nav=ge.P_nav, clock=ge.clk, state=ge.state, prn=obs.prn)
@@ -386,7 +419,9 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     cnt = dict(zupt_updates=int((log["model"] == ms.M_ZUPT).sum()),
                nhc_updates=int((log["model"] == ms.M_NHC).sum()), clock_jumps=int(ge.flags[1]),
                epochs=int(np.isfinite(ge.t).sum()), pr_used=int(ge.npr.sum()), rate_used=int(ge.nrate.sum()),
-               rejected=int(ge.nrej.sum()), imu_samples_skipped=k0, nodes=len(r.node_idx))
+               rejected=int(ge.nrej.sum()), imu_samples_skipped=k0, nodes=len(r.node_idx),
+               velocity_records=len(rec.t) - len(sel),
+               velocity_used=int(((log["model"] == ms.M_GNSS_VEL) & (log["status"] == 1)).sum()))
     ck = slice(int(lay[L_CLK]) - 9, int(lay[L_CLK]) - 7)
     res = TightResult(time=t_imu[sl][r.out_idx], state=r.out_st, bias=r.out_bias[:, :nnav - 9],
                       clock=r.out_bias[:, ck], pdiag=r.out_pdiag, epochs=epochs, counts=cnt, events=events,

@@ -24,8 +24,11 @@ troposphere at the INS position; one scalar row per pseudorange and per rate, ga
 quantile of ``gate_probability``; after ``max_consecutive_rejections`` rejected epochs the next epoch is
 not gated (the engine's rule). Any number of satellites is used: with fewer than four the clock and the
 position are only partly observable, and the covariance says so. Satellite positions/clocks come from
-the broadcast ephemerides at the transmit time implied by each pseudorange, before the engine. ZUPTs
-at static samples are the engine's node constraint. The engine feeds back after each node and, with
+the broadcast ephemerides at the transmit time implied by each pseudorange, before the engine. Optional
+velocity records (``velocity_fixes``: the time-differenced carrier phase's mean velocities from
+:mod:`aidnav.apps.tight`) go through the loosely coupled filter's GNSS velocity model. ZUPTs (and ZARU)
+at static samples and the NHC (``constraints``, the ``process`` schema; ``apply_vehicle`` for the
+vehicle presets) are the engine's node constraints. The engine feeds back after each node and, with
 ``smooth``, runs the RTS pass over the nodes (no information passed back across a heading reset).
 """
 

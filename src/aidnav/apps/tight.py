@@ -36,7 +36,7 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
     from aidnav.estimators.dgps import spp_series
     from aidnav.filters.config import LooseConfig
     from aidnav.filters.loose import static_flags
-    from aidnav.filters.preprocess import noise_from_static
+    from aidnav.filters.preprocess import noise_from_static  # lazy: as the other filter imports here
 
     cfg = cfg or TightConfig()
     events = events if events is not None else []
@@ -139,7 +139,7 @@ def _tdcp_velocities(imu, obs, eph, sp, cfg, events):
     difference between the interval's mean velocity and the velocity at its middle, Δt²/24 times the jerk,
     the jerk taken as the change of the IMU's specific force over the interval divided by Δt (the change of
     gravity's projection when the body turns counts too: conservative)."""
-    from aidnav.estimators.tdcp import tdcp_series
+    from aidnav.estimators.tdcp import tdcp_series  # lazy: only where the observations have a phase
 
     g = cfg.gnss
     if not g.use_phase or obs.phase1 is None:

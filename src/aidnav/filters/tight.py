@@ -207,9 +207,9 @@ def _vehicle_models(cfg: TightConfig, par, gates, have_static: bool, gated: bool
     """Node constraints of ``cfg.constraints`` (the loosely coupled filter's schema and models): ZUPT
     (and ZARU) at static samples, the NHC (no mounting states here: the configured mounting is exact).
     Fills their parameters and gates; returns the (model, static-only) pairs."""
-    from aidnav.nav.rotations import dcm_from_euler
+    from aidnav.nav.rotations import dcm_from_euler  # lazy: as run_tight's own imports (import time)
 
-    from .config import DEG
+    from .config import DEG  # lazy: as run_tight's
 
     c = cfg.constraints
     V = ms.vehicle
@@ -236,7 +236,7 @@ def apply_vehicle(cfg: TightConfig, name: str | None, events: list | None = None
     (``imu``, ``init``, ``constraints``); a key the configuration states explicitly wins. Preset keys
     of sections tight does not have (loose-only GNSS fix settings, mounting calibration) are listed in
     ``events``. Unknown names raise ValueError naming the known ones."""
-    from .presets import PRESETS, preset_names
+    from .presets import PRESETS, preset_names  # lazy: only with --vehicle
 
     if name is None:
         return cfg

@@ -245,15 +245,46 @@ def process(
     """Loosely coupled GNSS/INS on logs: DIR/trajectory with σ columns, summary, overview.png, maps
     (KML, GeoJSON) and run.html."""
     from aidnav.apps.process import format_summary, process_logs
+    from aidnav.apps.run_outputs import start_outputs
     from aidnav.progress import progress_bar
 
+    figures = start_outputs(not no_figures)  # the figures' process forked before the bar's thread starts
     with progress_bar("aidnav process") as bar:
         s = process_logs(imu, gnss, config, out, smooth=smooth, outages=outage, console=_console(), fmt=fmt,
                          height_offset_m=height_offset, time_offset_s=time_offset, start_s=start, end_s=end,
-                         skip_checks=skip_check, progress=bar, figures=not no_figures,
+                         skip_checks=skip_check, progress=bar, figures=figures,
                          odometer_path=odometer, baro_path=baro, kfgins_nav=kfgins_nav,
                          output_rate_hz=output_rate, vehicle=vehicle)
     _print_summary(s, format_summary(s), as_json)
+
+
+@_command("fleet")
+def fleet_cmd(
+    manifest: Path = typer.Argument(..., help="CSV: name,imu,gnss[,config,truth,vehicle,vehicle_id,"
+                                    "time_offset,height_offset,smooth], paths relative to the manifest"),
+    out: Path = typer.Option(..., "-o", "--out", help="output directory: DIR/<name>/ per log, fleet.parquet, "
+                             "fleet.html (what is already done there is kept)"),
+    workers: int | None = typer.Option(None, "--workers", min=1, help="worker processes of a local Dask "
+                                       "cluster (default: the CPUs; 1: this process alone)"),
+    scheduler: str | None = typer.Option(None, "--scheduler", help="address of an existing Dask scheduler"),
+    figures: bool = typer.Option(False, "--figures/--no-figures", help="also each log's overview.png, maps "
+                                 "and run.html (about 1 CPU-s a log)"),
+    retry_failed: bool = typer.Option(False, "--retry-failed", help="process the logs that failed before "
+                                      "again"),
+):
+    """Process every log of a manifest in parallel (Dask): DIR/<name>/ as `aidnav process` writes it,
+    DIR/fleet.parquet and DIR/fleet.html. Exit status 3 when a log failed (the others are done)."""
+    from aidnav.apps.fleet import format_fleet, run_fleet
+    from aidnav.progress import progress_bar
+
+    if scheduler and workers is not None:
+        _fail("give --workers or --scheduler, not both")
+    with progress_bar("aidnav fleet", unit="logs") as bar:
+        res = run_fleet(manifest, out, workers=workers, scheduler=scheduler, figures=figures,
+                        retry_failed=retry_failed, progress=bar)
+    _console().print(format_fleet(res), end="")
+    if res.failed:
+        raise typer.Exit(3)
 
 
 @_command()
@@ -334,9 +365,11 @@ def satcom_point(
 def run_experiment_cmd(
     experiment: Path = typer.Argument(..., help="experiment YAML (see aidnav.experiments.config)"),
     out: Path = typer.Option(..., "-o", "--out", help="campaign directory (what is already there is reused)"),
-    workers: int = typer.Option(1, "--workers", min=1, help="worker processes (> 1: a local Dask cluster)"),
+    workers: int = typer.Option(1, "--workers", min=1, help="worker processes (> 1: a local process pool)"),
     scheduler: str | None = typer.Option(None, "--scheduler", help="address of an existing Dask scheduler"),
-    no_dask: bool = typer.Option(False, "--no-dask", help="--workers > 1: a process pool instead of Dask"),
+    dask: bool = typer.Option(False, "--dask", help="--workers > 1: a local Dask cluster instead of the "
+                              "process pool"),
+    no_dask: bool = typer.Option(False, "--no-dask", hidden=True, help="the process pool (the default)"),
     max_runs: int | None = typer.Option(None, "--max-runs", min=0,
                                         help="compute at most this many runs, then stop (rerun to resume)"),
 ):
@@ -348,7 +381,7 @@ def run_experiment_cmd(
         _fail("give --workers or --scheduler, not both")
     try:
         res = run_experiment(experiment, out, workers=workers, scheduler=scheduler, max_runs=max_runs,
-                             backend="processes" if no_dask and workers > 1 and not scheduler else None,
+                             backend="dask" if dask and not no_dask and workers > 1 else None,
                              console=_console())
     except ExperimentError as e:
         _fail(str(e))

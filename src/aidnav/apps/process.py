@@ -140,19 +140,24 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
                  start_s: float | None = None, end_s: float | None = None, skip_checks=(),
                  progress=None, figures: bool = True, odometer_path=None, baro_path=None,
                  kfgins_nav: bool = False, output_rate_hz: float | None = None,
-                 vehicle: str | None = None) -> dict:
+                 vehicle: str | None = None, timings: bool = True) -> dict:
     """Run the whole ``aidnav process`` job into the directory ``out_dir``; returns the summary dict
     (also written as ``summary.json`` and ``summary.txt`` beside ``trajectory.<fmt>``).
 
     height_offset_m / time_offset_s override ``gnss.height_offset_m`` / ``imu.time_offset_s`` of the
     configuration (``--height-offset``, ``--time-offset``). progress : an
     :class:`aidnav.progress.ProgressBar` (stages: reading, filter, writing, figures). figures : also write
-    ``overview.png``, ``trajectory.kml``, ``trajectory.geojson`` and ``run.html``. kfgins_nav : also write
-    ``trajectory.nav`` in KF-GINS's navigation-result format."""
+    ``overview.png``, ``trajectory.kml``, ``trajectory.geojson`` and ``run.html`` (drawn by a child forked
+    now where possible: :mod:`aidnav.apps.run_outputs`; or an :class:`~aidnav.apps.run_outputs.OutputsProcess`
+    forked by the caller). kfgins_nav : also write
+    ``trajectory.nav`` in KF-GINS's navigation-result format. timings : the stages' wall times in the
+    summary (``timing_s``); without them the outputs depend on the inputs only (``aidnav fleet``)."""
+    from aidnav.apps.run_outputs import start_outputs, write_outputs  # lazy: the figures' fork
     from aidnav.io.interchange import write_trajectory
     from aidnav.io.sanity import validate_skip
     from aidnav.progress import NullProgress
 
+    figures = start_outputs(figures)  # forked now where possible: matplotlib loads beside the filter
     t_start = _time.perf_counter()
     skip_checks = validate_skip(skip_checks)
     out_dir = prepare_out_dir(out_dir)
@@ -244,11 +249,11 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
                "gnss_height_offset_m": datum,
                **run_s, "notes": notes}
     summary["timing_s"] = {"read": t_read - t_start, "filter": t_filt - t_read, "write": t_write - t_filt}
+    if not timings:
+        del summary["timing_s"]
     common.write_summary_files(out_dir, summary, format_summary(summary))
     if figures:  # overview.png, trajectory.kml / .geojson, run.html
-        from aidnav.report.run_page import write_run_outputs
-
-        write_run_outputs(out_dir, fig_traj, gnss, summary, result.records, progress=bar)
+        write_outputs(figures, out_dir, fig_traj, gnss, summary, result.records, progress=bar)
     return summary
 
 

@@ -6,8 +6,8 @@
    before anything is computed;
 2. the runs already on disk (``DIR/runs``, see :mod:`aidnav.experiments.store`) are skipped: an
    interrupted campaign resumes where it stopped;
-3. the remaining runs are computed — in this process (``workers=1``), on a local Dask cluster
-   (``workers > 1``; ``backend="processes"`` uses a ``concurrent.futures`` process pool instead) or on
+3. the remaining runs are computed — in this process (``workers=1``), on a local process pool
+   (``workers > 1``; ``backend="dask"`` uses a local Dask cluster instead) or on
    an existing Dask scheduler (``scheduler="tcp://host:8786"``) — each result is written to ``DIR/runs``
    as it arrives (a rich progress bar shows the ETA); with local workers the first batch is computed in
    this process, so that numba's on-disk cache is warm before the workers load it; the local process pool
@@ -381,10 +381,11 @@ def run_experiment(experiment, out_dir, *, workers: int = 1, scheduler: str | No
     ----------
     experiment : path of an experiment YAML, or an :class:`~aidnav.experiments.config.ExperimentPlan`.
     out_dir : campaign directory (created).
-    workers : processes (> 1: a Dask ``LocalCluster`` with that many single-threaded workers, or a process
-        pool with ``backend="processes"``).
+    workers : processes (> 1: a local process pool with that many workers, or a Dask ``LocalCluster`` of
+        single-threaded workers with ``backend="dask"``).
     scheduler : address of an existing Dask scheduler (its workers need aidnav installed).
-    backend : "serial", "processes" or "dask"; default serial for one worker, else dask.
+    backend : "serial", "processes" or "dask"; default: dask with a scheduler, else serial for one worker and
+        the process pool for more (the fastest: its forked workers inherit the loaded kernels and truth).
     max_runs : compute at most this many new runs, then stop without merging (a campaign cut short on
         purpose; rerun to complete it).
     console : rich console for the progress bar and messages; progress : show the bar.
@@ -412,8 +413,8 @@ def run_experiment(experiment, out_dir, *, workers: int = 1, scheduler: str | No
     t_start = time.perf_counter()
     plan = experiment if isinstance(experiment, ExperimentPlan) else load_experiment(experiment)
     console = console or Console(stderr=True)
-    if backend is None:
-        backend = "dask" if (scheduler or workers > 1) else "serial"
+    if backend is None:  # the fastest correct one (issue 41): the process pool locally, Dask on a scheduler
+        backend = "dask" if scheduler else ("processes" if workers > 1 else "serial")
     if backend not in ("serial", "processes", "dask"):
         raise ValueError(f"backend must be serial, processes or dask (got {backend!r})")
     if workers < 1:

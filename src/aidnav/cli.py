@@ -466,6 +466,8 @@ def tight(
                                 "solution is written; the innovations stay the forward ones)"),
     as_json: bool = typer.Option(False, "--json", help="print the JSON summary instead of the text"),
     no_figures: bool = typer.Option(False, "--no-figures", help="skip overview.png, maps and run.html"),
+    vehicle: str | None = typer.Option(None, "--vehicle", help="vehicle preset under the configuration, as "
+                                       "in process: car (NHC), aircraft, pedestrian, ship"),
 ):
     """Tightly coupled GNSS/INS (pseudorange + Doppler) on an IMU log and RINEX files."""
     from aidnav.apps.tight import format_tight_summary, process_tight_files
@@ -475,7 +477,7 @@ def tight(
         bar.stage("SPP, alignment, tightly coupled filter", total=None)
         s = process_tight_files(imu, obs, nav, config, out, truth, truth_height_offset, fmt=fmt,
                                 time_offset_s=time_offset, smooth=smooth, progress=bar,
-                                figures=not no_figures)
+                                figures=not no_figures, vehicle=vehicle)
     _print_summary(s, format_tight_summary(s), as_json)
 
 

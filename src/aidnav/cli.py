@@ -35,7 +35,6 @@ from pathlib import Path  # noqa: E402
 import typer  # noqa: E402
 
 from aidnav.console_script import exit_status as _exit_status  # noqa: E402
-from aidnav.console_script import lazy_bitcode  # noqa: E402
 from aidnav.console_script import leave as _leave  # noqa: E402
 from aidnav.console_script import preload_scipy_blas as _preload_scipy_blas  # noqa: E402
 
@@ -171,7 +170,8 @@ def compile_cmd(
                                    "calls the build should cover too; repeatable"),
     status: bool = typer.Option(False, "--status", help="only say whether a build matches this installation"),
 ):
-    """Ahead-of-time build of the kernels (once per install): commands then start without numba/LLVM."""
+    """Optional ahead-of-time build of the kernels (once per install; needs `pip install 'aidnav[compile]'`
+    and a C compiler): commands then start without numba/LLVM, with the same results."""
     import shlex
 
     from aidnav.apps.kernels import build_status, compile_kernels
@@ -217,10 +217,11 @@ def process(
     imu: Path = typer.Option(..., "--imu", help="IMU log: " + _IMU_FORMATS_HELP),
     gnss: Path = typer.Option(..., "--gnss", help="GNSS fixes: " + _GNSS_FORMATS_HELP),
     config: Path | None = typer.Option(None, "--config", help="filter configuration YAML"),
-    odometer: Path | None = typer.Option(None, "--odometer", help="odometer CSV (time_s, speed_m_s or "
-                                         "speed_km_h [, speed_std_m_s]) on the GNSS time scale"),
-    baro: Path | None = typer.Option(None, "--baro", help="barometer CSV (time_s, height_m or height_ft "
-                                     "[, height_std_m]) on the GNSS time scale"),
+    odometer: Path | None = typer.Option(None, "--odometer", help="odometer CSV: the same as --aid "
+                                         "odometer=FILE"),
+    baro: Path | None = typer.Option(None, "--baro", help="barometer CSV: the same as --aid baro=FILE"),
+    aid: list[str] = typer.Option([], "--aid", help="an aid's file as NAME=FILE, repeatable; NAME an aid "
+                                  "of aidnav.filters.aids.AIDS (files and settings: docs/adding-an-aid.md)"),
     out: Path = typer.Option(Path("out"), "-o", "--out", help="output directory: trajectory.parquet|csv, "
                              "summary.json, summary.txt"),
     fmt: str = typer.Option("parquet", "--format", help="trajectory file format: parquet or csv"),
@@ -261,14 +262,17 @@ def process(
     (KML, GeoJSON) and run.html."""
     from aidnav.apps.process import format_summary, process_logs
     from aidnav.apps.run_outputs import start_outputs
+    from aidnav.filters.aids import parse_aid  # lazy: numpy and the filters only when a command runs
     from aidnav.progress import progress_bar
 
+    aid_paths = [("odometer", odometer)] * (odometer is not None) + [("baro", baro)] * (baro is not None)
+    aid_paths += [parse_aid(a) for a in aid]
     figures = start_outputs(not no_figures)  # the figures' process forked before the bar's thread starts
     with progress_bar("aidnav process") as bar:
         s = process_logs(imu, gnss, config, out, smooth=smooth, outages=outage, console=_console(), fmt=fmt,
                          height_offset_m=height_offset, time_offset_s=time_offset, start_s=start, end_s=end,
                          skip_checks=skip_check, progress=bar, figures=figures,
-                         odometer_path=odometer, baro_path=baro, kfgins_nav=kfgins_nav,
+                         aid_paths=aid_paths, kfgins_nav=kfgins_nav,
                          output_rate_hz=output_rate, vehicle=vehicle, imu_topic=imu_topic,
                          gnss_topic=gnss_topic, gnss_vel_topic=gnss_vel_topic)
     _print_summary(s, format_summary(s), as_json)
@@ -478,6 +482,8 @@ def tight(
                                 "solution is written; the innovations stay the forward ones)"),
     as_json: bool = typer.Option(False, "--json", help="print the JSON summary instead of the text"),
     no_figures: bool = typer.Option(False, "--no-figures", help="skip overview.png, maps and run.html"),
+    vehicle: str | None = typer.Option(None, "--vehicle", help="vehicle preset under the configuration, as "
+                                       "in process: car (NHC), aircraft, pedestrian, ship"),
 ):
     """Tightly coupled GNSS/INS (pseudorange + Doppler) on an IMU log and RINEX files."""
     from aidnav.apps.tight import format_tight_summary, process_tight_files
@@ -487,7 +493,7 @@ def tight(
         bar.stage("SPP, alignment, tightly coupled filter", total=None)
         s = process_tight_files(imu, obs, nav, config, out, truth, truth_height_offset, fmt=fmt,
                                 time_offset_s=time_offset, smooth=smooth, progress=bar,
-                                figures=not no_figures)
+                                figures=not no_figures, vehicle=vehicle)
     _print_summary(s, format_tight_summary(s), as_json)
 
 
@@ -580,18 +586,18 @@ def design_trajectory_cmd(
 
 def _start_kernels() -> None:
     """Kernels for this command (:mod:`aidnav.jit`): from the ahead-of-time build that matches this
-    source tree (``aidnav compile``), else numba's JIT. numba's own start is made cheaper either way,
-    when it happens: the cached kernels' bitcode left unparsed; scipy's BLAS modules loaded alone."""
+    source tree, Python, numpy, numba, llvmlite and CPU (``aidnav compile``, optional), else numba's JIT
+    (the same results). scipy's BLAS modules are loaded alone either way."""
     from aidnav import jit
 
     _preload_scipy_blas()  # the kernels' BLAS calls (numba's JIT and the build alike) import it at first use
     try:
-        mode = jit.start(on_numba=[lazy_bitcode])
+        mode = jit.start()
     except (ValueError, RuntimeError) as e:  # AIDNAV_KERNELS unknown, or aot without a build
         _fail(str(e))
     if mode == "jit" and "AIDNAV_KERNELS" not in os.environ and sys.stderr.isatty():
-        _console(stderr=True).print("[dim]tip: `aidnav compile` (once per install, about a minute) makes "
-                                    "every command start faster and use less memory[/dim]")
+        _console(stderr=True).print("[dim]tip: `aidnav compile` (optional: aidnav[compile] and a C compiler; "
+                                    "once per install) makes every command start faster[/dim]")
 
 
 def main():  # pragma: no cover - the console script (tests call `app` in-process, and main in a subprocess)

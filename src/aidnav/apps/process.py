@@ -92,10 +92,11 @@ def window(imu: ImuData, gnss: GnssData, start_s: float | None, end_s: float | N
 
 def process(imu: ImuData, gnss: GnssData, cfg: LooseConfig | None = None, smooth: bool = False,
             outages: list[str] | None = None, imu_name: str = "imu", gnss_name: str = "gnss",
-            skip_checks=(), start_s: float | None = None, end_s: float | None = None, odometer=None,
-            baro=None) -> ProcessRun:
+            skip_checks=(), start_s: float | None = None, end_s: float | None = None,
+            aids=()) -> ProcessRun:
     """In-memory ``aidnav process``: logs already read (:mod:`aidnav.io`: ellipsoidal heights, IMU on
     the GNSS time scale, i.e. ``cfg.imu.time_offset_s`` is applied here, once) → :class:`ProcessRun`.
+    aids : sequence of :class:`aidnav.filters.aids.Aid` (odometer, barometer, magnetometer, ...).
     """
     from aidnav.filters.loose import LooseResult, run_loose, to_trajectory
     from aidnav.io.sanity import check_gnss, check_imu, check_overlap
@@ -118,8 +119,7 @@ def process(imu: ImuData, gnss: GnssData, cfg: LooseConfig | None = None, smooth
         withheld |= (gnss.time >= a) & (gnss.time < b)
     events: list[str] = []
     t0 = _time.perf_counter()
-    res = run_loose(imu, gnss, cfg, withheld=withheld, smooth=smooth, events=events, odometer=odometer,
-                    baro=baro)
+    res = run_loose(imu, gnss, cfg, withheld=withheld, smooth=smooth, events=events, aids=aids)
     t_filt = _time.perf_counter() - t0
     traj = to_trajectory(res)
     check_solution(traj, "the loosely coupled filter")
@@ -140,7 +140,7 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
                  outages: list[str] | None = None, console=None, fmt: str = "parquet",
                  height_offset_m: float | None = None, time_offset_s: float | None = None,
                  start_s: float | None = None, end_s: float | None = None, skip_checks=(),
-                 progress=None, figures: bool = True, odometer_path=None, baro_path=None,
+                 progress=None, figures: bool = True, aid_paths=(),
                  kfgins_nav: bool = False, output_rate_hz: float | None = None,
                  vehicle: str | None = None, timings: bool = True, imu_topic: str | None = None,
                  gnss_topic: str | None = None, gnss_vel_topic: str | None = None) -> dict:
@@ -155,8 +155,10 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
     forked by the caller). kfgins_nav : also write
     ``trajectory.nav`` in KF-GINS's navigation-result format. timings : the stages' wall times in the
     summary (``timing_s``); without them the outputs depend on the inputs only (``aidnav fleet``).
-    imu_topic, gnss_topic, gnss_vel_topic : the topics of ROS bags (``--imu-topic``, ``--gnss-topic``,
-    ``--gnss-vel-topic``)."""
+    aid_paths : (name, path) of each aid file (``--aid NAME=FILE``; names of
+    :data:`aidnav.filters.aids.AIDS`), read by its aid's reader with the settings of its configuration
+    section; the summary names each aid's file under the aid's name. imu_topic, gnss_topic,
+    gnss_vel_topic : the topics of ROS bags (``--imu-topic``, ``--gnss-topic``, ``--gnss-vel-topic``)."""
     from aidnav.apps.run_outputs import start_outputs, write_outputs  # lazy: the figures' fork
     from aidnav.io.interchange import write_trajectory
     from aidnav.io.sanity import validate_skip
@@ -212,18 +214,12 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
     cfg = cfg.model_copy(update={"gnss": cfg.gnss.model_copy(update={"height_offset_m": 0.0})})
     if len(gnss) < 1:
         raise DataError(gnss_path, None, "no GNSS fixes")
-    odometer = baro = None
-    if odometer_path is not None:  # aux-sensor times must be on the GNSS time scale
-        from aidnav.io.aux_sensors import read_odometer_csv
+    from aidnav.filters.aids import AIDS, read_aid  # lazy: the filters load with the job
 
-        odometer = read_odometer_csv(odometer_path)
-    if baro_path is not None:
-        from aidnav.io.aux_sensors import read_baro_csv
-
-        baro = read_baro_csv(baro_path)
+    aids = [read_aid(name, path, cfg) for name, path in aid_paths]  # times on the GNSS time scale
     from aidnav.apps.process_stream import stream_process, streamable
 
-    if not kfgins_nav and streamable(imu_path, cfg, odometer, start_s, end_s):
+    if not kfgins_nav and streamable(imu_path, cfg, aids, start_s, end_s):
         # chunk by chunk: memory independent of the log length; figures from a decimated copy
         bar.advance(1)
         t_read = _time.perf_counter()
@@ -231,8 +227,7 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
         bar.stage("filter + writing" + (" + smoother" if smooth else ""), total=n_rows, unit="IMU samples")
         run_s, fig_traj, result = stream_process(
             imu_path, gnss, cfg, traj_path, gnss.week, smooth=smooth, outages=outages, imu_name=str(imu_path),
-            gnss_name=str(gnss_path), skip_checks=skip_checks, odometer=odometer, baro=baro,
-            progress=bar.advance)
+            gnss_name=str(gnss_path), skip_checks=skip_checks, aids=aids, progress=bar.advance)
         t_filt = t_write = _time.perf_counter()
     else:
         imu = read_imu_any(imu_path, topic=imu_topic)
@@ -243,7 +238,7 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
         bar.stage("filter" + (" + smoother" if smooth else ""), total=len(imu), unit="IMU samples")
         run = process(imu, gnss, cfg, smooth=smooth, outages=outages, imu_name=str(imu_path),
                       gnss_name=str(gnss_path), skip_checks=skip_checks, start_s=start_s, end_s=end_s,
-                      odometer=odometer, baro=baro)
+                      aids=aids)
         bar.update(len(imu))
         del imu
         t_filt = _time.perf_counter()
@@ -255,8 +250,7 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
         t_write = _time.perf_counter()
         run_s, fig_traj, result, gnss = run.summary, run.trajectory, run.result, run.gnss
     summary = {"imu": str(imu_path), "gnss": str(gnss_path),
-               "odometer": str(odometer_path) if odometer_path else None,
-               "baro": str(baro_path) if baro_path else None,
+               **{name: next((a.source for a in aids if a.name == name), None) for name in AIDS},
                "config": str(config_path) if config_path else None, "output": str(traj_path),
                "gnss_height_offset_m": datum, "gnss_height_datum": height_datum,
                **run_s, "notes": notes}

@@ -45,13 +45,13 @@ from aidnav.io._std import (
     check_velocity,
 )
 from aidnav.io._table import (  # noqa: F401  (TEXT_COLUMNS, read_table: part of this module's API)
-    _META_KEY,
-    _WEEK_RE,
+    META_KEY,
     TEXT_COLUMNS,
-    _open,
-    _Table,
-    _write,
+    WEEK_RE,
+    InterchangeTable,
+    open_table,
     read_table,
+    write_table_file,
 )
 from aidnav.io.errors import DataError
 from aidnav.io.gpstime import SECONDS_PER_WEEK, week_sow_to_utc_iso
@@ -74,9 +74,9 @@ TRAJECTORY_COLUMNS = ["time", "lat_deg", "lon_deg", "height_m", "ve", "vn", "vu"
 STD_VEL_COLUMNS = GNSS_STD_VEL_COLUMNS
 STD_ATT_COLUMNS = ["std_roll_deg", "std_pitch_deg", "std_heading_deg"]
 #: names before issue 38, still read
-_TRAJ_STD_POS = ["lat_deg_std", "lon_deg_std", "height_m_std"]
-_OLD_STD_VEL = ["ve_std", "vn_std", "vu_std"]
-_OLD_STD_ATT = ["roll_deg_std", "pitch_deg_std", "heading_deg_std"]
+TRAJ_STD_POS = ["lat_deg_std", "lon_deg_std", "height_m_std"]
+OLD_STD_VEL = ["ve_std", "vn_std", "vu_std"]
+OLD_STD_ATT = ["roll_deg_std", "pitch_deg_std", "heading_deg_std"]
 
 
 def read_imu(path) -> ImuData:
@@ -88,7 +88,7 @@ def read_imu(path) -> ImuData:
     ``t0`` (start of the first interval) comes from a ``# t0_s = ...`` comment / Parquet metadata when
     present, otherwise t_0 − (t_1 − t_0). Returns :class:`aidnav.data.ImuData` (time [s]).
     """
-    t = _open(path, copy=False)  # the columns may be read-only views: copied below, once
+    t = open_table(path, copy=False)  # the columns may be read-only views: copied below, once
     t.require(["time"], "time")
     has_inc = t.has_all(IMU_INCREMENT_COLUMNS, "IMU increment")
     has_rate = t.has_all(IMU_RATE_COLUMNS, "IMU rate")
@@ -158,11 +158,11 @@ def write_imu(imu: ImuData, path, notes: list[str] | None = None) -> Path:
         comments.append(f"t0_s = {float(imu.t0)!r}")
         meta["t0_s"] = float(imu.t0)
     _provenance(comments, meta, imu.week, notes)
-    return _write(df, path, comments, meta)
+    return write_table_file(df, path, comments, meta)
 
 
 # ============================================================================================== GNSS
-def _optional_triad(t: _Table, names: list[str]) -> np.ndarray | None:
+def _optional_triad(t: InterchangeTable, names: list[str]) -> np.ndarray | None:
     """(M, 3) array of the columns ``names`` that are present (absent ones all-NaN); None if none is."""
     if not any(c in t.cols for c in names):
         return None
@@ -182,7 +182,7 @@ def read_gnss(path, min_pos_std_m: float = ZERO_POS_STD_FLOOR_M,
     warning event; a negative σ is refused (DataError with file, line and column). Heights are as in
     the file: a datum offset is applied by :func:`aidnav.io.formats.read_gnss`.
     """
-    t = _open(path)
+    t = open_table(path)
     t.require(GNSS_COLUMNS, "GNSS")
     t.finite(GNSS_COLUMNS)
     t.increasing_time()
@@ -238,7 +238,7 @@ def write_gnss(gnss: GnssData, path, notes: list[str] | None = None) -> Path:
                 "std ENU [m], [m/s]"]
     meta: dict = {}
     _provenance(comments, meta, gnss.week, notes)
-    return _write(df, path, comments, meta)
+    return write_table_file(df, path, comments, meta)
 
 
 # ======================================================================================== trajectory
@@ -258,20 +258,20 @@ def read_trajectory(path) -> Trajectory:
     (or the old ``ve_std ...``) → ``std_vel`` [m/s]; ``std_roll_deg ...`` (or ``roll_deg_std ...``) →
     ``std_att`` [rad]. Other columns → ``extra`` as read.
     """
-    return trajectory_from_table(_open(path))
+    return trajectory_from_table(open_table(path))
 
 
-def trajectory_from_table(t: _Table) -> Trajectory:
+def trajectory_from_table(t: InterchangeTable) -> Trajectory:
     """The :class:`Trajectory` of :func:`read_trajectory` from a table of interchange columns (a whole file,
     or a piece of one read in batches by :mod:`aidnav.io.stream`), with the same checks."""
     t.require(TRAJECTORY_COLUMNS, "trajectory")
-    has_sp = t.has_all(_TRAJ_STD_POS, "position std")
-    sv_cols = STD_VEL_COLUMNS if t.has_all(STD_VEL_COLUMNS, "velocity std") else _OLD_STD_VEL
-    sa_cols = STD_ATT_COLUMNS if t.has_all(STD_ATT_COLUMNS, "attitude std") else _OLD_STD_ATT
+    has_sp = t.has_all(TRAJ_STD_POS, "position std")
+    sv_cols = STD_VEL_COLUMNS if t.has_all(STD_VEL_COLUMNS, "velocity std") else OLD_STD_VEL
+    sa_cols = STD_ATT_COLUMNS if t.has_all(STD_ATT_COLUMNS, "attitude std") else OLD_STD_ATT
     has_sv = t.has_all(sv_cols, "velocity std")
     has_sa = t.has_all(sa_cols, "attitude std")
     has_sp_m = t.has_all(GNSS_STD_POS_COLUMNS, "position std")
-    std_cols = (_TRAJ_STD_POS if has_sp else []) + (GNSS_STD_POS_COLUMNS if has_sp_m else []) \
+    std_cols = (TRAJ_STD_POS if has_sp else []) + (GNSS_STD_POS_COLUMNS if has_sp_m else []) \
         + (sv_cols if has_sv else []) + (sa_cols if has_sa else [])
     t.finite(TRAJECTORY_COLUMNS + std_cols)
     t.increasing_time()
@@ -353,4 +353,4 @@ def write_trajectory(traj: Trajectory, path, week: int | None = None) -> Path:
     comments = ["aidnav trajectory; time [s], lat/lon [deg], height [m] ellipsoidal, velocity ENU [m/s], "
                 "roll/pitch/heading [deg] (heading clockwise from North); std_e_m/std_n_m/std_u_m [m]"
                 + ("" if week is None else f"; time = GPS seconds of week {int(week)}, utc = UTC (ISO 8601)")]
-    return _write(df, path, comments, {} if week is None else {"gps_week": int(week)})
+    return write_table_file(df, path, comments, {} if week is None else {"gps_week": int(week)})

@@ -167,7 +167,7 @@ def track_pieces(traj: Trajectory, color_by: str = "auto", max_points: int = 200
     return out, mode, n_dropped
 
 
-def _fix_groups(gnss: GnssData, rejected_times, outages) -> tuple[np.ndarray, np.ndarray]:
+def fix_groups(gnss: GnssData, rejected_times, outages) -> tuple[np.ndarray, np.ndarray]:
     """Masks (rejected, withheld) over the fixes."""
     t = np.asarray(gnss.time, float)
     rej = np.zeros(len(t), bool)
@@ -317,7 +317,7 @@ def write_kml(path, traj: Trajectory, gnss: GnssData | None = None, outages=None
                      f"<styleUrl>#{style('line', _NO_SIGMA)}</styleUrl><gx:Track><altitudeMode>absolute"
                      f"</altitudeMode>{whens}{gxc}</gx:Track></Placemark></Folder>"]
     if gnss is not None and len(gnss):
-        rej, wh = _fix_groups(gnss, rejected_times, outages)
+        rej, wh = fix_groups(gnss, rejected_times, outages)
         cls, gmode = _classes(gnss, color_by if color_by != "quality" or gnss.quality is not None else "auto")
         sel = np.flatnonzero(np.isfinite(gnss.lat) & np.isfinite(gnss.lon))
         if len(sel) > max_fixes:
@@ -380,7 +380,7 @@ def geojson_dict(traj: Trajectory, gnss: GnssData | None = None, outages=None, r
                  "stroke-width": 3, **times(p["t0"], p["t1"]), "time_start_s": p["t0"], "time_end_s": p["t1"]}
         feats.append(_feature("LineString", [list(c) for c in _coords(traj, p["idx"])], props))
     if gnss is not None and len(gnss):
-        rej, wh = _fix_groups(gnss, rejected_times, outages)
+        rej, wh = fix_groups(gnss, rejected_times, outages)
         cls, gmode = _classes(gnss, color_by if color_by != "quality" or gnss.quality is not None else "auto")
         sel = np.flatnonzero(np.isfinite(gnss.lat) & np.isfinite(gnss.lon))
         if len(sel) > max_fixes:

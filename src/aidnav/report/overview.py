@@ -31,7 +31,7 @@ from aidnav.data import GnssData, Trajectory
 from aidnav.nav.earth import lla_to_enu
 from aidnav.nav.rotations import wrap_360
 
-from .maps import _fix_groups
+from .maps import fix_groups
 
 __all__ = ["write_overview", "overview_figure", "nis_series", "tight_records", "NIS_NAMES"]
 
@@ -103,7 +103,7 @@ def _rejected_mask(gnss: GnssData, summary: dict, records: dict | None) -> np.nd
     if st is not None and len(st) == len(gnss):
         return np.asarray(st) == 0
 
-    return _fix_groups(gnss, summary.get("rejected_fix_times"), None)[0]
+    return fix_groups(gnss, summary.get("rejected_fix_times"), None)[0]
 
 
 def _shade(ax, wins, t0):

@@ -38,11 +38,11 @@ import numpy as np
 
 from aidnav.experiments.reproduce._study import Study, main, mean_se, ratio_se, rms_ratio_se
 from aidnav.experiments.reproduce.seed_000_figures import (
-    _plot_fit,
-    _plot_loss,
-    _plot_pitch_rms,
-    _plot_seed_figs,
-    _plot_variants,
+    plot_fit,
+    plot_loss,
+    plot_pitch_rms,
+    plot_seed_figs,
+    plot_variants,
 )
 from aidnav.experiments.reproduce.seed_000_pitch import pitch_rows, pitch_sigma
 from aidnav.experiments.reproduce.seed_000_setup import (
@@ -77,13 +77,13 @@ from aidnav.experiments.reproduce.seed_000_setup import (
     UNITS,
     VARIANTS,
     VEL0_SIGMA_M_S,
-    _series,
     error_state,
     euler_errors,
     filter_config,
     geometry_check,
     sapv_spec,
     seed_scenario,
+    seed_series,
     simulate_case,
     truth_index,
     velocity_errors,
@@ -96,7 +96,7 @@ __all__ = [
     "ARCMIN", "CENTRAL", "DEFAULT_RUNS", "DURATION_S", "FED", "GPS_ONLY", "GPS_OUTAGE", "GPS_RATE_HZ",
     "GPS_SIGMA_POS_M", "GPS_SIGMA_VEL_M_S", "HEADING0_SWEEP_DEG", "HEADING_DEG", "LAST_S", "PAPER_EQ24",
     "PAPER_T2", "PHI0_DEG", "POS0_SIGMA_M", "QUANTS", "SAPV_LOSS", "SAPV_SIGMA_DEG", "SEED", "SETTLE_S",
-    "SITE", "SWEEP_RUNS", "TITLE", "UNITS", "VARIANTS", "VEL0_SIGMA_M_S", "_series", "error_state",
+    "SITE", "SWEEP_RUNS", "TITLE", "UNITS", "VARIANTS", "VEL0_SIGMA_M_S", "seed_series", "error_state",
     "euler_errors", "filter_config", "geometry_check", "sapv_spec", "seed_scenario", "simulate_case",
     "truth_index", "velocity_errors", "run", "monte_carlo", "heading0_sweep", "federated_sapv_nis",
     "run_case", "phi_u0_fit", "PAPER_STATE1_HEADING", "PHI_U0_GRID_DEG"
@@ -135,7 +135,7 @@ def monte_carlo(runs: int, base_seed: int, duration_s: float = DURATION_S, say=p
         sim, sv, cfg = simulate_case(ss, duration_s, phi0_deg=phi0)
         res = run_case(sim, sv, cfg, keep_cov_for=(CENTRAL,))
         for k, rr in res.items():
-            s = _series(rr, sim.truth)
+            s = seed_series(rr, sim.truth)
             series[k].append(s)
             for q in QUANTS:
                 m, sd = _stats(s[q])
@@ -162,14 +162,14 @@ def monte_carlo(runs: int, base_seed: int, duration_s: float = DURATION_S, say=p
         sv_l = sv.with_loss(*SAPV_LOSS)
         for key, fed in (("reset", VARIANTS[FED]), ("no_reset", VARIANTS["federated no-reset b=1/2,1/2"])):
             rl = run_federated(sim.imu, sim.gnss, sv_l, cfg, fed)
-            loss[key].append(_series(rl, sim.truth))
+            loss[key].append(seed_series(rl, sim.truth))
         loss["none"].append(series[FED][-1])
         # GPS outage, same streams (the outage removes fixes; the noise of the others is unchanged)
         if r < max(1, runs // 2):
             sim_o, sv_o, cfg_o = simulate_case(ss, duration_s, gps_outages=(GPS_OUTAGE,), phi0_deg=phi0)
-            outage["reset"].append(_series(run_federated(sim_o.imu, sim_o.gnss, sv_o, cfg_o, VARIANTS[FED]),
-                                           sim_o.truth))
-            outage["gps_only"].append(_series(run_federated(sim_o.imu, sim_o.gnss, sv_o, cfg_o,
+            outage["reset"].append(seed_series(run_federated(sim_o.imu, sim_o.gnss, sv_o, cfg_o,
+                                                             VARIANTS[FED]), sim_o.truth))
+            outage["gps_only"].append(seed_series(run_federated(sim_o.imu, sim_o.gnss, sv_o, cfg_o,
                                                             VARIANTS[GPS_ONLY]), sim_o.truth))
         if r == 0:  # the filter's own pitch σ while it converges (fusion-reset = centralized)
             pitch_sig = {t: pitch_sigma(c, t) for t in (SETTLE_S, 60.0)}
@@ -181,7 +181,7 @@ def monte_carlo(runs: int, base_seed: int, duration_s: float = DURATION_S, say=p
     for ss in np.random.SeedSequence(base_seed).spawn(RATIO_RUNS_FACTOR * runs)[runs:]:
         sim, sv, cfg = simulate_case(ss, duration_s, phi0_deg=phi0)
         for k, rr in run_case(sim, sv, cfg, variants=pair).items():
-            s = _series(rr, sim.truth)
+            s = seed_series(rr, sim.truth)
             for q in ("vN", "vE", "vU"):
                 vel_std[k][q].append(float(np.std(s[q])))
             if k == FED:
@@ -233,7 +233,7 @@ def heading0_sweep(runs: int, base_seed: int, duration_s: float = DURATION_S,
             cfg = filter_config(sim.truth, np.random.default_rng(s_init), phi0_deg=(*PHI0_DEG[:2], p))
             res = run_case(sim, sv, cfg, variants={k: VARIANTS[k] for k in (GPS_ONLY, FED)})
             for k, rr in res.items():
-                s = _series(rr, sim.truth)
+                s = seed_series(rr, sim.truth)
                 for q in ("vN", "vE", "vU"):
                     acc[p][k][q].append(float(np.std(s[q])))
                 acc[p][k]["hlast"].append(float(np.mean(s["heading"][s["t"] > s["t"][-1] - LAST_S] ** 2)))
@@ -292,7 +292,7 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
     say(f"seed 000: fitted φ_U0 = {phi_u:g}°; {runs} Monte Carlo runs × {len(VARIANTS)} filters "
         f"({duration_s:g} s, 100 Hz IMU)")
     mc = monte_carlo(runs, base_seed, duration_s, say, phi0=phi0)
-    for f in _plot_seed_figs(mc, out) + [_plot_variants(mc, out)] + _plot_loss(mc, out):
+    for f in plot_seed_figs(mc, out) + [plot_variants(mc, out)] + plot_loss(mc, out):
         study.add_figure(f)
 
     # ---------------------------------------------------------------- Table 1 (configuration echo)
@@ -389,8 +389,8 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
     pitch_spec, pitch_other, pitch_sens, pitch_fig = pitch_rows(
         np.array([s["pitch"] for s in mc["series"][FED]]), t_ep, runs, base_seed, duration_s, mc["pitch_sig"],
         phi0)
-    study.add_figure(_plot_pitch_rms(pitch_fig, out))
-    study.add_figure(_plot_fit(sweep, phi_u, PAPER_STATE1_HEADING, out))
+    study.add_figure(plot_pitch_rms(pitch_fig, out))
+    study.add_figure(plot_fit(sweep, phi_u, PAPER_STATE1_HEADING, out))
     nis = mc["fed_nis"]
     nis_m, nis_se = mean_se(nis)
     lo, hi = 2.0 - 1.96 * nis_se, 2.0 + 1.96 * nis_se

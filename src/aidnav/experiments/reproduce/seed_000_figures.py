@@ -14,7 +14,7 @@ from .seed_000_setup import FED, GPS_ONLY, GPS_OUTAGE, PAPER_T2, SAPV_LOSS, SETT
 _fig = figure
 
 
-def _plot_seed_figs(mc, out: Path) -> list[str]:
+def plot_seed_figs(mc, out: Path) -> list[str]:
     """Figs. 1-6 of the seed: run 0, SINS/GPS vs SINS/GPS/SAPV (federated, fusion-reset, β = 1/2)."""
     names = [("heading", "Fig. 1 azimuth (heading) error", "arcmin", "fig1_heading_error.png"),
              ("roll", "Fig. 2 roll error", "arcmin", "fig2_roll_error.png"),
@@ -57,7 +57,7 @@ def _plot_seed_figs(mc, out: Path) -> list[str]:
     return files
 
 
-def _plot_variants(mc, out: Path) -> str:
+def plot_variants(mc, out: Path) -> str:
     fig, axs = _fig(1, 1, h=4.5)
     ax = axs[0, 0]
     for i, k in enumerate(VARIANTS):
@@ -74,7 +74,7 @@ def _plot_variants(mc, out: Path) -> str:
     return "fig7_heading_rms_variants.png"
 
 
-def _plot_loss(mc, out: Path) -> list[str]:
+def plot_loss(mc, out: Path) -> list[str]:
     fig, axs = _fig(1, 1, h=4.5)
     ax = axs[0, 0]
     for key, lab in (("none", "no loss"), ("reset", "SAPV lost, fusion-reset"),
@@ -111,7 +111,7 @@ def _plot_loss(mc, out: Path) -> list[str]:
     return ["fig8_sapv_loss.png", "fig9_gps_outage.png"]
 
 
-def _plot_pitch_rms(d, out: Path) -> str:
+def plot_pitch_rms(d, out: Path) -> str:
     """Per-epoch RMS of the pitch error over runs (biases drawn per run) with the seed's 精度 < 2′ and 30 s
     marked, the fixed-bias reading and the largest |pitch| of any run."""
     fig, axs = _fig(1, 1, h=4.5)
@@ -137,7 +137,7 @@ def _plot_pitch_rms(d, out: Path) -> str:
     return "fig10_pitch_rms.png"
 
 
-def _plot_fit(sweep: dict, phi_u: float, paper, out: Path) -> str:
+def plot_fit(sweep: dict, phi_u: float, paper, out: Path) -> str:
     """SINS/GPS heading mean and std against φ_U0 with the seed's Table 2 state 1 marked (the fit)."""
     fig, axs = _fig(1, 1, h=4.0)
     ax = axs[0, 0]

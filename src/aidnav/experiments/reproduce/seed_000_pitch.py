@@ -39,8 +39,8 @@ from .seed_000_setup import (
     SETTLE_S,
     SWEEP_RUNS,
     VARIANTS,
-    _series,
     geometry_check,
+    seed_series,
     simulate_case,
 )
 from .summary import resolved_row, summary_row
@@ -87,7 +87,7 @@ def fixed_bias_pitch(n: int, base_seed: int, duration_s: float, imu=SEED_RUN_IMU
     mx, ms, ser, t = [], [], [], None
     for ss in np.random.SeedSequence(base_seed).spawn(n)[skip:]:
         sim, sv, cfg = simulate_case(ss, duration_s, imu=imu, phi0_deg=phi0)
-        s = _series(run_federated(sim.imu, sim.gnss, sv, cfg, VARIANTS[FED]), sim.truth)
+        s = seed_series(run_federated(sim.imu, sim.gnss, sv, cfg, VARIANTS[FED]), sim.truth)
         p = s["pitch"][s["t"] > SETTLE_S]
         mx.append(float(np.max(np.abs(p))))
         ms.append(float(np.mean(p**2)))

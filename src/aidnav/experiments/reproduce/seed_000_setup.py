@@ -194,7 +194,7 @@ def error_state(res, truth, realised):
     return errors.ins_error_state(res, truth, realised)
 
 
-def _series(res, truth) -> dict:
+def seed_series(res, truth) -> dict:
     """Error time series in the seed's units: attitude [arcmin], velocity [m/s]."""
     e = euler_errors(res, truth) / ARCMIN
     v = velocity_errors(res, truth)

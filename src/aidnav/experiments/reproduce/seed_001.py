@@ -49,7 +49,7 @@ from aidnav.estimators.dgps import (
     spp,
 )
 from aidnav.experiments.reproduce._study import Study, main, mean_se, paired, sign_test
-from aidnav.experiments.reproduce.seed_001_figures import _figures
+from aidnav.experiments.reproduce.seed_001_figures import seed_figures
 from aidnav.experiments.reproduce.seed_001_setup import (
     APP_S,
     BASE_H,
@@ -73,10 +73,10 @@ from aidnav.experiments.reproduce.seed_001_setup import (
     SOW0,
     TITLE,
     WEEK,
-    _imu_spec,
-    _tight_cfg,
     approach_scenario,
+    imu_spec,
     relative_ls_study,
+    tight_cfg,
 )
 from aidnav.experiments.reproduce.summary import summary_row, summary_table
 from aidnav.filters.tight import run_tight
@@ -105,12 +105,12 @@ def approach_run(run_seed: int, truth, imu_true, with_figures_data: bool = False
     r_imu, r_gnss, r_init = (np.random.default_rng(s) for s in ss.spawn(3))
     eph = nominal_constellation(WEEK, SOW0, 24)
     eph.iono_alpha, eph.iono_beta = DEFAULT_ALPHA.copy(), DEFAULT_BETA.copy()
-    spec = _imu_spec(grade)
+    spec = imu_spec(grade)
     imu, _ = corrupt_imu(imu_true, spec, r_imu)
     imu = ImuData(imu.time + SOW0, imu.dtheta, imu.dv, t0=imu.t0 + SOW0)
     gspec = RawGnssSpec(rate_hz=GNSS_HZ, **clock)
     sim = simulate_raw_gnss(truth, eph, gspec, r_gnss, SOW0, base_lla=(BASE_LAT, BASE_LON, BASE_H))
-    cfg = _tight_cfg(spec, clock)
+    cfg = tight_cfg(spec, clock)
     dpos = r_init.normal(0, 3.0, 3)
     rm, rn = radii(truth.lat[0])
     init = (
@@ -445,7 +445,7 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
     series = per[0]["series"]
     curves = np.array([p["dr_err_curve"] for p in per_dr])
     curves_c = np.array([p["dr_err_curve_c"] for p in per_dr])
-    for f in _figures(out, series, curves, rel, curves_c):
+    for f in seed_figures(out, series, curves, rel, curves_c):
         study.add_figure(f)
     sens = {}
     for label, kw in (("ideal clock (h0, h−2 ≈ 0)", {"clock": IDEAL_CLOCK}),

@@ -11,7 +11,7 @@ from .seed_001_setup import APP_S, OUT_S, PRE_S
 
 
 # ----------------------------------------------------------------------------------------- figures
-def _figures(out: Path, s, curves, rel, curves_c=None) -> list[str]:
+def seed_figures(out: Path, s, curves, rel, curves_c=None) -> list[str]:
     from matplotlib.backends.backend_agg import FigureCanvasAgg  # lazy: matplotlib is heavy to import
     from matplotlib.figure import Figure  # lazy: matplotlib is heavy to import
 

@@ -146,11 +146,11 @@ def approach_scenario():
     )
 
 
-def _imu_spec(grade: str = IMU_GRADE):
+def imu_spec(grade: str = IMU_GRADE):
     return ImuSpec.grade(grade)
 
 
-def _tight_cfg(spec, clock=None):
+def tight_cfg(spec, clock=None):
     # the SPEC §2.1 model (17 states: 15 + clock): one Gauss-Markov bias per axis, no scale-factor or
     # misalignment states (issue 35's sensor model is the tuning default for the loose filter, not this one)
     lc = loose_config_from_specs(spec, sensor_model=False)

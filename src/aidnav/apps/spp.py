@@ -43,11 +43,14 @@ def spp_files(obs_path, nav_path, out_dir="spp", fmt: str = "parquet", iono: str
     obs = read_rinex_obs(obs_path)
     eph = read_rinex_nav(nav_path, ref_week=getattr(obs, "ref_week", None))
     notes: list[str] = []
-    if iono == "klobuchar" and getattr(eph, "iono_alpha", None) is None:
-        notes.append(f"warning: {Path(nav_path).name} has no Klobuchar coefficients (ION ALPHA/BETA): the "
-                     "ionospheric delay (several metres vertically) is not corrected by the broadcast "
-                     "model; use --iono dual with an L2 code, or a navigation file with the coefficients")
     sp = spp_series(obs, eph, sigma0=code_sigma_m, iono=iono, mask_deg=mask_deg)
+    no_coef = iono == "klobuchar" and getattr(eph, "iono_alpha", None) is None
+    default = no_coef and any("default coefficients" in e for e in sp["events"])
+    if no_coef:
+        notes.append(f"warning: {Path(nav_path).name} has no Klobuchar coefficients (ION ALPHA/BETA): "
+                     + ("RTKLIB's default coefficients are used instead (a rough model, σ 50 % of the delay)"
+                        if default else "the ionospheric delay (several metres vertically) is not corrected")
+                     + "; --iono dual with an L2 code, or a navigation file with the coefficients, is better")
     ok = np.isfinite(sp["lat"])
     if not ok.any():
         raise InputError(f"{obs_path}: no epoch has a position (too few satellites with ephemerides)")
@@ -63,8 +66,9 @@ def spp_files(obs_path, nav_path, out_dir="spp", fmt: str = "parquet", iono: str
     summary = {"obs": str(obs_path), "nav": str(nav_path), "output": str(sol),
                "time_scale": "GPS seconds of week" + (f" (week {g.week})" if g.week is not None else ""),
                "epochs": int(len(sp["time"])), "fixes": int(ok.sum()),
-               "ionosphere": {"klobuchar": "broadcast Klobuchar model" if getattr(eph, "iono_alpha", None)
-                              is not None else "none (no coefficients in the navigation file)",
+               "ionosphere": {"klobuchar": ("RTKLIB's default Klobuchar coefficients (none in the navigation "
+                                            "file)" if default else "none (no coefficients in the navigation "
+                                            "file)" if no_coef else "broadcast Klobuchar model"),
                               "none": "not corrected (--iono none)",
                               "dual": "dual-frequency code combination"}[iono],
                "mask_deg": mask_deg, "code_sigma_m": code_sigma_m,

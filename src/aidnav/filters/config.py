@@ -167,6 +167,20 @@ class BaroAiding(_Strict):
     bias_rw_m_sqrt_s: float = Field(0.001, ge=0, description="random walk [m/sqrt(s)] (tau <= 0)")
 
 
+class MotionBounds(_Strict):
+    """What the vehicle can do (§ IMU gaps): the bounds that size the covariance an IMU gap adds, since
+    the motion inside it is not measured. Defaults: an unknown vehicle (a drone, a car or a person may
+    carry the IMU), so generous; the vehicle presets state their own."""
+
+    max_speed_m_s: float = Field(100.0, gt=0, description="largest speed [m/s]")
+    max_accel_m_s2: float = Field(20.0, gt=0, description="largest horizontal/vertical acceleration [m/s^2]")
+    max_turn_rate_deg_s: float = Field(180.0, gt=0, description="largest turn rate [deg/s]")
+    max_tilt_deg: float = Field(45.0, gt=0, description="largest change of roll/pitch within a gap [deg]")
+    heading_hold_deg: float = Field(
+        30.0, gt=0, description="after an IMU gap that leaves the heading σ above this, the heading is held "
+        "unknown (no correlation, nothing learnt from it) until a GNSS course re-aligns it")
+
+
 class FilterSettings(_Strict):
     states: Literal[15, 21] | None = None  # derived from imu.scale_factors when None
     prop_dt_s: float = Field(1.0, gt=0, description="max covariance propagation interval [s]")
@@ -184,6 +198,7 @@ class LooseConfig(_Strict):
     odometer: OdometerAiding = OdometerAiding()
     baro: BaroAiding = BaroAiding()
     calibration: Calibration = Calibration()
+    motion: MotionBounds = MotionBounds()
 
     @property
     def nstate(self) -> int:

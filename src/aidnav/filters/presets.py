@@ -38,23 +38,35 @@ PRESETS: dict[str, dict] = {
         "init": {"course_min_speed_m_s": 2.0, "course_heading_sigma_deg": 5.0},
         "imu": {"noise_from_static": True},
         "gnss": {"nis_window": 10},
+        # a road car: 250 km/h, 1 g braking or cornering, 60 deg/s yaw (parking), body roll/pitch 10 deg
+        "motion": {"max_speed_m_s": 70.0, "max_accel_m_s2": 10.0, "max_turn_rate_deg_s": 60.0,
+                   "max_tilt_deg": 10.0},
     },
     "aircraft": {
         "constraints": {"nhc": False, "zupt": True},
         "init": {"course_min_speed_m_s": 15.0, "course_heading_sigma_deg": 10.0},
         "imu": {"noise_from_static": True},
         "gnss": {"nis_window": 10},
+        # 300 m/s, 3 g, 45 deg/s roll or turn, any attitude
+        "motion": {"max_speed_m_s": 300.0, "max_accel_m_s2": 30.0, "max_turn_rate_deg_s": 45.0,
+                   "max_tilt_deg": 90.0},
     },
     "pedestrian": {
         "constraints": {"nhc": False, "zupt": True},
         "init": {"course_min_speed_m_s": 1.0, "course_heading_sigma_deg": 30.0},
         "gnss": {"nis_window": 10},
+        # a runner at 10 m/s, 1 g, a body (or a phone) turned by 360 deg/s, held at any angle
+        "motion": {"max_speed_m_s": 10.0, "max_accel_m_s2": 10.0, "max_turn_rate_deg_s": 360.0,
+                   "max_tilt_deg": 90.0},
     },
     "ship": {
         "constraints": {"nhc": False, "zupt": False},
         "init": {"course_min_speed_m_s": 2.0, "course_heading_sigma_deg": 15.0},
         "imu": {"noise_from_static": True},
         "gnss": {"nis_window": 10},
+        # 25 m/s, 0.2 g, 10 deg/s rate of turn, rolling by 30 deg
+        "motion": {"max_speed_m_s": 25.0, "max_accel_m_s2": 2.0, "max_turn_rate_deg_s": 10.0,
+                   "max_tilt_deg": 30.0},
     },
 }
 

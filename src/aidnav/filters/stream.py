@@ -127,11 +127,11 @@ def stream_loose(chunks, gnss, cfg, emit, withheld=None, smooth: bool = False, e
             m = len(ch)
             # gap bridge with the window before the chunk; static flags with the carried sums
             if tail is None:
-                dth, dv, gap_var = bridge_gaps(ch, events, med=med)
+                dth, dv, gap_var = bridge_gaps(ch, events, med=med, bounds=cfg.motion)
             else:
                 j = ImuData(np.concatenate([tail.time, ch.time]), np.concatenate([tail.dtheta, ch.dtheta]),
                             np.concatenate([tail.dv, ch.dv]), t0=tail.t0)
-                dth, dv, gap_var = bridge_gaps(j, events, med=med, start=len(tail))
+                dth, dv, gap_var = bridge_gaps(j, events, med=med, start=len(tail), bounds=cfg.motion)
             st_fl = static(ch.time, ch.dtheta, ch.dv, t_prev) if static is not None else np.zeros(m, np.bool_)
             keep = max(0, min(nwin, m))
             tail = ImuData(ch.time[m - keep:], ch.dtheta[m - keep:], ch.dv[m - keep:],

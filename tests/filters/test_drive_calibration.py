@@ -4,9 +4,9 @@ The example configuration holds only the data README's facts (author's mounting,
 noise from the README / the static start, height datum): no time offset, no fitted mounting
 correction, no NHC lever arm. Targets (issue 26): forward end-of-outage median <= 2.0 m and RMS over
 the withheld epochs <= 1.5 m with the README's benchmark outages (40:15:45); aided-epoch horizontal
-RMS <= 0.15 m; time offset within -0.27 ... -0.23 s (issue 35: referenced to the GNSS positions). Shifting every GNSS stamp by a
-known amount, or mis-stating the mounting heading by a few degrees, must change the estimate by that
-amount and the accuracy by almost nothing.
+RMS <= 0.15 m; time offset within -0.27 ... -0.23 s (issue 35: referenced to the GNSS positions).
+Shifting every GNSS stamp by a known amount, or mis-stating the mounting heading by a few degrees,
+must change the estimate by that amount and the accuracy by almost nothing.
 """
 
 from pathlib import Path

@@ -42,9 +42,10 @@ class ImuNoise(_Strict):
     accel_sf_sigma_ppm: float = Field(1000.0, ge=0)
     sf_tau_s: float = Field(0.0, description="scale-factor correlation time [s]; <=0: random constant")
     noise_from_static: bool = Field(
-        False, description="raise the ARW / VRW not stated here to the white-noise equivalent of the rates' "
-        "spread at the log's static samples (engine vibration; filters.preprocess.noise_from_static); on in "
-        "the engine-driven vehicle presets")
+        True, description="raise the ARW / VRW not stated here to the white-noise equivalent of the rates' "
+        "spread at the log's static samples (engine vibration; filters.preprocess.noise_from_static); on by "
+        "default (issue 35: a vibrating IMU's noise is unknown until the log shows it), off in the pedestrian "
+        "preset")
     time_offset_s: float = Field(0.0, description="added to IMU time stamps (IMU clock → GNSS time)")
     mounting_rph_deg: tuple[float, float, float] = Field(
         (0.0, 0.0, 0.0), description="IMU body → vehicle frame rotation as roll, pitch, heading [deg] "

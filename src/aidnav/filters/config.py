@@ -44,8 +44,8 @@ class ImuNoise(_Strict):
     noise_from_static: bool = Field(
         True, description="raise the ARW / VRW not stated here to the white-noise equivalent of the rates' "
         "spread at the log's static samples (engine vibration; filters.preprocess.noise_from_static); on by "
-        "default (issue 35: a vibrating IMU's noise is unknown until the log shows it), off in the pedestrian "
-        "preset")
+        "default (issue 35: a vibrating IMU's noise is unknown until the log shows it), off in the "
+        "pedestrian preset")
     time_offset_s: float = Field(0.0, description="added to IMU time stamps (IMU clock → GNSS time)")
     mounting_rph_deg: tuple[float, float, float] = Field(
         (0.0, 0.0, 0.0), description="IMU body → vehicle frame rotation as roll, pitch, heading [deg] "

@@ -69,7 +69,8 @@ def test_gnss_at_0_2_hz():
 
 @pytest.mark.xfail(strict=True, reason="issue 35, not done: 1.27 m (older code 1.05 m). Fixes that claim "
                    "5 cm against 0.5 m of noise are rejected in runs of 10 and re-initialise the filter; the "
-                   "repair needs the innovations to scale the fixes' sigma (adaptive R), not the navigation's")
+                   "repair needs the innovations to scale the fixes' sigma (adaptive R), not the "
+                   "navigation's")
 def test_zero_sigma_in_the_file(sim1):
     g = sim1.gnss.subset(np.ones(len(sim1.gnss), bool))
     g.std_pos = np.full((len(g), 3), ZERO_POS_STD_FLOOR_M)  # what the readers make of σ = 0

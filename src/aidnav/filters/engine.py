@@ -194,15 +194,15 @@ def _var(P, ix, i):
 @njit(cache=True)
 def _reinit(st, P, ini, ix, held):
     """Re-initialisation event: heading, then velocity and position from ``reset_nav`` =
-    [v (3), lat, lon, h, σ_v (3), σ_pos E, N, U, lever (3)] of the fix that gave the course: always when
-    the heading was ``held`` unknown until now (the velocity integrated with it and its covariance are
-    meaningless), else when the velocity is 3σ off. ``ix`` (≥ 15,): index in P of each state of the full
-    INS layout (−1: not in the filter, a state subset)."""
+    [v (3), lat, lon, h, σ_v (3), σ_pos E, N, U, lever (3)] of the fix that gave the course when the
+    velocity is 3σ off: σ of the filter and the fix, or, when the heading was ``held`` unknown until now
+    (the filter's velocity covariance, propagated with that heading, is meaningless), of the fix alone.
+    ``ix`` (≥ 15,): index in P of each state of the full INS layout (−1: not in the filter, a subset)."""
     rn_ = ini.reset_nav
     set_heading(st, P, ini.reset_heading, ini.reset_sigma, ix[PHI + 2])
     dvr = np.sqrt((st[ST_VEL] - rn_[0]) ** 2 + (st[ST_VEL + 1] - rn_[1]) ** 2)
-    if np.isnan(rn_[0]) or (not held and
-                            dvr <= 3.0 * np.sqrt(_var(P, ix, DV) + _var(P, ix, DV + 1) + rn_[6] ** 2)):
+    var = rn_[6] ** 2 + rn_[7] ** 2 if held else _var(P, ix, DV) + _var(P, ix, DV + 1) + rn_[6] ** 2
+    if np.isnan(rn_[0]) or dvr <= 3.0 * np.sqrt(var):
         return
     # velocity and position integrated with the unknown heading: from the fix (antenna → IMU)
     l_n = dcm_from_quat(st[ST_Q:ST_Q + 4]) @ rn_[12:15]

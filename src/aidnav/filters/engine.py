@@ -201,8 +201,8 @@ def _reinit(st, P, ini, ix, held):
     rn_ = ini.reset_nav
     set_heading(st, P, ini.reset_heading, ini.reset_sigma, ix[PHI + 2])
     dvr = np.sqrt((st[ST_VEL] - rn_[0]) ** 2 + (st[ST_VEL + 1] - rn_[1]) ** 2)
-    var = rn_[6] ** 2 + rn_[7] ** 2 if held else _var(P, ix, DV) + _var(P, ix, DV + 1) + rn_[6] ** 2
-    if np.isnan(rn_[0]) or dvr <= 3.0 * np.sqrt(var):
+    v2 = rn_[6] ** 2 + rn_[7] ** 2 if held else _var(P, ix, DV) + _var(P, ix, DV + 1) + rn_[6] ** 2
+    if np.isnan(rn_[0]) or dvr <= 3.0 * np.sqrt(v2):
         return
     # velocity and position integrated with the unknown heading: from the fix (antenna → IMU)
     l_n = dcm_from_quat(st[ST_Q:ST_Q + 4]) @ rn_[12:15]

@@ -187,6 +187,14 @@ class MotionBounds(_Strict):
         "unknown (no correlation, nothing learnt from it) until a GNSS course re-aligns it")
 
 
+class MagAiding(_Strict):
+    """Magnetometer heading updates, used when heading data are given to the filter (``--aid mag=FILE``)."""
+
+    sigma_deg: float = Field(3.0, gt=0, description="heading σ when the data carry none [deg]")
+    declination_deg: float = Field(0.0, description="magnetic declination, east positive [deg]: the reader "
+                                   "adds it to the magnetic headings (true = magnetic + declination)")
+
+
 class FilterSettings(_Strict):
     states: Literal[15, 21, 27] | None = None  # derived from imu.scale_factors, gyro_misalignment when None
     prop_dt_s: float = Field(1.0, gt=0, description="max covariance propagation interval [s]")
@@ -203,6 +211,7 @@ class LooseConfig(_Strict):
     filter: FilterSettings = FilterSettings()
     odometer: OdometerAiding = OdometerAiding()
     baro: BaroAiding = BaroAiding()
+    mag: MagAiding = MagAiding()
     calibration: Calibration = Calibration()
     motion: MotionBounds = MotionBounds()
 

@@ -47,10 +47,10 @@ class ImuNoise(_Strict):
         "tilt the solution in every turn")
     gyro_misalignment_sigma_deg: float = Field(0.5, ge=0, description="1σ of each misalignment entry [deg]")
     noise_from_static: bool = Field(
-        True, description="raise the ARW / VRW not stated here to the white-noise equivalent of the rates' "
-        "spread at the log's static samples (engine vibration; filters.preprocess.noise_from_static); on by "
-        "default (issue 35: a vibrating IMU's noise is unknown until the log shows it), off in the "
-        "pedestrian preset")
+        False, description="raise the ARW / VRW not stated here to the white-noise equivalent of the rates' "
+        "spread at the log's static samples (engine vibration; filters.preprocess.noise_from_static); on "
+        "in the loose filter without an imu section in the configuration (issue 35: a vibrating IMU's noise "
+        "is unknown until the log shows it) and in the engine-driven vehicle presets")
     time_offset_s: float = Field(0.0, description="added to IMU time stamps (IMU clock → GNSS time)")
     mounting_rph_deg: tuple[float, float, float] = Field(
         (0.0, 0.0, 0.0), description="IMU body → vehicle frame rotation as roll, pitch, heading [deg] "
@@ -204,7 +204,8 @@ class FilterSettings(_Strict):
 class LooseConfig(_Strict):
     """Full configuration of ``aidnav process``."""
 
-    imu: ImuNoise = ImuNoise()
+    # no imu section: the noise is also raised to what the log's static samples show (issue 35)
+    imu: ImuNoise = ImuNoise(noise_from_static=True)
     gnss: GnssAiding = GnssAiding()
     init: Initialisation = Initialisation()
     constraints: Constraints = Constraints()

@@ -20,8 +20,8 @@ constraint, consumer-MEMS noise). Every number below is physics of the vehicle k
 * ``ship``: no NHC (leeway and currents), no ZUPT (a ship at anchor still heaves), heading from the
   course above 2 m/s with σ 15° (drift angle).
 
-The IMU noise is estimated from the log's static samples (engine vibration; the default without a preset
-too, issue 35); the pedestrian preset keeps the configured noise (nothing vibrates a phone at rest). Every
+The IMU noise is estimated from the log's static samples (engine vibration; also the loose filter's default
+without a preset when the configuration has no imu section, issue 35); the pedestrian preset keeps the configured noise (nothing vibrates a phone at rest). Every
 preset re-initialises when the NIS of the last 10 accepted fixes of a type is far out of its χ² band
 (``gnss.nis_window``; off without a preset, where the filter keeps the configured model); a
 re-initialisation grows the calibration states with the navigation block. Each preset states what the

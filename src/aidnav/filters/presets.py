@@ -22,12 +22,12 @@ constraint, consumer-MEMS noise). Every number below is physics of the vehicle k
 
 The IMU noise is estimated from the log's static samples (engine vibration; also the loose filter's default
 without a preset when the configuration has no imu section, issue 35); the pedestrian preset keeps the
-configured noise (nothing vibrates a phone at rest). Every preset re-initialises when the NIS of the last 10 accepted fixes of a type is far out of its χ² band
-(``gnss.nis_window``; off without a preset, where the filter keeps the configured model); a
-re-initialisation grows the calibration states with the navigation block. Each preset states what the
-vehicle can do (``motion``: speed, acceleration, turn-rate and tilt bounds), which sizes the covariance an
-IMU gap adds (:func:`aidnav.filters.preprocess.bridge_gaps`); without a preset the bounds of an unknown
-vehicle (:class:`aidnav.filters.config.MotionBounds`).
+configured noise (nothing vibrates a phone at rest). Every preset re-initialises when the NIS of the last
+10 accepted fixes of a type is far out of its χ² band (``gnss.nis_window``; off without a preset, where the
+filter keeps the configured model); a re-initialisation grows the calibration states with the navigation
+block. Each preset states what the vehicle can do (``motion``: speed, acceleration, turn-rate and tilt
+bounds), which sizes the covariance an IMU gap adds (:func:`aidnav.filters.preprocess.bridge_gaps`);
+without a preset the bounds of an unknown vehicle (:class:`aidnav.filters.config.MotionBounds`).
 """
 
 from __future__ import annotations

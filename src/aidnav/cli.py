@@ -32,6 +32,11 @@ if sys.platform.startswith("linux"):
 
 from pathlib import Path  # noqa: E402
 
+from aidnav import interrupts as _interrupts  # noqa: E402
+
+if Path(sys.argv[0]).name == "aidnav" or sys.argv[0].endswith(os.path.join("aidnav", "__main__.py")):
+    _interrupts.install(hold=True)  # the aidnav command: a Ctrl-C during the imports is raised in main
+
 import typer  # noqa: E402
 
 from aidnav.console_script import exit_status as _exit_status  # noqa: E402
@@ -54,11 +59,15 @@ def _console(stderr: bool = False):
     return Console(stderr=stderr, markup=False, highlight=False, soft_wrap=True)
 
 
+#: set once a command has reported an interrupt (main reports one that came before or after the command)
+_INTERRUPT_REPORTED = False
 #: True in the ``aidnav`` command itself (:func:`main`), False where ``app`` is called in-process (tests)
 _CONSOLE_SCRIPT = False
 
 
 def _fail(msg: str, code: int = 2):
+    global _INTERRUPT_REPORTED
+    _INTERRUPT_REPORTED = _INTERRUPT_REPORTED or code == 130
     _console(stderr=True).print(f"error: {msg}")
     raise typer.Exit(code)
 
@@ -87,8 +96,10 @@ def guarded(fn):
             _start_kernels()
         try:
             return fn(*args, **kwargs)
-        except (typer.Exit, typer.Abort, KeyboardInterrupt, SystemExit):
+        except (typer.Exit, typer.Abort, SystemExit):
             raise
+        except KeyboardInterrupt:  # SIGINT/SIGTERM (aidnav.interrupts): exit 130, said so
+            _fail(f"{_interrupts.MESSAGE}; {_interrupted_note(kwargs)}", 130)
         except _user_errors() as e:
             msg = str(e)
             if isinstance(e, OSError) and e.filename is not None and str(e.filename) not in msg:
@@ -104,6 +115,14 @@ def guarded(fn):
             raise typer.Exit(1) from None
 
     return wrapper
+
+
+def _interrupted_note(kwargs) -> str:
+    """What an interrupted command left: its output directory marked incomplete (issue 37)."""
+    out = kwargs.get("out")
+    if out is not None:
+        return f"{out} holds no complete result: run the same command again"
+    return "nothing complete was written: run the same command again"
 
 
 def _command(*args, **kwargs):
@@ -527,10 +546,20 @@ def main():  # pragma: no cover - the console script (tests call `app` in-proces
     global _CONSOLE_SCRIPT
     _CONSOLE_SCRIPT = True
     try:
-        app()
-        status = 0
-    except SystemExit as e:
-        status = _exit_status(e.code)
+        try:
+            _interrupts.install()  # SIGINT/SIGTERM raised where Python can take them (not numba's glue): 130
+            app()
+            status = 0
+        except SystemExit as e:
+            status = _exit_status(e.code)
+    except KeyboardInterrupt:
+        status = 130
+    if status == 130 and not _INTERRUPT_REPORTED:  # before or after a command (typer: exit 130, silent)
+        print(f"error: {_interrupts.MESSAGE}", file=sys.stderr)
+    import signal
+
+    for sig in (signal.SIGINT, signal.SIGTERM):  # the exit itself is not interrupted
+        signal.signal(sig, signal.SIG_IGN)
     _leave(status)
 
 

@@ -263,10 +263,11 @@ def process(
 ):
     """Loosely coupled GNSS/INS on logs: DIR/trajectory with σ columns, summary, overview.png, maps
     (KML, GeoJSON) and run.html."""
+    from aidnav.apps.common import run_directory
     from aidnav.apps.process import format_summary, process_logs
     from aidnav.progress import progress_bar
 
-    with progress_bar("aidnav process") as bar:
+    with progress_bar("aidnav process") as bar, run_directory(out, "process"):
         s = process_logs(imu, gnss, config, out, smooth=smooth, outages=outage, console=_console(), fmt=fmt,
                          height_offset_m=height_offset, time_offset_s=time_offset, start_s=start, end_s=end,
                          skip_checks=skip_check, progress=bar, figures=not no_figures,
@@ -450,10 +451,11 @@ def tight(
     no_figures: bool = typer.Option(False, "--no-figures", help="skip overview.png, maps and run.html"),
 ):
     """Tightly coupled GNSS/INS (pseudorange + Doppler) on an IMU log and RINEX files."""
+    from aidnav.apps.common import run_directory
     from aidnav.apps.tight import format_tight_summary, process_tight_files
     from aidnav.progress import progress_bar
 
-    with progress_bar("aidnav tight") as bar:
+    with progress_bar("aidnav tight") as bar, run_directory(out, "tight"):
         bar.stage("SPP, alignment, tightly coupled filter", total=None)
         s = process_tight_files(imu, obs, nav, config, out, truth, truth_height_offset, fmt=fmt,
                                 time_offset_s=time_offset, smooth=smooth, progress=bar,

@@ -244,11 +244,11 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
                "gnss_height_offset_m": datum,
                **run_s, "notes": notes}
     summary["timing_s"] = {"read": t_read - t_start, "filter": t_filt - t_read, "write": t_write - t_filt}
-    common.write_summary_files(out_dir, summary, format_summary(summary))
     if figures:  # overview.png, trajectory.kml / .geojson, run.html
         from aidnav.report.run_page import write_run_outputs
 
         write_run_outputs(out_dir, fig_traj, gnss, summary, result.records, progress=bar)
+    common.write_summary_files(out_dir, summary, format_summary(summary))  # last: "status": "complete"
     return summary
 
 

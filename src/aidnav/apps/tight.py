@@ -215,7 +215,6 @@ def process_tight_files(imu_path, obs_path, nav_path, config_path=None, out_dir=
     from aidnav.report.run_page import calibration_estimates
 
     summary["calibration"] = calibration_estimates(res)
-    write_summary_files(out_dir, summary, format_tight_summary(summary))
     if figures:
         from aidnav.report.overview import tight_records
         from aidnav.report.run_page import write_run_outputs
@@ -223,6 +222,7 @@ def process_tight_files(imu_path, obs_path, nav_path, config_path=None, out_dir=
         ok = np.isfinite(sp["lat"])
         spp = GnssData(sp["time"][ok], sp["lat"][ok], sp["lon"][ok], sp["h"][ok])
         write_run_outputs(out_dir, traj, spp, summary, tight_records(res.epochs), progress=progress)
+    write_summary_files(out_dir, summary, format_tight_summary(summary))  # last: "status": "complete"
     return summary
 
 

@@ -431,6 +431,8 @@ def run_experiment(experiment, out_dir, *, workers: int = 1, scheduler: str | No
     todo = [t for t in tasks if (t.key, t.run) not in done]
     if max_runs is not None:
         todo = todo[:max(0, int(max_runs))]
+    if todo:  # the tables and manifest on disk (if any) no longer describe the campaign: until it completes
+        (out / "manifest.json").unlink(missing_ok=True)  # `aidnav report` refuses the directory
     n_total, n_reused = len(tasks), len(tasks) - len([t for t in tasks if (t.key, t.run) not in done])
     if n_reused:
         console.print(f"{out}: {n_reused} of {n_total} runs already on disk, {n_total - n_reused} to compute")

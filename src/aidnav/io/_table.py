@@ -17,6 +17,7 @@ import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 
 from aidnav.io._arrow import column_to_f64, f64_to_arrow
+from aidnav.io.atomic import replacing
 from aidnav.io.errors import DataError
 
 TEXT_COLUMNS = ("utc",)  #: columns of text (not read as data): ISO UTC time
@@ -284,20 +285,21 @@ def _write(cols: dict, path, comments: list[str], meta: dict) -> Path:
     path = Path(path)
     kind = _kind(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    if kind == "csv":
-        import pandas as pd  # lazy: pandas is heavy to import
+    with replacing(path) as tmp:  # under PATH.part until complete (issue 37)
+        if kind == "csv":
+            import pandas as pd  # lazy: pandas is heavy to import
 
-        with open(path, "w", encoding="utf-8", newline="") as f:
-            for c in comments:
-                f.write(f"# {c}\n")
-            pd.DataFrame(cols).to_csv(f, index=False, lineterminator="\n")  # shortest exact round trip
-    else:
-        arrays = [pa.array([str(x) for x in v], type=pa.string()) if np.asarray(v).dtype.kind in "US"
-                  else f64_to_arrow(v) for v in cols.values()]
-        tbl = pa.Table.from_arrays(arrays, names=list(cols))
-        md = dict(tbl.schema.metadata or {})
-        md[_META_KEY] = json.dumps(meta).encode()
-        pq.write_table(tbl.replace_schema_metadata(md), path)
+            with open(tmp, "w", encoding="utf-8", newline="") as f:
+                for c in comments:
+                    f.write(f"# {c}\n")
+                pd.DataFrame(cols).to_csv(f, index=False, lineterminator="\n")  # shortest exact round trip
+        else:
+            arrays = [pa.array([str(x) for x in v], type=pa.string()) if np.asarray(v).dtype.kind in "US"
+                      else f64_to_arrow(v) for v in cols.values()]
+            tbl = pa.Table.from_arrays(arrays, names=list(cols))
+            md = dict(tbl.schema.metadata or {})
+            md[_META_KEY] = json.dumps(meta).encode()
+            pq.write_table(tbl.replace_schema_metadata(md), tmp)
     return path
 
 

@@ -528,10 +528,12 @@ def trajectory_chunks(path, chunk_rows: int = 1 << 15, height_offset_m: float = 
 
 class CsvColumnsWriter:
     """A CSV file of named float columns written piece by piece through pyarrow's writer (header line, no
-    quotes, NaN as an empty field, floats as their shortest exact decimal)."""
+    quotes, NaN as an empty field, floats as their shortest exact decimal), under ``PATH.part`` until
+    ``close`` renames it (``abort`` removes it)."""
 
     def __init__(self, path):
         self.path, self.w, self.f = Path(path), None, None
+        self.part = self.path.with_name(self.path.name + ".part")
 
     def write(self, cols: dict) -> None:
         import pyarrow as pa
@@ -545,7 +547,7 @@ class CsvColumnsWriter:
             arrays.append(pa.Array.from_buffers(pa.float64(), len(a), [valid, pa.py_buffer(a)]))
         tbl = pa.Table.from_arrays(arrays, names=list(cols))
         if self.w is None:
-            self.f = open(self.path, "wb")
+            self.f = open(self.part, "wb")
             opts = pacsv.WriteOptions(quoting_style="none", quoting_header="none")
             self.w = pacsv.CSVWriter(self.f, tbl.schema, write_options=opts)
         self.w.write_table(tbl)
@@ -554,7 +556,17 @@ class CsvColumnsWriter:
         if self.w is not None:
             self.w.close()
             self.f.close()
+            os.replace(self.part, self.path)
         return self.path
+
+    def abort(self) -> None:
+        for x in (self.w, self.f):
+            if x is not None:
+                try:
+                    x.close()
+                except Exception:  # noqa: BLE001
+                    pass
+        self.part.unlink(missing_ok=True)
 
 
 class Spool:

@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from aidnav.data import GnssData, Trajectory
+from aidnav.io.atomic import replacing, write_text
 from aidnav.nav.rotations import wrap_pi
 
 __all__ = ["write_kml", "write_geojson", "write_maps", "SIGMA_CLASSES_M", "QUALITY_NAMES", "track_pieces"]
@@ -273,7 +274,8 @@ def write_kml(path, traj: Trajectory, gnss: GnssData | None = None, outages=None
                               description=f"GNSS outage {a:.3f} – {b:.3f} s ({b - a:g} s)")
         ls.style = ost
     kml.document.description = "; ".join(desc)
-    kml.save(str(path))
+    with replacing(path) as tmp:
+        kml.save(str(tmp))
     return path
 
 
@@ -321,7 +323,7 @@ def write_geojson(path, traj: Trajectory, gnss: GnssData | None = None, outages=
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     doc = geojson_dict(traj, gnss, outages, rejected_times, color_by, max_points, max_fixes)
-    path.write_text(json.dumps(doc, allow_nan=False) + "\n", encoding="utf-8")
+    write_text(path, json.dumps(doc, allow_nan=False) + "\n")  # under a temporary name until complete
     return path
 
 

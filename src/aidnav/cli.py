@@ -249,8 +249,8 @@ def process(
     end: float | None = typer.Option(None, "--end", help="process up to this many seconds after the first "
                                      "IMU sample"),
     skip_check: list[str] = typer.Option([], "--skip-check", help="skip a plausibility check by name "
-                                         "(imu-rate, "
-                                         "imu-accel, imu-gyro, gnss-latlon, overlap); repeatable"),
+                                         "(imu-rate, imu-accel, imu-gyro, imu-up, imu-gyro-scale, imu-axes, "
+                                         "gnss-latlon, overlap, time-scale); repeatable"),
     as_json: bool = typer.Option(False, "--json", help="print the JSON summary instead of the text"),
     no_figures: bool = typer.Option(False, "--no-figures", help="skip overview.png, the KML/GeoJSON maps and "
                                     "run.html"),

@@ -96,7 +96,7 @@ def process(imu: ImuData, gnss: GnssData, cfg: LooseConfig | None = None, smooth
     the GNSS time scale, i.e. ``cfg.imu.time_offset_s`` is applied here, once) → :class:`ProcessRun`.
     """
     from aidnav.filters.loose import LooseResult, run_loose, to_trajectory
-    from aidnav.io.sanity import check_gnss, check_imu, check_overlap
+    from aidnav.io.sanity import check_gnss, check_imu, check_motion, check_overlap
 
     cfg = cfg or LooseConfig()
     warnings: list[str] = []
@@ -110,6 +110,7 @@ def process(imu: ImuData, gnss: GnssData, cfg: LooseConfig | None = None, smooth
     warnings += check_imu(imu, imu_name, skip_checks)
     warnings += check_gnss(gnss, gnss_name, skip_checks)
     warnings += check_overlap(imu, gnss, imu_name, gnss_name, skip_checks)
+    warnings += check_motion(imu, gnss, imu_name, gnss_name, skip_checks)  # units, axes, time from physics
     wins = outage_windows([parse_outage(o) for o in (outages or [])], gnss.time[0], gnss.time[-1])
     withheld = np.zeros(len(gnss), bool)
     for a, b in wins:

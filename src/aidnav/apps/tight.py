@@ -42,9 +42,14 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
         iono_window_s=cfg.gnss.iono_window_s,
     )
     t_imu = imu.time + cfg.imu.time_offset_s
-    ok = np.isfinite(sp["lat"]) & (sp["time"] >= t_imu[0])
+    ok = np.isfinite(sp["lat"]) & (sp["time"] >= t_imu[0]) & (sp["time"] < t_imu[-1])
     if not ok.any():
-        raise ValueError("no SPP fix inside the IMU time span: cannot initialise")
+        fin = sp["time"][np.isfinite(sp["lat"])]
+        span = f"{fin[0]:.3f}…{fin[-1]:.3f} s" if fin.size else "none"
+        raise ValueError(f"no SPP fix inside the IMU time span {t_imu[0]:.3f}…{t_imu[-1]:.3f} s (SPP fixes "
+                         f"from the observation file: {span}): the IMU log and the observation file do not "
+                         "overlap — give files of the same session, or --time-offset if the IMU clock is "
+                         "on another time scale")
     i0 = int(np.flatnonzero(ok)[0])
     # GNSS "fixes" from SPP for the static detector and the course
     g = GnssData(sp["time"][ok], sp["lat"][ok], sp["lon"][ok], sp["h"][ok], sp["vel_enu"][ok])

@@ -52,9 +52,26 @@ def _parquet_imu(path: Path):
     if "time" not in names or not (inc or set(IMU_RATE_COLUMNS) <= names) or pf.metadata.num_rows < 2:
         pf.close()
         return None
+    _numeric_time(path, pf.schema_arrow.field("time").type, pf)
     md = pf.schema_arrow.metadata or {}
     meta = json.loads(md[_META_KEY]) if _META_KEY in md else {}
     return pf, ["time", *(IMU_INCREMENT_COLUMNS if inc else IMU_RATE_COLUMNS)], inc, meta
+
+
+def _numeric_time(path, typ, pf=None) -> None:
+    """The interchange ``time`` column is a number of seconds: a timestamp, date or string column is
+    refused naming the column and what to write instead."""
+    import pyarrow as pa
+
+    if pa.types.is_integer(typ) or pa.types.is_floating(typ):
+        return
+    if pf is not None:
+        pf.close()
+    what = ("a timestamp (date and time)" if pa.types.is_timestamp(typ) or pa.types.is_date(typ)
+            else f"of type {typ}")
+    raise DataError(path, None, f"column time is {what}: the interchange time column is a number of seconds "
+                    "(GPS seconds of week, or any seconds on the GNSS time scale) — convert it, e.g. "
+                    "(t − start of the GPS week) in seconds as float64")
 
 
 def imu_time_span(path) -> tuple[float, float] | None:

@@ -119,7 +119,8 @@ def stream_process(imu_path, gnss, cfg, traj_path, week, smooth=False, outages=N
     from aidnav.io.stream import Background, TrajectoryWriter, imu_time_span, iter_imu
 
     applied = float(cfg.imu.time_offset_s)
-    cfg = cfg.model_copy(update={"imu": cfg.imu.model_copy(update={"time_offset_s": 0.0})})
+    if applied:  # applied here, once; a configuration that states no offset lets the filter estimate it
+        cfg = cfg.model_copy(update={"imu": cfg.imu.model_copy(update={"time_offset_s": 0.0})})
     chunks = iter_imu(imu_path, chunk_rows or CHUNK_ROWS)
     head = next(chunks)
     offset_event = [f"IMU time offset {applied:+.4f} s added to the IMU stamps"] if applied else []

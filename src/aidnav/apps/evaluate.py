@@ -151,7 +151,7 @@ def evaluate_files(estimate_path, truth_path, out_dir=None, console=None, max_dt
             csv.path.unlink(missing_ok=True)
 
         def span(s):
-            return f"[{s[0]!r}, {s[1]!r}]" if s else "[]"
+            return f"[{float(s[0])!r}, {float(s[1])!r}]" if s else "[]"
 
         raise ValueError(f"no reference epoch can be evaluated: estimate spans {span(errors.est_span)} s, "
                          f"reference {span(errors.ref_span)} s ({'; '.join(errors.notes)}); are both in the "

@@ -81,8 +81,8 @@ class _Table:
         if bad.any():
             i = int(np.argmax(bad)) + 1
             kind = "duplicate time" if d[i - 1] == 0 else "time goes backwards"
-            self.fail(i, f"time not strictly increasing ({kind}): {t[i]!r} s after {t[i - 1]!r} s "
-                         f"at line {self.line(i - 1)}")
+            self.fail(i, f"time not strictly increasing ({kind}): {float(t[i])!r} s after "
+                         f"{float(t[i - 1])!r} s at line {self.line(i - 1)}")
 
     def get(self, names: list[str]) -> np.ndarray:
         return np.column_stack([self.cols[c] for c in names])

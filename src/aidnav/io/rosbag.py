@@ -112,7 +112,10 @@ def _pick(path, reader, msgtype: str, topic: str | None, required: bool = True):
             raise DataError(path, None, f"no {msgtype} topic in the bag (have: {', '.join(have) or 'none'})")
         return []
     if len(topics) > 1:
-        raise DataError(path, None, f"several {msgtype} topics: {', '.join(topics)}; choose one (topic=)")
+        raise DataError(path, None, f"several {msgtype} topics: {', '.join(topics)}: the command line "
+                        "cannot tell which one — keep one in the bag (e.g. `rosbag filter`), or in Python "
+                        "read it with aidnav.io.formats.read_imu/read_gnss(path, topic='/name') and write an "
+                        "interchange file (aidnav.io.interchange.write_imu/write_gnss)")
     return conns
 
 
@@ -150,8 +153,8 @@ def _check_increasing(path, t, what):
     bad = ~(d > 0)
     if bad.any():
         i = int(np.argmax(bad)) + 1
-        raise DataError(path, f"{what} message {i + 1}", f"header stamp {t[i]!r} s does not increase "
-                                                         f"(previous {t[i - 1]!r} s)")
+        raise DataError(path, f"{what} message {i + 1}", f"header stamp {float(t[i])!r} s does not increase "
+                                                         f"(previous {float(t[i - 1])!r} s)")
 
 
 def read_imu(path, topic: str | None = None, axes: str = "FLU", stamps: str = "utc") -> ImuData:

@@ -142,8 +142,8 @@ def iter_imu(path, chunk_rows: int = 1 << 16, reader=None):
                 i = int(np.argmax(~(d > 0))) + 1  # index in tt
                 kind = "duplicate time" if d[i - 1] == 0 else "time goes backwards"
                 r = row + i - (0 if t_prev is None else 1)  # 0-based row of the sample
-                raise DataError(path, r + 1, f"time not strictly increasing ({kind}): {tt[i]!r} s after "
-                                f"{tt[i - 1]!r} s at line {r}")
+                raise DataError(path, r + 1, f"time not strictly increasing ({kind}): "
+                                f"{float(tt[i])!r} s after {float(tt[i - 1])!r} s at line {r}")
             if t_prev is None:
                 t0 = meta.get("t0_s")
                 t0 = None if t0 is None or not t0 < t[0] else float(t0)

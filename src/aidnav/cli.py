@@ -121,6 +121,11 @@ def _interrupted_note(kwargs) -> str:
     """What an interrupted command left: its output directory marked incomplete (issue 37)."""
     out = kwargs.get("out")
     if out is not None:
+        from aidnav.io.atomic import run_status
+
+        if run_status(out) == "complete":  # interrupted after its last file: the result is whole
+            return f"the results in {out} are complete (summary.json status complete); only the report " \
+                   "on the screen was cut short"
         return f"{out} holds no complete result: run the same command again"
     return "nothing complete was written: run the same command again"
 

@@ -3,7 +3,7 @@ with exit status 130 and the message, never a crash; nothing partial is left (no
 the rerun (process) or the resume (run) gives what an uninterrupted run gives.
 
 The moments are drawn with a fixed seed. The issue asks for 20 of each; the test does ``AIDNAV_SIGINT_TRIES``
-(default 3 for process, 4 for run: CI time) — `AIDNAV_SIGINT_TRIES=20` runs the full study."""
+(default 2 for process, 1 for each kind of run: CI time) — `AIDNAV_SIGINT_TRIES=20` runs the full study."""
 
 from __future__ import annotations
 
@@ -12,6 +12,7 @@ import os
 import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -63,13 +64,15 @@ def test_sigint_process_w1(data_dir, tmp_path):
     if not (w1 / "imu.parquet").exists():
         pytest.skip("sim_w1_pyins not present")
     args = ["process", "--imu", w1 / "imu.parquet", "--gnss", w1 / "gnss.csv", "--no-figures"]
+    t0 = time.monotonic()
     rc, out = cli(*args, "-o", tmp_path / "ref")
+    wall = time.monotonic() - t0
     assert rc == 0, out
     ref = json.loads((tmp_path / "ref/summary.json").read_text())
     rng = np.random.default_rng(37)
-    n = int(TRIES or 3)
+    n = int(TRIES or 2)
     codes = []
-    for k, delay in enumerate(rng.uniform(0.5, 6.0, n)):
+    for k, delay in enumerate(rng.uniform(0.3, 0.9, n) * wall):  # moments within a run's duration
         d = tmp_path / f"int{k % 2}"  # two directories: a rerun into an interrupted one as well
         rc, out = interrupted(float(delay), *args, "-o", d)
         codes.append(rc)
@@ -79,9 +82,11 @@ def test_sigint_process_w1(data_dir, tmp_path):
         assert "error: interrupted" in out, out
         assert "Fatal Python error" not in out and "Traceback" not in out, out
         assert leftovers(d) == [], out
-        if (d / "summary.json").exists():
-            assert json.loads((d / "summary.json").read_text())["status"] != "complete"
-    assert codes.count(130) >= max(1, n - 1), codes
+        if (d / "summary.json").exists():  # complete only when the signal came after the last file
+            done = json.loads((d / "summary.json").read_text())["status"] == "complete"
+            assert done == ("are complete" in out), out
+    print(f"process W1: exit statuses {codes}")
+    assert codes.count(130) >= max(1, n // 2), codes  # (0: it completed before the signal)
     rc, out = cli(*args, "-o", tmp_path / "int0")
     assert rc == 0, out
     again = json.loads((tmp_path / "int0/summary.json").read_text())
@@ -101,16 +106,22 @@ def test_sigint_campaign(tmp_path, workers):
     rc, out = cli("run", exp, "-o", tmp_path / "ref", *extra)
     assert rc == 0, out
     rng = np.random.default_rng(370 + workers)
-    n = int(TRIES or 2)
-    d = tmp_path / "camp"
-    for delay in rng.uniform(0.5, 4.0, n):
+    n = int(TRIES or 1)
+    codes = []
+    for k, delay in enumerate(rng.uniform(0.5, 4.0, n)):
+        d = tmp_path / f"camp{k}"  # a fresh campaign each time: the moment is random within it
         rc, out = interrupted(float(delay), "run", exp, "-o", d, *extra)
+        codes.append(rc)
         if rc == 0:
-            break  # the campaign completed before the signal
+            continue  # the campaign completed before the signal (a fast machine)
         assert rc == 130, out
         assert "error: interrupted" in out, out
         assert "Fatal Python error" not in out and "Traceback" not in out, out
         assert leftovers(d) == [], out
+        assert not (d / "manifest.json").exists()  # `aidnav report` refuses it until resumed
+    print(f"campaign, workers={workers}: exit statuses {codes}")
+    assert codes.count(130) >= max(1, n // 2), codes  # (0: it completed before the signal)
+    d = tmp_path / f"camp{n - 1}"
     rc, out = cli("run", exp, "-o", d, *extra)  # resume
     assert rc == 0, out
     assert leftovers(d) == []

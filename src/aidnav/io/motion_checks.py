@@ -90,16 +90,22 @@ def _skip(name, skip) -> bool:
     return name in (skip or ())
 
 
+_TRACK: dict = {}  #: the course rate and speed of the fix series being checked (check_motion clears it)
+
+
 def _moving(gnss, t_imu, margin, min_speed=3.0):
     """Indices of the GNSS epochs with a centred course rate, moving, whose windows ± margin lie inside
     the IMU span; and the course rate."""
     t_g = np.asarray(gnss.time, float)
-    if gnss.vel is not None and np.isfinite(gnss.vel[:, :2]).mean() > 0.5:
-        v_e, v_n = gnss.vel[:, 0].astype(float), gnss.vel[:, 1].astype(float)
-    else:
-        v_e, v_n = centred_velocity(gnss)
-    rate = course_rate(t_g, v_e, v_n)
-    ok = np.isfinite(rate) & (np.hypot(v_e, v_n) > min_speed)
+    key = id(gnss)
+    if _TRACK.get("key") != key:  # the course rate of this fix series, once per check
+        if gnss.vel is not None and np.isfinite(gnss.vel[:, :2]).mean() > 0.5:
+            v_e, v_n = gnss.vel[:, 0].astype(float), gnss.vel[:, 1].astype(float)
+        else:
+            v_e, v_n = centred_velocity(gnss)
+        _TRACK.update(key=key, rate=course_rate(t_g, v_e, v_n), speed=np.hypot(v_e, v_n))
+    rate, speed = _TRACK["rate"], _TRACK["speed"]
+    ok = np.isfinite(rate) & (speed > min_speed)
     idx = np.flatnonzero(ok)
     idx = idx[(idx >= 1) & (idx <= t_g.size - 2)]
     idx = idx[(t_g[idx - 1] - margin >= t_imu[0]) & (t_g[idx + 1] + margin <= t_imu[-1])]
@@ -143,6 +149,7 @@ def check_motion(imu, gnss, imu_path, gnss_path, skip=()) -> list[str]:
     """``imu-gyro-scale``, ``imu-axes`` and ``time-scale`` (module doc) on IMU increments and GNSS fixes
     on the same (intended) time scale. Raises :class:`DataError`; returns warnings (none yet)."""
     names = ("imu-gyro-scale", "imu-axes", "time-scale")
+    _TRACK.clear()
     if all(_skip(n, skip) for n in names) or len(imu) < 2 or len(gnss) < 25:
         return []
     t_imu = np.asarray(imu.time, float)
@@ -238,6 +245,7 @@ def handedness(imu, gnss) -> float | None:
     mirrored one (u: up); a permutation of the axes keeps every dot product (so the gyro's turn rate about
     u cannot tell) but reverses the cross product."""
     t_imu = np.asarray(imu.time, float)
+    _TRACK.clear()
     idx, rate, t_g = _moving(gnss, t_imu, 0.0)
     if idx.size < 20:
         return None

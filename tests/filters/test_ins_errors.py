@@ -301,3 +301,48 @@ def test_set_heading_keeps_roll_pitch_and_resets_the_heading_variance():
     assert P[2, 2] == pytest.approx(0.01) and not np.delete(P[2], 2).any() and not np.delete(P[:, 2], 2).any()
     keep = np.delete(np.delete(P, 2, 0), 2, 1)
     np.testing.assert_array_equal(keep, np.delete(np.delete(P0, 2, 0), 2, 1))
+
+
+def _sensor_error_rate(dx, pt=(LAT, W_IB, F_B)):
+    """d/dt (φ, δv, δp) with the 27-state sensor residuals entering the measurements as the truth model
+    of :mod:`aidnav.sim.imu` writes them: ω̃ = ω + ε + s_g∘ω + M ω (M: zero diagonal, its six entries
+    m_xy, m_xz, m_yx, m_yz, m_zx, m_zy), f̃ = f + ∇ + s_a∘f."""
+    lat, w_ib, f_b = pt
+    M = np.zeros((3, 3))
+    for k, (r, c) in enumerate(((0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1))):
+        M[r, c] = dx[21 + k]
+    w = w_ib + dx[15:18] * w_ib + M @ w_ib
+    f = f_b + dx[18:21] * f_b
+    return _error_rate(np.concatenate([dx[:9], dx[9:12] + (w - w_ib), dx[12:15] + (f - f_b)]), None, pt)
+
+
+def test_scale_factor_and_misalignment_columns_match_numerical_jacobian():
+    """The 27-state model (issue 35): the scale-factor and gyro-misalignment columns of F against central
+    differences of the nonlinear mechanization with those errors in the sensors (the error rate is
+    linear in them: exact up to round-off), G's misalignment inputs, and ``noise_count``."""
+    steps = np.concatenate([STEPS, [1e-4] * 12])
+    J = np.zeros((9, 27))
+    for j in range(27):
+        e = np.zeros(27)
+        e[j] = steps[j]
+        J[:, j] = (_sensor_error_rate(e) - _sensor_error_rate(-e)) / (2.0 * steps[j])
+    F, G = _analytic(300.0, 600.0, n=27)
+    np.testing.assert_allclose(F[:9, 9:27], J[:, 9:27], rtol=1e-6, atol=1e-9)
+    assert noise_count(27) == 24 and G.shape == (27, 24)
+    np.testing.assert_array_equal(G[21:27, 18:24], np.eye(6))
+    assert not F[21:27].any()  # random constants
+    F21, _ = _analytic(300.0, 600.0, n=21)
+    np.testing.assert_array_equal(F[:21, :21], F21)
+
+
+def test_correct_increments_removes_the_misalignment():
+    """nb = 18: Δθ_c = Δθ − b_g Δt − s_g∘Δθ − M Δθ (misalignment states in ``MIS_OUT``/``MIS_IN`` order)."""
+    dt = 0.01
+    dth, dv = W_IB * dt, F_B * dt
+    bias = np.array([1e-4, -2e-4, 3e-4, 0.02, -0.01, 0.03, 1e-3, -2e-3, 5e-4, 2e-3, 1e-3, -1e-3,
+                     1e-3, 2e-3, 3e-3, 4e-3, 5e-3, 6e-3])
+    M = np.array([[0.0, 1e-3, 2e-3], [3e-3, 0.0, 4e-3], [5e-3, 6e-3, 0.0]])
+    dthc, dvc = np.zeros(3), np.zeros(3)
+    ins_errors.correct_increments(dth, dv, bias, dt, dthc, dvc)
+    np.testing.assert_allclose(dthc, dth - bias[0:3] * dt - bias[6:9] * dth - M @ dth, rtol=0, atol=1e-18)
+    np.testing.assert_allclose(dvc, dv - bias[3:6] * dt - bias[9:12] * dv, rtol=0, atol=1e-18)

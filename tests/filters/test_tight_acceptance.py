@@ -51,7 +51,7 @@ def _eph():
 def _cfg():
     return TightConfig(
         states=17,
-        imu=loose_config_from_specs(SPEC).imu,
+        imu=loose_config_from_specs(SPEC, sensor_model=False).imu,  # 15 INS states: the model before issue 35
         constraints={"zupt": False},
         init={
             "attitude_sigma_deg": (0.05, 0.05, 0.3),

@@ -198,7 +198,9 @@ class LooseEstimatorConfig(BaseModel):
         :class:`aidnav.filters.config.LooseConfig`).
     q_scale : multiplies the whole continuous process-noise PSD after the overrides (ARW², VRW², bias
         driving noise); 0.01 = "Q 100× too small". r_scale : multiplies the GNSS measurement variances.
-    states : 15 or 21 (with scale factors). prop_dt_s : largest covariance propagation step [s].
+    states : 15 or 21 (with scale factors; the filter's sensor model is the one before issue 35, one
+    Gauss-Markov bias state, so that ``states`` and ``q_scale`` keep their meaning). prop_dt_s : largest
+    covariance propagation step [s].
     output_rate_hz : rate of the error epochs [Hz]; None = the GNSS rate. The epochs are every
         ``round(imu_rate / output_rate)``-th IMU sample from the first one.
     smooth : evaluate the RTS-smoothed solution instead of the forward filter.
@@ -239,7 +241,7 @@ def loose_filter_config(cfg: LooseEstimatorConfig, imu_spec, gnss_spec, imu_rate
     lcfg = loose_config_from_specs(imu_spec, gnss_spec, position_sigma_m=cfg.init_position_sigma_m,
                                    velocity_sigma_m_s=cfg.init_velocity_sigma_m_s,
                                    attitude_sigma_deg=cfg.init_attitude_sigma_deg, states=cfg.states,
-                                   prop_dt_s=cfg.prop_dt_s, filter=filt, **kw, **over)
+                                   prop_dt_s=cfg.prop_dt_s, filter=filt, sensor_model=False, **kw, **over)
     if cfg.q_scale != 1.0:
         s = math.sqrt(cfg.q_scale)
         im = lcfg.imu

@@ -41,6 +41,11 @@ class ImuNoise(_Strict):
     gyro_sf_sigma_ppm: float = Field(1000.0, ge=0)
     accel_sf_sigma_ppm: float = Field(1000.0, ge=0)
     sf_tau_s: float = Field(0.0, description="scale-factor correlation time [s]; <=0: random constant")
+    gyro_misalignment: bool = Field(
+        False, description="estimate the gyro triad's misalignment (6 random constants m_ij: the rate about "
+        "axis j read on axis i; 27 states, with the scale factors): a consumer IMU's tenths of a degree "
+        "tilt the solution in every turn")
+    gyro_misalignment_sigma_deg: float = Field(0.5, ge=0, description="1σ of each misalignment entry [deg]")
     noise_from_static: bool = Field(
         False, description="raise the ARW / VRW not stated here to the white-noise equivalent of the rates' "
         "spread at the log's static samples (engine vibration; filters.preprocess.noise_from_static); on in "
@@ -168,7 +173,7 @@ class BaroAiding(_Strict):
 
 
 class FilterSettings(_Strict):
-    states: Literal[15, 21] | None = None  # derived from imu.scale_factors when None
+    states: Literal[15, 21, 27] | None = None  # derived from imu.scale_factors, gyro_misalignment when None
     prop_dt_s: float = Field(1.0, gt=0, description="max covariance propagation interval [s]")
     output_rate_hz: float | None = Field(None, description="output rate; None = every IMU sample")
 
@@ -189,4 +194,4 @@ class LooseConfig(_Strict):
     def nstate(self) -> int:
         if self.filter.states is not None:
             return self.filter.states
-        return 21 if self.imu.scale_factors else 15
+        return 27 if self.imu.gyro_misalignment else (21 if self.imu.scale_factors else 15)

@@ -10,10 +10,13 @@ State layout (indices below), errors defined as computed − true:
 12:15 ∇, accelerometer bias residual in b                            m/s²
 15:18 gyro scale-factor residual (optional, ``nstate`` = 21)        -
 18:21 accelerometer scale-factor residual (optional)                 -
+21:27 gyro misalignment residual m_xy, m_xz, m_yx, m_yz, m_zx, m_zy  rad
+      (optional, ``nstate`` = 27: δω_x = m_xy ω_y + m_xz ω_z, …)
 ====  ==========================================================  =================
 
 Process noise w (continuous, PSD diag ``q``): [gyro white (rad²/s), accel white (m²/s³),
-gyro-bias driving, accel-bias driving, (gyro SF driving, accel SF driving)]. A bias with
+gyro-bias driving, accel-bias driving, (gyro SF driving, accel SF driving), (misalignment driving ×6)].
+A bias with
 correlation time τ > 0 is first-order Gauss-Markov (ẋ = −x/τ + w); τ ≤ 0 means a random walk.
 
 Dynamics: φ̇ = M_aa φ + M_av δv + M_ap δp − C_b^n ε;  δv̇ = [f^n×] φ + M_vv δv + M_vp δp + C_b^n ∇;
@@ -38,7 +41,10 @@ from aidnav.nav.earth import OMEGA_IE, gravity, gravity_dh, radii
 from aidnav.nav.rotations import dcm_entries, dcm_from_quat, quat_mult, quat_normalize
 from aidnav.nav.strapdown import strapdown_step
 
-PHI, DV, DP, BG, BA, SG, SA = 0, 3, 6, 9, 12, 15, 18
+PHI, DV, DP, BG, BA, SG, SA, MG = 0, 3, 6, 9, 12, 15, 18, 21
+# gyro misalignment state k (MG + k) couples the rate about body axis MIS_IN[k] into axis MIS_OUT[k]
+MIS_OUT = (0, 0, 1, 1, 2, 2)
+MIS_IN = (1, 2, 0, 2, 0, 1)
 
 # Rows of the per-interval accumulator ``acc`` (7×3 float array, :func:`new_accumulator`) filled by
 # :func:`propagate_sample` between two covariance nodes (sums over the samples of the interval):
@@ -51,8 +57,8 @@ ACC_TN = 6  # [T = Σ dt [s], number of samples, unused]
 
 @njit(cache=True)
 def noise_count(nstate):
-    """Number of process-noise inputs for a 15- or 21-state model."""
-    return 12 if nstate == 15 else 18
+    """Number of process-noise inputs for a 15-, 21- or 27-state model."""
+    return 12 if nstate == 15 else (18 if nstate == 21 else 24)
 
 
 @njit(cache=True)
@@ -62,7 +68,7 @@ def fill_model(F, G, lat, h, v, fn, Cbn, wb, fb, tau):
     lat [rad], h [m], v^n [m/s], f^n [m/s²] (mean specific force over the interval, nav frame),
     Cbn (3×3), wb ω_ib^b [rad/s] and fb f^b [m/s²] (body, for the scale-factor columns),
     tau (4,) correlation times [s] of the gyro bias, accel bias, gyro and accel scale factors (≤ 0:
-    random walk; an array or a tuple).
+    random walk; an array or a tuple); the gyro misalignment (n = 27) is a random walk/constant.
     """
     tau_g, tau_a, tau_sg, tau_sa = tau[0], tau[1], tau[2], tau[3]
     n = F.shape[0]
@@ -156,6 +162,12 @@ def fill_model(F, G, lat, h, v, fn, Cbn, wb, fb, tau):
                 F[SA + i, SA + i] = -1.0 / tau_sa
             G[SG + i, 12 + i] = 1.0
             G[SA + i, 15 + i] = 1.0
+    if n >= 27:  # gyro misalignment: δω_r = m ω_c (random constants, driving noise of zero PSD by default)
+        for k in range(6):
+            r, c = MIS_OUT[k], MIS_IN[k]
+            for i in range(3):
+                F[i, MG + k] = -Cbn[i, r] * wb[c]
+            G[MG + k, 18 + k] = 1.0
 
 
 @njit(cache=True, inline="always")
@@ -163,8 +175,8 @@ def correct_increments(dth, dv, bias, dt, dthc, dvc):
     """IMU increments corrected by the estimated sensor errors of this state layout (in place).
 
     dth [rad], dv [m/s] (3,): raw increments over dt [s], body RFU; ``bias`` (nb,): [gyro bias (rad/s),
-    accel bias (m/s²), gyro scale factor, accel scale factor], as far as the model has them (nb = 0, 6
-    or 12). dthc = dth − b_g dt − s_g∘dth, dvc = dv − b_a dt − s_a∘dv.
+    accel bias (m/s²), gyro scale factor, accel scale factor, gyro misalignment (6)], as far as the model
+    has them (nb = 0, 6, 12 or 18). dthc = dth − b_g dt − s_g∘dth − M_g dth, dvc = dv − b_a dt − s_a∘dv.
     """
     nb = bias.shape[0]
     for i in range(3):
@@ -178,6 +190,9 @@ def correct_increments(dth, dv, bias, dt, dthc, dvc):
         for i in range(3):
             dthc[i] -= bias[6 + i] * dth[i]
             dvc[i] -= bias[9 + i] * dv[i]
+    if nb >= 18:
+        for k in range(6):
+            dthc[MIS_OUT[k]] -= bias[12 + k] * dth[MIS_IN[k]]
 
 
 # ------------------------------------------------------------------ shared pieces of the filter kernels

@@ -69,7 +69,7 @@ def loose_layout(cfg, odometer=None, baro=None, gnss=True, gnss_velocity=True) -
             aux.append(name)
     if gnss and cfg.gnss.error_tau_s > 0 and cfg.gnss.use in ("both", "position"):
         aux.append("gnss_pos_error")
-    return make_layout(cfg.nstate == 21, tuple(aux))
+    return make_layout(cfg.nstate >= 21, tuple(aux), misalignment=cfg.nstate == 27)
 
 
 def calibration_switches(cfg, odometer: bool = False, gnss_velocity: bool = True) -> dict:

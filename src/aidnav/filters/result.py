@@ -10,13 +10,20 @@ from aidnav.data import Trajectory
 from aidnav.jit import njit
 from aidnav.nav.earth import E2, A
 from aidnav.nav.rotations import dcm_entries, dcm_from_euler, dcm_from_rotvec, euler_from_dcm, wrap_pi
-from aidnav.units import DEG_H, PPM, UG
+from aidnav.units import ARCSEC, DEG_H, PPM, UG
 
-from .layout import L_BARO, L_LEVER, L_MOUNT, L_NINS, L_ODO, L_TOFF, L_VDEL, NAV
+from .layout import L_BARO, L_LEVER, L_MOUNT, L_NINS, L_ODO, L_TOFF, L_VDEL, MIS_PAIRS, NAV
 
 #: the INS sensor-error states in the file units, by group of three (x, y, z): column name, factor from SI
 SENSOR_ERROR_UNITS = (("gyro_bias_{}_deg_h", 1.0 / DEG_H), ("accel_bias_{}_ug", 1.0 / UG),
-                      ("gyro_sf_{}_ppm", 1.0 / PPM), ("accel_sf_{}_ppm", 1.0 / PPM))
+                      ("gyro_sf_{}_ppm", 1.0 / PPM), ("accel_sf_{}_ppm", 1.0 / PPM),
+                      ("gyro_mis_{}_arcsec", 1.0 / ARCSEC), ("gyro_mis_{}_arcsec", 1.0 / ARCSEC))
+
+
+def sensor_error_axis(k: int) -> str:
+    """Axis label of sensor-error state k (0-based after the navigation block): x, y, z per triad; the
+    gyro misalignment's pair (out, in) from k = 12 on."""
+    return MIS_PAIRS[k - 12] if k >= 12 else "xyz"[k % 3]
 
 
 @dataclass
@@ -170,9 +177,10 @@ def to_trajectory(res: FilterResult):
     lay = getattr(res, "layout", None)
     n_groups = res.bias.shape[1] // 3 if lay is None else (int(lay[L_NINS]) - NAV) // 3
     for j in range(n_groups):
-        for i, ax in enumerate("xyz"):
+        for i in range(3):
             name, scale = SENSOR_ERROR_UNITS[j]
-            names.append(name.format(ax)), cols.append(3 * j + i), scales.append(scale)
+            names.append(name.format(sensor_error_axis(3 * j + i)))
+            cols.append(3 * j + i), scales.append(scale)
     if lay is not None:
         if lay[L_ODO] >= 0:
             names.append("odometer_scale_ppm"), cols.append(int(lay[L_ODO]) - NAV), scales.append(1e6)
@@ -294,9 +302,9 @@ def summary_calibration(result, base: dict | None = None) -> dict:
     if len(bias):
         nins = int(lay[L_NINS]) if lay is not None else NAV + 6
         for k in range(nins - NAV):
-            (name, scale), ax = SENSOR_ERROR_UNITS[k // 3], k % 3
+            name, scale = SENSOR_ERROR_UNITS[k // 3]
             var = pdiag[-1, NAV + k]
-            out[name.format("xyz"[ax])] = {"value": float(bias[-1, k] * scale),
+            out[name.format(sensor_error_axis(k))] = {"value": float(bias[-1, k] * scale),
                                            "std": float(np.sqrt(var) * scale) if var >= 0 else None,
                                            "estimated": True}
     out.update(calibration_summary(result, base))

@@ -11,7 +11,7 @@ import numpy as np
 
 from aidnav.nav.earth import radii
 from aidnav.nav.rotations import dcm_from_euler, dcm_from_rotvec, euler_from_dcm
-from aidnav.units import DEG, DEG_H, UG
+from aidnav.units import DEG, DEG_H, G0, UG
 
 from .config import LooseConfig
 
@@ -20,40 +20,25 @@ def loose_config_from_specs(imu_spec, gnss_spec=None, *, init_rph_deg=None, init
                             init_vel=None, position_sigma_m=(1.0, 1.0, 1.0),
                             velocity_sigma_m_s=(0.1, 0.1, 0.1),
                             attitude_sigma_deg=(0.1, 0.1, 1.0), states: int = 15, prop_dt_s: float = 1.0,
-                            floor_bias: bool = True, **overrides) -> LooseConfig:
+                            floor_bias: bool = True, sensor_model: bool = True, **overrides) -> LooseConfig:
     """LooseConfig whose noise model matches ``imu_spec`` (SI) and ``gnss_spec``.
 
-    The filter's bias state models the sum of the turn-on constant and the Gauss-Markov instability:
-    initial σ² = σ_const² + σ_GM², driving noise q = 2σ_GM²/τ (τ = the spec's; a random constant when
-    there is no instability). ``init_*`` give the filter's initial state (``mode = given``); the σ's its
-    initial covariance (position ENU [m], velocity [m/s], roll/pitch/heading [deg]). ``floor_bias``
-    keeps a tiny positive bias σ so that P stays positive definite for an error-free IMU.
+    ``sensor_model`` (default): the sensor errors as :func:`sensor_error_model` says (turn-on bias plus
+    instability, scale factors and misalignment, issue 35; ``states`` then only asks for at least that
+    many); False: the model before it (:func:`_one_markov_bias`: one Gauss-Markov bias state of initial
+    σ² = σ_const² + σ_GM², driving noise q = 2σ_GM²/τ; scale factors only with ``states = 21``).
+    ``init_*`` give the filter's initial state (``mode = given``); the σ's its initial covariance
+    (position ENU [m], velocity [m/s], roll/pitch/heading [deg]). ``floor_bias`` keeps a
+    tiny positive bias σ so that P stays positive definite for an error-free IMU.
     ``overrides``: section dicts merged into the configuration (e.g. ``constraints={"zupt": False}``).
     The self-calibration states are off (the simulated lever arm, zero time offset and mounting are
     given exactly); switch them on with ``calibration={...}``.
     """
-    gb = float(np.max(imu_spec.gyro_bias))
-    ab = float(np.max(imu_spec.accel_bias))
-    gi = float(np.max(imu_spec.gyro_bias_instability))
-    ai = float(np.max(imu_spec.accel_bias_instability))
-    tau_g = float(np.min(imu_spec.gyro_bias_tau))
-    tau_a = float(np.min(imu_spec.accel_bias_tau))
-    arw = float(np.max(imu_spec.gyro_arw))
-    vrw = float(np.max(imu_spec.accel_vrw))
-    tiny_g, tiny_a = (1e-4 * DEG_H, 1e-3 * UG) if floor_bias else (0.0, 0.0)
-    imu = dict(
-        arw_deg_sqrt_h=max(arw / DEG * 60.0, 1e-6),
-        vrw_m_s_sqrt_h=max(vrw * 60.0, 1e-6),
-        gyro_bias_sigma_deg_h=max(np.hypot(gb, gi), tiny_g) / DEG_H,
-        accel_bias_sigma_ug=max(np.hypot(ab, ai), tiny_a) / UG,
-        gyro_bias_instability_deg_h=gi / DEG_H,
-        accel_bias_instability_ug=ai / UG,
-        gyro_bias_tau_s=tau_g if (gi > 0 and np.isfinite(tau_g)) else 0.0,
-        accel_bias_tau_s=tau_a if (ai > 0 and np.isfinite(tau_a)) else 0.0,
-        scale_factors=states == 21,
-        gyro_sf_sigma_ppm=max(float(np.max(imu_spec.gyro_scale)) * 1e6, 1e-3),
-        accel_sf_sigma_ppm=max(float(np.max(imu_spec.accel_scale)) * 1e6, 1e-3),
-    )
+    if sensor_model:
+        imu = sensor_error_model(imu_spec, states, floor_bias)
+        states = 27 if imu["gyro_misalignment"] else (21 if imu["scale_factors"] else 15)
+    else:
+        imu = _one_markov_bias(imu_spec, states, floor_bias)
     gnss = {}
     if gnss_spec is not None:
         gnss = dict(lever_arm_m=tuple(float(x) for x in gnss_spec.lever_arm_b),
@@ -72,6 +57,81 @@ def loose_config_from_specs(imu_spec, gnss_spec=None, *, init_rph_deg=None, init
     for k, v in overrides.items():
         cfg.setdefault(k, {}).update(v)
     return LooseConfig.model_validate(cfg)
+
+
+def sensor_error_model(imu_spec, states: int = 15, floor_bias: bool = True) -> dict:
+    """The ``imu`` section of :class:`LooseConfig` that models what the sensors of ``imu_spec`` do (issue
+    35); nothing below is tuned, every number is the spec's:
+
+    * bias = turn-on constant (σ_c, drawn once) + in-run instability (Gauss–Markov σ_i, τ): a random walk
+      of PSD 2σ_i²/τ started at σ0² = σ_c² + σ_i². Its increments over any T (2σ_i²T/τ) bound those of
+      the constant plus the Gauss–Markov (2σ_i²(1 − e^(−T/τ))) and equal them for T ≪ τ, so the turn-on
+      constant is never forgotten (one Gauss–Markov state of σ0 forgets it within τ); a random constant
+      when there is no instability;
+    * scale factors: the 21-state model (random constants of the spec's σ) when the IMU has scale-factor
+      errors (or ``states = 21``); otherwise none;
+    * accelerometer misalignment: each off-diagonal entry m (σ_m) turns the 1 g the triad senses into
+      m·g on another axis, a constant bias while the vehicle is level: added to the accelerometer bias
+      σ0 (with the accelerometer scale factor's s·g on the vertical when scale factors are not states);
+    * gyro misalignment: m·ω, a rate error while the vehicle turns (a consumer IMU's 0.5° tilts the
+      solution by 0.5° × the angle turned): six random-constant states of the spec's σ (27 states) when
+      the IMU has it.
+    """
+    gb, ab = float(np.max(imu_spec.gyro_bias)), float(np.max(imu_spec.accel_bias))
+    gi = float(np.max(imu_spec.gyro_bias_instability))
+    ai = float(np.max(imu_spec.accel_bias_instability))
+    tau_g, tau_a = float(np.min(imu_spec.gyro_bias_tau)), float(np.min(imu_spec.accel_bias_tau))
+    gsf, asf = float(np.max(imu_spec.gyro_scale)), float(np.max(imu_spec.accel_scale))
+    am = float(np.max(imu_spec.accel_misalignment))
+    gm = float(np.max(imu_spec.gyro_misalignment))
+    sf = states >= 21 or gsf > 0 or asf > 0 or gm > 0
+    tiny_g, tiny_a = (1e-4 * DEG_H, 1e-3 * UG) if floor_bias else (0.0, 0.0)
+    ab0 = np.sqrt(ab ** 2 + ai ** 2 + (am * G0) ** 2 + (0.0 if sf else asf * G0) ** 2)
+
+    def rw(sig, tau, unit):  # random walk [unit/√h] of the Gauss-Markov instability's PSD 2σ²/τ
+        return np.sqrt(2.0 * sig ** 2 / tau) * 60.0 / unit if (sig > 0 and np.isfinite(tau)) else 0.0
+
+    return dict(
+        arw_deg_sqrt_h=max(float(np.max(imu_spec.gyro_arw)) / DEG * 60.0, 1e-6),
+        vrw_m_s_sqrt_h=max(float(np.max(imu_spec.accel_vrw)) * 60.0, 1e-6),
+        gyro_bias_sigma_deg_h=max(np.hypot(gb, gi), tiny_g) / DEG_H,
+        accel_bias_sigma_ug=max(ab0, tiny_a) / UG,
+        gyro_bias_tau_s=0.0, accel_bias_tau_s=0.0,
+        gyro_bias_rw_deg_h_sqrt_h=rw(gi, tau_g, DEG_H), accel_bias_rw_ug_sqrt_h=rw(ai, tau_a, UG),
+        scale_factors=sf,
+        gyro_sf_sigma_ppm=max(gsf * 1e6, 1e-3),
+        accel_sf_sigma_ppm=max(asf * 1e6, 1e-3),
+        gyro_misalignment=gm > 0 or states == 27,
+        gyro_misalignment_sigma_deg=gm / DEG,
+    )
+
+
+def _one_markov_bias(imu_spec, states: int, floor_bias: bool) -> dict:
+    """The ``imu`` section of the model before issue 35: one Gauss–Markov bias state per axis (turn-on
+    constant and instability together, σ0² = σ_const² + σ_GM², q = 2σ_GM²/τ: the constant is forgotten
+    within τ), scale factors only with ``states = 21``, misalignment not modelled."""
+    gb = float(np.max(imu_spec.gyro_bias))
+    ab = float(np.max(imu_spec.accel_bias))
+    gi = float(np.max(imu_spec.gyro_bias_instability))
+    ai = float(np.max(imu_spec.accel_bias_instability))
+    tau_g = float(np.min(imu_spec.gyro_bias_tau))
+    tau_a = float(np.min(imu_spec.accel_bias_tau))
+    arw = float(np.max(imu_spec.gyro_arw))
+    vrw = float(np.max(imu_spec.accel_vrw))
+    tiny_g, tiny_a = (1e-4 * DEG_H, 1e-3 * UG) if floor_bias else (0.0, 0.0)
+    return dict(
+        arw_deg_sqrt_h=max(arw / DEG * 60.0, 1e-6),
+        vrw_m_s_sqrt_h=max(vrw * 60.0, 1e-6),
+        gyro_bias_sigma_deg_h=max(np.hypot(gb, gi), tiny_g) / DEG_H,
+        accel_bias_sigma_ug=max(np.hypot(ab, ai), tiny_a) / UG,
+        gyro_bias_instability_deg_h=gi / DEG_H,
+        accel_bias_instability_ug=ai / UG,
+        gyro_bias_tau_s=tau_g if (gi > 0 and np.isfinite(tau_g)) else 0.0,
+        accel_bias_tau_s=tau_a if (ai > 0 and np.isfinite(tau_a)) else 0.0,
+        scale_factors=states == 21,
+        gyro_sf_sigma_ppm=max(float(np.max(imu_spec.gyro_scale)) * 1e6, 1e-3),
+        accel_sf_sigma_ppm=max(float(np.max(imu_spec.accel_scale)) * 1e6, 1e-3),
+    )
 
 
 def perturbed_initial_state(truth, rng, position_sigma_m=(1.0, 1.0, 1.0), velocity_sigma_m_s=(0.1, 0.1, 0.1),

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from aidnav.filters.result import SENSOR_ERROR_UNITS
+from aidnav.filters.result import SENSOR_ERROR_UNITS, sensor_error_axis
 from aidnav.io.atomic import write_text
 
 from .html import escape, fmt, img_file_tag, kv_table, page, table
@@ -40,14 +40,17 @@ def calibration_estimates(res) -> dict:
     pdiag = np.asarray(res.pdiag, float)
     if bias.ndim != 2 or len(bias) == 0:
         return {}
-    nb = min(bias.shape[1] // 3, len(SENSOR_ERROR_UNITS)) * 3
+    nb = min(bias.shape[1] // 3, len(SENSOR_ERROR_UNITS) - 2) * 3  # without the gyro misalignment:
+    lay = getattr(res, "layout", None)
+    if lay is not None:  # the INS block's sensor errors as the layout says (the misalignment with 27 states)
+        nb = int(lay[1]) - 9
     if pdiag.shape[1] < 9 + nb:
         raise ValueError(f"calibration: pdiag has {pdiag.shape[1]} states, fewer than 9 + {nb} bias states")
     out = {}
     for k in range(nb):
         name, scale = SENSOR_ERROR_UNITS[k // 3]
         var = pdiag[-1, 9 + k]
-        out[name.format("xyz"[k % 3])] = {
+        out[name.format(sensor_error_axis(k))] = {
             "value": float(bias[-1, k] * scale),
             "std": float(math.sqrt(var) * scale) if math.isfinite(var) and var >= 0 else None}
     return out

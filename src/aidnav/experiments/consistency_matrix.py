@@ -1,0 +1,375 @@
+"""The consistency matrix (issue 35): is the filter's σ one a user can bet on, in every condition and with
+every configuration?
+
+A *cell* is one condition (a simulated car drive with its IMU grade, GNSS rate and error model, and a gap,
+outage or start it stresses) × one configuration of the loosely coupled filter (no option at all, each
+vehicle preset of :mod:`aidnav.filters.presets`, or the configuration matched to the simulated sensors,
+:func:`aidnav.filters.tuning.loose_config_from_specs`), run over several seeds. Its figures, over all
+seeds and over the evaluation epochs (every second of the filter's output, gaps excluded):
+
+* ``coverage``: per axis (E, N, U, roll, pitch, heading) the fraction of epochs with |error| ≤ 3σ (σ the
+  one the solution reports, :func:`aidnav.filters.result.to_trajectory`); an honest Gaussian σ covers
+  99.73 %; the target is ≥ 95 %;
+* ``ratio``: per axis RMS(error) / RMS(σ) (1 for an honest σ; < 0.3 flags a σ uselessly large);
+* ``nees``: the mean normalised estimation error squared of the 9 navigation error states (φ, δv, δp,
+  :func:`aidnav.analysis.errors.ins_error_state`) with the filter's full 9×9 covariance at those epochs,
+  divided by 9 (1 for an honest filter).
+
+The seed fixes everything a run draws (IMU errors, GNSS noise, the time-correlated GNSS errors and the
+matched configuration's initial state), so a cell is reproducible. Tight-coupling cells (3, 2 or 0
+satellites) have their conditions here (``coupling = "tight"``) but are not run by this module: they
+belong to the tight filter's work (:func:`run_cell` raises ``NotImplementedError``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from aidnav.analysis.consistency import nees
+from aidnav.analysis.errors import ins_error_state, trajectory_errors, truth_index
+from aidnav.data import ImuData, Trajectory
+from aidnav.filters.config import LooseConfig
+from aidnav.filters.loose import run_loose
+from aidnav.filters.presets import apply_preset, preset_names
+from aidnav.filters.result import to_trajectory
+from aidnav.filters.tuning import loose_config_from_specs, perturbed_initial_state
+from aidnav.nav.earth import radii
+from aidnav.report import html as H
+from aidnav.sim.gnss import GnssSpec
+from aidnav.sim.imu import ImuSpec
+from aidnav.sim.run import simulate
+from aidnav.sim.scenario import parse_scenario
+
+__all__ = ["AXES", "COVERAGE_TARGET", "RATIO_TARGET", "GM_TAU_S", "Condition", "CellResult", "CONDITIONS",
+           "configurations", "condition", "simulate_condition", "config_for", "run_cell", "run_matrix",
+           "flags", "format_matrix", "matrix_page", "variant", "add_gauss_markov"]
+
+AXES = ("E", "N", "U", "roll", "pitch", "heading")
+COVERAGE_TARGET = 0.95  #: the issue's acceptance: ≥ 95 % of the epochs within 3σ on every axis
+RATIO_TARGET = 0.3  #: RMS(error)/RMS(σ) below this: the σ is uselessly large
+GM_TAU_S = 30.0  #: correlation time of the time-correlated GNSS position errors [s]
+GM_SIGMA_M = (0.5, 0.5, 1.0)  #: their steady-state σ E, N, U [m]
+GM_WHITE_M = 0.05  #: the white part of those fixes [m]
+EVAL_DT_S = 1.0  #: spacing of the evaluation epochs [s]
+
+# a car: standing 30 s (coarse alignment), then ~250 s of driving with left and right turns, then a stop
+_START = [{"type": "static", "duration_s": 30}]
+_DRIVE = [{"type": "accelerate", "duration_s": 10, "to_speed_m_s": 10},
+          {"type": "straight", "duration_s": 30}, {"type": "turn", "angle_deg": 90, "duration_s": 15},
+          {"type": "straight", "duration_s": 30}, {"type": "turn", "angle_deg": -180, "duration_s": 30},
+          {"type": "straight", "duration_s": 30}, {"type": "turn", "angle_deg": 270, "duration_s": 45},
+          {"type": "straight", "duration_s": 30}, {"type": "accelerate", "duration_s": 10, "to_speed_m_s": 0},
+          {"type": "static", "duration_s": 20}]
+# the moving start: already at 10 m/s when the log begins
+_MOVING = [{"type": "straight", "duration_s": 20}] + _DRIVE[1:]
+# the turn of the IMU gap: 180° in 60 s, the gap in its middle half
+_GAP_DRIVE = [{"type": "accelerate", "duration_s": 10, "to_speed_m_s": 10},
+              {"type": "straight", "duration_s": 40}, {"type": "turn", "angle_deg": 180, "duration_s": 60},
+              {"type": "straight", "duration_s": 60}, {"type": "turn", "angle_deg": -90, "duration_s": 20},
+              {"type": "straight", "duration_s": 60}]
+
+
+@dataclass(frozen=True)
+class Condition:
+    """One row of the matrix: the simulated drive and sensors.
+
+    segments : scenario segments (:mod:`aidnav.sim.scenario`); speed_m_s : the speed at the start;
+    grade : IMU grade (:meth:`aidnav.sim.imu.ImuSpec.grade`, with its scale factors and misalignments);
+    imu : (key, value) pairs overriding the grade (``sensors.imu`` keys of a scenario);
+    rate_hz : GNSS fix rate; velocity : fixes carry velocity; correlated : position errors are first-order
+    Gauss–Markov (σ ``GM_SIGMA_M``, τ ``GM_TAU_S``) plus ``GM_WHITE_M`` white, the fixes' σ the total
+    (what a receiver that does not know the correlation reports); imu_gap, outage : (start, duration) [s]
+    from the start without IMU samples / without GNSS fixes; coupling : "loose", or "tight" (a hook: the
+    tight filter's cells, ``satellites`` in view, are not run here).
+    """
+
+    name: str
+    segments: tuple = tuple(_START + _DRIVE)
+    speed_m_s: float = 0.0
+    grade: str = "consumer"
+    imu: tuple = ()
+    rate_hz: float = 1.0
+    velocity: bool = True
+    correlated: bool = False
+    imu_gap: tuple[float, float] | None = None
+    outage: tuple[float, float] | None = None
+    coupling: str = "loose"
+    satellites: int | None = None
+    note: str = ""
+
+
+CONDITIONS: tuple[Condition, ...] = (
+    Condition("gnss 1 Hz white", note="position + velocity fixes, white errors"),
+    Condition("gnss 1 Hz correlated", correlated=True,
+              note=f"Gauss-Markov position errors, τ {GM_TAU_S:g} s"),
+    Condition("gnss 10 Hz white", rate_hz=10.0),
+    Condition("gnss 10 Hz correlated", rate_hz=10.0, correlated=True),
+    Condition("imu gap 30 s in a turn", segments=tuple(_START + _GAP_DRIVE), imu_gap=(95.0, 30.0),
+              note="no IMU samples for 30 s in the middle of a 180° turn"),
+    Condition("gnss outage 60 s", outage=(120.0, 60.0), note="no fixes over two turns"),
+    Condition("parked 10 min then driving", segments=tuple([{"type": "static", "duration_s": 600}] + _DRIVE),
+              rate_hz=10.0, velocity=False, note="10 Hz position-only fixes"),
+    Condition("moving start, position only", segments=tuple(_MOVING), speed_m_s=10.0, velocity=False,
+              note="the log starts at 10 m/s; 1 Hz position-only fixes"),
+    Condition("grade navigation", grade="navigation"),
+    Condition("grade tactical", grade="tactical"),
+    Condition("grade mems", grade="mems"),
+    Condition("grade consumer", grade="consumer"),
+    Condition("tight 3 satellites", coupling="tight", satellites=3),
+    Condition("tight 2 satellites", coupling="tight", satellites=2),
+    Condition("tight 0 satellites", coupling="tight", satellites=0),
+)
+
+
+def condition(name: str) -> Condition:
+    """The condition of :data:`CONDITIONS` called ``name``."""
+    for c in CONDITIONS:
+        if c.name == name:
+            return c
+    raise ValueError(f"unknown condition {name!r}; known: {', '.join(c.name for c in CONDITIONS)}")
+
+
+def configurations() -> list[str]:
+    """The matrix's columns: ``none`` (no option), each preset, ``matched``."""
+    return ["none"] + preset_names() + ["matched"]
+
+
+@dataclass
+class SimRun:
+    """One simulated run of a condition: truth, the IMU log as given to the filter, the fixes."""
+
+    truth: Trajectory
+    imu: ImuData
+    gnss: object
+    imu_spec: ImuSpec
+    gnss_spec: GnssSpec
+    imu_errors: dict
+    seed: int
+
+
+def _scenario(cond: Condition, seed: int):
+    gnss = {"rate_hz": cond.rate_hz, "velocity": cond.velocity,
+            "sigma_pos_m": [GM_WHITE_M] * 3 if cond.correlated else [0.5, 0.5, 1.0]}
+    if cond.outage is not None:
+        gnss["outages"] = [{"start_s": cond.outage[0], "duration_s": cond.outage[1]}]
+    return parse_scenario({
+        "name": cond.name, "seed": seed, "imu_rate_hz": 100,
+        "initial": {"lat_deg": 40.0, "lon_deg": 116.0, "height_m": 50.0, "speed_m_s": cond.speed_m_s,
+                    "heading_deg": 20.0},
+        "segments": [dict(s) for s in cond.segments],
+        "sensors": {"imu": {"grade": cond.grade, **dict(cond.imu)}, "gnss": gnss}})
+
+
+def add_gauss_markov(gnss, sigma_m, tau_s: float, rng: np.random.Generator) -> None:
+    """Add first-order Gauss–Markov position errors (steady-state σ ``sigma_m`` E, N, U [m], correlation
+    time ``tau_s``, exact discretisation at the fixes' spacing, started stationary) to ``gnss`` in place,
+    and set its σ to the total (white σ ⊕ Gauss–Markov σ)."""
+    sig = np.asarray(sigma_m, float)
+    m = len(gnss.time)
+    b = np.zeros((m, 3))
+    b[0] = rng.normal(0.0, sig)
+    for k in range(1, m):
+        a = np.exp(-(gnss.time[k] - gnss.time[k - 1]) / tau_s)
+        b[k] = a * b[k - 1] + np.sqrt(1.0 - a * a) * rng.normal(0.0, sig)
+    rm, rn = radii(gnss.lat)
+    gnss.lat = gnss.lat + b[:, 1] / (rm + gnss.height)
+    gnss.lon = gnss.lon + b[:, 0] / ((rn + gnss.height) * np.cos(gnss.lat))
+    gnss.height = gnss.height + b[:, 2]
+    gnss.std_pos = np.sqrt(gnss.std_pos ** 2 + sig ** 2)
+
+
+def simulate_condition(cond: Condition, seed: int) -> SimRun:
+    """The simulated run of ``cond`` with ``seed`` (IMU gap removed, correlated errors added)."""
+    scn = _scenario(cond, seed)
+    sim = simulate(scn, seed)
+    gnss = sim.gnss
+    if cond.correlated:
+        add_gauss_markov(gnss, GM_SIGMA_M, GM_TAU_S, np.random.default_rng([seed, 35]))
+    imu = sim.imu
+    if cond.imu_gap is not None:
+        t0 = imu.time[0]
+        keep = (imu.time < t0 + cond.imu_gap[0]) | (imu.time >= t0 + cond.imu_gap[0] + cond.imu_gap[1])
+        imu = ImuData(imu.time[keep], imu.dtheta[keep], imu.dv[keep], t0=imu.t0)
+    return SimRun(sim.truth, imu, gnss, ImuSpec.from_config(scn.sensors.imu),
+                  GnssSpec.from_config(scn.sensors.gnss), sim.imu_errors, seed)
+
+
+def config_for(name: str, cond: Condition, run: SimRun, sensor_model: bool = True) -> LooseConfig:
+    """The configuration ``name`` (:func:`configurations`) for a run: ``none`` = :class:`LooseConfig`
+    (what ``aidnav process`` assumes without options), a preset over it, or ``matched``: the noise model of
+    the simulated sensors (:func:`loose_config_from_specs`, ``sensor_model`` passed on), the initial state
+    drawn around the truth with its σ, and the Gauss–Markov GNSS error states where the errors are."""
+    if name == "none":
+        return LooseConfig()
+    if name != "matched":
+        return apply_preset(None, name)
+    pos_s, vel_s, att_s = (1.0, 1.0, 1.0), (0.1, 0.1, 0.1), (0.5, 0.5, 3.0)
+    lla, vel, rph = perturbed_initial_state(run.truth, np.random.default_rng([run.seed, 36]), pos_s, vel_s,
+                                            att_s)
+    over = {}
+    if cond.correlated:
+        over["gnss"] = {"error_tau_s": GM_TAU_S, "error_sigma_m": GM_SIGMA_M}
+    return loose_config_from_specs(run.imu_spec, run.gnss_spec, init_rph_deg=rph, init_lla_deg_m=lla,
+                                   init_vel=vel, position_sigma_m=pos_s, velocity_sigma_m_s=vel_s,
+                                   attitude_sigma_deg=att_s, sensor_model=sensor_model, **over)
+
+
+@dataclass
+class CellResult:
+    """Figures of one cell (module doc): per-axis ``coverage`` and ``ratio`` (:data:`AXES` order),
+    ``nees`` (mean / 9), ``epochs`` evaluated over ``seeds`` runs, ``failed`` runs (exceptions, with
+    their messages in ``errors``) and the per-seed coverage of the worst axis."""
+
+    condition: str
+    config: str
+    coverage: np.ndarray
+    ratio: np.ndarray
+    nees: float
+    epochs: int
+    seeds: int
+    failed: int = 0
+    errors: list = field(default_factory=list)
+    per_seed_min: list = field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        return self.failed == 0 and not flags(self)
+
+
+def flags(cell: CellResult) -> list[str]:
+    """The cell's defects: axes below the coverage target, axes below the ratio target, failed runs."""
+    out = [f"{a} cov {c:.2f}" for a, c in zip(AXES, cell.coverage, strict=True)
+           if not c >= COVERAGE_TARGET]
+    out += [f"{a} ratio {r:.2f}" for a, r in zip(AXES, cell.ratio, strict=True) if r < RATIO_TARGET]
+    if cell.failed:
+        out.append(f"{cell.failed} run(s) failed")
+    return out
+
+
+def _truth_at(truth: Trajectory, t: np.ndarray) -> Trajectory:
+    """The truth interpolated (linearly; the heading unwrapped) at the epochs ``t`` (the filter's output
+    epochs are the IMU's shifted by an estimated time offset)."""
+    tt = truth.time
+
+    def li(a):
+        return np.interp(t, tt, a)
+
+    rph = np.column_stack([li(truth.rph[:, 0]), li(truth.rph[:, 1]), li(np.unwrap(truth.rph[:, 2]))])
+    return Trajectory(np.asarray(t, float), li(truth.lat), li(truth.lon), li(truth.height),
+                      np.column_stack([li(truth.vel[:, i]) for i in range(3)]), rph)
+
+
+def _evaluate(res, run: SimRun):
+    """(errors (K, 6), σ (K, 6), NEES (K,)) of one run at the evaluation epochs."""
+    traj = to_trajectory(res)
+    tt = run.truth.time
+    ev = np.arange(tt[0], tt[-1], EVAL_DT_S)
+    ev = ev[ev >= traj.time[0]]
+    j = truth_index(tt, np.round(ev, 6), atol=1e-3)
+    t = run.truth
+    ref = Trajectory(t.time[j], t.lat[j], t.lon[j], t.height[j], t.vel[j], t.rph[j])
+    err = trajectory_errors(traj, ref, max_dt=0.05)
+    e = np.hstack([err.pos, err.att])
+    s = np.hstack([err.std_pos, err.std_att])
+    ne = np.full(0, np.nan)
+    if res.cov is not None and len(res.cov_time):
+        idx, keep = np.unique(np.searchsorted(res.time, res.cov_time), return_index=True)
+        ok = idx < len(res.time)
+        idx, cov = idx[ok], res.cov[keep[ok]]
+        x = ins_error_state(res, _truth_at(run.truth, res.time[idx]), None, idx)[:, :9]
+        ne = nees(x, cov[:, :9, :9]) / 9.0
+    return e, s, ne
+
+
+def run_cell(cond: Condition, config: str, seeds, sensor_model: bool = True) -> CellResult:
+    """Run the cell ``cond`` × ``config`` over ``seeds`` (module doc)."""
+    if cond.coupling != "loose":
+        raise NotImplementedError(f"{cond.name}: tight-coupling cells are not run by the consistency matrix "
+                                  "yet (hook for the tight filter's work)")
+    es, ss, ns, per, errors = [], [], [], [], []
+    for seed in seeds:
+        run = simulate_condition(cond, seed)
+        try:
+            cfg = config_for(config, cond, run, sensor_model)
+            cov_t = np.arange(run.truth.time[0], run.truth.time[-1], EVAL_DT_S) - 1e-6
+            res = run_loose(run.imu, run.gnss, cfg, cov_times=cov_t)
+            e, s, ne = _evaluate(res, run)
+        except Exception as ex:  # a diverged or refused run is a defect of the cell, reported as such
+            errors.append(f"seed {seed}: {type(ex).__name__}: {ex}")
+            continue
+        e[:, 3:] = (e[:, 3:] + np.pi) % (2 * np.pi) - np.pi
+        es.append(e)
+        ss.append(s)
+        ns.append(ne)
+        per.append(float(np.min(np.mean(np.abs(e) <= 3.0 * s, axis=0))))
+    if not es:
+        nan6 = np.full(6, np.nan)
+        return CellResult(cond.name, config, nan6, nan6, np.nan, 0, len(seeds), len(errors), errors)
+    e, s = np.vstack(es), np.vstack(ss)
+    good = np.all(np.isfinite(e) & np.isfinite(s), axis=1)
+    e, s = e[good], s[good]
+    cov = np.mean(np.abs(e) <= 3.0 * s, axis=0)
+    ratio = np.sqrt(np.mean(e ** 2, axis=0)) / np.sqrt(np.mean(s ** 2, axis=0))
+    n_all = np.concatenate(ns) if ns else np.full(0, np.nan)
+    n_mean = float(np.nanmean(n_all)) if np.any(np.isfinite(n_all)) else np.nan
+    return CellResult(cond.name, config, cov, ratio, n_mean, int(len(e)), len(seeds), len(errors), errors,
+                      per)
+
+
+def run_matrix(conditions=None, configs=None, seeds=range(10), sensor_model: bool = True,
+               progress=None) -> list[CellResult]:
+    """Every loose cell of ``conditions`` (default :data:`CONDITIONS`) × ``configs`` (default
+    :func:`configurations`) over ``seeds``; ``progress(cell)`` is called after each cell."""
+    out = []
+    for cond in conditions or CONDITIONS:
+        if cond.coupling != "loose":
+            continue
+        for cfg in configs or configurations():
+            cell = run_cell(cond, cfg, list(seeds), sensor_model)
+            out.append(cell)
+            if progress is not None:
+                progress(cell)
+    return out
+
+
+def format_matrix(cells: list[CellResult]) -> str:
+    """The matrix as fixed-width text: one row per cell, coverage and ratio per axis, NEES/9, flags."""
+    head = (f"{'condition':<30} {'config':<10} " + " ".join(f"{a[:4]:>5}" for a in AXES) + " | "
+            + " ".join(f"{a[:4]:>5}" for a in AXES) + f" | {'NEES/9':>7}  flags")
+    lines = [f"{'':<41} 3σ coverage [%]{'':<21}| RMS(err)/RMS(σ)", head, "-" * len(head)]
+    for c in cells:
+        cov = " ".join(f"{100 * v:5.1f}" for v in c.coverage)
+        rat = " ".join(f"{v:5.2f}" for v in c.ratio)
+        fl = flags(c)
+        lines.append(f"{c.condition:<30} {c.config:<10} {cov} | {rat} | {c.nees:7.2f}  "
+                     + ("FAIL: " + ", ".join(fl) if fl else "ok"))
+    return "\n".join(lines)
+
+
+def _cell_html(v, bad: bool, fmt: str):
+    return (fmt.format(v), "bad" if bad else "good")
+
+
+def matrix_page(cells: list[CellResult], title: str, notes: list[str]) -> str:
+    """A self-contained HTML page of the matrix (:mod:`aidnav.report.html`)."""
+    header = ["condition", "config"] + [f"cov {a} %" for a in AXES] + [f"ratio {a}" for a in AXES] + \
+        ["NEES/9", "epochs", "failed"]
+    rows = []
+    for c in cells:
+        rows.append([c.condition, c.config]
+                    + [_cell_html(100 * v, not v >= COVERAGE_TARGET, "{:.1f}") for v in c.coverage]
+                    + [_cell_html(v, not v >= RATIO_TARGET, "{:.2f}") for v in c.ratio]
+                    + [H.fmt(c.nees), c.epochs, c.failed])
+    conds = [[c.name, c.grade, f"{c.rate_hz:g} Hz" + ("" if c.velocity else ", position only"),
+              "correlated" if c.correlated else "white", c.note] for c in CONDITIONS]
+    parts = [f"<h1>{title}</h1>", "".join(f"<p class='note'>{n}</p>" for n in notes),
+             H.table(header, rows), "<h2>Conditions</h2>",
+             H.table(["condition", "IMU grade", "GNSS", "GNSS errors", "note"], conds)]
+    return H.page(title, parts)
+
+
+def variant(cond: Condition, **changes) -> Condition:
+    """``cond`` with fields changed (e.g. a shorter drive for a test)."""
+    return replace(cond, **changes)

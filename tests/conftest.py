@@ -60,3 +60,29 @@ def _position_error_m(res, truth, idx):
 def position_error_m():
     """The function :func:`_position_error_m` (res, truth, idx) → (ENU error [m], ENU 1σ [m])."""
     return _position_error_m
+
+
+# ------------------------------------------------------------------------------------------ figures
+def _drawn_png(path, min_px=(300, 200), min_colour=5e-4):
+    """Assert that ``path`` is a PNG figure with data drawn on it: at least ``min_px`` (width, height)
+    pixels, and at least ``min_colour`` of its pixels in colour (max − min of R, G, B above 0.15: the
+    data lines and markers; axes, ticks and text are grey). A blank figure or axes without data fail
+    (where a file of > 1000 bytes would pass). Returns the image (H, W, channels) in [0, 1]."""
+    import matplotlib.image as mpimg
+    import numpy as np
+
+    path = Path(path)
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", f"{path}: not a PNG"
+    img = mpimg.imread(path)
+    h, w = img.shape[:2]
+    assert w >= min_px[0] and h >= min_px[1], f"{path}: {w}x{h} pixels"
+    rgb = img[..., :3]
+    colour = float(np.mean(rgb.max(axis=-1) - rgb.min(axis=-1) > 0.15))
+    assert colour >= min_colour, f"{path}: {colour:.2%} of the pixels in colour: no data drawn"
+    return img
+
+
+@pytest.fixture(scope="session")
+def drawn_png():
+    """The function :func:`_drawn_png` (path) → image: the figure exists and has data drawn on it."""
+    return _drawn_png

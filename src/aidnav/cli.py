@@ -40,7 +40,6 @@ if Path(sys.argv[0]).name == "aidnav" or sys.argv[0].endswith(os.path.join("aidn
 import typer  # noqa: E402
 
 from aidnav.console_script import exit_status as _exit_status  # noqa: E402
-from aidnav.console_script import lazy_bitcode  # noqa: E402
 from aidnav.console_script import leave as _leave  # noqa: E402
 from aidnav.console_script import preload_scipy_blas as _preload_scipy_blas  # noqa: E402
 
@@ -187,7 +186,8 @@ def compile_cmd(
                                    "calls the build should cover too; repeatable"),
     status: bool = typer.Option(False, "--status", help="only say whether a build matches this installation"),
 ):
-    """Ahead-of-time build of the kernels (once per install): commands then start without numba/LLVM."""
+    """Optional ahead-of-time build of the kernels (once per install; needs `pip install 'aidnav[compile]'`
+    and a C compiler): commands then start without numba/LLVM, with the same results."""
     import shlex
 
     from aidnav.apps.kernels import build_status, compile_kernels
@@ -232,10 +232,11 @@ def process(
     imu: Path = typer.Option(..., "--imu", help="IMU log: interchange CSV/Parquet or raw rtklibexplorer CSV"),
     gnss: Path = typer.Option(..., "--gnss", help="GNSS fixes: RTKLIB .pos or interchange CSV/Parquet"),
     config: Path | None = typer.Option(None, "--config", help="filter configuration YAML"),
-    odometer: Path | None = typer.Option(None, "--odometer", help="odometer CSV (time_s, speed_m_s or "
-                                         "speed_km_h [, speed_std_m_s]) on the GNSS time scale"),
-    baro: Path | None = typer.Option(None, "--baro", help="barometer CSV (time_s, height_m or height_ft "
-                                     "[, height_std_m]) on the GNSS time scale"),
+    odometer: Path | None = typer.Option(None, "--odometer", help="odometer CSV: the same as --aid "
+                                         "odometer=FILE"),
+    baro: Path | None = typer.Option(None, "--baro", help="barometer CSV: the same as --aid baro=FILE"),
+    aid: list[str] = typer.Option([], "--aid", help="an aid's file as NAME=FILE, repeatable; NAME an aid "
+                                  "of aidnav.filters.aids.AIDS (files and settings: docs/adding-an-aid.md)"),
     out: Path = typer.Option(Path("out"), "-o", "--out", help="output directory: trajectory.parquet|csv, "
                              "summary.json, summary.txt"),
     fmt: str = typer.Option("parquet", "--format", help="trajectory file format: parquet or csv"),
@@ -270,15 +271,49 @@ def process(
     (KML, GeoJSON) and run.html."""
     from aidnav.apps.common import run_directory
     from aidnav.apps.process import format_summary, process_logs
+    from aidnav.apps.run_outputs import start_outputs
+    from aidnav.filters.aids import parse_aid  # lazy: numpy and the filters only when a command runs
     from aidnav.progress import progress_bar
 
+    aid_paths = [("odometer", odometer)] * (odometer is not None) + [("baro", baro)] * (baro is not None)
+    aid_paths += [parse_aid(a) for a in aid]
+    figures = start_outputs(not no_figures)  # the figures' process forked before the bar's thread starts
     with progress_bar("aidnav process") as bar, run_directory(out, "process"):
         s = process_logs(imu, gnss, config, out, smooth=smooth, outages=outage, console=_console(), fmt=fmt,
                          height_offset_m=height_offset, time_offset_s=time_offset, start_s=start, end_s=end,
-                         skip_checks=skip_check, progress=bar, figures=not no_figures,
-                         odometer_path=odometer, baro_path=baro, kfgins_nav=kfgins_nav,
+                         skip_checks=skip_check, progress=bar, figures=figures,
+                         aid_paths=aid_paths, kfgins_nav=kfgins_nav,
                          output_rate_hz=output_rate, vehicle=vehicle)
     _print_summary(s, format_summary(s), as_json)
+
+
+@_command("fleet")
+def fleet_cmd(
+    manifest: Path = typer.Argument(..., help="CSV: name,imu,gnss[,config,truth,vehicle,vehicle_id,"
+                                    "time_offset,height_offset,smooth], paths relative to the manifest"),
+    out: Path = typer.Option(..., "-o", "--out", help="output directory: DIR/<name>/ per log, fleet.parquet, "
+                             "fleet.html (what is already done there is kept)"),
+    workers: int | None = typer.Option(None, "--workers", min=1, help="worker processes of a local Dask "
+                                       "cluster (default: the CPUs; 1: this process alone)"),
+    scheduler: str | None = typer.Option(None, "--scheduler", help="address of an existing Dask scheduler"),
+    figures: bool = typer.Option(False, "--figures/--no-figures", help="also each log's overview.png, maps "
+                                 "and run.html (about 1 CPU-s a log)"),
+    retry_failed: bool = typer.Option(False, "--retry-failed", help="process the logs that failed before "
+                                      "again"),
+):
+    """Process every log of a manifest in parallel (Dask): DIR/<name>/ as `aidnav process` writes it,
+    DIR/fleet.parquet and DIR/fleet.html. Exit status 3 when a log failed (the others are done)."""
+    from aidnav.apps.fleet import format_fleet, run_fleet
+    from aidnav.progress import progress_bar
+
+    if scheduler and workers is not None:
+        _fail("give --workers or --scheduler, not both")
+    with progress_bar("aidnav fleet", unit="logs") as bar:
+        res = run_fleet(manifest, out, workers=workers, scheduler=scheduler, figures=figures,
+                        retry_failed=retry_failed, progress=bar)
+    _console().print(format_fleet(res), end="")
+    if res.failed:
+        raise typer.Exit(3)
 
 
 @_command()
@@ -359,9 +394,11 @@ def satcom_point(
 def run_experiment_cmd(
     experiment: Path = typer.Argument(..., help="experiment YAML (see aidnav.experiments.config)"),
     out: Path = typer.Option(..., "-o", "--out", help="campaign directory (what is already there is reused)"),
-    workers: int = typer.Option(1, "--workers", min=1, help="worker processes (> 1: a local Dask cluster)"),
+    workers: int = typer.Option(1, "--workers", min=1, help="worker processes (> 1: a local process pool)"),
     scheduler: str | None = typer.Option(None, "--scheduler", help="address of an existing Dask scheduler"),
-    no_dask: bool = typer.Option(False, "--no-dask", help="--workers > 1: a process pool instead of Dask"),
+    dask: bool = typer.Option(False, "--dask", help="--workers > 1: a local Dask cluster instead of the "
+                              "process pool"),
+    no_dask: bool = typer.Option(False, "--no-dask", hidden=True, help="the process pool (the default)"),
     max_runs: int | None = typer.Option(None, "--max-runs", min=0,
                                         help="compute at most this many runs, then stop (rerun to resume)"),
 ):
@@ -373,7 +410,7 @@ def run_experiment_cmd(
         _fail("give --workers or --scheduler, not both")
     try:
         res = run_experiment(experiment, out, workers=workers, scheduler=scheduler, max_runs=max_runs,
-                             backend="processes" if no_dask and workers > 1 and not scheduler else None,
+                             backend="dask" if dask and not no_dask and workers > 1 else None,
                              console=_console())
     except ExperimentError as e:
         _fail(str(e))
@@ -454,6 +491,8 @@ def tight(
                                 "solution is written; the innovations stay the forward ones)"),
     as_json: bool = typer.Option(False, "--json", help="print the JSON summary instead of the text"),
     no_figures: bool = typer.Option(False, "--no-figures", help="skip overview.png, maps and run.html"),
+    vehicle: str | None = typer.Option(None, "--vehicle", help="vehicle preset under the configuration, as "
+                                       "in process: car (NHC), aircraft, pedestrian, ship"),
 ):
     """Tightly coupled GNSS/INS (pseudorange + Doppler) on an IMU log and RINEX files."""
     from aidnav.apps.common import run_directory
@@ -464,7 +503,7 @@ def tight(
         bar.stage("SPP, alignment, tightly coupled filter", total=None)
         s = process_tight_files(imu, obs, nav, config, out, truth, truth_height_offset, fmt=fmt,
                                 time_offset_s=time_offset, smooth=smooth, progress=bar,
-                                figures=not no_figures)
+                                figures=not no_figures, vehicle=vehicle)
     _print_summary(s, format_tight_summary(s), as_json)
 
 
@@ -534,18 +573,18 @@ def design_trajectory_cmd(
 
 def _start_kernels() -> None:
     """Kernels for this command (:mod:`aidnav.jit`): from the ahead-of-time build that matches this
-    source tree (``aidnav compile``), else numba's JIT. numba's own start is made cheaper either way,
-    when it happens: the cached kernels' bitcode left unparsed; scipy's BLAS modules loaded alone."""
+    source tree, Python, numpy, numba, llvmlite and CPU (``aidnav compile``, optional), else numba's JIT
+    (the same results). scipy's BLAS modules are loaded alone either way."""
     from aidnav import jit
 
     _preload_scipy_blas()  # the kernels' BLAS calls (numba's JIT and the build alike) import it at first use
     try:
-        mode = jit.start(on_numba=[lazy_bitcode])
+        mode = jit.start()
     except (ValueError, RuntimeError) as e:  # AIDNAV_KERNELS unknown, or aot without a build
         _fail(str(e))
     if mode == "jit" and "AIDNAV_KERNELS" not in os.environ and sys.stderr.isatty():
-        _console(stderr=True).print("[dim]tip: `aidnav compile` (once per install, about a minute) makes "
-                                    "every command start faster and use less memory[/dim]")
+        _console(stderr=True).print("[dim]tip: `aidnav compile` (optional: aidnav[compile] and a C compiler; "
+                                    "once per install) makes every command start faster[/dim]")
 
 
 def main():  # pragma: no cover - the console script (tests call `app` in-process, and main in a subprocess)

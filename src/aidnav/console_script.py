@@ -1,6 +1,6 @@
 """The ``aidnav`` console script's start and exit (:mod:`aidnav.cli`): scipy's BLAS modules loaded on
-their own, numba's cached kernels loaded without their bitcode, and a quick exit without the
-interpreter's teardown (issue 29: the fixed cost of a command)."""
+their own and a quick exit without the interpreter's teardown (issue 29: the fixed cost of a command).
+numba is used as it is: nothing of it is replaced (issue 36)."""
 
 from __future__ import annotations
 
@@ -8,16 +8,7 @@ import os
 import sys
 from pathlib import Path
 
-__all__ = ["lazy_bitcode", "preload_scipy_blas", "exit_status", "leave"]
-
-
-def lazy_bitcode() -> None:
-    """numba's cached kernels loaded without parsing their bitcode (:mod:`aidnav.numba_load`), unless
-    ``AIDNAV_NUMBA_LAZY_BITCODE=0``."""
-    if os.environ.get("AIDNAV_NUMBA_LAZY_BITCODE", "1") != "0":  # 0: numba's own cache loader
-        from aidnav.numba_load import install
-
-        install()  # the cached kernels' bitcode parsed only if something compiles against it
+__all__ = ["preload_scipy_blas", "exit_status", "leave"]
 
 
 def preload_scipy_blas() -> None:

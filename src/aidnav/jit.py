@@ -23,8 +23,10 @@ A build is a CPython extension module made by ``numba.pycc`` (one exported tramp
 signature, calling the kernel; the kernel itself compiled with its own options and linked in), with a
 ``table.json`` that maps (kernel, typekey) to the exported name. It lives in the user's cache
 (``$AIDNAV_KERNEL_DIR``, else ``$XDG_CACHE_HOME/aidnav/kernels``, else ``~/.cache/aidnav/kernels``)
-under a key hashed from every aidnav source file, the Python and numpy versions and the CPU: a
-changed source tree simply has no build until ``aidnav compile`` runs again. ``AIDNAV_KERNELS=jit``
+under a key hashed from every aidnav source file, the Python, numpy, numba and llvmlite versions and
+the CPU: a changed source tree or an upgraded numba simply has no build until ``aidnav compile`` runs
+again. The build is optional (``aidnav[compile]``: setuptools, and a C compiler); numba's JIT gives the
+same results without it. ``AIDNAV_KERNELS=jit``
 in the environment keeps the JIT even when a build exists; ``AIDNAV_KERNELS_VERBOSE=1`` names each
 kernel a build did not cover (numba started for it).
 """
@@ -45,7 +47,6 @@ _mode = "jit"
 _table: dict[str, dict] = {}  # kernel name -> {typekey: compiled function} (aot)
 _records: dict | None = None  # kernel name -> {typekey: numba argument types} (record)
 _record_path: str | None = None
-_pending_overloads: list = []  # (function, implementation) registered when numba starts (aot/record)
 _numba_started = False
 _started = False
 _numba_hooks: list = []  # called once, just before numba is imported for a kernel (cli: its start-up)
@@ -57,44 +58,65 @@ def mode() -> str:
     return _mode
 
 
-def njit(*args, **options):
-    """numba's ``njit`` (same options), or a :class:`Kernel` in the aot/record modes (module doc)."""
+def njit(*args, depends: str | None = None, **options):
+    """numba's ``njit`` (same options), or a :class:`Kernel` in the aot/record modes (module doc).
+
+    depends : a key (e.g. a hash of the sources of the functions the kernel calls in other modules, such
+    as the model table's :data:`aidnav.filters.measurements.MODELS_KEY`); with ``cache=True``, numba's
+    cached compilations of the kernel are dropped when the key differs from the one they were made with
+    (:func:`keep_cache_current`): numba itself keys its cache on the kernel's own source file only."""
     if args:  # @njit without parentheses
         (fn,) = args
-        return njit(**options)(fn)
+        return njit(depends=depends, **options)(fn)
 
     def decorate(fn):
         if _mode == "jit":
             import numba  # lazy: numba (and LLVM) only where a kernel is made in the JIT mode
 
-            return numba.njit(**options)(fn)
-        return Kernel(fn, options)
+            d = numba.njit(**options)(fn)
+            if depends is not None and options.get("cache"):
+                keep_cache_current(d, depends)
+            return d
+        return Kernel(fn, options, depends)
 
     return decorate
 
 
-def overload(fn):
-    """``numba.extending.overload(fn)``; in the aot/record modes registered when numba starts."""
-
-    def decorate(impl):
-        if _mode == "jit" or _numba_started:
-            from numba.extending import overload as numba_overload  # lazy: as njit
-
-            return numba_overload(fn)(impl)
-        _pending_overloads.append((fn, impl))
-        return impl
-
-    return decorate
+def keep_cache_current(dispatcher, key: str) -> bool:
+    """Drop ``dispatcher``'s cached compilations (numba's public ``Dispatcher.recompile``, which with no
+    signature compiled yet only flushes its cache) when ``key`` differs from the one recorded beside
+    them (``<qualname>.depends`` in ``dispatcher.stats.cache_path``), and record ``key``. Returns whether
+    the cache was dropped. Under ``NUMBA_DISABLE_JIT=1`` (a plain function) nothing happens."""
+    stats = getattr(dispatcher, "stats", None)
+    if stats is None or not hasattr(dispatcher, "recompile"):
+        return False
+    fn = dispatcher.py_func
+    stamp = Path(stats.cache_path) / f"{fn.__module__.rsplit('.', 1)[-1]}.{fn.__qualname__}.depends"
+    try:
+        if stamp.read_text() == key:
+            return False
+    except OSError:
+        pass
+    dispatcher.recompile()
+    try:
+        stamp.parent.mkdir(parents=True, exist_ok=True)
+        tmp = stamp.with_name(f"{stamp.name}.{os.getpid()}")
+        tmp.write_text(key)
+        os.replace(tmp, stamp)
+    except OSError:  # a read-only cache: numba does not write there either
+        pass
+    return True
 
 
 class Kernel:
     """A numba kernel in the aot/record modes: served by the ahead-of-time build where it covers the
     call, else by numba's JIT dispatcher of the same function (made on first need)."""
 
-    def __init__(self, fn, options: dict):
+    def __init__(self, fn, options: dict, depends: str | None = None):
         functools.update_wrapper(self, fn)
         self.py_func = fn
         self.options = dict(options)
+        self.depends = depends
         self.name = f"{fn.__module__}:{fn.__qualname__}"
         self._dispatcher = None
 
@@ -120,6 +142,8 @@ class Kernel:
             import numba  # lazy: only a call the build does not cover gets here
 
             self._dispatcher = numba.njit(**self.options)(self.py_func)
+            if self.depends is not None and self.options.get("cache"):
+                keep_cache_current(self._dispatcher, self.depends)
         return self._dispatcher
 
     def __getattr__(self, name):  # signatures, overloads, targetoptions, ...: the dispatcher's
@@ -133,7 +157,7 @@ class Kernel:
 
 def _start_numba() -> None:
     """Import numba for the kernels of the aot/record modes: the start-up hooks, the typing of a
-    :class:`Kernel` as its dispatcher (kernels call kernels), the overloads waiting to be registered."""
+    :class:`Kernel` as its dispatcher (kernels call kernels)."""
     global _numba_started
     if _numba_started:
         return
@@ -145,12 +169,6 @@ def _start_numba() -> None:
     @typeof_impl.register(Kernel)
     def _typeof_kernel(val, c):
         return typeof_impl(val.dispatcher, c)
-
-    from numba.extending import overload as numba_overload  # lazy: numba's start
-
-    for fn, impl in _pending_overloads:
-        numba_overload(fn)(impl)
-    _pending_overloads.clear()
 
 
 def typekey(value):
@@ -228,15 +246,27 @@ def _cpu() -> str:
         return platform.processor()
 
 
+def _version(dist: str) -> str:
+    """The installed version of distribution ``dist`` (its metadata: numba itself is not imported)."""
+    from importlib.metadata import PackageNotFoundError, version  # lazy: only when a build key is made
+
+    try:
+        return version(dist)
+    except PackageNotFoundError:
+        return "none"
+
+
 def build_key() -> str:
-    """Hash of every aidnav source file, the Python and numpy versions and the CPU: the name of the
-    build that matches this process."""
+    """Hash of every aidnav source file, the Python, numpy, numba and llvmlite versions and the CPU: the
+    name of the build that matches this process (an upgraded numba or llvmlite has no build until
+    ``aidnav compile`` runs again)."""
     h = hashlib.sha256()
     root = Path(__file__).resolve().parent
     for p in sorted(root.rglob("*.py")):
         h.update(str(p.relative_to(root)).encode())
         h.update(p.read_bytes())
-    h.update(f"{sys.version}|{np.__version__}|{platform.machine()}|{_cpu()}".encode())
+    h.update(f"{sys.version}|{np.__version__}|{_version('numba')}|{_version('llvmlite')}|"
+             f"{platform.machine()}|{_cpu()}".encode())
     return h.hexdigest()[:20]
 
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 
 import numpy as np
 import pytest
@@ -64,7 +65,7 @@ def truth_terms(spec: ImuSpec) -> dict:
 # ------------------------------------------------------------------------------------- model pieces
 def test_gauss_markov_constants():
     """ADEV of a first-order GM peaks at 0.6174 σ at τ = 1.8926 T; flicker floor 0.6643 B; B = 0.9294 σ."""
-    r = minimize_scalar(lambda x: -NFM._gm_shape(np.array([x]))[0], bounds=(0.5, 5.0), method="bounded",
+    r = minimize_scalar(lambda x: -NFM.gm_shape(np.array([x]))[0], bounds=(0.5, 5.0), method="bounded",
                         options={"xatol": 1e-10})
     assert r.x == pytest.approx(C.GM_PEAK_X, rel=1e-6)
     assert math.sqrt(-r.fun) == pytest.approx(C.GM_PEAK_ADEV, rel=1e-9)
@@ -72,9 +73,9 @@ def test_gauss_markov_constants():
     assert C.B_PER_GM_SIGMA == pytest.approx(0.9294, abs=1e-4)
     # series branch joins the closed form; RRW-like and white-like limits (El-Sheimy 2008)
     x = np.array([0.05 - 1e-12, 0.05 + 1e-12])
-    assert NFM._gm_shape(x)[0] == pytest.approx(NFM._gm_shape(x)[1], rel=1e-9)
-    assert NFM._gm_shape(np.array([1e-4]))[0] == pytest.approx(2e-4 / 3, rel=1e-3)
-    assert NFM._gm_shape(np.array([1e4]))[0] == pytest.approx(2e-4, rel=1e-3)
+    assert NFM.gm_shape(x)[0] == pytest.approx(NFM.gm_shape(x)[1], rel=1e-9)
+    assert NFM.gm_shape(np.array([1e-4]))[0] == pytest.approx(2e-4 / 3, rel=1e-3)
+    assert NFM.gm_shape(np.array([1e4]))[0] == pytest.approx(2e-4, rel=1e-3)
 
 
 def test_estimate_statistics_match_greenhall_and_simulation():
@@ -86,7 +87,7 @@ def test_estimate_statistics_match_greenhall_and_simulation():
     n = 1 << 15
     ms = 2 ** np.arange(0, 13)
     taus = ms * 0.01
-    nu, _ = AC._estimate_stats(taus, ms, n + 1, np.array([0.0, 1.0, 0.0, 0.0]), 600.0)
+    nu, _ = AC.estimate_stats(taus, ms, n + 1, np.array([0.0, 1.0, 0.0, 0.0]), 600.0)
     gh = np.array([allantools.edf_greenhall(0, 2, int(m), n + 1, overlapping=True) for m in ms])
     np.testing.assert_allclose(nu[6:], gh[6:], rtol=0.01)
     np.testing.assert_allclose(nu[3:6], gh[3:6], rtol=0.1)
@@ -105,8 +106,8 @@ def test_estimate_statistics_match_greenhall_and_simulation():
         logs.append([np.log(np.mean((x[2 * m:] - 2 * x[m:-m] + x[:-2 * m]) ** 2) / (2 * (m * 0.01) ** 2))
                      for m in ms])
     logs = np.array(logs)
-    nu, linv = AC._estimate_stats(taus, ms, n + 1, coef, t_corr)
-    b, sd = NFM._logchi2_moments(nu)
+    nu, linv = AC.estimate_stats(taus, ms, n + 1, coef, t_corr)
+    b, sd = NFM.logchi2_moments(nu)
     z = ((logs - np.log(C.model_avar(taus, coef, t_corr)) - b) / sd) @ linv.T
     per_tau = (z**2).mean(axis=0)
     assert np.all((per_tau > 0.6) & (per_tau < 1.5)), per_tau
@@ -285,7 +286,7 @@ def test_static_option_errors(tmp_path):
 
 
 # ---------------------------------------------------------------------------------------- outputs
-def test_cli_writes_allan_png_noise_json_and_imu_yaml(tmp_path):
+def test_cli_writes_allan_png_noise_json_and_imu_yaml(tmp_path, drawn_png):
     """`aidnav characterise LOG --static A:B -o DIR` on a rate CSV; imu.yaml validates as the imu: section."""
     import pandas as pd
     import yaml
@@ -307,7 +308,7 @@ def test_cli_writes_allan_png_noise_json_and_imu_yaml(tmp_path):
     out = tmp_path / "char"
     res = CliRunner().invoke(app, ["characterise", "--imu", str(log), "--static", "100:", "-o", str(out)])
     assert res.exit_code == 0, res.output
-    assert (out / "allan.png").stat().st_size > 10_000
+    drawn_png(out / "allan.png")
     nd = json.loads((out / "noise.json").read_text())
     gx = nd["axes"]["gyro_x"]
     assert gx["arw_deg_sqrt_h"]["status"] == "fitted"
@@ -367,7 +368,7 @@ def test_estimate_covariance_equals_the_brute_force_double_sum(coef, t_corr, tol
     ms = 2.0 ** np.arange(8)
     coef = np.array(coef)
     want = _brute_force_cov(ms, n, tau0, coef, t_corr)
-    got = AC._avar_cov_nb(ms, float(n + 1), tau0, coef, t_corr)
+    got = AC.avar_cov_nb(ms, float(n + 1), tau0, coef, t_corr)
     scale = np.sqrt(np.outer(np.diag(want), np.diag(want)))
     assert np.max(np.abs(got - want) / scale) < tol
 
@@ -381,11 +382,11 @@ def test_estimate_variances_alone_are_the_covariance_diagonal_to_the_bit(coef, t
     n, tau0 = 3_600_000, 0.01
     ms = 2.0 ** np.arange(21)
     coef = np.array(coef)
-    np.testing.assert_array_equal(AC._avar_var_nb(ms, float(n + 1), tau0, coef, t_corr),
-                                  np.diag(AC._avar_cov_nb(ms, float(n + 1), tau0, coef, t_corr)))
+    np.testing.assert_array_equal(AC.avar_var_nb(ms, float(n + 1), tau0, coef, t_corr),
+                                  np.diag(AC.avar_cov_nb(ms, float(n + 1), tau0, coef, t_corr)))
     tau = ms * tau0
-    np.testing.assert_array_equal(AC._estimate_edf(tau, ms, n + 1, coef, t_corr),
-                                  AC._estimate_stats(tau, ms, n + 1, coef, t_corr)[0])
+    np.testing.assert_array_equal(AC.estimate_edf(tau, ms, n + 1, coef, t_corr),
+                                  AC.estimate_stats(tau, ms, n + 1, coef, t_corr)[0])
 
 
 def test_continuum_lag_sum_is_the_large_m_limit_of_the_exact_sum():
@@ -519,7 +520,7 @@ def test_trapezoid_samples_invert_the_raw_log_increments():
     np.testing.assert_allclose(C.trapezoid_samples(imu), w, rtol=0, atol=1e-11)
 
 
-def test_real_drive_log_static_start(data_dir, tmp_path):
+def test_real_drive_log_static_start(data_dir, tmp_path, drawn_png):
     """rtklibexplorer_drive_0708: the car is parked with the engine running until it drives off about 34 s
     after the first IMU sample (38 s after the first GNSS epoch: the IMU log starts 3.5 s later).
 
@@ -540,8 +541,7 @@ def test_real_drive_log_static_start(data_dir, tmp_path):
     out = tmp_path / "drive"
     res = CliRunner().invoke(app, ["characterise", "--imu", str(log), "--static", "0:38", "-o", str(out)])
     assert res.exit_code == 0, res.output
-    for f in ("allan.png", "noise.json", "imu.yaml"):
-        assert (out / f).stat().st_size > 1000, f
+    drawn_png(out / "allan.png")
     nd = json.loads((out / "noise.json").read_text())
     t_first = nd["static_check"]["time_origin_s"]
     assert nd["span_s"][0] - t_first == pytest.approx(0.0, abs=0.05)
@@ -584,9 +584,11 @@ def test_real_drive_log_static_start(data_dir, tmp_path):
         d = vib["axes"][ax]
         assert 0.6 <= d["std_deg_s"] <= 2.4 and d["vibration"], (ax, d)
         assert d["peak_hz"] == pytest.approx(31.0, abs=1.0) and d["peak_share"] > 0.5
-    assert vib["axes"]["gyro_x"]["std_deg_s"] == pytest.approx(0.63, abs=0.03)
-    assert vib["axes"]["gyro_y"]["std_deg_s"] == pytest.approx(2.33, abs=0.05)
-    assert any(w.startswith("vibration") and "31.1 Hz" in w for w in warn)
+    # the data README's figures (0.64 / 2.37 deg/s over the first 30 s; ours over 38 s): within 5 %
+    assert vib["axes"]["gyro_x"]["std_deg_s"] == pytest.approx(0.64, rel=0.05)
+    assert vib["axes"]["gyro_y"]["std_deg_s"] == pytest.approx(2.37, rel=0.05)
+    peaks = [float(m) for w in warn if w.startswith("vibration") for m in re.findall(r" at ([0-9.]+) Hz", w)]
+    assert peaks and all(abs(f - 31.0) <= 1.0 for f in peaks), warn
     assert "vibration" in res.output and "slow motion" in res.output
     # no --static: the parked start is found (the drive, cruising included, is not "static")
     ch = C.characterise_file(log, tmp_path / "auto")[0]

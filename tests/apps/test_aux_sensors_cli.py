@@ -85,3 +85,13 @@ def test_bad_odometer_file_exits_2(files):
     r = _process(files, "b", "--odometer", str(files / "bad.csv"))
     assert r.returncode == 2, r.stderr
     assert "bad.csv" in r.stderr and "3" in r.stderr
+
+
+def test_an_unknown_aid_is_a_clear_error(tmp_path):
+    from typer.testing import CliRunner
+
+    from aidnav.cli import app
+
+    r = CliRunner().invoke(app, ["process", "--imu", "i.csv", "--gnss", "g.csv", "--aid", "sonar=x.csv",
+                                 "-o", str(tmp_path / "o")])
+    assert r.exit_code == 2 and "--aid sonar=x.csv" in r.output and "odometer, baro, mag" in r.output

@@ -28,7 +28,7 @@ def point():
 @pytest.fixture(scope="module")
 def sims(point):
     """Simulated runs 0..3 of the point and their filter configurations (initial states drawn per run)."""
-    ctx = runner._context(point.key, point.doc)
+    ctx = runner.point_context(point.key, point.doc)
     out = []
     for run in range(4):
         sim, s_est = runner.simulate_run(ctx, run)

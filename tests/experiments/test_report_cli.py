@@ -68,7 +68,7 @@ def test_cli_run_workers_and_report(tiny_file, tiny_serial, tmp_path):
     assert "6 runs (6 computed, 0 reused)" in r.output and "NEES" in r.output
     for name in ("runs.parquet", "epochs.parquet"):
         assert pq.read_table(out / name).equals(pq.read_table(tiny_serial[0] / name))
-    assert json.loads((out / "manifest.json").read_text())["backend"]["scheduler"] == "LocalCluster"
+    assert json.loads((out / "manifest.json").read_text())["backend"]["kind"] == "processes"
     r = CliRunner().invoke(app, ["report", str(out)])
     assert r.exit_code == 0 and (out / "report.html").exists()
 

@@ -105,7 +105,8 @@ def test_summary_rows_compute_holds():
                     values={"none": 0.21, "figure8": 0.03})
     assert r == {"quantity": "heading std, none", "unit": "deg", "paper": 0.2483, "ours": 0.21,
                  "stderr": None, "target": "none / figure8 >= 5", "holds": True, "verdict": "holds",
-                 "spec": False, "reason": None, "margin": None, "values": {"none": 0.21, "figure8": 0.03}}
+                 "spec": False, "reason": None, "margin": None, "values": {"none": 0.21, "figure8": 0.03},
+                 "runs": None, "check": "0.21 / 0.03 >= 5"}
     r = summary_row("x", "m", ours=2.0, paper=1.0, target="abs(ours - paper) <= 0.1 * paper")
     assert r["holds"] is False
     assert summary_row("x", "m", ours=2.0)["holds"] is None
@@ -128,9 +129,10 @@ def test_write_summary_schema(tmp_path):
                  "tables": [{"name": "Table 4", "caption": "cap", "kind": "results", "rows": [
                      {"quantity": "q", "unit": "deg", "paper": None, "ours": 1.0, "stderr": None,
                       "target": "ours < 2", "holds": True, "verdict": "holds", "spec": False, "reason": None,
-                      "margin": None, "values": None}]}], "figures": ["f.png"], "notes": ["n"],
-                 "verdicts": {"spec": {"holds": 0, "fails": 0, "unresolved": 0},
-                              "other": {"holds": 1, "fails": 0, "unresolved": 0}}}
+                      "margin": None, "values": None, "runs": None, "check": "1 < 2"}]}],
+                 "figures": ["f.png"], "notes": ["n"],
+                 "verdicts": {"spec": {"holds": 0, "fails": 0, "unresolved": 0, "structural-null": 0},
+                              "other": {"holds": 1, "fails": 0, "unresolved": 0, "structural-null": 0}}}
     typed = dict(rows[0], target=None, holds=True)
     with pytest.raises(SummaryError, match="holds without a target"):
         write_summary(tmp_path / "x", seed="004", title="T", runs=1, base_seed=1,
@@ -167,7 +169,8 @@ def test_write_summary_rejects_holds_that_disagree_with_the_target(tmp_path):
 def test_unresolved_within_two_standard_errors():
     # an ordering a > b that holds by 0.3 with a standard error of 0.2: not resolved (< 2 se)
     r = summary_row("a - b", "-", ours=0.3, target="ours > 0", stderr=0.2, margin=(0.3, 0.2), spec=True)
-    assert r["holds"] is True and r["verdict"] == "unresolved" and "standard errors" in r["reason"]
+    # holds is the verdict's (issue 39): an unresolved row does not hold, even on the holding side
+    assert r["holds"] is False and r["verdict"] == "unresolved" and "standard errors" in r["reason"]
     r = summary_row("a - b", "-", ours=0.5, target="ours > 0", stderr=0.2, margin=(0.5, 0.2), spec=True)
     assert r["verdict"] == "holds" and r["reason"] is None
     r = summary_row("a - b", "-", ours=-0.5, target="ours > 0", margin=(-0.5, 0.2), reason="physics")
@@ -256,4 +259,79 @@ def test_resolved_row_states_a_spec_trend_at_its_resolution(tmp_path):
     assert resolved_row(plain, 30) is plain
     _write_one(tmp_path / "w", r)
     d = json.loads((tmp_path / "w" / "summary.json").read_text())
-    assert d["verdicts"]["spec"] == {"holds": 0, "fails": 1, "unresolved": 0}
+    assert d["verdicts"]["spec"] == {"holds": 0, "fails": 1, "unresolved": 0, "structural-null": 0}
+
+
+def test_holds_is_the_verdict_and_targets_show_their_numbers(tmp_path):
+    """Issue 39: ``holds == (verdict == "holds")`` on every row; an exactly-zero effect is structural-null;
+    the target is shown with its numbers; rows carry their run count (the table's by default)."""
+    from aidnav.experiments.reproduce.page import write_seed_page
+    from aidnav.experiments.reproduce.summary import grid_table, target_shown
+
+    null = summary_row("S / 8 − 1", "-", ours=0.0, target="ours > 0", margin=(0.0, 0.0), spec=True)
+    assert (null["verdict"], null["holds"]) == ("structural-null", False)
+    assert "by construction" in null["reason"]
+    band = summary_row("NEES", "-", ours=1.02, target="lo <= ours <= hi", values={"lo": 0.95, "hi": 1.05})
+    assert band["check"] == "0.95 <= 1.02 <= 1.05" and target_shown(band) == band["check"]
+    un = summary_row("a", "-", ours=1.1, target="ours >= 1", margin=(0.1, 0.1), stderr=0.1, runs=600)
+    assert un["runs"] == 600 and not un["holds"]
+    cells = {(q, c): summary_row(f"{q} {c}", "arcmin", ours=1.0 + i, paper=2.0, stderr=0.1)
+             for i, (q, c) in enumerate([("heading", "std"), ("pitch", "std")])}
+    t = grid_table("Table 2", "cap", cells, ["heading", "pitch"], ["std", "mean"], [null, band, un], runs=30)
+    assert t["grid"]["index"] == [[0, None], [1, None]]
+    p = write_summary(tmp_path, seed="000", title="T", runs=30, base_seed=1, tables=[t])
+    d = json.loads(p.read_text())
+    rows = d["tables"][0]["rows"]
+    assert all(r["holds"] == (r["verdict"] == "holds") for r in rows if r["target"])
+    assert [r["runs"] for r in rows] == [30, 30, 30, 30, 600]
+    assert d["verdicts"]["spec"]["structural-null"] == 1 and d["tables"][0]["grid"] == t["grid"]
+    # a hand-made row whose holds disagrees with its verdict is refused
+    with pytest.raises(SummaryError, match="holds"):
+        _write_one(tmp_path / "x", dict(un, holds=True))
+    text = write_seed_page(tmp_path).read_text()
+    assert "0.95 &lt;= 1.02 &lt;= 1.05" in text and "structural-null" in text
+    assert text.count("<table>") == 2  # the grid and the rows outside it
+
+
+def test_seed_004_table_8_structural_null_is_its_own_verdict():
+    """A factor that does not act on a quantity in every run (per-run ratios within NULL_TOL of 1) gives the
+    verdict structural-null (not holds, not fails, not unresolved); a real Monte Carlo effect does not."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from aidnav.experiments.reproduce.seed_004_tables import QUANTS, Group, structural_null, t8_rows
+
+    rng = np.random.default_rng(3)
+    base = rng.uniform(0.5, 1.5, (8, len(QUANTS)))
+    cases = {}
+    for i, b in enumerate((20, 40, 60)):
+        a = base * (1.0 + 1e-7 * i)  # velocity and position: the same in every run (to rounding)
+        a[:, QUANTS.index("baseline")] *= (1.0, 4.0, 9.0)[i]
+        a[:, QUANTS.index("lat")] = base[:, QUANTS.index("lat")] * rng.uniform(0.8, 1.2, 8)  # a noisy effect
+        cases[b] = SimpleNamespace(std=a)
+    g = Group(cases)
+    assert structural_null(g, "vE", (20, 40, 60)) < 1e-6 and structural_null(g, "lat", (20, 40, 60)) is None
+    rows = {r["quantity"].split(" [")[0]: r for r in t8_rows(g)}
+    ve = rows["vE: smallest ratio of successive L0 (non-decreasing: >= 1)"]
+    assert (ve["verdict"], ve["holds"], ve["spec"]) == ("structural-null", False, True)
+    assert "structural null" in ve["reason"] and "drifting master" in ve["reason"]
+    lat = next(r for q, r in rows.items() if q.startswith("lat: smallest ratio"))
+    assert lat["verdict"] != "structural-null"
+
+
+def test_seed_004_cases_white_master_and_inflated_q():
+    """Seed 004's default case has the white master (SPEC §5.1, 2026-12-06); the third noise configuration
+    keeps the density reading in the truth and gives the filter the ARW reading's gyro noise (60× the
+    density's ARW: 0.1°/√h against 0.1°/h/√Hz)."""
+    import numpy as np
+
+    from aidnav.experiments.reproduce import seed_004 as s4
+
+    base = s4.sim_config(s4.BASE4)
+    assert base.master.pos_drift_fraction == 0.0
+    q = s4.Case4(grade="sub", filter_grade="sub_arw")
+    truth, filt = s4.sim_config(q), s4.filter_config(q)
+    arw_truth = float(np.max(truth.sub_imu.gyro_arw))
+    assert filt.gyro_arw == pytest.approx(60.0 * arw_truth, rel=1e-12)
+    assert s4.filter_config(s4.Case4(grade="sub")).gyro_arw == pytest.approx(arw_truth, rel=1e-12)

@@ -36,7 +36,13 @@ def test_cli_reproduce_001_end_to_end(tmp_path):
         if "sign test" in q and row["spec"]:
             assert row["verdict"] == "fails" and "7 runs" in row["reason"]
     assert all(r["verdict"] == "holds" for r in spec if "sign test" not in r["quantity"])
-    assert [t["kind"] for t in d["tables"]].count("sensitivity") == 3
+    assert [t["kind"] for t in d["tables"]].count("sensitivity") == 4  # ideal, poor clock, MEMS, both
+    assert any("ideal clock" in t["name"] for t in d["tables"])
+    # the seed's landing deliverables, judged against the named ICAO figures (issue 39)
+    dl = next(t for t in d["tables"] if t["name"] == "Approach deliverables")
+    qs = " ".join(r["quantity"] for r in dl["rows"])
+    assert "azimuth error" in qs and "elevation error" in qs and "range error" in qs and "CAT II" in qs
+    assert "Annex 10" in dl["caption"] and all(r["runs"] == 2 for r in dl["rows"])
     html = (out / "report.html").read_text()
     assert html.count("data:image/png;base64,") == len(d["figures"]) >= 5
     got = browser_layout(out / "report.html", tmp_path / "browser")
@@ -65,6 +71,10 @@ def test_dr_rows_paired_statistics_known_answers():
     sb = next(r for q, r in rows.items() if q.startswith("(b) sign test"))
     assert "in 3 of 10 runs" in sb["quantity"] and sb["verdict"] == "fails" and sb["spec"]
     assert "3 of 10 runs" in sb["reason"] and "pure DR" in sb["reason"]
+    # the corrected mechanism (SPEC §2.3, 2026-12-06): an unobserved velocity direction, not the clock
+    assert "unobserved" in sb["reason"] and "free-inertial" in sb["reason"] and "not (b)" in sb["reason"]
+    win = next(r for q, r in rows.items() if q.startswith("(b) over the seed's window, sign test"))
+    assert not win["spec"] and "in 0 of 10 runs" in win["quantity"] and win["verdict"] == "fails"  # 0.1 > all
     d = before - after
     pb = next(r for q, r in rows.items() if q.startswith("(b) paired: slope before"))
     assert pb["ours"] == pytest.approx(d.mean(), rel=1e-12)

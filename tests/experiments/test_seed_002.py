@@ -37,8 +37,10 @@ def test_run_writes_summary(tmp_path):
         for r in t["rows"]:
             assert set(r) == set(_ROW_KEYS)
             assert r["holds"] in (True, False, None)
-    cvae = [r for r in d["tables"][0]["rows"] if r["quantity"].startswith("CVAE CRB")]
+    cvae = [r for r in d["tables"][0]["rows"] if r["quantity"].startswith("formula check: CVAE CRB")]
     assert len(cvae) == 3 and all(r["holds"] for r in cvae)
+    # computed reference values are labelled as computed, not put in the paper's column (issue 39)
+    assert all(r["paper"] is None and "computed" in r["values"] for r in cvae)
     # the seed's ordering is one predicate, counted once; the CRB rows are SPEC acceptance targets
     order = [r for r in d["tables"][0]["rows"] if "ordering" in r["quantity"]]
     assert len(order) == 1 and not order[0]["spec"] and order[0]["margin"] is not None

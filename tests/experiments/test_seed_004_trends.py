@@ -1,6 +1,7 @@
 """§5.3 trends of the seed-004 reproduction on a small Monte Carlo (fixed seeds, common random
-numbers), with the reproduction's own cases (ARW reading of the sub-IMU, Gauss-Markov master position
-drift):
+numbers), with the ARW reading of the sub-IMU and the drifting master (a Gauss-Markov master position
+drift: ``transfer_cases.Case``'s default, a sensitivity case of the reproduction since 2026-12-06, whose
+default is the white master, ``seed_004.Case4``):
 
 * the S, O, figure-8 and climb maneuvers give pitch and roll STDs within ±30 % of their mean, and no
   maneuver gives ≥ 2× worse pitch and roll;

@@ -104,7 +104,7 @@ def _subset_case():
     sim = simulate(scn, seed=5)
     tr, imu = sim.truth, sim.imu
     cfg = LooseConfig()
-    rec, _ = _records(cfg, gnss_arrays(sim.gnss, cfg), np.ones(len(sim.gnss), bool), None, None)
+    rec, _ = _records(cfg, gnss_arrays(sim.gnss, cfg), np.ones(len(sim.gnss), bool), ())
     mod = _models(cfg)._replace(node=np.zeros((0, 2), np.int64))
     n = len(imu)
     gap = np.zeros((n, 2))

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from aidnav.filters.engine import _node_rates, feedback
+from aidnav.filters.engine import feedback, node_rates
 from aidnav.filters.layout import L_CLK, L_N, L_RERR
 from aidnav.filters.measurements import Nav
 from aidnav.filters.measurements import epoch as ep
@@ -48,7 +48,7 @@ def _nav(st, bias):
     C = dcm_from_quat(st[6:10])
     w = np.zeros((4, 3))
     wb = np.array([0.01, -0.02, 0.05])
-    _node_rates(st, wb, wb * 0.01, 0.01, w)
+    node_rates(st, wb, wb * 0.01, 0.01, w)
     return Nav(st, C, w, 0.0, bias)
 
 

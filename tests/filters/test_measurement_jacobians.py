@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from aidnav.filters import measurements as ms
-from aidnav.filters.engine import _node_rates, feedback
+from aidnav.filters.engine import feedback, node_rates
 from aidnav.filters.layout import L_BARO, L_CLK, L_N, L_ODO, make_layout
 from aidnav.filters.measurements.check import check_jacobian
 from aidnav.nav.earth import lla_to_ecef
@@ -48,7 +48,7 @@ def _nav(st, bias, dt_back, rate_from_bias, bias_nominal):
     b = bias if rate_from_bias else bias_nominal
     wb = W_RAW - b[0:3]
     w = np.zeros((4, 3))
-    _node_rates(st, wb, wb * 0.01, 0.01, w)
+    node_rates(st, wb, wb * 0.01, 0.01, w)
     return ms.Nav(st, C, w, dt_back, bias)
 
 
@@ -150,3 +150,18 @@ def test_pseudorange_and_rate(with_rate):
     H, R, _ = _check(ms.pseudorange_model, row, LEVER, dt_back=0.07, allow=allow)
     assert H.shape[0] == (2 if with_rate else 1)
     assert H[0, LAY[L_CLK]] == -1.0 and (not with_rate or H[1, LAY[L_CLK] + 1] == -1.0)
+
+
+def test_magnetometer_heading():
+    st, b = _nominal()
+    H = np.zeros((ms.MAX_ROWS, N))
+    z = np.zeros(ms.MAX_ROWS)
+    ms.mag_heading_model(_nav(st, b, 0.0, True, b), np.array([0.0, 0.01]), np.zeros(1), LAY, H, z,
+                         np.zeros((6, 6)))
+    psi = z[0]  # the INS heading (measured 0)
+    row = np.array([psi - 0.02, np.radians(2.0)])  # measured near the computed heading (no wrap)
+    H, R, z = _check(ms.mag_heading_model, row, np.zeros(1), dt_back=0.05)
+    assert np.isclose(R[0, 0], np.radians(2.0) ** 2) and H[0, 2] == 1.0
+    # the heading wraps: a measurement 2π away gives the same innovation
+    H2, _, z2 = _check(ms.mag_heading_model, row + np.array([2 * np.pi, 0.0]), np.zeros(1), dt_back=0.05)
+    assert np.isclose(z2[0], z[0]) and np.allclose(H2, H)

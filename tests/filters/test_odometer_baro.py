@@ -23,6 +23,7 @@ import pytest
 from scipy.stats import chi2
 
 from aidnav.filters import measurements as ms
+from aidnav.filters.aids import aid
 from aidnav.filters.layout import L_BARO, L_N, L_ODO
 from aidnav.filters.loose import run_loose
 from aidnav.filters.tuning import loose_config_from_specs, perturbed_initial_state
@@ -75,8 +76,10 @@ def runs(loose_error_state):
         k_end = int(np.searchsorted(truth.time, OUTAGE[1])) - 1  # last sample before the fix at 260 s
         free = run_loose(imu, gnss, cfg(), withheld=withheld)
         c_odo = cfg(nhc=True, nhc_sigma_m_s=0.05, nhc_min_speed_m_s=1.0)
-        r_odo = run_loose(imu, gnss, c_odo, withheld=withheld, odometer=odo, cov_times=NEES_T)
-        r_baro = run_loose(imu, gnss, cfg(), withheld=withheld, baro=baro, cov_times=NEES_T)
+        r_odo = run_loose(imu, gnss, c_odo, withheld=withheld, aids=[aid("odometer", odo)],
+                          cov_times=NEES_T)
+        r_baro = run_loose(imu, gnss, cfg(), withheld=withheld, aids=[aid("baro", baro)],
+                           cov_times=NEES_T)
         for res, key in ((free, "free"), (r_odo, "odo"), (r_baro, "baro")):
             k = int(np.searchsorted(res.time, truth.time[k_end]))
             de, dn, du = lla_difference_enu(res.state[k, 0], res.state[k, 1], res.state[k, 2],
@@ -138,7 +141,8 @@ def combined():
     baro = simulate_baro(truth, 5.0, BARO_B, 0.3, np.random.default_rng(s_baro))
     cfg = loose_config_from_specs(spec, gs, init_rph_deg=rph, init_lla_deg_m=lla, init_vel=vel,
                                   constraints={"zupt": False, "nhc": True, "nhc_sigma_m_s": 0.05})
-    res = run_loose(imu, gnss, cfg, withheld=withheld, odometer=odo, baro=baro, smooth=True)
+    res = run_loose(imu, gnss, cfg, withheld=withheld, aids=[aid("odometer", odo), aid("baro", baro)],
+                    smooth=True)
     return truth, res
 
 

@@ -16,7 +16,7 @@ import pytest
 
 from aidnav.filters import measurements as ms
 from aidnav.filters.config import LooseConfig
-from aidnav.filters.engine import _node_rates, feedback
+from aidnav.filters.engine import feedback, node_rates
 from aidnav.filters.layout import L_LEVER, L_MOUNT, L_N, L_ODO, L_TOFF, make_layout
 from aidnav.filters.loose import loose_layout
 from aidnav.filters.measurements.check import check_jacobian
@@ -50,7 +50,7 @@ def _nav(st, bias, dt_back, rate_from_bias, bias_nominal):
     b = bias if rate_from_bias else bias_nominal
     wb = W_RAW - b[0:3]
     w = np.zeros((5, 3))
-    _node_rates(st, wb, wb * 0.01, 0.01, w)
+    node_rates(st, wb, wb * 0.01, 0.01, w)
     w[W_FN] = F_N
     return ms.Nav(st, C, w, dt_back, bias)
 
@@ -131,7 +131,7 @@ def test_time_offset_through_the_motion(d_true):
     bias = np.zeros(n - 9)
     bias[lay[L_TOFF] - 9] = d_hat
     w = np.zeros((5, 3))
-    _node_rates(st, np.zeros(3), np.zeros(3), 0.01, w)
+    node_rates(st, np.zeros(3), np.zeros(3), 0.01, w)
     # specific force that gives the acceleration a: f = a − g + (2Ω_ie + Ω_en) × v
     from aidnav.nav.earth import gravity
 
@@ -220,7 +220,7 @@ def test_gnss_position_error_states():
     st, _ = _nominal()
     bias = np.zeros(n - 9)
     w = np.zeros((5, 3))
-    _node_rates(st, W_RAW, W_RAW * 0.01, 0.01, w)
+    node_rates(st, W_RAW, W_RAW * 0.01, 0.01, w)
     row = np.array([0.6, 2.0, 100.0, 1.0, 1.0, 1.0])
     H, z0, R = np.zeros((6, n)), np.zeros(6), np.zeros((6, 6))
     ms.gnss_position_model(ms.Nav(st, dcm_from_quat(st[6:10]), w, 0.0, bias), row, LEVER, lay, H, z0, R)

@@ -158,18 +158,17 @@ def test_trajectory_std_in_metres_accepted(tmp_path):
     np.testing.assert_allclose(np.degrees(b.rph[0]), [1, 2, 350])
 
 
-def test_large_csv_round_trip_fast(tmp_path):
-    import time
-
+def test_large_csv_round_trip(tmp_path):
     n = 100_000
     rng = np.random.default_rng(5)
     imu = ImuData(np.arange(1, n + 1) * 0.01, rng.normal(size=(n, 3)) * 1e-5, rng.normal(size=(n, 3)) * 0.1,
                   t0=0.0)
     p = write_imu(imu, tmp_path / "big.csv")
-    t0 = time.perf_counter()
-    back = read_imu(p)
-    assert time.perf_counter() - t0 < 5.0
+    back = read_imu(p)  # (a value-for-value round trip of every column; the reader's speed: benchmarks/)
+    np.testing.assert_array_equal(back.time, imu.time)
+    np.testing.assert_array_equal(back.dtheta, imu.dtheta)
     np.testing.assert_array_equal(back.dv, imu.dv)
+    assert back.t0 == imu.t0
 
 
 # ----------------------------------------------------------------------------------------- bad input

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import struct
-import time
 
 import numpy as np
 import pytest
@@ -125,11 +124,7 @@ def _set(data_dir, name):
 
 def test_real_drive_log_time_span_and_mapping(data_dir):
     d = _set(data_dir, "rtklibexplorer_drive_0708")
-    read_rtklibexplorer_imu(d / "imu_1934.csv")  # warm-up (imports, page cache)
-    t_start = time.perf_counter()
-    imu, fit = read_rtklibexplorer_imu(d / "imu_1934.csv", return_fit=True)
-    elapsed = time.perf_counter() - t_start
-    assert elapsed < 1.0  # ~0.15-0.25 s measured on 2 shared cores
+    imu, fit = read_rtklibexplorer_imu(d / "imu_1934.csv", return_fit=True)  # (its speed: benchmarks/)
     assert len(imu) == 54859  # 54,860 lines, the first skipped
     assert np.all(np.diff(imu.time) > 0) and 95 < imu.rate_hz < 105
     gnss = read_pos(d / "gnss_1934_sf.pos")

@@ -43,7 +43,7 @@ from aidnav.analysis.errors import (
     QUANTITIES,
     ErrorParts,
     ErrorSeries,
-    _check_time,
+    check_time,
     errors_at,
     exclusion_notes,
     statistics_frame,
@@ -266,7 +266,7 @@ class _ReferenceFeed:
                 if self.pend is None:
                     return
                 tr = np.asarray(self.pend.time, dtype=float)
-                _check_time(tr if self.last is None else np.concatenate([[self.last], tr]), "reference")
+                check_time(tr if self.last is None else np.concatenate([[self.last], tr]), "reference")
                 if len(tr):
                     self.first = float(tr[0]) if self.first is None else self.first
                     self.last = float(tr[-1])
@@ -327,7 +327,7 @@ def stream_errors(est, ref, max_dt: float | None = None, on_piece=None, spool_di
             if not len(ch.time):
                 continue
             buf = ch if prev is None else concat_rows([prev, ch])
-            _check_time(np.asarray(buf.time, dtype=float), "estimate")
+            check_time(np.asarray(buf.time, dtype=float), "estimate")
             lon = np.asarray(buf.lon, dtype=float)
             lon_u = np.unwrap(lon) if prev is None else np.unwrap(np.concatenate([lon_u[-1:], lon[1:]]))
             if t_first is None:

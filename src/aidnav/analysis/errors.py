@@ -192,7 +192,7 @@ def _slerp(q: np.ndarray, i0: np.ndarray, u: np.ndarray) -> np.ndarray:
     return out / np.linalg.norm(out, axis=1, keepdims=True)
 
 
-def _check_time(t: np.ndarray, what: str) -> None:
+def check_time(t: np.ndarray, what: str) -> None:
     if len(t) and not np.all(np.isfinite(t)):
         raise ValueError(f"{what}: time has non-finite values")
     if len(t) > 1 and np.any(np.diff(t) <= 0):
@@ -218,8 +218,8 @@ def trajectory_errors(est: Trajectory, ref: Trajectory, max_dt: float | None = N
     """
     te = np.asarray(est.time, dtype=float)
     tr = np.asarray(ref.time, dtype=float)
-    _check_time(te, "estimate")
-    _check_time(tr, "reference")
+    check_time(te, "estimate")
+    check_time(tr, "reference")
     if len(te) == 0:
         raise ValueError("estimate trajectory is empty")
     if max_dt is None:

@@ -6,14 +6,17 @@
    each call of a kernel from Python is
    written down with its argument types. A user's own command can be added with ``--also "ARGS"``
    (its kernel calls recorded the same way).
-2. **Build.** One CPython extension module (``numba.pycc``) exports a trampoline per recorded
-   signature; the trampoline calls the kernel, which numba compiles with its own options (``nogil``,
-   ``fastmath``, ...) and links in; the exported wrappers release the GIL as ``nogil`` kernels do.
-   ``table.json`` maps (kernel, argument typekey) to the exported name.
+2. **Build.** One CPython extension module (``numba.pycc``, used through its public ``CC`` class only)
+   exports a trampoline per recorded signature; the trampoline calls the kernel, which numba compiles
+   with its own options (``fastmath``, ...) and links in. ``table.json`` maps (kernel, argument
+   typekey) to the exported name. (pycc's exported wrappers hold the GIL: a ``nogil`` kernel served
+   from the build does not run beside another thread.)
 
+Optional (issue 36): the build needs the ``aidnav[compile]`` extra (setuptools, which ``numba.pycc``
+builds with) and a C compiler; without it every command runs on numba's JIT with the same results.
 The build is written into :func:`aidnav.jit.build_path` (the key hashes the source tree, Python,
-numpy and the CPU) through a temporary folder renamed into place. The console script then serves
-the covered calls from it and falls back to numba's JIT for anything else.
+numpy, numba, llvmlite and the CPU) through a temporary folder renamed into place. The console script
+then serves the covered calls from it and falls back to numba's JIT for anything else.
 """
 
 from __future__ import annotations
@@ -98,14 +101,8 @@ def build_from_records(records: dict, folder: Path, progress=None) -> dict:
     """Compile the recorded signatures into one extension module in ``folder`` (created); must run in
     a process whose kernels are numba's dispatchers (the jit mode). Returns the table written."""
     import numba  # lazy: the build is numba's
-    import numba.pycc.compiler as pycc_compiler
-    from llvmlite import binding as llvm
-    from numba.pycc import CC
-
-    class _NogilFlags(pycc_compiler.Flags):  # the exported wrappers release the GIL (nogil kernels)
-        def __init__(self, *a, **k):
-            super().__init__(*a, **k)
-            self.release_gil = True
+    from llvmlite import binding as llvm  # lazy: as numba
+    from numba.pycc import CC  # lazy: as numba
 
     module_name = "aidnav_kernels_" + folder.name.replace("-", "_")
     cc = CC(module_name)
@@ -129,12 +126,7 @@ def build_from_records(records: dict, folder: Path, progress=None) -> dict:
     if progress:
         progress(f"compiling {len(exports)} entry points into one module")
     folder.mkdir(parents=True, exist_ok=True)
-    original = pycc_compiler.Flags
-    pycc_compiler.Flags = _NogilFlags
-    try:
-        cc.compile()
-    finally:
-        pycc_compiler.Flags = original
+    cc.compile()
     so = next(p for p in folder.iterdir() if p.name.startswith(module_name) and p.suffix in (".so", ".pyd"))
     table = {"module": module_name, "file": so.name, "exports": exports, "numba": numba.__version__,
              "python": sys.version.split()[0], "built": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
@@ -145,6 +137,7 @@ def build_from_records(records: dict, folder: Path, progress=None) -> dict:
 def compile_kernels(also: list[list[str]] = (), progress=None, keep: Path | None = None) -> dict:
     """Record the built-in workloads (and ``also``), build, and put the build in place; returns a
     summary (folder, entry points, seconds)."""
+    check_requirements()
     t0 = time.perf_counter()
     key = jit.build_key()
     target = jit.build_path(key)
@@ -181,6 +174,22 @@ def compile_kernels(also: list[list[str]] = (), progress=None, keep: Path | None
     table = json.loads((target / "table.json").read_text())
     return {"folder": str(target), "kernels": len({e[0] for e in table["exports"]}),
             "entry_points": len(table["exports"]), "seconds": time.perf_counter() - t0}
+
+
+def check_requirements() -> None:
+    """The optional build's requirements (``pip install 'aidnav[compile]'``: setuptools; a C compiler):
+    an :class:`aidnav.errors.InputError` naming what is missing (the JIT needs neither)."""
+    import importlib.util  # lazy: only when a build is asked for
+
+    from aidnav.errors import InputError  # lazy: as importlib.util
+
+    missing = [] if importlib.util.find_spec("setuptools") else ["setuptools (pip install 'aidnav[compile]')"]
+    cc = os.environ.get("CC", "cc").split()[0]
+    if not any(shutil.which(c) for c in (cc, "gcc", "clang")):
+        missing.append("a C compiler (cc, gcc or clang on PATH)")
+    if missing:
+        raise InputError("aidnav compile needs " + " and ".join(missing) + " — install them, or keep numba's "
+                         "JIT (every command works without a build, with the same results)")
 
 
 #: builds kept in the cache folder (the newest; other source trees or Python/numpy versions may use them)

@@ -90,10 +90,11 @@ def window(imu: ImuData, gnss: GnssData, start_s: float | None, end_s: float | N
 
 def process(imu: ImuData, gnss: GnssData, cfg: LooseConfig | None = None, smooth: bool = False,
             outages: list[str] | None = None, imu_name: str = "imu", gnss_name: str = "gnss",
-            skip_checks=(), start_s: float | None = None, end_s: float | None = None, odometer=None,
-            baro=None) -> ProcessRun:
+            skip_checks=(), start_s: float | None = None, end_s: float | None = None,
+            aids=()) -> ProcessRun:
     """In-memory ``aidnav process``: logs already read (:mod:`aidnav.io`: ellipsoidal heights, IMU on
     the GNSS time scale, i.e. ``cfg.imu.time_offset_s`` is applied here, once) → :class:`ProcessRun`.
+    aids : sequence of :class:`aidnav.filters.aids.Aid` (odometer, barometer, magnetometer, ...).
     """
     from aidnav.filters.loose import LooseResult, run_loose, to_trajectory
     from aidnav.io.sanity import check_gnss, check_imu, check_motion, check_overlap
@@ -117,8 +118,7 @@ def process(imu: ImuData, gnss: GnssData, cfg: LooseConfig | None = None, smooth
         withheld |= (gnss.time >= a) & (gnss.time < b)
     events: list[str] = []
     t0 = _time.perf_counter()
-    res = run_loose(imu, gnss, cfg, withheld=withheld, smooth=smooth, events=events, odometer=odometer,
-                    baro=baro)
+    res = run_loose(imu, gnss, cfg, withheld=withheld, smooth=smooth, events=events, aids=aids)
     t_filt = _time.perf_counter() - t0
     traj = to_trajectory(res)
     check_solution(traj, "the loosely coupled filter")
@@ -139,21 +139,29 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
                  outages: list[str] | None = None, console=None, fmt: str = "parquet",
                  height_offset_m: float | None = None, time_offset_s: float | None = None,
                  start_s: float | None = None, end_s: float | None = None, skip_checks=(),
-                 progress=None, figures: bool = True, odometer_path=None, baro_path=None,
+                 progress=None, figures: bool = True, aid_paths=(),
                  kfgins_nav: bool = False, output_rate_hz: float | None = None,
-                 vehicle: str | None = None) -> dict:
+                 vehicle: str | None = None, timings: bool = True) -> dict:
     """Run the whole ``aidnav process`` job into the directory ``out_dir``; returns the summary dict
     (also written as ``summary.json`` and ``summary.txt`` beside ``trajectory.<fmt>``).
 
     height_offset_m / time_offset_s override ``gnss.height_offset_m`` / ``imu.time_offset_s`` of the
     configuration (``--height-offset``, ``--time-offset``). progress : an
     :class:`aidnav.progress.ProgressBar` (stages: reading, filter, writing, figures). figures : also write
-    ``overview.png``, ``trajectory.kml``, ``trajectory.geojson`` and ``run.html``. kfgins_nav : also write
-    ``trajectory.nav`` in KF-GINS's navigation-result format."""
+    ``overview.png``, ``trajectory.kml``, ``trajectory.geojson`` and ``run.html`` (drawn by a child forked
+    now where possible: :mod:`aidnav.apps.run_outputs`; or an :class:`~aidnav.apps.run_outputs.OutputsProcess`
+    forked by the caller). kfgins_nav : also write
+    ``trajectory.nav`` in KF-GINS's navigation-result format. timings : the stages' wall times in the
+    summary (``timing_s``); without them the outputs depend on the inputs only (``aidnav fleet``).
+    aid_paths : (name, path) of each aid file (``--aid NAME=FILE``; names of
+    :data:`aidnav.filters.aids.AIDS`), read by its aid's reader with the settings of its configuration
+    section; the summary names each aid's file under the aid's name."""
+    from aidnav.apps.run_outputs import start_outputs, write_outputs  # lazy: the figures' fork
     from aidnav.io.interchange import write_trajectory
     from aidnav.io.sanity import validate_skip
     from aidnav.progress import NullProgress
 
+    figures = start_outputs(figures)  # forked now where possible: matplotlib loads beside the filter
     t_start = _time.perf_counter()
     skip_checks = validate_skip(skip_checks)
     out_dir = prepare_out_dir(out_dir)
@@ -196,18 +204,12 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
     cfg = cfg.model_copy(update={"gnss": cfg.gnss.model_copy(update={"height_offset_m": 0.0})})
     if len(gnss) < 1:
         raise DataError(gnss_path, None, "no GNSS fixes")
-    odometer = baro = None
-    if odometer_path is not None:  # aux-sensor times must be on the GNSS time scale
-        from aidnav.io.aux_sensors import read_odometer_csv
+    from aidnav.filters.aids import AIDS, read_aid  # lazy: the filters load with the job
 
-        odometer = read_odometer_csv(odometer_path)
-    if baro_path is not None:
-        from aidnav.io.aux_sensors import read_baro_csv
-
-        baro = read_baro_csv(baro_path)
+    aids = [read_aid(name, path, cfg) for name, path in aid_paths]  # times on the GNSS time scale
     from aidnav.apps.process_stream import stream_process, streamable
 
-    if not kfgins_nav and streamable(imu_path, cfg, odometer, start_s, end_s):
+    if not kfgins_nav and streamable(imu_path, cfg, aids, start_s, end_s):
         # chunk by chunk: memory independent of the log length; figures from a decimated copy
         bar.advance(1)
         t_read = _time.perf_counter()
@@ -215,8 +217,7 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
         bar.stage("filter + writing" + (" + smoother" if smooth else ""), total=n_rows, unit="IMU samples")
         run_s, fig_traj, result = stream_process(
             imu_path, gnss, cfg, traj_path, gnss.week, smooth=smooth, outages=outages, imu_name=str(imu_path),
-            gnss_name=str(gnss_path), skip_checks=skip_checks, odometer=odometer, baro=baro,
-            progress=bar.advance)
+            gnss_name=str(gnss_path), skip_checks=skip_checks, aids=aids, progress=bar.advance)
         t_filt = t_write = _time.perf_counter()
     else:
         imu = read_imu_any(imu_path)
@@ -227,7 +228,7 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
         bar.stage("filter" + (" + smoother" if smooth else ""), total=len(imu), unit="IMU samples")
         run = process(imu, gnss, cfg, smooth=smooth, outages=outages, imu_name=str(imu_path),
                       gnss_name=str(gnss_path), skip_checks=skip_checks, start_s=start_s, end_s=end_s,
-                      odometer=odometer, baro=baro)
+                      aids=aids)
         bar.update(len(imu))
         del imu
         t_filt = _time.perf_counter()
@@ -239,16 +240,15 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
         t_write = _time.perf_counter()
         run_s, fig_traj, result, gnss = run.summary, run.trajectory, run.result, run.gnss
     summary = {"imu": str(imu_path), "gnss": str(gnss_path),
-               "odometer": str(odometer_path) if odometer_path else None,
-               "baro": str(baro_path) if baro_path else None,
+               **{name: next((a.source for a in aids if a.name == name), None) for name in AIDS},
                "config": str(config_path) if config_path else None, "output": str(traj_path),
                "gnss_height_offset_m": datum,
                **run_s, "notes": notes}
     summary["timing_s"] = {"read": t_read - t_start, "filter": t_filt - t_read, "write": t_write - t_filt}
+    if not timings:
+        del summary["timing_s"]
     if figures:  # overview.png, trajectory.kml / .geojson, run.html
-        from aidnav.report.run_page import write_run_outputs
-
-        write_run_outputs(out_dir, fig_traj, gnss, summary, result.records, progress=bar)
+        write_outputs(figures, out_dir, fig_traj, gnss, summary, result.records, progress=bar)
     common.write_summary_files(out_dir, summary, format_summary(summary))  # last: "status": "complete"
     return summary
 

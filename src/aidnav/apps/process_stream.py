@@ -31,13 +31,13 @@ CHUNK_ROWS = 1 << 13  #: IMU samples per chunk (the per-chunk buffers are about 
 ROW_GROUP_ROWS = 1 << 15
 
 
-def streamable(imu_path, cfg, odometer=None, start_s=None, end_s=None) -> bool:
+def streamable(imu_path, cfg, aids=(), start_s=None, end_s=None) -> bool:
     """Whether ``process_logs`` can stream this job (module doc)."""
     from aidnav.filters.stream import needs_whole_log
     from aidnav.io.formats import detect_imu_format
     from aidnav.io.stream import imu_time_span
 
-    if start_s is not None or end_s is not None or needs_whole_log(cfg, odometer):
+    if start_s is not None or end_s is not None or needs_whole_log(cfg, aids):
         return False
     try:
         if detect_imu_format(imu_path) != "interchange":
@@ -103,7 +103,7 @@ class _Sink:
 
 
 def stream_process(imu_path, gnss, cfg, traj_path, week, smooth=False, outages=None, imu_name="imu",
-                   gnss_name="gnss", skip_checks=(), odometer=None, baro=None, progress=None,
+                   gnss_name="gnss", skip_checks=(), aids=(), progress=None,
                    chunk_rows: int | None = None, background: bool = True):
     """The streamed :func:`aidnav.apps.process.process` + writing: returns (summary of the run, decimated
     trajectory for the figures, the filter's :class:`FilterResult` (last epoch, records, counts)).
@@ -170,7 +170,7 @@ def stream_process(imu_path, gnss, cfg, traj_path, week, smooth=False, outages=N
     t0 = _time.perf_counter()
     try:
         res = stream_loose(shifted(head, chunks), gnss, cfg, emit, withheld=withheld, smooth=smooth,
-                           events=events, odometer=odometer, baro=baro, spool_dir=writer.path.parent,
+                           events=events, aids=aids, spool_dir=writer.path.parent,
                            progress=count)
         if bg is not None:
             bg.close()  # every piece written (or its error raised)

@@ -3,7 +3,9 @@ its comparison with a reference solution (RTKLIB ``.pos``, fixed epochs only).
 
 Steps of :func:`process_tight`: SPP with Doppler velocity on every epoch (:func:`aidnav.estimators.dgps.
 spp_series`) gives the start position and the GNSS course; roll and pitch from the mean specific force
-over ``init.static_window_s`` (static start); heading from the first SPP course above
+over ``init.static_window_s`` (static start); heading (unless configured) by matching the IMU's
+velocity changes to the SPP velocity changes (:func:`aidnav.filters.heading_match.velocity_match_heading`:
+no mounting or vehicle assumed; used when its σ ≤ 30°), else from the first SPP course above
 ``init.course_min_speed_m_s`` (plus the IMU mounting heading); ZUPTs where the IMU is still and the
 SPP speed is low (:func:`aidnav.filters.loose.static_flags`); then :func:`aidnav.filters.tight.run_tight`.
 Times stay GPS seconds of the observations' reference week.
@@ -14,11 +16,16 @@ from __future__ import annotations
 import numpy as np
 
 from aidnav.data import GnssData
+from aidnav.filters.heading_match import velocity_match_heading
 from aidnav.filters.tight import TightConfig, run_tight
 from aidnav.nav.rotations import wrap_2pi
 from aidnav.units import DEG
 
 SPP_START_SIGMA_M = 100.0  # start-position σ with range-error states [m] (far above any SPP error)
+# a velocity-matched heading is used when its σ is below this (beyond it the linearised filter copes no
+# better than with an unknown heading); its σ is floored (gyro drift over the matching span, 2 deg)
+MAX_MATCH_SIGMA = np.radians(30.0)
+MIN_MATCH_SIGMA_DEG = 2.0
 
 __all__ = ["process_tight", "compare_with_reference", "process_tight_files", "score_against_reference"]
 
@@ -29,6 +36,7 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
     from aidnav.estimators.dgps import spp_series
     from aidnav.filters.config import LooseConfig
     from aidnav.filters.loose import static_flags
+    from aidnav.filters.preprocess import noise_from_static  # lazy: as the other filter imports here
 
     cfg = cfg or TightConfig()
     events = events if events is not None else []
@@ -61,7 +69,23 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
     pitch = np.arctan2(f[1], np.hypot(f[0], f[2]))
     heading = 0.0 if ini.heading_deg is None else ini.heading_deg * DEG
     heading_reset = None
+    matched = None
     if ini.heading_deg is None:
+        # the IMU's own heading from GNSS velocity changes: needs no mounting and no vehicle kind
+        matched = velocity_match_heading(imu, sp["time"][i0], roll, pitch, g.time, g.vel)
+        if matched is not None and matched[1] > MAX_MATCH_SIGMA:
+            events.append(f"velocity-matched heading {np.degrees(matched[0]):.1f} deg not used: sigma "
+                          f"{np.degrees(matched[1]):.1f} deg > {np.degrees(MAX_MATCH_SIGMA):.0f} deg")
+            matched = None
+    if matched is not None:
+        heading = matched[0]
+        sig = list(ini.attitude_sigma_deg)
+        sig[2] = max(np.degrees(matched[1]), MIN_MATCH_SIGMA_DEG)
+        cfg = cfg.model_copy(update={"init": ini.model_copy(update={"attitude_sigma_deg": tuple(sig)})})
+        ini = cfg.init
+        events.append(f"heading {np.degrees(heading):.1f} deg (sigma {sig[2]:.1f} deg) at the start by "
+                      f"matching IMU and SPP velocity changes over {matched[2]} windows of 2 s")
+    elif ini.heading_deg is None:
         # the course of the SPP Doppler velocities averaged over 2 s, and only where it is meaningful:
         # mean speed above init.course_min_speed_m_s and at least 5 times its standard error (the spread
         # of the velocities in the window / sqrt(n)); SPP speed noise at a standstill never qualifies
@@ -86,7 +110,11 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
         ini = ini.model_copy(update={"position_sigma_m": (SPP_START_SIGMA_M,) * 3})
         cfg = cfg.model_copy(update={"init": ini})
     lc = LooseConfig(imu=cfg.imu, constraints=cfg.constraints, init=cfg.init)
-    static = static_flags(imu, g, lc) if cfg.constraints.zupt else None
+    static = static_flags(imu, g, lc) if cfg.constraints.zupt or cfg.imu.noise_from_static else None
+    if cfg.imu.noise_from_static:  # engine vibration (vehicle presets): IMU noise from the static samples
+        cfg = cfg.model_copy(update={"imu": noise_from_static(imu, static, lc, events).imu})
+    if not cfg.constraints.zupt:
+        static = None
     init_state = (
         float(t_imu[np.searchsorted(t_imu, sp["time"][i0]) - 1]),
         sp["lat"][i0],
@@ -102,11 +130,39 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
         f"start at t={init_state[0]:.3f} from SPP; roll {np.degrees(roll):.2f}, pitch "
         f"{np.degrees(pitch):.2f} deg from the mean specific force over {ini.static_window_s:g} s"
     )
+    vfix = _tdcp_velocities(imu, obs, eph, sp, cfg, events)
     res = run_tight(
         imu, obs, eph, cfg, init_state=init_state, static=static, heading_reset=heading_reset, events=events,
-        smooth=smooth,
+        smooth=smooth, velocity_fixes=vfix,
     )
     return res, sp
+
+
+def _tdcp_velocities(imu, obs, eph, sp, cfg, events):
+    """TDCP mean velocities (:func:`aidnav.estimators.tdcp.tdcp_series`) as velocity records at the middle
+    of each interval, or None (``gnss.use_phase`` off or no phase). Their σ per axis: the TDCP σ and the
+    difference between the interval's mean velocity and the velocity at its middle, Δt²/24 times the jerk,
+    the jerk taken as the change of the IMU's specific force over the interval divided by Δt (the change of
+    gravity's projection when the body turns counts too: conservative)."""
+    from aidnav.estimators.tdcp import tdcp_series  # lazy: only where the observations have a phase
+
+    g = cfg.gnss
+    if not g.use_phase or obs.phase1 is None:
+        return None
+    r = tdcp_series(obs, eph, sp["ecef"], g.phase_sigma_m, g.slip_threshold_cycles)
+    t0, t1 = obs.time[:-1], obs.time[1:]
+    t_imu = imu.time + cfg.imu.time_offset_s
+    dt_imu = np.diff(np.concatenate([[imu.t0], imu.time]))
+    f = imu.dv / dt_imu[:, None]
+    fi = np.column_stack([np.interp(np.concatenate([t0, t1]), t_imu, f[:, i]) for i in range(3)])
+    jerk_dt = np.linalg.norm(fi[len(t0):] - fi[:len(t0)], axis=1)  # |Δf| over the interval [m/s²]
+    dyn = (t1 - t0) * jerk_dt / 24.0
+    sig = np.sqrt(np.einsum("kii->ki", r["vel_cov_enu"]) + dyn[:, None] ** 2)
+    n_ok = int(np.isfinite(r["vel_enu"][:, 0]).sum())
+    n_slip = int((r["slips"] != 0).sum())
+    events.append(f"carrier phase: {n_ok} TDCP velocities of {len(t0)} intervals (4+ satellites without a "
+                  f"slip); {n_slip} cycle slip(s) flagged (loss-of-lock indicator or phase-Doppler test)")
+    return r["t_mid"], r["vel_enu"], sig
 
 
 def _meaningful_course(t, vel, min_speed, window_s: float = 2.0, k_sigma: float = 5.0):
@@ -180,7 +236,7 @@ def score_against_reference(traj, ref: GnssData) -> dict:
 def process_tight_files(imu_path, obs_path, nav_path, config_path=None, out_dir="out", truth=None,
                         truth_height_offset_m: float = 0.0, fmt: str = "parquet",
                         time_offset_s: float | None = None, smooth: bool = False, progress=None,
-                        figures: bool = True) -> dict:
+                        figures: bool = True, vehicle: str | None = None) -> dict:
     """File-level job behind ``aidnav tight``: read IMU + RINEX obs/nav (+ optional reference ``truth``,
     RTKLIB ``.pos`` or interchange, with its own datum offset), run :func:`process_tight`, write
     ``trajectory.<fmt>``, ``summary.json`` and ``summary.txt`` into ``out_dir``."""
@@ -192,7 +248,7 @@ def process_tight_files(imu_path, obs_path, nav_path, config_path=None, out_dir=
         write_summary_files,
     )
     from aidnav.apps.process import read_gnss_any, read_imu_any
-    from aidnav.filters.tight import TightConfig, to_trajectory
+    from aidnav.filters.tight import TightConfig, apply_vehicle, to_trajectory
     from aidnav.io.boundary import shift_imu_time
     from aidnav.io.interchange import write_trajectory
     from aidnav.io.rinex import read_rinex_nav, read_rinex_obs
@@ -200,19 +256,22 @@ def process_tight_files(imu_path, obs_path, nav_path, config_path=None, out_dir=
     out_dir = prepare_out_dir(out_dir)
     traj_path = trajectory_path(out_dir, fmt)
     cfg = TightConfig() if config_path is None else load_model(config_path, TightConfig)
+    events: list[str] = []
+    cfg = apply_vehicle(cfg, vehicle, events)
     if time_offset_s is not None:
         cfg = cfg.model_copy(update={"imu": cfg.imu.model_copy(update={"time_offset_s": time_offset_s})})
     imu = shift_imu_time(read_imu_any(imu_path), cfg.imu.time_offset_s)
     cfg = cfg.model_copy(update={"imu": cfg.imu.model_copy(update={"time_offset_s": 0.0})})
     obs = read_rinex_obs(obs_path)
     eph = read_rinex_nav(nav_path, ref_week=getattr(obs, "ref_week", None))
-    events: list[str] = []
     res, sp = process_tight(imu, obs, eph, cfg, events=events, smooth=smooth)
     traj = to_trajectory(res)
     check_solution(traj, "the tightly coupled filter")
     write_trajectory(traj, traj_path, week=getattr(obs, "ref_week", None))
     summary = {"imu": str(imu_path), "obs": str(obs_path), "nav": str(nav_path), "output": str(traj_path),
-               "states": cfg.states, "smoothed": bool(smooth), "events": imu.events + events}
+               "states": cfg.states, "smoothed": bool(smooth), "vehicle": vehicle,
+               "ionosphere": res.iono_model,
+               "events": imu.events + events}
     if truth is not None:
         ref = read_gnss_any(truth, truth_height_offset_m)
         summary["reference"] = {"file": str(truth), "height_offset_m": truth_height_offset_m,
@@ -235,6 +294,8 @@ def format_tight_summary(s: dict) -> str:
     """Human-readable summary of ``aidnav tight``."""
     lines = [f"aidnav tight: {s['imu']} + {s['obs']} + {s['nav']}", f"output: {s['output']}",
              f"states: {s['states']}"]
+    if s.get("ionosphere"):
+        lines.append(f"ionosphere: {s['ionosphere']}")
     ref = s.get("reference")
     if ref:
         for k, v in ref.items():

@@ -77,7 +77,7 @@ ETA_TOL = 1e-9
 ZENITH_TOL = 1e-9
 
 
-def _check_eta(eta) -> float:
+def check_eta(eta) -> float:
     """η as a float; ValueError for η = 0 / ±45° (naming what becomes unobservable) or outside [−π/4, π/4]."""
     if np.ndim(eta) != 0 or not np.isrealobj(eta):
         raise ValueError(f"eta must be a real scalar [rad], got {eta!r}")
@@ -110,13 +110,13 @@ def _check_cov(R, batch: bool) -> np.ndarray:
     return R
 
 
-def _check_snapshots(n) -> int:
+def check_snapshots(n) -> int:
     if np.ndim(n) != 0 or not np.isfinite(n) or n < 1 or n != int(n):
         raise ValueError(f"n (number of snapshots) must be an integer >= 1, got {n!r}")
     return int(n)
 
 
-def _zenith_error():
+def zenith_error():
     return ValueError("source at theta = +-90 deg (a_z = 0): the DOA is singular, the azimuth phi (and the "
                       "tilt gamma, only phi -+ gamma is defined) is unobservable")
 
@@ -139,7 +139,7 @@ def closed_form(a, eta):
     unobservable), |η| > 45° or non-finite; a source at θ = ±90° in any element (|a_z| ≤ 1e-9‖a‖: φ, γ
     unobservable); ``a`` not of shape (..., 3), non-finite or zero.
     """
-    eta = _check_eta(eta)
+    eta = check_eta(eta)
     a = np.asarray(a, dtype=complex)
     if a.ndim < 1 or a.shape[-1] != 3:
         raise ValueError(f"a must have shape (..., 3) (dipole outputs x, y, z), got {a.shape}")
@@ -149,7 +149,7 @@ def closed_form(a, eta):
         raise ValueError("a is zero (no signal)")
     ax, ay, az = a[..., 0], a[..., 1], a[..., 2]
     if np.any(np.abs(az) ** 2 <= ZENITH_TOL**2 * nrm2):
-        raise _zenith_error()
+        raise zenith_error()
     xz = ax * np.conj(az)
     yz = ay * np.conj(az)
     sg = np.sign(eta)
@@ -179,7 +179,7 @@ def closed_form_covariance(R, eta):
     estimated θ = ±90°: φ, γ unobservable), and for R̂ not of shape (..., 3, 3), non-finite, or with a
     non-positive trace.
     """
-    eta = _check_eta(eta)
+    eta = check_eta(eta)
     return closed_form(principal_eigenvector(_check_cov(R, batch=True)), eta)
 
 
@@ -281,7 +281,7 @@ def ml_estimate(R, eta, start=None, gtol=1e-9, maxiter=200) -> MLResult:
     (φ, γ unobservable); R̂ not of shape (3, 3), non-finite or with a non-positive trace; ``start`` not
     3 finite numbers.
     """
-    eta = _check_eta(eta)
+    eta = check_eta(eta)
     R = _check_cov(R, batch=False)
     if start is None:
         p0 = np.array(closed_form_covariance(R, eta), dtype=float)
@@ -296,7 +296,7 @@ def ml_estimate(R, eta, start=None, gtol=1e-9, maxiter=200) -> MLResult:
                    options={"gtol": gtol, "maxiter": maxiter})
     phi, theta, gamma = wave_params_from_dcm(wave_dcm(*res.x))
     if abs(np.cos(theta)) <= ZENITH_TOL:
-        raise _zenith_error()
+        raise zenith_error()
     A = steering_vector(phi, theta, gamma, eta)
     pw, s2 = power_noise(A, R)
     return MLResult(phi, theta, gamma, pw, s2, pw / s2 if s2 > 0 else np.inf, -res.fun / scale,
@@ -310,7 +310,7 @@ def _factor(snr, n):
     ValueError for ρ ≤ 0 or NaN (linear SNR) and for N < 1."""
     if not float(snr) > 0.0:
         raise ValueError(f"snr (linear P/sigma^2) must be > 0, got {snr!r}")
-    n = _check_snapshots(n)
+    n = check_snapshots(n)
     r = 1.0 / float(snr)
     return (r + r * r) / (2.0 * n)
 
@@ -486,9 +486,9 @@ def estimate_attitude(R, n, eta, bearing, elevation, tx_tilt, method="ml", prior
     unobservable); R̂ not of shape (3, 3), non-finite or with a non-positive trace; n not an integer ≥ 1;
     non-finite bearing, elevation or tx_tilt; an unknown ``method``.
     """
-    eta = _check_eta(eta)
+    eta = check_eta(eta)
     R = _check_cov(R, batch=False)
-    n = _check_snapshots(n)
+    n = check_snapshots(n)
     _check_finite([bearing, elevation, tx_tilt], "bearing/elevation/tx_tilt")
     if method == "ml":
         ml = ml_estimate(R, eta)

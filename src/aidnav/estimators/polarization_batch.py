@@ -32,9 +32,9 @@ import numpy as np
 
 from aidnav.estimators.polarization import (
     ZENITH_TOL,
-    _check_eta,
-    _check_snapshots,
-    _zenith_error,
+    check_eta,
+    check_snapshots,
+    zenith_error,
 )
 from aidnav.estimators.polarization import objective_gradient as _objective_gradient
 from aidnav.jit import njit
@@ -381,8 +381,8 @@ def estimate_attitude_batch(R, n, eta, bearing, elevation, tx_tilt, prior=None, 
     base_to_local : C_{n_base}^{n}, (3, 3) or (K, 3, 3) (None: identity, the seed's flat Earth);
     on_zenith : "raise" (ValueError naming the first fix whose source is at θ = ±90°) or "nan".
     """
-    eta = _check_eta(eta)
-    n = _check_snapshots(n)
+    eta = check_eta(eta)
+    n = check_snapshots(n)
     R = np.asarray(R)
     if R.ndim != 3 or R.shape[1:] != (3, 3):
         raise ValueError(f"R must have shape (K, 3, 3), got {R.shape}")
@@ -416,6 +416,6 @@ def estimate_attitude_batch(R, n, eta, bearing, elevation, tx_tilt, prior=None, 
     valid = status == 0
     if on_zenith == "raise" and not np.all(valid):
         k = int(np.argmin(valid))
-        raise ValueError(f"fix {k}: {_zenith_error()}")
+        raise ValueError(f"fix {k}: {zenith_error()}")
     return AttitudeFixBatch(rph, C, cov_eps, cov_rph, wave, snr, flipped, obj, nit, conv, valid, n)
 

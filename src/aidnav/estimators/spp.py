@@ -33,7 +33,9 @@ from aidnav.nav.gnss_sat import (
     elevation_sigma,
     geo_range,
     geo_range_rate,
+    iono_fallback_note,
     klobuchar,
+    klobuchar_coefficients,
     satellites_from_pseudoranges,
     tropo_delay,
 )
@@ -327,8 +329,9 @@ def spp_series(
 ):
     """SPP (and Doppler velocity) for every epoch of :class:`aidnav.io.rinex.GnssObservations`.
 
-    iono : "klobuchar" (header coefficients; none when the file has none), "none", or "dual": L1
-    delay from the geometry-free code combination I₁ = (P₂ − P₁)/(γ − 1), γ = (f₁/f₂)², averaged over a
+    iono : "klobuchar" (header coefficients; RTKLIB's default ones when the file has none), "none",
+    or "dual": L1 delay from the geometry-free code combination I₁ = (P₂ − P₁)/(γ − 1), γ = (f₁/f₂)²,
+    averaged over a
     centred window of ``iono_window_s`` seconds per satellite (the combination's noise is ≈ 2.3× the code
     noise; the ionosphere changes little over a minute). Returns a dict of arrays: time, ecef (T, 3),
     lat, lon, h, clock_m, vel_enu (T, 3), clock_drift, n_used, status (list), pdop, excluded (list),
@@ -343,8 +346,12 @@ def spp_series(
         i1s = dual_frequency_iono(obs.time, obs.code1, obs.code2, iono_window_s)
         pr_all = obs.code1 - i1s
     alpha = beta = None
+    iono_events = []
     if iono == "klobuchar":
-        alpha, beta = eph.iono_alpha, eph.iono_beta
+        # no coefficients in the file: RTKLIB's defaults (σ 50 % of the delay), as rtkcmn.c ionmodel does
+        alpha, beta, src = klobuchar_coefficients(eph.iono_alpha, eph.iono_beta)
+        if src == "default":
+            iono_events.append(iono_fallback_note())
     use_tgd = iono != "dual"
     rate_all = obs.range_rate()
     out = {
@@ -392,7 +399,7 @@ def spp_series(
             if np.all(np.isfinite(ve)):
                 out["vel_enu"][k] = dcm_ecef_to_enu(r.lat, r.lon) @ ve
                 out["clock_drift"][k] = drift
-    events = []
+    events = iono_events
     for j in np.flatnonzero(no_eph):
         events.append(
             f"G{int(obs.prn[j]):02d}: {no_eph[j]} epoch(s) with a pseudorange but no usable ephemeris; "

@@ -67,16 +67,16 @@ from aidnav.filters.config import LooseConfig
 from aidnav.sim.gnss import GnssSpec
 from aidnav.sim.imu import ImuSpec
 from aidnav.sim.scenario import (
-    _SEGMENT_TYPES,
+    SEGMENT_TYPES,
     Initial,
     Scenario,
     ScenarioError,
     Segment,
     SensorsConfig,
-    _clean_loc,
-    _yaml_line,
+    clean_loc,
     join_error_lines,
     load_scenario,
+    yaml_line,
 )
 from aidnav.sim.scenario import (
     error_message as scenario_error_message,
@@ -89,7 +89,7 @@ from .statistics_spec import (
     NonNegative,
     Positive,
     StatisticsSpec,
-    _Strict,
+    StrictModel,
     available_quantities,
     statistic_columns,
 )
@@ -106,7 +106,7 @@ class ExperimentError(ValueError):
     """An experiment that cannot be run; the message names the file, key path and problem."""
 
 
-class MotionSpec(_Strict):
+class MotionSpec(StrictModel):
     """The ``scenario`` section: the motion of :class:`aidnav.sim.scenario.Scenario` (initial state [deg,
     m, m/s], IMU rate [Hz], transition width [s], segments)."""
 
@@ -116,7 +116,7 @@ class MotionSpec(_Strict):
     segments: list[Segment] = Field(min_length=1)
 
 
-class PaperValue(_Strict):
+class PaperValue(StrictModel):
     """A value printed in a paper, shown beside ours (the mean over runs of ``column`` in runs.parquet)
     at the sweep points matching ``point`` (sweep path → value; empty = every point) for ``estimator``
     (None = every estimator). ``target``: an expression over ``ours`` and ``paper`` (e.g.
@@ -140,7 +140,7 @@ class EstimatorEntry(BaseModel):
     type: str = "loose"
 
 
-class Experiment(_Strict):
+class Experiment(StrictModel):
     """A complete experiment file (see the module docstring)."""
 
     name: str = "experiment"
@@ -216,7 +216,7 @@ def _model_at(loc: tuple, root_model: type[BaseModel] | None = None) -> type[Bas
             return None
         if item == "segments":
             tag = loc[i + 2] if i + 2 < len(loc) else None
-            model = _SEGMENT_TYPES.get(tag)
+            model = SEGMENT_TYPES.get(tag)
             i += 3
             continue
         ann = model.model_fields[item].annotation
@@ -239,11 +239,11 @@ def _model_at(loc: tuple, root_model: type[BaseModel] | None = None) -> type[Bas
 def _format_error(e: dict, prefix: tuple, where: str, root, data,
                   expected=None) -> tuple[str, tuple, str | None]:
     raw = tuple(prefix) + tuple(e["loc"])
-    loc, member = _clean_loc(raw)
+    loc, member = clean_loc(raw)
     path = ".".join(str(x) for x in loc) or "(top level)"
     keys = expected(raw[:-1]) if (expected and e["type"] == "extra_forbidden") else None
     msg = scenario_error_message(e, loc, keys)
-    line = _yaml_line(root, loc) if root is not None else None
+    line = yaml_line(root, loc) if root is not None else None
     at = f"{where}:{line}" if line is not None else where
     return f"{at}: {path}: {msg}", loc, member
 
@@ -292,7 +292,7 @@ def _validate_doc(data: dict, where: str, root=None) -> tuple[Experiment, dict]:
         try:
             et = est_mod.get_estimator(entry.type)
         except (KeyError, ImportError) as e:
-            line = _yaml_line(root, ("estimators", i, "type")) if root is not None else None
+            line = yaml_line(root, ("estimators", i, "type")) if root is not None else None
             at = f"{where}:{line}" if line is not None else where
             problems.append(f"{at}: estimators.{i}.type: {str(e).strip(chr(34))}")
             continue

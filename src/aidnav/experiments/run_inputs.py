@@ -42,12 +42,12 @@ class _Context:
 
 
 _CONTEXTS: OrderedDict[str, _Context] = OrderedDict()
-_TRUTH: OrderedDict[str, tuple] = OrderedDict()
-_GNSS: OrderedDict[tuple, GnssTemplate] = OrderedDict()
+TRUTH_KEY: OrderedDict[str, tuple] = OrderedDict()
+GNSS_KEY: OrderedDict[tuple, GnssTemplate] = OrderedDict()
 _CACHE_SIZE = 3
 
 
-def _cached(cache: OrderedDict, key, make):
+def cached_point(cache: OrderedDict, key, make):
     if key in cache:
         cache.move_to_end(key)
         return cache[key]
@@ -58,7 +58,7 @@ def _cached(cache: OrderedDict, key, make):
     return val
 
 
-def _context(key: str, doc: dict) -> _Context:
+def point_context(key: str, doc: dict) -> _Context:
     def make():
         for mod in doc.get("imports", []):
             importlib.import_module(mod)
@@ -75,11 +75,11 @@ def _context(key: str, doc: dict) -> _Context:
         return _Context(key, int(doc["base_seed"]), scn, ImuSpec.from_config(exp.sensors.imu),
                         GnssSpec.from_config(exp.sensors.gnss), ests, sim_key, gnss_key)
 
-    return _cached(_CONTEXTS, key, make)
+    return cached_point(_CONTEXTS, key, make)
 
 
-def _truth(ctx: _Context):
-    return _cached(_TRUTH, ctx.sim_key, lambda: generate_truth(ctx.scenario))
+def truth_of_point(ctx: _Context):
+    return cached_point(TRUTH_KEY, ctx.sim_key, lambda: generate_truth(ctx.scenario))
 
 
 @dataclass
@@ -126,17 +126,18 @@ class GnssTemplate:
         return GnssData(b.time.copy(), lat, lon, h, vel, np.tile(sp, (m, 1)), std_vel, None, list(b.events))
 
 
-def _gnss_template(ctx: _Context, truth) -> GnssTemplate:
-    return _cached(_GNSS, (ctx.sim_key, ctx.gnss_key), lambda: GnssTemplate.build(truth, ctx.gnss_spec))
+def gnss_template(ctx: _Context, truth) -> GnssTemplate:
+    return cached_point(GNSS_KEY, (ctx.sim_key, ctx.gnss_key),
+                        lambda: GnssTemplate.build(truth, ctx.gnss_spec))
 
 
 def point_truth(point):
     """Truth trajectory of a sweep point (cached per process)."""
-    return _truth(_context(point.key, point.doc))[0]
+    return truth_of_point(point_context(point.key, point.doc))[0]
 
 
 # ----------------------------------------------------------------------------------- one run
-def _streams(base_seed: int, run: int):
+def run_streams(base_seed: int, run: int):
     ss = np.random.SeedSequence(base_seed, spawn_key=(run,))
     return ss.spawn(3)
 
@@ -144,9 +145,9 @@ def _streams(base_seed: int, run: int):
 def simulate_run(ctx: _Context, run: int, out=None):
     """The :class:`aidnav.sim.run.SimulationResult` of run ``run`` of a point (and the estimator stream);
     ``out``: where to write the corrupted increments (:func:`aidnav.sim.imu.corrupt_imu`)."""
-    truth, imu_true, segments = _truth(ctx)
-    tmpl = _gnss_template(ctx, truth)
-    s_imu, s_gnss, s_est = _streams(ctx.base_seed, run)
+    truth, imu_true, segments = truth_of_point(ctx)
+    tmpl = gnss_template(ctx, truth)
+    s_imu, s_gnss, s_est = run_streams(ctx.base_seed, run)
     imu, realised = corrupt_imu(imu_true, ctx.imu_spec, np.random.default_rng(s_imu), out=out)
     gnss = tmpl.draw(np.random.default_rng(s_gnss))
     sim = SimulationResult(ctx.scenario, ctx.base_seed, truth, imu_true, imu, gnss, segments, realised)

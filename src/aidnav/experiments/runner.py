@@ -6,8 +6,8 @@
    before anything is computed;
 2. the runs already on disk (``DIR/runs``, see :mod:`aidnav.experiments.store`) are skipped: an
    interrupted campaign resumes where it stopped;
-3. the remaining runs are computed — in this process (``workers=1``), on a local Dask cluster
-   (``workers > 1``; ``backend="processes"`` uses a ``concurrent.futures`` process pool instead) or on
+3. the remaining runs are computed — in this process (``workers=1``), on a local process pool
+   (``workers > 1``; ``backend="dask"`` uses a local Dask cluster instead) or on
    an existing Dask scheduler (``scheduler="tcp://host:8786"``) — each result is written to ``DIR/runs``
    as it arrives (a rich progress bar shows the ETA); with local workers the first batch is computed in
    this process, so that numba's on-disk cache is warm before the workers load it; the local process pool
@@ -54,16 +54,16 @@ from aidnav.interrupts import blocked, worker_ignore
 from .config import ExperimentPlan, load_experiment
 from .estimators import state_blocks, state_unit
 from .run_inputs import (  # noqa: F401  (re-exported: the runner's API and its tests)
-    _GNSS,
-    _TRUTH,
+    GNSS_KEY,
+    TRUTH_KEY,
     GnssTemplate,
-    _cached,
-    _context,
-    _gnss_template,
-    _streams,
-    _truth,
+    cached_point,
+    gnss_template,
+    point_context,
     point_truth,
+    run_streams,
     simulate_run,
+    truth_of_point,
 )
 
 __all__ = ["run_experiment", "run_task", "RunTask", "run_batch_task", "BatchTask", "make_batches",
@@ -177,15 +177,15 @@ def run_batch_task(task: BatchTask, batched: bool = True) -> list[dict]:
         os.environ.setdefault(v, "1")
     t0, c0 = time.perf_counter(), time.process_time()
     _COMPUTED.add(task.key)
-    ctx = _context(task.key, task.doc)
-    truth = _truth(ctx)[0]
-    _gnss_template(ctx, truth)
+    ctx = point_context(task.key, task.doc)
+    truth = truth_of_point(ctx)[0]
+    gnss_template(ctx, truth)
     nr = len(task.runs)
     setup = (time.perf_counter() - t0) / nr
     tm = [{"setup_s": setup, "estimators_s": {}, "errors_s": 0.0} for _ in task.runs]
     sims, seeds = [], []
     # the runs' increments as rows of (R, N, 3) arrays: the batched filter reads them there, no copy
-    n_imu = len(_truth(ctx)[1])
+    n_imu = len(truth_of_point(ctx)[1])
     inc = [np.empty((nr, n_imu, 3)) for _ in range(2)] if batched and nr > 1 else None
     for i, run in enumerate(task.runs):
         a = time.perf_counter()
@@ -256,9 +256,9 @@ def _worker_init(seed: str | None):
     if seed:
         with open(seed, "rb") as f:
             truth, gnss = pickle.load(f)
-        for cache, items in ((_TRUTH, truth), (_GNSS, gnss)):
+        for cache, items in ((TRUTH_KEY, truth), (GNSS_KEY, gnss)):
             for k, v in items.items():
-                _cached(cache, k, lambda v=v: v)
+                cached_point(cache, k, lambda v=v: v)
     importlib.import_module("aidnav.analysis.consistency")
     importlib.import_module("aidnav.analysis.errors")
 
@@ -269,10 +269,10 @@ def _worker_ready() -> int:
 
 def _seed_file(task: BatchTask, folder: Path) -> Path:
     """The truth and GNSS template of ``task``'s point (generated here, cached) pickled for the workers."""
-    ctx = _context(task.key, task.doc)
-    truth = _truth(ctx)
+    ctx = point_context(task.key, task.doc)
+    truth = truth_of_point(ctx)
     gk = (ctx.sim_key, ctx.gnss_key)
-    tmpl = _gnss_template(ctx, truth[0])
+    tmpl = gnss_template(ctx, truth[0])
     path = folder / "point.pickle"
     with open(path, "wb") as f:
         pickle.dump(({ctx.sim_key: truth}, {gk: tmpl}), f, protocol=pickle.HIGHEST_PROTOCOL)
@@ -386,10 +386,11 @@ def run_experiment(experiment, out_dir, *, workers: int = 1, scheduler: str | No
     ----------
     experiment : path of an experiment YAML, or an :class:`~aidnav.experiments.config.ExperimentPlan`.
     out_dir : campaign directory (created).
-    workers : processes (> 1: a Dask ``LocalCluster`` with that many single-threaded workers, or a process
-        pool with ``backend="processes"``).
+    workers : processes (> 1: a local process pool with that many workers, or a Dask ``LocalCluster`` of
+        single-threaded workers with ``backend="dask"``).
     scheduler : address of an existing Dask scheduler (its workers need aidnav installed).
-    backend : "serial", "processes" or "dask"; default serial for one worker, else dask.
+    backend : "serial", "processes" or "dask"; default: dask with a scheduler, else serial for one worker and
+        the process pool for more (the fastest: its forked workers inherit the loaded kernels and truth).
     max_runs : compute at most this many new runs, then stop without merging (a campaign cut short on
         purpose; rerun to complete it).
     console : rich console for the progress bar and messages; progress : show the bar.
@@ -417,8 +418,8 @@ def run_experiment(experiment, out_dir, *, workers: int = 1, scheduler: str | No
     t_start = time.perf_counter()
     plan = experiment if isinstance(experiment, ExperimentPlan) else load_experiment(experiment)
     console = console or Console(stderr=True)
-    if backend is None:
-        backend = "dask" if (scheduler or workers > 1) else "serial"
+    if backend is None:  # the fastest correct one (issue 41): the process pool locally, Dask on a scheduler
+        backend = "dask" if scheduler else ("processes" if workers > 1 else "serial")
     if backend not in ("serial", "processes", "dask"):
         raise ValueError(f"backend must be serial, processes or dask (got {backend!r})")
     if workers < 1:

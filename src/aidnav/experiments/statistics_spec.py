@@ -18,14 +18,14 @@ Positive = Annotated[float, Field(gt=0)]
 NonNegative = Annotated[float, Field(ge=0)]
 
 
-class _Strict(BaseModel):
+class StrictModel(BaseModel):
     model_config = ConfigDict(extra="forbid", validate_default=True)
 
 
 Metric = Literal["std", "rms", "mean", "max"]
 
 
-class WindowSpec(_Strict):
+class WindowSpec(StrictModel):
     """A time window of the statistics: a named segment, or ``start_s``/``end_s`` [s since the start]
     (either may be missing), or the last ``last_s`` seconds; nothing = the whole run. ``metrics``
     replaces the statistics' default metrics for this window."""
@@ -47,7 +47,7 @@ class WindowSpec(_Strict):
         return self
 
 
-class ConvergenceSpec(_Strict):
+class ConvergenceSpec(StrictModel):
     """Time [s since the start] of the first epoch after which |error| (``of: error``) or the filter σ
     (``of: sigma``) of ``quantity`` stays <= ``below`` (in the quantity's unit: m, m/s, deg) until the
     end (``hold_s`` None) or for at least ``hold_s`` seconds. NaN when it never does."""
@@ -58,7 +58,7 @@ class ConvergenceSpec(_Strict):
     hold_s: Positive | None = None
 
 
-class ConsistencySpec(_Strict):
+class ConsistencySpec(StrictModel):
     """NEES check per estimator and block (:func:`aidnav.analysis.consistency.consistency_report`).
 
     prob : probability of the χ² band; alpha : level of the verdict's tests. epoch_spacing_s : the
@@ -71,7 +71,7 @@ class ConsistencySpec(_Strict):
     epoch_spacing_s: Positive = 30.0
 
 
-class StatisticsSpec(_Strict):
+class StatisticsSpec(StrictModel):
     """What is reported per run (see the module docstring). ``quantities`` None = every state of each
     estimator plus the derived ones it supports."""
 
@@ -106,14 +106,14 @@ def available_quantities(states: tuple[str, ...]) -> list[str]:
     return list(states) + [d for d, (need, _) in DERIVED_QUANTITIES.items() if all(s in states for s in need)]
 
 
-def _quantities(stats: StatisticsSpec, states) -> list[str]:
+def spec_quantities(stats: StatisticsSpec, states) -> list[str]:
     avail = available_quantities(tuple(states))
     if stats.quantities is None:
         return avail
     return [q for q in stats.quantities if q in avail]
 
 
-def _window_metrics(stats: StatisticsSpec):
+def window_metrics(stats: StatisticsSpec):
     for wname, w in stats.windows.items():
         for m in (w.metrics or stats.metrics):
             yield wname, w, m
@@ -130,12 +130,12 @@ def statistic_columns(stats: StatisticsSpec, estimators: list[tuple[str, tuple[s
 
     qs_all: list[str] = []
     for _, states in estimators:
-        for q in _quantities(stats, states):
+        for q in spec_quantities(stats, states):
             if q not in qs_all:
                 qs_all.append(q)
     if stats.quantities is not None:
         qs_all = [q for q in stats.quantities if q in qs_all]
-    for wname, _, m in _window_metrics(stats):
+    for wname, _, m in window_metrics(stats):
         for q in qs_all:
             add(f"{m}_{wname}_{quantity_column(q)}")
     for cname in stats.convergence:

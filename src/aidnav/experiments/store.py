@@ -45,11 +45,11 @@ from aidnav.io.atomic import replacing
 from . import statistics_spec as _config
 from .estimators import state_blocks, state_unit
 from .statistics_spec import (
-    _quantities,
-    _window_metrics,
     available_quantities,
     quantity_column,
+    spec_quantities,
     statistic_columns,  # noqa: F401  (re-exported)
+    window_metrics,
 )
 
 __all__ = ["package_version", "run_path", "save_run", "load_run", "existing_runs", "statistic_columns",
@@ -221,10 +221,10 @@ def run_statistics(t: np.ndarray, err: np.ndarray, sig: np.ndarray, nees: np.nda
     block; segments : the point's segment table. Returns column → (R,) values (see
     :func:`statistic_columns`; quantities the estimator does not have are left out).
     """
-    qs = _quantities(stats, states)
+    qs = spec_quantities(stats, states)
     cols: dict[str, np.ndarray] = {}
     cache = {q: _quantity(q, err, sig, states) for q in qs}
-    for wname, w, m in _window_metrics(stats):
+    for wname, w, m in window_metrics(stats):
         mask = _window_mask(t, w, segments)
         for q in qs:
             cols[f"{m}_{wname}_{quantity_column(q)}"] = _metric(m, cache[q][0][:, mask])

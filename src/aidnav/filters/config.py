@@ -172,6 +172,14 @@ class BaroAiding(_Strict):
     bias_rw_m_sqrt_s: float = Field(0.001, ge=0, description="random walk [m/sqrt(s)] (tau <= 0)")
 
 
+class MagAiding(_Strict):
+    """Magnetometer heading updates, used when heading data are given to the filter (``--aid mag=FILE``)."""
+
+    sigma_deg: float = Field(3.0, gt=0, description="heading σ when the data carry none [deg]")
+    declination_deg: float = Field(0.0, description="magnetic declination, east positive [deg]: the reader "
+                                   "adds it to the magnetic headings (true = magnetic + declination)")
+
+
 class FilterSettings(_Strict):
     states: Literal[15, 21, 27] | None = None  # derived from imu.scale_factors, gyro_misalignment when None
     prop_dt_s: float = Field(1.0, gt=0, description="max covariance propagation interval [s]")
@@ -188,6 +196,7 @@ class LooseConfig(_Strict):
     filter: FilterSettings = FilterSettings()
     odometer: OdometerAiding = OdometerAiding()
     baro: BaroAiding = BaroAiding()
+    mag: MagAiding = MagAiding()
     calibration: Calibration = Calibration()
 
     @property

@@ -67,11 +67,11 @@ from .ins_errors import (
 )
 from .kalman import discretize, predict, rts_gain, update
 from .layout import DP, DV, L_CLK, L_N, L_NINS, L_TOFF, NAV, PHI, ST_POS, ST_Q, ST_VEL
-from .measurements import M_PR, MAX_ROWS, N_MODELS, Nav, fill
+from .measurements import M_PR, MAX_ROWS, MODELS_KEY, N_MODELS, Nav, fill
 from .measurements.common import W_FIX, W_IB, W_IE, W_IN
 from .measurements.epoch import epoch_out, epoch_record, epoch_update
 from .measurements.gnss import W_FN
-from .reinit import _nis, chi2_quantile, inflate_nav
+from .reinit import chi2_quantile, inflate_nav, nis_of
 
 # t (N,) [s]; dth, dv (N, 3) raw increments [rad, m/s]; static (N,) bool; gap_var (N, 2) [rad², (m/s)²];
 # hold (N, 2) height [m] and up velocity [m/s] the strapdown is held to after each sample, or (0, 2)
@@ -154,7 +154,7 @@ def policy_update(x, P, wk, m, model, mod, rej, win, log, li):
     gate = mod.gate[model, m]
     # the pre-update NIS is computed here only when the window or a re-initialisation needs it before the
     # update; otherwise the update's own NIS (the same νᵀS⁻¹ν) is logged
-    nis0 = _nis(x, P, H, R, z) if (nw > 0 or why > 0) else -1.0
+    nis0 = nis_of(x, P, H, R, z) if (nw > 0 or why > 0) else -1.0
     if why == 0 and nw > 0 and (gate <= 0.0 or nis0 <= gate):
         c, pos = int(win[model, WIN_MAX]), int(win[model, WIN_MAX + 1])
         win[model, pos] = nis0
@@ -216,7 +216,7 @@ def _reinit(st, P, ini, ix):
 
 
 @njit(cache=True)
-def _node_rates(st, wb, dthc, dt, w):
+def node_rates(st, wb, dthc, dt, w):
     """Rows of ``Nav.w``: mean ω_ib^b, ω_ib^b of the last sample, ω_ie^n, ω_in^n."""
     sl, cl = np.sin(st[0]), np.cos(st[0])
     rm, rn = radii(st[0])
@@ -267,14 +267,15 @@ def start_carry(rec, proc, ini, last):
                  np.zeros(N_MODELS, np.int64), new_accumulator(), np.zeros(2), np.zeros((4, 3)))
 
 
-@njit(cache=True)
+@njit(cache=True, depends=MODELS_KEY)
 def run_filter(imu, rec, mod, proc, ini, out):
     """Forward pass of the closed-loop error-state filter (module doc) over all samples in one call;
     returns :class:`EngineOut`."""
     return run_chunk(imu, rec, mod, proc, ini, out, start_carry(rec, proc, ini, True))
 
 
-@njit(cache=True, nogil=True)  # the streamed job overlaps writing with it (issue 29)
+# nogil: the streamed job overlaps writing with it (issue 29)
+@njit(cache=True, nogil=True, depends=MODELS_KEY)
 def run_chunk(imu, rec, mod, proc, ini, out, cy):
     """The forward pass over the samples ``imu`` from the carry ``cy`` (module doc: chunks)."""
     n_imu = imu.t.shape[0]
@@ -382,7 +383,7 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
                 gap_phi, gap_v = 0.0, 0.0
             if out.smooth:
                 S_phi[kn - kn0], S_prior[kn - kn0] = Phi, P
-            _node_rates(st, wb, dthc, dt, w)
+            node_rates(st, wb, dthc, dt, w)
             w[W_FN] = acc[ACC_FN] / T
             g0 = gi
             while _due_time(rec, gi, bias, ic, itoff) <= imu.t[k]:  # records in (t_{k-1}, t_k]
@@ -537,7 +538,7 @@ def carry_estimates(st, bias, Phi, opn, nstate):
     feedback(st, bias, Phi @ xo - xo, nstate)
 
 
-@njit(cache=True)
+@njit(cache=True, depends=MODELS_KEY)
 def initial_update(rec, mod, proc, ini):
     """The records at or before ``ini.t0`` (which :func:`run_filter` skips) as one node at t0 without
     prediction: the update of an initialisation from measurements at t0 (transfer alignment). Returns
@@ -547,7 +548,7 @@ def initial_update(rec, mod, proc, ini):
     st, bias, P, x = ini.st.copy(), ini.bias.copy(), ini.P.copy(), np.zeros(n)
     wk = Work(np.zeros((MAX_ROWS, n)), np.zeros(MAX_ROWS), np.zeros((MAX_ROWS, MAX_ROWS)))
     w = np.zeros((5, 3))
-    _node_rates(st, np.zeros(3), np.zeros(3), 1.0, w)
+    node_rates(st, np.zeros(3), np.zeros(3), 1.0, w)
     g = 0
     while g < rec.t.shape[0] and rec.t[g] <= ini.t0:
         g += 1

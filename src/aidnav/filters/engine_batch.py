@@ -36,10 +36,10 @@ from .engine import (
     EngineOut,
     Log,
     Work,
-    _node_rates,
     carry_estimates,
     exact_blocks,
     feedback,
+    node_rates,
     policy_update,
 )
 from .ins_errors import (
@@ -53,7 +53,7 @@ from .ins_errors import (
 )
 from .kalman import discretize, predict
 from .layout import L_N, L_NINS, L_SIZE, NAV, ST_Q
-from .measurements import MAX_ROWS, N_MODELS, Nav, fill
+from .measurements import MAX_ROWS, MODELS_KEY, N_MODELS, Nav, fill
 from .measurements.gnss import W_FN
 
 __all__ = ["BatchIn", "BatchInit", "BatchOut", "run_batch", "batchable", "stack_inputs", "run_outputs"]
@@ -78,7 +78,7 @@ _Run = namedtuple("_Run", ["st", "bias", "ib", "P", "acc", "buf", "rej", "win", 
 _NodeWork = namedtuple("_NodeWork", ["x", "F", "G", "Phi", "Qd", "wk", "w"])
 
 
-@njit(cache=True)
+@njit(cache=True, depends=MODELS_KEY)
 def _node(ru, wo, proc, mod, rec_t, rec_model, g0, tk, dt):
     """One run's node at sample time tk (the node block of :func:`.engine.run_chunk` for the scope of
     this module): predict, the records g0.. due by tk, feedback. Returns the next record."""
@@ -92,7 +92,7 @@ def _node(ru, wo, proc, mod, rec_t, rec_model, g0, tk, dt):
     x[:] = 0.0
     predict(x, P, wo.Phi, wo.Qd)
     carry_estimates(st, bias, wo.Phi, proc.open, nins)
-    _node_rates(st, wb, ru.buf[0], dt, w)
+    node_rates(st, wb, ru.buf[0], dt, w)
     w[W_FN] = acc[ACC_FN] / T
     gi = g0
     while gi < rec_t.shape[0] and rec_t[gi] <= tk:
@@ -108,7 +108,7 @@ def _node(ru, wo, proc, mod, rec_t, rec_model, g0, tk, dt):
     return gi
 
 
-@njit(cache=True)
+@njit(cache=True, depends=MODELS_KEY)
 def run_batch(inp, mod, proc, ini):
     """Forward pass of R runs together (module doc): inputs :class:`BatchIn`, the engine's
     :class:`.engine.Models` and :class:`.engine.Process` (shared), initial states :class:`BatchInit`.

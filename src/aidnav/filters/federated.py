@@ -32,9 +32,9 @@ from aidnav.nav.rotations import dcm_from_quat
 
 from . import ins_errors as ie
 from .chi2 import chi2_isf
-from .engine import Imu, Log, Models, Records, Work, _node_rates, feedback, gated_update, rts, smooth_outputs
+from .engine import Imu, Log, Models, Records, Work, feedback, gated_update, node_rates, rts, smooth_outputs
 from .kalman import discretize, predict
-from .measurements import M_GNSS_POS, M_GNSS_VEL, M_SAPV, MAX_ROWS, N_MODELS, Nav, fill
+from .measurements import M_GNSS_POS, M_GNSS_VEL, M_SAPV, MAX_ROWS, MODELS_KEY, N_MODELS, Nav, fill
 from .measurements import sapv as sp
 from .measurements import streams as st_
 from .measurements.common import W_FIX
@@ -79,7 +79,7 @@ def fuse_information(Ps, xs, use):
     return Pg, Pg @ y
 
 
-@njit(cache=True)
+@njit(cache=True, depends=MODELS_KEY)
 def _federated_kernel(imu, gn, sv, mod, lay, fed):
     """Forward pass (module doc). gn, sv: engine :class:`Records` of GNSS (position, velocity) and SAPV
     (``sapv_model`` rows); mod: engine :class:`Models`; lay: layout 15; fed: :class:`Fed`."""
@@ -130,7 +130,7 @@ def _federated_kernel(imu, gn, sv, mod, lay, fed):
                 predict(xf[i], Pf[i], Phi, Qd * qs[i])
         if fed.smooth:
             S_phi[kn], S_prior[kn] = Phi, Phi @ Pg @ Phi.T + Qd
-        _node_rates(st, wb, dthc, dt, w)
+        node_rates(st, wb, dthc, dt, w)
         w[W_FN] = acc[ie.ACC_FN] / T
         while gi < M and gn.t[gi] <= tk:  # 2. local updates: GNSS in local 1
             if gn.use[gi]:
@@ -282,7 +282,7 @@ def run_federated(imu, gnss, sapv, cfg, fed: FederatedConfig | None = None, *, k
     from .layout import make_layout
     from .loose import NEVER, gnss_arrays
     from .prior import given_initial_state, initial_covariance, process_noise
-    from .run_log import _log_dict
+    from .run_log import log_dict
 
     fed = fed or FederatedConfig()
     if cfg.nstate != 15:
@@ -317,7 +317,7 @@ def run_federated(imu, gnss, sapv, cfg, fed: FederatedConfig | None = None, *, k
             st0, P0, process_noise(cfg, 15), np.array([cfg.imu.gyro_bias_tau_s, cfg.imu.accel_bias_tau_s]),
             float(cfg.filter.prop_dt_s), bool(keep_cov), bool(smooth))
     r = _federated_kernel(imu_in, gn, sv, mod, make_layout(), f)
-    log = _log_dict(r.log, len(r.log.t))
+    log = log_dict(r.log, len(r.log.t))
     M = len(gn.t)
     gl = st_.per_fix(log, order, m)
     rs, ls = log["status"][M:].copy(), slice(M, None)

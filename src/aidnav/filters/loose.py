@@ -19,6 +19,7 @@ from collections import namedtuple
 
 import numpy as np
 
+from . import aids as aid_kinds
 from . import measurements as ms
 from .chi2 import chi2_isf
 from .engine import Imu, Init, Models, Output, Process, Records, feedback, rts, run_filter, smooth_outputs
@@ -41,7 +42,7 @@ from .preprocess import (
 )
 from .prior import calibration_prior, initial_covariance, process_noise
 from .result import FilterResult, LooseResult, to_trajectory
-from .run_log import _calibration_base, _gnss_records, _log_dict, loose_counts, reinit_events
+from .run_log import calibration_base, gnss_records, log_dict, loose_counts, reinit_events
 
 # names kept from before the engine (used by the other filters and the tests)
 _apply_correction = feedback
@@ -53,17 +54,14 @@ __all__ = ["run_loose", "LooseResult", "FilterResult", "to_trajectory", "process
 NEVER = 2**62  # max_rej of a model without the consecutive-rejection rule
 
 
-def loose_layout(cfg, odometer=None, baro=None, gnss=True, gnss_velocity=True) -> np.ndarray:
-    """Layout of the loose filter: 15 or 21 INS states, then the odometer scale factor and the barometer
-    bias when their data are given and their state is enabled, then the self-calibration states of
-    ``cfg.calibration`` where they are observable: GNSS lever arm and IMU–GNSS time offset (with GNSS
-    fixes), the mounting angles (with the NHC or an odometer)."""
-    aux = []
-    if odometer is not None and cfg.odometer.scale_factor:
-        aux.append("odometer_scale")
-    if baro is not None and cfg.baro.bias:
-        aux.append("baro_bias")
-    est = calibration_switches(cfg, odometer is not None, gnss_velocity)
+def loose_layout(cfg, aids=(), gnss=True, gnss_velocity=True) -> np.ndarray:
+    """Layout of the loose filter: 15 or 21 INS states, then the calibration states of the ``aids``
+    (:class:`aidnav.filters.aids.Aid`; e.g. the odometer scale factor, the barometer bias, where their
+    section enables them), then the self-calibration states of ``cfg.calibration`` where they are
+    observable: GNSS lever arm and IMU–GNSS time offset (with GNSS fixes), the mounting angles (with the
+    NHC or an aid in the vehicle frame, the odometer)."""
+    aux = aid_kinds.layout_states(cfg, aids)
+    est = calibration_switches(cfg, aid_kinds.vehicle_frame(aids), gnss_velocity)
     for name in ("lever_arm", "time_offset", "mounting", "velocity_delay"):
         if est[name] and (gnss or name == "mounting"):
             aux.append(name)
@@ -74,7 +72,8 @@ def loose_layout(cfg, odometer=None, baro=None, gnss=True, gnss_velocity=True) -
 
 def calibration_switches(cfg, odometer: bool = False, gnss_velocity: bool = True) -> dict:
     """Which calibration states the loose filter estimates (``cfg.calibration``; unset = automatic,
-    see :class:`aidnav.filters.config.Calibration`). The mounting needs the NHC or an odometer.
+    see :class:`aidnav.filters.config.Calibration`). The mounting needs the NHC or an aid in the vehicle
+    frame (``odometer``).
     gnss_velocity : whether the fixes carry a velocity (the automatic time offset needs it)."""
     c = cfg.calibration
     vel = gnss_velocity and cfg.gnss.use in ("both", "velocity")
@@ -92,7 +91,8 @@ def _models(cfg) -> Models:
     """Parameters, χ² gates (by number of rows) and the rejection rule of every model the loose filter
     feeds: GNSS position/velocity gated at ``gnss.gate_probability`` with the consecutive-rejection rule;
     NHC gated at 25 (the χ²(2) quantile of 1 − e^(−12.5)) when GNSS gating is on; ZUPT and ZARU
-    ungated; odometer and barometer gated like GNSS."""
+    ungated; every aid of :data:`aidnav.filters.aids.AIDS` (odometer, barometer, magnetometer, ...) gated
+    like GNSS, never re-initialising the navigation block, with its own parameters."""
     from aidnav.nav.rotations import dcm_from_euler
 
     from .config import DEG
@@ -103,19 +103,23 @@ def _models(cfg) -> Models:
     max_rej = np.full(ms.N_MODELS, NEVER, np.int64)
     win_n = np.zeros(ms.N_MODELS, np.int64)
     chi2 = np.array([0.0] + [chi2_isf(m, 1.0 - gp) if gp < 1 else 0.0 for m in range(1, ms.MAX_ROWS + 1)])
-    for md in (ms.M_GNSS_POS, ms.M_GNSS_VEL, ms.M_ODO, ms.M_BARO):
-        gate[md] = chi2
-        max_rej[md] = cfg.gnss.max_consecutive_rejections
-        # odometer and barometer see one component of the motion: an inconsistency there is as much their
-        # calibration state's as the navigation's, so they never re-initialise the navigation block
-        win_n[md] = cfg.gnss.nis_window if md in (ms.M_GNSS_POS, ms.M_GNSS_VEL) else -1
-        par[md, 0:3] = cfg.gnss.lever_arm_m
     mr = np.array(cfg.imu.mounting_rph_deg) * DEG
     cbv = dcm_from_euler(mr[0], mr[1], mr[2]).ravel()
+    # the aids see one component of the motion: an inconsistency there is as much their calibration
+    # state's as the navigation's, so they never re-initialise the navigation block
+    for md, win in [(ms.M_GNSS_POS, cfg.gnss.nis_window), (ms.M_GNSS_VEL, cfg.gnss.nis_window)] + \
+            [(k.model, -1) for k in aid_kinds.AIDS.values()]:
+        gate[md] = chi2
+        max_rej[md] = cfg.gnss.max_consecutive_rejections
+        win_n[md] = win
+    par[ms.M_GNSS_POS, 0:3] = par[ms.M_GNSS_VEL, 0:3] = cfg.gnss.lever_arm_m
+    for k in aid_kinds.AIDS.values():
+        if k.params is not None:
+            p = k.params(cfg, cbv)
+            par[k.model, :len(p)] = p
     V = ms.vehicle
     par[ms.M_NHC, V.V_SIG], par[ms.M_NHC, V.V_MIN_SPEED] = c.nhc_sigma_m_s, c.nhc_min_speed_m_s
     par[ms.M_NHC, V.V_LEVER:V.V_LEVER + 3], par[ms.M_NHC, V.V_CBV:V.V_CBV + 9] = c.nhc_lever_arm_m, cbv
-    par[ms.M_ODO, V.V_LEVER:V.V_LEVER + 3], par[ms.M_ODO, V.V_CBV:V.V_CBV + 9] = cfg.odometer.lever_arm_m, cbv
     par[ms.M_NHC, V.V_LEVER_SIG] = c.nhc_lever_arm_sigma_m
     gate[ms.M_NHC, 1:] = 25.0 if gp < 1 else 0.0
     par[ms.M_ZUPT, 0], par[ms.M_ZARU, 0] = c.zupt_sigma_m_s, c.zaru_sigma_deg_s * DEG
@@ -129,9 +133,9 @@ def _models(cfg) -> Models:
     return Models(par, gate, max_rej, np.array(node, np.int64).reshape(-1, 2), win_n)
 
 
-def _records(cfg, g, use, odometer, baro):
-    """Time-sorted records (GNSS position, velocity per fix; odometer; barometer) and, per GNSS fix, the
-    index of its position and velocity record (−1: none)."""
+def _records(cfg, g, use, aids):
+    """Time-sorted records (GNSS position, velocity per fix; the aids') and, per GNSS fix, the index of
+    its position and velocity record (−1: none)."""
     g_t, g_lat, g_lon, g_h, g_vel, g_spos, g_svel = g
     m = len(g_t)
     sc = cfg.gnss
@@ -145,20 +149,12 @@ def _records(cfg, g, use, odometer, baro):
     if sc.use in ("both", "velocity"):
         t.append(g_t), mdl.append(np.full(m, ms.M_GNSS_VEL)), rows.append(vel), u.append(use & has_vel)
         src.append(np.arange(m))
-    for data, val, md, sig in ((odometer, "speed", ms.M_ODO, cfg.odometer.sigma_m_s),
-                               (baro, "height", ms.M_BARO, cfg.baro.sigma_m)):
-        if data is not None:
-            k = len(data.time)
-            std = np.full(k, sig) if getattr(data, "std", None) is None else np.asarray(data.std, float)
-            v = np.asarray(getattr(data, val), float)
-            t.append(np.asarray(data.time, float)), mdl.append(np.full(k, md))
-            rows.append(np.column_stack([v, std, np.zeros((k, 4))]))
-            u.append(np.isfinite(v) & np.isfinite(std))
-            src.append(np.full(k, -1))
+    for ta, ma, ra, ua in aid_kinds.records(cfg, aids):
+        t.append(ta), mdl.append(ma), rows.append(ra), u.append(ua), src.append(np.full(len(ta), -1))
     if not t:
         return Records(np.zeros(0), np.zeros(0, np.int64), np.zeros((0, 6)), np.zeros(0, np.bool_)), None
     t, mdl, rows, u, src = (np.concatenate(a) for a in (t, mdl, rows, u, src))
-    # stable order: by time; at one time GNSS position, velocity (per fix), then odometer, barometer
+    # stable order: by time; at one time GNSS position, velocity (per fix), then the aids by model id
     o = np.lexsort((mdl, np.where(src >= 0, src, m), t))
     rec = Records(np.ascontiguousarray(t[o]), mdl[o].astype(np.int64), np.ascontiguousarray(rows[o]),
                   np.ascontiguousarray(u[o]))
@@ -169,7 +165,7 @@ Setup = namedtuple("Setup", ["cfg", "lay", "n", "k0", "t_imu", "proc", "ini", "m
                              "out_every", "reset_time"])
 
 
-def loose_setup(imu, gnss, cfg, withheld, events, odometer=None, baro=None) -> Setup:
+def loose_setup(imu, gnss, cfg, withheld, events, aids=()) -> Setup:
     """Everything :func:`run_loose` gives the engine except the per-sample IMU arrays: the configuration
     (with a coarse mounting where it is unknown), layout, process model, initial state (``ini``;
     ``reset_idx`` relative to ``k0``, the first IMU sample used; ``reset_time`` the time of the course
@@ -180,7 +176,7 @@ def loose_setup(imu, gnss, cfg, withheld, events, odometer=None, baro=None) -> S
     from .config import DEG
 
     has_vel = gnss.vel is not None and bool(np.any(np.isfinite(gnss.vel)))
-    lay = loose_layout(cfg, odometer, baro, gnss=len(gnss) > 0, gnss_velocity=has_vel)
+    lay = loose_layout(cfg, aids, gnss=len(gnss) > 0, gnss_velocity=has_vel)
     n_ins, n = cfg.nstate, int(lay[L_N])
     t_imu = imu.time + cfg.imu.time_offset_s
     g = gnss_arrays(gnss, cfg)
@@ -192,10 +188,12 @@ def loose_setup(imu, gnss, cfg, withheld, events, odometer=None, baro=None) -> S
         events.append(f"{int((~finite).sum())} GNSS fixes with NaN/inf position or sigma not used "
                       f"(first at t={bad_t[0]:.3f})")
         use &= finite
-    cfg = _coarse_mounting_if_unknown(cfg, imu, gnss, t_imu, g, use, odometer, events)
+    cfg = _coarse_mounting_if_unknown(cfg, imu, gnss, t_imu, g, use, aids, events)
     if cfg.imu.noise_from_static:  # engine vibration: IMU noise from the log's static samples
         cfg = noise_from_static(imu, static_flags(imu, gnss, cfg), cfg, events)
-    i0 = initial_state(imu, gnss, cfg, t_imu, g, use, events)
+    ev0: list[str] = []
+    i0, ev0 = _aid_heading(initial_state(imu, gnss, cfg, t_imu, g, use, ev0), cfg, aids, ev0)
+    events += ev0
     rph = i0["rph"]
     q0 = quat_from_euler(rph[0], rph[1], rph[2])
     v0 = i0["v0"]
@@ -213,7 +211,7 @@ def loose_setup(imu, gnss, cfg, withheld, events, odometer=None, baro=None) -> S
     out_every = 1
     if cfg.filter.output_rate_hz:
         out_every = max(1, int(round(imu.rate_hz / cfg.filter.output_rate_hz)))
-    rec, rmap = _records(cfg, g, use, odometer, baro)
+    rec, rmap = _records(cfg, g, use, aids)
     reset_nav = np.concatenate([i0["reset_nav"], cfg.gnss.lever_arm_m])
     ini = Init(float(i0["t0"]), st0, np.zeros(n - 9), P0, int(i0["reset_idx"]), float(i0["reset_heading"]),
                cfg.init.course_heading_sigma_deg * DEG, reset_nav)
@@ -222,7 +220,7 @@ def loose_setup(imu, gnss, cfg, withheld, events, odometer=None, baro=None) -> S
 
 
 def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: list | None = None,
-              cov_times=None, odometer=None, baro=None):
+              cov_times=None, aids=()):
     """Loosely coupled GNSS/INS over whole logs.
 
     Parameters
@@ -239,17 +237,15 @@ def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: 
         after it; P is the one the filter holds there after that sample's updates (covariance is
         propagated at nodes only, so ask for node times, e.g. GNSS epochs). Returned in
         ``FilterResult.cov_time`` / ``FilterResult.cov``; times outside the processed span are dropped.
-    odometer : optional object with ``time`` [s], ``speed`` [m/s] (forward, signed) and ``std`` [m/s]
-        or None (:class:`aidnav.io.aux_sensors.OdometerData`); settings ``cfg.odometer``.
-    baro : optional object with ``time`` [s], ``height`` [m] and ``std`` [m] or None
-        (:class:`aidnav.io.aux_sensors.BaroData`); settings ``cfg.baro``.
+    aids : sequence of :class:`aidnav.filters.aids.Aid` (odometer, barometer, magnetometer heading, ...:
+        :data:`aidnav.filters.aids.AIDS`), e.g. ``[aid("odometer", OdometerData(...))]``; the settings of
+        each are its section of ``cfg``.
     """
     from .config import LooseConfig
 
     cfg = cfg or LooseConfig()
     events = events if events is not None else []
-    su, imu_in, static_used, cov_idx = loose_inputs(imu, gnss, cfg, withheld, events, cov_times, odometer,
-                                                    baro)
+    su, imu_in, static_used, cov_idx = loose_inputs(imu, gnss, cfg, withheld, events, cov_times, aids)
     r = run_filter(imu_in, su.rec, su.models, su.proc, su.ini, Output(su.out_every, bool(smooth), cov_idx))
     res = loose_result(su, r, imu, gnss, static_used, events)
     if cov_times is not None:
@@ -268,11 +264,11 @@ def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: 
     return res
 
 
-def loose_inputs(imu, gnss, cfg, withheld=None, events=None, cov_times=None, odometer=None, baro=None):
+def loose_inputs(imu, gnss, cfg, withheld=None, events=None, cov_times=None, aids=()):
     """What :func:`run_loose` gives the engine: (:class:`Setup`, the engine's :class:`.engine.Imu` from the
     first sample used, the number of static samples among them, the sample indices of ``cov_times``)."""
     events = events if events is not None else []
-    su = loose_setup(imu, gnss, cfg, withheld, events, odometer, baro)
+    su = loose_setup(imu, gnss, cfg, withheld, events, aids)
     cfg, k0, t_imu = su.cfg, su.k0, su.t_imu
     dth_in, dv_in, gap_var = bridge_gaps(imu, events)
     static = static_flags(imu, gnss, cfg) if cfg.constraints.zupt else np.zeros(len(imu), np.bool_)
@@ -291,7 +287,7 @@ def loose_result(su, r, imu, gnss, static_used, events) -> FilterResult:
     """The :class:`FilterResult` of a forward pass ``r`` (:class:`.engine.EngineOut`) of the loose filter
     set up by ``su`` (:func:`loose_setup`) on ``imu``, ``gnss`` (no smoother, no kept covariances)."""
     cfg, lay, k0, t_imu = su.cfg, su.lay, su.k0, su.t_imu
-    log = _log_dict(r.log, r.n_log)
+    log = log_dict(r.log, r.n_log)
     cnt = loose_counts(log, len(r.node_idx), static_used, len(imu), k0)
     events += reinit_events(log)
     # the outputs are stamped on the GNSS scale with the final time-offset estimate (CONVENTIONS: the
@@ -303,10 +299,10 @@ def loose_result(su, r, imu, gnss, static_used, events) -> FilterResult:
                       "by it")
     ts = t_imu[k0:]
     res = FilterResult(time=ts[r.out_idx] + d_hat, state=r.out_st, bias=r.out_bias, pdiag=r.out_pdiag,
-                       node_time=ts[r.node_idx], records=_gnss_records(log, su.rmap, len(gnss)),
+                       node_time=ts[r.node_idx], records=gnss_records(log, su.rmap, len(gnss)),
                        counts=cnt, final_P=r.P, innovations=log, events=events, layout=lay,
                        state_names=layout_names(lay))
-    res.calibration_base = _calibration_base(cfg)
+    res.calibration_base = calibration_base(cfg)
     res.gnss_time = np.asarray(gnss.time, float)
     return res
 
@@ -334,14 +330,35 @@ def run_loose_batch(imus, gnss_list, cfgs):
             for r, ((su, _, used, events), imu, gnss) in enumerate(zip(ins, imus, gnss_list, strict=True))]
 
 
-def _coarse_mounting_if_unknown(cfg, imu, gnss, t_imu, g, use, odometer, events):
-    """With the NHC or an odometer and no ``imu.mounting_rph_deg`` in the configuration, the mounting is
-    unknown and may be anything (an IMU mounted backwards): a coarse mounting from the log
-    (:func:`aidnav.filters.preprocess.coarse_mounting`, a whole-log fit: post-processing) replaces the
-    identity, and the mounting state refines it. Returns the configuration to use."""
+def _aid_heading(i0, cfg, aids, events):
+    """The initial state ``i0`` (:func:`aidnav.filters.preprocess.initial_state`) with the heading of an
+    aid that gives one at t0 (the magnetometer) where none is configured and the aid's σ is below the
+    one found (e.g. π: unknown until a GNSS course): then no course alignment follows. Returns (i0, the
+    initialisation's events without those of the heading it replaced)."""
+    if cfg.init.heading_deg is not None or cfg.init.mode == "given":
+        return i0, events
+    h = aid_kinds.initial_heading(cfg, aids, float(i0["t0"]))
+    if h is None or not h[1] < i0["att_sig"][2]:
+        return i0, events
+    psi, sig, name = h
+    i0 = dict(i0, rph=np.array([i0["rph"][0], i0["rph"][1], psi]), att_sig=i0["att_sig"].copy(),
+              reset_idx=-1, reset_heading=0.0, reset_nav=np.full(12, np.nan), reset_time=None)
+    i0["att_sig"][2] = sig
+    events = [e for e in events if not ("heading" in e and ("course" in e or "gyrocompass" in e))]
+    events.append(f"initial heading from {name}: {np.degrees(psi):.2f} deg (sigma {np.degrees(sig):.2f} deg)")
+    return i0, events
+
+
+def _coarse_mounting_if_unknown(cfg, imu, gnss, t_imu, g, use, aids, events):
+    """With the NHC or an aid in the vehicle frame (odometer) and no ``imu.mounting_rph_deg`` in the
+    configuration, the mounting is unknown and may be anything (an IMU mounted backwards): a coarse
+    mounting from the log (:func:`aidnav.filters.preprocess.coarse_mounting`, a whole-log fit:
+    post-processing) replaces the identity, and the mounting state refines it. Returns the
+    configuration to use."""
     from .preprocess import coarse_mounting, gnss_velocity_for_init
 
-    if not (cfg.constraints.nhc or odometer is not None) or "mounting_rph_deg" in cfg.imu.model_fields_set:
+    if not (cfg.constraints.nhc or aid_kinds.vehicle_frame(aids)) or \
+            "mounting_rph_deg" in cfg.imu.model_fields_set:
         return cfg
     iu = np.flatnonzero(use)
     gs = tuple(a[iu] for a in g)

@@ -19,7 +19,7 @@ def chi2_quantile(k, z):
 
 
 @njit(cache=True)
-def _nis(x, P, H, R, z):
+def nis_of(x, P, H, R, z):
     """NIS νᵀ S⁻¹ ν of z − H x with S = H P Hᵀ + R."""
     nu = z - H @ x
     return nu @ np.linalg.solve(H @ P @ H.T + R, nu)
@@ -32,13 +32,13 @@ def inflate_nav(x, P, H, R, z):
     semi-definite; α ≥ 1 the smallest with NIS(ν, H D P D Hᵀ + R) ≤ m (bisection in log α up to
     1e12). Returns α."""
     m = z.shape[0]
-    if _nis(x, P, H, R, z) <= m:
+    if nis_of(x, P, H, R, z) <= m:
         return 1.0
     P0 = P.copy()
     lo, hi = 0.0, np.log(1e12)
     for _ in range(50):
         a = np.exp(0.5 * (lo + hi))
-        if _nis(x, _scaled_nav(P0, a), H, R, z) > m:
+        if nis_of(x, _scaled_nav(P0, a), H, R, z) > m:
             lo = np.log(a)
         else:
             hi = np.log(a)

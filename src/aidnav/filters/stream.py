@@ -32,20 +32,22 @@ import numpy as np
 from aidnav.data import ImuData
 from aidnav.io.stream import Spool
 
+from .aids import vehicle_frame
 from .engine import Imu, Log, Output, rts, run_chunk, smooth_outputs, start_carry
 from .layout import L_TOFF, NAV, layout_names
 from .loose import loose_setup
 from .measurements import MAX_ROWS
 from .preprocess import StaticDetector, bridge_gaps
 from .result import FilterResult
-from .run_log import _calibration_base, _gnss_records, _log_dict, loose_counts
+from .run_log import calibration_base, gnss_records, log_dict, loose_counts
 
 NEVER = 2**62  # a course alignment not yet reached (its sample is found when its chunk comes)
 
 
-def needs_whole_log(cfg, odometer=None) -> bool:
-    """Whether the loose filter needs the whole log in memory (the coarse mounting is a whole-log fit)."""
-    return bool(cfg.constraints.nhc or odometer is not None) and "mounting_rph_deg" not in \
+def needs_whole_log(cfg, aids=()) -> bool:
+    """Whether the loose filter needs the whole log in memory (the coarse mounting is a whole-log fit):
+    the NHC or an aid in the vehicle frame (:class:`aidnav.filters.aids.Aid`) with no mounting given."""
+    return bool(cfg.constraints.nhc or vehicle_frame(aids)) and "mounting_rph_deg" not in \
         cfg.imu.model_fields_set
 
 
@@ -83,7 +85,7 @@ def _lookahead(first, rest):
 
 
 def stream_loose(chunks, gnss, cfg, emit, withheld=None, smooth: bool = False, events: list | None = None,
-                 odometer=None, baro=None, head_s: float = 60.0, spool_dir=None, progress=None):
+                 aids=(), head_s: float = 60.0, spool_dir=None, progress=None):
     """Loosely coupled GNSS/INS (and RTS smoother) over a log given in chunks (module doc).
 
     chunks : iterator of :class:`aidnav.data.ImuData` (consecutive, ``t0`` of the first one the start
@@ -99,7 +101,7 @@ def stream_loose(chunks, gnss, cfg, emit, withheld=None, smooth: bool = False, e
     events = events if events is not None else []
     chunks = iter(chunks)
     head, first, rest = _head(chunks, gnss, head_s)
-    su = loose_setup(head, gnss, cfg, withheld, events, odometer, baro)
+    su = loose_setup(head, gnss, cfg, withheld, events, aids)
     cfg, lay, n, k0 = su.cfg, su.lay, su.n, su.k0
     ini = su.ini
     rt = su.reset_time
@@ -210,7 +212,7 @@ def stream_loose(chunks, gnss, cfg, emit, withheld=None, smooth: bool = False, e
     if rec_log is None:
         raise ValueError("no IMU sample after the initialisation")
     rec_log["ref"] = np.arange(M, dtype=np.int64)
-    log = _log_dict(Log(**rec_log), M)
+    log = log_dict(Log(**rec_log), M)
     node_m = np.concatenate(node_model) if node_model else np.zeros(0, np.int8)
     node_s = np.concatenate(node_status) if node_status else np.zeros(0, np.int8)
     cnt = loose_counts({"model": np.concatenate([log["model"], node_m]),
@@ -220,9 +222,9 @@ def stream_loose(chunks, gnss, cfg, emit, withheld=None, smooth: bool = False, e
         cnt["smoother_memory_mb"] = 4 * n_nodes * n * n * 8 / 1e6
     res = last_piece if last_piece is not None else _piece(np.zeros(0), np.zeros((0, 10)),
                                                            np.zeros((0, n - NAV)), np.zeros((0, n)), lay)
-    res.records = _gnss_records(log, su.rmap, len(gnss))
+    res.records = gnss_records(log, su.rmap, len(gnss))
     res.counts, res.final_P, res.innovations, res.events = cnt, cy.P.copy(), log, events
-    res.state_names, res.calibration_base = layout_names(lay), _calibration_base(cfg)
+    res.state_names, res.calibration_base = layout_names(lay), calibration_base(cfg)
     res.gnss_time = np.asarray(gnss.time, float)
     res.node_time = np.zeros(0)
     return res

@@ -18,13 +18,17 @@ says what the range errors can do to it.
 
 **Measurements**: each GNSS epoch is one engine record (:mod:`aidnav.filters.measurements.epoch`): due at
 the receive time t_tag − b̂/c, the INS antenna moved back to it; clock start and jumps (median residual
-beyond ``clock_jump_m``) re-initialise b̂; mask, Klobuchar / dual-frequency ionosphere and Saastamoinen
+beyond ``clock_jump_m``) re-initialise b̂; mask, Klobuchar (RTKLIB's default coefficients when the
+navigation file has none; σ 50 % of the delay) / dual-frequency ionosphere and Saastamoinen
 troposphere at the INS position; one scalar row per pseudorange and per rate, gated by the χ²(1)
 quantile of ``gate_probability``; after ``max_consecutive_rejections`` rejected epochs the next epoch is
 not gated (the engine's rule). Any number of satellites is used: with fewer than four the clock and the
 position are only partly observable, and the covariance says so. Satellite positions/clocks come from
-the broadcast ephemerides at the transmit time implied by each pseudorange, before the engine. ZUPTs
-at static samples are the engine's node constraint. The engine feeds back after each node and, with
+the broadcast ephemerides at the transmit time implied by each pseudorange, before the engine. Optional
+velocity records (``velocity_fixes``: the time-differenced carrier phase's mean velocities from
+:mod:`aidnav.apps.tight`) go through the loosely coupled filter's GNSS velocity model. ZUPTs (and ZARU)
+at static samples and the NHC (``constraints``, the ``process`` schema; ``apply_vehicle`` for the
+vehicle presets) are the engine's node constraints. The engine feeds back after each node and, with
 ``smooth``, runs the RTS pass over the nodes (no information passed back across a heading reset).
 """
 
@@ -37,7 +41,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from aidnav.nav.earth import radii
-from aidnav.nav.gnss_sat import C_LIGHT, dual_frequency_iono
+from aidnav.nav.gnss_sat import C_LIGHT, dual_frequency_iono, iono_fallback_note, klobuchar_coefficients
 
 from . import measurements as ms
 from .chi2 import chi2_isf
@@ -46,9 +50,16 @@ from .engine import Imu, Init, Models, Output, Process, Records, rts, run_filter
 from .layout import L_CLK, L_N, L_NINS, L_RERR, L_SIZE
 from .measurements import epoch as ep
 
-__all__ = ["RawGnssAiding", "TightConfig", "TightResult", "run_tight", "tight_layout",
+__all__ = ["CLOCK_GRADES", "RawGnssAiding", "TightConfig", "TightResult", "apply_vehicle", "clock_allan",
+           "run_tight", "tight_layout",
            "tight_nav_covariance_m", "to_trajectory"]
 N_NOISE = 14  # 12 INS noise inputs of ins_errors (15-state) + clock bias + clock drift
+
+
+# Allan-variance coefficients (h0 [s], h-2 [1/s]) of receiver oscillators: Brown & Hwang, "Introduction to
+# Random Signals and Applied Kalman Filtering", Table 9.1 (temperature-compensated crystal, ovenized
+# crystal, rubidium); flicker (h-1) is not modelled
+CLOCK_GRADES = {"tcxo": (2e-19, 2e-20), "ocxo": (8e-20, 4e-23), "rubidium": (2e-20, 4e-29)}
 
 
 class _Strict(BaseModel):
@@ -75,8 +86,12 @@ class RawGnssAiding(_Strict):
     iono_window_s: float = Field(60.0, gt=0, description="smoothing window of the dual-frequency delay [s]")
     tropo: bool = True
     humidity: float = Field(0.7, ge=0, le=1)
-    clock_h0: float = Field(2e-19, ge=0, description="white-frequency Allan coefficient h0 [s]")
-    clock_hm2: float = Field(2e-20, ge=0, description="random-walk-frequency Allan coefficient h-2 [1/s]")
+    clock_grade: Literal["tcxo", "ocxo", "rubidium"] = Field(
+        "tcxo", description="receiver oscillator: its Allan coefficients h0, h-2 (CLOCK_GRADES) unless "
+        "clock_h0 / clock_hm2 are given; consumer receivers have a TCXO")
+    clock_h0: float | None = Field(None, ge=0, description="white-frequency Allan coefficient h0 [s]")
+    clock_hm2: float | None = Field(None, ge=0,
+                                    description="random-walk-frequency Allan coefficient h-2 [1/s]")
     clock_tau_s: float = Field(
         0.0, description="drift correlation time τ_f [s] (seed: Markov); <= 0 random walk"
     )
@@ -88,6 +103,17 @@ class RawGnssAiding(_Strict):
         True, description="per-satellite Gauss-Markov range-error states with the σ of RTKLIB's "
         "single-frequency error budget (URA, ionosphere, troposphere, code bias; docs/models.md)")
     range_error_tau_s: float = Field(1800.0, gt=0, description="correlation time of the range errors [s]")
+    use_phase: bool = Field(True, description="time-differenced L1 carrier phase (where the observations "
+                            "have it): mean velocities between epochs as velocity records (aidnav tight)")
+    phase_sigma_m: float = Field(0.005, gt=0, description="carrier-phase σ per epoch [m]")
+    slip_threshold_cycles: float = Field(0.5, gt=0, description="phase-Doppler disagreement that is a "
+                                         "cycle slip [cycles]")
+
+
+def clock_allan(g: RawGnssAiding) -> tuple[float, float]:
+    """(h0, h-2) of the receiver clock: the configured ones, else those of ``clock_grade``."""
+    h0, hm2 = CLOCK_GRADES[g.clock_grade]
+    return (h0 if g.clock_h0 is None else g.clock_h0), (hm2 if g.clock_hm2 is None else g.clock_hm2)
 
 
 class TightConfig(_Strict):
@@ -132,6 +158,7 @@ class TightResult:
     smoothed_cov: np.ndarray | None = None  # (K, n, n) smoothed covariance at the nodes (``smooth``)
     range_error: np.ndarray | None = None  # (N, R) forward range-error estimates û [-] (σ units), R states
     range_error_prn: np.ndarray | None = None  # (R,) PRN of each range-error state
+    iono_model: str = ""  # the ionospheric correction applied and its σ (for the summary)
 
 
 def tight_layout(states: int, n_range: int = 0) -> np.ndarray:
@@ -155,8 +182,9 @@ def _noise_vector(cfg: TightConfig, n_range: int = 0) -> np.ndarray:
     q = np.zeros(N_NOISE + n_range)
     q[:12] = process_noise(lc, 15)
     g = cfg.gnss
-    q[12] = C_LIGHT**2 * g.clock_h0 / 2.0
-    q[13] = C_LIGHT**2 * 2.0 * np.pi**2 * g.clock_hm2
+    h0, hm2 = clock_allan(g)
+    q[12] = C_LIGHT**2 * h0 / 2.0
+    q[13] = C_LIGHT**2 * 2.0 * np.pi**2 * hm2
     q[N_NOISE:] = 2.0 / g.range_error_tau_s  # unit-variance first-order Gauss-Markov: q = 2σ²/τ
     return q
 
@@ -173,6 +201,80 @@ def _initial_P(cfg: TightConfig, lat, h, att_sig, n_range: int = 0) -> np.ndarra
     P[nn, nn] = cfg.gnss.clock_bias_sigma_m**2
     P[nn + 1, nn + 1] = cfg.gnss.clock_drift_sigma_m_s**2
     return P
+
+
+def _vehicle_models(cfg: TightConfig, par, gates, have_static: bool, gated: bool) -> np.ndarray:
+    """Node constraints of ``cfg.constraints`` (the loosely coupled filter's schema and models): ZUPT
+    (and ZARU) at static samples, the NHC (no mounting states here: the configured mounting is exact).
+    Fills their parameters and gates; returns the (model, static-only) pairs."""
+    from aidnav.nav.rotations import dcm_from_euler  # lazy: as run_tight's own imports (import time)
+
+    from .config import DEG  # lazy: as run_tight's
+
+    c = cfg.constraints
+    V = ms.vehicle
+    par[ms.M_ZUPT, 0], par[ms.M_ZARU, 0] = c.zupt_sigma_m_s, c.zaru_sigma_deg_s * DEG
+    mr = np.array(cfg.imu.mounting_rph_deg) * DEG
+    par[ms.M_NHC, V.V_SIG], par[ms.M_NHC, V.V_MIN_SPEED] = c.nhc_sigma_m_s, c.nhc_min_speed_m_s
+    par[ms.M_NHC, V.V_LEVER:V.V_LEVER + 3] = c.nhc_lever_arm_m
+    par[ms.M_NHC, V.V_CBV:V.V_CBV + 9] = dcm_from_euler(mr[0], mr[1], mr[2]).ravel()
+    par[ms.M_NHC, V.V_LEVER_SIG] = c.nhc_lever_arm_sigma_m
+    gates[ms.M_NHC, 1:] = 25.0 if gated else 0.0
+    node = []
+    if c.zupt and have_static:
+        node.append((ms.M_ZUPT, 1))
+        if c.zaru_sigma_deg_s > 0:
+            node.append((ms.M_ZARU, 1))
+    if c.nhc:
+        node.append((ms.M_NHC, 0))
+    return np.array(node, np.int64).reshape(-1, 2)
+
+
+def apply_vehicle(cfg: TightConfig, name: str | None, events: list | None = None) -> TightConfig:
+    """``cfg`` with the vehicle preset ``name`` of ``aidnav process --vehicle``
+    (:data:`aidnav.filters.presets.PRESETS`) applied under it: the sections the two schemas share
+    (``imu``, ``init``, ``constraints``); a key the configuration states explicitly wins. Preset keys
+    of sections tight does not have (loose-only GNSS fix settings, mounting calibration) are listed in
+    ``events``. Unknown names raise ValueError naming the known ones."""
+    from .presets import PRESETS, preset_names  # lazy: only with --vehicle
+
+    if name is None:
+        return cfg
+    if name not in PRESETS:
+        raise ValueError(f"--vehicle {name!r}: unknown vehicle; known: {', '.join(preset_names())}")
+    data = cfg.model_dump(exclude_unset=True)
+    merged: dict = {k: v for k, v in data.items()}
+    skipped = []
+    for section, vals in PRESETS[name].items():
+        if section not in ("imu", "init", "constraints"):
+            skipped += [f"{section}.{k}" for k in vals]
+            continue
+        merged[section] = {**vals, **data.get(section, {})}
+    if events is not None and skipped:
+        events.append(f"--vehicle {name}: {', '.join(skipped)} of the preset not used by the tightly coupled "
+                      "filter (no such state or setting here)")
+    return TightConfig.model_validate(merged)
+
+
+def _records(t_obs, rows, velocity_fixes, S):
+    """Engine records: one whole-epoch pseudorange record per epoch and, with ``velocity_fixes``, velocity
+    records among them in time order. Returns (Records, indices of the epoch records)."""
+    M = len(t_obs)
+    if velocity_fixes is None:
+        return Records(np.asarray(t_obs, float), np.full(M, ms.M_PR, np.int64), rows, np.ones(M, np.bool_),
+                       ep.epoch_out(M, S)), np.arange(M)
+    tv, vv, sv = (np.asarray(a, float) for a in velocity_fixes)
+    ok = np.isfinite(tv) & np.isfinite(vv).all(axis=1) & np.isfinite(sv).all(axis=1)
+    tv, vv, sv = tv[ok], vv[ok], sv[ok]
+    K = len(tv)
+    vrows = np.full((K, rows.shape[1]), np.nan)
+    vrows[:, 0:3], vrows[:, 3:6] = vv, sv
+    t_all = np.concatenate([np.asarray(t_obs, float), tv])
+    order = np.argsort(t_all, kind="stable")
+    model = np.concatenate([np.full(M, ms.M_PR, np.int64), np.full(K, ms.M_GNSS_VEL, np.int64)])[order]
+    rec = Records(t_all[order], model, np.vstack([rows, vrows])[order], np.ones(M + K, np.bool_),
+                  ep.epoch_out(M + K, S))
+    return rec, np.flatnonzero(model == ms.M_PR)
 
 
 def _satellite_arrays(obs, eph, use_tgd, max_age):
@@ -200,7 +302,7 @@ def _satellite_arrays(obs, eph, use_tgd, max_age):
 
 def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, static=None, heading_reset=None,
               events: list | None = None, output_rate_hz: float | None = None,
-              smooth: bool = False) -> TightResult:
+              smooth: bool = False, velocity_fixes=None) -> TightResult:
     """Tightly coupled GNSS/INS over whole logs.
 
     imu : :class:`aidnav.data.ImuData` (increments, body RFU; time on the GNSS scale: GPS seconds on the
@@ -211,6 +313,9 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     default: ``cfg.init`` in "given" mode (degrees) at the IMU's first time.
     static : optional (N,) bool per IMU sample for ZUPTs (``cfg.constraints.zupt``).
     heading_reset : optional (t [s], heading [rad]) to set the heading at (e.g. a GNSS course).
+    velocity_fixes : optional (t (K,) receiver tags [s], v_ENU (K, 3) [m/s], σ (K, 3) [m/s]) velocity
+    records of the antenna (e.g. time-differenced carrier phase, :mod:`aidnav.estimators.tdcp`, at the
+    middle of each interval), the loosely coupled filter's velocity model, gated by ``gate_probability``.
     smooth : also run the RTS smoother (``state``, ``clock``, ``pdiag`` are then the smoothed ones).
     """
     from aidnav.nav.rotations import quat_from_euler
@@ -218,7 +323,7 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     from .config import DEG
     from .loose import NEVER, bridge_gaps
     from .prior import given_initial_state
-    from .run_log import _log_dict
+    from .run_log import log_dict
 
     cfg = cfg or TightConfig()
     events = events if events is not None else []
@@ -236,9 +341,12 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     q0 = quat_from_euler(rph0[0], rph0[1], rph0[2])
     st0 = np.array([lat0, lon0, h0, *np.asarray(v0, float), *q0], float)
     gate = chi2_isf(1, 1.0 - g.gate_probability) if g.gate_probability < 1 else 0.0
-    use_iono = g.iono == "klobuchar" and eph.iono_alpha is not None
-    if g.iono == "klobuchar" and eph.iono_alpha is None:
-        events.append("no Klobuchar coefficients: no ionospheric correction")
+    use_iono = g.iono == "klobuchar"
+    alpha, beta, iono_src = klobuchar_coefficients(eph.iono_alpha, eph.iono_beta)
+    iono_model = {"klobuchar": f"Klobuchar ({iono_src} coefficients), sigma 50 % of the delay",
+                  "dual": "dual-frequency code (L1/L2)", "none": "none"}[g.iono]
+    if use_iono and iono_src == "default":
+        events.append(iono_fallback_note())
     par = np.zeros((ms.N_MODELS, 24))
     e = par[ms.M_PR]
     e[ep.E_LEVER:ep.E_LEVER + 3] = g.lever_arm_m
@@ -247,15 +355,12 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     e[[ep.E_JUMP, ep.E_SIG_B, ep.E_SIG_D, ep.E_CODE_MIN]] = (
         g.clock_jump_m, g.clock_bias_sigma_m, g.clock_drift_sigma_m_s, g.code_min_sats)
     if use_iono:
-        e[ep.E_ALPHA:ep.E_ALPHA + 4], e[ep.E_BETA:ep.E_BETA + 4] = eph.iono_alpha, eph.iono_beta
+        e[ep.E_ALPHA:ep.E_ALPHA + 4], e[ep.E_BETA:ep.E_BETA + 4] = alpha, beta
     gates = np.zeros((ms.N_MODELS, ms.MAX_ROWS + 1))
     gates[ms.M_PR, 1] = gate
     max_rej = np.full(ms.N_MODELS, NEVER, np.int64)
     max_rej[ms.M_PR] = g.max_consecutive_rejections
-    c = cfg.constraints
-    zupt = c.zupt and static is not None
-    par[ms.M_ZUPT, 0] = c.zupt_sigma_m_s
-    mod = Models(par, gates, max_rej, np.array([(ms.M_ZUPT, 1)] if zupt else [], np.int64).reshape(-1, 2))
+    mod = Models(par, gates, max_rej, _vehicle_models(cfg, par, gates, static is not None, gate > 0))
     if g.iono == "dual":
         if obs.code2 is None:
             raise ValueError("iono = dual needs an L2 code")
@@ -278,8 +383,12 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     lay = tight_layout(cfg.states, len(with_eph))
     n, nr = int(lay[L_N]), len(with_eph)
     P0 = _initial_P(cfg, lat0, h0, np.array(cfg.init.attitude_sigma_deg) * DEG, nr)
-    rec = Records(np.asarray(obs.time, float), np.full(M, ms.M_PR, np.int64), rows.reshape(M, S * ep.E_W),
-                  np.ones(M, np.bool_), ep.epoch_out(M, S))
+    rec, sel = _records(obs.time, rows.reshape(M, S * ep.E_W), velocity_fixes, S)
+    if velocity_fixes is not None:
+        par[ms.M_GNSS_VEL, 0:3] = g.lever_arm_m
+        gates[ms.M_GNSS_VEL, 1:4] = [chi2_isf(m, 1.0 - g.gate_probability) if g.gate_probability < 1 else 0.0
+                                     for m in (1, 2, 3)]
+        max_rej[ms.M_GNSS_VEL] = g.max_consecutive_rejections
     stat = np.zeros(len(t_imu), np.bool_) if static is None else np.asarray(static, np.bool_)
     reset_idx, reset_heading = -1, 0.0
     if heading_reset is not None:
@@ -298,7 +407,7 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     init = Init(float(t0), st0, np.zeros(n - 9), P0, reset_idx, reset_heading,
                 cfg.init.course_heading_sigma_deg * DEG, np.full(15, np.nan))
     r = run_filter(imu_in, rec, mod, proc, init, Output(out_every, bool(smooth), np.zeros(0, np.int64)))
-    ge = rec.grp
+    ge = rec.grp._replace(**{k: getattr(rec.grp, k)[sel] for k in rec.grp._fields if k != "flags"})
     epochs = dict(time=ge.t, n_avail=ge.navail, n_pr=ge.npr, n_rate=ge.nrate, n_rejected=ge.nrej,
                   pr_innov=ge.pr_nu, pr_s=ge.pr_s, rate_innov=ge.rate_nu, rate_s=ge.rate_s, elevation=ge.el,
                   P_nav=ge.P_nav, clock=ge.clk, state=ge.state, prn=obs.prn)
@@ -309,15 +418,18 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
         for j in np.flatnonzero(rej_pr + rej_rate):
             events.append(f"G{int(obs.prn[j]):02d}: {int(rej_pr[j])} pseudorange(s) and {int(rej_rate[j])} "
                           "rate(s) outside the innovation gate (rejected unless the gate was suspended)")
-    log = _log_dict(r.log, r.n_log)
-    cnt = dict(zupt_updates=int((log["model"] == ms.M_ZUPT).sum()), clock_jumps=int(ge.flags[1]),
+    log = log_dict(r.log, r.n_log)
+    cnt = dict(zupt_updates=int((log["model"] == ms.M_ZUPT).sum()),
+               nhc_updates=int((log["model"] == ms.M_NHC).sum()), clock_jumps=int(ge.flags[1]),
                epochs=int(np.isfinite(ge.t).sum()), pr_used=int(ge.npr.sum()), rate_used=int(ge.nrate.sum()),
-               rejected=int(ge.nrej.sum()), imu_samples_skipped=k0, nodes=len(r.node_idx))
+               rejected=int(ge.nrej.sum()), imu_samples_skipped=k0, nodes=len(r.node_idx),
+               velocity_records=len(rec.t) - len(sel),
+               velocity_used=int(((log["model"] == ms.M_GNSS_VEL) & (log["status"] == 1)).sum()))
     ck = slice(int(lay[L_CLK]) - 9, int(lay[L_CLK]) - 7)
     res = TightResult(time=t_imu[sl][r.out_idx], state=r.out_st, bias=r.out_bias[:, :nnav - 9],
                       clock=r.out_bias[:, ck], pdiag=r.out_pdiag, epochs=epochs, counts=cnt, events=events,
                       nstate=n, final_P=r.P, range_error=r.out_bias[:, n - nr - 9:n - 9],
-                      range_error_prn=np.asarray(obs.prn)[with_eph])
+                      range_error_prn=np.asarray(obs.prn)[with_eph], iono_model=iono_model)
     if smooth and len(r.node_idx) > 1:
         ds, Ps = rts(r.S_post, r.S_prior, r.S_phi, r.S_dx, r.reset_node)
         sm_st, sm_b = smooth_outputs(r.out_idx, r.out_st, r.out_bias, r.out_node, r.node_idx, ds, r.S_dx, n)

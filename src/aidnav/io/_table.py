@@ -21,15 +21,15 @@ from aidnav.io.atomic import replacing
 from aidnav.io.errors import DataError
 
 TEXT_COLUMNS = ("utc",)  #: columns of text (not read as data): ISO UTC time
-_META_KEY = b"aidnav"
-_T0_RE = re.compile(r"^#\s*t0_s\s*[=:]\s*(\S+)")
-_WEEK_RE = re.compile(r"^#\s*gps_week\s*[=:]\s*(\d+)\s*$")
+META_KEY = b"aidnav"
+T0_RE = re.compile(r"^#\s*t0_s\s*[=:]\s*(\S+)")
+WEEK_RE = re.compile(r"^#\s*gps_week\s*[=:]\s*(\d+)\s*$")
 _CSV_EXT = (".csv",)
 _PARQUET_EXT = (".parquet", ".pq")
 
 
 # ============================================================================================ tables
-class _Table:
+class InterchangeTable:
     """Numeric columns of a file with the map from row index to file line (for messages)."""
 
     def __init__(self, path: Path, cols: dict[str, np.ndarray], first_line: int, kind: str,
@@ -122,7 +122,7 @@ def _line_stats(body: bytes):
 _DELIM_NAMES = {",": "','", ";": "';'", "\t": "tabs"}
 
 
-def _delimiter(path: Path, header: str, line: int) -> str:
+def csv_delimiter(path: Path, header: str, line: int) -> str:
     """The field separator of a CSV file from its header line: ',' or else ';' or a tab."""
     for d in (",", ";", "\t"):
         if d in header:
@@ -133,7 +133,7 @@ def _delimiter(path: Path, header: str, line: int) -> str:
     return ","
 
 
-def _read_csv(path: Path) -> _Table:
+def _read_csv(path: Path) -> InterchangeTable:
     raw = _read_bytes(path)
     if raw.startswith(b"\xef\xbb\xbf"):  # UTF-8 byte-order mark (spreadsheet exports)
         raw = raw[3:]
@@ -156,7 +156,7 @@ def _read_csv(path: Path) -> _Table:
     if header is None:
         raise DataError(path, None, "empty file (no header line)")
     header_line = line_no
-    delim = _delimiter(path, header, header_line)
+    delim = csv_delimiter(path, header, header_line)
     names = [h.strip().strip('"').strip() for h in header.split(delim)]
     if any(not n for n in names):
         raise DataError(path, header_line, f"empty column name in the header: {header!r}")
@@ -214,19 +214,19 @@ def _read_csv(path: Path) -> _Table:
             cols[n] = num
     meta = {}
     for c in comments:
-        m = _T0_RE.match(c)
+        m = T0_RE.match(c)
         if m:
             try:
                 meta["t0_s"] = float(m.group(1))
             except ValueError:
                 pass
-        m = _WEEK_RE.match(c)
+        m = WEEK_RE.match(c)
         if m:
             meta["gps_week"] = int(m.group(1))
-    return _Table(path, cols, first, "csv", meta)
+    return InterchangeTable(path, cols, first, "csv", meta)
 
 
-def _read_parquet(path: Path, copy: bool = True) -> _Table:
+def _read_parquet(path: Path, copy: bool = True) -> InterchangeTable:
     try:
         # ParquetFile.read, not pq.read_table: the latter goes through pyarrow.dataset, which imports
         # pandas, and returns one chunk per row group (3x slower on a 10-h IMU log)
@@ -255,12 +255,12 @@ def _read_parquet(path: Path, copy: bool = True) -> _Table:
             cols[n] = num
     meta = {}
     md = tbl.schema.metadata or {}
-    if _META_KEY in md:
+    if META_KEY in md:
         try:
-            meta = json.loads(md[_META_KEY])
+            meta = json.loads(md[META_KEY])
         except ValueError:
             meta = {}
-    return _Table(path, cols, 1, "parquet", meta)
+    return InterchangeTable(path, cols, 1, "parquet", meta)
 
 
 def read_table(path) -> tuple[dict[str, np.ndarray], dict]:
@@ -268,18 +268,18 @@ def read_table(path) -> tuple[dict[str, np.ndarray], dict]:
 
     Checks the file structure only (fields per line, numeric values); the typed readers check columns.
     """
-    t = _open(path)
+    t = open_table(path)
     return t.cols, t.meta
 
 
-def _open(path, copy: bool = True) -> _Table:
+def open_table(path, copy: bool = True) -> InterchangeTable:
     """The table of a CSV/Parquet file; copy=False: Parquet float64 columns may be read-only views of the
     Arrow buffers (for a reader that copies what it keeps: one pass less over a large file)."""
     path = Path(path)
     return _read_csv(path) if _kind(path) == "csv" else _read_parquet(path, copy=copy)
 
 
-def _write(cols: dict, path, comments: list[str], meta: dict) -> Path:
+def write_table_file(cols: dict, path, comments: list[str], meta: dict) -> Path:
     """Write named 1-D columns: CSV via pandas (floats as repr, exact round trip) or Parquet via pyarrow
     (no pandas on that path: it is the fast one)."""
     path = Path(path)
@@ -298,7 +298,7 @@ def _write(cols: dict, path, comments: list[str], meta: dict) -> Path:
                       else f64_to_arrow(v) for v in cols.values()]
             tbl = pa.Table.from_arrays(arrays, names=list(cols))
             md = dict(tbl.schema.metadata or {})
-            md[_META_KEY] = json.dumps(meta).encode()
+            md[META_KEY] = json.dumps(meta).encode()
             pq.write_table(tbl.replace_schema_metadata(md), tmp)
     return path
 

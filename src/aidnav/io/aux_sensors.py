@@ -4,7 +4,9 @@ CSV files with a header; columns (case-insensitive, units in the name):
 
 * odometer: ``time_s`` and one of ``speed_m_s`` / ``speed_km_h``; optional ``speed_std_m_s``;
 * barometer: ``time_s`` and one of ``height_m`` (barometric height, any datum: the filter's bias state
-  absorbs the offset) / ``height_ft``; optional ``height_std_m``.
+  absorbs the offset) / ``height_ft``; optional ``height_std_m``;
+* magnetometer heading: ``time_s`` and ``heading_deg`` (magnetic, of the IMU's forward axis, clockwise
+  from magnetic North); optional ``heading_std_deg``; the declination is added here (true heading after).
 
 A row whose value is empty or not a number is reported as an error naming file and line; times must
 increase strictly.
@@ -41,6 +43,18 @@ class BaroData:
 
     time: np.ndarray
     height: np.ndarray
+    std: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        return len(self.time)
+
+
+@dataclass
+class HeadingData:
+    """Heading of the IMU's forward axis: time [s], true heading [rad] in [0, 2π), optional 1σ [rad]."""
+
+    time: np.ndarray
+    heading: np.ndarray
     std: np.ndarray | None = None
 
     def __len__(self) -> int:
@@ -86,3 +100,11 @@ def read_baro_csv(path) -> BaroData:
     """Barometer CSV (module doc) → :class:`BaroData` in metres."""
     t, h, s = _read_columns(path, {"height_m": 1.0, "height_ft": FT}, "height_std_m")
     return BaroData(t, h, s)
+
+
+def read_heading_csv(path, declination_deg: float = 0.0) -> HeadingData:
+    """Magnetometer heading CSV (module doc) → :class:`HeadingData`: true heading [rad] = magnetic heading +
+    ``declination_deg`` (east positive), wrapped to [0, 2π); σ in radians."""
+    t, h, s = _read_columns(path, {"heading_deg": np.pi / 180.0}, "heading_std_deg")
+    return HeadingData(t, (h + np.radians(declination_deg)) % (2 * np.pi),
+                       None if s is None else np.radians(s))

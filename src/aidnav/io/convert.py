@@ -14,7 +14,7 @@ from pathlib import Path
 
 from aidnav.io import formats
 from aidnav.io.errors import DataError
-from aidnav.io.rosbag import FIX_TYPE, IMU_TYPE, _reader
+from aidnav.io.rosbag import FIX_TYPE, IMU_TYPE, bag_reader
 
 KINDS = ("auto", "imu", "gnss")
 
@@ -39,7 +39,7 @@ def detect_kind(path) -> str:
     except DataError as e:
         fg, gnss_err = None, e
     if fi == "rosbag":
-        with _reader(path) as rd:
+        with bag_reader(path) as rd:
             types = {c.msgtype for c in rd.connections}
         if IMU_TYPE in types and FIX_TYPE in types:
             raise DataError(path, None, "the bag holds IMU and GNSS messages: choose kind 'imu' or 'gnss'")

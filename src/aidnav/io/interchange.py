@@ -37,13 +37,13 @@ from aidnav.io._std import (
     check_velocity,
 )
 from aidnav.io._table import (  # noqa: F401  (TEXT_COLUMNS, read_table: part of this module's API)
-    _META_KEY,
-    _WEEK_RE,
+    META_KEY,
     TEXT_COLUMNS,
-    _open,
-    _Table,
-    _write,
+    WEEK_RE,
+    InterchangeTable,
+    open_table,
     read_table,
+    write_table_file,
 )
 from aidnav.io.errors import DataError
 from aidnav.io.gpstime import SECONDS_PER_WEEK, week_sow_to_utc_iso
@@ -63,9 +63,9 @@ GNSS_STD_POS_COLUMNS = ["std_e_m", "std_n_m", "std_u_m"]
 GNSS_STD_VEL_COLUMNS = ["std_ve", "std_vn", "std_vu"]
 TRAJECTORY_COLUMNS = ["time", "lat_deg", "lon_deg", "height_m", "ve", "vn", "vu", "roll_deg", "pitch_deg",
                       "heading_deg"]
-_TRAJ_STD_POS = ["lat_deg_std", "lon_deg_std", "height_m_std"]
-_TRAJ_STD_VEL = ["ve_std", "vn_std", "vu_std"]
-_TRAJ_STD_ATT = ["roll_deg_std", "pitch_deg_std", "heading_deg_std"]
+TRAJ_STD_POS = ["lat_deg_std", "lon_deg_std", "height_m_std"]
+TRAJ_STD_VEL = ["ve_std", "vn_std", "vu_std"]
+TRAJ_STD_ATT = ["roll_deg_std", "pitch_deg_std", "heading_deg_std"]
 
 
 def read_imu(path) -> ImuData:
@@ -77,7 +77,7 @@ def read_imu(path) -> ImuData:
     ``t0`` (start of the first interval) comes from a ``# t0_s = ...`` comment / Parquet metadata when
     present, otherwise t_0 − (t_1 − t_0). Returns :class:`aidnav.data.ImuData` (time [s]).
     """
-    t = _open(path, copy=False)  # the columns may be read-only views: copied below, once
+    t = open_table(path, copy=False)  # the columns may be read-only views: copied below, once
     t.require(["time"], "time")
     has_inc = t.has_all(IMU_INCREMENT_COLUMNS, "IMU increment")
     has_rate = t.has_all(IMU_RATE_COLUMNS, "IMU rate")
@@ -147,11 +147,11 @@ def write_imu(imu: ImuData, path, notes: list[str] | None = None) -> Path:
         comments.append(f"t0_s = {float(imu.t0)!r}")
         meta["t0_s"] = float(imu.t0)
     _provenance(comments, meta, imu.week, notes)
-    return _write(df, path, comments, meta)
+    return write_table_file(df, path, comments, meta)
 
 
 # ============================================================================================== GNSS
-def _optional_triad(t: _Table, names: list[str]) -> np.ndarray | None:
+def _optional_triad(t: InterchangeTable, names: list[str]) -> np.ndarray | None:
     """(M, 3) array of the columns ``names`` that are present (absent ones all-NaN); None if none is."""
     if not any(c in t.cols for c in names):
         return None
@@ -171,7 +171,7 @@ def read_gnss(path, min_pos_std_m: float = ZERO_POS_STD_FLOOR_M,
     warning event; a negative σ is refused (DataError with file, line and column). Heights are as in
     the file: a datum offset is applied by :func:`aidnav.io.formats.read_gnss`.
     """
-    t = _open(path)
+    t = open_table(path)
     t.require(GNSS_COLUMNS, "GNSS")
     t.finite(GNSS_COLUMNS)
     t.increasing_time()
@@ -227,7 +227,7 @@ def write_gnss(gnss: GnssData, path, notes: list[str] | None = None) -> Path:
                 "std ENU [m], [m/s]"]
     meta: dict = {}
     _provenance(comments, meta, gnss.week, notes)
-    return _write(df, path, comments, meta)
+    return write_table_file(df, path, comments, meta)
 
 
 # ======================================================================================== trajectory
@@ -246,19 +246,19 @@ def read_trajectory(path) -> Trajectory:
     ``height_m_std`` → U [m] (``std_e_m, std_n_m, std_u_m`` [m] are preferred when present); ``ve_std ...`` →
     ``std_vel`` [m/s]; ``roll_deg_std ...`` → ``std_att`` [rad]. Other columns → ``extra`` as read.
     """
-    return trajectory_from_table(_open(path))
+    return trajectory_from_table(open_table(path))
 
 
-def trajectory_from_table(t: _Table) -> Trajectory:
+def trajectory_from_table(t: InterchangeTable) -> Trajectory:
     """The :class:`Trajectory` of :func:`read_trajectory` from a table of interchange columns (a whole file,
     or a piece of one read in batches by :mod:`aidnav.io.stream`), with the same checks."""
     t.require(TRAJECTORY_COLUMNS, "trajectory")
-    has_sp = t.has_all(_TRAJ_STD_POS, "position std")
-    has_sv = t.has_all(_TRAJ_STD_VEL, "velocity std")
-    has_sa = t.has_all(_TRAJ_STD_ATT, "attitude std")
+    has_sp = t.has_all(TRAJ_STD_POS, "position std")
+    has_sv = t.has_all(TRAJ_STD_VEL, "velocity std")
+    has_sa = t.has_all(TRAJ_STD_ATT, "attitude std")
     has_sp_m = t.has_all(GNSS_STD_POS_COLUMNS, "position std")
-    std_cols = (_TRAJ_STD_POS if has_sp else []) + (GNSS_STD_POS_COLUMNS if has_sp_m else []) \
-        + (_TRAJ_STD_VEL if has_sv else []) + (_TRAJ_STD_ATT if has_sa else [])
+    std_cols = (TRAJ_STD_POS if has_sp else []) + (GNSS_STD_POS_COLUMNS if has_sp_m else []) \
+        + (TRAJ_STD_VEL if has_sv else []) + (TRAJ_STD_ATT if has_sa else [])
     t.finite(TRAJECTORY_COLUMNS + std_cols)
     t.increasing_time()
     c = t.cols
@@ -274,9 +274,9 @@ def trajectory_from_table(t: _Table) -> Trajectory:
         std_pos = np.column_stack([np.radians(c["lon_deg_std"]) * se, np.radians(c["lat_deg_std"]) * sn,
                                    c["height_m_std"]])
     if has_sv:
-        std_vel = t.get(_TRAJ_STD_VEL)
+        std_vel = t.get(TRAJ_STD_VEL)
     if has_sa:
-        std_att = np.radians(t.get(_TRAJ_STD_ATT))
+        std_att = np.radians(t.get(TRAJ_STD_ATT))
     known = set(TRAJECTORY_COLUMNS) | set(std_cols) | {"gps_week"}
     extra = {k: v for k, v in c.items() if k not in known}
     week = t.meta.get("gps_week")
@@ -320,10 +320,10 @@ def trajectory_columns(traj: Trajectory, week: int | None = None) -> dict[str, n
         for j, c in enumerate(GNSS_STD_POS_COLUMNS):
             df[c] = traj.std_pos[:, j]
     if traj.std_vel is not None:
-        for j, c in enumerate(_TRAJ_STD_VEL):
+        for j, c in enumerate(TRAJ_STD_VEL):
             df[c] = traj.std_vel[:, j]
     if traj.std_att is not None:
-        for j, c in enumerate(_TRAJ_STD_ATT):
+        for j, c in enumerate(TRAJ_STD_ATT):
             df[c] = np.degrees(traj.std_att[:, j])
     for k, v in traj.extra.items():
         if k in df:
@@ -343,4 +343,4 @@ def write_trajectory(traj: Trajectory, path, week: int | None = None) -> Path:
     comments = ["aidnav trajectory; time [s], lat/lon [deg], height [m] ellipsoidal, velocity ENU [m/s], "
                 "roll/pitch/heading [deg] (heading clockwise from North); std_e_m/std_n_m/std_u_m [m]"
                 + ("" if week is None else f"; time = GPS seconds of week {int(week)}, utc = UTC (ISO 8601)")]
-    return _write(df, path, comments, {} if week is None else {"gps_week": int(week)})
+    return write_table_file(df, path, comments, {} if week is None else {"gps_week": int(week)})

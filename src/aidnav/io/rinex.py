@@ -187,9 +187,44 @@ def _epoch_lines(path: Path) -> np.ndarray:
     return np.array(out)
 
 
+def _lli_rinex3(path: Path, code: str, prn: np.ndarray, n_epochs: int) -> np.ndarray:
+    """Loss-of-lock indicators (n_epochs, len(prn)) of the GPS observation ``code`` of a RINEX 3 file, read
+    from its fixed columns (value F14.3, LLI I1, SSI I1 per observation; epochs with event flag 0/1, as
+    :func:`_epoch_lines`); 0 where blank."""
+    out = np.zeros((n_epochs, len(prn)), np.int64)
+    col = {int(p): j for j, p in enumerate(prn)}
+    types: list[str] = []
+    k, use, in_header, cont = -1, False, True, 0
+    with open(path, encoding="ascii", errors="replace") as f:
+        for line in f:
+            if in_header:
+                gps = line[0] == "G" or (cont and line[0] == " ")
+                if line[60:79].startswith("SYS / # / OBS TYPES") and gps:
+                    if line[0] == "G":
+                        cont = int(line[3:6])
+                    types += line[7:58].split()
+                    cont = cont if len(types) < cont else 0
+                elif "END OF HEADER" in line:
+                    in_header = False
+                continue
+            if line.startswith(">"):
+                flag = line[31:32].strip() or "0"
+                use = flag in ("0", "1")
+                k += use
+                continue
+            if not use or line[0] != "G" or code not in types or k >= n_epochs:
+                continue
+            j = col.get(int(line[1:3]))
+            c = 3 + 16 * types.index(code) + 14
+            if j is not None and len(line) > c and line[c].isdigit():
+                out[k, j] = int(line[c])
+    return out
+
+
 def read_rinex_obs(path, ref_week: int | None = None) -> GnssObservations:
-    """Read the GPS L1 C/A code (C1C), Doppler (D1C), C/N0 (S1C) and an L2 code (C2L/C2S/C2X/C2W/C2P,
-    first present) of a RINEX 3 observation file (RINEX 2: C1/P2/D1/S1).
+    """Read the GPS L1 C/A code (C1C), Doppler (D1C), C/N0 (S1C), L1 carrier phase (L1C) with its
+    loss-of-lock indicator, and an L2 code (C2L/C2S/C2X/C2W/C2P, first present) of a RINEX 3 observation
+    file (RINEX 2: C1/P2/D1/S1/L1).
 
     ref_week : week of the time scale (default: the first epoch's). Returns :class:`GnssObservations`.
     Epochs with a non-zero event flag other than 1 (power failure) are skipped by georinex and here.
@@ -240,6 +275,16 @@ def read_rinex_obs(path, ref_week: int | None = None) -> GnssObservations:
     dop = arr(d1) if d1 else np.full_like(code1, np.nan)
     cn0 = arr(s1) if s1 else np.full_like(code1, np.nan)
     code2 = arr(c2)
+    l1 = first("L1C", "L1")
+    phase1 = arr(l1)
+    lli1 = None
+    if l1 is not None:
+        lli1 = np.zeros(phase1.shape, np.int64)
+        if float(obs.attrs.get("version", 3)) >= 3 and len(exact) == len(t):
+            lli1 = _lli_rinex3(path, l1, prn, len(t))
+        else:
+            events.append(f"{path.name}: {l1} loss-of-lock indicators not read (RINEX 2); slips only from "
+                          "the phase-Doppler test")
     if d1 is None:
         events.append(f"{path.name}: no L1 Doppler")
     dt = np.diff(t)
@@ -251,4 +296,4 @@ def read_rinex_obs(path, ref_week: int | None = None) -> GnssObservations:
     approx = np.asarray(pos, float) if pos is not None and np.size(pos) == 3 else None
     if approx is not None and not np.any(approx):
         approx = None
-    return GnssObservations(t, int(ref_week), prn, code1, dop, cn0, code2, c2, approx, events)
+    return GnssObservations(t, int(ref_week), prn, code1, dop, cn0, code2, c2, approx, events, phase1, lli1)

@@ -68,7 +68,7 @@ def is_rosbag(path) -> bool:
         return False
 
 
-def _reader(path):
+def bag_reader(path):
     from rosbags.highlevel import AnyReader  # lazy: rosbags is heavy to import
     from rosbags.typesys import Stores, get_typestore  # lazy: rosbags is heavy to import
 
@@ -163,7 +163,7 @@ def read_imu(path, topic: str | None = None, axes: str = "FLU", stamps: str = "u
     if axes not in AXES:
         raise ValueError(f"axes must be one of {sorted(AXES)}, got {axes!r}")
     path = Path(path)
-    with _reader(path) as rd:
+    with bag_reader(path) as rd:
         conns = _pick(path, rd, IMU_TYPE, topic)
         t, w, f = [], [], []
         for conn, _ts, raw in rd.messages(connections=conns):
@@ -200,7 +200,7 @@ def read_gnss(path, topic: str | None = None, vel_topic: str | None = None, stam
     path = Path(path)
     events: list[str] = []
     name = path.name
-    with _reader(path) as rd:
+    with bag_reader(path) as rd:
         conns = _pick(path, rd, FIX_TYPE, topic)
         vconns = _pick(path, rd, TWIST_TYPE, vel_topic, required=vel_topic is not None)
         rows, n_nofix = [], 0

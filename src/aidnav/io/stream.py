@@ -38,7 +38,7 @@ def _parquet_imu(path: Path):
     when it is not one (another reader takes it)."""
     import pyarrow.parquet as pq
 
-    from aidnav.io._table import _META_KEY
+    from aidnav.io._table import META_KEY
     from aidnav.io.interchange import IMU_INCREMENT_COLUMNS, IMU_RATE_COLUMNS
 
     if path.suffix.lower() not in (".parquet", ".pq"):
@@ -54,7 +54,7 @@ def _parquet_imu(path: Path):
         return None
     _numeric_time(path, pf.schema_arrow.field("time").type, pf)
     md = pf.schema_arrow.metadata or {}
-    meta = json.loads(md[_META_KEY]) if _META_KEY in md else {}
+    meta = json.loads(md[META_KEY]) if META_KEY in md else {}
     return pf, ["time", *(IMU_INCREMENT_COLUMNS if inc else IMU_RATE_COLUMNS)], inc, meta
 
 
@@ -192,7 +192,7 @@ class TrajectoryWriter:
                   for v in cols.values()]
         tbl = pa.Table.from_arrays(arrays, names=list(cols))
         if self.w is None:
-            self._open(tbl.schema)
+            self.open_table(tbl.schema)
         if not self.rg:
             self.w.write_table(tbl)
             return
@@ -210,15 +210,15 @@ class TrajectoryWriter:
             self.held, self.n_held = [], 0
             self.w.write_table(tbl, row_group_size=max(1, tbl.num_rows))
 
-    def _open(self, schema):
-        from aidnav.io._table import _META_KEY
+    def open_table(self, schema):
+        from aidnav.io._table import META_KEY
 
         week = self.week
         if self.kind == "parquet":
             import pyarrow.parquet as pq
 
             md = dict(schema.metadata or {})
-            md[_META_KEY] = json.dumps({} if week is None else {"gps_week": int(week)}).encode()
+            md[META_KEY] = json.dumps({} if week is None else {"gps_week": int(week)}).encode()
             # no dictionary pages: float columns never repeat (4 times faster to write, smaller)
             self.w = pq.ParquetWriter(self.part, schema.with_metadata(md), use_dictionary=False)
         else:
@@ -366,14 +366,14 @@ class _FileChunks(TrajectoryChunks):
 
     def __init__(self, path: Path, names: list[str], kind: str, csv_head, meta: dict, chunk_rows: int,
                  height_offset_m: float):
-        from aidnav.io.interchange import _TRAJ_STD_ATT, _TRAJ_STD_POS, _TRAJ_STD_VEL, GNSS_STD_POS_COLUMNS
+        from aidnav.io.interchange import GNSS_STD_POS_COLUMNS, TRAJ_STD_ATT, TRAJ_STD_POS, TRAJ_STD_VEL
 
         have = set(names)
         super().__init__(None, chunk_rows, {"vel": True, "rph": True,
-                                            "std_pos": set(_TRAJ_STD_POS) <= have or
+                                            "std_pos": set(TRAJ_STD_POS) <= have or
                                             set(GNSS_STD_POS_COLUMNS) <= have,
-                                            "std_vel": set(_TRAJ_STD_VEL) <= have,
-                                            "std_att": set(_TRAJ_STD_ATT) <= have})
+                                            "std_vel": set(TRAJ_STD_VEL) <= have,
+                                            "std_att": set(TRAJ_STD_ATT) <= have})
         self.path, self.names, self.kind, self.csv_head, self.meta = path, names, kind, csv_head, meta
         self.offset = float(height_offset_m)
 
@@ -397,9 +397,9 @@ class _FileChunks(TrajectoryChunks):
         except DataError:
             raise
         except Exception:  # noqa: BLE001  (the whole-file reader gives the message or the values)
-            from aidnav.io._table import _open
+            from aidnav.io._table import open_table
 
-            t = _open(self.path)
+            t = open_table(self.path)
             n = len(t)
             for a in range(row, n, self.chunk_rows):
                 yield a, {c: t.cols[c][a:a + self.chunk_rows] for c in cols if c in t.cols}
@@ -433,15 +433,15 @@ class _FileChunks(TrajectoryChunks):
                 yield b
 
     def __iter__(self):
-        from aidnav.io._table import _Table
+        from aidnav.io._table import InterchangeTable
         from aidnav.io.interchange import trajectory_from_table
 
         first = 1 if self.kind == "parquet" else self.csv_head[0] + 1
         last_t = None
         for row, d in self._tables():
-            t = _Table(self.path, d, first + row, self.kind, self.meta)
+            t = InterchangeTable(self.path, d, first + row, self.kind, self.meta)
             if last_t is not None and len(t):  # the check of the whole-file reader across batches
-                _Table(self.path, {"time": np.array([last_t, d["time"][0]])}, first + row - 1,
+                InterchangeTable(self.path, {"time": np.array([last_t, d["time"][0]])}, first + row - 1,
                        self.kind).increasing_time()
             tr = trajectory_from_table(t)
             if self.offset:
@@ -470,7 +470,7 @@ def _numeric(t) -> bool:
 def _csv_head(path: Path):
     """(lines before the first record, delimiter, bytes per line) of an interchange CSV file, and its
     header names and comment metadata; None when it has no header."""
-    from aidnav.io._table import _T0_RE, _WEEK_RE, _delimiter
+    from aidnav.io._table import T0_RE, WEEK_RE, csv_delimiter
 
     with open(path, "rb") as f:
         head = f.read(1 << 16)
@@ -482,7 +482,7 @@ def _csv_head(path: Path):
         k = i
         text = ln.decode("utf-8", errors="replace").strip()
         if text.startswith("#"):
-            for rx, key, conv in ((_T0_RE, "t0_s", float), (_WEEK_RE, "gps_week", int)):
+            for rx, key, conv in ((T0_RE, "t0_s", float), (WEEK_RE, "gps_week", int)):
                 m = rx.match(text)
                 if m:
                     try:
@@ -495,7 +495,7 @@ def _csv_head(path: Path):
             break
     if header is None:
         return None
-    delim = _delimiter(path, header, k + 1)
+    delim = csv_delimiter(path, header, k + 1)
     names = [h.strip().strip('"').strip() for h in header.split(delim)]
     body = lines[k + 1:-1]
     line_len = (sum(len(x) + 1 for x in body) / len(body)) if body else 200.0
@@ -515,13 +515,13 @@ def trajectory_chunks(path, chunk_rows: int = 1 << 15, height_offset_m: float = 
         if suf in (".parquet", ".pq"):
             import pyarrow.parquet as pq
 
-            from aidnav.io._table import _META_KEY
+            from aidnav.io._table import META_KEY
 
             with pq.ParquetFile(path) as pf:
                 schema, rows = pf.schema_arrow, pf.metadata.num_rows
             names, kind, head = schema.names, "parquet", None
             md = schema.metadata or {}
-            meta = json.loads(md[_META_KEY]) if _META_KEY in md else {}
+            meta = json.loads(md[META_KEY]) if META_KEY in md else {}
             if rows == 0:
                 return None
         elif suf == ".csv":

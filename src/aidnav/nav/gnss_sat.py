@@ -389,6 +389,10 @@ __all__ = [
     "geo_range_rate",
     "az_el",
     "klobuchar",
+    "klobuchar_coefficients",
+    "KLOBUCHAR_DEFAULT_ALPHA",
+    "KLOBUCHAR_DEFAULT_BETA",
+    "iono_fallback_note",
     "std_atmosphere",
     "saastamoinen_zenith",
     "trop_mapping",
@@ -452,6 +456,29 @@ def satellites_from_pseudoranges(eph_table, prns, t_rx, pr, use_tgd: bool = True
         bool(use_tgd),
         float(max_age_s),
     )
+
+
+# ------------------------------------------- Klobuchar coefficients when the navigation file has none
+#: RTKLIB's fallback Klobuchar coefficients (``rtkcmn.c``, ``ionmodel``: ``ion_default[]``, commented
+#: "2004/1/1"; used when ``norm(ion, 8) <= 0``, i.e. no coefficients were broadcast/read), α [s, s/sc,
+#: s/sc², s/sc³] and β [s, s/sc, s/sc², s/sc³]. RTKLIB's σ of the broadcast-model correction is
+#: ERR_BRDCI (50 %) of the applied delay (``pntpos.c``, ``ionocorr``); aidnav states the same σ.
+KLOBUCHAR_DEFAULT_ALPHA = np.array([0.1118e-07, -0.7451e-08, -0.5961e-07, 0.1192e-06])
+KLOBUCHAR_DEFAULT_BETA = np.array([0.1167e06, -0.2294e06, -0.1311e06, 0.1049e07])
+
+
+def klobuchar_coefficients(alpha, beta):
+    """(α, β, source) for the Klobuchar model: the given coefficients ("broadcast") or, when there are none
+    (None, or all zero as RTKLIB tests), RTKLIB's defaults ("default"; :data:`KLOBUCHAR_DEFAULT_ALPHA`)."""
+    if alpha is None or beta is None or (np.all(np.asarray(alpha) == 0) and np.all(np.asarray(beta) == 0)):
+        return KLOBUCHAR_DEFAULT_ALPHA.copy(), KLOBUCHAR_DEFAULT_BETA.copy(), "default"
+    return np.asarray(alpha, float), np.asarray(beta, float), "broadcast"
+
+
+def iono_fallback_note() -> str:
+    """The one-line statement of the fallback for summaries and the console."""
+    return ("no Klobuchar coefficients in the navigation file: RTKLIB's default coefficients "
+            f"(rtkcmn.c ion_default, 2004/1/1) applied, sigma {100 * ERR_BRDCI:.0f} % of the delay")
 
 
 # ------------------------------------------- single-frequency range-error budget (RTKLIB pntpos.c)

@@ -52,7 +52,9 @@ class GnssObservations:
     time : (T,) receiver time tags [s from the start of ``ref_week``] (include the receiver clock offset).
     prn : (S,) satellite numbers. code1 : (T, S) L1 C/A pseudorange [m] (NaN = none); doppler1 : (T, S)
     L1 Doppler [Hz]; cn0 : (T, S) L1 C/N0 [dB-Hz]; code2 : (T, S) L2 pseudorange [m] or None;
-    code2_type : its RINEX code (e.g. "C2L"). approx_ecef : header position [m] or None.
+    code2_type : its RINEX code (e.g. "C2L"). approx_ecef : header position [m] or None. phase1 : (T, S)
+    L1 carrier phase [cycles] and lli1 its loss-of-lock indicator (bit 0: lock lost, a cycle slip is
+    possible; bit 1: half-cycle ambiguity), both None when the file has no L1 phase.
     """
 
     time: np.ndarray
@@ -65,6 +67,8 @@ class GnssObservations:
     code2_type: str | None = None
     approx_ecef: np.ndarray | None = None
     events: list[str] = field(default_factory=list)
+    phase1: np.ndarray | None = None  # (T, S) L1 carrier phase [cycles] (NaN = none), or None
+    lli1: np.ndarray | None = None  # (T, S) its loss-of-lock indicator (RINEX bits; 0 where none)
 
     def __len__(self) -> int:
         return len(self.time)
@@ -97,4 +101,6 @@ class GnssObservations:
             self.code2_type,
             self.approx_ecef,
             list(self.events),
+            pick(self.phase1),
+            None if self.lli1 is None else np.nan_to_num(pick(self.lli1.astype(float))).astype(np.int64),
         )

@@ -1,4 +1,4 @@
-"""Map exports of a trajectory: KML (Google Earth; written with simplekml) and GeoJSON (QGIS, web maps).
+"""Map exports of a trajectory: KML (Google Earth; written as text) and GeoJSON (QGIS, web maps).
 
 Layers (KML folders; GeoJSON features with a ``layer`` property):
 
@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from aidnav.data import GnssData, Trajectory
-from aidnav.io.atomic import replacing, write_text
+from aidnav.io.atomic import write_text
 from aidnav.nav.rotations import wrap_pi
 
 __all__ = ["write_kml", "write_geojson", "write_maps", "SIGMA_CLASSES_M", "QUALITY_NAMES", "track_pieces"]
@@ -156,7 +156,7 @@ def track_pieces(traj: Trajectory, color_by: str = "auto", max_points: int = 200
     return out, mode, n_dropped
 
 
-def _fix_groups(gnss: GnssData, rejected_times, outages) -> tuple[np.ndarray, np.ndarray]:
+def fix_groups(gnss: GnssData, rejected_times, outages) -> tuple[np.ndarray, np.ndarray]:
     """Masks (rejected, withheld) over the fixes."""
     t = np.asarray(gnss.time, float)
     rej = np.zeros(len(t), bool)
@@ -200,10 +200,31 @@ def _fix_text(g: GnssData, i: int, rejected: bool, withheld: bool) -> dict:
 
 
 def _kml_colour(hex_rgb: str, alpha: int = 255) -> str:
-    import simplekml  # lazy: simplekml is heavy to import
+    """KML's colour text (aabbggrr) of ``#rrggbb``."""
+    return f"{alpha:02x}{hex_rgb[5:7]}{hex_rgb[3:5]}{hex_rgb[1:3]}".lower()
 
-    r, g, b = int(hex_rgb[1:3], 16), int(hex_rgb[3:5], 16), int(hex_rgb[5:7], 16)
-    return simplekml.Color.rgb(r, g, b, alpha)
+
+_ICON = "http://maps.google.com/mapfiles/kml/shapes/placemark_circle.png"
+
+
+def _kml_coords(coords) -> str:
+    return " ".join(f"{x!r},{y!r},{z!r}" for x, y, z in coords)
+
+
+def _kml_placemark(geometry: str, coords, style: str, name: str | None = None,
+                   description: str | None = None) -> str:
+    parts = ["<Placemark>"]
+    if name is not None:
+        parts.append(f"<name>{_xml(name)}</name>")
+    if description is not None:
+        parts.append(f"<description>{_xml(description)}</description>")
+    parts.append(f"<styleUrl>#{style}</styleUrl><{geometry}><coordinates>{_kml_coords(coords)}"
+                 f"</coordinates></{geometry}></Placemark>")
+    return "".join(parts)
+
+
+def _xml(text: str) -> str:
+    return text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
 
 
 def write_kml(path, traj: Trajectory, gnss: GnssData | None = None, outages=None, rejected_times=None,
@@ -216,66 +237,65 @@ def write_kml(path, traj: Trajectory, gnss: GnssData | None = None, outages=None
     e.g. ``summary["outage_windows"]``; rejected_times : times [s] of the fixes the filter rejected
     (``summary["rejected_fix_times"]``), matched to the fixes within 1 µs; color_by : "auto" (quality
     when present, else σ), "sigma" or "quality"; max_points / max_fixes : decimation limits.
-    """
-    import simplekml  # lazy: simplekml is heavy to import
 
+    Written as text (issue 41): one style per colour in the document, referenced by the placemarks (no
+    style per point), ids numbered in the document (the same inputs give the same bytes).
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    kml = simplekml.Kml(name=name or path.stem)
     pieces, mode, n_drop = track_pieces(traj, color_by, max_points)
     desc = [f"{len(traj.time)} epochs, {sum(len(p['idx']) for p in pieces)} points drawn, coloured by "
             f"{mode}"]
     if n_drop:
         desc.append(f"{n_drop} epochs without a finite position left out")
-    ftr = kml.newfolder(name="trajectory")
-    styles: dict[str, simplekml.Style] = {}
+    styles: dict[tuple[str, str], str] = {}  # (kind, colour) -> id
+
+    def style(kind: str, colour: str) -> str:
+        return styles.setdefault((kind, colour), f"{kind}{len(styles)}")
+
+    body = ["<Folder><name>trajectory</name>"]
     for k, p in enumerate(pieces):
-        ls = ftr.newlinestring(name=p["label"], coords=_coords(traj, p["idx"]),
-                               description=f"piece {k}: {p['label']}, t = {p['t0']:.3f} … {p['t1']:.3f} s")
-        if p["colour"] not in styles:
-            st = simplekml.Style()
-            st.linestyle.color = _kml_colour(p["colour"])
-            st.linestyle.width = 3
-            styles[p["colour"]] = st
-        ls.style = styles[p["colour"]]
+        text = f"piece {k}: {p['label']}, t = {p['t0']:.3f} … {p['t1']:.3f} s"
+        body.append(_kml_placemark("LineString", _coords(traj, p["idx"]), style("line", p["colour"]),
+                                   p["label"], text))
+    body.append("</Folder>")
     if gnss is not None and len(gnss):
-        rej, wh = _fix_groups(gnss, rejected_times, outages)
+        rej, wh = fix_groups(gnss, rejected_times, outages)
         cls, gmode = _classes(gnss, color_by if color_by != "quality" or gnss.quality is not None else "auto")
-        fg = kml.newfolder(name="gnss")
-        fr = kml.newfolder(name="rejected")
         sel = np.flatnonzero(np.isfinite(gnss.lat) & np.isfinite(gnss.lon))
         if len(sel) > max_fixes:
             desc.append(f"GNSS fixes decimated from {len(sel)} to at most {max_fixes}")
             keep = sel[_decimate(len(sel), max_fixes)]
             sel = np.union1d(keep, sel[rej[sel]])  # every rejected fix is kept
-        pstyles: dict[str, simplekml.Style] = {}
-        for i in sel:
+        folders: dict[bool, list[str]] = {False: [], True: []}
+        coords = _coords(gnss, sel)
+        for c, i in zip(coords, sel, strict=True):
             colour = _REJECTED_COLOUR if rej[i] else ("#bbbbbb" if wh[i] else _colour(cls[i], gmode))
-            if colour not in pstyles:
-                st = simplekml.Style()
-                st.iconstyle.color = _kml_colour(colour)
-                st.iconstyle.scale = 0.5
-                st.iconstyle.icon.href = "http://maps.google.com/mapfiles/kml/shapes/placemark_circle.png"
-                st.labelstyle.scale = 0
-                pstyles[colour] = st
             info = _fix_text(gnss, int(i), rej[i], wh[i])
-            pt = (fr if rej[i] else fg).newpoint(coords=_coords(gnss, [i]),
-                                                 description=json.dumps(info))
-            pt.style = pstyles[colour]
-    fo = kml.newfolder(name="outage")
-    ost = simplekml.Style()
-    ost.linestyle.color = _kml_colour(_OUTAGE_COLOUR)
-    ost.linestyle.width = 6
+            folders[bool(rej[i])].append(_kml_placemark("Point", [c], style("point", colour),
+                                                        description=json.dumps(info)))
+        body += ["<Folder><name>gnss</name>", *folders[False], "</Folder>",
+                 "<Folder><name>rejected</name>", *folders[True], "</Folder>"]
+    body.append("<Folder><name>outage</name>")
     for k, (a, b) in enumerate(outages or []):
         ii = _outage_idx(traj, a, b, max_points)
         if len(ii) < 2:
             continue
-        ls = fo.newlinestring(name=f"outage {k + 1}", coords=_coords(traj, ii),
-                              description=f"GNSS outage {a:.3f} – {b:.3f} s ({b - a:g} s)")
-        ls.style = ost
-    kml.document.description = "; ".join(desc)
-    with replacing(path) as tmp:
-        kml.save(str(tmp))
+        body.append(_kml_placemark("LineString", _coords(traj, ii), style("outage", _OUTAGE_COLOUR),
+                                   f"outage {k + 1}", f"GNSS outage {a:.3f} – {b:.3f} s ({b - a:g} s)"))
+    body.append("</Folder>")
+    head = ['<?xml version="1.0" encoding="UTF-8"?>\n<kml xmlns="http://www.opengis.net/kml/2.2">',
+            f"<Document><name>{_xml(name or path.stem)}</name>",
+            f"<description>{_xml('; '.join(desc))}</description>"]
+    for (kind, colour), sid in styles.items():
+        if kind == "point":
+            head.append(f'<Style id="{sid}"><IconStyle><color>{_kml_colour(colour)}</color><scale>0.5</scale>'
+                        f"<Icon><href>{_ICON}</href></Icon></IconStyle><LabelStyle><scale>0</scale>"
+                        "</LabelStyle></Style>")
+        else:
+            head.append(f'<Style id="{sid}"><LineStyle><color>{_kml_colour(colour)}</color>'
+                        f"<width>{6 if kind == 'outage' else 3}</width></LineStyle></Style>")
+    write_text(path, "\n".join(head + body + ["</Document></kml>"]) + "\n")  # whole or not at all
     return path
 
 
@@ -293,7 +313,7 @@ def geojson_dict(traj: Trajectory, gnss: GnssData | None = None, outages=None, r
                  "stroke-width": 3, "time_start_s": p["t0"], "time_end_s": p["t1"]}
         feats.append(_feature("LineString", [list(c) for c in _coords(traj, p["idx"])], props))
     if gnss is not None and len(gnss):
-        rej, wh = _fix_groups(gnss, rejected_times, outages)
+        rej, wh = fix_groups(gnss, rejected_times, outages)
         cls, gmode = _classes(gnss, color_by if color_by != "quality" or gnss.quality is not None else "auto")
         sel = np.flatnonzero(np.isfinite(gnss.lat) & np.isfinite(gnss.lon))
         if len(sel) > max_fixes:

@@ -32,7 +32,7 @@ from aidnav.io.atomic import replacing
 from aidnav.nav.earth import lla_to_enu
 from aidnav.nav.rotations import wrap_360
 
-from .maps import _fix_groups
+from .maps import fix_groups
 
 __all__ = ["write_overview", "overview_figure", "nis_series", "tight_records", "NIS_NAMES"]
 
@@ -104,7 +104,7 @@ def _rejected_mask(gnss: GnssData, summary: dict, records: dict | None) -> np.nd
     if st is not None and len(st) == len(gnss):
         return np.asarray(st) == 0
 
-    return _fix_groups(gnss, summary.get("rejected_fix_times"), None)[0]
+    return fix_groups(gnss, summary.get("rejected_fix_times"), None)[0]
 
 
 def _shade(ax, wins, t0):
@@ -126,9 +126,12 @@ def overview_figure(traj: Trajectory, gnss: GnssData | None = None, summary: dic
     right = ["rp", "heading"] + (["spos"] if has_std_pos else []) + (["satt"] if has_std_att else []) + \
         [f"nis:{s['key']}" for s in series]
     nr = max(len(right), 3)
-    fig = Figure(figsize=(14.0, max(8.0, 0.9 + 2.0 * nr)), layout="constrained")
+    height = max(8.0, 0.9 + 2.0 * nr)
+    fig = Figure(figsize=(14.0, height))
     FigureCanvasAgg(fig)
-    gs = fig.add_gridspec(nr, 2, width_ratios=[1.15, 1.0])
+    # fixed margins [in] that fit the labels (a layout engine measures every text: about half the drawing)
+    gs = fig.add_gridspec(nr, 2, width_ratios=[1.15, 1.0], left=0.055, right=0.99, wspace=0.2,
+                          bottom=0.55 / height, top=1.0 - 0.6 / height, hspace=0.45)
     n_map = max(nr - 1, 2) if nr > 3 else 2
     ax_map = fig.add_subplot(gs[:n_map, 0])
     ax_h = fig.add_subplot(gs[n_map:, 0])

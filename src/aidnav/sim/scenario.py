@@ -218,7 +218,7 @@ Segment = Annotated[
     Field(discriminator="type"),
 ]
 
-_SEGMENT_TYPES: dict[str, type[BaseModel]] = {
+SEGMENT_TYPES: dict[str, type[BaseModel]] = {
     "static": StaticSegment, "straight": StraightSegment, "accelerate": AccelerateSegment,
     "turn": TurnSegment, "climb": ClimbSegment, "s_turns": STurnsSegment, "o_circle": OCircleSegment,
     "figure8": Figure8Segment, "u_turn": UTurnSegment,
@@ -351,7 +351,7 @@ def _expected_keys(loc: tuple) -> list[str] | None:
         if item == "segments":
             # loc: segments, <index>, <tag>, ...
             tag = loc[i + 2] if i + 2 < len(loc) else None
-            model = _SEGMENT_TYPES.get(tag)
+            model = SEGMENT_TYPES.get(tag)
             i += 3
             continue
         args = getattr(ann, "__args__", ()) or ()
@@ -367,7 +367,7 @@ def _expected_keys(loc: tuple) -> list[str] | None:
     return None
 
 
-def _clean_loc(loc: tuple) -> tuple[tuple, str | None]:
+def clean_loc(loc: tuple) -> tuple[tuple, str | None]:
     """Drop the tags pydantic inserts in a location: the segment type after a segment index, and the
     member of a scalar-or-[x, y, z] union ("constrained-float", "tuple[...]"). Returns the cleaned
     location and the union member tag (None if there was none)."""
@@ -383,7 +383,7 @@ def _clean_loc(loc: tuple) -> tuple[tuple, str | None]:
             continue
         out.append(item)
         if j >= 1 and loc[j - 1] == "segments" and isinstance(item, int) and j + 1 < len(loc) \
-                and loc[j + 1] in _SEGMENT_TYPES:
+                and loc[j + 1] in SEGMENT_TYPES:
             skip = True
     return tuple(out), member
 
@@ -397,7 +397,7 @@ def _value_at(data, loc: tuple):
     return data
 
 
-def _yaml_line(root, loc: tuple) -> int | None:
+def yaml_line(root, loc: tuple) -> int | None:
     """1-based line of the YAML node at ``loc`` (the key when the last item is a mapping key)."""
     node = root
     line = None
@@ -423,7 +423,7 @@ def _yaml_line(root, loc: tuple) -> int | None:
 def _format_one(e: dict, loc: tuple, where: str, root) -> str:
     path = ".".join(str(x) for x in loc) or "(top level)"
     msg = error_message(e, loc, _expected_keys(tuple(e["loc"])[:-1]))
-    line = _yaml_line(root, loc) if root is not None else None
+    line = yaml_line(root, loc) if root is not None else None
     at = f"{where}:{line}" if line is not None else where
     return f"{at}: {path}: {msg}"
 
@@ -444,9 +444,9 @@ def error_message(e: dict, loc: tuple, keys=None) -> str:
         msg = "field required"
     elif e["type"] == "union_tag_invalid":
         msg = (f"unknown segment type {e['input'].get('type')!r} "
-               f"(expected one of: {', '.join(_SEGMENT_TYPES)})")
+               f"(expected one of: {', '.join(SEGMENT_TYPES)})")
     elif e["type"] == "union_tag_not_found":
-        msg = f"segment has no 'type' key (expected one of: {', '.join(_SEGMENT_TYPES)})"
+        msg = f"segment has no 'type' key (expected one of: {', '.join(SEGMENT_TYPES)})"
     return msg
 
 
@@ -454,7 +454,7 @@ def _format_errors(err: ValidationError, where: str, root=None, data=None) -> st
     """One line per problem: ``file[:line]: key.path: message``."""
     items = []
     for e in err.errors():
-        loc, member = _clean_loc(tuple(e["loc"]))
+        loc, member = clean_loc(tuple(e["loc"]))
         items.append((_format_one(e, loc, where, root), loc, member))
     return join_error_lines(items, data)
 

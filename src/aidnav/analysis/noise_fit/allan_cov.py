@@ -178,7 +178,7 @@ def _lag_sum(m1, m2, M1, M2, tau0, coef, t_corr, tail, S):
 
 
 @njit(cache=True, nogil=True)
-def _avar_cov_nb(m, n_phase, tau0, coef, t_corr):
+def avar_cov_nb(m, n_phase, tau0, coef, t_corr):
     """Covariance matrix of the overlapping Allan variance estimates at cluster sizes m (model coef, T)."""
     k = m.shape[0]
     C = np.zeros((k, k))
@@ -208,8 +208,8 @@ def _avar_cov_nb(m, n_phase, tau0, coef, t_corr):
 
 
 @njit(cache=True, nogil=True)
-def _avar_var_nb(m, n_phase, tau0, coef, t_corr):
-    """The diagonal of :func:`_avar_cov_nb` (the variances of the estimates), each entry the same number:
+def avar_var_nb(m, n_phase, tau0, coef, t_corr):
+    """The diagonal of :func:`avar_cov_nb` (the variances of the estimates), each entry the same number:
     the same lag sums, with the table of S over the lags the diagonal's exact cores reach."""
     k = m.shape[0]
     out = np.zeros(k)
@@ -230,22 +230,22 @@ def _avar_var_nb(m, n_phase, tau0, coef, t_corr):
     return out
 
 
-def _estimate_edf(tau, m, n_phase, coef, t_corr):
-    """ν of :func:`_estimate_stats` alone (the variances only: the same numbers, without the covariances)."""
+def estimate_edf(tau, m, n_phase, coef, t_corr):
+    """ν of :func:`estimate_stats` alone (the variances only: the same numbers, without the covariances)."""
     tau0 = float(tau[0] / m[0])
-    var = _avar_var_nb(np.asarray(m, np.float64), float(n_phase), tau0, np.asarray(coef, float),
+    var = avar_var_nb(np.asarray(m, np.float64), float(n_phase), tau0, np.asarray(coef, float),
                        float(t_corr))
     avar = model_avar(tau, coef, t_corr)
     return 2.0 * avar**2 / np.maximum(var, 1e-300)
 
 
-def _estimate_stats(tau, m, n_phase, coef, t_corr):
+def estimate_stats(tau, m, n_phase, coef, t_corr):
     """EDF of each Allan variance estimate and the whitener of their correlation, for the model (coef, T).
 
     ν_j = 2 σ²(τ_j)² / Var(σ̂²(τ_j)) from the exact covariance (see the comment above); the correlation of
     the logs is taken as that of the variances (delta method). Returns (ν, L⁻¹)."""
     tau0 = float(tau[0] / m[0])
-    C = _avar_cov_nb(np.asarray(m, np.float64), float(n_phase), tau0, np.asarray(coef, float), float(t_corr))
+    C = avar_cov_nb(np.asarray(m, np.float64), float(n_phase), tau0, np.asarray(coef, float), float(t_corr))
     avar = model_avar(tau, coef, t_corr)
     var = np.maximum(np.diag(C), 1e-300)
     nu = 2.0 * avar**2 / var

@@ -18,9 +18,9 @@ from aidnav.analysis.noise_fit.fit import MIN_CLUSTERS, MIN_FULL_POINTS, fit_all
 from aidnav.analysis.noise_fit.model import AXES
 from aidnav.analysis.noise_fit.prepare import resampled_min_m, trapezoid_samples, uniform_rates
 from aidnav.analysis.noise_fit.results import Characterisation, NotStaticError, TermEstimate
-from aidnav.analysis.noise_fit.static import _longest_static, static_check
+from aidnav.analysis.noise_fit.static import longest_static, static_check
 from aidnav.analysis.noise_fit.timing import Stages
-from aidnav.analysis.noise_fit.vibration import _psd_peak, _vibration_text, vibration_report
+from aidnav.analysis.noise_fit.vibration import psd_peak, vibration_report, vibration_text
 from aidnav.data import ImuData
 
 
@@ -116,7 +116,7 @@ def characterise_rates(rates, fs: float, t_start: float = 0.0, min_m: int = 1, c
                      "resolved")
     vib = vibration_report(y, fs, axes, sensor)
     if vib["detected"]:
-        warns.append(_vibration_text(vib))
+        warns.append(vibration_text(vib))
         for a in axes:  # with vibration, a slope −1 at the short τ is its tail, not quantisation
             qt = a.terms["quantisation"]
             if a.axis in vib["detected"] and qt.fitted:
@@ -201,7 +201,7 @@ def characterise_imu(imu: ImuData, static: tuple[float | None, float | None] | N
             x = np.column_stack([imu.dtheta[sel], imu.dv[sel]]) / dts[:, None]
             what = "sensor's samples (increments / their own intervals)"
         if len(x) >= 3:
-            pk = [_psd_peak(x[:, c], fs) for c in range(6)]
+            pk = [psd_peak(x[:, c], fs) for c in range(6)]
             sensor = {"std": x.std(axis=0), "peak_hz": [p[0] for p in pk], "share": [p[1] for p in pk],
                       "what": what}
         stg.lap("sensor samples")
@@ -221,7 +221,7 @@ def _static_part(rates, dt: float, t_start: float, base0: float, resampled: bool
     st = static_check(rates, fs, t_start - base0)
     if st["usable"]:
         return rates, t_start, st
-    i0, i1 = _longest_static(rates, fs, t_start - base0, resampled, st, chosen=chosen)
+    i0, i1 = longest_static(rates, fs, t_start - base0, resampled, st, chosen=chosen)
     why = st["message"].split(": ", 1)[1].split(". Allan analysis")[0]
     what = "chosen part" if chosen else "log"
     warns.append(f"the {what} is not static ({why}; times in s after the first sample): analysed "

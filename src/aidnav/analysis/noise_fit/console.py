@@ -5,7 +5,7 @@ from __future__ import annotations
 from rich.console import Console
 from rich.table import Table
 
-from aidnav.analysis.noise_fit.output import _UNITS
+from aidnav.analysis.noise_fit.output import UNIT_LABELS
 from aidnav.analysis.noise_fit.results import Characterisation
 
 
@@ -20,7 +20,7 @@ def print_characterisation(ch: Characterisation, console=None) -> None:
     for _, name in cols:
         tab.add_column(name)
     for a in ch.axes:
-        units = _UNITS[a.sensor]
+        units = UNIT_LABELS[a.sensor]
         row = [a.axis]
         for key, _ in cols:
             t = a.terms[key]

@@ -16,13 +16,13 @@ from pathlib import Path
 import numpy as np
 
 from aidnav.analysis.allan import allan_deviation
-from aidnav.analysis.noise_fit.allan_cov import _avar_cov_nb, _avar_var_nb
+from aidnav.analysis.noise_fit.allan_cov import avar_cov_nb, avar_var_nb
 from aidnav.analysis.noise_fit.analyse import characterise_imu, characterise_uniform
-from aidnav.analysis.noise_fit.nnls import _columns_nb, _fit_c_nb, _profile_u_nb
+from aidnav.analysis.noise_fit.nnls import columns_nb, fit_c_nb, profile_u_nb
 from aidnav.analysis.noise_fit.output import auto_grade, imu_yaml, noise_dict
 from aidnav.analysis.noise_fit.prepare import uniform_interval
 from aidnav.analysis.noise_fit.results import Characterisation
-from aidnav.analysis.noise_fit.static import _window_stats
+from aidnav.analysis.noise_fit.static import window_stats
 from aidnav.analysis.noise_fit.timing import Stages
 from aidnav.data import ImuData
 from aidnav.io.errors import DataError
@@ -113,12 +113,12 @@ def _warm_up() -> None:
         from scipy.special import digamma, gammaincinv  # noqa: F401
 
         tau = np.array([0.01, 0.02, 0.04])
-        _window_stats(np.zeros((20, 6)), 10, 2)
-        _avar_cov_nb(tau / 0.01, 100.0, 0.01, np.array([0.0, 1.0, 0.0, 0.0]), 1.0)
-        _avar_var_nb(tau / 0.01, 100.0, 0.01, np.array([0.0, 1.0, 0.0, 0.0]), 1.0)
-        _profile_u_nb(tau, np.zeros(3), np.ones(3), np.eye(3), np.zeros(4, np.bool_), np.zeros(4), -1.0, 1.0,
+        window_stats(np.zeros((20, 6)), 10, 2)
+        avar_cov_nb(tau / 0.01, 100.0, 0.01, np.array([0.0, 1.0, 0.0, 0.0]), 1.0)
+        avar_var_nb(tau / 0.01, 100.0, 0.01, np.array([0.0, 1.0, 0.0, 0.0]), 1.0)
+        profile_u_nb(tau, np.zeros(3), np.ones(3), np.eye(3), np.zeros(4, np.bool_), np.zeros(4), -1.0, 1.0,
                       3, np.zeros(4), math.nan)
-        _fit_c_nb(_columns_nb(tau, 0.0), np.zeros(3), np.ones(3), np.eye(3), np.zeros(4, np.bool_),
+        fit_c_nb(columns_nb(tau, 0.0), np.zeros(3), np.ones(3), np.eye(3), np.zeros(4, np.bool_),
                   np.zeros(4), np.zeros(4), 2)
         # the ADEV kernels, on strided columns as characterise_rates gives them
         allan_deviation(np.random.default_rng(0).standard_normal((64, 2)), 100.0, workers=1)

@@ -30,16 +30,16 @@ import math
 
 import numpy as np
 
-from aidnav.analysis.noise_fit.allan_cov import _estimate_edf, _estimate_stats
+from aidnav.analysis.noise_fit.allan_cov import estimate_edf, estimate_stats
 from aidnav.analysis.noise_fit.model import (
-    _TERM_ORDER,
     B_PER_GM_SIGMA,
     FLICKER_ADEV,
     GM_PEAK_X,
-    _gm_shape,
-    _logchi2_moments,
+    TERM_ORDER,
+    gm_shape,
+    logchi2_moments,
 )
-from aidnav.analysis.noise_fit.nnls import _columns_nb, _fit_c_nb, _profile_u_nb
+from aidnav.analysis.noise_fit.nnls import columns_nb, fit_c_nb, profile_u_nb
 from aidnav.analysis.noise_fit.results import AxisFit, TermEstimate
 from aidnav.analysis.noise_fit.roots import brentq
 from aidnav.units import DEG_H, DEG_SQRT_H, M_S_SQRT_H, UG
@@ -108,14 +108,14 @@ class _Profile:
 
     def best(self, fix_idx=-1, fix_val=0.0):
         fixed, fixv = self._mask(fix_idx, float(fix_val))
-        return self._memo_get(("best", int(fix_idx), float(fix_val)), lambda: _profile_u_nb(
+        return self._memo_get(("best", int(fix_idx), float(fix_val)), lambda: profile_u_nb(
             self.tau, self.y, self.s, self.Linv, fixed, fixv, self.u_lo, self.u_hi, _NGRID, self.c0,
             self.u_hint))
 
     def at_u(self, u):
         fixed, fixv = self._mask(-1, 0.0)
-        return self._memo_get(("at_u", float(u)), lambda: _fit_c_nb(
-            _columns_nb(self.tau, float(u)), self.y, self.s, self.Linv, fixed, fixv, self.c0, 60))
+        return self._memo_get(("at_u", float(u)), lambda: fit_c_nb(
+            columns_nb(self.tau, float(u)), self.y, self.s, self.Linv, fixed, fixv, self.c0, 60))
 
 
 def _interval(prof: _Profile, idx: int, c_hat: float, d_min: float, crit: float, cap: float):
@@ -247,18 +247,18 @@ def fit_allan(taus, adev, n_samples: int, fs: float, axis: str = "gyro_x", min_m
     n_par = 2 if white_only else 5
 
     # EDFs and correlations of the estimates from the model itself (exact for Gaussian noise, see
-    # _estimate_stats), re-evaluated at the fit three times starting from white noise
+    # estimate_stats), re-evaluated at the fit three times starting from white noise
     c_hat, u_hat = np.array([0.0, float(np.min(au * tu)), 0.0, 0.0]), math.log(tu[-1])
     for _ in range(3):
-        nu, Linv = _estimate_stats(tu, m[used], n_phase, c_hat, math.exp(u_hat))
-        b, sd = _logchi2_moments(nu)
+        nu, Linv = estimate_stats(tu, m[used], n_phase, c_hat, math.exp(u_hat))
+        b, sd = logchi2_moments(nu)
         full = _Profile(tu, np.log(au) - b, sd, Linv, drop=drop)
         d_full, u_hat, c_hat = full.best()
     full.u_hint, full.c0 = u_hat, c_hat.copy()
     nu_all = np.full(len(tau), np.nan)
-    nu_all[ok] = _estimate_edf(tau[ok], m[ok], n_phase, c_hat, math.exp(u_hat))  # ν only
+    nu_all[ok] = estimate_edf(tau[ok], m[ok], n_phase, c_hat, math.exp(u_hat))  # ν only
     parts = np.column_stack([3.0 * c_hat[0] / tau**2, c_hat[1] / tau,
-                             c_hat[2] * _gm_shape(tau / math.exp(u_hat)), c_hat[3] * tau / 3.0])
+                             c_hat[2] * gm_shape(tau / math.exp(u_hat)), c_hat[3] * tau / 3.0])
     alpha = np.array([(2, 0, -1, -2)[k] for k in np.argmax(parts, axis=1)])
     n_pts = len(tu)
     disp = max(1.0, d_full / max(1, n_pts - n_par))  # reduced chi-square of the fit, when above 1
@@ -276,7 +276,7 @@ def fit_allan(taus, adev, n_samples: int, fs: float, axis: str = "gyro_x", min_m
     adev_lo = adev * np.sqrt(nn / _chi2_ppf(0.5 * (1 + CI_PROB), nn))
     adev_hi = adev * np.sqrt(nn / _chi2_ppf(0.5 * (1 - CI_PROB), nn))
 
-    caps = np.min(au[:, None] / _columns_nb(tu, u_hat), axis=0)  # each term alone ≤ the data
+    caps = np.min(au[:, None] / columns_nb(tu, u_hat), axis=0)  # each term alone ≤ the data
     caps[2] = float(np.max(au)) / 0.38
     terms: dict[str, TermEstimate] = {}
     span_s = n_samples / fs
@@ -284,7 +284,7 @@ def fit_allan(taus, adev, n_samples: int, fs: float, axis: str = "gyro_x", min_m
              f"{tau_lo:.3g}-{tau_hi:.3g} s); a bias instability or random walk needs a log many times "
              "longer than its correlation time")
     for idx, name in ((0, "quantisation"), (1, "white"), (2, "gm_sigma"), (3, "rrw")):
-        t = _TERM_ORDER[idx]
+        t = TERM_ORDER[idx]
         if idx in drop:
             terms[name] = TermEstimate("not resolved", note=short)
             continue
@@ -355,8 +355,8 @@ def _white_deviance(tau, avar, m, n_phase) -> float:
     c_hat, u = np.array([0.0, float(np.min(avar * tau)), 0.0, 0.0]), math.log(tau[-1])
     d = math.inf
     for _ in range(3):
-        nu, Linv = _estimate_stats(tau, m, n_phase, c_hat, math.exp(u))
-        b, sd = _logchi2_moments(nu)
+        nu, Linv = estimate_stats(tau, m, n_phase, c_hat, math.exp(u))
+        b, sd = logchi2_moments(nu)
         d, u, c_hat = _Profile(tau, np.log(avar) - b, sd, Linv, drop=(2, 3)).best()
     return float(d)
 

@@ -42,21 +42,21 @@ AXES = ("gyro_x", "gyro_y", "gyro_z", "accel_x", "accel_y", "accel_z")
 
 
 # ----------------------------------------------------------------------------------- model pieces
-_TERM_ORDER = ("Q", "N", "GM", "K")  #: order of the model coefficients (Q², N², σ_GM², K²)
+TERM_ORDER = ("Q", "N", "GM", "K")  #: order of the model coefficients (Q², N², σ_GM², K²)
 #: Taylor coefficients of the unit Gauss-Markov Allan variance g(x) = Σ c_k x^(k+1) (x = τ/T < 0.05, where
 #: the closed form cancels): c_k = (−1)^k (2^(k+3) − 4) / (k+3)!, i.e. 2/3, −1/2, 7/30, −1/12, …
-_GM_SERIES = (2 / 3, -1 / 2, 7 / 30, -1 / 12, 31 / 1260, -1 / 160, 127 / 90720, -17 / 60480, 73 / 1425600,
+GM_SERIES = (2 / 3, -1 / 2, 7 / 30, -1 / 12, 31 / 1260, -1 / 160, 127 / 90720, -17 / 60480, 73 / 1425600,
               -31 / 3628800)
 
 
-def _gm_shape(x: np.ndarray) -> np.ndarray:
+def gm_shape(x: np.ndarray) -> np.ndarray:
     """Allan variance of a unit-σ first-order Gauss-Markov process at τ = x·T (a series below x = 0.05)."""
     x = np.asarray(x, dtype=float)
     out = np.empty_like(x)
     s = x < 0.05
     xs = x[s]
     acc = np.zeros_like(xs)
-    for c in _GM_SERIES[::-1]:  # Horner: Σ c_k x^(k+1)
+    for c in GM_SERIES[::-1]:  # Horner: Σ c_k x^(k+1)
         acc = (acc + c) * xs
     out[s] = acc
     xl = x[~s]
@@ -68,17 +68,17 @@ def gm_avar(tau, sigma: float, t_corr: float) -> np.ndarray:
     """Allan variance of a first-order Gauss-Markov rate error with stationary σ and correlation time T.
 
     tau [s], sigma [u], t_corr [s] → σ²(τ) [u²] (El-Sheimy et al. 2008, correlated noise)."""
-    return sigma**2 * _gm_shape(np.asarray(tau, float) / t_corr)
+    return sigma**2 * gm_shape(np.asarray(tau, float) / t_corr)
 
 
 def model_avar(tau, coef, t_corr: float) -> np.ndarray:
     """Allan variance of the four-term model: coef = (Q², N², σ_GM², K²) [SI], t_corr = T [s]."""
     tau = np.asarray(tau, float)
     q2, n2, s2, k2 = coef
-    return 3.0 * q2 / tau**2 + n2 / tau + s2 * _gm_shape(tau / t_corr) + k2 * tau / 3.0
+    return 3.0 * q2 / tau**2 + n2 / tau + s2 * gm_shape(tau / t_corr) + k2 * tau / 3.0
 
 
-def _logchi2_moments(nu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def logchi2_moments(nu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Mean and standard deviation of ln(χ²_ν/ν)."""
     from scipy.special import digamma, polygamma  # scipy.special: ~0.1 s to import; the warm-up loads it
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from aidnav.analysis.noise_fit.model import _GM_SERIES
+from aidnav.analysis.noise_fit.model import GM_SERIES
 from aidnav.jit import njit
 
 
@@ -27,14 +27,14 @@ from aidnav.jit import njit
 def _gm_shape_nb(x):
     if x < 0.05:
         acc = 0.0
-        for k in range(len(_GM_SERIES) - 1, -1, -1):
-            acc = (acc + _GM_SERIES[k]) * x
+        for k in range(len(GM_SERIES) - 1, -1, -1):
+            acc = (acc + GM_SERIES[k]) * x
         return acc
     return (2.0 / x) * (1.0 - (3.0 - 4.0 * np.exp(-x) + np.exp(-2.0 * x)) / (2.0 * x))
 
 
 @njit(cache=True, nogil=True)
-def _columns_nb(tau, u):
+def columns_nb(tau, u):
     n = tau.shape[0]
     A = np.empty((n, 4))
     T = np.exp(u)
@@ -163,7 +163,7 @@ def _model_nb(A, c, off, out):
 
 
 @njit(cache=True, nogil=True)
-def _fit_c_nb(A, y, s, Linv, fixed, fixv, c0, iters):
+def fit_c_nb(A, y, s, Linv, fixed, fixv, c0, iters):
     """Coefficients c ≥ 0 for fixed columns A (n, 4) minimising the correlated log-scale objective
     ‖L⁻¹ (y − ln A c)/s‖²; coefficients where ``fixed`` are held at ``fixv``. Gauss-Newton on the
     linearisation ln M ≈ ln M₀ + (M − M₀)/M₀ with an exact NNLS step and step halving.
@@ -256,13 +256,13 @@ def _fit_c_nb(A, y, s, Linv, fixed, fixv, c0, iters):
 
 
 @njit(cache=True, nogil=True)
-def _profile_u_nb(tau, y, s, Linv, fixed, fixv, u_lo, u_hi, ngrid, c0, u_hint):
+def profile_u_nb(tau, y, s, Linv, fixed, fixv, u_lo, u_hi, ngrid, c0, u_hint):
     """min over T (a grid plus ``u_hint`` (NaN: none), then golden section around the best) and the free
     coefficients. Without a Gauss-Markov term (σ² fixed at 0) T is not searched.
     Returns (objective, u, c)."""
     if fixed[2] and fixv[2] == 0.0:
         u = 0.5 * (u_lo + u_hi) if np.isnan(u_hint) else u_hint
-        d, c = _fit_c_nb(_columns_nb(tau, u), y, s, Linv, fixed, fixv, c0, 60)
+        d, c = fit_c_nb(columns_nb(tau, u), y, s, Linv, fixed, fixv, c0, 60)
         return d, u, c
     best_d = np.inf
     best_u = u_lo
@@ -271,7 +271,7 @@ def _profile_u_nb(tau, y, s, Linv, fixed, fixv, u_lo, u_hi, ngrid, c0, u_hint):
     n_c = ngrid + (0 if np.isnan(u_hint) else 1)
     for g in range(n_c):
         u = u_lo + g * step if g < ngrid else u_hint
-        d, c = _fit_c_nb(_columns_nb(tau, u), y, s, Linv, fixed, fixv, c0, 60)
+        d, c = fit_c_nb(columns_nb(tau, u), y, s, Linv, fixed, fixv, c0, 60)
         if d < best_d:
             best_d, best_u, best_c = d, u, c
     lo = max(u_lo, best_u - step)
@@ -279,19 +279,19 @@ def _profile_u_nb(tau, y, s, Linv, fixed, fixv, u_lo, u_hi, ngrid, c0, u_hint):
     gr = 0.6180339887498949
     x1 = hi - gr * (hi - lo)
     x2 = lo + gr * (hi - lo)
-    d1, c1 = _fit_c_nb(_columns_nb(tau, x1), y, s, Linv, fixed, fixv, best_c, 60)
-    d2, c2 = _fit_c_nb(_columns_nb(tau, x2), y, s, Linv, fixed, fixv, best_c, 60)
+    d1, c1 = fit_c_nb(columns_nb(tau, x1), y, s, Linv, fixed, fixv, best_c, 60)
+    d2, c2 = fit_c_nb(columns_nb(tau, x2), y, s, Linv, fixed, fixv, best_c, 60)
     for _ in range(30):
         if hi - lo < 5e-3:
             break
         if d1 < d2:
             hi, x2, d2, c2 = x2, x1, d1, c1
             x1 = hi - gr * (hi - lo)
-            d1, c1 = _fit_c_nb(_columns_nb(tau, x1), y, s, Linv, fixed, fixv, c1, 60)
+            d1, c1 = fit_c_nb(columns_nb(tau, x1), y, s, Linv, fixed, fixv, c1, 60)
         else:
             lo, x1, d1, c1 = x1, x2, d2, c2
             x2 = lo + gr * (hi - lo)
-            d2, c2 = _fit_c_nb(_columns_nb(tau, x2), y, s, Linv, fixed, fixv, c2, 60)
+            d2, c2 = fit_c_nb(columns_nb(tau, x2), y, s, Linv, fixed, fixv, c2, 60)
     if d1 < best_d:
         best_d, best_u, best_c = d1, x1, c1
     if d2 < best_d:

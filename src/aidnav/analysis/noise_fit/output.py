@@ -12,7 +12,7 @@ from aidnav.sim.imu import ImuSpec
 from aidnav.units import DEG_H, DEG_H_SQRT_H, DEG_SQRT_H, M_S_SQRT_H, UG, UG_SQRT_H
 
 # ------------------------------------------------------------------------------------------ outputs
-_UNITS = {
+UNIT_LABELS = {
     "gyro": {"white": ("arw_deg_sqrt_h", DEG_SQRT_H), "quantisation": ("quantisation_rad", 1.0),
              "bias_instability": ("bias_instability_deg_h", DEG_H), "gm_sigma": ("gm_sigma_deg_h", DEG_H),
              "gm_tau": ("gm_tau_s", 1.0), "rrw": ("rrw_deg_h_sqrt_h", DEG_H_SQRT_H)},
@@ -29,7 +29,7 @@ def noise_dict(ch: Characterisation) -> dict:
     for gyros, µg for accelerometers, with 95% limits and EDFs) and the notes."""
     axes = {}
     for a in ch.axes:
-        units = _UNITS[a.sensor]
+        units = UNIT_LABELS[a.sensor]
         d = {units[k][0]: a.terms[k].scaled(units[k][1]) for k in
              ("white", "quantisation", "bias_instability", "gm_sigma", "gm_tau", "rrw")}
         un, f = _ADEV_UNIT[a.sensor]

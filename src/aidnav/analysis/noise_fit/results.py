@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from aidnav.analysis.noise_fit.model import _TERM_ORDER, AXES, model_avar
+from aidnav.analysis.noise_fit.model import AXES, TERM_ORDER, model_avar
 
 
 def json_float(x) -> float | None:
@@ -104,7 +104,7 @@ class AxisFit:
         tau = self.taus if taus is None else np.asarray(taus, float)
         c = np.array(self.coef, float)
         if term is not None:
-            keep = np.array([t == term for t in _TERM_ORDER], float)
+            keep = np.array([t == term for t in TERM_ORDER], float)
             c = c * keep
         return np.sqrt(model_avar(tau, c, self.t_corr))
 

@@ -23,7 +23,7 @@ MOTION_ACCEL_M_S2 = 0.1
 
 
 @njit(cache=True, nogil=True)
-def _window_stats(y, w, nw):
+def window_stats(y, w, nw):
     """Mean and standard deviation of each of ``nw`` consecutive windows of ``w`` rows of y (M, k)."""
     k = y.shape[1]
     mean = np.empty((nw, k))
@@ -94,7 +94,7 @@ def static_check(rates, fs: float, t_start: float = 0.0, window_s: float = 1.0,
                 "motion_free_spans_s": [[t_start, t_end]], "max_gyro_dev_deg_s": 0.0,
                 "max_accel_dev_m_s2": 0.0, "warnings": [], "message": "",
                 "note": "log too short for the static check (fewer than 3 windows)"}
-    mean, std = _window_stats(y, w, nw)
+    mean, std = window_stats(y, w, nw)
     med = np.median(mean, axis=0)
     sdev = mean - med
     dev = np.abs(sdev)
@@ -170,7 +170,7 @@ def static_check(rates, fs: float, t_start: float = 0.0, window_s: float = 1.0,
     return res
 
 
-def _longest_static(rates, fs: float, t_rel: float, resampled: bool, st: dict,
+def longest_static(rates, fs: float, t_rel: float, resampled: bool, st: dict,
                     chosen: bool = False) -> tuple[int, int]:
     """Sample range [i0, i1) of the longest static part of ``rates`` (not usable as a whole: ``st``).
 
@@ -188,7 +188,7 @@ def _longest_static(rates, fs: float, t_rel: float, resampled: bool, st: dict,
     nw = n // w
     cands = []
     if nw >= 3:
-        _, std = _window_stats(y, w, nw)
+        _, std = window_stats(y, w, nw)
         floor = np.r_[np.full(3, 1e-3 * DEG), np.full(3, 1e-3)] / 4.0
         ref = np.maximum(np.percentile(std, 5, axis=0), floor)
         quiet = np.all(std <= 4.0 * ref, axis=1)

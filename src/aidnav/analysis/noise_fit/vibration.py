@@ -11,11 +11,11 @@ import math
 import numpy as np
 
 from aidnav.analysis.noise_fit.results import AxisFit, json_float
-from aidnav.analysis.noise_fit.static import _window_stats
+from aidnav.analysis.noise_fit.static import window_stats
 from aidnav.units import DEG
 
 
-def _psd_peak(x: np.ndarray, fs: float, f_min: float = 1.0, nseg: int = 512, max_segs: int = 256):
+def psd_peak(x: np.ndarray, fs: float, f_min: float = 1.0, nseg: int = 512, max_segs: int = 256):
     """Dominant frequency [Hz] above ``f_min`` of one channel (Welch: Hann windows of ``nseg`` samples, at
     most ``max_segs`` of them spread over the record) and the fraction of the variance above ``f_min``
     that lies within ±1 Hz of it. (nan, nan) when the record is too short."""
@@ -58,11 +58,11 @@ def vibration_report(rates, fs: float, axes: list[AxisFit], sensor: dict | None 
     of the analysed rates and of the sensor samples, the white-noise std, their ratio, the dominant
     frequency above 1 Hz and the share of the variance within ±1 Hz of it."""
     y = np.ascontiguousarray(rates, dtype=float)
-    _, std_a = _window_stats(y, len(y), 1)
+    _, std_a = window_stats(y, len(y), 1)
     std_a = std_a[0]
     if sensor is None:
         std_s = std_a
-        pk = [_psd_peak(y[:, c], fs) for c in range(6)]
+        pk = [psd_peak(y[:, c], fs) for c in range(6)]
         what = "analysed rates (the sensor's samples)"
     else:
         std_s = np.asarray(sensor["std"], float)
@@ -88,7 +88,7 @@ def vibration_report(rates, fs: float, axes: list[AxisFit], sensor: dict | None 
     return out
 
 
-def _vibration_text(vib: dict) -> str:
+def vibration_text(vib: dict) -> str:
     parts = []
     for ax in vib["detected"]:
         d = vib["axes"][ax]

@@ -30,7 +30,49 @@ from .page import print_summary, write_seed_page
 from .summary import write_summary
 
 __all__ = ["Study", "main", "figure", "mean_se", "ratio_se", "rms_ratio_se", "paired", "sign_test",
-           "runs_needed"]
+           "runs_needed", "cjk_font", "use_cjk_font", "CJK_FAMILIES"]
+
+#: font families that carry the seeds' Chinese characters (e.g. 精度), first found wins (Debian/Ubuntu:
+#: ``apt-get install fonts-noto-cjk``; CI installs it in ``.ci/run``)
+CJK_FAMILIES = ("Noto Sans CJK SC", "Noto Sans CJK JP", "Noto Sans CJK TC", "Noto Serif CJK SC",
+                "Source Han Sans SC", "WenQuanYi Zen Hei", "Droid Sans Fallback")
+
+
+def cjk_font() -> str | None:
+    """The family of an installed font with CJK glyphs (registered with matplotlib's font manager when its
+    cache predates the font's installation), or None when none is installed."""
+    from matplotlib import font_manager as fm  # lazy: matplotlib is heavy to import
+
+    def found():
+        names = {f.name for f in fm.fontManager.ttflist}
+        return next((c for c in CJK_FAMILIES if c in names), None)
+
+    fam = found()
+    if fam is None:
+        for path in fm.findSystemFonts():
+            base = Path(path).name
+            if ("CJK" in base and "Regular" in base) or base.startswith(("wqy-zenhei", "DroidSansFallback")):
+                try:
+                    fm.fontManager.addfont(path)
+                except (OSError, RuntimeError, ValueError):  # an unreadable font file: skip it
+                    continue
+        fam = found()
+    return fam
+
+
+def use_cjk_font() -> str | None:
+    """Make matplotlib fall back to a CJK font (after its default DejaVu Sans) for glyphs DejaVu lacks, so
+    that the seeds' characters do not render as boxes; returns the family used (None: none installed, the
+    figures then keep DejaVu Sans and warn on a CJK glyph). Sets ``rcParams["font.family"]`` once."""
+    import matplotlib  # lazy: matplotlib is heavy to import
+
+    fam = cjk_font()
+    if fam is not None:
+        cur = list(matplotlib.rcParams["font.family"])
+        if fam not in cur:
+            base = ["DejaVu Sans"] if cur in (["sans-serif"], ["DejaVu Sans"]) else cur
+            matplotlib.rcParams["font.family"] = [*base, fam]
+    return fam
 
 
 # ------------------------------------------------------------------ Monte Carlo standard errors
@@ -112,6 +154,7 @@ class Study:
         self.console = console
         self.figures: list[str] = []
         self.t_start = time.perf_counter()
+        self.cjk_font = use_cjk_font()
 
     @property
     def elapsed_s(self) -> float:

@@ -37,7 +37,13 @@ import sys
 import numpy as np
 
 from aidnav.experiments.reproduce._study import Study, main, mean_se, ratio_se, rms_ratio_se
-from aidnav.experiments.reproduce.seed_000_figures import _plot_loss, _plot_seed_figs, _plot_variants
+from aidnav.experiments.reproduce.seed_000_figures import (
+    plot_fit,
+    plot_loss,
+    plot_pitch_rms,
+    plot_seed_figs,
+    plot_variants,
+)
 from aidnav.experiments.reproduce.seed_000_pitch import pitch_rows, pitch_sigma
 from aidnav.experiments.reproduce.seed_000_setup import (
     ARCMIN,
@@ -54,8 +60,10 @@ from aidnav.experiments.reproduce.seed_000_setup import (
     HEADING_DEG,
     LAST_S,
     PAPER_EQ24,
+    PAPER_STATE1_HEADING,
     PAPER_T2,
     PHI0_DEG,
+    PHI_U0_GRID_DEG,
     POS0_SIGMA_M,
     QUANTS,
     RATIO_RUNS_FACTOR,
@@ -69,13 +77,13 @@ from aidnav.experiments.reproduce.seed_000_setup import (
     UNITS,
     VARIANTS,
     VEL0_SIGMA_M_S,
-    _series,
     error_state,
     euler_errors,
     filter_config,
     geometry_check,
     sapv_spec,
     seed_scenario,
+    seed_series,
     simulate_case,
     truth_index,
     velocity_errors,
@@ -88,10 +96,10 @@ __all__ = [
     "ARCMIN", "CENTRAL", "DEFAULT_RUNS", "DURATION_S", "FED", "GPS_ONLY", "GPS_OUTAGE", "GPS_RATE_HZ",
     "GPS_SIGMA_POS_M", "GPS_SIGMA_VEL_M_S", "HEADING0_SWEEP_DEG", "HEADING_DEG", "LAST_S", "PAPER_EQ24",
     "PAPER_T2", "PHI0_DEG", "POS0_SIGMA_M", "QUANTS", "SAPV_LOSS", "SAPV_SIGMA_DEG", "SEED", "SETTLE_S",
-    "SITE", "SWEEP_RUNS", "TITLE", "UNITS", "VARIANTS", "VEL0_SIGMA_M_S", "_series", "error_state",
+    "SITE", "SWEEP_RUNS", "TITLE", "UNITS", "VARIANTS", "VEL0_SIGMA_M_S", "seed_series", "error_state",
     "euler_errors", "filter_config", "geometry_check", "sapv_spec", "seed_scenario", "simulate_case",
     "truth_index", "velocity_errors", "run", "monte_carlo", "heading0_sweep", "federated_sapv_nis",
-    "run_case"
+    "run_case", "phi_u0_fit", "PAPER_STATE1_HEADING", "PHI_U0_GRID_DEG"
 ]
 
 # ============================================================================ Monte Carlo
@@ -105,8 +113,9 @@ def run_case(sim, sv, cfg, variants=VARIANTS, keep_cov_for=()):
             for k, fed in variants.items()}
 
 
-def monte_carlo(runs: int, base_seed: int, duration_s: float = DURATION_S, say=print) -> dict:
-    """The Table-2 Monte Carlo plus the SAPV-loss, GPS-outage and NEES sets (same realisations)."""
+def monte_carlo(runs: int, base_seed: int, duration_s: float = DURATION_S, say=print, phi0=PHI0_DEG) -> dict:
+    """The Table-2 Monte Carlo plus the SAPV-loss, GPS-outage and NEES sets (same realisations), with the
+    initial misalignment ``phi0`` (E, N, U) [deg]."""
     from aidnav.analysis.consistency import nees
 
     seqs = np.random.SeedSequence(base_seed).spawn(runs)
@@ -123,10 +132,10 @@ def monte_carlo(runs: int, base_seed: int, duration_s: float = DURATION_S, say=p
     loss = {"reset": [], "no_reset": [], "none": []}
     outage = {"reset": [], "gps_only": []}
     for r, ss in enumerate(seqs):
-        sim, sv, cfg = simulate_case(ss, duration_s)
+        sim, sv, cfg = simulate_case(ss, duration_s, phi0_deg=phi0)
         res = run_case(sim, sv, cfg, keep_cov_for=(CENTRAL,))
         for k, rr in res.items():
-            s = _series(rr, sim.truth)
+            s = seed_series(rr, sim.truth)
             series[k].append(s)
             for q in QUANTS:
                 m, sd = _stats(s[q])
@@ -153,14 +162,14 @@ def monte_carlo(runs: int, base_seed: int, duration_s: float = DURATION_S, say=p
         sv_l = sv.with_loss(*SAPV_LOSS)
         for key, fed in (("reset", VARIANTS[FED]), ("no_reset", VARIANTS["federated no-reset b=1/2,1/2"])):
             rl = run_federated(sim.imu, sim.gnss, sv_l, cfg, fed)
-            loss[key].append(_series(rl, sim.truth))
+            loss[key].append(seed_series(rl, sim.truth))
         loss["none"].append(series[FED][-1])
         # GPS outage, same streams (the outage removes fixes; the noise of the others is unchanged)
         if r < max(1, runs // 2):
-            sim_o, sv_o, cfg_o = simulate_case(ss, duration_s, gps_outages=(GPS_OUTAGE,))
-            outage["reset"].append(_series(run_federated(sim_o.imu, sim_o.gnss, sv_o, cfg_o, VARIANTS[FED]),
-                                           sim_o.truth))
-            outage["gps_only"].append(_series(run_federated(sim_o.imu, sim_o.gnss, sv_o, cfg_o,
+            sim_o, sv_o, cfg_o = simulate_case(ss, duration_s, gps_outages=(GPS_OUTAGE,), phi0_deg=phi0)
+            outage["reset"].append(seed_series(run_federated(sim_o.imu, sim_o.gnss, sv_o, cfg_o,
+                                                             VARIANTS[FED]), sim_o.truth))
+            outage["gps_only"].append(seed_series(run_federated(sim_o.imu, sim_o.gnss, sv_o, cfg_o,
                                                             VARIANTS[GPS_ONLY]), sim_o.truth))
         if r == 0:  # the filter's own pitch σ while it converges (fusion-reset = centralized)
             pitch_sig = {t: pitch_sigma(c, t) for t in (SETTLE_S, 60.0)}
@@ -170,15 +179,16 @@ def monte_carlo(runs: int, base_seed: int, duration_s: float = DURATION_S, say=p
     vel_std = {k: {q: list(stats[k][q]["std"]) for q in ("vN", "vE", "vU")} for k in (GPS_ONLY, FED)}
     pair = {k: VARIANTS[k] for k in (GPS_ONLY, FED)}
     for ss in np.random.SeedSequence(base_seed).spawn(RATIO_RUNS_FACTOR * runs)[runs:]:
-        sim, sv, cfg = simulate_case(ss, duration_s)
+        sim, sv, cfg = simulate_case(ss, duration_s, phi0_deg=phi0)
         for k, rr in run_case(sim, sv, cfg, variants=pair).items():
-            s = _series(rr, sim.truth)
+            s = seed_series(rr, sim.truth)
             for q in ("vN", "vE", "vU"):
                 vel_std[k][q].append(float(np.std(s[q])))
             if k == FED:
                 pitch_max[k].append(float(np.max(np.abs(s["pitch"][s["t"] > SETTLE_S]))))
     say(f"seed 000: velocity ratios over {RATIO_RUNS_FACTOR * runs} runs done")
     return dict(vel_std=vel_std, stats=stats, series=series, central_nis=np.concatenate(central_nis),
+                phi0=phi0,
                 pitch_sig=pitch_sig,
                 local_nis=np.concatenate(local_nis), fed_nis=np.concatenate(fed_nis), pitch_max=pitch_max,
                 h_ms=h_ms, diff_reset=np.array(diff_reset),
@@ -204,13 +214,18 @@ def heading0_sweep(runs: int, base_seed: int, duration_s: float = DURATION_S,
     """SINS/GPS vs SINS/GPS/SAPV (fusion-reset β = 1/2) for several initial heading errors φ_U0 [deg]
     (φ_E0, φ_N0 as ``PHI0_DEG``), on the same realisations and initial position/velocity draws.
 
-    Returns {φ_U0: {"vN"|"vE"|"vU"|"heading": ratio}}: the run-averaged error std with SAPV over that
-    without (heading: RMS over the last ``LAST_S`` s, inverted so that > 1 means SAPV helps).
+    Returns {φ_U0: {...}}: ``vN``, ``vE``, ``vU`` the run-averaged error std with SAPV over that without,
+    ``heading`` the heading RMS over the last ``LAST_S`` s without SAPV over that with (> 1: SAPV helps),
+    their standard errors in ``se``; and the Table-2 state-1 heading statistics of SINS/GPS: ``h_mean``
+    (mean over runs of the time mean), ``h_std`` (RMS over runs of the time std) [arcmin], their standard
+    errors ``h_mean_se``, ``h_std_se``, and ``fit`` = ((|h_mean| − 76.9)/76.9)² + ((h_std − 98.5)/98.5)², the
+    relative squared misfit to the seed's Table 2 state 1 (:func:`phi_u0_fit`).
     The heading error drives the north velocity error through the Earth rate (φ̇_E = −Ω cosL φ_U,
     δv̇_N = +g φ_E), so how much SAPV improves velocity depends on φ_U0, which the seed does not give.
     """
     seqs = np.random.SeedSequence(base_seed).spawn(runs)
-    acc = {p: {k: {q: [] for q in ("vN", "vE", "vU", "hlast")} for k in (GPS_ONLY, FED)} for p in phis}
+    acc = {p: {k: {q: [] for q in ("vN", "vE", "vU", "hlast", "hmean", "hstd")} for k in (GPS_ONLY, FED)}
+           for p in phis}
     for ss in seqs:
         sim, sv, _ = simulate_case(ss, duration_s)
         s_init = np.random.SeedSequence(ss.entropy, spawn_key=(*ss.spawn_key, 2))
@@ -218,10 +233,13 @@ def heading0_sweep(runs: int, base_seed: int, duration_s: float = DURATION_S,
             cfg = filter_config(sim.truth, np.random.default_rng(s_init), phi0_deg=(*PHI0_DEG[:2], p))
             res = run_case(sim, sv, cfg, variants={k: VARIANTS[k] for k in (GPS_ONLY, FED)})
             for k, rr in res.items():
-                s = _series(rr, sim.truth)
+                s = seed_series(rr, sim.truth)
                 for q in ("vN", "vE", "vU"):
                     acc[p][k][q].append(float(np.std(s[q])))
                 acc[p][k]["hlast"].append(float(np.mean(s["heading"][s["t"] > s["t"][-1] - LAST_S] ** 2)))
+                acc[p][k]["hmean"].append(float(np.mean(s["heading"])))
+                acc[p][k]["hstd"].append(float(np.std(s["heading"])))
+    pm, ps = PAPER_STATE1_HEADING
     out = {}
     for p in phis:
         a, b = acc[p][GPS_ONLY], acc[p][FED]
@@ -229,7 +247,21 @@ def heading0_sweep(runs: int, base_seed: int, duration_s: float = DURATION_S,
         out[p]["heading"] = float(np.sqrt(np.mean(a["hlast"]) / np.mean(b["hlast"])))
         out[p]["se"] = {q: ratio_se(b[q], a[q])[1] for q in ("vN", "vE", "vU")}
         out[p]["se"]["heading"] = rms_ratio_se(a["hlast"], b["hlast"])[1]
+        hm, hm_se = mean_se(a["hmean"])
+        sd2, sd2_se = mean_se(np.square(a["hstd"]))
+        out[p].update(h_mean=hm, h_mean_se=hm_se, h_std=float(np.sqrt(sd2)),
+                      h_std_se=float(sd2_se / (2 * np.sqrt(sd2))) if runs > 1 else float("nan"),
+                      fit=float(((abs(hm) - abs(pm)) / pm) ** 2 + ((np.sqrt(sd2) - ps) / ps) ** 2))
     return out
+
+
+def phi_u0_fit(sweep: dict) -> float:
+    """The φ_U0 [deg] of the sweep whose SINS/GPS heading mean and std best match the seed's Table 2 state 1
+    (smallest ``fit``), with the sign that gives the heading mean the paper's sign (−76.9′): fitted to the
+    paper's reported statistics only, never to our targets (§1.3, 2026-12-06)."""
+    p = float(min(sweep, key=lambda x: sweep[x]["fit"]))
+    same = np.sign(sweep[p]["h_mean"]) == np.sign(PAPER_STATE1_HEADING[0])
+    return p * (1.0 if same else -1.0) * float(np.sign(p))
 
 
 # ============================================================================ run
@@ -243,7 +275,7 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
     target), ``report.html`` and ``statistics.json`` (per-variant, per-run statistics). ``runs``: Monte
     Carlo realisations (None: DEFAULT_RUNS = 30). Returns the summary dict."""
     from aidnav.analysis.consistency import chi2_band
-    from aidnav.experiments.reproduce.summary import resolved_row, summary_row, summary_table
+    from aidnav.experiments.reproduce.summary import grid_table, resolved_row, summary_row, summary_table
 
     study = Study(SEED, TITLE, out_dir, DEFAULT_RUNS if runs is None else runs, base_seed, console)
     runs = study.runs
@@ -251,9 +283,16 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
         raise ValueError(f"duration_s must be >= {LAST_S + SETTLE_S:g} s (targets use the last {LAST_S:g} s)")
     out = study.out
     say = study.say
-    say(f"seed 000: {runs} Monte Carlo runs × {len(VARIANTS)} filters ({duration_s:g} s, 100 Hz IMU)")
-    mc = monte_carlo(runs, base_seed, duration_s, say)
-    for f in _plot_seed_figs(mc, out) + [_plot_variants(mc, out)] + _plot_loss(mc, out):
+    # φ_U0: fitted to the seed's Table 2 state-1 heading statistics (not to our targets), §1.3 2026-12-06
+    n_sweep = min(runs, SWEEP_RUNS)
+    say(f"seed 000: φ_U0 sweep {PHI_U0_GRID_DEG} deg, {n_sweep} runs each (fit to Table 2 state 1)")
+    sweep = heading0_sweep(n_sweep, base_seed, duration_s, PHI_U0_GRID_DEG)
+    phi_u = phi_u0_fit(sweep)
+    phi0 = (*PHI0_DEG[:2], phi_u)
+    say(f"seed 000: fitted φ_U0 = {phi_u:g}°; {runs} Monte Carlo runs × {len(VARIANTS)} filters "
+        f"({duration_s:g} s, 100 Hz IMU)")
+    mc = monte_carlo(runs, base_seed, duration_s, say, phi0=phi0)
+    for f in plot_seed_figs(mc, out) + [plot_variants(mc, out)] + plot_loss(mc, out):
         study.add_figure(f)
 
     # ---------------------------------------------------------------- Table 1 (configuration echo)
@@ -281,7 +320,9 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
         ("satellite longitude", "deg", 138.0, sp.sat_lon_deg),
         ("satellite height above the ellipsoid", "m", 3.5785e7, sp.sat_radius_m - 6378137.0),
         ("simulation time", "s", 500.0, duration_s),
-        ("initial heading error φ_U0 (not in the seed; §1.3 decision)", "deg", None, PHI0_DEG[2]),
+        ("initial heading error φ_U0 (not in the seed; fitted to Table 2 state 1, §1.3 2026-12-06)", "deg",
+         None, phi_u),
+        ("initial level errors φ_E0, φ_N0 (not in the seed)", "deg", None, PHI0_DEG[0]),
     ]
     # echoes of our configuration beside the printed setting: no target (a constant equal to itself)
     rows1 = [summary_row(q, un, ours, paper) for q, un, paper, ours in t1]
@@ -300,14 +341,23 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
         r, se2 = mean_se(v**2)
         return se2 / (2 * np.sqrt(r))
 
-    rows2 = []
+    cells2, cells2v = {}, {}
     for k in VARIANTS:
         col = 0 if k == GPS_ONLY else (1 if k == FED else None)
         for q in QUANTS:
             for which in ("mean", "std"):
                 paper = PAPER_T2[q][which][col] if col is not None else None
-                rows2.append(summary_row(f"{k}: {q} error {which}", UNITS[q], mean_of(k, q, which), paper,
-                                         stderr=se_of(k, q, which)))
+                r = summary_row(f"{k}: {q} error {which}", UNITS[q], mean_of(k, q, which), paper,
+                                stderr=se_of(k, q, which))
+                if col is not None:
+                    name = "SINS/GPS" if col == 0 else "SINS/GPS/SAPV"
+                    cells2[(f"{q} [{UNITS[q]}]", f"state {col + 1} ({name}) {which}")] = r
+                elif which == "std":
+                    cells2v[(f"{q} [{UNITS[q]}]", k)] = r
+    t2_rows = [f"{q} [{UNITS[q]}]" for q in QUANTS]
+    t2_cols = [f"state {c} ({n}) {w}" for c, n in ((1, "SINS/GPS"), (2, "SINS/GPS/SAPV"))
+               for w in ("mean", "std")]
+    other = [k for k in VARIANTS if k not in (GPS_ONLY, FED)]
 
     # ---------------------------------------------------------------- §1.3 targets
     def pooled(k, q, t_from=0.0, t_to=np.inf):
@@ -335,7 +385,12 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
     p_ratio, p_ratio_se = rms_ratio_se(sp_runs[FED] ** 2, sp_runs[GPS_ONLY] ** 2)
     r_ratio, r_ratio_se = rms_ratio_se(sr_runs[FED] ** 2, sr_runs[GPS_ONLY] ** 2)
     pitch_after = rms(pooled(FED, "pitch", SETTLE_S))
-    pitch_spec, pitch_other = pitch_rows(mc["pitch_max"][FED], runs, base_seed, duration_s, mc["pitch_sig"])
+    t_ep = mc["series"][FED][0]["t"]
+    pitch_spec, pitch_other, pitch_sens, pitch_fig = pitch_rows(
+        np.array([s["pitch"] for s in mc["series"][FED]]), t_ep, runs, base_seed, duration_s, mc["pitch_sig"],
+        phi0)
+    study.add_figure(plot_pitch_rms(pitch_fig, out))
+    study.add_figure(plot_fit(sweep, phi_u, PAPER_STATE1_HEADING, out))
     nis = mc["fed_nis"]
     nis_m, nis_se = mean_se(nis)
     lo, hi = 2.0 - 1.96 * nis_se, 2.0 + 1.96 * nis_se
@@ -364,19 +419,32 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
     ]
     vs = mc["vel_std"]
     n_vel = len(vs[FED]["vN"])
+    vel_paper = []
     for q in ("vN", "vU", "vE"):
         a, b = np.array(vs[GPS_ONLY][q]), np.array(vs[FED][q])
         r, se = rms_ratio_se(b**2, a**2)
         pa, pb = PAPER_T2[q]["std"]
-        d = 0.15 - abs(r - 1.0)
-        why = (f"φ_U0 = {PHI0_DEG[2]:g}° is by decision the largest initial heading error for which the "
-               "seed's velocity relation holds, so the north ratio sits near the boundary by construction "
-               "(see the 'Initial heading' sensitivity table: SAPV lowers the north velocity error more the "
-               "larger φ_U0)") if q == "vN" else ""
         rows3.append(resolved_row(summary_row(
-            f"{q} error std ratio SINS/GPS/SAPV / SINS/GPS, whole run, {n_vel} runs (SAPV does not help "
-            f"velocity; seed {pa:g} → {pb:g} m/s)", "-", r, pb / pa, "abs(ours - 1) <= 0.15", spec=True,
-            stderr=se, margin=(d, se)), n_vel, why))
+            f"{q} error std ratio SINS/GPS/SAPV / SINS/GPS, whole run (SAPV does not degrade velocity: "
+            f"≤ 1.1; seed {pa:g} → {pb:g} m/s)", "-", r, pb / pa, "ours <= 1.1", spec=True, stderr=se,
+            margin=(1.1 - r, se), runs=n_vel), n_vel))
+        d = 0.15 - abs(r - 1.0)
+        why = None
+        if d < 0:
+            why = (f"SAPV lowers the {q} error here: with φ_U0 = {phi_u:g}° (fitted to Table 2 state 1) the "
+                   "initial heading error tilts the platform through the Earth rate (φ̇_E = −Ω cosL·φ_U) and "
+                   "the tilt drives the north velocity error (δv̇_N = +g·φ_E); the SAPV elevation observes "
+                   "that tilt and removes it. The seed's own up-velocity ratio (0.79) is outside ±15 % too. "
+                   "The 'Initial heading' sensitivity table shows the ratio against φ_U0: "
+                   + ", ".join(f"{p:g}° {sweep[p]['vN']:.2f} ± {sweep[p]['se']['vN']:.2f}" for p in sweep)
+                   + f" ({n_sweep} runs each; {PHI0_DEG[2]:g}° is the former decision)") if q == "vN" else (
+                   "outside ±15 %: SAPV changes this velocity component by more than the seed's Table 2 "
+                   "shows; see the 'Initial heading' sensitivity table for its dependence on φ_U0")
+        vel_paper.append(summary_row(
+            f"{q} error std ratio with/without SAPV within ±15 % of 1 (the seed's Table 2 'unchanged'; paper "
+            "row, 2026-12-06)", "-", r, pb / pa, "abs(ours - 1) <= 0.15", stderr=se, margin=(d, se),
+            runs=n_vel, reason=why))
+    rows3 += vel_paper
     for q in ("vN", "vU", "vE"):
         a, b = rms(pooled(GPS_ONLY, q, SETTLE_S)), rms(pooled(FED, q, SETTLE_S))
         rows3.append(summary_row(f"{q} error RMS ratio SINS/GPS/SAPV / SINS/GPS after {SETTLE_S:g} s "
@@ -468,46 +536,86 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
         summary_row("largest pointing change for the eq. 25 position error (100 m E, N and U)", "deg",
                     g["pos100_deg"], None, f"ours <= 0.1 * {SAPV_SIGMA_DEG}"),
     ]
-    n_sweep = min(runs, SWEEP_RUNS)
-    sweep = heading0_sweep(n_sweep, base_seed, duration_s)
+    pm, ps = PAPER_STATE1_HEADING
+    cells_fit, fit_rows = {}, []
+    for p, r in sweep.items():
+        mark = " ← fitted" if p == abs(phi_u) else (" (the former decision)" if p == PHI0_DEG[2] else "")
+        lab = f"φ_U0 = {p:g}°{mark}"
+        fit_rows.append(lab)
+        cells_fit[(lab, "heading error mean [arcmin]")] = summary_row(
+            f"φ_U0 = {p:g}°: SINS/GPS heading error mean (Table 2 state 1)", "arcmin", r["h_mean"], pm,
+            stderr=r["h_mean_se"], runs=n_sweep)
+        cells_fit[(lab, "heading error std [arcmin]")] = summary_row(
+            f"φ_U0 = {p:g}°: SINS/GPS heading error std (Table 2 state 1)", "arcmin", r["h_std"], ps,
+            stderr=r["h_std_se"], runs=n_sweep)
+        cells_fit[(lab, "misfit")] = summary_row(
+            f"φ_U0 = {p:g}°: misfit ((|mean| − 76.9)/76.9)² + ((std − "
+            "98.5)/98.5)²", "-", r["fit"], runs=n_sweep)
+    rows_fit = []
+    rows_fit.append(summary_row("fitted φ_U0: the grid value of least misfit to Table 2 state 1 (the paper's "
+                                "statistics only; no target of ours enters), signed so that the heading mean "
+                                "has the paper's sign (the sweep runs +φ_U0: a mean of the opposite sign; "
+                                "the statistics are symmetric in the sign)", "deg", phi_u))
     rows6 = []
     for p, r in sweep.items():
+        mark = (" (|fitted default|)" if p == abs(phi_u) else
+                (" (former decision)" if p == PHI0_DEG[2] else ""))
         for q in ("vN", "vE", "vU"):
             se = r["se"][q]
-            rows6.append(summary_row(f"{q} error std ratio, φ_U0 = {p:g}° (within ±15 %)", "-", r[q], None,
-                                     "abs(ours - 1) <= 0.15", stderr=se,
+            rows6.append(summary_row(f"{q} error std ratio, φ_U0 = {p:g}°{mark} (SPEC: ≤ 1.1)", "-", r[q],
+                                     None, "ours <= 1.1", stderr=se, margin=(1.1 - r[q], se)))
+            rows6.append(summary_row(f"{q} error std ratio, φ_U0 = {p:g}°{mark} (paper row: within ±15 %)",
+                                     "-", r[q], None, "abs(ours - 1) <= 0.15", stderr=se,
                                      margin=(0.15 - abs(r[q] - 1.0), se)))
         se = r["se"]["heading"]
         rows6.append(summary_row(f"heading RMS ratio (last {LAST_S:g} s) SINS/GPS / SINS/GPS/SAPV, "
-                                 f"φ_U0 = {p:g}° (≥ 10)", "-", r["heading"], None, "ours >= 10", stderr=se,
+                                 f"φ_U0 = {p:g}°{mark} (≥ "
+                                 "10)", "-", r["heading"], None, "ours >= 10", stderr=se,
                                  margin=(r["heading"] - 10.0, se)))
     ok_v = [p for p, r in sweep.items() if all(abs(r[q] - 1.0) <= 0.15 for q in ("vN", "vE", "vU"))]
-    ok_h = [p for p, r in sweep.items() if r["heading"] >= 10.0]
     rows6.append(summary_row("largest φ_U0 of the sweep with every velocity ratio within ±15 %", "deg",
                              float(max(ok_v)) if ok_v else float("nan")))
-    rows6.append(summary_row("smallest φ_U0 of the sweep with the heading RMS ratio >= 10", "deg",
-                             float(min(ok_h)) if ok_h else float("nan")))
     rows6.append(summary_row("the seed's own up-velocity std ratio (0.0670 / 0.0851 m/s): also outside ±15 %",
                              "-", None, 0.0670 / 0.0851))
     tables = [
         summary_table("Table 1", "simulation setting: the seed's values and ours (configuration echo, no "
                       "targets)", rows1, kind="setting"),
-        summary_table("Table 2", f"error statistics over the {duration_s:g}-s run (mean and standard "
-                      "deviation of the error time series at the 1 Hz filter epochs; mean averaged over "
-                      f"{runs} runs, std as the RMS over runs); paper: state 1 = SINS/GPS, state 2 = "
-                      "SINS/GPS/SAPV; attitude in arc-minutes (§1.2 item 11); absolute values depend on "
-                      "initial errors the seed does not give (no targets)", rows2),
-        summary_table("SPEC 1.3", f"acceptance targets, {runs} Monte Carlo runs, φ_U0 = {PHI0_DEG[2]:g}°, "
-                      "SINS/GPS/SAPV = federated fusion-reset β = 1/2, 1/2 (the seed's filter)", rows3),
+        grid_table("φ_U0 fit", "the initial heading error the seed does not give, fitted to its Table 2 "
+                   f"state 1 (SINS/GPS heading error mean {pm:g}′, std {ps:g}′ over 500 s): {n_sweep} runs "
+                   "per value, "
+                   "same realisations (run at +φ_U0); misfit ((|mean| − 76.9)/76.9)² + ((std − 98.5)/98.5)²; "
+                   f"the default is the least misfit, φ_U0 = {phi_u:g}° (§1.3, 2026-12-06). Only the paper's "
+                   "statistics enter the fit", cells_fit, fit_rows,
+                   ["heading error mean [arcmin]", "heading error std [arcmin]", "misfit"], rows_fit,
+                   runs=n_sweep),
+        grid_table("Table 2", f"error statistics over the {duration_s:g}-s run, shaped as the seed's Table 2 "
+                   "(mean and standard deviation of the error time series at the 1 Hz filter epochs; mean "
+                   f"averaged over {runs} runs, std as the RMS over runs); state 1 = SINS/GPS, state 2 = "
+                   "SINS/GPS/SAPV (federated fusion-reset β = 1/2); attitude in arc-minutes (§1.2 item 11); "
+                   f"φ_U0 = {phi_u:g}° (fitted to state 1's heading); no targets: the absolute values depend "
+                   "on initial errors the seed does not give", cells2, t2_rows, t2_cols, runs=runs),
+        grid_table("Table 2, other filters", "error std of the other filter variants (same runs; the "
+                   "fusion-reset variants equal the centralized filter, Federated filter table)", cells2v,
+                   t2_rows, other, runs=runs),
+        summary_table("SPEC 1.3", f"acceptance targets, φ_U0 = {phi_u:g}° (fitted), biases drawn per run, "
+                      "SINS/GPS/SAPV = federated fusion-reset β = 1/2, 1/2 (the seed's filter); runs per "
+                      "row", rows3, runs=runs),
         summary_table("Federated filter", "fusion-reset vs centralized, no-reset, consistency, loss of one "
-                      "local filter's measurements (checks of our own)", rows4),
+                      "local filter's measurements (checks of our own)", rows4, runs=runs),
         summary_table("Eqs. 23-26", "SAPV geometry at 116°E 39°N 0 m, heading 100°, level, GEO 138°E "
                       "(exact Jacobians of aidnav.nav.geo_pointing)", rows5),
+        summary_table("Pitch: bias reading", "the pitch claim with Table 1's biases read as values, the same "
+                      "on every axis (the former spec row), and with the horizontal biases of opposite sign; "
+                      "the "
+                      "bias-tied tilt the antenna cannot see (no SPEC rows)", pitch_sens, kind="sensitivity"),
         summary_table("Initial heading", "sensitivity of the §1.3 velocity and heading targets to the "
                       f"initial heading error the seed does not give (erratum 12): {n_sweep} runs per value, "
-                      "same realisations; ratios SINS/GPS/SAPV over SINS/GPS. The §1.3 table uses "
-                      f"φ_U0 = {PHI0_DEG[2]:g}°; at 2° the velocity target fails (the heading error drives "
-                      "the north velocity through the Earth rate)", rows6, kind="sensitivity"),
+                      "same realisations; ratios SINS/GPS/SAPV over SINS/GPS. The §1.3 table uses the fitted "
+                      f"φ_U0 = {phi_u:g}°; φ_U0 = {PHI0_DEG[2]:g}° is the former decision (the largest value "
+                      "at which the ±15 % velocity comparison held). The larger φ_U0, the more SAPV lowers "
+                      "the "
+                      "north velocity error (the heading error drives it through the Earth rate)", rows6,
+                      kind="sensitivity", runs=n_sweep),
     ]
     notes = [
         "§1.2 errata followed: F_nav of §6 instead of eqs. (7)-(9) (1); H_p/H_v per eq. (4) (2); "
@@ -519,10 +627,13 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
         "seed's conclusion (position error negligible) holds. Erratum 9: eq. (25)'s δP order swapped.",
         "§1.2 item 11: Table 2's attitude rows are read as arc-minutes; its velocity rows are in the "
         "seed's order N, U, E.",
-        f"§1.2 item 12 / 1.3: initial misalignment φ_0 = {list(PHI0_DEG)} deg (E, N, U) in every run with "
-        f"P_0 matched; initial position error drawn with σ {POS0_SIGMA_M:g} m and velocity error with σ "
-        f"{VEL0_SIGMA_M_S:g} m/s (P_0 matched). The IMU biases are drawn per run (σ = Table 1) except in "
-        "the pitch row's runs (the seed's values); GPS and SAPV noise are white with Table 1's σ.",
+        f"§1.2 item 12 / 1.3: initial misalignment φ_0 = [{PHI0_DEG[0]:g}, {PHI0_DEG[1]:g}, {phi_u:g}] deg "
+        f"(E, N, U) in every run with P_0 matched; initial position error drawn with σ {POS0_SIGMA_M:g} m "
+        "and "
+        f"velocity error with σ {VEL0_SIGMA_M_S:g} m/s (P_0 matched). The IMU biases are drawn per run "
+        "(σ = Table 1) in every run of the SPEC rows; the fixed +500 µg / 0.1°/h on every axis (the seed's "
+        "values read as values) is a sensitivity row of the pitch claim. GPS and SAPV noise are white with "
+        "Table 1's σ.",
         "Table 1's 'random drift' terms are read as white-noise densities per √Hz (the seed000 IMU preset: "
         "0.01 deg/h/√Hz ARW, 100 µg/√Hz VRW); the filter's process noise and P_0 match the simulation.",
         "Choices where the seed is silent: IMU 100 Hz; SAPV at 1 Hz on the GPS epochs; the master filter "
@@ -540,31 +651,29 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
         "With the SAPV position columns included (§1.1 eq. 23) the results change by far less than the "
         "pointing noise (largest effect of 100 m: 0.002°); the seed's simplification (eq. 26) is the "
         "default.",
-        f"Initial heading error (the seed does not give it): φ_U0 = {PHI0_DEG[2]:g}° as decided in models.md "
-        "§1.3, the largest value for which the seed's own Table 2 relations (heading gain ≥ 10×, velocity "
-        "unchanged within ±15 %) hold together. Mechanism: on a static base the heading error drives the "
-        "north velocity error through the Earth rate (φ̇_E = −Ω cosL φ_U, δv̇_N = +g φ_E) and the SAPV "
-        "elevation observes the tilt about the axis perpendicular to the line of sight (mostly φ_E), so "
-        "the larger φ_U0 the more SAPV lowers the north velocity error too. The 'Initial heading' "
-        "sensitivity table shows the two ratio targets pulling opposite ways: velocity within ±15 % for "
-        f"φ_U0 <= {max(ok_v) if ok_v else float('nan'):g}°, heading ratio >= 10 for φ_U0 >= "
-        f"{min(ok_h) if ok_h else float('nan'):g}° (of the values swept, {n_sweep} runs each). At 2° "
-        f"SAPV lowers the north velocity std by {100 * (1 - sweep[max(sweep)]['vN']):.0f} %. The seed's own "
-        "up-velocity ratio (0.067/0.0851 = 0.79) is outside ±15 % too. Initial position and velocity "
-        "errors are those of a GPS fix (σ 10 m, 0.5 m/s).",
-        "'Pitch below ~2′ after 30 s' (§1.3; models.md §1.2 item 13) joins two statements of the seed: the "
-        "abstract's level accuracy (精度) with SAPV, 'less than 2′' (an accuracy figure, as its 'heading "
-        "less than 10′, one order of magnitude better' is Table 2's std 98.5′ → 2.87′), and §3.2's 'the "
-        "attitude errors are estimated within 30 s'. The seed's only pitch figures are Table 2's, over its "
-        "one run: mean −1.14′, std 0.79′ (RMS 1.39′); it gives no maximum. The spec row is that accuracy "
-        "once the attitude is estimated: the RMS of the pitch error after 30 s, in runs with Table 1's biases"
-        " as values (0.1°/h, 500 µg on every axis: the seed's one run), over 10× the Monte Carlo runs. The "
-        "strictest reading, |pitch| below 2′ at every epoch after 30 s, has no target and is shown beside "
-        "it: about half the runs touch 2′ just after 30 s, because the tilt about the line of sight's "
-        "horizontal direction, which the antenna does not see, is observed only through the GPS velocity "
-        "(σ 0.5 m/s) and is still converging at 30 s (the filter's own pitch σ is in that row; the "
-        "covariance rows give it for a GPS velocity σ of 0.25 and 0.1 m/s). The drawn-bias and opposite-sign "
-        "readings follow (informative).",
+        f"Initial heading error (the seed does not give it): φ_U0 = {phi_u:g}°, FITTED to the seed's Table 2 "
+        f"state 1 (SINS/GPS heading error mean {pm:g}′, std {ps:g}′): the grid value "
+        f"{', '.join(f'{p:g}' for p in PHI_U0_GRID_DEG)}° whose run-averaged SINS/GPS heading mean and std "
+        f"({n_sweep} runs each) have the least relative squared misfit (the 'φ_U0 fit' table: at "
+        f"{abs(phi_u):g}° {sweep[abs(phi_u)]['h_mean']:.1f}′ / {sweep[abs(phi_u)]['h_std']:.1f}′; "
+        "the sign is the one that gives the heading mean the paper's sign). Only the paper's reported "
+        "statistics "
+        "enter the fit; none of our targets does (§1.3, 2026-12-06). The former decision, φ_U0 = 1° (the "
+        "largest value at which our ±15 % velocity comparison held: a choice fitted to our targets), is a "
+        "row of the 'Initial heading' sensitivity table. Mechanism: on a static base the heading error "
+        "drives the north velocity error through the Earth rate (φ̇_E = −Ω cosL φ_U, δv̇_N = +g φ_E) and the "
+        "SAPV elevation observes the tilt about the axis perpendicular to the line of sight (mostly φ_E), "
+        "so the larger φ_U0 the more SAPV lowers the north velocity error too: at the fitted value the "
+        f"north ratio is {sweep[abs(phi_u)]['vN']:.2f} (the paper row 'within ±15 %' fails for that "
+        "reason; the spec row, SAPV does not degrade velocity, holds). The seed's own up-velocity ratio "
+        "(0.067/0.0851 = 0.79) is outside ±15 % too. Initial position and velocity errors are those of a "
+        "GPS fix (σ 10 m, 0.5 m/s).",
+        "Pitch and roll (§1.3, 2026-12-06): the seed's '精度 < 2′' (level accuracy with SAPV) is an accuracy "
+        "over runs, and §3.2 says the attitude errors are estimated within 30 s. The spec row is the "
+        "per-epoch RMS of the pitch error over runs (biases drawn per run), its largest value from 30 s on, "
+        "below 2′; the largest |pitch error| of any run after 30 s is shown without a target. The fixed "
+        "+500 µg on every axis (the former spec row) nearly cancels the one tilt the antenna cannot see "
+        "(k·sin α·|cos α − sin α|·∇/g) and is a sensitivity row, with the opposite-sign pattern beside it.",
         "SAPV NIS (§1.3) on the seed's federated filter: after each reset the SAPV local filter carries "
         "P_g/β_2 (β_2 = 1/2), so its own innovation covariance S = H P_g Hᵀ/β_2 + R overstates the state "
         "part twice and its NIS mean is below 2 by design (the 'Federated filter' table shows it). The "

@@ -8,13 +8,13 @@ from pathlib import Path
 import numpy as np
 
 from ._study import figure
-from .seed_000_setup import FED, GPS_ONLY, GPS_OUTAGE, SAPV_LOSS, VARIANTS
+from .seed_000_setup import FED, GPS_ONLY, GPS_OUTAGE, PAPER_T2, SAPV_LOSS, SETTLE_S, VARIANTS
 
 # ============================================================================ figures
 _fig = figure
 
 
-def _plot_seed_figs(mc, out: Path) -> list[str]:
+def plot_seed_figs(mc, out: Path) -> list[str]:
     """Figs. 1-6 of the seed: run 0, SINS/GPS vs SINS/GPS/SAPV (federated, fusion-reset, β = 1/2)."""
     names = [("heading", "Fig. 1 azimuth (heading) error", "arcmin", "fig1_heading_error.png"),
              ("roll", "Fig. 2 roll error", "arcmin", "fig2_roll_error.png"),
@@ -29,6 +29,12 @@ def _plot_seed_figs(mc, out: Path) -> list[str]:
         ax = axs[0, 0]
         ax.plot(a["t"], a[q], label="SINS/GPS (state 1)", lw=1.0)
         ax.plot(b["t"], b[q], label="SINS/GPS/SAPV federated (state 2)", lw=1.0)
+        for col, c in ((0, "C0"), (1, "C1")):  # the paper's printed Table 2: mean (dashed) ± std (dotted)
+            m, sd = PAPER_T2[q]["mean"][col], PAPER_T2[q]["std"][col]
+            ax.axhline(m, color=c, ls="--", lw=0.9,
+                       label=f"paper Table 2 state {col + 1}: mean {m:g}, std {sd:g}")
+            for y in (m - sd, m + sd):
+                ax.axhline(y, color=c, ls=":", lw=0.8)
         ax.set_ylabel(f"{q} error [{unit}]")
         ax.set_title(f"{title} (run 0)")
         ax.grid(alpha=0.3)
@@ -51,7 +57,7 @@ def _plot_seed_figs(mc, out: Path) -> list[str]:
     return files
 
 
-def _plot_variants(mc, out: Path) -> str:
+def plot_variants(mc, out: Path) -> str:
     fig, axs = _fig(1, 1, h=4.5)
     ax = axs[0, 0]
     for i, k in enumerate(VARIANTS):
@@ -68,7 +74,7 @@ def _plot_variants(mc, out: Path) -> str:
     return "fig7_heading_rms_variants.png"
 
 
-def _plot_loss(mc, out: Path) -> list[str]:
+def plot_loss(mc, out: Path) -> list[str]:
     fig, axs = _fig(1, 1, h=4.5)
     ax = axs[0, 0]
     for key, lab in (("none", "no loss"), ("reset", "SAPV lost, fusion-reset"),
@@ -103,3 +109,51 @@ def _plot_loss(mc, out: Path) -> list[str]:
     fig.tight_layout()
     fig.savefig(out / "fig9_gps_outage.png", dpi=110)
     return ["fig8_sapv_loss.png", "fig9_gps_outage.png"]
+
+
+def plot_pitch_rms(d, out: Path) -> str:
+    """Per-epoch RMS of the pitch error over runs (biases drawn per run) with the seed's 精度 < 2′ and 30 s
+    marked, the fixed-bias reading and the largest |pitch| of any run."""
+    fig, axs = _fig(1, 1, h=4.5)
+    ax = axs[0, 0]
+    t = d["t"]
+    ax.plot(t, d["rms"], lw=1.3, label=f"per-epoch RMS over {d['runs']} runs, biases drawn per run (SPEC)")
+    ax.fill_between(t, d["rms"] - 2 * d["se"], d["rms"] + 2 * d["se"], alpha=0.2, color="C0", label="±2 se")
+    ax.plot(t, d["fixed_rms"], lw=1.0, ls="--",
+            label=f"fixed +500 µg on every axis, {d['n_fixed']} runs (sensitivity)")
+    ax.plot(t, d["max_abs"], lw=0.8, color="0.5", label="largest |pitch| of any run (no target)")
+    ax.axhline(2.0, color="k", ls=":", lw=1.0, label="seed: level 精度 < 2′")
+    ax.axhline(abs(PAPER_T2["pitch"]["std"][1]), color="C3", ls="-.", lw=0.9,
+               label=f"seed Table 2 state 2 pitch std {PAPER_T2['pitch']['std'][1]:g}′")
+    ax.axvline(SETTLE_S, color="k", lw=0.8, ls="--")
+    ax.set_ylim(0, 6)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("pitch error [arcmin]")
+    ax.set_title("SINS/GPS/SAPV pitch error: per-epoch RMS over runs (seed: 精度 < 2′ within 30 s)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(out / "fig10_pitch_rms.png", dpi=110)
+    return "fig10_pitch_rms.png"
+
+
+def plot_fit(sweep: dict, phi_u: float, paper, out: Path) -> str:
+    """SINS/GPS heading mean and std against φ_U0 with the seed's Table 2 state 1 marked (the fit)."""
+    fig, axs = _fig(1, 1, h=4.0)
+    ax = axs[0, 0]
+    p = np.array(sorted(sweep))
+    for key, lab, c, pv in (("h_mean", "|mean|", "C0", abs(paper[0])), ("h_std", "std", "C1", paper[1])):
+        y = np.array([abs(sweep[x][key]) for x in p])
+        se = np.array([sweep[x][f"{key}_se"] for x in p])
+        ax.errorbar(p, y, yerr=2 * se, marker="o", color=c,
+                    label=f"ours: SINS/GPS heading error {lab} (±2 se)")
+        ax.axhline(pv, color=c, ls="--", lw=1.0, label=f"paper Table 2 state 1: {lab} {pv:g}′")
+    ax.axvline(abs(phi_u), color="k", ls=":", lw=1.0, label=f"fitted |φ_U0| (signed: {phi_u:g}°)")
+    ax.set_xlabel("initial heading error φ_U0 [deg]")
+    ax.set_ylabel("heading error [arcmin]")
+    ax.set_title("φ_U0 fitted to the seed's Table 2 state 1 (SINS/GPS heading mean and std)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(out / "fig0_phi_u0_fit.png", dpi=110)
+    return "fig0_phi_u0_fit.png"

@@ -1,24 +1,19 @@
-"""Seed 000: "with SAPV the pitch error is below ~2′ after 30 s" (§1.3), read as the seed states it.
+"""Seed 000: "with SAPV the level accuracy (精度) is below 2′ once the attitude is estimated (30 s)" (§1.3).
 
-What the seed claims (models.md §1.2 item 13): the abstract gives the level attitude *accuracy* (精度) with
-SAPV as "less than 2′", as it gives the heading accuracy as "less than 10′, one order of magnitude better"
-(its Table 2 standard deviations, 98.5′ → 2.87′); §3.2 says the attitude errors are estimated within 30 s.
-Its only pitch figures are Table 2's, over its one run: mean −1.14′, standard deviation 0.79′ (an RMS of
-1.39′). No maximum is given. The spec row is therefore the accuracy figure once the attitude is estimated:
-the RMS of the pitch error after 30 s, in runs with Table 1's constant drift 0.1°/h and accelerometer bias
-500 µg as values, the same on every axis (:data:`.seed_000_setup.SEED_RUN_IMU`: the seed's one run, not σ of
-a draw), over ``PITCH_RUNS_FACTOR × runs`` runs (the first ``runs`` share the main Monte Carlo's streams).
+Decided 2026-12-06: the seed's "精度 < 2′" is an accuracy over runs, not an every-epoch maximum, and the level
+biases are drawn per run from Table 1's σ (500 µg, 0.1°/h). The spec row is the **per-epoch RMS of the pitch
+error over runs**, its largest value from 30 s on, below 2′, over ``PITCH_RUNS_FACTOR × runs`` runs (the
+first ``runs`` are the main Monte Carlo's). The largest |pitch error| of any run after 30 s is shown without
+a target.
 
-The strictest reading, |pitch error| below 2′ at *every* epoch after 30 s, is shown beside it without a
-target, with its physics: on a static base the level tilt is seen through the GPS velocity (σ 0.5 m/s),
-which resolves a tilt of g·φ only as fast as a straight-line fit resolves a slope (σ_φ ≈ σ_v √(12/T³)/g);
-the SAPV elevation observes the tilt about the horizontal axis across the line of sight, not the tilt about
-the line of sight's horizontal direction, whose share in pitch is sin α (α: antenna azimuth from the nose).
-At 30 s that tilt is still converging (the filter's own pitch σ: 2.35′ at 30 s, 1.46′ at 60 s), so about half
-the runs touch 2′ just after 30 s; the covariance rows show how that σ scales with the GPS velocity σ. The
-other rows give the other readings of Table 1's biases: drawn per run with its values as σ (the bias-tied
-tilt :func:`pitch_bias_model` adds), and the sign pattern of the horizontal accelerometer biases that the
-antenna sees least.
+Sensitivity: Table 1's biases read as values, +500 µg and 0.1°/h on every axis (the former spec row,
+:data:`.seed_000_setup.SEED_RUN_IMU`): a fixed equal bias nearly cancels the one tilt the antenna cannot see,
+the tilt about the line of sight's horizontal direction (its pitch share sin α, α the antenna azimuth from
+the nose), which the filter can only split from the horizontal accelerometer bias by their priors
+(:func:`pitch_bias_model`: k·sin α·|cos α − sin α|·∇/g for equal biases against k·sin α·σ∇/g at 1σ for drawn
+ones). On a static base the level tilt is otherwise seen through the GPS velocity (σ 0.5 m/s), which resolves
+a tilt of g·φ only as fast as a straight-line fit resolves a slope; the covariance rows show how the filter's
+own pitch σ at 30 s scales with the GPS velocity σ.
 """
 
 from __future__ import annotations
@@ -44,20 +39,21 @@ from .seed_000_setup import (
     SETTLE_S,
     SWEEP_RUNS,
     VARIANTS,
-    _series,
     geometry_check,
+    seed_series,
     simulate_case,
 )
 from .summary import resolved_row, summary_row
 
-#: runs of the seed's-run pitch set per Monte Carlo run (cheap: one filter per run)
-PITCH_RUNS_FACTOR = 10
+#: runs of the drawn-bias pitch set per Monte Carlo run (one filter per run; the first ``runs`` are the main
+#: Monte Carlo's): the per-epoch RMS over 4 × 30 runs has a relative standard error of ≈ 6 %
+PITCH_RUNS_FACTOR = 4
 PITCH_LIMIT_ARCMIN = 2.0
 #: the seed's Table 2 pitch error with SAPV over its one run: (mean, std) [arcmin] (§1.2 item 11: arc-minutes)
 PAPER_PITCH_SAPV = (PAPER_T2["pitch"]["mean"][1], PAPER_T2["pitch"]["std"][1])
 
 __all__ = ["PITCH_RUNS_FACTOR", "pitch_bias_model", "fixed_bias_pitch", "pitch_sigma",
-           "pitch_sigma_vs_gps_velocity", "pitch_rows"]
+           "pitch_sigma_vs_gps_velocity", "pitch_rows", "per_epoch_rms"]
 
 
 def pitch_bias_model() -> dict:
@@ -81,19 +77,37 @@ def pitch_bias_model() -> dict:
             "adverse": k * math.sin(a) * abs(math.cos(a) + math.sin(a)) * tilt}
 
 
-def fixed_bias_pitch(n: int, base_seed: int, duration_s: float, imu=SEED_RUN_IMU) -> dict:
-    """The pitch error after ``SETTLE_S`` of the federated SINS/GPS/SAPV filter in each of ``n`` runs with the
-    IMU overrides ``imu`` (run i uses child i of ``SeedSequence(base_seed)``, as the main Monte Carlo does):
-    ``max`` the largest |pitch error| and ``ms`` its mean square over the epochs after ``SETTLE_S``, per run
-    [arcmin, arcmin²]."""
-    mx, ms = [], []
-    for ss in np.random.SeedSequence(base_seed).spawn(n):
-        sim, sv, cfg = simulate_case(ss, duration_s, imu=imu)
-        s = _series(run_federated(sim.imu, sim.gnss, sv, cfg, VARIANTS[FED]), sim.truth)
+def fixed_bias_pitch(n: int, base_seed: int, duration_s: float, imu=SEED_RUN_IMU, phi0=PHI0_DEG,
+                     skip: int = 0) -> dict:
+    """The pitch error of the federated SINS/GPS/SAPV filter in runs ``skip`` … ``n − 1`` with the IMU
+    overrides ``imu`` (None: biases drawn per run) and the initial misalignment ``phi0`` (run i uses child i
+    of ``SeedSequence(base_seed)``, as the main Monte Carlo does): ``max`` the largest |pitch error| and
+    ``ms`` its mean square over the epochs after ``SETTLE_S``, per run [arcmin, arcmin²]; ``t`` the epochs
+    [s] and ``series`` (runs, epochs) the pitch error [arcmin]."""
+    mx, ms, ser, t = [], [], [], None
+    for ss in np.random.SeedSequence(base_seed).spawn(n)[skip:]:
+        sim, sv, cfg = simulate_case(ss, duration_s, imu=imu, phi0_deg=phi0)
+        s = seed_series(run_federated(sim.imu, sim.gnss, sv, cfg, VARIANTS[FED]), sim.truth)
         p = s["pitch"][s["t"] > SETTLE_S]
         mx.append(float(np.max(np.abs(p))))
         ms.append(float(np.mean(p**2)))
-    return {"max": np.asarray(mx), "ms": np.asarray(ms)}
+        ser.append(s["pitch"])
+        t = s["t"]
+    return {"max": np.asarray(mx), "ms": np.asarray(ms), "t": t,
+            "series": np.asarray(ser) if ser else np.zeros((0, 0))}
+
+
+def per_epoch_rms(series) -> tuple[np.ndarray, np.ndarray]:
+    """(RMS over runs at each epoch, its standard error by the delta method on the mean square) of a
+    (runs, epochs) array."""
+    x2 = np.square(np.asarray(series, float))
+    n = x2.shape[0]
+    ms = x2.mean(axis=0)
+    r = np.sqrt(ms)
+    if n < 2:
+        return r, np.full_like(r, np.nan)
+    se = x2.std(axis=0, ddof=1) / np.sqrt(n) / (2 * np.maximum(r, 1e-300))
+    return r, se
 
 
 def pitch_sigma(res, t_s: float) -> float:
@@ -122,69 +136,89 @@ def pitch_sigma_vs_gps_velocity(base_seed: int, duration_s: float, sigmas=GPS_VE
     return out
 
 
-def pitch_rows(drawn_max, runs: int, base_seed: int, duration_s: float, sigma_t: dict):
-    """(spec rows, informative rows of the other readings) of the pitch claim. ``drawn_max``: per-run
-    largest |pitch| after ``SETTLE_S`` of the main Monte Carlo (biases drawn per run); ``sigma_t``:
-    {t [s]: the filter's pitch σ}."""
-    from scipy.stats import norm
+def pitch_rows(main_series, t, runs: int, base_seed: int, duration_s: float, sigma_t: dict, phi0):
+    """(spec rows, informative rows, sensitivity rows, figure data) of the pitch claim. ``main_series``:
+    (runs, epochs) pitch error of the main Monte Carlo's federated filter [arcmin] at the epochs ``t`` [s]
+    (biases drawn per run); ``sigma_t``: {t [s]: the filter's pitch σ}; ``phi0``: the initial
+    misalignment of the runs [deg]."""
+    from scipy.stats import norm  # lazy: scipy is heavy to import
 
     lim = PITCH_LIMIT_ARCMIN
     n = PITCH_RUNS_FACTOR * runs
-    seed_runs = fixed_bias_pitch(n, base_seed, duration_s)
-    seed_max, seed_ms = seed_runs["max"], seed_runs["ms"]
-    adv_max = fixed_bias_pitch(min(runs, SWEEP_RUNS), base_seed, duration_s, ADVERSE_RUN_IMU)["max"]
-    pb = pitch_bias_model()
-    # the accuracy figure: RMS over the runs of the pitch error after SETTLE_S (delta-method se of the root)
-    acc = math.sqrt(float(np.mean(seed_ms)))
-    acc_se = float(np.std(seed_ms, ddof=1) / math.sqrt(n)) / (2 * acc) if n > 1 else math.nan
+    extra = fixed_bias_pitch(n, base_seed, duration_s, imu=None, phi0=phi0, skip=runs)
+    P = np.asarray(main_series) if extra["series"].size == 0 else np.vstack([main_series, extra["series"]])
+    rms_t, se_t = per_epoch_rms(P)
+    after = t >= SETTLE_S - 1e-9
+    k = int(np.flatnonzero(after)[np.argmax(rms_t[after])])
+    worst, worst_se = float(rms_t[k]), float(se_t[k])
+    above = np.flatnonzero(rms_t >= lim)
+    t_below = float(t[above[-1] + 1]) if len(above) and above[-1] + 1 < len(t) else float(t[0])
+    pmax = float(np.max(np.abs(P[:, after])))
+    # sensitivity: Table 1's biases as values, the same on every axis (the former spec row), and the
+    # opposite-sign pattern
+    n_fix = min(runs, SWEEP_RUNS * 3)
+    fx = fixed_bias_pitch(n_fix, base_seed, duration_s, phi0=phi0)
+    fr, fse = per_epoch_rms(fx["series"])
+    fk = int(np.flatnonzero(after)[np.argmax(fr[after])])
     pm, ps = PAPER_PITCH_SAPV
-    row = summary_row(
-        f"pitch error RMS after {SETTLE_S:g} s, SINS/GPS/SAPV, over {n} of the seed's runs (Table 1's biases "
-        f"as values: 0.1°/h, 500 µg on every axis): the seed's level accuracy (精度) < {lim:g}′ once the "
-        f"attitude is estimated (≤ {SETTLE_S:g} s); the seed's Table 2, whole run: mean {pm:g}′, std {ps:g}′,"
-        f" RMS {math.hypot(pm, ps):.2f}′", "arcmin", acc, None, f"ours < {lim:g}", spec=True, stderr=acc_se,
-        margin=(lim - acc, acc_se))
-    spec = [resolved_row(row, n)]
-    frac = float(np.mean(seed_max < lim))
-    se = math.sqrt(max(frac * (1 - frac), 0.25 / n) / n)  # binomial (never 0: one run flips it)
-    sig = ", ".join(f"{v:.2f}′ at {t:g} s" for t, v in sigma_t.items())
-    share = math.sin(math.radians(pb["alpha_deg"]))
-    per_run = np.sqrt(seed_ms)
+    spec = [resolved_row(summary_row(
+        f"pitch error, per-epoch RMS over runs (biases drawn per run), largest from {SETTLE_S:g} s on (at "
+        f"{t[k]:g} s): the seed's level accuracy (精度) < {lim:g}′ once the attitude is estimated; "
+        "the seed's "
+        f"Table 2, whole run: mean {pm:g}′, std {ps:g}′", "arcmin", worst, None, f"ours < {lim:g}", spec=True,
+        stderr=worst_se, margin=(lim - worst, worst_se), runs=P.shape[0]), P.shape[0], why=(
+        f"the per-epoch RMS over runs is {worst:.2f} ± {worst_se:.2f}′ at {t[k]:g} s and stays below "
+        f"{lim:g}′ "
+        f"from {t_below:g} s on (mean over the epochs after {SETTLE_S:g} s: "
+        f"{float(np.sqrt(np.mean(rms_t[after] ** 2))):.2f}′). The tilt about the line of sight's horizontal "
+        "direction, which the antenna does not see, is observed only through the GPS velocity (σ "
+        f"{GPS_SIGMA_VEL_M_S:g} m/s) and is still converging at {SETTLE_S:g} s (the filter's own pitch σ "
+        "there: "
+        f"{sigma_t.get(SETTLE_S, float('nan')):.2f}′; the covariance rows show it for a smaller GPS velocity "
+        "σ). The seed's '30 s 以内' (within 30 s) is a round figure. With the biases fixed at +500 µg on "
+        f"every axis (the former reading, 'Pitch: bias reading') the largest RMS is {float(fr[fk]):.2f}′"))]
     info = [
-        summary_row(f"the seed's runs: fraction whose own pitch RMS after {SETTLE_S:g} s is below {lim:g}′ "
-                    f"(largest {float(np.max(per_run)):.2f}′; informative)", "-",
-                    float(np.mean(per_run < lim))),
-        summary_row(f"strictest reading (no target; the seed gives no maximum): fraction of the seed's runs "
-                    f"whose |pitch error| stays below {lim:g}′ at every epoch after {SETTLE_S:g} s. The tilt "
-                    f"about the line of sight's horizontal direction (sin α = {share:.2f} of it in pitch) is "
-                    f"seen only through the GPS velocity ({GPS_SIGMA_VEL_M_S:g} m/s) and is still converging "
-                    f"at {SETTLE_S:g} s: the filter's own pitch σ is {sig}", "-", frac, stderr=se),
-        summary_row(f"the seed's runs: largest |pitch error| after {SETTLE_S:g} s over all {n} runs "
-                    f"({int(np.sum(seed_max >= lim))} reach {lim:g}′; informative)", "arcmin",
-                    float(np.max(seed_max))),
-        summary_row(f"the seed's runs: median of the per-run largest |pitch error| after {SETTLE_S:g} s",
-                    "arcmin", float(np.median(seed_max))),
+        summary_row(f"pitch error, per-epoch RMS over runs: first epoch from which it stays below {lim:g}′",
+                    "s", t_below, runs=P.shape[0]),
+        summary_row(f"pitch error, per-epoch RMS over runs, mean over the epochs after {SETTLE_S:g} s",
+                    "arcmin",
+                    float(np.sqrt(np.mean(rms_t[after] ** 2))), runs=P.shape[0]),
+        summary_row(f"largest |pitch error| of any run after {SETTLE_S:g} s (no target: the seed gives no "
+                    f"maximum; {int(np.sum(np.max(np.abs(P[:, after]), axis=1) >= lim))} of {P.shape[0]} "
+                    "runs "
+                    f"touch {lim:g}′)", "arcmin", pmax, runs=P.shape[0]),
     ]
     for sv_, st in pitch_sigma_vs_gps_velocity(base_seed, duration_s).items():
         info.append(summary_row(
             f"covariance study: the filter's own pitch σ at {SETTLE_S:g} s if the GPS velocity σ were "
             f"{sv_:g} m/s (Table 1: {GPS_SIGMA_VEL_M_S:g}; at 60 s: {st[60.0]:.2f}′; informative)", "arcmin",
             st[SETTLE_S]))
-    dm = np.asarray(drawn_max)
-    fd = float(np.mean(dm < lim))
+    sig = ", ".join(f"{v:.2f}′ at {tt:g} s" for tt, v in sigma_t.items())
+    info.append(summary_row(f"the filter's own pitch σ (run 0): {sig}", "arcmin", sigma_t.get(SETTLE_S)))
+    adv = fixed_bias_pitch(min(runs, SWEEP_RUNS), base_seed, duration_s, ADVERSE_RUN_IMU, phi0=phi0)
+    ar, _ = per_epoch_rms(adv["series"])
+    pb = pitch_bias_model()
+    acc = math.sqrt(float(np.mean(fx["ms"])))
     sens = [
-        summary_row(f"biases drawn per run (σ = Table 1): fraction of runs below {lim:g}′ at every epoch "
-                    f"after {SETTLE_S:g} s ({len(dm)} runs; largest {float(np.max(dm)):.2f}′; informative)",
-                    "-", fd,
-                    stderr=math.sqrt(max(fd * (1 - fd), 0.25 / len(dm)) / len(dm))),
+        summary_row(f"fixed +500 µg / 0.1°/h on every axis (the former reading): per-epoch RMS over runs, "
+                    f"largest from {SETTLE_S:g} s on (same target; the fixed equal bias nearly cancels the "
+                    "tilt "
+                    "the antenna cannot see)", "arcmin", float(fr[fk]), None, f"ours < {lim:g}",
+                    stderr=float(fse[fk]), margin=(lim - float(fr[fk]), float(fse[fk])), runs=n_fix),
+        summary_row(f"fixed +500 µg on every axis: RMS of the pitch error pooled over {SETTLE_S:g}-"
+                    f"{duration_s:g} s (the former spec statistic)", "arcmin", acc, runs=n_fix),
+        summary_row(f"horizontal accelerometer biases of opposite sign (x +500, y −500 µg; bias-tied pitch "
+                    f"{pb['adverse']:.2f}′): per-epoch RMS over runs, largest from {SETTLE_S:g} s "
+                    "on", "arcmin",
+                    float(np.max(ar[after])), runs=len(adv["max"])),
         summary_row(f"biases drawn per run: the bias-tied pitch error alone, 1σ k·sin α·σ∇/g (k = "
                     f"{pb['k']:.3f} from the priors, α = {pb['alpha_deg']:.1f}°)", "arcmin", pb["sigma"]),
-        summary_row(f"the same, fraction of runs it keeps below {lim:g}′, P(|N(0, {pb['sigma']:.2f}′)| < "
-                    f"{lim:g}′)", "-", float(2 * norm.cdf(lim / pb["sigma"]) - 1)),
-        summary_row("Table 1's biases as values (+ on every axis): the bias-tied pitch error, "
-                    "k·sin α·|cos α − sin α|·∇/g", "arcmin", pb["seed"]),
-        summary_row(f"horizontal accelerometer biases of opposite sign (x +500, y −500 µg; bias-tied pitch "
-                    f"{pb['adverse']:.2f}′): fraction of {len(adv_max)} runs below {lim:g}′ after "
-                    f"{SETTLE_S:g} s (informative)", "-", float(np.mean(adv_max < lim))),
+        summary_row("fixed equal biases (+ on every axis): the bias-tied pitch error, "
+                    "k·sin α·|cos α − sin α|·∇/g",
+                    "arcmin", pb["seed"]),
+        summary_row(f"the bias-tied error alone keeps a run below {lim:g}′ with probability P(|N(0, "
+                    f"{pb['sigma']:.2f}′)| < {lim:g}′)", "-", float(2 * norm.cdf(lim / pb["sigma"]) - 1)),
     ]
-    return spec, info + sens
+    fig = {"t": t, "rms": rms_t, "se": se_t, "fixed_rms": fr, "adverse_rms": ar, "runs": P.shape[0],
+           "n_fixed": n_fix, "max_abs": np.max(np.abs(P), axis=0)}
+    return spec, info, sens, fig

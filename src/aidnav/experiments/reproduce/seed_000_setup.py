@@ -37,15 +37,25 @@ SEED_RUN_IMU = dict(bias_mode="fixed", gyro_bias_deg_h=0.1, accel_bias_ug=500.0)
 #: the same with the horizontal accelerometer biases of opposite sign (x +500, y −500 µg): the sign pattern
 #: that puts the most bias into the tilt the antenna cannot see (a sensitivity case)
 ADVERSE_RUN_IMU = dict(bias_mode="fixed", gyro_bias_deg_h=0.1, accel_bias_ug=(500.0, -500.0, 500.0))
-PHI0_DEG = (0.1, 0.1, 1.0)  #: initial misalignment φ_E, φ_N, φ_U [deg] (§1.3, decided)
+#: initial misalignment φ_E, φ_N, φ_U [deg] of the 2026-12-01 decision: φ_U0 = 1° (the largest value at
+#: which our own targets held) is now the sensitivity case (§1.3, superseded 2026-12-06); the default φ_U0
+#: is fitted to the seed's Table 2 state-1 heading statistics by :func:`.seed_000.phi_u0_fit` over
+#: PHI_U0_GRID_DEG
+PHI0_DEG = (0.1, 0.1, 1.0)
+#: the φ_U0 values [deg] of the fit to Table 2 state 1 (SINS/GPS heading mean −76.9′, std 98.5′); the fitted
+#: default is the grid value whose run-averaged heading mean and std match those best (relative squared error)
+PHI_U0_GRID_DEG = (1.0, 2.0, 3.0, 3.5, 4.0, 5.0)
+#: the seed's Table 2 state 1 (SINS/GPS) heading error over its 500-s run: (mean, std) [arcmin]
+PAPER_STATE1_HEADING = (-76.9119, 98.5442)
 POS0_SIGMA_M = 10.0  #: initial position error σ [m]: the INS starts from a GPS fix (σ 10 m)
 VEL0_SIGMA_M_S = 0.5  #: initial velocity error σ [m/s]: from a GPS velocity (σ 0.5 m/s)
 #: initial heading errors [deg] of the sensitivity sweep of the velocity target (§1.3, erratum 12)
-HEADING0_SWEEP_DEG = (0.1, 0.5, 1.0, 2.0)
+HEADING0_SWEEP_DEG = PHI_U0_GRID_DEG
 SWEEP_RUNS = 10
-#: the §1.3 velocity ratios run over this many times the runs (SINS/GPS and the federated filter only; the
-#: north ratio sits near its ±15 % boundary by the φ_U0 decision: 300 runs left it at 1.99 se: raised to 600)
-RATIO_RUNS_FACTOR = 20
+#: the §1.3 velocity ratios run over this many times the runs (SINS/GPS and the federated filter only). With
+#: φ_U0 fitted to Table 2 the spec row (SAPV does not degrade velocity, ratio ≤ 1.1) is far from its
+#: boundary and the ±15 % comparison is a paper row: the main runs resolve both (was 20 under the 1° decision)
+RATIO_RUNS_FACTOR = 1
 SETTLE_S = 30.0  #: "with SAPV the heading error is below 10′ after ≤ 30 s"
 LAST_S = 400.0  #: heading RMS ratio over the last 400 s
 SAPV_LOSS = (200.0, 300.0)  #: SAPV lost (blockage) in this window [s]
@@ -138,14 +148,16 @@ def filter_config(truth, rng, phi0_deg=PHI0_DEG, draw_attitude: bool = False,
     return loose_config_from_specs(ImuSpec.grade("seed000"), gspec, init_rph_deg=rph, init_lla_deg_m=lla,
                                    init_vel=truth.vel[0] + dv, position_sigma_m=(pos_sigma_m,) * 3,
                                    velocity_sigma_m_s=(vel_sigma_m_s,) * 3,
-                                   attitude_sigma_deg=tuple(float(x) for x in np.abs(phi0_deg)))
+                                   attitude_sigma_deg=tuple(float(x) for x in np.abs(phi0_deg)),
+                                   sensor_model=False)  # SPEC §1.1: the 15-state model
 
 
 def simulate_case(seed_seq: np.random.SeedSequence, duration_s: float = DURATION_S, gps_outages=(),
-                  sapv_changes=None, draw_attitude: bool = False, imu=None):
+                  sapv_changes=None, draw_attitude: bool = False, imu=None, phi0_deg=PHI0_DEG):
     """One Monte Carlo realisation: (sim result, SAPV data, filter config). Independent streams for the
     IMU/GPS simulation, the antenna and the initial errors are spawned from ``seed_seq``; ``imu``: IMU
-    overrides (:func:`seed_scenario`; the filter's P_0 keeps Table 1's σ)."""
+    overrides (:func:`seed_scenario`; the filter's P_0 keeps Table 1's σ); ``phi0_deg``: the initial
+    misalignment (E, N, U) [deg]."""
     from aidnav.sim.run import simulate
     from aidnav.sim.sapv import simulate_sapv
 
@@ -156,7 +168,8 @@ def simulate_case(seed_seq: np.random.SeedSequence, duration_s: float = DURATION
     sim = simulate(seed_scenario(duration_s, gps_outages=gps_outages, imu=imu),
                    seed=int(s_sim.generate_state(1)[0]))
     sv = simulate_sapv(sim.truth, sapv_spec(**(sapv_changes or {})), np.random.default_rng(s_sapv))
-    cfg = filter_config(sim.truth, np.random.default_rng(s_init), draw_attitude=draw_attitude)
+    cfg = filter_config(sim.truth, np.random.default_rng(s_init), phi0_deg=phi0_deg,
+                        draw_attitude=draw_attitude)
     return sim, sv, cfg
 
 
@@ -181,7 +194,7 @@ def error_state(res, truth, realised):
     return errors.ins_error_state(res, truth, realised)
 
 
-def _series(res, truth) -> dict:
+def seed_series(res, truth) -> dict:
     """Error time series in the seed's units: attitude [arcmin], velocity [m/s]."""
     e = euler_errors(res, truth) / ARCMIN
     v = velocity_errors(res, truth)

@@ -11,7 +11,7 @@ from .seed_001_setup import APP_S, OUT_S, PRE_S
 
 
 # ----------------------------------------------------------------------------------------- figures
-def _figures(out: Path, s, curves, rel) -> list[str]:
+def seed_figures(out: Path, s, curves, rel, curves_c=None) -> list[str]:
     from matplotlib.backends.backend_agg import FigureCanvasAgg  # lazy: matplotlib is heavy to import
     from matplotlib.figure import Figure  # lazy: matplotlib is heavy to import
 
@@ -53,9 +53,15 @@ def _figures(out: Path, s, curves, rel) -> list[str]:
     ax[1].fill_between(
         tc, np.percentile(curves, 10, 0), np.percentile(curves, 90, 0), color="0.8", label="10-90 %"
     )
+    if curves_c is not None:  # pure dead reckoning (case C: no satellites for the whole approach)
+        ax[1].plot(tc, np.median(curves_c, 0), "C3--", label="pure dead reckoning (no satellites), median")
+        ax[1].fill_between(tc, np.percentile(curves_c, 10, 0), np.percentile(curves_c, 90, 0), color="C3",
+                           alpha=0.12, label="pure DR 10-90 %")
     ax[1].axvline(OUT_S, color="r", ls="--")
     ax[1].set_xlabel("time since the start of the approach [s]")
     ax[1].set_ylabel("|DR error| [m], all runs")
+    ax[1].set_title("median over the runs: 0 then 2 satellites (case B) vs pure dead reckoning (case C); "
+                    "the seed prints no numbers", fontsize=9)
     ax[1].legend(fontsize=8)
     for a in ax:
         a.grid(alpha=0.3)

@@ -13,9 +13,9 @@ from matplotlib.figure import Figure
 from aidnav.nav.earth import lla_to_enu
 from aidnav.sim.distributed_pos import FlexureSpec, flexure_autocorrelation
 
-from .seed_004_tables import LABEL, MODES
+from .seed_004_tables import LABEL, MODES, PAPER_T4, PAPER_T5, T1_VALUES
 
-__all__ = ["fig_trajectories", "fig_attitude", "fig_sweeps", "fig_design", "fig_flexure"]
+__all__ = ["fig_trajectories", "fig_attitude", "fig_sweeps", "fig_design", "fig_flexure", "fig_heading_sigma"]
 
 
 # ----------------------------------------------------------------------------------------- figures
@@ -69,6 +69,11 @@ def fig_attitude(out: Path, results: dict) -> str:
             else:
                 lim = 0.05 if mode == "none" else 0.01
             ax.set_ylim(-lim, lim)
+            ps = PAPER_T4[mode][i]  # the paper's Table 4 STD on the imaging legs: ± lines
+            ax.axhline(ps, color="C3", ls="--", lw=0.8, label=f"paper Table 4 STD ±{ps:g}")
+            ax.axhline(-ps, color="C3", ls="--", lw=0.8)
+            if i == 0 and j == 0:
+                ax.legend(fontsize=6, loc="upper right")
             if j == 0:
                 ax.set_ylabel(f"{q} error [deg]")
             if i == 0:
@@ -144,3 +149,36 @@ def fig_flexure(out: Path, chk: dict, spec: FlexureSpec) -> str:
     ax.grid(alpha=0.3)
     fig.tight_layout()
     return _save(fig, out / "flexure.png")
+
+
+def _maneuver_end(segments) -> float:
+    """Start of the straight leg after the maneuver: the T1 leg when there is one, else AB [s]."""
+    names = [r["name"] for r in segments]
+    key = "T1" if "T1" in names else "AB"
+    return float(next(r["start_s"] for r in segments if r["name"] == key))
+
+
+def fig_heading_sigma(out: Path, t5: dict) -> str:
+    """Heading σ(t) of the filter (run 1) across the end of the figure-8 maneuver for each T1 of Table 5: the
+    seed's mechanism for T1 (the heading keeps settling on the straight leg before AB), with the paper's
+    Table 5 heading STD beside each curve's AB start."""
+    fig = Figure(figsize=(11, 4.5))
+    ax = fig.add_subplot(1, 1, 1)
+    for i, t1 in enumerate(T1_VALUES):
+        fr = t5[t1].first
+        t0 = _maneuver_end(fr["segments"])
+        ab = float(next(r["start_s"] for r in fr["segments"] if r["name"] == "AB")) - t0
+        tt = fr["time"] - t0
+        m = (tt >= -300) & (tt <= ab + 400)
+        ax.semilogy(tt[m], fr["sigma"][m, 2], color=f"C{i}", lw=1.0, label=f"T1 = {t1} s (AB from {ab:g} s)")
+        ax.axvline(ab, color=f"C{i}", ls=":", lw=0.8)
+        ax.plot([ab], [PAPER_T5[t1][0]], marker="*", ms=9, color=f"C{i}", ls="none")
+    ax.plot([], [], marker="*", ls="none", color="k", label="paper Table 5 heading STD (at AB)")
+    ax.axvline(0.0, color="k", lw=1.0)
+    ax.set_xlabel("time since the end of the figure-8 maneuver [s]")
+    ax.set_ylabel("filter heading σ [deg]")
+    ax.set_title("Heading σ(t) across the end of the maneuver (run 1): the seed's mechanism for T1")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=7, ncol=2)
+    fig.tight_layout()
+    return _save(fig, out / "heading_sigma_t1.png")

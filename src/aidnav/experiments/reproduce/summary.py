@@ -23,12 +23,14 @@ import ast
 import json
 import math
 import operator
+import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-__all__ = ["Target", "summary_row", "summary_table", "write_summary", "evaluate_target", "check_expression",
-           "check_row", "count_verdicts", "SummaryError", "VERDICTS", "resolved_row"]
+__all__ = ["Target", "summary_row", "summary_table", "grid_table", "write_summary", "evaluate_target",
+           "check_expression", "check_row", "count_verdicts", "SummaryError", "VERDICTS", "resolved_row",
+           "target_shown", "STRUCTURAL_NULL"]
 
 
 class SummaryError(ValueError):
@@ -142,7 +144,10 @@ def _num(x):
     return None if not math.isfinite(x) else x
 
 
-VERDICTS = ("holds", "fails", "unresolved")
+#: the verdict of a compared effect that is exactly zero by construction (distance 0 from the boundary with a
+#: standard error of 0: the runs cannot move it, more runs would not resolve it); not a failure of the runs
+STRUCTURAL_NULL = "structural-null"
+VERDICTS = ("holds", "fails", "unresolved", STRUCTURAL_NULL)
 
 
 def _g(x) -> str:
@@ -154,7 +159,8 @@ RESOLVE_SE = 2.0
 
 def summary_row(quantity: str, unit: str, ours, paper=None, target=None,
                 values: Mapping[str, float] | None = None, *, spec: bool = False, stderr=None,
-                margin: tuple[float, float] | None = None, reason: str | None = None) -> dict:
+                margin: tuple[float, float] | None = None, reason: str | None = None,
+                runs: int | None = None) -> dict:
     """One row of a reproduction table (keys: see ``docs/reproduce_schema.md``).
 
     ``holds`` is the verdict of ``target`` (None without a target: a configuration echo or an informative
@@ -163,7 +169,10 @@ def summary_row(quantity: str, unit: str, ours, paper=None, target=None,
     ``ours`` (None when ``ours`` is not a Monte Carlo statistic). ``margin = (d, se)``: for a trend or
     ordering between Monte Carlo statistics, the signed distance ``d`` of the compared statistic from the
     target's boundary and its standard error ``se``; the verdict is ``unresolved`` when
-    ``|d| < 2 se``. ``reason``: why a row fails or is unresolved (a default is written when not given).
+    ``|d| < 2 se``, and ``structural-null`` when ``d`` and ``se`` are both exactly 0 (an effect that is zero
+    by construction). ``holds`` is True exactly when the verdict is ``holds``. ``reason``: why a row fails
+    or is unresolved (a default is written when not given). ``runs``: the Monte Carlo runs behind ``ours``
+    (None: the table's, see :func:`summary_table`; 0: not a Monte Carlo number, e.g. a formula check).
     """
     o, p = _num(ours), _num(paper)
     holds = None
@@ -184,8 +193,12 @@ def summary_row(quantity: str, unit: str, ours, paper=None, target=None,
         mg = {"value": d, "stderr": se}
     if holds is not None:
         verdict = _verdict(holds, mg)
+        holds = verdict == "holds"
         if verdict != "holds" and not reason:
-            if verdict == "unresolved" and mg["stderr"] is None:
+            if verdict == STRUCTURAL_NULL:
+                reason = ("the compared effect is exactly zero by construction (distance 0 from the target's "
+                          "boundary in every run, standard error 0): no number of runs resolves it")
+            elif verdict == "unresolved" and mg["stderr"] is None:
                 reason = "no Monte Carlo standard error (one run): the trend cannot be resolved"
             elif verdict == "unresolved":
                 reason = (f"within {RESOLVE_SE:g} standard errors of the target's boundary "
@@ -198,7 +211,8 @@ def summary_row(quantity: str, unit: str, ours, paper=None, target=None,
     row = {"quantity": str(quantity), "unit": str(unit), "paper": p, "ours": o, "stderr": _num(stderr),
            "target": text, "holds": holds, "verdict": verdict, "spec": bool(spec) and text is not None,
            "reason": None if verdict in (None, "holds") else str(reason), "margin": mg,
-           "values": vals or None}
+           "values": vals or None, "runs": None if runs is None else int(runs), "check": None}
+    row["check"] = target_shown(row)
     if isinstance(target, Target):
         row["_fn"] = target.fn
     return row
@@ -207,6 +221,8 @@ def summary_row(quantity: str, unit: str, ours, paper=None, target=None,
 def _verdict(holds: bool, margin: dict | None) -> str:
     if margin is not None:
         d, se = margin["value"], margin["stderr"]
+        if d == 0 and se == 0:
+            return STRUCTURAL_NULL
         if d is None or se is None or abs(d) < RESOLVE_SE * se:
             return "unresolved"
     return "holds" if holds else "fails"
@@ -239,20 +255,70 @@ def resolved_row(row: dict, runs: int, why: str = "") -> dict:
         reason = f"{reason}. {why}"
     return summary_row(f"{row['quantity']} [{row['target']}, resolved at {k:g} se over {runs} runs]",
                        row["unit"], row["ours"], row["paper"], f"d >= {k:g} * se", {"d": d, "se": se},
-                       spec=row["spec"], stderr=row["stderr"], reason=reason)
+                       spec=row["spec"], stderr=row["stderr"], reason=reason, runs=row.get("runs") or runs)
 
 
-def summary_table(name: str, caption: str, rows: list[dict], kind: str = "results") -> dict:
+def summary_table(name: str, caption: str, rows: list[dict], kind: str = "results",
+                  runs: int | None = None) -> dict:
     """``{name, caption, kind, rows}``; ``kind``: "results", "setting" (configuration echoes) or
-    "sensitivity" (a study of a choice the seed leaves open)."""
+    "sensitivity" (a study of a choice the seed leaves open). ``runs``: the Monte Carlo runs of the rows
+    that do not state their own (configuration echoes without a target or standard error keep none)."""
     if kind not in TABLE_KINDS:
         raise SummaryError(f"table {name!r}: kind must be one of {', '.join(TABLE_KINDS)}")
-    return {"name": str(name), "caption": str(caption), "kind": kind, "rows": list(rows)}
+    out = []
+    for r in rows:
+        if runs is not None and r.get("runs") is None and (r.get("target") is not None
+                                                           or r.get("stderr") is not None
+                                                           or kind != "setting"):
+            r = dict(r, runs=int(runs))
+        out.append(r)
+    return {"name": str(name), "caption": str(caption), "kind": kind, "rows": out}
+
+
+def grid_table(name: str, caption: str, cells: Mapping[tuple[str, str], dict], row_labels, col_labels,
+               extra_rows=(), kind: str = "results", runs: int | None = None) -> dict:
+    """A table shaped like the paper's: ``cells[(row label, column label)]`` is the row (of
+    :func:`summary_row`) shown in that cell (paper value, ours ± se, verdict when it has a target);
+    ``extra_rows`` (predicates, informative numbers) follow as an ordinary table. The summary keeps every
+    row; ``grid`` = ``{"rows": row labels, "cols": column labels, "index": [[row index or null]]}``."""
+    rows = list(cells.values()) + list(extra_rows)
+    keys = list(cells)
+    index = [[keys.index((r, c)) if (r, c) in cells else None for c in col_labels] for r in row_labels]
+    t = summary_table(name, caption, rows, kind, runs)
+    t["grid"] = {"rows": [str(r) for r in row_labels], "cols": [str(c) for c in col_labels], "index": index}
+    return t
 
 
 TABLE_KINDS = ("results", "setting", "sensitivity")
 _ROW_KEYS = ("quantity", "unit", "paper", "ours", "stderr", "target", "holds", "verdict", "spec", "reason",
-             "margin", "values")
+             "margin", "values", "runs", "check")
+
+
+def _fmt_num(x: float) -> str:
+    return f"{x:.4g}"
+
+
+def target_shown(row: Mapping) -> str | None:
+    """The target with its numbers: every name (``ours``, ``paper``, the ``values``) replaced by its value,
+    e.g. ``lo <= ours <= hi`` → ``0.95 <= 1.02 <= 1.05``; None without a target, the target itself when it
+    is code (:class:`Target`)."""
+    t = row.get("target")
+    if t is None:
+        return None
+    env = {"ours": row.get("ours"), "paper": row.get("paper"), **(row.get("values") or {})}
+    try:
+        names = _names(_parse(t))
+    except SummaryError:
+        return t
+
+    def sub(m):
+        k = m.group(0)
+        if k in names and k in env:
+            v = env[k]
+            return "–" if v is None else _fmt_num(v)
+        return k
+
+    return re.sub(r"[A-Za-z_][A-Za-z0-9_]*", sub, t)
 
 
 def check_row(r: Mapping, where: str = "") -> None:
@@ -284,15 +350,16 @@ def check_row(r: Mapping, where: str = "") -> None:
             expect = evaluate_target(r["target"], r["ours"], r["paper"], r["values"] or {})
     except SummaryError as e:
         raise SummaryError(f"{q}: its target cannot be checked: {e}") from None
-    if expect != r["holds"]:
-        raise SummaryError(f"{q}: holds = {r['holds']} disagrees with its target {r['target']!r} "
-                           f"(ours = {r['ours']}, paper = {r['paper']}: {expect})")
     mg = r["margin"]
     if mg is not None and (not isinstance(mg, Mapping) or set(mg) != {"value", "stderr"}):
         raise SummaryError(f"{q}: margin must be {{value, stderr}}")
-    v = _verdict(r["holds"], mg)
+    v = _verdict(expect, mg)
     if r["verdict"] != v:
-        raise SummaryError(f"{q}: verdict {r['verdict']!r} disagrees with holds and margin ({v!r})")
+        raise SummaryError(f"{q}: verdict {r['verdict']!r} disagrees with its target {r['target']!r} and "
+                           f"margin ({v!r}; ours = {r['ours']}, paper = {r['paper']}: {expect})")
+    if r["holds"] != (v == "holds"):
+        raise SummaryError(f"{q}: holds = {r['holds']} but the verdict is {v!r} (holds must be verdict == "
+                           "'holds')")
     if v != "holds" and not (isinstance(r["reason"], str) and r["reason"].strip()):
         raise SummaryError(f"{q}: a row that is {v} needs a reason")
 
@@ -320,9 +387,14 @@ def write_summary(out_dir, *, seed: str, title: str, runs: int, base_seed: int, 
             raise SummaryError(f"table {t['name']!r}: kind must be one of {', '.join(TABLE_KINDS)}")
         rows = []
         for r in t["rows"]:
+            r = {"runs": None, **r}
+            r["check"] = target_shown(r)
             check_row(r, f"table {t['name']!r}, ")
             rows.append({k: r[k] for k in _ROW_KEYS})
-        out_tables.append({"name": t["name"], "caption": t["caption"], "kind": kind, "rows": rows})
+        tab = {"name": t["name"], "caption": t["caption"], "kind": kind, "rows": rows}
+        if t.get("grid") is not None:
+            tab["grid"] = t["grid"]
+        out_tables.append(tab)
     doc = {"seed": str(seed), "title": str(title), "aidnav_version": aidnav_version, "runs": int(runs),
            "base_seed": int(base_seed), "tables": out_tables, "figures": [str(f) for f in figures],
            "notes": [str(n) for n in notes], "verdicts": count_verdicts(out_tables)}

@@ -1,0 +1,203 @@
+"""The figures, maps and page of ``aidnav process`` drawn beside the filter (issue 41).
+
+:func:`start_outputs` forks, on Linux and from a process with no other thread (as ``characterise`` does
+with its :class:`aidnav.apps.characterise.FigureProcess`), a child that imports matplotlib and the report
+modules and warms their font and text caches while the parent reads the logs and runs the filter. After
+the filter, :func:`write_outputs` sends the child what the page needs (the decimated trajectory, the
+fixes, the summary, the innovation records: a few MB through a pipe); the child draws ``overview.png``
+and writes ``run.html`` while the parent writes the maps (``trajectory.kml``, ``trajectory.geojson``);
+the parent then waits for the child and raises its error, with the child's traceback as a note. The
+files are those :func:`aidnav.report.run_page.write_run_outputs` writes in one process (a test compares
+the bytes). Where no fork is possible (another OS, a thread running: a Dask worker, a notebook's kernel),
+everything is drawn in this process after the filter.
+"""
+
+from __future__ import annotations
+
+import os
+import pickle
+import signal
+import sys
+import threading
+import traceback
+import weakref
+
+__all__ = ["OutputsProcess", "start_outputs", "write_outputs", "FORK_OUTPUTS", "IN_PROCESS"]
+
+#: draw in a forked child process (Linux; elsewhere: in this process after the filter)
+FORK_OUTPUTS = sys.platform.startswith("linux") and hasattr(os, "fork")
+#: ``figures=IN_PROCESS``: drawn in this process, no child (``aidnav fleet``'s workers draw log after log
+#: with matplotlib loaded once)
+IN_PROCESS = "in-process"
+
+
+def _warm_up() -> None:
+    """Import the page's modules and draw the overview of a small made-up run at a low resolution: the
+    fonts, the glyph and text caches, the log axes' tick labels (mathtext), the legends and the PNG
+    writer loaded before the run's own figure is drawn."""
+    import io  # lazy: the warm-up's image, in the child only
+
+    import numpy as np  # lazy: (loaded by the parent already)
+
+    from aidnav.data import Trajectory  # lazy: (loaded by the parent already)
+    from aidnav.report.overview import overview_figure  # lazy: matplotlib and the figure's modules
+
+    n = 60
+    t = np.arange(n, dtype=float)
+    z = np.zeros(n)
+    lat, lon = np.radians(30.0) + 1e-7 * t, np.radians(114.0) + 1e-7 * np.sin(t)
+    sig = np.column_stack([0.5 + z, 0.5 + z, 0.8 + z])
+    traj = Trajectory(t, lat, lon, 50.0 + z, np.zeros((n, 3)), np.column_stack([z, z, 0.1 * t]), sig,
+                      sig * 0.1, np.radians(sig))
+    rec = {"time": t[::5], "pos_nis": 1.0 + (t[::5] % 7), "pos_status": np.ones(12, int)}
+    fig = overview_figure(traj, None, {"outage_windows": [[10.0, 20.0]]}, rec, title="warm-up σ χ²")
+    fig.savefig(io.BytesIO(), format="png", dpi=20)
+
+
+def _serve(job_fd: int):
+    """The child's work: warm up, then read one job (out_dir, traj, gnss, summary, records) and write the
+    overview and the page. Returns ("ok", paths), ("error", pickled exception or None, traceback) or None
+    (the parent closed the pipe without a job)."""
+    try:
+        _warm_up()
+    except Exception:  # noqa: BLE001  (the same import fails again below, and is reported)
+        pass
+    with os.fdopen(job_fd, "rb") as f:
+        try:
+            job = pickle.load(f)
+        except EOFError:
+            return None
+    try:
+        from aidnav.report.run_page import write_run_outputs  # lazy: matplotlib (loaded by the warm-up)
+
+        out_dir, traj, gnss, summary, records = job
+        return "ok", write_run_outputs(out_dir, traj, gnss, summary, records, maps=False)
+    except BaseException as e:  # noqa: BLE001  (raised in the parent)
+        try:
+            exc = pickle.dumps(e)
+        except Exception:  # noqa: BLE001  (an exception that does not pickle: its text only)
+            exc = None
+        return "error", exc, traceback.format_exc()
+
+
+def _end(pid: int, fds: list) -> None:
+    """Close the pipes and end the child (a job never sent: the parent failed before its outputs)."""
+    for f in fds:
+        try:
+            f.close() if hasattr(f, "close") else os.close(f)
+        except OSError:
+            pass
+    try:
+        os.kill(pid, signal.SIGKILL)
+        os.waitpid(pid, 0)
+    except (ChildProcessError, ProcessLookupError):
+        pass
+
+
+class OutputsProcess:
+    """A forked child that writes ``overview.png`` and ``run.html`` of one run (module doc). ``send`` the
+    job once, then ``result()``; an instance dropped without a job ends its child."""
+
+    def __init__(self, serve=_serve):
+        job_r, job_w = os.pipe()
+        res_r, res_w = os.pipe()
+        pid = os.fork()
+        if pid == 0:  # the child: never returns
+            status = 1
+            try:
+                os.close(job_w)
+                os.close(res_r)
+                res = serve(job_r)
+                with os.fdopen(res_w, "wb") as f:
+                    f.write(pickle.dumps(res))
+                status = 0
+            finally:
+                os._exit(status)
+        os.close(job_r)
+        os.close(res_w)
+        self.pid = pid
+        self._job_w = os.fdopen(job_w, "wb")
+        self._res_r = res_r
+        self._sender = None
+        self._finalizer = weakref.finalize(self, _end, pid, [self._job_w, res_r])
+
+    def send(self, out_dir, traj, gnss, summary, records) -> None:
+        """The job: the child draws from these (pickled now: later changes are not seen)."""
+        job_w, self._job_w = self._job_w, None
+        if job_w is None:
+            raise RuntimeError("OutputsProcess: send called twice")
+        data = pickle.dumps((str(out_dir), traj, gnss, summary, records), protocol=pickle.HIGHEST_PROTOCOL)
+
+        def write():  # in a thread: the child may still be warming up, the maps are written meanwhile
+            try:
+                with job_w:
+                    job_w.write(data)
+            except (BrokenPipeError, OSError):  # the child is gone: its status is reported by result()
+                pass
+
+        self._sender = threading.Thread(target=write, name="aidnav-outputs-job", daemon=True)
+        self._sender.start()
+
+    def result(self) -> dict:
+        """The paths the child wrote; its error raised here."""
+        if self._sender is not None:
+            self._sender.join()
+        with os.fdopen(self._res_r, "rb") as f:
+            out = f.read()
+        self._finalizer.detach()
+        _, status = os.waitpid(self.pid, 0)
+        res = pickle.loads(out) if out else None
+        if not res:
+            raise RuntimeError(f"the figure process ended without writing the overview (status {status})")
+        if res[0] == "ok":
+            return res[1]
+        _, exc, tb = res
+        try:
+            exc = pickle.loads(exc)
+        except Exception:  # noqa: BLE001  (None, or an exception that does not unpickle)
+            exc = RuntimeError(f"the figure process failed:\n{tb}")
+        else:
+            exc.add_note(f"(raised in the figure process)\n{tb}")
+        raise exc
+
+    def close(self) -> None:
+        """End the child without outputs (nothing after ``result``)."""
+        self._finalizer()
+
+
+def start_outputs(figures=True):
+    """What ``process_logs(figures=...)`` draws with: an :class:`OutputsProcess` forked now where that is
+    possible (Linux, no other thread), else ``figures`` itself (True or :data:`IN_PROCESS`: in this process;
+    False: none). An
+    :class:`OutputsProcess` given is returned as it is (the command forks before its progress bar's
+    thread starts)."""
+    if figures is True and FORK_OUTPUTS and threading.active_count() == 1:
+        try:
+            return OutputsProcess()
+        except OSError:  # no fork (limits): drawn here
+            return True
+    return figures
+
+
+def write_outputs(figures, out_dir, traj, gnss, summary, records, progress=None) -> dict:
+    """Everything a run leaves to look at (:func:`aidnav.report.run_page.write_run_outputs`): by the
+    child of ``figures`` (an :class:`OutputsProcess`) with the maps written here meanwhile, or all here
+    (``figures`` True). Returns {"overview", "run_page", "kml", "geojson"} → paths."""
+    if not isinstance(figures, OutputsProcess):
+        from aidnav.report.run_page import write_run_outputs  # lazy: pulls in matplotlib
+
+        return write_run_outputs(out_dir, traj, gnss, summary, records, progress=progress)
+    from pathlib import Path  # lazy: the maps' base name only
+
+    from aidnav.report.maps import write_maps  # lazy: the maps (no matplotlib)
+
+    if progress is not None:
+        progress.stage("figures and maps", total=3, unit="steps")
+    figures.send(out_dir, traj, gnss, summary, records)
+    kml, gj = write_maps(Path(out_dir) / "trajectory", traj, gnss, summary)
+    if progress is not None:
+        progress.advance(1)
+    paths = figures.result()
+    if progress is not None:
+        progress.advance(2)
+    return {**paths, "kml": kml, "geojson": gj}

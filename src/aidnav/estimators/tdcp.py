@@ -1,0 +1,116 @@
+"""Time-differenced carrier phase (TDCP): cycle slips and the receiver's displacement between epochs.
+
+Frames and units: ECEF [m]; phase in cycles of L1 (λ = c/f_L1); times GPS seconds on the observations'
+reference-week scale; clock terms in metres. Carrier phase λL = ρ + b − c·dt_s − I + T + λN + ε_φ (N
+constant while the receiver keeps lock), Doppler rate ρ̇_D = −λD.
+
+**Cycle slips** (:func:`phase_increments`): between epochs k−1 and k of one satellite the phase increment
+λΔL is used when both phases exist, the loss-of-lock indicator has no bit 0 at k (RINEX: lock lost, a slip
+possible) and it agrees with the Doppler: |λΔL − ½(ρ̇_D,k−1 + ρ̇_D,k)Δt| ≤ ``slip_threshold_cycles``·λ (the
+trapezoidal integral of the Doppler; its error, Δt³/12 times the line-of-sight jerk plus the Doppler
+noise, is a few cm for a walker at 4 Hz, under half a cycle).
+
+**Displacement** (:func:`tdcp_displacement`): with y_j = λΔL_j + Δ(c·dt_s,j) − (|r_s,j(k) − r(k−1)| −
+|r_s,j(k−1) − r(k−1)|) (Sagnac-corrected ranges, :func:`aidnav.nav.gnss_sat.geo_range`, from a prior
+receiver position r(k−1), e.g. SPP: its metres of error enter as (e_k − e_{k−1})·δr, sub-mm), the model is
+y_j = −e_j·Δr + Δb + ε, ε ~ N(0, 2σ_φ²) (ionosphere and troposphere change sub-mm in 0.25 s; ambiguities
+cancel). Least squares with ≥ 4 satellites gives Δr, Δb and their covariance; Δr/Δt is the mean velocity
+over the interval (at its mid time).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from aidnav.nav.earth import dcm_ecef_to_enu, ecef_to_lla
+from aidnav.nav.gnss_sat import LAMBDA_L1, geo_range, satellites_from_pseudoranges
+
+__all__ = ["phase_increments", "tdcp_displacement", "tdcp_series"]
+
+
+def phase_increments(time, phase_cycles, lli, range_rate, slip_threshold_cycles: float = 0.5):
+    """Phase increments λΔL [m] (T, S) between consecutive epochs (row k: from k−1 to k; row 0 NaN) with
+    cycle slips removed (NaN), and the slips (T, S) as codes: 0 none, 1 loss-of-lock indicator, 2 phase
+    disagrees with the Doppler (module doc). range_rate (T, S) [m/s] = −λ·Doppler (NaN: no Doppler: only
+    the indicator is checked)."""
+    L = np.asarray(phase_cycles, float)
+    T, S = L.shape
+    dphi = np.full((T, S), np.nan)
+    slip = np.zeros((T, S), np.int64)
+    if T < 2:
+        return dphi, slip
+    dt = np.diff(np.asarray(time, float))[:, None]
+    d = LAMBDA_L1 * (L[1:] - L[:-1])
+    lost = (np.asarray(lli, np.int64)[1:] & 1) == 1
+    rr = np.asarray(range_rate, float)
+    pred = 0.5 * (rr[1:] + rr[:-1]) * dt
+    with np.errstate(invalid="ignore"):
+        bad = np.abs(d - pred) > slip_threshold_cycles * LAMBDA_L1
+    ok = np.isfinite(d)
+    slip[1:][ok & lost] = 1
+    slip[1:][ok & ~lost & bad] = 2
+    dphi[1:] = np.where(ok & (slip[1:] == 0), d, np.nan)
+    return dphi, slip
+
+
+def tdcp_displacement(rs_prev, rs_cur, r_prev, y_phase, sigma_phase_m: float = 0.005):
+    """Receiver displacement Δr (3,) [m] and clock change Δb [m] between two epochs (module doc).
+
+    rs_prev, rs_cur (S, 3) satellite ECEF at the two epochs [m]; r_prev (3,) prior receiver position at the
+    first epoch; y_phase (S,) λΔL + Δ(c·dt_s) [m] (NaN: not used). Returns (x (4,) = [Δr, Δb], cov (4, 4),
+    used (S,) bool) or None with fewer than 4 satellites."""
+    rs_prev = np.asarray(rs_prev, float)
+    rs_cur = np.asarray(rs_cur, float)
+    r0 = np.asarray(r_prev, float)
+    used = np.isfinite(y_phase) & np.isfinite(rs_prev).all(axis=1) & np.isfinite(rs_cur).all(axis=1)
+    if used.sum() < 4:
+        return None
+    H, z = [], []
+    for j in np.flatnonzero(used):
+        r1, e = geo_range(rs_cur[j], r0)
+        r0j, _ = geo_range(rs_prev[j], r0)
+        H.append([-e[0], -e[1], -e[2], 1.0])
+        z.append(y_phase[j] - (r1 - r0j))
+    H = np.array(H)
+    N = H.T @ H
+    if np.linalg.cond(N) > 1e12:
+        return None
+    Q = np.linalg.inv(N)
+    x = Q @ H.T @ np.array(z)
+    return x, 2.0 * sigma_phase_m**2 * Q, used
+
+
+def tdcp_series(obs, eph, positions_ecef, sigma_phase_m: float = 0.005, slip_threshold_cycles: float = 0.5):
+    """TDCP mean velocities of a whole observation set: dict with t_mid (T−1,) [s], vel_enu (T−1, 3) [m/s],
+    vel_cov_enu (T−1, 3, 3), drift (T−1,) [m/s], n_used (T−1,), slips (T, S) codes of
+    :func:`phase_increments`. positions_ecef (T, 3): prior receiver positions (e.g. SPP; NaN: none)."""
+    if obs.phase1 is None:
+        raise ValueError("no L1 carrier phase in the observations")
+    eph = eph.to_week(obs.ref_week) if eph.ref_week != obs.ref_week else eph
+    T, S = obs.code1.shape
+    dphi, slips = phase_increments(obs.time, obs.phase1, obs.lli1, obs.range_rate(), slip_threshold_cycles)
+    sp = np.full((T, S, 3), np.nan)
+    sc = np.full((T, S), np.nan)
+    for k in range(T):
+        sp[k], _, sc[k], _ = satellites_from_pseudoranges(eph.table, obs.prn, obs.time[k], obs.code1[k])
+    out = dict(t_mid=0.5 * (obs.time[1:] + obs.time[:-1]), vel_enu=np.full((T - 1, 3), np.nan),
+               vel_cov_enu=np.full((T - 1, 3, 3), np.nan), drift=np.full(T - 1, np.nan),
+               n_used=np.zeros(T - 1, np.int64), slips=slips)
+    pos = np.asarray(positions_ecef, float)
+    for k in range(1, T):
+        r0 = pos[k - 1] if np.isfinite(pos[k - 1]).all() else pos[k]
+        if not np.isfinite(r0).all():
+            continue
+        y = dphi[k] + (sc[k] - sc[k - 1])
+        sol = tdcp_displacement(sp[k - 1], sp[k], r0, y, sigma_phase_m)
+        if sol is None:
+            continue
+        x, cov, used = sol
+        dt = obs.time[k] - obs.time[k - 1]
+        lat, lon, _ = ecef_to_lla(r0[0], r0[1], r0[2])
+        C = dcm_ecef_to_enu(lat, lon)
+        out["vel_enu"][k - 1] = C @ x[:3] / dt
+        out["vel_cov_enu"][k - 1] = C @ cov[:3, :3] @ C.T / dt**2
+        out["drift"][k - 1] = x[3] / dt
+        out["n_used"][k - 1] = int(used.sum())
+    return out

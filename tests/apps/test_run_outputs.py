@@ -1,0 +1,63 @@
+"""The figures, maps and page of ``aidnav process`` drawn by a forked child (issue 41) are the bytes drawn
+in the process itself; the NIS bands of the figures without scipy.stats are scipy's."""
+
+from __future__ import annotations
+
+import shutil
+import sys
+import threading
+
+import pytest
+
+import aidnav.apps.run_outputs as ro
+from aidnav.analysis.consistency import chi2_band
+from aidnav.apps.process import process_logs
+
+from .test_process_stream import static_log
+
+FILES = ("overview.png", "run.html", "trajectory.kml", "trajectory.geojson", "summary.json",
+         "trajectory.parquet")
+
+
+@pytest.mark.skipif(not ro.FORK_OUTPUTS, reason="the figures' process is forked on Linux only")
+def test_forked_outputs_are_the_in_process_bytes(tmp_path):
+    imu, gnss, cfg = static_log(tmp_path, 30)
+    child = ro.OutputsProcess()  # the path under test: a forked child draws
+    out = tmp_path / "o"  # (the page names the output folder: the same folder for both)
+    process_logs(imu, gnss, cfg, out, outages=["10:5"], figures=child, timings=False)
+    forked = {name: (out / name).read_bytes() for name in FILES}
+    shutil.rmtree(out)
+    process_logs(imu, gnss, cfg, out, outages=["10:5"], figures=ro.IN_PROCESS, timings=False)
+    hold = threading.Event()
+    other = threading.Thread(target=hold.wait)  # another thread running: no fork, drawn here
+    other.start()
+    try:
+        assert ro.start_outputs(True) is True and ro.start_outputs(False) is False
+    finally:
+        hold.set()
+        other.join()
+    for name in FILES:
+        assert forked[name] == (out / name).read_bytes(), name
+
+
+def test_child_dropped_without_a_job_is_ended(tmp_path):
+    if not ro.FORK_OUTPUTS:
+        pytest.skip("Linux only")
+    import os
+
+    child = ro.OutputsProcess()
+    pid = child.pid
+    del child  # the job never sent (the run failed before its outputs): the child is ended and reaped
+    with pytest.raises(ChildProcessError):
+        os.waitpid(pid, os.WNOHANG)
+
+
+def test_chi2_band_of_one_value_is_scipys():
+    from scipy.stats import chi2
+
+    for dof in (1, 2, 3, 6, 15, 40, 999):
+        for prob in (0.5, 0.95, 0.999):
+            lo, hi = chi2_band(dof, 1, prob)
+            assert lo == pytest.approx(chi2.ppf(0.5 * (1 - prob), dof), rel=1e-10)
+            assert hi == pytest.approx(chi2.ppf(0.5 * (1 + prob), dof), rel=1e-10)
+    assert "scipy.stats" in sys.modules  # (imported by this test only)

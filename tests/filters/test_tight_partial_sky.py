@@ -1,0 +1,333 @@
+"""A partial sky in tight coupling (issue 40): the receiver-clock grade prior, the vehicle presets of
+``process`` in ``tight``, heading from IMU/GNSS velocity matching, and the walk with satellites removed
+from its RINEX observation file for 40 s (3, 2 and 0 satellites)."""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from aidnav.data import ImuData
+from aidnav.filters.heading_match import velocity_match_heading
+from aidnav.filters.tight import CLOCK_GRADES, TightConfig, apply_vehicle, clock_allan
+from aidnav.sim.scenario import parse_scenario
+from aidnav.sim.trajectory import generate_truth
+
+ROOT = Path(__file__).resolve().parents[2]
+WALK_PRNS = ["G10", "G23", "G27", "G32"]  # the walk's satellites with an ephemeris
+T0, T1 = 45.0, 85.0  # the 40 s window (seconds from the first epoch), while walking
+
+
+def test_clock_grade_prior_tcxo_by_default_and_given_coefficients_win():
+    g = TightConfig().gnss
+    assert g.clock_grade == "tcxo" and clock_allan(g) == CLOCK_GRADES["tcxo"] == (2e-19, 2e-20)
+    assert clock_allan(TightConfig(gnss={"clock_grade": "ocxo"}).gnss) == (8e-20, 4e-23)
+    assert clock_allan(TightConfig(gnss={"clock_grade": "ocxo", "clock_hm2": 1e-21}).gnss) == (8e-20, 1e-21)
+
+
+def test_vehicle_presets_apply_to_the_shared_sections_and_the_config_wins():
+    ev: list[str] = []
+    c = apply_vehicle(TightConfig(), "car", ev)
+    assert c.constraints.nhc and c.constraints.nhc_sigma_m_s == 0.05 and c.init.course_min_speed_m_s == 2.0
+    assert c.imu.noise_from_static
+    assert any("calibration.mounting" in e for e in ev)  # tight has no mounting states: said, not dropped
+    c = apply_vehicle(TightConfig(init={"course_min_speed_m_s": 0.7}), "pedestrian")
+    assert c.init.course_min_speed_m_s == 0.7 and c.constraints.zupt and not c.constraints.nhc
+    assert apply_vehicle(TightConfig(), None) == TightConfig()
+    with pytest.raises(ValueError, match="unknown vehicle"):
+        apply_vehicle(TightConfig(), "bicycle")
+
+
+@pytest.mark.parametrize("heading_deg", [30.0, 200.0])
+def test_velocity_matching_recovers_the_heading_of_a_simulated_imu(heading_deg):
+    """Truth IMU of a walk-like path (speed changes and turns); the heading at the start is recovered from
+    noisy GNSS velocities (σ 0.1 m/s) within 3σ of its stated σ, and that σ is a few degrees."""
+    scn = parse_scenario({
+        "initial": {"lat_deg": 40.1, "lon_deg": -105.1, "height_m": 1600, "speed_m_s": 1.4,
+                    "heading_deg": heading_deg},
+        "imu_rate_hz": 100, "transition_s": 1.0,
+        "segments": [{"type": "straight", "duration_s": 5},
+                     {"type": "turn", "angle_deg": 90, "rate_deg_s": 30},
+                     {"type": "straight", "duration_s": 5},
+                     {"type": "turn", "angle_deg": -120, "rate_deg_s": 40},
+                     {"type": "straight", "duration_s": 5},
+                     {"type": "turn", "angle_deg": 180, "rate_deg_s": 45},
+                     {"type": "straight", "duration_s": 5}]})
+    truth, imu_true, _ = generate_truth(scn)
+    imu = ImuData(imu_true.time, imu_true.dtheta, imu_true.dv, t0=imu_true.t0)
+    rng = np.random.default_rng(7)
+    tg = np.arange(truth.time[0], truth.time[-1], 0.25)
+    vg = np.column_stack([np.interp(tg, truth.time, truth.vel[:, i]) for i in range(3)])
+    vg += rng.normal(0, 0.1, vg.shape)
+    r, p = truth.rph[0, 0], truth.rph[0, 1]
+    psi, sig, n = velocity_match_heading(imu, float(imu.t0), r, p, tg, vg)
+    err = np.degrees(np.angle(np.exp(1j * (psi - truth.rph[0, 2]))))
+    assert n >= 5 and np.degrees(sig) < 5.0
+    assert abs(err) < 3 * np.degrees(sig) + 0.5, (err, np.degrees(sig))
+
+
+# ------------------------------------------------------------------ the walk, satellites removed
+def edit_obs(src: Path, dst: Path, t0: float, t1: float, drop: list[str]) -> None:
+    """Copy a RINEX 3 observation file without the satellites ``drop`` at the epochs t0 ≤ t − t_first < t1
+    (the epoch line's satellite count rewritten)."""
+    lines = src.read_text().splitlines(keepends=True)
+    i = next(k for k, ln in enumerate(lines) if "END OF HEADER" in ln) + 1
+    out, first = lines[:i], None
+    while i < len(lines):
+        ln = lines[i]
+        if not ln.startswith(">"):
+            out.append(ln)
+            i += 1
+            continue
+        n = int(ln[32:35])
+        f = ln.split()
+        sec = int(f[4]) * 3600 + int(f[5]) * 60 + float(f[6])
+        first = sec if first is None else first
+        sats = lines[i + 1:i + 1 + n]
+        if t0 <= sec - first < t1:
+            sats = [s for s in sats if s[:3] not in drop]
+        out += [ln[:32] + f"{len(sats):3d}" + ln[35:], *sats]
+        i += 1 + n
+    dst.write_text("".join(out))
+
+
+@pytest.fixture(scope="module")
+def walk_partial(data_dir, tmp_path_factory):
+    """Full-sky run and runs with 3, 2, 0 satellites in the window: per case the ENU deviation from the
+    full-sky solution and its σ at the output samples inside the window, and the pseudoranges used."""
+    d = data_dir / "rtklibexplorer_walk_0827"
+    if not d.is_dir():
+        pytest.skip("walk data set not found")
+    from aidnav.apps.process import read_imu_any
+    from aidnav.apps.tight import process_tight
+    from aidnav.filters.tight import to_trajectory
+    from aidnav.io.rinex import read_rinex_nav, read_rinex_obs
+    from aidnav.nav.earth import lla_difference_enu
+
+    y = yaml.safe_load((ROOT / "examples" / "rtklibexplorer_walk_0827.yaml").read_text())
+    cfg = TightConfig(imu=y["imu"])  # the walk example's IMU model; the rest defaults
+    src = d / "rinex_converted" / "gnss_1730.obs"
+    imu = read_imu_any(d / "imu_1730.csv")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FutureWarning)
+        nav = read_rinex_nav(d / "rinex_converted" / "gnss_1730.nav")
+
+        def run(path):
+            obs = read_rinex_obs(path)
+            res, _ = process_tight(imu, obs, nav, cfg)
+            return res, obs
+
+        full, obs = run(src)
+        trf = to_trajectory(full)
+        out = {}
+        tmp = tmp_path_factory.mktemp("walk_obs")
+        for keep in (3, 2, 0):
+            p = tmp / f"keep{keep}.obs"
+            edit_obs(src, p, T0, T1, WALK_PRNS[keep:])
+            res, _ = run(p)
+            tr = to_trajectory(res)
+            w = (tr.time >= obs.time[0] + T0) & (tr.time < obs.time[0] + T1)
+            de, dn, du = lla_difference_enu(
+                tr.lat[w], tr.lon[w], tr.height[w], np.interp(tr.time[w], trf.time, trf.lat),
+                np.interp(tr.time[w], trf.time, trf.lon), np.interp(tr.time[w], trf.time, trf.height))
+            ge = res.epochs
+            in_w = (ge["time"] >= obs.time[0] + T0) & (ge["time"] < obs.time[0] + T1)
+            out[keep] = (np.column_stack([de, dn, du]), tr.std_pos[w], int(ge["n_pr"][in_w].max()))
+    return out
+
+
+def test_walk_three_and_two_satellites_stay_within_their_3_sigma(walk_partial):
+    for keep in (3, 2):
+        dev, sig, npr = walk_partial[keep]
+        assert npr == keep
+        assert np.all(np.abs(dev) <= 3 * sig), keep
+
+
+def test_walk_two_satellites_within_25_m(walk_partial):
+    """Measured 12.3 m (11.7 m without the carrier phase; 27.8 m with the default IMU model)."""
+    dev, _, _ = walk_partial[2]
+    assert np.linalg.norm(dev, axis=1).max() <= 25.0
+
+
+def test_walk_three_satellites_within_10_m(walk_partial):
+    """Measured 5.6 m with the carrier phase (TDCP velocities; 11.8 m without). With the default IMU model
+    (no configuration): 27.6 m, covered by its 3σ (22.0 m without the phase)."""
+    dev, _, _ = walk_partial[3]
+    assert np.linalg.norm(dev, axis=1).max() <= 10.0
+
+
+@pytest.mark.xfail(strict=True, reason="issue 40 target not reached: free inertia on the walk drifts ~57 m "
+                   "east in 40 s (a nav-fixed ~0.07 m/s^2 error) against a 3-sigma of 32-35 m: 58 % coverage")
+def test_walk_no_satellites_3_sigma_coverage(walk_partial):
+    dev, sig, npr = walk_partial[0]
+    assert npr == 0
+    assert np.all(np.mean(np.abs(dev) <= 3 * sig, axis=0) >= 0.95)
+
+
+# ------------------------------------------------------------------ the walk, no configuration
+@pytest.fixture(scope="module")
+def walk_default(data_dir):
+    """`aidnav tight`'s processing with no configuration: ENU errors against the RTK reference at every
+    reference epoch, their σ, and the summary of the run."""
+    d = data_dir / "rtklibexplorer_walk_0827"
+    if not d.is_dir():
+        pytest.skip("walk data set not found")
+    from aidnav.apps.process import read_imu_any
+    from aidnav.apps.tight import process_tight
+    from aidnav.filters.tight import to_trajectory
+    from aidnav.io.rinex import read_rinex_nav, read_rinex_obs
+    from aidnav.io.rtklib import read_pos
+    from aidnav.nav.earth import lla_difference_enu
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FutureWarning)
+        nav = read_rinex_nav(d / "rinex_converted" / "gnss_1730.nav")
+        obs = read_rinex_obs(d / "rinex_converted" / "gnss_1730.obs")
+    ref = read_pos(d / "gnss_1730_sf.pos", height_offset_m=-21.4)
+    ev: list[str] = []
+    res, _ = process_tight(read_imu_any(d / "imu_1730.csv"), obs, nav, None, events=ev)
+    tr = to_trajectory(res)
+    sel = (ref.time >= tr.time[0]) & (ref.time <= tr.time[-1])
+    j = np.clip(np.searchsorted(tr.time, ref.time[sel]), 0, len(tr.time) - 1)
+    de, dn, du = lla_difference_enu(tr.lat[j], tr.lon[j], tr.height[j], ref.lat[sel], ref.lon[sel],
+                                    ref.height[sel])
+    return np.column_stack([de, dn, du]), tr.std_pos[j], res, ev, (ref, obs, nav, d)
+
+
+def _vel_rms_h(res, ref):
+    """Horizontal RMS of the filter's velocity against the RTK solution's velocity at its epochs."""
+    j = np.clip(np.searchsorted(res.time, ref.time), 0, len(res.time) - 1)
+    inside = (ref.time >= res.time[0]) & (ref.time <= res.time[-1])
+    dv = res.state[j[inside], 3:5] - ref.vel[inside, :2]
+    return float(np.sqrt(np.mean(np.sum(dv**2, axis=1))))
+
+
+def test_walk_velocity_with_and_without_the_carrier_phase(walk_default):
+    """Horizontal velocity RMS against the RTK velocity: measured 0.155 m/s with the TDCP velocity records,
+    0.230 m/s without (code + Doppler only)."""
+    from aidnav.apps.process import read_imu_any
+    from aidnav.apps.tight import process_tight
+
+    _, _, res, _, (ref, obs, nav, d) = walk_default
+    cfg = TightConfig(gnss={"use_phase": False})
+    res0, _ = process_tight(read_imu_any(d / "imu_1730.csv"), obs, nav, cfg)
+    assert res0.counts["velocity_records"] == 0
+    assert _vel_rms_h(res, ref) < 0.8 * _vel_rms_h(res0, ref)
+
+
+@pytest.mark.xfail(strict=True, reason="issue 40 target not reached: 0.155 m/s measured (the RTK reference's "
+                   "own velocity and position differences disagree by 0.15 m/s at 4 Hz)")
+def test_walk_velocity_within_5_cm_s(walk_default):
+    _, _, res, _, (ref, *_rest) = walk_default
+    assert _vel_rms_h(res, ref) <= 0.05
+
+
+def test_walk_default_vertical_and_coverage(walk_default):
+    """No config: RTKLIB's default ionosphere, heading from velocity matching, TDCP velocities; vertical
+    RMS ≤ 3.5 m (measured 2.84 m; 3.21 m without the phase, 6.84 m before the ionospheric fallback) and 3σ
+    coverage ≥ 95 % per axis (measured 100 %)."""
+    d, s, res, ev, _ = walk_default
+    assert len(d) > 500
+    assert np.sqrt(np.mean(d[:, 2] ** 2)) <= 3.5
+    assert np.all(np.mean(np.abs(d) <= 3 * s, axis=0) >= 0.95)
+    assert "default coefficients" in res.iono_model
+    assert any("matching IMU and SPP velocity" in e for e in ev)
+    assert res.counts["velocity_used"] > 300  # TDCP velocity records accepted by the filter
+
+
+def test_walk_default_horizontal_rms_at_most_rtklib_spp(walk_default):
+    """Measured 8.37 m with the carrier phase (8.84 m without; aidnav's SPP 8.51 m, RTKLIB's 8.50 m)."""
+    d = walk_default[0]
+    assert np.sqrt(np.mean(d[:, 0] ** 2 + d[:, 1] ** 2)) <= 8.50
+
+
+def test_summary_states_the_ionosphere_and_a_bad_vehicle_exits_2(tmp_path):
+    from typer.testing import CliRunner
+
+    from aidnav.apps.tight import format_tight_summary
+    from aidnav.cli import app
+
+    txt = format_tight_summary({"imu": "i", "obs": "o", "nav": "n", "output": "t", "states": 17,
+                                "ionosphere": "Klobuchar (default coefficients), sigma 50 % of the delay",
+                                "events": []})
+    assert "ionosphere: Klobuchar (default coefficients), sigma 50 % of the delay" in txt
+    r = CliRunner().invoke(app, ["tight", "--imu", str(tmp_path / "i.csv"), "--obs", str(tmp_path / "o.obs"),
+                                 "--nav", str(tmp_path / "n.nav"), "--vehicle", "bicycle", "-o",
+                                 str(tmp_path / "out")])
+    assert r.exit_code == 2 and "unknown vehicle" in r.output
+
+
+def test_nhc_in_tight_bounds_a_car_without_satellites():
+    """The car preset's non-holonomic constraint in the tight filter (simulated car, MEMS IMU, GNSS gone
+    for the last 60 s): NHC updates happen and the cross-track/vertical drift is smaller with it than
+    free inertial from the same state (same IMU, GNSS and initial errors)."""
+    from aidnav.filters.tight import run_tight
+    from aidnav.filters.tuning import loose_config_from_specs
+    from aidnav.nav.earth import lla_difference_enu
+    from aidnav.sim.gnss_constellation import nominal_constellation
+    from aidnav.sim.gnss_raw import RawGnssSpec, limit_satellites, simulate_raw_gnss
+    from aidnav.sim.imu import ImuSpec, corrupt_imu
+
+    sow = 400000.0
+    scn = parse_scenario({"initial": {"lat_deg": 34.2, "lon_deg": 108.9, "height_m": 500, "speed_m_s": 15,
+                                      "heading_deg": 30}, "imu_rate_hz": 50, "transition_s": 2.0,
+                          "segments": [{"type": "straight", "duration_s": 60},
+                                       {"type": "turn", "angle_deg": 90, "rate_deg_s": 6},
+                                       {"type": "straight", "duration_s": 45}]})
+    truth, imu_true, _ = generate_truth(scn)
+    eph = nominal_constellation(2381, sow, 24)
+    spec = ImuSpec.grade("mems")
+    rng = np.random.default_rng(11)
+    imu_c, _ = corrupt_imu(imu_true, spec, rng)
+    imu = ImuData(imu_c.time + sow, imu_c.dtheta, imu_c.dv, t0=imu_c.t0 + sow)
+    gspec = RawGnssSpec(rate_hz=1.0)
+    eph.iono_alpha, eph.iono_beta = gspec.iono_alpha, gspec.iono_beta
+    sim = simulate_raw_gnss(truth, eph, gspec, rng, sow)
+    none = limit_satellites(sim.rover, sim.truth["elevation"], [(60.0, 1e4, 0)], sow + truth.time[0])
+    init = (sow + truth.time[0], truth.lat[0], truth.lon[0], truth.height[0], truth.vel[0], truth.rph[0])
+    base = dict(imu=loose_config_from_specs(spec).imu, init={"attitude_sigma_deg": (0.2, 0.2, 1.0),
+                "position_sigma_m": (1, 1, 1), "velocity_sigma_m_s": (0.1, 0.1, 0.1)},
+                gnss={"mask_deg": 5.0, "range_errors": False})
+    cfg_free = TightConfig(**base, constraints={"zupt": False})
+    cfg_nhc = apply_vehicle(TightConfig(**base, constraints={"zupt": False}), "car")
+    assert cfg_nhc.constraints.nhc
+    end = {}
+    for name, cfg in (("free", cfg_free), ("nhc", cfg_nhc)):
+        res = run_tight(imu, none, eph, cfg, init_state=init)
+        j = np.clip(np.searchsorted(truth.time, res.time[-1] - sow - 1e-9), 0, len(truth.time) - 1)
+        s = res.state[-1]
+        end[name] = np.linalg.norm(lla_difference_enu(s[0], s[1], s[2], truth.lat[j], truth.lon[j],
+                                                      truth.height[j]))
+        if name == "nhc":
+            assert res.counts["nhc_updates"] >= 100  # one per node (1 s) over the 120 s
+        else:
+            assert res.counts["nhc_updates"] == 0
+    assert end["nhc"] < 0.5 * end["free"], end  # measured 5.2 m vs 44.1 m
+
+
+def test_walk_injected_cycle_slip_does_not_move_the_solution(walk_default):
+    """A one-cycle slip injected into G23's phase halfway through the walk: caught (phase-Doppler test),
+    the interval's TDCP velocity is not formed, and the tight solution moves by less than its σ."""
+    from aidnav.apps.process import read_imu_any
+    from aidnav.apps.tight import process_tight
+    from aidnav.filters.tight import to_trajectory
+    from aidnav.nav.earth import lla_difference_enu
+
+    _, _, res, ev, (_, obs, nav, d) = walk_default
+    o2 = obs.subset_sats(obs.prn)
+    j = int(np.flatnonzero(obs.prn == 23)[0])
+    k = len(obs.time) // 2
+    assert np.isfinite(o2.phase1[k - 1:k + 1, j]).all()
+    o2.phase1[k:, j] += 1.0
+    ev2: list[str] = []
+    res2, _ = process_tight(read_imu_any(d / "imu_1730.csv"), o2, nav, None, events=ev2)
+    n_slip = [int(e.split("; ")[1].split()[0]) for e in ev + ev2 if e.startswith("carrier phase")]
+    assert n_slip[1] == n_slip[0] + 1
+    a, b = to_trajectory(res), to_trajectory(res2)
+    de, dn, du = lla_difference_enu(b.lat, b.lon, b.height, a.lat, a.lon, a.height)
+    assert np.all(np.abs(np.column_stack([de, dn, du])) <= a.std_pos)
+    assert np.all(np.abs(b.vel - a.vel) <= a.std_vel)

@@ -12,7 +12,7 @@ import numpy as np
 import yaml
 
 from aidnav.errors import DivergenceError, InputError
-from aidnav.io.atomic import SUMMARY, mark_running
+from aidnav.io.atomic import SUMMARY, mark_running, remove_stale
 from aidnav.io.atomic import write_text as _write_text
 
 #: the extensions a trajectory can be written with (``--format``)
@@ -92,6 +92,7 @@ def run_directory(out_dir, job: str):
         yield
     except BaseException as e:
         status = "interrupted" if isinstance(e, KeyboardInterrupt) else "failed"
+        remove_stale(out_dir)  # a .part a helper process (the figures' child) left when it was ended
         with contextlib.suppress(OSError, ValueError):
             doc = json.loads((Path(out_dir) / SUMMARY).read_text(encoding="utf-8"))
             if doc.get("status") != "complete":

@@ -97,7 +97,7 @@ def process(imu: ImuData, gnss: GnssData, cfg: LooseConfig | None = None, smooth
     aids : sequence of :class:`aidnav.filters.aids.Aid` (odometer, barometer, magnetometer, ...).
     """
     from aidnav.filters.loose import LooseResult, run_loose, to_trajectory
-    from aidnav.io.sanity import check_gnss, check_imu, check_overlap
+    from aidnav.io.sanity import check_gnss, check_imu, check_motion, check_overlap
 
     cfg = cfg or LooseConfig()
     warnings: list[str] = []
@@ -111,6 +111,7 @@ def process(imu: ImuData, gnss: GnssData, cfg: LooseConfig | None = None, smooth
     warnings += check_imu(imu, imu_name, skip_checks)
     warnings += check_gnss(gnss, gnss_name, skip_checks)
     warnings += check_overlap(imu, gnss, imu_name, gnss_name, skip_checks)
+    warnings += check_motion(imu, gnss, imu_name, gnss_name, skip_checks)  # units, axes, time from physics
     wins = outage_windows([parse_outage(o) for o in (outages or [])], gnss.time[0], gnss.time[-1])
     withheld = np.zeros(len(gnss), bool)
     for a, b in wins:
@@ -249,9 +250,9 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
     summary["timing_s"] = {"read": t_read - t_start, "filter": t_filt - t_read, "write": t_write - t_filt}
     if not timings:
         del summary["timing_s"]
-    common.write_summary_files(out_dir, summary, format_summary(summary))
     if figures:  # overview.png, trajectory.kml / .geojson, run.html
         write_outputs(figures, out_dir, fig_traj, gnss, summary, result.records, progress=bar)
+    common.write_summary_files(out_dir, summary, format_summary(summary))  # last: "status": "complete"
     return summary
 
 

@@ -300,6 +300,11 @@ def initial_state(imu, gnss, cfg, t_imu, g, use, events):
             raise ValueError("no GNSS fix inside the IMU time span: cannot initialise")
         i0 = first[0]
         k0 = int(np.searchsorted(t_imu, g_t[i0], side="right"))
+        if k0 >= len(t_imu) - 1:  # e.g. --outage withholding every fix but the last ones
+            raise ValueError(f"the first GNSS fix the filter may use (t={g_t[i0]:.3f} s; {int((~use).sum())} "
+                             f"fixes withheld or unusable before it) is at the end of the IMU log "
+                             f"({t_imu[0]:.3f}…{t_imu[-1]:.3f} s): nothing is left to initialise from — "
+                             "shorten or move the --outage, or give a GNSS file that overlaps the IMU log")
         if k0 > 0:
             events.append(f"initialisation at the first GNSS fix t={g_t[i0]:.3f}: {k0} IMU samples before it "
                           "are not used")

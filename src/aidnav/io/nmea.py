@@ -109,6 +109,12 @@ def read_nmea(path, date: str | _dt.date | None = None, min_pos_std_m: float = Z
         events.append(f"{name}: {n_bad} NMEA sentence(s) with a bad checksum or unreadable fields skipped "
                       f"(lines {', '.join(map(str, bad_lines))}{' …' if n_bad > len(bad_lines) else ''})")
     if not any("gga" in e for e in epochs):
+        if n_bad:  # every GGA was refused: say why (issue 37)
+            raise DataError(path, bad_lines[0], f"no GGA sentence with a good checksum: {n_bad} NMEA "
+                            "sentence(s) have a bad checksum or unreadable fields (lines "
+                            f"{', '.join(map(str, bad_lines))}{' …' if n_bad > len(bad_lines) else ''}): the "
+                            "log was corrupted (bytes or line ends changed in transfer?) — use the "
+                            "receiver's original file")
         raise DataError(path, None, "no GGA sentence: an NMEA log needs GGA (position and height)"
                         + ("; RMC alone has no height" if any("rmc" in e for e in epochs) else ""))
 
@@ -122,7 +128,9 @@ def read_nmea(path, date: str | _dt.date | None = None, min_pos_std_m: float = Z
     first_rmc = next((e for e in epochs if "rmc" in e and e["rmc"].datestamp is not None), None)
     if first_rmc is None and date is None:
         raise DataError(path, None, "no RMC sentence with a date: NMEA GGA carries only the time of day; "
-                                    "pass the UTC date of the log (date=YYYY-MM-DD)")
+                                    "the date must come from RMC (or ZDA) sentences: log them, or in Python "
+                                    "read the file with aidnav.io.nmea.read_nmea(path, date='YYYY-MM-DD') "
+                                    "and write an interchange file (aidnav.io.interchange.write_gnss)")
     day = first_rmc["rmc"].datestamp if first_rmc is not None else date
     if first_rmc is not None:
         # walk back from the first RMC to the start (roll-over backwards)

@@ -55,6 +55,7 @@ from .preprocess import (
     initial_state,
     noise_from_static,
     static_flags,
+    visible_fixes,
 )
 from .prior import calibration_prior, initial_covariance, process_noise
 from .result import FilterResult, LooseResult, to_trajectory
@@ -211,7 +212,7 @@ def loose_setup(imu, gnss, cfg, withheld, events, aids=()) -> Setup:
         use &= finite
     cfg = _coarse_mounting_if_unknown(cfg, imu, gnss, t_imu, g, use, aids, events)
     if cfg.imu.noise_from_static:  # engine vibration: IMU noise from the log's static samples
-        cfg = noise_from_static(imu, static_flags(imu, gnss, cfg), cfg, events)
+        cfg = noise_from_static(imu, static_flags(imu, visible_fixes(gnss, withheld), cfg), cfg, events)
     ev0: list[str] = []
     i0, ev0 = _aid_heading(initial_state(imu, gnss, cfg, t_imu, g, use, ev0), cfg, aids, ev0)
     events += ev0
@@ -303,7 +304,8 @@ def loose_inputs(imu, gnss, cfg, withheld=None, events=None, cov_times=None, aid
     su = loose_setup(imu, gnss, cfg, withheld, events, aids)
     cfg, k0, t_imu = su.cfg, su.k0, su.t_imu
     dth_in, dv_in, gap_var = bridge_gaps(imu, events, bounds=cfg.motion)
-    static = static_flags(imu, gnss, cfg) if cfg.constraints.zupt else np.zeros(len(imu), np.bool_)
+    static = (static_flags(imu, visible_fixes(gnss, withheld), cfg) if cfg.constraints.zupt
+              else np.zeros(len(imu), np.bool_))
     cov_idx = np.zeros(0, np.int64)
     if cov_times is not None:
         ct = np.sort(np.atleast_1d(np.asarray(cov_times, float)))

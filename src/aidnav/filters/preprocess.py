@@ -52,6 +52,15 @@ def gnss_velocity_for_init(gnss, g, window_s: float = 1.0):
     return np.where(has, g_vel, vd), np.where(has, g_svel, sd)
 
 
+def visible_fixes(gnss, withheld):
+    """The fixes the filter may see: ``gnss`` without the ``withheld`` ones (bool mask, simulated outages).
+    Everything that looks at the GNSS (static detection, IMU noise from static samples) takes these, so a
+    withheld fix never tells the filter the vehicle stood still inside an outage."""
+    if withheld is None or gnss is None:
+        return gnss
+    return gnss.subset(~np.asarray(withheld, bool))
+
+
 def static_flags(imu, gnss, cfg, window_s: float = 1.0) -> np.ndarray:
     """Per-IMU-sample static detection: low gyro and accel spread over ``window_s`` and, where GNSS
     velocity exists, GNSS speed below ``cfg.constraints.static_gnss_speed_m_s``."""

@@ -37,7 +37,7 @@ from .engine import Imu, Log, Output, rts, run_chunk, smooth_outputs, start_carr
 from .layout import L_TOFF, NAV, layout_names
 from .loose import loose_setup
 from .measurements import MAX_ROWS
-from .preprocess import StaticDetector, bridge_gaps
+from .preprocess import StaticDetector, bridge_gaps, visible_fixes
 from .result import FilterResult
 from .run_log import calibration_base, gnss_records, log_dict, loose_counts
 
@@ -110,7 +110,7 @@ def stream_loose(chunks, gnss, cfg, emit, withheld=None, smooth: bool = False, e
     dt_head = np.diff(np.concatenate([[head.t0], head.time]))
     med, rate = float(np.median(dt_head)), head.rate_hz
     nwin = max(2, int(round(1.0 / med)))
-    static = StaticDetector(gnss, cfg, rate) if cfg.constraints.zupt else None
+    static = StaticDetector(visible_fixes(gnss, withheld), cfg, rate) if cfg.constraints.zupt else None
     out = Output(su.out_every, bool(smooth), np.zeros(0, np.int64))
     M = len(su.rec.t)
     rec_log = None

@@ -50,11 +50,9 @@ def _numba_cache_dir() -> str | None:
         except OSError:
             continue
         if _os.access(d, _os.W_OK | _os.X_OK):
+            # a normal set-up (a system-wide install), not a problem: no warning on every command (issue
+            # 37); the directory chosen is NUMBA_CACHE_FALLBACK (and NUMBA_CACHE_DIR)
             _os.environ["NUMBA_CACHE_DIR"] = d
-            import warnings  # lazy: only on a read-only install
-
-            warnings.warn(f"aidnav: the package directory is not writable; numba caches compiled code in {d}",
-                          stacklevel=2)
             return d
     return None
 

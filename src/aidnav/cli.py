@@ -32,6 +32,11 @@ if sys.platform.startswith("linux"):
 
 from pathlib import Path  # noqa: E402
 
+from aidnav import interrupts as _interrupts  # noqa: E402
+
+if Path(sys.argv[0]).name == "aidnav" or sys.argv[0].endswith(os.path.join("aidnav", "__main__.py")):
+    _interrupts.install(hold=True)  # the aidnav command: a Ctrl-C during the imports is raised in main
+
 import typer  # noqa: E402
 
 from aidnav.console_script import exit_status as _exit_status  # noqa: E402
@@ -53,6 +58,8 @@ def _console(stderr: bool = False):
     return Console(stderr=stderr, markup=False, highlight=False, soft_wrap=True)
 
 
+#: set once a command has reported an interrupt (main reports one that came before or after the command)
+_INTERRUPT_REPORTED = False
 #: True in the ``aidnav`` command itself (:func:`main`), False where ``app`` is called in-process (tests)
 _CONSOLE_SCRIPT = False
 #: the formats the readers know (aidnav.io.formats IMU_FORMATS / GNSS_FORMATS / TRAJECTORY_FORMATS), written
@@ -66,6 +73,8 @@ _TRAJECTORY_FORMATS_HELP = ("aidnav interchange trajectory CSV/Parquet, KF-GINS 
 
 
 def _fail(msg: str, code: int = 2):
+    global _INTERRUPT_REPORTED
+    _INTERRUPT_REPORTED = _INTERRUPT_REPORTED or code == 130
     _console(stderr=True).print(f"error: {msg}")
     raise typer.Exit(code)
 
@@ -94,8 +103,10 @@ def guarded(fn):
             _start_kernels()
         try:
             return fn(*args, **kwargs)
-        except (typer.Exit, typer.Abort, KeyboardInterrupt, SystemExit):
+        except (typer.Exit, typer.Abort, SystemExit):
             raise
+        except KeyboardInterrupt:  # SIGINT/SIGTERM (aidnav.interrupts): exit 130, said so
+            _fail(f"{_interrupts.MESSAGE}; {_interrupted_note(kwargs)}", 130)
         except _user_errors() as e:
             msg = str(e)
             if isinstance(e, OSError) and e.filename is not None and str(e.filename) not in msg:
@@ -111,6 +122,19 @@ def guarded(fn):
             raise typer.Exit(1) from None
 
     return wrapper
+
+
+def _interrupted_note(kwargs) -> str:
+    """What an interrupted command left: its output directory marked incomplete (issue 37)."""
+    out = kwargs.get("out")
+    if out is not None:
+        from aidnav.io.atomic import run_status
+
+        if run_status(out) == "complete":  # interrupted after its last file: the result is whole
+            return f"the results in {out} are complete (summary.json status complete); only the report " \
+                   "on the screen was cut short"
+        return f"{out} holds no complete result: run the same command again"
+    return "nothing complete was written: run the same command again"
 
 
 def _command(*args, **kwargs):
@@ -240,8 +264,8 @@ def process(
     end: float | None = typer.Option(None, "--end", help="process up to this many seconds after the first "
                                      "IMU sample"),
     skip_check: list[str] = typer.Option([], "--skip-check", help="skip a plausibility check by name "
-                                         "(imu-rate, "
-                                         "imu-accel, imu-gyro, gnss-latlon, overlap); repeatable"),
+                                         "(imu-rate, imu-accel, imu-gyro, imu-up, imu-gyro-scale, imu-axes, "
+                                         "gnss-latlon, overlap, time-scale); repeatable"),
     as_json: bool = typer.Option(False, "--json", help="print the JSON summary instead of the text"),
     no_figures: bool = typer.Option(False, "--no-figures", help="skip overview.png, the KML/GeoJSON maps and "
                                     "run.html"),
@@ -260,6 +284,7 @@ def process(
 ):
     """Loosely coupled GNSS/INS on logs: DIR/trajectory with σ columns, summary, overview.png, maps
     (KML, GeoJSON) and run.html."""
+    from aidnav.apps.common import run_directory
     from aidnav.apps.process import format_summary, process_logs
     from aidnav.apps.run_outputs import start_outputs
     from aidnav.filters.aids import parse_aid  # lazy: numpy and the filters only when a command runs
@@ -268,7 +293,7 @@ def process(
     aid_paths = [("odometer", odometer)] * (odometer is not None) + [("baro", baro)] * (baro is not None)
     aid_paths += [parse_aid(a) for a in aid]
     figures = start_outputs(not no_figures)  # the figures' process forked before the bar's thread starts
-    with progress_bar("aidnav process") as bar:
+    with progress_bar("aidnav process") as bar, run_directory(out, "process"):
         s = process_logs(imu, gnss, config, out, smooth=smooth, outages=outage, console=_console(), fmt=fmt,
                          height_offset_m=height_offset, time_offset_s=time_offset, start_s=start, end_s=end,
                          skip_checks=skip_check, progress=bar, figures=figures,
@@ -486,10 +511,11 @@ def tight(
                                        "in process: car (NHC), aircraft, pedestrian, ship"),
 ):
     """Tightly coupled GNSS/INS (pseudorange + Doppler) on an IMU log and RINEX files."""
+    from aidnav.apps.common import run_directory
     from aidnav.apps.tight import format_tight_summary, process_tight_files
     from aidnav.progress import progress_bar
 
-    with progress_bar("aidnav tight") as bar:
+    with progress_bar("aidnav tight") as bar, run_directory(out, "tight"):
         bar.stage("SPP, alignment, tightly coupled filter", total=None)
         s = process_tight_files(imu, obs, nav, config, out, truth, truth_height_offset, fmt=fmt,
                                 time_offset_s=time_offset, smooth=smooth, progress=bar,
@@ -605,10 +631,20 @@ def main():  # pragma: no cover - the console script (tests call `app` in-proces
     global _CONSOLE_SCRIPT
     _CONSOLE_SCRIPT = True
     try:
-        app()
-        status = 0
-    except SystemExit as e:
-        status = _exit_status(e.code)
+        try:
+            _interrupts.install()  # SIGINT/SIGTERM raised where Python can take them (not numba's glue): 130
+            app()
+            status = 0
+        except SystemExit as e:
+            status = _exit_status(e.code)
+    except KeyboardInterrupt:
+        status = 130
+    if status == 130 and not _INTERRUPT_REPORTED:  # before or after a command (typer: exit 130, silent)
+        print(f"error: {_interrupts.MESSAGE}", file=sys.stderr)
+    import signal
+
+    for sig in (signal.SIGINT, signal.SIGTERM):  # the exit itself is not interrupted
+        signal.signal(sig, signal.SIG_IGN)
     _leave(status)
 
 

@@ -116,6 +116,22 @@ def _bytes(d: Path, name: str, data: bytes) -> Path:
     return p
 
 
+def _imu_timestamp_parquet(b: Path, d: Path) -> Path:
+    """The IMU as Parquet whose time column is a timestamp (a pandas/Arrow default), not seconds."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    imu = read_imu(b / "sim/imu.csv")
+    cols = {"time": pa.array((imu.time * 1e9).astype("int64").astype("datetime64[ns]"))}
+    for j, a in enumerate("xyz"):
+        cols[f"dtheta_{a}_rad"] = pa.array(imu.dtheta[:, j])
+    for j, a in enumerate("xyz"):
+        cols[f"dv_{a}_m_s"] = pa.array(imu.dv[:, j])
+    p = d / "ts.parquet"
+    pq.write_table(pa.table(cols), p)
+    return p
+
+
 def _imu_extra_column(b: Path, d: Path) -> Path:
     import pandas as pd
 
@@ -238,6 +254,14 @@ CASES = [
     ("outage-negative-length", _proc(IMU, GNSS, "--outage", "10:-5"), "error", ["--outage"]),
     ("outage-outside-data", _proc(IMU, GNSS, "--outage", "500:10"), "error", ["--outage", "span"]),
     ("outage-period-too-short", _proc(IMU, GNSS, "--outage", "10:5:3"), "error", ["PERIOD"]),
+    # ---------------- issue 37: the classes left (units, axes, time scales, truncation, non-overlap)
+    ("outage-all-but-the-last", _proc(IMU, GNSS, "--outage", "0:69"), "error", ["--outage", "initialise"]),
+    ("imu-gyro-deg-s-car", _proc(lambda b, d: _imu_variant(b, d, "gdeg.csv", lambda t, w, f: (
+        t, np.degrees(w), f)), GNSS), "error", ["deg/s", "imu-gyro-scale"]),
+    ("imu-frd-as-rfu", _proc(lambda b, d: _imu_variant(b, d, "frd.csv", lambda t, w, f: (
+        t, w[:, [1, 0, 2]] * [1, 1, -1], f[:, [1, 0, 2]] * [1, 1, -1])), GNSS), "error", ["FRD", "imu-up"]),
+    ("imu-parquet-timestamp-time", _proc(lambda b, d: _imu_timestamp_parquet(b, d), GNSS), "error",
+     ["ts.parquet", "timestamp"]),
     ("window-empty", _proc(IMU, GNSS, "--start", "50", "--end", "40"), "error", ["--start"]),
     ("window-after-end", _proc(IMU, GNSS, "--start", "5000"), "error", ["--start"]),
     ("window-ok", _proc(IMU, GNSS, "--start", "0", "--end", "80"), "nontrace", []),

@@ -467,5 +467,7 @@ def test_reproduction_short(tmp_path):
     assert all(set(r) == set(_ROW_KEYS) for r in rows)
     assert all(r["paper"] is None for r in rows)
     assert all((r["holds"] is None) == (r["target"] is None) for r in rows)
-    failing = [r["quantity"] for r in rows if r["holds"] is False]
+    # every SPEC row holds; the sensitivity rows (the per-axis chase) may fail by design and say why
+    failing = [r["quantity"] for r in rows if r["spec"] and r["holds"] is False]
     assert not failing, failing
+    assert all(r["holds"] == (r["verdict"] == "holds") for r in rows if r["target"] is not None)

@@ -138,3 +138,13 @@ def test_bag_choices_and_problems(tmp_path):
         convert(bag, tmp_path / "x.csv")
     raw = formats.read_imu(bag, topic="/a", stamps="raw")
     assert raw.week is None and raw.time[0] == pytest.approx(GPS_EPOCH_UNIX + WEEK * 604800 + 408600 - 18)
+
+
+def test_truncated_bag_is_named(tmp_path):
+    """A ROS 1 bag cut off while recording (issue 37): exit 2 naming the file and what to do, not exit 1."""
+    bag = _write_bag(tmp_path / "full.bag", 1)
+    cut = tmp_path / "cut.bag"
+    cut.write_bytes(bag.read_bytes()[:bag.stat().st_size * 2 // 3])
+    for read in (formats.read_imu, formats.read_gnss):
+        with pytest.raises(DataError, match="cut.bag.*truncated"):
+            read(cut)

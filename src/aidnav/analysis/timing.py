@@ -30,42 +30,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..data import GnssData, ImuData
-from ..nav.earth import lla_to_enu
-
-
-def _course_rate(time, v_e, v_n):
-    """Rate of the course over ground about the up axis [rad/s] (counter-clockwise positive), centred."""
-    course = np.arctan2(v_n, v_e)  # angle from east, counter-clockwise = yaw about up
-    fin = np.isfinite(course)
-    course[fin] = np.unwrap(course[fin])  # missing velocities stay NaN (their neighbours' rates too)
-    rate = np.full_like(course, np.nan)
-    rate[1:-1] = (course[2:] - course[:-2]) / (time[2:] - time[:-2])
-    return rate
-
-
-def _centred_velocity(gnss: GnssData):
-    e, n, _ = lla_to_enu(gnss.lat, gnss.lon, gnss.height, gnss.lat[0], gnss.lon[0], gnss.height[0])
-    t = gnss.time
-    v_e, v_n = np.full_like(e, np.nan), np.full_like(n, np.nan)
-    v_e[1:-1] = (e[2:] - e[:-2]) / (t[2:] - t[:-2])
-    v_n[1:-1] = (n[2:] - n[:-2]) / (t[2:] - t[:-2])
-    v_e[[0, -1]], v_n[[0, -1]] = v_e[[1, -2]], v_n[[1, -2]]  # ends: never used (no centred course rate)
-    return v_e, v_n
-
-
-def _residual_curve(lags, imu_time, cum_up, t_lo, t_hi, rate):
-    """Mean squared residual of rate_imu(window shifted by lag) = gain × rate, for each lag."""
-    cost = np.empty(lags.size)
-    gains = np.empty(lags.size)
-    xx = float(rate @ rate)  # > 0: imu_gnss_lag refuses a log without turns
-    for i, lag in enumerate(lags):
-        a = np.interp(t_lo + lag, imu_time, cum_up)
-        b = np.interp(t_hi + lag, imu_time, cum_up)
-        y = (b - a) / (t_hi - t_lo)
-        k = float(rate @ y) / xx
-        cost[i] = np.mean((y - k * rate) ** 2)
-        gains[i] = k
-    return cost, gains
+from ..io.motion_checks import centred_velocity as _centred_velocity
+from ..io.motion_checks import course_rate as _course_rate
+from ..io.motion_checks import turn_rate_residuals as _residual_curve
 
 
 def _refine(lags, cost):

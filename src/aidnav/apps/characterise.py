@@ -21,6 +21,8 @@ import sys
 import threading
 import traceback
 
+from .forked import fork_worker
+
 __all__ = ["characterise_file", "print_characterisation", "FigureProcess"]
 
 #: the default of ``plot``: the Allan figure of :mod:`aidnav.report.allan_plot`
@@ -132,24 +134,8 @@ class FigureProcess:
     ``draw(job_fd)`` : the child's work (tests)."""
 
     def __init__(self, draw=_draw_in_child):
-        job_r, job_w = os.pipe()
-        res_r, res_w = os.pipe()
-        pid = os.fork()
-        if pid == 0:  # the child: never returns
-            status = 1
-            try:
-                os.close(job_w)
-                os.close(res_r)
-                res = draw(job_r)
-                with os.fdopen(res_w, "wb") as f:
-                    f.write(pickle.dumps(res))
-                status = 0
-            finally:
-                os._exit(status)
-        os.close(job_r)
-        os.close(res_w)
+        pid, self._job_w, res_r = fork_worker(draw)
         self.pid, self._res_r, self._reaped = pid, res_r, False
-        self._job_w = os.fdopen(job_w, "wb")
         self._lock = threading.Lock()
         self._sent: dict[int, bytes] = {}  # each axis as sent (pickled), to tell whether it changed after
         #: after the call: "panels" (the figure finished from the panels drawn as the axes came) or "whole"

@@ -3,6 +3,7 @@ files and the last check of a solution before it is written."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 from pathlib import Path
@@ -11,6 +12,8 @@ import numpy as np
 import yaml
 
 from aidnav.errors import DivergenceError, InputError
+from aidnav.io.atomic import SUMMARY, mark_running, remove_stale
+from aidnav.io.atomic import write_text as _write_text
 
 #: the extensions a trajectory can be written with (``--format``)
 TRAJECTORY_FORMATS = ("parquet", "csv")
@@ -73,12 +76,42 @@ def trajectory_path(out_dir: Path, fmt: str) -> Path:
     return Path(out_dir) / f"trajectory.{fmt}"
 
 
+#: the files a run of ``process``/``tight`` writes into its directory (a new run removes them first)
+RUN_OUTPUTS = ("trajectory.parquet", "trajectory.csv", "trajectory.nav", "summary.txt", "overview.png",
+               "trajectory.kml", "trajectory.geojson", "run.html")
+
+
+@contextlib.contextmanager
+def run_directory(out_dir, job: str):
+    """The run status of an output directory (issue 37): on entry the previous run's outputs and a killed
+    run's leftovers (``*.part``, ``tmp*.spool``) are removed and ``summary.json`` says ``running``; the job
+    writes its summary last (:func:`write_summary_files`: ``complete``); an exception (Ctrl-C included)
+    leaves ``interrupted`` or ``failed`` there, so that ``evaluate`` and ``report`` refuse the directory."""
+    mark_running(prepare_out_dir(out_dir), job, RUN_OUTPUTS)
+    try:
+        yield
+    except BaseException as e:
+        status = "interrupted" if isinstance(e, KeyboardInterrupt) else "failed"
+        remove_stale(out_dir)  # a .part a helper process (the figures' child) left when it was ended
+        with contextlib.suppress(OSError, ValueError):
+            doc = json.loads((Path(out_dir) / SUMMARY).read_text(encoding="utf-8"))
+            if doc.get("status") != "complete":
+                _write_text(Path(out_dir) / SUMMARY, json.dumps({**doc, "status": status,
+                                                                 "error": str(e) or type(e).__name__},
+                                                                indent=2) + "\n")
+        raise
+
+
 def write_summary_files(out_dir: Path, summary: dict, text: str) -> list[Path]:
-    """``summary.json`` (machines) and ``summary.txt`` (people) in the output directory."""
-    js = Path(out_dir) / "summary.json"
-    tx = Path(out_dir) / "summary.txt"
-    js.write_text(json.dumps(summary, indent=2, default=_json_default))
-    tx.write_text(text)
+    """``summary.txt`` (people) and ``summary.json`` (machines; written last, with ``"status":
+    "complete"`` and the list of the run's ``files``) in the output directory, each under a temporary
+    name until complete."""
+    out_dir = Path(out_dir)
+    js, tx = out_dir / SUMMARY, out_dir / "summary.txt"
+    _write_text(tx, text)
+    files = sorted(p.name for p in out_dir.iterdir() if p.name in RUN_OUTPUTS) + [SUMMARY]
+    summary.update(status="complete", files=files)  # (in place: what --json prints is the file)
+    _write_text(js, json.dumps(summary, indent=2, default=_json_default))
     return [js, tx]
 
 

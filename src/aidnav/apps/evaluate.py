@@ -136,8 +136,11 @@ def evaluate_files(estimate_path, truth_path, out_dir=None, console=None, max_dt
     Raises ``ValueError`` when no reference epoch falls inside the estimate's span (e.g. files in
     different time scales).
     """
+    from aidnav.io.atomic import check_complete, remove_stale, write_text
     from aidnav.io.stream import CsvColumnsWriter
 
+    check_complete(estimate_path, "the estimate")  # not a file of an interrupted or failed run
+    check_complete(truth_path, "the reference")
     read_notes: list[str] = []
     est = _pieces(estimate_path, read_notes, 0.0, chunk_rows)
     ref = _pieces(truth_path, read_notes, truth_height_offset_m, chunk_rows)
@@ -145,14 +148,14 @@ def evaluate_files(estimate_path, truth_path, out_dir=None, console=None, max_dt
     csv = None
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
+        remove_stale(out, ("errors.json",))  # a killed run's leftovers; the old summary goes first
         csv = CsvColumnsWriter(out / "errors.csv")
     try:
         errors = stream_errors(est, ref, max_dt=max_dt, spool_dir=out,
                                on_piece=None if csv is None else (lambda e: csv.write(e.columns())))
     except BaseException:
         if csv is not None:
-            csv.close()
-            csv.path.unlink(missing_ok=True)
+            csv.abort()
         raise
     if csv is not None:
         csv.close()
@@ -162,7 +165,7 @@ def evaluate_files(estimate_path, truth_path, out_dir=None, console=None, max_dt
             csv.path.unlink(missing_ok=True)
 
         def span(s):
-            return f"[{s[0]!r}, {s[1]!r}]" if s else "[]"
+            return f"[{float(s[0])!r}, {float(s[1])!r}]" if s else "[]"
 
         raise ValueError(f"no reference epoch can be evaluated: estimate spans {span(errors.est_span)} s, "
                          f"reference {span(errors.ref_span)} s ({'; '.join(errors.notes)}); are both in the "
@@ -192,7 +195,7 @@ def evaluate_files(estimate_path, truth_path, out_dir=None, console=None, max_dt
 
     summary["figures"] = [p.name for p in figs]
     jpath = out / "errors.json"
-    jpath.write_text(json.dumps(_clean(summary), indent=2) + "\n")
+    write_text(jpath, json.dumps(_clean(summary), indent=2) + "\n")
     written += [jpath, csv.path, *figs]
     written += write_evaluation_page(out, summary, stats, figs, estimate_path)
     return stats, written

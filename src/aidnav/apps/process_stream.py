@@ -116,11 +116,12 @@ def stream_process(imu_path, gnss, cfg, traj_path, week, smooth=False, outages=N
     from aidnav.apps.process_parts import finish_summary, outage_windows, parse_outage, run_summary
     from aidnav.filters.result import to_trajectory
     from aidnav.filters.stream import stream_loose
-    from aidnav.io.sanity import check_gnss, check_imu, check_overlap
+    from aidnav.io.sanity import check_gnss, check_imu, check_motion, check_overlap
     from aidnav.io.stream import Background, TrajectoryWriter, imu_time_span, iter_imu
 
     applied = float(cfg.imu.time_offset_s)
-    cfg = cfg.model_copy(update={"imu": cfg.imu.model_copy(update={"time_offset_s": 0.0})})
+    if applied:  # applied here, once; a configuration that states no offset lets the filter estimate it
+        cfg = cfg.model_copy(update={"imu": cfg.imu.model_copy(update={"time_offset_s": 0.0})})
     chunks = iter_imu(imu_path, chunk_rows or CHUNK_ROWS)
     head = next(chunks)
     offset_event = [f"IMU time offset {applied:+.4f} s added to the IMU stamps"] if applied else []
@@ -138,6 +139,7 @@ def stream_process(imu_path, gnss, cfg, traj_path, week, smooth=False, outages=N
         time = np.array([ta + applied, tb + applied])
 
     warnings += check_overlap(_Span, gnss, imu_name, gnss_name, skip_checks)
+    warnings += check_motion(_shift(_check_head(imu_path), applied), gnss, imu_name, gnss_name, skip_checks)
     wins = outage_windows([parse_outage(o) for o in (outages or [])], gnss.time[0], gnss.time[-1])
     withheld = np.zeros(len(gnss), bool)
     for a, b in wins:
@@ -202,6 +204,17 @@ def trim_heap() -> None:
         ctypes.CDLL(None).malloc_trim(0)
     except (OSError, AttributeError, TypeError):
         pass
+
+
+#: IMU samples read (again) for the motion checks of a streamed job (10 min at 100 Hz)
+CHECK_ROWS = 60_000
+
+
+def _check_head(imu_path):
+    """The first :data:`CHECK_ROWS` samples of the log (the motion checks compare them with the GNSS)."""
+    from aidnav.io.stream import iter_imu
+
+    return next(iter_imu(imu_path, CHECK_ROWS))
 
 
 def _shift(c, offset):

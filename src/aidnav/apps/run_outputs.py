@@ -22,6 +22,8 @@ import threading
 import traceback
 import weakref
 
+from .forked import fork_worker
+
 __all__ = ["OutputsProcess", "start_outputs", "write_outputs", "FORK_OUTPUTS", "IN_PROCESS"]
 
 #: draw in a forked child process (Linux; elsewhere: in this process after the filter)
@@ -99,24 +101,8 @@ class OutputsProcess:
     job once, then ``result()``; an instance dropped without a job ends its child."""
 
     def __init__(self, serve=_serve):
-        job_r, job_w = os.pipe()
-        res_r, res_w = os.pipe()
-        pid = os.fork()
-        if pid == 0:  # the child: never returns
-            status = 1
-            try:
-                os.close(job_w)
-                os.close(res_r)
-                res = serve(job_r)
-                with os.fdopen(res_w, "wb") as f:
-                    f.write(pickle.dumps(res))
-                status = 0
-            finally:
-                os._exit(status)
-        os.close(job_r)
-        os.close(res_w)
+        pid, self._job_w, res_r = fork_worker(serve)
         self.pid = pid
-        self._job_w = os.fdopen(job_w, "wb")
         self._res_r = res_r
         self._sender = None
         self._finalizer = weakref.finalize(self, _end, pid, [self._job_w, res_r])

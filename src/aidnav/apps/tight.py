@@ -52,9 +52,14 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
         iono_window_s=cfg.gnss.iono_window_s,
     )
     t_imu = imu.time + cfg.imu.time_offset_s
-    ok = np.isfinite(sp["lat"]) & (sp["time"] >= t_imu[0])
+    ok = np.isfinite(sp["lat"]) & (sp["time"] >= t_imu[0]) & (sp["time"] < t_imu[-1])
     if not ok.any():
-        raise ValueError("no SPP fix inside the IMU time span: cannot initialise")
+        fin = sp["time"][np.isfinite(sp["lat"])]
+        span = f"{fin[0]:.3f}…{fin[-1]:.3f} s" if fin.size else "none"
+        raise ValueError(f"no SPP fix inside the IMU time span {t_imu[0]:.3f}…{t_imu[-1]:.3f} s (SPP fixes "
+                         f"from the observation file: {span}): the IMU log and the observation file do not "
+                         "overlap — give files of the same session, or --time-offset if the IMU clock is "
+                         "on another time scale")
     i0 = int(np.flatnonzero(ok)[0])
     # GNSS "fixes" from SPP for the static detector and the course
     g = GnssData(sp["time"][ok], sp["lat"][ok], sp["lon"][ok], sp["h"][ok], sp["vel_enu"][ok])
@@ -279,7 +284,6 @@ def process_tight_files(imu_path, obs_path, nav_path, config_path=None, out_dir=
     from aidnav.report.run_page import calibration_estimates
 
     summary["calibration"] = calibration_estimates(res)
-    write_summary_files(out_dir, summary, format_tight_summary(summary))
     if figures:
         from aidnav.report.overview import tight_records
         from aidnav.report.reference_plot import nis_table, write_reference_figure
@@ -297,6 +301,7 @@ def process_tight_files(imu_path, obs_path, nav_path, config_path=None, out_dir=
                                          f"reference {os.path.basename(str(truth))}")
             extra.append((fig, "Solution against the reference: tracks and E/N/U differences"))
         write_run_outputs(out_dir, traj, spp, page, records, figures=extra, progress=progress)
+    write_summary_files(out_dir, summary, format_tight_summary(summary))  # last: "status": "complete"
     return summary
 
 

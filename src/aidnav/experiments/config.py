@@ -579,9 +579,13 @@ def load_experiment(path) -> ExperimentPlan:
     p = Path(path)
     where = p.name
     try:
-        text = p.read_text()
+        text = p.read_text(encoding="utf-8")
     except OSError as e:
         raise ExperimentError(f"{p}: cannot read: {e.strerror or e}") from None
+    except UnicodeDecodeError as e:
+        raise ExperimentError(f"{p}: not a text file (byte {e.start} is not UTF-8): an experiment is a "
+                              "YAML text file — give the .yaml file (see examples/experiment_quick.yaml)") \
+            from None
     try:
         root = yaml.compose(text)
         data = yaml.safe_load(text)

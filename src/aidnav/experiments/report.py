@@ -215,8 +215,9 @@ def _load(out: Path):
     need = ["manifest.json", "runs.parquet", "epochs.parquet"]
     missing = [n for n in need if not (out / n).exists()]
     if missing:
-        raise ReportError(f"{out}: not a complete campaign (missing {', '.join(missing)}); "
-                          "run `aidnav run EXPERIMENT.yaml -o DIR` first")
+        raise ReportError(f"{out}: not a complete campaign (missing {', '.join(missing)}: never run, or "
+                          "interrupted or cut short by --max-runs); run `aidnav run EXPERIMENT.yaml -o DIR` "
+                          "(again, to resume) first")
     manifest = json.loads((out / "manifest.json").read_text())
     rt = pq.read_table(out / "runs.parquet")
     runs = {c: rt.column(c).to_numpy(zero_copy_only=False) for c in rt.column_names}

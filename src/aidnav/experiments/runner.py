@@ -49,6 +49,8 @@ from pathlib import Path
 import numba
 import numpy as np
 
+from aidnav.interrupts import blocked, worker_ignore
+
 from .config import ExperimentPlan, load_experiment
 from .estimators import state_blocks, state_unit
 from .run_inputs import (  # noqa: F401  (re-exported: the runner's API and its tests)
@@ -248,6 +250,7 @@ def _worker_init(seed: str | None):
     noise-free GNSS fixes that the main process already generated (pickled to the file ``seed``) fill this
     process's caches and the modules a run needs are imported, while the main process computes the first
     batch."""
+    worker_ignore()  # Ctrl-C reaches the process group: the parent stops the pool
     for v in _THREAD_VARS:
         os.environ.setdefault(v, "1")
     if seed:
@@ -302,10 +305,12 @@ class _Pool:
             if method != "fork" and first is not None:
                 self._tmp = tempfile.TemporaryDirectory(prefix="aidnav_pool_")
                 seed = str(_seed_file(first, Path(self._tmp.name)))
-            self.ex = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context(method),
-                                          initializer=_worker_init, initargs=(seed,))
-            # all workers start now (fork: at the first submit; spawn: one per submit while none is idle)
-            self._ready = [self.ex.submit(_worker_ready) for _ in range(workers)]
+            with blocked():  # a Ctrl-C now reaches this process after the workers ignore it
+                ctx = multiprocessing.get_context(method)
+                self.ex = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_worker_init,
+                                              initargs=(seed,))
+                # all workers start now (fork: at the first submit; spawn: one per submit while none is idle)
+                self._ready = [self.ex.submit(_worker_ready) for _ in range(workers)]
             if method != "fork" and first is not None:
                 self.early = run_batch_task(first)
         except BaseException:
@@ -427,6 +432,8 @@ def run_experiment(experiment, out_dir, *, workers: int = 1, scheduler: str | No
     todo = [t for t in tasks if (t.key, t.run) not in done]
     if max_runs is not None:
         todo = todo[:max(0, int(max_runs))]
+    if todo:  # the tables and manifest on disk (if any) no longer describe the campaign: until it completes
+        (out / "manifest.json").unlink(missing_ok=True)  # `aidnav report` refuses the directory
     n_total, n_reused = len(tasks), len(tasks) - len([t for t in tasks if (t.key, t.run) not in done])
     if n_reused:
         console.print(f"{out}: {n_reused} of {n_total} runs already on disk, {n_total - n_reused} to compute")

@@ -40,6 +40,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 import aidnav
+from aidnav.io.atomic import replacing
 
 from . import statistics_spec as _config
 from .estimators import state_blocks, state_unit
@@ -369,7 +370,8 @@ def merge_campaign(plan, out_dir) -> dict:
         arrays[c] = pa.array(np.concatenate([row.get(c, np.full(plan.runs, np.nan)) for row in stat_rows]),
                              pa.float64())
     paths = []
-    pq.write_table(pa.table(arrays), out / "runs.parquet")
+    with replacing(out / "runs.parquet") as tmp:  # whole or not at all (issue 37)
+        pq.write_table(pa.table(arrays), tmp)
     paths.append(out / "runs.parquet")
     # epochs.parquet
     ecols: list[str] = []
@@ -387,7 +389,8 @@ def merge_campaign(plan, out_dir) -> dict:
     for c in ecols:
         ep[c] = pa.array(np.concatenate([s.get(c, np.full(len(t), np.nan)) for _, _, t, _, s in epoch_parts]),
                          pa.float64())
-    pq.write_table(pa.table(ep), out / "epochs.parquet")
+    with replacing(out / "epochs.parquet") as tmp:
+        pq.write_table(pa.table(ep), tmp)
     paths.append(out / "epochs.parquet")
     paths.append(write_json(out / "consistency.json", {"experiment": plan.experiment.name,
                                                         "checks": consistency}))
@@ -411,5 +414,6 @@ def write_trajectories(out_dir, plan, truth_of, max_points: int = 2000) -> Path:
         cols["height_m"].append(tr.height[sl])
     table = pa.table({k: pa.array(np.concatenate(v)) for k, v in cols.items()})
     path = Path(out_dir) / "trajectories.parquet"
-    pq.write_table(table, path)
+    with replacing(path) as tmp:
+        pq.write_table(table, tmp)
     return path

@@ -48,8 +48,9 @@ class ImuNoise(_Strict):
     gyro_misalignment_sigma_deg: float = Field(0.5, ge=0, description="1σ of each misalignment entry [deg]")
     noise_from_static: bool = Field(
         False, description="raise the ARW / VRW not stated here to the white-noise equivalent of the rates' "
-        "spread at the log's static samples (engine vibration; filters.preprocess.noise_from_static); on in "
-        "the engine-driven vehicle presets")
+        "spread at the log's static samples (engine vibration; filters.preprocess.noise_from_static); on "
+        "in the loose filter without an imu section in the configuration (issue 35: a vibrating IMU's noise "
+        "is unknown until the log shows it) and in the engine-driven vehicle presets")
     time_offset_s: float = Field(0.0, description="added to IMU time stamps (IMU clock → GNSS time)")
     mounting_rph_deg: tuple[float, float, float] = Field(
         (0.0, 0.0, 0.0), description="IMU body → vehicle frame rotation as roll, pitch, heading [deg] "
@@ -175,6 +176,20 @@ class BaroAiding(_Strict):
     bias_rw_m_sqrt_s: float = Field(0.001, ge=0, description="random walk [m/sqrt(s)] (tau <= 0)")
 
 
+class MotionBounds(_Strict):
+    """What the vehicle can do (§ IMU gaps): the bounds that size the covariance an IMU gap adds, since
+    the motion inside it is not measured. Defaults: an unknown vehicle (a drone, a car or a person may
+    carry the IMU), so generous; the vehicle presets state their own."""
+
+    max_speed_m_s: float = Field(100.0, gt=0, description="largest speed [m/s]")
+    max_accel_m_s2: float = Field(20.0, gt=0, description="largest horizontal/vertical acceleration [m/s^2]")
+    max_turn_rate_deg_s: float = Field(180.0, gt=0, description="largest turn rate [deg/s]")
+    max_tilt_deg: float = Field(45.0, gt=0, description="largest change of roll/pitch within a gap [deg]")
+    heading_hold_deg: float = Field(
+        30.0, gt=0, description="after an IMU gap that leaves the heading σ above this, the heading is held "
+        "unknown (no correlation, nothing learnt from it) until a GNSS course re-aligns it")
+
+
 class MagAiding(_Strict):
     """Magnetometer heading updates, used when heading data are given to the filter (``--aid mag=FILE``)."""
 
@@ -192,7 +207,8 @@ class FilterSettings(_Strict):
 class LooseConfig(_Strict):
     """Full configuration of ``aidnav process``."""
 
-    imu: ImuNoise = ImuNoise()
+    # no imu section: the noise is also raised to what the log's static samples show (issue 35)
+    imu: ImuNoise = ImuNoise(noise_from_static=True)
     gnss: GnssAiding = GnssAiding()
     init: Initialisation = Initialisation()
     constraints: Constraints = Constraints()
@@ -201,6 +217,7 @@ class LooseConfig(_Strict):
     baro: BaroAiding = BaroAiding()
     mag: MagAiding = MagAiding()
     calibration: Calibration = Calibration()
+    motion: MotionBounds = MotionBounds()
 
     @property
     def nstate(self) -> int:

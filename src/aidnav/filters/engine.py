@@ -67,13 +67,21 @@ from .ins_errors import (
 )
 from .kalman import discretize, predict, rts_gain, update
 from .layout import DP, DV, L_CLK, L_N, L_NINS, L_TOFF, NAV, PHI, ST_POS, ST_Q, ST_VEL
-from .measurements import M_PR, MAX_ROWS, MODELS_KEY, N_MODELS, Nav, fill
+from .measurements import M_GNSS_VEL, M_PR, MAX_ROWS, MODELS_KEY, N_MODELS, Nav, fill
 from .measurements.common import W_FIX, W_IB, W_IE, W_IN
 from .measurements.epoch import epoch_out, epoch_record, epoch_update
 from .measurements.gnss import W_FN
-from .reinit import chi2_quantile, inflate_nav, nis_of
+from .reinit import chi2_quantile, inflate, inflate_nav, nis_of  # noqa: F401  (inflate_nav: re-exported)
 
-# t (N,) [s]; dth, dv (N, 3) raw increments [rad, m/s]; static (N,) bool; gap_var (N, 2) [rad², (m/s)²];
+# parameters of the GNSS velocity model (``Models.par[M_GNSS_VEL]``) for the heading hold after an IMU gap
+# (:func:`run_chunk`): mounting heading [rad], least speed of a course [m/s], course σ [rad], heading σ
+# above which the heading is held unknown [rad] (0: no hold)
+C_MOUNT_H, C_VMIN, C_SIG, C_HOLD = 3, 4, 5, 6
+GAP_REC_S = 1.0  # records older than this at the sample that ends an IMU gap are not used
+
+# t (N,) [s]; dth, dv (N, 3) raw increments [rad, m/s]; static (N,) bool; gap_var (N, 2) [rad², (m/s)²]
+# (attitude, velocity) or (N, 4) [rad², rad², (m/s)², m²] (roll/pitch, heading, velocity, position:
+# :func:`aidnav.filters.preprocess.bridge_gaps`) added at the sample after an IMU gap;
 # hold (N, 2) height [m] and up velocity [m/s] the strapdown is held to after each sample, or (0, 2)
 Imu = namedtuple("Imu", ["t", "dth", "dv", "static", "gap_var", "hold"])
 # time-sorted aiding records: t (M,) [s], model (M,) ids, data (M, W) rows of the models, use (M,) bool;
@@ -83,9 +91,10 @@ Records = namedtuple("Records", ["t", "model", "data", "use", "grp"], defaults=(
 # max_rej (N_MODELS,) consecutive rejections before an ungated update; node (K, 2): constraints at
 # nodes as (model id, 1: at static samples / 0: at the others); win_n (N_MODELS,) length of the NIS
 # window of the re-initialisation test (0: off, at most WIN_MAX; −1: the model never re-initialises the
-# navigation block — after max_rej rejections its next update is only accepted ungated)
-Models = namedtuple("Models", ["par", "gate", "max_rej", "node", "win_n"],
-                    defaults=(np.zeros(N_MODELS, np.int64),))
+# navigation block — after max_rej rejections its next update is only accepted ungated); cal (K, 2):
+# the calibration states a re-initialisation grows with the navigation block (index in P, prior variance)
+Models = namedtuple("Models", ["par", "gate", "max_rej", "node", "win_n", "cal"],
+                    defaults=(np.zeros(N_MODELS, np.int64), np.zeros((0, 2))))
 # lay: layout table; q: noise PSDs (INS inputs, then one per calibration state); tau (4,): INS bias/SF
 # correlation times [s]; aux_tau (n − n_ins,) [s] (≤ 0: random walk); prop_dt [s]; sub: a state subset
 # (indices into the INS block; models fill INS rows, the engine takes the subset's columns); reset_pos:
@@ -110,7 +119,8 @@ EngineOut = namedtuple("EngineOut", ["out_idx", "out_st", "out_bias", "out_pdiag
 # what a pass carries from one chunk of samples to the next: k0 (global index of the chunk's first
 # sample), last (the chunk ends the log), tp (time of the previous sample), kn (nodes so far), gi (next
 # record), ci (next cov_idx), reset_node; st, bias, P (updated in place), rej (consecutive rejections),
-# acc (interval accumulator), gap (bridged-gap variance not yet added), buf (4, 3) increment buffers
+# acc (interval accumulator), gap (4,): bridged-gap variance not yet added (roll/pitch, heading,
+# velocity, position), then 1 while the heading is held after a gap; buf (4, 3) increment buffers
 Carry = namedtuple("Carry", ["k0", "last", "tp", "kn", "gi", "ci", "reset_node", "st", "bias", "P", "rej",
                              "acc", "gap", "buf"])
 
@@ -164,7 +174,7 @@ def policy_update(x, P, wk, m, model, mod, rej, win, log, li):
         if c == nw and win[model, :nw].sum() > chi2_quantile(nw * m, Z_999):
             why = 2
     if why > 0 and nw >= 0:
-        inflate_nav(x, P, H, R, z)
+        inflate(x, P, H, R, z, mod.cal)
         win[model, WIN_MAX], win[model, WIN_MAX + 1] = 0.0, 0.0
         log.reinit[li] = why
     nu, sd = np.zeros(m), np.zeros(m)
@@ -182,14 +192,17 @@ def _var(P, ix, i):
 
 
 @njit(cache=True)
-def _reinit(st, P, ini, ix):
-    """Re-initialisation event: heading, then (if 3σ off) velocity and position from ``reset_nav`` =
-    [v (3), lat, lon, h, σ_v (3), σ_pos E, N, U, lever (3)] of the fix that gave the course. ``ix``
-    (≥ 15,): index in P of each state of the full INS layout (−1: not in the filter, a state subset)."""
+def _reinit(st, P, ini, ix, held):
+    """Re-initialisation event: heading, then velocity and position from ``reset_nav`` =
+    [v (3), lat, lon, h, σ_v (3), σ_pos E, N, U, lever (3)] of the fix that gave the course when the
+    velocity is 3σ off: σ of the filter and the fix, or, when the heading was ``held`` unknown until now
+    (the filter's velocity covariance, propagated with that heading, is meaningless), of the fix alone.
+    ``ix`` (≥ 15,): index in P of each state of the full INS layout (−1: not in the filter, a subset)."""
     rn_ = ini.reset_nav
     set_heading(st, P, ini.reset_heading, ini.reset_sigma, ix[PHI + 2])
     dvr = np.sqrt((st[ST_VEL] - rn_[0]) ** 2 + (st[ST_VEL + 1] - rn_[1]) ** 2)
-    if np.isnan(rn_[0]) or dvr <= 3.0 * np.sqrt(_var(P, ix, DV) + _var(P, ix, DV + 1) + rn_[6] ** 2):
+    v2 = rn_[6] ** 2 + rn_[7] ** 2 if held else _var(P, ix, DV) + _var(P, ix, DV + 1) + rn_[6] ** 2
+    if np.isnan(rn_[0]) or dvr <= 3.0 * np.sqrt(v2):
         return
     # velocity and position integrated with the unknown heading: from the fix (antenna → IMU)
     l_n = dcm_from_quat(st[ST_Q:ST_Q + 4]) @ rn_[12:15]
@@ -213,6 +226,40 @@ def _reinit(st, P, ini, ix):
         j = ix[DV + i]
         if j >= 0:
             P[j, j] = var[i]
+
+
+@njit(cache=True)
+def _add_gap(st, P, gap, ix):
+    """Add the variance of an IMU gap (``gap``: roll/pitch [rad²], heading [rad²], velocity [(m/s)²],
+    position [m²] per axis, metres → δL, δλ, δh at the current position) to P's diagonal; zeroes
+    ``gap[0:4]``. ``ix``: index in P of each full-layout state (−1: none)."""
+    rm, rn = radii(st[0])
+    sp = np.array([1.0 / (rm + st[2]) ** 2, 1.0 / ((rn + st[2]) * np.cos(st[0])) ** 2, 1.0])
+    for i in range(3):
+        a, b, c = ix[PHI + i], ix[DV + i], ix[DP + i]
+        if a >= 0:
+            P[a, a] += gap[1] if i == 2 else gap[0]
+        if b >= 0:
+            P[b, b] += gap[2]
+        if c >= 0:
+            P[c, c] += gap[3] * sp[i]
+    for j in range(4):
+        gap[j] = 0.0
+
+
+@njit(cache=True)
+def _course_heading(st, P, row, pv, iu):
+    """Heading from the GNSS course of velocity record ``row`` (v ENU, σ) when it is meaningful (speed
+    above ``pv[C_VMIN]`` and 5 times its σ): IMU heading = course + mounting heading, σ ``pv[C_SIG]``
+    and the course's own (:func:`.ins_errors.set_heading`). Returns whether it was set."""
+    sp = np.sqrt(row[0] * row[0] + row[1] * row[1])
+    sg = np.sqrt(row[3] * row[3] + row[4] * row[4])
+    if not (sp > pv[C_VMIN] and sp > 5.0 * sg):
+        return False
+    h = np.arctan2(row[0], row[1]) + pv[C_MOUNT_H]
+    s = np.sqrt(pv[C_SIG] ** 2 + (sg / sp) ** 2)
+    set_heading(st, P, h, s, iu)
+    return True
 
 
 @njit(cache=True)
@@ -264,7 +311,7 @@ def start_carry(rec, proc, ini, last):
     while _due_time(rec, gi, bias, ic, itoff) <= ini.t0:
         gi += 1
     return Carry(0, last, ini.t0, 0, gi, 0, -1, ini.st.copy(), bias, ini.P.copy(),
-                 np.zeros(N_MODELS, np.int64), new_accumulator(), np.zeros(2), np.zeros((4, 3)))
+                 np.zeros(N_MODELS, np.int64), new_accumulator(), np.zeros(5), np.zeros((4, 3)))
 
 
 @njit(cache=True, depends=MODELS_KEY)
@@ -337,7 +384,10 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
     cov_out = np.zeros((out.cov_idx.shape[0], n, n))
     ci, reset_node, gi = cy.ci, cy.reset_node, cy.gi
     acc = cy.acc
-    gap_phi, gap_v = cy.gap[0], cy.gap[1]
+    gap = cy.gap  # (5,): variances to add at the next node, then the heading-hold flag
+    g4 = imu.gap_var.shape[1] >= 4
+    pv = mod.par[M_GNSS_VEL]
+    hold_thr = pv[C_HOLD] if pv.shape[0] > C_HOLD else 0.0  # (other filters: fewer parameters)
     dthc, dvc, dth_prev, dv_prev = cy.buf[0], cy.buf[1], cy.buf[2], cy.buf[3]
     tp, kn, oi = cy.tp, cy.kn, 0
     hold = imu.hold.shape[0] == n_imu
@@ -352,10 +402,18 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
             t_due = _due_time(rec, gi, bias, ic, itoff)
         if hold:
             st[ST_POS + 2], st[ST_VEL + 2] = imu.hold[k, 0], imu.hold[k, 1]
-        gap_phi, gap_v = gap_phi + imu.gap_var[k, 0], gap_v + imu.gap_var[k, 1]
+        gap_k = False
+        if g4:
+            for j in range(4):
+                gap[j] += imu.gap_var[k, j]
+            gap_k = imu.gap_var[k, 3] > 0.0
+        else:
+            gap[0] += imu.gap_var[k, 0]
+            gap[1] += imu.gap_var[k, 0]
+            gap[2] += imu.gap_var[k, 1]
         if k0 + k == ini.reset_idx:
             reset_node = kn  # the next node is the first one after the re-initialisation
-            _reinit(st, P, ini, ix)
+            _reinit(st, P, ini, ix, hold_h)
         is_node = T >= prop_dt - 1e-9 or t_due <= imu.t[k] or (cy.last and k == n_imu - 1)
         if is_node and T > 0.0:
             if kn - kn0 >= max_nodes:
@@ -373,14 +431,12 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
             x[:] = 0.0
             predict(x, P, Phi, Qd)
             carry_estimates(st, bias, Phi, proc.open, nh)
-            if gap_phi > 0.0:  # (indices of the full layout through ix: a subset has its own)
-                for i in range(3):
-                    a, b = ix[PHI + i], ix[DV + i]
-                    if a >= 0:
-                        P[a, a] += gap_phi
-                    if b >= 0:
-                        P[b, b] += gap_v
-                gap_phi, gap_v = 0.0, 0.0
+            if gap[0] > 0.0 or gap[1] > 0.0:  # (indices of the full layout through ix: a subset has its own)
+                _add_gap(st, P, gap, ix)
+                if hold_thr > 0.0 and iu >= 0 and P[iu, iu] >= hold_thr * hold_thr:
+                    gap[4] = min(P[iu, iu], np.pi * np.pi)  # heading unknown until a course re-aligns it
+                    P[iu, :], P[:, iu] = 0.0, 0.0
+                    P[iu, iu] = gap[4]
             if out.smooth:
                 S_phi[kn - kn0], S_prior[kn - kn0] = Phi, P
             node_rates(st, wb, dthc, dt, w)
@@ -388,8 +444,12 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
             g0 = gi
             while _due_time(rec, gi, bias, ic, itoff) <= imu.t[k]:  # records in (t_{k-1}, t_k]
                 tr = _rec_time(rec, gi, bias, ic)  # the models add d̂ to dt_back themselves
-                if rec.use[gi]:
+                # a record inside an IMU gap cannot be moved back across the unknown motion: not used
+                if rec.use[gi] and not (gap_k and imu.t[k] - tr > GAP_REC_S):
                     md = rec.model[gi]
+                    if gap[4] > 0.0 and md == M_GNSS_VEL and _course_heading(st, P, rec.data[gi], pv, iu):
+                        gap[4] = 0.0
+                        C = dcm_from_quat(st[ST_Q:ST_Q + 4])
                     nav = Nav(st, C, w, imu.t[k] - tr, bias)
                     if grp and md == M_PR:  # a whole epoch: its scalar updates and rejection rule
                         gate = mod.gate[md, 1] if rej[md] < mod.max_rej[md] else 0.0
@@ -417,6 +477,9 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
             if hold_h and k0 + k < ini.reset_idx:  # heading unknown until the alignment: no information
                 P[iu, :], P[:, iu] = 0.0, 0.0
                 P[iu, iu] = ini.P[iu, iu]
+            elif gap[4] > 0.0:  # the same after an IMU gap, until a GNSS course re-aligns the heading
+                P[iu, :], P[:, iu] = 0.0, 0.0
+                P[iu, iu] = gap[4]
             for g in range(g0, gi if proc.reset_pos else g0):
                 st[0], st[1], st[2] = rec.data[g, 6], rec.data[g, 7], rec.data[g, 8]
                 if not np.isnan(rec.data[g, 9]):
@@ -443,7 +506,6 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
         while ci < out.cov_idx.shape[0] and out.cov_idx[ci] == k0 + k:
             cov_out[ci] = P
             ci += 1
-    cy.gap[0], cy.gap[1] = gap_phi, gap_v
     nxt = Carry(k0 + n_imu, cy.last, tp, kn, gi, ci, reset_node, st, bias, P, rej, acc, cy.gap, cy.buf)
     nk = kn - kn0
     return EngineOut(out_idx[:oi], out_st[:oi], out_bias[:oi], out_pdiag[:oi], out_node[:oi], node_idx[:nk],

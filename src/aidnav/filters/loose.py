@@ -22,23 +22,40 @@ import numpy as np
 from . import aids as aid_kinds
 from . import measurements as ms
 from .chi2 import chi2_isf
-from .engine import Imu, Init, Models, Output, Process, Records, feedback, rts, run_filter, smooth_outputs
+from .engine import (
+    C_HOLD,
+    C_MOUNT_H,
+    Imu,
+    Init,
+    Models,
+    Output,
+    Process,
+    Records,
+    feedback,
+    rts,
+    run_filter,
+    smooth_outputs,
+)
 from .engine_batch import batchable, run_batch, run_outputs, stack_inputs
 from .layout import (
     DV,
+    L_MOUNT,
     L_N,
     L_TOFF,
+    L_VDEL,
     NAV,
     layout_names,
     make_layout,
 )
 from .preprocess import (
     bridge_gaps,
+    correlated_gnss_errors,
     course_alignment,
     gnss_arrays,
     initial_state,
     noise_from_static,
     static_flags,
+    visible_fixes,
 )
 from .prior import calibration_prior, initial_covariance, process_noise
 from .result import FilterResult, LooseResult, to_trajectory
@@ -121,6 +138,10 @@ def _models(cfg) -> Models:
     par[ms.M_NHC, V.V_SIG], par[ms.M_NHC, V.V_MIN_SPEED] = c.nhc_sigma_m_s, c.nhc_min_speed_m_s
     par[ms.M_NHC, V.V_LEVER:V.V_LEVER + 3], par[ms.M_NHC, V.V_CBV:V.V_CBV + 9] = c.nhc_lever_arm_m, cbv
     par[ms.M_NHC, V.V_LEVER_SIG] = c.nhc_lever_arm_sigma_m
+    # the heading hold after an IMU gap and its re-alignment from the GNSS course (engine.C_*)
+    par[ms.M_GNSS_VEL, C_MOUNT_H:C_HOLD + 1] = (mr[2], cfg.init.course_min_speed_m_s,
+                                                cfg.init.course_heading_sigma_deg * DEG,
+                                                cfg.motion.heading_hold_deg * DEG)
     gate[ms.M_NHC, 1:] = 25.0 if gp < 1 else 0.0
     par[ms.M_ZUPT, 0], par[ms.M_ZARU, 0] = c.zupt_sigma_m_s, c.zaru_sigma_deg_s * DEG
     node = []
@@ -176,6 +197,7 @@ def loose_setup(imu, gnss, cfg, withheld, events, aids=()) -> Setup:
     from .config import DEG
 
     has_vel = gnss.vel is not None and bool(np.any(np.isfinite(gnss.vel)))
+    cfg = correlated_gnss_errors(cfg, gnss, events)  # fixes above 1 Hz: Gauss-Markov error states
     lay = loose_layout(cfg, aids, gnss=len(gnss) > 0, gnss_velocity=has_vel)
     n_ins, n = cfg.nstate, int(lay[L_N])
     t_imu = imu.time + cfg.imu.time_offset_s
@@ -190,7 +212,7 @@ def loose_setup(imu, gnss, cfg, withheld, events, aids=()) -> Setup:
         use &= finite
     cfg = _coarse_mounting_if_unknown(cfg, imu, gnss, t_imu, g, use, aids, events)
     if cfg.imu.noise_from_static:  # engine vibration: IMU noise from the log's static samples
-        cfg = noise_from_static(imu, static_flags(imu, gnss, cfg), cfg, events)
+        cfg = noise_from_static(imu, static_flags(imu, visible_fixes(gnss, withheld), cfg), cfg, events)
     ev0: list[str] = []
     i0, ev0 = _aid_heading(initial_state(imu, gnss, cfg, t_imu, g, use, ev0), cfg, aids, ev0)
     events += ev0
@@ -215,8 +237,19 @@ def loose_setup(imu, gnss, cfg, withheld, events, aids=()) -> Setup:
     reset_nav = np.concatenate([i0["reset_nav"], cfg.gnss.lever_arm_m])
     ini = Init(float(i0["t0"]), st0, np.zeros(n - 9), P0, int(i0["reset_idx"]), float(i0["reset_heading"]),
                cfg.init.course_heading_sigma_deg * DEG, reset_nav)
-    return Setup(cfg, lay, n, int(i0["k0"]), t_imu, proc, ini, _models(cfg), rec, rmap, out_every,
+    models = _models(cfg)._replace(cal=_reinit_cal(lay, P0))
+    return Setup(cfg, lay, n, int(i0["k0"]), t_imu, proc, ini, models, rec, rmap, out_every,
                  i0.get("reset_time"))
+
+
+def _reinit_cal(lay, P0) -> np.ndarray:
+    """The calibration states a re-initialisation repairs with the navigation block (time offset, GNSS
+    velocity delay, mounting): rows (index, prior variance) (engine ``Models.cal``)."""
+    rows = []
+    for key, k in ((L_TOFF, 1), (L_VDEL, 1), (L_MOUNT, 3)):
+        for i in range(k if lay[key] >= 0 else 0):
+            rows.append((lay[key] + i, P0[lay[key] + i, lay[key] + i]))
+    return np.array(rows, float).reshape(-1, 2)
 
 
 def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: list | None = None,
@@ -270,8 +303,9 @@ def loose_inputs(imu, gnss, cfg, withheld=None, events=None, cov_times=None, aid
     events = events if events is not None else []
     su = loose_setup(imu, gnss, cfg, withheld, events, aids)
     cfg, k0, t_imu = su.cfg, su.k0, su.t_imu
-    dth_in, dv_in, gap_var = bridge_gaps(imu, events)
-    static = static_flags(imu, gnss, cfg) if cfg.constraints.zupt else np.zeros(len(imu), np.bool_)
+    dth_in, dv_in, gap_var = bridge_gaps(imu, events, bounds=cfg.motion)
+    static = (static_flags(imu, visible_fixes(gnss, withheld), cfg) if cfg.constraints.zupt
+              else np.zeros(len(imu), np.bool_))
     cov_idx = np.zeros(0, np.int64)
     if cov_times is not None:
         ct = np.sort(np.atleast_1d(np.asarray(cov_times, float)))

@@ -53,6 +53,15 @@ def gnss_velocity_for_init(gnss, g, window_s: float = 1.0):
     return np.where(has, g_vel, vd), np.where(has, g_svel, sd)
 
 
+def visible_fixes(gnss, withheld):
+    """The fixes the filter may see: ``gnss`` without the ``withheld`` ones (bool mask, simulated outages).
+    Everything that looks at the GNSS (static detection, IMU noise from static samples) takes these, so a
+    withheld fix never tells the filter the vehicle stood still inside an outage."""
+    if withheld is None or gnss is None:
+        return gnss
+    return gnss.subset(~np.asarray(withheld, bool))
+
+
 def static_flags(imu, gnss, cfg, window_s: float = 1.0) -> np.ndarray:
     """Per-IMU-sample static detection: low gyro and accel spread over ``window_s`` and, where GNSS
     velocity exists, GNSS speed below ``cfg.constraints.static_gnss_speed_m_s``."""
@@ -142,34 +151,52 @@ class StaticDetector:
         return ok
 
 
+#: columns of the gap variance (:func:`bridge_gaps`): roll/pitch [rad²], heading [rad²], velocity per axis
+#: [(m/s)²], position per axis [m²]
+GAP_TILT, GAP_HEADING, GAP_VEL, GAP_POS = range(4)
+
+
 def bridge_gaps(imu, events: list, factor: float = 5.0, window_s: float = 1.0, med: float | None = None,
-                start: int = 0):
+                start: int = 0, bounds=None):
     """Increments ready for the kernel, with IMU time gaps (interval > ``factor`` × median) bridged.
 
     A sample after a gap either already spans the gap (e.g. rates × Δt from a reader: |Δv|/Δt ≈ g)
     or only covers one nominal interval (a sensor that dropped samples: |Δv|/Δt_nominal ≈ g). In the
     second case the gap is bridged by holding the mean rates of the ``window_s`` before it (holding one
     sample's rates would scale its white noise by the gap length instead of its square root).
-    Either way the motion during the gap is unknown: the returned ``gap_var`` (N, 2) holds, for the
-    sample after each gap, the variance added to each attitude axis [rad²] and each velocity axis
-    [(m/s)²] by holding the rates: (σ_ω T)² and (σ_f T)² with σ the spread of the rates in the window
-    before the gap (floors 0.1 deg/s and 0.05 m/s²), the rate's σ² also holding |ω̄|²/3 (the turn may
-    end anywhere in the gap: uniform between 0 and the held rate). Each gap and the decision go into
-    ``events``.
-    Returns (dtheta, dv, gap_var); the arrays are copies only when something was changed.
+    Either way the motion during the gap is unknown: the returned ``gap_var`` (N, 4) holds, for the
+    sample after each gap, the variance it adds (columns ``GAP_TILT``, ``GAP_HEADING``, ``GAP_VEL``,
+    ``GAP_POS``: roll/pitch and heading [rad²], each velocity axis [(m/s)²], each position axis [m²]),
+    from the held rates and from what the vehicle can do (``bounds``: a
+    :class:`aidnav.filters.config.MotionBounds`, default its defaults; uniform distributions within
+    the bounds, σ = bound/√3):
+
+    * rates: σ_ω² = spread² + |ω̄|²/3 (the turn may end anywhere in the gap) + ω_max²/3 (or begin);
+      heading σ = σ_ω T, roll/pitch the same, both capped (heading at π: unknown; tilt at the bound);
+    * specific force: σ_a² = spread² + a_max²/3 (floors 0.1 deg/s, 0.05 m/s² on the spreads);
+      velocity σ = σ_a T (capped at the largest speed), position σ = σ_a T²/2 (capped at v_max T).
+
+    Each gap and the decision go into ``events``. Returns (dtheta, dv, gap_var); the arrays are copies
+    only when something was changed.
     Streaming (:mod:`aidnav.filters.stream`): ``med`` the nominal interval (default: the median here),
     ``start`` the first sample to look at (the ones before it are the window of the previous chunk);
     the arrays returned begin at ``start``.
     """
+    if bounds is None:
+        from .config import MotionBounds  # lazy: pydantic (the filters' kernels do not need it)
+
+        bounds = MotionBounds()
     dt = np.diff(np.concatenate([[imu.t0], imu.time]))
     med = float(np.median(dt)) if med is None else med
     gaps = np.flatnonzero(dt > factor * med)
     gaps = gaps[gaps >= start]
-    gap_var = np.zeros((len(imu) - start, 2))
+    gap_var = np.zeros((len(imu) - start, 4))
     if len(gaps) == 0:
         return imu.dtheta[start:], imu.dv[start:], gap_var
     dth, dv = imu.dtheta.copy(), imu.dv.copy()
     nwin = max(2, int(round(window_s / med)))
+    w_max, a_max = bounds.max_turn_rate_deg_s * DEG, bounds.max_accel_m_s2
+    v_max, tilt_max = bounds.max_speed_m_s, bounds.max_tilt_deg * DEG
     for k in gaps:
         T = dt[k]
         lo = max(0, k - nwin)
@@ -177,14 +204,14 @@ def bridge_gaps(imu, events: list, factor: float = 5.0, window_s: float = 1.0, m
             w = imu.dtheta[lo:k] / dt[lo:k, None]
             f = imu.dv[lo:k] / dt[lo:k, None]
             w_mean, f_mean = w.mean(axis=0), f.mean(axis=0)
-            # the rate may change anywhere between 0 and its value before the gap (a turn that ends):
-            # its variance |ω|²/3 (uniform) adds to the spread seen before the gap
-            s_w = max(float(np.sqrt(np.mean(np.var(w, axis=0)) + np.dot(w_mean, w_mean) / 3.0)),
-                      np.radians(0.1))
-            s_f = max(float(np.sqrt(np.mean(np.var(f, axis=0)))), 0.05)
+            s_w0 = max(float(np.sqrt(np.mean(np.var(w, axis=0)) + np.dot(w_mean, w_mean) / 3.0)),
+                       np.radians(0.1))
+            s_f0 = max(float(np.sqrt(np.mean(np.var(f, axis=0)))), 0.05)
         else:
             w_mean, f_mean = imu.dtheta[k] / med, imu.dv[k] / med
-            s_w, s_f = np.radians(1.0), 0.5
+            s_w0, s_f0 = np.radians(1.0), 0.5
+        s_w = np.sqrt(s_w0 ** 2 + w_max ** 2 / 3.0)
+        s_f = np.sqrt(s_f0 ** 2 + a_max ** 2 / 3.0)
         f_span = np.linalg.norm(dv[k]) / T
         f_nom = np.linalg.norm(dv[k]) / med
         if abs(f_span - 9.8) < abs(f_nom - 9.8):
@@ -193,10 +220,13 @@ def bridge_gaps(imu, events: list, factor: float = 5.0, window_s: float = 1.0, m
             dth[k] = w_mean * T
             dv[k] = f_mean * T
             how = f"bridged with the mean rates of the {nwin * med:.2f} s before it"
-        gap_var[k - start] = [(s_w * T) ** 2, (s_f * T) ** 2]
+        sh, st_ = min(s_w * T, np.pi), min(s_w * T, tilt_max / np.sqrt(3.0))
+        sv, sp = min(s_f * T, v_max), min(0.5 * s_f * T * T, v_max * T)
+        gap_var[k - start] = [st_ ** 2, sh ** 2, sv ** 2, sp ** 2]
         events.append(f"IMU gap of {T:.3f} s before t={imu.time[k]:.3f} ({T / med:.0f} nominal intervals); "
-                      f"{how}; attitude/velocity variance inflated by ({np.degrees(s_w * T):.2f} deg)^2, "
-                      f"({s_f * T:.2f} m/s)^2 for the unknown motion")
+                      f"{how}; variance added for the unknown motion (bounds {v_max:g} m/s, {a_max:g} m/s^2, "
+                      f"{np.degrees(w_max):g} deg/s): heading ({np.degrees(sh):.1f} deg)^2, roll/pitch "
+                      f"({np.degrees(st_):.2f} deg)^2, velocity ({sv:.2f} m/s)^2, position ({sp:.2f} m)^2")
     return dth[start:], dv[start:], gap_var
 
 
@@ -279,6 +309,11 @@ def initial_state(imu, gnss, cfg, t_imu, g, use, events):
             raise ValueError("no GNSS fix inside the IMU time span: cannot initialise")
         i0 = first[0]
         k0 = int(np.searchsorted(t_imu, g_t[i0], side="right"))
+        if k0 >= len(t_imu) - 1:  # e.g. --outage withholding every fix but the last ones
+            raise ValueError(f"the first GNSS fix the filter may use (t={g_t[i0]:.3f} s; {int((~use).sum())} "
+                             f"fixes withheld or unusable before it) is at the end of the IMU log "
+                             f"({t_imu[0]:.3f}…{t_imu[-1]:.3f} s): nothing is left to initialise from — "
+                             "shorten or move the --outage, or give a GNSS file that overlaps the IMU log")
         if k0 > 0:
             events.append(f"initialisation at the first GNSS fix t={g_t[i0]:.3f}: {k0} IMU samples before it "
                           "are not used")
@@ -525,3 +560,46 @@ def noise_from_static(imu, static, cfg, events, min_s: float = 5.0):
                   f"{est['arw_deg_sqrt_h']:.2f} deg/sqrt(h), VRW {est['vrw_m_s_sqrt_h']:.3f} m/s/sqrt(h); "
                   "used: " + ", ".join(f"{k} {v:.3g}" for k, v in upd.items()))
     return cfg.model_copy(update={"imu": im.model_copy(update=upd)})
+
+
+#: correlation time of a receiver's position errors when the configuration states none [s]: multipath and
+#: the residual atmospheric errors of a moving receiver decorrelate over tens of seconds (Groves 2013,
+#: §9.3–9.4); physics of the error sources, not fitted on any log
+GNSS_ERROR_TAU_S = 30.0
+#: below this median horizontal σ the fixes are carrier-phase (RTK) solutions, whose errors (centimetres)
+#: cannot make the navigation σ dishonest by more than that: white errors, as the receiver states them
+CARRIER_PHASE_SIGMA_M = 0.1
+
+
+def correlated_gnss_errors(cfg, gnss, events):
+    """The automatic choice of ``gnss.error_tau_s`` (when the configuration does not state it): fixes
+    faster than 1 Hz carry errors correlated over many fixes (a white-error filter would take 10 Hz fixes
+    as 10× the information they hold), so they get three Gauss–Markov position-error states with
+    τ :data:`GNSS_ERROR_TAU_S` and, unless ``gnss.error_sigma_m`` is stated, the median σ the fixes give
+    per axis (after the floors; the rows then the white part: the total σ is overstated by at most √2, a
+    cautious choice); at 1 Hz or slower, and for carrier-phase fixes (median horizontal σ below
+    :data:`CARRIER_PHASE_SIGMA_M`), the errors are treated as white. The decision goes into
+    ``events``. Returns the configuration to use."""
+    g = cfg.gnss
+    if "error_tau_s" in g.model_fields_set or g.use == "velocity" or len(gnss) < 3:
+        return cfg
+    dt = float(np.median(np.diff(np.asarray(gnss.time, float))))
+    rate = 1.0 / dt if dt > 0 else 0.0
+    med = np.nanmedian(gnss_arrays(gnss, cfg)[5], axis=0) * g.pos_std_scale
+    if not rate > 1.0 + 1e-6:
+        events.append(f"GNSS at {rate:.2g} Hz: position errors treated as white (correlated-error states "
+                      "only above 1 Hz; gnss.error_tau_s sets them)")
+        return cfg
+    if np.nanmax(med[:2]) < CARRIER_PHASE_SIGMA_M:
+        events.append(f"GNSS at {rate:.2g} Hz with a median horizontal sigma of {np.nanmax(med[:2]):.3g} m "
+                      "(carrier-phase fixes: errors of centimetres): position errors treated as white; "
+                      "gnss.error_tau_s sets correlated-error states")
+        return cfg
+    upd = {"error_tau_s": GNSS_ERROR_TAU_S}
+    if "error_sigma_m" not in g.model_fields_set:
+        upd["error_sigma_m"] = tuple(float(v) for v in med)
+    sig = upd.get("error_sigma_m", g.error_sigma_m)
+    events.append(f"GNSS at {rate:.2g} Hz: position errors modelled as correlated (3 Gauss-Markov states, "
+                  f"tau {GNSS_ERROR_TAU_S:g} s, sigma E/N/U {sig[0]:.3g}/{sig[1]:.3g}/{sig[2]:.3g} m; the "
+                  "fixes' own sigma is the white part); gnss.error_tau_s: 0 treats them as white")
+    return cfg.model_copy(update={"gnss": g.model_copy(update=upd)})

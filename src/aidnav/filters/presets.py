@@ -20,10 +20,14 @@ constraint, consumer-MEMS noise). Every number below is physics of the vehicle k
 * ``ship``: no NHC (leeway and currents), no ZUPT (a ship at anchor still heaves), heading from the
   course above 2 m/s with σ 15° (drift angle).
 
-The engine-driven presets (car, aircraft, ship) estimate the IMU noise from the log's static samples
-(engine vibration); the pedestrian one keeps the defaults (nothing vibrates a phone at rest). Every
-preset re-initialises when the NIS of the last 10 accepted fixes of a type is far out of its χ² band
-(``gnss.nis_window``; off without a preset, where the filter keeps the configured model).
+The IMU noise is estimated from the log's static samples (engine vibration; also the loose filter's default
+without a preset when the configuration has no imu section, issue 35); the pedestrian preset keeps the
+configured noise (nothing vibrates a phone at rest). Every preset re-initialises when the NIS of the last
+10 accepted fixes of a type is far out of its χ² band (``gnss.nis_window``; off without a preset, where the
+filter keeps the configured model); a re-initialisation grows the calibration states with the navigation
+block. Each preset states what the vehicle can do (``motion``: speed, acceleration, turn-rate and tilt
+bounds), which sizes the covariance an IMU gap adds (:func:`aidnav.filters.preprocess.bridge_gaps`);
+without a preset the bounds of an unknown vehicle (:class:`aidnav.filters.config.MotionBounds`).
 """
 
 from __future__ import annotations
@@ -38,23 +42,36 @@ PRESETS: dict[str, dict] = {
         "init": {"course_min_speed_m_s": 2.0, "course_heading_sigma_deg": 5.0},
         "imu": {"noise_from_static": True},
         "gnss": {"nis_window": 10},
+        # a road car: 250 km/h, 1 g braking or cornering, 60 deg/s yaw (parking), body roll/pitch 10 deg
+        "motion": {"max_speed_m_s": 70.0, "max_accel_m_s2": 10.0, "max_turn_rate_deg_s": 60.0,
+                   "max_tilt_deg": 10.0},
     },
     "aircraft": {
         "constraints": {"nhc": False, "zupt": True},
         "init": {"course_min_speed_m_s": 15.0, "course_heading_sigma_deg": 10.0},
         "imu": {"noise_from_static": True},
         "gnss": {"nis_window": 10},
+        # 300 m/s, 3 g, 45 deg/s roll or turn, any attitude
+        "motion": {"max_speed_m_s": 300.0, "max_accel_m_s2": 30.0, "max_turn_rate_deg_s": 45.0,
+                   "max_tilt_deg": 90.0},
     },
     "pedestrian": {
         "constraints": {"nhc": False, "zupt": True},
         "init": {"course_min_speed_m_s": 1.0, "course_heading_sigma_deg": 30.0},
+        "imu": {"noise_from_static": False},
         "gnss": {"nis_window": 10},
+        # a runner at 10 m/s, 1 g, a body (or a phone) turned by 360 deg/s, held at any angle
+        "motion": {"max_speed_m_s": 10.0, "max_accel_m_s2": 10.0, "max_turn_rate_deg_s": 360.0,
+                   "max_tilt_deg": 90.0},
     },
     "ship": {
         "constraints": {"nhc": False, "zupt": False},
         "init": {"course_min_speed_m_s": 2.0, "course_heading_sigma_deg": 15.0},
         "imu": {"noise_from_static": True},
         "gnss": {"nis_window": 10},
+        # 25 m/s, 0.2 g, 10 deg/s rate of turn, rolling by 30 deg
+        "motion": {"max_speed_m_s": 25.0, "max_accel_m_s2": 2.0, "max_turn_rate_deg_s": 10.0,
+                   "max_tilt_deg": 30.0},
     },
 }
 

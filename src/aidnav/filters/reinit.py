@@ -27,8 +27,17 @@ def nis_of(x, P, H, R, z):
 
 @njit(cache=True)
 def inflate_nav(x, P, H, R, z):
-    """Re-initialisation of the navigation block: P ← D P D with D = √α on δv and δp and
-    √min(α, (π/2)² / P_ii) on φ (attitude σ's never grown past 90°), a congruence, so P stays positive
+    """:func:`inflate` of the navigation block alone (no calibration state takes part)."""
+    return inflate(x, P, H, R, z, np.zeros((0, 2)))
+
+
+@njit(cache=True)
+def inflate(x, P, H, R, z, cal):
+    """Re-initialisation of the navigation block and the calibration states ``cal`` (K, 2): rows (index
+    in P, prior variance): P ← D P D with D = √α on δv and δp, √min(α, (π/2)² / P_ii) on φ (attitude
+    σ's never grown past 90°) and √min(α, prior / P_ii) on each calibration state of ``cal`` (grown at
+    most back to its prior: a time offset, velocity delay or mounting that converged to a wrong value
+    under a wrong navigation solution is part of the repair), a congruence, so P stays positive
     semi-definite; α ≥ 1 the smallest with NIS(ν, H D P D Hᵀ + R) ≤ m (bisection in log α up to
     1e12). Returns α."""
     m = z.shape[0]
@@ -38,19 +47,22 @@ def inflate_nav(x, P, H, R, z):
     lo, hi = 0.0, np.log(1e12)
     for _ in range(50):
         a = np.exp(0.5 * (lo + hi))
-        if nis_of(x, _scaled_nav(P0, a), H, R, z) > m:
+        if nis_of(x, _scaled_nav(P0, a, cal), H, R, z) > m:
             lo = np.log(a)
         else:
             hi = np.log(a)
     a = np.exp(hi)
-    P[:, :] = _scaled_nav(P0, a)
+    P[:, :] = _scaled_nav(P0, a, cal)
     return a
 
 
 @njit(cache=True)
-def _scaled_nav(P0, a):
-    """D P0 D of :func:`inflate_nav` for the factor a."""
+def _scaled_nav(P0, a, cal):
+    """D P0 D of :func:`inflate` for the factor a."""
     d = np.ones(P0.shape[0])
     for i in range(min(NAV, P0.shape[0])):  # a state subset's first states (satcom: never triggered)
         d[i] = np.sqrt(a) if i >= DV else np.sqrt(min(a, max(1.0, (0.5 * np.pi) ** 2 / max(P0[i, i], 1e-30))))
+    for r in range(cal.shape[0]):
+        i = int(cal[r, 0])
+        d[i] = np.sqrt(min(a, max(1.0, cal[r, 1] / max(P0[i, i], 1e-30))))
     return P0 * np.outer(d, d)

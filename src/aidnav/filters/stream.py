@@ -37,7 +37,7 @@ from .engine import Imu, Log, Output, rts, run_chunk, smooth_outputs, start_carr
 from .layout import L_TOFF, NAV, layout_names
 from .loose import loose_setup
 from .measurements import MAX_ROWS
-from .preprocess import StaticDetector, bridge_gaps
+from .preprocess import StaticDetector, bridge_gaps, visible_fixes
 from .result import FilterResult
 from .run_log import calibration_base, gnss_records, log_dict, loose_counts
 
@@ -110,7 +110,7 @@ def stream_loose(chunks, gnss, cfg, emit, withheld=None, smooth: bool = False, e
     dt_head = np.diff(np.concatenate([[head.t0], head.time]))
     med, rate = float(np.median(dt_head)), head.rate_hz
     nwin = max(2, int(round(1.0 / med)))
-    static = StaticDetector(gnss, cfg, rate) if cfg.constraints.zupt else None
+    static = StaticDetector(visible_fixes(gnss, withheld), cfg, rate) if cfg.constraints.zupt else None
     out = Output(su.out_every, bool(smooth), np.zeros(0, np.int64))
     M = len(su.rec.t)
     rec_log = None
@@ -129,11 +129,11 @@ def stream_loose(chunks, gnss, cfg, emit, withheld=None, smooth: bool = False, e
             m = len(ch)
             # gap bridge with the window before the chunk; static flags with the carried sums
             if tail is None:
-                dth, dv, gap_var = bridge_gaps(ch, events, med=med)
+                dth, dv, gap_var = bridge_gaps(ch, events, med=med, bounds=cfg.motion)
             else:
                 j = ImuData(np.concatenate([tail.time, ch.time]), np.concatenate([tail.dtheta, ch.dtheta]),
                             np.concatenate([tail.dv, ch.dv]), t0=tail.t0)
-                dth, dv, gap_var = bridge_gaps(j, events, med=med, start=len(tail))
+                dth, dv, gap_var = bridge_gaps(j, events, med=med, start=len(tail), bounds=cfg.motion)
             st_fl = static(ch.time, ch.dtheta, ch.dv, t_prev) if static is not None else np.zeros(m, np.bool_)
             keep = max(0, min(nwin, m))
             tail = ImuData(ch.time[m - keep:], ch.dtheta[m - keep:], ch.dv[m - keep:],

@@ -94,8 +94,8 @@ def check_std(path, std: np.ndarray | None, names, line_of, what: str, default, 
     neg = std < 0
     if neg.any():
         i, j = np.argwhere(neg)[0]
-        raise DataError(path, line_of(int(i)), f"{names[j]}: negative standard deviation {std[i, j]!r} "
-                                               f"{unit} (a σ must be ≥ 0)")
+        raise DataError(path, line_of(int(i)), f"{names[j]}: negative standard deviation "
+                                               f"{float(std[i, j])!r} {unit} (a σ must be ≥ 0)")
     inf = np.isinf(std)
     if inf.any():
         i, j = np.argwhere(inf)[0]

@@ -17,6 +17,7 @@ import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 
 from aidnav.io._arrow import column_to_f64, f64_to_arrow
+from aidnav.io.atomic import replacing
 from aidnav.io.errors import DataError
 
 TEXT_COLUMNS = ("utc",)  #: columns of text (not read as data): ISO UTC time (Parquet: a UTC timestamp)
@@ -142,8 +143,8 @@ class InterchangeTable:
         if bad.any():
             i = int(np.argmax(bad)) + 1
             kind = "duplicate time" if d[i - 1] == 0 else "time goes backwards"
-            self.fail(i, f"time not strictly increasing ({kind}): {t[i]!r} s after {t[i - 1]!r} s "
-                         f"at line {self.line(i - 1)}")
+            self.fail(i, f"time not strictly increasing ({kind}): {float(t[i])!r} s after "
+                         f"{float(t[i - 1])!r} s at line {self.line(i - 1)}")
 
     def get(self, names: list[str]) -> np.ndarray:
         return np.column_stack([self.cols[c] for c in names])
@@ -346,18 +347,19 @@ def write_table_file(cols: dict, path, comments: list[str], meta: dict) -> Path:
     path = Path(path)
     kind = _kind(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    if kind == "csv":
-        import pandas as pd  # lazy: pandas is heavy to import
+    with replacing(path) as tmp:  # under PATH.part until complete (issue 37)
+        if kind == "csv":
+            import pandas as pd  # lazy: pandas is heavy to import
 
-        with open(path, "w", encoding="utf-8", newline="") as f:
-            for c in comments:
-                f.write(f"# {c}\n")
-            pd.DataFrame(cols).to_csv(f, index=False, lineterminator="\n")  # shortest exact round trip
-    else:
-        tbl = arrow_table(cols)
-        md = dict(tbl.schema.metadata or {})
-        md[META_KEY] = json.dumps(meta).encode()
-        pq.write_table(tbl.replace_schema_metadata(md), path)
+            with open(tmp, "w", encoding="utf-8", newline="") as f:
+                for c in comments:
+                    f.write(f"# {c}\n")
+                pd.DataFrame(cols).to_csv(f, index=False, lineterminator="\n")  # shortest exact round trip
+        else:
+            tbl = arrow_table(cols)  # units per field, utc a timestamp (issue 38)
+            md = dict(tbl.schema.metadata or {})
+            md[META_KEY] = json.dumps(meta).encode()
+            pq.write_table(tbl.replace_schema_metadata(md), tmp)
     return path
 
 

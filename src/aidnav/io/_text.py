@@ -65,5 +65,6 @@ def check_increasing(path, t: np.ndarray, line_no: np.ndarray, what: str = "time
     if bad.any():
         i = int(np.argmax(bad)) + 1
         kind = "duplicate time" if d[i - 1] == 0 else "time goes backwards"
-        raise DataError(path, int(line_no[i]), f"{what} not strictly increasing ({kind}): {t[i]!r} s after "
-                                               f"{t[i - 1]!r} s at line {int(line_no[i - 1])}")
+        raise DataError(path, int(line_no[i]), f"{what} not strictly increasing ({kind}): "
+                                               f"{float(t[i])!r} s after {float(t[i - 1])!r} s at line "
+                                               f"{int(line_no[i - 1])}")

@@ -29,6 +29,7 @@ import numpy as np
 from aidnav.data import GnssData, ImuData, Trajectory
 from aidnav.io._std import DEFAULT_POS_STD_M, ZERO_POS_STD_FLOOR_M, check_std
 from aidnav.io._text import check_increasing, read_numeric_text
+from aidnav.io.atomic import replacing
 from aidnav.io.errors import DataError
 from aidnav.nav.rotations import wrap_2pi, wrap_360
 
@@ -107,7 +108,8 @@ def _write_rows(path, cols: list[np.ndarray], int_cols=()) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fmt = " ".join("%d" if j in int_cols else "%.17g" for j in range(len(cols)))
-    np.savetxt(path, np.column_stack(cols), fmt=fmt)
+    with replacing(path) as tmp:
+        np.savetxt(tmp, np.column_stack(cols), fmt=fmt)
     return path
 
 

@@ -151,6 +151,13 @@ def read_nmea(path, date: str | _dt.date | None = None, min_pos_std_m: float = Z
         events.append(f"{name}: {len(bad)} NMEA sentence(s) with a bad checksum (or none) or unreadable "
                       f"fields skipped (lines {where}{' …' if len(bad) > MAX_LISTED else ''})")
     if not any("gga" in e for e in epochs):
+        if bad:  # every GGA was refused: say why (issue 37)
+            bad_lines = [a for a, _ in bad[:MAX_LISTED]]
+            raise DataError(path, bad_lines[0], f"no GGA sentence with a good checksum: {len(bad)} NMEA "
+                            "sentence(s) have a bad checksum or unreadable fields (lines "
+                            f"{', '.join(map(str, bad_lines))}{' …' if len(bad) > len(bad_lines) else ''}): the "
+                            "log was corrupted (bytes or line ends changed in transfer?) — use the "
+                            "receiver's original file")
         raise DataError(path, None, "no GGA sentence: an NMEA log needs GGA (position and height)"
                         + ("; RMC alone has no height" if any("rmc" in e for e in epochs) else ""))
     _dates(path, epochs, date)
@@ -235,7 +242,9 @@ def _dates(path, epochs: list[dict], date) -> None:
     first_rmc = next((e for e in epochs if e["rmc_date"] is not None), None)
     if first_rmc is None and date is None:
         raise DataError(path, None, "no RMC sentence with a date: NMEA GGA carries only the time of day; "
-                                    "pass the UTC date of the log (date=YYYY-MM-DD)")
+                                    "the date must come from RMC (or ZDA) sentences: log them, or in Python "
+                                    "read the file with aidnav.io.nmea.read_nmea(path, date='YYYY-MM-DD') "
+                                    "and write an interchange file (aidnav.io.interchange.write_gnss)")
     if first_rmc is not None:
         day = first_rmc["rmc_date"]
         k0 = epochs.index(first_rmc)

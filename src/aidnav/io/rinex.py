@@ -97,6 +97,12 @@ def read_rinex_nav(path, ref_week: int | None = None) -> GpsEphemerides:
     if ref_week is None:
         ref_week = int(np.min(wk_toc))
     get = {k: nav[k].values for k in nav.data_vars}
+    need = ("sqrtA", "GPSWeek", "Toe", "Eccentricity", "M0")
+    if "time" not in nav.dims or any(k not in get for k in need):
+        missing = ", ".join(k for k in need if k not in get)
+        raise DataError(path, None, f"not a RINEX navigation file (no GPS ephemeris fields: {missing}; "
+                        f"found {', '.join(list(get)[:6]) or 'none'}): is it an observation file? Give "
+                        "the navigation (ephemeris) file to --nav and the observation file to --obs")
     for it in range(nav.sizes["time"]):
         for js, sv in enumerate(nav.sv.values):
             sv = str(sv)

@@ -32,6 +32,7 @@ converted to GPST with the leap seconds and returned as GPS seconds of week of t
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
 
 import numpy as np
@@ -88,9 +89,24 @@ def bag_reader(path):
         raise DataError(path, None, "not a ROS bag (a ROS 1 .bag file or a ROS 2 bag directory with "
                                     "metadata.yaml)")
     try:
-        return AnyReader([path], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
+        return _opened(AnyReader([path], default_typestore=get_typestore(Stores.ROS2_HUMBLE)), path)
     except Exception as e:  # noqa: BLE001  (rosbags raises its own error classes for a broken bag)
         raise DataError(path, None, f"cannot open ROS bag: {e}") from None
+
+
+@contextlib.contextmanager
+def _opened(rd, path):
+    """The reader opened (a damaged or truncated bag fails here: its index is read on opening)."""
+    try:
+        rd.open()
+    except Exception as e:  # noqa: BLE001  (rosbags raises its own error classes for a broken bag)
+        raise DataError(path, None, f"cannot read the ROS bag: {e} — the file is damaged or truncated (a "
+                        "recording that was cut off?): reindex it (`rosbag reindex` for ROS 1) or record "
+                        "it again") from None
+    try:
+        yield rd
+    finally:
+        rd.close()
 
 
 def _pick(path, reader, msgtype: str | tuple[str, ...], topic: str | None, required: bool = True,
@@ -112,7 +128,8 @@ def _pick(path, reader, msgtype: str | tuple[str, ...], topic: str | None, requi
             raise DataError(path, None, f"no {what} topic in the bag (have: {', '.join(have) or 'none'})")
         return []
     if len(topics) > 1:
-        raise DataError(path, None, f"several {what} topics: {', '.join(topics)}; choose one ({option})")
+        raise DataError(path, None, f"several {what} topics: {', '.join(topics)}; choose one ({option} on "
+                        "the command line, topic= in Python), or keep one in the bag (e.g. `rosbag filter`)")
     return conns
 
 
@@ -150,8 +167,8 @@ def _check_increasing(path, t, what):
     bad = ~(d > 0)
     if bad.any():
         i = int(np.argmax(bad)) + 1
-        raise DataError(path, f"{what} message {i + 1}", f"header stamp {t[i]!r} s does not increase "
-                                                         f"(previous {t[i - 1]!r} s)")
+        raise DataError(path, f"{what} message {i + 1}", f"header stamp {float(t[i])!r} s does not increase "
+                                                         f"(previous {float(t[i - 1])!r} s)")
 
 
 def read_imu(path, topic: str | None = None, axes: str = "FLU", stamps: str = "utc") -> ImuData:

@@ -12,7 +12,10 @@ from __future__ import annotations
 import numpy as np
 
 from aidnav.io.errors import DataError
+from aidnav.io.motion_checks import MOTION_CHECKS, check_motion, check_up
 from aidnav.units import G0
+
+__all__ = ["CHECKS", "validate_skip", "check_imu", "check_gnss", "check_overlap", "check_motion"]
 
 OMEGA_IE = 7.2921151467e-5
 
@@ -24,6 +27,7 @@ CHECKS = {
     "imu-gyro": "95th percentile of |ω| below 20 rad/s (gyro in rad/s, not deg/s)",
     "gnss-latlon": "latitude within ±90° and longitude within ±360° (degrees, not radians)",
     "overlap": "the GNSS fixes and the IMU samples share a time span",
+    **MOTION_CHECKS,  # from physics: the IMU against the GNSS track (aidnav.io.motion_checks)
 }
 
 
@@ -84,6 +88,7 @@ def check_imu(imu, path, skip=()) -> list[str]:
             raise DataError(path, None, f"95 % of the angular rates are below {w95:.3g} rad/s "
                             f"({np.degrees(w95):.0f} deg/s): the gyro looks like it is in deg/s: multiply "
                             "by π/180 (columns gyro_*_rad_s) (or --skip-check imu-gyro)")
+    check_up(imu, path, skip)
     return warnings
 
 
@@ -115,8 +120,12 @@ def check_overlap(imu, gnss, imu_path, gnss_path, skip=()) -> list[str]:
     tg0, tg1 = float(np.min(gnss.time)), float(np.max(gnss.time))
     if tg1 < ti0 or tg0 > ti1:
         hint = ""
-        if abs(tg0 - ti0) > 86400 * 6:
+        gap = tg0 - ti0
+        if abs(gap) > 86400 * 6:
             hint = " (one looks like GPS seconds of week and the other not: give --time-offset, or convert)"
+        elif abs(gap) > 1800 and abs(gap / 3600.0 - round(gap / 3600.0)) < 0.05:
+            hint = (f" (they start {gap / 3600.0:+.0f} h apart: a time zone or local-time clock? give "
+                    f"--time-offset {round(gap / 3600.0) * 3600:+.0f}, or convert)")
         raise DataError(gnss_path, None, f"GNSS fixes span {tg0:.3f}…{tg1:.3f} s but the IMU ({imu_path}) "
                         f"spans {ti0:.3f}…{ti1:.3f} s: no common time{hint}")
     inside = ((gnss.time >= ti0) & (gnss.time <= ti1)).mean()

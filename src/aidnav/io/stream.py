@@ -52,9 +52,26 @@ def _parquet_imu(path: Path):
     if "time" not in names or not (inc or set(IMU_RATE_COLUMNS) <= names) or pf.metadata.num_rows < 2:
         pf.close()
         return None
+    _numeric_time(path, pf.schema_arrow.field("time").type, pf)
     md = pf.schema_arrow.metadata or {}
     meta = json.loads(md[META_KEY]) if META_KEY in md else {}
     return pf, ["time", *(IMU_INCREMENT_COLUMNS if inc else IMU_RATE_COLUMNS)], inc, meta
+
+
+def _numeric_time(path, typ, pf=None) -> None:
+    """The interchange ``time`` column is a number of seconds: a timestamp, date or string column is
+    refused naming the column and what to write instead."""
+    import pyarrow as pa
+
+    if pa.types.is_integer(typ) or pa.types.is_floating(typ):
+        return
+    if pf is not None:
+        pf.close()
+    what = ("a timestamp (date and time)" if pa.types.is_timestamp(typ) or pa.types.is_date(typ)
+            else f"of type {typ}")
+    raise DataError(path, None, f"column time is {what}: the interchange time column is a number of seconds "
+                    "(GPS seconds of week, or any seconds on the GNSS time scale) — convert it, e.g. "
+                    "(t − start of the GPS week) in seconds as float64")
 
 
 def imu_time_span(path) -> tuple[float, float] | None:
@@ -125,8 +142,8 @@ def iter_imu(path, chunk_rows: int = 1 << 16, reader=None):
                 i = int(np.argmax(~(d > 0))) + 1  # index in tt
                 kind = "duplicate time" if d[i - 1] == 0 else "time goes backwards"
                 r = row + i - (0 if t_prev is None else 1)  # 0-based row of the sample
-                raise DataError(path, r + 1, f"time not strictly increasing ({kind}): {tt[i]!r} s after "
-                                f"{tt[i - 1]!r} s at line {r}")
+                raise DataError(path, r + 1, f"time not strictly increasing ({kind}): "
+                                f"{float(tt[i])!r} s after {float(tt[i - 1])!r} s at line {r}")
             if t_prev is None:
                 t0 = meta.get("t0_s")
                 t0 = None if t0 is None or not t0 < t[0] else float(t0)
@@ -534,10 +551,12 @@ def trajectory_chunks(path, chunk_rows: int = 1 << 15, height_offset_m: float = 
 
 class CsvColumnsWriter:
     """A CSV file of named float columns written piece by piece through pyarrow's writer (header line, no
-    quotes, NaN as an empty field, floats as their shortest exact decimal)."""
+    quotes, NaN as an empty field, floats as their shortest exact decimal), under ``PATH.part`` until
+    ``close`` renames it (``abort`` removes it)."""
 
     def __init__(self, path):
         self.path, self.w, self.f = Path(path), None, None
+        self.part = self.path.with_name(self.path.name + ".part")
 
     def write(self, cols: dict) -> None:
         import pyarrow as pa
@@ -551,7 +570,7 @@ class CsvColumnsWriter:
             arrays.append(pa.Array.from_buffers(pa.float64(), len(a), [valid, pa.py_buffer(a)]))
         tbl = pa.Table.from_arrays(arrays, names=list(cols))
         if self.w is None:
-            self.f = open(self.path, "wb")
+            self.f = open(self.part, "wb")
             opts = pacsv.WriteOptions(quoting_style="none", quoting_header="none")
             self.w = pacsv.CSVWriter(self.f, tbl.schema, write_options=opts)
         self.w.write_table(tbl)
@@ -560,7 +579,17 @@ class CsvColumnsWriter:
         if self.w is not None:
             self.w.close()
             self.f.close()
+            os.replace(self.part, self.path)
         return self.path
+
+    def abort(self) -> None:
+        for x in (self.w, self.f):
+            if x is not None:
+                try:
+                    x.close()
+                except Exception:  # noqa: BLE001
+                    pass
+        self.part.unlink(missing_ok=True)
 
 
 class Spool:

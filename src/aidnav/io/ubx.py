@@ -40,6 +40,15 @@ from aidnav.io.errors import DataError
 from aidnav.io.gpstime import GPS_EPOCH_UNIX, SECONDS_PER_WEEK, utc_unix_to_gpst_unix
 
 
+def _no_frame(errors: list[str]) -> str:
+    """Why no UBX frame was read: every frame refused (bad checksums: a corrupted file), or none there."""
+    if not errors:
+        return "; no UBX frame found"
+    what = "a bad checksum" if any("checksum" in e.lower() for e in errors) else "an unreadable frame"
+    return (f"; every UBX frame was refused ({len(errors)}, {what}; first: {errors[0]}): the log was "
+            "corrupted (bytes changed in transfer?) — use the receiver's original file")
+
+
 def _utc_unix(p) -> float:
     d = np.datetime64(f"{p.year:04d}-{p.month:02d}-{p.day:02d}T{p.hour:02d}:{p.min:02d}:{p.second:02d}", "s")
     return float(d.astype(np.int64)) + p.nano * 1e-9
@@ -97,7 +106,7 @@ def read_ubx(path, min_pos_std_m: float = ZERO_POS_STD_FLOOR_M,
         raise DataError(path, None, "no UBX-NAV-PVT message: aidnav reads the receiver's fixes from "
                         "NAV-PVT (a raw RXM-RAWX log needs RINEX conversion, e.g. RTKLIB convbin, and "
                         "'aidnav tight')" + (f"; found {', '.join(sorted(ids))}" if ids else
-                                             "; no UBX frame found"))
+                                             _no_frame(errors)))
     if not rows:
         raise DataError(path, None, "no NAV-PVT message with a valid 3-D fix")
     a = np.array(rows, dtype=float)

@@ -38,6 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from aidnav.data import GnssData, Trajectory
+from aidnav.io.atomic import write_text
 from aidnav.io.gpstime import week_sow_to_utc_iso
 from aidnav.nav.rotations import wrap_pi
 
@@ -354,7 +355,7 @@ def write_kml(path, traj: Trajectory, gnss: GnssData | None = None, outages=None
         else:
             head.append(f'<Style id="{sid}"><LineStyle><color>{_kml_colour(colour)}</color>'
                         f"<width>{6 if kind == 'outage' else 3}</width></LineStyle></Style>")
-    path.write_text("\n".join(head + body + ["</Document></kml>"]) + "\n", encoding="utf-8")
+    write_text(path, "\n".join(head + body + ["</Document></kml>"]) + "\n")  # whole or not at all
     return path
 
 
@@ -412,7 +413,7 @@ def write_geojson(path, traj: Trajectory, gnss: GnssData | None = None, outages=
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     doc = geojson_dict(traj, gnss, outages, rejected_times, color_by, max_points, max_fixes)
-    path.write_text(json.dumps(doc, allow_nan=False) + "\n", encoding="utf-8")
+    write_text(path, json.dumps(doc, allow_nan=False) + "\n")  # under a temporary name until complete
     return path
 
 

@@ -28,6 +28,7 @@ from matplotlib.figure import Figure
 
 from aidnav.analysis.consistency import chi2_band
 from aidnav.data import GnssData, Trajectory
+from aidnav.io.atomic import replacing
 from aidnav.nav.earth import lla_to_enu
 from aidnav.nav.rotations import wrap_360
 
@@ -289,5 +290,6 @@ def write_overview(path, traj: Trajectory, gnss: GnssData | None = None, summary
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig = overview_figure(traj, gnss, summary, records, title)
-    fig.savefig(path, dpi=dpi)
+    with replacing(path) as tmp:  # under a temporary name until complete
+        fig.savefig(tmp, dpi=dpi, format=path.suffix.lstrip(".") or "png")
     return path

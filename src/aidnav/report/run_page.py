@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from aidnav.filters.result import SENSOR_ERROR_UNITS, sensor_error_axis
+from aidnav.io.atomic import write_text
 
 from .html import escape, fmt, img_file_tag, kv_table, page, table
 from .maps import write_maps
@@ -305,7 +306,7 @@ def write_run_page(path, summary: dict, figures=(), title: str | None = None) ->
     path = Path(path)
     text = run_page_html(summary, figures, title)
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(text, encoding="utf-8")
+    write_text(path, text)  # under a temporary name until complete
     return path
 
 

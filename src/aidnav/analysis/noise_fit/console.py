@@ -37,4 +37,4 @@ def print_characterisation(ch: Characterisation, console=None) -> None:
         if n not in ch.warnings:
             console.print(f"note: {n}")
     for w in ch.warnings:
-        console.print(f"[bold yellow]warning:[/] {w}")
+        console.print(f"warning: {w}", style="bold yellow", markup=False)  # (the CLI's console: no markup)

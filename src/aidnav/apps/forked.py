@@ -1,0 +1,33 @@
+"""A forked child that does one piece of work for its parent (Linux): the parent writes the job to a pipe,
+the child's ``work(job_fd)`` reads it and its pickled answer comes back through a second pipe. Used by
+the figures of ``process`` (:mod:`.run_outputs`) and of ``characterise``, which fork before the long work
+so that matplotlib is imported and warmed up while the parent computes."""
+
+from __future__ import annotations
+
+import os
+import pickle
+
+
+def fork_worker(work):
+    """Fork a child that runs ``work(job_fd)`` once and writes its pickled result back, then exits
+    (never returns in the child; status 0 when ``work`` returned). Returns, in the parent, ``(pid,
+    job_w, res_r)``: the child's pid, the job pipe's write end as a binary file, the result pipe's read
+    end as a file descriptor."""
+    job_r, job_w = os.pipe()
+    res_r, res_w = os.pipe()
+    pid = os.fork()
+    if pid == 0:  # the child: never returns
+        status = 1
+        try:
+            os.close(job_w)
+            os.close(res_r)
+            res = work(job_r)
+            with os.fdopen(res_w, "wb") as f:
+                f.write(pickle.dumps(res))
+            status = 0
+        finally:
+            os._exit(status)
+    os.close(job_r)
+    os.close(res_w)
+    return pid, os.fdopen(job_w, "wb"), res_r

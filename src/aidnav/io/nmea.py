@@ -155,7 +155,7 @@ def read_nmea(path, date: str | _dt.date | None = None, min_pos_std_m: float = Z
             bad_lines = [a for a, _ in bad[:MAX_LISTED]]
             raise DataError(path, bad_lines[0], f"no GGA sentence with a good checksum: {len(bad)} NMEA "
                             "sentence(s) have a bad checksum or unreadable fields (lines "
-                            f"{', '.join(map(str, bad_lines))}{' …' if len(bad) > len(bad_lines) else ''}): the "
+                            f"{', '.join(map(str, bad_lines))}{' …' if len(bad) > MAX_LISTED else ''}): the "
                             "log was corrupted (bytes or line ends changed in transfer?) — use the "
                             "receiver's original file")
         raise DataError(path, None, "no GGA sentence: an NMEA log needs GGA (position and height)"

@@ -21,7 +21,7 @@ import sys
 import threading
 import traceback
 
-from .forked import fork_worker
+from .forked import fork_worker, worker_answer
 
 __all__ = ["characterise_file", "print_characterisation", "FigureProcess"]
 
@@ -178,25 +178,12 @@ class FigureProcess:
     def result(self):
         """The figure's path once the child has written it; the child's error raised here."""
         res_r, self._res_r = self._res_r, None
-        with os.fdopen(res_r, "rb") as f:
-            out = f.read()
-        _, status = os.waitpid(self.pid, 0)
-        self._reaped = True
-        res = pickle.loads(out) if out else None
-        if not res:
-            raise RuntimeError(f"the figure process ended without drawing {self._path} (wait status "
-                               f"{status})")
-        if res[0] == "ok":
-            self.drawn_from = res[2] if len(res) > 2 else None
-            return res[1]
-        _, exc, tb = res
         try:
-            exc = pickle.loads(exc)
-        except Exception:  # noqa: BLE001  (None, or an exception that does not unpickle)
-            exc = RuntimeError(f"the figure process failed:\n{tb}")
-        else:
-            exc.add_note(f"(raised in the figure process)\n{tb}")
-        raise exc
+            res = worker_answer(self.pid, res_r, f"the figure process ended without drawing {self._path}")
+        finally:
+            self._reaped = True
+        self.drawn_from = res[2] if len(res) > 2 else None
+        return res[1]
 
     def close(self) -> None:
         """End the child without a figure (after an error of the analysis); nothing after a call."""

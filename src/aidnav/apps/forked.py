@@ -31,3 +31,26 @@ def fork_worker(work):
     os.close(job_r)
     os.close(res_w)
     return pid, os.fdopen(job_w, "wb"), res_r
+
+
+def worker_answer(pid: int, res_r: int, missing: str) -> tuple:
+    """Read the answer of the child ``pid`` (:func:`fork_worker`) from ``res_r`` and reap the child. Its
+    ``("ok", …)`` tuple is returned; its ``("error", pickled exception, traceback text)`` is raised here,
+    with the child's traceback as a note (a RuntimeError carrying the traceback when the exception does
+    not unpickle); ``missing``: what to say when the child ended without an answer."""
+    with os.fdopen(res_r, "rb") as f:
+        out = f.read()
+    _, status = os.waitpid(pid, 0)
+    res = pickle.loads(out) if out else None
+    if not res:
+        raise RuntimeError(f"{missing} (wait status {status})")
+    if res[0] == "ok":
+        return res
+    _, exc, tb = res
+    try:
+        exc = pickle.loads(exc)
+    except Exception:  # noqa: BLE001  (None, or an exception that does not unpickle)
+        exc = RuntimeError(f"the figure process failed:\n{tb}")
+    else:
+        exc.add_note(f"(raised in the figure process)\n{tb}")
+    raise exc

@@ -22,7 +22,7 @@ import threading
 import traceback
 import weakref
 
-from .forked import fork_worker
+from .forked import fork_worker, worker_answer
 
 __all__ = ["OutputsProcess", "start_outputs", "write_outputs", "FORK_OUTPUTS", "IN_PROCESS"]
 
@@ -128,23 +128,9 @@ class OutputsProcess:
         """The paths the child wrote; its error raised here."""
         if self._sender is not None:
             self._sender.join()
-        with os.fdopen(self._res_r, "rb") as f:
-            out = f.read()
         self._finalizer.detach()
-        _, status = os.waitpid(self.pid, 0)
-        res = pickle.loads(out) if out else None
-        if not res:
-            raise RuntimeError(f"the figure process ended without writing the overview (status {status})")
-        if res[0] == "ok":
-            return res[1]
-        _, exc, tb = res
-        try:
-            exc = pickle.loads(exc)
-        except Exception:  # noqa: BLE001  (None, or an exception that does not unpickle)
-            exc = RuntimeError(f"the figure process failed:\n{tb}")
-        else:
-            exc.add_note(f"(raised in the figure process)\n{tb}")
-        raise exc
+        res = worker_answer(self.pid, self._res_r, "the figure process ended without writing the overview")
+        return res[1]
 
     def close(self) -> None:
         """End the child without outputs (nothing after ``result``)."""

@@ -57,6 +57,22 @@ def test_the_drive_passes(drive):
     assert handedness(imu, g) > 0.9
 
 
+@pytest.mark.parametrize("start", [100.0, 250.0, 400.0])
+@pytest.mark.parametrize("lag", [0.0, 1.5])
+def test_short_cuts_and_latency_are_not_a_time_scale(drive, start, lag):
+    """60-s cuts of the drive (a fleet of one-minute logs) and a 1.5-s GNSS latency (the filter's own
+    time-offset state) are not called different time scales: only shifts above TIME_SCALE_MIN_S are."""
+    from aidnav.io.motion_checks import TIME_SCALE_MIN_S
+
+    imu, g = drive
+    t0 = imu.time[0] + start
+    ki = (imu.time >= t0) & (imu.time < t0 + 60.0)
+    kg = (g.time >= t0) & (g.time < t0 + 60.0)
+    cut = ImuData(imu.time[ki], imu.dtheta[ki], imu.dv[ki], t0=float(imu.time[ki][0] - 0.01), week=imu.week)
+    assert lag < TIME_SCALE_MIN_S
+    assert check_motion(cut, _gnss(g.subset(kg), lag), "imu", "gnss") == []
+
+
 @pytest.mark.parametrize("case, check, match", [
     ("deg", "imu-gyro-scale", "57"),
     ("frd", "imu-up", "FRD"),

@@ -14,9 +14,10 @@ that is far from its physical value whatever the vehicle does:
 * ``imu-axes`` — the same ratio near −1: the gyro turns the other way than the vehicle; a mirrored
   (left-handed) axis set: two axes swapped or one axis' sign flipped.
 * ``time-scale`` — the shift of the IMU turn rate that best matches the GNSS course rate, searched over
-  ±25 s and whole hours: more than 1 s is a time-scale mistake (18 s: GNSS in UTC against an IMU in GPS
-  time — the leap seconds; whole hours: a time zone); the filter's own time-offset estimate covers
-  fractions of a second only.
+  ±25 s and whole hours: more than ``TIME_SCALE_MIN_S`` (5 s) is a time-scale mistake (18 s: GNSS in UTC
+  against an IMU in GPS time — the leap seconds; whole hours: a time zone). Shifts below it are latency,
+  the filter's own time-offset state (and a short log's turn-rate match cannot tell a second apart from
+  noise). The search needs ``MIN_SPAN_S`` (100 s) of moving epochs: shorter logs are not judged.
 
 Each check is skippable by name (``--skip-check``), raises :class:`DataError` naming the cause and the
 fix, and says nothing where the log cannot tell (fewer than 20 moving epochs, no turns).
@@ -45,6 +46,13 @@ MOTION_CHECKS = {
 }
 
 DEG = np.pi / 180.0
+#: the smallest shift [s] the time-scale check calls a time-scale mistake: far above any IMU/GNSS latency
+#: (fractions of a second, estimated by the filter), below the leap seconds of every GPS-era log since 1999
+TIME_SCALE_MIN_S = 5.0
+#: the time-scale search compares the turn rates over at least this span of moving epochs [s]: over a
+#: one-minute log a shift of seconds matches some turns by chance (measured: 60-s cuts of the drive matched
+#: best 24 s away), so shorter logs are not judged (4 × the search range)
+MIN_SPAN_S = 100.0
 MAX_SHIFT_S = 25.0  #: the time-scale search: ±this [s] (18 s of leap seconds inside), and whole hours
 MAX_EPOCHS = 800  #: moving GNSS epochs compared at most
 HOURS = (1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12)
@@ -164,25 +172,27 @@ def check_motion(imu, gnss, imu_path, gnss_path, skip=()) -> list[str]:
         if np.sqrt(np.mean(r * r)) < 1.0 * DEG:  # no turns to compare
             return None
         cost, gains = turn_rate_residuals(lags, t_imu, cum_up, t_g[idx - 1], t_g[idx + 1], r)
-        return cost, gains, float(np.mean(r * r)), idx.size
+        return cost, gains, float(np.mean(r * r)), idx.size, float(t_g[idx[-1]] - t_g[idx[0]])
 
     # the gain near zero shift (the epochs of the whole log): units and axes
     small = np.arange(-1.0, 1.0 + 1e-9, 0.05)
     base = fit(1.0, small)
     if base is None:
         return []
-    c_s, g_s, rr, n = base
+    c_s, g_s, rr, n, _ = base
     j = int(np.argmin(c_s))
     shift, gain, best = float(small[j]), float(g_s[j]), float(c_s[j])
     # explained fraction of the course rate's variance at the best shift (the gain free)
     explained = 1.0 - best / (best + gain * gain * rr) if gain * gain * rr > 0 else 0.0
     # the shift over ±MAX_SHIFT_S and whole hours: time scales (where the log is long enough)
     wide = fit(MAX_SHIFT_S, near)
+    if wide is not None and wide[4] < MIN_SPAN_S:
+        wide = None  # too little motion to tell a shift of seconds from chance (a one-minute log)
     if wide is not None:
-        cost, gains, rr_w, n_w = wide
+        cost, gains, rr_w, n_w, _ = wide
         i0, ib = int(np.argmin(np.abs(near))), int(np.argmin(cost))
         at0 = float(cost[i0])
-        if abs(near[ib]) > 1.0 and cost[ib] < 0.5 * at0:
+        if abs(near[ib]) > TIME_SCALE_MIN_S and cost[ib] < 0.5 * at0:
             shift, gain, best = float(near[ib]), float(gains[ib]), float(cost[ib])
             explained = 1.0 - best / (best + gain * gain * rr_w) if gain * gain * rr_w > 0 else 0.0
     else:
@@ -191,14 +201,14 @@ def check_motion(imu, gnss, imu_path, gnss_path, skip=()) -> list[str]:
         for sgn in (-1, 1):
             lags = sgn * 3600.0 * h + np.arange(-2.0, 2.0 + 1e-9, 0.1)
             f = fit(float(np.max(np.abs(lags))), lags)
-            if f is not None and f[3] >= 0.5 * n and float(np.min(f[0])) < 0.5 * best:
+            if f is not None and f[3] >= 0.5 * n and f[4] >= MIN_SPAN_S and float(np.min(f[0])) < 0.5 * best:
                 j = int(np.argmin(f[0]))
                 shift, gain, best = float(lags[j]), float(f[1][j]), float(f[0][j])
                 at0 = min(at0, 2.0 * best)
     if explained < 0.5 and abs(shift) < 1.0:
         return []  # the turn rates do not match at any shift: nothing this check can tell
     rel = f"(ratio of the IMU turn rate about the up axis to the GNSS course rate over {n} moving epochs)"
-    if not _skip("time-scale", skip) and abs(shift) > 1.0 and best < 0.5 * at0:
+    if not _skip("time-scale", skip) and abs(shift) > TIME_SCALE_MIN_S and best < 0.5 * at0:
         leap = abs(abs(shift) - 18.0) < 1.5
         hours = abs(shift) > 1800.0
         cause = ("the GNSS file is in UTC and the IMU in GPS time (or the reverse): they differ by the 18 "

@@ -199,7 +199,7 @@ def test_dataframe_columns_and_units():
                   dheading_rad=np.radians(1.0))
     df = trajectory_errors(est, ref).to_dataframe()
     for c in ("time", "de_m", "dn_m", "du_m", "horizontal_m", "pos3d_m", "dve_m_s", "droll_deg",
-              "dheading_deg", "de_m_std", "dheading_deg_std"):
+              "dheading_deg", "std_de_m", "std_dheading_deg"):
         assert c in df.columns
     np.testing.assert_allclose(df["dheading_deg"], 1.0, atol=1e-9)
-    np.testing.assert_allclose(df["dheading_deg_std"], np.degrees(0.01))
+    np.testing.assert_allclose(df["std_dheading_deg"], np.degrees(0.01))

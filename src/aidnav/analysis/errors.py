@@ -134,13 +134,13 @@ class ErrorSeries:
                 cols[c] = np.degrees(self.att[:, i])
         if self.std_pos is not None:
             for i, c in enumerate(("de_m", "dn_m", "du_m")):
-                cols[c + "_std"] = self.std_pos[:, i]
+                cols["std_" + c] = self.std_pos[:, i]
         if self.std_vel is not None and self.vel is not None:
             for i, c in enumerate(("dve_m_s", "dvn_m_s", "dvu_m_s")):
-                cols[c + "_std"] = self.std_vel[:, i]
+                cols["std_" + c] = self.std_vel[:, i]
         if self.std_att is not None and self.att is not None:
             for i, c in enumerate(("droll_deg", "dpitch_deg", "dheading_deg")):
-                cols[c + "_std"] = np.degrees(self.std_att[:, i])
+                cols["std_" + c] = np.degrees(self.std_att[:, i])
         return cols
 
     def components(self) -> dict[str, tuple[np.ndarray, np.ndarray | None, str]]:

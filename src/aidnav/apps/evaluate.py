@@ -123,7 +123,7 @@ def evaluate_files(estimate_path, truth_path, out_dir=None, console=None, max_dt
 
     estimate_path, truth_path : interchange trajectory files, or RTKLIB ``.pos`` (see module doc).
     out_dir : when given, writes ``errors.json`` (statistics, epoch counts, fraction within 1σ/3σ,
-        position NEES summary), ``errors.csv`` (per-epoch errors, angles in deg, σ columns with a ``std_`` prefix)
+        position NEES summary), ``errors.csv`` (per-epoch errors, angles in deg, σ columns prefixed ``std_``)
         and the PNG figures of :mod:`aidnav.report.error_plots`.
     console : rich Console for the table (a new one if None).
     max_dt : gap threshold for :func:`trajectory_errors` [s]; time_scale : label of the time axis

@@ -86,3 +86,30 @@ def _drawn_png(path, min_px=(300, 200), min_colour=5e-4):
 def drawn_png():
     """The function :func:`_drawn_png` (path) → image: the figure exists and has data drawn on it."""
     return _drawn_png
+
+
+# ------------------------------------------------------------------ the walk data set (raw GNSS)
+@pytest.fixture(scope="session")
+def load_walk(data_dir):
+    """A function ``() -> (imu, obs, nav, ref)`` that reads the walk data set fresh (the IMU log, the RINEX
+    observations and navigation, the RTK reference with its geoid separation of the data README, −21.4 m),
+    so that no test sees another's changes; skips when the data set is absent."""
+    d = data_dir / "rtklibexplorer_walk_0827"
+    if not d.is_dir():
+        pytest.skip("walk data set not found")
+
+    def load():
+        import warnings
+
+        from aidnav.apps.process import read_imu_any
+        from aidnav.io.rinex import read_rinex_nav, read_rinex_obs
+        from aidnav.io.rtklib import read_pos
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", FutureWarning)
+            nav = read_rinex_nav(d / "rinex_converted" / "gnss_1730.nav")
+            obs = read_rinex_obs(d / "rinex_converted" / "gnss_1730.obs")
+        ref = read_pos(d / "gnss_1730_sf.pos", height_offset_m=-21.4)
+        return read_imu_any(d / "imu_1730.csv"), obs, nav, ref
+
+    return load

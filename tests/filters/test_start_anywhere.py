@@ -156,25 +156,13 @@ def test_spp_course_only_when_meaningful():
     assert abs(np.degrees(course) - 40.0) < 3.0 * np.degrees(se / spd) + 1.0
 
 
-def _walk_run(data_dir, cfg):
+def _walk_run(load_walk, cfg):
     """``process_tight`` on the walk with ``cfg``: (TightResult, tight comparison, SPP comparison) over
     every reference epoch."""
-    import warnings
-
-    from aidnav.apps.process import read_imu_any
     from aidnav.apps.tight import compare_with_reference, process_tight
-    from aidnav.io.rinex import read_rinex_nav, read_rinex_obs
-    from aidnav.io.rtklib import read_pos
 
-    d = data_dir / "rtklibexplorer_walk_0827"
-    if not d.is_dir():
-        pytest.skip("walk data set not found")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", FutureWarning)
-        nav = read_rinex_nav(d / "rinex_converted" / "gnss_1730.nav")
-        obs = read_rinex_obs(d / "rinex_converted" / "gnss_1730.obs")
-    ref = read_pos(d / "gnss_1730_sf.pos", height_offset_m=-21.4)
-    res, sp = process_tight(read_imu_any(d / "imu_1730.csv"), obs, nav, cfg)
+    imu, obs, nav, ref = load_walk()
+    res, sp = process_tight(imu, obs, nav, cfg)
     c = compare_with_reference(res.time, res.state[:, 0], res.state[:, 1], res.state[:, 2], ref, quality=None)
     ok = np.isfinite(sp["lat"])
     cs = compare_with_reference(sp["time"][ok], sp["lat"][ok], sp["lon"][ok], sp["h"][ok], ref, quality=None)
@@ -182,23 +170,23 @@ def _walk_run(data_dir, cfg):
 
 
 @pytest.fixture(scope="module")
-def walk_default(data_dir):
+def walk_default(load_walk):
     """``aidnav tight`` on the walk with no configuration: (tight, SPP) horizontal RMS over every
     reference epoch (issue 26: before, the heading came from an SPP speed spike and it diverged to 21 m)."""
     from aidnav.filters.tight import TightConfig
 
-    res, c, cs, ref = _walk_run(data_dir, TightConfig())
+    res, c, cs, ref = _walk_run(load_walk, TightConfig())
     WALK["tight"], WALK["spp"], WALK["res"], WALK["ref"] = c, cs, res, ref
     return c["horizontal_rms"], cs["horizontal_rms"]
 
 
 @pytest.fixture(scope="module")
-def walk_white(data_dir):
+def walk_white(load_walk):
     """The walk with white-noise pseudoranges only (``range_errors`` off: the filter before the
     range-error states; code and Doppler only, no carrier phase): (tight comparison, SPP comparison)."""
     from aidnav.filters.tight import TightConfig
 
-    _, c, cs, _ = _walk_run(data_dir, TightConfig(gnss={"range_errors": False, "use_phase": False}))
+    _, c, cs, _ = _walk_run(load_walk, TightConfig(gnss={"range_errors": False, "use_phase": False}))
     return c, cs
 
 

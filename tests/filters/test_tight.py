@@ -2,10 +2,7 @@
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
-import pytest
 from scipy.stats import chi2
 
 from aidnav.data import ImuData
@@ -180,25 +177,14 @@ def test_nees_of_the_tight_filter_within_chi_square_bounds():
     assert np.all(m > lo) and np.all(m < hi), (m, lo, hi)
 
 
-def test_walk_data_tight_coupling(data_dir):
+def test_walk_data_tight_coupling(load_walk):
     """Walk data: 4 GPS satellites, code + Doppler only. The honest accuracy of such a solution is the SPP's
     (a few metres of bias from the ranging errors of four satellites; no redundancy to detect them)."""
-    d = data_dir / "rtklibexplorer_walk_0827"
-    if not d.is_dir():
-        pytest.skip("walk data set not found")
     import yaml
 
-    from aidnav.apps.process import read_imu_any
     from aidnav.apps.tight import compare_with_reference, process_tight
-    from aidnav.io.rinex import read_rinex_nav, read_rinex_obs
-    from aidnav.io.rtklib import read_pos
 
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", FutureWarning)
-        nav = read_rinex_nav(d / "rinex_converted" / "gnss_1730.nav")
-        obs = read_rinex_obs(d / "rinex_converted" / "gnss_1730.obs")
-    ref = read_pos(d / "gnss_1730_sf.pos", height_offset_m=-21.4)
-    imu = read_imu_any(d / "imu_1730.csv")
+    imu, obs, nav, ref = load_walk()
     root = __import__("pathlib").Path(__file__).resolve().parents[2]
     y = yaml.safe_load((root / "examples" / "rtklibexplorer_walk_0827.yaml").read_text())
     cfg = TightConfig(

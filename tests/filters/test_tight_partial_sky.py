@@ -170,26 +170,17 @@ def test_walk_no_satellites_3_sigma_coverage(walk_partial):
 
 # ------------------------------------------------------------------ the walk, no configuration
 @pytest.fixture(scope="module")
-def walk_default(data_dir):
+def walk_default(data_dir, load_walk):
     """`aidnav tight`'s processing with no configuration: ENU errors against the RTK reference at every
     reference epoch, their σ, and the summary of the run."""
-    d = data_dir / "rtklibexplorer_walk_0827"
-    if not d.is_dir():
-        pytest.skip("walk data set not found")
-    from aidnav.apps.process import read_imu_any
     from aidnav.apps.tight import process_tight
     from aidnav.filters.tight import to_trajectory
-    from aidnav.io.rinex import read_rinex_nav, read_rinex_obs
-    from aidnav.io.rtklib import read_pos
     from aidnav.nav.earth import lla_difference_enu
 
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", FutureWarning)
-        nav = read_rinex_nav(d / "rinex_converted" / "gnss_1730.nav")
-        obs = read_rinex_obs(d / "rinex_converted" / "gnss_1730.obs")
-    ref = read_pos(d / "gnss_1730_sf.pos", height_offset_m=-21.4)
+    imu, obs, nav, ref = load_walk()
+    d = data_dir / "rtklibexplorer_walk_0827"
     ev: list[str] = []
-    res, _ = process_tight(read_imu_any(d / "imu_1730.csv"), obs, nav, None, events=ev)
+    res, _ = process_tight(imu, obs, nav, None, events=ev)
     tr = to_trajectory(res)
     sel = (ref.time >= tr.time[0]) & (ref.time <= tr.time[-1])
     j = np.clip(np.searchsorted(tr.time, ref.time[sel]), 0, len(tr.time) - 1)

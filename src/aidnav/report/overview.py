@@ -120,7 +120,9 @@ def overview_figure(traj: Trajectory, gnss: GnssData | None = None, summary: dic
         raise ValueError("overview: empty trajectory")
     summary = summary or {}
     wins = [tuple(map(float, w)) for w in summary.get("outage_windows", [])]
-    series = nis_series(records, gnss)
+    # a measurement type with no update (GNSS without velocities) gets no panel: an empty panel costs as
+    # much to draw as a full one (the run page's NIS table says which types had none)
+    series = [x for x in nis_series(records, gnss) if np.any(np.isfinite(x["nis"]) & (x["dof"] > 0))]
     has_std_att = traj.std_att is not None and np.any(np.isfinite(traj.std_att))
     has_std_pos = traj.std_pos is not None and np.any(np.isfinite(traj.std_pos))
     right = ["rp", "heading"] + (["spos"] if has_std_pos else []) + (["satt"] if has_std_att else []) + \

@@ -184,7 +184,7 @@ def _nav8_engine(imu, gnss, st0, cfg: Nav8Config, use_filter: bool):
     rec = eng.Records(np.asarray(gnss.time, float) - 1e-9, np.full(m, ms.M_GNSS_VEL, np.int64), row,
                       np.full(m, bool(use_filter)))
     mod = eng.Models(np.zeros((ms.N_MODELS, 4)), np.zeros((ms.N_MODELS, ms.MAX_ROWS + 1)),
-                     np.full(ms.N_MODELS, 2**62, np.int64), np.zeros((0, 2), np.int64))
+                     np.full(ms.N_MODELS, eng.NEVER, np.int64), np.zeros((0, 2), np.int64))
     tau = float(cfg.bias_tau_s)
     proc = eng.Process(make_layout(), cfg.q_psd(), np.array([tau, tau, 0.0, 0.0]), np.zeros(0), 1e9,
                        _IDX15, bool(cfg.reset_position))

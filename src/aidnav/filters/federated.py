@@ -32,7 +32,19 @@ from aidnav.nav.rotations import dcm_from_quat
 
 from . import ins_errors as ie
 from .chi2 import chi2_isf
-from .engine import Imu, Log, Models, Records, Work, feedback, gated_update, node_rates, rts, smooth_outputs
+from .engine import (
+    NEVER,
+    Imu,
+    Log,
+    Models,
+    Records,
+    Work,
+    feedback,
+    gated_update,
+    node_rates,
+    rts,
+    smooth_outputs,
+)
 from .kalman import discretize, predict
 from .measurements import M_GNSS_POS, M_GNSS_VEL, M_SAPV, MAX_ROWS, MODELS_KEY, N_MODELS, Nav, fill
 from .measurements import sapv as sp
@@ -280,7 +292,7 @@ def run_federated(imu, gnss, sapv, cfg, fed: FederatedConfig | None = None, *, k
 
     from .config import DEG
     from .layout import make_layout
-    from .loose import NEVER, gnss_arrays
+    from .loose import gnss_arrays
     from .prior import given_initial_state, initial_covariance, process_noise
     from .run_log import log_dict
 

@@ -25,6 +25,7 @@ from .chi2 import chi2_isf
 from .engine import (
     C_HOLD,
     C_MOUNT_H,
+    NEVER,
     Imu,
     Init,
     Models,
@@ -44,6 +45,7 @@ from .layout import (
     L_TOFF,
     L_VDEL,
     NAV,
+    RN_LEVER,
     layout_names,
     make_layout,
 )
@@ -68,7 +70,6 @@ _smooth_outputs = smooth_outputs
 __all__ = ["run_loose", "LooseResult", "FilterResult", "to_trajectory", "process_noise", "initial_covariance",
            "static_flags", "bridge_gaps", "gnss_arrays", "course_alignment", "loose_layout",
            "run_loose_batch", "loose_inputs", "loose_result"]
-NEVER = 2**62  # max_rej of a model without the consecutive-rejection rule
 
 
 def loose_layout(cfg, aids=(), gnss=True, gnss_velocity=True) -> np.ndarray:
@@ -376,7 +377,7 @@ def _aid_heading(i0, cfg, aids, events):
         return i0, events
     psi, sig, name = h
     i0 = dict(i0, rph=np.array([i0["rph"][0], i0["rph"][1], psi]), att_sig=i0["att_sig"].copy(),
-              reset_idx=-1, reset_heading=0.0, reset_nav=np.full(12, np.nan), reset_time=None)
+              reset_idx=-1, reset_heading=0.0, reset_nav=np.full(RN_LEVER, np.nan), reset_time=None)
     i0["att_sig"][2] = sig
     events = [e for e in events if not ("heading" in e and ("course" in e or "gyrocompass" in e))]
     events.append(f"initial heading from {name}: {np.degrees(psi):.2f} deg (sigma {np.degrees(sig):.2f} deg)")

@@ -14,6 +14,8 @@ from aidnav.nav.earth import radii
 from aidnav.nav.rotations import euler_from_dcm, wrap_2pi, wrap_pi
 from aidnav.units import DEG, DEG_H, G0, UG
 
+from .layout import RN_LEVER
+
 
 def velocity_from_positions(gnss, window_s: float = 1.0, std_pos=None):
     """Velocity ENU [m/s] and its 1σ per axis from central differences of the GNSS positions.
@@ -299,7 +301,7 @@ def initial_state(imu, gnss, cfg, t_imu, g, use, events):
         rph = np.array([ini.roll_deg, ini.pitch_deg, ini.heading_deg]) * DEG
         att_sig = np.array(ini.attitude_sigma_deg) * DEG
         reset_idx, reset_heading, reset_time = -1, 0.0, None
-        reset_nav = np.full(12, np.nan)
+        reset_nav = np.full(RN_LEVER, np.nan)
         k0 = 0
         vsig0 = None
     else:
@@ -376,7 +378,7 @@ def initial_state(imu, gnss, cfg, t_imu, g, use, events):
         elif ini.heading_deg is None:
             events.append(f"no gyrocompass heading ({ainfo['heading_reason']}): heading from GNSS course")
         reset_idx, reset_heading, reset_time = -1, 0.0, None
-        reset_nav = np.full(12, np.nan)
+        reset_nav = np.full(RN_LEVER, np.nan)
         if ini.heading_deg is None and gc_heading is None and heading_now is None:
             ca = course_alignment(gsub, cfg, t0, vel=vel_u, std=svel_u)
             if ca is None:

@@ -33,15 +33,13 @@ from aidnav.data import ImuData
 from aidnav.io.stream import Spool
 
 from .aids import vehicle_frame
-from .engine import Imu, Log, Output, rts, run_chunk, smooth_outputs, start_carry
+from .engine import NEVER, Imu, Log, Output, rts, run_chunk, smooth_outputs, start_carry
 from .layout import L_TOFF, NAV, layout_names
 from .loose import loose_setup
 from .measurements import MAX_ROWS
 from .preprocess import StaticDetector, bridge_gaps, visible_fixes
 from .result import FilterResult
 from .run_log import calibration_base, gnss_records, log_dict, loose_counts, reinit_events
-
-NEVER = 2**62  # a course alignment not yet reached (its sample is found when its chunk comes)
 
 
 def needs_whole_log(cfg, aids=()) -> bool:

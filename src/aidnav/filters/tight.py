@@ -46,7 +46,7 @@ from aidnav.nav.gnss_sat import C_LIGHT, dual_frequency_iono, iono_fallback_note
 from . import measurements as ms
 from .chi2 import chi2_isf
 from .config import Constraints, FilterSettings, ImuNoise, Initialisation
-from .engine import Imu, Init, Models, Output, Process, Records, rts, run_filter, smooth_outputs
+from .engine import NEVER, Imu, Init, Models, Output, Process, Records, rts, run_filter, smooth_outputs
 from .layout import L_CLK, L_N, L_NINS, L_RERR, L_SIZE
 from .measurements import epoch as ep
 
@@ -321,7 +321,7 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     from aidnav.nav.rotations import quat_from_euler
 
     from .config import DEG
-    from .loose import NEVER, bridge_gaps
+    from .loose import bridge_gaps
     from .prior import given_initial_state
     from .run_log import log_dict
 

@@ -46,6 +46,7 @@ from .engine import (
     smooth_outputs,
 )
 from .kalman import discretize, predict
+from .layout import ST_POS, ST_Q
 from .measurements import M_GNSS_POS, M_GNSS_VEL, M_SAPV, MAX_ROWS, MODELS_KEY, N_MODELS, Nav, fill
 from .measurements import sapv as sp
 from .measurements import streams as st_
@@ -134,7 +135,7 @@ def _federated_kernel(imu, gn, sv, mod, lay, fed):
         due = (gi < M and gn.t[gi] <= tk) or (si < S and sv.t[si] <= tk)
         if not ((T >= fed.prop_dt - 1e-9 or due or k == n_imu - 1) and T > 0.0):
             continue
-        C = dcm_from_quat(st[6:10])
+        C = dcm_from_quat(st[ST_Q:ST_Q + 4])
         wb = ie.interval_model(F, G, st, acc, fed.tau[0], fed.tau[1], 0.0, 0.0)
         discretize(F, G, fed.q, T, Phi, Qd)
         for i in range(nf):  # 1. time update (local i with Q/β_i; the master with Q/β_m)
@@ -156,7 +157,7 @@ def _federated_kernel(imu, gn, sv, mod, lay, fed):
             if sv.use[si]:
                 row = sv.data[si].copy()
                 sp.carry_angles(row, w[W_FIX], imu.t[k] - sv.t[si])
-                if los_enu(st[0], st[1], st[2], row[0:3].copy())[2] < 0.0:
+                if los_enu(st[ST_POS], st[ST_POS + 1], st[ST_POS + 2], row[0:3].copy())[2] < 0.0:
                     log.status[M + si] = SAPV_BELOW_HORIZON  # the antenna cannot be tracking it: skipped
                 else:
                     nav = Nav(st, C, w, 0.0, bias)

@@ -28,7 +28,8 @@ import numpy as np
 
 from aidnav.jit import njit
 from aidnav.nav.geo_pointing import los_enu
-from aidnav.nav.rotations import dcm_from_quat
+from aidnav.nav.rotations import dcm_from_quat, quat_from_euler, quat_to_euler_batch
+from aidnav.units import DEG
 
 from . import ins_errors as ie
 from .chi2 import chi2_isf
@@ -46,13 +47,16 @@ from .engine import (
     smooth_outputs,
 )
 from .kalman import discretize, predict
-from .layout import ST_POS, ST_Q
+from .layout import ST_POS, ST_Q, make_layout
 from .measurements import M_GNSS_POS, M_GNSS_VEL, M_SAPV, MAX_ROWS, MODELS_KEY, N_MODELS, Nav, fill
 from .measurements import sapv as sp
 from .measurements import streams as st_
 from .measurements.common import W_FIX
 from .measurements.gnss import W_FN
 from .measurements.sapv import SAPV_BAD_INPUT, SAPV_BELOW_HORIZON, SAPV_SKIP_REASONS, SAPV_UNUSED
+from .preprocess import gnss_arrays
+from .prior import given_initial_state, initial_covariance, process_noise
+from .run_log import log_dict
 
 __all__ = ["FederatedConfig", "FederatedResult", "run_federated", "run_centralized", "fuse_information",
            "spd_inverse", "MODES", "SAPV_SKIP_REASONS", "SAPV_UNUSED", "SAPV_BAD_INPUT", "SAPV_BELOW_HORIZON"]
@@ -289,14 +293,6 @@ def run_federated(imu, gnss, sapv, cfg, fed: FederatedConfig | None = None, *, k
         β = 1/2, 1/2). keep_cov : keep the full forward fused covariance at every node.
     smooth : RTS smoother over the fused nodes (module doc); the forward solution stays in ``forward_*``.
     """
-    from aidnav.nav.rotations import quat_from_euler, quat_to_euler_batch
-
-    from .config import DEG
-    from .layout import make_layout
-    from .loose import gnss_arrays
-    from .prior import given_initial_state, initial_covariance, process_noise
-    from .run_log import log_dict
-
     fed = fed or FederatedConfig()
     if cfg.nstate != 15:
         raise ValueError("run_federated: the SAPV federated filter has the 15-state model (no scale factors)")

@@ -67,7 +67,7 @@ def scored_fixes(gnss: GnssData, withheld) -> np.ndarray:
 def outage_errors(traj, gnss: GnssData, withheld, after: float = -np.inf):
     """(times, horizontal errors) of the output, interpolated to the withheld fixes of
     :func:`scored_fixes` inside its span and after ``after``."""
-    from aidnav.nav.earth import lla_difference_enu
+    from aidnav.nav.earth import lla_difference_enu  # lazy: pulls in numba
 
     good = scored_fixes(gnss, withheld)
     t = gnss.time[good]

@@ -39,7 +39,7 @@ def load_config(path) -> LooseConfig:
 
 def read_imu_any(path, topic: str | None = None) -> ImuData:
     """IMU log of any known format (:func:`aidnav.io.formats.read_imu`; topic: of a ROS bag)."""
-    from aidnav.io.formats import read_imu
+    from aidnav.io.formats import read_imu  # lazy: pulls in numba
 
     return read_imu(path, topic=topic)
 
@@ -48,7 +48,7 @@ def read_gnss_any(path, height_offset_m: float = 0.0, topic: str | None = None,
                   vel_topic: str | None = None) -> GnssData:
     """GNSS fixes of any known format, the datum offset added once where the file does not declare
     ellipsoidal heights (:func:`aidnav.io.formats.read_gnss`; topic, vel_topic: of a ROS bag)."""
-    from aidnav.io.formats import read_gnss
+    from aidnav.io.formats import read_gnss  # lazy: pulls in numba
 
     return read_gnss(path, height_offset_m=height_offset_m, topic=topic, vel_topic=vel_topic)
 

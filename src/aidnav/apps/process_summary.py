@@ -31,7 +31,7 @@ def run_summary(res, n_imu, rate_hz, gnss, withheld, wins, events, warnings, t_f
 
 def finish_summary(summary, res, applied_offset, warnings) -> None:
     """Calibration and NIS health into the summary (in place)."""
-    from aidnav.filters.result import nis_health, summary_calibration
+    from aidnav.filters.result import nis_health, summary_calibration  # lazy: pulls in numba
 
     # sensor errors (biases, scale factors) and the self-calibration (time offset added to the IMU
     # stamps, lever arm, mounting, odometer scale) with σ, under the names of docs/conventions.md
@@ -45,7 +45,7 @@ def finish_summary(summary, res, applied_offset, warnings) -> None:
 def reinitialisations(res) -> list[dict]:
     """The filter's re-initialisations (engine policy: consecutive rejections or an NIS window far out of
     its chi-square band): time, model, why, the NIS of the innovation that triggered it."""
-    from aidnav.filters.run_log import REINIT_WHY
+    from aidnav.filters.run_log import REINIT_WHY  # lazy: pulls in numba
 
     log = getattr(res, "innovations", None) or {}
     if "reinit" not in log:

@@ -21,8 +21,11 @@ size of the chunk's, not the whole log's. What stays whole-log: the GNSS fixes, 
 per-record log (1 Hz: 100 times fewer rows than the IMU; status, NIS, innovation and diag S of at most
 :data:`REC_ROWS` rows: ≈ 60 bytes a record), the model id and status of every node-constraint update
 (2 bytes per node). A log that needs a
-whole-log fit before filtering (the coarse mounting: NHC or odometer with no mounting configured) or
-full covariances at given times is for :func:`run_loose` (:func:`needs_whole_log`).
+whole-log fit before filtering (the coarse mounting: NHC or an aid in the vehicle frame with no mounting
+configured, :func:`needs_whole_log`) is taken whole into the head (every chunk held); full covariances at
+given times are for :func:`run_loose`. Given as one chunk, the log is its own head and the result is
+:func:`run_loose`'s bit for bit (``aidnav process`` on a log in memory or in any format but interchange
+Parquet).
 """
 
 from __future__ import annotations

@@ -72,6 +72,26 @@ def test_streamed_job_equals_in_memory(tmp_path, small_chunks, smooth, fmt):
         assert s["outage_score_forward"] == json.loads(json.dumps(run.summary["outage_score_forward"]))
 
 
+def test_streamed_window_and_time_offset_equal_one_chunk(tmp_path, small_chunks):
+    """``--start/--end`` and an IMU time offset on the chunks as they come (a window that starts and ends
+    inside chunks of 1500 samples): the trajectory and summary of the log in memory as one chunk."""
+    imu_p, gnss_p, cfg_p = static_log(tmp_path, 90)
+    cfg = load_config(cfg_p)
+    cfg = cfg.model_copy(update={"imu": cfg.imu.model_copy(update={"time_offset_s": 0.013})})
+    cfg_p.write_text(cfg_p.read_text().replace("imu: {", "imu: {time_offset_s: 0.013, "))
+    out = tmp_path / "o"
+    s = process_logs(imu_p, gnss_p, cfg_p, out, outages=["20:10"], figures=False, start_s=17.305, end_s=71.0)
+    run = process(read_imu(imu_p), read_gnss(gnss_p), cfg, outages=["20:10"], start_s=17.305, end_s=71.0)
+    write_trajectory(run.trajectory, tmp_path / "ref.parquet")  # (degrees in the file: the same round trip)
+    a, b = read_trajectory(out / "trajectory.parquet"), read_trajectory(tmp_path / "ref.parquet")
+    assert len(a.time) == len(b.time) > 5360 and abs(a.time[0] - (17.32 + 0.013)) < 1e-9
+    for k in ("time", "lat", "lon", "height", "vel", "rph", "std_pos"):
+        np.testing.assert_array_equal(getattr(a, k), getattr(b, k), err_msg=k)
+    for k in ("counts", "outage_score", "events", "imu_samples", "gnss_fixes"):
+        assert s[k] == json.loads(json.dumps(run.summary[k])), k
+    assert any("processing window" in e for e in s["events"])
+
+
 def _peak_stream(d, seconds, smooth=False):
     from aidnav.filters.stream import stream_loose
     from aidnav.io.stream import iter_imu

@@ -25,6 +25,7 @@ from aidnav.apps.outages import outage_errors, outage_score, outage_windows, par
 from aidnav.apps.process_input import ImuLog, window
 from aidnav.apps.process_summary import finish_summary, run_summary
 from aidnav.data import GnssData, Trajectory
+from aidnav.errors import InputError
 from aidnav.io.stream import concat_rows, take_rows
 
 FIGURE_POINTS = 20000  #: at most this many epochs go to overview.png, the maps and run.html
@@ -136,7 +137,9 @@ def run_process(log: ImuLog, gnss, cfg, smooth=False, outages=None, imu_name="im
         log = log.shifted(applied)
     log, gnss = window(log, gnss, start_s, end_s)
     chunks = log.chunks()
-    head = next(chunks)
+    head = next(chunks, None)
+    if head is None:
+        raise InputError(f"--start {start_s} / --end {end_s}: no IMU sample in that window")
     warnings = _checks(log, head, gnss, imu_name, gnss_name, skip_checks)
     wins = outage_windows([parse_outage(o) for o in (outages or [])], gnss.time[0], gnss.time[-1])
     withheld = withheld_fixes(gnss, wins)

@@ -106,9 +106,10 @@ def open_imu(path, topic: str | None = None, chunk_rows: int | None = None) -> I
     span = None
     if topic is None:
         try:
-            span = imu_time_span(path) if detect_imu_format(path) == "interchange" else None
+            fmt = detect_imu_format(path)
         except Exception:  # noqa: BLE001  (the whole-file reader gives the message)
-            span = None
+            fmt = None
+        span = imu_time_span(path) if fmt == "interchange" else None  # (its message: a bad time column)
     if span is not None:
         rows = chunk_rows or CHUNK_ROWS
         return ImuLog(lambda: iter_imu(path, rows), span, _parquet_rows(path))

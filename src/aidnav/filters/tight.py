@@ -41,7 +41,13 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from aidnav.nav.earth import radii
-from aidnav.nav.gnss_sat import C_LIGHT, dual_frequency_iono, iono_fallback_note, klobuchar_coefficients
+from aidnav.nav.gnss_sat import (
+    C_LIGHT,
+    dual_frequency_iono,
+    iono_fallback_note,
+    klobuchar_coefficients,
+    satellite_states_epochs,
+)
 
 from . import measurements as ms
 from .chi2 import chi2_isf
@@ -279,25 +285,10 @@ def _records(t_obs, rows, velocity_fixes, S):
 
 def _satellite_arrays(obs, eph, use_tgd, max_age):
     """Satellite positions, velocities, clocks, clock rates (M, S, ...) and the URA [m] of the
-    ephemeris used (M, S)."""
-    from aidnav.nav.gnss_sat import E_URA, select_ephemeris
-    from aidnav.nav.gnss_sat import satellite_states as _satellites
-
-    M, S = obs.code1.shape
-    sp = np.full((M, S, 3), np.nan)
-    sv = np.full((M, S, 3), np.nan)
-    sc = np.full((M, S), np.nan)
-    scr = np.full((M, S), np.nan)
-    ura = np.full((M, S), np.nan)
-    prn = np.asarray(obs.prn, np.int64)
-    for k in range(M):
-        sp[k], sv[k], sc[k], scr[k] = _satellites(
-            eph.table, prn, float(obs.time[k]), obs.code1[k], use_tgd, float(max_age)
-        )
-        for j in np.flatnonzero(np.isfinite(sp[k, :, 0])):
-            i = select_ephemeris(eph.table, prn[j], float(obs.time[k]), float(max_age))
-            ura[k, j] = eph.table[i, E_URA]
-    return sp, sv, sc, scr, ura
+    ephemeris used (M, S): one compiled call over all epochs."""
+    return satellite_states_epochs(np.ascontiguousarray(eph.table, float), np.asarray(obs.prn, np.int64),
+                                   np.asarray(obs.time, float), np.ascontiguousarray(obs.code1, float),
+                                   bool(use_tgd), float(max_age))
 
 
 def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, static=None, heading_reset=None,

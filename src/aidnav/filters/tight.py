@@ -57,7 +57,7 @@ from .layout import L_CLK, L_N, L_NINS, L_RERR, L_SIZE
 from .measurements import epoch as ep
 
 __all__ = ["CLOCK_GRADES", "RawGnssAiding", "TightConfig", "TightResult", "apply_vehicle", "clock_allan",
-           "run_tight", "tight_layout",
+           "rotation_variance", "run_tight", "tight_layout",
            "tight_nav_covariance_m", "to_trajectory"]
 N_NOISE = 14  # 12 INS noise inputs of ins_errors (15-state) + clock bias + clock drift
 
@@ -131,6 +131,27 @@ class TightConfig(_Strict):
     init: Initialisation = Initialisation()
     constraints: Constraints = Constraints()
     filter: FilterSettings = FilterSettings()
+    rotation_noise: bool = Field(
+        False, description="gyro scale-factor and misalignment errors (imu.gyro_sf_sigma_ppm, "
+        "imu.gyro_misalignment_sigma_deg; not states here) as attitude noise that grows with the body's "
+        "rotation: (σ_sf² + σ_m²)·|Δθ|² per axis for each prop_dt block of net rotation Δθ")
+
+
+def rotation_variance(t, dth, sf, mis, block_s):
+    """Attitude variance [rad²] per IMU sample from gyro scale-factor (σ ``sf`` [-]) and misalignment
+    (σ ``mis`` [rad]) errors that are not states: over each block of ``block_s`` seconds the error they
+    leave is (S + M)·Δθ, Δθ the block's net body rotation (sum of the increments ``dth`` (N, 3)); on any
+    navigation axis its variance is at most (σ_sf² + σ_m²)·|Δθ|² (a rotated diagonal S, off-diagonal M),
+    placed at the block's last sample. Blocks are independent (a constant error over a steady turn of K
+    blocks grows K times faster than this; back-and-forth rotation cancels in the truth, not here)."""
+    out = np.zeros(len(t))
+    if len(t) == 0 or sf <= 0 and mis <= 0:
+        return out
+    blk = np.floor((np.asarray(t) - t[0]) / block_s).astype(np.int64)
+    ends = np.flatnonzero(np.diff(np.r_[blk, blk[-1] + 1]))
+    net = np.add.reduceat(np.asarray(dth, float), np.r_[0, ends[:-1] + 1], axis=0)
+    out[ends] = (sf * sf + mis * mis) * (net * net).sum(axis=1)
+    return out
 
 
 @dataclass
@@ -389,7 +410,12 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     rate_hz = output_rate_hz or cfg.filter.output_rate_hz
     out_every = max(1, int(round(imu.rate_hz / rate_hz))) if rate_hz else 1
     sl = slice(k0, None)
-    imu_in = Imu(t_imu[sl], dth_in[sl], dv_in[sl], stat[sl], np.zeros((len(t_imu) - k0, 2)), np.zeros((0, 2)))
+    gap_var = np.zeros((len(t_imu) - k0, 2))  # (attitude, velocity) variance added at the next node
+    if cfg.rotation_noise:
+        im = cfg.imu
+        gap_var[:, 0] = rotation_variance(t_imu[sl], dth_in[sl], im.gyro_sf_sigma_ppm * 1e-6,
+                                          im.gyro_misalignment_sigma_deg * DEG, float(cfg.filter.prop_dt_s))
+    imu_in = Imu(t_imu[sl], dth_in[sl], dv_in[sl], stat[sl], gap_var, np.zeros((0, 2)))
     taus = np.array([cfg.imu.gyro_bias_tau_s, cfg.imu.accel_bias_tau_s, 0.0, 0.0])
     # range-error estimates decay as the Gauss-Markov conditional mean between updates (open-loop states)
     aux_tau = np.r_[0.0, g.clock_tau_s, np.full(nr, g.range_error_tau_s)]

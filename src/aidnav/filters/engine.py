@@ -9,6 +9,9 @@ Gauss-Markov / random constant per calibration state) and its measurement models
   schedules it) and at the last sample; ``Imu.hold`` holds height and up velocity to given values;
   with a time-offset state (``lay[L_TOFF]``) a record is due at its receive time − d̂;
 * **predict** at nodes (:func:`.kalman.discretize`, :func:`.kalman.predict`) + bridged-gap variance;
+  independent scalar states after the clock block (:func:`tail_start`: diagonal F, noise of their own;
+  tight coupling's range errors) are discretised and predicted as scalars
+  (:func:`.kalman.discretize_tail`, :func:`.kalman.predict_tail`: the matrix work is the head's);
 * **one update-with-gate policy** (:func:`gated_update`): χ² gate by the number of rows
   (``Models.gate[model, m]``, 0 = ungated), and after ``Models.max_rej[model]`` consecutive rejections
   of a model the next one is accepted ungated (a filter that went wrong must be able to come back);
@@ -65,7 +68,7 @@ from .ins_errors import (
     reset_accumulator,
     set_heading,
 )
-from .kalman import discretize, predict, predict_tail, rts_gain, update
+from .kalman import discretize, discretize_tail, predict, predict_tail, rts_gain, update
 from .layout import DP, DV, L_CLK, L_N, L_NINS, L_TOFF, NAV, PHI, ST_POS, ST_Q, ST_VEL
 from .measurements import M_GNSS_VEL, M_PR, MAX_ROWS, MODELS_KEY, N_MODELS, Nav, fill
 from .measurements.common import W_FIX, W_IB, W_IE, W_IN
@@ -463,10 +466,7 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
                 discretize(Fh, Gh, qh, T, Phh, Qdh)
                 Phi[:nd, :nd] = Phh
                 Qd[:nd, :nd] = Qdh
-                for i in range(nd, n):  # the Taylor series of discretize for a scalar state
-                    f = F[i, i] * T
-                    Phi[i, i] = 1.0 + f + 0.5 * f * f
-                    Qd[i, i] = qt[i] * T * (1.0 + f + 2.0 * f * f / 3.0)
+                discretize_tail(F, qt, T, Phi, Qd, nd)
                 predict_tail(x, P, Phi, Qd, nd)
             else:
                 discretize(F, G, proc.q, T, Phi, Qd)

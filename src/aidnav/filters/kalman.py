@@ -60,6 +60,17 @@ def predict(x, P, Phi, Qd):
 
 
 @njit(cache=True)
+def discretize_tail(F, qt, T, Phi, Qd, nd):
+    """Φ, Qd of the scalar states i ≥ ``nd`` (diagonal F, noise PSD ``qt[i]`` = Σ_c G²_ic q_c of inputs
+    of their own): :func:`discretize`'s Taylor series for a scalar, Φ = 1 + f + f²/2, Qd = q T (1 + f
+    + 2f²/3), f = F_ii T. Writes the diagonal only."""
+    for i in range(nd, F.shape[0]):
+        f = F[i, i] * T
+        Phi[i, i] = 1.0 + f + 0.5 * f * f
+        Qd[i, i] = qt[i] * T * (1.0 + f + 2.0 * f * f / 3.0)
+
+
+@njit(cache=True)
 def predict_tail(x, P, Phi, Qd, nd):
     """:func:`predict` for a Φ, Qd that are block diagonal: a full block of the first ``nd`` states and a
     diagonal after it (independent scalar Markov states such as per-satellite range errors: no other

@@ -35,6 +35,7 @@ vehicle presets) are the engine's node constraints. The engine feeds back after 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import Literal
 
 import numpy as np
@@ -50,7 +51,7 @@ from aidnav.nav.gnss_sat import (
 )
 
 from . import measurements as ms
-from .chi2 import chi2_isf
+from .chi2 import chi2_isf as _chi2_isf
 from .config import Constraints, FilterSettings, ImuNoise, Initialisation
 from .engine import Imu, Init, Models, Output, Process, Records, rts, run_filter, smooth_outputs
 from .layout import L_CLK, L_N, L_NINS, L_RERR, L_SIZE
@@ -114,6 +115,12 @@ class RawGnssAiding(_Strict):
     phase_sigma_m: float = Field(0.005, gt=0, description="carrier-phase σ per epoch [m]")
     slip_threshold_cycles: float = Field(0.5, gt=0, description="phase-Doppler disagreement that is a "
                                          "cycle slip [cycles]")
+
+
+@lru_cache(maxsize=64)
+def chi2_isf(m: int, p: float) -> float:
+    """The gates' χ²(m) quantile (:func:`.chi2.chi2_isf`), remembered: the same few per run."""
+    return float(_chi2_isf(m, p))
 
 
 def clock_allan(g: RawGnssAiding) -> tuple[float, float]:

@@ -209,12 +209,10 @@ def tight_layout(states: int, n_range: int = 0) -> np.ndarray:
 
 
 def _noise_vector(cfg: TightConfig, n_range: int = 0) -> np.ndarray:
-    from .config import LooseConfig
     from .prior import process_noise
 
-    lc = LooseConfig(imu=cfg.imu)
     q = np.zeros(N_NOISE + n_range)
-    q[:12] = process_noise(lc, 15)
+    q[:12] = process_noise(cfg, 15)  # reads cfg.imu (the loose schema's section)
     g = cfg.gnss
     h0, hm2 = clock_allan(g)
     q[12] = C_LIGHT**2 * h0 / 2.0
@@ -224,12 +222,11 @@ def _noise_vector(cfg: TightConfig, n_range: int = 0) -> np.ndarray:
 
 
 def _initial_P(cfg: TightConfig, lat, h, att_sig, n_range: int = 0) -> np.ndarray:
-    from .config import LooseConfig
     from .prior import initial_covariance
 
     nn = 9 if cfg.states == 11 else 15
     n = nn + 2 + n_range
-    P15 = initial_covariance(LooseConfig(imu=cfg.imu, init=cfg.init), 15, lat, h, att_sig)
+    P15 = initial_covariance(cfg, 15, lat, h, att_sig)  # reads cfg.imu, cfg.init (the loose schema's)
     P = np.eye(n)  # range-error states: unit variance (stationary)
     P[:nn, :nn] = P15[:nn, :nn]
     P[nn, nn] = cfg.gnss.clock_bias_sigma_m**2

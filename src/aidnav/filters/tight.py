@@ -49,13 +49,19 @@ from aidnav.nav.gnss_sat import (
     klobuchar_coefficients,
     satellite_states_epochs,
 )
+from aidnav.nav.rotations import quat_from_euler
+from aidnav.units import DEG
 
 from . import measurements as ms
 from .chi2 import chi2_isf as _chi2_isf
 from .config import Constraints, FilterSettings, ImuNoise, Initialisation
-from .engine import Imu, Init, Models, Output, Process, Records, rts, run_filter, smooth_outputs
+from .engine import NEVER, Imu, Init, Models, Output, Process, Records, rts, run_filter, smooth_outputs
 from .layout import L_CLK, L_N, L_NINS, L_RERR, L_SIZE
+from .loose import LooseResult, bridge_gaps
+from .loose import to_trajectory as nav_trajectory
 from .measurements import epoch as ep
+from .prior import given_initial_state, initial_covariance, process_noise
+from .run_log import log_dict
 
 __all__ = ["CLOCK_GRADES", "RawGnssAiding", "TightConfig", "TightResult", "apply_vehicle", "clock_allan",
            "rotation_variance", "run_tight", "tight_layout",
@@ -209,8 +215,6 @@ def tight_layout(states: int, n_range: int = 0) -> np.ndarray:
 
 
 def _noise_vector(cfg: TightConfig, n_range: int = 0) -> np.ndarray:
-    from .prior import process_noise
-
     q = np.zeros(N_NOISE + n_range)
     q[:12] = process_noise(cfg, 15)  # reads cfg.imu (the loose schema's section)
     g = cfg.gnss
@@ -222,8 +226,6 @@ def _noise_vector(cfg: TightConfig, n_range: int = 0) -> np.ndarray:
 
 
 def _initial_P(cfg: TightConfig, lat, h, att_sig, n_range: int = 0) -> np.ndarray:
-    from .prior import initial_covariance
-
     nn = 9 if cfg.states == 11 else 15
     n = nn + 2 + n_range
     P15 = initial_covariance(cfg, 15, lat, h, att_sig)  # reads cfg.imu, cfg.init (the loose schema's)
@@ -334,13 +336,6 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     middle of each interval), the loosely coupled filter's velocity model, gated by ``gate_probability``.
     smooth : also run the RTS smoother (``state``, ``clock``, ``pdiag`` are then the smoothed ones).
     """
-    from aidnav.nav.rotations import quat_from_euler
-
-    from .config import DEG
-    from .loose import NEVER, bridge_gaps
-    from .prior import given_initial_state
-    from .run_log import log_dict
-
     cfg = cfg or TightConfig()
     events = events if events is not None else []
     if eph.ref_week != obs.ref_week:
@@ -472,9 +467,6 @@ def tight_nav_covariance_m(P_nav: np.ndarray, lat: float, h: float) -> np.ndarra
 def to_trajectory(res: TightResult):
     """TightResult → :class:`aidnav.data.Trajectory` (σ columns, bias and clock columns); the navigation
     part is the loosely coupled filter's conversion (same state layout for the first 9 + 6 states)."""
-    from .loose import LooseResult
-    from .loose import to_trajectory as nav_trajectory
-
     bias = res.bias[:, :6] if res.bias.shape[1] >= 6 else res.bias[:, :0]
     traj = nav_trajectory(LooseResult(res.time, res.state, bias, res.pdiag, res.time))
     traj.extra.update({"clock_bias_m": res.clock[:, 0], "clock_drift_m_s": res.clock[:, 1]})

@@ -19,9 +19,10 @@ What is rebuilt:
 * **Figures** like the seed's Figs. 1-6 (heading, roll, pitch, east/north/up velocity errors, run 0),
   and the Monte Carlo heading RMS of every variant, the SAPV-loss and GPS-outage runs.
 
-Choices where the seed is silent (in the summary's notes): initial misalignment φ_0 = [0.1°, 0.1°, 1°]
-(E, N, U; §1.3 as decided: the largest initial heading error for which the seed's own Table 2 relations
-hold together) in every run with P_0 matched; initial position error drawn with σ 10 m, velocity
+Choices where the seed is silent (in the summary's notes): initial misalignment φ_0 = [lv, lv, φ_U0]
+(E, N, U) in every run with P_0 matched, φ_U0 fitted to the seed's Table 2 state-1 heading mean and std
+(§1.3, 2026-12-06) and the level errors lv to its state-1 pitch and roll std by the same rule (issue 39;
+the former 0.1° and 1° are sensitivity rows); initial position error drawn with σ 10 m, velocity
 error with σ 0.5 m/s (those of a GPS fix; P_0 matched); IMU rate 100 Hz; SAPV at 1 Hz (the GPS rate);
 Table 2's attitude rows in arc-minutes (§1.2 item 11). The "Initial heading" sensitivity table sweeps
 φ_U0 (the velocity and heading targets of §1.3 depend on it in opposite directions), 2° included.

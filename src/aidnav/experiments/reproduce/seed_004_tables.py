@@ -233,9 +233,10 @@ def structural_null(g: Group, q: str, keys) -> float | None:
     return dev if dev < NULL_TOL else None
 
 
-def _null_reason(q: str, dev: float, control: dict | None) -> str:
+def _null_reason(q: str, dev: float, control: dict | None, spec: bool = True) -> str:
     """Why the sub's ``q`` does not depend on the GNSS baseline in the white-master model (``dev``: the
-    largest per-run relative change between successive L0; ``control``: the first-epoch control)."""
+    largest per-run relative change between successive L0; ``control``: the first-epoch control; a spec
+    row's modelling choice and alternatives are appended by ``seed_004._point_to_alternatives``)."""
     how = ("Velocity + attitude matching gives the sub the master's velocity error, and the white master of "
            "the seed's text has the same velocity noise (0.03 m/s) at every L0; its position noise, "
            "which does "
@@ -251,15 +252,16 @@ def _null_reason(q: str, dev: float, control: dict | None) -> str:
             "(initialised at the master's position, P0 = the master's position σ): the "
             f"{control['far']:g}-km runs restarted from the {control['near']:g}-km runs' first-epoch "
             "position "
-            f"and P0 give the {control['near']:g}-km {q} STD to {control[q]:.0e} in each of "
+            f"and P0 give the {control['near']:g}-km {q} STD "
+            f"{'bit for bit' if control[q] == 0 else f'to {control[q]:.0e}'} in each of "
             f"{control['runs']} runs (control). {how}. What is left (every run's ratios of successive "
             "L0 within "
             f"{dev:.1e} of 1, of either sign) is the second-order coupling of that first-epoch offset "
             "(transport rate, gravity gradient), which more runs would not turn into a trend (the paper's "
-            f"{q} grows by {100 * (PAPER_T8[q][2] / PAPER_T8[q][0] - 1):.0f} % from 20 to 60 km). "
-            "Modelling choice: the white master; 'Table 8, drifting master' "
-            "(sensitivity) shows the growth with L0 when the master's velocity carries a baseline-dependent "
-            "position drift")
+            f"{q} grows by {100 * (PAPER_T8[q][2] / PAPER_T8[q][0] - 1):.0f} % from 20 to 60 km)"
+            + ("" if spec else ". Modelling choice: the white master; 'Table 8, drifting master' "
+               "(sensitivity) shows the growth with L0 when the master's velocity carries a "
+               "baseline-dependent position drift"))
 
 
 def t8_rows(g: Group, spec: bool = True, control: dict | None = None) -> list[dict]:
@@ -289,7 +291,7 @@ def t8_rows(g: Group, spec: bool = True, control: dict | None = None) -> list[di
         if by_control or (control is None and dev < NULL_TOL):
             rows.append(summary_row(
                 quantity, "-", fn(g.means()), min(p[1] / p[0], p[2] / p[1]), "ours >= 1", spec=spec,
-                margin=(0.0, 0.0), reason=_null_reason(q, dev, control if by_control else None)))
+                margin=(0.0, 0.0), reason=_null_reason(q, dev, control if by_control else None, spec)))
         else:
             rows.append(trend_row(g, quantity, "-", fn, min(p[1] / p[0], p[2] / p[1]), "ours >= 1",
                                   lambda v: v - 1.0, spec))

@@ -736,7 +736,7 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
         "seed's order N, U, E.",
         f"§1.2 item 12 / 1.3: initial misalignment φ_0 = [{lv:g}, {lv:g}, {phi_u:g}] deg "
         f"(E, N, U) in every run with P_0 matched (φ_U0 and φ_E0 = φ_N0 fitted to Table 2 state 1: the 'φ_U0 "
-        "fit' and 'Level fit' tables); initial position error drawn with σ {POS0_SIGMA_M:g} m "
+        f"fit' and 'Level fit' tables); initial position error drawn with σ {POS0_SIGMA_M:g} m "
         "and "
         f"velocity error with σ {VEL0_SIGMA_M_S:g} m/s (P_0 matched). The IMU biases are drawn per run "
         "(σ = Table 1) in every run of the SPEC rows; the fixed +500 µg / 0.1°/h on every axis (the seed's "

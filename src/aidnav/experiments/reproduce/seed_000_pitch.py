@@ -121,14 +121,15 @@ def pitch_sigma(res, t_s: float) -> float:
 
 
 def pitch_sigma_vs_gps_velocity(base_seed: int, duration_s: float, sigmas=GPS_VEL_SWEEP_M_S,
-                                times=(SETTLE_S, 60.0)) -> dict:
+                                times=(SETTLE_S, 60.0), phi0=PHI0_DEG) -> dict:
     """Covariance study: the filter's own pitch σ [arcmin] at ``times`` [s] when the GPS velocity σ it assumes
     is each of ``sigmas`` [m/s] (SINS/GPS/SAPV, centralized = fusion-reset). On the static base the
-    covariance does not depend on the noise draw, so one realisation gives it. Returns {σ_v: {t: σ}}."""
+    covariance does not depend on the noise draw, so one realisation gives it; ``phi0``: the initial
+    misalignment [deg] (P_0 matched). Returns {σ_v: {t: σ}}."""
     from dataclasses import replace
 
     ss = np.random.SeedSequence(base_seed).spawn(1)[0]
-    sim, sv, cfg = simulate_case(ss, min(duration_s, max(times) + 1.0))
+    sim, sv, cfg = simulate_case(ss, min(duration_s, max(times) + 1.0), phi0_deg=phi0)
     out = {}
     for sig in sigmas:  # the fixes' σ columns set the filter's R (the fixes themselves are Table 1's)
         g = replace(sim.gnss, std_vel=np.full_like(sim.gnss.std_vel, sig))
@@ -206,7 +207,7 @@ def pitch_rows(main_series, t, runs: int, base_seed: int, duration_s: float, sig
                     "runs "
                     f"touch {lim:g}′)", "arcmin", pmax, runs=P.shape[0]),
     ]
-    for sv_, st in pitch_sigma_vs_gps_velocity(base_seed, duration_s).items():
+    for sv_, st in pitch_sigma_vs_gps_velocity(base_seed, duration_s, phi0=phi0).items():
         info.append(summary_row(
             f"covariance study: the filter's own pitch σ at {SETTLE_S:g} s if the GPS velocity σ were "
             f"{sv_:g} m/s (Table 1: {GPS_SIGMA_VEL_M_S:g}; at 60 s: {st[60.0]:.2f}′; informative)", "arcmin",

@@ -8,7 +8,9 @@ What is rebuilt (seed §3, Tables 4–8, Figs. 2–3, and §5.3's acceptance tar
 * **Table 5** — figure-8, T1 = 0 … 500 s (a straight leg "T1" inserted between the maneuver and AB).
 * **Table 6** — figure-8, T1 = 200 s, T2 = 100/200/400 s (the lengths of AB and of CD).
 * **Table 8** — figure-8, T1 = 200 s, T2 = 400 s, GNSS baseline 20/40/60 km (master position accuracy
-  of seed Table 7); attitude, velocity, position and master–sub baseline-length errors.
+  of seed Table 7); attitude, velocity, position and master–sub baseline-length errors. A control
+  (:func:`first_epoch_control`) restarts the 60-km runs from the 20-km first epoch: equal velocity and
+  position STDs show that the baseline reaches them only there (their rows are structural nulls).
 * **Sweeps** of seed Table 2, one factor at a time around the baseline (figure-8, T1 = 200 s,
   T2 = 400 s, 20 km, the §3.1 sub-IMU): maneuver (Table 4), sub-IMU grade (Table 1: high/medium/low),
   T1 (Table 5), T2 (Table 6), baseline (Table 8) — ``sweeps.png`` and the tables.

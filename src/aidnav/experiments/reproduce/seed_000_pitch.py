@@ -19,6 +19,7 @@ own pitch σ at 30 s scales with the GPS velocity σ.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -126,7 +127,6 @@ def pitch_sigma_vs_gps_velocity(base_seed: int, duration_s: float, sigmas=GPS_VE
     is each of ``sigmas`` [m/s] (SINS/GPS/SAPV, centralized = fusion-reset). On the static base the
     covariance does not depend on the noise draw, so one realisation gives it; ``phi0``: the initial
     misalignment [deg] (P_0 matched). Returns {σ_v: {t: σ}}."""
-    from dataclasses import replace
 
     ss = np.random.SeedSequence(base_seed).spawn(1)[0]
     sim, sv, cfg = simulate_case(ss, min(duration_s, max(times) + 1.0), phi0_deg=phi0)

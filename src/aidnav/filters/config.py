@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from typing import Literal
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from aidnav.units import DEG, DEG_H, UG  # noqa: F401  (re-exported: the filters import them from here)
@@ -204,11 +205,35 @@ class FilterSettings(_Strict):
     output_rate_hz: float | None = Field(None, description="output rate; None = every IMU sample")
 
 
+#: The IMU error model assumed when the configuration has no ``imu`` section (and under the vehicle presets
+#: then, :mod:`.presets`), issue 35: the grade is unknown, so the filter must not claim an accuracy a
+#: consumer IMU cannot give. The numbers are the ``consumer`` row of the project's grade table
+#: (:meth:`aidnav.sim.imu.ImuSpec.grade`: representative values of Groves §4.4's consumer range, not
+#: fitted to any log) turned into the filter's model by the rules of
+#: :func:`aidnav.filters.tuning.sensor_error_model`: gyro bias 360 deg/h turn-on ⊕ 20 deg/h instability;
+#: accelerometer bias 10 mg turn-on ⊕ 0.5 mg instability ⊕ the 0.5° misalignment × 1 g; each instability
+#: (τ 100 s) as the random walk of PSD 2σ²/τ; scale factors 5000 ppm and gyro misalignment 0.5° as states
+#: (27 states); ARW 1 deg/√h, VRW 0.2 m/s/√h (raised further to what the log's static samples show:
+#: ``noise_from_static``).
+UNKNOWN_GRADE_IMU: dict = dict(
+    arw_deg_sqrt_h=1.0, vrw_m_s_sqrt_h=0.2,
+    gyro_bias_sigma_deg_h=float(np.hypot(360.0, 20.0)),
+    accel_bias_sigma_ug=float(np.sqrt(10000.0 ** 2 + 500.0 ** 2 + (np.radians(0.5) * 1e6) ** 2)),
+    gyro_bias_tau_s=0.0, accel_bias_tau_s=0.0,
+    gyro_bias_rw_deg_h_sqrt_h=float(np.sqrt(2.0 * 20.0 ** 2 / 100.0) * 60.0),
+    accel_bias_rw_ug_sqrt_h=float(np.sqrt(2.0 * 500.0 ** 2 / 100.0) * 60.0),
+    scale_factors=True, gyro_sf_sigma_ppm=5000.0, accel_sf_sigma_ppm=5000.0,
+    gyro_misalignment=True, gyro_misalignment_sigma_deg=0.5,
+    noise_from_static=True,
+)
+
+
 class LooseConfig(_Strict):
     """Full configuration of ``aidnav process``."""
 
-    # no imu section: the noise is also raised to what the log's static samples show (issue 35)
-    imu: ImuNoise = ImuNoise(noise_from_static=True)
+    # no imu section: an IMU of unknown grade (UNKNOWN_GRADE_IMU), its noise also raised to what the log's
+    # static samples show (issue 35)
+    imu: ImuNoise = ImuNoise(**UNKNOWN_GRADE_IMU)
     gnss: GnssAiding = GnssAiding()
     init: Initialisation = Initialisation()
     constraints: Constraints = Constraints()

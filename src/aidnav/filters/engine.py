@@ -199,7 +199,7 @@ def _reinit(st, P, ini, ix, held):
     (the filter's velocity covariance, propagated with that heading, is meaningless), of the fix alone.
     ``ix`` (≥ 15,): index in P of each state of the full INS layout (−1: not in the filter, a subset)."""
     rn_ = ini.reset_nav
-    set_heading(st, P, ini.reset_heading, ini.reset_sigma, ix[PHI + 2])
+    set_heading(st, P, ini.reset_heading, ini.reset_sigma, ix[PHI + 2], ix[PHI], ix[PHI + 1])
     dvr = np.sqrt((st[ST_VEL] - rn_[0]) ** 2 + (st[ST_VEL + 1] - rn_[1]) ** 2)
     v2 = rn_[6] ** 2 + rn_[7] ** 2 if held else _var(P, ix, DV) + _var(P, ix, DV + 1) + rn_[6] ** 2
     if np.isnan(rn_[0]) or dvr <= 3.0 * np.sqrt(v2):
@@ -248,7 +248,7 @@ def _add_gap(st, P, gap, ix):
 
 
 @njit(cache=True)
-def _course_heading(st, P, row, pv, iu):
+def _course_heading(st, P, row, pv, iu, ie, inn):
     """Heading from the GNSS course of velocity record ``row`` (v ENU, σ) when it is meaningful (speed
     above ``pv[C_VMIN]`` and 5 times its σ): IMU heading = course + mounting heading, σ ``pv[C_SIG]``
     and the course's own (:func:`.ins_errors.set_heading`). Returns whether it was set."""
@@ -258,7 +258,7 @@ def _course_heading(st, P, row, pv, iu):
         return False
     h = np.arctan2(row[0], row[1]) + pv[C_MOUNT_H]
     s = np.sqrt(pv[C_SIG] ** 2 + (sg / sp) ** 2)
-    set_heading(st, P, h, s, iu)
+    set_heading(st, P, h, s, iu, ie, inn)
     return True
 
 
@@ -447,7 +447,8 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
                 # a record inside an IMU gap cannot be moved back across the unknown motion: not used
                 if rec.use[gi] and not (gap_k and imu.t[k] - tr > GAP_REC_S):
                     md = rec.model[gi]
-                    if gap[4] > 0.0 and md == M_GNSS_VEL and _course_heading(st, P, rec.data[gi], pv, iu):
+                    if gap[4] > 0.0 and md == M_GNSS_VEL and _course_heading(st, P, rec.data[gi], pv, iu,
+                                                                             ix[PHI], ix[PHI + 1]):
                         gap[4] = 0.0
                         C = dcm_from_quat(st[ST_Q:ST_Q + 4])
                     nav = Nav(st, C, w, imu.t[k] - tr, bias)
@@ -470,6 +471,12 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
                         log.t[li], log.model[li] = imu.t[k], md
                         policy_update(x, P, _subset(wk, m, sub, ws), m, md, mod, rej, win, log, li)
                         li += 1
+            if iu >= 0 and ((hold_h and k0 + k < ini.reset_idx) or gap[4] > 0.0):
+                # a heading held unknown is not moved by the updates: its correlations, built by one
+                # interval's propagation from a variance of (180°)², are linearisation artefacts, and a
+                # heading estimate that wanders while parked lets the filter "separate" the horizontal
+                # accelerometer biases from the tilt (a rotation that did not happen)
+                x[iu] = 0.0
             if nsub:  # the subset's estimate in the INS block
                 dxf[sub] = x
             feedback(st, bias, dxf if nsub else x, nh)

@@ -43,13 +43,21 @@ from aidnav.sim.imu import ImuSpec
 from aidnav.sim.run import simulate
 from aidnav.sim.scenario import parse_scenario
 
-__all__ = ["AXES", "COVERAGE_TARGET", "RATIO_TARGET", "GM_TAU_S", "HEADING_UNKNOWN_RAD", "Condition",
-           "CellResult", "CONDITIONS", "configurations", "condition", "simulate_condition", "config_for",
-           "run_cell", "run_matrix", "flags", "format_matrix", "matrix_page", "variant", "add_gauss_markov"]
+__all__ = ["AXES", "COVERAGE_TARGET", "RATIO_TARGET", "SEED_COVERAGE_BOUND", "GM_TAU_S",
+           "HEADING_UNKNOWN_RAD", "Condition", "CellResult", "CONDITIONS", "configurations", "condition",
+           "simulate_condition", "config_for", "run_cell", "run_matrix", "flags", "format_matrix",
+           "matrix_page", "variant", "add_gauss_markov"]
 
 AXES = ("E", "N", "U", "roll", "pitch", "heading")
 COVERAGE_TARGET = 0.95  #: the issue's acceptance: ≥ 95 % of the epochs within 3σ on every axis
 RATIO_TARGET = 0.3  #: RMS(error)/RMS(σ) below this: the σ is uselessly large
+#: The coverage bound a test over 10 seeds can hold an honest filter to (issue 35). The sensor constants
+#: (biases, scale factors, misalignments) are drawn once per seed, so where they dominate the attitude
+#: error a seed is in the worst case wholly inside or wholly outside 3σ: the number of uncovered seeds is
+#: Binomial(10, p = 0.0027). P(≥ 1 of 10) = 2.7 % per axis and cell — the issue's 95 % over 10 seeds
+#: fails an honest filter that often, and far more often over the matrix's hundreds of axis-cells —
+#: while P(≥ 2 of 10) = 3.3e-4. So one seed wholly out is allowed, two are not: 9/10 of the 95 % target.
+SEED_COVERAGE_BOUND = 0.9 * 0.95
 GM_TAU_S = 30.0  #: correlation time of the time-correlated GNSS position errors [s]
 GM_SIGMA_M = (0.5, 0.5, 1.0)  #: their steady-state σ E, N, U [m]
 GM_WHITE_M = 0.05  #: the white part of those fixes [m]

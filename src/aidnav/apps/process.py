@@ -174,7 +174,7 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
     if config_path is None:
         cfg = LooseConfig()
         notes.append("no --config: what a cautious engineer assumes of an unknown vehicle: an IMU of unknown "
-                     "grade modelled as a consumer one (ARW 1 deg/sqrt(h), VRW 0.2 m/s/sqrt(h), raised to "
+                     "grade modelled as a consumer one (ARW 0.3 deg/sqrt(h), VRW 0.1 m/s/sqrt(h), raised to "
                      "what the log's static samples show; gyro bias 360 deg/h, accel bias 13 mg incl. "
                      "0.5 deg misalignment x 1 g, both never forgotten; scale factors 5000 ppm and gyro "
                      "misalignment 0.5 deg estimated: 27 states), lever arm, time offset and GNSS velocity "

@@ -213,10 +213,9 @@ class FilterSettings(_Strict):
 #: :func:`aidnav.filters.tuning.sensor_error_model`: gyro bias 360 deg/h turn-on ⊕ 20 deg/h instability;
 #: accelerometer bias 10 mg turn-on ⊕ 0.5 mg instability ⊕ the 0.5° misalignment × 1 g; each instability
 #: (τ 100 s) as the random walk of PSD 2σ²/τ; scale factors 5000 ppm and gyro misalignment 0.5° as states
-#: (27 states); ARW 1 deg/√h, VRW 0.2 m/s/√h (raised further to what the log's static samples show:
-#: ``noise_from_static``).
+#: (27 states). ARW and VRW are not stated here (a stated one is kept as given): the field defaults, raised
+#: to what the log's static samples show (``noise_from_static``: a vibrating IMU's noise is the log's).
 UNKNOWN_GRADE_IMU: dict = dict(
-    arw_deg_sqrt_h=1.0, vrw_m_s_sqrt_h=0.2,
     gyro_bias_sigma_deg_h=float(np.hypot(360.0, 20.0)),
     accel_bias_sigma_ug=float(np.sqrt(10000.0 ** 2 + 500.0 ** 2 + (np.radians(0.5) * 1e6) ** 2)),
     gyro_bias_tau_s=0.0, accel_bias_tau_s=0.0,

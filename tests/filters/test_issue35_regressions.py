@@ -67,10 +67,6 @@ def test_gnss_at_0_2_hz():
     assert np.sqrt(np.mean(e[m] ** 2 + n[m] ** 2)) <= 1.0
 
 
-@pytest.mark.xfail(strict=True, reason="issue 35 session 8 (j35b): with the unknown-grade (consumer) IMU "
-                   "model of no option the run re-initialises ~20 times and ends at 10.9 m RMS (the 15-state "
-                   "model of before: 0.79 m, 7.4 m with the held heading not moved by updates); the "
-                   "re-initialisation path decides this case (docs/results.md, issue 35 session 8)")
 def test_zero_sigma_in_the_file(sim1):
     """Fixes claiming 5 cm against 0.5 m of noise: rejected in runs and re-initialising the filter (no
     adaptive R yet); the run must still stay within the older code's figure."""

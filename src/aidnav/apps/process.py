@@ -173,11 +173,9 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
     notes: list[str] = []
     if config_path is None:
         cfg = LooseConfig()
-        notes.append("no --config: what a cautious engineer assumes of an unknown vehicle: an IMU of unknown "
-                     "grade modelled as a consumer one (ARW 0.3 deg/sqrt(h), VRW 0.1 m/s/sqrt(h), raised to "
-                     "what the log's static samples show; gyro bias 360 deg/h, accel bias 13 mg incl. "
-                     "0.5 deg misalignment x 1 g, both never forgotten; scale factors 5000 ppm and gyro "
-                     "misalignment 0.5 deg estimated: 27 states), lever arm, time offset and GNSS velocity "
+        notes.append("no --config: what a cautious engineer assumes of an unknown vehicle: a consumer MEMS "
+                     "IMU (ARW 0.3 deg/sqrt(h), VRW 0.1 m/s/sqrt(h), raised to what the log's static samples "
+                     "show; gyro bias 100 deg/h, accel bias 5 mg), lever arm, time offset and GNSS velocity "
                      "delay estimated, automatic alignment (static roll/pitch, heading from GNSS course), "
                      "ZUPT on, NHC off (no vehicle constraint is safe without knowing the vehicle), "
                      "correlated GNSS errors above 1 Hz (code fixes), IMU gaps bounded by 100 m/s, 20 m/s^2, "

@@ -471,12 +471,6 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
                         log.t[li], log.model[li] = imu.t[k], md
                         policy_update(x, P, _subset(wk, m, sub, ws), m, md, mod, rej, win, log, li)
                         li += 1
-            if iu >= 0 and ((hold_h and k0 + k < ini.reset_idx) or gap[4] > 0.0):
-                # a heading held unknown is not moved by the updates: its correlations, built by one
-                # interval's propagation from a variance of (180°)², are linearisation artefacts, and a
-                # heading estimate that wanders while parked lets the filter "separate" the horizontal
-                # accelerometer biases from the tilt (a rotation that did not happen)
-                x[iu] = 0.0
             if nsub:  # the subset's estimate in the INS block
                 dxf[sub] = x
             feedback(st, bias, dxf if nsub else x, nh)

@@ -56,8 +56,9 @@ def test_matched_configuration_covers_an_outage_and_a_moving_start(name):
 NO_HOLD = pytest.mark.xfail(
     strict=True, reason="issue 35 session 8 (j35b): while the heading is held unknown (parked, before the "
     "course alignment) the updates move it by tens of degrees, and that fictitious rotation lets the filter "
-    "separate the accelerometer biases from the tilt (roll/pitch 29/13 %, 30/15 %, 36/64 % here); not "
-    "moving a held heading fixes it (87-100 %) but costs the real drive (docs/results.md), not merged")
+    "separate the accelerometer biases from the tilt (roll/pitch 21/16 %, 28/17 %, 83/65 % here); not "
+    "moving a held heading, with a consumer-grade error model, fixes it (86-100 %) but costs the real drive "
+    "(docs/results.md, issue 35 session 8), not merged")
 
 
 @pytest.mark.parametrize("name", ["gnss 1 Hz white", "imu gap 30 s in a turn", "grade mems"])

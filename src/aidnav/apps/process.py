@@ -120,6 +120,9 @@ def process(imu: ImuData, gnss: GnssData, cfg: LooseConfig | None = None, smooth
         withheld |= (gnss.time >= a) & (gnss.time < b)
     events: list[str] = []
     t0 = _time.perf_counter()
+    cfg2 = _no_option_constraint(imu, gnss, cfg, withheld, events, aids)
+    if cfg2 is not cfg:  # the constraint decided from the first pass: the run with it
+        cfg, events = cfg2, [e for e in events if e.startswith("vehicle from the log")]
     res = run_loose(imu, gnss, cfg, withheld=withheld, smooth=smooth, events=events, aids=aids)
     t_filt = _time.perf_counter() - t0
     traj = to_trajectory(res)
@@ -135,6 +138,37 @@ def process(imu: ImuData, gnss: GnssData, cfg: LooseConfig | None = None, smooth
             summary["outage_score_forward"] = score_outages(fwd, gnss, wins, withheld)
     finish_summary(summary, res, applied_offset, warnings)
     return ProcessRun(traj, summary, res, fwd, withheld, wins, gnss=gnss)
+
+
+def _no_option_constraint(imu, gnss, cfg, withheld, events, aids):
+    """Issue 35, item 6: with no ``constraints`` section in the configuration and no vehicle preset (no
+    option), decide from the log whether the non-holonomic constraint is safe: a first pass without it
+    (forward filter), then :func:`aidnav.filters.wheeled.wheeled_vehicle` on its solution; a wheeled vehicle
+    gets the NHC with the cautious σ of :data:`aidnav.filters.wheeled.NHC_SIGMA_M_S`, the unknown lever
+    arm's σ, the mounting estimated (coarse from the log, then a state) and the NIS-window
+    re-initialisation (``gnss.nis_window`` 10, unless stated), which undoes a wrong constraint. The
+    decision goes into ``events``. Returns the configuration to use (``cfg`` itself when unchanged)."""
+    from aidnav.filters import wheeled  # lazy: only for runs without a constraints section
+    from aidnav.filters.loose import run_loose, to_trajectory  # lazy: the filter (numba)
+
+    if "constraints" in cfg.model_fields_set or cfg.constraints.nhc:
+        return cfg
+    res = run_loose(imu, gnss, cfg, withheld=withheld, smooth=False, events=events, aids=aids)
+    tr = to_trajectory(res)
+    used = res.records["pos_status"] == 1
+    d = wheeled.wheeled_vehicle(tr.time, tr.vel, tr.rph, tr.std_att, np.asarray(gnss.time)[used])
+    if not d["wheeled"]:
+        events.append(f"vehicle from the log: NHC off, {d['reason']}")
+        return cfg
+    con = cfg.constraints.model_copy(update={"nhc": True, "nhc_sigma_m_s": wheeled.NHC_SIGMA_M_S,
+                                             "nhc_lever_arm_sigma_m": wheeled.NHC_LEVER_ARM_SIGMA_M})
+    upd = {"constraints": con}
+    if "nis_window" not in cfg.gnss.model_fields_set:
+        upd["gnss"] = cfg.gnss.model_copy(update={"nis_window": 10})
+    events.append(f"vehicle from the log: {d['reason']}: NHC on with sigma {wheeled.NHC_SIGMA_M_S:g} m/s "
+                  f"(lever arm sigma {wheeled.NHC_LEVER_ARM_SIGMA_M:g} m), mounting estimated, NIS-window "
+                  "re-initialisation (10 fixes); a constraints section in the configuration decides instead")
+    return cfg.model_copy(update=upd)
 
 
 def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=False,
@@ -177,7 +211,8 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
                      "IMU (ARW 0.3 deg/sqrt(h), VRW 0.1 m/s/sqrt(h), raised to what the log's static samples "
                      "show; gyro bias 100 deg/h, accel bias 5 mg), lever arm, time offset and GNSS velocity "
                      "delay estimated, automatic alignment (static roll/pitch, heading from GNSS course), "
-                     "ZUPT on, NHC off (no vehicle constraint is safe without knowing the vehicle), "
+                     "ZUPT on, NHC only where the log shows a wheeled vehicle (velocity along one body axis in a first "
+                     "pass without it; then sigma 0.1 m/s with NIS-window re-initialisation), "
                      "correlated GNSS errors above 1 Hz (code fixes), IMU gaps bounded by 100 m/s, 20 m/s^2, "
                      "180 deg/s")
     else:

@@ -92,5 +92,5 @@ def wheeled_vehicle(time, vel, rph, std_att, aided_times) -> dict:
     verdict = "wheeled: velocity along one body axis" if wheeled else "not a wheeled vehicle"
     return dict(out, wheeled=wheeled,
                 reason=f"{verdict} (angle of the body-frame velocity off its axis: median {med:.2f} deg, "
-                       f"90th percentile {p90:.2f} deg; wheeled needs <= {MEDIAN_DEG:g} / {P90_DEG:g} deg; over "
-                       f"{seconds:.0f} s moving, {turn:.0f} deg of turning)")
+                       f"90th percentile {p90:.2f} deg; wheeled needs <= {MEDIAN_DEG:g} / {P90_DEG:g} deg; "
+                       f"over {seconds:.0f} s moving, {turn:.0f} deg of turning)")

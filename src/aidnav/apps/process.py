@@ -213,8 +213,8 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
                      "delay estimated, automatic alignment (static roll/pitch, heading from GNSS course), "
                      "ZUPT on, NHC only where the log shows a wheeled vehicle (velocity along one body "
                      "axis in a first pass without it; then sigma 0.1 m/s with NIS-window "
-                     "re-initialisation), correlated GNSS errors above 1 Hz (code fixes), IMU gaps bounded by "
-                     "100 m/s, 20 m/s^2, 180 deg/s")
+                     "re-initialisation), correlated GNSS errors above 1 Hz (code fixes), IMU gaps bounded "
+                     "by 100 m/s, 20 m/s^2, 180 deg/s")
     else:
         cfg = load_config(config_path)
     if vehicle is not None:  # the preset under the configuration: keys the YAML states win

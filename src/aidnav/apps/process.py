@@ -30,6 +30,7 @@ from aidnav.apps.process_parts import (
 from aidnav.data import GnssData, ImuData
 from aidnav.errors import InputError
 from aidnav.filters.config import LooseConfig
+from aidnav.filters.wheeled import no_option_constraint
 from aidnav.io.errors import DataError
 
 __all__ = ["ConfigError", "load_config", "process", "process_logs", "format_summary", "parse_outage",
@@ -120,10 +121,14 @@ def process(imu: ImuData, gnss: GnssData, cfg: LooseConfig | None = None, smooth
         withheld |= (gnss.time >= a) & (gnss.time < b)
     events: list[str] = []
     t0 = _time.perf_counter()
-    cfg2 = _no_option_constraint(imu, gnss, cfg, withheld, events, aids)
-    if cfg2 is not cfg:  # the constraint decided from the first pass: the run with it
-        cfg, events = cfg2, [e for e in events if e.startswith("vehicle from the log")]
-    res = run_loose(imu, gnss, cfg, withheld=withheld, smooth=smooth, events=events, aids=aids)
+    decided: list[str] = []  # no option: the NHC decided from a first pass (filters.wheeled)
+    first: list[str] = []
+    cfg, res = no_option_constraint(imu, gnss, cfg, withheld, decided, aids, first_events=first)
+    if res is not None and not smooth:  # the first pass is the run (nothing changed)
+        events += first
+    else:
+        res = run_loose(imu, gnss, cfg, withheld=withheld, smooth=smooth, events=events, aids=aids)
+    events += decided
     t_filt = _time.perf_counter() - t0
     traj = to_trajectory(res)
     check_solution(traj, "the loosely coupled filter")
@@ -138,37 +143,6 @@ def process(imu: ImuData, gnss: GnssData, cfg: LooseConfig | None = None, smooth
             summary["outage_score_forward"] = score_outages(fwd, gnss, wins, withheld)
     finish_summary(summary, res, applied_offset, warnings)
     return ProcessRun(traj, summary, res, fwd, withheld, wins, gnss=gnss)
-
-
-def _no_option_constraint(imu, gnss, cfg, withheld, events, aids):
-    """Issue 35, item 6: with no ``constraints`` section in the configuration and no vehicle preset (no
-    option), decide from the log whether the non-holonomic constraint is safe: a first pass without it
-    (forward filter), then :func:`aidnav.filters.wheeled.wheeled_vehicle` on its solution; a wheeled vehicle
-    gets the NHC with the cautious σ of :data:`aidnav.filters.wheeled.NHC_SIGMA_M_S`, the unknown lever
-    arm's σ, the mounting estimated (coarse from the log, then a state) and the NIS-window
-    re-initialisation (``gnss.nis_window`` 10, unless stated), which undoes a wrong constraint. The
-    decision goes into ``events``. Returns the configuration to use (``cfg`` itself when unchanged)."""
-    from aidnav.filters import wheeled  # lazy: only for runs without a constraints section
-    from aidnav.filters.loose import run_loose, to_trajectory  # lazy: the filter (numba)
-
-    if "constraints" in cfg.model_fields_set or cfg.constraints.nhc:
-        return cfg
-    res = run_loose(imu, gnss, cfg, withheld=withheld, smooth=False, events=events, aids=aids)
-    tr = to_trajectory(res)
-    used = res.records["pos_status"] == 1
-    d = wheeled.wheeled_vehicle(tr.time, tr.vel, tr.rph, tr.std_att, np.asarray(gnss.time)[used])
-    if not d["wheeled"]:
-        events.append(f"vehicle from the log: NHC off, {d['reason']}")
-        return cfg
-    con = cfg.constraints.model_copy(update={"nhc": True, "nhc_sigma_m_s": wheeled.NHC_SIGMA_M_S,
-                                             "nhc_lever_arm_sigma_m": wheeled.NHC_LEVER_ARM_SIGMA_M})
-    upd = {"constraints": con}
-    if "nis_window" not in cfg.gnss.model_fields_set:
-        upd["gnss"] = cfg.gnss.model_copy(update={"nis_window": 10})
-    events.append(f"vehicle from the log: {d['reason']}: NHC on with sigma {wheeled.NHC_SIGMA_M_S:g} m/s "
-                  f"(lever arm sigma {wheeled.NHC_LEVER_ARM_SIGMA_M:g} m), mounting estimated, NIS-window "
-                  "re-initialisation (10 fixes); a constraints section in the configuration decides instead")
-    return cfg.model_copy(update=upd)
 
 
 def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=False,

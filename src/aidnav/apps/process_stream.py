@@ -168,6 +168,11 @@ def stream_process(imu_path, gnss, cfg, traj_path, week, smooth=False, outages=N
             progress(m)
 
     events: list[str] = []
+    if "constraints" not in cfg.model_fields_set and not cfg.constraints.nhc:
+        # the no-option NHC decision (apps.process._no_option_constraint) needs a first pass over the whole
+        # log: a streamed job does not make it
+        events.append("vehicle from the log: not decided in a streamed job (the test needs a first pass over "
+                      "the whole log): NHC off; a constraints section in the configuration decides")
     t0 = _time.perf_counter()
     try:
         res = stream_loose(shifted(head, chunks), gnss, cfg, emit, withheld=withheld, smooth=smooth,

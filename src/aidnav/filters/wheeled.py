@@ -46,7 +46,7 @@ NHC_SIGMA_M_S = 0.1
 #: σ per axis of the unknown IMU → rear-axle lever arm [m] (an IMU anywhere in a car or van body)
 NHC_LEVER_ARM_SIGMA_M = 1.0
 
-__all__ = ["NHC_LEVER_ARM_SIGMA_M", "NHC_SIGMA_M_S", "wheeled_vehicle"]
+__all__ = ["NHC_LEVER_ARM_SIGMA_M", "NHC_SIGMA_M_S", "no_option_constraint", "wheeled_vehicle"]
 
 
 def wheeled_vehicle(time, vel, rph, std_att, aided_times) -> dict:
@@ -94,3 +94,37 @@ def wheeled_vehicle(time, vel, rph, std_att, aided_times) -> dict:
                 reason=f"{verdict} (angle of the body-frame velocity off its axis: median {med:.2f} deg, "
                        f"90th percentile {p90:.2f} deg; wheeled needs <= {MEDIAN_DEG:g} / {P90_DEG:g} deg; "
                        f"over {seconds:.0f} s moving, {turn:.0f} deg of turning)")
+
+
+def no_option_constraint(imu, gnss, cfg, withheld, events, aids=(), first_events=None):
+    """Issue 35, item 6: with no ``constraints`` section in the configuration and no vehicle preset (no
+    option), decide from the log whether the non-holonomic constraint is safe: a first pass without it
+    (forward filter), then :func:`wheeled_vehicle` on its solution; a wheeled vehicle
+    gets the NHC with the cautious σ of :data:`NHC_SIGMA_M_S`, the unknown lever
+    arm's σ, the mounting estimated (coarse from the log, then a state) and the NIS-window
+    re-initialisation (``gnss.nis_window`` 10, unless stated), which undoes a wrong constraint. The
+    decision goes into ``events``. Returns (the configuration to use, the first pass's
+    :class:`~aidnav.filters.result.FilterResult` when the configuration is unchanged (the run itself
+    when no smoother is wanted) or None); the first pass's own events are ``first_events``' (a list
+    passed in, or dropped)."""
+    from .loose import run_loose, to_trajectory  # lazy: filters.loose imports the engine (numba)
+
+    if "constraints" in cfg.model_fields_set or cfg.constraints.nhc:
+        return cfg, None
+    first_events = first_events if first_events is not None else []
+    res = run_loose(imu, gnss, cfg, withheld=withheld, smooth=False, events=first_events, aids=aids)
+    tr = to_trajectory(res)
+    used = res.records["pos_status"] == 1
+    d = wheeled_vehicle(tr.time, tr.vel, tr.rph, tr.std_att, np.asarray(gnss.time)[used])
+    if not d["wheeled"]:
+        events.append(f"vehicle from the log: NHC off, {d['reason']}")
+        return cfg, res
+    con = cfg.constraints.model_copy(update={"nhc": True, "nhc_sigma_m_s": NHC_SIGMA_M_S,
+                                             "nhc_lever_arm_sigma_m": NHC_LEVER_ARM_SIGMA_M})
+    upd = {"constraints": con}
+    if "nis_window" not in cfg.gnss.model_fields_set:
+        upd["gnss"] = cfg.gnss.model_copy(update={"nis_window": 10})
+    events.append(f"vehicle from the log: {d['reason']}: NHC on with sigma {NHC_SIGMA_M_S:g} m/s "
+                  f"(lever arm sigma {NHC_LEVER_ARM_SIGMA_M:g} m), mounting estimated, NIS-window "
+                  "re-initialisation (10 fixes); a constraints section in the configuration decides instead")
+    return cfg.model_copy(update=upd), None

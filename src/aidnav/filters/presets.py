@@ -27,8 +27,8 @@ configured noise (nothing vibrates a phone at rest). Every preset re-initialises
 filter keeps the configured model, unless the log shows a wheeled vehicle: :mod:`aidnav.filters.wheeled`);
 such a re-initialisation scales the navigation block and the calibration states by the window's mean NIS
 per dof (each calibration state at most back to its prior). Each preset states what the vehicle can do
-(``motion``: speed, acceleration, turn-rate and tilt bounds), which sizes the covariance an IMU gap adds (:func:`aidnav.filters.preprocess.bridge_gaps`);
-without a preset the bounds of an unknown vehicle (:class:`aidnav.filters.config.MotionBounds`).
+(``motion``: speed, acceleration, turn-rate and tilt bounds), which sizes the covariance an IMU gap adds
+(:func:`aidnav.filters.preprocess.bridge_gaps`); without a preset the bounds of an unknown vehicle (:class:`aidnav.filters.config.MotionBounds`).
 """
 
 from __future__ import annotations

@@ -28,7 +28,8 @@ filter keeps the configured model, unless the log shows a wheeled vehicle: :mod:
 such a re-initialisation scales the navigation block and the calibration states by the window's mean NIS
 per dof (each calibration state at most back to its prior). Each preset states what the vehicle can do
 (``motion``: speed, acceleration, turn-rate and tilt bounds), which sizes the covariance an IMU gap adds
-(:func:`aidnav.filters.preprocess.bridge_gaps`); without a preset the bounds of an unknown vehicle (:class:`aidnav.filters.config.MotionBounds`).
+(:func:`aidnav.filters.preprocess.bridge_gaps`); without a preset the bounds of an unknown vehicle
+(:class:`aidnav.filters.config.MotionBounds`).
 """
 
 from __future__ import annotations

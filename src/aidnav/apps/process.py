@@ -152,9 +152,10 @@ NO_CONFIG_NOTE = (
     "no --config: what a cautious engineer assumes of an unknown vehicle: a consumer MEMS IMU (ARW 0.3 "
     "deg/sqrt(h), VRW 0.1 m/s/sqrt(h), raised to what the log's static samples show; gyro bias 100 deg/h, "
     "accel bias 5 mg), lever arm, time offset and GNSS velocity delay estimated, automatic alignment (static "
-    "roll/pitch, heading from GNSS course), ZUPT on, NHC off (no vehicle constraint is safe without knowing "
-    "the vehicle), correlated GNSS errors above 1 Hz (code fixes), IMU gaps bounded by 100 m/s, 20 m/s^2, "
-    "180 deg/s")
+    "roll/pitch, heading from GNSS course), ZUPT on, NHC only where the log shows a wheeled vehicle "
+    "(velocity along one body axis in a first pass without it; then sigma 0.1 m/s with NIS-window "
+    "re-initialisation), correlated GNSS errors above 1 Hz (code fixes), IMU gaps bounded by 100 m/s, "
+    "20 m/s^2, 180 deg/s")
 
 
 def job_config(config_path, vehicle, height_offset_m, time_offset_s, start_s, end_s,

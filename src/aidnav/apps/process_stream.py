@@ -24,7 +24,7 @@ from aidnav.apps.common import check_solution
 from aidnav.apps.outages import outage_errors, outage_score, outage_windows, parse_outage, withheld_fixes
 from aidnav.apps.process_input import ImuLog, window
 from aidnav.apps.process_summary import finish_summary, run_summary
-from aidnav.data import GnssData, Trajectory
+from aidnav.data import GnssData, ImuData, Trajectory
 from aidnav.errors import InputError
 from aidnav.io.stream import concat_rows, take_rows
 
@@ -114,6 +114,15 @@ class Sink:
         return None if self.kept is None else concat_rows(self.kept)
 
 
+def _whole(log: ImuLog) -> ImuData:
+    """The whole IMU log in memory (a new pass over its chunks)."""
+    cs = list(log.chunks())
+    if len(cs) == 1:
+        return cs[0]
+    return ImuData(np.concatenate([c.time for c in cs]), np.concatenate([c.dtheta for c in cs]),
+                   np.concatenate([c.dv for c in cs]), t0=cs[0].t0, events=list(cs[0].events))
+
+
 def run_process(log: ImuLog, gnss, cfg, smooth=False, outages=None, imu_name="imu", gnss_name="gnss",
                 skip_checks=(), start_s=None, end_s=None, aids=(), write=None, keep: bool = False,
                 progress=None, spool_dir=None, background: bool = True) -> ProcessRun:
@@ -129,6 +138,7 @@ def run_process(log: ImuLog, gnss, cfg, smooth=False, outages=None, imu_name="im
     file and numbers; a failure there is raised here."""
     from aidnav.filters.result import to_trajectory  # lazy: the filters load with the job
     from aidnav.filters.stream import stream_loose  # lazy: the filters load with the job
+    from aidnav.filters.wheeled import no_option_constraint  # lazy: the filters load with the job
     from aidnav.io.stream import Background  # lazy: pyarrow
 
     applied = float(cfg.imu.time_offset_s)
@@ -167,6 +177,10 @@ def run_process(log: ImuLog, gnss, cfg, smooth=False, outages=None, imu_name="im
 
     bg = Background(consume) if background else None
     events: list[str] = []
+    if "constraints" not in cfg.model_fields_set and not cfg.constraints.nhc:
+        # no option (issue 35): the NHC decided from a first pass over the whole log (filters.wheeled), which
+        # then sits in memory once
+        cfg = no_option_constraint(_whole(log), gnss, cfg, withheld, events, aids)[0]
     t0 = _time.perf_counter()
     try:
         res = stream_loose(chain([head], chunks), gnss, cfg, consume if bg is None else bg.put,

@@ -91,7 +91,7 @@ from .measurements import M_GNSS_VEL, M_PR, MAX_ROWS, MODELS_KEY, N_MODELS, Nav,
 from .measurements.common import W_FIX, W_IB, W_IE, W_IN
 from .measurements.epoch import epoch_out, epoch_record, epoch_update
 from .measurements.gnss import W_FN
-from .reinit import chi2_quantile, inflate, inflate_nav, nis_of  # noqa: F401  (inflate_nav: re-exported)
+from .reinit import chi2_quantile, inflate, inflate_nav, nis_of, scale_nav  # noqa: F401  (inflate_nav: re-exported)
 
 # parameters of the GNSS velocity model (``Models.par[M_GNSS_VEL]``) for the heading hold after an IMU gap
 # (:func:`run_chunk`): mounting heading [rad], least speed of a course [m/s], course σ [rad], heading σ
@@ -199,8 +199,11 @@ def policy_update(x, P, wk, m, model, mod, rej, win, log, li):
         win[model, WIN_MAX] = c
         if c == nw and win[model, :nw].sum() > chi2_quantile(nw * m, Z_999):
             why = 2
-    if why > 0 and nw >= 0:
+    if why == 2:  # the window's innovations are λ times larger than S says: P's blocks scaled by λ
+        scale_nav(P, win[model, :nw].sum() / (nw * m), mod.cal)
+    elif why > 0 and nw >= 0:
         inflate(x, P, H, R, z, mod.cal)
+    if why > 0 and nw >= 0:
         win[model, WIN_MAX], win[model, WIN_MAX + 1] = 0.0, 0.0
         log.reinit[li] = why
     nu, sd = np.zeros(m), np.zeros(m)

@@ -24,10 +24,12 @@ The IMU noise is estimated from the log's static samples (engine vibration; also
 without a preset when the configuration has no imu section, issue 35); the pedestrian preset keeps the
 configured noise (nothing vibrates a phone at rest). Every preset re-initialises when the NIS of the last
 10 accepted fixes of a type is far out of its χ² band (``gnss.nis_window``; off without a preset, where the
-filter keeps the configured model); a re-initialisation grows the calibration states with the navigation
-block. Each preset states what the vehicle can do (``motion``: speed, acceleration, turn-rate and tilt
-bounds), which sizes the covariance an IMU gap adds (:func:`aidnav.filters.preprocess.bridge_gaps`);
-without a preset the bounds of an unknown vehicle (:class:`aidnav.filters.config.MotionBounds`).
+filter keeps the configured model, unless the log shows a wheeled vehicle: :mod:`aidnav.filters.wheeled`);
+such a re-initialisation scales the navigation block and the calibration states by the window's mean NIS
+per dof (each calibration state at most back to its prior). Each preset states what the vehicle can do
+(``motion``: speed, acceleration, turn-rate and tilt bounds), which sizes the covariance an IMU gap adds
+(:func:`aidnav.filters.preprocess.bridge_gaps`); without a preset the bounds of an unknown vehicle
+(:class:`aidnav.filters.config.MotionBounds`).
 """
 
 from __future__ import annotations

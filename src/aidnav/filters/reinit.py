@@ -57,6 +57,13 @@ def inflate(x, P, H, R, z, cal):
 
 
 @njit(cache=True)
+def scale_nav(P, a, cal):
+    """P ← D P D of :func:`inflate` for the given factor ``a`` (≥ 1): the re-initialisation of an NIS
+    window, whose factor is the window's mean NIS per degree of freedom."""
+    P[:, :] = _scaled_nav(P.copy(), max(a, 1.0), cal)
+
+
+@njit(cache=True)
 def _scaled_nav(P0, a, cal):
     """D P0 D of :func:`inflate` for the factor a."""
     d = np.ones(P0.shape[0])

@@ -47,9 +47,11 @@ def reinit_events(log) -> list[str]:
     """One event per re-initialisation in the engine's log (:func:`log_dict`): time, model, why."""
     out = []
     for k in np.flatnonzero(log["reinit"] > 0):
+        how = ("scaled by the window's mean NIS per dof" if int(log["reinit"][k]) == 2 else
+               "inflated to the innovation")
         out.append(f"re-initialisation at t={log['t'][k]:.3f}: {log['model_name'][k]} innovation NIS "
                    f"{log['nis'][k]:.1f} ({REINIT_WHY[int(log['reinit'][k])]}): position/velocity/attitude "
-                   "covariance inflated to the innovation and the update accepted")
+                   f"(and calibration) covariance {how} and the update accepted")
     return out
 
 

@@ -47,7 +47,7 @@ from . import measurements as ms
 from .chi2 import chi2_isf
 from .config import Constraints, FilterSettings, ImuNoise, Initialisation
 from .engine import Imu, Init, Models, Output, Process, Records, rts, run_filter, smooth_outputs
-from .layout import L_CLK, L_N, L_NINS, L_RERR, L_SIZE
+from .layout import L_CLK, L_ISB, L_N, L_NINS, L_RERR, L_SIZE
 from .measurements import epoch as ep
 
 __all__ = ["CLOCK_GRADES", "RawGnssAiding", "TightConfig", "TightResult", "apply_vehicle", "clock_allan",
@@ -161,13 +161,17 @@ class TightResult:
     iono_model: str = ""  # the ionospheric correction applied and its σ (for the summary)
 
 
-def tight_layout(states: int, n_range: int = 0) -> np.ndarray:
+def tight_layout(states: int, n_range: int = 0, n_isb: int = 0) -> np.ndarray:
     """Layout table (:mod:`aidnav.filters.layout`): INS block of 9 (11 states) or 15, then the clock,
-    then ``n_range`` per-satellite range-error states (none: 0)."""
+    then ``n_isb`` inter-system biases (``L_ISB``, none: 0), then ``n_range`` per-satellite range-error
+    states (``L_RERR``, none: 0; kept last: they are the open-loop Gauss-Markov block)."""
     lay = np.full(L_SIZE, -1, np.int64)
     lay[L_NINS] = 9 if states == 11 else 15
     lay[L_CLK] = lay[L_NINS]
     lay[L_N] = lay[L_NINS] + 2
+    if n_isb:
+        lay[L_ISB] = lay[L_N]
+        lay[L_N] += n_isb
     if n_range:
         lay[L_RERR] = lay[L_N]
         lay[L_N] += n_range

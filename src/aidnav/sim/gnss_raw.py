@@ -12,7 +12,7 @@ lever arm: :func:`aidnav.sim.gnss.interpolate_truth`). The satellite signal left
 t − t_tx = ρ/c (light-time iteration with the Sagnac-corrected range of
 :func:`aidnav.nav.gnss_sat.geo_range`). Then, per satellite j:
 
-P = ρ(r_s,true(t_tx), r_a(t)) + c·dt_r − c·dt_s,true(t_tx) + I + T + MP + ε,
+P = ρ(r_s,true(t_tx), r_a(t)) + c·dt_r + ISB_sys − c·dt_s,true(t_tx) + I + T + MP + ε,
 ρ̇_meas = ρ̇ + c·ḋt_r − c·ḋt_s,true + ε̇  (ionosphere, troposphere and multipath rates neglected: mm/s).
 
 * **Ephemeris error**: the true orbit is the broadcast one plus a constant offset per satellite in its
@@ -49,6 +49,12 @@ P = ρ(r_s,true(t_tx), r_a(t)) + c·dt_r − c·dt_s,true(t_tx) + I + T + MP + �
 * **Thermal noise**: white, σ(E) = σ0 √(½ + ½/sin²E) with σ0 ``code_sigma_m`` (``rate_sigma_m_s``
   for the rate).
 
+**Every constellation**: the ephemeris table may hold Galileo, BeiDou and GLONASS records (satellite ids of
+:mod:`aidnav.nav.gnss_sat`, e.g. :func:`aidnav.sim.gnss_constellation.nominal_multi_constellation`); each
+system's code carries the receiver's inter-system bias ``isb_m[letter]`` (its clock − the GPS clock, the
+same for rover and base), its ionosphere the factor (f_L1/f)², its Doppler the wavelength of its signal
+(GLONASS: per channel, ``GnssObservations.freq1``).
+
 Satellites below ``mask_deg`` (at each receiver) are NaN. ``sat_windows`` limit the rover's
 satellites: (start_s, end_s, max_sats) keeps the ``max_sats`` highest satellites at the window start
 (0 = none) during start_s ≤ t − t_truth0 < end_s.
@@ -65,12 +71,15 @@ from aidnav.jit import njit
 from aidnav.nav.earth import ecef_to_lla, lla_to_ecef, radii
 from aidnav.nav.gnss_sat import (
     C_LIGHT,
+    FREQ_L1,
     PI_GPS,
     az_el,
+    carrier_frequencies,
     eph_state,
     geo_range,
     geo_range_rate,
     klobuchar,
+    sat_system,
     tropo_delay,
 )
 from aidnav.nav.gnss_types import GnssObservations, GpsEphemerides
@@ -122,6 +131,7 @@ class RawGnssSpec:
     base_clock_drift0_m_s: float = 10.0
     lever_arm_b: tuple = (0.0, 0.0, 0.0)
     sat_windows: list = field(default_factory=list)
+    isb_m: dict = field(default_factory=dict)  # inter-system biases {letter: that system's clock − GPS's} [m]
 
     def perfect(self) -> RawGnssSpec:
         """A copy without any error source except the receiver clocks (noise-free, common-mode-free)."""
@@ -149,6 +159,7 @@ class RawGnssSpec:
             base_clock_drift0_m_s=self.base_clock_drift0_m_s,
             lever_arm_b=self.lever_arm_b,
             sat_windows=list(self.sat_windows),
+            isb_m=dict(self.isb_m),
         )
 
 
@@ -196,8 +207,12 @@ def _raw_kernel(
     rate_sig,
     mask,
     use_trop,
+    isb,
+    ifac,
 ):
-    """Pseudoranges and rates; see the module docstring. eph (S, N_EPH) one record per satellite."""
+    """Pseudoranges and rates; see the module docstring. eph (S, N_EPH) one record per satellite; isb (S,)
+    the receiver's inter-system bias of each satellite's system [m]; ifac (S,) ionospheric scale
+    (f_L1/f)²."""
     T = t_gps.shape[0]
     S = eph.shape[0]
     code = np.full((T, S), np.nan)
@@ -240,6 +255,7 @@ def _raw_kernel(
             if alpha[0] != 0.0 or alpha[1] != 0.0 or alpha[2] != 0.0 or alpha[3] != 0.0:  # all zero: none
                 iono = (1.0 + iono_scale[j]) * klobuchar(lat, lon, az, el, t_gps[k], alpha, beta)
             iono += fobl * 1e-3 * (iono_grad[j, 0] * d_km[k, 0] + iono_grad[j, 1] * d_km[k, 1])
+            iono *= ifac[j]
             s = np.sin(max(el, 0.035))
             mfac = np.sqrt(0.5 + 0.5 / (s * s))
             tro = tropo_delay(lat, h, el, humidity) if use_trop else 0.0
@@ -249,6 +265,7 @@ def _raw_kernel(
             code[k, j] = (
                 rho
                 + clock[k, 0]
+                + isb[j]
                 - sat_clk
                 + iono
                 + tro
@@ -329,6 +346,7 @@ def limit_satellites(
         None,
         obs.approx_ecef,
         list(obs.events) + [f"satellites limited in windows {list(windows)}"],
+        freq1=obs.freq1,
     )
 
 
@@ -423,6 +441,10 @@ def simulate_raw_gnss(
     mask = np.radians(spec.mask_deg)
     alpha = np.asarray(spec.iono_alpha, float)
     beta = np.asarray(spec.iono_beta, float)
+    sid = eph.table[:, 0].astype(int)
+    freq = carrier_frequencies(sid, eph.table)
+    isb = np.array([spec.isb_m.get(c, 0.0) for c in sat_system(sid)])
+    ifac = (FREQ_L1 / freq) ** 2
     code, rate, el, az, ion, trop = _raw_kernel(
         t0_gps + t_rx_k,
         r_a,
@@ -446,10 +468,12 @@ def simulate_raw_gnss(
         spec.rate_sigma_m_s,
         mask,
         spec.tropo_model,
+        isb,
+        ifac,
     )
-    prn = eph.table[:, 0].astype(int)
+    prn = sid
     tags = t0_gps + tags_rel
-    dop = -rate / (C_LIGHT / 1575.42e6)
+    dop = -rate / (C_LIGHT / freq)
     rover = GnssObservations(
         tags,
         eph.ref_week,
@@ -461,6 +485,7 @@ def simulate_raw_gnss(
         None,
         None,
         ["simulated rover (aidnav.sim.gnss_raw)"],
+        freq1=freq,
     )
     if spec.sat_windows:
         rover = limit_satellites(rover, el, spec.sat_windows, t0_gps + t[0])
@@ -516,18 +541,21 @@ def simulate_raw_gnss(
             spec.rate_sigma_m_s,
             mask,
             spec.tropo_model,
+            isb,
+            ifac,
         )
         base = GnssObservations(
             tags,
             eph.ref_week,
             prn,
             code_b,
-            -rate_b / (C_LIGHT / 1575.42e6),
+            -rate_b / (C_LIGHT / freq),
             np.full_like(code_b, 45.0),
             None,
             None,
             base_ecef.copy(),
             ["simulated base (aidnav.sim.gnss_raw)"],
+            freq1=freq,
         )
         truth_d.update(
             {
@@ -573,5 +601,7 @@ def static_pseudoranges(
         0.0,
         np.radians(mask_deg),
         False,
+        np.zeros(S),
+        np.ones(S),
     )
     return code[0], el[0]

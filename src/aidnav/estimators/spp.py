@@ -299,7 +299,8 @@ def spp(
     if np.all(np.isfinite(Q)):
         C = dcm_ecef_to_enu(lat, lon)
         cov_enu = C @ Q[:3, :3] @ C.T
-    d = _dop_from_geometry(el, az, used) if used.sum() >= 4 else _dop_from_geometry(el, az, used & False)
+    geo_ok = used.sum() >= 4 and np.all(np.isfinite(el[used]))
+    d = _dop_from_geometry(el, az, used if geo_ok else used & False)
     res = SppResult(
         ecef=x[:3].copy(),
         lat=float(lat),

@@ -253,7 +253,7 @@ def process_tight_files(imu_path, obs_path, nav_path, config_path=None, out_dir=
     from aidnav.filters.tight import TightConfig, apply_vehicle, to_trajectory
     from aidnav.io.boundary import shift_imu_time
     from aidnav.io.interchange import write_trajectory
-    from aidnav.io.rinex import read_rinex_nav, read_rinex_obs
+    from aidnav.io.rinex import read_rinex_pair
 
     out_dir = prepare_out_dir(out_dir)
     traj_path = trajectory_path(out_dir, fmt)
@@ -264,8 +264,8 @@ def process_tight_files(imu_path, obs_path, nav_path, config_path=None, out_dir=
         cfg = cfg.model_copy(update={"imu": cfg.imu.model_copy(update={"time_offset_s": time_offset_s})})
     imu = shift_imu_time(read_imu_any(imu_path), cfg.imu.time_offset_s)
     cfg = cfg.model_copy(update={"imu": cfg.imu.model_copy(update={"time_offset_s": 0.0})})
-    obs = read_rinex_obs(obs_path)
-    eph = read_rinex_nav(nav_path, ref_week=getattr(obs, "ref_week", None))
+    obs, eph, rinex_events = read_rinex_pair(obs_path, nav_path)  # every system with ephemerides
+    events += rinex_events
     res, sp = process_tight(imu, obs, eph, cfg, events=events, smooth=smooth)
     traj = to_trajectory(res)
     check_solution(traj, "the tightly coupled filter")

@@ -65,7 +65,7 @@ from aidnav.nav.gnss_sat import (
 )
 from aidnav.nav.gnss_types import GnssObservations, GpsEphemerides
 
-__all__ = ["GpsEphemerides", "GnssObservations", "read_rinex_nav", "read_rinex_obs"]
+__all__ = ["GpsEphemerides", "GnssObservations", "read_rinex_nav", "read_rinex_obs", "read_rinex_pair"]
 
 
 def _load(path: Path, **kw):
@@ -366,9 +366,6 @@ def read_rinex_obs(path, ref_week: int | None = None, systems: str = "G") -> Gns
         phase1 = None
     if not np.isfinite(dop).any():
         events.append(f"{path.name}: no L1 Doppler")
-    other = sorted({v[0] for v in svs} - use)
-    if other:
-        events.append(f"{path.name}: observations of system(s) {', '.join(other)} not read")
     dt = np.diff(t)
     if len(dt):
         med = np.median(dt)
@@ -379,3 +376,38 @@ def read_rinex_obs(path, ref_week: int | None = None, systems: str = "G") -> Gns
     if approx is not None and not np.any(approx):
         approx = None
     return GnssObservations(t, int(ref_week), prn, code1, dop, cn0, code2, c2, approx, events, phase1, lli1)
+
+
+_SYSTEM_NAMES = {"G": "GPS", "E": "Galileo", "C": "BeiDou", "R": "GLONASS", "S": "SBAS", "J": "QZSS",
+                 "I": "NavIC"}
+
+
+def _header_systems(path: Path) -> list[str]:
+    """System letters with observation types in a RINEX 3 observation header (RINEX 2: none)."""
+    out = []
+    with open(path, encoding="ascii", errors="replace") as f:
+        for line in f:
+            if line[60:79].startswith("SYS / # / OBS TYPES") and line[0] != " ":
+                out.append(line[0])
+            if "END OF HEADER" in line:
+                break
+    return out
+
+
+def read_rinex_pair(obs_path, nav_path) -> tuple[GnssObservations, GpsEphemerides, list[str]]:
+    """The observations of every system that has ephemerides in the navigation file (G, E, C, R), with
+    the ephemerides on the observations' week; ``events`` name the systems of the observation file left
+    out and why (no ephemeris; SBAS, QZSS, NavIC: not supported)."""
+    eph = read_rinex_nav(nav_path)
+    have = "".join(c for c in SYSTEMS if np.any(eph.table[:, E_PRN] // 100 == SYSTEMS.index(c)))
+    obs = read_rinex_obs(obs_path, systems=have or "G")
+    eph = eph.to_week(obs.ref_week) if eph.ref_week != obs.ref_week else eph
+    events = []
+    for c in _header_systems(Path(obs_path)):
+        if c in SYSTEMS and c not in have:
+            events.append(f"{Path(obs_path).name}: {_SYSTEM_NAMES[c]} observations but no {_SYSTEM_NAMES[c]} "
+                          f"ephemeris in {Path(nav_path).name}: not used")
+        elif c not in SYSTEMS:
+            events.append(f"{Path(obs_path).name}: {_SYSTEM_NAMES.get(c, c)} observations not used (aidnav "
+                          "reads GPS, Galileo, BeiDou and GLONASS)")
+    return obs, eph, events

@@ -175,7 +175,8 @@ def walker_constellation(system: str, week: int, sow: float, ref_week: int | Non
     """Ephemeris records (K, N_EPH) of the nominal ``system`` ("E", "C" or "R") constellation of
     :data:`WALKER` with toe = toc = (week, sow) GPS time: circular orbits, Earth-fixed node longitudes
     ``node0_deg`` + 360°·p/P at toe, arguments of latitude 360°·(s/S + F·p/T) (the geometry is nominal, not
-    the real sky). PRNs 1…24 (BeiDou 19…42: PRN 1–5 and 59–63 are GEO satellites). Galileo/BeiDou: Keplerian records on the GPS scale (``E_TOES`` = toe on that scale, the
+    the real sky). PRNs 1…24 (BeiDou 19…42: PRN 1–5 and 59–63 are GEO satellites). Galileo/BeiDou:
+    Keplerian records on the GPS scale (``E_TOES`` = toe on that scale, the
     node referred to it, like :func:`nominal_constellation`); GLONASS: the PZ-90 state at t_b (Earth-fixed
     position and velocity of the circular orbit; the RK4 propagation then adds J2), channels k = −7…6 in
     turn, no luni-solar acceleration. Clock terms zero."""

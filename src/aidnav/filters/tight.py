@@ -16,6 +16,13 @@ budget (:func:`aidnav.nav.gnss_sat.range_error_sigma`), a unit-variance Gauss-Ma
 correlation time ``range_error_tau_s`` (docs/models.md §6.3); with four satellites the position σ then
 says what the range errors can do to it.
 
+**Every constellation** (issue 40): Galileo, BeiDou and GLONASS satellites of the observations (ids of
+:mod:`aidnav.nav.gnss_sat`) enter like GPS ones; one inter-system bias state per non-GPS system with a
+usable satellite (``L_ISB``, after the clock: that system's receiver clock − the GPS clock [m], random walk
+of PSD ``isb_psd_m2_s``, initial σ ``isb_sigma_m``; rates share the drift), a σ factor per system
+(``system_sigma_factor``, RTKLIB's EFACT_*) and the Klobuchar delay scaled by (f_L1/f)² of the satellite's
+signal (GLONASS per channel).
+
 **Measurements**: each GNSS epoch is one engine record (:mod:`aidnav.filters.measurements.epoch`): due at
 the receive time t_tag − b̂/c, the INS antenna moved back to it; clock start and jumps (median residual
 beyond ``clock_jump_m``) re-initialise b̂; mask, Klobuchar (RTKLIB's default coefficients when the

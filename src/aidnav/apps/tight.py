@@ -273,7 +273,12 @@ def process_tight_files(imu_path, obs_path, nav_path, config_path=None, out_dir=
     summary = {"imu": str(imu_path), "obs": str(obs_path), "nav": str(nav_path), "output": str(traj_path),
                "states": cfg.states, "smoothed": bool(smooth), "vehicle": vehicle,
                "ionosphere": res.iono_model,
+               "systems": sorted({n[0] for n in obs.names}),
                "events": imu.events + events}
+    if res.isb_systems:  # inter-system biases at the end (that system's receiver clock − the GPS one)
+        summary["inter_system_bias_m"] = {c: {"value": float(res.isb[-1, k]),
+                                              "std": float(res.isb_std[-1, k])}
+                                          for k, c in enumerate(res.isb_systems)}
     # what changes the solution by metres is said where the user looks: the summary's warnings (issue 38)
     summary["warnings"] = [e.removeprefix("warning: ") for e in summary["events"]
                            if e.startswith("warning:") or _iono_note(e)]

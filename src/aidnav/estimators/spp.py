@@ -380,7 +380,9 @@ def spp_series(
     averaged over a
     centred window of ``iono_window_s`` seconds per satellite (the combination's noise is ≈ 2.3× the code
     noise; the ionosphere changes little over a minute). Returns a dict of arrays: time, ecef (T, 3),
-    lat, lon, h, clock_m, vel_enu (T, 3), clock_drift, n_used, status (list), pdop, excluded (list),
+    lat, lon, h, clock_m (the clock of ``reference_system`` (T,): the first system of G, E, C, R with
+    satellites), isb_m ({letter: (T,)} inter-system biases [m] to it), vel_enu (T, 3), clock_drift, n_used,
+    status (list), pdop, excluded (list),
     residuals (T, S), events (list of str: satellites without ephemeris, exclusions, epochs without a fix).
     """
     eph = eph.to_week(obs.ref_week) if eph.ref_week != obs.ref_week else eph
@@ -411,6 +413,8 @@ def spp_series(
     out["status"] = []
     out["excluded"] = []
     out["residuals"] = np.full((T, S), np.nan)
+    out["isb_m"] = {}
+    out["reference_system"] = np.full(T, "", dtype="<U1")
     xprev = None if x0 is None else np.asarray(x0, float)
     no_eph = np.zeros(S, int)
     for k in range(T):
@@ -437,6 +441,9 @@ def spp_series(
         if not r.valid:
             continue
         xprev = np.r_[r.ecef, r.clock_m]
+        for c, v in r.isb_m.items():  # relative to the epoch's reference system (GPS when it has satellites)
+            out["isb_m"].setdefault(c, np.full(T, np.nan))[k] = v
+        out["reference_system"][k] = r.reference_system
         out["ecef"][k] = r.ecef
         out["lat"][k], out["lon"][k], out["h"][k], out["clock_m"][k] = r.lat, r.lon, r.h, r.clock_m
         out["n_used"][k] = r.n_used

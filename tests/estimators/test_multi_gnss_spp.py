@@ -180,3 +180,29 @@ def test_rinex3_files_of_four_systems_read_back_to_the_known_position(tmp_path):
             assert abs(r.isb_m[c] - b) < 0.02
     # GPS only (the default of the observation reader): the other systems are left out
     assert set(n[0] for n in read_rinex_obs(tmp_path / "m.obs").names) == {"G"}
+
+
+def test_sbas_ranges_on_the_gps_clock():
+    """An SBAS GEO record (state vector at t0, quadratic over ≤ 360 s as RTKLIB's seph2pos) is one more
+    satellite on the GPS clock: 4 GPS + 1 SBAS solve with one redundancy and no inter-system bias."""
+    from aidnav.nav.gnss_sat import E_HEALTH, SYS_SBS, eph_state
+    from aidnav.nav.gnss_types import GpsEphemerides
+
+    g = nominal_multi_constellation(WEEK, SOW, "G").table
+    t = SOW + 30.0
+    pr_g, el = static_pseudoranges(GpsEphemerides(g, WEEK), t, RX, clock_m=CLOCK, mask_deg=10.0)
+    vis = np.flatnonzero(np.isfinite(pr_g))[:4]
+    s = np.zeros_like(g[0])
+    s[E_PRN], s[E_TOE], s[E_HEALTH] = 100 * SYS_SBS + 31, SOW, 0.0
+    lon = np.radians(15.0)
+    s[G_POS:G_POS + 3] = 42164e3 * np.array([np.cos(lon), np.sin(lon), 0.0])
+    s[G_VEL:G_VEL + 3] = [0.3, -0.2, 1.0]
+    s[G_ACC:G_ACC + 3] = [1e-5, 2e-5, -1e-5]
+    p, v, _, _ = eph_state(s, SOW + 100.0)
+    assert np.allclose(p, s[G_POS:G_POS + 3] + 100.0 * s[G_VEL:G_VEL + 3] + 5e3 * s[G_ACC:G_ACC + 3])
+    table = np.vstack([g[vis], s])
+    pr, _ = static_pseudoranges(GpsEphemerides(table, WEEK), t, RX, clock_m=CLOCK, mask_deg=10.0)
+    ids = table[:, E_PRN].astype(int)
+    assert np.isfinite(pr).all() and sat_name(ids[-1]) == "S31"
+    r = _solve(table, ids, t, pr)
+    assert r.status == "ok" and not r.isb_m and np.linalg.norm(r.ecef - RX) < 1e-3

@@ -264,7 +264,7 @@ def process_tight_files(imu_path, obs_path, nav_path, config_path=None, out_dir=
         cfg = cfg.model_copy(update={"imu": cfg.imu.model_copy(update={"time_offset_s": time_offset_s})})
     imu = shift_imu_time(read_imu_any(imu_path), cfg.imu.time_offset_s)
     cfg = cfg.model_copy(update={"imu": cfg.imu.model_copy(update={"time_offset_s": 0.0})})
-    obs, eph, rinex_events = read_rinex_pair(obs_path, nav_path)  # every system with ephemerides
+    obs, eph, rinex_events = read_rinex_pair(obs_path, nav_path, cfg.gnss.systems)  # with ephemerides
     events += rinex_events
     res, sp = process_tight(imu, obs, eph, cfg, events=events, smooth=smooth)
     traj = to_trajectory(res)

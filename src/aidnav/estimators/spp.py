@@ -28,6 +28,8 @@ from aidnav.jit import njit
 from aidnav.nav.earth import dcm_ecef_to_enu, ecef_to_lla, lla_to_ecef
 from aidnav.nav.gnss_sat import (
     FREQ_L1,
+    SYS_GPS,
+    SYS_SBS,
     SYSTEM_SIGMA_FACTOR,
     SYSTEMS,
     az_el,
@@ -226,10 +228,10 @@ def spp(
     alpha = np.asarray(iono_alpha if use_iono else _ZERO4, float)
     beta = np.asarray(iono_beta if use_iono else _ZERO4, float)
     ids = np.asarray(prns, np.int64) if np.issubdtype(np.asarray(prns).dtype, np.integer) else np.arange(s)
-    sysn = ids // 100
+    sfac = np.array([SYSTEM_SIGMA_FACTOR[SYSTEMS[k]] for k in ids // 100])
+    sysn = np.where(ids // 100 == SYS_SBS, SYS_GPS, ids // 100)  # SBAS ranges on the GPS clock
     f = carrier_frequencies(ids) if freq is None else np.asarray(freq, float)
     ifac = np.where(np.isfinite(f), (FREQ_L1 / f) ** 2, 1.0)
-    sfac = np.array([SYSTEM_SIGMA_FACTOR[SYSTEMS[k]] for k in sysn])
     x0 = np.zeros(4) if x0 is None else np.asarray(x0, float)
     excluded: list = []
     status = "ok"

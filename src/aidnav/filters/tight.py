@@ -116,12 +116,15 @@ class RawGnssAiding(_Strict):
         True, description="per-satellite Gauss-Markov range-error states with the σ of RTKLIB's "
         "single-frequency error budget (URA, ionosphere, troposphere, code bias; docs/models.md)")
     range_error_tau_s: float = Field(1800.0, gt=0, description="correlation time of the range errors [s]")
+    systems: str = Field("GECR", pattern="^[GECRS]+$", description="satellite systems used where the "
+                         "navigation file has their ephemerides (G GPS, E Galileo, C BeiDou, R GLONASS, "
+                         "S SBAS ranging: on the GPS clock, σ factor 3; not in the default)")
     isb_sigma_m: float = Field(100.0, gt=0, description="σ of the initial inter-system biases (Galileo, "
                                "BeiDou, GLONASS receiver clock − the GPS one) [m]")
     isb_psd_m2_s: float = Field(1e-4, ge=0, description="random-walk PSD of the inter-system biases [m²/s]")
     system_sigma_factor: dict[str, float] = Field(
-        default_factory=lambda: {"G": 1.0, "E": 1.0, "C": 1.0, "R": 1.5},
-        description="zenith code and rate σ factor per system (RTKLIB's EFACT_*: GLONASS 1.5)")
+        default_factory=lambda: {"G": 1.0, "E": 1.0, "C": 1.0, "R": 1.5, "S": 3.0},
+        description="zenith code and rate σ factor per system (RTKLIB's EFACT_*: GLONASS 1.5, SBAS 3)")
     use_phase: bool = Field(True, description="time-differenced L1 carrier phase (where the observations "
                             "have it): mean velocities between epochs as velocity records (aidnav tight)")
     phase_sigma_m: float = Field(0.005, gt=0, description="carrier-phase σ per epoch [m]")

@@ -144,6 +144,22 @@ def _glonass_row(get, it, js, sid, t_utc, ref_week):
     return r
 
 
+def _sbas_row(get, it, js, sid, sow_toc, wk_toc, ref_week):
+    """One SBAS record: the GEO state at t0 (the record's GPS epoch), clock a_Gf0, a_Gf1."""
+    r = np.zeros(N_EPH)
+    r[E_PRN] = sid
+    r[E_WEEK] = wk_toc[it]
+    r[E_TOE] = r[E_TOC] = (wk_toc[it] - ref_week) * SECONDS_PER_WEEK + sow_toc[it]
+    r[E_AF0], r[E_AF1] = get["SVclockBias"][it, js], get["SVrelFreqBias"][it, js]
+    for k, ax in enumerate("XYZ"):  # georinex gives metres
+        r[G_POS + k], r[G_VEL + k] = get[ax][it, js], get["d" + ax][it, js]
+        r[G_ACC + k] = get["d" + ax + "2"][it, js]
+    r[E_HEALTH] = get["health"][it, js] if "health" in get else 0.0
+    ura = get["URA"][it, js] if "URA" in get else np.nan
+    r[E_URA] = ura if np.isfinite(ura) and ura > 0 else np.nan
+    return r
+
+
 def read_rinex_nav(path, ref_week: int | None = None, systems: str = "GECR") -> GpsEphemerides:
     """Read the GPS, Galileo, BeiDou and GLONASS records (``systems``: RINEX letters) of a RINEX 2/3
     navigation file.
@@ -179,10 +195,11 @@ def read_rinex_nav(path, ref_week: int | None = None, systems: str = "GECR") -> 
             if sys not in use:
                 continue
             sid = sat_id(sv)
-            if sys == "R":
+            if sys in "RS":
                 if "X" not in get or np.isnan(get["X"][it, js]):
                     continue
-                r = _glonass_row(get, it, js, sid, nav.time.values[it], int(ref_week))
+                r = (_glonass_row(get, it, js, sid, nav.time.values[it], int(ref_week)) if sys == "R" else
+                     _sbas_row(get, it, js, sid, sow_toc, wk_toc, int(ref_week)))
             else:
                 if "sqrtA" not in get or np.isnan(get["sqrtA"][it, js]):
                     continue
@@ -215,7 +232,7 @@ def read_rinex_nav(path, ref_week: int | None = None, systems: str = "GECR") -> 
     if unhealthy:
         events.append(f"{path.name}: {unhealthy} record(s) flagged unhealthy (not used)")
     per = {s: int(np.sum(table[:, E_PRN] // 100 == SYSTEMS.index(s))) for s in SYSTEMS}
-    if any(per[s] for s in "ECR"):
+    if any(per[s] for s in "ECRS"):
         events.append(f"{path.name}: records per system "
                       + ", ".join(f"{s} {n}" for s, n in per.items() if n))
     return GpsEphemerides(table, int(ref_week), alpha, beta, events)
@@ -244,7 +261,8 @@ def _epoch_lines(path: Path) -> np.ndarray:
 _SIGNALS = {"G": (("C1C", "C1"), ("D1C", "D1"), ("S1C", "S1"), ("L1C", "L1")),
             "E": (("C1C", "C1X", "C1B"), ("D1C", "D1X", "D1B"), ("S1C", "S1X", "S1B"), ("L1C", "L1X", "L1B")),
             "C": (("C2I", "C1I"), ("D2I", "D1I"), ("S2I", "S1I"), ("L2I", "L1I")),
-            "R": (("C1C", "C1"), ("D1C", "D1"), ("S1C", "S1"), ("L1C", "L1"))}
+            "R": (("C1C", "C1"), ("D1C", "D1"), ("S1C", "S1"), ("L1C", "L1")),
+            "S": (("C1C", "C1"), ("D1C", "D1"), ("S1C", "S1"), ("L1C", "L1"))}
 
 
 def _lli_rinex3(path: Path, phase_code: dict, names: list, n_epochs: int) -> np.ndarray:
@@ -394,20 +412,24 @@ def _header_systems(path: Path) -> list[str]:
     return out
 
 
-def read_rinex_pair(obs_path, nav_path) -> tuple[GnssObservations, GpsEphemerides, list[str]]:
-    """The observations of every system that has ephemerides in the navigation file (G, E, C, R), with
-    the ephemerides on the observations' week; ``events`` name the systems of the observation file left
-    out and why (no ephemeris; SBAS, QZSS, NavIC: not supported)."""
-    eph = read_rinex_nav(nav_path)
+def read_rinex_pair(obs_path, nav_path, systems: str = "GECR") -> tuple[GnssObservations, GpsEphemerides,
+                                                                         list[str]]:
+    """The observations of every system of ``systems`` (letters of G, E, C, R, S) that has ephemerides in
+    the navigation file, with the ephemerides on the observations' week; ``events`` name the systems of
+    the observation file left out and why (no ephemeris; not asked for; QZSS, NavIC: not supported)."""
+    eph = read_rinex_nav(nav_path, systems=systems)
     have = "".join(c for c in SYSTEMS if np.any(eph.table[:, E_PRN] // 100 == SYSTEMS.index(c)))
     obs = read_rinex_obs(obs_path, systems=have or "G")
     eph = eph.to_week(obs.ref_week) if eph.ref_week != obs.ref_week else eph
     events = []
     for c in _header_systems(Path(obs_path)):
-        if c in SYSTEMS and c not in have:
+        if c in SYSTEMS and c not in systems:
+            events.append(f"{Path(obs_path).name}: {_SYSTEM_NAMES[c]} observations not used (systems "
+                          f"{systems}; add {c} to gnss.systems to use them)")
+        elif c in SYSTEMS and c not in have:
             events.append(f"{Path(obs_path).name}: {_SYSTEM_NAMES[c]} observations but no {_SYSTEM_NAMES[c]} "
                           f"ephemeris in {Path(nav_path).name}: not used")
         elif c not in SYSTEMS:
             events.append(f"{Path(obs_path).name}: {_SYSTEM_NAMES.get(c, c)} observations not used (aidnav "
-                          "reads GPS, Galileo, BeiDou and GLONASS)")
+                          "reads GPS, Galileo, BeiDou, GLONASS and SBAS)")
     return obs, eph, events

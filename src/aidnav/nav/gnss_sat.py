@@ -33,7 +33,9 @@ R_z(ω_e t_k)·R_x(−5°) (BeiDou ICD 5.2.4.12; velocity by central difference)
 PZ-90 state at t_b (``G_POS``, ``G_VEL``, the luni-solar acceleration ``G_ACC``, the frequency channel
 ``G_FCN``; clock −τ_n in ``E_AF0``, γ_n in ``E_AF1``) and are propagated by the ICD's 4th-order
 Runge-Kutta (GLONASS ICD 5.1 A.3.1.2: central field + J2⁰ in the rotating frame, 60-s steps, the
-acceleration held constant); PZ-90.11 is taken as WGS-84 (cm level).
+acceleration held constant); PZ-90.11 is taken as WGS-84 (cm level). SBAS GEO satellites (S = 4, "S31" =
+PRN 131) have the same state-vector records, propagated quadratically over ≤ 360 s (RTKLIB's seph2pos),
+their clocks on GPS time (no inter-system bias; σ factor 3 as RTKLIB's EFACT_SBS).
 """
 
 from __future__ import annotations
@@ -66,13 +68,13 @@ OMEGA_E_GLO = 7.292115e-5  #: GLONASS ICD (PZ-90) [rad/s]
 GLO_STEP_S = 60.0  #: Runge-Kutta step of the GLONASS orbit [s] (RTKLIB's TSTEP)
 ERREPH_GLO = 5.0  #: URA given to GLONASS records (RINEX carries none) [m], RTKLIB's ERREPH_GLO
 #: satellite systems of a satellite id (id // 100) and their RINEX letters
-SYS_GPS, SYS_GAL, SYS_BDS, SYS_GLO = 0, 1, 2, 3
-SYSTEMS = "GECR"
-#: zenith code σ factor per system (RTKLIB's EFACT_GPS/GAL/CMP/GLO: 1, 1, 1, 1.5)
-SYSTEM_SIGMA_FACTOR = {"G": 1.0, "E": 1.0, "C": 1.0, "R": 1.5}
+SYS_GPS, SYS_GAL, SYS_BDS, SYS_GLO, SYS_SBS = 0, 1, 2, 3, 4
+SYSTEMS = "GECRS"
+#: zenith code σ factor per system (RTKLIB's EFACT_GPS/GAL/CMP/GLO/SBS: 1, 1, 1, 1.5, 3)
+SYSTEM_SIGMA_FACTOR = {"G": 1.0, "E": 1.0, "C": 1.0, "R": 1.5, "S": 3.0}
 #: longest |t − toe| of a record per system [s] (RTKLIB's MAXDTOE*: GPS 7200, GAL 14400, BDS 21600,
-#: GLONASS 1800)
-MAX_AGE_S = {"G": 7200.0, "E": 14400.0, "C": 21600.0, "R": 1800.0}
+#: GLONASS 1800, SBAS 360)
+MAX_AGE_S = {"G": 7200.0, "E": 14400.0, "C": 21600.0, "R": 1800.0, "S": 360.0}
 _SIN_5, _COS_5 = -0.0871557427476582, 0.9961946980917456  # sin/cos(−5°) of BeiDou GEO
 
 # ephemeris record columns
@@ -129,6 +131,11 @@ def eph_state(eph, t):
     sys = int(eph[E_PRN]) // 100
     if sys == SYS_GLO:
         return glonass_state(eph, t)
+    if sys == SYS_SBS:  # RTKLIB's seph2pos: position, velocity and acceleration at t0, quadratic
+        tk = t - eph[E_TOE]
+        a = eph[G_ACC:G_ACC + 3]
+        pos = eph[G_POS:G_POS + 3] + eph[G_VEL:G_VEL + 3] * tk + 0.5 * a * tk * tk
+        return pos, eph[G_VEL:G_VEL + 3] + a * tk, eph[E_AF0] + eph[E_AF1] * tk, eph[E_AF1]
     prn = int(eph[E_PRN]) % 100
     if sys == SYS_BDS and (prn <= 5 or prn >= 59):
         p1 = _kepler_pos(eph, t - 0.5, GM_BDS, OMEGA_E_BDS, True)[0]
@@ -423,9 +430,12 @@ def tropo_delay(lat, h, el, rel_humidity):
 @njit(cache=True)
 def select_ephemeris(eph_table, prn, t, max_age):
     """Index of the healthy record of satellite ``prn`` (id: module doc) whose toe is closest to ``t`` with
-    |t − toe| ≤ max_age [s] (GLONASS: at most 1800 s, the RK4 propagation's span); −1 if none."""
+    |t − toe| ≤ max_age [s] (GLONASS: at most 1800 s, the RK4 propagation's span; SBAS 360 s); −1 if
+    none."""
     best = -1
     best_d = min(max_age, 1800.0) if prn // 100 == SYS_GLO else max_age
+    if prn // 100 == SYS_SBS:
+        best_d = min(max_age, 360.0)
     for i in range(eph_table.shape[0]):
         if int(eph_table[i, E_PRN]) != prn or eph_table[i, E_HEALTH] != 0.0:
             continue
@@ -662,10 +672,11 @@ def range_error_sigma(el, ura, iono_mode, iono_delay, tropo):
 
 # ------------------------------------------------------------------ satellite ids of every constellation
 def sat_id(name: str) -> int:
-    """Satellite id (module doc) of a RINEX name such as "G05", "E11", "C30", "R07" (others: ValueError)."""
+    """Satellite id (module doc) of a RINEX name such as "G05", "E11", "C30", "R07", "S31" (others:
+    ValueError)."""
     name = str(name).strip()
     if name[:1] not in SYSTEMS or not name[1:].strip().isdigit():
-        raise ValueError(f"satellite {name!r}: not a GPS, Galileo, BeiDou or GLONASS name")
+        raise ValueError(f"satellite {name!r}: not a GPS, Galileo, BeiDou, GLONASS or SBAS name")
     return 100 * SYSTEMS.index(name[0]) + int(name[1:])
 
 
@@ -704,5 +715,6 @@ def carrier_frequencies(ids, eph_table=None) -> np.ndarray:
 
 
 __all__ += ["sat_id", "sat_name", "sat_system", "glonass_channels", "carrier_frequencies", "glonass_state",
-            "glonass_orbit", "SYSTEMS", "SYS_GPS", "SYS_GAL", "SYS_BDS", "SYS_GLO", "SYSTEM_SIGMA_FACTOR",
+            "glonass_orbit", "SYSTEMS", "SYS_GPS", "SYS_GAL", "SYS_BDS", "SYS_GLO", "SYS_SBS",
+            "SYSTEM_SIGMA_FACTOR",
             "MAX_AGE_S", "FREQ_B1I", "FREQ_G1", "DFREQ_G1", "E_TOES", "G_POS", "G_VEL", "G_ACC", "G_FCN"]

@@ -62,12 +62,15 @@ satellites: (start_s, end_s, max_sats) keeps the ``max_sats`` highest satellites
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
 from aidnav.data import Trajectory
 from aidnav.jit import njit
+from aidnav.nav import gnss_sat
 from aidnav.nav.earth import ecef_to_lla, lla_to_ecef, radii
 from aidnav.nav.gnss_sat import (
     C_LIGHT,
@@ -183,7 +186,12 @@ def simulate_clock(n: int, dt: float, h0: float, hm2: float, b0: float, d0: floa
     return out
 
 
-@njit(cache=True)
+# numba keys a cached kernel on its own file: the orbits it inlines (eph_state of every constellation)
+# live in nav.gnss_sat, so their source is the kernel's ``depends`` key (aidnav.jit.keep_cache_current)
+_ORBITS_KEY = hashlib.sha256(Path(gnss_sat.__file__).read_bytes()).hexdigest()[:20]
+
+
+@njit(cache=True, depends=_ORBITS_KEY)
 def _raw_kernel(
     t_gps,
     rr,

@@ -121,6 +121,9 @@ class RawGnssAiding(_Strict):
                          "S SBAS ranging: on the GPS clock, σ factor 3; not in the default)")
     isb_sigma_m: float = Field(100.0, gt=0, description="σ of the initial inter-system biases (Galileo, "
                                "BeiDou, GLONASS receiver clock − the GPS one) [m]")
+    isb_m: dict[str, float] = Field(default_factory=dict, description="initial inter-system biases "
+                                    "{letter: m} of a receiver whose biases are known (give isb_sigma_m "
+                                    "their σ); 0 for the others")
     isb_psd_m2_s: float = Field(1e-4, ge=0, description="random-walk PSD of the inter-system biases [m²/s]")
     system_sigma_factor: dict[str, float] = Field(
         default_factory=lambda: {"G": 1.0, "E": 1.0, "C": 1.0, "R": 1.5, "S": 3.0},
@@ -448,7 +451,10 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     aux_tau = np.r_[0.0, g.clock_tau_s, np.zeros(nb), np.full(nr, g.range_error_tau_s)]
     proc = Process(lay, _noise_vector(cfg, nr, nb), taus, aux_tau, float(cfg.filter.prop_dt_s),
                    open=np.arange(n - nr, n, dtype=np.int64))
-    init = Init(float(t0), st0, np.zeros(n - 9), P0, reset_idx, reset_heading,
+    bias0 = np.zeros(n - 9)
+    if nb:
+        bias0[int(lay[L_ISB]) - 9:int(lay[L_ISB]) - 9 + nb] = [g.isb_m.get(c, 0.0) for c in isb_sys]
+    init = Init(float(t0), st0, bias0, P0, reset_idx, reset_heading,
                 cfg.init.course_heading_sigma_deg * DEG, np.full(15, np.nan))
     r = run_filter(imu_in, rec, mod, proc, init, Output(out_every, bool(smooth), np.zeros(0, np.int64)))
     ge = rec.grp._replace(**{k: getattr(rec.grp, k)[sel] for k in rec.grp._fields if k != "flags"})

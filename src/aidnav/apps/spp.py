@@ -72,6 +72,9 @@ def spp_files(obs_path, nav_path, out_dir="spp", fmt: str = "parquet", iono: str
                "mask_deg": mask_deg, "code_sigma_m": code_sigma_m,
                "pdop_median": float(np.nanmedian(sp["pdop"][ok])),
                "satellites_used_median": float(np.median(sp["n_used"][ok])),
+               "systems": sorted({n[0] for n in obs.names}),
+               "inter_system_bias_m_median": {c: float(np.nanmedian(v)) for c, v in sp["isb_m"].items()
+                                              if np.isfinite(v).any()},
                "warnings": [n[len("warning: "):] for n in notes if n.startswith("warning: ")],
                "events": list(sp["events"]), "notes": [n for n in notes if not n.startswith("warning: ")]}
     write_summary_files(out, summary, format_spp_summary(summary))

@@ -417,6 +417,8 @@ def read_rinex_pair(obs_path, nav_path, systems: str = "GECR") -> tuple[GnssObse
     """The observations of every system of ``systems`` (letters of G, E, C, R, S) that has ephemerides in
     the navigation file, with the ephemerides on the observations' week; ``events`` name the systems of
     the observation file left out and why (no ephemeris; not asked for; QZSS, NavIC: not supported)."""
+    if not Path(obs_path).exists():  # a missing observation file is named first (as before)
+        raise DataError(Path(obs_path), None, "file not found")
     eph = read_rinex_nav(nav_path, systems=systems)
     have = "".join(c for c in SYSTEMS if np.any(eph.table[:, E_PRN] // 100 == SYSTEMS.index(c)))
     obs = read_rinex_obs(obs_path, systems=have or "G")

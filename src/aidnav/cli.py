@@ -52,7 +52,7 @@ app = typer.Typer(add_completion=False, no_args_is_help=True, rich_markup_mode=N
 @functools.cache
 def _console(stderr: bool = False):
     """The rich console of stdout (or stderr), made on first use."""
-    from rich.console import Console  # rich: ~40 ms of import that --help and --version never need
+    from rich.console import Console  # lazy: rich: ~40 ms of import that --help and --version never need
 
     # markup off: file names and messages with brackets are printed as they are
     return Console(stderr=stderr, markup=False, highlight=False, soft_wrap=True)
@@ -81,11 +81,11 @@ def _fail(msg: str, code: int = 2):
 
 def _user_errors() -> tuple[type[BaseException], ...]:
     """Exceptions that are the user's to fix: exit 2 with the message, no traceback."""
-    import yaml
+    import yaml  # lazy: yaml is heavy to import
 
     errs: list[type[BaseException]] = [ValueError, OSError, yaml.YAMLError, UnicodeDecodeError]
     try:
-        from pydantic import ValidationError
+        from pydantic import ValidationError  # lazy: pydantic is heavy to import
 
         errs.append(ValidationError)
     except ImportError:  # pragma: no cover - pydantic is a dependency
@@ -128,7 +128,7 @@ def _interrupted_note(kwargs) -> str:
     """What an interrupted command left: its output directory marked incomplete (issue 37)."""
     out = kwargs.get("out")
     if out is not None:
-        from aidnav.io.atomic import run_status
+        from aidnav.io.atomic import run_status  # lazy: loaded when the command runs (--help: typer only)
 
         if run_status(out) == "complete":  # interrupted after its last file: the result is whole
             return f"the results in {out} are complete (summary.json status complete); only the report " \
@@ -148,7 +148,7 @@ def _command(*args, **kwargs):
 
 def _version_callback(value: bool):
     if value:
-        from aidnav import __version__
+        from aidnav import __version__  # lazy: loaded when the command runs (--help: typer only)
 
         typer.echo(f"aidnav {__version__}")
         raise typer.Exit(0)
@@ -161,7 +161,7 @@ def _main(version: bool = typer.Option(False, "--version", callback=_version_cal
 
 
 def _print_summary(summary: dict, text: str, as_json: bool):
-    import json
+    import json  # lazy: only this command needs it
 
     if as_json:
         typer.echo(json.dumps(summary, indent=2, default=float))
@@ -177,7 +177,9 @@ def simulate(
     fmt: str = typer.Option("both", "--format", help="csv, parquet or both"),
 ):
     """Simulate truth, IMU and GNSS from a scenario file; write tables and a figure into DIR."""
-    from aidnav.apps.common import prepare_out_dir
+    from aidnav.apps.common import prepare_out_dir  # lazy: loaded when the command runs (--help: typer only)
+
+    # lazy: loaded when the command runs (--help: typer only)
     from aidnav.apps.simulate import simulate_to_dir
 
     if fmt not in ("csv", "parquet", "both"):
@@ -196,8 +198,9 @@ def compile_cmd(
 ):
     """Optional ahead-of-time build of the kernels (once per install; needs `pip install 'aidnav[compile]'`
     and a C compiler): commands then start without numba/LLVM, with the same results."""
-    import shlex
+    import shlex  # lazy: only this command needs it
 
+    # lazy: loaded when the command runs (--help: typer only)
     from aidnav.apps.kernels import build_status, compile_kernels
 
     st = build_status()
@@ -225,8 +228,8 @@ def evaluate(
     out: Path | None = typer.Option(None, "-o", "--out", help="directory for errors.json/.csv and figures"),
 ):
     """Errors of an estimate against a reference: table of RMS/95%/max; JSON, CSV and figures with -o."""
-    from aidnav.apps.common import prepare_out_dir
-    from aidnav.apps.evaluate import evaluate_files
+    from aidnav.apps.common import prepare_out_dir  # lazy: loaded when the command runs (--help: typer only)
+    from aidnav.apps.evaluate import evaluate_files  # lazy: loaded when the command runs (--help: typer only)
 
     if out is not None:
         prepare_out_dir(out)
@@ -284,11 +287,15 @@ def process(
 ):
     """Loosely coupled GNSS/INS on logs: DIR/trajectory with σ columns, summary, overview.png, maps
     (KML, GeoJSON) and run.html."""
-    from aidnav.apps.common import run_directory
+    from aidnav.apps.common import run_directory  # lazy: loaded when the command runs (--help: typer only)
+
+    # lazy: loaded when the command runs (--help: typer only)
     from aidnav.apps.process import format_summary, process_logs
+
+    # lazy: loaded when the command runs (--help: typer only)
     from aidnav.apps.run_outputs import start_outputs
     from aidnav.filters.aids import parse_aid  # lazy: numpy and the filters only when a command runs
-    from aidnav.progress import progress_bar
+    from aidnav.progress import progress_bar  # lazy: loaded when the command runs (--help: typer only)
 
     aid_paths = [("odometer", odometer)] * (odometer is not None) + [("baro", baro)] * (baro is not None)
     aid_paths += [parse_aid(a) for a in aid]
@@ -319,8 +326,9 @@ def fleet_cmd(
 ):
     """Process every log of a manifest in parallel (Dask): DIR/<name>/ as `aidnav process` writes it,
     DIR/fleet.parquet and DIR/fleet.html. Exit status 3 when a log failed (the others are done)."""
+    # lazy: loaded when the command runs (--help: typer only)
     from aidnav.apps.fleet import format_fleet, run_fleet
-    from aidnav.progress import progress_bar
+    from aidnav.progress import progress_bar  # lazy: loaded when the command runs (--help: typer only)
 
     if scheduler and workers is not None:
         _fail("give --workers or --scheduler, not both")
@@ -345,9 +353,11 @@ def convert(
                                         "the file → ellipsoid) [m]; recorded in the file"),
 ):
     """Any readable log → the interchange format (time scale and conversions recorded in the file)."""
-    import math
+    import math  # lazy: only this command needs it
 
-    from aidnav.apps.common import prepare_out_dir
+    from aidnav.apps.common import prepare_out_dir  # lazy: loaded when the command runs (--help: typer only)
+
+    # lazy: loaded when the command runs (--help: typer only)
     from aidnav.io.convert import convert as convert_file
 
     if imu is None and gnss is None:
@@ -385,10 +395,11 @@ def satcom_point(
     as_json: bool = typer.Option(False, "--json", help="print a JSON object instead of a table"),
 ):
     """Servo azimuth, elevation and polarization [deg] of a satcom antenna on a vehicle (§4.3)."""
-    import json
+    import json  # lazy: only this command needs it
 
-    from rich.table import Table
+    from rich.table import Table  # lazy: rich is heavy to import
 
+    # lazy: loaded when the command runs (--help: typer only)
     from aidnav.nav.geo_pointing import servo_angles
 
     try:
@@ -419,7 +430,10 @@ def run_experiment_cmd(
                                         help="compute at most this many runs, then stop (rerun to resume)"),
 ):
     """Monte Carlo campaign of an experiment file: runs.parquet, epochs.parquet, manifest.json in DIR."""
+    # lazy: loaded when the command runs (--help: typer only)
     from aidnav.experiments.config import ExperimentError
+
+    # lazy: loaded when the command runs (--help: typer only)
     from aidnav.experiments.runner import CampaignInterrupted, format_result, run_experiment
 
     if scheduler and workers > 1:
@@ -438,7 +452,10 @@ def run_experiment_cmd(
 @_command("report")
 def report_cmd(directory: Path = typer.Argument(..., help="campaign directory written by `aidnav run`")):
     """Self-contained HTML report of a campaign: DIR/report.html (and DIR/statistics.json)."""
+    # lazy: loaded when the command runs (--help: typer only)
     from aidnav.experiments.report import ReportError, write_report
+
+    # lazy: loaded when the command runs (--help: typer only)
     from aidnav.experiments.reproduce.page import ReproductionError, is_reproduction, report_folder
 
     if is_reproduction(directory):  # a folder of `aidnav reproduce` (one seed, or all with index.html)
@@ -463,14 +480,16 @@ def reproduce_cmd(
     runs: int | None = typer.Option(None, "--runs", min=1, help="Monte Carlo runs (default: the seed's)"),
 ):
     """Reproduce a seed's tables and figures; DIR/summary.json. Exit status 2 if it cannot be yet."""
+    # lazy: loaded when the command runs (--help: typer only)
     from aidnav.experiments.reproduce import reproduce, resolve_seeds
 
     try:
         resolve_seeds(seed)
     except ValueError as e:
         _fail(str(e))
-    from rich.text import Text
+    from rich.text import Text  # lazy: rich is heavy to import
 
+    # lazy: loaded when the command runs (--help: typer only)
     from aidnav.experiments.reproduce.page import write_index
 
     outcomes = reproduce(seed, out, runs=runs, console=_console())
@@ -511,9 +530,11 @@ def tight(
                                        "in process: car (NHC), aircraft, pedestrian, ship"),
 ):
     """Tightly coupled GNSS/INS (pseudorange + Doppler) on an IMU log and RINEX files."""
-    from aidnav.apps.common import run_directory
+    from aidnav.apps.common import run_directory  # lazy: loaded when the command runs (--help: typer only)
+
+    # lazy: loaded when the command runs (--help: typer only)
     from aidnav.apps.tight import format_tight_summary, process_tight_files
-    from aidnav.progress import progress_bar
+    from aidnav.progress import progress_bar  # lazy: loaded when the command runs (--help: typer only)
 
     with progress_bar("aidnav tight") as bar, run_directory(out, "tight"):
         bar.stage("SPP, alignment, tightly coupled filter", total=None)
@@ -539,6 +560,7 @@ def spp(
 ):
     """Single point positioning on RINEX files: a GNSS solution file (interchange: process --gnss and
     evaluate read it), a summary and run.html."""
+    # lazy: loaded when the command runs (--help: typer only)
     from aidnav.apps.spp import format_spp_summary, spp_files
 
     s = spp_files(obs, nav, out, fmt=fmt, iono=iono, mask_deg=mask, code_sigma_m=code_sigma,
@@ -562,8 +584,9 @@ def characterise(
 
     The longest static part of the log (or of --static) is analysed; motion, slow motion and vibration are
     reported as warnings. A short log gives the white-noise terms only (and says so)."""
+    # lazy: loaded when the command runs (--help: typer only)
     from aidnav.apps.characterise import characterise_file, print_characterisation
-    from aidnav.apps.common import prepare_out_dir
+    from aidnav.apps.common import prepare_out_dir  # lazy: loaded when the command runs (--help: typer only)
 
     prepare_out_dir(out)
     ch, written = characterise_file(imu, out, static=static, grade=grade)
@@ -591,6 +614,7 @@ def design_trajectory_cmd(
     """Recommend maneuver, T1 and the longest T2 meeting an attitude requirement (seed 004 design).
 
     Exit status 3 when no candidate plan meets the requirement (1 is reserved for bugs)."""
+    # lazy: loaded when the command runs (--help: typer only)
     from aidnav.experiments.design import design_trajectory, print_design, write_design
 
     def _list(v):
@@ -614,7 +638,7 @@ def _start_kernels() -> None:
     """Kernels for this command (:mod:`aidnav.jit`): from the ahead-of-time build that matches this
     source tree, Python, numpy, numba, llvmlite and CPU (``aidnav compile``, optional), else numba's JIT
     (the same results). scipy's BLAS modules are loaded alone either way."""
-    from aidnav import jit
+    from aidnav import jit  # lazy: loaded when the command runs (--help: typer only)
 
     _preload_scipy_blas()  # the kernels' BLAS calls (numba's JIT and the build alike) import it at first use
     try:
@@ -641,7 +665,7 @@ def main():  # pragma: no cover - the console script (tests call `app` in-proces
         status = 130
     if status == 130 and not _INTERRUPT_REPORTED:  # before or after a command (typer: exit 130, silent)
         print(f"error: {_interrupts.MESSAGE}", file=sys.stderr)
-    import signal
+    import signal  # lazy: only this command needs it
 
     for sig in (signal.SIGINT, signal.SIGTERM):  # the exit itself is not interrupted
         signal.signal(sig, signal.SIG_IGN)

@@ -22,8 +22,8 @@ def preload_scipy_blas() -> None:
     are what numba's import finds in ``sys.modules``; ``import scipy.linalg`` later still works and finds
     them too (only the attribute ``scipy.linalg.cython_blas`` is not set on the package). Nothing is done
     when scipy.linalg is already imported, and on any surprise the normal import happens later."""
-    import importlib.machinery
-    import importlib.util
+    import importlib.machinery  # lazy: the console script's start imports only what every command needs
+    import importlib.util  # lazy: the console script's start imports only what every command needs
 
     names = [f"scipy.linalg.{m}" for m in ("cython_blas", "cython_lapack")]
     if "scipy.linalg" in sys.modules or any(n in sys.modules for n in names):
@@ -64,8 +64,8 @@ def leave(status: int):
     when another thread is still running (a normal exit would wait for it) or when flushing fails (a
     closed pipe: Python's own handling) or under a profiler, tracer or debugger (they write their
     results after the program returns)."""
-    import atexit
-    import threading
+    import atexit  # lazy: the console script's start imports only what every command needs
+    import threading  # lazy: the console script's start imports only what every command needs
 
     if threading.active_count() > 1 or sys.getprofile() is not None or sys.gettrace() is not None:
         sys.exit(status)

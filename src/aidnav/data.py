@@ -177,6 +177,6 @@ class Trajectory:
 
         # the unit conversions to file columns have one owner, aidnav.io (imported here, not at the top:
         # aidnav.io imports this module)
-        from aidnav.io.interchange import trajectory_columns
+        from aidnav.io.interchange import trajectory_columns  # lazy: pulls in numba, pyarrow
 
         return pd.DataFrame(trajectory_columns(self, week=week))

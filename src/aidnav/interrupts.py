@@ -73,7 +73,7 @@ def install(hold: bool = False) -> bool:
     ignored (a process started in the background by a shell) or outside the main thread. Returns whether
     it was installed. ``hold``: an interrupt is only kept (the command's modules are being imported);
     the next ``install()`` raises it."""
-    import threading
+    import threading  # lazy: only when the handlers are installed (every command imports this module)
 
     _state["hold"] = hold
     if _state["installed"]:

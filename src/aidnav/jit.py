@@ -220,7 +220,7 @@ def _write_records() -> None:
     """Merge this process's records into the record file (record mode, at exit)."""
     if not _records or not _record_path:
         return
-    import pickle
+    import pickle  # lazy: only this path of the kernels' start needs it (every command starts here)
 
     path = Path(_record_path)
     merged = pickle.loads(path.read_bytes()) if path.is_file() else {}
@@ -279,7 +279,7 @@ def load_build(folder: Path) -> bool:
     """Serve kernels from the build in ``folder`` (its extension module and ``table.json``); False when
     there is none or it cannot be loaded (the JIT is used then)."""
     global build_loaded
-    import importlib.util
+    import importlib.util  # lazy: only this path of the kernels' start needs it (every command starts here)
 
     try:
         meta = json.loads((folder / "table.json").read_text())
@@ -312,7 +312,7 @@ def start(requested: str | None = None, on_numba=(), build: Path | None = None) 
     requested = requested or os.environ.get("AIDNAV_KERNELS", "auto")
     _numba_hooks.extend(on_numba)
     if requested == "record":
-        import atexit
+        import atexit  # lazy: only this path of the kernels' start needs it (every command starts here)
 
         _mode, _records = "record", {}
         _record_path = os.environ.get("AIDNAV_KERNEL_RECORD") or str(kernel_dir() / "record.pkl")

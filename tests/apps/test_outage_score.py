@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from aidnav.apps.process_parts import score_outages
+from aidnav.apps.outages import score_outages
 from aidnav.data import GnssData, Trajectory
 from aidnav.nav.earth import radii
 

@@ -1,5 +1,6 @@
 """``aidnav process`` streamed (:mod:`aidnav.apps.process_stream`, chunks far smaller than the log) writes
-what the in-memory job writes, and its memory does not grow with the log (issue 29)."""
+what the same run with the log as one chunk (the library's in-memory :func:`aidnav.apps.process.process`)
+writes, and its memory does not grow with the log (issues 29, 36)."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
+import aidnav.apps.process_input as pi
 import aidnav.apps.process_stream as ps
 from aidnav.apps.process import load_config, process, process_logs
 from aidnav.io.formats import read_gnss, read_imu
@@ -47,7 +49,7 @@ def static_log(d, seconds, rate=100.0, seed=0, row_group=5000):
 
 @pytest.fixture
 def small_chunks(monkeypatch):
-    monkeypatch.setattr(ps, "CHUNK_ROWS", 1500)
+    monkeypatch.setattr(pi, "CHUNK_ROWS", 1500)
 
 
 @pytest.mark.parametrize("smooth,fmt", [(False, "parquet"), (True, "csv")])
@@ -55,7 +57,7 @@ def test_streamed_job_equals_in_memory(tmp_path, small_chunks, smooth, fmt):
     imu_p, gnss_p, cfg_p = static_log(tmp_path, 120)
     out = tmp_path / "o"
     s = process_logs(imu_p, gnss_p, cfg_p, out, smooth=smooth, fmt=fmt, outages=["30:20"], figures=False)
-    assert ps.streamable(imu_p, load_config(cfg_p))
+    assert pi.open_imu(imu_p).rows == 12000 and len(next(pi.open_imu(imu_p).chunks())) == 1500  # streamed
     run = process(read_imu(imu_p), read_gnss(gnss_p), load_config(cfg_p), smooth=smooth, outages=["30:20"])
     assert run.summary["counts"]["static_samples"] > 0  # ZUPT at the static samples, flags carried
     ref = tmp_path / f"ref.{fmt}"
@@ -68,6 +70,26 @@ def test_streamed_job_equals_in_memory(tmp_path, small_chunks, smooth, fmt):
         assert s[k] == json.loads(json.dumps(run.summary[k])), k
     if smooth:
         assert s["outage_score_forward"] == json.loads(json.dumps(run.summary["outage_score_forward"]))
+
+
+def test_streamed_window_and_time_offset_equal_one_chunk(tmp_path, small_chunks):
+    """``--start/--end`` and an IMU time offset on the chunks as they come (a window that starts and ends
+    inside chunks of 1500 samples): the trajectory and summary of the log in memory as one chunk."""
+    imu_p, gnss_p, cfg_p = static_log(tmp_path, 90)
+    cfg = load_config(cfg_p)
+    cfg = cfg.model_copy(update={"imu": cfg.imu.model_copy(update={"time_offset_s": 0.013})})
+    cfg_p.write_text(cfg_p.read_text().replace("imu: {", "imu: {time_offset_s: 0.013, "))
+    out = tmp_path / "o"
+    s = process_logs(imu_p, gnss_p, cfg_p, out, outages=["20:10"], figures=False, start_s=17.305, end_s=71.0)
+    run = process(read_imu(imu_p), read_gnss(gnss_p), cfg, outages=["20:10"], start_s=17.305, end_s=71.0)
+    write_trajectory(run.trajectory, tmp_path / "ref.parquet")  # (degrees in the file: the same round trip)
+    a, b = read_trajectory(out / "trajectory.parquet"), read_trajectory(tmp_path / "ref.parquet")
+    assert len(a.time) == len(b.time) > 5360 and abs(a.time[0] - (17.32 + 0.013)) < 1e-9
+    for k in ("time", "lat", "lon", "height", "vel", "rph", "std_pos"):
+        np.testing.assert_array_equal(getattr(a, k), getattr(b, k), err_msg=k)
+    for k in ("counts", "outage_score", "events", "imu_samples", "gnss_fixes"):
+        assert s[k] == json.loads(json.dumps(run.summary[k])), k
+    assert any("processing window" in e for e in s["events"])
 
 
 def _peak_stream(d, seconds, smooth=False):
@@ -149,11 +171,16 @@ def test_background_writer_gives_the_same_file(tmp_path, small_chunks, smooth):
     byte for byte, and the same summary as in the caller's thread."""
     imu_p, gnss_p, cfg_p = static_log(tmp_path, 60)
     gnss, cfg = read_gnss(gnss_p), load_config(cfg_p)
+    from aidnav.io.stream import TrajectoryWriter
+
     got = {}
     for bg in (False, True):
         p = tmp_path / f"traj_{bg}.parquet"
-        s, dec, _ = ps.stream_process(imu_p, gnss, cfg, p, None, smooth=smooth, outages=["20:10"],
-                                      background=bg)
+        w = TrajectoryWriter(p, row_group_rows=ps.ROW_GROUP_ROWS)
+        run = ps.run_process(pi.open_imu(imu_p), gnss, cfg, smooth=smooth, outages=["20:10"], write=w.write,
+                             background=bg)
+        w.close()
+        s, dec = run.summary, run.decimated
         s.pop("timing_s")
         got[bg] = p.read_bytes(), json.dumps(s, sort_keys=True, default=str), dec.time
     assert len(read_trajectory(tmp_path / "traj_True.parquet").time) == 6000
@@ -207,7 +234,7 @@ def test_decimated_copy_joined_in_blocks(piece):
     tr = Trajectory(t, lat, lon, rng.normal(size=n), rng.normal(size=(n, 3)), rng.normal(size=(n, 3)),
                     std_pos=rng.uniform(size=(n, 3)), extra={"x": np.arange(float(n))})
     gnss = GnssData(time=np.array([0.0]), lat=np.zeros(1), lon=np.zeros(1), height=np.zeros(1))
-    sink = ps._Sink(gnss, np.zeros(1, bool), fig_dt)
+    sink = ps.Sink(gnss, np.zeros(1, bool), fig_dt)
     for a in range(0, n, piece):
         sink(ps.take_rows(tr, slice(a, min(a + piece, n))))
     b = np.floor(t / fig_dt)

@@ -157,6 +157,38 @@ def test_stream_automatic_init_time_offset_and_gap():
     assert res.counts == ref.counts
 
 
+@pytest.mark.parametrize("smooth", [False, True])
+def test_one_chunk_is_the_whole_log_filter(smooth):
+    """The log as one chunk (what ``aidnav process`` runs on a log in memory or any file but interchange
+    Parquet) is run_loose bit for bit, also where the head's statistics would differ from the whole
+    log's: 50 Hz for 40 s, then 25 Hz (increments of sample pairs joined: the whole log's median interval
+    is 0.04 s, the first minute's 0.02 s), a 0.2-s gap, automatic initialisation, the time-offset state
+    (outputs spooled and shifted) and, with ``smooth``, the spooled RTS pass."""
+    truth, imu, gnss, spec, gs, _ = _log(seed=5)
+    k = 2000 + (len(imu) - 2000) // 2 * 2
+    time = np.concatenate([imu.time[:2000], imu.time[2001:k:2]])
+    dth = np.concatenate([imu.dtheta[:2000], imu.dtheta[2000:k:2] + imu.dtheta[2001:k:2]])
+    dv = np.concatenate([imu.dv[:2000], imu.dv[2000:k:2] + imu.dv[2001:k:2]])
+    keep = np.ones(len(time), bool)
+    keep[3000:3005] = False  # a 0.2 s gap at 120 s
+    imu = ImuData(time[keep], dth[keep], dv[keep], t0=imu.t0)
+    cfg = loose_config_from_specs(spec, gs)
+    cfg = cfg.model_copy(update={"init": cfg.init.model_copy(update={"mode": "auto"}),
+                                 "calibration": cfg.calibration.model_copy(update={"time_offset": True})})
+    ev_ref, ev = [], []
+    ref = run_loose(imu, gnss, cfg, events=ev_ref, smooth=smooth)
+    res, cat = _streamed(imu, gnss, cfg, len(imu), events=ev, smooth=smooth)
+    assert any("IMU gap" in e for e in ev_ref) and ref.layout[L_TOFF] >= 0
+    assert ev == ev_ref and res.counts == ref.counts
+    np.testing.assert_array_equal(cat["time"], ref.time)
+    np.testing.assert_array_equal(cat["state"], ref.forward_state if smooth else ref.state)
+    np.testing.assert_array_equal(cat["pdiag"], ref.forward_pdiag if smooth else ref.pdiag)
+    if smooth:
+        np.testing.assert_array_equal(cat["s_state"], ref.state)
+        np.testing.assert_array_equal(cat["s_pdiag"], ref.pdiag)
+    np.testing.assert_array_equal(res.final_P, ref.final_P)
+
+
 def test_stream_smoother_blocks_of_spooled_nodes(given_init, monkeypatch):
     """The RTS pass over node matrices read back from disk in blocks (of 7 nodes here, so that many block
     boundaries fall inside the log) gives the smoothed solution of run_loose number for number."""

@@ -173,7 +173,7 @@ def report_from_counts(kind: str, dof: int, r: int, n_ep: int, prob: float, epoc
     """The :class:`ConsistencyReport` of :func:`consistency_report` from its counts: ``n_fin`` epochs with
     a finite average, ``n_in``/``n_above``/``n_below`` of them inside/above/below the band, the grand
     ``mean`` of the ``nv`` finite values (a streamed evaluation accumulates these chunk by chunk)."""
-    from scipy.stats import binom
+    from scipy.stats import binom  # lazy: scipy.stats is heavy to import
 
     band = chi2_band(dof, r, prob)
     f_in = float(n_in / n_fin) if n_fin else np.nan

@@ -52,6 +52,7 @@ from aidnav.analysis.errors import (
     within_flags,
     within_frame,
 )
+from aidnav.io.stream import Spool, concat_rows, take_rows
 
 CAP = 1 << 20  #: values of one row summarised in memory (exactly as the whole-array path) up to this many
 FIGURE_POINTS = 4000  #: at most this many epochs go to the figures (about 4 per pixel column of the PNGs)
@@ -131,8 +132,6 @@ class _Values:
     """The finite values of one quantity, in a temporary file."""
 
     def __init__(self, directory):
-        from aidnav.io.stream import Spool
-
         self.spool = Spool(directory, 1)
 
     @property
@@ -258,8 +257,6 @@ class _ReferenceFeed:
         self.it, self.pend, self.first, self.last = iter(chunks), None, None, None
 
     def upto(self, t_end: float):
-        from aidnav.io.stream import take_rows
-
         while True:
             if self.pend is None:
                 self.pend = next(self.it, None)
@@ -318,7 +315,6 @@ def stream_errors(est, ref, max_dt: float | None = None, on_piece=None, spool_di
     rows = [(q, u) for q, u in QUANTITIES if q in statistics_series(probe)]
     acc = _Accumulator(rows, parts, spool_dir, figure_points, sigmas, prob)
     feed = _ReferenceFeed(ref)
-    from aidnav.io.stream import concat_rows, take_rows
 
     buf = prev = lon_u = None
     t_first = t_last = None

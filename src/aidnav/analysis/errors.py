@@ -115,7 +115,7 @@ class ErrorSeries:
     def to_dataframe(self) -> pd.DataFrame:
         """Per-epoch table: ``time`` [s], errors with units in the names (angles in degrees), and the
         estimate's σ as ``<column>_std`` columns (docs/conventions.md interchange style)."""
-        import pandas as pd
+        import pandas as pd  # lazy: pandas is heavy to import
 
         return pd.DataFrame(self.columns())
 
@@ -384,7 +384,7 @@ def statistics_row(q: str, unit: str, v: np.ndarray) -> dict:
 
 def statistics_frame(rows: list[dict]) -> pd.DataFrame:
     """The DataFrame of :func:`error_statistics` from its rows."""
-    import pandas as pd
+    import pandas as pd  # lazy: pandas is heavy to import
 
     return pd.DataFrame(rows, columns=STAT_COLUMNS).set_index("quantity")
 
@@ -415,8 +415,8 @@ def within_flags(e: np.ndarray, s: np.ndarray, k: float) -> np.ndarray:
 
 def within_frame(fractions: dict[str, tuple[float, int]], k: float) -> pd.DataFrame:
     """The DataFrame of :func:`fraction_within_sigma` from {quantity: (fraction, n)}."""
-    import pandas as pd
-    from scipy.special import erf
+    import pandas as pd  # lazy: pandas is heavy to import
+    from scipy.special import erf  # lazy: scipy.special is heavy to import
 
     rows = [{"quantity": q, "fraction": f, "n": int(n), "expected": float(erf(k / np.sqrt(2.0)))}
             for q, (f, n) in fractions.items()]

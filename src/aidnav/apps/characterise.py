@@ -34,6 +34,7 @@ FORK_FIGURE = sys.platform.startswith("linux") and hasattr(os, "fork")
 def print_characterisation(ch, console=None) -> None:
     """:func:`aidnav.analysis.noise_fit.print_characterisation` (the analysis modules are imported when
     the job runs, after the figure's process is forked: see :func:`characterise_file`)."""
+    # lazy: the analysis loads after the figure's process is forked
     from aidnav.analysis.noise_fit import print_characterisation as _print
 
     _print(ch, console)
@@ -41,14 +42,16 @@ def print_characterisation(ch, console=None) -> None:
 
 def _import_console() -> None:
     try:
-        import aidnav.analysis.noise_fit.console  # noqa: F401  rich: ~40 ms, the summary printed next
+        # lazy: rich: ~40 ms, the summary printed next
+        import aidnav.analysis.noise_fit.console  # noqa: F401
     except Exception:  # noqa: BLE001  (imported again, with its error, when the summary is printed)
         pass
 
 
 def _import_figure_module() -> None:
     try:
-        import aidnav.report.allan_plot  # noqa: F401  matplotlib: ~0.3 s, imported while the log is read
+        # lazy: matplotlib: ~0.3 s, imported while the log is read
+        import aidnav.report.allan_plot  # noqa: F401
     except Exception:  # noqa: BLE001  (imported again, with its error, when the figure is drawn)
         pass
 
@@ -61,7 +64,7 @@ def _figure_in_background():
 
     def plot(ch, path, title):
         loader.join()
-        from aidnav.report.allan_plot import plot_allan  # matplotlib: imported by the thread above
+        from aidnav.report.allan_plot import plot_allan  # lazy: matplotlib, imported by the thread above
 
         return plot_allan(ch, path, title)
 
@@ -79,7 +82,7 @@ def _draw_in_child(job_fd: int):
     (no job: the parent closed the pipe without one)."""
     fig = early = None
     try:  # matplotlib imported and warmed up, the figure and its image made ahead of the data
-        from aidnav.report.allan_plot import AllanFigure, warm_up
+        from aidnav.report.allan_plot import AllanFigure, warm_up  # lazy: matplotlib, in the child only
 
         warm_up()
         fig = AllanFigure("Allan deviation")
@@ -106,7 +109,7 @@ def _draw_in_child(job_fd: int):
             except Exception:  # noqa: BLE001
                 early = False
     try:
-        from aidnav.report.allan_plot import panel_title, plot_allan
+        from aidnav.report.allan_plot import panel_title, plot_allan  # lazy: matplotlib, in the child only
 
         _, ch, path, title, changed = msg
         if (fig is not None and early and set(early) == set(range(len(ch.axes))) and not any(changed)
@@ -225,12 +228,14 @@ def characterise_file(imu_path, out_dir, static: str | None = None, grade: str |
 
         draw.axis_done = fig.axis_done
         try:
+            # lazy: the analysis loads after the figure's process is forked
             from aidnav.analysis.noise_fit import characterise_file as _characterise_file
 
             return _characterise_file(imu_path, out_dir, static=static, grade=grade, timings=timings,
                                       plot=draw)
         finally:
             fig.close()
+    # lazy: the analysis loads after the figure's process is forked
     from aidnav.analysis.noise_fit import characterise_file as _characterise_file
 
     if plot == FIGURE:

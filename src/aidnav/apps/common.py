@@ -25,7 +25,7 @@ class ConfigError(InputError):
 
 def load_model(path, model):
     """Read a YAML file into the pydantic ``model`` (unknown keys are errors; messages name keys)."""
-    from pydantic import ValidationError
+    from pydantic import ValidationError  # lazy: pydantic is heavy to import
 
     path = Path(path)
     try:
@@ -141,7 +141,7 @@ def check_solution(traj, what: str = "filter") -> None:
 
     Raises :class:`DivergenceError` naming the first bad epoch and what to check (one pass of a numba
     kernel over the rows for the NaN and jump tests: :mod:`aidnav.apps.check_kernels`)."""
-    from aidnav.apps.check_kernels import first_jump, nonfinite_rows
+    from aidnav.apps.check_kernels import first_jump, nonfinite_rows  # lazy: pulls in numba
 
     f = [np.ascontiguousarray(x, dtype=np.float64) for x in (traj.time, traj.lat, traj.lon, traj.height)]
     vel, rph = (np.ascontiguousarray(np.asarray(x, dtype=np.float64).reshape(len(f[0]), -1))

@@ -28,6 +28,9 @@ import pandas as pd
 from aidnav.analysis.error_stream import StreamedErrors, stream_errors
 from aidnav.analysis.errors import ErrorSeries
 from aidnav.data import GnssData, Trajectory
+from aidnav.io.atomic import check_complete, remove_stale, write_text
+from aidnav.io.formats import gnss_to_trajectory, read_trajectory_any
+from aidnav.io.stream import CsvColumnsWriter, TrajectoryChunks, trajectory_chunks
 from aidnav.report.error_plots import plot_errors, plot_nees
 from aidnav.report.html import img_file_tag, kv_table, page, table
 from aidnav.report.run_page import write_run_page
@@ -41,7 +44,6 @@ TABLE_ORDER = ["pos N", "pos E", "pos U", "pos horizontal", "pos 3D", "vel N", "
 
 def trajectory_from_gnss(g: GnssData) -> Trajectory:
     """A :class:`Trajectory` from GNSS fixes (:func:`aidnav.io.formats.gnss_to_trajectory`)."""
-    from aidnav.io.formats import gnss_to_trajectory
 
     return gnss_to_trajectory(g)
 
@@ -50,7 +52,6 @@ def read_any_trajectory(path, notes: list[str] | None = None, height_offset_m: f
     """A trajectory of any known format (:func:`aidnav.io.formats.read_trajectory_any`: interchange,
     KF-GINS ``.nav``, or GNSS fixes of any GNSS format); the datum offset added once, by the reader.
     notes : when given, the reader's events (gaps, skipped lines, datum) are appended."""
-    from aidnav.io.formats import read_trajectory_any
 
     return read_trajectory_any(path, height_offset_m=height_offset_m, notes=notes)
 
@@ -76,8 +77,8 @@ def print_table(stats: pd.DataFrame, errors: ErrorSeries | StreamedErrors, conso
                 title: str = "Errors") -> None:
     """Rich table of RMS, 95th percentile of |e| and max |e| per quantity, with the epoch counts and notes of
     ``errors``."""
-    from rich.console import Console
-    from rich.table import Table
+    from rich.console import Console  # lazy: rich is heavy to import
+    from rich.table import Table  # lazy: rich is heavy to import
 
     console = console or Console()
     c = errors.counts()
@@ -100,7 +101,6 @@ def print_table(stats: pd.DataFrame, errors: ErrorSeries | StreamedErrors, conso
 def _pieces(path, notes: list[str], height_offset_m: float, chunk_rows: int):
     """The trajectory of ``path`` in pieces: an interchange file read in batches, any other read whole
     (:func:`read_any_trajectory`) and cut."""
-    from aidnav.io.stream import TrajectoryChunks, trajectory_chunks
 
     src = trajectory_chunks(path, chunk_rows, height_offset_m, notes)
     if src is None:
@@ -136,8 +136,6 @@ def evaluate_files(estimate_path, truth_path, out_dir=None, console=None, max_dt
     Raises ``ValueError`` when no reference epoch falls inside the estimate's span (e.g. files in
     different time scales).
     """
-    from aidnav.io.atomic import check_complete, remove_stale, write_text
-    from aidnav.io.stream import CsvColumnsWriter
 
     check_complete(estimate_path, "the estimate")  # not a file of an interrupted or failed run
     check_complete(truth_path, "the reference")

@@ -21,6 +21,7 @@ then serves the covered calls from it and falls back to numba's JIT for anything
 
 from __future__ import annotations
 
+import importlib
 import json
 import os
 import pickle
@@ -88,7 +89,6 @@ def record(commands: list[list[str]], record_file: Path, progress=None) -> dict:
 
 def _resolve(name: str):
     """The kernel (a numba dispatcher in this process's jit mode) named ``module:qualname``."""
-    import importlib
 
     module, qualname = name.split(":")
     obj = importlib.import_module(module)

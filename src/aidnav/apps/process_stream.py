@@ -1,53 +1,60 @@
-"""``aidnav process`` with memory independent of the log length (issue 29).
+"""The one run of ``aidnav process`` (issues 29, 36): IMU chunks → plausibility checks → the filter chunk
+by chunk → each piece of the solution checked, scored, decimated, written (and kept, for the library's
+:func:`aidnav.apps.process.process`).
 
-The IMU file is read in batches (:func:`aidnav.io.stream.iter_imu`), the filter runs chunk by chunk
-(:func:`aidnav.filters.stream.stream_loose`), each piece of the solution is checked
+The IMU log comes as chunks (:class:`aidnav.apps.process_input.ImuLog`: an interchange Parquet file in
+batches; any other format, and a log in memory, as one chunk: then the whole-log filter, number for
+number). The filter is :func:`aidnav.filters.stream.stream_loose`; each piece of the solution is checked
 (:func:`aidnav.apps.common.check_solution`, joined to the last epoch before it), scored at the withheld
-fixes and written (:class:`aidnav.io.stream.TrajectoryWriter`, row groups of :data:`ROW_GROUP_ROWS`
-epochs); the figures and maps get a decimated copy (at most :data:`FIGURE_POINTS` epochs). The numbers
-are :func:`aidnav.apps.process.process`'s. After the first chunk (the whole-log set-up done) the freed
-heap is given back to the system (:func:`trim_heap`).
-:func:`streamable` says when this path applies (interchange Parquet IMU, no ``--start/--end``, no
-whole-log mounting fit); :func:`aidnav.apps.process.process_logs` takes it then.
+fixes and handed to ``write`` (e.g. :class:`aidnav.io.stream.TrajectoryWriter`, row groups of
+:data:`ROW_GROUP_ROWS` epochs); the figures and maps get a decimated copy (at most :data:`FIGURE_POINTS`
+epochs). After the first chunk (the whole-log set-up done) the freed heap is given back to the system
+(:func:`trim_heap`).
 """
 
 from __future__ import annotations
 
 import time as _time
+from dataclasses import dataclass, field
+from itertools import chain
 
 import numpy as np
 
 from aidnav.apps.common import check_solution
-from aidnav.data import Trajectory
+from aidnav.apps.outages import outage_errors, outage_score, outage_windows, parse_outage, withheld_fixes
+from aidnav.apps.process_input import ImuLog, window
+from aidnav.apps.process_summary import finish_summary, run_summary
+from aidnav.data import GnssData, Trajectory
+from aidnav.errors import InputError
 from aidnav.io.stream import concat_rows, take_rows
 
 FIGURE_POINTS = 20000  #: at most this many epochs go to overview.png, the maps and run.html
 #: the decimated rows of the latest pieces are joined into one block when there are this many pieces or
 #: rows (a long log gives a few rows a piece, 28 small arrays each; the join's copy stays small)
 DEC_JOIN, DEC_JOIN_ROWS = 32, 2048
-CHUNK_ROWS = 1 << 13  #: IMU samples per chunk (the per-chunk buffers are about 1.3 kB per sample)
 #: epochs per row group of a Parquet trajectory (pieces held until then: 28 columns, ≈ 7 MB; the writer
 #: keeps ≈ 24 kB of metadata per row group until the end, ≈ 10 MB over 10 h at one row group a chunk)
 ROW_GROUP_ROWS = 1 << 15
 
-
-def streamable(imu_path, cfg, aids=(), start_s=None, end_s=None) -> bool:
-    """Whether ``process_logs`` can stream this job (module doc)."""
-    from aidnav.filters.stream import needs_whole_log
-    from aidnav.io.formats import detect_imu_format
-    from aidnav.io.stream import imu_time_span
-
-    if start_s is not None or end_s is not None or needs_whole_log(cfg, aids):
-        return False
-    try:
-        if detect_imu_format(imu_path) != "interchange":
-            return False
-    except Exception:  # noqa: BLE001  (the whole-file reader gives the message)
-        return False
-    return imu_time_span(imu_path) is not None
-
-
 _CHECKED = ("time", "lat", "lon", "height", "vel", "rph", "std_pos")  # what the checks and scores read
+
+
+@dataclass
+class ProcessRun:
+    """What a run gives: the summary, the decimated trajectory for the figures, the filter's
+    :class:`aidnav.filters.result.FilterResult` (records, counts, calibration; its arrays the last epoch
+    only, or every epoch with ``keep``), the fixes the filter saw (after ``--start/--end``: records line
+    up), the withheld mask and outage windows; with ``keep`` the whole trajectory and, when smoothed, the
+    forward one."""
+
+    trajectory: Trajectory | None
+    summary: dict
+    result: object = None
+    forward_trajectory: Trajectory | None = None
+    withheld: np.ndarray | None = None
+    windows: list = field(default_factory=list)
+    gnss: GnssData | None = None
+    decimated: Trajectory | None = None
 
 
 def _join(a: Trajectory | None, b: Trajectory) -> Trajectory:
@@ -60,17 +67,17 @@ def _join(a: Trajectory | None, b: Trajectory) -> Trajectory:
                         for c in _CHECKED))
 
 
-class _Sink:
-    """Check, score, decimate and (unless ``write`` is None) write the pieces of one solution."""
+class Sink:
+    """Check, score, decimate, write (unless ``write`` is None) and keep (with ``keep``) the pieces of one
+    solution."""
 
-    def __init__(self, gnss, withheld, fig_dt, write=None):
+    def __init__(self, gnss, withheld, fig_dt, write=None, keep: bool = False):
         self.gnss, self.withheld, self.fig_dt, self.write = gnss, withheld, fig_dt, write
         self.prev, self.t_err, self.herr, self.dec, self.next_t = None, [], [], [], -np.inf
         self.recent, self.n_recent = [], 0  # decimated rows of the latest pieces (joined into dec: DEC_JOIN)
+        self.kept = [] if keep else None
 
     def __call__(self, traj: Trajectory):
-        from aidnav.apps.process_parts import outage_errors
-
         j = _join(self.prev, traj)
         check_solution(j, "the loosely coupled filter")
         if self.withheld.any():
@@ -80,6 +87,8 @@ class _Sink:
             self.herr.append(e)
         if self.write is not None:
             self.write(traj)
+        if self.kept is not None:
+            self.kept.append(traj)
         # decimated copy: the first epoch at or after each multiple of fig_dt
         b = np.floor(traj.time / self.fig_dt)
         keep = np.concatenate([[b[0] > self.next_t], b[1:] > b[:-1]])
@@ -93,8 +102,6 @@ class _Sink:
         self.prev = take_rows(traj, [len(traj.time) - 1])  # (a copy: the piece is not kept)
 
     def score(self, wins):
-        from aidnav.apps.process_parts import outage_score
-
         t = np.concatenate(self.t_err) if self.t_err else np.zeros(0)
         return outage_score(t, np.concatenate(self.herr) if self.herr else np.zeros(0), wins, self.withheld,
                             self.gnss)
@@ -102,63 +109,54 @@ class _Sink:
     def decimated(self) -> Trajectory:
         return concat_rows(self.dec + self.recent)
 
+    def whole(self) -> Trajectory | None:
+        """Every piece kept, as one trajectory (None without ``keep``)."""
+        return None if self.kept is None else concat_rows(self.kept)
 
-def stream_process(imu_path, gnss, cfg, traj_path, week, smooth=False, outages=None, imu_name="imu",
-                   gnss_name="gnss", skip_checks=(), aids=(), progress=None,
-                   chunk_rows: int | None = None, background: bool = True):
-    """The streamed :func:`aidnav.apps.process.process` + writing: returns (summary of the run, decimated
-    trajectory for the figures, the filter's :class:`FilterResult` (last epoch, records, counts)).
+
+def run_process(log: ImuLog, gnss, cfg, smooth=False, outages=None, imu_name="imu", gnss_name="gnss",
+                skip_checks=(), start_s=None, end_s=None, aids=(), write=None, keep: bool = False,
+                progress=None, spool_dir=None, background: bool = True) -> ProcessRun:
+    """One ``aidnav process`` run over ``log`` (module doc): ``cfg.imu.time_offset_s`` is added to the IMU
+    stamps here, once; ``start_s``/``end_s`` cut both logs (seconds after the first IMU sample); ``write``
+    gets each piece of the solution (a :class:`aidnav.data.Trajectory`) in time order; ``keep``: the
+    whole solution (and the filter's arrays) in the result too. progress : called with the number of IMU
+    samples of each chunk done.
 
     ``background``: each piece of the solution is converted, checked, scored and written in one
     background thread (:class:`aidnav.io.stream.Background`, at most 2 pieces waiting) while the filter
     runs the next chunk (the engine releases the GIL) — the same pieces in the same order, so the same
-    file and numbers; a failure there is raised here and the partial file removed."""
-    from aidnav.apps.process_parts import finish_summary, outage_windows, parse_outage, run_summary
-    from aidnav.filters.result import to_trajectory
-    from aidnav.filters.stream import stream_loose
-    from aidnav.io.sanity import check_gnss, check_imu, check_motion, check_overlap
-    from aidnav.io.stream import Background, TrajectoryWriter, imu_time_span, iter_imu
+    file and numbers; a failure there is raised here."""
+    from aidnav.filters.result import to_trajectory  # lazy: the filters load with the job
+    from aidnav.filters.stream import stream_loose  # lazy: the filters load with the job
+    from aidnav.io.stream import Background  # lazy: pyarrow
 
     applied = float(cfg.imu.time_offset_s)
     if applied:  # applied here, once; a configuration that states no offset lets the filter estimate it
         cfg = cfg.model_copy(update={"imu": cfg.imu.model_copy(update={"time_offset_s": 0.0})})
-    chunks = iter_imu(imu_path, chunk_rows or CHUNK_ROWS)
-    head = next(chunks)
-    offset_event = [f"IMU time offset {applied:+.4f} s added to the IMU stamps"] if applied else []
-
-    def shifted(first, rest):
-        yield _shift(first, applied)
-        for c in rest:
-            yield _shift(c, applied)
-
-    warnings = check_imu(_shift(head, applied), imu_name, skip_checks)  # the first chunk
-    warnings += check_gnss(gnss, gnss_name, skip_checks)
-    ta, tb = imu_time_span(imu_path)
-
-    class _Span:
-        time = np.array([ta + applied, tb + applied])
-
-    warnings += check_overlap(_Span, gnss, imu_name, gnss_name, skip_checks)
-    warnings += check_motion(_shift(_check_head(imu_path), applied), gnss, imu_name, gnss_name, skip_checks)
+        log = log.shifted(applied)
+    log, gnss = window(log, gnss, start_s, end_s)
+    chunks = log.chunks()
+    head = next(chunks, None)
+    if head is None:
+        raise InputError(f"--start {start_s} / --end {end_s}: no IMU sample in that window")
+    warnings = _checks(log, head, gnss, imu_name, gnss_name, skip_checks)
     wins = outage_windows([parse_outage(o) for o in (outages or [])], gnss.time[0], gnss.time[-1])
-    withheld = np.zeros(len(gnss), bool)
-    for a, b in wins:
-        withheld |= (gnss.time >= a) & (gnss.time < b)
-    fig_dt = max((tb - ta) / FIGURE_POINTS, 1e-9)
-    writer = TrajectoryWriter(traj_path, week=week, row_group_rows=ROW_GROUP_ROWS)
-    sink = _Sink(gnss, withheld, fig_dt, writer.write)
-    fwd = _Sink(gnss, withheld, np.inf) if smooth and wins else None
+    withheld = withheld_fixes(gnss, wins)
+    fig_dt = max((log.span[1] - log.span[0]) / FIGURE_POINTS, 1e-9)
+    sink = Sink(gnss, withheld, fig_dt, write, keep)
+    fwd = Sink(gnss, withheld, np.inf, keep=keep) if smooth and (wins or keep) else None
+    pieces = {False: [], True: []} if keep else None
     n_imu = [0]
 
     def consume(piece, forward=False):
+        if pieces is not None:
+            pieces[forward].append(piece)
         if forward:  # the forward solution of a smoothed run: scored at the outages only
             if fwd is not None:
                 fwd(to_trajectory(piece))
             return
         sink(to_trajectory(piece))
-
-    bg = Background(consume) if background else None
-    emit = consume if bg is None else bg.put
 
     def count(m):
         if not n_imu[0]:  # the first chunk done: the whole-log set-up is over
@@ -167,30 +165,60 @@ def stream_process(imu_path, gnss, cfg, traj_path, week, smooth=False, outages=N
         if progress is not None:
             progress(m)
 
+    bg = Background(consume) if background else None
     events: list[str] = []
     t0 = _time.perf_counter()
     try:
-        res = stream_loose(shifted(head, chunks), gnss, cfg, emit, withheld=withheld, smooth=smooth,
-                           events=events, aids=aids, spool_dir=writer.path.parent,
+        res = stream_loose(chain([head], chunks), gnss, cfg, consume if bg is None else bg.put,
+                           withheld=withheld, smooth=smooth, events=events, aids=aids, spool_dir=spool_dir,
                            progress=count)
         if bg is not None:
             bg.close()  # every piece written (or its error raised)
-        writer.close()
     except BaseException:
         if bg is not None:
-            bg.abort()  # the thread stopped before the writer is closed
-        writer.abort()
+            bg.abort()  # the thread stopped before the caller closes what it writes to
         raise
     t_filt = _time.perf_counter() - t0
-    rate = 1.0 / float(np.median(np.diff(head.time)))
-    summary = run_summary(res, n_imu[0], rate, gnss, withheld, wins, head.events + offset_event + gnss.events
-                          + events, warnings, t_filt)
+    if pieces is not None:
+        _whole_result(res, pieces)
+    offset_event = [f"IMU time offset {applied:+.4f} s added to the IMU stamps"] if applied else []
+    summary = run_summary(res, n_imu[0], head.rate_hz, gnss, withheld, wins,
+                          head.events + offset_event + gnss.events + events, warnings, t_filt)
     if wins:
         summary["outage_score"] = sink.score(wins)
         if fwd is not None:
             summary["outage_score_forward"] = fwd.score(wins)
     finish_summary(summary, res, applied, warnings)
-    return summary, sink.decimated(), res
+    return ProcessRun(sink.whole(), summary, res, None if fwd is None else fwd.whole(), withheld, wins, gnss,
+                      sink.decimated())
+
+
+def _checks(log: ImuLog, head, gnss, imu_name, gnss_name, skip_checks) -> list[str]:
+    """The plausibility checks before filtering (:mod:`aidnav.io.sanity`): the IMU's first chunk, the
+    fixes, their overlap (the log's span), the IMU against the GNSS track (:meth:`ImuLog.check_head`)."""
+    from aidnav.io.sanity import check_gnss, check_imu, check_motion, check_overlap  # lazy: with the job
+
+    warnings = check_imu(head, imu_name, skip_checks)
+    warnings += check_gnss(gnss, gnss_name, skip_checks)
+
+    class _Span:
+        time = np.array(log.span)
+
+    warnings += check_overlap(_Span, gnss, imu_name, gnss_name, skip_checks)
+    warnings += check_motion(log.check_head(), gnss, imu_name, gnss_name, skip_checks)
+    return warnings
+
+
+def _whole_result(res, pieces) -> None:
+    """The filter's result with every epoch (in place): the pieces' arrays joined (``forward_*``: the
+    forward pieces of a smoothed run)."""
+    main, fwd = pieces[False], pieces[True]
+    if main:
+        for k in ("time", "state", "bias", "pdiag"):
+            setattr(res, k, np.concatenate([getattr(p, k) for p in main]))
+    if fwd:
+        res.forward_state = np.concatenate([p.state for p in fwd])
+        res.forward_pdiag = np.concatenate([p.pdiag for p in fwd])
 
 
 def trim_heap() -> None:
@@ -198,29 +226,9 @@ def trim_heap() -> None:
     GNSS file and the whole-log set-up (records, initialisation, static test) free their temporaries
     between blocks that stay, and the allocator would keep those pages resident for the rest of the run
     (−3 to −4 MiB of peak RSS on a 10-h log, none on a 1-h one)."""
-    import ctypes
+    import ctypes  # lazy: only here
 
     try:
         ctypes.CDLL(None).malloc_trim(0)
     except (OSError, AttributeError, TypeError):
         pass
-
-
-#: IMU samples read (again) for the motion checks of a streamed job (10 min at 100 Hz)
-CHECK_ROWS = 60_000
-
-
-def _check_head(imu_path):
-    """The first :data:`CHECK_ROWS` samples of the log (the motion checks compare them with the GNSS)."""
-    from aidnav.io.stream import iter_imu
-
-    return next(iter_imu(imu_path, CHECK_ROWS))
-
-
-def _shift(c, offset):
-    from aidnav.data import ImuData
-
-    if not offset:
-        return c
-    return ImuData(c.time + offset, c.dtheta, c.dv, t0=None if c.t0 is None else c.t0 + offset,
-                   events=c.events, week=c.week)

@@ -17,10 +17,25 @@ import os
 
 import numpy as np
 
+from aidnav.apps.common import (
+    check_solution,
+    load_model,
+    prepare_out_dir,
+    trajectory_path,
+    write_summary_files,
+)
+from aidnav.apps.process import read_gnss_any, read_imu_any
 from aidnav.data import GnssData
+from aidnav.estimators.dgps import spp_series
+from aidnav.filters.config import LooseConfig
 from aidnav.filters.heading_match import velocity_match_heading
-from aidnav.filters.tight import TightConfig, run_tight
+from aidnav.filters.loose import static_flags
+from aidnav.filters.tight import TightConfig, apply_vehicle, run_tight, to_trajectory
+from aidnav.io.boundary import shift_imu_time
+from aidnav.io.rinex import read_rinex_pair
+from aidnav.nav.earth import lla_difference_enu
 from aidnav.nav.rotations import wrap_2pi
+from aidnav.report.run_page import calibration_estimates
 from aidnav.units import DEG
 
 SPP_START_SIGMA_M = 100.0  # start-position σ with range-error states [m] (far above any SPP error)
@@ -35,9 +50,6 @@ __all__ = ["process_tight", "compare_with_reference", "process_tight_files", "sc
 def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | None = None,
                   smooth: bool = False):
     """Run the tightly coupled filter on real data; returns (TightResult, spp dict)."""
-    from aidnav.estimators.dgps import spp_series
-    from aidnav.filters.config import LooseConfig
-    from aidnav.filters.loose import static_flags
     from aidnav.filters.preprocess import noise_from_static  # lazy: as the other filter imports here
 
     cfg = cfg or TightConfig()
@@ -189,7 +201,6 @@ def compare_with_reference(time, lat, lon, h, ref: GnssData, quality: int | None
     """Horizontal/vertical differences of a solution (time, lat, lon [rad], h [m]) from a reference at its
     epochs (quality ``quality`` only; interpolated linearly in time). Returns dict with the ENU
     differences (K, 3) and their mean, std and RMS per axis, and the horizontal RMS / 95th percentile."""
-    from aidnav.nav.earth import lla_difference_enu
 
     sel = np.ones(len(ref), bool) if quality is None or ref.quality is None else ref.quality == quality
     tr = ref.time[sel]
@@ -242,18 +253,7 @@ def process_tight_files(imu_path, obs_path, nav_path, config_path=None, out_dir=
     """File-level job behind ``aidnav tight``: read IMU + RINEX obs/nav (+ optional reference ``truth``,
     RTKLIB ``.pos`` or interchange, with its own datum offset), run :func:`process_tight`, write
     ``trajectory.<fmt>``, ``summary.json`` and ``summary.txt`` into ``out_dir``."""
-    from aidnav.apps.common import (
-        check_solution,
-        load_model,
-        prepare_out_dir,
-        trajectory_path,
-        write_summary_files,
-    )
-    from aidnav.apps.process import read_gnss_any, read_imu_any
-    from aidnav.filters.tight import TightConfig, apply_vehicle, to_trajectory
-    from aidnav.io.boundary import shift_imu_time
-    from aidnav.io.interchange import write_trajectory
-    from aidnav.io.rinex import read_rinex_pair
+    from aidnav.io.interchange import write_trajectory  # lazy: pulls in pyarrow
 
     out_dir = prepare_out_dir(out_dir)
     traj_path = trajectory_path(out_dir, fmt)
@@ -286,13 +286,14 @@ def process_tight_files(imu_path, obs_path, nav_path, config_path=None, out_dir=
         ref = read_gnss_any(truth, truth_height_offset_m)
         summary["reference"] = {"file": str(truth), "height_offset_m": truth_height_offset_m,
                                 **score_against_reference(traj, ref)}
-    from aidnav.report.run_page import calibration_estimates
 
     summary["calibration"] = calibration_estimates(res)
     if figures:
-        from aidnav.report.overview import tight_records
+        from aidnav.report.overview import tight_records  # lazy: pulls in matplotlib
+
+        # lazy: pulls in matplotlib
         from aidnav.report.reference_plot import nis_table, write_reference_figure
-        from aidnav.report.run_page import write_run_outputs
+        from aidnav.report.run_page import write_run_outputs  # lazy: only on this branch
 
         ok = np.isfinite(sp["lat"])
         spp = GnssData(sp["time"][ok], sp["lat"][ok], sp["lon"][ok], sp["h"][ok])

@@ -99,6 +99,10 @@ __all__ = [
     "quat_angles_between",
 ]
 
+from aidnav.filters import engine as eng
+from aidnav.filters import measurements as ms
+from aidnav.filters.layout import make_layout
+from aidnav.filters.loose import run_loose
 from aidnav.units import DEG, DEG_H, UG  # noqa: E402, F401  (DEG_H, UG: units of Nav8Config's keys)
 
 #: the 8 states of the patent's filter and their indices in the 15-state model of ins_errors
@@ -171,9 +175,6 @@ def _nav8_engine(imu, gnss, st0, cfg: Nav8Config, use_filter: bool):
     IMU sample at or after t − 1 ns), the GNSS velocity model with the vertical component left out
     (z = v_INS − v_GPS, E and N) and no lever arm, ungated; position, height and v_U from each fix after
     the node (``reset_pos``, outside the filter). Returns the engine output and the record times."""
-    from aidnav.filters import engine as eng
-    from aidnav.filters import measurements as ms
-    from aidnav.filters.layout import make_layout
 
     m, n = len(gnss), len(imu)
     row = np.full((m, 10), np.nan)
@@ -184,7 +185,7 @@ def _nav8_engine(imu, gnss, st0, cfg: Nav8Config, use_filter: bool):
     rec = eng.Records(np.asarray(gnss.time, float) - 1e-9, np.full(m, ms.M_GNSS_VEL, np.int64), row,
                       np.full(m, bool(use_filter)))
     mod = eng.Models(np.zeros((ms.N_MODELS, 4)), np.zeros((ms.N_MODELS, ms.MAX_ROWS + 1)),
-                     np.full(ms.N_MODELS, 2**62, np.int64), np.zeros((0, 2), np.int64))
+                     np.full(ms.N_MODELS, eng.NEVER, np.int64), np.zeros((0, 2), np.int64))
     tau = float(cfg.bias_tau_s)
     proc = eng.Process(make_layout(), cfg.q_psd(), np.array([tau, tau, 0.0, 0.0]), np.zeros(0), 1e9,
                        _IDX15, bool(cfg.reset_position))
@@ -273,8 +274,7 @@ def run_loose_nav(imu, gnss, lat: float, lon: float, h: float, vel, rph, cfg=Non
     ``init`` section is overwritten with the given state. Returns a :class:`NavRun` whose ΔΘ are
     recovered by replaying each interrupt's strapdown step (exact: the same kernel and inputs).
     """
-    from aidnav.filters.config import LooseConfig
-    from aidnav.filters.loose import run_loose
+    from aidnav.filters.config import LooseConfig  # lazy: pulls in pydantic
 
     cfg = (cfg or LooseConfig()).model_copy(deep=True)
     ini = cfg.init

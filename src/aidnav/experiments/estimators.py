@@ -41,6 +41,7 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from aidnav.analysis.errors import ins_error_state, truth_index
 from aidnav.filters.loose import run_loose, run_loose_batch
 from aidnav.filters.tuning import loose_config_from_specs, perturbed_initial_state
 from aidnav.nav.earth import lla_difference_enu, radii
@@ -271,7 +272,6 @@ def loose_errors(res, truth) -> EstimatorOutput:
     diagonal (δL, δλ converted to metres with the radii at the truth position).
     """
     # analysis.errors imports pandas and scipy: loaded when a campaign scores, not with the registry
-    from aidnav.analysis.errors import ins_error_state, truth_index
 
     t = np.asarray(res.time, dtype=float)
     idx = truth_index(truth.time, t)

@@ -372,7 +372,7 @@ def _host() -> dict:
 
 
 def _versions() -> dict:
-    from . import store
+    from . import store  # lazy: pulls in pyarrow
 
     return {"aidnav": store.package_version(), "numpy": np.__version__, "numba": numba.__version__}
 

@@ -23,7 +23,7 @@ from aidnav.nav.rotations import quat_to_euler_batch
 from aidnav.units import DEG, DEG_H, UG
 
 from . import measurements as ms
-from .engine import Imu, Init, Models, Output, Process, Records, rts, run_filter, smooth_outputs
+from .engine import NEVER, Imu, Init, Models, Output, Process, Records, rts, run_filter, smooth_outputs
 from .layout import make_layout
 from .prior import ins_p0_diag, ins_psd, markov_psd
 
@@ -116,7 +116,7 @@ def fuse_attitude_fixes(imu, state0, fix_time, fix_C_bn, fix_cov, q_psd, P0, tau
     pos = pos[:M]  # log row of each fix
     gates = np.zeros((ms.N_MODELS, ms.MAX_ROWS + 1))
     gates[ms.M_ATT, 3] = max(float(gate), 0.0)
-    never = np.full(ms.N_MODELS, 2**62, np.int64)  # no consecutive-rejection rule
+    never = np.full(ms.N_MODELS, NEVER, np.int64)  # no consecutive-rejection rule
     mod = Models(np.zeros((ms.N_MODELS, 1)), gates, never, np.zeros((0, 2), np.int64))
     lay = make_layout(False)
     proc = Process(lay, np.asarray(q_psd, dtype=float), np.array([tau_g, tau_a, 0.0, 0.0]), np.zeros(0),

@@ -66,7 +66,24 @@ from .ins_errors import (
     set_heading,
 )
 from .kalman import discretize, predict, rts_gain, update
-from .layout import DP, DV, L_CLK, L_N, L_NINS, L_TOFF, NAV, PHI, ST_POS, ST_Q, ST_VEL
+from .layout import (
+    DP,
+    DV,
+    L_CLK,
+    L_N,
+    L_NINS,
+    L_TOFF,
+    NAV,
+    PHI,
+    RN_LEVER,
+    RN_POS,
+    RN_SPOS,
+    RN_SVEL,
+    RN_VEL,
+    ST_POS,
+    ST_Q,
+    ST_VEL,
+)
 from .measurements import M_GNSS_VEL, M_PR, MAX_ROWS, MODELS_KEY, N_MODELS, Nav, fill
 from .measurements.common import W_FIX, W_IB, W_IE, W_IN
 from .measurements.epoch import epoch_out, epoch_record, epoch_update
@@ -78,6 +95,12 @@ from .reinit import chi2_quantile, inflate, inflate_nav, nis_of  # noqa: F401  (
 # above which the heading is held unknown [rad] (0: no hold)
 C_MOUNT_H, C_VMIN, C_SIG, C_HOLD = 3, 4, 5, 6
 GAP_REC_S = 1.0  # records older than this at the sample that ends an IMU gap are not used
+#: a sample index or count never reached: ``Models.max_rej`` of a model without the consecutive-rejection
+#: rule, ``Init.reset_idx`` of a course alignment not yet found (the one sentinel of the drivers)
+NEVER = 2**62
+#: the initial heading variance [rad²] (σ ≈ 81°) from which the heading is unknown: held until the course
+#: alignment of ``Init.reset_idx``
+UNKNOWN_HEADING_VAR = 2.0
 
 # t (N,) [s]; dth, dv (N, 3) raw increments [rad, m/s]; static (N,) bool; gap_var (N, 2) [rad², (m/s)²]
 # (attitude, velocity) or (N, 4) [rad², rad², (m/s)², m²] (roll/pitch, heading, velocity, position:
@@ -198,25 +221,28 @@ def _reinit(st, P, ini, ix, held):
     velocity is 3σ off: σ of the filter and the fix, or, when the heading was ``held`` unknown until now
     (the filter's velocity covariance, propagated with that heading, is meaningless), of the fix alone.
     ``ix`` (≥ 15,): index in P of each state of the full INS layout (−1: not in the filter, a subset)."""
-    rn_ = ini.reset_nav
+    rn_ = ini.reset_nav  # layout.RN_*: the fix's velocity, position, their σ, the lever arm
     set_heading(st, P, ini.reset_heading, ini.reset_sigma, ix[PHI + 2])
-    dvr = np.sqrt((st[ST_VEL] - rn_[0]) ** 2 + (st[ST_VEL + 1] - rn_[1]) ** 2)
-    v2 = rn_[6] ** 2 + rn_[7] ** 2 if held else _var(P, ix, DV) + _var(P, ix, DV + 1) + rn_[6] ** 2
-    if np.isnan(rn_[0]) or dvr <= 3.0 * np.sqrt(v2):
+    dvr = np.sqrt((st[ST_VEL] - rn_[RN_VEL]) ** 2 + (st[ST_VEL + 1] - rn_[RN_VEL + 1]) ** 2)
+    sv_e, sv_n = rn_[RN_SVEL], rn_[RN_SVEL + 1]
+    v2 = sv_e ** 2 + sv_n ** 2 if held else _var(P, ix, DV) + _var(P, ix, DV + 1) + sv_e ** 2
+    if np.isnan(rn_[RN_VEL]) or dvr <= 3.0 * np.sqrt(v2):
         return
     # velocity and position integrated with the unknown heading: from the fix (antenna → IMU)
-    l_n = dcm_from_quat(st[ST_Q:ST_Q + 4]) @ rn_[12:15]
-    rm, rn = radii(rn_[3])
-    st[0] = rn_[3] - l_n[1] / (rm + rn_[5])
-    st[1] = rn_[4] - l_n[0] / ((rn + rn_[5]) * np.cos(rn_[3]))
-    st[2] = rn_[5] - l_n[2]
-    st[3], st[4], st[5] = rn_[0], rn_[1], rn_[2]
-    var = np.empty(6)
+    l_n = dcm_from_quat(st[ST_Q:ST_Q + 4]) @ rn_[RN_LEVER:RN_LEVER + 3]
+    lat, lon, h = rn_[RN_POS], rn_[RN_POS + 1], rn_[RN_POS + 2]
+    rm, rn = radii(lat)
+    st[ST_POS] = lat - l_n[1] / (rm + h)
+    st[ST_POS + 1] = lon - l_n[0] / ((rn + h) * np.cos(lat))
+    st[ST_POS + 2] = h - l_n[2]
     for i in range(3):
-        var[i] = rn_[6 + i] ** 2
-    var[3] = (rn_[10] / (rm + rn_[5])) ** 2
-    var[4] = (rn_[9] / ((rn + rn_[5]) * np.cos(rn_[3]))) ** 2
-    var[5] = rn_[11] ** 2
+        st[ST_VEL + i] = rn_[RN_VEL + i]
+    var = np.empty(6)  # δv (3), δL, δλ, δh
+    for i in range(3):
+        var[i] = rn_[RN_SVEL + i] ** 2
+    var[3] = (rn_[RN_SPOS + 1] / (rm + h)) ** 2
+    var[4] = (rn_[RN_SPOS] / ((rn + h) * np.cos(lat))) ** 2
+    var[5] = rn_[RN_SPOS + 2] ** 2
     for i in range(6):
         j = ix[DV + i]
         if j >= 0:
@@ -340,10 +366,10 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
     for i in range(nsub if nsub else nins):
         ix[sub[i] if nsub else i] = i
     iu = ix[PHI + 2]
-    # an unknown heading (initial σ above 80°) with an alignment to come (reset_idx > 0; beyond the last
+    # an unknown heading (initial σ above ≈ 81°) with an alignment to come (reset_idx > 0; beyond the last
     # sample: none found) stays unknown until then: a linearised filter would otherwise "gyrocompass"
     # from a gyro bias model it cannot separate from the heading (static) or from noise
-    hold_h = ini.reset_idx > 0 and iu >= 0 and ini.P[iu, iu] >= 2.0
+    hold_h = ini.reset_idx > 0 and iu >= 0 and ini.P[iu, iu] >= UNKNOWN_HEADING_VAR
     # INS sensor errors only (nins − 9 = 0, 6 or 12; not nfull): the strapdown must not read clock or
     # calibration states
     ib = bias[:nins - NAV].copy()

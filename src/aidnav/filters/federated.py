@@ -28,18 +28,35 @@ import numpy as np
 
 from aidnav.jit import njit
 from aidnav.nav.geo_pointing import los_enu
-from aidnav.nav.rotations import dcm_from_quat
+from aidnav.nav.rotations import dcm_from_quat, quat_from_euler, quat_to_euler_batch
+from aidnav.units import DEG
 
 from . import ins_errors as ie
 from .chi2 import chi2_isf
-from .engine import Imu, Log, Models, Records, Work, feedback, gated_update, node_rates, rts, smooth_outputs
+from .engine import (
+    NEVER,
+    Imu,
+    Log,
+    Models,
+    Records,
+    Work,
+    feedback,
+    gated_update,
+    node_rates,
+    rts,
+    smooth_outputs,
+)
 from .kalman import discretize, predict
+from .layout import ST_POS, ST_Q, make_layout
 from .measurements import M_GNSS_POS, M_GNSS_VEL, M_SAPV, MAX_ROWS, MODELS_KEY, N_MODELS, Nav, fill
 from .measurements import sapv as sp
 from .measurements import streams as st_
 from .measurements.common import W_FIX
 from .measurements.gnss import W_FN
 from .measurements.sapv import SAPV_BAD_INPUT, SAPV_BELOW_HORIZON, SAPV_SKIP_REASONS, SAPV_UNUSED
+from .preprocess import gnss_arrays
+from .prior import given_initial_state, initial_covariance, process_noise
+from .run_log import log_dict
 
 __all__ = ["FederatedConfig", "FederatedResult", "run_federated", "run_centralized", "fuse_information",
            "spd_inverse", "MODES", "SAPV_SKIP_REASONS", "SAPV_UNUSED", "SAPV_BAD_INPUT", "SAPV_BELOW_HORIZON"]
@@ -122,7 +139,7 @@ def _federated_kernel(imu, gn, sv, mod, lay, fed):
         due = (gi < M and gn.t[gi] <= tk) or (si < S and sv.t[si] <= tk)
         if not ((T >= fed.prop_dt - 1e-9 or due or k == n_imu - 1) and T > 0.0):
             continue
-        C = dcm_from_quat(st[6:10])
+        C = dcm_from_quat(st[ST_Q:ST_Q + 4])
         wb = ie.interval_model(F, G, st, acc, fed.tau[0], fed.tau[1], 0.0, 0.0)
         discretize(F, G, fed.q, T, Phi, Qd)
         for i in range(nf):  # 1. time update (local i with Q/β_i; the master with Q/β_m)
@@ -144,7 +161,7 @@ def _federated_kernel(imu, gn, sv, mod, lay, fed):
             if sv.use[si]:
                 row = sv.data[si].copy()
                 sp.carry_angles(row, w[W_FIX], imu.t[k] - sv.t[si])
-                if los_enu(st[0], st[1], st[2], row[0:3].copy())[2] < 0.0:
+                if los_enu(st[ST_POS], st[ST_POS + 1], st[ST_POS + 2], row[0:3].copy())[2] < 0.0:
                     log.status[M + si] = SAPV_BELOW_HORIZON  # the antenna cannot be tracking it: skipped
                 else:
                     nav = Nav(st, C, w, 0.0, bias)
@@ -276,14 +293,6 @@ def run_federated(imu, gnss, sapv, cfg, fed: FederatedConfig | None = None, *, k
         β = 1/2, 1/2). keep_cov : keep the full forward fused covariance at every node.
     smooth : RTS smoother over the fused nodes (module doc); the forward solution stays in ``forward_*``.
     """
-    from aidnav.nav.rotations import quat_from_euler, quat_to_euler_batch
-
-    from .config import DEG
-    from .layout import make_layout
-    from .loose import NEVER, gnss_arrays
-    from .prior import given_initial_state, initial_covariance, process_noise
-    from .run_log import log_dict
-
     fed = fed or FederatedConfig()
     if cfg.nstate != 15:
         raise ValueError("run_federated: the SAPV federated filter has the 15-state model (no scale factors)")

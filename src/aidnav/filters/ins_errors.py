@@ -42,6 +42,8 @@ from aidnav.nav.rotations import dcm_entries, dcm_from_quat, quat_mult, quat_nor
 from aidnav.nav.strapdown import strapdown_step
 
 PHI, DV, DP, BG, BA, SG, SA, MG = 0, 3, 6, 9, 12, 15, 18, 21
+# strapdown (nominal) state st (N_ST,): lat, lon [rad], h [m]; v^n ENU [m/s]; q_b^n
+ST_POS, ST_VEL, ST_Q, N_ST = 0, 3, 6, 10
 # gyro misalignment state k (MG + k) couples the rate about body axis MIS_IN[k] into axis MIS_OUT[k]
 MIS_OUT = (0, 0, 1, 1, 2, 2)
 MIS_IN = (1, 2, 0, 2, 0, 1)
@@ -285,11 +287,11 @@ def set_heading(st, P, heading, sigma, iu=PHI + 2):
     covariance ``P`` (n×n); 2 in the full layout, −1: P has no φ_U) to the variance sigma² [rad²] (no
     correlation with the other errors).
     """
-    Cn = dcm_from_quat(st[6:10])
+    Cn = dcm_from_quat(st[ST_Q:ST_Q + 4])
     from_h = np.arctan2(Cn[0, 1], Cn[1, 1])
     dpsi = -(heading - from_h)  # rotation about Up by yaw = -heading change
     qz = np.array([np.cos(0.5 * dpsi), 0.0, 0.0, np.sin(0.5 * dpsi)])
-    st[6:10] = quat_normalize(quat_mult(qz, st[6:10]))
+    st[ST_Q:ST_Q + 4] = quat_normalize(quat_mult(qz, st[ST_Q:ST_Q + 4]))
     if iu < 0:
         return
     for j in range(P.shape[0]):
@@ -317,5 +319,6 @@ def interval_model(F, G, st, acc, tau_g, tau_a, tau_sg, tau_sa):
     correlation times (≤ 0: random walk). Returns the mean body rate ω_ib^b [rad/s] (3,).
     """
     fn, Cbn, wb, fb = interval_means(acc, acc[ACC_TN, 0])
-    fill_model(F, G, st[0], st[2], st[3:6], fn, Cbn, wb, fb, (tau_g, tau_a, tau_sg, tau_sa))
+    fill_model(F, G, st[ST_POS], st[ST_POS + 2], st[ST_VEL:ST_VEL + 3], fn, Cbn, wb, fb,
+               (tau_g, tau_a, tau_sg, tau_sa))
     return wb

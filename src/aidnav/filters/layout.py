@@ -37,18 +37,19 @@ from __future__ import annotations
 
 import numpy as np
 
-from .ins_errors import BA, BG, DP, DV, MG, PHI, SA, SG
+from .ins_errors import BA, BG, DP, DV, MG, N_ST, PHI, SA, SG, ST_POS, ST_Q, ST_VEL
 
 MIS_PAIRS = ("xy", "xz", "yx", "yz", "zx", "zy")  # gyro misalignment m_(out)(in), the MG block's order
 
-# strapdown state
-ST_POS, ST_VEL, ST_Q = 0, 3, 6
-N_ST = 10
 # error-state blocks of the INS model (ins_errors)
 NAV = 9  # φ, δv, δp
 __all__ = ["PHI", "DV", "DP", "BG", "BA", "SG", "SA", "MG", "ST_POS", "ST_VEL", "ST_Q", "N_ST", "NAV",
-           "AUX_NAMES", "L_RERR", "L_ISB", "L_TOFF", "L_MOUNT", "L_VDEL", "L_GPE", "L_FLEX", "make_layout",
-           "layout_names", "LAYOUTS"]
+           "AUX_NAMES", "RN_VEL", "RN_POS", "RN_SVEL", "RN_SPOS", "RN_LEVER", "N_RN", "L_RERR", "L_ISB",
+           "L_TOFF", "L_MOUNT", "L_VDEL", "L_GPE", "L_FLEX", "make_layout", "layout_names", "LAYOUTS"]
+
+# the course fix of a re-initialisation event (engine ``Init.reset_nav``, N_RN,): its velocity ENU [m/s],
+# position lat, lon [rad], h [m], velocity σ ENU [m/s], position σ E, N, U [m], antenna lever arm (body) [m]
+RN_VEL, RN_POS, RN_SVEL, RN_SPOS, RN_LEVER, N_RN = 0, 3, 6, 9, 12, 15
 
 # calibration (auxiliary) states the engine knows: name -> width
 AUX_NAMES = {"odometer_scale": 1, "baro_bias": 1, "clock": 2, "lever_arm": 3, "time_offset": 1, "mounting": 3,

@@ -19,12 +19,16 @@ from collections import namedtuple
 
 import numpy as np
 
+from aidnav.nav.rotations import dcm_from_euler, quat_from_euler
+from aidnav.units import DEG
+
 from . import aids as aid_kinds
 from . import measurements as ms
 from .chi2 import chi2_isf
 from .engine import (
     C_HOLD,
     C_MOUNT_H,
+    NEVER,
     Imu,
     Init,
     Models,
@@ -44,14 +48,17 @@ from .layout import (
     L_TOFF,
     L_VDEL,
     NAV,
+    RN_LEVER,
     layout_names,
     make_layout,
 )
 from .preprocess import (
     bridge_gaps,
+    coarse_mounting,
     correlated_gnss_errors,
     course_alignment,
     gnss_arrays,
+    gnss_velocity_for_init,
     initial_state,
     noise_from_static,
     static_flags,
@@ -68,7 +75,6 @@ _smooth_outputs = smooth_outputs
 __all__ = ["run_loose", "LooseResult", "FilterResult", "to_trajectory", "process_noise", "initial_covariance",
            "static_flags", "bridge_gaps", "gnss_arrays", "course_alignment", "loose_layout",
            "run_loose_batch", "loose_inputs", "loose_result"]
-NEVER = 2**62  # max_rej of a model without the consecutive-rejection rule
 
 
 def loose_layout(cfg, aids=(), gnss=True, gnss_velocity=True) -> np.ndarray:
@@ -110,10 +116,6 @@ def _models(cfg) -> Models:
     NHC gated at 25 (the χ²(2) quantile of 1 − e^(−12.5)) when GNSS gating is on; ZUPT and ZARU
     ungated; every aid of :data:`aidnav.filters.aids.AIDS` (odometer, barometer, magnetometer, ...) gated
     like GNSS, never re-initialising the navigation block, with its own parameters."""
-    from aidnav.nav.rotations import dcm_from_euler
-
-    from .config import DEG
-
     gp, c = cfg.gnss.gate_probability, cfg.constraints
     par = np.zeros((ms.N_MODELS, 16))
     gate = np.zeros((ms.N_MODELS, ms.MAX_ROWS + 1))
@@ -192,10 +194,6 @@ def loose_setup(imu, gnss, cfg, withheld, events, aids=()) -> Setup:
     ``reset_idx`` relative to ``k0``, the first IMU sample used; ``reset_time`` the time of the course
     alignment or None), models, records (``rmap``: their GNSS fix of origin) and the output decimation.
     ``imu`` may be the head of the log (:mod:`aidnav.filters.stream`) when no coarse mounting is needed."""
-    from aidnav.nav.rotations import quat_from_euler
-
-    from .config import DEG
-
     has_vel = gnss.vel is not None and bool(np.any(np.isfinite(gnss.vel)))
     cfg = correlated_gnss_errors(cfg, gnss, events)  # fixes above 1 Hz: Gauss-Markov error states
     lay = loose_layout(cfg, aids, gnss=len(gnss) > 0, gnss_velocity=has_vel)
@@ -274,7 +272,7 @@ def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: 
         :data:`aidnav.filters.aids.AIDS`), e.g. ``[aid("odometer", OdometerData(...))]``; the settings of
         each are its section of ``cfg``.
     """
-    from .config import LooseConfig
+    from .config import LooseConfig  # lazy: pydantic (the filter's kernels do not need it)
 
     cfg = cfg or LooseConfig()
     events = events if events is not None else []
@@ -376,7 +374,7 @@ def _aid_heading(i0, cfg, aids, events):
         return i0, events
     psi, sig, name = h
     i0 = dict(i0, rph=np.array([i0["rph"][0], i0["rph"][1], psi]), att_sig=i0["att_sig"].copy(),
-              reset_idx=-1, reset_heading=0.0, reset_nav=np.full(12, np.nan), reset_time=None)
+              reset_idx=-1, reset_heading=0.0, reset_nav=np.full(RN_LEVER, np.nan), reset_time=None)
     i0["att_sig"][2] = sig
     events = [e for e in events if not ("heading" in e and ("course" in e or "gyrocompass" in e))]
     events.append(f"initial heading from {name}: {np.degrees(psi):.2f} deg (sigma {np.degrees(sig):.2f} deg)")
@@ -389,8 +387,6 @@ def _coarse_mounting_if_unknown(cfg, imu, gnss, t_imu, g, use, aids, events):
     mounting from the log (:func:`aidnav.filters.preprocess.coarse_mounting`, a whole-log fit:
     post-processing) replaces the identity, and the mounting state refines it. Returns the
     configuration to use."""
-    from .preprocess import coarse_mounting, gnss_velocity_for_init
-
     if not (cfg.constraints.nhc or aid_kinds.vehicle_frame(aids)) or \
             "mounting_rph_deg" in cfg.imu.model_fields_set:
         return cfg

@@ -14,6 +14,8 @@ from aidnav.nav.earth import radii
 from aidnav.nav.rotations import euler_from_dcm, wrap_2pi, wrap_pi
 from aidnav.units import DEG, DEG_H, G0, UG
 
+from .layout import RN_LEVER
+
 
 def velocity_from_positions(gnss, window_s: float = 1.0, std_pos=None):
     """Velocity ENU [m/s] and its 1σ per axis from central differences of the GNSS positions.
@@ -285,125 +287,150 @@ def initial_state(imu, gnss, cfg, t_imu, g, use, events):
     reset_heading [rad], reset_nav (12,) of the course fix,
     vel_sig (3,) [m/s] of an in-motion start (None: the configured σ).
     """
+    if cfg.init.mode == "given":
+        return _given_state(imu, cfg)
     g_t, g_lat, g_lon, g_h, g_vel, g_spos, g_svel = g
     ini = cfg.init
-    # ---- initial state
-    if ini.mode == "given":
-        missing = [k for k in ("lat_deg", "lon_deg", "height_m", "roll_deg", "pitch_deg", "heading_deg")
-                   if getattr(ini, k) is None]
-        if missing:
-            raise ValueError(f"init.mode = given needs init.{', init.'.join(missing)}")
-        t0 = float(imu.t0 + cfg.imu.time_offset_s)
-        lat0, lon0, h0 = ini.lat_deg * DEG, ini.lon_deg * DEG, ini.height_m
-        v0 = np.array(ini.velocity_m_s, float)
-        rph = np.array([ini.roll_deg, ini.pitch_deg, ini.heading_deg]) * DEG
-        att_sig = np.array(ini.attitude_sigma_deg) * DEG
-        reset_idx, reset_heading, reset_time = -1, 0.0, None
-        reset_nav = np.full(12, np.nan)
-        k0 = 0
-        vsig0 = None
-    else:
-        # start at the first GNSS fix inside the IMU span
-        first = np.flatnonzero(use & (g_t >= t_imu[0]))
-        if len(first) == 0:
-            raise ValueError("no GNSS fix inside the IMU time span: cannot initialise")
-        i0 = first[0]
-        k0 = int(np.searchsorted(t_imu, g_t[i0], side="right"))
-        if k0 >= len(t_imu) - 1:  # e.g. --outage withholding every fix but the last ones
-            raise ValueError(f"the first GNSS fix the filter may use (t={g_t[i0]:.3f} s; {int((~use).sum())} "
-                             f"fixes withheld or unusable before it) is at the end of the IMU log "
-                             f"({t_imu[0]:.3f}…{t_imu[-1]:.3f} s): nothing is left to initialise from — "
-                             "shorten or move the --outage, or give a GNSS file that overlaps the IMU log")
-        if k0 > 0:
-            events.append(f"initialisation at the first GNSS fix t={g_t[i0]:.3f}: {k0} IMU samples before it "
-                          "are not used")
-        t0 = float(g_t[i0]) if k0 == 0 else float(t_imu[k0 - 1])
-        lat0, lon0, h0 = g_lat[i0], g_lon[i0], g_h[i0]
-        # velocity at the fixes: the receiver's, else from position differences with their σ
-        gsub = gnss.subset(use)
-        iu = np.flatnonzero(use)
-        gs = (g_t[iu], g_lat[iu], g_lon[iu], g_h[iu], g_vel[iu], g_spos[iu], g_svel[iu])
-        vel_u, svel_u = gnss_velocity_for_init(gsub, gs)
-        j0 = int(np.searchsorted(iu, i0))
-        v_first = vel_u[j0]
-        # static coarse alignment (aidnav.nav.alignment): roll/pitch from the mean specific force over
-        # the static window; heading by gyrocompassing where the gyro grade resolves the Earth rate
-        t_a = t_imu[k0]
-        win_imu = ImuData(t_imu, imu.dtheta, imu.dv, t0=imu.t0 + cfg.imu.time_offset_s)
-        gb = cfg.imu.gyro_bias_sigma_deg_h * DEG_H
-        roll, pitch, gc_heading, ainfo = coarse_align_static(win_imu, lat0, t_a, t_a + ini.static_window_s,
-                                                             height=h0, gyro_bias_std=gb)
-        heading = 0.0
-        att_sig = np.array(ini.attitude_sigma_deg) * DEG
-        gw = (gsub.time >= t_a) & (gsub.time < t_a + ini.static_window_s)
-        sp_w = np.hypot(vel_u[gw, 0], vel_u[gw, 1])
-        ss_w = np.hypot(svel_u[gw, 0], svel_u[gw, 1])
-        thr = cfg.constraints.static_gnss_speed_m_s
-        # moving: a speed above the static threshold by 3σ (noisy fixes at a standstill do not count)
-        moving = bool(np.any(sp_w > thr + 3.0 * np.nan_to_num(ss_w, nan=np.inf)))
-        v0 = np.zeros(3)
-        vsig0 = None
-        heading_now = None
-        if moving or abs(ainfo["f_norm"] - ainfo["gravity"]) > 0.02 * ainfo["gravity"]:
-            roll, pitch, gc_heading, heading_now, vsig0 = _moving_start(
-                imu, t_imu, k0, gsub, vel_u, svel_u, j0, cfg, events, ainfo)
-            att_sig[0:2] = np.maximum(att_sig[0:2], _moving_tilt_sigma(gsub, vel_u, svel_u, j0, cfg))
-            if np.all(np.isfinite(v_first)):
-                v0 = v_first.copy()
-            elif np.any(np.isfinite(v_first)):
-                v0 = np.nan_to_num(v_first)
-        if ini.heading_deg is not None:
-            heading = ini.heading_deg * DEG
-        elif heading_now is not None:
-            heading = heading_now[0]
-        elif gc_heading is not None:
-            heading = gc_heading
-        if ini.roll_deg is not None:
-            roll = ini.roll_deg * DEG
-        if ini.pitch_deg is not None:
-            pitch = ini.pitch_deg * DEG
-        rph = np.array([roll, pitch, heading])
-        f = ainfo["mean_f"] / G0
-        if not moving:
-            events.append(f"coarse alignment over {ini.static_window_s:g} s: roll {np.degrees(roll):.2f} "
-                          f"deg, pitch {np.degrees(pitch):.2f} deg (mean specific force {np.round(f, 4)} g)")
-        if ini.heading_deg is None and gc_heading is not None:
-            events.append(f"heading by gyrocompassing: {np.degrees(gc_heading):.2f} deg "
-                          f"(sigma {np.degrees(ainfo['heading_std']):.2f} deg)")
-            att_sig[2] = max(att_sig[2], ainfo["heading_std"])
-        elif ini.heading_deg is None and heading_now is not None:
-            att_sig[2] = heading_now[1]
-        elif ini.heading_deg is None:
-            events.append(f"no gyrocompass heading ({ainfo['heading_reason']}): heading from GNSS course")
-        reset_idx, reset_heading, reset_time = -1, 0.0, None
-        reset_nav = np.full(12, np.nan)
-        if ini.heading_deg is None and gc_heading is None and heading_now is None:
-            ca = course_alignment(gsub, cfg, t0, vel=vel_u, std=svel_u)
-            if ca is None:
-                events.append("heading never aligned: no GNSS course above init.course_min_speed_m_s with "
-                              "a speed well above its sigma")
-                reset_idx = len(t_imu) + 1  # never: the heading stays unknown (engine: no information)
-                reset_time = np.inf
-            else:
-                tca, course, ica_u = ca[:3]
-                ica = iu[ica_u]
-                meas = ~np.isnan(vel_u[ica_u])
-                vel_g = np.where(meas, np.nan_to_num(vel_u[ica_u]), 0.0)
-                svel = np.where(meas, svel_u[ica_u], 1.0)
-                reset_nav = np.array([*vel_g, g_lat[ica], g_lon[ica], g_h[ica], *svel, *g_spos[ica]])
-                mount_h = cfg.imu.mounting_rph_deg[2] * DEG
-                # vehicle heading = course; IMU heading = vehicle heading + mounting heading
-                reset_heading = float(wrap_2pi(course + mount_h))
-                reset_idx = int(np.searchsorted(t_imu[k0:], tca, side="left"))
-                reset_time = float(tca)
-                events.append(f"heading from GNSS course at t={tca:.3f}: {np.degrees(reset_heading):.2f} deg")
-            att_sig[2] = np.pi  # unknown until the course alignment
-        if vsig0 is not None:
-            events.append(f"in-motion start: velocity from GNSS {np.round(v0, 2)} m/s (sigma "
-                          f"{np.round(vsig0, 3)} m/s)")
+    i0, k0, t0 = _first_fix(t_imu, g_t, use, events)
+    lat0, lon0, h0 = g_lat[i0], g_lon[i0], g_h[i0]
+    # velocity at the fixes: the receiver's, else from position differences with their σ
+    gsub = gnss.subset(use)
+    iu = np.flatnonzero(use)
+    gs = (g_t[iu], g_lat[iu], g_lon[iu], g_h[iu], g_vel[iu], g_spos[iu], g_svel[iu])
+    vel_u, svel_u = gnss_velocity_for_init(gsub, gs)
+    j0 = int(np.searchsorted(iu, i0))
+    rph, att_sig, v0, vsig0, known_h = _automatic_attitude(imu, t_imu, k0, gsub, vel_u, svel_u, j0, cfg,
+                                                           events, lat0, h0)
+    reset_idx, reset_heading, reset_time = -1, 0.0, None
+    reset_nav = np.full(RN_LEVER, np.nan)
+    if ini.heading_deg is None and not known_h:
+        reset_idx, reset_heading, reset_time, reset_nav = _course_reset(gsub, cfg, t0, vel_u, svel_u, iu, g,
+                                                                        t_imu, k0, events)
+        att_sig[2] = np.pi  # unknown until the course alignment
+    if vsig0 is not None:
+        events.append(f"in-motion start: velocity from GNSS {np.round(v0, 2)} m/s (sigma "
+                      f"{np.round(vsig0, 3)} m/s)")
     return dict(t0=t0, k0=k0, lat0=lat0, lon0=lon0, h0=h0, v0=v0, rph=rph, att_sig=att_sig,
                 reset_idx=reset_idx, reset_heading=reset_heading, reset_nav=reset_nav, vel_sig=vsig0,
                 reset_time=reset_time)
+
+
+def _given_state(imu, cfg) -> dict:
+    """:func:`initial_state` of ``init.mode = given``: the configured position, velocity and attitude at
+    the start of the log."""
+    ini = cfg.init
+    missing = [k for k in ("lat_deg", "lon_deg", "height_m", "roll_deg", "pitch_deg", "heading_deg")
+               if getattr(ini, k) is None]
+    if missing:
+        raise ValueError(f"init.mode = given needs init.{', init.'.join(missing)}")
+    return dict(t0=float(imu.t0 + cfg.imu.time_offset_s), k0=0, lat0=ini.lat_deg * DEG,
+                lon0=ini.lon_deg * DEG, h0=ini.height_m, v0=np.array(ini.velocity_m_s, float),
+                rph=np.array([ini.roll_deg, ini.pitch_deg, ini.heading_deg]) * DEG,
+                att_sig=np.array(ini.attitude_sigma_deg) * DEG, reset_idx=-1, reset_heading=0.0,
+                reset_nav=np.full(RN_LEVER, np.nan), vel_sig=None, reset_time=None)
+
+
+def _first_fix(t_imu, g_t, use, events):
+    """The automatic start at the first usable GNSS fix inside the IMU span: (its index, the first IMU
+    sample used k0, t0)."""
+    first = np.flatnonzero(use & (g_t >= t_imu[0]))
+    if len(first) == 0:
+        raise ValueError("no GNSS fix inside the IMU time span: cannot initialise")
+    i0 = first[0]
+    k0 = int(np.searchsorted(t_imu, g_t[i0], side="right"))
+    if k0 >= len(t_imu) - 1:  # e.g. --outage withholding every fix but the last ones
+        raise ValueError(f"the first GNSS fix the filter may use (t={g_t[i0]:.3f} s; {int((~use).sum())} "
+                         f"fixes withheld or unusable before it) is at the end of the IMU log "
+                         f"({t_imu[0]:.3f}…{t_imu[-1]:.3f} s): nothing is left to initialise from — "
+                         "shorten or move the --outage, or give a GNSS file that overlaps the IMU log")
+    if k0 > 0:
+        events.append(f"initialisation at the first GNSS fix t={g_t[i0]:.3f}: {k0} IMU samples before it "
+                      "are not used")
+    return i0, k0, float(g_t[i0]) if k0 == 0 else float(t_imu[k0 - 1])
+
+
+def _automatic_attitude(imu, t_imu, k0, gsub, vel_u, svel_u, j0, cfg, events, lat0, h0):
+    """Roll, pitch and heading of an automatic start at sample k0 (fix j0 of the usable ones): static
+    coarse alignment and gyrocompassing (:mod:`aidnav.nav.alignment`), or the in-motion start
+    (:func:`_moving_start`); the configured angles win. Returns (rph, att_sig, v0, vel_sig or None,
+    whether the heading is known now)."""
+    ini = cfg.init
+    v_first = vel_u[j0]
+    # static coarse alignment (aidnav.nav.alignment): roll/pitch from the mean specific force over
+    # the static window; heading by gyrocompassing where the gyro grade resolves the Earth rate
+    t_a = t_imu[k0]
+    win_imu = ImuData(t_imu, imu.dtheta, imu.dv, t0=imu.t0 + cfg.imu.time_offset_s)
+    gb = cfg.imu.gyro_bias_sigma_deg_h * DEG_H
+    roll, pitch, gc_heading, ainfo = coarse_align_static(win_imu, lat0, t_a, t_a + ini.static_window_s,
+                                                         height=h0, gyro_bias_std=gb)
+    heading = 0.0
+    att_sig = np.array(ini.attitude_sigma_deg) * DEG
+    gw = (gsub.time >= t_a) & (gsub.time < t_a + ini.static_window_s)
+    sp_w = np.hypot(vel_u[gw, 0], vel_u[gw, 1])
+    ss_w = np.hypot(svel_u[gw, 0], svel_u[gw, 1])
+    thr = cfg.constraints.static_gnss_speed_m_s
+    # moving: a speed above the static threshold by 3σ (noisy fixes at a standstill do not count)
+    moving = bool(np.any(sp_w > thr + 3.0 * np.nan_to_num(ss_w, nan=np.inf)))
+    v0 = np.zeros(3)
+    vsig0 = None
+    heading_now = None
+    if moving or abs(ainfo["f_norm"] - ainfo["gravity"]) > 0.02 * ainfo["gravity"]:
+        roll, pitch, gc_heading, heading_now, vsig0 = _moving_start(
+            imu, t_imu, k0, gsub, vel_u, svel_u, j0, cfg, events, ainfo)
+        att_sig[0:2] = np.maximum(att_sig[0:2], _moving_tilt_sigma(gsub, vel_u, svel_u, j0, cfg))
+        if np.all(np.isfinite(v_first)):
+            v0 = v_first.copy()
+        elif np.any(np.isfinite(v_first)):
+            v0 = np.nan_to_num(v_first)
+    if ini.heading_deg is not None:
+        heading = ini.heading_deg * DEG
+    elif heading_now is not None:
+        heading = heading_now[0]
+    elif gc_heading is not None:
+        heading = gc_heading
+    if ini.roll_deg is not None:
+        roll = ini.roll_deg * DEG
+    if ini.pitch_deg is not None:
+        pitch = ini.pitch_deg * DEG
+    rph = np.array([roll, pitch, heading])
+    f = ainfo["mean_f"] / G0
+    if not moving:
+        events.append(f"coarse alignment over {ini.static_window_s:g} s: roll {np.degrees(roll):.2f} "
+                      f"deg, pitch {np.degrees(pitch):.2f} deg (mean specific force {np.round(f, 4)} g)")
+    if ini.heading_deg is None and gc_heading is not None:
+        events.append(f"heading by gyrocompassing: {np.degrees(gc_heading):.2f} deg "
+                      f"(sigma {np.degrees(ainfo['heading_std']):.2f} deg)")
+        att_sig[2] = max(att_sig[2], ainfo["heading_std"])
+    elif ini.heading_deg is None and heading_now is not None:
+        att_sig[2] = heading_now[1]
+    elif ini.heading_deg is None:
+        events.append(f"no gyrocompass heading ({ainfo['heading_reason']}): heading from GNSS course")
+    return rph, att_sig, v0, vsig0, gc_heading is not None or heading_now is not None
+
+
+def _course_reset(gsub, cfg, t0, vel_u, svel_u, iu, g, t_imu, k0, events):
+    """The course alignment of a start whose heading is unknown: the first meaningful GNSS course after
+    t0 (:func:`course_alignment`) → (reset_idx relative to k0, reset_heading [rad], reset_time, reset_nav
+    of the fix (``layout.RN_*`` up to the lever arm)); never found: reset_idx past the log, time inf."""
+    g_t, g_lat, g_lon, g_h, g_vel, g_spos, g_svel = g
+    ca = course_alignment(gsub, cfg, t0, vel=vel_u, std=svel_u)
+    if ca is None:
+        events.append("heading never aligned: no GNSS course above init.course_min_speed_m_s with "
+                      "a speed well above its sigma")
+        # never: the heading stays unknown (engine: no information)
+        return len(t_imu) + 1, 0.0, np.inf, np.full(RN_LEVER, np.nan)
+    tca, course, ica_u = ca[:3]
+    ica = iu[ica_u]
+    meas = ~np.isnan(vel_u[ica_u])
+    vel_g = np.where(meas, np.nan_to_num(vel_u[ica_u]), 0.0)
+    svel = np.where(meas, svel_u[ica_u], 1.0)
+    reset_nav = np.array([*vel_g, g_lat[ica], g_lon[ica], g_h[ica], *svel, *g_spos[ica]])
+    mount_h = cfg.imu.mounting_rph_deg[2] * DEG
+    # vehicle heading = course; IMU heading = vehicle heading + mounting heading
+    reset_heading = float(wrap_2pi(course + mount_h))
+    reset_idx = int(np.searchsorted(t_imu[k0:], tca, side="left"))
+    events.append(f"heading from GNSS course at t={tca:.3f}: {np.degrees(reset_heading):.2f} deg")
+    return reset_idx, reset_heading, float(tca), reset_nav
 
 
 def _course_ok(speed, sig_h, cfg):

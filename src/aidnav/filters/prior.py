@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from aidnav.nav.earth import radii
+from aidnav.units import DEG, DEG_H, UG
 
 from .layout import BA, BG, DP, DV, L_BARO, L_GPE, L_LEVER, L_MOUNT, L_ODO, L_TOFF, L_VDEL, MG, PHI, SA, SG
 
@@ -75,8 +76,6 @@ def ins_p0_diag(n: int, lat: float, h: float, att, vel, pos_m, gyro_bias, accel_
 # ------------------------------------------------------------------ from the filters' configuration
 def process_noise(cfg, nstate: int) -> np.ndarray:
     """PSD vector q of the INS block (15, 21 or 27 states) from ``cfg.imu`` (:class:`.config.ImuNoise`)."""
-    from .config import DEG, DEG_H, UG
-
     im = cfg.imu
     sg = im.gyro_bias_instability_deg_h
     sg = im.gyro_bias_sigma_deg_h if sg is None else sg
@@ -94,8 +93,6 @@ def process_noise(cfg, nstate: int) -> np.ndarray:
 
 def initial_covariance(cfg, nstate: int, lat: float, h: float, att_sigma_rad) -> np.ndarray:
     """Diagonal P0 of the INS block from ``cfg.init`` and ``cfg.imu`` (attitude σ given in radians)."""
-    from .config import DEG_H, UG
-
     im = cfg.imu
     return np.diag(ins_p0_diag(nstate, lat, h, att_sigma_rad, cfg.init.velocity_sigma_m_s,
                                cfg.init.position_sigma_m, im.gyro_bias_sigma_deg_h * DEG_H,
@@ -137,8 +134,6 @@ def calibration_prior(cfg, lay) -> np.ndarray:
 def given_initial_state(ini, who: str):
     """(lat, lon [rad], h [m], v^n (3,) [m/s], (roll, pitch, heading) [rad]) of an
     :class:`.config.Initialisation` in "given" mode; ValueError naming ``who`` and what is missing."""
-    from .config import DEG
-
     missing = [k for k in ("lat_deg", "lon_deg", "height_m", "roll_deg", "pitch_deg", "heading_deg")
                if getattr(ini, k) is None]
     if missing:

@@ -21,8 +21,11 @@ size of the chunk's, not the whole log's. What stays whole-log: the GNSS fixes, 
 per-record log (1 Hz: 100 times fewer rows than the IMU; status, NIS, innovation and diag S of at most
 :data:`REC_ROWS` rows: ≈ 60 bytes a record), the model id and status of every node-constraint update
 (2 bytes per node). A log that needs a
-whole-log fit before filtering (the coarse mounting: NHC or odometer with no mounting configured) or
-full covariances at given times is for :func:`run_loose` (:func:`needs_whole_log`).
+whole-log fit before filtering (the coarse mounting: NHC or an aid in the vehicle frame with no mounting
+configured, :func:`needs_whole_log`) is taken whole into the head (every chunk held); full covariances at
+given times are for :func:`run_loose`. Given as one chunk, the log is its own head and the result is
+:func:`run_loose`'s bit for bit (``aidnav process`` on a log in memory or in any format but interchange
+Parquet).
 """
 
 from __future__ import annotations
@@ -33,15 +36,13 @@ from aidnav.data import ImuData
 from aidnav.io.stream import Spool
 
 from .aids import vehicle_frame
-from .engine import Imu, Log, Output, rts, run_chunk, smooth_outputs, start_carry
+from .engine import NEVER, Imu, Log, Output, rts, run_chunk, smooth_outputs, start_carry
 from .layout import L_TOFF, NAV, layout_names
 from .loose import loose_setup
 from .measurements import MAX_ROWS
 from .preprocess import StaticDetector, bridge_gaps, visible_fixes
 from .result import FilterResult
-from .run_log import calibration_base, gnss_records, log_dict, loose_counts
-
-NEVER = 2**62  # a course alignment not yet reached (its sample is found when its chunk comes)
+from .run_log import calibration_base, gnss_records, log_dict, loose_counts, reinit_events
 
 
 def needs_whole_log(cfg, aids=()) -> bool:
@@ -94,140 +95,192 @@ def stream_loose(chunks, gnss, cfg, emit, withheld=None, smooth: bool = False, e
         solution (a :class:`FilterResult` with ``time``, ``state``, ``bias``, ``pdiag``, ``layout``,
         ``smoothed``) in time order; with the smoother also ``emit(piece, forward=True)`` first for the
         forward pieces. progress : called with the number of IMU samples of each chunk done.
+        A log that needs a whole-log fit (:func:`needs_whole_log`) is taken whole into the head.
     Returns a :class:`FilterResult` whose arrays hold the last output epoch only, with ``records``,
     ``counts``, ``innovations`` (the record rows; ``nu`` and ``s`` :data:`REC_ROWS` columns wide unless a
     record used more), ``final_P``, ``events`` as :func:`run_loose`.
     """
     events = events if events is not None else []
     chunks = iter(chunks)
+    if needs_whole_log(cfg, aids):  # the coarse mounting is fitted on the whole log: every chunk in the head
+        head_s = np.inf
     head, first, rest = _head(chunks, gnss, head_s)
-    su = loose_setup(head, gnss, cfg, withheld, events, aids)
-    cfg, lay, n, k0 = su.cfg, su.lay, su.n, su.k0
-    ini = su.ini
-    rt = su.reset_time
-    if rt is not None and not rt <= head.time[-1]:
-        ini = ini._replace(reset_idx=NEVER)  # found below in its chunk (inf: never)
-    dt_head = np.diff(np.concatenate([[head.t0], head.time]))
-    med, rate = float(np.median(dt_head)), head.rate_hz
-    nwin = max(2, int(round(1.0 / med)))
-    static = StaticDetector(visible_fixes(gnss, withheld), cfg, rate) if cfg.constraints.zupt else None
-    out = Output(su.out_every, bool(smooth), np.zeros(0, np.int64))
-    M = len(su.rec.t)
-    rec_log = None
-    window = su.rec.grp.t.shape[0] == 0  # (epoch records index the whole log: not windowed)
-    node_model, node_status, static_used, n_nodes = [], [], 0, 0
-    spool = node_spool = None
-    node_idx_l, node_dx = [], []  # with the smoother: per node its sample and δx; Φ, P⁻, P⁺ on disk
-    if smooth or lay[L_TOFF] >= 0:
-        spool = Spool(spool_dir, 3 + 10 + (n - NAV) + n)
-    if smooth:
-        node_spool = Spool(spool_dir, 3 * n * n)
-    cy = start_carry(su.rec, su.proc, ini, False)
-    tail, n_seen, t_prev, last_piece = None, 0, head.t0, None
+    fw = _Forward(head, gnss, cfg, withheld, events, aids, smooth, spool_dir, emit)
     try:
         for ch, last in _lookahead(first, rest):
-            m = len(ch)
-            # gap bridge with the window before the chunk; static flags with the carried sums
-            if tail is None:
-                dth, dv, gap_var = bridge_gaps(ch, events, med=med, bounds=cfg.motion)
-            else:
-                j = ImuData(np.concatenate([tail.time, ch.time]), np.concatenate([tail.dtheta, ch.dtheta]),
-                            np.concatenate([tail.dv, ch.dv]), t0=tail.t0)
-                dth, dv, gap_var = bridge_gaps(j, events, med=med, start=len(tail), bounds=cfg.motion)
-            st_fl = static(ch.time, ch.dtheta, ch.dv, t_prev) if static is not None else np.zeros(m, np.bool_)
-            keep = max(0, min(nwin, m))
-            tail = ImuData(ch.time[m - keep:], ch.dtheta[m - keep:], ch.dv[m - keep:],
-                           t0=float(ch.time[m - keep - 1]) if m - keep > 0 else t_prev)
-            t_prev = float(ch.time[-1])
-            a = max(0, k0 - n_seen)  # samples before the first one used (automatic initialisation)
-            n_seen += m
-            if a >= m:
-                continue
-            t = ch.time[a:]
-            kb = cy.k0
-            if ini.reset_idx == NEVER and rt is not None and np.isfinite(rt) and t[-1] >= rt:
-                ini = ini._replace(reset_idx=kb + int(np.searchsorted(t, rt, side="left")))
-            static_used += int(st_fl[a:].sum())
-            # the records this chunk can reach (the engine's own bound, with a margin): its log then
-            # holds those rows, not the whole log's (memory and time independent of the log length)
-            g0 = cy.gi
-            g1 = M if last or not window else min(M, int(np.searchsorted(su.rec.t, t[-1] + REC_AHEAD_S,
-                                                                              side="right")) + 1)
-            rec_k = _rec_window(su.rec, g0, g1) if window else su.rec
-            gb = g0 if window else 0  # global index of the window's first record
-            cy = cy._replace(last=last, gi=cy.gi - gb)
-            imu_k = Imu(t, dth[a:], dv[a:], st_fl[a:], gap_var[a:], np.zeros((0, 2)))
-            r = run_chunk(imu_k, rec_k, su.models, su.proc, ini, out, cy)
-            cy = r.carry._replace(gi=r.carry.gi + gb)
-            if rec_log is None:
-                rec_log = _new_rec_log(su.rec)
-            m_k = len(rec_k.t)
-            _keep_rows(rec_log, r.log, g0, cy.gi, gb)
-            node_model.append(r.log.model[m_k:r.n_log].copy())
-            node_status.append(r.log.status[m_k:r.n_log].copy())
-            n_nodes += len(r.node_idx)
-            if smooth and len(r.node_idx):
-                node_idx_l.append(r.node_idx.copy())
-                node_dx.append(r.S_dx.copy())
-                k = len(r.node_idx)
-                node_spool.write(np.concatenate([r.S_post.reshape(k, -1), r.S_prior.reshape(k, -1),
-                                                 r.S_phi.reshape(k, -1)], axis=1))
-            if len(r.out_idx):
-                tt = t[r.out_idx - kb]
-                if spool is not None:
-                    spool.write(np.column_stack([tt, r.out_idx, r.out_node, r.out_st, r.out_bias,
-                                                 r.out_pdiag]))
-                else:
-                    last_piece = _piece(tt, r.out_st, r.out_bias, r.out_pdiag, lay)
-                    emit(last_piece)
+            fw.chunk(ch, last)
             if progress is not None:
-                progress(m)
+                progress(len(ch))
+        log = fw.log()
+        events += reinit_events(log)
+        d_hat = fw.time_offset()
+        smoothed = fw.emit_spooled(d_hat) if fw.spool is not None else False
+    finally:
+        fw.close()
+    return fw.result(log, gnss, smoothed)
+
+
+class _Forward:
+    """The forward pass of :func:`stream_loose`: the set-up on the head, then one engine call a chunk from
+    the carried state; the outputs emitted (or spooled, for the smoother or a time-offset shift), the
+    per-record log and the node matrices kept."""
+
+    def __init__(self, head, gnss, cfg, withheld, events, aids, smooth, spool_dir, emit):
+        self.su = su = loose_setup(head, gnss, cfg, withheld, events, aids)
+        self.cfg, self.lay, self.n, self.k0 = su.cfg, su.lay, su.n, su.k0
+        self.events, self.emit, self.smooth = events, emit, smooth
+        self.ini, self.rt = su.ini, su.reset_time
+        if self.rt is not None and not self.rt <= head.time[-1]:
+            self.ini = self.ini._replace(reset_idx=NEVER)  # found below in its chunk (inf: never)
+        dt_head = np.diff(np.concatenate([[head.t0], head.time]))
+        self.med, rate = float(np.median(dt_head)), head.rate_hz
+        self.nwin = max(2, int(round(1.0 / self.med)))
+        zupt = self.cfg.constraints.zupt
+        self.static = StaticDetector(visible_fixes(gnss, withheld), self.cfg, rate) if zupt else None
+        self.out = Output(su.out_every, bool(smooth), np.zeros(0, np.int64))
+        self.M = len(su.rec.t)
+        self.rec_log = None
+        self.window = su.rec.grp.t.shape[0] == 0  # (epoch records index the whole log: not windowed)
+        self.node_model, self.node_status, self.static_used, self.n_nodes = [], [], 0, 0
+        self.spool = self.node_spool = None
+        # with the smoother: per node its sample and δx (Φ, P⁻, P⁺ on disk)
+        self.node_idx_l, self.node_dx = [], []
+        n = self.n
+        if smooth or self.lay[L_TOFF] >= 0:
+            self.spool = Spool(spool_dir, 3 + 10 + (n - NAV) + n)
+        if smooth:
+            self.node_spool = Spool(spool_dir, 3 * n * n)
+        self.cy = start_carry(su.rec, su.proc, self.ini, False)
+        self.tail, self.n_seen, self.t_prev, self.last_piece = None, 0, head.t0, None
+
+    def _prepare(self, ch):
+        """The chunk's increments with the gap bridge (the window before it carried) and static flags
+        (the carried sums)."""
+        m, tail, cfg = len(ch), self.tail, self.cfg
+        if tail is None:
+            dth, dv, gap_var = bridge_gaps(ch, self.events, med=self.med, bounds=cfg.motion)
+        else:
+            j = ImuData(np.concatenate([tail.time, ch.time]), np.concatenate([tail.dtheta, ch.dtheta]),
+                        np.concatenate([tail.dv, ch.dv]), t0=tail.t0)
+            dth, dv, gap_var = bridge_gaps(j, self.events, med=self.med, start=len(tail), bounds=cfg.motion)
+        st_fl = (self.static(ch.time, ch.dtheta, ch.dv, self.t_prev) if self.static is not None
+                 else np.zeros(m, np.bool_))
+        keep = max(0, min(self.nwin, m))
+        self.tail = ImuData(ch.time[m - keep:], ch.dtheta[m - keep:], ch.dv[m - keep:],
+                            t0=float(ch.time[m - keep - 1]) if m - keep > 0 else self.t_prev)
+        self.t_prev = float(ch.time[-1])
+        return dth, dv, gap_var, st_fl
+
+    def chunk(self, ch, last: bool) -> None:
+        """One engine call over the chunk ``ch`` (``last``: the log's last)."""
+        su, m = self.su, len(ch)
+        dth, dv, gap_var, st_fl = self._prepare(ch)
+        a = max(0, self.k0 - self.n_seen)  # samples before the first one used (automatic initialisation)
+        self.n_seen += m
+        if a >= m:
+            return
+        t = ch.time[a:]
+        kb, rt = self.cy.k0, self.rt
+        if self.ini.reset_idx == NEVER and rt is not None and np.isfinite(rt) and t[-1] >= rt:
+            self.ini = self.ini._replace(reset_idx=kb + int(np.searchsorted(t, rt, side="left")))
+        self.static_used += int(st_fl[a:].sum())
+        # the records this chunk can reach (the engine's own bound, with a margin): its log then holds
+        # those rows, not the whole log's (memory and time independent of the log length)
+        g0 = self.cy.gi
+        g1 = self.M if last or not self.window else min(
+            self.M, int(np.searchsorted(su.rec.t, t[-1] + REC_AHEAD_S, side="right")) + 1)
+        rec_k = _rec_window(su.rec, g0, g1) if self.window else su.rec
+        gb = g0 if self.window else 0  # global index of the window's first record
+        cy = self.cy._replace(last=last, gi=self.cy.gi - gb)
+        imu_k = Imu(t, dth[a:], dv[a:], st_fl[a:], gap_var[a:], np.zeros((0, 2)))
+        r = run_chunk(imu_k, rec_k, su.models, su.proc, self.ini, self.out, cy)
+        self.cy = r.carry._replace(gi=r.carry.gi + gb)
+        if self.rec_log is None:
+            self.rec_log = _new_rec_log(su.rec)
+        m_k = len(rec_k.t)
+        _keep_rows(self.rec_log, r.log, g0, self.cy.gi, gb)
+        self.node_model.append(r.log.model[m_k:r.n_log].copy())
+        self.node_status.append(r.log.status[m_k:r.n_log].copy())
+        self.n_nodes += len(r.node_idx)
+        if self.smooth and len(r.node_idx):
+            self.node_idx_l.append(r.node_idx.copy())
+            self.node_dx.append(r.S_dx.copy())
+            k = len(r.node_idx)
+            self.node_spool.write(np.concatenate([r.S_post.reshape(k, -1), r.S_prior.reshape(k, -1),
+                                                  r.S_phi.reshape(k, -1)], axis=1))
+        if len(r.out_idx):
+            tt = t[r.out_idx - kb]
+            if self.spool is not None:
+                self.spool.write(np.column_stack([tt, r.out_idx, r.out_node, r.out_st, r.out_bias,
+                                                  r.out_pdiag]))
+            else:
+                self.last_piece = _piece(tt, r.out_st, r.out_bias, r.out_pdiag, self.lay)
+                self.emit(self.last_piece)
+
+    def log(self) -> dict:
+        """The per-record log of the whole run (:func:`aidnav.filters.run_log.log_dict`)."""
+        if self.rec_log is None:
+            raise ValueError("no IMU sample after the initialisation")
+        self.rec_log["ref"] = np.arange(self.M, dtype=np.int64)
+        return log_dict(Log(**self.rec_log), self.M)
+
+    def time_offset(self) -> float:
+        """The final IMU time-offset estimate d̂ (0 without its state; an event names it): the output
+        times are shifted by it."""
+        lay, cy = self.lay, self.cy
         d_hat = float(cy.bias[lay[L_TOFF] - NAV]) if lay[L_TOFF] >= 0 else 0.0
         if d_hat:
             sd = float(np.sqrt(cy.P[lay[L_TOFF], lay[L_TOFF]]))
-            events.append(f"IMU time offset estimated {d_hat:+.4f} s (sigma {sd:.4f} s): output times "
-                          "shifted by it")
+            self.events.append(f"IMU time offset estimated {d_hat:+.4f} s (sigma {sd:.4f} s): output times "
+                               "shifted by it")
+        return d_hat
+
+    def emit_spooled(self, d_hat: float) -> bool:
+        """The spooled forward outputs emitted (times shifted by ``d_hat``), smoothed where the smoother
+        runs (the forward pieces first, ``forward=True``); returns whether they were smoothed."""
+        n, lay, emit = self.n, self.lay, self.emit
+        ds = node_idx = S_dx = pd_nodes = None
         smoothed = False
-        if spool is not None:
-            ds = None
-            if smooth and n_nodes > 1:
-                node_idx, S_dx = np.concatenate(node_idx_l), np.concatenate(node_dx)
-                ds, pd_nodes = _rts_spooled(node_spool, S_dx, n, cy.reset_node)
-                smoothed = True
-            nb = n - NAV
-            for rows in spool.read(1 << 13):
-                tt, oi, on = rows[:, 0] + d_hat, rows[:, 1].astype(np.int64), rows[:, 2].astype(np.int64)
-                st, b, pd = rows[:, 3:13], rows[:, 13:13 + nb], rows[:, 13 + nb:]
-                if smoothed:
-                    emit(_piece(tt, st, b, pd, lay), forward=True)
-                    st, b = smooth_outputs(oi, np.ascontiguousarray(st), np.ascontiguousarray(b), on,
-                                           node_idx, ds, S_dx, n)
-                    pd = pd_nodes[np.clip(on, 0, len(node_idx) - 1)]
-                last_piece = _piece(tt, st, b, pd, lay, smoothed)
-                emit(last_piece)
-    finally:
-        for sp in (spool, node_spool):
+        if self.smooth and self.n_nodes > 1:
+            node_idx, S_dx = np.concatenate(self.node_idx_l), np.concatenate(self.node_dx)
+            ds, pd_nodes = _rts_spooled(self.node_spool, S_dx, n, self.cy.reset_node)
+            smoothed = True
+        nb = n - NAV
+        for rows in self.spool.read(1 << 13):
+            tt, oi, on = rows[:, 0] + d_hat, rows[:, 1].astype(np.int64), rows[:, 2].astype(np.int64)
+            st, b, pd = rows[:, 3:13], rows[:, 13:13 + nb], rows[:, 13 + nb:]
+            if smoothed:
+                emit(_piece(tt, st, b, pd, lay), forward=True)
+                st, b = smooth_outputs(oi, np.ascontiguousarray(st), np.ascontiguousarray(b), on,
+                                       node_idx, ds, S_dx, n)
+                pd = pd_nodes[np.clip(on, 0, len(node_idx) - 1)]
+            self.last_piece = _piece(tt, st, b, pd, lay, smoothed)
+            emit(self.last_piece)
+        return smoothed
+
+    def close(self) -> None:
+        for sp in (self.spool, self.node_spool):
             if sp is not None:
                 sp.close()
-    if rec_log is None:
-        raise ValueError("no IMU sample after the initialisation")
-    rec_log["ref"] = np.arange(M, dtype=np.int64)
-    log = log_dict(Log(**rec_log), M)
-    node_m = np.concatenate(node_model) if node_model else np.zeros(0, np.int8)
-    node_s = np.concatenate(node_status) if node_status else np.zeros(0, np.int8)
-    cnt = loose_counts({"model": np.concatenate([log["model"], node_m]),
-                        "status": np.concatenate([log["status"], node_s])},
-                       n_nodes, static_used, n_seen, k0)
-    if smoothed:  # the size of the node matrices (of run_loose; here on disk, read back in blocks)
-        cnt["smoother_memory_mb"] = 4 * n_nodes * n * n * 8 / 1e6
-    res = last_piece if last_piece is not None else _piece(np.zeros(0), np.zeros((0, 10)),
-                                                           np.zeros((0, n - NAV)), np.zeros((0, n)), lay)
-    res.records = gnss_records(log, su.rmap, len(gnss))
-    res.counts, res.final_P, res.innovations, res.events = cnt, cy.P.copy(), log, events
-    res.state_names, res.calibration_base = layout_names(lay), calibration_base(cfg)
-    res.gnss_time = np.asarray(gnss.time, float)
-    res.node_time = np.zeros(0)
-    return res
+
+    def result(self, log, gnss, smoothed: bool) -> FilterResult:
+        """The run's :class:`FilterResult`: the last output epoch, the records, counts, log, final P."""
+        n, lay, cfg = self.n, self.lay, self.cfg
+        node_m = np.concatenate(self.node_model) if self.node_model else np.zeros(0, np.int8)
+        node_s = np.concatenate(self.node_status) if self.node_status else np.zeros(0, np.int8)
+        cnt = loose_counts({"model": np.concatenate([log["model"], node_m]),
+                            "status": np.concatenate([log["status"], node_s])},
+                           self.n_nodes, self.static_used, self.n_seen, self.k0)
+        if smoothed:  # the size of the node matrices (of run_loose; here on disk, read back in blocks)
+            cnt["smoother_memory_mb"] = 4 * self.n_nodes * n * n * 8 / 1e6
+        res = self.last_piece if self.last_piece is not None else _piece(
+            np.zeros(0), np.zeros((0, 10)), np.zeros((0, n - NAV)), np.zeros((0, n)), lay)
+        res.records = gnss_records(log, self.su.rmap, len(gnss))
+        res.counts, res.final_P, res.innovations, res.events = cnt, self.cy.P.copy(), log, self.events
+        res.state_names, res.calibration_base = layout_names(lay), calibration_base(cfg)
+        res.gnss_time = np.asarray(gnss.time, float)
+        res.node_time = np.zeros(0)
+        return res
 
 
 #: the records given to a chunk: those stamped up to this long after its last sample (the engine looks

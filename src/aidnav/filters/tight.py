@@ -50,18 +50,27 @@ from pydantic import BaseModel, ConfigDict, Field
 from aidnav.nav.earth import radii
 from aidnav.nav.gnss_sat import (
     C_LIGHT,
+    E_URA,
     FREQ_L1,
     dual_frequency_iono,
     iono_fallback_note,
     klobuchar_coefficients,
+    select_ephemeris,
 )
+from aidnav.nav.gnss_sat import satellite_states as _satellites
+from aidnav.nav.rotations import quat_from_euler
+from aidnav.units import DEG
 
 from . import measurements as ms
 from .chi2 import chi2_isf
-from .config import Constraints, FilterSettings, ImuNoise, Initialisation
-from .engine import Imu, Init, Models, Output, Process, Records, rts, run_filter, smooth_outputs
+from .config import Constraints, FilterSettings, ImuNoise, Initialisation, LooseConfig
+from .engine import NEVER, Imu, Init, Models, Output, Process, Records, rts, run_filter, smooth_outputs
 from .layout import L_CLK, L_ISB, L_N, L_NINS, L_RERR, L_SIZE
+from .loose import LooseResult, bridge_gaps
+from .loose import to_trajectory as nav_trajectory
 from .measurements import epoch as ep
+from .prior import given_initial_state, initial_covariance, process_noise
+from .run_log import log_dict
 
 __all__ = ["CLOCK_GRADES", "RawGnssAiding", "TightConfig", "TightResult", "apply_vehicle", "clock_allan",
            "run_tight", "tight_layout",
@@ -207,9 +216,6 @@ def tight_layout(states: int, n_range: int = 0, n_isb: int = 0) -> np.ndarray:
 
 
 def _noise_vector(cfg: TightConfig, n_range: int = 0, n_isb: int = 0) -> np.ndarray:
-    from .config import LooseConfig
-    from .prior import process_noise
-
     lc = LooseConfig(imu=cfg.imu)
     q = np.zeros(N_NOISE + n_isb + n_range)
     q[:12] = process_noise(lc, 15)
@@ -223,9 +229,6 @@ def _noise_vector(cfg: TightConfig, n_range: int = 0, n_isb: int = 0) -> np.ndar
 
 
 def _initial_P(cfg: TightConfig, lat, h, att_sig, n_range: int = 0, n_isb: int = 0) -> np.ndarray:
-    from .config import LooseConfig
-    from .prior import initial_covariance
-
     nn = 9 if cfg.states == 11 else 15
     n = nn + 2 + n_isb + n_range
     P15 = initial_covariance(LooseConfig(imu=cfg.imu, init=cfg.init), 15, lat, h, att_sig)
@@ -315,9 +318,6 @@ def _records(t_obs, rows, velocity_fixes, S):
 def _satellite_arrays(obs, eph, use_tgd, max_age):
     """Satellite positions, velocities, clocks, clock rates (M, S, ...) and the URA [m] of the
     ephemeris used (M, S)."""
-    from aidnav.nav.gnss_sat import E_URA, select_ephemeris
-    from aidnav.nav.gnss_sat import satellite_states as _satellites
-
     M, S = obs.code1.shape
     sp = np.full((M, S, 3), np.nan)
     sv = np.full((M, S, 3), np.nan)
@@ -353,13 +353,6 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     middle of each interval), the loosely coupled filter's velocity model, gated by ``gate_probability``.
     smooth : also run the RTS smoother (``state``, ``clock``, ``pdiag`` are then the smoothed ones).
     """
-    from aidnav.nav.rotations import quat_from_euler
-
-    from .config import DEG
-    from .loose import NEVER, bridge_gaps
-    from .prior import given_initial_state
-    from .run_log import log_dict
-
     cfg = cfg or TightConfig()
     events = events if events is not None else []
     if eph.ref_week != obs.ref_week:
@@ -506,9 +499,6 @@ def tight_nav_covariance_m(P_nav: np.ndarray, lat: float, h: float) -> np.ndarra
 def to_trajectory(res: TightResult):
     """TightResult → :class:`aidnav.data.Trajectory` (σ columns, bias and clock columns); the navigation
     part is the loosely coupled filter's conversion (same state layout for the first 9 + 6 states)."""
-    from .loose import LooseResult
-    from .loose import to_trajectory as nav_trajectory
-
     bias = res.bias[:, :6] if res.bias.shape[1] >= 6 else res.bias[:, :0]
     traj = nav_trajectory(LooseResult(res.time, res.state, bias, res.pdiag, res.time))
     traj.extra.update({"clock_bias_m": res.clock[:, 0], "clock_drift_m_s": res.clock[:, 1]})

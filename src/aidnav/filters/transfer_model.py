@@ -54,7 +54,7 @@ from aidnav.nav.earth import radii
 from aidnav.units import DEG, DEG_H, UG
 
 from . import measurements as ms
-from .engine import Models, Process, exact_blocks
+from .engine import NEVER, Models, Process, exact_blocks
 from .ins_errors import fill_model
 from .kalman import discretize
 from .layout import L_FLEX, make_layout
@@ -70,7 +70,6 @@ __all__ = ["PHI", "DV", "DP", "BG", "BA", "RHO", "THETA", "THETA_DOT", "Transfer
 PHI, DV, DP, BG, BA, RHO, THETA, THETA_DOT = 0, 3, 6, 9, 12, 15, 18, 21
 N_INS = 15
 N_NOISE_INS = 12  # fill_model's noise inputs for 15 states
-NEVER = 2**62  # no consecutive-rejection rule
 
 
 def state_labels(nstate: int = 24) -> list[str]:

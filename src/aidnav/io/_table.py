@@ -264,6 +264,7 @@ def _read_csv(path: Path) -> InterchangeTable:
         tbl = pacsv.read_csv(io.BytesIO(body), read_options=ropts, convert_options=sopts)
         cols = {}
         for n in names:
+            # lazy: pandas is heavy to import
             import pandas as pd  # only for columns that are not plain numbers
 
             s = pd.Series(tbl.column(n).to_numpy(zero_copy_only=False), dtype=object).str.strip()
@@ -306,6 +307,7 @@ def _read_parquet(path: Path, copy: bool = True) -> InterchangeTable:
         if pa.types.is_integer(col.type) or pa.types.is_floating(col.type):
             cols[n] = column_to_f64(col, copy=copy)
         else:
+            # lazy: pandas is heavy to import
             import pandas as pd  # only for columns that are not plain numbers
 
             s = pd.Series(col.to_numpy(zero_copy_only=False), dtype=object)

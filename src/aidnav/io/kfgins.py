@@ -22,6 +22,7 @@ of the RFU body in ENU, so they are taken as they are (heading wrapped to [0, 36
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -29,7 +30,7 @@ import numpy as np
 from aidnav.data import GnssData, ImuData, Trajectory
 from aidnav.io._std import DEFAULT_POS_STD_M, ZERO_POS_STD_FLOOR_M, check_std
 from aidnav.io._text import check_increasing, read_numeric_text
-from aidnav.io.atomic import replacing
+from aidnav.io.atomic import part_path, replacing
 from aidnav.io.errors import DataError
 from aidnav.nav.rotations import wrap_2pi, wrap_360
 
@@ -113,6 +114,23 @@ def _write_rows(path, cols: list[np.ndarray], int_cols=()) -> Path:
     return path
 
 
+def nav_rows(traj: Trajectory, week: int | None = None) -> np.ndarray:
+    """The rows of a KF-GINS ``.nav`` file (:func:`write_nav`) for ``traj``: (N, 11)."""
+    heading = wrap_360(np.degrees(traj.rph[:, 2]))
+    heading[heading >= 360.0] = 0.0
+    week = traj.week if week is None else week
+    roll = np.floor(np.asarray(traj.time) / 604800.0) if week is not None else 0.0  # past the week end
+    wk = (0 if week is None else int(week)) + roll * np.ones(len(traj.time))
+    sow = np.asarray(traj.time) - roll * 604800.0
+    return np.column_stack([wk, sow, np.degrees(traj.lat), np.degrees(traj.lon), traj.height, traj.vel[:, 1],
+                            traj.vel[:, 0], -traj.vel[:, 2], np.degrees(traj.rph[:, 0]),
+                            np.degrees(traj.rph[:, 1]), heading])
+
+
+#: the number format of a ``.nav`` row: week as an integer, the rest at full float64 precision
+NAV_FORMAT = " ".join(["%d"] + ["%.17g"] * 10)
+
+
 def write_nav(traj: Trajectory, path, week: int | None = None) -> Path:
     """Write ``traj`` as a KF-GINS ``.nav`` text file: ``week sow lat lon h vN vE vD roll pitch yaw``
     (week, seconds of week [s], [deg], [deg], [m], NED [m/s], [deg]; yaw = heading in [0, 360)).
@@ -120,16 +138,34 @@ def write_nav(traj: Trajectory, path, week: int | None = None) -> Path:
     week : the GPS week of ``traj.time`` (default ``traj.week``; written as 0 when unknown, as KF-GINS
     data sets do).
     Full float64 precision (``%.17g``): reading it back gives the same numbers."""
-    heading = wrap_360(np.degrees(traj.rph[:, 2]))
-    heading[heading >= 360.0] = 0.0
-    week = traj.week if week is None else week
-    roll = np.floor(np.asarray(traj.time) / 604800.0) if week is not None else 0.0  # past the week end
-    wk = (0 if week is None else int(week)) + roll * np.ones(len(traj.time))
-    sow = np.asarray(traj.time) - roll * 604800.0
-    return _write_rows(path, [wk, sow, np.degrees(traj.lat),
-                              np.degrees(traj.lon), traj.height, traj.vel[:, 1], traj.vel[:, 0],
-                              -traj.vel[:, 2], np.degrees(traj.rph[:, 0]), np.degrees(traj.rph[:, 1]),
-                              heading], int_cols=(0,))
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with replacing(path) as tmp:
+        np.savetxt(tmp, nav_rows(traj, week), fmt=NAV_FORMAT)
+    return path
+
+
+class NavWriter:
+    """A KF-GINS ``.nav`` file written piece by piece (``write(traj)`` in time order, then ``close()``;
+    ``abort()`` on an error): the rows of :func:`write_nav`, as ``NAME.part`` renamed when complete."""
+
+    def __init__(self, path, week: int | None = None):
+        self.path, self.week = Path(path), week
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.part = part_path(self.path)
+        self.f = open(self.part, "wb")
+
+    def write(self, traj) -> None:
+        np.savetxt(self.f, nav_rows(traj, self.week), fmt=NAV_FORMAT)
+
+    def close(self) -> Path:
+        self.f.close()
+        os.replace(self.part, self.path)
+        return self.path
+
+    def abort(self) -> None:
+        self.f.close()
+        self.part.unlink(missing_ok=True)
 
 
 def write_imu(imu: ImuData, path) -> Path:

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from aidnav.io.errors import DataError
-from aidnav.io.gpstime import SECONDS_PER_WEEK, calendar_to_week_sow
+from aidnav.io.gpstime import SECONDS_PER_WEEK, calendar_to_week_sow, leap_seconds
 from aidnav.nav.gnss_sat import (
     E_AF0,
     E_AF1,
@@ -125,8 +125,6 @@ def _keplerian_row(get, it, js, sid, sys, wk_toc, sow_toc, ref_week):
 
 def _glonass_row(get, it, js, sid, t_utc, ref_week):
     """One GLONASS record: the PZ-90 state at t_b (the record's UTC epoch + leap seconds, module doc)."""
-    from aidnav.io.gpstime import leap_seconds  # lazy: only files with GLONASS records
-
     r = np.zeros(N_EPH)
     r[E_PRN] = sid
     unix = t_utc.astype("datetime64[ns]").astype(np.int64) / 1e9

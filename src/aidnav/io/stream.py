@@ -18,12 +18,14 @@ from __future__ import annotations
 
 import json
 import os
+import queue
 import tempfile
+import threading
 from pathlib import Path
 
 import numpy as np
 
-from aidnav.data import ImuData
+from aidnav.data import ImuData, Trajectory
 from aidnav.io.errors import DataError
 
 __all__ = ["iter_imu", "TrajectoryWriter", "imu_time_span", "trajectory_chunks", "TrajectoryChunks",
@@ -36,10 +38,10 @@ CSV_BLOCK_BYTES = 1 << 20
 def _parquet_imu(path: Path):
     """(ParquetFile, columns used, increments?, metadata dict) of an interchange IMU Parquet file, or None
     when it is not one (another reader takes it)."""
-    import pyarrow.parquet as pq
+    import pyarrow.parquet as pq  # lazy: pyarrow is heavy to import
 
-    from aidnav.io._table import META_KEY
-    from aidnav.io.interchange import IMU_INCREMENT_COLUMNS, IMU_RATE_COLUMNS
+    from aidnav.io._table import META_KEY  # lazy: pulls in pyarrow
+    from aidnav.io.interchange import IMU_INCREMENT_COLUMNS, IMU_RATE_COLUMNS  # lazy: pulls in numba, pyarrow
 
     if path.suffix.lower() not in (".parquet", ".pq"):
         return None
@@ -61,7 +63,7 @@ def _parquet_imu(path: Path):
 def _numeric_time(path, typ, pf=None) -> None:
     """The interchange ``time`` column is a number of seconds: a timestamp, date or string column is
     refused naming the column and what to write instead."""
-    import pyarrow as pa
+    import pyarrow as pa  # lazy: pyarrow is heavy to import
 
     if pa.types.is_integer(typ) or pa.types.is_floating(typ):
         return
@@ -105,7 +107,7 @@ def iter_imu(path, chunk_rows: int = 1 << 16, reader=None):
     got = _parquet_imu(path)
     if got is None:
         if reader is None:
-            from aidnav.io.formats import read_imu as reader
+            from aidnav.io.formats import read_imu as reader  # lazy: pulls in numba
         imu = reader(path)
         for a in range(0, len(imu), chunk_rows):
             b = min(a + chunk_rows, len(imu))
@@ -113,8 +115,8 @@ def iter_imu(path, chunk_rows: int = 1 << 16, reader=None):
             yield ImuData(imu.time[a:b], imu.dtheta[a:b], imu.dv[a:b], t0=t0, week=imu.week,
                           events=imu.events if a == 0 else [])
         return
-    from aidnav.io._arrow import column_to_f64
-    from aidnav.io.interchange import IMU_RATE_COLUMNS
+    from aidnav.io._arrow import column_to_f64  # lazy: pulls in pyarrow
+    from aidnav.io.interchange import IMU_RATE_COLUMNS  # lazy: pulls in numba, pyarrow
 
     pf, cols, inc, meta = got
     week = meta.get("gps_week")
@@ -199,7 +201,7 @@ class TrajectoryWriter:
 
     def _flush(self) -> None:
         """The pieces held, as one row group."""
-        import pyarrow as pa
+        import pyarrow as pa  # lazy: pyarrow is heavy to import
 
         if self.held:
             tbl = self.held[0] if len(self.held) == 1 else pa.concat_tables(self.held)
@@ -207,18 +209,18 @@ class TrajectoryWriter:
             self.w.write_table(tbl, row_group_size=max(1, tbl.num_rows))
 
     def open_table(self, schema):
-        from aidnav.io._table import META_KEY
+        from aidnav.io._table import META_KEY  # lazy: pulls in pyarrow
 
         week = self.week
         if self.kind == "parquet":
-            import pyarrow.parquet as pq
+            import pyarrow.parquet as pq  # lazy: pyarrow is heavy to import
 
             md = dict(schema.metadata or {})
             md[META_KEY] = json.dumps({} if week is None else {"gps_week": int(week)}).encode()
             # no dictionary pages: float columns never repeat (4 times faster to write, smaller)
             self.w = pq.ParquetWriter(self.part, schema.with_metadata(md), use_dictionary=False)
         else:
-            import pyarrow.csv as pacsv
+            import pyarrow.csv as pacsv  # lazy: pyarrow is heavy to import
 
             self.f = open(self.part, "wb")
             wk = "" if week is None else f"; time = GPS seconds of week {int(week)}, utc = UTC (ISO 8601)"
@@ -262,9 +264,6 @@ class Background:
     _END = object()
 
     def __init__(self, fn, maxsize: int = 2):
-        import queue
-        import threading
-
         self.fn, self.q, self.error, self.stop = fn, queue.Queue(maxsize), None, False
         self.t = threading.Thread(target=self._run, name="aidnav-background", daemon=True)
         self.t.start()
@@ -305,7 +304,6 @@ _TRAJ_FIELDS = ("time", "lat", "lon", "height", "vel", "rph", "std_pos", "std_ve
 
 def take_rows(tr, m):
     """The rows ``m`` (slice, indices or mask) of a :class:`aidnav.data.Trajectory`."""
-    from aidnav.data import Trajectory
 
     def f(x):
         return None if x is None else x[m]
@@ -316,7 +314,6 @@ def take_rows(tr, m):
 
 def concat_rows(parts):
     """The :class:`aidnav.data.Trajectory` of ``parts`` one after the other (same columns)."""
-    from aidnav.data import Trajectory
 
     def c(name):
         xs = [getattr(p, name) for p in parts]
@@ -362,6 +359,7 @@ class _FileChunks(TrajectoryChunks):
 
     def __init__(self, path: Path, names: list[str], kind: str, csv_head, meta: dict, chunk_rows: int,
                  height_offset_m: float):
+        # lazy: pulls in numba, pyarrow
         from aidnav.io.interchange import (
             GNSS_STD_POS_COLUMNS,
             OLD_STD_ATT,
@@ -386,8 +384,8 @@ class _FileChunks(TrajectoryChunks):
     def _tables(self, columns=None):
         """(row of the first record, {name: float64 column}) per batch; a CSV the streaming reader cannot
         parse is read whole by the file reader (which names the problem, or reads what is left)."""
-        from aidnav.io._arrow import column_to_f64
-        from aidnav.io._table import TEXT_COLUMNS
+        from aidnav.io._arrow import column_to_f64  # lazy: pulls in pyarrow
+        from aidnav.io._table import TEXT_COLUMNS  # lazy: pulls in pyarrow
 
         cols = [c for c in (columns or self.names) if c not in TEXT_COLUMNS]
         row, held, n_held = 0, [], 0  # rows yielded; batches held for the next piece (CSV: small blocks)
@@ -403,7 +401,7 @@ class _FileChunks(TrajectoryChunks):
         except DataError:
             raise
         except Exception:  # noqa: BLE001  (the whole-file reader gives the message or the values)
-            from aidnav.io._table import open_table
+            from aidnav.io._table import open_table  # lazy: pulls in pyarrow
 
             t = open_table(self.path)
             n = len(t)
@@ -412,7 +410,7 @@ class _FileChunks(TrajectoryChunks):
 
     def _arrow_batches(self, cols):
         if self.kind == "parquet":
-            import pyarrow.parquet as pq
+            import pyarrow.parquet as pq  # lazy: pyarrow is heavy to import
 
             with pq.ParquetFile(self.path, pre_buffer=False, buffer_size=1 << 20) as pf:
                 for b in pf.iter_batches(batch_size=self.chunk_rows, columns=cols, use_threads=False):
@@ -420,8 +418,8 @@ class _FileChunks(TrajectoryChunks):
                         raise ValueError("non-numeric column")
                     yield b
             return
-        import pyarrow as pa
-        import pyarrow.csv as pacsv
+        import pyarrow as pa  # lazy: pyarrow is heavy to import
+        import pyarrow.csv as pacsv  # lazy: pyarrow is heavy to import
 
         skip, delim, line_len = self.csv_head
         # Arrow's streaming reader reads up to 32 blocks ahead of its consumer (its background read-ahead
@@ -439,8 +437,8 @@ class _FileChunks(TrajectoryChunks):
                 yield b
 
     def __iter__(self):
-        from aidnav.io._table import InterchangeTable
-        from aidnav.io.interchange import trajectory_from_table
+        from aidnav.io._table import InterchangeTable  # lazy: pulls in pyarrow
+        from aidnav.io.interchange import trajectory_from_table  # lazy: pulls in numba, pyarrow
 
         first = 1 if self.kind == "parquet" else self.csv_head[0] + 1
         last_t = None
@@ -468,7 +466,7 @@ def _joined(held: list[dict], cols) -> dict:
 
 
 def _numeric(t) -> bool:
-    import pyarrow as pa
+    import pyarrow as pa  # lazy: pyarrow is heavy to import
 
     return pa.types.is_integer(t) or pa.types.is_floating(t)
 
@@ -476,7 +474,7 @@ def _numeric(t) -> bool:
 def _csv_head(path: Path):
     """(lines before the first record, delimiter, bytes per line) of an interchange CSV file, and its
     header names and comment metadata; None when it has no header."""
-    from aidnav.io._table import T0_RE, WEEK_RE, csv_delimiter
+    from aidnav.io._table import T0_RE, WEEK_RE, csv_delimiter  # lazy: pulls in pyarrow
 
     with open(path, "rb") as f:
         head = f.read(1 << 16)
@@ -519,9 +517,9 @@ def trajectory_chunks(path, chunk_rows: int = 1 << 15, height_offset_m: float = 
             return None
         suf = path.suffix.lower()
         if suf in (".parquet", ".pq"):
-            import pyarrow.parquet as pq
+            import pyarrow.parquet as pq  # lazy: pyarrow is heavy to import
 
-            from aidnav.io._table import META_KEY
+            from aidnav.io._table import META_KEY  # lazy: pulls in pyarrow
 
             with pq.ParquetFile(path) as pf:
                 schema, rows = pf.schema_arrow, pf.metadata.num_rows
@@ -540,7 +538,7 @@ def trajectory_chunks(path, chunk_rows: int = 1 << 15, height_offset_m: float = 
             return None
     except Exception:  # noqa: BLE001  (not readable here: the whole-file reader names the problem)
         return None
-    from aidnav.io.interchange import TRAJECTORY_COLUMNS
+    from aidnav.io.interchange import TRAJECTORY_COLUMNS  # lazy: pulls in numba, pyarrow
 
     if not set(TRAJECTORY_COLUMNS) <= set(names) or len(set(names)) != len(names):
         return None
@@ -559,8 +557,8 @@ class CsvColumnsWriter:
         self.part = self.path.with_name(self.path.name + ".part")
 
     def write(self, cols: dict) -> None:
-        import pyarrow as pa
-        import pyarrow.csv as pacsv
+        import pyarrow as pa  # lazy: pyarrow is heavy to import
+        import pyarrow.csv as pacsv  # lazy: pyarrow is heavy to import
 
         arrays = []
         for v in cols.values():  # NaN → null (an empty field), without pa.array (it imports pandas)

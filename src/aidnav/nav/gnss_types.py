@@ -6,7 +6,7 @@ Times are GPS seconds from the start of a reference week (:mod:`aidnav.nav.gnss_
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -92,8 +92,6 @@ class GnssObservations:
 
     def with_frequencies(self, eph) -> GnssObservations:
         """The same observations with ``freq1`` from the ids and the GLONASS channels of ``eph``'s records."""
-        from dataclasses import replace  # lazy: one helper of one method
-
         return replace(self, freq1=carrier_frequencies(self.prn, eph.table))
 
     def range_rate(self) -> np.ndarray:

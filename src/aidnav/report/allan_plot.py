@@ -101,8 +101,9 @@ def warm_up() -> None:
     tick machinery and the PNG writer (~0.1 s CPU), which this moves ahead of the data
     (:class:`aidnav.apps.characterise.FigureProcess` runs it while the log is read). The figures drawn
     afterwards are the same, byte for byte (tests)."""
-    import io
+    import io  # lazy: only the warm-up and the saving need it
 
+    # lazy: only the warm-up and the saving need it
     from aidnav.analysis.noise_fit.results import AxisFit, TermEstimate
 
     tau = 2.0 ** np.arange(20) / 100.0
@@ -239,7 +240,7 @@ class AllanFigure:
             self.drawn += 1
 
     def save(self, path) -> Path:
-        import matplotlib.image
+        import matplotlib.image  # lazy: only the warm-up and the saving need it
 
         fig = self.fig
         if self.drawn < len(fig.axes):

@@ -383,198 +383,144 @@ def simulate_raw_gnss(
     S = len(eph.table)
     ss = np.random.SeedSequence(int(rng.integers(2**31)))
     r_sat, r_clk, r_mp, r_noise, r_base = (np.random.default_rng(s) for s in ss.spawn(5))
-    # satellite-level error draws (common to base and rover)
-    eph_err = r_sat.standard_normal((S, 3)) * np.asarray(spec.eph_sigma_rac_m, float)
-    clk_err = np.column_stack(
-        [
-            r_sat.standard_normal(S) * spec.sat_clock_sigma_m,
-            r_sat.standard_normal(S) * spec.sat_clock_drift_sigma_m_s,
-        ]
-    )
-    iono_scale = r_sat.standard_normal(S) * spec.iono_scale_sigma
-    iono_grad = r_sat.standard_normal((S, 2)) * spec.iono_gradient_mm_km
-    tropo_xi = r_sat.standard_normal(2)
+    sat = _satellite_errors(r_sat, S, spec)  # common to base and rover
     # receiver clocks (sampled on the tag grid)
     clk_k = simulate_clock(
         T, dt, spec.clock_h0, spec.clock_hm2, spec.clock_bias0_m, spec.clock_drift0_m_s, r_clk
     )
     t_rx_k = tags_rel - clk_k[:, 0] / C_LIGHT  # true reception times (truth scale)
     t_rx_k = np.clip(t_rx_k, t[0], t[-1])
+    r_a, v_a, lat, lon, h = _antenna_track(truth, t_rx_k, spec)
+    # reference point for the ionospheric gradient / tropospheric correlation
+    if base_lla is not None:
+        ref = tuple(float(x) for x in base_lla)
+    else:
+        ref = (float(lat[0]), float(lon[0]), float(h[0]))
+    d_km, dz_k, dz_b = _spatial_residuals(lat, lon, ref, sat["tropo_xi"], spec, base_lla is not None, T)
+    mp_k = _gm_unit(r_mp, T, S, dt, spec.multipath_tau_s)
+    noise_k = r_noise.standard_normal((T, S, 2))
+    t_clk_ref = t0_gps + t[0]
+    code, rate, el, az, ion, trop = _observe(t0_gps + t_rx_k, r_a, v_a, eph, sat, t_clk_ref, clk_k, d_km,
+                                             dz_k, mp_k, noise_k, spec)
+    prn = eph.table[:, 0].astype(int)
+    tags = t0_gps + tags_rel
+    freq = carrier_frequencies(prn, eph.table)
+    rover = GnssObservations(tags, eph.ref_week, prn, code, -rate / (C_LIGHT / freq),
+                             np.full_like(code, 45.0), None, None, None,
+                             ["simulated rover (aidnav.sim.gnss_raw)"], freq1=freq)
+    if spec.sat_windows:
+        rover = limit_satellites(rover, el, spec.sat_windows, t0_gps + t[0])
+    truth_d = {
+        "clock": clk_k, "antenna_ecef": r_a, "antenna_vel_ecef": v_a, "t_receive_gps": t0_gps + t_rx_k,
+        "elevation": el, "azimuth": az, "iono": ion, "tropo": trop, "eph_err_rac": sat["eph_err"],
+        "sat_clock_err": sat["clk_err"], "iono_scale": sat["iono_scale"],
+        "iono_gradient_mm_km": sat["iono_grad"], "tropo_residual_rover": dz_k, "tropo_residual_base": dz_b,
+        "tags_rel": tags_rel,
+    }
+    base = base_ecef = None
+    if base_lla is not None:
+        base_ecef = np.array(lla_to_ecef(*ref))
+        base = _base_observations(base_ecef, tags_rel, dt, t0_gps, eph, sat, t_clk_ref, dz_b, spec, r_base,
+                                  prn, truth_d)
+    return RawGnssSim(rover, base, eph, base_ecef, truth_d)
+
+
+def _satellite_errors(r_sat, S: int, spec: RawGnssSpec) -> dict:
+    """The satellite-level error draws (common to base and rover), in this order: orbit (radial,
+    along, cross) [m], clock bias [m] and drift [m/s], iono scale [-] and gradient [mm/km], the two
+    tropospheric draws."""
+    eph_err = r_sat.standard_normal((S, 3)) * np.asarray(spec.eph_sigma_rac_m, float)
+    clk_err = np.column_stack([r_sat.standard_normal(S) * spec.sat_clock_sigma_m,
+                               r_sat.standard_normal(S) * spec.sat_clock_drift_sigma_m_s])
+    iono_scale = r_sat.standard_normal(S) * spec.iono_scale_sigma
+    iono_grad = r_sat.standard_normal((S, 2)) * spec.iono_gradient_mm_km
+    tropo_xi = r_sat.standard_normal(2)
+    return dict(eph_err=eph_err, clk_err=clk_err, iono_scale=iono_scale, iono_grad=iono_grad,
+                tropo_xi=tropo_xi)
+
+
+def _antenna_track(truth, t_rx_k, spec: RawGnssSpec):
+    """The antenna's ECEF position and velocity at the reception times (the truth's IMU carried through
+    the lever arm), and the IMU's lat, lon, h there."""
     r_e, v_e, lat, lon, h, v_n, c_bn, w_eb = interpolate_truth(truth, t_rx_k)
     lev = np.asarray(spec.lever_arm_b, float)
     sl, cl, so, co = np.sin(lat), np.cos(lat), np.sin(lon), np.cos(lon)
     z = np.zeros_like(lat)
-    c_en = np.stack(
-        [
-            np.stack([-so, co, z], -1),
-            np.stack([-sl * co, -sl * so, cl], -1),
-            np.stack([cl * co, cl * so, sl], -1),
-        ],
-        -2,
-    )
+    c_en = np.stack([np.stack([-so, co, z], -1), np.stack([-sl * co, -sl * so, cl], -1),
+                     np.stack([cl * co, cl * so, sl], -1)], -2)
     c_ne = np.transpose(c_en, (0, 2, 1))
     r_a = r_e + np.einsum("kij,kj->ki", c_ne, c_bn @ lev)
     v_a = v_e + np.einsum("kij,kj->ki", c_ne, np.einsum("kij,kj->ki", c_bn, np.cross(w_eb, lev)))
-    # reference point for the ionospheric gradient / tropospheric correlation
-    if base_lla is not None:
-        ref_lat, ref_lon, ref_h = (float(x) for x in base_lla)
-    else:
-        ref_lat, ref_lon, ref_h = float(lat[0]), float(lon[0]), float(h[0])
+    return r_a, v_a, lat, lon, h
 
+
+def _spatial_residuals(lat, lon, ref, tropo_xi, spec: RawGnssSpec, with_base: bool, T: int):
+    """Distance to the reference point (E, N [km], the ionospheric gradient's argument) and the residual
+    zenith tropospheric delays of the rover (T,) and the base, correlated over ``tropo_corr_km``."""
+    ref_lat, ref_lon, ref_h = ref
     rm, rn = radii(ref_lat)
     dlon = wrap_pi(lon - ref_lon)
     d_km = np.column_stack([dlon * (rn + ref_h) * np.cos(ref_lat), (lat - ref_lat) * (rm + ref_h)]) / 1e3
     dist = np.hypot(d_km[:, 0], d_km[:, 1])
     sz = spec.tropo_zenith_sigma_m
-    if base_lla is not None:
+    if with_base:
         rho_t = np.exp(-dist / spec.tropo_corr_km)
         dz_b = sz * tropo_xi[0]
         dz_k = rho_t * dz_b + np.sqrt(1 - rho_t**2) * sz * tropo_xi[1]
     else:
         dz_b = 0.0
         dz_k = np.full(T, sz * tropo_xi[0])
+    return d_km, dz_k, dz_b
 
-    def gm_unit(rng_, n, tau):
-        a = np.exp(-dt / tau) if tau > 0 else 0.0
-        w = rng_.standard_normal((n, S))
-        out = np.empty((n, S))
-        out[0] = w[0]
-        for k in range(1, n):
-            out[k] = a * out[k - 1] + np.sqrt(1 - a * a) * w[k]
-        return out
 
-    mp_k = gm_unit(r_mp, T, spec.multipath_tau_s)
-    noise_k = r_noise.standard_normal((T, S, 2))
-    t_clk_ref = t0_gps + t[0]
-    mask = np.radians(spec.mask_deg)
-    alpha = np.asarray(spec.iono_alpha, float)
-    beta = np.asarray(spec.iono_beta, float)
+def _gm_unit(rng_, n: int, S: int, dt: float, tau: float) -> np.ndarray:
+    """(n, S) unit-variance first-order Gauss–Markov sequences with correlation time ``tau`` (0: white)."""
+    a = np.exp(-dt / tau) if tau > 0 else 0.0
+    w = rng_.standard_normal((n, S))
+    out = np.empty((n, S))
+    out[0] = w[0]
+    for k in range(1, n):
+        out[k] = a * out[k - 1] + np.sqrt(1 - a * a) * w[k]
+    return out
+
+
+def _observe(t_rx, r_a, v_a, eph, sat, t_clk_ref, clk, d_km, dz, mp, noise, spec: RawGnssSpec):
+    """:func:`_raw_kernel` of one receiver: (code, rate, elevation, azimuth, iono, tropo)."""
+    return _raw_kernel(t_rx, r_a, v_a, eph.table, sat["eph_err"], sat["clk_err"], t_clk_ref, clk,
+                       np.asarray(spec.iono_alpha, float), np.asarray(spec.iono_beta, float),
+                       sat["iono_scale"], sat["iono_grad"], d_km, dz, spec.humidity, mp,
+                       spec.multipath_sigma_m, noise, spec.code_sigma_m, spec.rate_sigma_m_s,
+                       np.radians(spec.mask_deg), spec.tropo_model, *_system_terms(eph, spec))
+
+
+def _system_terms(eph, spec: RawGnssSpec):
+    """Per satellite: the receiver's inter-system bias of its system [m] and its ionospheric scale
+    (f_L1/f)²."""
     sid = eph.table[:, 0].astype(int)
-    freq = carrier_frequencies(sid, eph.table)
     isb = np.array([spec.isb_m.get(c, 0.0) for c in sat_system(sid)])
-    ifac = (FREQ_L1 / freq) ** 2
-    code, rate, el, az, ion, trop = _raw_kernel(
-        t0_gps + t_rx_k,
-        r_a,
-        v_a,
-        eph.table,
-        eph_err,
-        clk_err,
-        t_clk_ref,
-        clk_k,
-        alpha,
-        beta,
-        iono_scale,
-        iono_grad,
-        d_km,
-        dz_k,
-        spec.humidity,
-        mp_k,
-        spec.multipath_sigma_m,
-        noise_k,
-        spec.code_sigma_m,
-        spec.rate_sigma_m_s,
-        mask,
-        spec.tropo_model,
-        isb,
-        ifac,
+    return isb, (FREQ_L1 / carrier_frequencies(sid, eph.table)) ** 2
+
+
+def _base_observations(base_ecef, tags_rel, dt, t0_gps, eph, sat, t_clk_ref, dz_b, spec: RawGnssSpec, r_base,
+                       prn, truth_d) -> GnssObservations:
+    """The static base's observations (its clock, multipath and noise from ``r_base``, in that order);
+    its truth added to ``truth_d``."""
+    T, S = len(tags_rel), len(eph.table)
+    clk_b = simulate_clock(
+        T, dt, spec.clock_h0, spec.clock_hm2, spec.base_clock_bias0_m, spec.base_clock_drift0_m_s, r_base
     )
-    prn = sid
-    tags = t0_gps + tags_rel
-    dop = -rate / (C_LIGHT / freq)
-    rover = GnssObservations(
-        tags,
-        eph.ref_week,
-        prn,
-        code,
-        dop,
-        np.full_like(code, 45.0),
-        None,
-        None,
-        None,
-        ["simulated rover (aidnav.sim.gnss_raw)"],
-        freq1=freq,
-    )
-    if spec.sat_windows:
-        rover = limit_satellites(rover, el, spec.sat_windows, t0_gps + t[0])
-    truth_d = {
-        "clock": clk_k,
-        "antenna_ecef": r_a,
-        "antenna_vel_ecef": v_a,
-        "t_receive_gps": t0_gps + t_rx_k,
-        "elevation": el,
-        "azimuth": az,
-        "iono": ion,
-        "tropo": trop,
-        "eph_err_rac": eph_err,
-        "sat_clock_err": clk_err,
-        "iono_scale": iono_scale,
-        "iono_gradient_mm_km": iono_grad,
-        "tropo_residual_rover": dz_k,
-        "tropo_residual_base": dz_b,
-        "tags_rel": tags_rel,
-    }
-    base = None
-    base_ecef = None
-    if base_lla is not None:
-        base_ecef = np.array(lla_to_ecef(ref_lat, ref_lon, ref_h))
-        clk_b = simulate_clock(
-            T, dt, spec.clock_h0, spec.clock_hm2, spec.base_clock_bias0_m, spec.base_clock_drift0_m_s, r_base
-        )
-        tb = t0_gps + tags_rel - clk_b[:, 0] / C_LIGHT
-        rb = np.tile(base_ecef, (T, 1))
-        vb = np.zeros((T, 3))
-        mp_b = gm_unit(r_base, T, spec.base_multipath_tau_s)
-        noise_b = r_base.standard_normal((T, S, 2))
-        code_b, rate_b, el_b, _, ion_b, trop_b = _raw_kernel(
-            tb,
-            rb,
-            vb,
-            eph.table,
-            eph_err,
-            clk_err,
-            t_clk_ref,
-            clk_b,
-            alpha,
-            beta,
-            iono_scale,
-            iono_grad,
-            np.zeros((T, 2)),
-            np.full(T, dz_b),
-            spec.humidity,
-            mp_b,
-            spec.multipath_sigma_m,
-            noise_b,
-            spec.code_sigma_m,
-            spec.rate_sigma_m_s,
-            mask,
-            spec.tropo_model,
-            isb,
-            ifac,
-        )
-        base = GnssObservations(
-            tags,
-            eph.ref_week,
-            prn,
-            code_b,
-            -rate_b / (C_LIGHT / freq),
-            np.full_like(code_b, 45.0),
-            None,
-            None,
-            base_ecef.copy(),
-            ["simulated base (aidnav.sim.gnss_raw)"],
-            freq1=freq,
-        )
-        truth_d.update(
-            {
-                "base_clock": clk_b,
-                "base_elevation": el_b,
-                "base_iono": ion_b,
-                "base_tropo": trop_b,
-                "base_t_receive_gps": tb,
-            }
-        )
-    return RawGnssSim(rover, base, eph, base_ecef, truth_d)
+    tb = t0_gps + tags_rel - clk_b[:, 0] / C_LIGHT
+    mp_b = _gm_unit(r_base, T, S, dt, spec.base_multipath_tau_s)
+    noise_b = r_base.standard_normal((T, S, 2))
+    code_b, rate_b, el_b, _, ion_b, trop_b = _observe(tb, np.tile(base_ecef, (T, 1)), np.zeros((T, 3)), eph,
+                                                      sat, t_clk_ref, clk_b, np.zeros((T, 2)),
+                                                      np.full(T, dz_b), mp_b, noise_b, spec)
+    truth_d.update({"base_clock": clk_b, "base_elevation": el_b, "base_iono": ion_b, "base_tropo": trop_b,
+                    "base_t_receive_gps": tb})
+    freq = carrier_frequencies(prn, eph.table)
+    return GnssObservations(t0_gps + tags_rel, eph.ref_week, prn, code_b, -rate_b / (C_LIGHT / freq),
+                            np.full_like(code_b, 45.0), None, None, base_ecef.copy(),
+                            ["simulated base (aidnav.sim.gnss_raw)"], freq1=freq)
 
 
 def static_pseudoranges(

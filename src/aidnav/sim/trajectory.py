@@ -175,9 +175,16 @@ def compile_segments(scn: Scenario) -> CompiledMotion:
         table.append({"index": i, "name": seg.name or f"{seg.type}_{i}", "type": seg.type,
                       "start_s": t_start, "end_s": b.t})
 
+    return _compiled(b.prims, b.t, scn, where, table)
+
+
+def _compiled(primitives, total, scn: Scenario, where: str, table) -> CompiledMotion:
+    """The :class:`CompiledMotion` of the primitives of :func:`compile_segments` (``total`` s long):
+    consecutive primitives with equal commands merged, their transitions, the sample grid."""
+    ini = scn.initial
     # merge consecutive primitives with equal commands (keeps transitions as wide as possible)
     prims: list[list[float]] = []
-    for p in b.prims:
+    for p in primitives:
         if prims and prims[-1][1:] == list(p[1:]):
             prims[-1][0] += p[0]
         else:
@@ -186,7 +193,7 @@ def compile_segments(scn: Scenario) -> CompiledMotion:
     tb = np.concatenate([[0.0], np.cumsum(durs)[:-1]])
     vals = np.array([p[1:] for p in prims], dtype=float).reshape(-1, 3)
     half = half_widths(tb, scn.transition_s)
-    total = float(b.t)
+    total = float(total)
     dt = 1.0 / float(scn.imu_rate_hz)
     n = int(math.floor(total / dt + 1e-6))
     if n < 2:

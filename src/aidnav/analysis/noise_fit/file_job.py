@@ -29,6 +29,7 @@ from aidnav.io.errors import DataError
 from aidnav.io.formats import detect_imu_format
 from aidnav.io.interchange import read_imu
 from aidnav.io.logs import read_rtklibexplorer_imu
+from aidnav.io.stream import imu_time_span, iter_imu
 
 
 def imu_log_format(path) -> str:
@@ -66,7 +67,6 @@ def _uniform_rates_streamed(path: Path):
     (:func:`aidnav.io.stream.iter_imu`) straight into the rates: increments / their own intervals, the
     numbers :func:`uniform_rates` gives for such a log, without the whole log's increments in memory
     (and their copies). None for any other log (gaps or jitter, another format): the whole-log path."""
-    from aidnav.io.stream import imu_time_span, iter_imu
 
     span = imu_time_span(path)
     if span is None:
@@ -110,6 +110,7 @@ def _warm_up() -> None:
     of a second): run in a thread while the log is read, so that it overlaps the reading."""
     try:
         # the fit's scipy.special (~0.1 s), imported here to overlap the reading
+        # lazy: scipy.special is heavy to import
         from scipy.special import digamma, gammaincinv  # noqa: F401
 
         tau = np.array([0.01, 0.02, 0.04])

@@ -164,7 +164,7 @@ def _u_interval(prof: _Profile, d_min: float, crit: float):
 def _chi2_ppf(p, df):
     """Quantile of χ²_df at probability p: scipy.stats.chi2.ppf's own formula, 2·P⁻¹(df/2, p) (without the
     import of scipy.stats, half a second at start-up)."""
-    from scipy.special import gammaincinv  # scipy.special: ~0.1 s to import; the warm-up loads it
+    from scipy.special import gammaincinv  # lazy: scipy.special: ~0.1 s to import; the warm-up loads it
 
     return 2.0 * gammaincinv(np.asarray(df, dtype=float) / 2.0, p)
 

@@ -80,7 +80,10 @@ def model_avar(tau, coef, t_corr: float) -> np.ndarray:
 
 def logchi2_moments(nu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Mean and standard deviation of ln(χ²_ν/ν)."""
-    from scipy.special import digamma, polygamma  # scipy.special: ~0.1 s to import; the warm-up loads it
+    from scipy.special import (  # lazy: scipy.special: ~0.1 s to import; the warm-up loads it
+        digamma,
+        polygamma,
+    )
 
     h = 0.5 * np.asarray(nu, float)
     return digamma(h) - np.log(h), np.sqrt(polygamma(1, h))

@@ -36,6 +36,7 @@ import sys
 
 import numpy as np
 
+from aidnav.analysis.consistency import chi2_band, nees
 from aidnav.experiments.reproduce._study import Study, main, mean_se, ratio_se, rms_ratio_se
 from aidnav.experiments.reproduce.seed_000_figures import (
     plot_fit,
@@ -88,7 +89,9 @@ from aidnav.experiments.reproduce.seed_000_setup import (
     truth_index,
     velocity_errors,
 )
+from aidnav.experiments.reproduce.summary import grid_table, resolved_row, summary_row, summary_table
 from aidnav.filters.federated import run_federated
+from aidnav.sim.imu import ImuSpec
 from aidnav.units import M_S_SQRT_H, UG_SQRT_HZ
 
 #: the setting and helpers of seed_000_setup, re-exported (tests and other modules use them from here)
@@ -116,7 +119,6 @@ def run_case(sim, sv, cfg, variants=VARIANTS, keep_cov_for=()):
 def monte_carlo(runs: int, base_seed: int, duration_s: float = DURATION_S, say=print, phi0=PHI0_DEG) -> dict:
     """The Table-2 Monte Carlo plus the SAPV-loss, GPS-outage and NEES sets (same realisations), with the
     initial misalignment ``phi0`` (E, N, U) [deg]."""
-    from aidnav.analysis.consistency import nees
 
     seqs = np.random.SeedSequence(base_seed).spawn(runs)
     stats = {k: {q: {"mean": [], "std": []} for q in QUANTS} for k in VARIANTS}
@@ -274,8 +276,6 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
     """Reproduce seed 000 into ``out_dir``: PNG figures, ``summary.json`` (every row checked against its
     target), ``report.html`` and ``statistics.json`` (per-variant, per-run statistics). ``runs``: Monte
     Carlo realisations (None: DEFAULT_RUNS = 30). Returns the summary dict."""
-    from aidnav.analysis.consistency import chi2_band
-    from aidnav.experiments.reproduce.summary import grid_table, resolved_row, summary_row, summary_table
 
     study = Study(SEED, TITLE, out_dir, DEFAULT_RUNS if runs is None else runs, base_seed, console)
     runs = study.runs
@@ -296,7 +296,6 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
         study.add_figure(f)
 
     # ---------------------------------------------------------------- Table 1 (configuration echo)
-    from aidnav.sim.imu import ImuSpec
 
     u = ImuSpec.grade("seed000").to_units()
     scn = seed_scenario(duration_s)

@@ -19,6 +19,7 @@ own pitch σ at 30 s scales with the GPS velocity σ.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -124,7 +125,6 @@ def pitch_sigma_vs_gps_velocity(base_seed: int, duration_s: float, sigmas=GPS_VE
     """Covariance study: the filter's own pitch σ [arcmin] at ``times`` [s] when the GPS velocity σ it assumes
     is each of ``sigmas`` [m/s] (SINS/GPS/SAPV, centralized = fusion-reset). On the static base the
     covariance does not depend on the noise draw, so one realisation gives it. Returns {σ_v: {t: σ}}."""
-    from dataclasses import replace
 
     ss = np.random.SeedSequence(base_seed).spawn(1)[0]
     sim, sv, cfg = simulate_case(ss, min(duration_s, max(times) + 1.0))

@@ -9,8 +9,12 @@ import numpy as np
 
 from aidnav.analysis import errors
 from aidnav.filters.federated import FederatedConfig
-from aidnav.nav.geo_pointing import R_GEO_SEED000
-from aidnav.nav.rotations import wrap_pi
+from aidnav.nav.earth import radii
+from aidnav.nav.geo_pointing import R_GEO_SEED000, az_el_jacobians, geo_sat_ecef, pointing_az_el
+from aidnav.nav.rotations import dcm_from_euler, dcm_from_rotvec, euler_from_dcm, wrap_pi
+from aidnav.sim.gnss import GnssSpec
+from aidnav.sim.imu import ImuSpec
+from aidnav.sim.sapv import SapvSpec, simulate_sapv
 from aidnav.units import ARCMIN
 from aidnav.units import DEG as D
 
@@ -97,7 +101,7 @@ def seed_scenario(duration_s: float = DURATION_S, imu_rate_hz: float = IMU_RATE_
     """The seed's Table 1 scenario (:class:`aidnav.sim.scenario.Scenario`): static vehicle, heading 100°.
     ``imu``: overrides of the ``seed000`` IMU preset (e.g. :data:`SEED_RUN_IMU`; default: biases drawn per
     run with Table 1's values as σ)."""
-    from aidnav.sim.scenario import Scenario
+    from aidnav.sim.scenario import Scenario  # lazy: pulls in pydantic
 
     return Scenario.model_validate(dict(
         name="seed000", description="seed 000 Table 1: static vehicle, SINS/GPS/SAPV", seed=1,
@@ -112,7 +116,6 @@ def seed_scenario(duration_s: float = DURATION_S, imu_rate_hz: float = IMU_RATE_
 
 def sapv_spec(**changes):
     """The seed's antenna: σ 0.05° (az, el) at 1 Hz, GEO 138°E at height 3.5785e7 m."""
-    from aidnav.sim.sapv import SapvSpec
 
     kw = dict(rate_hz=SAPV_RATE_HZ, sigma_deg=SAPV_SIGMA_DEG, sat_lon_deg=SAT_LON_DEG,
               sat_radius_m=R_GEO_SEED000)
@@ -128,11 +131,7 @@ def filter_config(truth, rng, phi0_deg=PHI0_DEG, draw_attitude: bool = False,
     when ``draw_attitude``); position and velocity errors drawn with σ ``pos_sigma_m``, ``vel_sigma_m_s``;
     P_0 = diag of those σ and the IMU's bias σ.
     """
-    from aidnav.filters.tuning import loose_config_from_specs
-    from aidnav.nav.earth import radii
-    from aidnav.nav.rotations import dcm_from_euler, dcm_from_rotvec, euler_from_dcm
-    from aidnav.sim.gnss import GnssSpec
-    from aidnav.sim.imu import ImuSpec
+    from aidnav.filters.tuning import loose_config_from_specs  # lazy: pulls in pydantic
 
     lat, lon, h = truth.lat[0], truth.lon[0], truth.height[0]
     rm, rn = radii(lat)
@@ -158,8 +157,7 @@ def simulate_case(seed_seq: np.random.SeedSequence, duration_s: float = DURATION
     IMU/GPS simulation, the antenna and the initial errors are spawned from ``seed_seq``; ``imu``: IMU
     overrides (:func:`seed_scenario`; the filter's P_0 keeps Table 1's σ); ``phi0_deg``: the initial
     misalignment (E, N, U) [deg]."""
-    from aidnav.sim.run import simulate
-    from aidnav.sim.sapv import simulate_sapv
+    from aidnav.sim.run import simulate  # lazy: pulls in pydantic
 
     # children built from the spawn key (not .spawn(), which advances a counter): the same seed_seq gives
     # the same streams on every call (e.g. the GPS-outage rerun of a realisation)
@@ -208,9 +206,6 @@ def seed_series(res, truth) -> dict:
 def geometry_check() -> dict:
     """Eq. (23)-(26) at the seed's case: our H_phi, H_pos (exact Jacobians), finite-difference check of both
     through the nonlinear chain, and the pointing change for the seed's 100 m position error (eq. 25)."""
-    from aidnav.nav.earth import radii
-    from aidnav.nav.geo_pointing import az_el_jacobians, geo_sat_ecef, pointing_az_el
-    from aidnav.nav.rotations import dcm_from_euler, dcm_from_rotvec
 
     lat, lon, h = SITE["lat_deg"] * D, SITE["lon_deg"] * D, SITE["height_m"]
     C = dcm_from_euler(0.0, 0.0, HEADING_DEG * D)

@@ -374,7 +374,7 @@ def write_summary(out_dir, *, seed: str, title: str, runs: int, base_seed: int, 
     and nothing is written. ``extra``: further top-level keys (e.g. ``elapsed_s``).
     """
     if aidnav_version is None:
-        import aidnav
+        import aidnav  # lazy: only on this branch
 
         aidnav_version = aidnav.__version__
     out_tables = []

@@ -41,7 +41,7 @@ from aidnav.nav.earth import dcm_ecef_to_enu, lla_to_ecef
 from aidnav.nav.gnss_sat import az_el, geo_range, geo_range_rate, klobuchar, range_error_sigma, tropo_delay
 
 from ..kalman import update_scalar
-from ..layout import L_CLK, L_ISB, L_RERR, NAV
+from ..layout import L_CLK, L_ISB, L_RERR, NAV, ST_VEL
 from .common import W_IB, W_IN
 from .gnss import gnss_position, gnss_velocity
 
@@ -70,8 +70,8 @@ def _antenna(nav, lever, Hp, Hv):
     st = nav.st
     z3 = np.zeros(3)
     gnss_position(st, nav.C, lever, st[0], st[1], st[2], 0.0, Hp, z3)
-    gnss_velocity(st, nav.C, lever, nav.w[W_IB], nav.w[W_IN], st[3:6], Hv, z3)
-    v_n = st[3:6] + z3
+    gnss_velocity(st, nav.C, lever, nav.w[W_IB], nav.w[W_IN], st[ST_VEL:ST_VEL + 3], Hv, z3)
+    v_n = st[ST_VEL:ST_VEL + 3] + z3
     Cen = dcm_ecef_to_enu(st[0], st[1])
     pe = np.zeros(3)
     pe[0], pe[1], pe[2] = lla_to_ecef(st[0], st[1], st[2])

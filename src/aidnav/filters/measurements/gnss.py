@@ -11,7 +11,7 @@ import numpy as np
 from aidnav.jit import njit
 from aidnav.nav.earth import gravity, gravity_dh, radii
 
-from ..layout import BG, DP, DV, L_GPE, L_LEVER, L_TOFF, L_VDEL, NAV, PHI
+from ..layout import BG, DP, DV, L_GPE, L_LEVER, L_TOFF, L_VDEL, NAV, PHI, ST_VEL
 from .common import W_FIX, W_IE, W_IN, cross, diag_r, skew, skew_into
 
 W_FN = 4  # row of ``Nav.w`` holding the interval's mean specific force f^n [m/s²] (engine)
@@ -82,7 +82,7 @@ def nav_acceleration(nav):
     """a^n = f^n + g^n − (2 ω_ie^n + ω_en^n) × v^n [m/s²] from the interval's mean specific force."""
     st = nav.st
     w2 = 2.0 * nav.w[W_IE] + (nav.w[W_IN] - nav.w[W_IE])
-    a = nav.w[W_FN] - cross(w2, st[3:6])
+    a = nav.w[W_FN] - cross(w2, st[ST_VEL:ST_VEL + 3])
     a[2] -= gravity(st[0], st[2])
     return a
 
@@ -107,7 +107,7 @@ def gnss_position_model(nav, row, par, lay, H, z, R):
         tb = nav.dt_back + d
         Hv = np.zeros((3, H.shape[1]))
         zv = np.zeros(3)
-        gnss_velocity(nav.st, nav.C, lever, nav.w[W_FIX], nav.w[W_IN], nav.st[3:6], Hv, zv)
+        gnss_velocity(nav.st, nav.C, lever, nav.w[W_FIX], nav.w[W_IN], nav.st[ST_VEL:ST_VEL + 3], Hv, zv)
         if lay[L_LEVER] >= 0:
             J = nav.C @ skew(nav.w[W_FIX]) - skew(nav.w[W_IN]) @ nav.C
             for i in range(3):

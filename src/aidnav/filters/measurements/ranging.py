@@ -12,7 +12,7 @@ from aidnav.jit import njit
 from aidnav.nav.earth import dcm_ecef_to_enu, lla_to_ecef
 from aidnav.nav.gnss_sat import geo_range, geo_range_rate
 
-from ..layout import L_CLK, NAV
+from ..layout import L_CLK, NAV, ST_VEL
 from .common import W_FIX, W_IN, cross
 from .gnss import gnss_position, gnss_velocity
 
@@ -27,9 +27,9 @@ def antenna_ecef(nav, lever):
     st = nav.st
     Ce_n = dcm_ecef_to_enu(st[0], st[1])
     l_n = nav.C @ lever
-    v_a = st[3:6] + nav.C @ cross(nav.w[W_FIX], lever) - cross(nav.w[W_IN], l_n)
+    v_a = st[ST_VEL:ST_VEL + 3] + nav.C @ cross(nav.w[W_FIX], lever) - cross(nav.w[W_IN], l_n)
     x, y, zz = lla_to_ecef(st[0], st[1], st[2])
-    r = np.array([x, y, zz]) + Ce_n.T @ (l_n - st[3:6] * nav.dt_back)
+    r = np.array([x, y, zz]) + Ce_n.T @ (l_n - st[ST_VEL:ST_VEL + 3] * nav.dt_back)
     return r, Ce_n.T @ v_a, Ce_n
 
 

@@ -11,7 +11,7 @@ import numpy as np
 from aidnav.jit import njit
 from aidnav.nav.rotations import dcm_from_rotvec
 
-from ..layout import BG, DV, L_MOUNT, L_ODO, NAV, PHI
+from ..layout import BG, DV, L_MOUNT, L_ODO, NAV, PHI, ST_VEL
 from .common import W_IB, W_IE, cross, skew
 
 
@@ -29,9 +29,9 @@ def vehicle_velocity(st, Cbn, Cbv, w_nb_b, lever):
     """Velocity of a point of the vehicle in the vehicle frame, v^v = C_b^v (C_n^b v^n + ω_nb^b × l),
     and its Jacobians: A = ∂v^v/∂δv = C_b^v C_n^b and B = ∂v^v/∂φ = −A [v×] (ω_nb and l exact)."""
     Cnb = Cbn.T
-    vv = Cbv @ (Cnb @ st[3:6] + cross(w_nb_b, lever))
+    vv = Cbv @ (Cnb @ st[ST_VEL:ST_VEL + 3] + cross(w_nb_b, lever))
     A = Cbv @ Cnb
-    B = -(A @ skew(st[3:6]))
+    B = -(A @ skew(st[ST_VEL:ST_VEL + 3]))
     return vv, A, B
 
 
@@ -142,7 +142,7 @@ def nhc_model(nav, row, par, lay, H, z, R):
     lever = par[V_LEVER:V_LEVER + 3].copy()
     nonholonomic(st, nav.C, Cbv, wnb, lever, H, z)
     if lay[L_MOUNT] >= 0:
-        vv = Cbv @ (nav.C.T @ st[3:6] + cross(wnb, lever))
+        vv = Cbv @ (nav.C.T @ st[ST_VEL:ST_VEL + 3] + cross(wnb, lever))
         _mount_columns(H, 0, 0, vv, nav, lay, 1.0)
         _mount_columns(H, 1, 2, vv, nav, lay, 1.0)
     wv = Cbv @ wnb

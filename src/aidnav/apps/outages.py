@@ -1,6 +1,4 @@
-"""The parts of ``aidnav process`` shared by the in-memory job (:mod:`aidnav.apps.process`) and the
-streamed one (:mod:`aidnav.apps.process_stream`): simulated outages (parse, windows, scores) and the
-summary of a run.
+"""Simulated GNSS outages of ``aidnav process``: parse, windows, the fixes withheld, scores.
 
 Outages are given in seconds after the first GNSS epoch: ``START:LENGTH[:PERIOD]``; with a period they
 repeat while the whole outage fits before the last GNSS epoch. Withheld fixes are kept aside and scored
@@ -69,7 +67,7 @@ def scored_fixes(gnss: GnssData, withheld) -> np.ndarray:
 def outage_errors(traj, gnss: GnssData, withheld, after: float = -np.inf):
     """(times, horizontal errors) of the output, interpolated to the withheld fixes of
     :func:`scored_fixes` inside its span and after ``after``."""
-    from aidnav.nav.earth import lla_difference_enu
+    from aidnav.nav.earth import lla_difference_enu  # lazy: pulls in numba
 
     good = scored_fixes(gnss, withheld)
     t = gnss.time[good]
@@ -124,77 +122,9 @@ def outage_score(t, herr, wins, withheld, gnss: GnssData | None = None) -> dict:
     }
 
 
-def run_summary(res, n_imu, rate_hz, gnss, withheld, wins, events, warnings, t_filt) -> dict:
-    """The summary of a loose-filter run (before the outage scores and the calibration)."""
-    rec = res.records
-    pos_ok = rec["pos_status"] == 1
-    return {
-        "smoothed": res.smoothed,
-        "time_scale": "input (GPS seconds of week for GNSS-timed logs)",
-        "imu_samples": n_imu, "imu_rate_hz": rate_hz, "gnss_fixes": len(gnss),
-        "gnss_withheld": int(withheld.sum()),
-        "gnss_position_accepted": int(pos_ok.sum()),
-        "gnss_position_rejected": int((rec["pos_status"] == 0).sum()),
-        "gnss_velocity_accepted": int((rec["vel_status"] == 1).sum()),
-        "gnss_velocity_rejected": int((rec["vel_status"] == 0).sum()),
-        "rejected_fix_times": [float(t) for t in gnss.time[rec["pos_status"] == 0]][:100],
-        "counts": res.counts,
-        "nis": nis_summary(rec),
-        "outage_windows": [[a, b] for a, b in wins],
-        "events": events,
-        "warnings": warnings,
-        "timing_s": {"filter": t_filt},
-    }
-
-
-def finish_summary(summary, res, applied_offset, warnings) -> None:
-    """Calibration and NIS health into the summary (in place)."""
-    from aidnav.filters.result import nis_health, summary_calibration
-
-    # sensor errors (biases, scale factors) and the self-calibration (time offset added to the IMU
-    # stamps, lever arm, mounting, odometer scale) with σ, under the names of docs/conventions.md
-    summary["calibration"] = summary_calibration(res, {"time_offset_s": applied_offset})
-    health = nis_health(res)  # windows where the innovations say σ is wrong, and which way
-    summary["nis_windows_far_out"] = health.get("windows", [])
-    summary["reinitialisations"] = reinitialisations(res)
-    warnings += health.get("warnings", [])
-
-
-def reinitialisations(res) -> list[dict]:
-    """The filter's re-initialisations (engine policy: consecutive rejections or an NIS window far out of
-    its chi-square band): time, model, why, the NIS of the innovation that triggered it."""
-    from aidnav.filters.run_log import REINIT_WHY
-
-    log = getattr(res, "innovations", None) or {}
-    if "reinit" not in log:
-        return []
-    return [{"time": float(log["t"][k]), "model": str(log["model_name"][k]),
-             "why": REINIT_WHY[int(log["reinit"][k])], "nis": float(log["nis"][k])}
-            for k in np.flatnonzero(log["reinit"] > 0)]
-
-
-def nis_summary(rec: dict) -> dict:
-    """Mean NIS per measurement type over accepted updates, with its degrees of freedom and the
-    two-sided 95 % band of the mean of N χ²(dof) draws (normal approximation, 2·dof/N variance)."""
-    out = {}
-    for name, st, nis, dof in (("gnss_position", "pos_status", "pos_nis", 3),
-                               ("gnss_velocity", "vel_status", "vel_nis", None)):
-        if st not in rec or nis not in rec:
-            continue
-        ok = (rec[st] == 1) & np.isfinite(rec[nis])
-        n = int(ok.sum())
-        if n == 0:
-            continue
-        if dof is None:  # velocity fixes may lack components: dof from the recorded innovations
-            inn = rec.get("vel_innov")
-            d = (np.isfinite(inn[ok]).sum(axis=1).astype(float) if inn is not None
-                 else np.full(n, 3.0))
-        else:
-            d = np.full(n, float(dof))
-        mean_dof = float(d.mean())
-        half = 1.96 * np.sqrt(2.0 * mean_dof / n)
-        m = float(rec[nis][ok].mean())
-        out[name] = {"mean": m, "dof": mean_dof, "n": n,
-                     "band95": [mean_dof - half, mean_dof + half],
-                     "in_band": bool(mean_dof - half <= m <= mean_dof + half)}
-    return out
+def withheld_fixes(gnss: GnssData, wins) -> np.ndarray:
+    """The fixes inside the outage windows ``wins`` ([start, end) each): not given to the filter."""
+    withheld = np.zeros(len(gnss), bool)
+    for a, b in wins:
+        withheld |= (gnss.time >= a) & (gnss.time < b)
+    return withheld

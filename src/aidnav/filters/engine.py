@@ -9,6 +9,9 @@ Gauss-Markov / random constant per calibration state) and its measurement models
   schedules it) and at the last sample; ``Imu.hold`` holds height and up velocity to given values;
   with a time-offset state (``lay[L_TOFF]``) a record is due at its receive time − d̂;
 * **predict** at nodes (:func:`.kalman.discretize`, :func:`.kalman.predict`) + bridged-gap variance;
+  independent scalar states after the clock block (:func:`tail_start`: diagonal F, noise of their own;
+  tight coupling's range errors) are discretised and predicted as scalars
+  (:func:`.kalman.discretize_tail`, :func:`.kalman.predict_tail`: the matrix work is the head's);
 * **one update-with-gate policy** (:func:`gated_update`): χ² gate by the number of rows
   (``Models.gate[model, m]``, 0 = ungated), and after ``Models.max_rej[model]`` consecutive rejections
   of a model the next one is accepted ungated (a filter that went wrong must be able to come back);
@@ -65,7 +68,7 @@ from .ins_errors import (
     reset_accumulator,
     set_heading,
 )
-from .kalman import discretize, predict, rts_gain, update
+from .kalman import discretize, discretize_tail, predict, predict_tail, rts_gain, update
 from .layout import (
     DP,
     DV,
@@ -318,6 +321,23 @@ def _due_time(rec, i, bias, ic, itoff):
 
 
 @njit(cache=True)
+def tail_start(F, G, nd):
+    """First state of the independent scalar tail: ``nd`` when every state from it on has a diagonal F
+    row and column and noise inputs no other state shares (else n: no tail)."""
+    n, m = F.shape[0], G.shape[1]
+    for i in range(nd, n):
+        for j in range(n):
+            if j != i and (F[i, j] != 0.0 or F[j, i] != 0.0):
+                return n
+        for c in range(m):
+            if G[i, c] != 0.0:
+                for j in range(n):
+                    if j != i and G[j, c] != 0.0:
+                        return n
+    return nd
+
+
+@njit(cache=True)
 def _subset(wk, m, sub, ws):
     """The Work whose H the update uses: wk, or with a state subset its columns ``sub`` (in ws)."""
     if sub.shape[0] == 0:
@@ -381,6 +401,19 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
         G[nins + j, mins + j] = 1.0
     if ic >= 0:
         F[ic, ic + 1] = 1.0  # clock bias [m] integrates the drift [m/s]
+    # independent scalar states after the clock block (tight coupling's range errors): Φ, Qd block
+    # diagonal, the head discretised as a matrix, the tail as scalars, predicted by scaling (predict_tail)
+    nd = tail_start(F, G, ic + 2 if (ic >= 0 and nsub == 0 and proc.gm.shape[0] == 0) else n)
+    mh = mins + nd - nins if nd < n else 0
+    Fh, Gh, Phh, Qdh = model_arrays(nd if nd < n else 0, mh)
+    qh = proc.q[:mh].copy()
+    if nd < n:
+        Fh[nins:nd, nins:nd] = F[nins:nd, nins:nd]
+        Gh[nins:nd, mins:] = G[nins:nd, mins:mh]
+    qt = np.zeros(n)  # the tail's noise PSD (G row² · q)
+    for i in range(nd, n):
+        for c in range(G.shape[1]):
+            qt[i] += G[i, c] * G[i, c] * proc.q[c]
     wk = Work(np.zeros((MAX_ROWS, nh)), np.zeros(MAX_ROWS), np.zeros((MAX_ROWS, MAX_ROWS)))
     ws, dxf = Work(np.zeros((MAX_ROWS, n)), wk.z, wk.R), np.zeros(nh)
     w = np.zeros((5, 3))  # rows W_IB, W_FIX, W_IE, W_IN and W_FN (mean f^n, models with a time offset)
@@ -452,10 +485,19 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
             else:
                 F[:nins, :nins] = Fi[:nins, :nins]
                 G[:nins, :mins] = Gi[:nins, :mins]
-            discretize(F, G, proc.q, T, Phi, Qd)
-            exact_blocks(Phi, Qd, proc.gm, T)
             x[:] = 0.0
-            predict(x, P, Phi, Qd)
+            if nd < n:
+                Fh[:nins, :nins] = Fi[:nins, :nins]
+                Gh[:nins, :mins] = Gi[:nins, :mins]
+                discretize(Fh, Gh, qh, T, Phh, Qdh)
+                Phi[:nd, :nd] = Phh
+                Qd[:nd, :nd] = Qdh
+                discretize_tail(F, qt, T, Phi, Qd, nd)
+                predict_tail(x, P, Phi, Qd, nd)
+            else:
+                discretize(F, G, proc.q, T, Phi, Qd)
+                exact_blocks(Phi, Qd, proc.gm, T)
+                predict(x, P, Phi, Qd)
             carry_estimates(st, bias, Phi, proc.open, nh)
             if gap[0] > 0.0 or gap[1] > 0.0:  # (indices of the full layout through ix: a subset has its own)
                 _add_gap(st, P, gap, ix)

@@ -42,6 +42,7 @@ vehicle presets) are the engine's node constraints. The engine feeds back after 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import Literal
 
 import numpy as np
@@ -50,20 +51,18 @@ from pydantic import BaseModel, ConfigDict, Field
 from aidnav.nav.earth import radii
 from aidnav.nav.gnss_sat import (
     C_LIGHT,
-    E_URA,
     FREQ_L1,
     dual_frequency_iono,
     iono_fallback_note,
     klobuchar_coefficients,
-    select_ephemeris,
+    satellite_states_epochs,
 )
-from aidnav.nav.gnss_sat import satellite_states as _satellites
 from aidnav.nav.rotations import quat_from_euler
 from aidnav.units import DEG
 
 from . import measurements as ms
-from .chi2 import chi2_isf
-from .config import Constraints, FilterSettings, ImuNoise, Initialisation, LooseConfig
+from .chi2 import chi2_isf as _chi2_isf
+from .config import Constraints, FilterSettings, ImuNoise, Initialisation
 from .engine import NEVER, Imu, Init, Models, Output, Process, Records, rts, run_filter, smooth_outputs
 from .layout import L_CLK, L_ISB, L_N, L_NINS, L_RERR, L_SIZE
 from .loose import LooseResult, bridge_gaps
@@ -73,7 +72,7 @@ from .prior import given_initial_state, initial_covariance, process_noise
 from .run_log import log_dict
 
 __all__ = ["CLOCK_GRADES", "RawGnssAiding", "TightConfig", "TightResult", "apply_vehicle", "clock_allan",
-           "run_tight", "tight_layout",
+           "rotation_variance", "run_tight", "tight_layout",
            "tight_nav_covariance_m", "to_trajectory"]
 N_NOISE = 14  # 12 INS noise inputs of ins_errors (15-state) + clock bias + clock drift
 
@@ -144,6 +143,12 @@ class RawGnssAiding(_Strict):
                                          "cycle slip [cycles]")
 
 
+@lru_cache(maxsize=64)
+def chi2_isf(m: int, p: float) -> float:
+    """The gates' χ²(m) quantile (:func:`.chi2.chi2_isf`), remembered: the same few per run."""
+    return float(_chi2_isf(m, p))
+
+
 def clock_allan(g: RawGnssAiding) -> tuple[float, float]:
     """(h0, h-2) of the receiver clock: the configured ones, else those of ``clock_grade``."""
     h0, hm2 = CLOCK_GRADES[g.clock_grade]
@@ -159,6 +164,27 @@ class TightConfig(_Strict):
     init: Initialisation = Initialisation()
     constraints: Constraints = Constraints()
     filter: FilterSettings = FilterSettings()
+    rotation_noise: bool = Field(
+        False, description="gyro scale-factor and misalignment errors (imu.gyro_sf_sigma_ppm, "
+        "imu.gyro_misalignment_sigma_deg; not states here) as attitude noise that grows with the body's "
+        "rotation: (σ_sf² + σ_m²)·|Δθ|² per axis for each prop_dt block of net rotation Δθ")
+
+
+def rotation_variance(t, dth, sf, mis, block_s):
+    """Attitude variance [rad²] per IMU sample from gyro scale-factor (σ ``sf`` [-]) and misalignment
+    (σ ``mis`` [rad]) errors that are not states: over each block of ``block_s`` seconds the error they
+    leave is (S + M)·Δθ, Δθ the block's net body rotation (sum of the increments ``dth`` (N, 3)); on any
+    navigation axis its variance is at most (σ_sf² + σ_m²)·|Δθ|² (a rotated diagonal S, off-diagonal M),
+    placed at the block's last sample. Blocks are independent (a constant error over a steady turn of K
+    blocks grows K times faster than this; back-and-forth rotation cancels in the truth, not here)."""
+    out = np.zeros(len(t))
+    if len(t) == 0 or sf <= 0 and mis <= 0:
+        return out
+    blk = np.floor((np.asarray(t) - t[0]) / block_s).astype(np.int64)
+    ends = np.flatnonzero(np.diff(np.r_[blk, blk[-1] + 1]))
+    net = np.add.reduceat(np.asarray(dth, float), np.r_[0, ends[:-1] + 1], axis=0)
+    out[ends] = (sf * sf + mis * mis) * (net * net).sum(axis=1)
+    return out
 
 
 @dataclass
@@ -216,9 +242,8 @@ def tight_layout(states: int, n_range: int = 0, n_isb: int = 0) -> np.ndarray:
 
 
 def _noise_vector(cfg: TightConfig, n_range: int = 0, n_isb: int = 0) -> np.ndarray:
-    lc = LooseConfig(imu=cfg.imu)
     q = np.zeros(N_NOISE + n_isb + n_range)
-    q[:12] = process_noise(lc, 15)
+    q[:12] = process_noise(cfg, 15)  # reads cfg.imu (the loose schema's section)
     g = cfg.gnss
     h0, hm2 = clock_allan(g)
     q[12] = C_LIGHT**2 * h0 / 2.0
@@ -231,7 +256,7 @@ def _noise_vector(cfg: TightConfig, n_range: int = 0, n_isb: int = 0) -> np.ndar
 def _initial_P(cfg: TightConfig, lat, h, att_sig, n_range: int = 0, n_isb: int = 0) -> np.ndarray:
     nn = 9 if cfg.states == 11 else 15
     n = nn + 2 + n_isb + n_range
-    P15 = initial_covariance(LooseConfig(imu=cfg.imu, init=cfg.init), 15, lat, h, att_sig)
+    P15 = initial_covariance(cfg, 15, lat, h, att_sig)  # reads cfg.imu, cfg.init (the loose schema's)
     P = np.eye(n)  # range-error states: unit variance (stationary)
     P[:nn, :nn] = P15[:nn, :nn]
     P[nn, nn] = cfg.gnss.clock_bias_sigma_m**2
@@ -317,22 +342,10 @@ def _records(t_obs, rows, velocity_fixes, S):
 
 def _satellite_arrays(obs, eph, use_tgd, max_age):
     """Satellite positions, velocities, clocks, clock rates (M, S, ...) and the URA [m] of the
-    ephemeris used (M, S)."""
-    M, S = obs.code1.shape
-    sp = np.full((M, S, 3), np.nan)
-    sv = np.full((M, S, 3), np.nan)
-    sc = np.full((M, S), np.nan)
-    scr = np.full((M, S), np.nan)
-    ura = np.full((M, S), np.nan)
-    prn = np.asarray(obs.prn, np.int64)
-    for k in range(M):
-        sp[k], sv[k], sc[k], scr[k] = _satellites(
-            eph.table, prn, float(obs.time[k]), obs.code1[k], use_tgd, float(max_age)
-        )
-        for j in np.flatnonzero(np.isfinite(sp[k, :, 0])):
-            i = select_ephemeris(eph.table, prn[j], float(obs.time[k]), float(max_age))
-            ura[k, j] = eph.table[i, E_URA]
-    return sp, sv, sc, scr, ura
+    ephemeris used (M, S): one compiled call over all epochs."""
+    return satellite_states_epochs(np.ascontiguousarray(eph.table, float), np.asarray(obs.prn, np.int64),
+                                   np.asarray(obs.time, float), np.ascontiguousarray(obs.code1, float),
+                                   bool(use_tgd), float(max_age))
 
 
 def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, static=None, heading_reset=None,
@@ -438,7 +451,12 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     rate_hz = output_rate_hz or cfg.filter.output_rate_hz
     out_every = max(1, int(round(imu.rate_hz / rate_hz))) if rate_hz else 1
     sl = slice(k0, None)
-    imu_in = Imu(t_imu[sl], dth_in[sl], dv_in[sl], stat[sl], np.zeros((len(t_imu) - k0, 2)), np.zeros((0, 2)))
+    gap_var = np.zeros((len(t_imu) - k0, 2))  # (attitude, velocity) variance added at the next node
+    if cfg.rotation_noise:
+        im = cfg.imu
+        gap_var[:, 0] = rotation_variance(t_imu[sl], dth_in[sl], im.gyro_sf_sigma_ppm * 1e-6,
+                                          im.gyro_misalignment_sigma_deg * DEG, float(cfg.filter.prop_dt_s))
+    imu_in = Imu(t_imu[sl], dth_in[sl], dv_in[sl], stat[sl], gap_var, np.zeros((0, 2)))
     taus = np.array([cfg.imu.gyro_bias_tau_s, cfg.imu.accel_bias_tau_s, 0.0, 0.0])
     # range-error estimates decay as the Gauss-Markov conditional mean between updates (open-loop states)
     aux_tau = np.r_[0.0, g.clock_tau_s, np.zeros(nb), np.full(nr, g.range_error_tau_s)]

@@ -602,6 +602,23 @@ def satellite_states(eph_table, prns, t_rx, pr, use_tgd, max_age):
     return pos, vel, clk, clk_rate
 
 
+@njit(cache=True)
+def satellite_states_epochs(eph_table, prns, t_rx, pr, use_tgd, max_age):
+    """:func:`satellite_states` of every epoch in one call (M epochs, S satellites: t_rx (M,), pr (M, S)),
+    and the URA [m] of the ephemeris record used (NaN where none). Returns pos (M, S, 3), vel (M, S, 3),
+    clk (M, S), clk_rate (M, S), ura (M, S)."""
+    m, s = pr.shape
+    pos, vel = np.full((m, s, 3), np.nan), np.full((m, s, 3), np.nan)
+    clk, clk_rate, ura = np.full((m, s), np.nan), np.full((m, s), np.nan), np.full((m, s), np.nan)
+    for k in range(m):
+        pos[k], vel[k], clk[k], clk_rate[k] = satellite_states(eph_table, prns, t_rx[k], pr[k], use_tgd,
+                                                               max_age)
+        for j in range(s):
+            if np.isfinite(pos[k, j, 0]):
+                ura[k, j] = eph_table[select_ephemeris(eph_table, prns[j], t_rx[k], max_age), E_URA]
+    return pos, vel, clk, clk_rate, ura
+
+
 def satellites_from_pseudoranges(eph_table, prns, t_rx, pr, use_tgd: bool = True, max_age_s: float = 7200.0):
     """Satellite states at the transmit times implied by the pseudoranges of one epoch.
 

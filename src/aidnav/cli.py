@@ -287,19 +287,18 @@ def process(
 ):
     """Loosely coupled GNSS/INS on logs: DIR/trajectory with σ columns, summary, overview.png, maps
     (KML, GeoJSON) and run.html."""
+    from aidnav.apps.run_outputs import start_outputs  # lazy: (the standard library only)
+
+    # the figures' process forked first: before numba and the filters load here (it needs neither) and
+    # before the progress bar's thread starts; it imports matplotlib while this process reads and filters
+    figures = start_outputs(not no_figures)
     from aidnav.apps.common import run_directory  # lazy: loaded when the command runs (--help: typer only)
-
-    # lazy: loaded when the command runs (--help: typer only)
-    from aidnav.apps.process import format_summary, process_logs
-
-    # lazy: loaded when the command runs (--help: typer only)
-    from aidnav.apps.run_outputs import start_outputs
+    from aidnav.apps.process import format_summary, process_logs  # lazy: (as above)
     from aidnav.filters.aids import parse_aid  # lazy: numpy and the filters only when a command runs
     from aidnav.progress import progress_bar  # lazy: loaded when the command runs (--help: typer only)
 
     aid_paths = [("odometer", odometer)] * (odometer is not None) + [("baro", baro)] * (baro is not None)
     aid_paths += [parse_aid(a) for a in aid]
-    figures = start_outputs(not no_figures)  # the figures' process forked before the bar's thread starts
     with progress_bar("aidnav process") as bar, run_directory(out, "process"):
         s = process_logs(imu, gnss, config, out, smooth=smooth, outages=outage, console=_console(), fmt=fmt,
                          height_offset_m=height_offset, time_offset_s=time_offset, start_s=start, end_s=end,

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy.stats import binom, chi2, kstest
 
-from aidnav.analysis.consistency import chi2_band, consistency_report, nees, nis
+from aidnav.analysis.consistency import binom_ppf, chi2_band, consistency_report, nees, nis
 
 P_TAIL = 1e-9
 
@@ -131,3 +131,17 @@ def test_report_handles_nan_and_dict():
     np.testing.assert_allclose(rep.epoch_mean, [1.0, np.nan, 2.5])
     d = rep.to_dict()
     assert d["kind"] == "NEES" and d["runs"] == 2 and d["epochs"] == 3
+
+
+def test_bands_and_binomial_quantile_are_scipy_stats():
+    """chi2_band through scipy.special gives scipy.stats's numbers exactly; binom_ppf is binom.ppf (away
+    from exact ties of the CDF with q, e.g. q = 0.5 with p = 0.5, where rounding decides)."""
+    for dof in (1, 3, 6, 15):
+        for n in (2, 100, 5001, 10**6):
+            for prob in (0.95, 0.999):
+                want = tuple(float(chi2.ppf(0.5 * (1 + s * prob), dof * n) / n) for s in (-1, 1))
+                assert chi2_band(dof, n, prob) == want
+    for n in [*range(1, 40), 100, 1800, 12345, 10**6]:
+        for p in (0.05, 0.5, 0.95, 0.999):
+            for q in (1e-6, 1e-3, 0.9):
+                assert binom_ppf(q, n, p) == binom.ppf(q, n, p), (q, n, p)

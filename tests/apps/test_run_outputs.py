@@ -61,3 +61,15 @@ def test_chi2_band_of_one_value_is_scipys():
             assert lo == pytest.approx(chi2.ppf(0.5 * (1 - prob), dof), rel=1e-10)
             assert hi == pytest.approx(chi2.ppf(0.5 * (1 + prob), dof), rel=1e-10)
     assert "scipy.stats" in sys.modules  # (imported by this test only)
+
+
+def test_figures_child_needs_no_numba():
+    """The child is forked before the command imports numba: what it loads and draws with must not import
+    numba (nor scipy, pyarrow, pandas), else it pays numba's start (≈ 0.5 CPU-s) for nothing."""
+    import subprocess  # lazy: this test only
+
+    code = ("import sys, aidnav.apps.run_outputs as r; r._warm_up(); "
+            "from aidnav.report.run_page import write_run_outputs; "
+            "print(sorted(m for m in ('numba', 'scipy', 'pyarrow', 'pandas') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]", out.stdout + out.stderr

@@ -20,7 +20,7 @@ def test_run_writes_summary(tmp_path):
     for f in d["figures"]:
         assert (tmp_path / f).stat().st_size > 1000
     names = [t["name"] for t in d["tables"]]
-    assert names == ["Table 1", "φ_U0 fit", "Table 2", "Table 2, other filters", "SPEC 1.3",
+    assert names == ["Table 1", "φ_U0 fit", "Level fit", "Table 2", "Table 2, other filters", "SPEC 1.3",
                      "Federated filter", "Eqs. 23-26", "Pitch: bias reading", "Initial heading"]
     for t in d["tables"]:
         for r in t["rows"]:
@@ -55,6 +55,10 @@ def test_run_writes_summary(tmp_path):
     fit = next(t for t in d["tables"] if t["name"] == "φ_U0 fit")
     phi = next(r for r in fit["rows"] if r["quantity"].startswith("fitted φ_U0"))["ours"]
     assert abs(phi) in seed_000.PHI_U0_GRID_DEG and phi < 0  # the paper's mean is negative
+    lfit = next(t for t in d["tables"] if t["name"] == "Level fit")  # and the level errors likewise
+    lv = next(r for r in lfit["rows"] if r["quantity"].startswith("fitted φ_E0"))["ours"]
+    assert lv in seed_000.LEVEL0_GRID_DEG
+    assert next(r for r in t1["rows"] if r["quantity"].startswith("initial level errors"))["ours"] == lv
     assert (tmp_path / "statistics.json").exists()
 
 

@@ -303,6 +303,41 @@ def test_set_heading_keeps_roll_pitch_and_resets_the_heading_variance():
     np.testing.assert_array_equal(keep, np.delete(np.delete(P0, 2, 0), 2, 1))
 
 
+def _tilt_error(C_est, C_true):
+    """φ of C_est = (I − [φ×]) C_true (small angles), E, N, U."""
+    S = np.eye(3) - C_est @ C_true.T
+    return 0.5 * np.array([S[2, 1] - S[1, 2], S[0, 2] - S[2, 0], S[1, 0] - S[0, 1]])
+
+
+@pytest.mark.parametrize("dpsi_deg", [35.0, -120.0, 180.0])
+def test_set_heading_turns_the_tilt_error_and_its_covariance_with_the_heading(dpsi_deg):
+    """Issue 35: a course alignment that turns the heading keeps the body's roll/pitch error, so the
+    navigation-frame tilt error φ_EN turns with the heading; the covariance, given as the outer product of
+    one error sample (tilt and a body-frame accelerometer bias it is correlated with), must become the
+    outer product of the tilt error computed from the attitudes after the reset (known answer)."""
+    r, p, psi_t = np.radians([4.0, -2.0, 70.0])
+    d = np.radians([0.3, -0.2])  # roll/pitch error of the estimate
+    psi_e = psi_t - np.radians(dpsi_deg)
+    C_true = dcm_from_euler(r, p, psi_t)
+    C_est = dcm_from_euler(r + d[0], p + d[1], psi_e)
+    phi_old = _tilt_error(C_est, dcm_from_euler(r, p, psi_e))  # the tilt part, before: heading apart
+    st = make_state(LAT, 1.0, H, VEL, quat_from_dcm(C_est))
+    v = np.zeros(15)
+    v[0:2] = phi_old[0:2]
+    v[12:15] = [0.02, -0.03, 0.0]
+    P = np.outer(v, v) + np.diag(np.full(15, 1e-12))
+    ins_errors.set_heading(st, P, psi_t, 0.1, 2, 0, 1)
+    phi_new = _tilt_error(dcm_from_quat(st[6:10]), C_true)
+    assert abs(phi_new[2]) < 0.05 * np.linalg.norm(d)  # the heading is the truth's now (to 2nd order)
+    w = v.copy()
+    w[0:2] = phi_new[0:2]
+    expect = np.outer(w, w)
+    keep = [0, 1] + list(range(3, 15))
+    np.testing.assert_allclose(P[np.ix_(keep, keep)], expect[np.ix_(keep, keep)],
+                               atol=2e-3 * np.max(np.abs(expect)) + 1e-11)
+    assert P[2, 2] == pytest.approx(0.01) and not np.delete(P[2], 2).any()
+
+
 def _sensor_error_rate(dx, pt=(LAT, W_IB, F_B)):
     """d/dt (φ, δv, δp) with the 27-state sensor residuals entering the measurements as the truth model
     of :mod:`aidnav.sim.imu` writes them: ω̃ = ω + ε + s_g∘ω + M ω (M: zero diagonal, its six entries

@@ -111,6 +111,15 @@ def test_overview_panels_and_markers():
     assert fig.get_suptitle() == "aidnav run: imu.csv + gnss.pos (smoothed)"
 
 
+def test_no_panel_for_a_type_without_updates():
+    tr, g, rec = _run()
+    rec = {**rec, "vel_nis": np.full(len(rec["vel_nis"]), np.nan)}  # GNSS without velocities
+    fig = overview_figure(tr, g, {}, rec)
+    titles = [ax.get_title() for ax in fig.axes]
+    assert len(fig.axes) == 7 and not any(x.startswith("GNSS velocity NIS") for x in titles)
+    assert any(x.startswith("GNSS position NIS") for x in titles)
+
+
 def test_rejected_from_summary_without_records():
     tr, g, _ = _run()
     fig = overview_figure(tr, g, {"rejected_fix_times": [float(g.time[3]), float(g.time[9])]})

@@ -77,11 +77,30 @@ def chi2_band(dof: int, n_runs: int = 1, prob: float = 0.95) -> tuple[float, flo
         from aidnav.filters.chi2 import chi2_isf  # lazy: only here (and small)
 
         return chi2_isf(int(dof), 0.5 * (1.0 + prob)), chi2_isf(int(dof), 0.5 * (1.0 - prob))
-    from scipy.stats import chi2  # lazy: scipy.stats takes ~0.4 s to import (NEES alone does not need it)
+    # scipy.stats.chi2.ppf(q, k) is 2·gammaincinv(k/2, q) (the same numbers): scipy.special only, ~0.1 s
+    # of import where scipy.stats takes ~0.4 s (the merge of every `aidnav run` campaign, issue 41)
+    from scipy.special import gammaincinv  # lazy: scipy.special (NEES alone does not need it)
 
-    lo = chi2.ppf(0.5 * (1.0 - prob), k) / n_runs
-    hi = chi2.ppf(0.5 * (1.0 + prob), k) / n_runs
+    lo = 2.0 * gammaincinv(0.5 * k, 0.5 * (1.0 - prob)) / n_runs
+    hi = 2.0 * gammaincinv(0.5 * k, 0.5 * (1.0 + prob)) / n_runs
     return float(lo), float(hi)
+
+
+def binom_ppf(q: float, n: int, p: float) -> int:
+    """The ``q`` quantile of a binomial(n, p) count: the smallest k with P(X ≤ k) ≥ q
+    (``scipy.stats.binom.ppf``; a test compares them), by bisection on scipy.special's ``bdtr``."""
+    from scipy.special import bdtr  # lazy: scipy.special (scipy.stats: ~0.3 s more of import)
+
+    if not 0.0 < q < 1.0:
+        raise ValueError(f"binom_ppf: q must be in (0, 1) (got {q})")
+    lo, hi = -1, int(n)  # P(X ≤ lo) < q (lo = −1: nothing), P(X ≤ hi) = 1 ≥ q
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if bdtr(mid, n, p) >= q:
+            hi = mid
+        else:
+            lo = mid
+    return hi
 
 
 @dataclass
@@ -173,13 +192,11 @@ def report_from_counts(kind: str, dof: int, r: int, n_ep: int, prob: float, epoc
     """The :class:`ConsistencyReport` of :func:`consistency_report` from its counts: ``n_fin`` epochs with
     a finite average, ``n_in``/``n_above``/``n_below`` of them inside/above/below the band, the grand
     ``mean`` of the ``nv`` finite values (a streamed evaluation accumulates these chunk by chunk)."""
-    from scipy.stats import binom  # lazy: scipy.stats is heavy to import
-
     band = chi2_band(dof, r, prob)
     f_in = float(n_in / n_fin) if n_fin else np.nan
     f_above = float(n_above / n_fin) if n_fin else np.nan
     f_below = float(n_below / n_fin) if n_fin else np.nan
-    f_min = float(binom.ppf(alpha, n_fin, prob) / n_fin) if n_fin else np.nan
+    f_min = float(binom_ppf(alpha, n_fin, prob) / n_fin) if n_fin else np.nan
     mean_band = chi2_band(dof, nv, prob) if nv else (np.nan, np.nan)
 
     verdict = "consistent"

@@ -2,8 +2,10 @@
 
 :func:`start_outputs` forks, on Linux and from a process with no other thread (as ``characterise`` does
 with its :class:`aidnav.apps.characterise.FigureProcess`), a child that imports matplotlib and the report
-modules and warms their font and text caches while the parent reads the logs and runs the filter. After
-the filter, :func:`write_outputs` sends the child what the page needs (the decimated trajectory, the
+modules and loads the default font while the parent reads the logs and runs the filter. The command
+forks it first thing, before numba and the filters load: the child needs neither (the report draws with
+:mod:`aidnav.nav.plain`), so it costs no numba import and no kernel load, and holds none of their memory.
+After the filter, :func:`write_outputs` sends the child what the page needs (the decimated trajectory, the
 fixes, the summary, the innovation records: a few MB through a pipe); the child draws ``overview.png``
 and writes ``run.html`` while the parent writes the maps (``trajectory.kml``, ``trajectory.geojson``);
 the parent then waits for the child and raises its error, with the child's traceback as a note. The
@@ -34,26 +36,18 @@ IN_PROCESS = "in-process"
 
 
 def _warm_up() -> None:
-    """Import the page's modules and draw the overview of a small made-up run at a low resolution: the
-    fonts, the glyph and text caches, the log axes' tick labels (mathtext), the legends and the PNG
-    writer loaded before the run's own figure is drawn."""
-    import io  # lazy: the warm-up's image, in the child only
+    """Load what the page's drawing needs before its job comes: the report modules and matplotlib (with
+    no numba: they use :mod:`aidnav.nav.plain`), the default font and the PNG writer. A whole overview
+    drawn small as a warm-up (sessions 5–7) cost more CPU than it saved once the child no longer loaded
+    numba (60-s log: warm-up 0.37 CPU-s, the figure after it 0.55 against 0.57 cold; docs/results.md,
+    issue 41 session 8): on two cores that CPU is taken from the filter."""
+    from matplotlib import font_manager  # lazy: matplotlib, in the child only
+    from PIL import PngImagePlugin  # noqa: F401  # lazy: the PNG writer, in the child only
 
-    import numpy as np  # lazy: (loaded by the parent already)
+    import aidnav.report.overview  # noqa: F401  # lazy: matplotlib and the figure's modules
+    import aidnav.report.run_page  # noqa: F401  # lazy: the page's modules
 
-    from aidnav.data import Trajectory  # lazy: (loaded by the parent already)
-    from aidnav.report.overview import overview_figure  # lazy: matplotlib and the figure's modules
-
-    n = 60
-    t = np.arange(n, dtype=float)
-    z = np.zeros(n)
-    lat, lon = np.radians(30.0) + 1e-7 * t, np.radians(114.0) + 1e-7 * np.sin(t)
-    sig = np.column_stack([0.5 + z, 0.5 + z, 0.8 + z])
-    traj = Trajectory(t, lat, lon, 50.0 + z, np.zeros((n, 3)), np.column_stack([z, z, 0.1 * t]), sig,
-                      sig * 0.1, np.radians(sig))
-    rec = {"time": t[::5], "pos_nis": 1.0 + (t[::5] % 7), "pos_status": np.ones(12, int)}
-    fig = overview_figure(traj, None, {"outage_windows": [[10.0, 20.0]]}, rec, title="warm-up σ χ²")
-    fig.savefig(io.BytesIO(), format="png", dpi=20)
+    font_manager.get_font(font_manager.findfont(font_manager.FontProperties()))
 
 
 def _serve(job_fd: int):

@@ -10,7 +10,8 @@ seeds and over the evaluation epochs (every second of the filter's output, gaps 
 * ``coverage``: per axis (E, N, U, roll, pitch, heading) the fraction of epochs with |error| ≤ 3σ (σ the
   one the solution reports, :func:`aidnav.filters.result.to_trajectory`); an honest Gaussian σ covers
   99.73 %; the target is ≥ 95 %;
-* ``ratio``: per axis RMS(error) / RMS(σ) (1 for an honest σ; < 0.3 flags a σ uselessly large);
+* ``ratio``: per axis RMS(error) / RMS(σ) (1 for an honest σ; < 0.3 flags a σ uselessly large); the
+  heading's over the epochs where the filter claims a heading (σ < :data:`HEADING_UNKNOWN_RAD`);
 * ``nees``: the mean normalised estimation error squared of the 9 navigation error states (φ, δv, δp,
   :func:`aidnav.analysis.errors.ins_error_state`) with the filter's full 9×9 covariance at those epochs,
   divided by 9 (1 for an honest filter).
@@ -42,17 +43,30 @@ from aidnav.sim.imu import ImuSpec
 from aidnav.sim.run import simulate
 from aidnav.sim.scenario import parse_scenario
 
-__all__ = ["AXES", "COVERAGE_TARGET", "RATIO_TARGET", "GM_TAU_S", "Condition", "CellResult", "CONDITIONS",
-           "configurations", "condition", "simulate_condition", "config_for", "run_cell", "run_matrix",
-           "flags", "format_matrix", "matrix_page", "variant", "add_gauss_markov"]
+__all__ = ["AXES", "COVERAGE_TARGET", "RATIO_TARGET", "SEED_COVERAGE_BOUND", "GM_TAU_S",
+           "HEADING_UNKNOWN_RAD", "Condition", "CellResult", "CONDITIONS", "configurations", "condition",
+           "simulate_condition", "config_for", "run_cell", "run_matrix", "flags", "format_matrix",
+           "matrix_page", "variant", "add_gauss_markov"]
 
 AXES = ("E", "N", "U", "roll", "pitch", "heading")
 COVERAGE_TARGET = 0.95  #: the issue's acceptance: ≥ 95 % of the epochs within 3σ on every axis
 RATIO_TARGET = 0.3  #: RMS(error)/RMS(σ) below this: the σ is uselessly large
+#: The coverage bound a test over 10 seeds can hold an honest filter to (issue 35). The sensor constants
+#: (biases, scale factors, misalignments) are drawn once per seed, so where they dominate the attitude
+#: error a seed is in the worst case wholly inside or wholly outside 3σ: the number of uncovered seeds is
+#: Binomial(10, p = 0.0027). P(≥ 1 of 10) = 2.7 % per axis and cell — the issue's 95 % over 10 seeds
+#: fails an honest filter that often, and far more often over the matrix's hundreds of axis-cells —
+#: while P(≥ 2 of 10) = 3.3e-4. So one seed wholly out is allowed, two are not: 9/10 of the 95 % target.
+SEED_COVERAGE_BOUND = 0.9 * 0.95
 GM_TAU_S = 30.0  #: correlation time of the time-correlated GNSS position errors [s]
 GM_SIGMA_M = (0.5, 0.5, 1.0)  #: their steady-state σ E, N, U [m]
 GM_WHITE_M = 0.05  #: the white part of those fixes [m]
 EVAL_DT_S = 1.0  #: spacing of the evaluation epochs [s]
+#: a heading σ at or above this (90°) says "heading unknown" (the filter holds it so until a GNSS course
+#: aligns it: static with a gyro that cannot gyrocompass, after an IMU gap): such epochs count for the
+#: coverage (always covered) but not for the heading's RMS(error)/RMS(σ), which asks whether a claimed σ
+#: is uselessly large; a σ of 180° for a heading no sensor can give is the right answer, not a large one
+HEADING_UNKNOWN_RAD = np.pi / 2
 
 # a car: standing 30 s (coarse alignment), then ~250 s of driving with left and right turns, then a stop
 _START = [{"type": "static", "duration_s": 30}]
@@ -312,6 +326,9 @@ def run_cell(cond: Condition, config: str, seeds, sensor_model: bool = True) -> 
     e, s = e[good], s[good]
     cov = np.mean(np.abs(e) <= 3.0 * s, axis=0)
     ratio = np.sqrt(np.mean(e ** 2, axis=0)) / np.sqrt(np.mean(s ** 2, axis=0))
+    known = s[:, 5] < HEADING_UNKNOWN_RAD  # the heading ratio: epochs where the filter claims a heading
+    if np.any(known):
+        ratio[5] = np.sqrt(np.mean(e[known, 5] ** 2)) / np.sqrt(np.mean(s[known, 5] ** 2))
     n_all = np.concatenate(ns) if ns else np.full(0, np.nan)
     n_mean = float(np.nanmean(n_all)) if np.any(np.isfinite(n_all)) else np.nan
     return CellResult(cond.name, config, cov, ratio, n_mean, int(len(e)), len(seeds), len(errors), errors,

@@ -40,6 +40,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 import aidnav
+from aidnav.io._arrow import to_arrow  # Arrow arrays without pa.array (which imports pandas)
 from aidnav.io.atomic import replacing
 
 from . import statistics_spec as _config
@@ -292,14 +293,14 @@ def _consistency(t, nees, blocks, states, spec) -> list[dict]:
 # ----------------------------------------------------------------------------------- merging
 def _sweep_column(values: list):
     if all(isinstance(v, str) for v in values):
-        return pa.array(values, pa.string())
+        return to_arrow(values, "string")
     if all(isinstance(v, bool) for v in values):
-        return pa.array(values, pa.bool_())
+        return to_arrow(values, "bool")
     if all(isinstance(v, int) and not isinstance(v, bool) for v in values):
-        return pa.array(values, pa.int64())
+        return to_arrow(values, "int64")
     if all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
-        return pa.array([float(v) for v in values], pa.float64())
-    return pa.array([json.dumps(v, sort_keys=True) for v in values], pa.string())
+        return to_arrow([float(v) for v in values], "float64")
+    return to_arrow([json.dumps(v, sort_keys=True) for v in values], "string")
 
 
 def _load_point(out_dir, point, runs: int, estimators: list[str]):
@@ -360,15 +361,14 @@ def merge_campaign(plan, out_dir) -> dict:
                 consistency.append({"point": p.index, "label": p.label, "estimator": e, **c})
     # runs.parquet
     scols = statistic_columns(stats, all_states)
-    arrays = {"point": pa.array(run_cols["point"], pa.int32()),
-              "label": pa.array(run_cols["label"], pa.string())}
+    arrays = {"point": to_arrow(run_cols["point"], "int32"), "label": to_arrow(run_cols["label"], "string")}
     for sp in sweep_paths:
         arrays[sp] = _sweep_column(run_cols[sp])
-    arrays["estimator"] = pa.array(run_cols["estimator"], pa.string())
-    arrays["run"] = pa.array(run_cols["run"], pa.int32())
+    arrays["estimator"] = to_arrow(run_cols["estimator"], "string")
+    arrays["run"] = to_arrow(run_cols["run"], "int32")
     for c in scols:
-        arrays[c] = pa.array(np.concatenate([row.get(c, np.full(plan.runs, np.nan)) for row in stat_rows]),
-                             pa.float64())
+        arrays[c] = to_arrow(np.concatenate([row.get(c, np.full(plan.runs, np.nan)) for row in stat_rows]),
+                             "float64")
     paths = []
     with replacing(out / "runs.parquet") as tmp:  # whole or not at all (issue 37)
         pq.write_table(pa.table(arrays), tmp)
@@ -380,15 +380,15 @@ def merge_campaign(plan, out_dir) -> dict:
             if c not in ecols:
                 ecols.append(c)
     n_tot = sum(len(t) for _, _, t, _, _ in epoch_parts)
-    ep = {"point": pa.array(np.concatenate([np.full(len(t), i, np.int32) for i, _, t, _, _ in epoch_parts])
-                            if n_tot else np.zeros(0, np.int32), pa.int32()),
-          "estimator": pa.array([e for _, e, t, _, _ in epoch_parts for _ in range(len(t))], pa.string()),
-          "time_s": pa.array(np.concatenate([t for _, _, t, _, _ in epoch_parts]), pa.float64()),
-          "runs": pa.array(np.concatenate([np.full(len(t), r, np.int32) for _, _, t, r, _ in epoch_parts]),
-                           pa.int32())}
+    ep = {"point": to_arrow(np.concatenate([np.full(len(t), i, np.int32) for i, _, t, _, _ in epoch_parts])
+                            if n_tot else np.zeros(0, np.int32), "int32"),
+          "estimator": to_arrow([e for _, e, t, _, _ in epoch_parts for _ in range(len(t))], "string"),
+          "time_s": to_arrow(np.concatenate([t for _, _, t, _, _ in epoch_parts]), "float64"),
+          "runs": to_arrow(np.concatenate([np.full(len(t), r, np.int32) for _, _, t, r, _ in epoch_parts]),
+                           "int32")}
     for c in ecols:
-        ep[c] = pa.array(np.concatenate([s.get(c, np.full(len(t), np.nan)) for _, _, t, _, s in epoch_parts]),
-                         pa.float64())
+        ep[c] = to_arrow(np.concatenate([s.get(c, np.full(len(t), np.nan)) for _, _, t, _, s in epoch_parts]),
+                         "float64")
     with replacing(out / "epochs.parquet") as tmp:
         pq.write_table(pa.table(ep), tmp)
     paths.append(out / "epochs.parquet")
@@ -412,7 +412,8 @@ def write_trajectories(out_dir, plan, truth_of, max_points: int = 2000) -> Path:
         cols["lat_deg"].append(np.degrees(tr.lat[sl]))
         cols["lon_deg"].append(np.degrees(tr.lon[sl]))
         cols["height_m"].append(tr.height[sl])
-    table = pa.table({k: pa.array(np.concatenate(v)) for k, v in cols.items()})
+    table = pa.table({k: to_arrow(np.concatenate(v), "int32" if k == "point" else "float64")
+                      for k, v in cols.items()})
     path = Path(out_dir) / "trajectories.parquet"
     with replacing(path) as tmp:
         pq.write_table(table, tmp)

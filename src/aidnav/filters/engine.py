@@ -225,7 +225,7 @@ def _reinit(st, P, ini, ix, held):
     (the filter's velocity covariance, propagated with that heading, is meaningless), of the fix alone.
     ``ix`` (≥ 15,): index in P of each state of the full INS layout (−1: not in the filter, a subset)."""
     rn_ = ini.reset_nav  # layout.RN_*: the fix's velocity, position, their σ, the lever arm
-    set_heading(st, P, ini.reset_heading, ini.reset_sigma, ix[PHI + 2])
+    set_heading(st, P, ini.reset_heading, ini.reset_sigma, ix[PHI + 2], ix[PHI], ix[PHI + 1])
     dvr = np.sqrt((st[ST_VEL] - rn_[RN_VEL]) ** 2 + (st[ST_VEL + 1] - rn_[RN_VEL + 1]) ** 2)
     sv_e, sv_n = rn_[RN_SVEL], rn_[RN_SVEL + 1]
     v2 = sv_e ** 2 + sv_n ** 2 if held else _var(P, ix, DV) + _var(P, ix, DV + 1) + sv_e ** 2
@@ -277,7 +277,7 @@ def _add_gap(st, P, gap, ix):
 
 
 @njit(cache=True)
-def _course_heading(st, P, row, pv, iu):
+def _course_heading(st, P, row, pv, iu, ie, inn):
     """Heading from the GNSS course of velocity record ``row`` (v ENU, σ) when it is meaningful (speed
     above ``pv[C_VMIN]`` and 5 times its σ): IMU heading = course + mounting heading, σ ``pv[C_SIG]``
     and the course's own (:func:`.ins_errors.set_heading`). Returns whether it was set."""
@@ -287,7 +287,7 @@ def _course_heading(st, P, row, pv, iu):
         return False
     h = np.arctan2(row[0], row[1]) + pv[C_MOUNT_H]
     s = np.sqrt(pv[C_SIG] ** 2 + (sg / sp) ** 2)
-    set_heading(st, P, h, s, iu)
+    set_heading(st, P, h, s, iu, ie, inn)
     return True
 
 
@@ -515,7 +515,8 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
                 # a record inside an IMU gap cannot be moved back across the unknown motion: not used
                 if rec.use[gi] and not (gap_k and imu.t[k] - tr > GAP_REC_S):
                     md = rec.model[gi]
-                    if gap[4] > 0.0 and md == M_GNSS_VEL and _course_heading(st, P, rec.data[gi], pv, iu):
+                    if gap[4] > 0.0 and md == M_GNSS_VEL and _course_heading(st, P, rec.data[gi], pv, iu,
+                                                                             ix[PHI], ix[PHI + 1]):
                         gap[4] = 0.0
                         C = dcm_from_quat(st[ST_Q:ST_Q + 4])
                     nav = Nav(st, C, w, imu.t[k] - tr, bias)

@@ -281,17 +281,34 @@ def propagate_sample(st, acc, dth, dv, bias, dt, dthc, dvc, dth_prev, dv_prev):
 
 
 @njit(cache=True)
-def set_heading(st, P, heading, sigma, iu=PHI + 2):
+def set_heading(st, P, heading, sigma, iu=PHI + 2, ie=-1, inn=-1):
     """Heading (re)initialisation, in place: keep roll and pitch of q_b^n in ``st``, set the heading to
     ``heading`` [rad, from North, clockwise] and reset the row and column of φ_U (index ``iu`` of the
     covariance ``P`` (n×n); 2 in the full layout, −1: P has no φ_U) to the variance sigma² [rad²] (no
     correlation with the other errors).
+
+    ``ie``, ``inn``: indices of φ_E, φ_N in P (−1: not rotated). The tilt error belongs to the body's
+    roll and pitch, which the heading change keeps: in the navigation frame it turns with the heading,
+    φ_EN ← R φ_EN (R the rotation applied to C_b^n), so its rows and columns of P are rotated with it.
+    Without that the covariance of the tilt with the body-frame accelerometer biases (the coarse
+    alignment's b − g·φ, known to the noise while the bias and the tilt are not) would be applied with
+    the old heading: after a course alignment that turns the heading by tens of degrees the filter would
+    claim a tilt accuracy it does not have.
     """
     Cn = dcm_from_quat(st[ST_Q:ST_Q + 4])
     from_h = np.arctan2(Cn[0, 1], Cn[1, 1])
     dpsi = -(heading - from_h)  # rotation about Up by yaw = -heading change
     qz = np.array([np.cos(0.5 * dpsi), 0.0, 0.0, np.sin(0.5 * dpsi)])
     st[ST_Q:ST_Q + 4] = quat_normalize(quat_mult(qz, st[ST_Q:ST_Q + 4]))
+    if ie >= 0 and inn >= 0:
+        R = dcm_from_quat(st[ST_Q:ST_Q + 4]) @ Cn.T  # C_new = R C_old
+        a, b, c, d = R[0, 0], R[0, 1], R[1, 0], R[1, 1]
+        for j in range(P.shape[0]):  # rows, then columns: P ← T P Tᵀ
+            pe, pn = P[ie, j], P[inn, j]
+            P[ie, j], P[inn, j] = a * pe + b * pn, c * pe + d * pn
+        for j in range(P.shape[0]):
+            pe, pn = P[j, ie], P[j, inn]
+            P[j, ie], P[j, inn] = a * pe + b * pn, c * pe + d * pn
     if iu < 0:
         return
     for j in range(P.shape[0]):

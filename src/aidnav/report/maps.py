@@ -40,7 +40,7 @@ import numpy as np
 from aidnav.data import GnssData, Trajectory
 from aidnav.io.atomic import write_text
 from aidnav.io.gpstime import week_sow_to_utc_iso
-from aidnav.nav.rotations import wrap_pi
+from aidnav.nav.plain import wrap_pi  # numpy: the figures' child runs without numba
 
 __all__ = ["write_kml", "write_geojson", "write_maps", "SIGMA_CLASSES_M", "QUALITY_NAMES", "track_pieces"]
 

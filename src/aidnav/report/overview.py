@@ -25,12 +25,12 @@ from pathlib import Path
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.ticker import Formatter
 
 from aidnav.analysis.consistency import chi2_band
 from aidnav.data import GnssData, Trajectory
 from aidnav.io.atomic import replacing
-from aidnav.nav.earth import lla_to_enu
-from aidnav.nav.rotations import wrap_360
+from aidnav.nav.plain import lla_to_enu, wrap_360  # numpy: the figures' child runs without numba
 
 from .maps import fix_groups
 
@@ -120,7 +120,9 @@ def overview_figure(traj: Trajectory, gnss: GnssData | None = None, summary: dic
         raise ValueError("overview: empty trajectory")
     summary = summary or {}
     wins = [tuple(map(float, w)) for w in summary.get("outage_windows", [])]
-    series = nis_series(records, gnss)
+    # a measurement type with no update (GNSS without velocities) gets no panel: an empty panel costs as
+    # much to draw as a full one (the run page's NIS table says which types had none)
+    series = [x for x in nis_series(records, gnss) if np.any(np.isfinite(x["nis"]) & (x["dof"] > 0))]
     has_std_att = traj.std_att is not None and np.any(np.isfinite(traj.std_att))
     has_std_pos = traj.std_pos is not None and np.any(np.isfinite(traj.std_pos))
     right = ["rp", "heading"] + (["spos"] if has_std_pos else []) + (["satt"] if has_std_att else []) + \
@@ -208,14 +210,14 @@ def overview_figure(traj: Trajectory, gnss: GnssData | None = None, summary: dic
             ax = axes["spos"]
             for i, c in enumerate("ENU"):
                 ax.plot(t, traj.std_pos[sl, i], lw=0.8, label=f"σ{c}")
-            ax.set_yscale("log")
+            _log_y(ax)
             ax.set_ylabel("position 1σ [m]")
             ax.legend(loc="upper right", fontsize=8, ncol=3)
         if has_std_att:
             ax = axes["satt"]
             for i, c in enumerate(("roll", "pitch", "heading")):
                 ax.plot(t, np.degrees(traj.std_att[sl, i]), lw=0.8, label=f"σ {c}")
-            ax.set_yscale("log")
+            _log_y(ax)
             ax.set_ylabel("attitude 1σ [deg]")
             ax.legend(loc="upper right", fontsize=8, ncol=3)
         for s in series:
@@ -235,6 +237,33 @@ def overview_figure(traj: Trajectory, gnss: GnssData | None = None, summary: dic
             title += " (smoothed)"
     fig.suptitle(title)
     return fig
+
+
+class _PlainLog(Formatter):
+    """Tick labels of a log axis in plain numbers (0.02, 0.1, 5): matplotlib's default log labels (2×10⁻²)
+    go through its mathtext parser, about a tenth of the overview's drawing. Minor ticks are labelled
+    as matplotlib labels them: none over more than one decade, 2 and 5 over 0.4–1 decade, all below."""
+
+    def __init__(self, minor: bool = False):
+        self.minor = minor
+
+    def __call__(self, x, pos=None):
+        if not (x > 0 and np.isfinite(x)):
+            return ""
+        if self.minor:
+            lo, hi = sorted(self.axis.get_view_interval())
+            decades = np.log10(hi / lo) if lo > 0 else np.inf
+            mantissa = round(x / 10.0 ** np.floor(np.log10(x) + 1e-9))
+            if decades > 1.0 or (decades > 0.4 and mantissa not in (2, 5)):
+                return ""
+        return f"{x:.6g}"
+
+
+def _log_y(ax) -> None:
+    """A log y axis labelled in plain numbers (:class:`_PlainLog`)."""
+    ax.set_yscale("log")
+    ax.yaxis.set_major_formatter(_PlainLog())
+    ax.yaxis.set_minor_formatter(_PlainLog(minor=True))
 
 
 def _nis_panel(ax, s: dict, t0: float) -> None:

@@ -20,7 +20,6 @@ from pathlib import Path
 
 import numpy as np
 
-from aidnav.filters.result import SENSOR_ERROR_UNITS, sensor_error_axis
 from aidnav.io.atomic import write_text
 
 from .html import escape, fmt, img_file_tag, kv_table, page, table
@@ -36,6 +35,8 @@ def calibration_estimates(res) -> dict:
     epoch's sensor-error estimates and their 1σ = √P[9 + k, 9 + k] (error states after the 9 navigation
     states), converted to gyro bias [deg/h], accelerometer bias [µg] and scale factors [ppm]
     (names as the trajectory's bias columns, e.g. ``gyro_bias_x_deg_h``)."""
+    from aidnav.filters.result import SENSOR_ERROR_UNITS, sensor_error_axis  # lazy: numba (the page: none)
+
     bias = np.asarray(res.bias, float)
     pdiag = np.asarray(res.pdiag, float)
     if bias.ndim != 2 or len(bias) == 0:

@@ -57,7 +57,7 @@ __all__ = ["PITCH_RUNS_FACTOR", "pitch_bias_model", "fixed_bias_pitch", "pitch_s
            "pitch_sigma_vs_gps_velocity", "pitch_rows", "per_epoch_rms"]
 
 
-def pitch_bias_model() -> dict:
+def pitch_bias_model(level_deg: float = PHI0_DEG[0]) -> dict:
     """The pitch error the accelerometer bias leaves with SAPV on the static base (arc-minutes).
 
     GPS holds the level velocity: g (up × φ) + ∇ → 0, so the filter can only split the level tilt from the
@@ -67,11 +67,12 @@ def pitch_bias_model() -> dict:
     nose, clockwise) stays, k (∇x cos α − ∇y sin α)/g (body x right, y forward), and its share in pitch (the
     tilt about x) is sin α. Returns ``k``, ``alpha_deg``, ``sigma`` (1σ for biases drawn with Table 1's σ on
     each axis), ``seed`` (Table 1's biases as values, the same on every axis), ``adverse`` (x +, y −).
+    ``level_deg``: the filter's level-tilt prior σ [deg] (the initial level error, P_0 matched).
     """
     g = geometry_check()
     a = math.radians(g["az_deg"])
     tilt = ACCEL_BIAS_UG * 1e-6 / ARCMIN  # σ∇/g as a tilt [arcmin] (µg of standard gravity over g)
-    sphi = PHI0_DEG[0] * 60.0  # the filter's level-tilt prior σ [arcmin]
+    sphi = abs(level_deg) * 60.0  # the filter's level-tilt prior σ [arcmin]
     k = sphi**2 / (sphi**2 + tilt**2)
     return {"k": k, "alpha_deg": g["az_deg"], "sigma": k * math.sin(a) * tilt,
             "seed": k * math.sin(a) * abs(math.cos(a) - math.sin(a)) * tilt,
@@ -121,13 +122,14 @@ def pitch_sigma(res, t_s: float) -> float:
 
 
 def pitch_sigma_vs_gps_velocity(base_seed: int, duration_s: float, sigmas=GPS_VEL_SWEEP_M_S,
-                                times=(SETTLE_S, 60.0)) -> dict:
+                                times=(SETTLE_S, 60.0), phi0=PHI0_DEG) -> dict:
     """Covariance study: the filter's own pitch σ [arcmin] at ``times`` [s] when the GPS velocity σ it assumes
     is each of ``sigmas`` [m/s] (SINS/GPS/SAPV, centralized = fusion-reset). On the static base the
-    covariance does not depend on the noise draw, so one realisation gives it. Returns {σ_v: {t: σ}}."""
+    covariance does not depend on the noise draw, so one realisation gives it; ``phi0``: the initial
+    misalignment [deg] (P_0 matched). Returns {σ_v: {t: σ}}."""
 
     ss = np.random.SeedSequence(base_seed).spawn(1)[0]
-    sim, sv, cfg = simulate_case(ss, min(duration_s, max(times) + 1.0))
+    sim, sv, cfg = simulate_case(ss, min(duration_s, max(times) + 1.0), phi0_deg=phi0)
     out = {}
     for sig in sigmas:  # the fixes' σ columns set the filter's R (the fixes themselves are Table 1's)
         g = replace(sim.gnss, std_vel=np.full_like(sim.gnss.std_vel, sig))
@@ -136,11 +138,13 @@ def pitch_sigma_vs_gps_velocity(base_seed: int, duration_s: float, sigmas=GPS_VE
     return out
 
 
-def pitch_rows(main_series, t, runs: int, base_seed: int, duration_s: float, sigma_t: dict, phi0):
+def pitch_rows(main_series, t, runs: int, base_seed: int, duration_s: float, sigma_t: dict, phi0,
+               level_sweep: dict | None = None):
     """(spec rows, informative rows, sensitivity rows, figure data) of the pitch claim. ``main_series``:
     (runs, epochs) pitch error of the main Monte Carlo's federated filter [arcmin] at the epochs ``t`` [s]
     (biases drawn per run); ``sigma_t``: {t [s]: the filter's pitch σ}; ``phi0``: the initial
-    misalignment of the runs [deg]."""
+    misalignment of the runs [deg]; ``level_sweep``: :func:`.seed_000.level0_sweep` (the pitch claim at
+    other initial level errors, quoted in the reason)."""
     from scipy.stats import norm  # lazy: scipy is heavy to import
 
     lim = PITCH_LIMIT_ARCMIN
@@ -161,6 +165,27 @@ def pitch_rows(main_series, t, runs: int, base_seed: int, duration_s: float, sig
     fr, fse = per_epoch_rms(fx["series"])
     fk = int(np.flatnonzero(after)[np.argmax(fr[after])])
     pm, ps = PAPER_PITCH_SAPV
+    sig30 = sigma_t.get(SETTLE_S, float("nan"))
+    limit = (f"The filter's own pitch σ at {SETTLE_S:g} s is {sig30:.2f}′, a property of the model and "
+             "not of "
+             "the runs: the tilt about the line of sight's horizontal direction, which the antenna does not "
+             f"see (its share in pitch sin α = {math.sin(math.radians(geometry_check()['az_deg'])):.2f}), is "
+             f"observed only through the GPS velocity (σ {GPS_SIGMA_VEL_M_S:g} m/s at 1 Hz), which resolves "
+             f"a tilt g·φ only as a straight-line fit resolves a slope: by {SETTLE_S:g} s not below 2′ (the "
+             "covariance rows show it for a smaller GPS velocity σ). So the row fails at the seed's 30 s "
+             "and holds from the epoch given; a genuine fail of the seed's '30 s 以内' (within 30 s), not a "
+             "statistic choice: the SPEC's statistic is per epoch (the RMS pooled over "
+             f"{SETTLE_S:g}-{duration_s:g} s, "
+             f"{float(np.sqrt(np.mean(rms_t[after] ** 2))):.2f}′, would hold)")
+    show = [x for x in (level_sweep or {}) if x in (PHI0_DEG[0], abs(phi0[0]))]
+    if show:
+        limit += (". Initial level errors (the seed gives none; fitted to Table 2 state 1, 'Level fit' "
+                  "table): the filter's own pitch σ at 30 s is "
+                  + ", ".join(f"{level_sweep[x]['sigma30']:.2f}′ at {x:g}°" for x in show)
+                  + " (the per-epoch RMS of the sweep's runs: "
+                  + ", ".join(f"{level_sweep[x]['rms30']:.2f} ± {level_sweep[x]['rms30_se']:.2f}′"
+                              for x in show)
+                  + "): the prior moves it little; Table 1's GPS velocity, not the prior, keeps it above 2′")
     spec = [resolved_row(summary_row(
         f"pitch error, per-epoch RMS over runs (biases drawn per run), largest from {SETTLE_S:g} s on (at "
         f"{t[k]:g} s): the seed's level accuracy (精度) < {lim:g}′ once the attitude is estimated; "
@@ -169,13 +194,7 @@ def pitch_rows(main_series, t, runs: int, base_seed: int, duration_s: float, sig
         stderr=worst_se, margin=(lim - worst, worst_se), runs=P.shape[0]), P.shape[0], why=(
         f"the per-epoch RMS over runs is {worst:.2f} ± {worst_se:.2f}′ at {t[k]:g} s and stays below "
         f"{lim:g}′ "
-        f"from {t_below:g} s on (mean over the epochs after {SETTLE_S:g} s: "
-        f"{float(np.sqrt(np.mean(rms_t[after] ** 2))):.2f}′). The tilt about the line of sight's horizontal "
-        "direction, which the antenna does not see, is observed only through the GPS velocity (σ "
-        f"{GPS_SIGMA_VEL_M_S:g} m/s) and is still converging at {SETTLE_S:g} s (the filter's own pitch σ "
-        "there: "
-        f"{sigma_t.get(SETTLE_S, float('nan')):.2f}′; the covariance rows show it for a smaller GPS velocity "
-        "σ). The seed's '30 s 以内' (within 30 s) is a round figure. With the biases fixed at +500 µg on "
+        f"from {t_below:g} s on. {limit}. With the biases fixed at +500 µg on "
         f"every axis (the former reading, 'Pitch: bias reading') the largest RMS is {float(fr[fk]):.2f}′"))]
     info = [
         summary_row(f"pitch error, per-epoch RMS over runs: first epoch from which it stays below {lim:g}′",
@@ -188,7 +207,7 @@ def pitch_rows(main_series, t, runs: int, base_seed: int, duration_s: float, sig
                     "runs "
                     f"touch {lim:g}′)", "arcmin", pmax, runs=P.shape[0]),
     ]
-    for sv_, st in pitch_sigma_vs_gps_velocity(base_seed, duration_s).items():
+    for sv_, st in pitch_sigma_vs_gps_velocity(base_seed, duration_s, phi0=phi0).items():
         info.append(summary_row(
             f"covariance study: the filter's own pitch σ at {SETTLE_S:g} s if the GPS velocity σ were "
             f"{sv_:g} m/s (Table 1: {GPS_SIGMA_VEL_M_S:g}; at 60 s: {st[60.0]:.2f}′; informative)", "arcmin",
@@ -197,7 +216,7 @@ def pitch_rows(main_series, t, runs: int, base_seed: int, duration_s: float, sig
     info.append(summary_row(f"the filter's own pitch σ (run 0): {sig}", "arcmin", sigma_t.get(SETTLE_S)))
     adv = fixed_bias_pitch(min(runs, SWEEP_RUNS), base_seed, duration_s, ADVERSE_RUN_IMU, phi0=phi0)
     ar, _ = per_epoch_rms(adv["series"])
-    pb = pitch_bias_model()
+    pb = pitch_bias_model(phi0[0])
     acc = math.sqrt(float(np.mean(fx["ms"])))
     sens = [
         summary_row(f"fixed +500 µg / 0.1°/h on every axis (the former reading): per-epoch RMS over runs, "

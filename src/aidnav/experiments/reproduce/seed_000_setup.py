@@ -51,6 +51,13 @@ PHI0_DEG = (0.1, 0.1, 1.0)
 PHI_U0_GRID_DEG = (1.0, 2.0, 3.0, 3.5, 4.0, 5.0)
 #: the seed's Table 2 state 1 (SINS/GPS) heading error over its 500-s run: (mean, std) [arcmin]
 PAPER_STATE1_HEADING = (-76.9119, 98.5442)
+#: the initial level errors φ_E0 = φ_N0 [deg] of the fit to Table 2 state 1's pitch and roll std (the seed
+#: does not give them; 0.1° was our choice of 2026-12-01): the same rule as φ_U0 (§1.3, 2026-12-06), applied
+#: to the level axes by :func:`.seed_000.level0_fit` (issue 39, session 8)
+LEVEL0_GRID_DEG = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.8)
+#: the seed's Table 2 state 1 (SINS/GPS) pitch and roll error std over its 500-s run [arcmin]; their means
+#: (1.21′, 1.14′) are one draw of the bias-tied tilt (σ∇/g = 1.72′) and do not enter the fit
+PAPER_STATE1_LEVEL_STD = {"pitch": 3.2584, "roll": 3.7765}
 POS0_SIGMA_M = 10.0  #: initial position error σ [m]: the INS starts from a GPS fix (σ 10 m)
 VEL0_SIGMA_M_S = 0.5  #: initial velocity error σ [m/s]: from a GPS velocity (σ 0.5 m/s)
 #: initial heading errors [deg] of the sensitivity sweep of the velocity target (§1.3, erratum 12)

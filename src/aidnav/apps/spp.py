@@ -24,7 +24,7 @@ from aidnav.errors import InputError
 from aidnav.estimators.spp import spp_series
 from aidnav.io.formats import gnss_to_trajectory
 from aidnav.io.interchange import write_gnss
-from aidnav.io.rinex import read_rinex_nav, read_rinex_obs
+from aidnav.io.rinex import read_rinex_pair
 
 __all__ = ["spp_files", "format_spp_summary"]
 
@@ -40,9 +40,7 @@ def spp_files(obs_path, nav_path, out_dir="spp", fmt: str = "parquet", iono: str
     if not code_sigma_m > 0:
         raise InputError(f"--code-sigma {code_sigma_m}: expected a σ > 0 m")
     out = prepare_out_dir(out_dir)
-    obs = read_rinex_obs(obs_path)
-    eph = read_rinex_nav(nav_path, ref_week=getattr(obs, "ref_week", None))
-    notes: list[str] = []
+    obs, eph, notes = read_rinex_pair(obs_path, nav_path)  # every system with ephemerides
     sp = spp_series(obs, eph, sigma0=code_sigma_m, iono=iono, mask_deg=mask_deg)
     no_coef = iono == "klobuchar" and getattr(eph, "iono_alpha", None) is None
     default = no_coef and any("default coefficients" in e for e in sp["events"])
@@ -74,6 +72,9 @@ def spp_files(obs_path, nav_path, out_dir="spp", fmt: str = "parquet", iono: str
                "mask_deg": mask_deg, "code_sigma_m": code_sigma_m,
                "pdop_median": float(np.nanmedian(sp["pdop"][ok])),
                "satellites_used_median": float(np.median(sp["n_used"][ok])),
+               "systems": sorted({n[0] for n in obs.names}),
+               "inter_system_bias_m_median": {c: float(np.nanmedian(v)) for c, v in sp["isb_m"].items()
+                                              if np.isfinite(v).any()},
                "warnings": [n[len("warning: "):] for n in notes if n.startswith("warning: ")],
                "events": list(sp["events"]), "notes": [n for n in notes if not n.startswith("warning: ")]}
     write_summary_files(out, summary, format_spp_summary(summary))

@@ -32,7 +32,7 @@ from aidnav.filters.heading_match import velocity_match_heading
 from aidnav.filters.loose import static_flags
 from aidnav.filters.tight import TightConfig, apply_vehicle, run_tight, to_trajectory
 from aidnav.io.boundary import shift_imu_time
-from aidnav.io.rinex import read_rinex_nav, read_rinex_obs
+from aidnav.io.rinex import read_rinex_pair
 from aidnav.nav.earth import lla_difference_enu
 from aidnav.nav.rotations import wrap_2pi
 from aidnav.report.run_page import calibration_estimates
@@ -264,8 +264,8 @@ def process_tight_files(imu_path, obs_path, nav_path, config_path=None, out_dir=
         cfg = cfg.model_copy(update={"imu": cfg.imu.model_copy(update={"time_offset_s": time_offset_s})})
     imu = shift_imu_time(read_imu_any(imu_path), cfg.imu.time_offset_s)
     cfg = cfg.model_copy(update={"imu": cfg.imu.model_copy(update={"time_offset_s": 0.0})})
-    obs = read_rinex_obs(obs_path)
-    eph = read_rinex_nav(nav_path, ref_week=getattr(obs, "ref_week", None))
+    obs, eph, rinex_events = read_rinex_pair(obs_path, nav_path, cfg.gnss.systems)  # with ephemerides
+    events += rinex_events
     res, sp = process_tight(imu, obs, eph, cfg, events=events, smooth=smooth)
     traj = to_trajectory(res)
     check_solution(traj, "the tightly coupled filter")
@@ -273,7 +273,12 @@ def process_tight_files(imu_path, obs_path, nav_path, config_path=None, out_dir=
     summary = {"imu": str(imu_path), "obs": str(obs_path), "nav": str(nav_path), "output": str(traj_path),
                "states": cfg.states, "smoothed": bool(smooth), "vehicle": vehicle,
                "ionosphere": res.iono_model,
+               "systems": sorted({n[0] for n in obs.names}),
                "events": imu.events + events}
+    if res.isb_systems:  # inter-system biases at the end (that system's receiver clock − the GPS one)
+        summary["inter_system_bias_m"] = {c: {"value": float(res.isb[-1, k]),
+                                              "std": float(res.isb_std[-1, k])}
+                                          for k, c in enumerate(res.isb_systems)}
     # what changes the solution by metres is said where the user looks: the summary's warnings (issue 38)
     summary["warnings"] = [e.removeprefix("warning: ") for e in summary["events"]
                            if e.startswith("warning:") or _iono_note(e)]

@@ -27,7 +27,13 @@ from aidnav.filters.chi2 import chi2_isf
 from aidnav.jit import njit
 from aidnav.nav.earth import dcm_ecef_to_enu, ecef_to_lla, lla_to_ecef
 from aidnav.nav.gnss_sat import (
+    FREQ_L1,
+    SYS_GPS,
+    SYS_SBS,
+    SYSTEM_SIGMA_FACTOR,
+    SYSTEMS,
     az_el,
+    carrier_frequencies,
     dop,
     dual_frequency_iono,
     elevation_sigma,
@@ -36,6 +42,7 @@ from aidnav.nav.gnss_sat import (
     iono_fallback_note,
     klobuchar,
     klobuchar_coefficients,
+    sat_name,
     satellites_from_pseudoranges,
     tropo_delay,
 )
@@ -49,18 +56,21 @@ Atmosphere = namedtuple("Atmosphere", ["alpha", "beta", "use_iono", "use_tropo",
 
 
 @njit(cache=True)
-def _wls(sat_pos, pr_corr, sigma0, x0, atm, use, max_iter):
-    """Weighted Gauss-Newton SPP core; ``atm``: :data:`Atmosphere` settings. Returns (x, Q, v, el, az,
+def _wls(sat_pos, pr_corr, sigma0, x0, atm, use, max_iter, col, ifac, sfac):
+    """Weighted Gauss-Newton SPP core; ``atm``: :data:`Atmosphere` settings; ``col`` (S,) the state column
+    of each satellite's clock (3: the reference clock, 4 + k: reference + inter-system bias k), ``ifac``
+    (S,) the Klobuchar scale (f_L1/f)², ``sfac`` (S,) the σ factor of its system. Returns (x, Q, v, el, az,
     sig, used, iters, ok)."""
     alpha, beta, use_iono, use_tropo, humidity, mask, t_sow = atm
     s = sat_pos.shape[0]
+    nx = x0.shape[0]
     x = x0.copy()
     v = np.full(s, np.nan)
     el = np.full(s, np.nan)
     az = np.full(s, np.nan)
     sig = np.full(s, np.nan)
     used = np.zeros(s, np.bool_)
-    Q = np.full((4, 4), np.nan)
+    Q = np.full((nx, nx), np.nan)
     iters = 0
     ok = False
     for it in range(max_iter):
@@ -69,7 +79,7 @@ def _wls(sat_pos, pr_corr, sigma0, x0, atm, use, max_iter):
         lat, lon, h = 0.0, 0.0, 0.0
         if known:
             lat, lon, h = ecef_to_lla(x[0], x[1], x[2])
-        H = np.zeros((s, 4))
+        H = np.zeros((s, nx))
         w = np.zeros(s)
         n = 0
         for j in range(s):
@@ -78,26 +88,29 @@ def _wls(sat_pos, pr_corr, sigma0, x0, atm, use, max_iter):
                 continue
             r, e = geo_range(sat_pos[j], x[:3])
             corr = 0.0
-            sj = sigma0
+            sj = sigma0 * sfac[j]
             if known:
                 az[j], el[j], enu = az_el(e, lat, lon)
                 if el[j] < mask:
                     continue
                 if use_iono:
-                    corr += klobuchar(lat, lon, az[j], el[j], t_sow, alpha, beta)
+                    corr += ifac[j] * klobuchar(lat, lon, az[j], el[j], t_sow, alpha, beta)
                 if use_tropo:
                     corr += tropo_delay(lat, h, el[j], humidity)
-                sj = elevation_sigma(sigma0, el[j])
+                sj = elevation_sigma(sigma0 * sfac[j], el[j])
             sig[j] = sj
-            v[j] = pr_corr[j] - (r + x[3] + corr)
+            clk = x[3] + (x[col[j]] if col[j] > 3 else 0.0)
+            v[j] = pr_corr[j] - (r + clk + corr)
             H[j, 0], H[j, 1], H[j, 2], H[j, 3] = -e[0], -e[1], -e[2], 1.0
+            if col[j] > 3:
+                H[j, col[j]] = 1.0
             w[j] = 1.0 / (sj * sj)
             used[j] = True
             n += 1
-        if n < 4:
+        if n < nx:
             return x, Q, v, el, az, sig, used, iters, False
-        N = np.zeros((4, 4))
-        b = np.zeros(4)
+        N = np.zeros((nx, nx))
+        b = np.zeros(nx)
         for j in range(s):
             if used[j]:
                 N += w[j] * np.outer(H[j], H[j])
@@ -117,10 +130,10 @@ def _wls(sat_pos, pr_corr, sigma0, x0, atm, use, max_iter):
             lat, lon, h = ecef_to_lla(x[0], x[1], x[2])
             corr = 0.0
             if use_iono:
-                corr += klobuchar(lat, lon, az[j], el[j], t_sow, alpha, beta)
+                corr += ifac[j] * klobuchar(lat, lon, az[j], el[j], t_sow, alpha, beta)
             if use_tropo:
                 corr += tropo_delay(lat, h, el[j], humidity)
-            v[j] = pr_corr[j] - (r + x[3] + corr)
+            v[j] = pr_corr[j] - (r + x[3] + (x[col[j]] if col[j] > 3 else 0.0) + corr)
     return x, Q, v, el, az, sig, used, iters, ok
 
 
@@ -153,6 +166,9 @@ class SppResult:
     threshold: float = float("nan")
     status: str = "ok"
     iterations: int = 0
+    reference_system: str = "G"  # the system whose receiver clock ``clock_m`` is
+    isb_m: dict = field(default_factory=dict)  # inter-system biases [m]: {letter: clock − reference clock}
+    isb_std_m: dict = field(default_factory=dict)
 
     @property
     def n_used(self) -> int:
@@ -185,6 +201,7 @@ def spp(
     max_exclusions: int = 2,
     max_iter: int = 12,
     exclude=None,
+    freq=None,
 ) -> SppResult:
     """Single-point position of one epoch by iterated weighted least squares with a residual check.
 
@@ -194,6 +211,12 @@ def spp(
     [m]; iono_alpha/beta Klobuchar coefficients (None: no ionospheric correction); tropo: Saastamoinen
     standard atmosphere; mask_deg elevation mask; p_fa false-alarm probability of the residual test;
     exclude (S,) bool of satellites not to use. Method in the module docstring.
+
+    Several systems (``prns`` are satellite ids, :mod:`aidnav.nav.gnss_sat`): the first system present in
+    the order G, E, C, R is the reference (``clock_m``), every other one adds an inter-system bias unknown
+    (``isb_m``: its receiver clock − the reference one), its Klobuchar delay is scaled by (f_L1/f)² and its
+    σ0 by :data:`aidnav.nav.gnss_sat.SYSTEM_SIGMA_FACTOR`; a solution needs 3 + (number of systems)
+    satellites. ``freq`` (S,) [Hz] overrides the signal frequencies of the ids (GLONASS channels).
     """
     sat_pos = np.ascontiguousarray(sat_pos, float).reshape(-1, 3)
     s = len(sat_pos)
@@ -204,10 +227,21 @@ def spp(
     use_iono = iono_alpha is not None and iono_beta is not None
     alpha = np.asarray(iono_alpha if use_iono else _ZERO4, float)
     beta = np.asarray(iono_beta if use_iono else _ZERO4, float)
-    start = np.zeros(4) if x0 is None else np.asarray(x0, float).copy()
+    ids = np.asarray(prns, np.int64) if np.issubdtype(np.asarray(prns).dtype, np.integer) else np.arange(s)
+    sfac = np.array([SYSTEM_SIGMA_FACTOR[SYSTEMS[k]] for k in ids // 100])
+    sysn = np.where(ids // 100 == SYS_SBS, SYS_GPS, ids // 100)  # SBAS ranges on the GPS clock
+    f = carrier_frequencies(ids) if freq is None else np.asarray(freq, float)
+    ifac = np.where(np.isfinite(f), (FREQ_L1 / f) ** 2, 1.0)
+    x0 = np.zeros(4) if x0 is None else np.asarray(x0, float)
     excluded: list = []
     status = "ok"
     while True:
+        present = [k for k in range(len(SYSTEMS)) if (use & (sysn == k)).any()]
+        ref = present[0] if present else 0
+        others = present[1:]
+        col = np.array([3 if k == ref or k not in others else 4 + others.index(k) for k in sysn], np.int64)
+        start = np.zeros(4 + len(others))
+        start[:min(4, len(x0))] = x0[:4]
         x, Q, v, el, az, sig, used, iters, ok = _wls(
             sat_pos,
             pr_corr,
@@ -217,15 +251,23 @@ def spp(
                        float(t_sow)),
             use,
             max_iter,
+            col,
+            ifac,
+            sfac,
         )
+        gone = [k for k in present if not (used & (sysn == k)).any()]
+        if gone and len(gone) < len(present):  # a system with every satellite below the mask: without it
+            use &= ~np.isin(sysn, gone)
+            continue
+        nx = 4 + len(others)
         n = int(used.sum())
-        if n < 4:
+        if n < nx:
             status = "too few satellites"
             break
         if not ok:
             status = "no convergence"
             break
-        dof = n - 4
+        dof = n - nx
         if dof == 0:
             status = "no redundancy: unchecked"
             T = thr = float("nan")
@@ -242,29 +284,32 @@ def spp(
         # standardized residuals
         lat, lon, _ = ecef_to_lla(x[0], x[1], x[2])
         idx = np.flatnonzero(used)
-        H = np.zeros((len(idx), 4))
+        H = np.zeros((len(idx), nx))
         for k, j in enumerate(idx):
             _, e = geo_range(sat_pos[j], x[:3])
-            H[k] = [-e[0], -e[1], -e[2], 1.0]
+            H[k, :4] = [-e[0], -e[1], -e[2], 1.0]
+            if col[j] > 3:
+                H[k, col[j]] = 1.0
         Qv = np.diag(sig[idx] ** 2) - H @ Q @ H.T
         zstd = np.abs(v[idx]) / np.sqrt(np.maximum(np.diag(Qv), 1e-12))
         worst = idx[int(np.argmax(zstd))]
         excluded.append(prns[worst].item() if hasattr(prns[worst], "item") else prns[worst])
         use[worst] = False
-        start = x.copy()
+        x0 = x[:4].copy()
     lat, lon, h = ecef_to_lla(x[0], x[1], x[2])
     cov_enu = np.full((3, 3), np.nan)
     if np.all(np.isfinite(Q)):
         C = dcm_ecef_to_enu(lat, lon)
         cov_enu = C @ Q[:3, :3] @ C.T
-    d = _dop_from_geometry(el, az, used) if used.sum() >= 4 else _dop_from_geometry(el, az, used & False)
+    geo_ok = used.sum() >= 4 and np.all(np.isfinite(el[used]))
+    d = _dop_from_geometry(el, az, used if geo_ok else used & False)
     res = SppResult(
         ecef=x[:3].copy(),
         lat=float(lat),
         lon=float(lon),
         h=float(h),
         clock_m=float(x[3]),
-        cov=Q,
+        cov=Q[:4, :4],
         cov_enu=cov_enu,
         dop=d,
         residuals=np.where(used, v, np.nan),
@@ -274,6 +319,9 @@ def spp(
         excluded=excluded,
         status=status,
         iterations=int(iters),
+        reference_system=SYSTEMS[ref],
+        isb_m={SYSTEMS[k]: float(x[4 + i]) for i, k in enumerate(others)},
+        isb_std_m={SYSTEMS[k]: float(np.sqrt(Q[4 + i, 4 + i])) for i, k in enumerate(others)},
     )
     if status not in ("too few satellites", "no convergence", "no redundancy: unchecked"):
         res.test_stat, res.threshold = T, thr
@@ -334,10 +382,13 @@ def spp_series(
     averaged over a
     centred window of ``iono_window_s`` seconds per satellite (the combination's noise is ≈ 2.3× the code
     noise; the ionosphere changes little over a minute). Returns a dict of arrays: time, ecef (T, 3),
-    lat, lon, h, clock_m, vel_enu (T, 3), clock_drift, n_used, status (list), pdop, excluded (list),
+    lat, lon, h, clock_m (the clock of ``reference_system`` (T,): the first system of G, E, C, R with
+    satellites), isb_m ({letter: (T,)} inter-system biases [m] to it), vel_enu (T, 3), clock_drift, n_used,
+    status (list), pdop, excluded (list),
     residuals (T, S), events (list of str: satellites without ephemeris, exclusions, epochs without a fix).
     """
     eph = eph.to_week(obs.ref_week) if eph.ref_week != obs.ref_week else eph
+    obs = obs.with_frequencies(eph)  # GLONASS channels from the records
     T, S = obs.code1.shape
     pr_all = obs.code1.copy()
     if iono == "dual":
@@ -364,6 +415,8 @@ def spp_series(
     out["status"] = []
     out["excluded"] = []
     out["residuals"] = np.full((T, S), np.nan)
+    out["isb_m"] = {}
+    out["reference_system"] = np.full(T, "", dtype="<U1")
     xprev = None if x0 is None else np.asarray(x0, float)
     no_eph = np.zeros(S, int)
     for k in range(T):
@@ -383,12 +436,16 @@ def spp_series(
             iono_beta=beta,
             mask_deg=mask_deg,
             p_fa=p_fa,
+            freq=obs.freq1,
         )
         out["status"].append(r.status)
         out["excluded"].append(r.excluded)
         if not r.valid:
             continue
         xprev = np.r_[r.ecef, r.clock_m]
+        for c, v in r.isb_m.items():  # relative to the epoch's reference system (GPS when it has satellites)
+            out["isb_m"].setdefault(c, np.full(T, np.nan))[k] = v
+        out["reference_system"][k] = r.reference_system
         out["ecef"][k] = r.ecef
         out["lat"][k], out["lon"][k], out["h"][k], out["clock_m"][k] = r.lat, r.lon, r.h, r.clock_m
         out["n_used"][k] = r.n_used
@@ -402,12 +459,12 @@ def spp_series(
     events = iono_events
     for j in np.flatnonzero(no_eph):
         events.append(
-            f"G{int(obs.prn[j]):02d}: {no_eph[j]} epoch(s) with a pseudorange but no usable ephemeris; "
+            f"{sat_name(obs.prn[j])}: {no_eph[j]} epoch(s) with a pseudorange but no usable ephemeris; "
             "skipped"
         )
     excl = [p for ex in out["excluded"] for p in ex]
     for p in sorted(set(excl), key=int):
-        events.append(f"G{int(p):02d}: excluded by the residual check at {excl.count(p)} epoch(s)")
+        events.append(f"{sat_name(p)}: excluded by the residual check at {excl.count(p)} epoch(s)")
     n_bad = sum(st in ("too few satellites", "no convergence") for st in out["status"])
     if n_bad:
         events.append(f"{n_bad} epoch(s) without a solution (too few satellites or no convergence)")

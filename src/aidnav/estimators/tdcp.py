@@ -28,11 +28,13 @@ from aidnav.nav.gnss_sat import LAMBDA_L1, geo_range, satellites_from_pseudorang
 __all__ = ["phase_increments", "tdcp_displacement", "tdcp_series"]
 
 
-def phase_increments(time, phase_cycles, lli, range_rate, slip_threshold_cycles: float = 0.5):
+def phase_increments(time, phase_cycles, lli, range_rate, slip_threshold_cycles: float = 0.5,
+                     wavelength=LAMBDA_L1):
     """Phase increments λΔL [m] (T, S) between consecutive epochs (row k: from k−1 to k; row 0 NaN) with
     cycle slips removed (NaN), and the slips (T, S) as codes: 0 none, 1 loss-of-lock indicator, 2 phase
     disagrees with the Doppler (module doc). range_rate (T, S) [m/s] = −λ·Doppler (NaN: no Doppler: only
-    the indicator is checked)."""
+    the indicator is checked). wavelength [m]: scalar or (S,) per satellite (GLONASS FDMA channels, BeiDou
+    B1I)."""
     L = np.asarray(phase_cycles, float)
     T, S = L.shape
     dphi = np.full((T, S), np.nan)
@@ -40,12 +42,13 @@ def phase_increments(time, phase_cycles, lli, range_rate, slip_threshold_cycles:
     if T < 2:
         return dphi, slip
     dt = np.diff(np.asarray(time, float))[:, None]
-    d = LAMBDA_L1 * (L[1:] - L[:-1])
+    lam = np.broadcast_to(np.asarray(wavelength, float), (S,))
+    d = lam * (L[1:] - L[:-1])
     lost = (np.asarray(lli, np.int64)[1:] & 1) == 1
     rr = np.asarray(range_rate, float)
     pred = 0.5 * (rr[1:] + rr[:-1]) * dt
     with np.errstate(invalid="ignore"):
-        bad = np.abs(d - pred) > slip_threshold_cycles * LAMBDA_L1
+        bad = np.abs(d - pred) > slip_threshold_cycles * lam
     ok = np.isfinite(d)
     slip[1:][ok & lost] = 1
     slip[1:][ok & ~lost & bad] = 2
@@ -87,8 +90,10 @@ def tdcp_series(obs, eph, positions_ecef, sigma_phase_m: float = 0.005, slip_thr
     if obs.phase1 is None:
         raise ValueError("no L1 carrier phase in the observations")
     eph = eph.to_week(obs.ref_week) if eph.ref_week != obs.ref_week else eph
+    obs = obs.with_frequencies(eph)  # wavelengths per satellite (GLONASS channels from the records)
     T, S = obs.code1.shape
-    dphi, slips = phase_increments(obs.time, obs.phase1, obs.lli1, obs.range_rate(), slip_threshold_cycles)
+    dphi, slips = phase_increments(obs.time, obs.phase1, obs.lli1, obs.range_rate(), slip_threshold_cycles,
+                                   obs.wavelengths())
     sp = np.full((T, S, 3), np.nan)
     sc = np.full((T, S), np.nan)
     for k in range(T):

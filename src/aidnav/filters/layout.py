@@ -16,7 +16,10 @@ SG 15:18  gyro scale-factor residual [-]              21, 24, 27
 SA 18:21  accel scale-factor residual [-]             21, 24, 27
 MG 21:27  gyro misalignment residual [rad]            27
 CLK       receiver clock bias [m], drift [m/s]        17 (15:17), 11 (9:11)
-RERR      per-satellite range errors [-] (tight)      after CLK when switched on
+ISB       inter-system biases [m] (tight: one per     after CLK (before RERR)
+          non-GPS system, that system's receiver
+          clock − the GPS clock)
+RERR      per-satellite range errors [-] (tight)      after CLK (and ISB) when switched on
 AUX       calibration states (odometer scale factor   after the INS block
           [-], barometer bias [m], GNSS lever arm
           [m], time offset [s], mounting ρ [rad],
@@ -41,8 +44,8 @@ MIS_PAIRS = ("xy", "xz", "yx", "yz", "zx", "zy")  # gyro misalignment m_(out)(in
 # error-state blocks of the INS model (ins_errors)
 NAV = 9  # φ, δv, δp
 __all__ = ["PHI", "DV", "DP", "BG", "BA", "SG", "SA", "MG", "ST_POS", "ST_VEL", "ST_Q", "N_ST", "NAV",
-           "AUX_NAMES", "RN_VEL", "RN_POS", "RN_SVEL", "RN_SPOS", "RN_LEVER", "N_RN", "L_RERR", "L_TOFF",
-           "L_MOUNT", "L_VDEL", "L_GPE", "L_FLEX", "make_layout", "layout_names", "LAYOUTS"]
+           "AUX_NAMES", "RN_VEL", "RN_POS", "RN_SVEL", "RN_SPOS", "RN_LEVER", "N_RN", "L_RERR", "L_ISB",
+           "L_TOFF", "L_MOUNT", "L_VDEL", "L_GPE", "L_FLEX", "make_layout", "layout_names", "LAYOUTS"]
 
 # the course fix of a re-initialisation event (engine ``Init.reset_nav``, N_RN,): its velocity ENU [m/s],
 # position lat, lon [rad], h [m], velocity σ ENU [m/s], position σ E, N, U [m], antenna lever arm (body) [m]
@@ -66,7 +69,9 @@ L_GPE = 9  # index of the 3 Gauss-Markov GNSS position-error states ENU [m] (tim
 L_FLEX = 10  # index of the flexure angle θ (3) [rad] (θ̇ (3) [rad/s] at +3 for "flexure"), -1: none
 L_RERR = 11  # index of the per-satellite range-error states (tight coupling: one per satellite column of
 # an epoch record, normalised: unit-variance Gauss-Markov, range error = σ_j(E) × state), -1: none
-L_SIZE = 12
+L_ISB = 12  # index of the inter-system bias states [m] (tight coupling: one per non-GPS system of the
+# log, in the order of the epoch rows' system slots; that system's receiver clock − the GPS one), -1: none
+L_SIZE = 13
 
 LAYOUTS = {15: dict(scale_factors=False), 17: dict(scale_factors=False, aux=("clock",)),
            21: dict(scale_factors=True), 24: dict(scale_factors=True, aux=("lever_arm",)),

@@ -16,6 +16,13 @@ budget (:func:`aidnav.nav.gnss_sat.range_error_sigma`), a unit-variance Gauss-Ma
 correlation time ``range_error_tau_s`` (docs/models.md §6.3); with four satellites the position σ then
 says what the range errors can do to it.
 
+**Every constellation** (issue 40): Galileo, BeiDou and GLONASS satellites of the observations (ids of
+:mod:`aidnav.nav.gnss_sat`) enter like GPS ones; one inter-system bias state per non-GPS system with a
+usable satellite (``L_ISB``, after the clock: that system's receiver clock − the GPS clock [m], random walk
+of PSD ``isb_psd_m2_s``, initial σ ``isb_sigma_m``; rates share the drift), a σ factor per system
+(``system_sigma_factor``, RTKLIB's EFACT_*) and the Klobuchar delay scaled by (f_L1/f)² of the satellite's
+signal (GLONASS per channel).
+
 **Measurements**: each GNSS epoch is one engine record (:mod:`aidnav.filters.measurements.epoch`): due at
 the receive time t_tag − b̂/c, the INS antenna moved back to it; clock start and jumps (median residual
 beyond ``clock_jump_m``) re-initialise b̂; mask, Klobuchar (RTKLIB's default coefficients when the
@@ -44,6 +51,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from aidnav.nav.earth import radii
 from aidnav.nav.gnss_sat import (
     C_LIGHT,
+    FREQ_L1,
     dual_frequency_iono,
     iono_fallback_note,
     klobuchar_coefficients,
@@ -56,7 +64,7 @@ from . import measurements as ms
 from .chi2 import chi2_isf as _chi2_isf
 from .config import Constraints, FilterSettings, ImuNoise, Initialisation
 from .engine import NEVER, Imu, Init, Models, Output, Process, Records, rts, run_filter, smooth_outputs
-from .layout import L_CLK, L_N, L_NINS, L_RERR, L_SIZE
+from .layout import L_CLK, L_ISB, L_N, L_NINS, L_RERR, L_SIZE
 from .loose import LooseResult, bridge_gaps
 from .loose import to_trajectory as nav_trajectory
 from .measurements import epoch as ep
@@ -116,6 +124,18 @@ class RawGnssAiding(_Strict):
         True, description="per-satellite Gauss-Markov range-error states with the σ of RTKLIB's "
         "single-frequency error budget (URA, ionosphere, troposphere, code bias; docs/models.md)")
     range_error_tau_s: float = Field(1800.0, gt=0, description="correlation time of the range errors [s]")
+    systems: str = Field("GECR", pattern="^[GECRS]+$", description="satellite systems used where the "
+                         "navigation file has their ephemerides (G GPS, E Galileo, C BeiDou, R GLONASS, "
+                         "S SBAS ranging: on the GPS clock, σ factor 3; not in the default)")
+    isb_sigma_m: float = Field(100.0, gt=0, description="σ of the initial inter-system biases (Galileo, "
+                               "BeiDou, GLONASS receiver clock − the GPS one) [m]")
+    isb_m: dict[str, float] = Field(default_factory=dict, description="initial inter-system biases "
+                                    "{letter: m} of a receiver whose biases are known (give isb_sigma_m "
+                                    "their σ); 0 for the others")
+    isb_psd_m2_s: float = Field(1e-4, ge=0, description="random-walk PSD of the inter-system biases [m²/s]")
+    system_sigma_factor: dict[str, float] = Field(
+        default_factory=lambda: {"G": 1.0, "E": 1.0, "C": 1.0, "R": 1.5, "S": 3.0},
+        description="zenith code and rate σ factor per system (RTKLIB's EFACT_*: GLONASS 1.5, SBAS 3)")
     use_phase: bool = Field(True, description="time-differenced L1 carrier phase (where the observations "
                             "have it): mean velocities between epochs as velocity records (aidnav tight)")
     phase_sigma_m: float = Field(0.005, gt=0, description="carrier-phase σ per epoch [m]")
@@ -199,40 +219,50 @@ class TightResult:
     range_error: np.ndarray | None = None  # (N, R) forward range-error estimates û [-] (σ units), R states
     range_error_prn: np.ndarray | None = None  # (R,) PRN of each range-error state
     iono_model: str = ""  # the ionospheric correction applied and its σ (for the summary)
+    isb_systems: str = ""  # letters of the systems with an inter-system bias state (clock − GPS clock)
+    isb: np.ndarray | None = None  # (N, len(isb_systems)) forward inter-system bias estimates [m]
+    isb_std: np.ndarray | None = None  # (N, len(isb_systems)) their σ [m]
 
 
-def tight_layout(states: int, n_range: int = 0) -> np.ndarray:
+def tight_layout(states: int, n_range: int = 0, n_isb: int = 0) -> np.ndarray:
     """Layout table (:mod:`aidnav.filters.layout`): INS block of 9 (11 states) or 15, then the clock,
-    then ``n_range`` per-satellite range-error states (none: 0)."""
+    then ``n_isb`` inter-system biases (``L_ISB``, none: 0), then ``n_range`` per-satellite range-error
+    states (``L_RERR``, none: 0; kept last: they are the open-loop Gauss-Markov block)."""
     lay = np.full(L_SIZE, -1, np.int64)
     lay[L_NINS] = 9 if states == 11 else 15
     lay[L_CLK] = lay[L_NINS]
     lay[L_N] = lay[L_NINS] + 2
+    if n_isb:
+        lay[L_ISB] = lay[L_N]
+        lay[L_N] += n_isb
     if n_range:
         lay[L_RERR] = lay[L_N]
         lay[L_N] += n_range
     return lay
 
 
-def _noise_vector(cfg: TightConfig, n_range: int = 0) -> np.ndarray:
-    q = np.zeros(N_NOISE + n_range)
+def _noise_vector(cfg: TightConfig, n_range: int = 0, n_isb: int = 0) -> np.ndarray:
+    q = np.zeros(N_NOISE + n_isb + n_range)
     q[:12] = process_noise(cfg, 15)  # reads cfg.imu (the loose schema's section)
     g = cfg.gnss
     h0, hm2 = clock_allan(g)
     q[12] = C_LIGHT**2 * h0 / 2.0
     q[13] = C_LIGHT**2 * 2.0 * np.pi**2 * hm2
-    q[N_NOISE:] = 2.0 / g.range_error_tau_s  # unit-variance first-order Gauss-Markov: q = 2σ²/τ
+    q[N_NOISE:N_NOISE + n_isb] = g.isb_psd_m2_s  # inter-system biases: random walk
+    q[N_NOISE + n_isb:] = 2.0 / g.range_error_tau_s  # unit-variance first-order Gauss-Markov: q = 2σ²/τ
     return q
 
 
-def _initial_P(cfg: TightConfig, lat, h, att_sig, n_range: int = 0) -> np.ndarray:
+def _initial_P(cfg: TightConfig, lat, h, att_sig, n_range: int = 0, n_isb: int = 0) -> np.ndarray:
     nn = 9 if cfg.states == 11 else 15
-    n = nn + 2 + n_range
+    n = nn + 2 + n_isb + n_range
     P15 = initial_covariance(cfg, 15, lat, h, att_sig)  # reads cfg.imu, cfg.init (the loose schema's)
     P = np.eye(n)  # range-error states: unit variance (stationary)
     P[:nn, :nn] = P15[:nn, :nn]
     P[nn, nn] = cfg.gnss.clock_bias_sigma_m**2
     P[nn + 1, nn + 1] = cfg.gnss.clock_drift_sigma_m_s**2
+    for k in range(n_isb):
+        P[nn + 2 + k, nn + 2 + k] = cfg.gnss.isb_sigma_m**2
     return P
 
 
@@ -378,10 +408,12 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
         ion_dual = dual_frequency_iono(obs.time, obs.code1, obs.code2, g.iono_window_s)
     else:
         ion_dual = np.full(obs.code1.shape, np.nan)
+    obs = obs.with_frequencies(eph)  # GLONASS channels from the records
     sp, sv, sc, scr, ura = _satellite_arrays(obs, eph, g.iono != "dual", g.max_eph_age_s)
     no_eph = (np.isfinite(obs.code1) & ~np.isfinite(sp[:, :, 0])).sum(axis=0)
+    names = obs.names
     for j in np.flatnonzero(no_eph):
-        events.append(f"G{int(obs.prn[j]):02d}: {int(no_eph[j])} epoch(s) with a pseudorange but no usable "
+        events.append(f"{names[j]}: {int(no_eph[j])} epoch(s) with a pseudorange but no usable "
                       "ephemeris; skipped")
     M, S = obs.code1.shape
     rows = np.full((M, S, ep.E_W), np.nan)
@@ -389,11 +421,21 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     rows[:, :, 6] = np.where(np.isfinite(sp[:, :, 0]), obs.code1 + sc, np.nan)
     rows[:, :, 7], rows[:, :, 8], rows[:, :, 9] = obs.range_rate() + scr, ion_dual, ura
     # range-error states: one per satellite with a usable ephemeris somewhere in the log
-    with_eph = np.flatnonzero(np.isfinite(sp[:, :, 0]).any(axis=0)) if g.range_errors else np.zeros(0, int)
+    usable = np.isfinite(sp[:, :, 0]).any(axis=0)
+    with_eph = np.flatnonzero(usable) if g.range_errors else np.zeros(0, int)
     rows[:, with_eph, 10] = np.arange(len(with_eph))
-    lay = tight_layout(cfg.states, len(with_eph))
+    # inter-system biases: one per non-GPS system with a usable satellite; Klobuchar scale, σ factor
+    letters = np.array([nm[0] for nm in names])
+    isb_sys = [c for c in "ECR" if (usable & (letters == c)).any()]
+    for k, c in enumerate(isb_sys):
+        rows[:, letters == c, 11] = k
+    f = obs.frequencies()
+    rows[:, :, 12] = np.where(np.isfinite(f), (FREQ_L1 / f) ** 2, 1.0)
+    rows[:, :, 13] = np.array([g.system_sigma_factor.get(c, 1.0) for c in letters])
+    nb = len(isb_sys)
+    lay = tight_layout(cfg.states, len(with_eph), nb)
     n, nr = int(lay[L_N]), len(with_eph)
-    P0 = _initial_P(cfg, lat0, h0, np.array(cfg.init.attitude_sigma_deg) * DEG, nr)
+    P0 = _initial_P(cfg, lat0, h0, np.array(cfg.init.attitude_sigma_deg) * DEG, nr, nb)
     rec, sel = _records(obs.time, rows.reshape(M, S * ep.E_W), velocity_fixes, S)
     if velocity_fixes is not None:
         par[ms.M_GNSS_VEL, 0:3] = g.lever_arm_m
@@ -417,10 +459,13 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     imu_in = Imu(t_imu[sl], dth_in[sl], dv_in[sl], stat[sl], gap_var, np.zeros((0, 2)))
     taus = np.array([cfg.imu.gyro_bias_tau_s, cfg.imu.accel_bias_tau_s, 0.0, 0.0])
     # range-error estimates decay as the Gauss-Markov conditional mean between updates (open-loop states)
-    aux_tau = np.r_[0.0, g.clock_tau_s, np.full(nr, g.range_error_tau_s)]
-    proc = Process(lay, _noise_vector(cfg, nr), taus, aux_tau, float(cfg.filter.prop_dt_s),
+    aux_tau = np.r_[0.0, g.clock_tau_s, np.zeros(nb), np.full(nr, g.range_error_tau_s)]
+    proc = Process(lay, _noise_vector(cfg, nr, nb), taus, aux_tau, float(cfg.filter.prop_dt_s),
                    open=np.arange(n - nr, n, dtype=np.int64))
-    init = Init(float(t0), st0, np.zeros(n - 9), P0, reset_idx, reset_heading,
+    bias0 = np.zeros(n - 9)
+    if nb:
+        bias0[int(lay[L_ISB]) - 9:int(lay[L_ISB]) - 9 + nb] = [g.isb_m.get(c, 0.0) for c in isb_sys]
+    init = Init(float(t0), st0, bias0, P0, reset_idx, reset_heading,
                 cfg.init.course_heading_sigma_deg * DEG, np.full(15, np.nan))
     r = run_filter(imu_in, rec, mod, proc, init, Output(out_every, bool(smooth), np.zeros(0, np.int64)))
     ge = rec.grp._replace(**{k: getattr(rec.grp, k)[sel] for k in rec.grp._fields if k != "flags"})
@@ -432,7 +477,7 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
             rej_pr = (ge.pr_nu**2 > gate * ge.pr_s).sum(axis=0)
             rej_rate = (ge.rate_nu**2 > gate * ge.rate_s).sum(axis=0)
         for j in np.flatnonzero(rej_pr + rej_rate):
-            events.append(f"G{int(obs.prn[j]):02d}: {int(rej_pr[j])} pseudorange(s) and {int(rej_rate[j])} "
+            events.append(f"{names[j]}: {int(rej_pr[j])} pseudorange(s) and {int(rej_rate[j])} "
                           "rate(s) outside the innovation gate (rejected unless the gate was suspended)")
     log = log_dict(r.log, r.n_log)
     cnt = dict(zupt_updates=int((log["model"] == ms.M_ZUPT).sum()),
@@ -445,7 +490,12 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     res = TightResult(time=t_imu[sl][r.out_idx], state=r.out_st, bias=r.out_bias[:, :nnav - 9],
                       clock=r.out_bias[:, ck], pdiag=r.out_pdiag, epochs=epochs, counts=cnt, events=events,
                       nstate=n, final_P=r.P, range_error=r.out_bias[:, n - nr - 9:n - 9],
-                      range_error_prn=np.asarray(obs.prn)[with_eph], iono_model=iono_model)
+                      range_error_prn=np.asarray(obs.prn)[with_eph], iono_model=iono_model,
+                      isb_systems="".join(isb_sys))
+    if nb:
+        i0 = int(lay[L_ISB]) - 9
+        res.isb = r.out_bias[:, i0:i0 + nb]
+        res.isb_std = np.sqrt(r.out_pdiag[:, i0 + 9:i0 + 9 + nb])
     if smooth and len(r.node_idx) > 1:
         ds, Ps = rts(r.S_post, r.S_prior, r.S_phi, r.S_dx, r.reset_node)
         sm_st, sm_b = smooth_outputs(r.out_idx, r.out_st, r.out_bias, r.out_node, r.node_idx, ds, r.S_dx, n)

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from aidnav.io.errors import DataError
-from aidnav.io.gpstime import SECONDS_PER_WEEK, calendar_to_week_sow
+from aidnav.io.gpstime import SECONDS_PER_WEEK, calendar_to_week_sow, leap_seconds
 from aidnav.nav.gnss_sat import (
     E_AF0,
     E_AF1,
@@ -51,13 +51,21 @@ from aidnav.nav.gnss_sat import (
     E_TGD,
     E_TOC,
     E_TOE,
+    E_TOES,
     E_URA,
     E_WEEK,
+    ERREPH_GLO,
+    G_ACC,
+    G_FCN,
+    G_POS,
+    G_VEL,
     N_EPH,
+    SYSTEMS,
+    sat_id,
 )
 from aidnav.nav.gnss_types import GnssObservations, GpsEphemerides
 
-__all__ = ["GpsEphemerides", "GnssObservations", "read_rinex_nav", "read_rinex_obs"]
+__all__ = ["GpsEphemerides", "GnssObservations", "read_rinex_nav", "read_rinex_obs", "read_rinex_pair"]
 
 
 def _load(path: Path, **kw):
@@ -77,19 +85,96 @@ def _dt64_to_week_sow(t: np.ndarray):
     return calendar_to_week_sow(s)
 
 
-def read_rinex_nav(path, ref_week: int | None = None) -> GpsEphemerides:
-    """Read the GPS records of a RINEX 2/3 navigation file.
+_BDT_GPS_S = 14.0  # GPST − BDT [s]
+_BDT_WEEK = 1356  # GPS week of BDT week 0
 
-    ref_week : week of the time scale (default: the week of the earliest toc). Records with a NaN
-    field are dropped and reported in ``events``. Returns :class:`GpsEphemerides`.
+
+def _keplerian_row(get, it, js, sid, sys, wk_toc, sow_toc, ref_week):
+    """One Keplerian record (GPS, Galileo, BeiDou) on the GPS reference-week scale (module doc)."""
+    r = np.zeros(N_EPH)
+    r[E_PRN] = sid
+    if sys == "C":  # BDT: week − 1356, 14 s behind GPST
+        week = get["BDTWeek"][it, js] + _BDT_WEEK
+        shift = _BDT_GPS_S
+    else:
+        week = get["GALWeek" if sys == "E" else "GPSWeek"][it, js]
+        shift = 0.0
+    r[E_WEEK] = week
+    r[E_TOE] = (week - ref_week) * SECONDS_PER_WEEK + get["Toe"][it, js] + shift
+    r[E_TOES] = get["Toe"][it, js]
+    r[E_TOC] = (wk_toc[it] - ref_week) * SECONDS_PER_WEEK + sow_toc[it] + shift
+    for col, key in ((E_AF0, "SVclockBias"), (E_AF1, "SVclockDrift"), (E_AF2, "SVclockDriftRate"),
+                     (E_SQRTA, "sqrtA"), (E_ECC, "Eccentricity"), (E_I0, "Io"), (E_OMEGA0, "Omega0"),
+                     (E_OMEGA, "omega"), (E_M0, "M0"), (E_DN, "DeltaN"), (E_IDOT, "IDOT"),
+                     (E_OMEGADOT, "OmegaDot"), (E_CUC, "Cuc"), (E_CUS, "Cus"), (E_CRC, "Crc"), (E_CRS, "Crs"),
+                     (E_CIC, "Cic"), (E_CIS, "Cis")):
+        r[col] = get[key][it, js]
+
+    def opt(key, default):
+        return get[key][it, js] if key in get else default
+
+    # single-frequency group delay: GPS TGD (L1 C/A), Galileo BGD(E1, E5b) (I/NAV E1-B users), BeiDou TGD1
+    r[E_TGD] = {"G": opt("TGD", 0.0), "E": opt("BGDe5b", 0.0), "C": opt("TGD1", 0.0)}[sys]
+    r[E_HEALTH] = opt("SatH1", 0.0) if sys == "C" else opt("health", 0.0)
+    r[E_IODE] = opt({"G": "IODE", "E": "IODnav", "C": "AODE"}[sys], 0.0)
+    r[E_URA] = opt("SISA" if sys == "E" else "SVacc", np.nan)
+    fit = opt("FitIntvl", 4.0) if sys == "G" else 4.0
+    r[E_FIT] = 4.0 if not np.isfinite(fit) or fit == 0 else fit
+    return r
+
+
+def _glonass_row(get, it, js, sid, t_utc, ref_week):
+    """One GLONASS record: the PZ-90 state at t_b (the record's UTC epoch + leap seconds, module doc)."""
+    r = np.zeros(N_EPH)
+    r[E_PRN] = sid
+    unix = t_utc.astype("datetime64[ns]").astype(np.int64) / 1e9
+    wk, sow = _dt64_to_week_sow(np.datetime_as_string(t_utc.astype("datetime64[ns]"), unit="ns"))
+    tb = (int(wk) - ref_week) * SECONDS_PER_WEEK + float(sow) + leap_seconds(unix)
+    r[E_WEEK] = wk
+    r[E_TOE] = r[E_TOC] = tb
+    r[E_AF0], r[E_AF1] = get["SVclockBias"][it, js], get["SVrelFreqBias"][it, js]  # −τ_n, +γ_n
+    for k, ax in enumerate("XYZ"):  # georinex gives metres
+        r[G_POS + k], r[G_VEL + k] = get[ax][it, js], get["d" + ax][it, js]
+        r[G_ACC + k] = get["d" + ax + "2"][it, js]
+    r[G_FCN] = get["FreqNum"][it, js]
+    r[E_HEALTH] = get["health"][it, js] if "health" in get else 0.0
+    r[E_URA] = ERREPH_GLO
+    return r
+
+
+def _sbas_row(get, it, js, sid, sow_toc, wk_toc, ref_week):
+    """One SBAS record: the GEO state at t0 (the record's GPS epoch), clock a_Gf0, a_Gf1."""
+    r = np.zeros(N_EPH)
+    r[E_PRN] = sid
+    r[E_WEEK] = wk_toc[it]
+    r[E_TOE] = r[E_TOC] = (wk_toc[it] - ref_week) * SECONDS_PER_WEEK + sow_toc[it]
+    r[E_AF0], r[E_AF1] = get["SVclockBias"][it, js], get["SVrelFreqBias"][it, js]
+    for k, ax in enumerate("XYZ"):  # georinex gives metres
+        r[G_POS + k], r[G_VEL + k] = get[ax][it, js], get["d" + ax][it, js]
+        r[G_ACC + k] = get["d" + ax + "2"][it, js]
+    r[E_HEALTH] = get["health"][it, js] if "health" in get else 0.0
+    ura = get["URA"][it, js] if "URA" in get else np.nan
+    r[E_URA] = ura if np.isfinite(ura) and ura > 0 else np.nan
+    return r
+
+
+def read_rinex_nav(path, ref_week: int | None = None, systems: str = "GECR") -> GpsEphemerides:
+    """Read the GPS, Galileo, BeiDou and GLONASS records (``systems``: RINEX letters) of a RINEX 2/3
+    navigation file.
+
+    ref_week : week of the time scale (default: the week of the earliest toc). Every record is put on the
+    GPS scale here (module doc of :mod:`aidnav.nav.gnss_sat`: BDT + 14 s, GLONASS UTC + leap seconds);
+    satellites are ids 100·system + PRN (GPS: the PRN). Records with a NaN field are dropped and reported
+    in ``events``. Returns :class:`GpsEphemerides`.
     """
     path = Path(path)
     if not path.exists():
         raise DataError(path, None, "file not found")
-    nav = _load(path, use="G")
+    use = {s for s in systems if s in SYSTEMS}
+    nav = _load(path, use=use)
     events: list[str] = []
     if "sv" not in nav.dims or nav.sizes.get("sv", 0) == 0:
-        raise DataError(path, None, "no GPS ephemeris in this navigation file")
+        raise DataError(path, None, f"no {'/'.join(sorted(use))} ephemeris in this navigation file")
     rows = []
     wk_toc, sow_toc = _dt64_to_week_sow(nav.time.values)
     wk_toc = np.atleast_1d(wk_toc)
@@ -97,49 +182,26 @@ def read_rinex_nav(path, ref_week: int | None = None) -> GpsEphemerides:
     if ref_week is None:
         ref_week = int(np.min(wk_toc))
     get = {k: nav[k].values for k in nav.data_vars}
-    need = ("sqrtA", "GPSWeek", "Toe", "Eccentricity", "M0")
-    if "time" not in nav.dims or any(k not in get for k in need):
-        missing = ", ".join(k for k in need if k not in get)
-        raise DataError(path, None, f"not a RINEX navigation file (no GPS ephemeris fields: {missing}; "
-                        f"found {', '.join(list(get)[:6]) or 'none'}): is it an observation file? Give "
+    if "time" not in nav.dims or not ({"sqrtA", "X"} & set(get)):
+        raise DataError(path, None, f"not a RINEX navigation file (no ephemeris fields; found "
+                        f"{', '.join(list(get)[:6]) or 'none'}): is it an observation file? Give "
                         "the navigation (ephemeris) file to --nav and the observation file to --obs")
     for it in range(nav.sizes["time"]):
         for js, sv in enumerate(nav.sv.values):
-            sv = str(sv)
-            if not sv.startswith("G"):
+            sv = str(sv).split("_")[0]  # georinex names a second record at the same time "E01_1"
+            sys = sv[0]
+            if sys not in use:
                 continue
-            if np.isnan(get["sqrtA"][it, js]):
-                continue
-            r = np.zeros(N_EPH)
-            r[E_PRN] = int(sv[1:])
-            week = get["GPSWeek"][it, js]
-            r[E_WEEK] = week
-            r[E_TOE] = (week - ref_week) * SECONDS_PER_WEEK + get["Toe"][it, js]
-            r[E_TOC] = (wk_toc[it] - ref_week) * SECONDS_PER_WEEK + sow_toc[it]
-            r[E_AF0] = get["SVclockBias"][it, js]
-            r[E_AF1] = get["SVclockDrift"][it, js]
-            r[E_AF2] = get["SVclockDriftRate"][it, js]
-            r[E_SQRTA] = get["sqrtA"][it, js]
-            r[E_ECC] = get["Eccentricity"][it, js]
-            r[E_I0] = get["Io"][it, js]
-            r[E_OMEGA0] = get["Omega0"][it, js]
-            r[E_OMEGA] = get["omega"][it, js]
-            r[E_M0] = get["M0"][it, js]
-            r[E_DN] = get["DeltaN"][it, js]
-            r[E_IDOT] = get["IDOT"][it, js]
-            r[E_OMEGADOT] = get["OmegaDot"][it, js]
-            r[E_CUC] = get["Cuc"][it, js]
-            r[E_CUS] = get["Cus"][it, js]
-            r[E_CRC] = get["Crc"][it, js]
-            r[E_CRS] = get["Crs"][it, js]
-            r[E_CIC] = get["Cic"][it, js]
-            r[E_CIS] = get["Cis"][it, js]
-            r[E_TGD] = get["TGD"][it, js] if "TGD" in get else 0.0
-            r[E_HEALTH] = get["health"][it, js] if "health" in get else 0.0
-            r[E_IODE] = get["IODE"][it, js] if "IODE" in get else 0.0
-            r[E_URA] = get["SVacc"][it, js] if "SVacc" in get else np.nan
-            fit = get["FitIntvl"][it, js] if "FitIntvl" in get else 4.0
-            r[E_FIT] = 4.0 if not np.isfinite(fit) or fit == 0 else fit
+            sid = sat_id(sv)
+            if sys in "RS":
+                if "X" not in get or np.isnan(get["X"][it, js]):
+                    continue
+                r = (_glonass_row(get, it, js, sid, nav.time.values[it], int(ref_week)) if sys == "R" else
+                     _sbas_row(get, it, js, sid, sow_toc, wk_toc, int(ref_week)))
+            else:
+                if "sqrtA" not in get or np.isnan(get["sqrtA"][it, js]):
+                    continue
+                r = _keplerian_row(get, it, js, sid, sys, wk_toc, sow_toc, int(ref_week))
             bad = [k for k in range(N_EPH) if k != E_URA and not np.isfinite(r[k])]
             if bad:
                 events.append(
@@ -148,7 +210,8 @@ def read_rinex_nav(path, ref_week: int | None = None) -> GpsEphemerides:
                 continue
             rows.append(r)
     if not rows:
-        raise DataError(path, None, "no complete GPS ephemeris record in this navigation file")
+        raise DataError(path, None, "no complete GPS/Galileo/BeiDou/GLONASS ephemeris record in this "
+                        "navigation file")
     table = np.array(rows)
     table = table[np.lexsort((table[:, E_TOE], table[:, E_PRN]))]
     alpha = beta = None
@@ -166,6 +229,10 @@ def read_rinex_nav(path, ref_week: int | None = None) -> GpsEphemerides:
     unhealthy = int(np.sum(table[:, E_HEALTH] != 0))
     if unhealthy:
         events.append(f"{path.name}: {unhealthy} record(s) flagged unhealthy (not used)")
+    per = {s: int(np.sum(table[:, E_PRN] // 100 == SYSTEMS.index(s))) for s in SYSTEMS}
+    if any(per[s] for s in "ECRS"):
+        events.append(f"{path.name}: records per system "
+                      + ", ".join(f"{s} {n}" for s, n in per.items() if n))
     return GpsEphemerides(table, int(ref_week), alpha, beta, events)
 
 
@@ -187,23 +254,31 @@ def _epoch_lines(path: Path) -> np.ndarray:
     return np.array(out)
 
 
-def _lli_rinex3(path: Path, code: str, prn: np.ndarray, n_epochs: int) -> np.ndarray:
-    """Loss-of-lock indicators (n_epochs, len(prn)) of the GPS observation ``code`` of a RINEX 3 file, read
-    from its fixed columns (value F14.3, LLI I1, SSI I1 per observation; epochs with event flag 0/1, as
-    :func:`_epoch_lines`); 0 where blank."""
-    out = np.zeros((n_epochs, len(prn)), np.int64)
-    col = {int(p): j for j, p in enumerate(prn)}
-    types: list[str] = []
-    k, use, in_header, cont = -1, False, True, 0
+#: the first signal aidnav uses per system (code, Doppler, C/N0, phase candidates, first present per
+#: satellite): GPS L1 C/A, Galileo E1 (C/X/B), BeiDou B1I (C2I; C1I in RINEX 3.01), GLONASS G1 C/A
+_SIGNALS = {"G": (("C1C", "C1"), ("D1C", "D1"), ("S1C", "S1"), ("L1C", "L1")),
+            "E": (("C1C", "C1X", "C1B"), ("D1C", "D1X", "D1B"), ("S1C", "S1X", "S1B"), ("L1C", "L1X", "L1B")),
+            "C": (("C2I", "C1I"), ("D2I", "D1I"), ("S2I", "S1I"), ("L2I", "L1I")),
+            "R": (("C1C", "C1"), ("D1C", "D1"), ("S1C", "S1"), ("L1C", "L1")),
+            "S": (("C1C", "C1"), ("D1C", "D1"), ("S1C", "S1"), ("L1C", "L1"))}
+
+
+def _lli_rinex3(path: Path, phase_code: dict, names: list, n_epochs: int) -> np.ndarray:
+    """Loss-of-lock indicators (n_epochs, len(names)) of each system's phase observation ``phase_code[sys]``
+    of a RINEX 3 file, read from its fixed columns (value F14.3, LLI I1, SSI I1 per observation; epochs
+    with event flag 0/1, as :func:`_epoch_lines`); 0 where blank."""
+    out = np.zeros((n_epochs, len(names)), np.int64)
+    col = {nm: j for j, nm in enumerate(names)}
+    types: dict[str, list[str]] = {}
+    k, use, in_header, cur = -1, False, True, ""
     with open(path, encoding="ascii", errors="replace") as f:
         for line in f:
             if in_header:
-                gps = line[0] == "G" or (cont and line[0] == " ")
-                if line[60:79].startswith("SYS / # / OBS TYPES") and gps:
-                    if line[0] == "G":
-                        cont = int(line[3:6])
-                    types += line[7:58].split()
-                    cont = cont if len(types) < cont else 0
+                if line[60:79].startswith("SYS / # / OBS TYPES"):
+                    if line[0] != " ":
+                        cur = line[0]
+                        types[cur] = []
+                    types[cur] += line[7:58].split()
                 elif "END OF HEADER" in line:
                     in_header = False
                 continue
@@ -212,41 +287,44 @@ def _lli_rinex3(path: Path, code: str, prn: np.ndarray, n_epochs: int) -> np.nda
                 use = flag in ("0", "1")
                 k += use
                 continue
-            if not use or line[0] != "G" or code not in types or k >= n_epochs:
+            sv = line[0:3].replace(" ", "0")
+            j = col.get(sv)
+            if not use or j is None or k >= n_epochs:
                 continue
-            j = col.get(int(line[1:3]))
-            c = 3 + 16 * types.index(code) + 14
-            if j is not None and len(line) > c and line[c].isdigit():
+            code = phase_code.get(sv[0])
+            if code is None or code not in types.get(sv[0], []):
+                continue
+            c = 3 + 16 * types[sv[0]].index(code) + 14
+            if len(line) > c and line[c].isdigit():
                 out[k, j] = int(line[c])
     return out
 
 
-def read_rinex_obs(path, ref_week: int | None = None) -> GnssObservations:
-    """Read the GPS L1 C/A code (C1C), Doppler (D1C), C/N0 (S1C), L1 carrier phase (L1C) with its
-    loss-of-lock indicator, and an L2 code (C2L/C2S/C2X/C2W/C2P, first present) of a RINEX 3 observation
-    file (RINEX 2: C1/P2/D1/S1/L1).
+def read_rinex_obs(path, ref_week: int | None = None, systems: str = "G") -> GnssObservations:
+    """Read each system's first signal (``systems``: RINEX letters of G, E, C, R; :data:`_SIGNALS`): code,
+    Doppler, C/N0, carrier phase with its loss-of-lock indicator, and for GPS an L2 code
+    (C2L/C2S/C2X/C2W/C2P, first present) of a RINEX 3 observation file (RINEX 2: C1/P2/D1/S1/L1).
 
-    ref_week : week of the time scale (default: the first epoch's). Returns :class:`GnssObservations`.
-    Epochs with a non-zero event flag other than 1 (power failure) are skipped by georinex and here.
+    ref_week : week of the time scale (default: the first epoch's). Returns :class:`GnssObservations`
+    (satellite ids of :mod:`aidnav.nav.gnss_sat`; other systems of the file, e.g. SBAS, are not read and
+    named in ``events``). Epochs with a non-zero event flag other than 1 (power failure) are skipped by
+    georinex and here. GLONASS frequencies: :meth:`GnssObservations.with_frequencies` with the ephemerides.
     """
     path = Path(path)
     if not path.exists():
         raise DataError(path, None, "file not found")
-    obs = _load(path, use="G")
+    use = {c for c in systems if c in SYSTEMS}
+    obs = _load(path, use=use)
     events: list[str] = []
     if obs.sizes.get("sv", 0) == 0:
-        raise DataError(path, None, "no GPS observations in this file")
+        raise DataError(path, None, f"no {'/'.join(sorted(use))} observations in this file")
     names = list(obs.data_vars)
+    svs = [str(v) for v in obs.sv.values]
+    svs_ok = [j for j, v in enumerate(svs) if v[0] in use]
 
     def first(*cands):
         return next((c for c in cands if c in names), None)
 
-    c1 = first("C1C", "C1")
-    d1 = first("D1C", "D1")
-    s1 = first("S1C", "S1")
-    c2 = first("C2L", "C2S", "C2X", "C2W", "C2P", "P2", "C2")
-    if c1 is None:
-        raise DataError(path, None, f"no L1 C/A code observation (have {', '.join(names)})")
     exact = _epoch_lines(path) if float(obs.attrs.get("version", 3)) >= 3 else np.array([])
     tt = obs.time.values.astype("datetime64[ns]")
     if len(exact) == len(tt):
@@ -266,26 +344,43 @@ def read_rinex_obs(path, ref_week: int | None = None) -> GnssObservations:
     t = (week - ref_week) * SECONDS_PER_WEEK + sow
     if np.any(np.diff(t) <= 0):
         raise DataError(path, None, "epoch times are not strictly increasing")
-    prn = np.array([int(str(s)[1:]) for s in obs.sv.values])
-
-    def arr(k):
-        return None if k is None else np.asarray(obs[k].values, float)
-
-    code1 = arr(c1)
-    dop = arr(d1) if d1 else np.full_like(code1, np.nan)
-    cn0 = arr(s1) if s1 else np.full_like(code1, np.nan)
-    code2 = arr(c2)
-    l1 = first("L1C", "L1")
-    phase1 = arr(l1)
+    T, S = len(t), len(svs_ok)
+    prn = np.array([sat_id(svs[j]) for j in svs_ok], np.int64)
+    arrays = [np.full((T, S), np.nan) for _ in range(4)]  # code, Doppler, C/N0, phase
+    used: dict[str, list] = {}
+    for c, j in enumerate(svs_ok):
+        sysl = svs[j][0]
+        for m, cands in enumerate(_SIGNALS[sysl]):
+            for key in cands:
+                if key in names:
+                    v = np.asarray(obs[key].values[:, j], float)
+                    if np.isfinite(v).any():
+                        arrays[m][:, c] = v
+                        used.setdefault(sysl, [None] * 4)
+                        used[sysl][m] = used[sysl][m] or key
+                        break
+    code1, dop, cn0, phase1 = arrays
+    if not np.isfinite(code1).any():
+        raise DataError(path, None, f"no first-signal code observation (have {', '.join(names)})")
+    gps = np.array([svs[j][0] == "G" for j in svs_ok])
+    c2 = first("C2L", "C2S", "C2X", "C2W", "C2P", "P2", "C2") if gps.any() else None
+    code2 = None
+    if c2 is not None:
+        code2 = np.full((T, S), np.nan)
+        code2[:, gps] = np.asarray(obs[c2].values, float)[:, [j for j in svs_ok if svs[j][0] == "G"]]
+    have_phase = np.isfinite(phase1).any()
     lli1 = None
-    if l1 is not None:
-        lli1 = np.zeros(phase1.shape, np.int64)
+    if have_phase:
+        lli1 = np.zeros((T, S), np.int64)
         if float(obs.attrs.get("version", 3)) >= 3 and len(exact) == len(t):
-            lli1 = _lli_rinex3(path, l1, prn, len(t))
+            lli1 = _lli_rinex3(path, {s_: u[3] for s_, u in used.items() if u[3]}, [svs[j] for j in svs_ok],
+                               len(t))
         else:
-            events.append(f"{path.name}: {l1} loss-of-lock indicators not read (RINEX 2); slips only from "
+            events.append(f"{path.name}: phase loss-of-lock indicators not read (RINEX 2); slips only from "
                           "the phase-Doppler test")
-    if d1 is None:
+    else:
+        phase1 = None
+    if not np.isfinite(dop).any():
         events.append(f"{path.name}: no L1 Doppler")
     dt = np.diff(t)
     if len(dt):
@@ -297,3 +392,44 @@ def read_rinex_obs(path, ref_week: int | None = None) -> GnssObservations:
     if approx is not None and not np.any(approx):
         approx = None
     return GnssObservations(t, int(ref_week), prn, code1, dop, cn0, code2, c2, approx, events, phase1, lli1)
+
+
+_SYSTEM_NAMES = {"G": "GPS", "E": "Galileo", "C": "BeiDou", "R": "GLONASS", "S": "SBAS", "J": "QZSS",
+                 "I": "NavIC"}
+
+
+def _header_systems(path: Path) -> list[str]:
+    """System letters with observation types in a RINEX 3 observation header (RINEX 2: none)."""
+    out = []
+    with open(path, encoding="ascii", errors="replace") as f:
+        for line in f:
+            if line[60:79].startswith("SYS / # / OBS TYPES") and line[0] != " ":
+                out.append(line[0])
+            if "END OF HEADER" in line:
+                break
+    return out
+
+
+def read_rinex_pair(obs_path, nav_path, systems: str = "GECR") -> tuple[GnssObservations, GpsEphemerides,
+                                                                         list[str]]:
+    """The observations of every system of ``systems`` (letters of G, E, C, R, S) that has ephemerides in
+    the navigation file, with the ephemerides on the observations' week; ``events`` name the systems of
+    the observation file left out and why (no ephemeris; not asked for; QZSS, NavIC: not supported)."""
+    if not Path(obs_path).exists():  # a missing observation file is named first (as before)
+        raise DataError(Path(obs_path), None, "file not found")
+    eph = read_rinex_nav(nav_path, systems=systems)
+    have = "".join(c for c in SYSTEMS if np.any(eph.table[:, E_PRN] // 100 == SYSTEMS.index(c)))
+    obs = read_rinex_obs(obs_path, systems=have or "G")
+    eph = eph.to_week(obs.ref_week) if eph.ref_week != obs.ref_week else eph
+    events = []
+    for c in _header_systems(Path(obs_path)):
+        if c in SYSTEMS and c not in systems:
+            events.append(f"{Path(obs_path).name}: {_SYSTEM_NAMES[c]} observations not used (systems "
+                          f"{systems}; add {c} to gnss.systems to use them)")
+        elif c in SYSTEMS and c not in have:
+            events.append(f"{Path(obs_path).name}: {_SYSTEM_NAMES[c]} observations but no {_SYSTEM_NAMES[c]} "
+                          f"ephemeris in {Path(nav_path).name}: not used")
+        elif c not in SYSTEMS:
+            events.append(f"{Path(obs_path).name}: {_SYSTEM_NAMES.get(c, c)} observations not used (aidnav "
+                          "reads GPS, Galileo, BeiDou, GLONASS and SBAS)")
+    return obs, eph, events

@@ -20,6 +20,22 @@ Signal path (:func:`geo_range`): the range from a satellite position at transmit
 time) to a receiver at receive time (ECEF of receive time) is |r_s − r_r| + ω_e (x_s y_r − y_s x_r)/c,
 the first-order Sagnac (Earth-rotation) correction (≤ 30 m; the neglected second order is < 1 mm);
 its rate adds ω_e/c (v_sy x_r + y_s v_rx − v_sx y_r − x_s v_ry) to e·(v_s − v_r).
+
+**Every constellation** (issue 40). A satellite is one integer id ``100·system + PRN`` with the systems
+G = 0 (GPS), E = 1 (Galileo), C = 2 (BeiDou), R = 3 (GLONASS): GPS ids are the PRNs (``sat_name`` /
+``sat_id`` convert to "E05"). Every record is on the GPS reference-week scale (the reader converts once:
+BDT = GPST − 14 s, BDT week = GPS week − 1356; Galileo's GST = GPST; GLONASS epochs in UTC + leap
+seconds); ``E_TOES`` keeps toe in the system's own seconds of week, which the node longitude needs
+(Ω_k = Ω0 + (Ω̇ − ω_e) t_k − ω_e·toe_sow). Galileo and BeiDou are Keplerian like GPS with their own μ and
+ω_e (Galileo OS SIS ICD: 3.986004418e14, 7.2921151467e-5; BeiDou ICD, CGCS2000: 3.986004418e14,
+7.2921150e-5); BeiDou GEO satellites (PRN 1–5, 59–63) are computed in the inclined frame and rotated by
+R_z(ω_e t_k)·R_x(−5°) (BeiDou ICD 5.2.4.12; velocity by central difference). GLONASS records hold the
+PZ-90 state at t_b (``G_POS``, ``G_VEL``, the luni-solar acceleration ``G_ACC``, the frequency channel
+``G_FCN``; clock −τ_n in ``E_AF0``, γ_n in ``E_AF1``) and are propagated by the ICD's 4th-order
+Runge-Kutta (GLONASS ICD 5.1 A.3.1.2: central field + J2⁰ in the rotating frame, 60-s steps, the
+acceleration held constant); PZ-90.11 is taken as WGS-84 (cm level). SBAS GEO satellites (S = 4, "S31" =
+PRN 131) have the same state-vector records, propagated quadratically over ≤ 360 s (RTKLIB's seph2pos),
+their clocks on GPS time (no inter-system bias; σ factor 3 as RTKLIB's EFACT_SBS).
 """
 
 from __future__ import annotations
@@ -39,13 +55,38 @@ FREQ_L1 = 1575.42e6  #: GPS L1 [Hz]
 FREQ_L2 = 1227.60e6  #: GPS L2 [Hz]
 LAMBDA_L1 = C_LIGHT / FREQ_L1  #: L1 wavelength [m]
 PI_GPS = 3.1415926535898  #: π as IS-GPS-200 defines it (semicircles ↔ rad)
+FREQ_B1I = 1561.098e6  #: BeiDou B1I [Hz]
+FREQ_G1 = 1602.0e6  #: GLONASS G1 centre [Hz]; channel k: FREQ_G1 + k·DFREQ_G1
+DFREQ_G1 = 0.5625e6  #: GLONASS G1 channel spacing [Hz]
+GM_GAL = 3.986004418e14  #: Galileo OS SIS ICD [m^3/s^2]
+GM_BDS = 3.986004418e14  #: BeiDou ICD (CGCS2000) [m^3/s^2]
+OMEGA_E_BDS = 7.2921150e-5  #: BeiDou ICD (CGCS2000) [rad/s]
+MU_GLO = 3.9860044e14  #: GLONASS ICD (PZ-90) [m^3/s^2]
+J2_GLO = 1.0826257e-3  #: GLONASS ICD second zonal harmonic J2⁰ [-]
+RE_GLO = 6378136.0  #: GLONASS ICD (PZ-90) equatorial radius [m]
+OMEGA_E_GLO = 7.292115e-5  #: GLONASS ICD (PZ-90) [rad/s]
+GLO_STEP_S = 60.0  #: Runge-Kutta step of the GLONASS orbit [s] (RTKLIB's TSTEP)
+ERREPH_GLO = 5.0  #: URA given to GLONASS records (RINEX carries none) [m], RTKLIB's ERREPH_GLO
+#: satellite systems of a satellite id (id // 100) and their RINEX letters
+SYS_GPS, SYS_GAL, SYS_BDS, SYS_GLO, SYS_SBS = 0, 1, 2, 3, 4
+SYSTEMS = "GECRS"
+#: zenith code σ factor per system (RTKLIB's EFACT_GPS/GAL/CMP/GLO/SBS: 1, 1, 1, 1.5, 3)
+SYSTEM_SIGMA_FACTOR = {"G": 1.0, "E": 1.0, "C": 1.0, "R": 1.5, "S": 3.0}
+#: longest |t − toe| of a record per system [s] (RTKLIB's MAXDTOE*: GPS 7200, GAL 14400, BDS 21600,
+#: GLONASS 1800, SBAS 360)
+MAX_AGE_S = {"G": 7200.0, "E": 14400.0, "C": 21600.0, "R": 1800.0, "S": 360.0}
+_SIN_5, _COS_5 = -0.0871557427476582, 0.9961946980917456  # sin/cos(−5°) of BeiDou GEO
 
 # ephemeris record columns
 E_PRN, E_WEEK, E_TOE, E_TOC, E_AF0, E_AF1, E_AF2 = 0, 1, 2, 3, 4, 5, 6
 E_SQRTA, E_ECC, E_I0, E_OMEGA0, E_OMEGA, E_M0, E_DN, E_IDOT, E_OMEGADOT = 7, 8, 9, 10, 11, 12, 13, 14, 15
 E_CUC, E_CUS, E_CRC, E_CRS, E_CIC, E_CIS = 16, 17, 18, 19, 20, 21
 E_TGD, E_HEALTH, E_IODE, E_URA, E_FIT = 22, 23, 24, 25, 26
-N_EPH = 27
+E_TOES = 27  # toe in the system's own seconds of week (for the node longitude; module doc)
+N_EPH = 28
+# GLONASS records: PZ-90 position [m], velocity [m/s], luni-solar acceleration [m/s²] at t_b (= E_TOE), the
+# frequency channel k (E_AF0 = −τ_n [s], E_AF1 = γ_n [-], E_HEALTH, E_URA as for the others)
+G_POS, G_VEL, G_ACC, G_FCN = 7, 10, 13, 16
 EPH_COLUMNS = (
     "prn",
     "week",
@@ -74,6 +115,7 @@ EPH_COLUMNS = (
     "IODE",
     "URA",
     "fit_h",
+    "toe_sow",
 )
 #: toe and toc in an ephemeris record are on the reference-week scale of the table (see module doc).
 
@@ -81,14 +123,130 @@ EPH_COLUMNS = (
 @njit(cache=True)
 def eph_state(eph, t):
     """Satellite state from one ephemeris record ``eph`` (N_EPH,) at GPS time ``t`` [s] (GPS system time
-    of transmission, reference-week scale).
+    of transmission, reference-week scale), for every system (module doc).
 
     Returns (pos (3,) ECEF of time t [m], vel (3,) [m/s], dts [s] satellite clock offset incl. the
     relativistic term, ddts [s/s] its rate). IS-GPS-200 Table 20-IV; E_k by Newton iteration to 1e-14.
     """
+    sys = int(eph[E_PRN]) // 100
+    if sys == SYS_GLO:
+        return glonass_state(eph, t)
+    if sys == SYS_SBS:  # RTKLIB's seph2pos: position, velocity and acceleration at t0, quadratic
+        tk = t - eph[E_TOE]
+        a = eph[G_ACC:G_ACC + 3]
+        pos = eph[G_POS:G_POS + 3] + eph[G_VEL:G_VEL + 3] * tk + 0.5 * a * tk * tk
+        return pos, eph[G_VEL:G_VEL + 3] + a * tk, eph[E_AF0] + eph[E_AF1] * tk, eph[E_AF1]
+    prn = int(eph[E_PRN]) % 100
+    if sys == SYS_BDS and (prn <= 5 or prn >= 59):
+        p1 = _kepler_pos(eph, t - 0.5, GM_BDS, OMEGA_E_BDS, True)[0]
+        p2 = _kepler_pos(eph, t + 0.5, GM_BDS, OMEGA_E_BDS, True)[0]
+        pos, ek, ek_dot = _kepler_pos(eph, t, GM_BDS, OMEGA_E_BDS, True)
+        fr = -2.0 * np.sqrt(GM_BDS) / (C_LIGHT * C_LIGHT)
+        dt = t - eph[E_TOC]
+        dts = eph[E_AF0] + eph[E_AF1] * dt + eph[E_AF2] * dt * dt
+        dts += fr * eph[E_ECC] * eph[E_SQRTA] * np.sin(ek)
+        ddts = eph[E_AF1] + 2.0 * eph[E_AF2] * dt + fr * eph[E_ECC] * eph[E_SQRTA] * np.cos(ek) * ek_dot
+        return pos, p2 - p1, dts, ddts
+    if sys == SYS_BDS:
+        return _kepler_state(eph, t, GM_BDS, OMEGA_E_BDS, -2.0 * np.sqrt(GM_BDS) / (C_LIGHT * C_LIGHT))
+    if sys == SYS_GAL:
+        return _kepler_state(eph, t, GM_GAL, OMEGA_E_GPS, -2.0 * np.sqrt(GM_GAL) / (C_LIGHT * C_LIGHT))
+    return _kepler_state(eph, t, GM_GPS, OMEGA_E_GPS, F_REL)
+
+
+@njit(cache=True)
+def _kepler_pos(eph, t, gm, om_e, geo):
+    """Position of a Keplerian record (BeiDou GEO when ``geo``: BeiDou ICD 5.2.4.12), E_k and its rate."""
     a = eph[E_SQRTA] ** 2
     ecc = eph[E_ECC]
-    n0 = np.sqrt(GM_GPS / (a * a * a))
+    tk = t - eph[E_TOE]
+    n = np.sqrt(gm / (a * a * a)) + eph[E_DN]
+    mk = eph[E_M0] + n * tk
+    ek = mk
+    for _ in range(30):
+        d = (ek - ecc * np.sin(ek) - mk) / (1.0 - ecc * np.cos(ek))
+        ek -= d
+        if abs(d) < 1e-14:
+            break
+    se, ce = np.sin(ek), np.cos(ek)
+    vk = np.arctan2(np.sqrt(1.0 - ecc * ecc) * se, ce - ecc)
+    phi = vk + eph[E_OMEGA]
+    s2, c2 = np.sin(2.0 * phi), np.cos(2.0 * phi)
+    u = phi + eph[E_CUS] * s2 + eph[E_CUC] * c2
+    r = a * (1.0 - ecc * ce) + eph[E_CRS] * s2 + eph[E_CRC] * c2
+    inc = eph[E_I0] + eph[E_CIS] * s2 + eph[E_CIC] * c2 + eph[E_IDOT] * tk
+    xp, yp = r * np.cos(u), r * np.sin(u)
+    if geo:
+        om = eph[E_OMEGA0] + eph[E_OMEGADOT] * tk - om_e * eph[E_TOES]
+    else:
+        om = eph[E_OMEGA0] + (eph[E_OMEGADOT] - om_e) * tk - om_e * eph[E_TOES]
+    so, co, si, ci = np.sin(om), np.cos(om), np.sin(inc), np.cos(inc)
+    x, y, z = xp * co - yp * ci * so, xp * so + yp * ci * co, yp * si
+    pos = np.empty(3)
+    if geo:
+        sn, cn = np.sin(om_e * tk), np.cos(om_e * tk)
+        pos[0] = x * cn + y * sn * _COS_5 + z * sn * _SIN_5
+        pos[1] = -x * sn + y * cn * _COS_5 + z * cn * _SIN_5
+        pos[2] = -y * _SIN_5 + z * _COS_5
+    else:
+        pos[0], pos[1], pos[2] = x, y, z
+    return pos, ek, n / (1.0 - ecc * ce)
+
+
+@njit(cache=True)
+def _glo_deriv(x, acc):
+    """Time derivative of the GLONASS state (position, velocity) in the rotating PZ-90 frame (ICD A.3.1.2)."""
+    r2 = x[0] * x[0] + x[1] * x[1] + x[2] * x[2]
+    r3 = r2 * np.sqrt(r2)
+    om2 = OMEGA_E_GLO * OMEGA_E_GLO
+    a = 1.5 * J2_GLO * MU_GLO * RE_GLO * RE_GLO / r2 / r3
+    b = 5.0 * x[2] * x[2] / r2
+    c = -MU_GLO / r3 - a * (1.0 - b)
+    xd = np.empty(6)
+    xd[0], xd[1], xd[2] = x[3], x[4], x[5]
+    xd[3] = (c + om2) * x[0] + 2.0 * OMEGA_E_GLO * x[4] + acc[0]
+    xd[4] = (c + om2) * x[1] - 2.0 * OMEGA_E_GLO * x[3] + acc[1]
+    xd[5] = (c - 2.0 * a) * x[2] + acc[2]
+    return xd
+
+
+@njit(cache=True)
+def glonass_orbit(x0, acc, tk, step):
+    """PZ-90 state (6,) after ``tk`` [s] from ``x0`` (position, velocity) by 4th-order Runge-Kutta steps
+    of at most ``step`` [s] (the last one shorter), the luni-solar acceleration ``acc`` held constant."""
+    x = x0.copy()
+    tt = tk
+    while abs(tt) > 1e-9:
+        h = step if tt > 0 else -step
+        if abs(tt) < step:
+            h = tt
+        k1 = _glo_deriv(x, acc)
+        k2 = _glo_deriv(x + 0.5 * h * k1, acc)
+        k3 = _glo_deriv(x + 0.5 * h * k2, acc)
+        k4 = _glo_deriv(x + h * k3, acc)
+        x = x + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+        tt -= h
+    return x
+
+
+@njit(cache=True)
+def glonass_state(eph, t):
+    """GLONASS satellite state at GPS time ``t`` from a record (module doc): (pos, vel, dts, ddts) with
+    dts = −τ_n + γ_n (t − t_b)."""
+    tk = t - eph[E_TOE]
+    x0 = np.empty(6)
+    x0[:3] = eph[G_POS:G_POS + 3]
+    x0[3:] = eph[G_VEL:G_VEL + 3]
+    x = glonass_orbit(x0, eph[G_ACC:G_ACC + 3].copy(), tk, GLO_STEP_S)
+    return x[:3].copy(), x[3:].copy(), eph[E_AF0] + eph[E_AF1] * tk, eph[E_AF1]
+
+
+@njit(cache=True)
+def _kepler_state(eph, t, gm, om_e, f_rel):
+    """Keplerian record (GPS, Galileo, BeiDou MEO/IGSO) with the system's μ, ω_e and relativistic F."""
+    a = eph[E_SQRTA] ** 2
+    ecc = eph[E_ECC]
+    n0 = np.sqrt(gm / (a * a * a))
     tk = t - eph[E_TOE]
     n = n0 + eph[E_DN]
     mk = eph[E_M0] + n * tk
@@ -111,8 +269,8 @@ def eph_state(eph, t):
     r = a * den + dr
     inc = eph[E_I0] + di + eph[E_IDOT] * tk
     xp, yp = r * np.cos(u), r * np.sin(u)
-    omk_dot = eph[E_OMEGADOT] - OMEGA_E_GPS
-    om = eph[E_OMEGA0] + omk_dot * tk - OMEGA_E_GPS * eph[E_TOE]
+    omk_dot = eph[E_OMEGADOT] - om_e
+    om = eph[E_OMEGA0] + omk_dot * tk - om_e * eph[E_TOES]
     so, co = np.sin(om), np.cos(om)
     si, ci = np.sin(inc), np.cos(inc)
     pos = np.empty(3)
@@ -132,8 +290,8 @@ def eph_state(eph, t):
     vel[1] = xp_dot * so + yp_dot * ci * co - yp * si * co * i_dot + pos[0] * omk_dot
     vel[2] = yp_dot * si + yp * ci * i_dot
     dt = t - eph[E_TOC]
-    dts = eph[E_AF0] + eph[E_AF1] * dt + eph[E_AF2] * dt * dt + F_REL * ecc * eph[E_SQRTA] * se
-    ddts = eph[E_AF1] + 2.0 * eph[E_AF2] * dt + F_REL * ecc * eph[E_SQRTA] * ce * ek_dot
+    dts = eph[E_AF0] + eph[E_AF1] * dt + eph[E_AF2] * dt * dt + f_rel * ecc * eph[E_SQRTA] * se
+    ddts = eph[E_AF1] + 2.0 * eph[E_AF2] * dt + f_rel * ecc * eph[E_SQRTA] * ce * ek_dot
     return pos, vel, dts, ddts
 
 
@@ -271,10 +429,13 @@ def tropo_delay(lat, h, el, rel_humidity):
 
 @njit(cache=True)
 def select_ephemeris(eph_table, prn, t, max_age):
-    """Index of the healthy record of ``prn`` whose toe is closest to ``t`` with |t − toe| ≤ max_age [s];
-    −1 if none."""
+    """Index of the healthy record of satellite ``prn`` (id: module doc) whose toe is closest to ``t`` with
+    |t − toe| ≤ max_age [s] (GLONASS: at most 1800 s, the RK4 propagation's span; SBAS 360 s); −1 if
+    none."""
     best = -1
-    best_d = max_age
+    best_d = min(max_age, 1800.0) if prn // 100 == SYS_GLO else max_age
+    if prn // 100 == SYS_SBS:
+        best_d = min(max_age, 360.0)
     for i in range(eph_table.shape[0]):
         if int(eph_table[i, E_PRN]) != prn or eph_table[i, E_HEALTH] != 0.0:
             continue
@@ -524,3 +685,53 @@ def range_error_sigma(el, ura, iono_mode, iono_delay, tropo):
         si = 0.0
     st = (ERR_SAAS if tropo else ERR_TROP) / (np.sin(max(el, 0.0)) + 0.1)
     return np.sqrt(u * u + si * si + st * st + ERR_CBIAS * ERR_CBIAS)
+
+
+# ------------------------------------------------------------------ satellite ids of every constellation
+def sat_id(name: str) -> int:
+    """Satellite id (module doc) of a RINEX name such as "G05", "E11", "C30", "R07", "S31" (others:
+    ValueError)."""
+    name = str(name).strip()
+    if name[:1] not in SYSTEMS or not name[1:].strip().isdigit():
+        raise ValueError(f"satellite {name!r}: not a GPS, Galileo, BeiDou, GLONASS or SBAS name")
+    return 100 * SYSTEMS.index(name[0]) + int(name[1:])
+
+
+def sat_name(sid) -> str:
+    """RINEX name ("G05") of a satellite id."""
+    sid = int(sid)
+    return f"{SYSTEMS[sid // 100]}{sid % 100:02d}"
+
+
+def sat_system(ids) -> np.ndarray:
+    """System letter per satellite id (array of one-character strings)."""
+    return np.array([SYSTEMS[int(i) // 100] for i in np.atleast_1d(ids)])
+
+
+def glonass_channels(eph_table) -> dict:
+    """{satellite id: frequency channel k} of the GLONASS records of an ephemeris table."""
+    t = np.asarray(eph_table)
+    glo = t[(t[:, E_PRN] // 100).astype(int) == SYS_GLO]
+    return {int(r[E_PRN]): int(r[G_FCN]) for r in glo}
+
+
+def carrier_frequencies(ids, eph_table=None) -> np.ndarray:
+    """Frequency [Hz] (S,) of the signal aidnav uses per satellite: GPS L1 C/A and Galileo E1 1575.42 MHz,
+    BeiDou B1I 1561.098 MHz, GLONASS G1 1602 + 0.5625·k MHz with the channel k of the satellite's record in
+    ``eph_table`` (NaN without one)."""
+    ids = np.atleast_1d(np.asarray(ids, int))
+    ch = glonass_channels(eph_table) if eph_table is not None else {}
+    out = np.full(len(ids), FREQ_L1)
+    for j, i in enumerate(ids):
+        s = i // 100
+        if s == SYS_BDS:
+            out[j] = FREQ_B1I
+        elif s == SYS_GLO:
+            out[j] = FREQ_G1 + DFREQ_G1 * ch[int(i)] if int(i) in ch else np.nan
+    return out
+
+
+__all__ += ["sat_id", "sat_name", "sat_system", "glonass_channels", "carrier_frequencies", "glonass_state",
+            "glonass_orbit", "SYSTEMS", "SYS_GPS", "SYS_GAL", "SYS_BDS", "SYS_GLO", "SYS_SBS",
+            "SYSTEM_SIGMA_FACTOR",
+            "MAX_AGE_S", "FREQ_B1I", "FREQ_G1", "DFREQ_G1", "E_TOES", "G_POS", "G_VEL", "G_ACC", "G_FCN"]

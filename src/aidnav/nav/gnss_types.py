@@ -6,11 +6,11 @@ Times are GPS seconds from the start of a reference week (:mod:`aidnav.nav.gnss_
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from aidnav.nav.gnss_sat import E_PRN, E_TOC, E_TOE, LAMBDA_L1
+from aidnav.nav.gnss_sat import C_LIGHT, E_PRN, E_TOC, E_TOE, carrier_frequencies, sat_name
 
 SECONDS_PER_WEEK = 604800
 
@@ -47,10 +47,13 @@ class GpsEphemerides:
 
 @dataclass
 class GnssObservations:
-    """GPS observations of one receiver.
+    """GNSS observations of one receiver.
 
     time : (T,) receiver time tags [s from the start of ``ref_week``] (include the receiver clock offset).
-    prn : (S,) satellite numbers. code1 : (T, S) L1 C/A pseudorange [m] (NaN = none); doppler1 : (T, S)
+    prn : (S,) satellite ids (:mod:`aidnav.nav.gnss_sat`: 100·system + PRN; GPS ids are the PRNs); the
+    "L1" arrays hold each system's first signal (GPS L1 C/A, Galileo E1, BeiDou B1I, GLONASS G1) at
+    ``freq1`` (S,) [Hz] (None: from the ids, GLONASS channels unknown until :meth:`with_frequencies`).
+    code1 : (T, S) L1 C/A pseudorange [m] (NaN = none); doppler1 : (T, S)
     L1 Doppler [Hz]; cn0 : (T, S) L1 C/N0 [dB-Hz]; code2 : (T, S) L2 pseudorange [m] or None;
     code2_type : its RINEX code (e.g. "C2L"). approx_ecef : header position [m] or None. phase1 : (T, S)
     L1 carrier phase [cycles] and lli1 its loss-of-lock indicator (bit 0: lock lost, a cycle slip is
@@ -69,13 +72,31 @@ class GnssObservations:
     events: list[str] = field(default_factory=list)
     phase1: np.ndarray | None = None  # (T, S) L1 carrier phase [cycles] (NaN = none), or None
     lli1: np.ndarray | None = None  # (T, S) its loss-of-lock indicator (RINEX bits; 0 where none)
+    freq1: np.ndarray | None = None  # (S,) carrier frequency of the L1 arrays [Hz] (None: from the ids)
 
     def __len__(self) -> int:
         return len(self.time)
 
+    @property
+    def names(self) -> list[str]:
+        """RINEX satellite names ("G05", "E11", ...)."""
+        return [sat_name(p) for p in self.prn]
+
+    def frequencies(self) -> np.ndarray:
+        """Carrier frequency [Hz] (S,) of the L1 arrays (NaN: a GLONASS satellite of unknown channel)."""
+        return np.asarray(self.freq1, float) if self.freq1 is not None else carrier_frequencies(self.prn)
+
+    def wavelengths(self) -> np.ndarray:
+        """Carrier wavelength [m] (S,) of the L1 arrays (FDMA: per GLONASS channel)."""
+        return C_LIGHT / self.frequencies()
+
+    def with_frequencies(self, eph) -> GnssObservations:
+        """The same observations with ``freq1`` from the ids and the GLONASS channels of ``eph``'s records."""
+        return replace(self, freq1=carrier_frequencies(self.prn, eph.table))
+
     def range_rate(self) -> np.ndarray:
-        """Pseudorange rate [m/s] = −λ_L1 · Doppler (T, S)."""
-        return -LAMBDA_L1 * self.doppler1
+        """Pseudorange rate [m/s] = −λ · Doppler (T, S) (λ per satellite: :meth:`wavelengths`)."""
+        return -self.wavelengths() * self.doppler1
 
     def subset_sats(self, prns) -> GnssObservations:
         """Only the satellites ``prns`` (in that order; missing ones are all-NaN columns)."""
@@ -103,4 +124,5 @@ class GnssObservations:
             list(self.events),
             pick(self.phase1),
             None if self.lli1 is None else np.nan_to_num(pick(self.lli1.astype(float))).astype(np.int64),
+            None if self.freq1 is None else np.array([self.freq1[i] if i >= 0 else np.nan for i in idx]),
         )

@@ -31,17 +31,29 @@ from aidnav.nav.gnss_sat import (
     E_SQRTA,
     E_TOC,
     E_TOE,
+    E_TOES,
+    E_URA,
     E_WEEK,
+    G_FCN,
+    G_POS,
+    G_VEL,
+    GM_BDS,
+    GM_GAL,
     GM_GPS,
+    MU_GLO,
     N_EPH,
+    OMEGA_E_BDS,
+    OMEGA_E_GLO,
     OMEGA_E_GPS,
+    SYSTEMS,
     sat_states,
     visible,
 )
 from aidnav.nav.gnss_types import GpsEphemerides
 from aidnav.nav.rotations import wrap_360, wrap_pi
 
-__all__ = ["SLOTS_24", "nominal_constellation", "visible_satellites"]
+__all__ = ["SLOTS_24", "nominal_constellation", "visible_satellites", "walker_constellation",
+           "nominal_multi_constellation", "WALKER"]
 
 #: (plane, slot, RAAN [deg], argument of latitude [deg]) at 1993-07-01 00:00 (SPS PS 2001, Table 3-1)
 SLOTS_24 = (
@@ -119,6 +131,7 @@ def nominal_constellation(
         r[E_WEEK] = week
         r[E_TOE] = toe
         r[E_TOC] = toe
+        r[E_TOES] = toe  # Ω0 below is referred to this scale
         r[E_SQRTA] = np.sqrt(_A_NOM)
         r[E_I0] = np.radians(inclination_deg)
         u_t = np.radians(u) + n * t_since
@@ -148,3 +161,70 @@ def visible_satellites(eph: GpsEphemerides, t: float, rx_ecef, mask_deg: float =
     order = np.argsort(-np.where(vis, el, -np.inf))
     order = order[vis[order]]
     return eph.table[order, E_PRN].astype(int), az[order], el[order]
+
+
+#: nominal MEO constellations as Walker i:T/P/F patterns: (semi-major axis [m], inclination [deg], satellites
+#: T, planes P, phasing F): Galileo 24/3/1 at 29 600 km, 56° (Galileo OS SDD); BeiDou-3 MEO 24/3/1 at
+#: 27 906 km, 55° (BeiDou OS SIS ICD; no GEO/IGSO here); GLONASS 24/3/1 at 25 510 km, 64.8° (GLONASS ICD)
+WALKER = {"E": (29600.0e3, 56.0, 24, 3, 1), "C": (27906.1e3, 55.0, 24, 3, 1),
+          "R": (25510.0e3, 64.8, 24, 3, 1)}
+
+
+def walker_constellation(system: str, week: int, sow: float, ref_week: int | None = None,
+                         node0_deg: float = 0.0, ura_m: float = 2.0) -> np.ndarray:
+    """Ephemeris records (K, N_EPH) of the nominal ``system`` ("E", "C" or "R") constellation of
+    :data:`WALKER` with toe = toc = (week, sow) GPS time: circular orbits, Earth-fixed node longitudes
+    ``node0_deg`` + 360°·p/P at toe, arguments of latitude 360°·(s/S + F·p/T) (the geometry is nominal, not
+    the real sky). PRNs 1…24 (BeiDou 19…42: PRN 1–5 and 59–63 are GEO satellites). Galileo/BeiDou:
+    Keplerian records on the GPS scale (``E_TOES`` = toe on that scale, the
+    node referred to it, like :func:`nominal_constellation`); GLONASS: the PZ-90 state at t_b (Earth-fixed
+    position and velocity of the circular orbit; the RK4 propagation then adds J2), channels k = −7…6 in
+    turn, no luni-solar acceleration. Clock terms zero."""
+    a, inc_deg, T, P, F = WALKER[system]
+    ref_week = int(week if ref_week is None else ref_week)
+    toe = (week - ref_week) * SECONDS_PER_WEEK + sow
+    sys = SYSTEMS.index(system)
+    gm = {"E": GM_GAL, "C": GM_BDS, "R": MU_GLO}[system]
+    om_e = {"E": OMEGA_E_GPS, "C": OMEGA_E_BDS, "R": OMEGA_E_GLO}[system]
+    n = np.sqrt(gm / a**3)
+    inc = np.radians(inc_deg)
+    per = T // P
+    rows = []
+    for k in range(T):
+        p, q = divmod(k, per)
+        lam = np.radians(node0_deg + 360.0 * p / P)
+        u = np.radians(360.0 * (q / per + F * p / T))
+        r = np.zeros(N_EPH)
+        r[E_PRN] = 100 * sys + k + 1 + (18 if system == "C" else 0)  # BeiDou: C19…C42 (C01–C05 are GEO)
+        r[E_WEEK], r[E_TOE], r[E_TOC], r[E_TOES] = week, toe, toe, toe
+        r[E_FIT], r[E_URA] = 1e6, ura_m
+        if system != "R":
+            r[E_SQRTA], r[E_I0], r[E_M0] = np.sqrt(a), inc, wrap_pi(u)
+            r[E_OMEGA0] = wrap_pi(lam + om_e * toe)
+        else:
+            cu, su, cl, sl, ci, si = np.cos(u), np.sin(u), np.cos(lam), np.sin(lam), np.cos(inc), np.sin(inc)
+            pos = a * np.array([cl * cu - sl * su * ci, sl * cu + cl * su * ci, su * si])
+            vi = a * n * np.array([-cl * su - sl * cu * ci, -sl * su + cl * cu * ci, cu * si])
+            r[G_POS:G_POS + 3] = pos
+            r[G_VEL:G_VEL + 3] = vi - np.cross([0.0, 0.0, om_e], pos)  # Earth-fixed velocity
+            r[G_FCN] = (k % 14) - 7
+        rows.append(r)
+    return np.array(rows)
+
+
+def nominal_multi_constellation(week: int, sow: float, systems: str = "GE", n_gps: int = 24,
+                                ref_week: int | None = None, node0_deg: dict | None = None) -> GpsEphemerides:
+    """GPS (:func:`nominal_constellation`) and the nominal Galileo / BeiDou / GLONASS constellations of
+    :data:`WALKER` (``systems``: letters of "GECR") in one table (satellite ids of
+    :mod:`aidnav.nav.gnss_sat`); ``node0_deg`` per letter (default 0°)."""
+    tabs = []
+    if "G" in systems:
+        g = nominal_constellation(week, sow, n_gps, ref_week=ref_week).table.copy()
+        g[:, E_URA] = 2.0
+        tabs.append(g)
+    for s in "ECR":
+        if s in systems:
+            tabs.append(walker_constellation(s, week, sow, ref_week, (node0_deg or {}).get(s, 0.0)))
+    return GpsEphemerides(np.vstack(tabs), int(week if ref_week is None else ref_week), None, None,
+                          [f"nominal {systems} constellations (GPS SPS PS slots, Walker patterns), toe "
+                           f"{week}/{sow:.0f}"])

@@ -12,7 +12,7 @@ lever arm: :func:`aidnav.sim.gnss.interpolate_truth`). The satellite signal left
 t − t_tx = ρ/c (light-time iteration with the Sagnac-corrected range of
 :func:`aidnav.nav.gnss_sat.geo_range`). Then, per satellite j:
 
-P = ρ(r_s,true(t_tx), r_a(t)) + c·dt_r − c·dt_s,true(t_tx) + I + T + MP + ε,
+P = ρ(r_s,true(t_tx), r_a(t)) + c·dt_r + ISB_sys − c·dt_s,true(t_tx) + I + T + MP + ε,
 ρ̇_meas = ρ̇ + c·ḋt_r − c·ḋt_s,true + ε̇  (ionosphere, troposphere and multipath rates neglected: mm/s).
 
 * **Ephemeris error**: the true orbit is the broadcast one plus a constant offset per satellite in its
@@ -49,6 +49,12 @@ P = ρ(r_s,true(t_tx), r_a(t)) + c·dt_r − c·dt_s,true(t_tx) + I + T + MP + �
 * **Thermal noise**: white, σ(E) = σ0 √(½ + ½/sin²E) with σ0 ``code_sigma_m`` (``rate_sigma_m_s``
   for the rate).
 
+**Every constellation**: the ephemeris table may hold Galileo, BeiDou and GLONASS records (satellite ids of
+:mod:`aidnav.nav.gnss_sat`, e.g. :func:`aidnav.sim.gnss_constellation.nominal_multi_constellation`); each
+system's code carries the receiver's inter-system bias ``isb_m[letter]`` (its clock − the GPS clock, the
+same for rover and base), its ionosphere the factor (f_L1/f)², its Doppler the wavelength of its signal
+(GLONASS: per channel, ``GnssObservations.freq1``).
+
 Satellites below ``mask_deg`` (at each receiver) are NaN. ``sat_windows`` limit the rover's
 satellites: (start_s, end_s, max_sats) keeps the ``max_sats`` highest satellites at the window start
 (0 = none) during start_s ≤ t − t_truth0 < end_s.
@@ -56,21 +62,27 @@ satellites: (start_s, end_s, max_sats) keeps the ``max_sats`` highest satellites
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
 from aidnav.data import Trajectory
 from aidnav.jit import njit
+from aidnav.nav import gnss_sat
 from aidnav.nav.earth import ecef_to_lla, lla_to_ecef, radii
 from aidnav.nav.gnss_sat import (
     C_LIGHT,
+    FREQ_L1,
     PI_GPS,
     az_el,
+    carrier_frequencies,
     eph_state,
     geo_range,
     geo_range_rate,
     klobuchar,
+    sat_system,
     tropo_delay,
 )
 from aidnav.nav.gnss_types import GnssObservations, GpsEphemerides
@@ -122,6 +134,7 @@ class RawGnssSpec:
     base_clock_drift0_m_s: float = 10.0
     lever_arm_b: tuple = (0.0, 0.0, 0.0)
     sat_windows: list = field(default_factory=list)
+    isb_m: dict = field(default_factory=dict)  # inter-system biases {letter: that system's clock − GPS's} [m]
 
     def perfect(self) -> RawGnssSpec:
         """A copy without any error source except the receiver clocks (noise-free, common-mode-free)."""
@@ -149,6 +162,7 @@ class RawGnssSpec:
             base_clock_drift0_m_s=self.base_clock_drift0_m_s,
             lever_arm_b=self.lever_arm_b,
             sat_windows=list(self.sat_windows),
+            isb_m=dict(self.isb_m),
         )
 
 
@@ -172,7 +186,12 @@ def simulate_clock(n: int, dt: float, h0: float, hm2: float, b0: float, d0: floa
     return out
 
 
-@njit(cache=True)
+# numba keys a cached kernel on its own file: the orbits it inlines (eph_state of every constellation)
+# live in nav.gnss_sat, so their source is the kernel's ``depends`` key (aidnav.jit.keep_cache_current)
+_ORBITS_KEY = hashlib.sha256(Path(gnss_sat.__file__).read_bytes()).hexdigest()[:20]
+
+
+@njit(cache=True, depends=_ORBITS_KEY)
 def _raw_kernel(
     t_gps,
     rr,
@@ -196,8 +215,12 @@ def _raw_kernel(
     rate_sig,
     mask,
     use_trop,
+    isb,
+    ifac,
 ):
-    """Pseudoranges and rates; see the module docstring. eph (S, N_EPH) one record per satellite."""
+    """Pseudoranges and rates; see the module docstring. eph (S, N_EPH) one record per satellite; isb (S,)
+    the receiver's inter-system bias of each satellite's system [m]; ifac (S,) ionospheric scale
+    (f_L1/f)²."""
     T = t_gps.shape[0]
     S = eph.shape[0]
     code = np.full((T, S), np.nan)
@@ -240,6 +263,7 @@ def _raw_kernel(
             if alpha[0] != 0.0 or alpha[1] != 0.0 or alpha[2] != 0.0 or alpha[3] != 0.0:  # all zero: none
                 iono = (1.0 + iono_scale[j]) * klobuchar(lat, lon, az, el, t_gps[k], alpha, beta)
             iono += fobl * 1e-3 * (iono_grad[j, 0] * d_km[k, 0] + iono_grad[j, 1] * d_km[k, 1])
+            iono *= ifac[j]
             s = np.sin(max(el, 0.035))
             mfac = np.sqrt(0.5 + 0.5 / (s * s))
             tro = tropo_delay(lat, h, el, humidity) if use_trop else 0.0
@@ -249,6 +273,7 @@ def _raw_kernel(
             code[k, j] = (
                 rho
                 + clock[k, 0]
+                + isb[j]
                 - sat_clk
                 + iono
                 + tro
@@ -329,6 +354,7 @@ def limit_satellites(
         None,
         obs.approx_ecef,
         list(obs.events) + [f"satellites limited in windows {list(windows)}"],
+        freq1=obs.freq1,
     )
 
 
@@ -378,9 +404,10 @@ def simulate_raw_gnss(
                                              dz_k, mp_k, noise_k, spec)
     prn = eph.table[:, 0].astype(int)
     tags = t0_gps + tags_rel
-    rover = GnssObservations(tags, eph.ref_week, prn, code, -rate / (C_LIGHT / 1575.42e6),
+    freq = carrier_frequencies(prn, eph.table)
+    rover = GnssObservations(tags, eph.ref_week, prn, code, -rate / (C_LIGHT / freq),
                              np.full_like(code, 45.0), None, None, None,
-                             ["simulated rover (aidnav.sim.gnss_raw)"])
+                             ["simulated rover (aidnav.sim.gnss_raw)"], freq1=freq)
     if spec.sat_windows:
         rover = limit_satellites(rover, el, spec.sat_windows, t0_gps + t[0])
     truth_d = {
@@ -463,7 +490,15 @@ def _observe(t_rx, r_a, v_a, eph, sat, t_clk_ref, clk, d_km, dz, mp, noise, spec
                        np.asarray(spec.iono_alpha, float), np.asarray(spec.iono_beta, float),
                        sat["iono_scale"], sat["iono_grad"], d_km, dz, spec.humidity, mp,
                        spec.multipath_sigma_m, noise, spec.code_sigma_m, spec.rate_sigma_m_s,
-                       np.radians(spec.mask_deg), spec.tropo_model)
+                       np.radians(spec.mask_deg), spec.tropo_model, *_system_terms(eph, spec))
+
+
+def _system_terms(eph, spec: RawGnssSpec):
+    """Per satellite: the receiver's inter-system bias of its system [m] and its ionospheric scale
+    (f_L1/f)²."""
+    sid = eph.table[:, 0].astype(int)
+    isb = np.array([spec.isb_m.get(c, 0.0) for c in sat_system(sid)])
+    return isb, (FREQ_L1 / carrier_frequencies(sid, eph.table)) ** 2
 
 
 def _base_observations(base_ecef, tags_rel, dt, t0_gps, eph, sat, t_clk_ref, dz_b, spec: RawGnssSpec, r_base,
@@ -482,9 +517,10 @@ def _base_observations(base_ecef, tags_rel, dt, t0_gps, eph, sat, t_clk_ref, dz_
                                                       np.full(T, dz_b), mp_b, noise_b, spec)
     truth_d.update({"base_clock": clk_b, "base_elevation": el_b, "base_iono": ion_b, "base_tropo": trop_b,
                     "base_t_receive_gps": tb})
-    return GnssObservations(t0_gps + tags_rel, eph.ref_week, prn, code_b, -rate_b / (C_LIGHT / 1575.42e6),
+    freq = carrier_frequencies(prn, eph.table)
+    return GnssObservations(t0_gps + tags_rel, eph.ref_week, prn, code_b, -rate_b / (C_LIGHT / freq),
                             np.full_like(code_b, 45.0), None, None, base_ecef.copy(),
-                            ["simulated base (aidnav.sim.gnss_raw)"])
+                            ["simulated base (aidnav.sim.gnss_raw)"], freq1=freq)
 
 
 def static_pseudoranges(
@@ -519,5 +555,7 @@ def static_pseudoranges(
         0.0,
         np.radians(mask_deg),
         False,
+        np.zeros(S),
+        np.ones(S),
     )
     return code[0], el[0]

@@ -3,7 +3,9 @@
 Row of an epoch (``S`` satellites × ``E_W`` values): per satellite r_s ECEF (3) [m], v_s ECEF (3)
 [m/s], ρ + c·dt_s [m] (NaN: no pseudorange or no ephemeris), ρ̇ + c·ḋt_s [m/s] (NaN: no rate), the
 dual-frequency ionospheric delay [m] (NaN: none), the ephemeris' URA [m], the satellite's slot in the
-range-error states (NaN: none). Parameters (``E_*``): lever arm, mask, zenith σ's,
+range-error states (NaN: none), its system's slot in the inter-system bias states (NaN: the GPS clock
+itself), the Klobuchar scale (f_L1/f)² of its signal (NaN: 1) and the σ factor of its system (NaN: 1).
+Parameters (``E_*``): lever arm, mask, zenith σ's,
 atmosphere switches, Klobuchar α β, the clock-jump threshold and the clock σ's.
 
 :func:`epoch_update` does, at the INS antenna moved back to the receive time t_tag − b̂/c:
@@ -17,6 +19,9 @@ atmosphere switches, Klobuchar α β, the clock-jump threshold and the clock σ'
   clock; state lay[L_RERR] + k), σ_j(E) the single-frequency error budget
   (:func:`aidnav.nav.gnss_sat.range_error_sigma`) at the satellite's elevation, URA and applied
   ionospheric delay: the row gains σ_j at u_j and the prediction σ_j·û_j;
+* several systems (``lay[L_ISB]`` ≥ 0, slot k of a satellite's system in its row): the pseudorange gains
+  the inter-system bias β_k (that system's receiver clock − the GPS clock [m], true − estimated like the
+  clock; state lay[L_ISB] + k): the row gains 1 at β_k and the prediction β̂_k; rates share the drift;
 * the epoch counts as rejected (the engine's consecutive-rejection rule) when some row was rejected
   and no pseudorange accepted.
 
@@ -36,11 +41,11 @@ from aidnav.nav.earth import dcm_ecef_to_enu, lla_to_ecef
 from aidnav.nav.gnss_sat import az_el, geo_range, geo_range_rate, klobuchar, range_error_sigma, tropo_delay
 
 from ..kalman import update_scalar
-from ..layout import L_CLK, L_RERR, NAV, ST_VEL
+from ..layout import L_CLK, L_ISB, L_RERR, NAV, ST_VEL
 from .common import W_IB, W_IN
 from .gnss import gnss_position, gnss_velocity
 
-E_W = 11  # values per satellite in a row
+E_W = 14  # values per satellite in a row
 E_LEVER, E_MASK, E_SIG_CODE, E_SIG_RATE, E_IONO, E_TROPO, E_HUMID, E_RATE = 0, 3, 4, 5, 6, 7, 8, 9
 E_JUMP, E_SIG_B, E_SIG_D, E_CODE_MIN, E_ALPHA, E_BETA, E_NPAR = 10, 11, 12, 13, 14, 18, 22
 # per-epoch outputs (filled in place): GPS receive time, satellites above the mask, pseudoranges and
@@ -84,6 +89,8 @@ def _clock_start(P, nav, row, par, lay, grp, ra, va):
             continue
         rho, e = geo_range(row[o:o + 3], ra)
         res[j] = row[o + 6] - rho
+        if lay[L_ISB] >= 0 and not np.isnan(row[o + 11]):
+            res[j] -= nav.bias[lay[L_ISB] + int(row[o + 11]) - NAV]
         if not np.isnan(row[o + 7]):
             res_r[j] = row[o + 7] - geo_range_rate(row[o:o + 3], row[o + 3:o + 6], ra, va, e)
     ok = np.isfinite(res)
@@ -141,7 +148,7 @@ def epoch_update(x, P, nav, row, par, lay, gate, grp, g, t_gps):
             if az_el(e, lat, lon)[1] >= par[E_MASK]:
                 n_vis += 1
     use_code = n_vis >= par[E_CODE_MIN]
-    ir = lay[L_RERR]
+    ir, isb = lay[L_RERR], lay[L_ISB]
     h = np.zeros(n)
     nrej = 0
     for j in range(S):
@@ -156,8 +163,10 @@ def epoch_update(x, P, nav, row, par, lay, gate, grp, g, t_gps):
             continue
         grp.navail[g] += 1
         corr, i_mode = 0.0, 0
+        ifac = 1.0 if np.isnan(row[o + 12]) else row[o + 12]
+        sfac = 1.0 if np.isnan(row[o + 13]) else row[o + 13]
         if par[E_IONO] > 0:
-            corr += klobuchar(lat, lon, az, el, t_gps, alpha, beta)
+            corr += ifac * klobuchar(lat, lon, az, el, t_gps, alpha, beta)
             i_mode = 1
         if not np.isnan(row[o + 8]):
             corr += row[o + 8]
@@ -166,10 +175,14 @@ def epoch_update(x, P, nav, row, par, lay, gate, grp, g, t_gps):
         if par[E_TROPO] > 0:
             corr += tropo_delay(lat, hh, el, par[E_HUMID])
         s_el = np.sin(max(el, 0.035))
-        mfac = 0.5 + 0.5 / (s_el * s_el)
+        mfac = (0.5 + 0.5 / (s_el * s_el)) * sfac * sfac
         if use_code:
             _row(h, en, Hp, nn, ib)
             pred = rho + nav.bias[bi]
+            if isb >= 0 and not np.isnan(row[o + 11]):
+                ik = isb + int(row[o + 11])
+                h[ik] = 1.0
+                pred += nav.bias[ik - NAV]
             if ir >= 0 and not np.isnan(row[o + 10]):
                 iu = ir + int(row[o + 10])
                 h[iu] = range_error_sigma(el, row[o + 9], i_mode, i_delay, par[E_TROPO] > 0)

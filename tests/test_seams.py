@@ -80,8 +80,6 @@ def test_every_function_level_import_has_its_reason():
 LONG_ALLOWED = {
     "aidnav.filters.engine.run_chunk": "numba kernel: the engine's per-sample loop (docs/architecture.md)",
     "aidnav.filters.ins_errors.fill_model": "numba kernel: F and G of the INS error model, one block a line",
-    "aidnav.filters.tight.run_tight": "the tight driver, changed by issue 40 at the same time",
-    "aidnav.apps.tight.process_tight": "the tight job, changed by issue 40 at the same time",
 }
 LONGEST = 100
 

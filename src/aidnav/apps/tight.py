@@ -54,6 +54,53 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
 
     cfg = cfg or TightConfig()
     events = events if events is not None else []
+    sp, g, t_imu, i0 = _spp_start(imu, obs, eph, cfg)
+    ini = cfg.init
+    win = (t_imu >= sp["time"][i0]) & (t_imu < sp["time"][i0] + ini.static_window_s)
+    dtw = np.diff(np.concatenate([[imu.t0], imu.time]))[win]
+    f = imu.dv[win].sum(axis=0) / dtw.sum()
+    roll = np.arctan2(-f[0], f[2])
+    pitch = np.arctan2(f[1], np.hypot(f[0], f[2]))
+    heading, heading_reset, cfg = _start_heading(imu, sp, i0, g, roll, pitch, cfg, events)
+    ini = cfg.init
+    if cfg.gnss.range_errors:
+        # the SPP start fix is a linearisation point, not information: its error is the range errors the
+        # filter estimates (correlated with them), so the first epoch's pseudoranges must place it
+        ini = ini.model_copy(update={"position_sigma_m": (SPP_START_SIGMA_M,) * 3})
+        cfg = cfg.model_copy(update={"init": ini})
+    lc = LooseConfig(imu=cfg.imu, constraints=cfg.constraints, init=cfg.init)
+    static = static_flags(imu, g, lc) if cfg.constraints.zupt or cfg.imu.noise_from_static else None
+    if cfg.imu.noise_from_static:  # engine vibration (vehicle presets): IMU noise from the static samples
+        cfg = cfg.model_copy(update={"imu": noise_from_static(imu, static, lc, events).imu})
+    if not cfg.constraints.zupt:
+        static = None
+    init_state = (
+        float(t_imu[np.searchsorted(t_imu, sp["time"][i0]) - 1]),
+        sp["lat"][i0],
+        sp["lon"][i0],
+        sp["h"][i0],
+        np.zeros(3),
+        np.array([roll, pitch, heading]),
+    )
+    if static is None or not static[np.searchsorted(t_imu, sp["time"][i0])]:
+        v0 = sp["vel_enu"][i0]
+        init_state = init_state[:4] + (np.nan_to_num(v0),) + init_state[5:]
+    events.append(
+        f"start at t={init_state[0]:.3f} from SPP; roll {np.degrees(roll):.2f}, pitch "
+        f"{np.degrees(pitch):.2f} deg from the mean specific force over {ini.static_window_s:g} s"
+    )
+    vfix = _tdcp_velocities(imu, obs, eph, sp, cfg, events)
+    res = run_tight(
+        imu, obs, eph, cfg, init_state=init_state, static=static, heading_reset=heading_reset, events=events,
+        smooth=smooth, velocity_fixes=vfix,
+    )
+    return res, sp
+
+
+def _spp_start(imu, obs, eph, cfg: TightConfig):
+    """The SPP solution of the observations (dict of :func:`spp_series`), its fixes inside the IMU's time
+    span as :class:`GnssData` (for the static detector and the course), the IMU times on the GNSS scale and
+    the index of the first SPP fix inside the IMU span (an input error when there is none)."""
     iono = cfg.gnss.iono
     sp = spp_series(
         obs,
@@ -75,12 +122,14 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
     i0 = int(np.flatnonzero(ok)[0])
     # GNSS "fixes" from SPP for the static detector and the course
     g = GnssData(sp["time"][ok], sp["lat"][ok], sp["lon"][ok], sp["h"][ok], sp["vel_enu"][ok])
+    return sp, g, t_imu, i0
+
+
+def _start_heading(imu, sp, i0: int, g, roll: float, pitch: float, cfg: TightConfig, events: list):
+    """The heading to start from: the configuration's, or from matching IMU and SPP velocity changes, or
+    else unknown (σ 180°) until a meaningful SPP course resets it. Returns (heading [rad], the course
+    reset (t, heading) or None, the configuration with the initial heading σ that goes with it)."""
     ini = cfg.init
-    win = (t_imu >= sp["time"][i0]) & (t_imu < sp["time"][i0] + ini.static_window_s)
-    dtw = np.diff(np.concatenate([[imu.t0], imu.time]))[win]
-    f = imu.dv[win].sum(axis=0) / dtw.sum()
-    roll = np.arctan2(-f[0], f[2])
-    pitch = np.arctan2(f[1], np.hypot(f[0], f[2]))
     heading = 0.0 if ini.heading_deg is None else ini.heading_deg * DEG
     heading_reset = None
     matched = None
@@ -118,38 +167,7 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
         sig[2] = 180.0
         cfg = cfg.model_copy(update={"init": ini.model_copy(update={"attitude_sigma_deg": tuple(sig)})})
         ini = cfg.init
-    if cfg.gnss.range_errors:
-        # the SPP start fix is a linearisation point, not information: its error is the range errors the
-        # filter estimates (correlated with them), so the first epoch's pseudoranges must place it
-        ini = ini.model_copy(update={"position_sigma_m": (SPP_START_SIGMA_M,) * 3})
-        cfg = cfg.model_copy(update={"init": ini})
-    lc = LooseConfig(imu=cfg.imu, constraints=cfg.constraints, init=cfg.init)
-    static = static_flags(imu, g, lc) if cfg.constraints.zupt or cfg.imu.noise_from_static else None
-    if cfg.imu.noise_from_static:  # engine vibration (vehicle presets): IMU noise from the static samples
-        cfg = cfg.model_copy(update={"imu": noise_from_static(imu, static, lc, events).imu})
-    if not cfg.constraints.zupt:
-        static = None
-    init_state = (
-        float(t_imu[np.searchsorted(t_imu, sp["time"][i0]) - 1]),
-        sp["lat"][i0],
-        sp["lon"][i0],
-        sp["h"][i0],
-        np.zeros(3),
-        np.array([roll, pitch, heading]),
-    )
-    if static is None or not static[np.searchsorted(t_imu, sp["time"][i0])]:
-        v0 = sp["vel_enu"][i0]
-        init_state = init_state[:4] + (np.nan_to_num(v0),) + init_state[5:]
-    events.append(
-        f"start at t={init_state[0]:.3f} from SPP; roll {np.degrees(roll):.2f}, pitch "
-        f"{np.degrees(pitch):.2f} deg from the mean specific force over {ini.static_window_s:g} s"
-    )
-    vfix = _tdcp_velocities(imu, obs, eph, sp, cfg, events)
-    res = run_tight(
-        imu, obs, eph, cfg, init_state=init_state, static=static, heading_reset=heading_reset, events=events,
-        smooth=smooth, velocity_fixes=vfix,
-    )
-    return res, sp
+    return heading, heading_reset, cfg
 
 
 def _tdcp_velocities(imu, obs, eph, sp, cfg, events):

@@ -370,9 +370,8 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     events = events if events is not None else []
     if eph.ref_week != obs.ref_week:
         eph = eph.to_week(obs.ref_week)
-    n, g = cfg.states, cfg.gnss
-    lay = tight_layout(n)
-    nnav = int(lay[L_NINS])
+    g = cfg.gnss
+    nnav = int(tight_layout(cfg.states)[L_NINS])
     t_imu = imu.time + cfg.imu.time_offset_s
     if init_state is None:
         init_state = (float(imu.t0 + cfg.imu.time_offset_s),
@@ -381,6 +380,55 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     k0 = int(np.searchsorted(t_imu, t0, side="right"))
     q0 = quat_from_euler(rph0[0], rph0[1], rph0[2])
     st0 = np.array([lat0, lon0, h0, *np.asarray(v0, float), *q0], float)
+    mod, gate, iono_model = _tight_models(cfg, eph, static is not None, events)
+    obs = obs.with_frequencies(eph)  # GLONASS channels from the records
+    rows, with_eph, isb_sys = _epoch_rows(obs, eph, g, events)
+    nb, nr = len(isb_sys), len(with_eph)
+    lay = tight_layout(cfg.states, nr, nb)
+    n = int(lay[L_N])
+    P0 = _initial_P(cfg, lat0, h0, np.array(cfg.init.attitude_sigma_deg) * DEG, nr, nb)
+    M, S = obs.code1.shape
+    rec, sel = _records(obs.time, rows.reshape(M, S * ep.E_W), velocity_fixes, S)
+    if velocity_fixes is not None:
+        par, gates, max_rej = mod.par, mod.gate, mod.max_rej
+        par[ms.M_GNSS_VEL, 0:3] = g.lever_arm_m
+        gates[ms.M_GNSS_VEL, 1:4] = [chi2_isf(m, 1.0 - g.gate_probability) if g.gate_probability < 1 else 0.0
+                                     for m in (1, 2, 3)]
+        max_rej[ms.M_GNSS_VEL] = g.max_consecutive_rejections
+    imu_in = _imu_input(imu, cfg, t_imu, k0, static, events)
+    reset_idx, reset_heading = -1, 0.0
+    if heading_reset is not None:
+        reset_idx = int(np.searchsorted(t_imu[k0:], heading_reset[0], side="left"))
+        reset_heading = float(heading_reset[1])
+    rate_hz = output_rate_hz or cfg.filter.output_rate_hz
+    out_every = max(1, int(round(imu.rate_hz / rate_hz))) if rate_hz else 1
+    taus = np.array([cfg.imu.gyro_bias_tau_s, cfg.imu.accel_bias_tau_s, 0.0, 0.0])
+    # range-error estimates decay as the Gauss-Markov conditional mean between updates (open-loop states)
+    aux_tau = np.r_[0.0, g.clock_tau_s, np.zeros(nb), np.full(nr, g.range_error_tau_s)]
+    proc = Process(lay, _noise_vector(cfg, nr, nb), taus, aux_tau, float(cfg.filter.prop_dt_s),
+                   open=np.arange(n - nr, n, dtype=np.int64))
+    bias0 = np.zeros(n - 9)
+    if nb:
+        bias0[int(lay[L_ISB]) - 9:int(lay[L_ISB]) - 9 + nb] = [g.isb_m.get(c, 0.0) for c in isb_sys]
+    init = Init(float(t0), st0, bias0, P0, reset_idx, reset_heading,
+                cfg.init.course_heading_sigma_deg * DEG, np.full(15, np.nan))
+    r = run_filter(imu_in, rec, mod, proc, init, Output(out_every, bool(smooth), np.zeros(0, np.int64)))
+    ge = rec.grp._replace(**{k: getattr(rec.grp, k)[sel] for k in rec.grp._fields if k != "flags"})
+    if gate > 0:
+        _gate_events(ge, gate, obs.names, events)
+    t_out = t_imu[k0:]
+    res = _tight_result(r, ge, obs, lay, nnav, with_eph, isb_sys, iono_model, events, t_out)
+    res.counts.update(imu_samples_skipped=k0, velocity_records=len(rec.t) - len(sel))
+    if smooth and len(r.node_idx) > 1:
+        _smooth_into(res, r, lay, nnav, t_out)
+    return res
+
+
+def _tight_models(cfg: TightConfig, eph, with_static: bool, events: list):
+    """The measurement models of :func:`run_tight` (:class:`Models`: the pseudorange/rate epoch row
+    parameters, gates and rejection limits, the vehicle constraints), the pseudorange gate and the
+    ionosphere model's description (the fallback's note into ``events``)."""
+    g = cfg.gnss
     gate = chi2_isf(1, 1.0 - g.gate_probability) if g.gate_probability < 1 else 0.0
     use_iono = g.iono == "klobuchar"
     alpha, beta, iono_src = klobuchar_coefficients(eph.iono_alpha, eph.iono_beta)
@@ -401,14 +449,22 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     gates[ms.M_PR, 1] = gate
     max_rej = np.full(ms.N_MODELS, NEVER, np.int64)
     max_rej[ms.M_PR] = g.max_consecutive_rejections
-    mod = Models(par, gates, max_rej, _vehicle_models(cfg, par, gates, static is not None, gate > 0))
+    mod = Models(par, gates, max_rej, _vehicle_models(cfg, par, gates, with_static, gate > 0))
+    return mod, gate, iono_model
+
+
+def _epoch_rows(obs, eph, g, events: list):
+    """The whole-epoch pseudorange/rate rows of :mod:`.measurements.epoch` (M, S, ``E_W``): satellite
+    position, velocity, corrected code and rate, dual-frequency ionosphere, URA, the range-error and
+    inter-system-bias state of each satellite, the Klobuchar scale (f_L1/f)² and the system's σ factor;
+    with the satellites that get a range-error state and the systems that get a bias state (one per
+    non-GPS system with a usable satellite)."""
     if g.iono == "dual":
         if obs.code2 is None:
             raise ValueError("iono = dual needs an L2 code")
         ion_dual = dual_frequency_iono(obs.time, obs.code1, obs.code2, g.iono_window_s)
     else:
         ion_dual = np.full(obs.code1.shape, np.nan)
-    obs = obs.with_frequencies(eph)  # GLONASS channels from the records
     sp, sv, sc, scr, ura = _satellite_arrays(obs, eph, g.iono != "dual", g.max_eph_age_s)
     no_eph = (np.isfinite(obs.code1) & ~np.isfinite(sp[:, :, 0])).sum(axis=0)
     names = obs.names
@@ -432,62 +488,51 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     f = obs.frequencies()
     rows[:, :, 12] = np.where(np.isfinite(f), (FREQ_L1 / f) ** 2, 1.0)
     rows[:, :, 13] = np.array([g.system_sigma_factor.get(c, 1.0) for c in letters])
-    nb = len(isb_sys)
-    lay = tight_layout(cfg.states, len(with_eph), nb)
-    n, nr = int(lay[L_N]), len(with_eph)
-    P0 = _initial_P(cfg, lat0, h0, np.array(cfg.init.attitude_sigma_deg) * DEG, nr, nb)
-    rec, sel = _records(obs.time, rows.reshape(M, S * ep.E_W), velocity_fixes, S)
-    if velocity_fixes is not None:
-        par[ms.M_GNSS_VEL, 0:3] = g.lever_arm_m
-        gates[ms.M_GNSS_VEL, 1:4] = [chi2_isf(m, 1.0 - g.gate_probability) if g.gate_probability < 1 else 0.0
-                                     for m in (1, 2, 3)]
-        max_rej[ms.M_GNSS_VEL] = g.max_consecutive_rejections
+    return rows, with_eph, isb_sys
+
+
+def _imu_input(imu, cfg: TightConfig, t_imu, k0: int, static, events: list) -> Imu:
+    """The engine's IMU input from sample ``k0`` on: increments with gaps bridged, the static flags for
+    the ZUPTs, and the attitude variance of gyro scale factor and misalignment per node
+    (``cfg.rotation_noise``)."""
     stat = np.zeros(len(t_imu), np.bool_) if static is None else np.asarray(static, np.bool_)
-    reset_idx, reset_heading = -1, 0.0
-    if heading_reset is not None:
-        reset_idx = int(np.searchsorted(t_imu[k0:], heading_reset[0], side="left"))
-        reset_heading = float(heading_reset[1])
     dth_in, dv_in = bridge_gaps(imu, events)[:2]  # gap variances not used (as before the engine)
-    rate_hz = output_rate_hz or cfg.filter.output_rate_hz
-    out_every = max(1, int(round(imu.rate_hz / rate_hz))) if rate_hz else 1
     sl = slice(k0, None)
     gap_var = np.zeros((len(t_imu) - k0, 2))  # (attitude, velocity) variance added at the next node
     if cfg.rotation_noise:
         im = cfg.imu
         gap_var[:, 0] = rotation_variance(t_imu[sl], dth_in[sl], im.gyro_sf_sigma_ppm * 1e-6,
                                           im.gyro_misalignment_sigma_deg * DEG, float(cfg.filter.prop_dt_s))
-    imu_in = Imu(t_imu[sl], dth_in[sl], dv_in[sl], stat[sl], gap_var, np.zeros((0, 2)))
-    taus = np.array([cfg.imu.gyro_bias_tau_s, cfg.imu.accel_bias_tau_s, 0.0, 0.0])
-    # range-error estimates decay as the Gauss-Markov conditional mean between updates (open-loop states)
-    aux_tau = np.r_[0.0, g.clock_tau_s, np.zeros(nb), np.full(nr, g.range_error_tau_s)]
-    proc = Process(lay, _noise_vector(cfg, nr, nb), taus, aux_tau, float(cfg.filter.prop_dt_s),
-                   open=np.arange(n - nr, n, dtype=np.int64))
-    bias0 = np.zeros(n - 9)
-    if nb:
-        bias0[int(lay[L_ISB]) - 9:int(lay[L_ISB]) - 9 + nb] = [g.isb_m.get(c, 0.0) for c in isb_sys]
-    init = Init(float(t0), st0, bias0, P0, reset_idx, reset_heading,
-                cfg.init.course_heading_sigma_deg * DEG, np.full(15, np.nan))
-    r = run_filter(imu_in, rec, mod, proc, init, Output(out_every, bool(smooth), np.zeros(0, np.int64)))
-    ge = rec.grp._replace(**{k: getattr(rec.grp, k)[sel] for k in rec.grp._fields if k != "flags"})
+    return Imu(t_imu[sl], dth_in[sl], dv_in[sl], stat[sl], gap_var, np.zeros((0, 2)))
+
+
+def _gate_events(ge, gate: float, names, events: list) -> None:
+    """One event per satellite with pseudoranges or rates outside the innovation gate."""
+    with np.errstate(invalid="ignore"):
+        rej_pr = (ge.pr_nu**2 > gate * ge.pr_s).sum(axis=0)
+        rej_rate = (ge.rate_nu**2 > gate * ge.rate_s).sum(axis=0)
+    for j in np.flatnonzero(rej_pr + rej_rate):
+        events.append(f"{names[j]}: {int(rej_pr[j])} pseudorange(s) and {int(rej_rate[j])} "
+                      "rate(s) outside the innovation gate (rejected unless the gate was suspended)")
+
+
+def _tight_result(r, ge, obs, lay, nnav: int, with_eph, isb_sys, iono_model: str, events: list,
+                  t_out) -> TightResult:
+    """The forward :class:`TightResult` of the engine's run ``r`` (per-epoch records ``ge``, counts, the
+    clock, range errors and inter-system biases; ``t_out``: the IMU times from the first sample on)."""
+    n, nr, nb = int(lay[L_N]), len(with_eph), len(isb_sys)
     epochs = dict(time=ge.t, n_avail=ge.navail, n_pr=ge.npr, n_rate=ge.nrate, n_rejected=ge.nrej,
                   pr_innov=ge.pr_nu, pr_s=ge.pr_s, rate_innov=ge.rate_nu, rate_s=ge.rate_s, elevation=ge.el,
                   P_nav=ge.P_nav, clock=ge.clk, state=ge.state, prn=obs.prn)
-    if gate > 0:
-        with np.errstate(invalid="ignore"):
-            rej_pr = (ge.pr_nu**2 > gate * ge.pr_s).sum(axis=0)
-            rej_rate = (ge.rate_nu**2 > gate * ge.rate_s).sum(axis=0)
-        for j in np.flatnonzero(rej_pr + rej_rate):
-            events.append(f"{names[j]}: {int(rej_pr[j])} pseudorange(s) and {int(rej_rate[j])} "
-                          "rate(s) outside the innovation gate (rejected unless the gate was suspended)")
     log = log_dict(r.log, r.n_log)
     cnt = dict(zupt_updates=int((log["model"] == ms.M_ZUPT).sum()),
                nhc_updates=int((log["model"] == ms.M_NHC).sum()), clock_jumps=int(ge.flags[1]),
                epochs=int(np.isfinite(ge.t).sum()), pr_used=int(ge.npr.sum()), rate_used=int(ge.nrate.sum()),
-               rejected=int(ge.nrej.sum()), imu_samples_skipped=k0, nodes=len(r.node_idx),
-               velocity_records=len(rec.t) - len(sel),
+               rejected=int(ge.nrej.sum()), imu_samples_skipped=0, nodes=len(r.node_idx),
+               velocity_records=0,
                velocity_used=int(((log["model"] == ms.M_GNSS_VEL) & (log["status"] == 1)).sum()))
     ck = slice(int(lay[L_CLK]) - 9, int(lay[L_CLK]) - 7)
-    res = TightResult(time=t_imu[sl][r.out_idx], state=r.out_st, bias=r.out_bias[:, :nnav - 9],
+    res = TightResult(time=t_out[r.out_idx], state=r.out_st, bias=r.out_bias[:, :nnav - 9],
                       clock=r.out_bias[:, ck], pdiag=r.out_pdiag, epochs=epochs, counts=cnt, events=events,
                       nstate=n, final_P=r.P, range_error=r.out_bias[:, n - nr - 9:n - 9],
                       range_error_prn=np.asarray(obs.prn)[with_eph], iono_model=iono_model,
@@ -496,14 +541,20 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
         i0 = int(lay[L_ISB]) - 9
         res.isb = r.out_bias[:, i0:i0 + nb]
         res.isb_std = np.sqrt(r.out_pdiag[:, i0 + 9:i0 + 9 + nb])
-    if smooth and len(r.node_idx) > 1:
-        ds, Ps = rts(r.S_post, r.S_prior, r.S_phi, r.S_dx, r.reset_node)
-        sm_st, sm_b = smooth_outputs(r.out_idx, r.out_st, r.out_bias, r.out_node, r.node_idx, ds, r.S_dx, n)
-        res.forward_state, res.forward_pdiag, res.forward_clock = res.state, res.pdiag, res.clock
-        res.state, res.bias, res.clock = sm_st, sm_b[:, :nnav - 9], sm_b[:, ck]
-        res.pdiag = np.einsum("kii->ki", Ps)[np.clip(r.out_node, 0, len(r.node_idx) - 1)]
-        res.smoothed, res.node_time, res.smoothed_cov = True, t_imu[sl][r.node_idx], Ps
     return res
+
+
+def _smooth_into(res: TightResult, r, lay, nnav: int, t_out) -> None:
+    """The RTS smoother over the run ``r``: ``res``'s state, biases, clock and σ become the smoothed ones
+    (the forward ones kept as ``forward_*``)."""
+    n = int(lay[L_N])
+    ck = slice(int(lay[L_CLK]) - 9, int(lay[L_CLK]) - 7)
+    ds, Ps = rts(r.S_post, r.S_prior, r.S_phi, r.S_dx, r.reset_node)
+    sm_st, sm_b = smooth_outputs(r.out_idx, r.out_st, r.out_bias, r.out_node, r.node_idx, ds, r.S_dx, n)
+    res.forward_state, res.forward_pdiag, res.forward_clock = res.state, res.pdiag, res.clock
+    res.state, res.bias, res.clock = sm_st, sm_b[:, :nnav - 9], sm_b[:, ck]
+    res.pdiag = np.einsum("kii->ki", Ps)[np.clip(r.out_node, 0, len(r.node_idx) - 1)]
+    res.smoothed, res.node_time, res.smoothed_cov = True, t_out[r.node_idx], Ps
 
 
 def tight_nav_covariance_m(P_nav: np.ndarray, lat: float, h: float) -> np.ndarray:

@@ -36,6 +36,7 @@ from aidnav.filters.loose import run_loose
 from aidnav.filters.presets import apply_preset, preset_names
 from aidnav.filters.result import to_trajectory
 from aidnav.filters.tuning import loose_config_from_specs, perturbed_initial_state
+from aidnav.filters.wheeled import no_option_constraint
 from aidnav.nav.earth import radii
 from aidnav.report import html as H
 from aidnav.sim.gnss import GnssSpec
@@ -212,8 +213,9 @@ def simulate_condition(cond: Condition, seed: int) -> SimRun:
 
 def config_for(name: str, cond: Condition, run: SimRun, sensor_model: bool = True) -> LooseConfig:
     """The configuration ``name`` (:func:`configurations`) for a run: ``none`` = :class:`LooseConfig`
-    (what ``aidnav process`` assumes without options), a preset over it, or ``matched``: the noise model of
-    the simulated sensors (:func:`loose_config_from_specs`, ``sensor_model`` passed on), the initial state
+    (what ``aidnav process`` assumes without options; :func:`run_cell` then decides the NHC from the log as
+    ``process`` does, :func:`aidnav.filters.wheeled.no_option_constraint`), a preset over it, or
+    ``matched``: the noise model of the simulated sensors (:func:`loose_config_from_specs`, ``sensor_model`` passed on), the initial state
     drawn around the truth with its σ, and the Gauss–Markov GNSS error states where the errors are."""
     if name == "none":
         return LooseConfig()
@@ -307,6 +309,8 @@ def run_cell(cond: Condition, config: str, seeds, sensor_model: bool = True) -> 
         run = simulate_condition(cond, seed)
         try:
             cfg = config_for(config, cond, run, sensor_model)
+            if config == "none":  # what `aidnav process` does with no option: the NHC decided from the log
+                cfg = no_option_constraint(run.imu, run.gnss, cfg, None, [])[0]
             cov_t = np.arange(run.truth.time[0], run.truth.time[-1], EVAL_DT_S) - 1e-6
             res = run_loose(run.imu, run.gnss, cfg, cov_times=cov_t)
             e, s, ne = _evaluate(res, run)

@@ -215,8 +215,9 @@ def config_for(name: str, cond: Condition, run: SimRun, sensor_model: bool = Tru
     """The configuration ``name`` (:func:`configurations`) for a run: ``none`` = :class:`LooseConfig`
     (what ``aidnav process`` assumes without options; :func:`run_cell` then decides the NHC from the log as
     ``process`` does, :func:`aidnav.filters.wheeled.no_option_constraint`), a preset over it, or
-    ``matched``: the noise model of the simulated sensors (:func:`loose_config_from_specs`, ``sensor_model`` passed on), the initial state
-    drawn around the truth with its σ, and the Gauss–Markov GNSS error states where the errors are."""
+    ``matched``: the noise model of the simulated sensors (:func:`loose_config_from_specs`,
+    ``sensor_model`` passed on), the initial state drawn around the truth with its σ, and the Gauss–Markov
+    GNSS error states where the errors are."""
     if name == "none":
         return LooseConfig()
     if name != "matched":

@@ -243,3 +243,23 @@ def test_decimated_copy_joined_in_blocks(piece):
     np.testing.assert_array_equal(dec.extra["x"], want)
     np.testing.assert_array_equal(dec.std_pos, tr.std_pos[want])
     assert len(sink.dec) <= n // piece // ps.DEC_JOIN + n // ps.DEC_JOIN_ROWS + 2
+
+
+def test_no_option_decision_holds_a_bounded_prefix():
+    """Issue 35's no-option vehicle decision runs a first pass over the log's first ``DECIDE_SPAN_S`` only
+    (issue 29: memory independent of the log's length): a 50-min log in chunks gives 20 min, cut inside a
+    chunk, and the chunks after it are never read."""
+    from aidnav.data import ImuData
+
+    t = np.arange(1, 300_001) * 0.01
+    read = []
+
+    def chunks():
+        for i in range(0, len(t), 20_000):
+            read.append(i)
+            z = np.zeros((len(t[i:i + 20_000]), 3))
+            yield ImuData(t[i:i + 20_000], z, z, t0=t[i] - 0.01)
+
+    p = ps._prefix(pi.ImuLog(chunks, (t[0], t[-1]), len(t)), ps.DECIDE_SPAN_S)
+    assert p.time[0] == t[0] and ps.DECIDE_SPAN_S - 0.011 < p.time[-1] - p.time[0] <= ps.DECIDE_SPAN_S
+    assert np.all(np.diff(p.time) > 0) and len(read) == 7  # 7 × 200 s chunks cover 1200 s (+ the cut one)

@@ -114,9 +114,23 @@ class Sink:
         return None if self.kept is None else concat_rows(self.kept)
 
 
-def _whole(log: ImuLog) -> ImuData:
-    """The whole IMU log in memory (a new pass over its chunks)."""
-    cs = list(log.chunks())
+#: the no-option vehicle decision (:func:`aidnav.filters.wheeled.no_option_constraint`) looks at the log's
+#: first 20 min at most: the memory it holds stays bounded whatever the log's length (issue 29), and 20 min
+#: hold the 30 s of motion with 90° of turning the decision needs in any log that has them early
+DECIDE_SPAN_S = 1200.0
+
+
+def _prefix(log: ImuLog, span_s: float) -> ImuData:
+    """The IMU log's first ``span_s`` seconds in memory (a new pass over its chunks, stopped there)."""
+    cs, end = [], None
+    for c in log.chunks():
+        end = float(c.time[0]) + span_s if end is None else end
+        keep = c.time <= end
+        if not keep.all():
+            if keep.any():
+                cs.append(ImuData(c.time[keep], c.dtheta[keep], c.dv[keep], t0=c.t0, events=list(c.events)))
+            break
+        cs.append(c)
     if len(cs) == 1:
         return cs[0]
     return ImuData(np.concatenate([c.time for c in cs]), np.concatenate([c.dtheta for c in cs]),
@@ -178,9 +192,13 @@ def run_process(log: ImuLog, gnss, cfg, smooth=False, outages=None, imu_name="im
     bg = Background(consume) if background else None
     events: list[str] = []
     if "constraints" not in cfg.model_fields_set and not cfg.constraints.nhc:
-        # no option (issue 35): the NHC decided from a first pass over the whole log (filters.wheeled), which
-        # then sits in memory once
-        cfg = no_option_constraint(_whole(log), gnss, cfg, withheld, events, aids)[0]
+        # no option (issue 35): the NHC decided from a first pass over the log's first DECIDE_SPAN_S
+        # (filters.wheeled), which then sits in memory once
+        before = len(events)
+        cfg = no_option_constraint(_prefix(log, DECIDE_SPAN_S), gnss, cfg, withheld, events, aids)[0]
+        if log.span[1] - log.span[0] > DECIDE_SPAN_S:
+            events[before:] = [f"{e} (decided from the log's first {DECIDE_SPAN_S:g} s)"
+                               for e in events[before:]]
     t0 = _time.perf_counter()
     try:
         res = stream_loose(chain([head], chunks), gnss, cfg, consume if bg is None else bg.put,

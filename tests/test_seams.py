@@ -78,7 +78,6 @@ def test_every_function_level_import_has_its_reason():
 #: kernels whose split would only add call boundaries inside the per-sample loop (and recompiles), and the
 #: tight filter's driver and job, being changed by another issue (tight coupling) at the same time
 LONG_ALLOWED = {
-    "aidnav.filters.engine.run_chunk": "numba kernel: the engine's per-sample loop (docs/architecture.md)",
     "aidnav.filters.ins_errors.fill_model": "numba kernel: F and G of the INS error model, one block a line",
 }
 LONGEST = 100

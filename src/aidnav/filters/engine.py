@@ -370,32 +370,14 @@ def run_filter(imu, rec, mod, proc, ini, out):
     return run_chunk(imu, rec, mod, proc, ini, out, start_carry(rec, proc, ini, True))
 
 
-# nogil: the streamed job overlaps writing with it (issue 29)
-@njit(cache=True, nogil=True, depends=MODELS_KEY)
-def run_chunk(imu, rec, mod, proc, ini, out, cy):
-    """The forward pass over the samples ``imu`` from the carry ``cy`` (module doc: chunks)."""
-    n_imu = imu.t.shape[0]
-    lay = proc.lay
-    n, nins = lay[L_N], lay[L_NINS]
-    nfull, ic, grp, sub = max(nins, 15), lay[L_CLK], rec.grp.t.shape[0] > 0, proc.sub
-    mins, nsub = noise_count(nfull), sub.shape[0]
-    n = nsub if nsub else n
-    nb, naux, nh = (nins if nsub else n) - NAV, 0 if nsub else n - nins, nins if nsub else n
-    M = rec.t.shape[0]
-    st, bias, P, x = cy.st, cy.bias, cy.P, np.zeros(n)
-    k0, kn0 = cy.k0, cy.kn
-    itoff = lay[L_TOFF]
-    ix = np.full(nfull, -1, np.int64)  # index in P of each state of the full INS layout (−1: not there)
-    for i in range(nsub if nsub else nins):
-        ix[sub[i] if nsub else i] = i
-    iu = ix[PHI + 2]
-    # an unknown heading (initial σ above ≈ 81°) with an alignment to come (reset_idx > 0; beyond the last
-    # sample: none found) stays unknown until then: a linearised filter would otherwise "gyrocompass"
-    # from a gyro bias model it cannot separate from the heading (static) or from noise
-    hold_h = ini.reset_idx > 0 and iu >= 0 and ini.P[iu, iu] >= UNKNOWN_HEADING_VAR
-    # INS sensor errors only (nins − 9 = 0, 6 or 12; not nfull): the strapdown must not read clock or
-    # calibration states
-    ib = bias[:nins - NAV].copy()
+@njit(cache=True)
+def _error_model(lay, proc, nfull, mins, naux, n, nins, nsub):
+    """The error model's arrays of a chunk: F, G of the full INS layout (``Fi``, ``Gi``) and of the filter
+    (``F``, ``G`` with the calibration states' Gauss–Markov or random-walk rows and the clock), Φ and Qd,
+    and the split of the independent scalar states after the clock block (tight coupling's range errors):
+    ``nd`` the first of them (``n`` when none), the head's arrays (``Fh``, ``Gh``, ``Phh``, ``Qdh``,
+    noise ``qh``) discretised as a matrix, the tail's noise PSD ``qt`` (G row² · q) predicted by scaling."""
+    ic = lay[L_CLK]
     Fi, Gi, _, _ = model_arrays(nfull, mins)
     F, G, Phi, Qd = model_arrays(n, mins + naux)
     for j in range(naux):  # calibration states: Gauss-Markov (τ > 0) or random walk / constant
@@ -404,8 +386,6 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
         G[nins + j, mins + j] = 1.0
     if ic >= 0:
         F[ic, ic + 1] = 1.0  # clock bias [m] integrates the drift [m/s]
-    # independent scalar states after the clock block (tight coupling's range errors): Φ, Qd block
-    # diagonal, the head discretised as a matrix, the tail as scalars, predicted by scaling (predict_tail)
     nd = tail_start(F, G, ic + 2 if (ic >= 0 and nsub == 0 and proc.gm.shape[0] == 0) else n)
     mh = mins + nd - nins if nd < n else 0
     Fh, Gh, Phh, Qdh = model_arrays(nd if nd < n else 0, mh)
@@ -413,41 +393,234 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
     if nd < n:
         Fh[nins:nd, nins:nd] = F[nins:nd, nins:nd]
         Gh[nins:nd, mins:] = G[nins:nd, mins:mh]
-    qt = np.zeros(n)  # the tail's noise PSD (G row² · q)
+    qt = np.zeros(n)
     for i in range(nd, n):
         for c in range(G.shape[1]):
             qt[i] += G[i, c] * G[i, c] * proc.q[c]
+    return Fi, Gi, F, G, Phi, Qd, nd, Fh, Gh, Phh, Qdh, qh, qt
+
+
+@njit(cache=True)
+def _predict_node(st, acc, bias, x, P, T, proc, em, sub, nins, mins, nh):
+    """The predict over the interval ``T`` that ends at a node: F, G of the interval (the subset's rows
+    and columns where the filter runs on one), Φ and Qd, P propagated (head as a matrix, the scalar tail
+    by scaling, or the exact Gauss–Markov blocks), the open-loop estimates carried; ``x`` zeroed. Returns
+    the body rate of the interval (for the models)."""
+    Fi, Gi, F, G, Phi, Qd, nd, Fh, Gh, Phh, Qdh, qh, qt = em
+    n, nsub = P.shape[0], sub.shape[0]
+    wb = interval_model(Fi, Gi, st, acc, proc.tau[0], proc.tau[1], proc.tau[2], proc.tau[3])
+    if nsub:
+        for i in range(n):
+            F[i, :], G[i, :] = Fi[sub[i]][sub], Gi[sub[i], :mins]
+    else:
+        F[:nins, :nins] = Fi[:nins, :nins]
+        G[:nins, :mins] = Gi[:nins, :mins]
+    x[:] = 0.0
+    if nd < n:
+        Fh[:nins, :nins] = Fi[:nins, :nins]
+        Gh[:nins, :mins] = Gi[:nins, :mins]
+        discretize(Fh, Gh, qh, T, Phh, Qdh)
+        Phi[:nd, :nd] = Phh
+        Qd[:nd, :nd] = Qdh
+        discretize_tail(F, qt, T, Phi, Qd, nd)
+        predict_tail(x, P, Phi, Qd, nd)
+    else:
+        discretize(F, G, proc.q, T, Phi, Qd)
+        exact_blocks(Phi, Qd, proc.gm, T)
+        predict(x, P, Phi, Qd)
+    carry_estimates(st, bias, Phi, proc.open, nh)
+    return wb
+
+
+@njit(cache=True)
+def _gap_at_node(st, P, gap, ix, hold_thr, iu):
+    """The variance an IMU gap added since the last node; a heading σ left above the hold threshold holds
+    the heading unknown (``gap[4]``) until a GNSS course re-aligns it."""
+    if gap[0] > 0.0 or gap[1] > 0.0:  # (indices of the full layout through ix: a subset has its own)
+        _add_gap(st, P, gap, ix)
+        if hold_thr > 0.0 and iu >= 0 and P[iu, iu] >= hold_thr * hold_thr:
+            gap[4] = min(P[iu, iu], np.pi * np.pi)  # heading unknown until a course re-aligns it
+            P[iu, :], P[:, iu] = 0.0, 0.0
+            P[iu, iu] = gap[4]
+
+
+@njit(cache=True, depends=MODELS_KEY)
+def _update_records(x, P, st, C, w, bias, rec, gi, tk, gap, gap_k, ix, iu, pv, mod, lay, rej, win, log,
+                    wk, sub, ws, ic, itoff):
+    """The records due at the node at IMU time ``tk`` (in (t_{k-1}, t_k] on the IMU clock), each through
+    its model: a whole pseudorange epoch by its scalar updates, any other by the gate policy; a velocity
+    record re-aligns a heading held unknown. Returns the next record's index and the attitude matrix."""
+    grp = rec.grp.t.shape[0] > 0
+    while _due_time(rec, gi, bias, ic, itoff) <= tk:
+        tr = _rec_time(rec, gi, bias, ic)  # the models add d̂ to dt_back themselves
+        # a record inside an IMU gap cannot be moved back across the unknown motion: not used
+        if rec.use[gi] and not (gap_k and tk - tr > GAP_REC_S):
+            md = rec.model[gi]
+            if gap[4] > 0.0 and md == M_GNSS_VEL and _course_heading(st, P, rec.data[gi], pv, iu,
+                                                                     ix[PHI], ix[PHI + 1]):
+                gap[4] = 0.0
+                C = dcm_from_quat(st[ST_Q:ST_Q + 4])
+            nav = Nav(st, C, w, tk - tr, bias)
+            if grp and md == M_PR:  # a whole epoch: its scalar updates and rejection rule
+                gate = mod.gate[md, 1] if rej[md] < mod.max_rej[md] else 0.0
+                ok = epoch_update(x, P, nav, rec.data[gi], mod.par[md], lay, gate, rec.grp, gi, tr)
+                rej[md] = 0 if ok else rej[md] + 1
+                log.status[gi] = 1 if ok else 0
+            else:
+                m = fill(md, nav, rec.data[gi], mod.par[md], lay, wk.H, wk.z, wk.R)
+                if m > 0:
+                    policy_update(x, P, _subset(wk, m, sub, ws), m, md, mod, rej, win, log, gi)
+        gi += 1
+    return gi, C
+
+
+@njit(cache=True, depends=MODELS_KEY)
+def _node_constraints(x, P, nav, static, tk, mod, lay, no_row, rej, win, log, li, wk, sub, ws):
+    """The node constraints (ZUPT, ZARU at static samples, NHC at moving ones) at IMU time ``tk``, each
+    logged; returns the next free log row."""
+    for c in range(mod.node.shape[0]):
+        md = mod.node[c, 0]
+        if (mod.node[c, 1] == 1) == static:
+            m = fill(md, nav, no_row, mod.par[md], lay, wk.H, wk.z, wk.R)
+            if m > 0:
+                log.t[li], log.model[li] = tk, md
+                policy_update(x, P, _subset(wk, m, sub, ws), m, md, mod, rej, win, log, li)
+                li += 1
+    return li
+
+
+@njit(cache=True)
+def _hold_heading(P, iu, ini, before_alignment, gap):
+    """A heading without information keeps its variance and no correlation: before the first alignment
+    (``before_alignment``: an unknown initial heading, σ above ≈ 81°, with an alignment to come — a
+    linearised filter would otherwise "gyrocompass" from a gyro bias model it cannot separate from the
+    heading at a standstill, or from noise), or after an IMU gap (``gap[4]``) until a GNSS course
+    re-aligns it."""
+    if before_alignment:
+        P[iu, :], P[:, iu] = 0.0, 0.0
+        P[iu, iu] = ini.P[iu, iu]
+    elif gap[4] > 0.0:
+        P[iu, :], P[:, iu] = 0.0, 0.0
+        P[iu, iu] = gap[4]
+
+
+@njit(cache=True)
+def _write_output(o, oi, k, st, bias, nb, P, node):
+    """The output row ``oi`` (sample ``k``): state, the first ``nb`` biases, diagonal of P, last node.
+    Returns ``oi + 1``."""
+    out_idx, out_st, out_bias, out_pdiag, out_node = o
+    out_idx[oi] = k
+    for i in range(10):
+        out_st[oi, i] = st[i]
+    for i in range(nb):
+        out_bias[oi, i] = bias[i]
+    for i in range(out_pdiag.shape[1]):
+        out_pdiag[oi, i] = P[i, i]
+    out_node[oi] = node
+    return oi + 1
+
+
+@njit(cache=True)
+def _gap_sample(gap, gap_var, k):
+    """Sample ``k``'s gap variances added to ``gap`` (roll/pitch, heading, velocity, position; with two
+    columns the attitude one counts for both angles). Returns whether the sample closes a gap."""
+    if gap_var.shape[1] >= 4:
+        for j in range(4):
+            gap[j] += gap_var[k, j]
+        return gap_var[k, 3] > 0.0
+    gap[0] += gap_var[k, 0]
+    gap[1] += gap_var[k, 0]
+    gap[2] += gap_var[k, 1]
+    return False
+
+
+@njit(cache=True)
+def _after_updates(st, bias, P, rec, g0, gi, reset_pos, lay):
+    """After a node's updates: the position (and height rate) reset to the records ``g0 … gi−1``
+    (``reset_pos``), and each whole-epoch record's state written back (tight coupling)."""
+    for g in range(g0, gi if reset_pos else g0):
+        st[0], st[1], st[2] = rec.data[g, 6], rec.data[g, 7], rec.data[g, 8]
+        if not np.isnan(rec.data[g, 9]):
+            st[5] = rec.data[g, 9]
+    for g in range(g0, gi if rec.grp.t.shape[0] > 0 else g0):
+        epoch_record(rec.grp, g, st, bias, P, lay)
+
+
+@njit(cache=True)
+def _chunk_log(rec, cap):
+    """The innovation log of a chunk: one row per record (filled in as they are used), then the node
+    constraints' rows, ``cap`` in all."""
+    log = Log(np.full(cap, np.nan), np.full(cap, -1, np.int8), np.full(cap, -1, np.int8),
+              np.full(cap, np.nan), np.full((cap, MAX_ROWS), np.nan), np.full((cap, MAX_ROWS), np.nan),
+              np.full(cap, -1, np.int64), np.zeros(cap, np.int8))
+    for i in range(rec.t.shape[0]):
+        log.t[i], log.model[i], log.ref[i] = rec.t[i], rec.model[i], i
+    return log
+
+
+@njit(cache=True)
+def _chunk_sizes(imu, rec, out, cy, prop_dt):
+    """The most nodes and outputs a chunk can produce: every record that can fall due in it (all of them
+    in the last chunk, else those stamped up to 100 s after its last sample: a time offset or receiver
+    clock bias beyond 100 s is refused) plus the nodes of the propagation interval."""
+    n_imu, M = imu.t.shape[0], rec.t.shape[0]
+    m_due = (M if cy.last else min(M, np.searchsorted(rec.t, imu.t[-1] + 100.0, side="right") + 1)) - cy.gi
+    max_nodes = min(m_due + int((imu.t[-1] - cy.tp) / prop_dt) + 3 + n_imu // max(1, int(prop_dt * 1000.0)),
+                    n_imu + 1)
+    return max_nodes, (n_imu + out.every - 1) // out.every if out.every > 0 else max_nodes
+
+
+@njit(cache=True)
+def _index_map(nfull, sub, nins):
+    """The index in P of each state of the full INS layout (−1: not there; a subset has its own)."""
+    nsub = sub.shape[0]
+    ix = np.full(nfull, -1, np.int64)
+    for i in range(nsub if nsub else nins):
+        ix[sub[i] if nsub else i] = i
+    return ix
+
+
+# nogil: the streamed job overlaps writing with it (issue 29)
+@njit(cache=True, nogil=True, depends=MODELS_KEY)
+def run_chunk(imu, rec, mod, proc, ini, out, cy):
+    """The forward pass over the samples ``imu`` from the carry ``cy`` (module doc: chunks)."""
+    n_imu = imu.t.shape[0]
+    lay = proc.lay
+    n, nins = lay[L_N], lay[L_NINS]
+    nfull, ic, sub = max(nins, 15), lay[L_CLK], proc.sub
+    mins, nsub = noise_count(nfull), sub.shape[0]
+    n = nsub if nsub else n
+    nb, naux, nh = (nins if nsub else n) - NAV, 0 if nsub else n - nins, nins if nsub else n
+    M = rec.t.shape[0]
+    st, bias, P, x = cy.st, cy.bias, cy.P, np.zeros(n)
+    k0, kn0 = cy.k0, cy.kn
+    itoff = lay[L_TOFF]
+    ix = _index_map(nfull, sub, nins)
+    iu = ix[PHI + 2]
+    # an unknown heading with an alignment to come stays unknown until then (_hold_heading)
+    hold_h = ini.reset_idx > 0 and iu >= 0 and ini.P[iu, iu] >= UNKNOWN_HEADING_VAR
+    ib = bias[:nins - NAV].copy()  # INS sensor errors only: the strapdown reads no clock or calibration
+    em = _error_model(lay, proc, nfull, mins, naux, n, nins, nsub)
     wk = Work(np.zeros((MAX_ROWS, nh)), np.zeros(MAX_ROWS), np.zeros((MAX_ROWS, MAX_ROWS)))
     ws, dxf = Work(np.zeros((MAX_ROWS, n)), wk.z, wk.R), np.zeros(nh)
     w = np.zeros((5, 3))  # rows W_IB, W_FIX, W_IE, W_IN and W_FN (mean f^n, models with a time offset)
     no_row = np.zeros(rec.data.shape[1])  # the row of a node constraint (unused)
     prop_dt = proc.prop_dt
-    # records that can fall due in this chunk: all (one call), else those stamped up to 100 s after its
-    # last sample (a time offset or receiver clock bias beyond 100 s is refused below)
-    m_due = (M if cy.last else min(M, np.searchsorted(rec.t, imu.t[-1] + 100.0, side="right") + 1)) - cy.gi
-    max_nodes = min(m_due + int((imu.t[-1] - cy.tp) / prop_dt) + 3 + n_imu // max(1, int(prop_dt * 1000.0)),
-                    n_imu + 1)
-    n_out = (n_imu + out.every - 1) // out.every if out.every > 0 else max_nodes
+    max_nodes, n_out = _chunk_sizes(imu, rec, out, cy, prop_dt)
     out_idx, out_st, out_node = np.empty(n_out, np.int64), np.empty((n_out, 10)), np.empty(n_out, np.int64)
     out_bias, out_pdiag = np.empty((n_out, max(nb, 1))), np.empty((n_out, n))  # out_node: last node ≤ sample
+    o = (out_idx, out_st, out_bias, out_pdiag, out_node)
     node_idx = np.empty(max_nodes, np.int64)
     ns = max_nodes if out.smooth else 1
     S_post, S_prior, S_phi = np.zeros((ns, n, n)), np.zeros((ns, n, n)), np.zeros((ns, n, n))
     S_dx = np.zeros((ns, n))
-    cap = M + max_nodes * mod.node.shape[0]
-    log = Log(np.full(cap, np.nan), np.full(cap, -1, np.int8), np.full(cap, -1, np.int8),
-              np.full(cap, np.nan), np.full((cap, MAX_ROWS), np.nan), np.full((cap, MAX_ROWS), np.nan),
-              np.full(cap, -1, np.int64), np.zeros(cap, np.int8))
+    log, li = _chunk_log(rec, M + max_nodes * mod.node.shape[0]), M
     win = np.zeros((N_MODELS, WIN_MAX + 2))  # NIS windows of the re-initialisation test
-    for i in range(M):
-        log.t[i], log.model[i], log.ref[i] = rec.t[i], rec.model[i], i
-    li = M
     rej = cy.rej
     cov_out = np.zeros((out.cov_idx.shape[0], n, n))
     ci, reset_node, gi = cy.ci, cy.reset_node, cy.gi
     acc = cy.acc
     gap = cy.gap  # (5,): variances to add at the next node, then the heading-hold flag
-    g4 = imu.gap_var.shape[1] >= 4
     pv = mod.par[M_GNSS_VEL]
     hold_thr = pv[C_HOLD] if pv.shape[0] > C_HOLD else 0.0  # (other filters: fewer parameters)
     dthc, dvc, dth_prev, dv_prev = cy.buf[0], cy.buf[1], cy.buf[2], cy.buf[3]
@@ -464,15 +637,7 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
             t_due = _due_time(rec, gi, bias, ic, itoff)
         if hold:
             st[ST_POS + 2], st[ST_VEL + 2] = imu.hold[k, 0], imu.hold[k, 1]
-        gap_k = False
-        if g4:
-            for j in range(4):
-                gap[j] += imu.gap_var[k, j]
-            gap_k = imu.gap_var[k, 3] > 0.0
-        else:
-            gap[0] += imu.gap_var[k, 0]
-            gap[1] += imu.gap_var[k, 0]
-            gap[2] += imu.gap_var[k, 1]
+        gap_k = _gap_sample(gap, imu.gap_var, k)
         if k0 + k == ini.reset_idx:
             reset_node = kn  # the next node is the first one after the re-initialisation
             _reinit(st, P, ini, ix, hold_h)
@@ -481,83 +646,23 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
             if kn - kn0 >= max_nodes:
                 raise ValueError("run_chunk: more nodes than a chunk can hold (record times > 100 s late)")
             C = dcm_from_quat(st[ST_Q:ST_Q + 4])
-            wb = interval_model(Fi, Gi, st, acc, proc.tau[0], proc.tau[1], proc.tau[2], proc.tau[3])
-            if nsub:
-                for i in range(n):
-                    F[i, :], G[i, :] = Fi[sub[i]][sub], Gi[sub[i], :mins]
-            else:
-                F[:nins, :nins] = Fi[:nins, :nins]
-                G[:nins, :mins] = Gi[:nins, :mins]
-            x[:] = 0.0
-            if nd < n:
-                Fh[:nins, :nins] = Fi[:nins, :nins]
-                Gh[:nins, :mins] = Gi[:nins, :mins]
-                discretize(Fh, Gh, qh, T, Phh, Qdh)
-                Phi[:nd, :nd] = Phh
-                Qd[:nd, :nd] = Qdh
-                discretize_tail(F, qt, T, Phi, Qd, nd)
-                predict_tail(x, P, Phi, Qd, nd)
-            else:
-                discretize(F, G, proc.q, T, Phi, Qd)
-                exact_blocks(Phi, Qd, proc.gm, T)
-                predict(x, P, Phi, Qd)
-            carry_estimates(st, bias, Phi, proc.open, nh)
-            if gap[0] > 0.0 or gap[1] > 0.0:  # (indices of the full layout through ix: a subset has its own)
-                _add_gap(st, P, gap, ix)
-                if hold_thr > 0.0 and iu >= 0 and P[iu, iu] >= hold_thr * hold_thr:
-                    gap[4] = min(P[iu, iu], np.pi * np.pi)  # heading unknown until a course re-aligns it
-                    P[iu, :], P[:, iu] = 0.0, 0.0
-                    P[iu, iu] = gap[4]
+            wb = _predict_node(st, acc, bias, x, P, T, proc, em, sub, nins, mins, nh)
+            _gap_at_node(st, P, gap, ix, hold_thr, iu)
             if out.smooth:
-                S_phi[kn - kn0], S_prior[kn - kn0] = Phi, P
+                S_phi[kn - kn0], S_prior[kn - kn0] = em[4], P
             node_rates(st, wb, dthc, dt, w)
             w[W_FN] = acc[ACC_FN] / T
             g0 = gi
-            while _due_time(rec, gi, bias, ic, itoff) <= imu.t[k]:  # records in (t_{k-1}, t_k]
-                tr = _rec_time(rec, gi, bias, ic)  # the models add d̂ to dt_back themselves
-                # a record inside an IMU gap cannot be moved back across the unknown motion: not used
-                if rec.use[gi] and not (gap_k and imu.t[k] - tr > GAP_REC_S):
-                    md = rec.model[gi]
-                    if gap[4] > 0.0 and md == M_GNSS_VEL and _course_heading(st, P, rec.data[gi], pv, iu,
-                                                                             ix[PHI], ix[PHI + 1]):
-                        gap[4] = 0.0
-                        C = dcm_from_quat(st[ST_Q:ST_Q + 4])
-                    nav = Nav(st, C, w, imu.t[k] - tr, bias)
-                    if grp and md == M_PR:  # a whole epoch: its scalar updates and rejection rule
-                        gate = mod.gate[md, 1] if rej[md] < mod.max_rej[md] else 0.0
-                        ok = epoch_update(x, P, nav, rec.data[gi], mod.par[md], lay, gate, rec.grp, gi, tr)
-                        rej[md] = 0 if ok else rej[md] + 1
-                        log.status[gi] = 1 if ok else 0
-                    else:
-                        m = fill(md, nav, rec.data[gi], mod.par[md], lay, wk.H, wk.z, wk.R)
-                        if m > 0:
-                            policy_update(x, P, _subset(wk, m, sub, ws), m, md, mod, rej, win, log, gi)
-                gi += 1
-            nav = Nav(st, C, w, 0.0, bias)
-            for c in range(mod.node.shape[0]):  # node constraints (ZUPT, ZARU at static samples, NHC)
-                md = mod.node[c, 0]
-                if (mod.node[c, 1] == 1) == imu.static[k]:
-                    m = fill(md, nav, no_row, mod.par[md], lay, wk.H, wk.z, wk.R)
-                    if m > 0:
-                        log.t[li], log.model[li] = imu.t[k], md
-                        policy_update(x, P, _subset(wk, m, sub, ws), m, md, mod, rej, win, log, li)
-                        li += 1
+            gi, C = _update_records(x, P, st, C, w, bias, rec, gi, imu.t[k], gap, gap_k, ix, iu, pv, mod, lay,
+                                    rej, win, log, wk, sub, ws, ic, itoff)
+            li = _node_constraints(x, P, Nav(st, C, w, 0.0, bias), imu.static[k], imu.t[k], mod, lay, no_row,
+                                   rej, win, log, li, wk, sub, ws)
             if nsub:  # the subset's estimate in the INS block
                 dxf[sub] = x
             feedback(st, bias, dxf if nsub else x, nh)
             ib[:] = bias[:nins - NAV]
-            if hold_h and k0 + k < ini.reset_idx:  # heading unknown until the alignment: no information
-                P[iu, :], P[:, iu] = 0.0, 0.0
-                P[iu, iu] = ini.P[iu, iu]
-            elif gap[4] > 0.0:  # the same after an IMU gap, until a GNSS course re-aligns the heading
-                P[iu, :], P[:, iu] = 0.0, 0.0
-                P[iu, iu] = gap[4]
-            for g in range(g0, gi if proc.reset_pos else g0):
-                st[0], st[1], st[2] = rec.data[g, 6], rec.data[g, 7], rec.data[g, 8]
-                if not np.isnan(rec.data[g, 9]):
-                    st[5] = rec.data[g, 9]
-            for g in range(g0, gi if grp else g0):
-                epoch_record(rec.grp, g, st, bias, P, lay)
+            _hold_heading(P, iu, ini, hold_h and k0 + k < ini.reset_idx, gap)
+            _after_updates(st, bias, P, rec, g0, gi, proc.reset_pos, lay)
             t_due = _due_time(rec, gi, bias, ic, itoff)  # d̂ may have changed
             node_idx[kn - kn0] = k0 + k
             if out.smooth:
@@ -566,15 +671,7 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
             kn += 1
             reset_accumulator(acc)
         if ((k0 + k) % out.every == 0) if out.every > 0 else (kn > kn0 and node_idx[kn - 1 - kn0] == k0 + k):
-            out_idx[oi] = k0 + k
-            for i in range(10):
-                out_st[oi, i] = st[i]
-            for i in range(nb):
-                out_bias[oi, i] = bias[i]
-            for i in range(n):
-                out_pdiag[oi, i] = P[i, i]
-            out_node[oi] = kn - 1
-            oi += 1
+            oi = _write_output(o, oi, k0 + k, st, bias, nb, P, kn - 1)
         while ci < out.cov_idx.shape[0] and out.cov_idx[ci] == k0 + k:
             cov_out[ci] = P
             ci += 1

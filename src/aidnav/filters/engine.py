@@ -504,7 +504,7 @@ def _hold_heading(P, iu, ini, before_alignment, gap):
         P[iu, iu] = gap[4]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")  # per sample: inlined (no call per sample)
 def _write_output(o, oi, k, st, bias, nb, P, node):
     """The output row ``oi`` (sample ``k``): state, the first ``nb`` biases, diagonal of P, last node.
     Returns ``oi + 1``."""
@@ -520,7 +520,7 @@ def _write_output(o, oi, k, st, bias, nb, P, node):
     return oi + 1
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")  # per sample: inlined (no call per sample)
 def _gap_sample(gap, gap_var, k):
     """Sample ``k``'s gap variances added to ``gap`` (roll/pitch, heading, velocity, position; with two
     columns the attitude one counts for both angles). Returns whether the sample closes a gap."""

@@ -401,12 +401,14 @@ def _error_model(lay, proc, nfull, mins, naux, n, nins, nsub):
 
 
 @njit(cache=True)
-def _predict_node(st, acc, bias, x, P, T, proc, em, sub, nins, mins, nh):
+def _predict_node(st, acc, bias, x, P, T, proc, em, dims):
     """The predict over the interval ``T`` that ends at a node: F, G of the interval (the subset's rows
     and columns where the filter runs on one), Φ and Qd, P propagated (head as a matrix, the scalar tail
     by scaling, or the exact Gauss–Markov blocks), the open-loop estimates carried; ``x`` zeroed. Returns
     the body rate of the interval (for the models)."""
     Fi, Gi, F, G, Phi, Qd, nd, Fh, Gh, Phh, Qdh, qh, qt = em
+    nins, mins, nh = dims  # INS states, noise inputs, states fed back
+    sub = proc.sub
     n, nsub = P.shape[0], sub.shape[0]
     wb = interval_model(Fi, Gi, st, acc, proc.tau[0], proc.tau[1], proc.tau[2], proc.tau[3])
     if nsub:
@@ -445,11 +447,17 @@ def _gap_at_node(st, P, gap, ix, hold_thr, iu):
 
 
 @njit(cache=True, depends=MODELS_KEY)
-def _update_records(x, P, st, C, w, bias, rec, gi, tk, gap, gap_k, ix, iu, pv, mod, lay, rej, win, log,
-                    wk, sub, ws, ic, itoff):
+def _update_records(x, P, nv, C, rec, gi, tk, hd, upd, tm):
     """The records due at the node at IMU time ``tk`` (in (t_{k-1}, t_k] on the IMU clock), each through
     its model: a whole pseudorange epoch by its scalar updates, any other by the gate policy; a velocity
-    record re-aligns a heading held unknown. Returns the next record's index and the attitude matrix."""
+    record re-aligns a heading held unknown. ``nv``: (strapdown state, node rates, biases); ``hd``: (gap
+    variances and heading-hold flag, whether the sample closes a gap, INS index map, heading index, the GNSS
+    velocity model's parameters); ``upd``: the update context (:func:`_node_constraints`); ``tm``: (clock
+    index, time-offset index). Returns the next record's index and the attitude matrix."""
+    st, w, bias = nv
+    gap, gap_k, ix, iu, pv = hd
+    mod, lay, rej, win, log, wk, sub, ws = upd
+    ic, itoff = tm
     grp = rec.grp.t.shape[0] > 0
     while _due_time(rec, gi, bias, ic, itoff) <= tk:
         tr = _rec_time(rec, gi, bias, ic)  # the models add d̂ to dt_back themselves
@@ -475,9 +483,11 @@ def _update_records(x, P, st, C, w, bias, rec, gi, tk, gap, gap_k, ix, iu, pv, m
 
 
 @njit(cache=True, depends=MODELS_KEY)
-def _node_constraints(x, P, nav, static, tk, mod, lay, no_row, rej, win, log, li, wk, sub, ws):
+def _node_constraints(x, P, nav, static, tk, no_row, upd, li):
     """The node constraints (ZUPT, ZARU at static samples, NHC at moving ones) at IMU time ``tk``, each
-    logged; returns the next free log row."""
+    logged; returns the next free log row. ``upd``: the update context (models, layout, rejection counts,
+    NIS windows, the innovation log, the work arrays, the state subset and its work arrays)."""
+    mod, lay, rej, win, log, wk, sub, ws = upd
     for c in range(mod.node.shape[0]):
         md = mod.node[c, 0]
         if (mod.node[c, 1] == 1) == static:
@@ -617,6 +627,7 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
     log, li = _chunk_log(rec, M + max_nodes * mod.node.shape[0]), M
     win = np.zeros((N_MODELS, WIN_MAX + 2))  # NIS windows of the re-initialisation test
     rej = cy.rej
+    upd = (mod, lay, rej, win, log, wk, sub, ws)  # the update context of the records and node constraints
     cov_out = np.zeros((out.cov_idx.shape[0], n, n))
     ci, reset_node, gi = cy.ci, cy.reset_node, cy.gi
     acc = cy.acc
@@ -646,17 +657,16 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
             if kn - kn0 >= max_nodes:
                 raise ValueError("run_chunk: more nodes than a chunk can hold (record times > 100 s late)")
             C = dcm_from_quat(st[ST_Q:ST_Q + 4])
-            wb = _predict_node(st, acc, bias, x, P, T, proc, em, sub, nins, mins, nh)
+            wb = _predict_node(st, acc, bias, x, P, T, proc, em, (nins, mins, nh))
             _gap_at_node(st, P, gap, ix, hold_thr, iu)
             if out.smooth:
                 S_phi[kn - kn0], S_prior[kn - kn0] = em[4], P
             node_rates(st, wb, dthc, dt, w)
             w[W_FN] = acc[ACC_FN] / T
             g0 = gi
-            gi, C = _update_records(x, P, st, C, w, bias, rec, gi, imu.t[k], gap, gap_k, ix, iu, pv, mod, lay,
-                                    rej, win, log, wk, sub, ws, ic, itoff)
-            li = _node_constraints(x, P, Nav(st, C, w, 0.0, bias), imu.static[k], imu.t[k], mod, lay, no_row,
-                                   rej, win, log, li, wk, sub, ws)
+            gi, C = _update_records(x, P, (st, w, bias), C, rec, gi, imu.t[k], (gap, gap_k, ix, iu, pv), upd,
+                                    (ic, itoff))
+            li = _node_constraints(x, P, Nav(st, C, w, 0.0, bias), imu.static[k], imu.t[k], no_row, upd, li)
             if nsub:  # the subset's estimate in the INS block
                 dxf[sub] = x
             feedback(st, bias, dxf if nsub else x, nh)

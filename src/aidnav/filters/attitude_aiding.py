@@ -23,9 +23,10 @@ from aidnav.nav.rotations import quat_to_euler_batch
 from aidnav.units import DEG, DEG_H, UG
 
 from . import measurements as ms
-from .engine import NEVER, Imu, Init, Models, Output, Process, Records, rts, run_filter, smooth_outputs
+from .engine import NEVER, Imu, Init, Models, Output, Process, Records, run_filter
 from .layout import make_layout
 from .prior import ins_p0_diag, ins_psd, markov_psd
+from .smoother import rts, smooth_outputs
 
 __all__ = ["AttitudeFusionResult", "fuse_attitude_fixes", "imu_noise_psd", "initial_covariance_15"]
 

@@ -43,8 +43,6 @@ from .engine import (
     feedback,
     gated_update,
     node_rates,
-    rts,
-    smooth_outputs,
 )
 from .kalman import discretize, predict
 from .layout import ST_POS, ST_Q, make_layout
@@ -57,6 +55,7 @@ from .measurements.sapv import SAPV_BAD_INPUT, SAPV_BELOW_HORIZON, SAPV_SKIP_REA
 from .preprocess import gnss_arrays
 from .prior import given_initial_state, initial_covariance, process_noise
 from .run_log import log_dict
+from .smoother import rts, smooth_outputs
 
 __all__ = ["FederatedConfig", "FederatedResult", "run_federated", "run_centralized", "fuse_information",
            "spd_inverse", "MODES", "SAPV_SKIP_REASONS", "SAPV_UNUSED", "SAPV_BAD_INPUT", "SAPV_BELOW_HORIZON"]

@@ -36,9 +36,7 @@ from .engine import (
     Process,
     Records,
     feedback,
-    rts,
     run_filter,
-    smooth_outputs,
 )
 from .engine_batch import batchable, run_batch, run_outputs, stack_inputs
 from .layout import (
@@ -67,6 +65,7 @@ from .preprocess import (
 from .prior import calibration_prior, initial_covariance, process_noise
 from .result import FilterResult, LooseResult, to_trajectory
 from .run_log import calibration_base, gnss_records, log_dict, loose_counts, reinit_events
+from .smoother import rts, smooth_outputs
 
 # names kept from before the engine (used by the other filters and the tests)
 _apply_correction = feedback

@@ -36,13 +36,14 @@ from aidnav.data import ImuData
 from aidnav.io.stream import Spool
 
 from .aids import vehicle_frame
-from .engine import NEVER, Imu, Log, Output, rts, run_chunk, smooth_outputs, start_carry
+from .engine import NEVER, Imu, Log, Output, run_chunk, start_carry
 from .layout import L_TOFF, NAV, layout_names
 from .loose import loose_setup
 from .measurements import MAX_ROWS
 from .preprocess import StaticDetector, bridge_gaps, visible_fixes
 from .result import FilterResult
 from .run_log import calibration_base, gnss_records, log_dict, loose_counts, reinit_events
+from .smoother import rts, smooth_outputs
 
 
 def needs_whole_log(cfg, aids=()) -> bool:
@@ -329,7 +330,7 @@ RTS_BLOCK = 1024  #: nodes per block of the spooled RTS pass (3n² floats each: 
 
 
 def _rts_spooled(node_spool, S_dx, n, brk, block: int | None = None):
-    """:func:`.engine.rts` over the node matrices (P⁺, P⁻, Φ rows of ``node_spool``) read backwards in
+    """:func:`.smoother.rts` over the node matrices (P⁺, P⁻, Φ rows of ``node_spool``) read backwards in
     blocks of ``block`` nodes: (ds (K, n), diag Ps (K, n)), the numbers of one call on all nodes. A block
     is extended by the smoothed node after it, its P⁺ replaced by that node's Ps and its δx by δx + ds
     (so the recursion steps over the boundary exactly as it does inside a block)."""

@@ -63,13 +63,14 @@ from aidnav.units import DEG
 from . import measurements as ms
 from .chi2 import chi2_isf as _chi2_isf
 from .config import Constraints, FilterSettings, ImuNoise, Initialisation
-from .engine import NEVER, Imu, Init, Models, Output, Process, Records, rts, run_filter, smooth_outputs
+from .engine import NEVER, Imu, Init, Models, Output, Process, Records, run_filter
 from .layout import L_CLK, L_ISB, L_N, L_NINS, L_RERR, L_SIZE
 from .loose import LooseResult, bridge_gaps
 from .loose import to_trajectory as nav_trajectory
 from .measurements import epoch as ep
 from .prior import given_initial_state, initial_covariance, process_noise
 from .run_log import log_dict
+from .smoother import rts, smooth_outputs
 
 __all__ = ["CLOCK_GRADES", "RawGnssAiding", "TightConfig", "TightResult", "apply_vehicle", "clock_allan",
            "rotation_variance", "run_tight", "tight_layout",

@@ -40,7 +40,8 @@ from aidnav.nav.rotations import dcm_from_euler, euler_error_map, quat_from_dcm,
 from aidnav.nav.strapdown import make_state
 
 from . import measurements as ms
-from .engine import Imu, Init, Output, Records, initial_update, rts, run_filter, smooth_outputs
+from .engine import Imu, Init, Output, Records, initial_update, run_filter
+from .smoother import rts, smooth_outputs
 from .transfer_errors import TransferErrors, segment_statistic, transfer_errors
 from .transfer_model import (  # noqa: F401  (re-exported: the model is part of this module's API)
     BA,

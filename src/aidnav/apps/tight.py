@@ -89,10 +89,10 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
         f"start at t={init_state[0]:.3f} from SPP; roll {np.degrees(roll):.2f}, pitch "
         f"{np.degrees(pitch):.2f} deg from the mean specific force over {ini.static_window_s:g} s"
     )
-    vfix = _tdcp_velocities(imu, obs, eph, sp, cfg, events)
+    dphi = _tdcp_increments(obs, eph, cfg, events)
     res = run_tight(
         imu, obs, eph, cfg, init_state=init_state, static=static, heading_reset=heading_reset, events=events,
-        smooth=smooth, velocity_fixes=vfix,
+        smooth=smooth, phase_increments=dphi,
     )
     return res, sp
 
@@ -170,31 +170,26 @@ def _start_heading(imu, sp, i0: int, g, roll: float, pitch: float, cfg: TightCon
     return heading, heading_reset, cfg
 
 
-def _tdcp_velocities(imu, obs, eph, sp, cfg, events):
-    """TDCP mean velocities (:func:`aidnav.estimators.tdcp.tdcp_series`) as velocity records at the middle
-    of each interval, or None (``gnss.use_phase`` off or no phase). Their σ per axis: the TDCP σ and the
-    difference between the interval's mean velocity and the velocity at its middle, Δt²/24 times the jerk,
-    the jerk taken as the change of the IMU's specific force over the interval divided by Δt (the change of
-    gravity's projection when the body turns counts too: conservative)."""
-    from aidnav.estimators.tdcp import tdcp_series  # lazy: only where the observations have a phase
+def _tdcp_increments(obs, eph, cfg, events):
+    """The carrier-phase increments λΔL [m] (M, S) between consecutive epochs with cycle slips removed
+    (:func:`aidnav.estimators.tdcp.phase_increments`: loss-of-lock indicator and phase–Doppler test), for
+    the tight filter's time-differenced carrier-phase rows; None when ``gnss.use_phase`` is off or the
+    observations have no phase."""
+    from aidnav.estimators.tdcp import phase_increments  # lazy: only where the observations have a phase
 
     g = cfg.gnss
     if not g.use_phase or obs.phase1 is None:
         return None
-    r = tdcp_series(obs, eph, sp["ecef"], g.phase_sigma_m, g.slip_threshold_cycles)
-    t0, t1 = obs.time[:-1], obs.time[1:]
-    t_imu = imu.time + cfg.imu.time_offset_s
-    dt_imu = np.diff(np.concatenate([[imu.t0], imu.time]))
-    f = imu.dv / dt_imu[:, None]
-    fi = np.column_stack([np.interp(np.concatenate([t0, t1]), t_imu, f[:, i]) for i in range(3)])
-    jerk_dt = np.linalg.norm(fi[len(t0):] - fi[:len(t0)], axis=1)  # |Δf| over the interval [m/s²]
-    dyn = (t1 - t0) * jerk_dt / 24.0
-    sig = np.sqrt(np.einsum("kii->ki", r["vel_cov_enu"]) + dyn[:, None] ** 2)
-    n_ok = int(np.isfinite(r["vel_enu"][:, 0]).sum())
-    n_slip = int((r["slips"] != 0).sum())
-    events.append(f"carrier phase: {n_ok} TDCP velocities of {len(t0)} intervals (4+ satellites without a "
-                  f"slip); {n_slip} cycle slip(s) flagged (loss-of-lock indicator or phase-Doppler test)")
-    return r["t_mid"], r["vel_enu"], sig
+    if eph.ref_week != obs.ref_week:
+        eph = eph.to_week(obs.ref_week)
+    o = obs.with_frequencies(eph)  # wavelengths per satellite (GLONASS channels from the records)
+    dphi, slips = phase_increments(o.time, o.phase1, o.lli1, o.range_rate(), g.slip_threshold_cycles,
+                                   o.wavelengths())
+    n_ok = int(np.isfinite(dphi).sum())
+    n_slip = int((slips != 0).sum())
+    events.append(f"carrier phase: {n_ok} phase increments for time-differenced delta-range rows; {n_slip} "
+                  "cycle slip(s) flagged (loss-of-lock indicator or phase-Doppler test)")
+    return dphi
 
 
 def _meaningful_course(t, vel, min_speed, window_s: float = 2.0, k_sigma: float = 5.0):

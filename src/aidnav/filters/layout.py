@@ -19,6 +19,8 @@ CLK       receiver clock bias [m], drift [m/s]        17 (15:17), 11 (9:11)
 ISB       inter-system biases [m] (tight: one per     after CLK (before RERR)
           non-GPS system, that system's receiver
           clock − the GPS clock)
+TDCP      clone of the previous epoch's antenna       after ISB (before RERR) with the carrier
+          position ECEF [m] (3) and clock bias [m]   phase (tight: time-differenced phase rows)
 RERR      per-satellite range errors [-] (tight)      after CLK (and ISB) when switched on
 AUX       calibration states (odometer scale factor   after the INS block
           [-], barometer bias [m], GNSS lever arm
@@ -45,7 +47,8 @@ MIS_PAIRS = ("xy", "xz", "yx", "yz", "zx", "zy")  # gyro misalignment m_(out)(in
 NAV = 9  # φ, δv, δp
 __all__ = ["PHI", "DV", "DP", "BG", "BA", "SG", "SA", "MG", "ST_POS", "ST_VEL", "ST_Q", "N_ST", "NAV",
            "AUX_NAMES", "RN_VEL", "RN_POS", "RN_SVEL", "RN_SPOS", "RN_LEVER", "N_RN", "L_RERR", "L_ISB",
-           "L_TOFF", "L_MOUNT", "L_VDEL", "L_GPE", "L_FLEX", "make_layout", "layout_names", "LAYOUTS"]
+           "L_TDCP", "L_TOFF", "L_MOUNT", "L_VDEL", "L_GPE", "L_FLEX", "make_layout", "layout_names",
+           "LAYOUTS"]
 
 # the course fix of a re-initialisation event (engine ``Init.reset_nav``, N_RN,): its velocity ENU [m/s],
 # position lat, lon [rad], h [m], velocity σ ENU [m/s], position σ E, N, U [m], antenna lever arm (body) [m]
@@ -71,7 +74,10 @@ L_RERR = 11  # index of the per-satellite range-error states (tight coupling: on
 # an epoch record, normalised: unit-variance Gauss-Markov, range error = σ_j(E) × state), -1: none
 L_ISB = 12  # index of the inter-system bias states [m] (tight coupling: one per non-GPS system of the
 # log, in the order of the epoch rows' system slots; that system's receiver clock − the GPS one), -1: none
-L_SIZE = 13
+L_TDCP = 13  # index of the time-differenced carrier phase's clone (tight coupling): the antenna position at
+# the previous GNSS epoch, ECEF [m] (3), and that epoch's receiver clock bias [m] (1), true − estimated;
+# -1: none
+L_SIZE = 14
 
 LAYOUTS = {15: dict(scale_factors=False), 17: dict(scale_factors=False, aux=("clock",)),
            21: dict(scale_factors=True), 24: dict(scale_factors=True, aux=("lever_arm",)),

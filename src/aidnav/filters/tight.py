@@ -64,7 +64,7 @@ from . import measurements as ms
 from .chi2 import chi2_isf as _chi2_isf
 from .config import Constraints, FilterSettings, ImuNoise, Initialisation
 from .engine import NEVER, Imu, Init, Models, Output, Process, Records, run_filter
-from .layout import L_CLK, L_ISB, L_N, L_NINS, L_RERR, L_SIZE
+from .layout import L_CLK, L_ISB, L_N, L_NINS, L_RERR, L_SIZE, L_TDCP
 from .loose import LooseResult, bridge_gaps
 from .loose import to_trajectory as nav_trajectory
 from .measurements import epoch as ep
@@ -76,6 +76,7 @@ __all__ = ["CLOCK_GRADES", "RawGnssAiding", "TightConfig", "TightResult", "apply
            "rotation_variance", "run_tight", "tight_layout",
            "tight_nav_covariance_m", "to_trajectory"]
 N_NOISE = 14  # 12 INS noise inputs of ins_errors (15-state) + clock bias + clock drift
+N_CLONE = 4  # clone states of the time-differenced carrier phase: antenna position ECEF (3), clock bias
 
 
 # Allan-variance coefficients (h0 [s], h-2 [1/s]) of receiver oscillators: Brown & Hwang, "Introduction to
@@ -138,7 +139,8 @@ class RawGnssAiding(_Strict):
         default_factory=lambda: {"G": 1.0, "E": 1.0, "C": 1.0, "R": 1.5, "S": 3.0},
         description="zenith code and rate σ factor per system (RTKLIB's EFACT_*: GLONASS 1.5, SBAS 3)")
     use_phase: bool = Field(True, description="time-differenced L1 carrier phase (where the observations "
-                            "have it): mean velocities between epochs as velocity records (aidnav tight)")
+                            "have it): one delta-range row per satellite between consecutive epochs, "
+                            "against clone states of the previous epoch (aidnav tight)")
     phase_sigma_m: float = Field(0.005, gt=0, description="carrier-phase σ per epoch [m]")
     slip_threshold_cycles: float = Field(0.5, gt=0, description="phase-Doppler disagreement that is a "
                                          "cycle slip [cycles]")
@@ -225,10 +227,11 @@ class TightResult:
     isb_std: np.ndarray | None = None  # (N, len(isb_systems)) their σ [m]
 
 
-def tight_layout(states: int, n_range: int = 0, n_isb: int = 0) -> np.ndarray:
+def tight_layout(states: int, n_range: int = 0, n_isb: int = 0, phase: bool = False) -> np.ndarray:
     """Layout table (:mod:`aidnav.filters.layout`): INS block of 9 (11 states) or 15, then the clock,
-    then ``n_isb`` inter-system biases (``L_ISB``, none: 0), then ``n_range`` per-satellite range-error
-    states (``L_RERR``, none: 0; kept last: they are the open-loop Gauss-Markov block)."""
+    then ``n_isb`` inter-system biases (``L_ISB``, none: 0), then with ``phase`` the 4 clone states of the
+    time-differenced carrier phase (``L_TDCP``), then ``n_range`` per-satellite range-error states
+    (``L_RERR``, none: 0; kept last: they are the open-loop Gauss-Markov block)."""
     lay = np.full(L_SIZE, -1, np.int64)
     lay[L_NINS] = 9 if states == 11 else 15
     lay[L_CLK] = lay[L_NINS]
@@ -236,27 +239,31 @@ def tight_layout(states: int, n_range: int = 0, n_isb: int = 0) -> np.ndarray:
     if n_isb:
         lay[L_ISB] = lay[L_N]
         lay[L_N] += n_isb
+    if phase:
+        lay[L_TDCP] = lay[L_N]
+        lay[L_N] += N_CLONE
     if n_range:
         lay[L_RERR] = lay[L_N]
         lay[L_N] += n_range
     return lay
 
 
-def _noise_vector(cfg: TightConfig, n_range: int = 0, n_isb: int = 0) -> np.ndarray:
-    q = np.zeros(N_NOISE + n_isb + n_range)
+def _noise_vector(cfg: TightConfig, n_range: int = 0, n_isb: int = 0, n_clone: int = 0) -> np.ndarray:
+    q = np.zeros(N_NOISE + n_isb + n_clone + n_range)  # clone states: constant between epochs (q 0)
     q[:12] = process_noise(cfg, 15)  # reads cfg.imu (the loose schema's section)
     g = cfg.gnss
     h0, hm2 = clock_allan(g)
     q[12] = C_LIGHT**2 * h0 / 2.0
     q[13] = C_LIGHT**2 * 2.0 * np.pi**2 * hm2
     q[N_NOISE:N_NOISE + n_isb] = g.isb_psd_m2_s  # inter-system biases: random walk
-    q[N_NOISE + n_isb:] = 2.0 / g.range_error_tau_s  # unit-variance first-order Gauss-Markov: q = 2σ²/τ
+    q[N_NOISE + n_isb + n_clone:] = 2.0 / g.range_error_tau_s  # unit-variance Gauss-Markov: q = 2σ²/τ
     return q
 
 
-def _initial_P(cfg: TightConfig, lat, h, att_sig, n_range: int = 0, n_isb: int = 0) -> np.ndarray:
+def _initial_P(cfg: TightConfig, lat, h, att_sig, n_range: int = 0, n_isb: int = 0, n_clone: int = 0
+               ) -> np.ndarray:
     nn = 9 if cfg.states == 11 else 15
-    n = nn + 2 + n_isb + n_range
+    n = nn + 2 + n_isb + n_clone + n_range
     P15 = initial_covariance(cfg, 15, lat, h, att_sig)  # reads cfg.imu, cfg.init (the loose schema's)
     P = np.eye(n)  # range-error states: unit variance (stationary)
     P[:nn, :nn] = P15[:nn, :nn]
@@ -264,6 +271,8 @@ def _initial_P(cfg: TightConfig, lat, h, att_sig, n_range: int = 0, n_isb: int =
     P[nn + 1, nn + 1] = cfg.gnss.clock_drift_sigma_m_s**2
     for k in range(n_isb):
         P[nn + 2 + k, nn + 2 + k] = cfg.gnss.isb_sigma_m**2
+    for k in range(n_clone):  # no clone before the first epoch
+        P[nn + 2 + n_isb + k, nn + 2 + n_isb + k] = 0.0
     return P
 
 
@@ -351,7 +360,7 @@ def _satellite_arrays(obs, eph, use_tgd, max_age):
 
 def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, static=None, heading_reset=None,
               events: list | None = None, output_rate_hz: float | None = None,
-              smooth: bool = False, velocity_fixes=None) -> TightResult:
+              smooth: bool = False, velocity_fixes=None, phase_increments=None) -> TightResult:
     """Tightly coupled GNSS/INS over whole logs.
 
     imu : :class:`aidnav.data.ImuData` (increments, body RFU; time on the GNSS scale: GPS seconds on the
@@ -365,6 +374,9 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     velocity_fixes : optional (t (K,) receiver tags [s], v_ENU (K, 3) [m/s], σ (K, 3) [m/s]) velocity
     records of the antenna (e.g. time-differenced carrier phase, :mod:`aidnav.estimators.tdcp`, at the
     middle of each interval), the loosely coupled filter's velocity model, gated by ``gate_probability``.
+    phase_increments : optional (M, S) λΔL [m] of each satellite from the previous epoch to this one (row
+    0 and cycle slips NaN; :func:`aidnav.estimators.tdcp.phase_increments`): time-differenced carrier-phase
+    rows in the epoch records against clone states of the previous epoch (:mod:`.measurements.epoch`).
     smooth : also run the RTS smoother (``state``, ``clock``, ``pdiag`` are then the smoothed ones).
     """
     cfg = cfg or TightConfig()
@@ -383,11 +395,11 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     st0 = np.array([lat0, lon0, h0, *np.asarray(v0, float), *q0], float)
     mod, gate, iono_model = _tight_models(cfg, eph, static is not None, events)
     obs = obs.with_frequencies(eph)  # GLONASS channels from the records
-    rows, with_eph, isb_sys = _epoch_rows(obs, eph, g, events)
-    nb, nr = len(isb_sys), len(with_eph)
-    lay = tight_layout(cfg.states, nr, nb)
+    rows, with_eph, isb_sys = _epoch_rows(obs, eph, g, events, phase_increments)
+    nb, nr, nc = len(isb_sys), len(with_eph), N_CLONE if phase_increments is not None else 0
+    lay = tight_layout(cfg.states, nr, nb, nc > 0)
     n = int(lay[L_N])
-    P0 = _initial_P(cfg, lat0, h0, np.array(cfg.init.attitude_sigma_deg) * DEG, nr, nb)
+    P0 = _initial_P(cfg, lat0, h0, np.array(cfg.init.attitude_sigma_deg) * DEG, nr, nb, nc)
     M, S = obs.code1.shape
     rec, sel = _records(obs.time, rows.reshape(M, S * ep.E_W), velocity_fixes, S)
     if velocity_fixes is not None:
@@ -405,8 +417,8 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     out_every = max(1, int(round(imu.rate_hz / rate_hz))) if rate_hz else 1
     taus = np.array([cfg.imu.gyro_bias_tau_s, cfg.imu.accel_bias_tau_s, 0.0, 0.0])
     # range-error estimates decay as the Gauss-Markov conditional mean between updates (open-loop states)
-    aux_tau = np.r_[0.0, g.clock_tau_s, np.zeros(nb), np.full(nr, g.range_error_tau_s)]
-    proc = Process(lay, _noise_vector(cfg, nr, nb), taus, aux_tau, float(cfg.filter.prop_dt_s),
+    aux_tau = np.r_[0.0, g.clock_tau_s, np.zeros(nb + nc), np.full(nr, g.range_error_tau_s)]
+    proc = Process(lay, _noise_vector(cfg, nr, nb, nc), taus, aux_tau, float(cfg.filter.prop_dt_s),
                    open=np.arange(n - nr, n, dtype=np.int64))
     bias0 = np.zeros(n - 9)
     if nb:
@@ -442,8 +454,8 @@ def _tight_models(cfg: TightConfig, eph, with_static: bool, events: list):
     e[ep.E_LEVER:ep.E_LEVER + 3] = g.lever_arm_m
     e[[ep.E_MASK, ep.E_SIG_CODE, ep.E_SIG_RATE, ep.E_IONO, ep.E_TROPO, ep.E_HUMID, ep.E_RATE]] = (
         np.radians(g.mask_deg), g.code_sigma_m, g.rate_sigma_m_s, use_iono, g.tropo, g.humidity, g.use_rate)
-    e[[ep.E_JUMP, ep.E_SIG_B, ep.E_SIG_D, ep.E_CODE_MIN]] = (
-        g.clock_jump_m, g.clock_bias_sigma_m, g.clock_drift_sigma_m_s, g.code_min_sats)
+    e[[ep.E_JUMP, ep.E_SIG_B, ep.E_SIG_D, ep.E_CODE_MIN, ep.E_SIG_PHASE]] = (
+        g.clock_jump_m, g.clock_bias_sigma_m, g.clock_drift_sigma_m_s, g.code_min_sats, g.phase_sigma_m)
     if use_iono:
         e[ep.E_ALPHA:ep.E_ALPHA + 4], e[ep.E_BETA:ep.E_BETA + 4] = alpha, beta
     gates = np.zeros((ms.N_MODELS, ms.MAX_ROWS + 1))
@@ -454,12 +466,13 @@ def _tight_models(cfg: TightConfig, eph, with_static: bool, events: list):
     return mod, gate, iono_model
 
 
-def _epoch_rows(obs, eph, g, events: list):
+def _epoch_rows(obs, eph, g, events: list, phase_increments=None):
     """The whole-epoch pseudorange/rate rows of :mod:`.measurements.epoch` (M, S, ``E_W``): satellite
     position, velocity, corrected code and rate, dual-frequency ionosphere, URA, the range-error and
     inter-system-bias state of each satellite, the Klobuchar scale (f_L1/f)² and the system's σ factor;
     with the satellites that get a range-error state and the systems that get a bias state (one per
-    non-GPS system with a usable satellite)."""
+    non-GPS system with a usable satellite). With ``phase_increments`` (M, S) [m]: the TDCP values y =
+    λΔL + Δ(c·dt_s), the satellite's previous position and the interval."""
     if g.iono == "dual":
         if obs.code2 is None:
             raise ValueError("iono = dual needs an L2 code")
@@ -489,6 +502,13 @@ def _epoch_rows(obs, eph, g, events: list):
     f = obs.frequencies()
     rows[:, :, 12] = np.where(np.isfinite(f), (FREQ_L1 / f) ** 2, 1.0)
     rows[:, :, 13] = np.array([g.system_sigma_factor.get(c, 1.0) for c in letters])
+    if phase_increments is not None and M > 1:
+        o = ep.E_PHASE
+        dphi = np.asarray(phase_increments, float)
+        rows[1:, :, o] = np.where(np.isfinite(sp[1:, :, 0]) & np.isfinite(sp[:-1, :, 0]),
+                                  dphi[1:] + sc[1:] - sc[:-1], np.nan)
+        rows[1:, :, o + 1:o + 4] = sp[:-1]
+        rows[1:, :, o + 4] = np.diff(np.asarray(obs.time, float))[:, None]
     return rows, with_eph, isb_sys
 
 
@@ -523,6 +543,7 @@ def _tight_result(r, ge, obs, lay, nnav: int, with_eph, isb_sys, iono_model: str
     clock, range errors and inter-system biases; ``t_out``: the IMU times from the first sample on)."""
     n, nr, nb = int(lay[L_N]), len(with_eph), len(isb_sys)
     epochs = dict(time=ge.t, n_avail=ge.navail, n_pr=ge.npr, n_rate=ge.nrate, n_rejected=ge.nrej,
+                  n_tdcp=ge.ntd, n_tdcp_rejected=ge.ntdrej,
                   pr_innov=ge.pr_nu, pr_s=ge.pr_s, rate_innov=ge.rate_nu, rate_s=ge.rate_s, elevation=ge.el,
                   P_nav=ge.P_nav, clock=ge.clk, state=ge.state, prn=obs.prn)
     log = log_dict(r.log, r.n_log)
@@ -530,7 +551,7 @@ def _tight_result(r, ge, obs, lay, nnav: int, with_eph, isb_sys, iono_model: str
                nhc_updates=int((log["model"] == ms.M_NHC).sum()), clock_jumps=int(ge.flags[1]),
                epochs=int(np.isfinite(ge.t).sum()), pr_used=int(ge.npr.sum()), rate_used=int(ge.nrate.sum()),
                rejected=int(ge.nrej.sum()), imu_samples_skipped=0, nodes=len(r.node_idx),
-               velocity_records=0,
+               velocity_records=0, tdcp_used=int(ge.ntd.sum()), tdcp_rejected=int(ge.ntdrej.sum()),
                velocity_used=int(((log["model"] == ms.M_GNSS_VEL) & (log["status"] == 1)).sum()))
     ck = slice(int(lay[L_CLK]) - 9, int(lay[L_CLK]) - 7)
     res = TightResult(time=t_out[r.out_idx], state=r.out_st, bias=r.out_bias[:, :nnav - 9],
@@ -550,12 +571,30 @@ def _smooth_into(res: TightResult, r, lay, nnav: int, t_out) -> None:
     (the forward ones kept as ``forward_*``)."""
     n = int(lay[L_N])
     ck = slice(int(lay[L_CLK]) - 9, int(lay[L_CLK]) - 7)
-    ds, Ps = rts(r.S_post, r.S_prior, r.S_phi, r.S_dx, r.reset_node)
+    ds, Ps = _rts_without_clone(r, lay)
     sm_st, sm_b = smooth_outputs(r.out_idx, r.out_st, r.out_bias, r.out_node, r.node_idx, ds, r.S_dx, n)
     res.forward_state, res.forward_pdiag, res.forward_clock = res.state, res.pdiag, res.clock
     res.state, res.bias, res.clock = sm_st, sm_b[:, :nnav - 9], sm_b[:, ck]
     res.pdiag = np.einsum("kii->ki", Ps)[np.clip(r.out_node, 0, len(r.node_idx) - 1)]
     res.smoothed, res.node_time, res.smoothed_cov = True, t_out[r.node_idx], Ps
+
+
+def _rts_without_clone(r, lay):
+    """The RTS pass over the states other than the TDCP clone (which each epoch re-takes inside its
+    update, so that its prior and posterior at a node are of different epochs): their marginal chain is
+    exact (no state depends on the clone); the clone's smoothed error is left 0 and its σ the forward one."""
+    ic = int(lay[L_TDCP])
+    if ic < 0:
+        return rts(r.S_post, r.S_prior, r.S_phi, r.S_dx, r.reset_node)
+    n = int(lay[L_N])
+    keep = np.r_[0:ic, ic + N_CLONE:n]
+    sub = np.ix_(np.arange(len(r.S_post)), keep, keep)
+    ds_k, Ps_k = rts(np.ascontiguousarray(r.S_post[sub]), np.ascontiguousarray(r.S_prior[sub]),
+                     np.ascontiguousarray(r.S_phi[sub]), np.ascontiguousarray(r.S_dx[:, keep]), r.reset_node)
+    ds, Ps = np.zeros((len(ds_k), n)), r.S_post.copy()
+    ds[:, keep] = ds_k
+    Ps[sub] = Ps_k
+    return ds, Ps
 
 
 def tight_nav_covariance_m(P_nav: np.ndarray, lat: float, h: float) -> np.ndarray:

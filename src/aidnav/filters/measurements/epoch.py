@@ -4,9 +4,11 @@ Row of an epoch (``S`` satellites × ``E_W`` values): per satellite r_s ECEF (3)
 [m/s], ρ + c·dt_s [m] (NaN: no pseudorange or no ephemeris), ρ̇ + c·ḋt_s [m/s] (NaN: no rate), the
 dual-frequency ionospheric delay [m] (NaN: none), the ephemeris' URA [m], the satellite's slot in the
 range-error states (NaN: none), its system's slot in the inter-system bias states (NaN: the GPS clock
-itself), the Klobuchar scale (f_L1/f)² of its signal (NaN: 1) and the σ factor of its system (NaN: 1).
-Parameters (``E_*``): lever arm, mask, zenith σ's,
-atmosphere switches, Klobuchar α β, the clock-jump threshold and the clock σ's.
+itself), the Klobuchar scale (f_L1/f)² of its signal (NaN: 1), the σ factor of its system (NaN: 1),
+and for the time-differenced carrier phase: y = λΔL + Δ(c·dt_s) from the previous epoch [m] (NaN: no
+phase at both epochs, or a cycle slip), the satellite's position at the previous epoch (3) [m] and the
+interval [s]. Parameters (``E_*``): lever arm, mask, zenith σ's, atmosphere switches, Klobuchar α β, the
+clock-jump threshold, the clock σ's and the carrier phase's σ.
 
 :func:`epoch_update` does, at the INS antenna moved back to the receive time t_tag − b̂/c:
 
@@ -23,11 +25,22 @@ atmosphere switches, Klobuchar α β, the clock-jump threshold and the clock σ'
   the inter-system bias β_k (that system's receiver clock − the GPS clock [m], true − estimated like the
   clock; state lay[L_ISB] + k): the row gains 1 at β_k and the prediction β̂_k; rates share the drift;
 * the epoch counts as rejected (the engine's consecutive-rejection rule) when some row was rejected
-  and no pseudorange accepted.
+  and no pseudorange accepted;
+* **time-differenced carrier phase** (``lay[L_TDCP]`` ≥ 0): one delta-range row per satellite with y
+  (:func:`tdcp_row`) against a *stochastic clone* of the previous epoch: after each epoch's rows the
+  clone states are set to that epoch's antenna position (ECEF) and receive-time clock bias with their
+  covariance copied (:func:`clone_epoch`), constant until the next epoch. The rows need no velocity
+  model, work with any number of satellites and leave the clock change to the clock states; used when
+  the clone is of the previous epoch of the row (an epoch not processed, a clock start or jump: none).
 
 Rows: z_ρ = (ρ_meas − I − T) − (|r_s − r_a| + Sagnac + b̂), H = [e^nᵀ H_pos, 1 (δt_u)];
 z_ρ̇ = ρ̇_meas − (e·(v_s − v_a) + Sagnac rate + d̂), H = [e^nᵀ H_vel, 1 (δf)] (H_pos, H_vel: the antenna
-rows of :func:`.gnss.gnss_position` / :func:`.gnss.gnss_velocity`; e^n: ENU unit vector to the satellite).
+rows of :func:`.gnss.gnss_position` / :func:`.gnss.gnss_velocity`; e^n: ENU unit vector to the satellite);
+z_φ = y − (ρ̂_k − ρ̂_{k−1} + b̂(t_k) − b̂_c), ρ̂_k = |r_s,k − r_a| + Sagnac, ρ̂_{k−1} = |r_s,k−1 − r̂_c| + Sagnac
+(satellite motion and Earth rotation over the interval), b̂(t_k) = b̂ − d̂·dt_back (the clock at the receive
+time), H = [e_k^nᵀ H_pos, 1 (δt_u), −dt_back (δf), e_{k−1}ᵀ (clone position, ECEF), −1 (clone clock)],
+σ² = 2σ_φ²(½ + ½/sin²E)·(system factor)² (ionosphere and troposphere change by sub-mm in an interval;
+carrier wind-up of a turning antenna is common to all satellites: the clock change takes it).
 """
 
 from __future__ import annotations
@@ -41,26 +54,28 @@ from aidnav.nav.earth import dcm_ecef_to_enu, lla_to_ecef
 from aidnav.nav.gnss_sat import az_el, geo_range, geo_range_rate, klobuchar, range_error_sigma, tropo_delay
 
 from ..kalman import update_scalar
-from ..layout import L_CLK, L_ISB, L_RERR, NAV, ST_VEL
+from ..layout import DV, L_CLK, L_ISB, L_NINS, L_RERR, L_TDCP, NAV, ST_VEL
 from .common import W_IB, W_IN
 from .gnss import gnss_position, gnss_velocity
 
-E_W = 14  # values per satellite in a row
+E_W = 19  # values per satellite in a row
+E_PHASE = 14  # offset of the TDCP values of a satellite: y [m], r_s at the previous epoch (3), Δt [s]
 E_LEVER, E_MASK, E_SIG_CODE, E_SIG_RATE, E_IONO, E_TROPO, E_HUMID, E_RATE = 0, 3, 4, 5, 6, 7, 8, 9
-E_JUMP, E_SIG_B, E_SIG_D, E_CODE_MIN, E_ALPHA, E_BETA, E_NPAR = 10, 11, 12, 13, 14, 18, 22
+E_JUMP, E_SIG_B, E_SIG_D, E_CODE_MIN, E_ALPHA, E_BETA, E_SIG_PHASE, E_NPAR = 10, 11, 12, 13, 14, 18, 22, 23
 # per-epoch outputs (filled in place): GPS receive time, satellites above the mask, pseudoranges and
-# rates used, rows rejected, (M, S) innovations / their variance / elevation, after the epoch's node:
-# 9×9 navigation covariance, clock (b̂, d̂), strapdown state; flags [clock initialised, jumps]
-EpochOut = namedtuple("EpochOut", ["t", "navail", "npr", "nrate", "nrej", "pr_nu", "pr_s", "rate_nu",
-                                   "rate_s", "el", "P_nav", "clk", "state", "flags"])
+# rates used, rows rejected, TDCP rows used and rejected, (M, S) innovations / their variance /
+# elevation, after the epoch's node: 9×9 navigation covariance, clock (b̂, d̂), strapdown state; flags
+# [clock initialised, jumps, 1 + the epoch of the clone (0: none)]
+EpochOut = namedtuple("EpochOut", ["t", "navail", "npr", "nrate", "nrej", "ntd", "ntdrej", "pr_nu", "pr_s",
+                                   "rate_nu", "rate_s", "el", "P_nav", "clk", "state", "flags"])
 
 
 def epoch_out(M: int, S: int) -> EpochOut:
     """Empty per-epoch outputs for M epochs of S satellites (M = 0: no epoch records)."""
     nan2 = [np.full((M, S), np.nan) for _ in range(5)]
-    z = [np.zeros(M, np.int64) for _ in range(4)]
+    z = [np.zeros(M, np.int64) for _ in range(6)]
     return EpochOut(np.full(M, np.nan), *z, *nan2, np.zeros((M, 9, 9)), np.full((M, 2), np.nan),
-                    np.zeros((M, 10)), np.zeros(2, np.int64))
+                    np.zeros((M, 10)), np.zeros(3, np.int64))
 
 
 @njit(cache=True)
@@ -137,7 +152,9 @@ def epoch_update(x, P, nav, row, par, lay, gate, grp, g, t_gps):
     Hp, Hv = np.zeros((3, 15)), np.zeros((3, 15))  # INS block of 9 or 15 states
     ra, va, Cen = _antenna(nav, lever, Hp, Hv)
     grp.t[g] = t_gps
+    f0, f1 = grp.flags[0], grp.flags[1]
     _clock_start(P, nav, row, par, lay, grp, ra, va)
+    tdcp = _clone_of_previous(row, lay, grp, t_gps) and f0 == grp.flags[0] and f1 == grp.flags[1]
     lat, lon, hh = nav.st[0], nav.st[1], nav.st[2]
     alpha, beta = par[E_ALPHA:E_ALPHA + 4].copy(), par[E_BETA:E_BETA + 4].copy()
     n_vis = 0
@@ -199,8 +216,81 @@ def epoch_update(x, P, nav, row, par, lay, gate, grp, g, t_gps):
             grp.rate_nu[g, j], grp.rate_s[g, j] = nu, s
             grp.nrate[g] += ok
             nrej += not ok
+        if tdcp and not np.isnan(row[o + E_PHASE]):
+            z = tdcp_row(nav, row, o, lay, ra, Cen, Hp, h)
+            ok, nu, s = update_scalar(x, P, h, 2.0 * par[E_SIG_PHASE] ** 2 * mfac, z, gate)
+            grp.ntd[g] += ok
+            grp.ntdrej[g] += not ok
     grp.nrej[g] = nrej
+    if lay[L_TDCP] >= 0:
+        clone_epoch(x, P, nav, lay, ra, Cen, Hp)
+        grp.flags[2] = g + 1
     return not (nrej > 0 and grp.npr[g] == 0)
+
+
+@njit(cache=True)
+def _clone_of_previous(row, lay, grp, t_gps):
+    """True when the clone states hold the epoch the row's phase increments start at (its receive time
+    ``Δt`` before this one, to 1 ms: an epoch not processed or a clock jump in between fail it)."""
+    if lay[L_TDCP] < 0 or grp.flags[2] == 0:
+        return False
+    for o in range(0, row.shape[0], E_W):
+        if not np.isnan(row[o + E_PHASE + 4]):
+            return abs(t_gps - grp.t[grp.flags[2] - 1] - row[o + E_PHASE + 4]) < 1e-3
+    return False
+
+
+@njit(cache=True)
+def tdcp_row(nav, row, o, lay, ra, Cen, Hp, h):
+    """The time-differenced carrier-phase row of the satellite at offset ``o`` of ``row`` (module doc):
+    fills h (n,) and returns z = y − ŷ. ``ra``: the INS antenna (ECEF) at the receive time, ``Cen`` ECEF →
+    ENU, ``Hp`` its ENU position rows (:func:`_antenna`)."""
+    ic, icl = lay[L_CLK], lay[L_TDCP]
+    rho1, e1 = geo_range(row[o:o + 3], ra)
+    rc = nav.bias[icl - NAV:icl - NAV + 3]
+    rho0, e0 = geo_range(row[o + E_PHASE + 1:o + E_PHASE + 4], rc)
+    en = Cen @ e1
+    _row(h, en, Hp, lay[L_NINS], ic)
+    for i in range(3):  # the antenna moved back along the velocity: its error too (Hp has dt_back 0)
+        h[DV + i] -= en[i] * nav.dt_back
+    h[ic + 1] = -nav.dt_back
+    for i in range(3):
+        h[icl + i] = e0[i]
+    h[icl + 3] = -1.0
+    b_k = nav.bias[ic - NAV] - nav.bias[ic - NAV + 1] * nav.dt_back
+    return row[o + E_PHASE] - (rho1 - rho0 + b_k - nav.bias[icl + 3 - NAV])
+
+
+@njit(cache=True)
+def clone_epoch(x, P, nav, lay, ra, Cen, Hp):
+    """The clone states := this epoch's antenna position, ECEF, and receive-time clock bias (true −
+    estimated, c = A δx with A = [−Cᵉₙ H_pos; the clock row at the receive time]): estimate A x, covariance
+    rows A P and A P Aᵀ, nominal values the INS antenna ``ra`` and b̂ − d̂·dt_back (the feedback adds the
+    estimate to them, as to every calibration state)."""
+    ic, icl, nn = lay[L_CLK], lay[L_TDCP], lay[L_NINS]
+    n = P.shape[0]
+    A = np.zeros((4, n))
+    CH = Cen.T @ Hp
+    for r in range(3):
+        for c in range(nn):
+            A[r, c] = -CH[r, c]
+        for i in range(3):
+            A[r, DV + i] += Cen[i, r] * nav.dt_back
+    A[3, ic], A[3, ic + 1] = 1.0, -nav.dt_back
+    AP = A @ P
+    APA = AP @ A.T
+    xc = A @ x
+    for r in range(4):
+        for c in range(n):
+            P[icl + r, c] = AP[r, c]
+            P[c, icl + r] = AP[r, c]
+    for r in range(4):
+        for c in range(4):
+            P[icl + r, icl + c] = APA[r, c]
+        x[icl + r] = xc[r]
+    for i in range(3):
+        nav.bias[icl - NAV + i] = ra[i]
+    nav.bias[icl - NAV + 3] = nav.bias[ic - NAV] - nav.bias[ic - NAV + 1] * nav.dt_back
 
 
 @njit(cache=True)
@@ -212,4 +302,5 @@ def epoch_record(grp, g, st, bias, P, lay):
     grp.state[g] = st
 
 
-__all__ = ["E_W", "EpochOut", "epoch_out", "epoch_update", "epoch_record"]
+__all__ = ["E_W", "E_PHASE", "EpochOut", "epoch_out", "epoch_update", "epoch_record", "tdcp_row",
+           "clone_epoch"]

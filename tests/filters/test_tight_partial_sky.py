@@ -211,8 +211,8 @@ def test_walk_velocity_with_and_without_the_carrier_phase(walk_default):
 
 
 @pytest.mark.xfail(strict=True, reason="issue 40 target not reached: 0.145 m/s measured; the RTK velocity "
-                   "lags its own positions by ~half an epoch (0.125 s): its position differences agree with it "
-                   "to 0.16 m/s at the same time stamp, to 0.055 m/s 0.125 s later (docs/results.md, j40t)")
+                   "lags its own positions by ~half an epoch (0.125 s): its position differences agree with "
+                   "it to 0.16 m/s at the same time stamp, to 0.055 m/s 0.125 s later (results.md, j40t)")
 def test_walk_velocity_within_5_cm_s(walk_default):
     _, _, res, _, (ref, *_rest) = walk_default
     assert _vel_rms_h(res, ref) <= 0.05
@@ -230,8 +230,8 @@ def test_walk_default_coverage(walk_default):
 
 
 @pytest.mark.xfail(strict=True, reason="issue 40 target not reached with the TDCP rows: 4.71 m measured "
-                   "(mean +4.66 m: the phase ties the track to the start's code error and drifts +1.5 m up in "
-                   "134 s; TDCP vs RTK height changes +3.1 ± 49 mm per interval); 3.21 m without the phase")
+                   "(mean +4.66 m: the phase ties the track to the start's code error and drifts +1.5 m up "
+                   "in 134 s; TDCP vs RTK height changes +3.1 ± 49 mm per interval); 3.21 m without phase")
 def test_walk_default_vertical_within_3_5_m(walk_default):
     d = walk_default[0]
     assert np.sqrt(np.mean(d[:, 2] ** 2)) <= 3.5

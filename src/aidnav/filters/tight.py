@@ -31,9 +31,12 @@ troposphere at the INS position; one scalar row per pseudorange and per rate, ga
 quantile of ``gate_probability``; after ``max_consecutive_rejections`` rejected epochs the next epoch is
 not gated (the engine's rule). Any number of satellites is used: with fewer than four the clock and the
 position are only partly observable, and the covariance says so. Satellite positions/clocks come from
-the broadcast ephemerides at the transmit time implied by each pseudorange, before the engine. Optional
-velocity records (``velocity_fixes``: the time-differenced carrier phase's mean velocities from
-:mod:`aidnav.apps.tight`) go through the loosely coupled filter's GNSS velocity model. ZUPTs (and ZARU)
+the broadcast ephemerides at the transmit time implied by each pseudorange, before the engine. With
+``phase_increments`` (the L1 phase increments between epochs with cycle slips removed, from
+:mod:`aidnav.apps.tight`) each epoch record also holds one time-differenced carrier-phase (delta-range)
+row per satellite against four clone states of the previous epoch's antenna position and clock
+(``L_TDCP``; :mod:`.measurements.epoch`). Optional velocity records (``velocity_fixes``, e.g. TDCP mean
+velocities) go through the loosely coupled filter's GNSS velocity model. ZUPTs (and ZARU)
 at static samples and the NHC (``constraints``, the ``process`` schema; ``apply_vehicle`` for the
 vehicle presets) are the engine's node constraints. The engine feeds back after each node and, with
 ``smooth``, runs the RTS pass over the nodes (no information passed back across a heading reset).

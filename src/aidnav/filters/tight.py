@@ -435,6 +435,9 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     t_out = t_imu[k0:]
     res = _tight_result(r, ge, obs, lay, nnav, with_eph, isb_sys, iono_model, events, t_out)
     res.counts.update(imu_samples_skipped=k0, velocity_records=len(rec.t) - len(sel))
+    if nc:
+        events.append(f"time-differenced carrier phase: {res.counts['tdcp_used']} delta-range rows used, "
+                      f"{res.counts['tdcp_rejected']} outside the innovation gate")
     if smooth and len(r.node_idx) > 1:
         _smooth_into(res, r, lay, nnav, t_out)
     return res

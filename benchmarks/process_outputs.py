@@ -13,6 +13,10 @@ of the summed proportional set size of the command and its child (``/proc``, sam
 * a synthetic static log (``benchmarks/memory.py``'s) of 1 h and of 4 h with the default outputs: peak
   memory at 4 h within 5 % of 1 h's.
 
+The aidnav package's bytecode is compiled first (``python -m compileall``, as ``pip install`` does for an
+installed package): where ``PYTHONDONTWRITEBYTECODE`` is set, a source tree would otherwise compile every
+aidnav module from source at each command (≈ 0.1 CPU-s of the 60-s log's ≈ 1 CPU-s; issue 41, session 9).
+
 The machine is shared: the load average is printed with the figures, and the CPU times beside the wall
 times (with two free cores the figures' child runs beside the filter; on a loaded machine it competes).
 
@@ -114,6 +118,16 @@ def run(args, figures: bool, label: str | None = None) -> tuple[float, float, fl
     return wall, ru.ru_utime + ru.ru_stime, ru.ru_maxrss / 1024.0
 
 
+def compile_bytecode() -> str:
+    """The aidnav package's ``.pyc`` files written (what ``pip install`` does for an installed package)."""
+    import aidnav
+
+    pkg = Path(aidnav.__file__).resolve().parent
+    subprocess.run([sys.executable, "-m", "compileall", "-q", str(pkg)], check=True,
+                   stdout=subprocess.DEVNULL)
+    return str(pkg)
+
+
 def cut_60s(d: Path) -> list:
     import pyarrow.compute as pc
     import pyarrow.parquet as pq
@@ -132,6 +146,7 @@ def main(argv: list[str]) -> int:
         print(f"no {W1}: the benchmark needs the W1 log")
         return 2
     ok = True
+    print(f"bytecode of {compile_bytecode()} compiled (as an installed package has it)")
     print(f"aidnav process, default outputs vs --no-figures; {os.cpu_count()} CPUs, load average "
           + " ".join(f"{x:.2f}" for x in os.getloadavg()))
     with tempfile.TemporaryDirectory(prefix="aidnav-outputs-") as tmp:

@@ -7,11 +7,13 @@ import warnings
 
 import numpy as np
 import pytest
+from scipy.optimize import brentq
 
 from aidnav.nav.earth import lla_to_ecef
 from aidnav.nav.gnss_sat import (
     C_LIGHT,
     dop,
+    eccentric_anomaly,
     eph_state,
     klobuchar,
     saastamoinen_zenith,
@@ -20,6 +22,23 @@ from aidnav.nav.gnss_sat import (
     tropo_delay,
 )
 from aidnav.sim.gnss_constellation import nominal_constellation, visible_satellites
+
+
+@pytest.mark.parametrize("ecc", [0.0, 0.0104, 0.1, 0.3, 0.7])
+def test_eccentric_anomaly_solves_keplers_equation(ecc):
+    """The one Kepler solver of the Keplerian orbits against scipy's bracketed root of E − e sin E − M
+    (E lies in [M − e, M + e]) for mean anomalies over (−π, π], and the closed forms: E = M for a circular
+    orbit, E = 0 at M = 0 and E = π at M = π for any eccentricity."""
+    for m in (-3.0, -1.2, -1e-3, 0.4, 1.0, 2.5, 3.1):
+        ref = brentq(lambda e_, m=m: e_ - ecc * np.sin(e_) - m, m - ecc - 1e-9, m + ecc + 1e-9, xtol=1e-15,
+                     rtol=4 * np.finfo(float).eps)
+        ek = eccentric_anomaly(m, ecc)
+        assert abs(ek - ref) < 1e-12, (m, ecc, ek, ref)
+        assert abs(ek - ecc * np.sin(ek) - m) < 1e-14
+    assert eccentric_anomaly(0.7, 0.0) == 0.7
+    assert eccentric_anomaly(0.0, ecc) == 0.0
+    assert abs(eccentric_anomaly(np.pi, ecc) - np.pi) < 1e-15
+
 
 # a GPS LNAV record (G10 of the walk data set, 2025-08-28 18:00 GPST) in the column layout of gnss_sat
 _G10 = np.array(

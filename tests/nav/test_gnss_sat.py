@@ -3,8 +3,6 @@ SPP on the walk data set against the RTK solution (an independent check of the e
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 import pytest
 from scipy.optimize import brentq
@@ -139,25 +137,16 @@ def test_nominal_constellation_visibility_and_dop():
             assert dop(u)["pdop"] < 10.0
 
 
-def test_walk_spp_against_rtk(data_dir):
+def test_walk_spp_against_rtk(load_walk_gnss):
     """SPP of the walk data (4 GPS satellites with ephemeris, zero redundancy) within tens of metres of the
     RTK solution (Q = 1): an independent check of the broadcast orbits, clocks and the Sagnac term."""
-    d = data_dir / "rtklibexplorer_walk_0827"
-    if not d.is_dir():
-        pytest.skip("walk data set not found")
     from aidnav.estimators.dgps import spp_series
-    from aidnav.io.rinex import read_rinex_nav, read_rinex_obs
-    from aidnav.io.rtklib import read_pos
     from aidnav.nav.earth import lla_difference_enu
 
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", FutureWarning)
-        nav = read_rinex_nav(d / "rinex_converted" / "gnss_1730.nav")
-        obs = read_rinex_obs(d / "rinex_converted" / "gnss_1730.obs")
+    obs, nav, ref = load_walk_gnss()
     assert sorted(p for p in nav.prns if p < 100) == [10, 23, 27, 32]
     assert sorted(p for p in nav.prns if p >= 100) == [211, 221, 222, 234, 242, 243, 244, 250]  # C11 … C50
     assert abs(obs.time[0] - 408639.748) < 1e-9  # exact epoch (georinex alone truncates to µs)
-    ref = read_pos(d / "gnss_1730_sf.pos", height_offset_m=-21.4)
     r = spp_series(obs, nav, iono="dual")
     assert "no redundancy: unchecked" in r["status"]
     j = np.clip(np.searchsorted(ref.time, obs.time), 0, len(ref) - 1)

@@ -132,21 +132,31 @@ def table2(st: dict, runs: int, duration_s: float, phi_u: float) -> list[dict]:
     ]
 
 
+def _fit_label(name: str, x: float, fitted: float, former: float) -> str:
+    """The row label of grid value ``x`` of a fit table, marked when it is the fitted or the former value."""
+    mark = " ← fitted" if x == fitted else (" (the former decision)" if x == former else "")
+    return f"{name} = {x:g}°{mark}"
+
+
+def _paper_cells(cells: dict, lab: str, prefix: str, r: dict, n_sweep: int, stats) -> None:
+    """Add to ``cells`` the row ``lab``'s SINS/GPS statistics beside the seed's Table 2 state 1: ``stats``
+    (what, key of ``r``, paper value) [arcmin], with the standard error ``r[key + "_se"]``."""
+    for what, key, paper in stats:
+        cells[(lab, f"{what} [arcmin]")] = summary_row(
+            f"{prefix}: SINS/GPS {what} (Table 2 state 1)", "arcmin", r[key], paper, stderr=r[f"{key}_se"],
+            runs=n_sweep)
+
+
 def phi_u0_table(sweep: dict, phi_u: float, lv: float, n_sweep: int) -> dict:
     """The φ_U0 fit: the SINS/GPS heading statistics of the sweep (:func:`.seed_000_runs.heading0_sweep`)
     beside the seed's Table 2 state 1, their misfit and the fitted value."""
     pm, ps = PAPER_STATE1_HEADING
     cells_fit, fit_rows = {}, []
     for p, r in sweep.items():
-        mark = " ← fitted" if p == abs(phi_u) else (" (the former decision)" if p == PHI0_DEG[2] else "")
-        lab = f"φ_U0 = {p:g}°{mark}"
+        lab = _fit_label("φ_U0", p, abs(phi_u), PHI0_DEG[2])
         fit_rows.append(lab)
-        cells_fit[(lab, "heading error mean [arcmin]")] = summary_row(
-            f"φ_U0 = {p:g}°: SINS/GPS heading error mean (Table 2 state 1)", "arcmin", r["h_mean"], pm,
-            stderr=r["h_mean_se"], runs=n_sweep)
-        cells_fit[(lab, "heading error std [arcmin]")] = summary_row(
-            f"φ_U0 = {p:g}°: SINS/GPS heading error std (Table 2 state 1)", "arcmin", r["h_std"], ps,
-            stderr=r["h_std_se"], runs=n_sweep)
+        _paper_cells(cells_fit, lab, f"φ_U0 = {p:g}°", r, n_sweep, (("heading error mean", "h_mean", pm),
+                                                                   ("heading error std", "h_std", ps)))
         cells_fit[(lab, "misfit")] = summary_row(
             f"φ_U0 = {p:g}°: misfit ((|mean| − 76.9)/76.9)² + ((std − "
             "98.5)/98.5)²", "-", r["fit"], runs=n_sweep)
@@ -174,15 +184,10 @@ def level_table(lsweep: dict, lv: float, phi_u: float, passes: list, n_sweep: in
     ps1, rs1 = PAPER_STATE1_LEVEL_STD["pitch"], PAPER_STATE1_LEVEL_STD["roll"]
     cells_lv, lv_rows = {}, []
     for x, r in lsweep.items():
-        mark = " ← fitted" if x == lv else (" (the former decision)" if x == PHI0_DEG[0] else "")
-        lab = f"φ_E0 = φ_N0 = {x:g}°{mark}"
+        lab = _fit_label("φ_E0 = φ_N0", x, lv, PHI0_DEG[0])
         lv_rows.append(lab)
-        cells_lv[(lab, "pitch error std [arcmin]")] = summary_row(
-            f"level {x:g}°: SINS/GPS pitch error std (Table 2 state 1)", "arcmin", r["p_std"], ps1,
-            stderr=r["p_std_se"], runs=n_sweep)
-        cells_lv[(lab, "roll error std [arcmin]")] = summary_row(
-            f"level {x:g}°: SINS/GPS roll error std (Table 2 state 1)", "arcmin", r["r_std"], rs1,
-            stderr=r["r_std_se"], runs=n_sweep)
+        _paper_cells(cells_lv, lab, f"level {x:g}°", r, n_sweep, (("pitch error std", "p_std", ps1),
+                                                                  ("roll error std", "r_std", rs1)))
         cells_lv[(lab, "misfit")] = summary_row(
             f"level {x:g}°: misfit ((pitch std − {ps1:g})/{ps1:g})² + ((roll std − {rs1:g})/{rs1:g})²", "-",
             r["fit"], runs=n_sweep)

@@ -111,7 +111,7 @@ def bench_cli(runs: int, workers: int, out: Path) -> dict:
     out.mkdir(parents=True)
     exp = out / "experiment.yaml"
     exp.write_text(yaml.safe_dump(experiment(runs)))
-    import aidnav
+    import aidnav  # lazy: the package under test (PYTHONPATH), for its folder
 
     # the package's bytecode, as an installed package has it (pip compiles it at install; a source tree under
     # PYTHONDONTWRITEBYTECODE would compile every module from source in the timed command)

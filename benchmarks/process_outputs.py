@@ -125,7 +125,7 @@ def run(args, figures: bool, label: str | None = None) -> tuple[float, float, fl
 
 def compile_bytecode() -> str:
     """The aidnav package's ``.pyc`` files written (what ``pip install`` does for an installed package)."""
-    import aidnav
+    import aidnav  # lazy: the package under test (PYTHONPATH), for its folder
 
     pkg = Path(aidnav.__file__).resolve().parent
     subprocess.run([sys.executable, "-m", "compileall", "-q", str(pkg)], check=True,

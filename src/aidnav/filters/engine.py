@@ -514,23 +514,6 @@ def _hold_heading(P, iu, ini, before_alignment, gap):
         P[iu, iu] = gap[4]
 
 
-@njit(cache=True)
-def _turn_held_heading(st, P, h0, held, ix):
-    """A heading held unknown (``held``: before the first course alignment or after an IMU gap) that a
-    node's updates moved (from ``h0`` [rad] to the strapdown's heading now) turns the tilt error and its
-    covariance with it, as a course alignment does (:func:`.ins_errors.set_heading`): the tilt belongs to
-    the body's roll and pitch, so in the navigation frame it turns with the heading. The updates of a
-    heading of σ 180° move it by tens of degrees (its correlations are one interval's linearisation);
-    without the turn the filter applies the tilt ↔ body-frame accelerometer-bias correlation it learnt
-    under the old heading to the new one, a rotation that did not happen, and "separates" the bias from
-    the tilt (issue 35: roll σ 0.7° → 0.3° while the roll error stays 1.5°)."""
-    if held and ix[PHI] >= 0:
-        C = dcm_from_quat(st[ST_Q:ST_Q + 4])
-        h1 = np.arctan2(C[0, 1], C[1, 1])
-        set_heading(st, P, h0, 0.0, -1, -1, -1)  # back to h0 (P untouched), then to h1 turning the tilt
-        set_heading(st, P, h1, 0.0, -1, ix[PHI], ix[PHI + 1])
-
-
 @njit(cache=True, inline="always")  # per sample: inlined (no call per sample)
 def _write_output(o, oi, k, st, bias, nb, P, node):
     """The output row ``oi`` (sample ``k``): state, the first ``nb`` biases, diagonal of P, last node.
@@ -686,9 +669,7 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
             li = _node_constraints(x, P, Nav(st, C, w, 0.0, bias), imu.static[k], imu.t[k], no_row, upd, li)
             if nsub:  # the subset's estimate in the INS block
                 dxf[sub] = x
-            h0 = np.arctan2(C[0, 1], C[1, 1])
             feedback(st, bias, dxf if nsub else x, nh)
-            _turn_held_heading(st, P, h0, (hold_h and k0 + k < ini.reset_idx) or gap[4] > 0.0, ix)
             ib[:] = bias[:nins - NAV]
             _hold_heading(P, iu, ini, hold_h and k0 + k < ini.reset_idx, gap)
             _after_updates(st, bias, P, rec, g0, gi, proc.reset_pos, lay)

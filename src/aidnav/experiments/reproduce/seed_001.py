@@ -101,6 +101,46 @@ def approach_run(run_seed: int, truth, imu_true, with_figures_data: bool = False
     the IMU ``grade`` and receiver ``clock`` (h0, h−2; default the TCXO, also simulated). Returns a dict of
     per-run metrics (and series for run 0)."""
     clock = clock or CLOCK
+    eph, sim, (res_a, res_b, res_c), r_init = _simulate_cases(run_seed, truth, imu_true, grade, clock)
+    tt, rel_true, pos_err, vel_err, att_err = _tight_errors(truth, res_a)
+    app, dg_t, dg_err, spp_err, dg_pos, deliver_a = _dgps_and_spp(sim, eph, r_init)
+    metrics, (rel_s, dr_err, dr_norot_err, t_c, dr_c), deliver_b = _dead_reckoning(truth, sim, res_b, res_c,
+                                                                                   app, dg_pos)
+    app_a = (tt >= PRE_S) & (tt <= PRE_S + APP_S)
+    out = {
+        "tight_att_rms_deg": np.sqrt(np.mean(np.degrees(att_err[app_a]) ** 2, 0)),
+        "tight_pos_rms_m": np.sqrt(np.mean(pos_err[app_a] ** 2, 0)),
+        "tight_vel_rms_m_s": np.sqrt(np.mean(vel_err[app_a] ** 2, 0)),
+        "dgps_rms_m": np.sqrt(np.mean(dg_err**2, 0)),
+        "spp_rms_m": np.sqrt(np.mean(spp_err**2, 0)),
+        **metrics,
+    }
+    if with_figures_data:
+        out["series"] = dict(
+            t_a=tt,
+            att_err=np.degrees(att_err),
+            pos_err=pos_err,
+            vel_err=vel_err,
+            pd=res_a.pdiag,
+            t_b=rel_s,
+            dr_err=dr_err,
+            dr_norot_err=dr_norot_err,
+            dg_t=dg_t - SOW0,
+            dg_err=dg_err,
+            spp_err=spp_err,
+            rel_true=rel_true,
+        )
+    tc = np.arange(0, APP_S + 0.01, 1.0)
+    out["dr_err_curve"] = np.interp(tc, rel_s, np.linalg.norm(dr_err, axis=1))
+    out["dr_err_curve_c"] = np.interp(tc, t_c, np.linalg.norm(dr_c, axis=1))
+    out["deliver_dgps"] = deliver_a
+    out["deliver_dr2"] = deliver_b
+    return out
+
+
+def _simulate_cases(run_seed: int, truth, imu_true, grade: str, clock: dict):
+    """The run's IMU and raw GNSS and the tight filter on cases A (all satellites), B (0 then 2) and C (0)
+    → (ephemeris, simulation, (A, B, C), the initial-error generator, to be drawn on afterwards)."""
     ss = np.random.SeedSequence(run_seed)
     r_imu, r_gnss, r_init = (np.random.default_rng(s) for s in ss.spawn(3))
     eph = nominal_constellation(WEEK, SOW0, 24)
@@ -135,6 +175,12 @@ def approach_run(run_seed: int, truth, imu_true, with_figures_data: bool = False
         sim.rover, sim.truth["elevation"], [(PRE_S, PRE_S + APP_S + 1, 0)], SOW0 + truth.time[0]
     )
     res_c = run_tight(imu, obs_c, eph, cfg, init_state=init)  # the outage goes on: no satellites at all
+    return eph, sim, (res_a, res_b, res_c), r_init
+
+
+def _tight_errors(truth, res_a):
+    """Case A at the IMU times → (time after SOW0 [s], true ENU position relative to the base, tight
+    filter position ENU / velocity / attitude errors)."""
     # truth relative position (IMU = antenna: no lever arm) in the base frame at IMU times
     tt = res_a.time - SOW0
     j = np.clip(np.searchsorted(truth.time, tt - 1e-9), 0, len(truth.time) - 1)
@@ -155,6 +201,12 @@ def approach_run(run_seed: int, truth, imu_true, with_figures_data: bool = False
     vel_err = res_a.state[:, 3:6] - truth.vel[j]
     q_true = euler_to_quat_batch(np.ascontiguousarray(truth.rph[j]))
     att_err = attitude_error_batch(np.ascontiguousarray(res_a.state[:, 6:10]), q_true)
+    return tt, rel_true, pos_err, vel_err, att_err
+
+
+def _dgps_and_spp(sim, eph, r_init):
+    """DGPS single differences (all satellites) and rover SPP during the approach → (approach epochs,
+    their times, DGPS ENU errors, SPP ENU errors, DGPS position per epoch, deliverable errors)."""
     # DGPS relative positions (case A, all satellites) during the approach
     rv, bs = sim.rover, sim.base
     pb_approx = np.array(lla_to_ecef(BASE_LAT, BASE_LON, BASE_H)) + r_init.normal(0, 10.0, 3)  # roughly known
@@ -184,6 +236,13 @@ def approach_run(run_seed: int, truth, imu_true, with_figures_data: bool = False
         spp_err.append(dcm_ecef_to_enu(BASE_LAT, BASE_LON) @ (s.ecef - ra))
     dg_t, dg_err, spp_err = np.array(dg_t), np.array(dg_err), np.array(spp_err)
     deliver_a = deliverable_errors(np.array(dg_true) + dg_err, np.array(dg_true))
+    return app, dg_t, dg_err, spp_err, dg_pos, deliver_a
+
+
+def _dead_reckoning(truth, sim, res_b, res_c, app, dg_pos):
+    """DR of cases B and C from the last DGPS fix before the loss, and of the true velocity →
+    (metrics, (time from the DR start, B's error, B's error unrotated, C's times and error), B's
+    deliverable errors)."""
     # dead reckoning (case B) from the last DGPS fix before the loss
     k0 = int(np.flatnonzero(app)[0])
     t_start = sim.truth["t_receive_gps"][k0]
@@ -245,13 +304,7 @@ def approach_run(run_seed: int, truth, imu_true, with_figures_data: bool = False
     )
     i20 = int(np.searchsorted(rel_s, OUT_S))
     dvmax = float(np.max(np.linalg.norm(np.diff(truth.vel[jt], axis=0), axis=1)))
-    app_a = (tt >= PRE_S) & (tt <= PRE_S + APP_S)
-    out = {
-        "tight_att_rms_deg": np.sqrt(np.mean(np.degrees(att_err[app_a]) ** 2, 0)),
-        "tight_pos_rms_m": np.sqrt(np.mean(pos_err[app_a] ** 2, 0)),
-        "tight_vel_rms_m_s": np.sqrt(np.mean(vel_err[app_a] ** 2, 0)),
-        "dgps_rms_m": np.sqrt(np.mean(dg_err**2, 0)),
-        "spp_rms_m": np.sqrt(np.mean(spp_err**2, 0)),
+    metrics = {
         "dr_rate_outage": rate_out,
         "dr_rate_2sat": rate_2,
         "dr_rate_0sat_on": rate_c,
@@ -269,27 +322,7 @@ def approach_run(run_seed: int, truth, imu_true, with_figures_data: bool = False
         "dr_norot_20": float(np.linalg.norm((dr_true_nr - dr_true_tr)[i20])),
         "dr_rot_effect_case_b_20": float(np.linalg.norm((dr_norot - dr)[i20])),
     }
-    if with_figures_data:
-        out["series"] = dict(
-            t_a=tt,
-            att_err=np.degrees(att_err),
-            pos_err=pos_err,
-            vel_err=vel_err,
-            pd=res_a.pdiag,
-            t_b=rel_s,
-            dr_err=dr_err,
-            dr_norot_err=dr_norot - rel_t,
-            dg_t=dg_t - SOW0,
-            dg_err=dg_err,
-            spp_err=spp_err,
-            rel_true=rel_true,
-        )
-    tc = np.arange(0, APP_S + 0.01, 1.0)
-    out["dr_err_curve"] = np.interp(tc, rel_s, np.linalg.norm(dr_err, axis=1))
-    out["dr_err_curve_c"] = np.interp(tc, res_c.time[mc] - t_start, np.linalg.norm(dr_c, axis=1))
-    out["deliver_dgps"] = deliver_a
-    out["deliver_dr2"] = deliver_b
-    return out
+    return metrics, (rel_s, dr_err, dr_norot - rel_t, res_c.time[mc] - t_start, dr_c), deliver_b
 
 
 def deliverable_errors(est, true) -> dict:

@@ -41,6 +41,8 @@ from .engine import (
 from .engine_batch import batchable, run_batch, run_outputs, stack_inputs
 from .layout import (
     DV,
+    L_LEVER,
+    L_NINS,
     L_MOUNT,
     L_N,
     L_TOFF,
@@ -240,10 +242,15 @@ def loose_setup(imu, gnss, cfg, withheld, events, aids=()) -> Setup:
 
 
 def _reinit_cal(lay, P0) -> np.ndarray:
-    """The calibration states a re-initialisation repairs with the navigation block (time offset, GNSS
-    velocity delay, mounting): rows (index, prior variance) (engine ``Models.cal``)."""
-    rows = []
-    for key, k in ((L_TOFF, 1), (L_VDEL, 1), (L_MOUNT, 3)):
+    """The states a re-initialisation repairs with the navigation block: rows (index, prior variance)
+    (engine ``Models.cal``). A re-initialisation says that the filter's covariance was too small; every
+    state learnt jointly with the navigation under that covariance is then as suspect as the navigation:
+    the IMU's sensor errors (biases, scale factors, misalignments: a tilt re-learnt against a bias that
+    kept its converged σ collapses onto the same wrong bias) and the calibration (GNSS lever arm, time
+    offset, velocity delay, mounting). Each is scaled with the navigation block, at most back to its
+    prior (issue 35, item 5: a calibration is repaired, never thrown away)."""
+    rows = [(i, P0[i, i]) for i in range(NAV, int(lay[L_NINS]))]
+    for key, k in ((L_LEVER, 3), (L_TOFF, 1), (L_VDEL, 1), (L_MOUNT, 3)):
         for i in range(k if lay[key] >= 0 else 0):
             rows.append((lay[key] + i, P0[lay[key] + i, lay[key] + i]))
     return np.array(rows, float).reshape(-1, 2)

@@ -50,7 +50,10 @@ PRESETS: dict[str, dict] = {
     },
     "aircraft": {
         "constraints": {"nhc": False, "zupt": True},
-        "init": {"course_min_speed_m_s": 15.0, "course_heading_sigma_deg": 10.0},
+        # below its take-off speed a fixed-wing aircraft rolls on its wheels: its course is its heading
+        # (nose-wheel steering, no crab on the ground), so the course aligns it from taxi speed as a car's
+        # does; σ 10° covers a log that starts airborne (crab asin(w/V): 11° in a 20-kn crosswind at 100 kn)
+        "init": {"course_min_speed_m_s": 2.0, "course_heading_sigma_deg": 10.0},
         "imu": {"noise_from_static": True},
         "gnss": {"nis_window": 10},
         # 300 m/s, 3 g, 45 deg/s roll or turn, any attitude

@@ -42,9 +42,9 @@ from .engine_batch import batchable, run_batch, run_outputs, stack_inputs
 from .layout import (
     DV,
     L_LEVER,
-    L_NINS,
     L_MOUNT,
     L_N,
+    L_NINS,
     L_TOFF,
     L_VDEL,
     NAV,

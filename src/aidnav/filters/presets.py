@@ -63,7 +63,9 @@ PRESETS: dict[str, dict] = {
     "pedestrian": {
         "constraints": {"nhc": False, "zupt": True},
         "init": {"course_min_speed_m_s": 1.0, "course_heading_sigma_deg": 30.0},
-        "imu": {"noise_from_static": False},
+        # the IMU's white noise is what its static samples show, whatever carries it (a hand holding a
+        # phone adds its tremor: larger, and the filter must cover it while walking too)
+        "imu": {"noise_from_static": True},
         "gnss": {"nis_window": 10},
         # a runner at 10 m/s, 1 g, a body (or a phone) turned by 360 deg/s, held at any angle
         "motion": {"max_speed_m_s": 10.0, "max_accel_m_s2": 10.0, "max_turn_rate_deg_s": 360.0,

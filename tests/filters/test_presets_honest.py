@@ -23,7 +23,7 @@ import pytest
 from aidnav.experiments import consistency_matrix as cm
 from aidnav.filters.layout import L_LEVER, L_MOUNT, L_NINS, L_TOFF, L_VDEL, NAV
 from aidnav.filters.loose import loose_setup, run_loose
-from aidnav.filters.presets import PRESETS, apply_preset
+from aidnav.filters.presets import apply_preset
 
 POS = slice(0, 3)
 
@@ -40,13 +40,6 @@ def test_aircraft_preset_covers_the_position_of_a_ground_vehicle(name):
     bound = cm.COVERAGE_TARGET if name == "gnss 10 Hz white" else cm.SEED_COVERAGE_BOUND
     assert np.all(cell.coverage[POS] >= bound), cell.coverage
     assert np.all(cell.ratio[POS] >= cm.RATIO_TARGET), cell.ratio
-
-
-def test_every_preset_aligns_the_heading_of_a_vehicle_moving_at_walking_to_taxi_speed():
-    """The course alignment of each preset starts at or below 2 m/s: above it a car, a taxiing aircraft,
-    a ship under way and a walker move along their heading within the preset's course σ."""
-    for name, p in PRESETS.items():
-        assert p["init"]["course_min_speed_m_s"] <= 2.0, name
 
 
 def test_reinitialisation_repairs_the_sensor_errors_and_the_calibration():

@@ -33,10 +33,10 @@ preset re-initialises when the NIS of the last 10 accepted fixes of a type is fa
 shows a wheeled vehicle: :mod:`aidnav.filters.wheeled`); such a re-initialisation scales the navigation
 block, the IMU's sensor-error states and the calibration states by the window's mean NIS per dof (each
 sensor-error and calibration state at most back to its prior: a calibration is repaired with the
-navigation, never thrown away, issue 35 item 5; :func:`aidnav.filters.loose._reinit_cal`). Each preset states what the vehicle can do
-(``motion``: speed, acceleration, turn-rate and tilt bounds), which sizes the covariance an IMU gap adds
-(:func:`aidnav.filters.preprocess.bridge_gaps`); without a preset the bounds of an unknown vehicle
-(:class:`aidnav.filters.config.MotionBounds`).
+navigation, never thrown away, issue 35 item 5; :func:`aidnav.filters.loose._reinit_cal`). Each preset
+states what the vehicle can do (``motion``: speed, acceleration, turn-rate and tilt bounds), which sizes
+the covariance an IMU gap adds (:func:`aidnav.filters.preprocess.bridge_gaps`); without a preset the
+bounds of an unknown vehicle (:class:`aidnav.filters.config.MotionBounds`).
 """
 
 from __future__ import annotations

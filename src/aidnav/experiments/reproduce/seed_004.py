@@ -287,8 +287,19 @@ def flexure_check(spec: FlexureSpec | None = None, dt: float = 0.1, duration_s: 
 # ------------------------------------------------------------------------------------------ tables
 def _tables(res: dict, cov_pred: dict, flex: dict, flex_spec: FlexureSpec, control: dict | None = None
             ) -> list[dict]:
+    """Every table of the summary: the seed's trend tables (4, 5, 6, 8), the sensitivity studies with the
+    noise-reading comparison, the design tool and the flexure check, with their runs and cross-references."""
     g4 = Group(res["T4"])
-    t4 = g4.means()
+    tables = _trend_tables(res, g4, control) + _sensitivity_tables(res)
+    tables.insert(4, noise_comparison(tables))
+    tables += [_drifting_master_table(res), _design_table(res, g4, cov_pred), _flexure_table(flex, flex_spec)]
+    _point_to_alternatives(tables)
+    _finalize(tables, _runs_map(res, g4))
+    return tables
+
+
+def _trend_tables(res: dict, g4: Group, control: dict | None) -> list[dict]:
+    """Tables 4, 5, 6 and 8 of the seed with their §5.3 trends (the SPEC rows)."""
     tables = [summary_table("Table 4", "imaging-leg attitude error STD by maneuver (T1 = 0, T2 = 400 s; "
                             f"mean over AB and CD and over {g4.runs} runs)", t4_rows(g4)),
               summary_table("Table 5", "figure-8, attitude error STD vs T1 (straight flight after the "
@@ -300,12 +311,17 @@ def _tables(res: dict, cov_pred: dict, flex: dict, flex_spec: FlexureSpec, contr
         se = d.std(ddof=1) / np.sqrt(len(d)) if len(d) > 1 else float("nan")
         rows6.append(summary_row(f"heading STD change T2 = {a} -> {b} s, paired over the {len(d)} runs",
                                  "deg", float(d.mean()), stderr=se))
-    tables += [summary_table("Table 6", "figure-8, T1 = 200 s, attitude error STD vs T2 (length of the "
-                             "imaging legs)", rows6),
-               summary_table("Table 8", "figure-8, T1 = 200 s, T2 = 400 s: error STD vs GNSS baseline "
-                             "(master position accuracy of seed Table 7)",
-                             t8_rows(Group(res["T8"]), control=control))]
-    # ---------------------------------------------------------------- sensitivity studies (no SPEC rows)
+    return tables + [summary_table("Table 6", "figure-8, T1 = 200 s, attitude error STD vs T2 (length of "
+                                   "the imaging legs)", rows6),
+                     summary_table("Table 8", "figure-8, T1 = 200 s, T2 = 400 s: error STD vs GNSS baseline "
+                                   "(master position accuracy of seed Table 7)",
+                                   t8_rows(Group(res["T8"]), control=control))]
+
+
+def _sensitivity_tables(res: dict) -> list[dict]:
+    """The sensitivity studies (no SPEC rows): master-error models, IMU grades, the 21-state filter, GM master
+    errors, the inflated Q and the density reading of the sub-IMU's noise."""
+    tables = []
     tables.append(summary_table("Master-error model", "Table 8 with other master-error models: the "
                                 "master's position error split into a smooth drift (fraction f of its "
                                 "variance, τ 300 s, its rate carried by the master velocity) and a white "
@@ -356,16 +372,24 @@ def _tables(res: dict, cov_pred: dict, flex: dict, flex_spec: FlexureSpec, contr
                              t5_rows(Group(res["T5-density"]), sfx, spec=False), kind="sensitivity"),
                summary_table("Table 6, density reading", "Table 6 with the density reading of the sub-IMU",
                              t6_rows(Group(res["T6-density"]), sfx, spec=False), kind="sensitivity")]
-    tables.insert(4, noise_comparison(tables))
+    return tables
+
+
+def _drifting_master_table(res: dict) -> dict:
+    """Table 8's predicates with the former drifting master (a sensitivity study)."""
     mg = {k: Group(v) for k, v in res["master"].items()}
-    tables.append(summary_table("Table 8, drifting master", "Table 8's predicates with the former drifting "
-                                "master "
-                                "(position drift fraction 0.5, τ 300 s, its rate in the master velocity) "
-                                "instead "
-                                "of the white master of the seed's "
-                                "text", t8_rows(mg[MASTER_DRIFT], spec=False),
-                                kind="sensitivity"))
-    # ---------------------------------------------------------------- design tool (checks of our own)
+    return summary_table("Table 8, drifting master", "Table 8's predicates with the former drifting "
+                         "master "
+                         "(position drift fraction 0.5, τ 300 s, its rate in the master velocity) "
+                         "instead "
+                         "of the white master of the seed's "
+                         "text", t8_rows(mg[MASTER_DRIFT], spec=False),
+                         kind="sensitivity")
+
+
+def _design_table(res: dict, g4: Group, cov_pred: dict) -> dict:
+    """The design tool's covariance-only prediction against the Monte Carlo of Table 4 (checks of our own)."""
+    t4 = g4.means()
     pr = {m: cov_pred[m]["heading_deg"] for m in MODES}
     ph = {m: PAPER_T4[m][0] for m in MODES}
     mc_rms = {m: float(res["T4"][m].rms.mean(axis=0)[0]) for m in MODES}
@@ -384,9 +408,13 @@ def _tables(res: dict, cov_pred: dict, flex: dict, flex_spec: FlexureSpec, contr
         summary_row("Spearman rank correlation, predicted σ vs Monte Carlo STD (heading, 5 modes)", "-",
                     _spearman([pr[m] for m in MODES], [t4[m]["heading"] for m in MODES])),
     ]
-    tables.append(summary_table("Design tool", "covariance-only prediction of the imaging-leg heading "
-                                "accuracy (aidnav.experiments.design) against the Monte Carlo of Table 4; "
-                                "the §5.3 Table 4 ordering applied to the prediction", rows))
+    return summary_table("Design tool", "covariance-only prediction of the imaging-leg heading "
+                         "accuracy (aidnav.experiments.design) against the Monte Carlo of Table 4; "
+                         "the §5.3 Table 4 ordering applied to the prediction", rows)
+
+
+def _flexure_table(flex: dict, flex_spec: FlexureSpec) -> dict:
+    """The flexure generator's σ and 1/e lag against the seed's values."""
     rows = []
     for a in range(3):
         ax = "xyz"[a]
@@ -394,25 +422,27 @@ def _tables(res: dict, cov_pred: dict, flex: dict, flex_spec: FlexureSpec, contr
                                 "abs(ours - paper) <= 0.05 * paper", spec=True))
         rows.append(summary_row(f"flexure 1/e time τ_{ax}", "s", flex["tau_s"][a], flex_spec.tau_s[a],
                                 "abs(ours - paper) <= 0.05 * paper", spec=True))
-    tables.append(summary_table("Flexure", "second-order Markov flexure generator (exact discretisation): σ "
-                                "and 1/e lag against the seed's values", rows))
+    return summary_table("Flexure", "second-order Markov flexure generator (exact discretisation): σ "
+                         "and 1/e lag against the seed's values", rows)
+
+
+def _runs_map(res: dict, g4: Group) -> dict:
+    """Table name → the Monte Carlo runs behind its rows."""
+    g21 = Group(res["T4-21"])
 
     def n_of(d):
         return int(next(iter(d.values())).std.shape[0])
 
-    runs_map = {"Table 4": g4.runs, "Table 5": n_of(res["T5"]), "Table 6": n_of(res["T6"]),
-                "Table 8": n_of(res["T8"]), "Master-error model": n_of(res["master"][MASTER_DRIFT]),
-                "Grade sweep": n_of(res["grade"]), "21 vs 24 states": g21.runs,
-                "Table 4, GM master": n_of(res["T4-GM"]), "Table 4, Q inflated": n_of(res["T4-qinf"]),
-                "Table 5, Q inflated": n_of(res["T5-qinf"]), "Table 6, Q inflated": n_of(res["T6-qinf"]),
-                "Table 4, density reading": n_of(res["T4-density"]),
-                "Table 5, density reading": n_of(res["T5-density"]),
-                "Table 6, density reading": n_of(res["T6-density"]),
-                "Table 8, drifting master": n_of(res["master"][MASTER_DRIFT]), "Design tool": g4.runs,
-                "Flexure": 0}
-    _point_to_alternatives(tables)
-    _finalize(tables, runs_map)
-    return tables
+    return {"Table 4": g4.runs, "Table 5": n_of(res["T5"]), "Table 6": n_of(res["T6"]),
+            "Table 8": n_of(res["T8"]), "Master-error model": n_of(res["master"][MASTER_DRIFT]),
+            "Grade sweep": n_of(res["grade"]), "21 vs 24 states": g21.runs,
+            "Table 4, GM master": n_of(res["T4-GM"]), "Table 4, Q inflated": n_of(res["T4-qinf"]),
+            "Table 5, Q inflated": n_of(res["T5-qinf"]), "Table 6, Q inflated": n_of(res["T6-qinf"]),
+            "Table 4, density reading": n_of(res["T4-density"]),
+            "Table 5, density reading": n_of(res["T5-density"]),
+            "Table 6, density reading": n_of(res["T6-density"]),
+            "Table 8, drifting master": n_of(res["master"][MASTER_DRIFT]), "Design tool": g4.runs,
+            "Flexure": 0}
 
 
 _GRID_CELL = re.compile(r"^(\w+) STD, (.+)$")
@@ -563,21 +593,9 @@ def _write_runs(out: Path, runner: _Runner) -> Path:
 
 
 # --------------------------------------------------------------------------------------------- run
-def run(out_dir, runs: int | None = 10, base_seed: int = 1, console=None, quick: bool = False) -> dict:
-    """Reproduce seed 004 into ``out_dir``: figures, ``report.html``, ``runs.csv`` and ``summary.json``.
-
-    runs: Monte Carlo runs per case (10 as in the seed; None → 10, or 2 with ``quick``).
-    quick: fewer runs (2 unless given) for tests; the same cases and tables.
-    Returns the summary document (a dict, as written).
-    """
-    study = Study(SEED, TITLE, out_dir, int(runs) if runs is not None else (2 if quick else 10), base_seed,
-                  console)
-    t_start = study.t_start
-    runs, out = study.runs, study.out
-    trend_runs = TREND_RUNS_FACTOR * runs  # Tables 4, 5, 6 and 8: their trends are a few percent
-    sens_runs = max(1, runs // 2)  # sensitivity cases whose effects are factors (GM master, density reading)
-    run_seeds = np.random.SeedSequence(int(base_seed)).spawn(trend_runs)  # the first `runs` in every case
-    runner = _Runner(run_seeds, study.say)
+def _monte_carlo(runner: _Runner, runs: int, trend_runs: int, sens_runs: int, quick: bool):
+    """Every Monte Carlo case, grouped by trajectory so that each trajectory is generated once →
+    (results by table and case, the Table 4 trajectories, the first-epoch control of Table 8)."""
 
     def mc(case: Case, n: int = runs) -> CaseResult:
         return runner.run(replace(case, runs=n))
@@ -614,22 +632,11 @@ def run(out_dir, runs: int | None = 10, base_seed: int = 1, console=None, quick:
     for label, (f, sv, bls) in MASTER_MODELS.items():  # the master-error study of Table 8
         res["master"][label] = {b: mc(replace(BASE4, baseline_km=float(b), drift_fraction=f,
                                               master_vel_sigma=sv)) for b in bls}
-    t_mc = time.perf_counter() - t_start
+    return res, bundles, control
 
-    # design tool (covariance only) and flexure check
-    t0 = time.perf_counter()
-    cov_pred, analyses = {}, {}
-    for m in MODES:
-        cov_pred[m], analyses[m] = predict_accuracy(bundles[m])
-    t_design = time.perf_counter() - t0
-    flex_spec = FlexureSpec()
-    flex = flexure_check(flex_spec, duration_s=2.0e4 if quick else 1.0e5)
 
-    tables = _tables(res, cov_pred, flex, flex_spec, control)
-
-    # figures
-    figures = study.figures
-    figures += [fig_trajectories(out, bundles), fig_attitude(out, res["T4"])]
+def _sweeps(res: dict) -> dict:
+    """The sweeps of the sweep figure: per table its x values, our means, the paper's and the x label."""
     att = ("heading", "pitch", "roll")
 
     def rows_of(d, keys):
@@ -640,7 +647,7 @@ def run(out_dir, runs: int | None = 10, base_seed: int = 1, console=None, quick:
 
     p8 = [dict(zip(att, (PAPER_T8["heading"][i], PAPER_T8["pitch"][i], PAPER_T8["roll"][i]), strict=True))
           for i in range(3)]
-    sweeps = {
+    return {
         "maneuver (Table 4)": ([LABEL[m] for m in MODES], rows_of(res["T4"], MODES),
                                paper_of(PAPER_T4, MODES),
                                "maneuver before the survey area"),
@@ -654,20 +661,10 @@ def run(out_dir, runs: int | None = 10, base_seed: int = 1, console=None, quick:
         "21 vs 24 states (Table 4 modes)": ([LABEL[m] for m in MODES], rows_of(res["T4-21"], MODES), None,
                                             "maneuver, 21-state filter"),
     }
-    figures.append(fig_sweeps(out, sweeps))
-    mc_std = {m: res["T4"][m].mean()["heading"] for m in MODES}
-    mc_rms = {m: float(res["T4"][m].rms.mean(axis=0)[0]) for m in MODES}
-    figures.append(fig_design(out, analyses, {m: cov_pred[m]["heading_deg"] for m in MODES}, mc_std, mc_rms))
-    figures.append(fig_flexure(out, flex, flex_spec))
-    figures.append(fig_heading_sigma(out, res["T5"]))
-    _write_runs(out, runner)
 
-    elapsed = study.elapsed_s
-    r2124 = [res["T4-21"][m].mean()["heading"] / res["T4"][m].mean()["heading"] for m in MODES]
-    b8 = [res["T8"][b].mean()["baseline"] for b in BASELINES]
-    t8v = [res["T8"][b].mean()["vE"] for b in BASELINES]
-    pred = [cov_pred[m]["heading_deg"] for m in MODES]
-    pess = [cov_pred[m]["heading_deg"] / mc_rms[m] for m in MODES]
+
+def _noise_disclosure(res: dict, tables: list[dict]) -> str:
+    """The note on the sub-IMU noise reading: ARW vs density reading, with their tables' counts."""
 
     def holding(name):
         t = next(t for t in tables if t["name"] == name)
@@ -679,6 +676,40 @@ def run(out_dir, runs: int | None = 10, base_seed: int = 1, console=None, quick:
         hs = [r["holds"] for r in t["rows"] if r["target"] == FACTOR2]
         return f"{sum(hs)} of {len(hs)}"
 
+    four = ("s_turns", "o_circle", "figure8")
+    att = ("heading", "pitch", "roll")
+    below = [PAPER_T4[m][i] / res["T4-density"][m].mean()[q] for m in four for i, q in enumerate(att)]
+    gm_up = [res["T4-GM"][m].mean()[q] / res["T4"][m].mean()[q] for m in four for q in att]
+    return ("Disclosure, sub-IMU noise (decided in issue 27): §1.1 reads a seed's 'random drift X deg/h' as "
+            "a white-noise density; the unit is ambiguous. The tables use the sub-IMU's 'random drift "
+            "0.1 deg/h' as an angle random walk of "
+            "0.1 deg/sqrt(h) (grade sub_arw; 0.1 deg/h constant bias, 50 ug + 50 ug/sqrt(Hz)). Reason: the "
+            "seed's own pitch/roll STDs after the maneuvers (0.004-0.009 deg) need that much gyro noise. "
+            "With the other reading (0.1 deg/h/sqrt(Hz), ARW 0.0017 deg/sqrt(h), the seed004_sub preset) our "
+            f"attitude STDs after the S, O and 8 maneuvers are {min(below):.0f}-{max(below):.0f}x below the "
+            "seed's, and the climb's pitch/roll, limited by the accelerometer bias its gentle turn leaves "
+            "unresolved instead of by gyro noise, are much worse than the other maneuvers'. Factor-2 cells, "
+            f"ARW / density reading: Table 4 {within2('Table 4')} / {within2('Table 4, density reading')}, "
+            f"Table 5 {within2('Table 5')} / {within2('Table 5, density reading')}; SPEC predicates holding: "
+            f"Table 4 {holding('Table 4')} / {holding('Table 4, density reading')}, "
+            f"Table 5 {holding('Table 5')} / {holding('Table 5, density reading')}, "
+            f"Table 6 {holding('Table 6')} / "
+            f"{holding('Table 6, density reading')}. Gauss-Markov master errors (tau = {MASTER_TAU_S:g} s, "
+            f"all channels) change the maneuver STDs by {min(gm_up):.1f}-{max(gm_up):.1f}x.")
+
+
+def _notes(res: dict, tables: list[dict], cov_pred: dict, control: dict, mc, timing, runs: int,
+           base_seed: int) -> list[str]:
+    """The notes: statistic, reconstruction, disclosures, and the figures they quote; ``mc`` = (Monte Carlo
+    heading STD, RMS by mode), ``timing`` = (Monte Carlo, design tool, whole reproduction) [s]."""
+    mc_std, mc_rms = mc
+    t_mc, t_design, elapsed = timing
+    r2124 = [res["T4-21"][m].mean()["heading"] / res["T4"][m].mean()["heading"] for m in MODES]
+    b8 = [res["T8"][b].mean()["baseline"] for b in BASELINES]
+    t8v = [res["T8"][b].mean()["vE"] for b in BASELINES]
+    pred = [cov_pred[m]["heading_deg"] for m in MODES]
+    pess = [cov_pred[m]["heading_deg"] / mc_rms[m] for m in MODES]
+
     main4 = [r["holds"] for t in tables if t["name"] in ("Table 4", "Table 5", "Table 6", "Table 8")
              for r in t["rows"] if r["target"] == FACTOR2]
     mm = {k: Group(v).means() for k, v in res["master"].items()}
@@ -689,10 +720,6 @@ def run(out_dir, runs: int | None = 10, base_seed: int = 1, console=None, quick:
     h5 = [res["T5"][t].mean()["heading"] for t in T1_VALUES]
     d6 = {(x, y): res["T6"][y].std[:, 0] - res["T6"][x].std[:, 0]
           for x, y in zip(T2_VALUES[:-1], T2_VALUES[1:], strict=True)}
-    four = ("s_turns", "o_circle", "figure8")
-    att = ("heading", "pitch", "roll")
-    below = [PAPER_T4[m][i] / res["T4-density"][m].mean()[q] for m in four for i, q in enumerate(att)]
-    gm_up = [res["T4-GM"][m].mean()[q] / res["T4"][m].mean()[q] for m in four for q in att]
     notes = [
         "Statistic: per run, the standard deviation over time of each error on AB and on CD (the seed's "
         "STD), averaged over the two legs and then over the runs; errors at the 1-s filter epochs after "
@@ -730,21 +757,7 @@ def run(out_dir, runs: int | None = 10, base_seed: int = 1, console=None, quick:
         "filter's own heading σ for each T1 with the paper's Table 5 values at the AB start.",
         f"Factor-2 cells of Tables 4, 5, 6 and 8 within 2x of the paper: {sum(main4)} of {len(main4)} "
         f"({100 * sum(main4) / max(len(main4), 1):.0f} %).",
-        "Disclosure, sub-IMU noise (decided in issue 27): §1.1 reads a seed's 'random drift X deg/h' as "
-        "a white-noise density; the unit is ambiguous. The tables use the sub-IMU's 'random drift "
-        "0.1 deg/h' as an angle random walk of "
-        "0.1 deg/sqrt(h) (grade sub_arw; 0.1 deg/h constant bias, 50 ug + 50 ug/sqrt(Hz)). Reason: the "
-        "seed's own pitch/roll STDs after the maneuvers (0.004-0.009 deg) need that much gyro noise. "
-        "With the other reading (0.1 deg/h/sqrt(Hz), ARW 0.0017 deg/sqrt(h), the seed004_sub preset) our "
-        f"attitude STDs after the S, O and 8 maneuvers are {min(below):.0f}-{max(below):.0f}x below the "
-        "seed's, and the climb's pitch/roll, limited by the accelerometer bias its gentle turn leaves "
-        "unresolved instead of by gyro noise, are much worse than the other maneuvers'. Factor-2 cells, "
-        f"ARW / density reading: Table 4 {within2('Table 4')} / {within2('Table 4, density reading')}, "
-        f"Table 5 {within2('Table 5')} / {within2('Table 5, density reading')}; SPEC predicates holding: "
-        f"Table 4 {holding('Table 4')} / {holding('Table 4, density reading')}, Table 5 {holding('Table 5')}"
-        f" / {holding('Table 5, density reading')}, Table 6 {holding('Table 6')} / "
-        f"{holding('Table 6, density reading')}. Gauss-Markov master errors (tau = {MASTER_TAU_S:g} s, "
-        f"all channels) change the maneuver STDs by {min(gm_up):.1f}-{max(gm_up):.1f}x.",
+        _noise_disclosure(res, tables),
         f"Table 5: heading STD {', '.join(f'{v:.5f}' for v in h5)} deg for T1 = "
         f"{', '.join(str(t) for t in T1_VALUES)} s.",
         "Table 6: heading STD change with T2, paired over the runs (the same noise on the segments the "
@@ -792,6 +805,53 @@ def run(out_dir, runs: int | None = 10, base_seed: int = 1, console=None, quick:
         f"tool {t_design:.1f} s, whole reproduction {elapsed:.0f} s "
         "on this machine.",
     ]
+    return notes
+
+
+def run(out_dir, runs: int | None = 10, base_seed: int = 1, console=None, quick: bool = False) -> dict:
+    """Reproduce seed 004 into ``out_dir``: figures, ``report.html``, ``runs.csv`` and ``summary.json``.
+
+    runs: Monte Carlo runs per case (10 as in the seed; None → 10, or 2 with ``quick``).
+    quick: fewer runs (2 unless given) for tests; the same cases and tables.
+    Returns the summary document (a dict, as written).
+    """
+    study = Study(SEED, TITLE, out_dir, int(runs) if runs is not None else (2 if quick else 10), base_seed,
+                  console)
+    t_start = study.t_start
+    runs, out = study.runs, study.out
+    trend_runs = TREND_RUNS_FACTOR * runs  # Tables 4, 5, 6 and 8: their trends are a few percent
+    sens_runs = max(1, runs // 2)  # sensitivity cases whose effects are factors (GM master, density reading)
+    run_seeds = np.random.SeedSequence(int(base_seed)).spawn(trend_runs)  # the first `runs` in every case
+    runner = _Runner(run_seeds, study.say)
+
+    res, bundles, control = _monte_carlo(runner, runs, trend_runs, sens_runs, quick)
+    t_mc = time.perf_counter() - t_start
+
+    # design tool (covariance only) and flexure check
+    t0 = time.perf_counter()
+    cov_pred, analyses = {}, {}
+    for m in MODES:
+        cov_pred[m], analyses[m] = predict_accuracy(bundles[m])
+    t_design = time.perf_counter() - t0
+    flex_spec = FlexureSpec()
+    flex = flexure_check(flex_spec, duration_s=2.0e4 if quick else 1.0e5)
+
+    tables = _tables(res, cov_pred, flex, flex_spec, control)
+
+    # figures
+    figures = study.figures
+    figures += [fig_trajectories(out, bundles), fig_attitude(out, res["T4"])]
+    figures.append(fig_sweeps(out, _sweeps(res)))
+    mc_std = {m: res["T4"][m].mean()["heading"] for m in MODES}
+    mc_rms = {m: float(res["T4"][m].rms.mean(axis=0)[0]) for m in MODES}
+    figures.append(fig_design(out, analyses, {m: cov_pred[m]["heading_deg"] for m in MODES}, mc_std, mc_rms))
+    figures.append(fig_flexure(out, flex, flex_spec))
+    figures.append(fig_heading_sigma(out, res["T5"]))
+    _write_runs(out, runner)
+
+    elapsed = study.elapsed_s
+    notes = _notes(res, tables, cov_pred, control, (mc_std, mc_rms), (t_mc, t_design, elapsed), runs,
+                   base_seed)
     return study.finish(tables, notes)
 
 

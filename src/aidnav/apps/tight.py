@@ -48,8 +48,9 @@ __all__ = ["process_tight", "compare_with_reference", "process_tight_files", "sc
 
 
 def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | None = None,
-                  smooth: bool = False):
-    """Run the tightly coupled filter on real data; returns (TightResult, spp dict)."""
+                  smooth: bool = False, cov_times=None):
+    """Run the tightly coupled filter on real data; returns (TightResult, spp dict). ``cov_times``: as
+    :func:`aidnav.filters.tight.run_tight`'s."""
     from aidnav.filters.preprocess import noise_from_static  # lazy: as the other filter imports here
 
     cfg = cfg or TightConfig()
@@ -92,7 +93,7 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
     vfix = _tdcp_velocities(imu, obs, eph, sp, cfg, events)
     res = run_tight(
         imu, obs, eph, cfg, init_state=init_state, static=static, heading_reset=heading_reset, events=events,
-        smooth=smooth, velocity_fixes=vfix,
+        smooth=smooth, velocity_fixes=vfix, cov_times=cov_times,
     )
     return res, sp
 

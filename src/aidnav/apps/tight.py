@@ -27,7 +27,7 @@ from aidnav.apps.common import (
 from aidnav.apps.process import read_gnss_any, read_imu_any
 from aidnav.data import GnssData
 from aidnav.estimators.dgps import spp_series
-from aidnav.filters.config import LooseConfig
+from aidnav.filters.config import UNKNOWN_GRADE_IMU, ImuNoise, LooseConfig
 from aidnav.filters.heading_match import velocity_match_heading
 from aidnav.filters.loose import static_flags
 from aidnav.filters.tight import TightConfig, apply_vehicle, run_tight, to_trajectory
@@ -38,6 +38,10 @@ from aidnav.nav.rotations import wrap_2pi
 from aidnav.report.run_page import calibration_estimates
 from aidnav.units import DEG
 
+#: what the no-configuration IMU model is (aidnav.filters.config.UNKNOWN_GRADE_IMU), for the events
+UNKNOWN_GRADE_NOTE = ("Groves' consumer range: gyro bias 360 deg/h turn-on + 20 deg/h instability, "
+                      "accelerometer bias 10 mg + 0.5 mg, scale factors 5000 ppm and gyro misalignment "
+                      "0.5 deg as states")
 SPP_START_SIGMA_M = 100.0  # start-position σ with range-error states [m] (far above any SPP error)
 # a velocity-matched heading is used when its σ is below this (beyond it the linearised filter copes no
 # better than with an unknown heading); its σ is floored (gyro drift over the matching span, 2 deg)
@@ -55,6 +59,10 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
 
     cfg = cfg or TightConfig()
     events = events if events is not None else []
+    keys = set(UNKNOWN_GRADE_IMU) - {"noise_from_static"}
+    if cfg.imu.model_dump(include=keys) == ImuNoise(**UNKNOWN_GRADE_IMU).model_dump(include=keys):
+        events.append(f"no imu section: the error model of an IMU of unknown grade ({UNKNOWN_GRADE_NOTE}; "
+                      f"{cfg.nins} INS states)")
     sp, g, t_imu, i0 = _spp_start(imu, obs, eph, cfg)
     ini = cfg.init
     win = (t_imu >= sp["time"][i0]) & (t_imu < sp["time"][i0] + ini.static_window_s)

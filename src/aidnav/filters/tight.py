@@ -62,7 +62,7 @@ from aidnav.units import DEG
 
 from . import measurements as ms
 from .chi2 import chi2_isf as _chi2_isf
-from .config import Constraints, FilterSettings, ImuNoise, Initialisation
+from .config import UNKNOWN_GRADE_IMU, Constraints, FilterSettings, ImuNoise, Initialisation
 from .engine import NEVER, Imu, Init, Models, Output, Process, Records, run_filter
 from .ins_errors import noise_count
 from .layout import L_CLK, L_ISB, L_N, L_NINS, L_RERR, L_SIZE
@@ -162,7 +162,9 @@ class TightConfig(_Strict):
     ``imu.gyro_misalignment`` (the loose filter's layouts)."""
 
     states: Literal[11, 17] = 17
-    imu: ImuNoise = ImuNoise()
+    # no imu section: the error model of an IMU of unknown grade (what a phone or any consumer IMU is),
+    # with its scale-factor and misalignment states (config.UNKNOWN_GRADE_IMU; issue 35 item 3, issue 40)
+    imu: ImuNoise = Field(default_factory=lambda: ImuNoise(**UNKNOWN_GRADE_IMU))
     gnss: RawGnssAiding = RawGnssAiding()
     init: Initialisation = Initialisation()
     constraints: Constraints = Constraints()
@@ -327,7 +329,10 @@ def apply_vehicle(cfg: TightConfig, name: str | None, events: list | None = None
         if section not in ("imu", "init", "constraints"):
             skipped += [f"{section}.{k}" for k in vals]
             continue
-        merged[section] = {**vals, **data.get(section, {})}
+        # without an imu section the IMU model stays the unknown-grade one (the default's), its noise
+        # from the log's static samples included: a phone at rest shows its own noise, vibrating or not
+        over = UNKNOWN_GRADE_IMU if section == "imu" and "imu" not in data else {}
+        merged[section] = {**vals, **over, **data.get(section, {})}
     if events is not None and skipped:
         events.append(f"--vehicle {name}: {', '.join(skipped)} of the preset not used by the tightly coupled "
                       "filter (no such state or setting here)")

@@ -336,11 +336,16 @@ def simulate_tight(cond: Condition, seed: int):
     """The tight cell's run of ``cond`` with ``seed``: (:class:`SimRun` with the IMU on the GPS time
     scale, the observations with ``cond.satellites`` kept in the ``cond.outage`` window, the ephemerides).
     The IMU draws are those of :func:`simulate_condition`; the raw GNSS draws its own stream."""
+    from aidnav.nav.gnss_sat import E_URA  # lazy: tight cells only
     from aidnav.sim.gnss_constellation import nominal_constellation  # lazy: tight cells only
     from aidnav.sim.gnss_raw import RawGnssSpec, limit_satellites, simulate_raw_gnss  # lazy: tight only
 
     run = simulate_condition(replace(cond, outage=None), seed)
     eph = nominal_constellation(TIGHT_WEEK, TIGHT_SOW, 24)
+    # a broadcast record states its user range accuracy (ICD URA index 0: 2.0 m, as
+    # nominal_multi_constellation sets); the nominal GPS table leaves it 0, which the filter reads as
+    # "unknown" (6144 m, RTKLIB's value): its range-error states would then swallow every pseudorange
+    eph.table[:, E_URA] = 2.0
     spec = RawGnssSpec(rate_hz=cond.rate_hz)
     eph.iono_alpha, eph.iono_beta = spec.iono_alpha, spec.iono_beta  # a navigation file's broadcast set
     raw = simulate_raw_gnss(run.truth, eph, spec, np.random.default_rng([seed, 40]), TIGHT_SOW)

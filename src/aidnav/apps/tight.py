@@ -298,7 +298,8 @@ def process_tight_files(imu_path, obs_path, nav_path, config_path=None, out_dir=
     check_solution(traj, "the tightly coupled filter")
     write_trajectory(traj, traj_path, week=getattr(obs, "ref_week", None))
     summary = {"imu": str(imu_path), "obs": str(obs_path), "nav": str(nav_path), "output": str(traj_path),
-               "states": cfg.states, "smoothed": bool(smooth), "vehicle": vehicle,
+               "states": cfg.states, "ins_states": cfg.nins, "filter_states": res.nstate,
+               "smoothed": bool(smooth), "vehicle": vehicle,
                "ionosphere": res.iono_model,
                "systems": sorted({n[0] for n in obs.names}),
                "events": imu.events + events}
@@ -347,7 +348,8 @@ def _iono_note(event: str) -> bool:
 def format_tight_summary(s: dict) -> str:
     """Human-readable summary of ``aidnav tight``."""
     lines = [f"aidnav tight: {s['imu']} + {s['obs']} + {s['nav']}", f"output: {s['output']}",
-             f"states: {s['states']}"]
+             f"states: {s['states']}" + (f" (INS block {s['ins_states']}, {s['filter_states']} in the filter)"
+                                         if "ins_states" in s else "")]
     if s.get("ionosphere"):
         lines.append(f"ionosphere: {s['ionosphere']}")
     ref = s.get("reference")

@@ -7,7 +7,12 @@ reference-week scale, IMU times on the same GPS scale.
 
 **States** (§2.1, seed eq. 8): ``states=11`` = [φ, δv, δL δλ δh, δt_u, δf] (the seed's model),
 ``states=17`` = [φ, δv, δp, ε (gyro bias), ∇ (accel bias), δt_u, δf]: the layout of
-:mod:`aidnav.filters.layout` with the clock block (``L_CLK``) after the INS block of 9 or 15 states;
+:mod:`aidnav.filters.layout` with the clock block (``L_CLK``) after the INS block of 9 or 15 states
+(21 with ``imu.scale_factors``, 27 with ``imu.gyro_misalignment``: the loose filter's sensor states, so
+free inertia — an outage, too few satellites — grows with the full error model, issue 35 item 3). Without
+an ``imu`` section the model is that of an IMU of unknown grade (:data:`.config.UNKNOWN_GRADE_IMU`:
+Groves' consumer row through :func:`.tuning.sensor_error_model`, 27 states, noise raised to the log's
+static samples), also under the vehicle presets;
 δt_u = b − b̂ [m], δf = d − d̂ [m/s] (true − estimated, ρ_GPS = ρ_true + b). Clock dynamics: δṫ_u = δf +
 w_b, δḟ = −δf/τ_f + w_d (τ_f ≤ 0: random walk), PSDs S_b = c²h₀/2, S_d = c²·2π²h₋₂ (Allan
 coefficients of the receiver oscillator). With ``gnss.range_errors`` (default) one more state per satellite

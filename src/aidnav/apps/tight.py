@@ -70,7 +70,10 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
     f = imu.dv[win].sum(axis=0) / dtw.sum()
     roll = np.arctan2(-f[0], f[2])
     pitch = np.arctan2(f[1], np.hypot(f[0], f[2]))
-    heading, heading_reset, cfg = _start_heading(imu, sp, i0, g, roll, pitch, cfg, events)
+    lc = LooseConfig(imu=cfg.imu, constraints=cfg.constraints, init=cfg.init)
+    static = static_flags(imu, g, lc)
+    wb = _rest_gyro_bias(imu, win, static)
+    heading, heading_reset, cfg = _start_heading(imu, sp, i0, g, (roll, pitch, wb), cfg, events)
     ini = cfg.init
     if cfg.gnss.range_errors:
         # the SPP start fix is a linearisation point, not information: its error is the range errors the
@@ -78,7 +81,6 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
         ini = ini.model_copy(update={"position_sigma_m": (SPP_START_SIGMA_M,) * 3})
         cfg = cfg.model_copy(update={"init": ini})
     lc = LooseConfig(imu=cfg.imu, constraints=cfg.constraints, init=cfg.init)
-    static = static_flags(imu, g, lc) if cfg.constraints.zupt or cfg.imu.noise_from_static else None
     if cfg.imu.noise_from_static:  # engine vibration (vehicle presets): IMU noise from the static samples
         cfg = cfg.model_copy(update={"imu": noise_from_static(imu, static, lc, events).imu})
     if not cfg.constraints.zupt:
@@ -104,6 +106,22 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
         smooth=smooth, velocity_fixes=vfix, cov_times=cov_times,
     )
     return res, sp
+
+
+def _rest_gyro_bias(imu, win, static, min_s: float = 1.0):
+    """The mean gyro rate [rad/s] (3,) over the first unbroken run of static samples (``static``, the ZUPT
+    detector's flags) in the levelling window ``win`` (bool per IMU sample) — the gyro bias (and the
+    Earth rate) when the IMU is at rest — or None when that run is shorter than ``min_s`` seconds (the
+    window's mean rate would then hold real rotation: a walker picking the phone up)."""
+    idx = np.flatnonzero(win)
+    if idx.size == 0:
+        return None
+    moving = np.flatnonzero(~np.asarray(static, bool)[idx])
+    idx = idx[:moving[0]] if moving.size else idx
+    dt = np.diff(np.concatenate([[imu.t0], imu.time]))[idx]
+    if dt.sum() < min_s:
+        return None
+    return imu.dtheta[idx].sum(axis=0) / dt.sum()
 
 
 def _spp_start(imu, obs, eph, cfg: TightConfig):
@@ -134,17 +152,19 @@ def _spp_start(imu, obs, eph, cfg: TightConfig):
     return sp, g, t_imu, i0
 
 
-def _start_heading(imu, sp, i0: int, g, roll: float, pitch: float, cfg: TightConfig, events: list):
-    """The heading to start from: the configuration's, or from matching IMU and SPP velocity changes, or
+def _start_heading(imu, sp, i0: int, g, level, cfg: TightConfig, events: list):
+    """The heading to start from: the configuration's, or from matching IMU and SPP velocity changes
+    (``level``: roll, pitch [rad] and the mean gyro rate (3,) [rad/s] of the static levelling window), or
     else unknown (σ 180°) until a meaningful SPP course resets it. Returns (heading [rad], the course
     reset (t, heading) or None, the configuration with the initial heading σ that goes with it)."""
+    roll, pitch, wb = level
     ini = cfg.init
     heading = 0.0 if ini.heading_deg is None else ini.heading_deg * DEG
     heading_reset = None
     matched = None
     if ini.heading_deg is None:
         # the IMU's own heading from GNSS velocity changes: needs no mounting and no vehicle kind
-        matched = velocity_match_heading(imu, sp["time"][i0], roll, pitch, g.time, g.vel)
+        matched = velocity_match_heading(imu, sp["time"][i0], roll, pitch, g.time, g.vel, gyro_bias=wb)
         if matched is not None and matched[1] > MAX_MATCH_SIGMA:
             events.append(f"velocity-matched heading {np.degrees(matched[0]):.1f} deg not used: sigma "
                           f"{np.degrees(matched[1]):.1f} deg > {np.degrees(MAX_MATCH_SIGMA):.0f} deg")

@@ -70,9 +70,7 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
     f = imu.dv[win].sum(axis=0) / dtw.sum()
     roll = np.arctan2(-f[0], f[2])
     pitch = np.arctan2(f[1], np.hypot(f[0], f[2]))
-    lc = LooseConfig(imu=cfg.imu, constraints=cfg.constraints, init=cfg.init)
-    static = static_flags(imu, g, lc)
-    wb = _rest_gyro_bias(imu, win, static)
+    wb = _rest_gyro_bias(imu, win)
     heading, heading_reset, cfg = _start_heading(imu, sp, i0, g, (roll, pitch, wb), cfg, events)
     ini = cfg.init
     if cfg.gnss.range_errors:
@@ -81,6 +79,7 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
         ini = ini.model_copy(update={"position_sigma_m": (SPP_START_SIGMA_M,) * 3})
         cfg = cfg.model_copy(update={"init": ini})
     lc = LooseConfig(imu=cfg.imu, constraints=cfg.constraints, init=cfg.init)
+    static = static_flags(imu, g, lc) if cfg.constraints.zupt or cfg.imu.noise_from_static else None
     if cfg.imu.noise_from_static:  # engine vibration (vehicle presets): IMU noise from the static samples
         cfg = cfg.model_copy(update={"imu": noise_from_static(imu, static, lc, events).imu})
     if not cfg.constraints.zupt:
@@ -108,20 +107,30 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
     return res, sp
 
 
-def _rest_gyro_bias(imu, win, static, min_s: float = 1.0):
-    """The mean gyro rate [rad/s] (3,) over the first unbroken run of static samples (``static``, the ZUPT
-    detector's flags) in the levelling window ``win`` (bool per IMU sample) — the gyro bias (and the
-    Earth rate) when the IMU is at rest — or None when that run is shorter than ``min_s`` seconds (the
-    window's mean rate would then hold real rotation: a walker picking the phone up)."""
+def _rest_gyro_bias(imu, win, block_s: float = 1.0, quiet: float = 3.0):
+    """The mean gyro rate [rad/s] (3,) over the first unbroken run of quiet ``block_s`` blocks of the
+    levelling window ``win`` (bool per IMU sample) — the gyro bias (and the Earth rate) when the IMU is at
+    rest — or None when the window's first block is not quiet. A block is quiet when the spread of its
+    rates (the largest per-axis σ) is at most ``quiet`` times the quietest block's: at rest the spread is
+    the sensor's white noise (a 1-s σ of 100+ samples is good to ~7 %), so 3× is motion, not chance: a
+    walker lifting the phone, whose rate would otherwise be taken for bias (no threshold in deg/s needed)."""
     idx = np.flatnonzero(win)
-    if idx.size == 0:
+    if idx.size < 2:
         return None
-    moving = np.flatnonzero(~np.asarray(static, bool)[idx])
-    idx = idx[:moving[0]] if moving.size else idx
+    t = imu.time[idx]
+    blk = np.floor((t - t[0]) / block_s).astype(np.int64)
     dt = np.diff(np.concatenate([[imu.t0], imu.time]))[idx]
-    if dt.sum() < min_s:
+    w = imu.dtheta[idx] / dt[:, None]
+    nb = int(blk[-1]) + 1
+    spread = np.array([w[blk == k].std(axis=0).max() if (blk == k).sum() > 2 else np.inf for k in range(nb)])
+    if not np.isfinite(spread).any():
         return None
-    return imu.dtheta[idx].sum(axis=0) / dt.sum()
+    noisy = np.flatnonzero(spread > quiet * spread.min())
+    n_quiet = int(noisy[0]) if noisy.size else nb
+    if n_quiet == 0:
+        return None
+    sel = blk < n_quiet
+    return imu.dtheta[idx][sel].sum(axis=0) / dt[sel].sum()
 
 
 def _spp_start(imu, obs, eph, cfg: TightConfig):

@@ -103,3 +103,13 @@ def test_tight_cells_matched_configuration_covers_every_axis(name):
     cell = cm.run_cell(cm.condition(name), "matched", SEEDS)
     assert cell.epochs >= 10 * 250
     _check(cell, cm.SEED_COVERAGE_BOUND)
+
+
+@pytest.mark.parametrize("name,config", [("tight 0 satellites", "none"), ("tight 2 satellites", "car")])
+def test_tight_cells_no_option_and_car_preset(name, config):
+    """`aidnav tight`'s own start (SPP, levelling, heading by velocity matching with the gyro bias measured
+    at rest) and the unknown-grade IMU model: no option 100/100/100/96.5/94.6/100 % with 0 satellites,
+    the car preset 100/100/100/96.6/100/100 % with 2 (issue 40's session 9; before the rest-bias removal
+    the matched start heading was 30-90° off in 4 of 8 seeds at a stated 5-14° and roll/pitch coverage
+    was 55-72 %). Roll/pitch held to the 10-seed bound."""
+    _check(cm.run_cell(cm.condition(name), config, SEEDS), cm.SEED_COVERAGE_BOUND)

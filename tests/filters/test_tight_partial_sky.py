@@ -210,7 +210,8 @@ def test_no_configuration_is_the_unknown_grade_imu_model_under_every_preset():
     for name in ("pedestrian", "car", "aircraft", "ship"):
         assert apply_vehicle(TightConfig(), name).imu == unknown
     own = TightConfig(imu={"gyro_bias_sigma_deg_h": 10.0})
-    assert own.nins == 15 and apply_vehicle(own, "pedestrian").imu.noise_from_static is False
+    ped = apply_vehicle(own, "pedestrian").imu
+    assert own.nins == 15 and ped.gyro_bias_sigma_deg_h == 10.0 and not ped.scale_factors
     assert TightConfig(states=11).nins == 9
 
 

@@ -133,9 +133,10 @@ def _clock_start(P, nav, row, par, lay, grp, ra, va):
 
 @njit(cache=True)
 def _row(h, en, Ha, nn, ic):
-    """h = [e^nᵀ Ha (INS block of nn states), 1 at the clock state ic]."""
+    """h = [e^nᵀ Ha (INS block of nn states: the antenna's position and velocity depend on its first 15
+    at most; scale-factor and misalignment columns stay 0), 1 at the clock state ic]."""
     h[:] = 0.0
-    for c in range(nn):
+    for c in range(min(nn, Ha.shape[1])):
         h[c] = en[0] * Ha[0, c] + en[1] * Ha[1, c] + en[2] * Ha[2, c]
     h[ic] = 1.0
 
@@ -272,7 +273,7 @@ def clone_epoch(x, P, nav, lay, ra, Cen, Hp):
     A = np.zeros((4, n))
     CH = Cen.T @ Hp
     for r in range(3):
-        for c in range(nn):
+        for c in range(min(nn, CH.shape[1])):  # the antenna depends on the first 15 INS states at most
             A[r, c] = -CH[r, c]
         for i in range(3):
             A[r, DV + i] += Cen[i, r] * nav.dt_back

@@ -499,7 +499,8 @@ def _update_records(x, P, nv, C, rec, gi, tk, hd, upd, tm):
 
     At the node that closes an IMU gap: records more than ``GAP_REC_S`` older than it are not used (the
     INS cannot be moved back across the unknown motion); the rest, and the first record due after the node
-    (within ``GAP_REC_S``) when it is nearer to the node than any record used, are used now with R grown
+    (within ``GAP_REC_S``; not a pseudorange epoch) when it is nearer to the node than any record used, are
+    used now with R grown
     by the unmodelled motion over their distance from the node — so the gap's covariance bound gives way
     to the first fix after the gap whichever side of the first IMU sample the time-offset estimate puts it
     (issue 35)."""
@@ -520,7 +521,8 @@ def _update_records(x, P, nv, C, rec, gi, tk, hd, upd, tm):
         while j < rec.t.shape[0] and not rec.use[j]:
             j += 1
         nxt = _due_time(rec, j, bias, ic, itoff)
-        if not gap_k or lim > tk or not nxt - tk < near:
+        epoch = j < rec.t.shape[0] and rec.grp.t.shape[0] > 0 and rec.model[j] == M_PR  # (tight: not ahead)
+        if not gap_k or lim > tk or epoch or not nxt - tk < near:
             break
         lim = nxt  # the first fix after the gap, moved back to the node
     return gi, C

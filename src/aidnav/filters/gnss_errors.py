@@ -32,8 +32,10 @@ passes with the states picked 0–300 s for simulated errors of 10, 30 and 100 s
 35 session 9): too unreliable to ship. Nothing is decided here (the rate rule of
 :func:`~aidnav.filters.preprocess.correlated_gnss_errors` applies) for carrier-phase fixes (median
 horizontal σ below :data:`~aidnav.filters.preprocess.CARRIER_PHASE_SIGMA_M`), velocity-only use, or fewer
-than :data:`MIN_PAIRS` pairs of consecutive accepted fixes. The thresholds are statistics, not numbers
-fitted to any data set; the decision and the figures it rests on go into the run's events.
+than :data:`MIN_PAIRS` pairs of consecutive accepted fixes. :data:`Z_WHITE` is a statistic;
+:data:`RHO_MIN` was set between the values measured on the consistency matrix's simulated drives (white
+fixes ≤ 0.25, correlated 0.75–0.95: stated at its definition), not fitted to a score. The decision and
+the figures it rests on go into the run's events.
 """
 
 from __future__ import annotations

@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from aidnav.apps.process import process
 from aidnav.experiments import consistency_matrix as cm
 from aidnav.filters.config import LooseConfig
 from aidnav.filters.gnss_errors import choose_gnss_errors
@@ -51,3 +52,11 @@ def test_car_preset_covers_correlated_errors_at_1_hz():
     assert np.all(cell.coverage[:2] >= cm.COVERAGE_TARGET), cell.coverage[:3]
     assert cell.coverage[2] >= cm.SEED_COVERAGE_BOUND, cell.coverage[:3]
     assert np.all(cell.ratio[:3] >= cm.RATIO_TARGET), cell.ratio[:3]
+
+
+def test_process_summary_says_which_model_and_why():
+    """``aidnav process`` with no option on the 1-Hz correlated fixes: the summary's ``gnss_error_model``
+    names the choice and the autocorrelation it rests on."""
+    run = cm.simulate_condition(cm.condition("gnss 1 Hz correlated"), 0)
+    why = process(run.imu, run.gnss).summary["gnss_error_model"]
+    assert why is not None and why.startswith("GNSS error model: correlated") and "autocorrelation" in why

@@ -89,27 +89,72 @@ def drawn_png():
 
 
 # ------------------------------------------------------------------ the walk data set (raw GNSS)
+WALK_NAV = Path("rinex_converted") / "gnss_1730.nav"  #: the walk's RINEX navigation file, in its directory
+WALK_OBS = Path("rinex_converted") / "gnss_1730.obs"  #: the walk's RINEX observations, in its directory
+
+
 @pytest.fixture(scope="session")
-def load_walk(data_dir):
-    """A function ``() -> (imu, obs, nav, ref)`` that reads the walk data set fresh (the IMU log, the RINEX
-    observations and navigation, the RTK reference with its geoid separation of the data README, −21.4 m),
-    so that no test sees another's changes; skips when the data set is absent."""
+def walk_dir(data_dir) -> Path:
+    """The walk data set's directory (rtklibexplorer_walk_0827); skips when it is absent."""
     d = data_dir / "rtklibexplorer_walk_0827"
     if not d.is_dir():
         pytest.skip("walk data set not found")
+    return d
+
+
+def _read_walk_nav(d: Path):
+    import warnings
+
+    from aidnav.io.rinex import read_rinex_nav
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FutureWarning)
+        return read_rinex_nav(d / WALK_NAV)
+
+
+def _read_walk_gnss(d: Path):
+    import warnings
+
+    from aidnav.io.rinex import read_rinex_obs
+    from aidnav.io.rtklib import read_pos
+
+    nav = _read_walk_nav(d)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FutureWarning)
+        obs = read_rinex_obs(d / WALK_OBS)
+    return obs, nav, read_pos(d / "gnss_1730_sf.pos", height_offset_m=-21.4)
+
+
+@pytest.fixture(scope="session")
+def walk_nav_file(walk_dir) -> Path:
+    """The walk's RINEX navigation file."""
+    return walk_dir / WALK_NAV
+
+
+@pytest.fixture
+def walk_nav(walk_dir):
+    """The walk's RINEX navigation (GpsEphemerides), read fresh for the test."""
+    return _read_walk_nav(walk_dir)
+
+
+@pytest.fixture(scope="session")
+def load_walk_gnss(walk_dir):
+    """A function ``() -> (obs, nav, ref)`` that reads the walk's RINEX observations and navigation and the
+    RTK reference (with its geoid separation of the data README, −21.4 m) fresh; skips when the data set is
+    absent."""
+    return lambda: _read_walk_gnss(walk_dir)
+
+
+@pytest.fixture(scope="session")
+def load_walk(walk_dir):
+    """A function ``() -> (imu, obs, nav, ref)`` that reads the walk data set fresh (the IMU log, the RINEX
+    observations and navigation, the RTK reference with its geoid separation of the data README, −21.4 m),
+    so that no test sees another's changes; skips when the data set is absent."""
 
     def load():
-        import warnings
-
         from aidnav.apps.process import read_imu_any
-        from aidnav.io.rinex import read_rinex_nav, read_rinex_obs
-        from aidnav.io.rtklib import read_pos
 
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", FutureWarning)
-            nav = read_rinex_nav(d / "rinex_converted" / "gnss_1730.nav")
-            obs = read_rinex_obs(d / "rinex_converted" / "gnss_1730.obs")
-        ref = read_pos(d / "gnss_1730_sf.pos", height_offset_m=-21.4)
-        return read_imu_any(d / "imu_1730.csv"), obs, nav, ref
+        obs, nav, ref = _read_walk_gnss(walk_dir)
+        return read_imu_any(walk_dir / "imu_1730.csv"), obs, nav, ref
 
     return load

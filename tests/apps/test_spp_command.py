@@ -4,7 +4,6 @@ the GNSS readers take, a summary saying what the ionosphere correction was, and 
 from __future__ import annotations
 
 import numpy as np
-import pytest
 from typer.testing import CliRunner
 
 from aidnav.cli import app
@@ -12,12 +11,10 @@ from aidnav.io import formats
 from aidnav.nav.earth import lla_difference_enu
 
 
-def test_spp_command_on_the_walk(tmp_path, data_dir):
-    d = data_dir / "rtklibexplorer_walk_0827"
-    if not (d / "rinex_converted").is_dir():
-        pytest.skip(f"{d} not found")
+def test_spp_command_on_the_walk(tmp_path, walk_dir, walk_nav_file):
+    d = walk_dir
     r = CliRunner().invoke(app, ["spp", "--obs", str(d / "rinex_converted" / "gnss_1730.obs"), "--nav",
-                                 str(d / "rinex_converted" / "gnss_1730.nav"), "-o", str(tmp_path / "s")])
+                                 str(walk_nav_file), "-o", str(tmp_path / "s")])
     assert r.exit_code == 0, r.output
     assert "ionosphere:" in r.output
     g = formats.read_gnss(tmp_path / "s" / "solution.parquet")

@@ -4,8 +4,6 @@ the walk (an injected slip is caught; TDCP velocity against the RTK solution).""
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 import pytest
 from scipy.stats import chi2
@@ -77,19 +75,11 @@ def test_cycle_slips_from_the_indicator_and_the_doppler():
 
 
 @pytest.fixture(scope="module")
-def walk(data_dir):
-    d = data_dir / "rtklibexplorer_walk_0827"
-    if not d.is_dir():
-        pytest.skip("walk data set not found")
+def walk(load_walk_gnss):
     from aidnav.estimators.dgps import spp_series
-    from aidnav.io.rinex import read_rinex_nav, read_rinex_obs
-    from aidnav.io.rtklib import read_pos
 
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", FutureWarning)
-        obs = read_rinex_obs(d / "rinex_converted" / "gnss_1730.obs")
-        nav = read_rinex_nav(d / "rinex_converted" / "gnss_1730.nav")
-    return obs, nav, spp_series(obs, nav), read_pos(d / "gnss_1730_sf.pos", height_offset_m=-21.4)
+    obs, nav, ref = load_walk_gnss()
+    return obs, nav, spp_series(obs, nav), ref
 
 
 def test_walk_injected_slip_is_caught_and_changes_nothing_else(walk):

@@ -7,7 +7,6 @@ from __future__ import annotations
 import copy
 
 import numpy as np
-import pytest
 from scipy.stats import binomtest
 
 from aidnav.data import ImuData
@@ -206,20 +205,11 @@ def _is_gps_200_position(v, t):
     )
 
 
-def test_broadcast_orbits_agree_with_an_independent_is_gps_200_implementation(data_dir):
+def test_broadcast_orbits_agree_with_an_independent_is_gps_200_implementation(walk_nav_file, walk_nav):
     """Walk data set's RINEX nav (read by aidnav through georinex) vs a plain-text parse + textbook
     IS-GPS-200 algorithm, over ±2 h around toe every 10 min: agreement < 1 m (measured: 3e-8 m)."""
-    import warnings
-
-    from aidnav.io.rinex import read_rinex_nav
-
-    f = data_dir / "rtklibexplorer_walk_0827" / "rinex_converted" / "gnss_1730.nav"
-    if not f.exists():
-        pytest.skip("walk data set not found")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        nav = read_rinex_nav(f)
-    recs = _parse_rinex3_gps_nav(f.read_text())
+    nav = walk_nav
+    recs = _parse_rinex3_gps_nav(walk_nav_file.read_text())
     assert len(recs) == int((nav.table[:, E_PRN] < 100).sum()) >= 4  # the GPS records (also 8 BeiDou)
     worst = 0.0
     for prn, _, vals in recs:

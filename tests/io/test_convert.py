@@ -76,10 +76,8 @@ def test_pos_with_datum_offset_applied_once(tmp_path):
     assert meta["gps_week"] == 2374 and any("datum offset -21.400 m" in n for n in meta["notes"])
 
 
-def test_raw_rtklibexplorer_log(data_dir, tmp_path):
-    d = data_dir / "rtklibexplorer_walk_0827"
-    if not d.is_dir():
-        pytest.skip("walk data set not found")
+def test_raw_rtklibexplorer_log(walk_dir, tmp_path):
+    d = walk_dir
     s = convert(d / "imu_1730.csv", tmp_path / "imu.parquet")
     assert s["format"] == "rtklibexplorer" and s["week"] == 2381
     _same_imu(formats.read_imu(d / "imu_1730.csv"), formats.read_imu(s["output"]))

@@ -70,13 +70,11 @@ def test_itow_utc_disagreement_and_no_pvt(tmp_path):
     assert g.week is None and g.time[0] == 408639.75
 
 
-def test_real_walk_log_against_its_rtklib_solution(data_dir):
+def test_real_walk_log_against_its_rtklib_solution(walk_dir):
     """The walk data set's .pos holds the receiver's NAV-PVT fixes with hMSL heights (its README): the
     reader must give the same positions, velocities and quality, and ellipsoidal heights = the .pos
     heights + the geoid undulation of the site (hMSL − height = 21.387 m in the first fix)."""
-    d = data_dir / "rtklibexplorer_walk_0827"
-    if not d.is_dir():
-        pytest.skip("walk data set not found")
+    d = walk_dir
     g = formats.read_gnss(d / "gnss_1730.ubx")
     p = formats.read_gnss(d / "gnss_1730_sf.pos", height_offset_m=-21.387)
     assert len(g) == len(p) == 536 and g.week == p.week == 2381

@@ -5,7 +5,6 @@ geostationary record, Galileo/BeiDou MEO records against Kepler's third law."""
 from __future__ import annotations
 
 import numpy as np
-import pytest
 from scipy.integrate import solve_ivp
 
 from aidnav.nav.gnss_sat import (
@@ -153,21 +152,12 @@ def _bds_textbook(v, t_bdt):
     return np.array([x * co - y * ci * so, x * so + y * ci * co, y * np.sin(inc)])
 
 
-def test_walk_beidou_records_against_the_icd_in_bdt(data_dir):
+def test_walk_beidou_records_against_the_icd_in_bdt(walk_nav_file, walk_nav):
     """The walk's navigation file holds 8 BeiDou-3 MEO records (the data set has no BeiDou observations):
     read through georinex onto the GPS scale (BDT + 14 s, week + 1356), they give the positions of the ICD's
     algorithm evaluated in BDT from a plain-text parse, to < 1 mm over ±2 h (a 14-s error would be ~50 km)."""
-    import warnings
-
-    from aidnav.io.rinex import read_rinex_nav
-
-    f = data_dir / "rtklibexplorer_walk_0827" / "rinex_converted" / "gnss_1730.nav"
-    if not f.exists():
-        pytest.skip("walk data set not found")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        nav = read_rinex_nav(f)
-    recs = _parse_rinex3_beidou(f.read_text())
+    nav = walk_nav
+    recs = _parse_rinex3_beidou(walk_nav_file.read_text())
     assert len(recs) == 8
     worst = 0.0
     for name, v in recs:

@@ -19,9 +19,8 @@ import pickle
 import signal
 import sys
 import threading
-import traceback
 
-from .forked import fork_worker, worker_answer
+from .forked import error_answer, fork_worker, worker_answer
 
 __all__ = ["characterise_file", "print_characterisation", "FigureProcess"]
 
@@ -118,11 +117,7 @@ def _draw_in_child(job_fd: int):
             return "ok", fig.save(path), "panels"
         return "ok", plot_allan(ch, path, title), "whole"
     except BaseException as e:  # noqa: BLE001  (raised in the parent)
-        try:
-            exc = pickle.dumps(e)
-        except Exception:  # noqa: BLE001  (an exception that does not pickle: its text only)
-            exc = None
-        return "error", exc, traceback.format_exc()
+        return error_answer(e)
 
 
 class FigureProcess:

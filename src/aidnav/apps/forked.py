@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import os
 import pickle
+import traceback
 
 
 def fork_worker(work):
@@ -31,6 +32,17 @@ def fork_worker(work):
     os.close(job_r)
     os.close(res_w)
     return pid, os.fdopen(job_w, "wb"), res_r
+
+
+def error_answer(e: BaseException) -> tuple:
+    """The answer of a child whose work raised ``e`` (in its ``except`` clause): ``("error", the pickled
+    exception, the traceback text)``, the exception None when it does not pickle (its text only);
+    :func:`worker_answer` raises it in the parent."""
+    try:
+        exc = pickle.dumps(e)
+    except Exception:  # noqa: BLE001  (an exception that does not pickle: its text only)
+        exc = None
+    return "error", exc, traceback.format_exc()
 
 
 def worker_answer(pid: int, res_r: int, missing: str) -> tuple:

@@ -21,10 +21,9 @@ import pickle
 import signal
 import sys
 import threading
-import traceback
 import weakref
 
-from .forked import fork_worker, worker_answer
+from .forked import error_answer, fork_worker, worker_answer
 
 __all__ = ["OutputsProcess", "start_outputs", "write_outputs", "FORK_OUTPUTS", "IN_PROCESS"]
 
@@ -69,11 +68,7 @@ def _serve(job_fd: int):
         out_dir, traj, gnss, summary, records = job
         return "ok", write_run_outputs(out_dir, traj, gnss, summary, records, maps=False)
     except BaseException as e:  # noqa: BLE001  (raised in the parent)
-        try:
-            exc = pickle.dumps(e)
-        except Exception:  # noqa: BLE001  (an exception that does not pickle: its text only)
-            exc = None
-        return "error", exc, traceback.format_exc()
+        return error_answer(e)
 
 
 def _end(pid: int, fds: list) -> None:

@@ -231,25 +231,11 @@ def _load(out: Path):
     return manifest, runs, epochs, cons, traj, summary, rt.column_names
 
 
-def write_report(out_dir, path=None, figures: bool = True) -> Path:
-    """Write the campaign report of ``out_dir`` (see the module docstring) and return its path
-    (default ``out_dir/report.html``). Also writes ``out_dir/statistics.json``.
-
-    Raises :class:`ReportError` when ``out_dir`` does not hold a complete campaign.
-    """
-    out = Path(out_dir)
-    manifest, runs, epochs, cons, traj, summary, run_cols = _load(out)
-    path = Path(path) if path is not None else out / "report.html"
-    doc = manifest["experiment"]["document"]
+def _meta_table(manifest: dict) -> str:
+    """The campaign's identity and timings (experiment, versions, runs, seeds, backend, host)."""
     points = manifest["points"]
     ests = [e["name"] for e in manifest["estimators"]]
     n_runs = int(manifest["runs"])
-    prob = float(doc.get("statistics", {}).get("consistency", {}).get("prob", 0.95))
-    parts: list[str] = []
-    title = f"aidnav campaign: {manifest['experiment']['name']}"
-    parts.append(f"<h1>{html.escape(title)}</h1>")
-    if manifest["experiment"].get("description"):
-        parts.append(f"<p>{html.escape(manifest['experiment']['description'])}</p>")
     tm = manifest.get("timings", {})
     host = manifest.get("host", {})
     be = manifest.get("backend", {})
@@ -267,17 +253,21 @@ def write_report(out_dir, path=None, figures: bool = True) -> Path:
             ["wall time", f"{_fmt(tm.get('wall_s'))} s (compute {_fmt(tm.get('compute_wall_s'))} s, "
                           f"merge {_fmt(tm.get('merge_s'))} s)"],
             ["created", manifest.get("created", "?")]]
-    parts.append(kv_table(meta))
+    return kv_table(meta)
 
-    # sweep points
-    parts.append("<h2>Sweep points</h2>")
-    parts.append(_table(["point", "sweep values", "duration [s]", "segments", "run files"],
-                        [[p["index"], p["label"], _fmt(p["duration_s"]),
-                          ", ".join(f"{s['name']} {s['start_s']:g}–{s['end_s']:g} s" for s in p["segments"]),
-                          p.get("run_dir", "")] for p in points]))
 
-    # consistency
-    parts.append("<h2>Filter consistency (NEES)</h2>")
+def _points_section(points: list[dict]) -> list[str]:
+    """The sweep points: values, duration, segments and run files."""
+    return ["<h2>Sweep points</h2>",
+            _table(["point", "sweep values", "duration [s]", "segments", "run files"],
+                   [[p["index"], p["label"], _fmt(p["duration_s"]),
+                     ", ".join(f"{s['name']} {s['start_s']:g}–{s['end_s']:g} s" for s in p["segments"]),
+                     p.get("run_dir", "")] for p in points])]
+
+
+def _consistency_section(cons: list[dict], prob: float) -> list[str]:
+    """The NEES verdict of every point, estimator and state block."""
+    parts = ["<h2>Filter consistency (NEES)</h2>"]
     parts.append('<p class="note">Mean NEES per state block over all runs and epochs, against the χ² band of '
                  'the run-average (R·ε̄ ~ χ²(R·dof)); verdict of <code>analysis.consistency.consistency_report'
                  '</code> on epochs spaced by the given interval (filter errors are correlated in time). '
@@ -294,8 +284,15 @@ def write_report(out_dir, path=None, figures: bool = True) -> Path:
     parts.append(_table(["point", "estimator", "block", "dof", "mean NEES", f"{100 * prob:g}% band (R runs)",
                          "fraction inside", "min. expected", "fraction inside (all epochs)", "spacing [s]",
                          "verdict"], crow))
+    return parts
 
-    # statistics side by side
+
+def _statistics_section(runs: dict, run_cols: list[str], manifest: dict) -> tuple[list[str], list[dict]]:
+    """The per-run statistics side by side (mean ± std over the runs), and the same as JSON records."""
+    doc = manifest["experiment"]["document"]
+    points = manifest["points"]
+    ests = [e["name"] for e in manifest["estimators"]]
+    parts: list[str] = []
     skip = ("point", "label", "estimator", "run", *doc.get("sweep", {}))
     stat_cols = [c for c in run_cols if c not in skip]
     stats_json = []
@@ -316,9 +313,12 @@ def write_report(out_dir, path=None, figures: bool = True) -> Path:
                  '<code>converge_*_s</code>: convergence time [s since start]; <code>nees_*_mean</code>: '
                  'time-averaged NEES. Per-run values: <code>runs.parquet</code>.</p>')
     parts.append(_table(header, srows))
+    return parts, stats_json
 
-    # paper comparison
-    prow = paper_rows(manifest, runs)
+
+def _paper_section(prow: list[dict]) -> list[str]:
+    """The paper's values beside ours (:func:`paper_rows`), when the experiment gives any."""
+    parts: list[str] = []
     if prow:
         parts.append("<h2>Paper values beside ours</h2>")
         rows = []
@@ -329,6 +329,12 @@ def write_report(out_dir, path=None, figures: bool = True) -> Path:
                          f"{_fmt(r['ours'])} ± {_fmt(r['ours_std'])}", r["target"] or "–", holds])
         parts.append(_table(["quantity", "point", "estimator", "unit", "paper", "ours (mean ± std)", "target",
                              "holds"], rows))
+    return parts
+
+
+def _summary_section(summary: dict | None) -> list[str]:
+    """The tables and notes of a seed reproduction stored with the campaign, if any."""
+    parts: list[str] = []
     if summary:
         parts.append(f"<h2>Reproduction of seed {html.escape(str(summary.get('seed')))}: "
                      f"{html.escape(str(summary.get('title', '')))}</h2>")
@@ -343,38 +349,71 @@ def write_report(out_dir, path=None, figures: bool = True) -> Path:
             parts.append(_table(["quantity", "unit", "paper", "ours", "target", "holds"], rows))
         for n in summary.get("notes", []):
             parts.append(f'<p class="note">{html.escape(n)}</p>')
+    return parts
 
-    # figures
+
+def _figure_section(traj, points: list[dict], ests: list[str], epochs: dict, cons: list[dict],
+                    prob: float) -> list[str]:
+    """The trajectory map, and per point and estimator the error and NEES figures."""
+    parts = ["<h2>Figures</h2>"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        img = _map_figure(traj, points)
+        if img:
+            parts.append(img_tag(img, "trajectory map"))
+        stems = _state_cols(list(epochs))
+        dof_of = {}
+        for c in cons:
+            dof_of[(c["point"], c["estimator"], c["block"])] = c["dof"]
+        for p in points:
+            for e in ests:
+                m = (epochs["point"] == p["index"]) & (epochs["estimator"] == e)
+                if not m.any():
+                    continue
+                t = epochs["time_s"][m]
+                ep = {k: v[m] for k, v in epochs.items() if k not in ("point", "estimator")}
+                have = [s for s in stems if np.any(np.isfinite(ep[f"{s}_mean"]))]
+                r_here = int(ep["runs"][0])
+                parts.append(f"<h3>{html.escape(p['label'])} — {html.escape(e)}</h3>")
+                if have:
+                    img = _error_figure(t, ep, have, f"{p['label']} — {e}: error (estimate − truth), "
+                                                     f"{r_here} runs")
+                    parts.append(img_tag(img, f"errors {e}"))
+                blocks = [k[5:] for k in ep if k.startswith("nees_") and np.any(np.isfinite(ep[k]))]
+                dof = {b: dof_of.get((p["index"], e, b), len(_blocks(have).get(b, [1]))) for b in blocks}
+                if blocks:
+                    img = _nees_figure(t, ep, blocks, dof, r_here, prob, f"{p['label']} — {e}: NEES")
+                    parts.append(img_tag(img, f"NEES {e}"))
+    return parts
+
+
+def write_report(out_dir, path=None, figures: bool = True) -> Path:
+    """Write the campaign report of ``out_dir`` (see the module docstring) and return its path
+    (default ``out_dir/report.html``). Also writes ``out_dir/statistics.json``.
+
+    Raises :class:`ReportError` when ``out_dir`` does not hold a complete campaign.
+    """
+    out = Path(out_dir)
+    manifest, runs, epochs, cons, traj, summary, run_cols = _load(out)
+    path = Path(path) if path is not None else out / "report.html"
+    doc = manifest["experiment"]["document"]
+    points = manifest["points"]
+    ests = [e["name"] for e in manifest["estimators"]]
+    prob = float(doc.get("statistics", {}).get("consistency", {}).get("prob", 0.95))
+    title = f"aidnav campaign: {manifest['experiment']['name']}"
+    parts: list[str] = [f"<h1>{html.escape(title)}</h1>"]
+    if manifest["experiment"].get("description"):
+        parts.append(f"<p>{html.escape(manifest['experiment']['description'])}</p>")
+    parts.append(_meta_table(manifest))
+    parts += _points_section(points)
+    parts += _consistency_section(cons, prob)
+    stat_parts, stats_json = _statistics_section(runs, run_cols, manifest)
+    parts += stat_parts
+    prow = paper_rows(manifest, runs)
+    parts += _paper_section(prow)
+    parts += _summary_section(summary)
     if figures:
-        parts.append("<h2>Figures</h2>")
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            img = _map_figure(traj, points)
-            if img:
-                parts.append(img_tag(img, "trajectory map"))
-            stems = _state_cols(list(epochs))
-            dof_of = {}
-            for c in cons:
-                dof_of[(c["point"], c["estimator"], c["block"])] = c["dof"]
-            for p in points:
-                for e in ests:
-                    m = (epochs["point"] == p["index"]) & (epochs["estimator"] == e)
-                    if not m.any():
-                        continue
-                    t = epochs["time_s"][m]
-                    ep = {k: v[m] for k, v in epochs.items() if k not in ("point", "estimator")}
-                    have = [s for s in stems if np.any(np.isfinite(ep[f"{s}_mean"]))]
-                    r_here = int(ep["runs"][0])
-                    parts.append(f"<h3>{html.escape(p['label'])} — {html.escape(e)}</h3>")
-                    if have:
-                        img = _error_figure(t, ep, have, f"{p['label']} — {e}: error (estimate − truth), "
-                                                         f"{r_here} runs")
-                        parts.append(img_tag(img, f"errors {e}"))
-                    blocks = [k[5:] for k in ep if k.startswith("nees_") and np.any(np.isfinite(ep[k]))]
-                    dof = {b: dof_of.get((p["index"], e, b), len(_blocks(have).get(b, [1]))) for b in blocks}
-                    if blocks:
-                        img = _nees_figure(t, ep, blocks, dof, r_here, prob, f"{p['label']} — {e}: NEES")
-                        parts.append(img_tag(img, f"NEES {e}"))
+        parts += _figure_section(traj, points, ests, epochs, cons, prob)
     parts.append('<p class="note">Errors are estimate − truth: position ENU [m], velocity ENU [m/s], '
                  'attitude as the misalignment φ (E, N, U) [deg] with C(est) = (I − [φ×]) C(true). '
                  'Generated by <code>aidnav report</code>.</p>')

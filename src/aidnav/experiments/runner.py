@@ -403,16 +403,6 @@ def run_experiment(experiment, out_dir, *, workers: int = 1, scheduler: str | No
     """
     from rich.console import Console  # lazy: rich is heavy to import
 
-    # lazy: rich is heavy to import
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeElapsedColumn,
-        TimeRemainingColumn,
-    )
-
     from . import store  # lazy: pyarrow; the workers do not write the tables
 
     t_start = time.perf_counter()
@@ -426,6 +416,48 @@ def run_experiment(experiment, out_dir, *, workers: int = 1, scheduler: str | No
         raise ValueError("workers must be >= 1")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    todo, n_total, n_reused = _pending(plan, out, max_runs, console)
+
+    for v in _THREAD_VARS:  # single-threaded BLAS in the workers (inherited by spawned processes)
+        os.environ.setdefault(v, "1")
+    info = {"kind": backend, "workers": workers if backend != "serial" else 1}
+    t_comp = time.perf_counter()
+    tally = _compute(plan, out, todo, n_total, n_reused, backend, workers, scheduler, info, batch, console,
+                     progress)
+    t_compute = time.perf_counter() - t_comp
+
+    computed = tally.computed
+    complete = n_reused + computed == n_total
+    timings = {"compute_wall_s": t_compute, "computed_runs": computed, "reused_runs": n_reused,
+               "per_run_sums": tally.agg,
+               "runs_per_s": computed / t_compute if computed and t_compute > 0 else None,
+               "imu_samples_per_s": (tally.agg["imu_samples"] / t_compute if computed and t_compute > 0
+                                     else None)}
+    result = CampaignResult(out, complete, computed, n_reused, n_total, 0.0, timings=timings)
+    if not complete:
+        result.wall_s = time.perf_counter() - t_start
+        console.print(f"stopped after {computed} new runs: {n_reused + computed} of {n_total} on disk; "
+                      "rerun to complete")
+        return result
+
+    t_m = time.perf_counter()
+    merged = store.merge_campaign(plan, out)
+    merged["paths"].append(store.write_trajectories(out, plan, point_truth))
+    timings["merge_s"] = time.perf_counter() - t_m
+    result.wall_s = time.perf_counter() - t_start
+    timings["wall_s"] = result.wall_s
+    manifest = _manifest(plan, out, merged["paths"], timings, info)
+    merged["paths"].append(store.write_json(out / "manifest.json", manifest))
+    result.paths = merged["paths"]
+    result.consistency = merged["consistency"]
+    return result
+
+
+def _pending(plan: ExperimentPlan, out: Path, max_runs: int | None,
+             console) -> tuple[list[RunTask], int, int]:
+    """The runs of the campaign still to compute (at most ``max_runs``), the number of runs in all and the
+    number already on disk; removes a manifest that no longer describes the campaign."""
+    from . import store  # lazy: pyarrow; the workers do not write the tables
 
     tasks = [RunTask(p.key, p.index, k, p.doc) for p in plan.points for k in range(plan.runs)]
     done = store.existing_runs(out, plan)
@@ -437,13 +469,50 @@ def run_experiment(experiment, out_dir, *, workers: int = 1, scheduler: str | No
     n_total, n_reused = len(tasks), len(tasks) - len([t for t in tasks if (t.key, t.run) not in done])
     if n_reused:
         console.print(f"{out}: {n_reused} of {n_total} runs already on disk, {n_total - n_reused} to compute")
+    return todo, n_total, n_reused
 
-    for v in _THREAD_VARS:  # single-threaded BLAS in the workers (inherited by spawned processes)
-        os.environ.setdefault(v, "1")
-    agg = {"setup_s": 0.0, "sim_s": 0.0, "errors_s": 0.0, "estimators_s": {}, "worker_total_s": 0.0,
-           "worker_cpu_s": 0.0, "imu_samples": 0}
-    info = {"kind": backend, "workers": workers if backend != "serial" else 1}
-    computed = 0
+
+class _Tally:
+    """Saves each finished run to the campaign directory and sums its timings (the manifest's
+    ``per_run_sums``); ``computed`` counts the runs."""
+
+    def __init__(self, out: Path, advance=None):
+        from . import store  # lazy: pyarrow; the workers do not write the tables
+
+        self.store, self.out, self.advance, self.computed = store, out, advance, 0
+        self.agg = {"setup_s": 0.0, "sim_s": 0.0, "errors_s": 0.0, "estimators_s": {}, "worker_total_s": 0.0,
+                    "worker_cpu_s": 0.0, "imu_samples": 0}
+
+    def __call__(self, res: dict) -> None:
+        agg = self.agg
+        self.store.save_run(self.out, res)
+        self.computed += 1
+        tm = res["timing"]
+        for k in ("setup_s", "sim_s", "errors_s"):
+            agg[k] += tm[k]
+        agg["worker_total_s"] += tm["total_s"]
+        agg["worker_cpu_s"] += tm.get("cpu_s", 0.0)
+        for k, v in tm["estimators_s"].items():
+            agg["estimators_s"][k] = agg["estimators_s"].get(k, 0.0) + v
+        agg["imu_samples"] += res["imu_samples"]
+        if self.advance is not None:
+            self.advance()
+
+
+def _compute(plan: ExperimentPlan, out: Path, todo: list[RunTask], n_total: int, n_reused: int, backend: str,
+             workers: int, scheduler: str | None, info: dict, batch: int | None, console,
+             progress: bool) -> _Tally:
+    """Compute the runs ``todo`` in batches on ``backend`` with a progress bar; returns the tally of the runs
+    saved. Raises :class:`CampaignInterrupted` on Ctrl-C (the finished runs are on disk)."""
+    # lazy: rich is heavy to import
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
 
     par = backend != "serial"
     size = batch or max(1, min(BATCH_RUNS, -(-len(todo) // (2 * workers)) if par else BATCH_RUNS))
@@ -457,7 +526,6 @@ def run_experiment(experiment, out_dir, *, workers: int = 1, scheduler: str | No
         first = make_batches(todo[:min(2, size)], size)[0]
         todo = todo[len(first.runs):]
     todo = make_batches(todo, size, workers if par else None)
-    t_comp = time.perf_counter()
     if backend == "processes":
         try:
             pool = _Pool(workers, first)
@@ -469,21 +537,7 @@ def run_experiment(experiment, out_dir, *, workers: int = 1, scheduler: str | No
             TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn()]
     with Progress(*cols, console=console, disable=not progress or not todo, transient=False) as bar:
         task_id = bar.add_task(f"{plan.experiment.name}: runs", total=n_total, completed=n_reused)
-
-        def on_result(res):
-            nonlocal computed
-            store.save_run(out, res)
-            computed += 1
-            tm = res["timing"]
-            for k in ("setup_s", "sim_s", "errors_s"):
-                agg[k] += tm[k]
-            agg["worker_total_s"] += tm["total_s"]
-            agg["worker_cpu_s"] += tm.get("cpu_s", 0.0)
-            for k, v in tm["estimators_s"].items():
-                agg["estimators_s"][k] = agg["estimators_s"].get(k, 0.0) + v
-            agg["imu_samples"] += res["imu_samples"]
-            bar.advance(task_id)
-
+        on_result = _Tally(out, lambda: bar.advance(task_id))
         ok = False
         try:
             for r in pool.early if pool is not None else []:
@@ -501,32 +555,20 @@ def run_experiment(experiment, out_dir, *, workers: int = 1, scheduler: str | No
                 _dask(todo, on_result, workers, scheduler, info)
             ok = True
         except KeyboardInterrupt:
-            raise CampaignInterrupted(f"interrupted: {n_reused + computed} of {n_total} runs are in "
-                                      f"{out / 'runs'}; run the same command again to resume") from None
+            raise CampaignInterrupted(f"interrupted: {n_reused + on_result.computed} of {n_total} runs are "
+                                      f"in {out / 'runs'}; run the same command again to resume") from None
         finally:
             if pool is not None:
                 pool.close(wait=ok)
-    t_compute = time.perf_counter() - t_comp
+    return on_result
 
-    complete = n_reused + computed == n_total
-    timings = {"compute_wall_s": t_compute, "computed_runs": computed, "reused_runs": n_reused,
-               "per_run_sums": agg,
-               "runs_per_s": computed / t_compute if computed and t_compute > 0 else None,
-               "imu_samples_per_s": agg["imu_samples"] / t_compute if computed and t_compute > 0 else None}
-    result = CampaignResult(out, complete, computed, n_reused, n_total, 0.0, timings=timings)
-    if not complete:
-        result.wall_s = time.perf_counter() - t_start
-        console.print(f"stopped after {computed} new runs: {n_reused + computed} of {n_total} on disk; "
-                      "rerun to complete")
-        return result
 
-    t_m = time.perf_counter()
-    merged = store.merge_campaign(plan, out)
-    merged["paths"].append(store.write_trajectories(out, plan, point_truth))
-    timings["merge_s"] = time.perf_counter() - t_m
-    result.wall_s = time.perf_counter() - t_start
-    timings["wall_s"] = result.wall_s
-    manifest = {
+def _manifest(plan: ExperimentPlan, out: Path, paths: list[Path], timings: dict, info: dict) -> dict:
+    """The campaign's manifest.json: the experiment, versions, seeds, points, estimators, timings, backend,
+    host and the files written (``paths`` and the manifest itself)."""
+    from . import store  # lazy: pyarrow; the workers do not write the tables
+
+    return {
         "experiment": {"name": plan.experiment.name, "description": plan.experiment.description,
                        "source": plan.source, "text": plan.text, "document": plan.doc},
         "versions": _versions(),
@@ -545,12 +587,8 @@ def run_experiment(experiment, out_dir, *, workers: int = 1, scheduler: str | No
         "backend": info,
         "host": _host(),
         "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
-        "files": [p.name for p in merged["paths"]] + ["manifest.json"],
+        "files": [p.name for p in paths] + ["manifest.json"],
     }
-    merged["paths"].append(store.write_json(out / "manifest.json", manifest))
-    result.paths = merged["paths"]
-    result.consistency = merged["consistency"]
-    return result
 
 
 def format_result(res: CampaignResult) -> str:

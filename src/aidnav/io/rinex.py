@@ -68,14 +68,21 @@ from aidnav.nav.gnss_types import GnssObservations, GpsEphemerides
 __all__ = ["GpsEphemerides", "GnssObservations", "read_rinex_nav", "read_rinex_obs", "read_rinex_pair"]
 
 
-def _load(path: Path, **kw):
-    import georinex as gr  # lazy: georinex is heavy to import
+def _load(path, systems: str):
+    """The RINEX file ``path`` read by georinex for the ``systems`` (letters) aidnav knows: (path as a Path,
+    the set of those letters, the xarray Dataset). Raises DataError when the file is missing or georinex
+    cannot read it."""
+    path = Path(path)
+    if not path.exists():
+        raise DataError(path, None, "file not found")
+    use = {s for s in systems if s in SYSTEMS}
+    import georinex as gr  # lazy: georinex is heavy to import (after the cheap checks)
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FutureWarning)
         warnings.simplefilter("ignore", DeprecationWarning)
         try:
-            return gr.load(path, **kw)
+            return path, use, gr.load(path, use=use)
         except Exception as e:  # georinex raises a variety of errors for bad files
             raise DataError(path, None, f"georinex cannot read this RINEX file: {e}") from e
 
@@ -167,11 +174,7 @@ def read_rinex_nav(path, ref_week: int | None = None, systems: str = "GECR") -> 
     satellites are ids 100·system + PRN (GPS: the PRN). Records with a NaN field are dropped and reported
     in ``events``. Returns :class:`GpsEphemerides`.
     """
-    path = Path(path)
-    if not path.exists():
-        raise DataError(path, None, "file not found")
-    use = {s for s in systems if s in SYSTEMS}
-    nav = _load(path, use=use)
+    path, use, nav = _load(path, systems)
     events: list[str] = []
     if "sv" not in nav.dims or nav.sizes.get("sv", 0) == 0:
         raise DataError(path, None, f"no {'/'.join(sorted(use))} ephemeris in this navigation file")
@@ -310,11 +313,7 @@ def read_rinex_obs(path, ref_week: int | None = None, systems: str = "G") -> Gns
     named in ``events``). Epochs with a non-zero event flag other than 1 (power failure) are skipped by
     georinex and here. GLONASS frequencies: :meth:`GnssObservations.with_frequencies` with the ephemerides.
     """
-    path = Path(path)
-    if not path.exists():
-        raise DataError(path, None, "file not found")
-    use = {c for c in systems if c in SYSTEMS}
-    obs = _load(path, use=use)
+    path, use, obs = _load(path, systems)
     events: list[str] = []
     if obs.sizes.get("sv", 0) == 0:
         raise DataError(path, None, f"no {'/'.join(sorted(use))} observations in this file")

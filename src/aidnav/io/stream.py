@@ -166,6 +166,18 @@ def iter_imu(path, chunk_rows: int = 1 << 16, reader=None):
             t_prev, row = float(t[-1]), row + len(t)
 
 
+def _discard(part: Path, *files) -> None:
+    """Abandon a file being written: close ``files`` (a writer, then its file; None where not opened yet),
+    ignoring their errors, and remove the partial file ``part``."""
+    for x in files:
+        if x is not None:
+            try:
+                x.close()
+            except Exception:  # noqa: BLE001  (the file is abandoned: its error does not matter)
+                pass
+    part.unlink(missing_ok=True)
+
+
 class TrajectoryWriter:
     """A trajectory file (``.parquet``/``.pq`` or ``.csv``) written piece by piece: ``write(traj)`` each
     piece in time order, then ``close()``; columns as :func:`aidnav.io.interchange.write_trajectory`.
@@ -241,14 +253,7 @@ class TrajectoryWriter:
 
     def abort(self) -> None:
         self.held = []
-        for x in (self.w, self.f):
-            if x is not None:
-                try:
-                    x.close()
-                except Exception:  # noqa: BLE001
-                    pass
-        if self.part.exists():
-            self.part.unlink()
+        _discard(self.part, self.w, self.f)
 
 
 class Background:
@@ -581,13 +586,7 @@ class CsvColumnsWriter:
         return self.path
 
     def abort(self) -> None:
-        for x in (self.w, self.f):
-            if x is not None:
-                try:
-                    x.close()
-                except Exception:  # noqa: BLE001
-                    pass
-        self.part.unlink(missing_ok=True)
+        _discard(self.part, self.w, self.f)
 
 
 class Spool:

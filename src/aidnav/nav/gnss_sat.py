@@ -155,6 +155,20 @@ def eph_state(eph, t):
 
 
 @njit(cache=True)
+def eccentric_anomaly(mk, ecc):
+    """Kepler's equation E − e sin E = M solved for the eccentric anomaly E [rad] by Newton's iteration from
+    E = M (at most 30 steps, until a step is below 1e-14 rad), for mean anomaly ``mk`` [rad] and
+    eccentricity ``ecc`` (0 ≤ e < 1): the one solver of every Keplerian record (GPS, Galileo, BeiDou)."""
+    ek = mk
+    for _ in range(30):
+        d = (ek - ecc * np.sin(ek) - mk) / (1.0 - ecc * np.cos(ek))
+        ek -= d
+        if abs(d) < 1e-14:
+            break
+    return ek
+
+
+@njit(cache=True)
 def _kepler_pos(eph, t, gm, om_e, geo):
     """Position of a Keplerian record (BeiDou GEO when ``geo``: BeiDou ICD 5.2.4.12), E_k and its rate."""
     a = eph[E_SQRTA] ** 2
@@ -162,12 +176,7 @@ def _kepler_pos(eph, t, gm, om_e, geo):
     tk = t - eph[E_TOE]
     n = np.sqrt(gm / (a * a * a)) + eph[E_DN]
     mk = eph[E_M0] + n * tk
-    ek = mk
-    for _ in range(30):
-        d = (ek - ecc * np.sin(ek) - mk) / (1.0 - ecc * np.cos(ek))
-        ek -= d
-        if abs(d) < 1e-14:
-            break
+    ek = eccentric_anomaly(mk, ecc)
     se, ce = np.sin(ek), np.cos(ek)
     vk = np.arctan2(np.sqrt(1.0 - ecc * ecc) * se, ce - ecc)
     phi = vk + eph[E_OMEGA]
@@ -250,12 +259,7 @@ def _kepler_state(eph, t, gm, om_e, f_rel):
     tk = t - eph[E_TOE]
     n = n0 + eph[E_DN]
     mk = eph[E_M0] + n * tk
-    ek = mk
-    for _ in range(30):
-        d = (ek - ecc * np.sin(ek) - mk) / (1.0 - ecc * np.cos(ek))
-        ek -= d
-        if abs(d) < 1e-14:
-            break
+    ek = eccentric_anomaly(mk, ecc)
     se, ce = np.sin(ek), np.cos(ek)
     den = 1.0 - ecc * ce
     sq = np.sqrt(1.0 - ecc * ecc)
@@ -732,6 +736,7 @@ def carrier_frequencies(ids, eph_table=None) -> np.ndarray:
 
 
 __all__ += ["sat_id", "sat_name", "sat_system", "glonass_channels", "carrier_frequencies", "glonass_state",
+            "eccentric_anomaly",
             "glonass_orbit", "SYSTEMS", "SYS_GPS", "SYS_GAL", "SYS_BDS", "SYS_GLO", "SYS_SBS",
             "SYSTEM_SIGMA_FACTOR",
             "MAX_AGE_S", "FREQ_B1I", "FREQ_G1", "DFREQ_G1", "E_TOES", "G_POS", "G_VEL", "G_ACC", "G_FCN"]

@@ -1,7 +1,7 @@
 """Paper reproductions: ``aidnav reproduce SEED -o DIR`` (seeds 000 … 004, or ``all``).
 
 Each seed is one module ``aidnav.experiments.reproduce.seed_XXX`` (with ``seed_XXX_setup``,
-``seed_XXX_figures``, ``seed_XXX_tables`` helpers where it is large) with a function
+``seed_XXX_runs``, ``seed_XXX_tables``, ``seed_XXX_figures`` helpers where it is large) with a function
 ``run(out_dir, runs=None, console=None)`` that rebuilds the seed's tables and figures into ``out_dir``
 through :class:`aidnav.experiments.reproduce._study.Study`: ``summary.json`` (every row checked against
 its target by :func:`aidnav.experiments.reproduce.summary.write_summary`; schema in

@@ -14,6 +14,20 @@ from .seed_000_setup import FED, GPS_ONLY, GPS_OUTAGE, PAPER_T2, SAPV_LOSS, SETT
 _fig = figure
 
 
+def _finish(fig, ax, xlabel: str, ylabel: str, title: str, path: Path, fontsize: int = 8,
+            which: str = "major") -> str:
+    """Label, grid and legend the one axes ``ax`` of ``fig``, lay it out and save it to ``path`` (110 dpi);
+    returns the file name."""
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    ax.grid(alpha=0.3, which=which)
+    ax.legend(fontsize=fontsize)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    return path.name
+
+
 def plot_seed_figs(mc, out: Path) -> list[str]:
     """Figs. 1-6 of the seed: run 0, SINS/GPS vs SINS/GPS/SAPV (federated, fusion-reset, β = 1/2)."""
     names = [("heading", "Fig. 1 azimuth (heading) error", "arcmin", "fig1_heading_error.png"),
@@ -64,14 +78,9 @@ def plot_variants(mc, out: Path) -> str:
         h = np.array([s["heading"] for s in mc["series"][k]])
         ax.semilogy(mc["series"][k][0]["t"], np.sqrt(np.mean(h**2, 0)), label=k, lw=1.2 if i < 2 else 0.9,
                     ls="-" if VARIANTS[k].mode != "no_reset" else "--")
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("heading error RMS over runs [arcmin]")
-    ax.set_title(f"Heading error, {mc['runs']} Monte Carlo runs (reset variants coincide with centralized)")
-    ax.grid(alpha=0.3, which="both")
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(out / "fig7_heading_rms_variants.png", dpi=110)
-    return "fig7_heading_rms_variants.png"
+    return _finish(fig, ax, "time [s]", "heading error RMS over runs [arcmin]",
+                   f"Heading error, {mc['runs']} Monte Carlo runs (reset variants coincide with centralized)",
+                   out / "fig7_heading_rms_variants.png", fontsize=7, which="both")
 
 
 def plot_loss(mc, out: Path) -> list[str]:
@@ -86,13 +95,8 @@ def plot_loss(mc, out: Path) -> list[str]:
                     label="±3σ (fusion-reset)")
     ax.axvspan(*SAPV_LOSS, color="0.6", alpha=0.25, zorder=0, label="SAPV lost")
     ax.set_ylim(-15, 15)
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("heading error [arcmin]")
-    ax.set_title("SINS/GPS/SAPV with the antenna losing the satellite (run 0)")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out / "fig8_sapv_loss.png", dpi=110)
+    _finish(fig, ax, "time [s]", "heading error [arcmin]",
+            "SINS/GPS/SAPV with the antenna losing the satellite (run 0)", out / "fig8_sapv_loss.png")
     fig, axs = _fig(2, 1, h=6.0)
     for key, lab in (("gps_only", "SINS/GPS"), ("reset", "SINS/GPS/SAPV federated")):
         s = mc["outage"][key][0]
@@ -127,14 +131,9 @@ def plot_pitch_rms(d, out: Path) -> str:
                label=f"seed Table 2 state 2 pitch std {PAPER_T2['pitch']['std'][1]:g}′")
     ax.axvline(SETTLE_S, color="k", lw=0.8, ls="--")
     ax.set_ylim(0, 6)
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("pitch error [arcmin]")
-    ax.set_title("SINS/GPS/SAPV pitch error: per-epoch RMS over runs (seed: 精度 < 2′ within 30 s)")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(out / "fig10_pitch_rms.png", dpi=110)
-    return "fig10_pitch_rms.png"
+    return _finish(fig, ax, "time [s]", "pitch error [arcmin]",
+                   "SINS/GPS/SAPV pitch error: per-epoch RMS over runs (seed: 精度 < 2′ within 30 s)",
+                   out / "fig10_pitch_rms.png", fontsize=7)
 
 
 def plot_fit(sweep: dict, phi_u: float, paper, out: Path) -> str:
@@ -149,11 +148,6 @@ def plot_fit(sweep: dict, phi_u: float, paper, out: Path) -> str:
                     label=f"ours: SINS/GPS heading error {lab} (±2 se)")
         ax.axhline(pv, color=c, ls="--", lw=1.0, label=f"paper Table 2 state 1: {lab} {pv:g}′")
     ax.axvline(abs(phi_u), color="k", ls=":", lw=1.0, label=f"fitted |φ_U0| (signed: {phi_u:g}°)")
-    ax.set_xlabel("initial heading error φ_U0 [deg]")
-    ax.set_ylabel("heading error [arcmin]")
-    ax.set_title("φ_U0 fitted to the seed's Table 2 state 1 (SINS/GPS heading mean and std)")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(out / "fig0_phi_u0_fit.png", dpi=110)
-    return "fig0_phi_u0_fit.png"
+    return _finish(fig, ax, "initial heading error φ_U0 [deg]", "heading error [arcmin]",
+                   "φ_U0 fitted to the seed's Table 2 state 1 (SINS/GPS heading mean and std)",
+                   out / "fig0_phi_u0_fit.png", fontsize=7)

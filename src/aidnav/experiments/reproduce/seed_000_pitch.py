@@ -143,7 +143,7 @@ def pitch_rows(main_series, t, runs: int, base_seed: int, duration_s: float, sig
     """(spec rows, informative rows, sensitivity rows, figure data) of the pitch claim. ``main_series``:
     (runs, epochs) pitch error of the main Monte Carlo's federated filter [arcmin] at the epochs ``t`` [s]
     (biases drawn per run); ``sigma_t``: {t [s]: the filter's pitch σ}; ``phi0``: the initial
-    misalignment of the runs [deg]; ``level_sweep``: :func:`.seed_000.level0_sweep` (the pitch claim at
+    misalignment of the runs [deg]; ``level_sweep``: :func:`.seed_000_runs.level0_sweep` (the pitch claim at
     other initial level errors, quoted in the reason)."""
     from scipy.stats import norm  # lazy: scipy is heavy to import
 

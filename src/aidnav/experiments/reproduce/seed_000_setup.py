@@ -43,7 +43,7 @@ SEED_RUN_IMU = dict(bias_mode="fixed", gyro_bias_deg_h=0.1, accel_bias_ug=500.0)
 ADVERSE_RUN_IMU = dict(bias_mode="fixed", gyro_bias_deg_h=0.1, accel_bias_ug=(500.0, -500.0, 500.0))
 #: initial misalignment φ_E, φ_N, φ_U [deg] of the 2026-12-01 decision: φ_U0 = 1° (the largest value at
 #: which our own targets held) is now the sensitivity case (§1.3, superseded 2026-12-06); the default φ_U0
-#: is fitted to the seed's Table 2 state-1 heading statistics by :func:`.seed_000.phi_u0_fit` over
+#: is fitted to the seed's Table 2 state-1 heading statistics by :func:`.seed_000_runs.phi_u0_fit` over
 #: PHI_U0_GRID_DEG
 PHI0_DEG = (0.1, 0.1, 1.0)
 #: the φ_U0 values [deg] of the fit to Table 2 state 1 (SINS/GPS heading mean −76.9′, std 98.5′); the fitted
@@ -53,7 +53,7 @@ PHI_U0_GRID_DEG = (1.0, 2.0, 3.0, 3.5, 4.0, 5.0)
 PAPER_STATE1_HEADING = (-76.9119, 98.5442)
 #: the initial level errors φ_E0 = φ_N0 [deg] of the fit to Table 2 state 1's pitch and roll std (the seed
 #: does not give them; 0.1° was our choice of 2026-12-01): the same rule as φ_U0 (§1.3, 2026-12-06), applied
-#: to the level axes by :func:`.seed_000.level0_fit` (issue 39, session 8)
+#: to the level axes by :func:`.seed_000_runs.level0_fit` (issue 39, session 8)
 LEVEL0_GRID_DEG = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.8)
 #: the seed's Table 2 state 1 (SINS/GPS) pitch and roll error std over its 500-s run [arcmin]; their means
 #: (1.21′, 1.14′) are one draw of the bias-tied tilt (σ∇/g = 1.72′) and do not enter the fit

@@ -287,8 +287,19 @@ def flexure_check(spec: FlexureSpec | None = None, dt: float = 0.1, duration_s: 
 # ------------------------------------------------------------------------------------------ tables
 def _tables(res: dict, cov_pred: dict, flex: dict, flex_spec: FlexureSpec, control: dict | None = None
             ) -> list[dict]:
+    """Every table of the summary: the seed's trend tables (4, 5, 6, 8), the sensitivity studies with the
+    noise-reading comparison, the design tool and the flexure check, with their runs and cross-references."""
     g4 = Group(res["T4"])
-    t4 = g4.means()
+    tables = _trend_tables(res, g4, control) + _sensitivity_tables(res)
+    tables.insert(4, noise_comparison(tables))
+    tables += [_drifting_master_table(res), _design_table(res, g4, cov_pred), _flexure_table(flex, flex_spec)]
+    _point_to_alternatives(tables)
+    _finalize(tables, _runs_map(res, g4))
+    return tables
+
+
+def _trend_tables(res: dict, g4: Group, control: dict | None) -> list[dict]:
+    """Tables 4, 5, 6 and 8 of the seed with their §5.3 trends (the SPEC rows)."""
     tables = [summary_table("Table 4", "imaging-leg attitude error STD by maneuver (T1 = 0, T2 = 400 s; "
                             f"mean over AB and CD and over {g4.runs} runs)", t4_rows(g4)),
               summary_table("Table 5", "figure-8, attitude error STD vs T1 (straight flight after the "
@@ -300,12 +311,17 @@ def _tables(res: dict, cov_pred: dict, flex: dict, flex_spec: FlexureSpec, contr
         se = d.std(ddof=1) / np.sqrt(len(d)) if len(d) > 1 else float("nan")
         rows6.append(summary_row(f"heading STD change T2 = {a} -> {b} s, paired over the {len(d)} runs",
                                  "deg", float(d.mean()), stderr=se))
-    tables += [summary_table("Table 6", "figure-8, T1 = 200 s, attitude error STD vs T2 (length of the "
-                             "imaging legs)", rows6),
-               summary_table("Table 8", "figure-8, T1 = 200 s, T2 = 400 s: error STD vs GNSS baseline "
-                             "(master position accuracy of seed Table 7)",
-                             t8_rows(Group(res["T8"]), control=control))]
-    # ---------------------------------------------------------------- sensitivity studies (no SPEC rows)
+    return tables + [summary_table("Table 6", "figure-8, T1 = 200 s, attitude error STD vs T2 (length of "
+                                   "the imaging legs)", rows6),
+                     summary_table("Table 8", "figure-8, T1 = 200 s, T2 = 400 s: error STD vs GNSS baseline "
+                                   "(master position accuracy of seed Table 7)",
+                                   t8_rows(Group(res["T8"]), control=control))]
+
+
+def _sensitivity_tables(res: dict) -> list[dict]:
+    """The sensitivity studies (no SPEC rows): master-error models, IMU grades, the 21-state filter, GM master
+    errors, the inflated Q and the density reading of the sub-IMU's noise."""
+    tables = []
     tables.append(summary_table("Master-error model", "Table 8 with other master-error models: the "
                                 "master's position error split into a smooth drift (fraction f of its "
                                 "variance, τ 300 s, its rate carried by the master velocity) and a white "
@@ -356,16 +372,24 @@ def _tables(res: dict, cov_pred: dict, flex: dict, flex_spec: FlexureSpec, contr
                              t5_rows(Group(res["T5-density"]), sfx, spec=False), kind="sensitivity"),
                summary_table("Table 6, density reading", "Table 6 with the density reading of the sub-IMU",
                              t6_rows(Group(res["T6-density"]), sfx, spec=False), kind="sensitivity")]
-    tables.insert(4, noise_comparison(tables))
+    return tables
+
+
+def _drifting_master_table(res: dict) -> dict:
+    """Table 8's predicates with the former drifting master (a sensitivity study)."""
     mg = {k: Group(v) for k, v in res["master"].items()}
-    tables.append(summary_table("Table 8, drifting master", "Table 8's predicates with the former drifting "
-                                "master "
-                                "(position drift fraction 0.5, τ 300 s, its rate in the master velocity) "
-                                "instead "
-                                "of the white master of the seed's "
-                                "text", t8_rows(mg[MASTER_DRIFT], spec=False),
-                                kind="sensitivity"))
-    # ---------------------------------------------------------------- design tool (checks of our own)
+    return summary_table("Table 8, drifting master", "Table 8's predicates with the former drifting "
+                         "master "
+                         "(position drift fraction 0.5, τ 300 s, its rate in the master velocity) "
+                         "instead "
+                         "of the white master of the seed's "
+                         "text", t8_rows(mg[MASTER_DRIFT], spec=False),
+                         kind="sensitivity")
+
+
+def _design_table(res: dict, g4: Group, cov_pred: dict) -> dict:
+    """The design tool's covariance-only prediction against the Monte Carlo of Table 4 (checks of our own)."""
+    t4 = g4.means()
     pr = {m: cov_pred[m]["heading_deg"] for m in MODES}
     ph = {m: PAPER_T4[m][0] for m in MODES}
     mc_rms = {m: float(res["T4"][m].rms.mean(axis=0)[0]) for m in MODES}
@@ -384,9 +408,13 @@ def _tables(res: dict, cov_pred: dict, flex: dict, flex_spec: FlexureSpec, contr
         summary_row("Spearman rank correlation, predicted σ vs Monte Carlo STD (heading, 5 modes)", "-",
                     _spearman([pr[m] for m in MODES], [t4[m]["heading"] for m in MODES])),
     ]
-    tables.append(summary_table("Design tool", "covariance-only prediction of the imaging-leg heading "
-                                "accuracy (aidnav.experiments.design) against the Monte Carlo of Table 4; "
-                                "the §5.3 Table 4 ordering applied to the prediction", rows))
+    return summary_table("Design tool", "covariance-only prediction of the imaging-leg heading "
+                         "accuracy (aidnav.experiments.design) against the Monte Carlo of Table 4; "
+                         "the §5.3 Table 4 ordering applied to the prediction", rows)
+
+
+def _flexure_table(flex: dict, flex_spec: FlexureSpec) -> dict:
+    """The flexure generator's σ and 1/e lag against the seed's values."""
     rows = []
     for a in range(3):
         ax = "xyz"[a]
@@ -394,25 +422,27 @@ def _tables(res: dict, cov_pred: dict, flex: dict, flex_spec: FlexureSpec, contr
                                 "abs(ours - paper) <= 0.05 * paper", spec=True))
         rows.append(summary_row(f"flexure 1/e time τ_{ax}", "s", flex["tau_s"][a], flex_spec.tau_s[a],
                                 "abs(ours - paper) <= 0.05 * paper", spec=True))
-    tables.append(summary_table("Flexure", "second-order Markov flexure generator (exact discretisation): σ "
-                                "and 1/e lag against the seed's values", rows))
+    return summary_table("Flexure", "second-order Markov flexure generator (exact discretisation): σ "
+                         "and 1/e lag against the seed's values", rows)
+
+
+def _runs_map(res: dict, g4: Group) -> dict:
+    """Table name → the Monte Carlo runs behind its rows."""
+    g21 = Group(res["T4-21"])
 
     def n_of(d):
         return int(next(iter(d.values())).std.shape[0])
 
-    runs_map = {"Table 4": g4.runs, "Table 5": n_of(res["T5"]), "Table 6": n_of(res["T6"]),
-                "Table 8": n_of(res["T8"]), "Master-error model": n_of(res["master"][MASTER_DRIFT]),
-                "Grade sweep": n_of(res["grade"]), "21 vs 24 states": g21.runs,
-                "Table 4, GM master": n_of(res["T4-GM"]), "Table 4, Q inflated": n_of(res["T4-qinf"]),
-                "Table 5, Q inflated": n_of(res["T5-qinf"]), "Table 6, Q inflated": n_of(res["T6-qinf"]),
-                "Table 4, density reading": n_of(res["T4-density"]),
-                "Table 5, density reading": n_of(res["T5-density"]),
-                "Table 6, density reading": n_of(res["T6-density"]),
-                "Table 8, drifting master": n_of(res["master"][MASTER_DRIFT]), "Design tool": g4.runs,
-                "Flexure": 0}
-    _point_to_alternatives(tables)
-    _finalize(tables, runs_map)
-    return tables
+    return {"Table 4": g4.runs, "Table 5": n_of(res["T5"]), "Table 6": n_of(res["T6"]),
+            "Table 8": n_of(res["T8"]), "Master-error model": n_of(res["master"][MASTER_DRIFT]),
+            "Grade sweep": n_of(res["grade"]), "21 vs 24 states": g21.runs,
+            "Table 4, GM master": n_of(res["T4-GM"]), "Table 4, Q inflated": n_of(res["T4-qinf"]),
+            "Table 5, Q inflated": n_of(res["T5-qinf"]), "Table 6, Q inflated": n_of(res["T6-qinf"]),
+            "Table 4, density reading": n_of(res["T4-density"]),
+            "Table 5, density reading": n_of(res["T5-density"]),
+            "Table 6, density reading": n_of(res["T6-density"]),
+            "Table 8, drifting master": n_of(res["master"][MASTER_DRIFT]), "Design tool": g4.runs,
+            "Flexure": 0}
 
 
 _GRID_CELL = re.compile(r"^(\w+) STD, (.+)$")

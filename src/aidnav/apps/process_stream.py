@@ -150,7 +150,10 @@ def run_process(log: ImuLog, gnss, cfg, smooth=False, outages=None, imu_name="im
     background thread (:class:`aidnav.io.stream.Background`, at most 2 pieces waiting) while the filter
     runs the next chunk (the engine releases the GIL) — the same pieces in the same order, so the same
     file and numbers; a failure there is raised here."""
-    from aidnav.filters.gnss_errors import choose_gnss_errors  # lazy: the filters load with the job
+    from aidnav.filters.gnss_errors import (  # lazy: the filters load with the job
+        choose_gnss_errors,
+        needs_first_pass,
+    )
     from aidnav.filters.result import to_trajectory  # lazy: the filters load with the job
     from aidnav.filters.stream import stream_loose  # lazy: the filters load with the job
     from aidnav.filters.wheeled import no_option_constraint  # lazy: the filters load with the job
@@ -193,7 +196,7 @@ def run_process(log: ImuLog, gnss, cfg, smooth=False, outages=None, imu_name="im
     bg = Background(consume) if background else None
     events: list[str] = []
     decide_nhc = "constraints" not in cfg.model_fields_set and not cfg.constraints.nhc
-    decide_gnss = "error_tau_s" not in cfg.gnss.model_fields_set
+    decide_gnss = needs_first_pass(gnss, cfg)  # white or correlated GNSS errors (filters.gnss_errors)
     prefix = _prefix(log, DECIDE_SPAN_S) if decide_nhc or decide_gnss else None  # in memory once
     if decide_nhc:
         # no option (issue 35): the NHC decided from a first pass over the log's first DECIDE_SPAN_S

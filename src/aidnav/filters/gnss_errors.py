@@ -46,7 +46,7 @@ from aidnav.data import ImuData
 
 from .preprocess import CARRIER_PHASE_SIGMA_M, GNSS_ERROR_TAU_S, gnss_arrays
 
-__all__ = ["DECIDE_SPAN_S", "RHO_MIN", "choose_gnss_errors", "innovation_whiteness"]
+__all__ = ["DECIDE_SPAN_S", "RHO_MIN", "choose_gnss_errors", "innovation_whiteness", "needs_first_pass"]
 
 #: the first pass runs over the log's first 10 min at most (enough fixes at any rate ≥ 0.5 Hz)
 DECIDE_SPAN_S = 600.0
@@ -87,22 +87,36 @@ def _with_tau(cfg, tau, sigma=None):
     return cfg.model_copy(update={"gnss": cfg.gnss.model_copy(update=upd)})
 
 
+def _test_applies(gnss, cfg):
+    """The fixes' median position σ per axis when the test of the module doc applies to ``gnss`` under
+    ``cfg`` (no ``error_tau_s`` stated, positions used, enough code fixes at 1 Hz or slower), else None."""
+    g = cfg.gnss
+    if "error_tau_s" in g.model_fields_set or g.use == "velocity" or len(gnss) < MIN_PAIRS:
+        return None
+    med = np.nanmedian(gnss_arrays(gnss, cfg)[5] * g.pos_std_scale, axis=0)
+    if not np.nanmax(med[:2]) >= CARRIER_PHASE_SIGMA_M:
+        return None  # carrier-phase fixes: the rate rule (white) of preprocess.correlated_gnss_errors
+    if float(np.median(np.diff(np.asarray(gnss.time, float)))) < 1.0 - 1e-6:
+        return None  # above 1 Hz: the rate rule's Gauss-Markov states (module doc)
+    return med
+
+
+def needs_first_pass(gnss, cfg) -> bool:
+    """Whether :func:`choose_gnss_errors` would run a first pass (the caller need not hold the log's
+    prefix otherwise)."""
+    return _test_applies(gnss, cfg) is not None
+
+
 def choose_gnss_errors(imu, gnss, cfg, withheld, events, aids=(), span_s: float = DECIDE_SPAN_S):
     """The configuration with ``gnss.error_tau_s`` (and ``error_sigma_m``) chosen by the test of the module
     doc when the configuration states neither; the decision and its figures appended to ``events``.
     ``imu``: the log (or its first ``span_s`` seconds; the passes use no more)."""
     from .loose import run_loose  # lazy: filters.loose imports the engine (numba)
 
-    g = cfg.gnss
-    if "error_tau_s" in g.model_fields_set or g.use == "velocity" or len(gnss) < MIN_PAIRS:
+    med = _test_applies(gnss, cfg)
+    if med is None:
         return cfg
-    spos = gnss_arrays(gnss, cfg)[5] * g.pos_std_scale
-    med = np.nanmedian(spos, axis=0)
-    if not np.nanmax(med[:2]) >= CARRIER_PHASE_SIGMA_M:
-        return cfg  # carrier-phase fixes: the rate rule (white) of preprocess.correlated_gnss_errors
-    gt = np.asarray(gnss.time, float)
-    if float(np.median(np.diff(gt))) < 1.0 - 1e-6:
-        return cfg  # above 1 Hz: the rate rule's Gauss-Markov states (module doc)
+    g = cfg.gnss
     t0 = float(imu.time[0])
     k = imu.time <= t0 + span_s
     head = imu if k.all() else ImuData(imu.time[k], imu.dtheta[k], imu.dv[k], t0=imu.t0)

@@ -500,10 +500,9 @@ def _update_records(x, P, nv, C, rec, gi, tk, hd, upd, tm):
     At the node that closes an IMU gap: records more than ``GAP_REC_S`` older than it are not used (the
     INS cannot be moved back across the unknown motion); the rest, and the first record due after the node
     (within ``GAP_REC_S``; not a pseudorange epoch) when it is nearer to the node than any record used, are
-    used now with R grown
-    by the unmodelled motion over their distance from the node — so the gap's covariance bound gives way
-    to the first fix after the gap whichever side of the first IMU sample the time-offset estimate puts it
-    (issue 35)."""
+    used now with R grown by the unmodelled motion over their distance from the node — so the gap's
+    covariance bound gives way to the first fix after the gap whichever side of the first IMU sample the
+    time-offset estimate puts it (issue 35)."""
     bias = nv[2]
     gap_k = hd[1]
     ic, itoff = tm
@@ -517,12 +516,14 @@ def _update_records(x, P, nv, C, rec, gi, tk, hd, upd, tm):
                 near = min(near, dtu)
                 C = _use_record(x, P, nv, C, rec, gi, (tk, tr, dtu), hd, upd)
             gi += 1
+        if not gap_k or lim > tk:
+            break
         j = gi
         while j < rec.t.shape[0] and not rec.use[j]:
             j += 1
         nxt = _due_time(rec, j, bias, ic, itoff)
         epoch = j < rec.t.shape[0] and rec.grp.t.shape[0] > 0 and rec.model[j] == M_PR  # (tight: not ahead)
-        if not gap_k or lim > tk or epoch or not nxt - tk < near:
+        if epoch or not nxt - tk < near:
             break
         lim = nxt  # the first fix after the gap, moved back to the node
     return gi, C

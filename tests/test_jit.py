@@ -185,6 +185,21 @@ def test_aot_without_a_build_is_an_error(tmp_path):
     assert p.returncode != 0 and "no ahead-of-time build" in p.stderr
 
 
+def test_no_build_folder_no_source_hash(tmp_path):
+    """A fresh install (no ``aidnav compile`` ever ran: no builds' folder, or an empty one) starts in the JIT
+    mode without hashing the sources for a build key; a folder with something in it is looked in."""
+    code = ("from aidnav import jit\n"
+            "def key():\n    print('hashed')\n    return 'none'\n"
+            "jit.build_key = key\nprint(jit.start())")
+    (tmp_path / "empty").mkdir()
+    (tmp_path / "other").mkdir()
+    (tmp_path / "other" / "0123456789abcdef0123").mkdir()  # another tree's build: not this one
+    for folder, out in (("missing", ["jit"]), ("empty", ["jit"]), ("other", ["hashed", "jit"])):
+        env = {**os.environ, "AIDNAV_KERNEL_DIR": str(tmp_path / folder), "AIDNAV_KERNELS": "auto"}
+        p = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+        assert p.stdout.split() == out, (folder, p.stdout, p.stderr)
+
+
 def test_the_build_key_follows_the_sources(tmp_path, monkeypatch):
     from aidnav import jit
 

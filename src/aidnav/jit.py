@@ -270,6 +270,17 @@ def build_key() -> str:
     return h.hexdigest()[:20]
 
 
+def _any_build() -> bool:
+    """Whether the builds' folder holds anything: where it does not (no ``aidnav compile`` ever ran, the
+    usual fresh install), the build key — a hash of every source file, ≈ 30 ms of every command — is not
+    computed."""
+    try:
+        with os.scandir(kernel_dir()) as it:
+            return any(True for _ in it)
+    except OSError:
+        return False
+
+
 def build_path(key: str | None = None) -> Path:
     """The folder of the build for ``key`` (default: this process's :func:`build_key`)."""
     return kernel_dir() / (key or build_key())
@@ -317,7 +328,8 @@ def start(requested: str | None = None, on_numba=(), build: Path | None = None) 
         _mode, _records = "record", {}
         _record_path = os.environ.get("AIDNAV_KERNEL_RECORD") or str(kernel_dir() / "record.pkl")
         atexit.register(_write_records)
-    elif requested in ("auto", "aot") and load_build(build or build_path()):
+    elif requested in ("auto", "aot") and (build is not None or _any_build()) and \
+            load_build(build or build_path()):
         _mode = "aot"
     elif requested == "aot":
         raise RuntimeError(f"AIDNAV_KERNELS=aot: no ahead-of-time build in {build or build_path()} "

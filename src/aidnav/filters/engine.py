@@ -401,7 +401,7 @@ def _error_model(lay, proc, nfull, mins, naux, n, nins, nsub):
     return Fi, Gi, F, G, Phi, Qd, nd, Fh, Gh, Phh, Qdh, qh, qt
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")  # per node: inlined in run_chunk (issue 40)
 def _predict_node(st, acc, bias, x, P, T, proc, em, dims):
     """The predict over the interval ``T`` that ends at a node: F, G of the interval (the subset's rows
     and columns where the filter runs on one), Φ and Qd, P propagated (head as a matrix, the scalar tail
@@ -435,7 +435,7 @@ def _predict_node(st, acc, bias, x, P, T, proc, em, dims):
     return wb
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")  # per node: inlined in run_chunk (issue 40)
 def _gap_at_node(st, P, gap, ix, hold_thr, iu):
     """The variance an IMU gap added since the last node; a heading σ left above the hold threshold holds
     the heading unknown (``gap[4]``) until a GNSS course re-aligns it."""
@@ -459,7 +459,7 @@ def _unmodelled_motion(R, m, md, pv, dtu):
         R[i, i] += g * g
 
 
-@njit(cache=True, depends=MODELS_KEY)
+@njit(cache=True, depends=MODELS_KEY, inline="always")  # per record: inlined in run_chunk (issue 40)
 def _use_record(x, P, nv, C, rec, gi, tt, hd, upd):
     """Record ``gi`` through its model at the node: a whole pseudorange epoch by its scalar updates, any
     other by the gate policy (with R grown by :func:`_unmodelled_motion` at a node that closes an IMU
@@ -489,7 +489,7 @@ def _use_record(x, P, nv, C, rec, gi, tt, hd, upd):
     return C
 
 
-@njit(cache=True, depends=MODELS_KEY)
+@njit(cache=True, depends=MODELS_KEY, inline="always")  # per node: inlined in run_chunk (issue 40)
 def _update_records(x, P, nv, C, rec, gi, tk, hd, upd, tm):
     """The records due at the node at IMU time ``tk`` (in (t_{k-1}, t_k] on the IMU clock), each by
     :func:`_use_record`. ``nv``: (strapdown state, node rates, biases); ``hd``: (gap variances and
@@ -529,7 +529,7 @@ def _update_records(x, P, nv, C, rec, gi, tk, hd, upd, tm):
     return gi, C
 
 
-@njit(cache=True, depends=MODELS_KEY)
+@njit(cache=True, depends=MODELS_KEY, inline="always")  # per node: inlined in run_chunk (issue 40)
 def _node_constraints(x, P, nav, static, tk, no_row, upd, li):
     """The node constraints (ZUPT, ZARU at static samples, NHC at moving ones) at IMU time ``tk``, each
     logged; returns the next free log row. ``upd``: the update context (models, layout, rejection counts,
@@ -546,7 +546,7 @@ def _node_constraints(x, P, nav, static, tk, no_row, upd, li):
     return li
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")  # per node: inlined in run_chunk (issue 40)
 def _hold_heading(P, iu, ini, before_alignment, gap):
     """A heading without information keeps its variance and no correlation: before the first alignment
     (``before_alignment``: an unknown initial heading, σ above ≈ 81°, with an alignment to come — a
@@ -591,7 +591,7 @@ def _gap_sample(gap, gap_var, k):
     return False
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")  # per node: inlined in run_chunk (issue 40)
 def _after_updates(st, bias, P, rec, g0, gi, reset_pos, lay):
     """After a node's updates: the position (and height rate) reset to the records ``g0 … gi−1``
     (``reset_pos``), and each whole-epoch record's state written back (tight coupling)."""

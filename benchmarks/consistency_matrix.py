@@ -8,7 +8,8 @@ writes an HTML page (``--html``, default ``out/consistency_matrix.html``) and th
 figures as JSON (``--json``).
 
 Run: ``python benchmarks/consistency_matrix.py`` (the whole matrix, ~10 CPU-min);
-``--seeds 3``, ``--conditions "gnss 1 Hz white,grade mems"``, ``--configs matched,car`` for a part;
+``--seeds 3``, ``--conditions "gnss 1 Hz white,grade mems"``, ``--configs matched,car`` (``presets``: every
+vehicle preset) for a part;
 ``--legacy-sensor-model``: the matched configuration without the sensor modelling of issue 35 (one
 Gauss–Markov bias state, no scale-factor states, no misalignment), the code before it.
 """
@@ -52,6 +53,8 @@ def main(argv=None):
     a = ap.parse_args(argv)
     conds = [cm.condition(n) for n in _condition_names(a.conditions, cm)] or list(cm.CONDITIONS)
     configs = [c.strip() for c in a.configs.split(",") if c.strip()] or cm.configurations()
+    presets = [c for c in cm.configurations() if c not in ("none", "matched")]
+    configs = [p for c in configs for p in (presets if c == "presets" else [c])]  # "presets": every one
     load0 = os.getloadavg()
     t0, c0 = time.perf_counter(), time.process_time()
     print(f"consistency matrix: {len(conds)} conditions x {len(configs)} configurations x {a.seeds} seeds; "

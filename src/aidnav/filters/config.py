@@ -81,9 +81,9 @@ class GnssAiding(_Strict):
                                             "innovation and the fix accepted")
     nis_window: int = Field(0, ge=0, le=64, description="re-initialise as well when the sum of the NIS of "
                             "the last N accepted fixes of a type is above the 99.9 % quantile of chi-square "
-                            "(N x dof), P's navigation and calibration blocks then scaled by the window's "
-                            "mean NIS per dof; 0: off (the vehicle presets, and no option on a wheeled "
-                            "vehicle: 10)")
+                            "(N x dof), P's navigation block, IMU sensor errors and calibration then "
+                            "scaled by the window's mean NIS per dof; 0: off (the vehicle presets, and no "
+                            "option on a wheeled vehicle: 10)")
     error_tau_s: float = Field(0.0, ge=0, description="correlation time of the fixes' position errors [s]: "
                                "> 0 adds 3 first-order Gauss-Markov error states (high-rate receivers whose "
                                "errors are not white); 0: white errors")

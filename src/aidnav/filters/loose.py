@@ -41,8 +41,10 @@ from .engine import (
 from .engine_batch import batchable, run_batch, run_outputs, stack_inputs
 from .layout import (
     DV,
+    L_LEVER,
     L_MOUNT,
     L_N,
+    L_NINS,
     L_TOFF,
     L_VDEL,
     NAV,
@@ -241,13 +243,23 @@ def loose_setup(imu, gnss, cfg, withheld, events, aids=()) -> Setup:
 
 
 def _reinit_cal(lay, P0) -> np.ndarray:
-    """The calibration states a re-initialisation repairs with the navigation block (time offset, GNSS
-    velocity delay, mounting): rows (index, prior variance) (engine ``Models.cal``)."""
-    rows = []
-    for key, k in ((L_TOFF, 1), (L_VDEL, 1), (L_MOUNT, 3)):
+    """The states a re-initialisation repairs with the navigation block: rows (index, prior variance, 1:
+    every re-initialisation / 0: an NIS window's only) (engine ``Models.cal``). An NIS window that fires
+    says that the filter's covariance was λ too small over N fixes; every state learnt jointly with the
+    navigation under that covariance is then as suspect as the navigation: the IMU's sensor errors
+    (biases, scale factors, misalignments: a tilt re-learnt against a bias that kept its converged σ
+    collapses onto the same wrong bias) and the calibration (GNSS lever arm, time offset, velocity delay,
+    mounting). Each is scaled with the navigation block, at most back to its prior (issue 35, item 5: a
+    calibration is repaired, never thrown away). The re-initialisation after consecutive rejections (a
+    jump of the navigation: the factor makes one innovation consistent, up to 1e12) repairs the time
+    offset, velocity delay and mounting, not the sensor errors nor the lever arm (:func:`.reinit.inflate`:
+    with fixes whose σ is far too small, issue 35's zero-σ regression, repairing the biases at each of its
+    re-initialisations let the next fixes drag them: 2.0 m against 0.76 m)."""
+    rows = [(i, P0[i, i], 0.0) for i in range(NAV, int(lay[L_NINS]))]
+    for key, k, every in ((L_LEVER, 3, 0.0), (L_TOFF, 1, 1.0), (L_VDEL, 1, 1.0), (L_MOUNT, 3, 1.0)):
         for i in range(k if lay[key] >= 0 else 0):
-            rows.append((lay[key] + i, P0[lay[key] + i, lay[key] + i]))
-    return np.array(rows, float).reshape(-1, 2)
+            rows.append((lay[key] + i, P0[lay[key] + i, lay[key] + i], every))
+    return np.array(rows, float).reshape(-1, 3)
 
 
 def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: list | None = None,

@@ -12,24 +12,31 @@ constraint, consumer-MEMS noise). Every number below is physics of the vehicle k
   its heading without slip); the IMU noise is raised to what the log's static samples show
   (:func:`aidnav.filters.preprocess.noise_from_static`: a running engine vibrates the IMU far above its
   datasheet noise, and the filter must cover it).
-* ``aircraft``: no NHC (aircraft sideslip and climb); ZUPT kept (a parked aircraft is still, and the
-  static test needs both IMU and GNSS); heading from the course above 15 m/s (taxi and
-  crosswind make it meaningless below), course σ 10° (crab angle).
+* ``aircraft`` (a fixed-wing aircraft): no NHC (aircraft sideslip and climb); ZUPT kept (a parked
+  aircraft is still, and the static test needs both IMU and GNSS); heading from the course above 2 m/s
+  with σ 10°: below its take-off speed a fixed-wing aircraft rolls on its wheels and its course is its
+  heading (nose-wheel steering, no crab on the ground), and 10° covers a log that starts airborne (crab
+  asin(w/V): 11° in a 20-kn crosswind at 100 kn). Before (issue 35, session 9) the course aligned only
+  above 15 m/s: a log that never went faster (the consistency matrix's 10 m/s car) navigated with an
+  unknown heading throughout, E/N 3σ coverage 17–60 %.
 * ``pedestrian``: no NHC (people side-step), ZUPT on (standing still), heading from the course above
   1 m/s with σ 30° (a walker's body need not face the walking direction; a phone even less).
 * ``ship``: no NHC (leeway and currents), no ZUPT (a ship at anchor still heaves), heading from the
   course above 2 m/s with σ 15° (drift angle).
 
-The IMU noise is estimated from the log's static samples (engine vibration; also the loose filter's default
-without a preset when the configuration has no imu section, issue 35); the pedestrian preset keeps the
-configured noise (nothing vibrates a phone at rest). Every preset re-initialises when the NIS of the last
-10 accepted fixes of a type is far out of its χ² band (``gnss.nis_window``; off without a preset, where the
-filter keeps the configured model, unless the log shows a wheeled vehicle: :mod:`aidnav.filters.wheeled`);
-such a re-initialisation scales the navigation block and the calibration states by the window's mean NIS
-per dof (each calibration state at most back to its prior). Each preset states what the vehicle can do
-(``motion``: speed, acceleration, turn-rate and tilt bounds), which sizes the covariance an IMU gap adds
-(:func:`aidnav.filters.preprocess.bridge_gaps`); without a preset the bounds of an unknown vehicle
-(:class:`aidnav.filters.config.MotionBounds`).
+The IMU noise is raised to what the log's static samples show in every preset (engine vibration; a hand
+holding a phone adds its tremor, which stays while walking: the filter must cover it; also the loose
+filter's default without a preset when the configuration has no imu section, issue 35); no preset states
+an IMU error model (a vehicle kind says nothing of the IMU's grade: the default model applies). Every
+preset re-initialises when the NIS of the last 10 accepted fixes of a type is far out of its χ² band
+(``gnss.nis_window``; off without a preset, where the filter keeps the configured model, unless the log
+shows a wheeled vehicle: :mod:`aidnav.filters.wheeled`); such a re-initialisation scales the navigation
+block, the IMU's sensor-error states and the calibration states by the window's mean NIS per dof (each
+sensor-error and calibration state at most back to its prior: a calibration is repaired with the
+navigation, never thrown away, issue 35 item 5; :func:`aidnav.filters.loose._reinit_cal`). Each preset
+states what the vehicle can do (``motion``: speed, acceleration, turn-rate and tilt bounds), which sizes
+the covariance an IMU gap adds (:func:`aidnav.filters.preprocess.bridge_gaps`); without a preset the
+bounds of an unknown vehicle (:class:`aidnav.filters.config.MotionBounds`).
 """
 
 from __future__ import annotations
@@ -50,7 +57,10 @@ PRESETS: dict[str, dict] = {
     },
     "aircraft": {
         "constraints": {"nhc": False, "zupt": True},
-        "init": {"course_min_speed_m_s": 15.0, "course_heading_sigma_deg": 10.0},
+        # below its take-off speed a fixed-wing aircraft rolls on its wheels: its course is its heading
+        # (nose-wheel steering, no crab on the ground), so the course aligns it from taxi speed as a car's
+        # does; σ 10° covers a log that starts airborne (crab asin(w/V): 11° in a 20-kn crosswind at 100 kn)
+        "init": {"course_min_speed_m_s": 2.0, "course_heading_sigma_deg": 10.0},
         "imu": {"noise_from_static": True},
         "gnss": {"nis_window": 10},
         # 300 m/s, 3 g, 45 deg/s roll or turn, any attitude
@@ -60,7 +70,9 @@ PRESETS: dict[str, dict] = {
     "pedestrian": {
         "constraints": {"nhc": False, "zupt": True},
         "init": {"course_min_speed_m_s": 1.0, "course_heading_sigma_deg": 30.0},
-        "imu": {"noise_from_static": False},
+        # the IMU's white noise is what its static samples show, whatever carries it (a hand holding a
+        # phone adds its tremor: larger, and the filter must cover it while walking too)
+        "imu": {"noise_from_static": True},
         "gnss": {"nis_window": 10},
         # a runner at 10 m/s, 1 g, a body (or a phone) turned by 360 deg/s, held at any angle
         "motion": {"max_speed_m_s": 10.0, "max_accel_m_s2": 10.0, "max_turn_rate_deg_s": 360.0,

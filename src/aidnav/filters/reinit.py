@@ -33,13 +33,13 @@ def inflate_nav(x, P, H, R, z):
 
 @njit(cache=True)
 def inflate(x, P, H, R, z, cal):
-    """Re-initialisation of the navigation block and the calibration states ``cal`` (K, 2): rows (index
-    in P, prior variance): P ← D P D with D = √α on δv and δp, √min(α, (π/2)² / P_ii) on φ (attitude
-    σ's never grown past 90°) and √min(α, prior / P_ii) on each calibration state of ``cal`` (grown at
-    most back to its prior: a time offset, velocity delay or mounting that converged to a wrong value
-    under a wrong navigation solution is part of the repair), a congruence, so P stays positive
-    semi-definite; α ≥ 1 the smallest with NIS(ν, H D P D Hᵀ + R) ≤ m (bisection in log α up to
-    1e12). Returns α."""
+    """Re-initialisation of the navigation block and the calibration states ``cal`` (K, 2 or 3): rows
+    (index in P, prior variance[, 0: only an NIS window's scaling repairs it]): P ← D P D with D = √α on
+    δv and δp, √min(α, (π/2)² / P_ii) on φ (attitude σ's never grown past 90°) and √min(α, prior / P_ii)
+    on each calibration state of ``cal`` (grown at most back to its prior: a time offset, velocity delay
+    or mounting that converged to a wrong value under a wrong navigation solution is part of the
+    repair), a congruence, so P stays positive semi-definite; α ≥ 1 the smallest with
+    NIS(ν, H D P D Hᵀ + R) ≤ m (bisection in log α up to 1e12). Returns α."""
     m = z.shape[0]
     if nis_of(x, P, H, R, z) <= m:
         return 1.0
@@ -47,12 +47,12 @@ def inflate(x, P, H, R, z, cal):
     lo, hi = 0.0, np.log(1e12)
     for _ in range(50):
         a = np.exp(0.5 * (lo + hi))
-        if nis_of(x, _scaled_nav(P0, a, cal), H, R, z) > m:
+        if nis_of(x, _scaled_nav(P0, a, cal, False), H, R, z) > m:
             lo = np.log(a)
         else:
             hi = np.log(a)
     a = np.exp(hi)
-    P[:, :] = _scaled_nav(P0, a, cal)
+    P[:, :] = _scaled_nav(P0, a, cal, False)
     return a
 
 
@@ -60,16 +60,21 @@ def inflate(x, P, H, R, z, cal):
 def scale_nav(P, a, cal):
     """P ← D P D of :func:`inflate` for the given factor ``a`` (≥ 1): the re-initialisation of an NIS
     window, whose factor is the window's mean NIS per degree of freedom."""
-    P[:, :] = _scaled_nav(P.copy(), max(a, 1.0), cal)
+    P[:, :] = _scaled_nav(P.copy(), max(a, 1.0), cal, True)
 
 
 @njit(cache=True)
-def _scaled_nav(P0, a, cal):
-    """D P0 D of :func:`inflate` for the factor a."""
+def _scaled_nav(P0, a, cal, window):
+    """D P0 D of :func:`inflate` for the factor a. A row of ``cal`` with a third column of 0 (the IMU's
+    sensor errors, :func:`aidnav.filters.loose._reinit_cal`) is scaled only by an NIS ``window``'s factor:
+    the mean NIS of N fixes says the whole covariance is λ too small, while the factor that makes one
+    rejected innovation consistent (up to 1e12, a jump of the navigation) says nothing of the sensors."""
     d = np.ones(P0.shape[0])
     for i in range(min(NAV, P0.shape[0])):  # a state subset's first states (satcom: never triggered)
         d[i] = np.sqrt(a) if i >= DV else np.sqrt(min(a, max(1.0, (0.5 * np.pi) ** 2 / max(P0[i, i], 1e-30))))
     for r in range(cal.shape[0]):
+        if not window and cal.shape[1] > 2 and cal[r, 2] == 0.0:
+            continue
         i = int(cal[r, 0])
         d[i] = np.sqrt(min(a, max(1.0, cal[r, 1] / max(P0[i, i], 1e-30))))
     return P0 * np.outer(d, d)

@@ -27,7 +27,7 @@ from aidnav.apps.common import (
 from aidnav.apps.process import read_gnss_any, read_imu_any
 from aidnav.data import GnssData
 from aidnav.estimators.dgps import spp_series
-from aidnav.filters.config import LooseConfig
+from aidnav.filters.config import UNKNOWN_GRADE_IMU, ImuNoise, LooseConfig
 from aidnav.filters.heading_match import velocity_match_heading
 from aidnav.filters.loose import static_flags
 from aidnav.filters.tight import TightConfig, apply_vehicle, run_tight, to_trajectory
@@ -38,6 +38,10 @@ from aidnav.nav.rotations import wrap_2pi
 from aidnav.report.run_page import calibration_estimates
 from aidnav.units import DEG
 
+#: what the no-configuration IMU model is (aidnav.filters.config.UNKNOWN_GRADE_IMU), for the events
+UNKNOWN_GRADE_NOTE = ("Groves' consumer range: gyro bias 360 deg/h turn-on + 20 deg/h instability, "
+                      "accelerometer bias 10 mg + 0.5 mg, scale factors 5000 ppm and gyro misalignment "
+                      "0.5 deg as states")
 SPP_START_SIGMA_M = 100.0  # start-position σ with range-error states [m] (far above any SPP error)
 # a velocity-matched heading is used when its σ is below this (beyond it the linearised filter copes no
 # better than with an unknown heading); its σ is floored (gyro drift over the matching span, 2 deg)
@@ -48,12 +52,17 @@ __all__ = ["process_tight", "compare_with_reference", "process_tight_files", "sc
 
 
 def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | None = None,
-                  smooth: bool = False):
-    """Run the tightly coupled filter on real data; returns (TightResult, spp dict)."""
+                  smooth: bool = False, cov_times=None):
+    """Run the tightly coupled filter on real data; returns (TightResult, spp dict). ``cov_times``: as
+    :func:`aidnav.filters.tight.run_tight`'s."""
     from aidnav.filters.preprocess import noise_from_static  # lazy: as the other filter imports here
 
     cfg = cfg or TightConfig()
     events = events if events is not None else []
+    keys = set(UNKNOWN_GRADE_IMU) - {"noise_from_static"}
+    if cfg.imu.model_dump(include=keys) == ImuNoise(**UNKNOWN_GRADE_IMU).model_dump(include=keys):
+        events.append(f"no imu section: the error model of an IMU of unknown grade ({UNKNOWN_GRADE_NOTE}; "
+                      f"{cfg.nins} INS states)")
     sp, g, t_imu, i0 = _spp_start(imu, obs, eph, cfg)
     ini = cfg.init
     win = (t_imu >= sp["time"][i0]) & (t_imu < sp["time"][i0] + ini.static_window_s)
@@ -61,7 +70,8 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
     f = imu.dv[win].sum(axis=0) / dtw.sum()
     roll = np.arctan2(-f[0], f[2])
     pitch = np.arctan2(f[1], np.hypot(f[0], f[2]))
-    heading, heading_reset, cfg = _start_heading(imu, sp, i0, g, roll, pitch, cfg, events)
+    wb = _rest_gyro_bias(imu, win)
+    heading, heading_reset, cfg = _start_heading(imu, sp, i0, g, (roll, pitch, wb), cfg, events)
     ini = cfg.init
     if cfg.gnss.range_errors:
         # the SPP start fix is a linearisation point, not information: its error is the range errors the
@@ -92,9 +102,35 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
     vfix = _tdcp_velocities(imu, obs, eph, sp, cfg, events)
     res = run_tight(
         imu, obs, eph, cfg, init_state=init_state, static=static, heading_reset=heading_reset, events=events,
-        smooth=smooth, velocity_fixes=vfix,
+        smooth=smooth, velocity_fixes=vfix, cov_times=cov_times,
     )
     return res, sp
+
+
+def _rest_gyro_bias(imu, win, block_s: float = 1.0, quiet: float = 3.0):
+    """The mean gyro rate [rad/s] (3,) over the first unbroken run of quiet ``block_s`` blocks of the
+    levelling window ``win`` (bool per IMU sample) — the gyro bias (and the Earth rate) when the IMU is at
+    rest — or None when the window's first block is not quiet. A block is quiet when the spread of its
+    rates (the largest per-axis σ) is at most ``quiet`` times the quietest block's: at rest the spread is
+    the sensor's white noise (a 1-s σ of 100+ samples is good to ~7 %), so 3× is motion, not chance: a
+    walker lifting the phone, whose rate would otherwise be taken for bias (no threshold in deg/s needed)."""
+    idx = np.flatnonzero(win)
+    if idx.size < 2:
+        return None
+    t = imu.time[idx]
+    blk = np.floor((t - t[0]) / block_s).astype(np.int64)
+    dt = np.diff(np.concatenate([[imu.t0], imu.time]))[idx]
+    w = imu.dtheta[idx] / dt[:, None]
+    nb = int(blk[-1]) + 1
+    spread = np.array([w[blk == k].std(axis=0).max() if (blk == k).sum() > 2 else np.inf for k in range(nb)])
+    if not np.isfinite(spread).any():
+        return None
+    noisy = np.flatnonzero(spread > quiet * spread.min())
+    n_quiet = int(noisy[0]) if noisy.size else nb
+    if n_quiet == 0:
+        return None
+    sel = blk < n_quiet
+    return imu.dtheta[idx][sel].sum(axis=0) / dt[sel].sum()
 
 
 def _spp_start(imu, obs, eph, cfg: TightConfig):
@@ -125,17 +161,19 @@ def _spp_start(imu, obs, eph, cfg: TightConfig):
     return sp, g, t_imu, i0
 
 
-def _start_heading(imu, sp, i0: int, g, roll: float, pitch: float, cfg: TightConfig, events: list):
-    """The heading to start from: the configuration's, or from matching IMU and SPP velocity changes, or
+def _start_heading(imu, sp, i0: int, g, level, cfg: TightConfig, events: list):
+    """The heading to start from: the configuration's, or from matching IMU and SPP velocity changes
+    (``level``: roll, pitch [rad] and the mean gyro rate (3,) [rad/s] of the static levelling window), or
     else unknown (σ 180°) until a meaningful SPP course resets it. Returns (heading [rad], the course
     reset (t, heading) or None, the configuration with the initial heading σ that goes with it)."""
+    roll, pitch, wb = level
     ini = cfg.init
     heading = 0.0 if ini.heading_deg is None else ini.heading_deg * DEG
     heading_reset = None
     matched = None
     if ini.heading_deg is None:
         # the IMU's own heading from GNSS velocity changes: needs no mounting and no vehicle kind
-        matched = velocity_match_heading(imu, sp["time"][i0], roll, pitch, g.time, g.vel)
+        matched = velocity_match_heading(imu, sp["time"][i0], roll, pitch, g.time, g.vel, gyro_bias=wb)
         if matched is not None and matched[1] > MAX_MATCH_SIGMA:
             events.append(f"velocity-matched heading {np.degrees(matched[0]):.1f} deg not used: sigma "
                           f"{np.degrees(matched[1]):.1f} deg > {np.degrees(MAX_MATCH_SIGMA):.0f} deg")
@@ -289,7 +327,8 @@ def process_tight_files(imu_path, obs_path, nav_path, config_path=None, out_dir=
     check_solution(traj, "the tightly coupled filter")
     write_trajectory(traj, traj_path, week=getattr(obs, "ref_week", None))
     summary = {"imu": str(imu_path), "obs": str(obs_path), "nav": str(nav_path), "output": str(traj_path),
-               "states": cfg.states, "smoothed": bool(smooth), "vehicle": vehicle,
+               "states": cfg.states, "ins_states": cfg.nins, "filter_states": res.nstate,
+               "smoothed": bool(smooth), "vehicle": vehicle,
                "ionosphere": res.iono_model,
                "systems": sorted({n[0] for n in obs.names}),
                "events": imu.events + events}
@@ -338,7 +377,8 @@ def _iono_note(event: str) -> bool:
 def format_tight_summary(s: dict) -> str:
     """Human-readable summary of ``aidnav tight``."""
     lines = [f"aidnav tight: {s['imu']} + {s['obs']} + {s['nav']}", f"output: {s['output']}",
-             f"states: {s['states']}"]
+             f"states: {s['states']}" + (f" (INS block {s['ins_states']}, {s['filter_states']} in the filter)"
+                                         if "ins_states" in s else "")]
     if s.get("ionosphere"):
         lines.append(f"ionosphere: {s['ionosphere']}")
     ref = s.get("reference")

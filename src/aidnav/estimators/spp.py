@@ -227,21 +227,13 @@ def spp(
     use_iono = iono_alpha is not None and iono_beta is not None
     alpha = np.asarray(iono_alpha if use_iono else _ZERO4, float)
     beta = np.asarray(iono_beta if use_iono else _ZERO4, float)
-    ids = np.asarray(prns, np.int64) if np.issubdtype(np.asarray(prns).dtype, np.integer) else np.arange(s)
-    sfac = np.array([SYSTEM_SIGMA_FACTOR[SYSTEMS[k]] for k in ids // 100])
-    sysn = np.where(ids // 100 == SYS_SBS, SYS_GPS, ids // 100)  # SBAS ranges on the GPS clock
-    f = carrier_frequencies(ids) if freq is None else np.asarray(freq, float)
-    ifac = np.where(np.isfinite(f), (FREQ_L1 / f) ** 2, 1.0)
+    sfac, sysn, ifac = _signals(prns, s, freq)
     x0 = np.zeros(4) if x0 is None else np.asarray(x0, float)
     excluded: list = []
     status = "ok"
+    T = thr = float("nan")
     while True:
-        present = [k for k in range(len(SYSTEMS)) if (use & (sysn == k)).any()]
-        ref = present[0] if present else 0
-        others = present[1:]
-        col = np.array([3 if k == ref or k not in others else 4 + others.index(k) for k in sysn], np.int64)
-        start = np.zeros(4 + len(others))
-        start[:min(4, len(x0))] = x0[:4]
+        present, ref, others, col, start = _clock_columns(use, sysn, x0)
         x, Q, v, el, az, sig, used, iters, ok = _wls(
             sat_pos,
             pr_corr,
@@ -281,21 +273,55 @@ def spp(
         if dof == 1 or len(excluded) >= max_exclusions:
             status = "fault detected, not identified" if dof == 1 else "fault detected, exclusions exhausted"
             break
-        # standardized residuals
-        lat, lon, _ = ecef_to_lla(x[0], x[1], x[2])
-        idx = np.flatnonzero(used)
-        H = np.zeros((len(idx), nx))
-        for k, j in enumerate(idx):
-            _, e = geo_range(sat_pos[j], x[:3])
-            H[k, :4] = [-e[0], -e[1], -e[2], 1.0]
-            if col[j] > 3:
-                H[k, col[j]] = 1.0
-        Qv = np.diag(sig[idx] ** 2) - H @ Q @ H.T
-        zstd = np.abs(v[idx]) / np.sqrt(np.maximum(np.diag(Qv), 1e-12))
-        worst = idx[int(np.argmax(zstd))]
+        worst = _worst_satellite(sat_pos, x, Q, v, sig, used, col, nx)
         excluded.append(prns[worst].item() if hasattr(prns[worst], "item") else prns[worst])
         use[worst] = False
         x0 = x[:4].copy()
+    res = _spp_result(x, Q, v, el, az, used, excluded, status, int(iters), ref, others)
+    if status not in ("too few satellites", "no convergence", "no redundancy: unchecked"):
+        res.test_stat, res.threshold = T, thr
+    return res
+
+
+def _signals(prns, s: int, freq):
+    """Per satellite: the σ0 factor of its system, its clock's system (SBAS ranges on the GPS clock) and
+    its Klobuchar scale (f_L1/f)² (1 where the frequency is unknown)."""
+    ids = np.asarray(prns, np.int64) if np.issubdtype(np.asarray(prns).dtype, np.integer) else np.arange(s)
+    sfac = np.array([SYSTEM_SIGMA_FACTOR[SYSTEMS[k]] for k in ids // 100])
+    sysn = np.where(ids // 100 == SYS_SBS, SYS_GPS, ids // 100)  # SBAS ranges on the GPS clock
+    f = carrier_frequencies(ids) if freq is None else np.asarray(freq, float)
+    ifac = np.where(np.isfinite(f), (FREQ_L1 / f) ** 2, 1.0)
+    return sfac, sysn, ifac
+
+
+def _clock_columns(use, sysn, x0):
+    """The systems present among the used satellites, the reference one (the first), the others (one
+    inter-system bias unknown each), each satellite's clock column and the start state."""
+    present = [k for k in range(len(SYSTEMS)) if (use & (sysn == k)).any()]
+    ref = present[0] if present else 0
+    others = present[1:]
+    col = np.array([3 if k == ref or k not in others else 4 + others.index(k) for k in sysn], np.int64)
+    start = np.zeros(4 + len(others))
+    start[:min(4, len(x0))] = x0[:4]
+    return present, ref, others, col, start
+
+
+def _worst_satellite(sat_pos, x, Q, v, sig, used, col, nx: int) -> int:
+    """Index of the used satellite with the largest standardized residual |v| / σ_v."""
+    idx = np.flatnonzero(used)
+    H = np.zeros((len(idx), nx))
+    for k, j in enumerate(idx):
+        _, e = geo_range(sat_pos[j], x[:3])
+        H[k, :4] = [-e[0], -e[1], -e[2], 1.0]
+        if col[j] > 3:
+            H[k, col[j]] = 1.0
+    Qv = np.diag(sig[idx] ** 2) - H @ Q @ H.T
+    zstd = np.abs(v[idx]) / np.sqrt(np.maximum(np.diag(Qv), 1e-12))
+    return idx[int(np.argmax(zstd))]
+
+
+def _spp_result(x, Q, v, el, az, used, excluded, status, iters, ref, others) -> SppResult:
+    """The :class:`SppResult` of the last solution (geodetic position, ENU covariance, DOP)."""
     lat, lon, h = ecef_to_lla(x[0], x[1], x[2])
     cov_enu = np.full((3, 3), np.nan)
     if np.all(np.isfinite(Q)):
@@ -318,13 +344,11 @@ def spp(
         used=used,
         excluded=excluded,
         status=status,
-        iterations=int(iters),
+        iterations=iters,
         reference_system=SYSTEMS[ref],
         isb_m={SYSTEMS[k]: float(x[4 + i]) for i, k in enumerate(others)},
         isb_std_m={SYSTEMS[k]: float(np.sqrt(Q[4 + i, 4 + i])) for i, k in enumerate(others)},
     )
-    if status not in ("too few satellites", "no convergence", "no redundancy: unchecked"):
-        res.test_stat, res.threshold = T, thr
     return res
 
 

@@ -17,9 +17,17 @@ seeds and over the evaluation epochs (every second of the filter's output, gaps 
   divided by 9 (1 for an honest filter).
 
 The seed fixes everything a run draws (IMU errors, GNSS noise, the time-correlated GNSS errors and the
-matched configuration's initial state), so a cell is reproducible. Tight-coupling cells (3, 2 or 0
-satellites) have their conditions here (``coupling = "tight"``) but are not run by this module: they
-belong to the tight filter's work (:func:`run_cell` raises ``NotImplementedError``).
+matched configuration's initial state), so a cell is reproducible.
+
+Tight-coupling cells (``coupling = "tight"``: 3, 2 or 0 satellites for 60 s over two turns of the drive,
+the full nominal 24-satellite GPS sky elsewhere): the same drive and IMU, raw pseudoranges and rates of
+:mod:`aidnav.sim.gnss_raw` at 1 Hz (its full error model: orbit, satellite clock, ionosphere with the
+broadcast coefficients in the navigation records, troposphere, multipath, noise; TCXO receiver clock) on
+the GPS time scale, run through :func:`aidnav.apps.tight.process_tight` (what ``aidnav tight`` does: SPP
+start, static roll/pitch, heading by velocity matching, ZUPTs) with no configuration (``none``), a
+vehicle preset (:func:`aidnav.filters.tight.apply_vehicle`), or through :func:`aidnav.filters.tight.
+run_tight` with the matched IMU model and a perturbed initial state (``matched``). Evaluated as the loose
+cells: every second of the whole run.
 """
 
 from __future__ import annotations
@@ -97,8 +105,8 @@ class Condition:
     rate_hz : GNSS fix rate; velocity : fixes carry velocity; correlated : position errors are first-order
     Gauss–Markov (σ ``GM_SIGMA_M``, τ ``GM_TAU_S``) plus ``GM_WHITE_M`` white, the fixes' σ the total
     (what a receiver that does not know the correlation reports); imu_gap, outage : (start, duration) [s]
-    from the start without IMU samples / without GNSS fixes; coupling : "loose", or "tight" (a hook: the
-    tight filter's cells, ``satellites`` in view, are not run here).
+    from the start without IMU samples / without GNSS fixes (tight: with only ``satellites`` in view);
+    coupling : "loose", or "tight" (raw GNSS, module doc).
     """
 
     name: str
@@ -133,9 +141,12 @@ CONDITIONS: tuple[Condition, ...] = (
     Condition("grade tactical", grade="tactical"),
     Condition("grade mems", grade="mems"),
     Condition("grade consumer", grade="consumer"),
-    Condition("tight 3 satellites", coupling="tight", satellites=3),
-    Condition("tight 2 satellites", coupling="tight", satellites=2),
-    Condition("tight 0 satellites", coupling="tight", satellites=0),
+    Condition("tight 3 satellites", coupling="tight", satellites=3, outage=(120.0, 60.0),
+              note="raw GNSS, 3 satellites (the highest) for 60 s over two turns"),
+    Condition("tight 2 satellites", coupling="tight", satellites=2, outage=(120.0, 60.0),
+              note="raw GNSS, 2 satellites for 60 s"),
+    Condition("tight 0 satellites", coupling="tight", satellites=0, outage=(120.0, 60.0),
+              note="raw GNSS, none for 60 s (free inertia)"),
 )
 
 
@@ -279,9 +290,29 @@ def _truth_at(truth: Trajectory, t: np.ndarray) -> Trajectory:
                       np.column_stack([li(truth.vel[:, i]) for i in range(3)]), rph)
 
 
+def _loose_seed(cond: Condition, config: str, seed: int, sensor_model: bool):
+    """(errors, σ, NEES) of one loose seed."""
+    run = simulate_condition(cond, seed)
+    cfg = config_for(config, cond, run, sensor_model)
+    if config == "none":  # what `aidnav process` does with no option: the NHC decided from the log
+        cfg = no_option_constraint(run.imu, run.gnss, cfg, None, [])[0]
+    # as `aidnav process` does for every configuration that does not state gnss.error_tau_s: white or
+    # correlated GNSS errors from a first pass's innovations
+    cfg = choose_gnss_errors(run.imu, run.gnss, cfg, None, [])
+    cov_t = np.arange(run.truth.time[0], run.truth.time[-1], EVAL_DT_S) - 1e-6
+    res = run_loose(run.imu, run.gnss, cfg, cov_times=cov_t)
+    return _evaluate(res, run)
+
+
 def _evaluate(res, run: SimRun):
-    """(errors (K, 6), σ (K, 6), NEES (K,)) of one run at the evaluation epochs."""
-    traj = to_trajectory(res)
+    """(errors (K, 6), σ (K, 6), NEES (K,)) of one run at the evaluation epochs (a loose or a tight
+    result: each through its own trajectory conversion)."""
+    if hasattr(res, "clock"):
+        from aidnav.filters.tight import to_trajectory as tight_trajectory  # lazy: tight cells only
+
+        traj = tight_trajectory(res)
+    else:
+        traj = to_trajectory(res)
     tt = run.truth.time
     ev = np.arange(tt[0], tt[-1], EVAL_DT_S)
     ev = ev[ev >= traj.time[0]]
@@ -301,24 +332,68 @@ def _evaluate(res, run: SimRun):
     return e, s, ne
 
 
+TIGHT_SOW = 345600.0  #: GPS seconds of week at the tight cells' start (the sky of the nominal constellation)
+TIGHT_WEEK = 2381
+
+
+def simulate_tight(cond: Condition, seed: int):
+    """The tight cell's run of ``cond`` with ``seed``: (:class:`SimRun` with the IMU on the GPS time
+    scale, the observations with ``cond.satellites`` kept in the ``cond.outage`` window, the ephemerides).
+    The IMU draws are those of :func:`simulate_condition`; the raw GNSS draws its own stream."""
+    from aidnav.nav.gnss_sat import E_URA  # lazy: tight cells only
+    from aidnav.sim.gnss_constellation import nominal_constellation  # lazy: tight cells only
+    from aidnav.sim.gnss_raw import RawGnssSpec, limit_satellites, simulate_raw_gnss  # lazy: tight only
+
+    run = simulate_condition(replace(cond, outage=None), seed)
+    eph = nominal_constellation(TIGHT_WEEK, TIGHT_SOW, 24)
+    # a broadcast record states its user range accuracy (ICD URA index 0: 2.0 m, as
+    # nominal_multi_constellation sets); the nominal GPS table leaves it 0, which the filter reads as
+    # "unknown" (6144 m, RTKLIB's value): its range-error states would then swallow every pseudorange
+    eph.table[:, E_URA] = 2.0
+    spec = RawGnssSpec(rate_hz=cond.rate_hz)
+    eph.iono_alpha, eph.iono_beta = spec.iono_alpha, spec.iono_beta  # a navigation file's broadcast set
+    raw = simulate_raw_gnss(run.truth, eph, spec, np.random.default_rng([seed, 40]), TIGHT_SOW)
+    t0 = TIGHT_SOW + run.truth.time[0]
+    obs = raw.rover
+    if cond.outage is not None:
+        a, d = cond.outage
+        obs = limit_satellites(obs, raw.truth["elevation"], [(a, a + d, int(cond.satellites or 0))], t0)
+    imu = ImuData(run.imu.time + TIGHT_SOW, run.imu.dtheta, run.imu.dv, t0=run.imu.t0 + TIGHT_SOW)
+    return replace(run, imu=imu), obs, eph
+
+
+def _run_tight_cell(cond: Condition, config: str, run: SimRun, obs, eph, sensor_model: bool, cov_t):
+    """The tight filter's result of one seed with the configuration ``config`` (module doc)."""
+    from aidnav.apps.tight import process_tight  # lazy: tight cells only
+    from aidnav.filters.tight import TightConfig, apply_vehicle, run_tight  # lazy: tight cells only
+
+    if config != "matched":
+        cfg = apply_vehicle(TightConfig(), None if config == "none" else config)
+        return process_tight(run.imu, obs, eph, cfg, cov_times=cov_t)[0]
+    lc = config_for("matched", cond, run, sensor_model)
+    ini = lc.init.model_copy(update={"mode": "given"})
+    cfg = TightConfig(imu=lc.imu, init=ini, constraints={"zupt": False})
+    return run_tight(run.imu, obs, eph, cfg, cov_times=cov_t)
+
+
+def _tight_seed(cond: Condition, config: str, seed: int, sensor_model: bool):
+    """(errors, σ, NEES) of one tight seed (:func:`_evaluate` on the GPS-shifted result)."""
+    run, obs, eph = simulate_tight(cond, seed)
+    cov_t = np.arange(run.truth.time[0], run.truth.time[-1], EVAL_DT_S) - 1e-6 + TIGHT_SOW
+    res = _run_tight_cell(cond, config, run, obs, eph, sensor_model, cov_t)
+    res = replace(res, time=res.time - TIGHT_SOW, cov_time=res.cov_time - TIGHT_SOW)
+    return _evaluate(res, run)
+
+
 def run_cell(cond: Condition, config: str, seeds, sensor_model: bool = True) -> CellResult:
     """Run the cell ``cond`` × ``config`` over ``seeds`` (module doc)."""
-    if cond.coupling != "loose":
-        raise NotImplementedError(f"{cond.name}: tight-coupling cells are not run by the consistency matrix "
-                                  "yet (hook for the tight filter's work)")
     es, ss, ns, per, errors = [], [], [], [], []
     for seed in seeds:
-        run = simulate_condition(cond, seed)
         try:
-            cfg = config_for(config, cond, run, sensor_model)
-            if config == "none":  # what `aidnav process` does with no option: the NHC decided from the log
-                cfg = no_option_constraint(run.imu, run.gnss, cfg, None, [])[0]
-            # as `aidnav process` does for every configuration that does not state gnss.error_tau_s: white
-            # or correlated GNSS errors from a first pass's innovations
-            cfg = choose_gnss_errors(run.imu, run.gnss, cfg, None, [])
-            cov_t = np.arange(run.truth.time[0], run.truth.time[-1], EVAL_DT_S) - 1e-6
-            res = run_loose(run.imu, run.gnss, cfg, cov_times=cov_t)
-            e, s, ne = _evaluate(res, run)
+            if cond.coupling == "tight":
+                e, s, ne = _tight_seed(cond, config, seed, sensor_model)
+            else:
+                e, s, ne = _loose_seed(cond, config, seed, sensor_model)
         except Exception as ex:  # a diverged or refused run is a defect of the cell, reported as such
             errors.append(f"seed {seed}: {type(ex).__name__}: {ex}")
             continue
@@ -346,12 +421,10 @@ def run_cell(cond: Condition, config: str, seeds, sensor_model: bool = True) -> 
 
 def run_matrix(conditions=None, configs=None, seeds=range(10), sensor_model: bool = True,
                progress=None) -> list[CellResult]:
-    """Every loose cell of ``conditions`` (default :data:`CONDITIONS`) × ``configs`` (default
+    """Every cell of ``conditions`` (default :data:`CONDITIONS`) × ``configs`` (default
     :func:`configurations`) over ``seeds``; ``progress(cell)`` is called after each cell."""
     out = []
     for cond in conditions or CONDITIONS:
-        if cond.coupling != "loose":
-            continue
         for cfg in configs or configurations():
             cell = run_cell(cond, cfg, list(seeds), sensor_model)
             out.append(cell)

@@ -30,24 +30,29 @@ __all__ = ["velocity_match_heading"]
 
 def velocity_match_heading(imu, t_start: float, roll: float, pitch: float, t_gnss, vel_enu,
                            window_s: float = 2.0, span_s: float = 60.0, min_dv_m_s: float = 0.3,
-                           min_windows: int = 5):
+                           min_windows: int = 5, gyro_bias=None):
     """Initial heading [rad] at ``t_start`` from GNSS velocity changes (module doc).
 
     imu : :class:`aidnav.data.ImuData` (on the GNSS time scale); roll, pitch [rad] at ``t_start``;
     t_gnss (M,) [s], vel_enu (M, 3) GNSS velocities (NaN: none), e.g. SPP Doppler velocities; windows of
     ``window_s`` between GNSS epochs within ``span_s`` after ``t_start``, used when the GNSS Δv exceeds
-    ``min_dv_m_s``. Returns (heading, σ [rad], windows used) or None (fewer than ``min_windows`` windows
-    with motion)."""
+    ``min_dv_m_s``. gyro_bias : optional (3,) [rad/s] removed from the rates before the attitude is
+    propagated (the mean rate over the static levelling window: a consumer gyro's bias tilts the level
+    frame by degrees a minute, and g·tilt leaks into the horizontal Δv, the same in every window so not
+    seen by the residual scatter). Returns (heading, σ [rad], windows used) or None (fewer than
+    ``min_windows`` windows with motion)."""
     t_imu = np.asarray(imu.time, float)
     k0 = int(np.searchsorted(t_imu, t_start, side="right"))
     k1 = int(np.searchsorted(t_imu, t_start + span_s, side="right"))
     if k1 - k0 < 2:
         return None
     C = dcm_from_euler(roll, pitch, 0.0)
+    wb = np.zeros(3) if gyro_bias is None else np.asarray(gyro_bias, float)
+    dts = np.diff(np.concatenate([[imu.t0], t_imu]))
     # horizontal specific-force sum in the heading-0 level frame, cumulative at each IMU sample
     cum = np.zeros((k1 - k0 + 1, 2))
     for i, k in enumerate(range(k0, k1)):
-        C = C @ dcm_from_rotvec(np.asarray(imu.dtheta[k], float))
+        C = C @ dcm_from_rotvec(np.asarray(imu.dtheta[k], float) - wb * dts[k])
         cum[i + 1] = cum[i] + (C @ np.asarray(imu.dv[k], float))[:2]
     tt = np.concatenate([[t_start], t_imu[k0:k1]])
     t_g = np.asarray(t_gnss, float)

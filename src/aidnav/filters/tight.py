@@ -7,7 +7,12 @@ reference-week scale, IMU times on the same GPS scale.
 
 **States** (§2.1, seed eq. 8): ``states=11`` = [φ, δv, δL δλ δh, δt_u, δf] (the seed's model),
 ``states=17`` = [φ, δv, δp, ε (gyro bias), ∇ (accel bias), δt_u, δf]: the layout of
-:mod:`aidnav.filters.layout` with the clock block (``L_CLK``) after the INS block of 9 or 15 states;
+:mod:`aidnav.filters.layout` with the clock block (``L_CLK``) after the INS block of 9 or 15 states
+(21 with ``imu.scale_factors``, 27 with ``imu.gyro_misalignment``: the loose filter's sensor states, so
+free inertia — an outage, too few satellites — grows with the full error model, issue 35 item 3). Without
+an ``imu`` section the model is that of an IMU of unknown grade (:data:`.config.UNKNOWN_GRADE_IMU`:
+Groves' consumer row through :func:`.tuning.sensor_error_model`, 27 states, noise raised to the log's
+static samples), also under the vehicle presets;
 δt_u = b − b̂ [m], δf = d − d̂ [m/s] (true − estimated, ρ_GPS = ρ_true + b). Clock dynamics: δṫ_u = δf +
 w_b, δḟ = −δf/τ_f + w_d (τ_f ≤ 0: random walk), PSDs S_b = c²h₀/2, S_d = c²·2π²h₋₂ (Allan
 coefficients of the receiver oscillator). With ``gnss.range_errors`` (default) one more state per satellite
@@ -62,8 +67,9 @@ from aidnav.units import DEG
 
 from . import measurements as ms
 from .chi2 import chi2_isf as _chi2_isf
-from .config import Constraints, FilterSettings, ImuNoise, Initialisation
+from .config import UNKNOWN_GRADE_IMU, Constraints, FilterSettings, ImuNoise, Initialisation
 from .engine import NEVER, Imu, Init, Models, Output, Process, Records, run_filter
+from .ins_errors import noise_count
 from .layout import L_CLK, L_ISB, L_N, L_NINS, L_RERR, L_SIZE
 from .loose import LooseResult, bridge_gaps
 from .loose import to_trajectory as nav_trajectory
@@ -75,7 +81,6 @@ from .smoother import rts, smooth_outputs
 __all__ = ["CLOCK_GRADES", "RawGnssAiding", "TightConfig", "TightResult", "apply_vehicle", "clock_allan",
            "rotation_variance", "run_tight", "tight_layout",
            "tight_nav_covariance_m", "to_trajectory"]
-N_NOISE = 14  # 12 INS noise inputs of ins_errors (15-state) + clock bias + clock drift
 
 
 # Allan-variance coefficients (h0 [s], h-2 [1/s]) of receiver oscillators: Brown & Hwang, "Introduction to
@@ -157,10 +162,14 @@ def clock_allan(g: RawGnssAiding) -> tuple[float, float]:
 
 
 class TightConfig(_Strict):
-    """Configuration of :func:`run_tight` (the loosely coupled filter's sections plus ``gnss``)."""
+    """Configuration of :func:`run_tight` (the loosely coupled filter's sections plus ``gnss``). The INS
+    block (:attr:`nins`): 9 states (``states=11``), else 15, 21 with ``imu.scale_factors``, 27 with
+    ``imu.gyro_misalignment`` (the loose filter's layouts)."""
 
     states: Literal[11, 17] = 17
-    imu: ImuNoise = ImuNoise()
+    # no imu section: the error model of an IMU of unknown grade (what a phone or any consumer IMU is),
+    # with its scale-factor and misalignment states (config.UNKNOWN_GRADE_IMU; issue 35 item 3, issue 40)
+    imu: ImuNoise = Field(default_factory=lambda: ImuNoise(**UNKNOWN_GRADE_IMU))
     gnss: RawGnssAiding = RawGnssAiding()
     init: Initialisation = Initialisation()
     constraints: Constraints = Constraints()
@@ -169,6 +178,13 @@ class TightConfig(_Strict):
         False, description="gyro scale-factor and misalignment errors (imu.gyro_sf_sigma_ppm, "
         "imu.gyro_misalignment_sigma_deg; not states here) as attitude noise that grows with the body's "
         "rotation: (σ_sf² + σ_m²)·|Δθ|² per axis for each prop_dt block of net rotation Δθ")
+
+    @property
+    def nins(self) -> int:
+        """Size of the INS error block: 9, 15, 21 (scale factors) or 27 (and gyro misalignment)."""
+        if self.states == 11:
+            return 9
+        return 27 if self.imu.gyro_misalignment else (21 if self.imu.scale_factors else 15)
 
 
 def rotation_variance(t, dth, sf, mis, block_s):
@@ -223,14 +239,17 @@ class TightResult:
     isb_systems: str = ""  # letters of the systems with an inter-system bias state (clock − GPS clock)
     isb: np.ndarray | None = None  # (N, len(isb_systems)) forward inter-system bias estimates [m]
     isb_std: np.ndarray | None = None  # (N, len(isb_systems)) their σ [m]
+    cov_time: np.ndarray | None = None  # (K,) times of the kept forward covariances (``cov_times``) [s]
+    cov: np.ndarray | None = None  # (K, n, n) those covariances
 
 
-def tight_layout(states: int, n_range: int = 0, n_isb: int = 0) -> np.ndarray:
-    """Layout table (:mod:`aidnav.filters.layout`): INS block of 9 (11 states) or 15, then the clock,
+def tight_layout(states: int, n_range: int = 0, n_isb: int = 0, nins: int = 15) -> np.ndarray:
+    """Layout table (:mod:`aidnav.filters.layout`): INS block of 9 (11 states) or ``nins`` (15, 21 with
+    scale factors, 27 with the gyro misalignment too), then the clock,
     then ``n_isb`` inter-system biases (``L_ISB``, none: 0), then ``n_range`` per-satellite range-error
     states (``L_RERR``, none: 0; kept last: they are the open-loop Gauss-Markov block)."""
     lay = np.full(L_SIZE, -1, np.int64)
-    lay[L_NINS] = 9 if states == 11 else 15
+    lay[L_NINS] = 9 if states == 11 else nins
     lay[L_CLK] = lay[L_NINS]
     lay[L_N] = lay[L_NINS] + 2
     if n_isb:
@@ -243,21 +262,23 @@ def tight_layout(states: int, n_range: int = 0, n_isb: int = 0) -> np.ndarray:
 
 
 def _noise_vector(cfg: TightConfig, n_range: int = 0, n_isb: int = 0) -> np.ndarray:
-    q = np.zeros(N_NOISE + n_isb + n_range)
-    q[:12] = process_noise(cfg, 15)  # reads cfg.imu (the loose schema's section)
+    nfull = max(cfg.nins, 15)
+    m = noise_count(nfull)  # the INS noise inputs of ins_errors (12, 18 or 24), then the clock's two
+    q = np.zeros(m + 2 + n_isb + n_range)
+    q[:m] = process_noise(cfg, nfull)  # reads cfg.imu (the loose schema's section)
     g = cfg.gnss
     h0, hm2 = clock_allan(g)
-    q[12] = C_LIGHT**2 * h0 / 2.0
-    q[13] = C_LIGHT**2 * 2.0 * np.pi**2 * hm2
-    q[N_NOISE:N_NOISE + n_isb] = g.isb_psd_m2_s  # inter-system biases: random walk
-    q[N_NOISE + n_isb:] = 2.0 / g.range_error_tau_s  # unit-variance first-order Gauss-Markov: q = 2σ²/τ
+    q[m] = C_LIGHT**2 * h0 / 2.0
+    q[m + 1] = C_LIGHT**2 * 2.0 * np.pi**2 * hm2
+    q[m + 2:m + 2 + n_isb] = g.isb_psd_m2_s  # inter-system biases: random walk
+    q[m + 2 + n_isb:] = 2.0 / g.range_error_tau_s  # unit-variance first-order Gauss-Markov: q = 2σ²/τ
     return q
 
 
 def _initial_P(cfg: TightConfig, lat, h, att_sig, n_range: int = 0, n_isb: int = 0) -> np.ndarray:
-    nn = 9 if cfg.states == 11 else 15
+    nn = cfg.nins
     n = nn + 2 + n_isb + n_range
-    P15 = initial_covariance(cfg, 15, lat, h, att_sig)  # reads cfg.imu, cfg.init (the loose schema's)
+    P15 = initial_covariance(cfg, max(nn, 15), lat, h, att_sig)  # reads cfg.imu, cfg.init (loose schema)
     P = np.eye(n)  # range-error states: unit variance (stationary)
     P[:nn, :nn] = P15[:nn, :nn]
     P[nn, nn] = cfg.gnss.clock_bias_sigma_m**2
@@ -313,7 +334,10 @@ def apply_vehicle(cfg: TightConfig, name: str | None, events: list | None = None
         if section not in ("imu", "init", "constraints"):
             skipped += [f"{section}.{k}" for k in vals]
             continue
-        merged[section] = {**vals, **data.get(section, {})}
+        # without an imu section the IMU model stays the unknown-grade one (the default's), its noise
+        # from the log's static samples included: a phone at rest shows its own noise, vibrating or not
+        over = UNKNOWN_GRADE_IMU if section == "imu" and "imu" not in data else {}
+        merged[section] = {**vals, **over, **data.get(section, {})}
     if events is not None and skipped:
         events.append(f"--vehicle {name}: {', '.join(skipped)} of the preset not used by the tightly coupled "
                       "filter (no such state or setting here)")
@@ -351,7 +375,7 @@ def _satellite_arrays(obs, eph, use_tgd, max_age):
 
 def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, static=None, heading_reset=None,
               events: list | None = None, output_rate_hz: float | None = None,
-              smooth: bool = False, velocity_fixes=None) -> TightResult:
+              smooth: bool = False, velocity_fixes=None, cov_times=None) -> TightResult:
     """Tightly coupled GNSS/INS over whole logs.
 
     imu : :class:`aidnav.data.ImuData` (increments, body RFU; time on the GNSS scale: GPS seconds on the
@@ -366,13 +390,15 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     records of the antenna (e.g. time-differenced carrier phase, :mod:`aidnav.estimators.tdcp`, at the
     middle of each interval), the loosely coupled filter's velocity model, gated by ``gate_probability``.
     smooth : also run the RTS smoother (``state``, ``clock``, ``pdiag`` are then the smoothed ones).
+    cov_times : optional times [s] at which to keep the full forward covariance (``cov_time``, ``cov``:
+    the first IMU sample at or after each; outside the processed span dropped).
     """
     cfg = cfg or TightConfig()
     events = events if events is not None else []
     if eph.ref_week != obs.ref_week:
         eph = eph.to_week(obs.ref_week)
     g = cfg.gnss
-    nnav = int(tight_layout(cfg.states)[L_NINS])
+    nnav = cfg.nins
     t_imu = imu.time + cfg.imu.time_offset_s
     if init_state is None:
         init_state = (float(imu.t0 + cfg.imu.time_offset_s),
@@ -385,7 +411,7 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     obs = obs.with_frequencies(eph)  # GLONASS channels from the records
     rows, with_eph, isb_sys = _epoch_rows(obs, eph, g, events)
     nb, nr = len(isb_sys), len(with_eph)
-    lay = tight_layout(cfg.states, nr, nb)
+    lay = tight_layout(cfg.states, nr, nb, nnav)
     n = int(lay[L_N])
     P0 = _initial_P(cfg, lat0, h0, np.array(cfg.init.attitude_sigma_deg) * DEG, nr, nb)
     M, S = obs.code1.shape
@@ -403,7 +429,7 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
         reset_heading = float(heading_reset[1])
     rate_hz = output_rate_hz or cfg.filter.output_rate_hz
     out_every = max(1, int(round(imu.rate_hz / rate_hz))) if rate_hz else 1
-    taus = np.array([cfg.imu.gyro_bias_tau_s, cfg.imu.accel_bias_tau_s, 0.0, 0.0])
+    taus = np.array([cfg.imu.gyro_bias_tau_s, cfg.imu.accel_bias_tau_s, cfg.imu.sf_tau_s, cfg.imu.sf_tau_s])
     # range-error estimates decay as the Gauss-Markov conditional mean between updates (open-loop states)
     aux_tau = np.r_[0.0, g.clock_tau_s, np.zeros(nb), np.full(nr, g.range_error_tau_s)]
     proc = Process(lay, _noise_vector(cfg, nr, nb), taus, aux_tau, float(cfg.filter.prop_dt_s),
@@ -413,13 +439,19 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
         bias0[int(lay[L_ISB]) - 9:int(lay[L_ISB]) - 9 + nb] = [g.isb_m.get(c, 0.0) for c in isb_sys]
     init = Init(float(t0), st0, bias0, P0, reset_idx, reset_heading,
                 cfg.init.course_heading_sigma_deg * DEG, np.full(15, np.nan))
-    r = run_filter(imu_in, rec, mod, proc, init, Output(out_every, bool(smooth), np.zeros(0, np.int64)))
+    cov_idx = np.zeros(0, np.int64)
+    if cov_times is not None:
+        cov_idx = np.searchsorted(imu_in.t, np.sort(np.atleast_1d(np.asarray(cov_times, float))) - 1e-6)
+        cov_idx = cov_idx[cov_idx < len(imu_in.t)].astype(np.int64)
+    r = run_filter(imu_in, rec, mod, proc, init, Output(out_every, bool(smooth), cov_idx))
     ge = rec.grp._replace(**{k: getattr(rec.grp, k)[sel] for k in rec.grp._fields if k != "flags"})
     if gate > 0:
         _gate_events(ge, gate, obs.names, events)
     t_out = t_imu[k0:]
     res = _tight_result(r, ge, obs, lay, nnav, with_eph, isb_sys, iono_model, events, t_out)
     res.counts.update(imu_samples_skipped=k0, velocity_records=len(rec.t) - len(sel))
+    if cov_times is not None:
+        res.cov_time, res.cov = imu_in.t[cov_idx], r.cov
     if smooth and len(r.node_idx) > 1:
         _smooth_into(res, r, lay, nnav, t_out)
     return res

@@ -8,6 +8,7 @@ time-tag file (:mod:`aidnav.io.timetag`).
 from __future__ import annotations
 
 import io
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -88,6 +89,52 @@ def read_rtklibexplorer_imu(path, tag_path=None, axes: str = "RFU", mounting=Non
     path = Path(path)
     name = path.name
     tag_path = Path(tag_path) if tag_path is not None else path.with_name(path.name + ".tag")
+    c_axes = _axes_matrix(axes, mounting)
+
+    data = path.read_bytes()
+    if not data:
+        raise DataError(path, None, "empty file")
+    tag = read_timetag(tag_path)
+    events = list(tag.events)
+
+    buf, lines = _screen_lines(data, name, skip_first_line, events)
+    arr, good = _parse_kept(path, buf, lines, events)
+    arr, good, stamp_ms = _clean_stamps(arr, good, lines.line_no, name, events)
+    if len(arr) < 2:
+        raise DataError(path, None, f"only {len(arr)} usable IMU line(s)")
+
+    # time mapping: each line's arrival time from the tag, lower-envelope fit of the IMU clock
+    ends, notes = line_end_offsets(data, tag, name)
+    events.extend(notes)
+    arrival = tag.arrival_gpst(ends[good])
+    stamp_s = stamp_ms * 1e-3
+    fit = fit_stamp_clock(stamp_s, arrival, quantile=tag_quantile, tick_quantum_ms=tag.tick_quantum_ms)
+    n_unmapped = int(np.sum(~np.isfinite(arrival)))
+    if n_unmapped:
+        events.append(f"{name}: {n_unmapped} lines lie beyond the last tag record; "
+                      "their time is extrapolated")
+    t_gpst = fit(stamp_s) + time_offset_s
+    week, t = gpst_unix_to_week_sow(t_gpst, week=gpst_unix_to_week_sow(t_gpst[0])[0])
+    events.append(f"{name}: time = GPS seconds of week {week} (tag {tag_path.name}, log start "
+                  f"{tag.start_week_sow[1]:.3f} s); {fit.summary()}"
+                  + (f"; configured IMU time offset {time_offset_s:+.4f} s added" if time_offset_s else ""))
+
+    dt = np.diff(t)
+    med = float(np.median(dt))
+    gap = np.flatnonzero(dt > GAP_FACTOR * med)
+    for i in gap[:MAX_LISTED]:
+        events.append(f"{name}:{int(lines.line_no[good[i + 1]])}: gap of {dt[i] * 1e3:.1f} ms before this "
+                      f"sample (median interval {med * 1e3:.2f} ms), at {t[i + 1]:.3f} s of week; bridged")
+    if len(gap) > MAX_LISTED:
+        events.append(f"{name}: {len(gap) - MAX_LISTED} more gaps > {GAP_FACTOR:g}× the median interval")
+
+    dtheta, dv = _increments(arr, c_axes, dt)
+    imu = ImuData(t, dtheta, dv, t0=float(t[0] - dt[0]), events=events, week=int(week))
+    return (imu, fit) if return_fit else imu
+
+
+def _axes_matrix(axes: str, mounting) -> np.ndarray:
+    """C sensor axes → body RFU, then the optional ``mounting`` rotation (3×3) applied."""
     if axes not in _AXES:
         raise ValueError(f"axes must be one of {sorted(_AXES)}, got {axes!r}")
     c_axes = _AXES[axes]
@@ -96,13 +143,22 @@ def read_rtklibexplorer_imu(path, tag_path=None, axes: str = "RFU", mounting=Non
         if m.shape != (3, 3) or not np.allclose(m @ m.T, np.eye(3), atol=1e-9):
             raise ValueError("mounting must be a 3x3 rotation matrix (C_sensor→body)")
         c_axes = m @ c_axes
+    return c_axes
 
-    data = path.read_bytes()
-    if not data:
-        raise DataError(path, None, "empty file")
-    tag = read_timetag(tag_path)
-    events = list(tag.events)
 
+@dataclass
+class _Lines:
+    """The log's lines: byte ranges [start, stop) without the line end, numbers from 1, kept or not."""
+
+    starts: np.ndarray
+    stops: np.ndarray
+    line_no: np.ndarray
+    keep: np.ndarray
+
+
+def _screen_lines(data: bytes, name: str, skip_first_line: bool, events: list[str]):
+    """Split the log into lines and drop (reporting each) the first line when asked, empty lines,
+    lines without ``N_FIELDS`` fields and a last line without a line end → (bytes as uint8, _Lines)."""
     buf = np.frombuffer(data, np.uint8)
     nl = np.flatnonzero(buf == 10)
     starts = np.r_[0, nl + 1].astype(np.int64)
@@ -133,12 +189,20 @@ def read_rtklibexplorer_imu(path, tag_path=None, axes: str = "RFU", mounting=Non
     cut = keep & ~terminated
     _report(events, name, line_no[cut], "last line has no line end (cut short?); line skipped")
     keep &= ~cut
+    return buf, _Lines(starts, stops, line_no, keep)
 
+
+def _parse_kept(path: Path, buf: np.ndarray, lines: _Lines, events: list[str]):
+    """Parse the kept lines in one go (their bytes only) → (finite values n×7, their line indices);
+    lines with a field that is not a number or a NaN/inf value are reported and dropped."""
+    name = path.name
+    starts, stops, line_no, keep = lines.starts, lines.stops, lines.line_no, lines.keep
+    n_bytes = len(buf)
     # parse the remaining lines in one go: mask out the bytes of the dropped lines
     drop = np.flatnonzero(~keep)
-    delta = np.zeros(len(data) + 1, np.int32)
+    delta = np.zeros(n_bytes + 1, np.int32)
     np.add.at(delta, starts[drop], 1)
-    np.add.at(delta, np.minimum(stops[drop] + 1, len(data)), -1)
+    np.add.at(delta, np.minimum(stops[drop] + 1, n_bytes), -1)
     byte_keep = np.cumsum(delta[:-1]) == 0
     good = np.flatnonzero(keep)
     if len(good) == 0:
@@ -170,8 +234,12 @@ def read_rtklibexplorer_imu(path, tag_path=None, axes: str = "RFU", mounting=Non
 
     nonfinite = ~np.isfinite(arr).all(axis=1)
     _report(events, name, line_no[good[nonfinite]], "NaN or inf value; line skipped")
-    arr, good = arr[~nonfinite], good[~nonfinite]
+    return arr[~nonfinite], good[~nonfinite]
 
+
+def _clean_stamps(arr: np.ndarray, good: np.ndarray, line_no: np.ndarray, name: str, events: list[str]):
+    """Report stamps that are not whole ms (kept); drop duplicate and backward stamps (reported) so
+    that the stamps increase strictly → (values, line indices, stamps [ms])."""
     stamp_ms = arr[:, 6]
     frac = stamp_ms != np.round(stamp_ms)
     if frac.any():
@@ -186,34 +254,11 @@ def read_rtklibexplorer_imu(path, tag_path=None, axes: str = "RFU", mounting=Non
         ok = ~(dup | back)
         arr, good = arr[ok], good[ok]
         stamp_ms = stamp_ms[ok]
-    if len(arr) < 2:
-        raise DataError(path, None, f"only {len(arr)} usable IMU line(s)")
+    return arr, good, stamp_ms
 
-    # time mapping: each line's arrival time from the tag, lower-envelope fit of the IMU clock
-    ends, notes = line_end_offsets(data, tag, name)
-    events.extend(notes)
-    arrival = tag.arrival_gpst(ends[good])
-    stamp_s = stamp_ms * 1e-3
-    fit = fit_stamp_clock(stamp_s, arrival, quantile=tag_quantile, tick_quantum_ms=tag.tick_quantum_ms)
-    n_unmapped = int(np.sum(~np.isfinite(arrival)))
-    if n_unmapped:
-        events.append(f"{name}: {n_unmapped} lines lie beyond the last tag record; "
-                      "their time is extrapolated")
-    t_gpst = fit(stamp_s) + time_offset_s
-    week, t = gpst_unix_to_week_sow(t_gpst, week=gpst_unix_to_week_sow(t_gpst[0])[0])
-    events.append(f"{name}: time = GPS seconds of week {week} (tag {tag_path.name}, log start "
-                  f"{tag.start_week_sow[1]:.3f} s); {fit.summary()}"
-                  + (f"; configured IMU time offset {time_offset_s:+.4f} s added" if time_offset_s else ""))
 
-    dt = np.diff(t)
-    med = float(np.median(dt))
-    gap = np.flatnonzero(dt > GAP_FACTOR * med)
-    for i in gap[:MAX_LISTED]:
-        events.append(f"{name}:{int(line_no[good[i + 1]])}: gap of {dt[i] * 1e3:.1f} ms before this sample "
-                      f"(median interval {med * 1e3:.2f} ms), at {t[i + 1]:.3f} s of week; bridged")
-    if len(gap) > MAX_LISTED:
-        events.append(f"{name}: {len(gap) - MAX_LISTED} more gaps > {GAP_FACTOR:g}× the median interval")
-
+def _increments(arr: np.ndarray, c_axes: np.ndarray, dt: np.ndarray):
+    """Trapezoid increments (Δθ [rad], Δv [m/s]) in body axes; the first sample gets ω_0·Δt_1."""
     # units and axes: g → m/s², deg/s → rad/s; sensor axes → body RFU (→ mounting)
     f_b = (arr[:, 0:3] * G0) @ c_axes.T
     w_b = np.radians(arr[:, 3:6]) @ c_axes.T
@@ -224,5 +269,4 @@ def read_rtklibexplorer_imu(path, tag_path=None, axes: str = "RFU", mounting=Non
     dv[0] = f_b[0] * dt0
     dtheta[1:] = 0.5 * (w_b[1:] + w_b[:-1]) * dt[:, None]
     dv[1:] = 0.5 * (f_b[1:] + f_b[:-1]) * dt[:, None]
-    imu = ImuData(t, dtheta, dv, t0=float(t[0] - dt0), events=events, week=int(week))
-    return (imu, fit) if return_fit else imu
+    return dtheta, dv

@@ -101,8 +101,6 @@ def read_nmea(path, date: str | _dt.date | None = None, min_pos_std_m: float = Z
 
     date : UTC date of the first epoch ('YYYY-MM-DD' or a date) for logs without RMC sentences.
     """
-    import pynmea2  # lazy: pynmea2 is heavy to import
-
     path = Path(path)
     name = path.name
     try:
@@ -110,6 +108,58 @@ def read_nmea(path, date: str | _dt.date | None = None, min_pos_std_m: float = Z
     except OSError as e:
         raise DataError(path, None, f"cannot read file: {e.strerror or e}") from None
     events: list[str] = []
+    epochs, n_other, bad, talkers = _epochs(raw)
+    if n_other:
+        events.append(f"{name}: {n_other} line(s) that are not NMEA sentences skipped")
+    if bad:
+        where = ", ".join(f"{a} ({b})" for a, b in bad[:MAX_LISTED])
+        events.append(f"{name}: {len(bad)} NMEA sentence(s) with a bad checksum (or none) or unreadable "
+                      f"fields skipped (lines {where}{' …' if len(bad) > MAX_LISTED else ''})")
+    if not any("gga" in e for e in epochs):
+        if bad:  # every GGA was refused: say why (issue 37)
+            bad_lines = [a for a, _ in bad[:MAX_LISTED]]
+            raise DataError(path, bad_lines[0], f"no GGA sentence with a good checksum: {len(bad)} NMEA "
+                            "sentence(s) have a bad checksum or unreadable fields (lines "
+                            f"{', '.join(map(str, bad_lines))}{' …' if len(bad) > MAX_LISTED else ''}): the "
+                            "log was corrupted (bytes or line ends changed in transfer?) — use the "
+                            "receiver's original file")
+        raise DataError(path, None, "no GGA sentence: an NMEA log needs GGA (position and height)"
+                        + ("; RMC alone has no height" if any("rmc" in e for e in epochs) else ""))
+    _dates(path, epochs, date)
+
+    rows, n_no_gga, skipped_q = _rows(path, epochs)
+    if n_no_gga:
+        events.append(f"{name}: {n_no_gga} epoch(s) without GGA (no height) skipped")
+    for q, n in sorted(skipped_q.items()):
+        events.append(f"{name}: {n} GGA epoch(s) with fix quality {q} or empty position fields (not a GNSS "
+                      "fix) skipped")
+    if not rows:
+        raise DataError(path, None, "no GGA sentence with a valid fix")
+    a = np.array(rows, dtype=float)
+    line_no = a[:, 10].astype(np.int64)
+    height, datum = _heights(name, a[:, 3], a[:, 12], events)
+    week, sow, leap = _gps_time(path, a[:, 0], a[:, 11], line_no, epochs)
+    vel = a[:, [4, 5]]
+    vel = None if np.isnan(vel).all() else np.column_stack([vel, np.full(len(a), np.nan)])
+    sp = _sigma(name, a[:, 6:9], a[:, 13], events)
+    std_pos = check_std(path, None if np.isnan(sp).all() else sp, ["GST σlon", "GST σlat", "GST σalt"],
+                        lambda i: int(line_no[i]), "position", DEFAULT_POS_STD_M, min_pos_std_m, "m", events)
+    tk = ", ".join(sorted(t for t in talkers if t))
+    events.append(f"{name}: NMEA ({'talkers ' + tk if tk else 'no talker'}), UTC → GPST (+{leap[0]:g} s leap "
+                  f"seconds); time = GPS seconds of week {week}; {len(a)} epochs; heights "
+                  f"{'MSL + geoid separation (ellipsoidal)' if datum == 'ellipsoid' else 'above MSL'}; "
+                  "velocity from speed/course: vu not measured (NaN)"
+                  + ("" if vel is not None else "; no RMC/VTG: no velocity"))
+    return GnssData(sow, np.radians(a[:, 1]), np.radians(a[:, 2]), height, vel=vel, std_pos=std_pos,
+                    quality=a[:, 9].astype(np.int64), events=events, week=int(week), height_datum=datum)
+
+
+def _epochs(raw: bytes):
+    """The log's GGA/RMC/GST/VTG sentences grouped by time of day → (epochs: dicts with ``tod``,
+    ``line`` and per kind ``(fields, line)``; lines that are not NMEA; refused sentences ``(line,
+    why)``; talkers)."""
+    import pynmea2  # lazy: pynmea2 is heavy to import
+
     epochs: list[dict] = []
     cur = None
     n_other = 0
@@ -144,24 +194,13 @@ def read_nmea(path, date: str | _dt.date | None = None, min_pos_std_m: float = Z
             cur.setdefault(kind.lower(), (data, ln))
         elif kind == "VTG" and cur is not None:
             cur.setdefault("vtg", (data, ln))
-    if n_other:
-        events.append(f"{name}: {n_other} line(s) that are not NMEA sentences skipped")
-    if bad:
-        where = ", ".join(f"{a} ({b})" for a, b in bad[:MAX_LISTED])
-        events.append(f"{name}: {len(bad)} NMEA sentence(s) with a bad checksum (or none) or unreadable "
-                      f"fields skipped (lines {where}{' …' if len(bad) > MAX_LISTED else ''})")
-    if not any("gga" in e for e in epochs):
-        if bad:  # every GGA was refused: say why (issue 37)
-            bad_lines = [a for a, _ in bad[:MAX_LISTED]]
-            raise DataError(path, bad_lines[0], f"no GGA sentence with a good checksum: {len(bad)} NMEA "
-                            "sentence(s) have a bad checksum or unreadable fields (lines "
-                            f"{', '.join(map(str, bad_lines))}{' …' if len(bad) > MAX_LISTED else ''}): the "
-                            "log was corrupted (bytes or line ends changed in transfer?) — use the "
-                            "receiver's original file")
-        raise DataError(path, None, "no GGA sentence: an NMEA log needs GGA (position and height)"
-                        + ("; RMC alone has no height" if any("rmc" in e for e in epochs) else ""))
-    _dates(path, epochs, date)
+    return epochs, n_other, bad, talkers
 
+
+def _rows(path, epochs: list[dict]):
+    """One row per epoch with a usable GGA fix: (midnight UTC [s], lat, lon [deg], alt, ve, vn, GST σ
+    E/N/U, RTKLIB Q, line, time of day, geoid separation, HDOP) → (rows, epochs without GGA, skipped
+    count per fix quality)."""
     rows = []
     skipped_q: dict[int, int] = {}
     n_no_gga = 0
@@ -189,18 +228,13 @@ def read_nmea(path, date: str | _dt.date | None = None, min_pos_std_m: float = Z
         day = (_dt.date(d.year, d.month, d.day) - _dt.date(1970, 1, 1)).days * 86400  # midnight UTC [s]
         rows.append((day, lat, lon, alt, ve, vn, *sd, _GGA_Q[q], ln, e["tod"], _f(_field(g, 10)),
                      _f(_field(g, 7))))
-    if n_no_gga:
-        events.append(f"{name}: {n_no_gga} epoch(s) without GGA (no height) skipped")
-    for q, n in sorted(skipped_q.items()):
-        events.append(f"{name}: {n} GGA epoch(s) with fix quality {q} or empty position fields (not a GNSS "
-                      "fix) skipped")
-    if not rows:
-        raise DataError(path, None, "no GGA sentence with a valid fix")
-    a = np.array(rows, dtype=float)
-    line_no = a[:, 10].astype(np.int64)
-    height, datum = _heights(name, a[:, 3], a[:, 12], events)
+    return rows, n_no_gga, skipped_q
+
+
+def _gps_time(path, day: np.ndarray, tod: np.ndarray, line_no: np.ndarray, epochs: list[dict]):
+    """UTC midnight + time of day → (GPS week of the first epoch, GPS seconds of that week, leap
+    seconds per epoch); the epochs must increase."""
     # whole seconds and the time of day kept apart: a POSIX count in float64 has only ~0.2 μs resolution
-    day, tod = a[:, 0], a[:, 11]
     try:  # the leap-second count of a 23:59:60 epoch is the one before it
         leap = leap_seconds(day + np.minimum(tod, 86399.0))
     except ValueError:
@@ -214,19 +248,7 @@ def read_nmea(path, date: str | _dt.date | None = None, min_pos_std_m: float = Z
         raise DataError(path, int(line_no[i]), f"epoch time {sow[i]:.3f} s of week does not increase "
                                                f"(previous {sow[i - 1]:.3f} s, line {int(line_no[i - 1])}): "
                                                "a receiver restart or two logs joined; split the file")
-    vel = a[:, [4, 5]]
-    vel = None if np.isnan(vel).all() else np.column_stack([vel, np.full(len(a), np.nan)])
-    sp = _sigma(name, a[:, 6:9], a[:, 13], events)
-    std_pos = check_std(path, None if np.isnan(sp).all() else sp, ["GST σlon", "GST σlat", "GST σalt"],
-                        lambda i: int(line_no[i]), "position", DEFAULT_POS_STD_M, min_pos_std_m, "m", events)
-    tk = ", ".join(sorted(t for t in talkers if t))
-    events.append(f"{name}: NMEA ({'talkers ' + tk if tk else 'no talker'}), UTC → GPST (+{leap[0]:g} s leap "
-                  f"seconds); time = GPS seconds of week {week}; {len(a)} epochs; heights "
-                  f"{'MSL + geoid separation (ellipsoidal)' if datum == 'ellipsoid' else 'above MSL'}; "
-                  "velocity from speed/course: vu not measured (NaN)"
-                  + ("" if vel is not None else "; no RMC/VTG: no velocity"))
-    return GnssData(sow, np.radians(a[:, 1]), np.radians(a[:, 2]), height, vel=vel, std_pos=std_pos,
-                    quality=a[:, 9].astype(np.int64), events=events, week=int(week), height_datum=datum)
+    return week, sow, leap
 
 
 def _dates(path, epochs: list[dict], date) -> None:

@@ -45,31 +45,9 @@ def _check_header(path: Path, header: list[tuple[int, str]]):
             raise DataError(path, ln, "lat/lon in deg-min-sec not supported: use decimal degrees")
 
 
-def read_pos(path, height_offset_m: float = 0.0, min_pos_std_m: float = ZERO_POS_STD_FLOOR_M,
-             min_vel_std_m_s: float = ZERO_VEL_STD_FLOOR_M_S) -> GnssData:
-    """Read an RTKLIB ``.pos`` solution (GPST, lat/lon in degrees) into :class:`GnssData`.
-
-    path : the ``.pos`` file.
-    height_offset_m : added to every height [m]. RTKLIB writes ellipsoidal heights, but the
-        rtklibexplorer sets (``gnss_1934_sf.pos``, ``gnss_1730_sf.pos``) hold heights above mean sea
-        level (u-blox NAV-PVT ``hMSL``): pass the geoid undulation there, −21.4 m, to get the
-        ellipsoidal height aidnav uses (h_ellipsoid = h_file + height_offset_m).
-
-    Returns GnssData with time in **GPS seconds of week** (of the first epoch's week; counted on past
-    604800 s if the file crosses a week end; the week is named in ``events``), lat/lon [rad],
-    height [m], std_pos ENU [m] (= sde, sdn, sdu of the file), vel ENU [m/s] (= ve, vn, vu) and
-    std_vel ENU [m/s] when the file has velocity columns, quality = Q (1 fix, 2 float, 5 single ...).
-
-    σ = 0 is floored to ``min_pos_std_m`` / ``min_vel_std_m_s`` with a warning event; a negative σ
-    is refused (:mod:`aidnav.io._std`).
-
-    Raises :class:`DataError` "file:line: problem" for a malformed line, an unsupported format or
-    time going backwards. Only a malformed *last* line (a file cut while being written) is skipped and
-    reported in ``events``. Gaps > 5× the median epoch interval are reported in ``events``.
-    """
-    path = Path(path)
-    name = path.name
-    events: list[str] = []
+def _split_lines(path: Path):
+    """The file's lines → header lines ``(line, text)``, data line numbers, data tokens, and whether
+    the file ends with a line end."""
     text = path.read_text(encoding="ascii", errors="replace")
     lines = text.split("\n")
     if lines and lines[-1] == "":
@@ -90,18 +68,12 @@ def read_pos(path, height_offset_m: float = 0.0, min_pos_std_m: float = ZERO_POS
             continue
         data_ln.append(i)
         tokens.append(s.split())
-    _check_header(path, header)
-    if not tokens:
-        raise DataError(path, None, "no solution lines")
+    return header, data_ln, tokens, ends_newline
 
-    # the time takes two tokens: 'YYYY/MM/DD HH:MM:SS.sss' or 'week tow'
-    calendar = "/" in tokens[0][0] or "-" in tokens[0][0]
-    expected = len(tokens[0])
-    if expected - 2 not in _VALID_NUMERIC:
-        raise DataError(path, data_ln[0], f"{expected} fields; expected "
-                                          f"{', '.join(str(n + 2) for n in _VALID_NUMERIC)}")
 
-    # find every malformed line: wrong field count, a field that is not a finite number, bad time
+def _find_problems(tokens: list[list[str]], expected: int, calendar: bool):
+    """Every malformed line: wrong field count, a field that is not a finite number, bad time →
+    ``problems`` {data index: what}, the indices with the expected field count, their numeric fields."""
     problems: dict[int, str] = {}
     for k, t in enumerate(tokens):
         if len(t) != expected:
@@ -134,20 +106,11 @@ def read_pos(path, height_offset_m: float = 0.0, min_pos_std_m: float = ZERO_POS
                 float(tokens[k][0]), float(tokens[k][1])
             except ValueError:
                 problems.setdefault(k, f"time 'week tow' not readable: {tokens[k][0]} {tokens[k][1]}")
-    if problems:
-        first = min(problems)
-        last = len(tokens) - 1
-        if first < last or last == 0:
-            raise DataError(path, data_ln[first], problems[first])
-        tail = "" if ends_newline else " (no line end)"
-        events.append(f"{name}:{data_ln[last]}: {problems[last]}; truncated last line{tail} skipped")
-        keep = ok_idx[:-1] if ok_idx and ok_idx[-1] == last else ok_idx
-        num = num[: len(keep)]
-    else:
-        keep = ok_idx
-    tok = [tokens[k] for k in keep]
-    ln = [data_ln[k] for k in keep]
-    n = len(tok)
+    return problems, ok_idx, num
+
+
+def _times(tok: list[list[str]], calendar: bool):
+    """The kept lines' time tokens → (week of the first epoch, GPS seconds of that week)."""
     if calendar:
         week_each, _ = calendar_to_week_sow([f"{t[0]} {t[1]}" for t in tok])
         week = int(week_each[0])
@@ -157,7 +120,12 @@ def read_pos(path, height_offset_m: float = 0.0, min_pos_std_m: float = ZERO_POS
         tow = np.array([t[1] for t in tok], dtype=float)
         week = int(wk[0])
         sow = (wk - week) * 604800.0 + tow
+    return week, sow
 
+
+def _check_times(path: Path, sow, ln: list[int], events: list[str]):
+    """Refuse time going backwards; report gaps > ``GAP_FACTOR`` × the median interval in ``events``."""
+    name = path.name
     dts = np.diff(sow)
     back = np.flatnonzero(dts <= 0)
     if len(back):
@@ -172,6 +140,61 @@ def read_pos(path, height_offset_m: float = 0.0, min_pos_std_m: float = ZERO_POS
                           f"(median interval {med:.3f} s)")
         if len(gaps) > 10:
             events.append(f"{name}: {len(gaps) - 10} more gaps > {GAP_FACTOR:g}× the median interval")
+
+
+def read_pos(path, height_offset_m: float = 0.0, min_pos_std_m: float = ZERO_POS_STD_FLOOR_M,
+             min_vel_std_m_s: float = ZERO_VEL_STD_FLOOR_M_S) -> GnssData:
+    """Read an RTKLIB ``.pos`` solution (GPST, lat/lon in degrees) into :class:`GnssData`.
+
+    path : the ``.pos`` file.
+    height_offset_m : added to every height [m]. RTKLIB writes ellipsoidal heights, but the
+        rtklibexplorer sets (``gnss_1934_sf.pos``, ``gnss_1730_sf.pos``) hold heights above mean sea
+        level (u-blox NAV-PVT ``hMSL``): pass the geoid undulation there, −21.4 m, to get the
+        ellipsoidal height aidnav uses (h_ellipsoid = h_file + height_offset_m).
+
+    Returns GnssData with time in **GPS seconds of week** (of the first epoch's week; counted on past
+    604800 s if the file crosses a week end; the week is named in ``events``), lat/lon [rad],
+    height [m], std_pos ENU [m] (= sde, sdn, sdu of the file), vel ENU [m/s] (= ve, vn, vu) and
+    std_vel ENU [m/s] when the file has velocity columns, quality = Q (1 fix, 2 float, 5 single ...).
+
+    σ = 0 is floored to ``min_pos_std_m`` / ``min_vel_std_m_s`` with a warning event; a negative σ
+    is refused (:mod:`aidnav.io._std`).
+
+    Raises :class:`DataError` "file:line: problem" for a malformed line, an unsupported format or
+    time going backwards. Only a malformed *last* line (a file cut while being written) is skipped and
+    reported in ``events``. Gaps > 5× the median epoch interval are reported in ``events``.
+    """
+    path = Path(path)
+    name = path.name
+    events: list[str] = []
+    header, data_ln, tokens, ends_newline = _split_lines(path)
+    _check_header(path, header)
+    if not tokens:
+        raise DataError(path, None, "no solution lines")
+
+    # the time takes two tokens: 'YYYY/MM/DD HH:MM:SS.sss' or 'week tow'
+    calendar = "/" in tokens[0][0] or "-" in tokens[0][0]
+    expected = len(tokens[0])
+    if expected - 2 not in _VALID_NUMERIC:
+        raise DataError(path, data_ln[0], f"{expected} fields; expected "
+                                          f"{', '.join(str(n + 2) for n in _VALID_NUMERIC)}")
+    problems, ok_idx, num = _find_problems(tokens, expected, calendar)
+    if problems:
+        first = min(problems)
+        last = len(tokens) - 1
+        if first < last or last == 0:
+            raise DataError(path, data_ln[first], problems[first])
+        tail = "" if ends_newline else " (no line end)"
+        events.append(f"{name}:{data_ln[last]}: {problems[last]}; truncated last line{tail} skipped")
+        keep = ok_idx[:-1] if ok_idx and ok_idx[-1] == last else ok_idx
+        num = num[: len(keep)]
+    else:
+        keep = ok_idx
+    tok = [tokens[k] for k in keep]
+    ln = [data_ln[k] for k in keep]
+    n = len(tok)
+    week, sow = _times(tok, calendar)
+    _check_times(path, sow, ln, events)
 
     lat = np.radians(num[:, 0])
     lon = np.radians(num[:, 1])

@@ -221,26 +221,7 @@ def fit_allan(taus, adev, n_samples: int, fs: float, axis: str = "gyro_x", min_m
                          "constant)")
     avar = adev**2
     if white_only:  # the white-noise region: the shortest 3 τ that the white terms fit, extended upwards
-        idx = np.flatnonzero(used)
-        crit_w = float(_chi2_ppf(DETECT_PROB, 1))
-        d3 = [_white_deviance(tau[idx[j:j + 3]], avar[idx[j:j + 3]], m[idx[j:j + 3]], n_phase)
-              for j in range(len(idx) - 2)]
-        j0 = next((j for j, d in enumerate(d3) if d <= crit_w), int(np.argmin(d3)))
-        k = j0 + 3
-        d_prev = d3[j0]
-        while k < len(idx):
-            d_new = _white_deviance(tau[idx[j0:k + 1]], avar[idx[j0:k + 1]], m[idx[j0:k + 1]], n_phase)
-            if d_new - d_prev > crit_w:
-                break
-            k += 1
-            d_prev = d_new
-        used[idx[:j0]] = False
-        used[idx[k:]] = False
-        if j0 or k < len(idx):
-            notes.append(f"{axis}: white-noise region tau {tau[idx[j0]]:.3g}-{tau[idx[k - 1]]:.3g} s"
-                         + ("; shorter tau depart from the white terms (vibration)" if j0 else "")
-                         + (f"; from {tau[idx[k]]:.3g} s on the Allan deviation departs from them (other "
-                            "noise or a disturbance)" if k < len(idx) else "") + ": shown, not fitted")
+        _white_region(tau, avar, m, n_phase, used, axis, notes)
     tu, au = tau[used], avar[used]
     tau_lo, tau_hi = float(tu[0]), float(tu[-1])
     drop = (2, 3) if white_only else ()
@@ -278,29 +259,11 @@ def fit_allan(taus, adev, n_samples: int, fs: float, axis: str = "gyro_x", min_m
 
     caps = np.min(au[:, None] / columns_nb(tu, u_hat), axis=0)  # each term alone ≤ the data
     caps[2] = float(np.max(au)) / 0.38
-    terms: dict[str, TermEstimate] = {}
     span_s = n_samples / fs
     short = (f"not resolvable in {span_s:.3g} s of data: only the white terms were fitted (tau "
              f"{tau_lo:.3g}-{tau_hi:.3g} s); a bias instability or random walk needs a log many times "
              "longer than its correlation time")
-    for idx, name in ((0, "quantisation"), (1, "white"), (2, "gm_sigma"), (3, "rrw")):
-        t = TERM_ORDER[idx]
-        if idx in drop:
-            terms[name] = TermEstimate("not resolved", note=short)
-            continue
-        lo2, hi2 = _interval(prof, idx, float(c_hat[idx]), d_min, crit, float(caps[idx]))
-        v, lo, hi = math.sqrt(max(c_hat[idx], 0.0)), math.sqrt(lo2), _sqrt_or_none(hi2)
-        dof_t = 2 if idx == 2 else 1
-        if idx != 1 and lo > 0 and prof.best(idx, 0.0)[0] - d_min < _chi2_ppf(DETECT_PROB, dof_t) * disp:
-            terms[name] = TermEstimate("not resolved", upper=hi, note=f"not significant at {DETECT_PROB:.0%} "
-                                       "(likelihood ratio)" + (" of σ and T together" if idx == 2 else ""))
-        elif lo > 0 and hi is not None and hi / lo <= MAX_CI_RATIO:
-            terms[name] = TermEstimate("fitted", v, lo, hi)
-        elif lo > 0:
-            span = "is open above" if hi is None else f"spans a factor {hi / lo:.3g}"
-            terms[name] = TermEstimate("not resolved", upper=hi, note=f"its 95% interval {span}")
-        else:
-            terms[name] = TermEstimate("not resolved", upper=hi, note=_why_not(t, tau_lo, tau_hi))
+    terms = _term_estimates(prof, c_hat, d_min, crit, caps, drop, disp, short, (tau_lo, tau_hi))
     qt = terms["quantisation"]
     if min_m > 1 and qt.fitted:  # a slope −1 above the resampling's reach is not quantisation
         terms["quantisation"] = TermEstimate(
@@ -320,6 +283,68 @@ def fit_allan(taus, adev, n_samples: int, fs: float, axis: str = "gyro_x", min_m
         terms["white"].note = (f"white noise only: the bias instability and the random walk are not "
                                f"resolvable in {span_s:.3g} s of data (tau {tau_lo:.3g}-{tau_hi:.3g} s "
                                "fitted)")
+    _gm_terms(terms, prof, d_min, crit, u_hat, short if white_only else None, adev_hi[used], axis)
+    return AxisFit(axis=axis, taus=tau, adev=adev, adev_lo=adev_lo, adev_hi=adev_hi, edf=nn, alpha=alpha,
+                   used=used, terms=terms, coef=np.array(c_hat, float), t_corr=math.exp(u_hat),
+                   deviance=float(d_min), dof=dof, dispersion=disp, notes=notes, white_only=white_only)
+
+
+def _white_region(tau, avar, m, n_phase: int, used, axis: str, notes: list[str]) -> None:
+    """White-only fit: keep in ``used`` the white-noise region, the shortest 3 τ that the white terms
+    fit, extended upwards while they still fit; say in ``notes`` what is left out."""
+    idx = np.flatnonzero(used)
+    crit_w = float(_chi2_ppf(DETECT_PROB, 1))
+    d3 = [_white_deviance(tau[idx[j:j + 3]], avar[idx[j:j + 3]], m[idx[j:j + 3]], n_phase)
+          for j in range(len(idx) - 2)]
+    j0 = next((j for j, d in enumerate(d3) if d <= crit_w), int(np.argmin(d3)))
+    k = j0 + 3
+    d_prev = d3[j0]
+    while k < len(idx):
+        d_new = _white_deviance(tau[idx[j0:k + 1]], avar[idx[j0:k + 1]], m[idx[j0:k + 1]], n_phase)
+        if d_new - d_prev > crit_w:
+            break
+        k += 1
+        d_prev = d_new
+    used[idx[:j0]] = False
+    used[idx[k:]] = False
+    if j0 or k < len(idx):
+        notes.append(f"{axis}: white-noise region tau {tau[idx[j0]]:.3g}-{tau[idx[k - 1]]:.3g} s"
+                     + ("; shorter tau depart from the white terms (vibration)" if j0 else "")
+                     + (f"; from {tau[idx[k]]:.3g} s on the Allan deviation departs from them (other "
+                        "noise or a disturbance)" if k < len(idx) else "") + ": shown, not fitted")
+
+
+def _term_estimates(prof, c_hat, d_min: float, crit: float, caps, drop, disp: float, short: str,
+                    tau_range) -> dict[str, TermEstimate]:
+    """Quantisation, white, Gauss-Markov σ and random walk: fitted when significant and their 95%
+    profile interval is narrow enough, otherwise "not resolved" with the reason."""
+    tau_lo, tau_hi = tau_range
+    terms: dict[str, TermEstimate] = {}
+    for idx, name in ((0, "quantisation"), (1, "white"), (2, "gm_sigma"), (3, "rrw")):
+        t = TERM_ORDER[idx]
+        if idx in drop:
+            terms[name] = TermEstimate("not resolved", note=short)
+            continue
+        lo2, hi2 = _interval(prof, idx, float(c_hat[idx]), d_min, crit, float(caps[idx]))
+        v, lo, hi = math.sqrt(max(c_hat[idx], 0.0)), math.sqrt(lo2), _sqrt_or_none(hi2)
+        dof_t = 2 if idx == 2 else 1
+        if idx != 1 and lo > 0 and prof.best(idx, 0.0)[0] - d_min < _chi2_ppf(DETECT_PROB, dof_t) * disp:
+            terms[name] = TermEstimate("not resolved", upper=hi, note=f"not significant at {DETECT_PROB:.0%} "
+                                       "(likelihood ratio)" + (" of σ and T together" if idx == 2 else ""))
+        elif lo > 0 and hi is not None and hi / lo <= MAX_CI_RATIO:
+            terms[name] = TermEstimate("fitted", v, lo, hi)
+        elif lo > 0:
+            span = "is open above" if hi is None else f"spans a factor {hi / lo:.3g}"
+            terms[name] = TermEstimate("not resolved", upper=hi, note=f"its 95% interval {span}")
+        else:
+            terms[name] = TermEstimate("not resolved", upper=hi, note=_why_not(t, tau_lo, tau_hi))
+    return terms
+
+
+def _gm_terms(terms: dict[str, TermEstimate], prof, d_min: float, crit: float, u_hat: float,
+              white_only_note: str | None, adev_hi_used, axis: str) -> None:
+    """Add the Gauss-Markov correlation time and the bias instability (B = B_PER_GM_SIGMA · σ_GM) to
+    ``terms``; ``white_only_note``: the reason of a white-only fit (None: a full fit)."""
     gm = terms["gm_sigma"]
     if gm.fitted:
         ulo, uhi = _u_interval(prof, d_min, crit)
@@ -336,18 +361,15 @@ def fit_allan(taus, adev, n_samples: int, fs: float, axis: str = "gyro_x", min_m
     if gm.fitted:
         terms["bias_instability"] = TermEstimate("fitted", B_PER_GM_SIGMA * gm.value, B_PER_GM_SIGMA * gm.lo,
                                                  B_PER_GM_SIGMA * gm.hi)
-    elif white_only:
-        terms["bias_instability"] = TermEstimate("not resolved", note=short)
+    elif white_only_note is not None:
+        terms["bias_instability"] = TermEstimate("not resolved", note=white_only_note)
     else:
-        floor = float(np.min(adev_hi[used]) / FLICKER_ADEV)  # a flicker floor would be below every limit
+        floor = float(np.min(adev_hi_used) / FLICKER_ADEV)  # a flicker floor would be below every limit
         fu, un = (DEG_H, "deg/h") if axis.startswith("gyro") else (UG, "ug")
         terms["bias_instability"] = TermEstimate(
             "not resolved", upper=None if gm.upper is None else B_PER_GM_SIGMA * gm.upper,
             note=gm.note + f"; a flat flicker floor would be below {floor / fu:.4g} {un} (the ADEV's 95% "
             "upper limits / 0.6643)")
-    return AxisFit(axis=axis, taus=tau, adev=adev, adev_lo=adev_lo, adev_hi=adev_hi, edf=nn, alpha=alpha,
-                   used=used, terms=terms, coef=np.array(c_hat, float), t_corr=math.exp(u_hat),
-                   deviance=float(d_min), dof=dof, dispersion=disp, notes=notes, white_only=white_only)
 
 
 def _white_deviance(tau, avar, m, n_phase) -> float:

@@ -94,6 +94,27 @@ def static_check(rates, fs: float, t_start: float = 0.0, window_s: float = 1.0,
                 "motion_free_spans_s": [[t_start, t_end]], "max_gyro_dev_deg_s": 0.0,
                 "max_accel_dev_m_s2": 0.0, "warnings": [], "message": "",
                 "note": "log too short for the static check (fewer than 3 windows)"}
+    sdev, dev, moving, disturbed = _window_flags(y, w, nw, gyro_tol_deg_s, accel_tol_m_s2, std_ratio)
+    limits = (motion_gyro_deg_s, motion_angle_deg, motion_accel_m_s2)
+    events, motion = _motion_events(moving, dev, sdev, t_start, wdt, limits)
+    free = _motion_free_spans(motion, t_start, t_end, wdt)
+    ms, ds = _spans(moving, t_start, wdt), _spans(disturbed, t_start, wdt)
+    static = (not moving.any()) and disturbed.mean() <= max_disturbed_fraction
+    usable = (not motion.any()) and disturbed.mean() <= max_disturbed_fraction
+    res = {"static": bool(static), "usable": bool(usable), "windows": int(nw), "window_s": wdt,
+           "moving": int(moving.sum()), "disturbed": int(disturbed.sum()), "moving_spans_s": ms[:10],
+           "disturbed_spans_s": ds[:10], "events": events[:20], "motion_free_spans_s": free[:10],
+           "max_gyro_dev_deg_s": float(dev[:, :3].max() / DEG), "max_accel_dev_m_s2": float(dev[:, 3:].max()),
+           "warnings": [], "message": ""}
+    res["warnings"].extend(_slow_motion_warnings(events, limits))
+    if not usable:
+        res["message"] = _not_static_message(events, disturbed, max_disturbed_fraction, std_ratio, ds, free)
+    return res
+
+
+def _window_flags(y, w: int, nw: int, gyro_tol_deg_s: float, accel_tol_m_s2: float, std_ratio: float):
+    """Per window: the signed and absolute departures of the window means from the median one, and
+    whether it moves or is disturbed (criteria in :func:`static_check`)."""
     mean, std = window_stats(y, w, nw)
     med = np.median(mean, axis=0)
     sdev = mean - med
@@ -106,20 +127,31 @@ def static_check(rates, fs: float, t_start: float = 0.0, window_s: float = 1.0,
     # vibrating (but parked) vehicle is not "moving" because of that scatter (6σ)
     moving = np.any(dev > np.maximum(np.maximum(tol, 8.0 * mad), 6.0 * sref / np.sqrt(w)), axis=1)
     disturbed = np.any(std > std_ratio * sref, axis=1)
+    return sdev, dev, moving, disturbed
 
-    def runs(mask):
-        idx = np.flatnonzero(mask)
-        if not len(idx):
-            return []
-        br = np.flatnonzero(np.diff(idx) > 1)
-        return list(zip(np.r_[idx[0], idx[br + 1]].tolist(), np.r_[idx[br], idx[-1]].tolist(), strict=True))
 
-    def spans(mask):
-        return [[t_start + a * wdt, t_start + (b + 1) * wdt] for a, b in runs(mask)]
+def _runs(mask) -> list[tuple[int, int]]:
+    """(first, last) indices of each run of True in ``mask``."""
+    idx = np.flatnonzero(mask)
+    if not len(idx):
+        return []
+    br = np.flatnonzero(np.diff(idx) > 1)
+    return list(zip(np.r_[idx[0], idx[br + 1]].tolist(), np.r_[idx[br], idx[-1]].tolist(), strict=True))
 
+
+def _spans(mask, t_start: float, wdt: float) -> list[list[float]]:
+    """[start, end] times of each run of flagged windows."""
+    return [[t_start + a * wdt, t_start + (b + 1) * wdt] for a, b in _runs(mask)]
+
+
+def _motion_events(moving, dev, sdev, t_start: float, wdt: float, limits):
+    """One event per run of moving windows, "motion" when beyond any of ``limits`` (gyro [deg/s], angle
+    [deg], accel [m/s²]) else "slow motion" → (events, mask of the windows near motion)."""
+    motion_gyro_deg_s, motion_angle_deg, motion_accel_m_s2 = limits
+    nw = len(moving)
     events = []
     motion = np.zeros(nw, bool)
-    for a, b in runs(moving):
+    for a, b in _runs(moving):
         pg = float(dev[a:b + 1, :3].max() / DEG)
         ang = float(np.abs(sdev[a:b + 1, :3].sum(axis=0)).max() * wdt / DEG)
         pa = float(dev[a:b + 1, 3:].max())
@@ -129,45 +161,55 @@ def static_check(rates, fs: float, t_start: float = 0.0, window_s: float = 1.0,
             motion[max(0, a - 1):b + 2] = True  # one window of margin on each side
         events.append({"start_s": t_start + a * wdt, "end_s": t_start + (b + 1) * wdt, "kind": kind,
                        "peak_gyro_deg_s": pg, "angle_deg": ang, "peak_accel_m_s2": pa})
+    return events, motion
+
+
+def _motion_free_spans(motion, t_start: float, t_end: float, wdt: float) -> list[list[float]]:
+    """The spans between motion events (to the log's ends), longest first."""
+    nw = len(motion)
     free = []
-    for a, b in runs(~motion):
+    for a, b in _runs(~motion):
         lo = t_start if a == 0 else t_start + a * wdt
         hi = t_end if b == nw - 1 else t_start + (b + 1) * wdt
         free.append([lo, hi])
     free.sort(key=lambda s: s[0] - s[1])
-    ms, ds = spans(moving), spans(disturbed)
-    static = (not moving.any()) and disturbed.mean() <= max_disturbed_fraction
-    usable = (not motion.any()) and disturbed.mean() <= max_disturbed_fraction
-    res = {"static": bool(static), "usable": bool(usable), "windows": int(nw), "window_s": wdt,
-           "moving": int(moving.sum()), "disturbed": int(disturbed.sum()), "moving_spans_s": ms[:10],
-           "disturbed_spans_s": ds[:10], "events": events[:20], "motion_free_spans_s": free[:10],
-           "max_gyro_dev_deg_s": float(dev[:, :3].max() / DEG), "max_accel_dev_m_s2": float(dev[:, 3:].max()),
-           "warnings": [], "message": ""}
+    return free
+
+
+def _slow_motion_warnings(events: list[dict], limits) -> list[str]:
+    """One warning per slow-motion event: kept, and what it does to the Allan deviation."""
+    motion_gyro_deg_s, motion_angle_deg, motion_accel_m_s2 = limits
+    warnings = []
     for e in events:
         if e["kind"] == "slow motion":
-            res["warnings"].append(
+            warnings.append(
                 f"slow motion at {e['start_s']:.1f}-{e['end_s']:.1f} s: window means depart by up to "
                 f"{e['peak_gyro_deg_s']:.3g} deg/s gyro ({e['angle_deg']:.2g} deg of rotation) and "
                 f"{e['peak_accel_m_s2']:.3g} m/s2 accel (thresholds of motion {motion_gyro_deg_s:g} deg/s, "
                 f"{motion_angle_deg:g} deg, {motion_accel_m_s2:g} m/s2): kept; it raises the Allan deviation "
                 f"of the affected axes at tau of about {e['end_s'] - e['start_s']:.3g} s and longer")
-    if not usable:
-        parts = []
-        mot = [e for e in events if e["kind"] == "motion"]
-        if mot:
-            parts.append(f"it moves in {len(mot)} span(s) (window means depart from the median by up to "
-                         f"{max(e['peak_gyro_deg_s'] for e in mot):.3g} deg/s gyro, "
-                         f"{max(e['peak_accel_m_s2'] for e in mot):.3g} m/s2 accel; first spans "
-                         + ", ".join(f"{e['start_s']:.1f}-{e['end_s']:.1f} s" for e in mot[:3]) + ")")
-        if disturbed.mean() > max_disturbed_fraction:
-            parts.append(f"{disturbed.sum()} of {nw} windows are disturbed (in-window spread above "
-                         f"{std_ratio:g} x the typical; first spans "
-                         + ", ".join(f"{a:.1f}-{b:.1f} s" for a, b in ds[:3]) + ")")
-        sugg = ", ".join(f"{a:.1f}-{b:.1f} s" for a, b in free[:3])
-        res["message"] = ("the log is not static: " + "; ".join(parts)
-                          + ". Allan analysis needs a static log: the longest parts without motion are "
-                          f"{sugg}; choose a static part with --static START:END")
-    return res
+    return warnings
+
+
+def _not_static_message(events: list[dict], disturbed, max_disturbed_fraction: float, std_ratio: float,
+                        ds, free) -> str:
+    """Why the log cannot be analysed as a whole, and the longest parts without motion to choose."""
+    nw = len(disturbed)
+    parts = []
+    mot = [e for e in events if e["kind"] == "motion"]
+    if mot:
+        parts.append(f"it moves in {len(mot)} span(s) (window means depart from the median by up to "
+                     f"{max(e['peak_gyro_deg_s'] for e in mot):.3g} deg/s gyro, "
+                     f"{max(e['peak_accel_m_s2'] for e in mot):.3g} m/s2 accel; first spans "
+                     + ", ".join(f"{e['start_s']:.1f}-{e['end_s']:.1f} s" for e in mot[:3]) + ")")
+    if disturbed.mean() > max_disturbed_fraction:
+        parts.append(f"{disturbed.sum()} of {nw} windows are disturbed (in-window spread above "
+                     f"{std_ratio:g} x the typical; first spans "
+                     + ", ".join(f"{a:.1f}-{b:.1f} s" for a, b in ds[:3]) + ")")
+    sugg = ", ".join(f"{a:.1f}-{b:.1f} s" for a, b in free[:3])
+    return ("the log is not static: " + "; ".join(parts)
+            + ". Allan analysis needs a static log: the longest parts without motion are "
+            f"{sugg}; choose a static part with --static START:END")
 
 
 def longest_static(rates, fs: float, t_rel: float, resampled: bool, st: dict,

@@ -101,6 +101,46 @@ def approach_run(run_seed: int, truth, imu_true, with_figures_data: bool = False
     the IMU ``grade`` and receiver ``clock`` (h0, h−2; default the TCXO, also simulated). Returns a dict of
     per-run metrics (and series for run 0)."""
     clock = clock or CLOCK
+    eph, sim, (res_a, res_b, res_c), r_init = _simulate_cases(run_seed, truth, imu_true, grade, clock)
+    tt, rel_true, pos_err, vel_err, att_err = _tight_errors(truth, res_a)
+    app, dg_t, dg_err, spp_err, dg_pos, deliver_a = _dgps_and_spp(sim, eph, r_init)
+    metrics, (rel_s, dr_err, dr_norot_err, t_c, dr_c), deliver_b = _dead_reckoning(truth, sim, res_b, res_c,
+                                                                                   app, dg_pos)
+    app_a = (tt >= PRE_S) & (tt <= PRE_S + APP_S)
+    out = {
+        "tight_att_rms_deg": np.sqrt(np.mean(np.degrees(att_err[app_a]) ** 2, 0)),
+        "tight_pos_rms_m": np.sqrt(np.mean(pos_err[app_a] ** 2, 0)),
+        "tight_vel_rms_m_s": np.sqrt(np.mean(vel_err[app_a] ** 2, 0)),
+        "dgps_rms_m": np.sqrt(np.mean(dg_err**2, 0)),
+        "spp_rms_m": np.sqrt(np.mean(spp_err**2, 0)),
+        **metrics,
+    }
+    if with_figures_data:
+        out["series"] = dict(
+            t_a=tt,
+            att_err=np.degrees(att_err),
+            pos_err=pos_err,
+            vel_err=vel_err,
+            pd=res_a.pdiag,
+            t_b=rel_s,
+            dr_err=dr_err,
+            dr_norot_err=dr_norot_err,
+            dg_t=dg_t - SOW0,
+            dg_err=dg_err,
+            spp_err=spp_err,
+            rel_true=rel_true,
+        )
+    tc = np.arange(0, APP_S + 0.01, 1.0)
+    out["dr_err_curve"] = np.interp(tc, rel_s, np.linalg.norm(dr_err, axis=1))
+    out["dr_err_curve_c"] = np.interp(tc, t_c, np.linalg.norm(dr_c, axis=1))
+    out["deliver_dgps"] = deliver_a
+    out["deliver_dr2"] = deliver_b
+    return out
+
+
+def _simulate_cases(run_seed: int, truth, imu_true, grade: str, clock: dict):
+    """The run's IMU and raw GNSS and the tight filter on cases A (all satellites), B (0 then 2) and C (0)
+    → (ephemeris, simulation, (A, B, C), the initial-error generator, to be drawn on afterwards)."""
     ss = np.random.SeedSequence(run_seed)
     r_imu, r_gnss, r_init = (np.random.default_rng(s) for s in ss.spawn(3))
     eph = nominal_constellation(WEEK, SOW0, 24)
@@ -135,6 +175,12 @@ def approach_run(run_seed: int, truth, imu_true, with_figures_data: bool = False
         sim.rover, sim.truth["elevation"], [(PRE_S, PRE_S + APP_S + 1, 0)], SOW0 + truth.time[0]
     )
     res_c = run_tight(imu, obs_c, eph, cfg, init_state=init)  # the outage goes on: no satellites at all
+    return eph, sim, (res_a, res_b, res_c), r_init
+
+
+def _tight_errors(truth, res_a):
+    """Case A at the IMU times → (time after SOW0 [s], true ENU position relative to the base, tight
+    filter position ENU / velocity / attitude errors)."""
     # truth relative position (IMU = antenna: no lever arm) in the base frame at IMU times
     tt = res_a.time - SOW0
     j = np.clip(np.searchsorted(truth.time, tt - 1e-9), 0, len(truth.time) - 1)
@@ -155,6 +201,12 @@ def approach_run(run_seed: int, truth, imu_true, with_figures_data: bool = False
     vel_err = res_a.state[:, 3:6] - truth.vel[j]
     q_true = euler_to_quat_batch(np.ascontiguousarray(truth.rph[j]))
     att_err = attitude_error_batch(np.ascontiguousarray(res_a.state[:, 6:10]), q_true)
+    return tt, rel_true, pos_err, vel_err, att_err
+
+
+def _dgps_and_spp(sim, eph, r_init):
+    """DGPS single differences (all satellites) and rover SPP during the approach → (approach epochs,
+    their times, DGPS ENU errors, SPP ENU errors, DGPS position per epoch, deliverable errors)."""
     # DGPS relative positions (case A, all satellites) during the approach
     rv, bs = sim.rover, sim.base
     pb_approx = np.array(lla_to_ecef(BASE_LAT, BASE_LON, BASE_H)) + r_init.normal(0, 10.0, 3)  # roughly known
@@ -184,6 +236,13 @@ def approach_run(run_seed: int, truth, imu_true, with_figures_data: bool = False
         spp_err.append(dcm_ecef_to_enu(BASE_LAT, BASE_LON) @ (s.ecef - ra))
     dg_t, dg_err, spp_err = np.array(dg_t), np.array(dg_err), np.array(spp_err)
     deliver_a = deliverable_errors(np.array(dg_true) + dg_err, np.array(dg_true))
+    return app, dg_t, dg_err, spp_err, dg_pos, deliver_a
+
+
+def _dead_reckoning(truth, sim, res_b, res_c, app, dg_pos):
+    """DR of cases B and C from the last DGPS fix before the loss, and of the true velocity →
+    (metrics, (time from the DR start, B's error, B's error unrotated, C's times and error), B's
+    deliverable errors)."""
     # dead reckoning (case B) from the last DGPS fix before the loss
     k0 = int(np.flatnonzero(app)[0])
     t_start = sim.truth["t_receive_gps"][k0]
@@ -245,13 +304,7 @@ def approach_run(run_seed: int, truth, imu_true, with_figures_data: bool = False
     )
     i20 = int(np.searchsorted(rel_s, OUT_S))
     dvmax = float(np.max(np.linalg.norm(np.diff(truth.vel[jt], axis=0), axis=1)))
-    app_a = (tt >= PRE_S) & (tt <= PRE_S + APP_S)
-    out = {
-        "tight_att_rms_deg": np.sqrt(np.mean(np.degrees(att_err[app_a]) ** 2, 0)),
-        "tight_pos_rms_m": np.sqrt(np.mean(pos_err[app_a] ** 2, 0)),
-        "tight_vel_rms_m_s": np.sqrt(np.mean(vel_err[app_a] ** 2, 0)),
-        "dgps_rms_m": np.sqrt(np.mean(dg_err**2, 0)),
-        "spp_rms_m": np.sqrt(np.mean(spp_err**2, 0)),
+    metrics = {
         "dr_rate_outage": rate_out,
         "dr_rate_2sat": rate_2,
         "dr_rate_0sat_on": rate_c,
@@ -269,27 +322,7 @@ def approach_run(run_seed: int, truth, imu_true, with_figures_data: bool = False
         "dr_norot_20": float(np.linalg.norm((dr_true_nr - dr_true_tr)[i20])),
         "dr_rot_effect_case_b_20": float(np.linalg.norm((dr_norot - dr)[i20])),
     }
-    if with_figures_data:
-        out["series"] = dict(
-            t_a=tt,
-            att_err=np.degrees(att_err),
-            pos_err=pos_err,
-            vel_err=vel_err,
-            pd=res_a.pdiag,
-            t_b=rel_s,
-            dr_err=dr_err,
-            dr_norot_err=dr_norot - rel_t,
-            dg_t=dg_t - SOW0,
-            dg_err=dg_err,
-            spp_err=spp_err,
-            rel_true=rel_true,
-        )
-    tc = np.arange(0, APP_S + 0.01, 1.0)
-    out["dr_err_curve"] = np.interp(tc, rel_s, np.linalg.norm(dr_err, axis=1))
-    out["dr_err_curve_c"] = np.interp(tc, res_c.time[mc] - t_start, np.linalg.norm(dr_c, axis=1))
-    out["deliver_dgps"] = deliver_a
-    out["deliver_dr2"] = deliver_b
-    return out
+    return metrics, (rel_s, dr_err, dr_norot - rel_t, res_c.time[mc] - t_start, dr_c), deliver_b
 
 
 def deliverable_errors(est, true) -> dict:
@@ -419,22 +452,10 @@ def approach_rows(per) -> list[dict]:
     return rows
 
 
-def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
-        sens_runs: int | None = None) -> dict:
-    """Rebuild seed 001's experiments into ``out_dir``: figures, ``summary.json``, ``report.html``.
-    ``runs``: approach Monte Carlo runs (None: 20); ``sens_runs``: runs per sensitivity case (None:
-    min(runs, 10)). Returns the summary dict."""
-    from scipy.stats import chi2  # lazy: scipy is heavy to import
-
-    study = Study(SEED, TITLE, out_dir, DEFAULT_RUNS if runs is None else runs, base_seed, console)
+def _approach_runs(study: Study, base_seed: int, truth, imu_true):
+    """The approach Monte Carlo runs (the first keeps its series) and, for the DR targets (a), (b), more
+    of them → (runs of the approach tables, runs of the DR tables, their count)."""
     runs = study.runs
-    n_sens = min(runs, SENS_RUNS) if sens_runs is None else int(sens_runs)
-    out = study.out
-    rng = np.random.default_rng(base_seed)
-    study.say("seed 001: relative least squares (common mode, σ = 1 m NEES)")
-    rel = relative_ls_study(rng, nees_draws=max(100, 20 * runs))
-    study.say(f"seed 001: {runs} approach runs ({IMU_GRADE} IMU, TCXO clock)")
-    truth, imu_true, _ = generate_truth(approach_scenario())
     per = [
         approach_run(base_seed * 1000 + r, truth, imu_true, with_figures_data=(r == 0)) for r in range(runs)
     ]
@@ -442,11 +463,11 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
     n_dr = DR_RUNS_FACTOR * runs if runs >= 7 else runs
     study.say(f"seed 001: {n_dr - runs} more approach runs for the DR targets (a), (b)")
     per_dr = per + [approach_run(base_seed * 1000 + r, truth, imu_true) for r in range(runs, n_dr)]
-    series = per[0]["series"]
-    curves = np.array([p["dr_err_curve"] for p in per_dr])
-    curves_c = np.array([p["dr_err_curve_c"] for p in per_dr])
-    for f in seed_figures(out, series, curves, rel, curves_c):
-        study.add_figure(f)
+    return per, per_dr, n_dr
+
+
+def _sensitivity_runs(study: Study, base_seed: int, n_sens: int, truth, imu_true) -> dict:
+    """The DR targets' sensitivity cases (clock and IMU grade), ``n_sens`` runs each, the same seeds."""
     sens = {}
     for label, kw in (("ideal clock (h0, h−2 ≈ 0)", {"clock": IDEAL_CLOCK}),
                       ("poor clock (100× TCXO h0, h−2)", {"clock": POOR_CLOCK}),
@@ -457,8 +478,16 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
         study.say(f"seed 001: sensitivity, {label}: {n_sens} runs")
         sens[label] = [approach_run(base_seed * 1000 + r, truth, imu_true, **kw) for r in range(n_sens)]
 
-    def mean(key):
-        return np.mean([p[key] for p in per], axis=0)
+    return sens
+
+
+def _mean(per: list[dict], key: str):
+    return np.mean([p[key] for p in per], axis=0)
+
+
+def _relative_ls_rows(rel: dict) -> list[dict]:
+    """Seed eqs. 1-5: the iterated and the single linearisation, and the NEES at σ_ρ = 1 m."""
+    from scipy.stats import chi2  # lazy: scipy is heavy to import
 
     nees = rel["nees"]
     K = len(nees)
@@ -495,22 +524,27 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
             runs=K,
         ),
     ]
-    dg, sp = mean("dgps_rms_m"), mean("spp_rms_m")
+    return rows1
+
+
+def _all_satellites_rows(per: list[dict]) -> list[dict]:
+    """Approach with all satellites: the tight filter's errors, DGPS against SPP."""
+    dg, sp = _mean(per, "dgps_rms_m"), _mean(per, "spp_rms_m")
     rows2 = [
         summary_row(
             "tight filter, approach: roll/pitch/heading RMS error",
             "deg",
-            ours=float(np.sqrt(np.mean(mean("tight_att_rms_deg") ** 2))),
+            ours=float(np.sqrt(np.mean(_mean(per, "tight_att_rms_deg") ** 2))),
         ),
         summary_row(
             "tight filter, approach: 3-D position RMS error",
             "m",
-            ours=float(np.linalg.norm(mean("tight_pos_rms_m"))),
+            ours=float(np.linalg.norm(_mean(per, "tight_pos_rms_m"))),
         ),
         summary_row(
             "tight filter, approach: 3-D velocity RMS error",
             "m/s",
-            ours=float(np.linalg.norm(mean("tight_vel_rms_m_s"))),
+            ours=float(np.linalg.norm(_mean(per, "tight_vel_rms_m_s"))),
         ),
         summary_row(
             "DGPS relative position 3-D RMS error (18.6–25 km, full error model)",
@@ -521,13 +555,19 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
         ),
         summary_row("rover SPP 3-D RMS error (same epochs)", "m", ours=float(np.linalg.norm(sp))),
     ]
-    ro, r2 = mean("dr_rate_outage"), mean("dr_rate_2sat")
+    return rows2
+
+
+def _dr_table_rows(per: list[dict], per_dr: list[dict]) -> list[dict]:
+    """Outage then two satellites: the DR targets (a), (b), the literal reading and the DR checks."""
+    ro, r2 = _mean(per, "dr_rate_outage"), _mean(per, "dr_rate_2sat")
     rows3 = dr_rows(per_dr) + [
         summary_row("literal reading: DR growth 0–20 s, 0 satellites (§2.3 before the restatement; "
                     "an error growing like t² over two different windows)", "m/s", float(ro)),
         summary_row("literal reading: DR growth 20–92 s, 2 satellites", "m/s", float(r2)),
-        summary_row("DR error at 20 s (end of the outage), mean |e|", "m", ours=float(mean("dr_err_20"))),
-        summary_row("DR error at 92 s, mean |e|", "m", ours=float(mean("dr_err_92"))),
+        summary_row("DR error at 20 s (end of the outage), mean |e|", "m",
+                    ours=float(_mean(per, "dr_err_20"))),
+        summary_row("DR error at 92 s, mean |e|", "m", ours=float(_mean(per, "dr_err_92"))),
         summary_row(
             "DR of the true velocity, trapezoid: max error over 92 s",
             "m",
@@ -544,11 +584,15 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
         summary_row(
             "DR without the frame rotation (seed eq. 6 as printed): error after 20 s at ~25 km",
             "m",
-            ours=float(mean("dr_norot_20")),
+            ours=float(_mean(per, "dr_norot_20")),
             target="ours >= 3 and ours <= 6",
         ),
     ]
-    rows4 = approach_rows(per_dr)
+    return rows3
+
+
+def _tables(rows1, rows2, rows3, rows4, runs: int, n_dr: int, n_deliver: int, sens: dict) -> list[dict]:
+    """The four tables, then one per sensitivity case."""
     tables = [
         summary_table(
             "Relative LS", "Seed eqs. 1–5 and §2.3 targets 1–2 (nominal 24-satellite sky); noise-free rows "
@@ -575,13 +619,18 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
                       "II/IIIA, as "
                       "tabulated by Yang et al., Satellite Navigation 1, 2020, Table 1); pooled over every "
                       "epoch "
-                      f"of {len(per_dr)} runs (paper claims: not SPEC rows)", rows4, runs=len(per_dr)),
+                      f"of {n_deliver} runs (paper claims: not SPEC rows)", rows4, runs=n_deliver),
     ]
     for label, sp in sens.items():
         tables.append(summary_table(f"Sensitivity: {label}", f"the DR targets (a), (b) with {label}, "
                                     f"{len(sp)} runs, same seeds (paper comparisons, not SPEC rows)",
                                     [dict(r, spec=False) for r in dr_rows(sp)], kind="sensitivity",
                                     runs=len(sp)))
+    return tables
+
+
+def _notes() -> list[str]:
+    """The notes: errata followed, the set-up, the DR targets' reading and the deliverables' limits."""
     notes = [
         "§2.2 errata followed: 1 (c in cΔT_BK), 2 (Gauss-Newton iteration; the single linearisation is "
         "reported for comparison), 3 (H rows a_j, b_j of §2.1 with z = ρ_GPS − ρ_INS), 4 (F_nav of "
@@ -634,7 +683,34 @@ def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
         "tabulated by Yang et al., Satellite Navigation 1, 2020, Table 1). Accuracy only: integrity, "
         "continuity and availability are not evaluated.",
     ]
-    return study.finish(tables, notes)
+    return notes
+
+
+def run(out_dir, runs: int | None = None, base_seed: int = 1, console=None,
+        sens_runs: int | None = None) -> dict:
+    """Rebuild seed 001's experiments into ``out_dir``: figures, ``summary.json``, ``report.html``.
+    ``runs``: approach Monte Carlo runs (None: 20); ``sens_runs``: runs per sensitivity case (None:
+    min(runs, 10)). Returns the summary dict."""
+    study = Study(SEED, TITLE, out_dir, DEFAULT_RUNS if runs is None else runs, base_seed, console)
+    runs = study.runs
+    n_sens = min(runs, SENS_RUNS) if sens_runs is None else int(sens_runs)
+    out = study.out
+    rng = np.random.default_rng(base_seed)
+    study.say("seed 001: relative least squares (common mode, σ = 1 m NEES)")
+    rel = relative_ls_study(rng, nees_draws=max(100, 20 * runs))
+    study.say(f"seed 001: {runs} approach runs ({IMU_GRADE} IMU, TCXO clock)")
+    truth, imu_true, _ = generate_truth(approach_scenario())
+    per, per_dr, n_dr = _approach_runs(study, base_seed, truth, imu_true)
+    series = per[0]["series"]
+    curves = np.array([p["dr_err_curve"] for p in per_dr])
+    curves_c = np.array([p["dr_err_curve_c"] for p in per_dr])
+    for f in seed_figures(out, series, curves, rel, curves_c):
+        study.add_figure(f)
+    sens = _sensitivity_runs(study, base_seed, n_sens, truth, imu_true)
+    rows4 = approach_rows(per_dr)
+    tables = _tables(_relative_ls_rows(rel), _all_satellites_rows(per), _dr_table_rows(per, per_dr), rows4,
+                     runs, n_dr, len(per_dr), sens)
+    return study.finish(tables, _notes())
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -415,30 +415,9 @@ def _plot_fusion(fu, out: Path) -> str:
 
 
 # ============================================================================ run
-def run(out_dir, runs: int | None = 60, base_seed: int = 1, console=None, sweep_runs: int | None = None,
-        fusion_runs: int | None = None) -> dict:
-    """Reproduce seed 002 into ``out_dir``: PNGs and ``summary.json`` (docs/conventions.md schema, written by
-    :func:`aidnav.experiments.reproduce.summary.write_summary`; every ``holds`` is evaluated from its target).
-
-    runs : Monte Carlo realisations per fix for Fig. 2 (None: 60, as in the seed); base_seed : seeds every
-    random stream; sweep_runs : per sweep point (default max(200, runs)); fusion_runs : INS-fusion runs
-    (default min(runs, 10)). Returns the summary dict.
-    """
-    study = Study(SEED, TITLE, out_dir, 60 if runs is None else runs, base_seed, console)
-    runs, out = study.runs, study.out
-    sweep_runs = max(200, runs) if sweep_runs is None else int(sweep_runs)
-    fusion_runs = min(runs, 10) if fusion_runs is None else int(fusion_runs)
-    ss = np.random.SeedSequence(base_seed).spawn(3)
-
-    say = study.say
-
-    # ---------------------------------------------------------------- Fig. 2
-    say("seed 002: flight and geometry")
-    fl = seed_flight()
-    say(f"seed 002: Monte Carlo of {N_FIXES} fixes × {runs} runs (closed form, ML)")
-    mc = monte_carlo_fixes(fl, runs, np.random.default_rng(ss[0]))
-    figures = study.figures
-    figures += _plot_fig2(mc, fl, out)
+def _fig2_table(mc: dict, fl, runs: int, tol: float) -> dict:
+    """Fig. 2: the CVAE CRB formula checks, the ML and closed-form estimators against it, their biases and
+    the seed's ordering; ``tol``: the pooled ML std tolerance."""
     rho = 10 ** (SNR_DB / 10)
     cv = np.sqrt(np.diag(cvae_bound(ETA, rho, N_SNAP))) / DEG
     cv_geo = np.sqrt(np.diag(crb_rotation_vector(*fl.wave[N_FIXES // 2], ETA, rho, N_SNAP))) / DEG
@@ -452,7 +431,6 @@ def run(out_dir, runs: int | None = 60, base_seed: int = 1, console=None, sweep_
     rows2.append(summary_row("max relative |J·CRB_eq7·Jᵀ − CVAE| at mid-flight (eq. 7 through the DOA "
                              "Jacobian = the closed-form CVAE)", "-", float(np.max(np.abs(cv_geo - cv) / cv)),
                              target="ours < 1e-9", runs=0))
-    tol = 0.10 if runs * N_FIXES >= 300 else 0.15  # §3.7: ±15 % for 100 runs, ±10 % for 300
     n_pool = runs * N_FIXES
     for i in range(3):
         r_ml = float(np.sqrt(np.mean(mc["delta_ml"][:, :, i] ** 2)) / (cv[i] * DEG))
@@ -497,18 +475,18 @@ def run(out_dir, runs: int | None = 60, base_seed: int = 1, console=None, sweep_
     for i in range(3):
         rows2.append(summary_row(f"single-snapshot closed form (seed eqs. 2–4 corrected) {ANGLES[i]} std",
                                  "deg", std_sn[i], target=f"ours > {_lit(std_ml[i])}", spec=True))
-    tables = [summary_table("Fig. 2", f"36 fixes, η = 27°, SNR 10 dB, N = 1000, {runs} Monte Carlo runs per "
+    return summary_table("Fig. 2", f"36 fixes, η = 27°, SNR 10 dB, N = 1000, {runs} Monte Carlo runs per "
                             "fix; the seed prints only 'pitch worst, ≈ 1°; heading best'; runs 0 (–): a "
                             "formula, no Monte Carlo",
-                            rows2, runs=runs)]
+                            rows2, runs=runs)
 
-    # ---------------------------------------------------------------- sweeps
-    say(f"seed 002: sweeps ({sweep_runs} runs per point)")
-    rng_s = np.random.default_rng(ss[1])
+
+def _sweeps(rng_s: np.random.Generator, sweep_runs: int, out: Path) -> tuple[list[str], dict]:
+    """The SNR, N and η sweeps of the ML std against the CRB → (their figures, their table)."""
     sw_snr = sweep(rng_s, sweep_runs, snr_db_list=(-5, 0, 5, 10, 15, 20, 25, 30))
     sw_n = sweep(rng_s, sweep_runs, n_list=(10, 30, 100, 300, 1000, 3000, 10000))
     sw_eta = sweep(rng_s, sweep_runs, eta_list=tuple(np.array([5, 10, 15, 20, 27, 30, 35, 40]) * DEG))
-    figures += [_plot_sweep(sw_snr, "snr_db", "SNR [dB]", "sweep_snr.png", out),
+    figures = [_plot_sweep(sw_snr, "snr_db", "SNR [dB]", "sweep_snr.png", out),
                 _plot_sweep(sw_n, "n", "snapshots N", "sweep_n.png", out, logx=True),
                 _plot_sweep(sw_eta, "eta_deg", "η [deg]", "sweep_eta.png", out)]
 
@@ -530,15 +508,15 @@ def run(out_dir, runs: int | None = 60, base_seed: int = 1, console=None, sweep_
                 else:
                     rows_s.append(summary_row(name + " (threshold region: no target)", "-",
                                               r["std_ml"][i] / r["crb"][i]))
-    tables.append(summary_table("Sweeps", f"ML std of the wave-frame rotation vs the CVAE CRB at (φ, θ, γ) = "
-                                f"(30°, 20°, 15°), base point η = 27°, SNR 10 dB, N = 1000; {sweep_runs} "
-                                f"runs per point; bounds lo/hi = χ² {slo:.3f}/{shi:.3f} (99 % family-wise "
-                                f"over {n_tested} rows)", rows_s, runs=sweep_runs))
+    return figures, summary_table(
+        "Sweeps", f"ML std of the wave-frame rotation vs the CVAE CRB at (φ, θ, γ) = "
+        f"(30°, 20°, 15°), base point η = 27°, SNR 10 dB, N = 1000; {sweep_runs} "
+        f"runs per point; bounds lo/hi = χ² {slo:.3f}/{shi:.3f} (99 % family-wise "
+        f"over {n_tested} rows)", rows_s, runs=sweep_runs)
 
-    # ---------------------------------------------------------------- fusion
-    say(f"seed 002: INS fusion ({fusion_runs} runs)")
-    fu = fusion_case(fl, fusion_runs, np.random.default_rng(ss[2]))
-    figures.append(_plot_fusion(fu, out))
+
+def _fusion_table(fu: dict, fl, fusion_runs: int) -> dict:
+    """The INS aided by the ML fixes against the free INS: errors, bounds and consistency."""
     late = fu["time"] > fl.fix_time[1]
     rms_f = np.sqrt(np.mean(fu["fused"][:, late] ** 2, axis=(0, 1))) / DEG
     rms_fix = np.sqrt(np.mean(fu["fix_err"] ** 2, axis=(0, 1))) / DEG
@@ -560,11 +538,14 @@ def run(out_dir, runs: int | None = 60, base_seed: int = 1, console=None, sweep_
     for i, ax in enumerate(("E", "N", "U")):
         rows_f.append(summary_row(f"fused RMS(ε_{ax} / σ_filter) (consistency)", "-", nees_r[i],
                                   target="0.7 <= ours <= 1.4"))
-    tables.append(summary_table("INS fusion", "low-grade INS (gyro bias 50 deg/h, accel bias 1 mg) aided by "
+    return summary_table("INS fusion", "low-grade INS (gyro bias 50 deg/h, accel bias 1 mg) aided by "
                                 "the 36 ML fixes in the 15-state error-state KF vs the free INS, "
                                 f"{fusion_runs} runs",
-                                rows_f, runs=fusion_runs))
+                                rows_f, runs=fusion_runs)
 
+
+def _notes(tol: float, runs: int) -> list[str]:
+    """The notes: errata followed, what the paper prints, the geometry and the tolerances."""
     notes = [
         "§3.6 errata followed: FLU body axes (1), θ ∈ [−90°, 90°] (2), eq. (3) with the minus sign and "
         "|a_z|² (3), Stokes/Jones tilt instead of eq. (4) (4), circular-complex likelihood (5), eq. (9) with "
@@ -585,7 +566,48 @@ def run(out_dir, runs: int | None = 60, base_seed: int = 1, console=None, sweep_
         f"{runs}×{N_FIXES} samples).",
         "Sweep rows in the threshold region (SNR < 10 dB, N < 300, η outside [10°, 35°]) have no target.",
     ]
-    return study.finish(tables, notes)
+    return notes
+
+
+def run(out_dir, runs: int | None = 60, base_seed: int = 1, console=None, sweep_runs: int | None = None,
+        fusion_runs: int | None = None) -> dict:
+    """Reproduce seed 002 into ``out_dir``: PNGs and ``summary.json`` (docs/conventions.md schema, written by
+    :func:`aidnav.experiments.reproduce.summary.write_summary`; every ``holds`` is evaluated from its target).
+
+    runs : Monte Carlo realisations per fix for Fig. 2 (None: 60, as in the seed); base_seed : seeds every
+    random stream; sweep_runs : per sweep point (default max(200, runs)); fusion_runs : INS-fusion runs
+    (default min(runs, 10)). Returns the summary dict.
+    """
+    study = Study(SEED, TITLE, out_dir, 60 if runs is None else runs, base_seed, console)
+    runs, out = study.runs, study.out
+    sweep_runs = max(200, runs) if sweep_runs is None else int(sweep_runs)
+    fusion_runs = min(runs, 10) if fusion_runs is None else int(fusion_runs)
+    ss = np.random.SeedSequence(base_seed).spawn(3)
+
+    say = study.say
+
+    # ---------------------------------------------------------------- Fig. 2
+    say("seed 002: flight and geometry")
+    fl = seed_flight()
+    say(f"seed 002: Monte Carlo of {N_FIXES} fixes × {runs} runs (closed form, ML)")
+    mc = monte_carlo_fixes(fl, runs, np.random.default_rng(ss[0]))
+    figures = study.figures
+    figures += _plot_fig2(mc, fl, out)
+    tol = 0.10 if runs * N_FIXES >= 300 else 0.15  # §3.7: ±15 % for 100 runs, ±10 % for 300
+    tables = [_fig2_table(mc, fl, runs, tol)]
+
+    # ---------------------------------------------------------------- sweeps
+    say(f"seed 002: sweeps ({sweep_runs} runs per point)")
+    sweep_figures, sweep_table = _sweeps(np.random.default_rng(ss[1]), sweep_runs, out)
+    figures += sweep_figures
+    tables.append(sweep_table)
+
+    # ---------------------------------------------------------------- fusion
+    say(f"seed 002: INS fusion ({fusion_runs} runs)")
+    fu = fusion_case(fl, fusion_runs, np.random.default_rng(ss[2]))
+    figures.append(_plot_fusion(fu, out))
+    tables.append(_fusion_table(fu, fl, fusion_runs))
+    return study.finish(tables, _notes(tol, runs))
 
 
 if __name__ == "__main__":  # pragma: no cover

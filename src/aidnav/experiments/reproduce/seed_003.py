@@ -384,20 +384,9 @@ def _fig_level(a, out: Path) -> str:
 
 
 # ============================================================================================== run
-def run(out_dir, runs: int | None = DEFAULT_RUNS, base_seed: int = 1, console=None,
-        route: str = "full") -> dict:
-    """Reproduce seed 003 into ``out_dir``: figures (PNG) and ``summary.json`` (docs/conventions.md schema).
-
-    runs : Monte Carlo realisations of the driving run (None: ``DEFAULT_RUNS``); base_seed : seeds the
-    realisations; route : "full" (~610 s) or "short" (145 s, for quick checks). Returns the summary dict.
-    """
-    if route not in ("full", "short"):
-        raise ValueError("route must be 'full' or 'short'")
-    study = Study(SEED, TITLE, out_dir, DEFAULT_RUNS if runs is None else runs, base_seed, console)
-    runs, out, say = study.runs, study.out, study.say
-
-    # ---------------------------------------------------------------- reference chase (§4.5)
-    say("seed 003: reference chase (§4.5)")
+def _chase_rows():
+    """The §4.5 reference chase and its rows → (chase, angle q_ant–q_nav per step [deg], rows, (lo, hi,
+    |ε_0|): the closing-time tolerance [s] and the correction's angle [deg])."""
     ch = reference_chase(heading_deg=100.0, yaw_rate_deg_s=5.0, dt=0.01, t_f=T_F, w_max_deg_s=W_MAX_DEG_S,
                          correction_rph_deg=(0.3, -0.5, 2.0), t_correction=1.0, duration=8.0)
     dt = 0.01
@@ -441,9 +430,13 @@ def run(out_dir, runs: int | None = DEFAULT_RUNS, base_seed: int = 1, console=No
         summary_row("angle between q_ant and q_nav before the correction", "rad", ch["identity_before_rad"],
                     None, "ours <= 1e-12"),
     ]
-    figures = study.figures
-    figures.append(_fig_chase(ch, gap, out))
-    # the superseded per-axis schedule, side by side (sensitivity)
+    return ch, gap, rows1, (lo, hi, eps0)
+
+
+def _per_axis_rows(ch) -> list[dict]:
+    """The superseded per-axis schedule on the same chase, beside the total-rotation one."""
+    dt = 0.01
+    wmdt = W_MAX_DEG_S * dt
     pa = per_axis_chase()
     rows_pa = []
     for a, (old, tol) in {"heading": (2.0 / W_MAX_DEG_S, dt), "pitch": (T_F, 0.1),
@@ -460,95 +453,116 @@ def run(out_dir, runs: int | None = DEFAULT_RUNS, base_seed: int = 1, console=No
         reason=(f"the per-axis schedule turns the antenna by up to {pa['max_rot_deg']:.5f}° per interrupt "
                 f"({pa['max_rot_deg'] / dt:.2f}°/s) while all three angles chase, beyond w_max = "
                 f"{W_MAX_DEG_S:g}°/s: why the total-rotation bound (SPEC §4.2 item 3) is the default")))
+    return rows_pa
 
-    # ---------------------------------------------------------------- driving run, Monte Carlo
+
+def _driving_runs(runs: int, base_seed: int, route: str, say) -> list[dict]:
+    """The Monte Carlo runs of the driving route (the first keeps its arrays)."""
     ss = np.random.SeedSequence(base_seed).spawn(runs)
     results = []
     for i, s in enumerate(ss):
         say(f"seed 003: driving run {i + 1}/{runs}")
         sim_seed = int(s.generate_state(1)[0])
         results.append(run_once(sim_seed, np.random.default_rng(s.spawn(1)[0]), route=route, keep=(i == 0)))
-    a = results[0].pop("arrays")
-    figures += [_fig_pointing(a, out), _fig_shock(a, out), _fig_level(a, out)]
+    return results
 
-    def mean_v(var, key):
-        return float(np.mean([r["variants"][var][key] for r in results]))
 
-    def mean_n(nav, key):
-        return float(np.mean([r["nav"][nav][key] for r in results]))
+def _mean_v(results, var, key):
+    return float(np.mean([r["variants"][var][key] for r in results]))
 
-    def rms_n(nav, key):
-        return float(np.sqrt(np.mean([r["nav"][nav][key] ** 2 for r in results])))
 
-    def max_n(nav, key):
-        return float(np.max([r["nav"][nav][key] for r in results]))
+def _mean_n(results, nav, key):
+    return float(np.mean([r["nav"][nav][key] for r in results]))
 
-    free_level = mean_n("free INS", "level_rms_deg")
+
+def _rms_n(results, nav, key):
+    return float(np.sqrt(np.mean([r["nav"][nav][key] ** 2 for r in results])))
+
+
+def _max_n(results, nav, key):
+    return float(np.max([r["nav"][nav][key] for r in results]))
+
+
+def _driving_rows(results: list[dict]) -> list[dict]:
+    """SPEC 4.1-4.2 on the driving route: the chase bounds, the level and heading errors."""
+    wmdt = W_MAX_DEG_S * 0.01
+    free_level = _mean_n(results, "free INS", "level_rms_deg")
     rows2 = [
         summary_row("q_ant vs q_nav without filter corrections (free INS), largest angle", "deg",
-                    max_n("free INS", "dual_gap_max_deg"), None, "ours <= 1e-12 * 180 / 3.141592653589793"),
+                    _max_n(results, "free INS", "dual_gap_max_deg"), None,
+                    "ours <= 1e-12 * 180 / 3.141592653589793"),
         summary_row("8-state: largest per-interrupt antenna Euler change beyond the gyro motion", "deg",
-                    max_n("8-state", "dual_max_step_deg"), None, "ours <= w_max_dt * (1 + 1e-9)",
+                    _max_n(results, "8-state", "dual_max_step_deg"), None, "ours <= w_max_dt * (1 + 1e-9)",
                     {"w_max_dt": wmdt}),
         summary_row("15-state: largest per-interrupt antenna Euler change beyond the gyro motion", "deg",
-                    max_n("15-state", "dual_max_step_deg"), None, "ours <= w_max_dt * (1 + 1e-9)",
+                    _max_n(results, "15-state", "dual_max_step_deg"), None, "ours <= w_max_dt * (1 + 1e-9)",
                     {"w_max_dt": wmdt}),
         summary_row("8-state: largest total change of the antenna attitude per interrupt beyond the vehicle "
-                    "motion", "deg", max_n("8-state", "dual_max_rot_deg"), None,
+                    "motion", "deg", _max_n(results, "8-state", "dual_max_rot_deg"), None,
                     "ours <= w_max_dt * (1 + 1e-9)", {"w_max_dt": wmdt}, spec=True),
         summary_row("15-state: largest total change of the antenna attitude per interrupt beyond the vehicle "
-                    "motion", "deg", max_n("15-state", "dual_max_rot_deg"), None,
+                    "motion", "deg", _max_n(results, "15-state", "dual_max_rot_deg"), None,
                     "ours <= w_max_dt * (1 + 1e-9)", {"w_max_dt": wmdt}, spec=True),
         summary_row(f"8-state: q_ant − q_nav just before a correction, after {SETTLE_S:g} s, largest", "deg",
-                    max_n("8-state", "dual_gap_before_correction_late_max_deg"), None, "ours <= w_max_dt",
-                    {"w_max_dt": wmdt}),
+                    _max_n(results, "8-state", "dual_gap_before_correction_late_max_deg"), None,
+                    "ours <= w_max_dt", {"w_max_dt": wmdt}),
         summary_row("8-state: largest q_ant − q_nav at any time (chase amplitude)", "deg",
-                    max_n("8-state", "dual_gap_max_deg")),
+                    _max_n(results, "8-state", "dual_gap_max_deg")),
         summary_row(f"level attitude RMS after {SETTLE_S:g} s, free INS", "deg", free_level),
         summary_row(f"level attitude RMS after {SETTLE_S:g} s, 8-state filter", "deg",
-                    mean_n("8-state", "level_rms_deg"), None, "ours < free", {"free": free_level}),
+                    _mean_n(results, "8-state", "level_rms_deg"), None, "ours < free", {"free": free_level}),
         summary_row(f"level attitude RMS after {SETTLE_S:g} s, 15-state filter (run_loose)", "deg",
-                    mean_n("15-state", "level_rms_deg"), None, "ours < free", {"free": free_level}),
+                    _mean_n(results, "15-state", "level_rms_deg"), None, "ours < free", {"free": free_level}),
         summary_row("heading error at the end, RMS over runs, 8-state (not corrected by the filter)", "deg",
-                    rms_n("8-state", "heading_err_end_deg")),
+                    _rms_n(results, "8-state", "heading_err_end_deg")),
         summary_row("heading error at the end, RMS over runs, 15-state", "deg",
-                    rms_n("15-state", "heading_err_end_deg")),
+                    _rms_n(results, "15-state", "heading_err_end_deg")),
     ]
+    return rows2
+
+
+def _pointing_rows(results: list[dict]) -> list[dict]:
+    """Pointing error and servo load of each variant; dual vs direct control."""
     rows3 = []
     for var in VARIANTS:
         rows3 += [
             summary_row(f"{var}: pointing error RMS (servo beam vs true LOS)", "deg",
-                        mean_v(var, "point_rms_deg")),
-            summary_row(f"{var}: pointing error 95 %", "deg", mean_v(var, "point_p95_deg")),
-            summary_row(f"{var}: pointing error max", "deg", mean_v(var, "point_max_deg")),
+                        _mean_v(results, var, "point_rms_deg")),
+            summary_row(f"{var}: pointing error 95 %", "deg", _mean_v(results, var, "point_p95_deg")),
+            summary_row(f"{var}: pointing error max", "deg", _mean_v(results, var, "point_max_deg")),
             summary_row(f"{var}: mean signal loss ({BEAMWIDTH_DEG:g}° beam, polarization included)", "dB",
-                        mean_v(var, "loss_mean_db")),
+                        _mean_v(results, var, "loss_mean_db")),
             summary_row(f"{var}: time with loss > {LOSS_LIMIT_DB:g} dB", "%",
-                        mean_v(var, "loss_over_limit_pct")),
+                        _mean_v(results, var, "loss_over_limit_pct")),
         ]
     for filt in ("8-state", "15-state"):
         # issue 17: dual-quaternion control gives "the same or better" pointing error than direct pointing;
         # "the same" is taken as within 5 % of the direct RMS (the chase lags each correction by design)
         rows3.append(summary_row(f"{filt} dual vs direct: pointing error RMS", "deg",
-                                 mean_v(f"{filt} dual", "point_rms_deg"), None, "ours <= 1.05 * direct",
-                                 {"direct": mean_v(f"{filt} direct", "point_rms_deg")}))
-        d_acc = mean_v(f"{filt} direct", "servo_accel_demand_max_deg_s2")
-        d_xs = mean_v(f"{filt} direct", "cmd_excess_step_max_deg")
+                                 _mean_v(results, f"{filt} dual", "point_rms_deg"), None,
+                                 "ours <= 1.05 * direct",
+                                 {"direct": _mean_v(results, f"{filt} direct", "point_rms_deg")}))
+        d_acc = _mean_v(results, f"{filt} direct", "servo_accel_demand_max_deg_s2")
+        d_xs = _mean_v(results, f"{filt} direct", "cmd_excess_step_max_deg")
         rows3 += [
             summary_row(f"{filt} direct: largest servo acceleration demand", "deg/s²", d_acc),
             summary_row(f"{filt} dual: largest servo acceleration demand", "deg/s²",
-                        mean_v(f"{filt} dual", "servo_accel_demand_max_deg_s2"), None,
+                        _mean_v(results, f"{filt} dual", "servo_accel_demand_max_deg_s2"), None,
                         "ours < direct", {"direct": d_acc}),
             summary_row(f"{filt} direct: largest command step beyond the vehicle motion", "deg/interrupt",
                         d_xs),
             summary_row(f"{filt} dual: largest command step beyond the vehicle motion", "deg/interrupt",
-                        mean_v(f"{filt} dual", "cmd_excess_step_max_deg"), None, "ours < direct",
+                        _mean_v(results, f"{filt} dual", "cmd_excess_step_max_deg"), None, "ours < direct",
                         {"direct": d_xs}),
             summary_row(f"{filt} direct: time at the servo acceleration limit", "%",
-                        mean_v(f"{filt} direct", "servo_accel_saturated_pct")),
+                        _mean_v(results, f"{filt} direct", "servo_accel_saturated_pct")),
             summary_row(f"{filt} dual: time at the servo acceleration limit", "%",
-                        mean_v(f"{filt} dual", "servo_accel_saturated_pct")),
+                        _mean_v(results, f"{filt} dual", "servo_accel_saturated_pct")),
         ]
+    return rows3
+
+
+def _tables(rows1, rows_pa, rows2, rows3, runs: int, route: str) -> list[dict]:
     tables = [
         summary_table("SPEC 4.5 reference chase", "heading 100°, 5°/s yaw, dt 0.01 s, T_f 1 s, w_max 0.5°/s, "
                       "correction (roll, pitch, heading) = (+0.3°, −0.5°, +2°) at t = 1 s; a deterministic "
@@ -567,6 +581,10 @@ def run(out_dir, runs: int | None = DEFAULT_RUNS, base_seed: int = 1, console=No
                       "'ours < direct' rows: the patent's claim that the antenna-control quaternion isolates "
                       "the servos from the filter's correction jumps ([0037])", rows3, runs=runs),
     ]
+    return tables
+
+
+def _notes(ch, lo: float, hi: float, eps0: float) -> list[str]:
     notes = [
         "The patent prints no numbers: 'paper' is null in every row; targets come from §4.5 (chase), "
         "§4.2 behaviours 1-3 and §4.1, and the patent's qualitative claim of shock isolation "
@@ -618,6 +636,35 @@ def run(out_dir, runs: int | None = DEFAULT_RUNS, base_seed: int = 1, console=No
         "correction by at most T_f, or |d|/w_max); what changes is the servo load: bounded command steps "
         "instead of jumps of the size of the correction.",
     ]
+    return notes
+
+
+def run(out_dir, runs: int | None = DEFAULT_RUNS, base_seed: int = 1, console=None,
+        route: str = "full") -> dict:
+    """Reproduce seed 003 into ``out_dir``: figures (PNG) and ``summary.json`` (docs/conventions.md schema).
+
+    runs : Monte Carlo realisations of the driving run (None: ``DEFAULT_RUNS``); base_seed : seeds the
+    realisations; route : "full" (~610 s) or "short" (145 s, for quick checks). Returns the summary dict.
+    """
+    if route not in ("full", "short"):
+        raise ValueError("route must be 'full' or 'short'")
+    study = Study(SEED, TITLE, out_dir, DEFAULT_RUNS if runs is None else runs, base_seed, console)
+    runs, out, say = study.runs, study.out, study.say
+
+    # ---------------------------------------------------------------- reference chase (§4.5)
+    say("seed 003: reference chase (§4.5)")
+    ch, gap, rows1, closing = _chase_rows()
+    figures = study.figures
+    figures.append(_fig_chase(ch, gap, out))
+    # the superseded per-axis schedule, side by side (sensitivity)
+    rows_pa = _per_axis_rows(ch)
+
+    # ---------------------------------------------------------------- driving run, Monte Carlo
+    results = _driving_runs(runs, base_seed, route, say)
+    a = results[0].pop("arrays")
+    figures += [_fig_pointing(a, out), _fig_shock(a, out), _fig_level(a, out)]
+    tables = _tables(rows1, rows_pa, _driving_rows(results), _pointing_rows(results), runs, route)
+    notes = _notes(ch, *closing)
 
     (out / "runs.json").write_text(json.dumps(results, indent=1))
     return study.finish(tables, notes)

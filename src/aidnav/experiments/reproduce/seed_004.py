@@ -593,21 +593,9 @@ def _write_runs(out: Path, runner: _Runner) -> Path:
 
 
 # --------------------------------------------------------------------------------------------- run
-def run(out_dir, runs: int | None = 10, base_seed: int = 1, console=None, quick: bool = False) -> dict:
-    """Reproduce seed 004 into ``out_dir``: figures, ``report.html``, ``runs.csv`` and ``summary.json``.
-
-    runs: Monte Carlo runs per case (10 as in the seed; None → 10, or 2 with ``quick``).
-    quick: fewer runs (2 unless given) for tests; the same cases and tables.
-    Returns the summary document (a dict, as written).
-    """
-    study = Study(SEED, TITLE, out_dir, int(runs) if runs is not None else (2 if quick else 10), base_seed,
-                  console)
-    t_start = study.t_start
-    runs, out = study.runs, study.out
-    trend_runs = TREND_RUNS_FACTOR * runs  # Tables 4, 5, 6 and 8: their trends are a few percent
-    sens_runs = max(1, runs // 2)  # sensitivity cases whose effects are factors (GM master, density reading)
-    run_seeds = np.random.SeedSequence(int(base_seed)).spawn(trend_runs)  # the first `runs` in every case
-    runner = _Runner(run_seeds, study.say)
+def _monte_carlo(runner: _Runner, runs: int, trend_runs: int, sens_runs: int, quick: bool):
+    """Every Monte Carlo case, grouped by trajectory so that each trajectory is generated once →
+    (results by table and case, the Table 4 trajectories, the first-epoch control of Table 8)."""
 
     def mc(case: Case, n: int = runs) -> CaseResult:
         return runner.run(replace(case, runs=n))
@@ -644,22 +632,11 @@ def run(out_dir, runs: int | None = 10, base_seed: int = 1, console=None, quick:
     for label, (f, sv, bls) in MASTER_MODELS.items():  # the master-error study of Table 8
         res["master"][label] = {b: mc(replace(BASE4, baseline_km=float(b), drift_fraction=f,
                                               master_vel_sigma=sv)) for b in bls}
-    t_mc = time.perf_counter() - t_start
+    return res, bundles, control
 
-    # design tool (covariance only) and flexure check
-    t0 = time.perf_counter()
-    cov_pred, analyses = {}, {}
-    for m in MODES:
-        cov_pred[m], analyses[m] = predict_accuracy(bundles[m])
-    t_design = time.perf_counter() - t0
-    flex_spec = FlexureSpec()
-    flex = flexure_check(flex_spec, duration_s=2.0e4 if quick else 1.0e5)
 
-    tables = _tables(res, cov_pred, flex, flex_spec, control)
-
-    # figures
-    figures = study.figures
-    figures += [fig_trajectories(out, bundles), fig_attitude(out, res["T4"])]
+def _sweeps(res: dict) -> dict:
+    """The sweeps of the sweep figure: per table its x values, our means, the paper's and the x label."""
     att = ("heading", "pitch", "roll")
 
     def rows_of(d, keys):
@@ -670,7 +647,7 @@ def run(out_dir, runs: int | None = 10, base_seed: int = 1, console=None, quick:
 
     p8 = [dict(zip(att, (PAPER_T8["heading"][i], PAPER_T8["pitch"][i], PAPER_T8["roll"][i]), strict=True))
           for i in range(3)]
-    sweeps = {
+    return {
         "maneuver (Table 4)": ([LABEL[m] for m in MODES], rows_of(res["T4"], MODES),
                                paper_of(PAPER_T4, MODES),
                                "maneuver before the survey area"),
@@ -684,20 +661,10 @@ def run(out_dir, runs: int | None = 10, base_seed: int = 1, console=None, quick:
         "21 vs 24 states (Table 4 modes)": ([LABEL[m] for m in MODES], rows_of(res["T4-21"], MODES), None,
                                             "maneuver, 21-state filter"),
     }
-    figures.append(fig_sweeps(out, sweeps))
-    mc_std = {m: res["T4"][m].mean()["heading"] for m in MODES}
-    mc_rms = {m: float(res["T4"][m].rms.mean(axis=0)[0]) for m in MODES}
-    figures.append(fig_design(out, analyses, {m: cov_pred[m]["heading_deg"] for m in MODES}, mc_std, mc_rms))
-    figures.append(fig_flexure(out, flex, flex_spec))
-    figures.append(fig_heading_sigma(out, res["T5"]))
-    _write_runs(out, runner)
 
-    elapsed = study.elapsed_s
-    r2124 = [res["T4-21"][m].mean()["heading"] / res["T4"][m].mean()["heading"] for m in MODES]
-    b8 = [res["T8"][b].mean()["baseline"] for b in BASELINES]
-    t8v = [res["T8"][b].mean()["vE"] for b in BASELINES]
-    pred = [cov_pred[m]["heading_deg"] for m in MODES]
-    pess = [cov_pred[m]["heading_deg"] / mc_rms[m] for m in MODES]
+
+def _noise_disclosure(res: dict, tables: list[dict]) -> str:
+    """The note on the sub-IMU noise reading: ARW vs density reading, with their tables' counts."""
 
     def holding(name):
         t = next(t for t in tables if t["name"] == name)
@@ -709,6 +676,40 @@ def run(out_dir, runs: int | None = 10, base_seed: int = 1, console=None, quick:
         hs = [r["holds"] for r in t["rows"] if r["target"] == FACTOR2]
         return f"{sum(hs)} of {len(hs)}"
 
+    four = ("s_turns", "o_circle", "figure8")
+    att = ("heading", "pitch", "roll")
+    below = [PAPER_T4[m][i] / res["T4-density"][m].mean()[q] for m in four for i, q in enumerate(att)]
+    gm_up = [res["T4-GM"][m].mean()[q] / res["T4"][m].mean()[q] for m in four for q in att]
+    return ("Disclosure, sub-IMU noise (decided in issue 27): §1.1 reads a seed's 'random drift X deg/h' as "
+            "a white-noise density; the unit is ambiguous. The tables use the sub-IMU's 'random drift "
+            "0.1 deg/h' as an angle random walk of "
+            "0.1 deg/sqrt(h) (grade sub_arw; 0.1 deg/h constant bias, 50 ug + 50 ug/sqrt(Hz)). Reason: the "
+            "seed's own pitch/roll STDs after the maneuvers (0.004-0.009 deg) need that much gyro noise. "
+            "With the other reading (0.1 deg/h/sqrt(Hz), ARW 0.0017 deg/sqrt(h), the seed004_sub preset) our "
+            f"attitude STDs after the S, O and 8 maneuvers are {min(below):.0f}-{max(below):.0f}x below the "
+            "seed's, and the climb's pitch/roll, limited by the accelerometer bias its gentle turn leaves "
+            "unresolved instead of by gyro noise, are much worse than the other maneuvers'. Factor-2 cells, "
+            f"ARW / density reading: Table 4 {within2('Table 4')} / {within2('Table 4, density reading')}, "
+            f"Table 5 {within2('Table 5')} / {within2('Table 5, density reading')}; SPEC predicates holding: "
+            f"Table 4 {holding('Table 4')} / {holding('Table 4, density reading')}, "
+            f"Table 5 {holding('Table 5')} / {holding('Table 5, density reading')}, "
+            f"Table 6 {holding('Table 6')} / "
+            f"{holding('Table 6, density reading')}. Gauss-Markov master errors (tau = {MASTER_TAU_S:g} s, "
+            f"all channels) change the maneuver STDs by {min(gm_up):.1f}-{max(gm_up):.1f}x.")
+
+
+def _notes(res: dict, tables: list[dict], cov_pred: dict, control: dict, mc, timing, runs: int,
+           base_seed: int) -> list[str]:
+    """The notes: statistic, reconstruction, disclosures, and the figures they quote; ``mc`` = (Monte Carlo
+    heading STD, RMS by mode), ``timing`` = (Monte Carlo, design tool, whole reproduction) [s]."""
+    mc_std, mc_rms = mc
+    t_mc, t_design, elapsed = timing
+    r2124 = [res["T4-21"][m].mean()["heading"] / res["T4"][m].mean()["heading"] for m in MODES]
+    b8 = [res["T8"][b].mean()["baseline"] for b in BASELINES]
+    t8v = [res["T8"][b].mean()["vE"] for b in BASELINES]
+    pred = [cov_pred[m]["heading_deg"] for m in MODES]
+    pess = [cov_pred[m]["heading_deg"] / mc_rms[m] for m in MODES]
+
     main4 = [r["holds"] for t in tables if t["name"] in ("Table 4", "Table 5", "Table 6", "Table 8")
              for r in t["rows"] if r["target"] == FACTOR2]
     mm = {k: Group(v).means() for k, v in res["master"].items()}
@@ -719,10 +720,6 @@ def run(out_dir, runs: int | None = 10, base_seed: int = 1, console=None, quick:
     h5 = [res["T5"][t].mean()["heading"] for t in T1_VALUES]
     d6 = {(x, y): res["T6"][y].std[:, 0] - res["T6"][x].std[:, 0]
           for x, y in zip(T2_VALUES[:-1], T2_VALUES[1:], strict=True)}
-    four = ("s_turns", "o_circle", "figure8")
-    att = ("heading", "pitch", "roll")
-    below = [PAPER_T4[m][i] / res["T4-density"][m].mean()[q] for m in four for i, q in enumerate(att)]
-    gm_up = [res["T4-GM"][m].mean()[q] / res["T4"][m].mean()[q] for m in four for q in att]
     notes = [
         "Statistic: per run, the standard deviation over time of each error on AB and on CD (the seed's "
         "STD), averaged over the two legs and then over the runs; errors at the 1-s filter epochs after "
@@ -760,21 +757,7 @@ def run(out_dir, runs: int | None = 10, base_seed: int = 1, console=None, quick:
         "filter's own heading σ for each T1 with the paper's Table 5 values at the AB start.",
         f"Factor-2 cells of Tables 4, 5, 6 and 8 within 2x of the paper: {sum(main4)} of {len(main4)} "
         f"({100 * sum(main4) / max(len(main4), 1):.0f} %).",
-        "Disclosure, sub-IMU noise (decided in issue 27): §1.1 reads a seed's 'random drift X deg/h' as "
-        "a white-noise density; the unit is ambiguous. The tables use the sub-IMU's 'random drift "
-        "0.1 deg/h' as an angle random walk of "
-        "0.1 deg/sqrt(h) (grade sub_arw; 0.1 deg/h constant bias, 50 ug + 50 ug/sqrt(Hz)). Reason: the "
-        "seed's own pitch/roll STDs after the maneuvers (0.004-0.009 deg) need that much gyro noise. "
-        "With the other reading (0.1 deg/h/sqrt(Hz), ARW 0.0017 deg/sqrt(h), the seed004_sub preset) our "
-        f"attitude STDs after the S, O and 8 maneuvers are {min(below):.0f}-{max(below):.0f}x below the "
-        "seed's, and the climb's pitch/roll, limited by the accelerometer bias its gentle turn leaves "
-        "unresolved instead of by gyro noise, are much worse than the other maneuvers'. Factor-2 cells, "
-        f"ARW / density reading: Table 4 {within2('Table 4')} / {within2('Table 4, density reading')}, "
-        f"Table 5 {within2('Table 5')} / {within2('Table 5, density reading')}; SPEC predicates holding: "
-        f"Table 4 {holding('Table 4')} / {holding('Table 4, density reading')}, Table 5 {holding('Table 5')}"
-        f" / {holding('Table 5, density reading')}, Table 6 {holding('Table 6')} / "
-        f"{holding('Table 6, density reading')}. Gauss-Markov master errors (tau = {MASTER_TAU_S:g} s, "
-        f"all channels) change the maneuver STDs by {min(gm_up):.1f}-{max(gm_up):.1f}x.",
+        _noise_disclosure(res, tables),
         f"Table 5: heading STD {', '.join(f'{v:.5f}' for v in h5)} deg for T1 = "
         f"{', '.join(str(t) for t in T1_VALUES)} s.",
         "Table 6: heading STD change with T2, paired over the runs (the same noise on the segments the "
@@ -822,6 +805,53 @@ def run(out_dir, runs: int | None = 10, base_seed: int = 1, console=None, quick:
         f"tool {t_design:.1f} s, whole reproduction {elapsed:.0f} s "
         "on this machine.",
     ]
+    return notes
+
+
+def run(out_dir, runs: int | None = 10, base_seed: int = 1, console=None, quick: bool = False) -> dict:
+    """Reproduce seed 004 into ``out_dir``: figures, ``report.html``, ``runs.csv`` and ``summary.json``.
+
+    runs: Monte Carlo runs per case (10 as in the seed; None → 10, or 2 with ``quick``).
+    quick: fewer runs (2 unless given) for tests; the same cases and tables.
+    Returns the summary document (a dict, as written).
+    """
+    study = Study(SEED, TITLE, out_dir, int(runs) if runs is not None else (2 if quick else 10), base_seed,
+                  console)
+    t_start = study.t_start
+    runs, out = study.runs, study.out
+    trend_runs = TREND_RUNS_FACTOR * runs  # Tables 4, 5, 6 and 8: their trends are a few percent
+    sens_runs = max(1, runs // 2)  # sensitivity cases whose effects are factors (GM master, density reading)
+    run_seeds = np.random.SeedSequence(int(base_seed)).spawn(trend_runs)  # the first `runs` in every case
+    runner = _Runner(run_seeds, study.say)
+
+    res, bundles, control = _monte_carlo(runner, runs, trend_runs, sens_runs, quick)
+    t_mc = time.perf_counter() - t_start
+
+    # design tool (covariance only) and flexure check
+    t0 = time.perf_counter()
+    cov_pred, analyses = {}, {}
+    for m in MODES:
+        cov_pred[m], analyses[m] = predict_accuracy(bundles[m])
+    t_design = time.perf_counter() - t0
+    flex_spec = FlexureSpec()
+    flex = flexure_check(flex_spec, duration_s=2.0e4 if quick else 1.0e5)
+
+    tables = _tables(res, cov_pred, flex, flex_spec, control)
+
+    # figures
+    figures = study.figures
+    figures += [fig_trajectories(out, bundles), fig_attitude(out, res["T4"])]
+    figures.append(fig_sweeps(out, _sweeps(res)))
+    mc_std = {m: res["T4"][m].mean()["heading"] for m in MODES}
+    mc_rms = {m: float(res["T4"][m].rms.mean(axis=0)[0]) for m in MODES}
+    figures.append(fig_design(out, analyses, {m: cov_pred[m]["heading_deg"] for m in MODES}, mc_std, mc_rms))
+    figures.append(fig_flexure(out, flex, flex_spec))
+    figures.append(fig_heading_sigma(out, res["T5"]))
+    _write_runs(out, runner)
+
+    elapsed = study.elapsed_s
+    notes = _notes(res, tables, cov_pred, control, (mc_std, mc_rms), (t_mc, t_design, elapsed), runs,
+                   base_seed)
     return study.finish(tables, notes)
 
 

@@ -118,9 +118,10 @@ def _clock_start(P, nav, row, par, lay, grp, ra, va):
 
 @njit(cache=True)
 def _row(h, en, Ha, nn, ic):
-    """h = [e^nᵀ Ha (INS block of nn states), 1 at the clock state ic]."""
+    """h = [e^nᵀ Ha (INS block of nn states: the antenna's position and velocity depend on its first 15
+    at most; scale-factor and misalignment columns stay 0), 1 at the clock state ic]."""
     h[:] = 0.0
-    for c in range(nn):
+    for c in range(min(nn, Ha.shape[1])):
         h[c] = en[0] * Ha[0, c] + en[1] * Ha[1, c] + en[2] * Ha[2, c]
     h[ic] = 1.0
 

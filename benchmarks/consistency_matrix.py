@@ -28,6 +28,19 @@ import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 
+def _condition_names(text, cm):
+    """The comma-separated condition names of ``text`` (a name may hold a comma itself: "moving start,
+    position only"): the longest run of pieces that names a condition, piece by piece."""
+    known = {c.name for c in cm.CONDITIONS}
+    parts = [t.strip() for t in text.split(",") if t.strip()]
+    out, i = [], 0
+    while i < len(parts):
+        j = next((j for j in range(len(parts), i, -1) if ", ".join(parts[i:j]) in known), i + 1)
+        out.append(", ".join(parts[i:j]))
+        i = j
+    return out
+
+
 def main(argv=None):
     from aidnav.experiments import consistency_matrix as cm
 
@@ -39,7 +52,7 @@ def main(argv=None):
     ap.add_argument("--html", default="out/consistency_matrix.html")
     ap.add_argument("--json", default="")
     a = ap.parse_args(argv)
-    conds = [cm.condition(n.strip()) for n in a.conditions.split(",") if n.strip()] or list(cm.CONDITIONS)
+    conds = [cm.condition(n) for n in _condition_names(a.conditions, cm)] or list(cm.CONDITIONS)
     configs = [c.strip() for c in a.configs.split(",") if c.strip()] or cm.configurations()
     presets = [c for c in cm.configurations() if c not in ("none", "matched")]
     configs = [p for c in configs for p in (presets if c == "presets" else [c])]  # "presets": every one

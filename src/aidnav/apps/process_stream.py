@@ -150,6 +150,10 @@ def run_process(log: ImuLog, gnss, cfg, smooth=False, outages=None, imu_name="im
     background thread (:class:`aidnav.io.stream.Background`, at most 2 pieces waiting) while the filter
     runs the next chunk (the engine releases the GIL) — the same pieces in the same order, so the same
     file and numbers; a failure there is raised here."""
+    from aidnav.filters.gnss_errors import (  # lazy: the filters load with the job
+        choose_gnss_errors,
+        needs_first_pass,
+    )
     from aidnav.filters.result import to_trajectory  # lazy: the filters load with the job
     from aidnav.filters.stream import stream_loose  # lazy: the filters load with the job
     from aidnav.filters.wheeled import no_option_constraint  # lazy: the filters load with the job
@@ -191,14 +195,20 @@ def run_process(log: ImuLog, gnss, cfg, smooth=False, outages=None, imu_name="im
 
     bg = Background(consume) if background else None
     events: list[str] = []
-    if "constraints" not in cfg.model_fields_set and not cfg.constraints.nhc:
+    decide_nhc = "constraints" not in cfg.model_fields_set and not cfg.constraints.nhc
+    decide_gnss = needs_first_pass(gnss, cfg)  # white or correlated GNSS errors (filters.gnss_errors)
+    prefix = _prefix(log, DECIDE_SPAN_S) if decide_nhc or decide_gnss else None  # in memory once
+    if decide_nhc:
         # no option (issue 35): the NHC decided from a first pass over the log's first DECIDE_SPAN_S
-        # (filters.wheeled), which then sits in memory once
+        # (filters.wheeled)
         before = len(events)
-        cfg = no_option_constraint(_prefix(log, DECIDE_SPAN_S), gnss, cfg, withheld, events, aids)[0]
+        cfg = no_option_constraint(prefix, gnss, cfg, withheld, events, aids)[0]
         if log.span[1] - log.span[0] > DECIDE_SPAN_S:
             events[before:] = [f"{e} (decided from the log's first {DECIDE_SPAN_S:g} s)"
                                for e in events[before:]]
+    if decide_gnss:  # white or correlated GNSS errors, from a first pass's innovations (filters.gnss_errors)
+        cfg = choose_gnss_errors(prefix, gnss, cfg, withheld, events, aids)
+    del prefix
     t0 = _time.perf_counter()
     try:
         res = stream_loose(chain([head], chunks), gnss, cfg, consume if bg is None else bg.put,

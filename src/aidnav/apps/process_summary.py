@@ -23,6 +23,9 @@ def run_summary(res, n_imu, rate_hz, gnss, withheld, wins, events, warnings, t_f
         "counts": res.counts,
         "nis": nis_summary(rec),
         "outage_windows": [[a, b] for a, b in wins],
+        # which GNSS error model the run used and why (white or Gauss-Markov states: filters.gnss_errors,
+        # filters.preprocess.correlated_gnss_errors; None when the configuration stated it)
+        "gnss_error_model": next((e for e in events if e.startswith(("GNSS error model", "GNSS at "))), None),
         "events": events,
         "warnings": warnings,
         "timing_s": {"filter": t_filt},

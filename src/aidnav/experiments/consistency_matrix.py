@@ -40,6 +40,7 @@ from aidnav.analysis.consistency import nees
 from aidnav.analysis.errors import ins_error_state, trajectory_errors, truth_index
 from aidnav.data import ImuData, Trajectory
 from aidnav.filters.config import LooseConfig
+from aidnav.filters.gnss_errors import choose_gnss_errors
 from aidnav.filters.loose import run_loose
 from aidnav.filters.presets import apply_preset, preset_names
 from aidnav.filters.result import to_trajectory
@@ -295,6 +296,9 @@ def _loose_seed(cond: Condition, config: str, seed: int, sensor_model: bool):
     cfg = config_for(config, cond, run, sensor_model)
     if config == "none":  # what `aidnav process` does with no option: the NHC decided from the log
         cfg = no_option_constraint(run.imu, run.gnss, cfg, None, [])[0]
+    # as `aidnav process` does for every configuration that does not state gnss.error_tau_s: white or
+    # correlated GNSS errors from a first pass's innovations
+    cfg = choose_gnss_errors(run.imu, run.gnss, cfg, None, [])
     cov_t = np.arange(run.truth.time[0], run.truth.time[-1], EVAL_DT_S) - 1e-6
     res = run_loose(run.imu, run.gnss, cfg, cov_times=cov_t)
     return _evaluate(res, run)

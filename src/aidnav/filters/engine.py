@@ -87,7 +87,7 @@ from .layout import (
     ST_Q,
     ST_VEL,
 )
-from .measurements import M_GNSS_VEL, M_PR, MAX_ROWS, MODELS_KEY, N_MODELS, Nav, fill
+from .measurements import M_GNSS_POS, M_GNSS_VEL, M_PR, MAX_ROWS, MODELS_KEY, N_MODELS, Nav, fill
 from .measurements.common import W_FIX, W_IB, W_IE, W_IN
 from .measurements.epoch import epoch_out, epoch_record, epoch_update
 from .measurements.gnss import W_FN
@@ -95,8 +95,9 @@ from .reinit import chi2_quantile, inflate, inflate_nav, nis_of, scale_nav  # no
 
 # parameters of the GNSS velocity model (``Models.par[M_GNSS_VEL]``) for the heading hold after an IMU gap
 # (:func:`run_chunk`): mounting heading [rad], least speed of a course [m/s], course σ [rad], heading σ
-# above which the heading is held unknown [rad] (0: no hold)
-C_MOUNT_H, C_VMIN, C_SIG, C_HOLD = 3, 4, 5, 6
+# above which the heading is held unknown [rad] (0: no hold); the largest acceleration [m/s²] (the motion an
+# IMU gap leaves unmodelled in a record used at its closing node: :func:`_unmodelled_motion`)
+C_MOUNT_H, C_VMIN, C_SIG, C_HOLD, C_AMAX = 3, 4, 5, 6, 7
 GAP_REC_S = 1.0  # records older than this at the sample that ends an IMU gap are not used
 #: a sample index or count never reached: ``Models.max_rej`` of a model without the consecutive-rejection
 #: rule, ``Init.reset_idx`` of a course alignment not yet found (the one sentinel of the drivers)
@@ -446,39 +447,85 @@ def _gap_at_node(st, P, gap, ix, hold_thr, iu):
             P[iu, iu] = gap[4]
 
 
-@njit(cache=True, depends=MODELS_KEY, inline="always")  # per node: inlined in run_chunk (issue 40)
-def _update_records(x, P, nv, C, rec, gi, tk, hd, upd, tm):
-    """The records due at the node at IMU time ``tk`` (in (t_{k-1}, t_k] on the IMU clock), each through
-    its model: a whole pseudorange epoch by its scalar updates, any other by the gate policy; a velocity
-    record re-aligns a heading held unknown. ``nv``: (strapdown state, node rates, biases); ``hd``: (gap
-    variances and heading-hold flag, whether the sample closes a gap, INS index map, heading index, the GNSS
-    velocity model's parameters); ``upd``: the update context (:func:`_node_constraints`); ``tm``: (clock
-    index, time-offset index). Returns the next record's index and the attitude matrix."""
+@njit(cache=True)
+def _unmodelled_motion(R, m, md, pv, dtu):
+    """R of a GNSS record grown by the motion an IMU gap leaves unmodelled between the record's time and
+    the node's (``dtu`` [s]): the acceleration, uniform within ±``pv[C_AMAX]`` (σ = a/√3 per axis, as
+    :func:`aidnav.filters.preprocess.bridge_gaps`), moves a position by a·Δt²/2 and a velocity by a·Δt
+    beyond what the velocity state (in P, through the model's −Δt on δv) accounts for."""
+    a = pv[C_AMAX] / np.sqrt(3.0) if pv.shape[0] > C_AMAX else 0.0
+    g = a * dtu * dtu / 2.0 if md == M_GNSS_POS else (a * dtu if md == M_GNSS_VEL else 0.0)
+    for i in range(m):
+        R[i, i] += g * g
+
+
+@njit(cache=True, depends=MODELS_KEY, inline="always")  # per record: inlined in run_chunk (issue 40)
+def _use_record(x, P, nv, C, rec, gi, tt, hd, upd):
+    """Record ``gi`` through its model at the node: a whole pseudorange epoch by its scalar updates, any
+    other by the gate policy (with R grown by :func:`_unmodelled_motion` at a node that closes an IMU
+    gap); a velocity record re-aligns a heading held unknown. ``tt``: (node time, record time, the motion
+    left unmodelled [s]: 0 but at a gap's closing node). Returns the attitude matrix."""
     st, w, bias = nv
     gap, gap_k, ix, iu, pv = hd
     mod, lay, rej, win, log, wk, sub, ws = upd
+    tk, tr, dtu = tt
+    md = rec.model[gi]
+    if gap[4] > 0.0 and md == M_GNSS_VEL and _course_heading(st, P, rec.data[gi], pv, iu, ix[PHI],
+                                                             ix[PHI + 1]):
+        gap[4] = 0.0
+        C = dcm_from_quat(st[ST_Q:ST_Q + 4])
+    nav = Nav(st, C, w, tk - tr, bias)  # the models add d̂ to dt_back themselves
+    if rec.grp.t.shape[0] > 0 and md == M_PR:  # a whole epoch: its scalar updates and rejection rule
+        gate = mod.gate[md, 1] if rej[md] < mod.max_rej[md] else 0.0
+        ok = epoch_update(x, P, nav, rec.data[gi], mod.par[md], lay, gate, rec.grp, gi, tr)
+        rej[md] = 0 if ok else rej[md] + 1
+        log.status[gi] = 1 if ok else 0
+    else:
+        m = fill(md, nav, rec.data[gi], mod.par[md], lay, wk.H, wk.z, wk.R)
+        if m > 0:
+            if dtu > 0.0:
+                _unmodelled_motion(wk.R, m, md, pv, dtu)
+            policy_update(x, P, _subset(wk, m, sub, ws), m, md, mod, rej, win, log, gi)
+    return C
+
+
+@njit(cache=True, depends=MODELS_KEY, inline="always")  # per node: inlined in run_chunk (issue 40)
+def _update_records(x, P, nv, C, rec, gi, tk, hd, upd, tm):
+    """The records due at the node at IMU time ``tk`` (in (t_{k-1}, t_k] on the IMU clock), each by
+    :func:`_use_record`. ``nv``: (strapdown state, node rates, biases); ``hd``: (gap variances and
+    heading-hold flag, whether the sample closes a gap, INS index map, heading index, the GNSS velocity
+    model's parameters); ``upd``: the update context (:func:`_node_constraints`); ``tm``: (clock index,
+    time-offset index). Returns the next record's index and the attitude matrix.
+
+    At the node that closes an IMU gap: records more than ``GAP_REC_S`` older than it are not used (the
+    INS cannot be moved back across the unknown motion); the rest, and the first record due after the node
+    (within ``GAP_REC_S``; not a pseudorange epoch) when it is nearer to the node than any record used, are
+    used now with R grown by the unmodelled motion over their distance from the node — so the gap's
+    covariance bound gives way to the first fix after the gap whichever side of the first IMU sample the
+    time-offset estimate puts it (issue 35)."""
+    bias = nv[2]
+    gap_k = hd[1]
     ic, itoff = tm
-    grp = rec.grp.t.shape[0] > 0
-    while _due_time(rec, gi, bias, ic, itoff) <= tk:
-        tr = _rec_time(rec, gi, bias, ic)  # the models add d̂ to dt_back themselves
-        # a record inside an IMU gap cannot be moved back across the unknown motion: not used
-        if rec.use[gi] and not (gap_k and tk - tr > GAP_REC_S):
-            md = rec.model[gi]
-            if gap[4] > 0.0 and md == M_GNSS_VEL and _course_heading(st, P, rec.data[gi], pv, iu,
-                                                                     ix[PHI], ix[PHI + 1]):
-                gap[4] = 0.0
-                C = dcm_from_quat(st[ST_Q:ST_Q + 4])
-            nav = Nav(st, C, w, tk - tr, bias)
-            if grp and md == M_PR:  # a whole epoch: its scalar updates and rejection rule
-                gate = mod.gate[md, 1] if rej[md] < mod.max_rej[md] else 0.0
-                ok = epoch_update(x, P, nav, rec.data[gi], mod.par[md], lay, gate, rec.grp, gi, tr)
-                rej[md] = 0 if ok else rej[md] + 1
-                log.status[gi] = 1 if ok else 0
-            else:
-                m = fill(md, nav, rec.data[gi], mod.par[md], lay, wk.H, wk.z, wk.R)
-                if m > 0:
-                    policy_update(x, P, _subset(wk, m, sub, ws), m, md, mod, rej, win, log, gi)
-        gi += 1
+    lim, near = tk, GAP_REC_S
+    while True:
+        while _due_time(rec, gi, bias, ic, itoff) <= lim:
+            tr = _rec_time(rec, gi, bias, ic)
+            dtu = abs(tk - _due_time(rec, gi, bias, ic, itoff)) if gap_k else 0.0
+            # a record inside an IMU gap cannot be moved back across the unknown motion: not used
+            if rec.use[gi] and not (gap_k and tk - tr > GAP_REC_S):
+                near = min(near, dtu)
+                C = _use_record(x, P, nv, C, rec, gi, (tk, tr, dtu), hd, upd)
+            gi += 1
+        if not gap_k or lim > tk:
+            break
+        j = gi
+        while j < rec.t.shape[0] and not rec.use[j]:
+            j += 1
+        nxt = _due_time(rec, j, bias, ic, itoff)
+        epoch = j < rec.t.shape[0] and rec.grp.t.shape[0] > 0 and rec.model[j] == M_PR  # (tight: not ahead)
+        if epoch or not nxt - tk < near:
+            break
+        lim = nxt  # the first fix after the gap, moved back to the node
     return gi, C
 
 

@@ -26,7 +26,7 @@ from . import aids as aid_kinds
 from . import measurements as ms
 from .chi2 import chi2_isf
 from .engine import (
-    C_HOLD,
+    C_AMAX,
     C_MOUNT_H,
     NEVER,
     Imu,
@@ -141,10 +141,11 @@ def _models(cfg) -> Models:
     par[ms.M_NHC, V.V_SIG], par[ms.M_NHC, V.V_MIN_SPEED] = c.nhc_sigma_m_s, c.nhc_min_speed_m_s
     par[ms.M_NHC, V.V_LEVER:V.V_LEVER + 3], par[ms.M_NHC, V.V_CBV:V.V_CBV + 9] = c.nhc_lever_arm_m, cbv
     par[ms.M_NHC, V.V_LEVER_SIG] = c.nhc_lever_arm_sigma_m
-    # the heading hold after an IMU gap and its re-alignment from the GNSS course (engine.C_*)
-    par[ms.M_GNSS_VEL, C_MOUNT_H:C_HOLD + 1] = (mr[2], cfg.init.course_min_speed_m_s,
+    # the heading hold after an IMU gap, its re-alignment from the GNSS course, the acceleration bound of the
+    # motion a gap leaves unmodelled in the records used at its closing node (engine.C_*)
+    par[ms.M_GNSS_VEL, C_MOUNT_H:C_AMAX + 1] = (mr[2], cfg.init.course_min_speed_m_s,
                                                 cfg.init.course_heading_sigma_deg * DEG,
-                                                cfg.motion.heading_hold_deg * DEG)
+                                                cfg.motion.heading_hold_deg * DEG, cfg.motion.max_accel_m_s2)
     gate[ms.M_NHC, 1:] = 25.0 if gp < 1 else 0.0
     par[ms.M_ZUPT, 0], par[ms.M_ZARU, 0] = c.zupt_sigma_m_s, c.zaru_sigma_deg_s * DEG
     node = []

@@ -142,7 +142,7 @@ def test_coarse_mounting_of_an_imu_mounted_backwards_and_tilted():
 def test_spp_course_only_when_meaningful():
     """SPP Doppler noise at a standstill (σ 1 m/s, spikes above 3 m/s) never gives a course; a walk at
     1.3 m/s with 0.15 m/s noise does, from its 2 s mean."""
-    from aidnav.apps.tight import _meaningful_course
+    from aidnav.estimators.tight_solution import _meaningful_course
 
     rng = np.random.default_rng(2)
     t = np.arange(0.0, 60.0, 0.25)

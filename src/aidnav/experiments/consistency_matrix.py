@@ -23,7 +23,7 @@ Tight-coupling cells (``coupling = "tight"``: 3, 2 or 0 satellites for 60 s over
 the full nominal 24-satellite GPS sky elsewhere): the same drive and IMU, raw pseudoranges and rates of
 :mod:`aidnav.sim.gnss_raw` at 1 Hz (its full error model: orbit, satellite clock, ionosphere with the
 broadcast coefficients in the navigation records, troposphere, multipath, noise; TCXO receiver clock) on
-the GPS time scale, run through :func:`aidnav.apps.tight.process_tight` (what ``aidnav tight`` does: SPP
+the GPS time scale, run through :func:`aidnav.estimators.tight_solution.process_tight` (what ``aidnav tight`` does: SPP
 start, static roll/pitch, heading by velocity matching, ZUPTs) with no configuration (``none``), a
 vehicle preset (:func:`aidnav.filters.tight.apply_vehicle`), or through :func:`aidnav.filters.tight.
 run_tight` with the matched IMU model and a perturbed initial state (``matched``). Evaluated as the loose
@@ -364,7 +364,7 @@ def simulate_tight(cond: Condition, seed: int):
 
 def _run_tight_cell(cond: Condition, config: str, run: SimRun, obs, eph, sensor_model: bool, cov_t):
     """The tight filter's result of one seed with the configuration ``config`` (module doc)."""
-    from aidnav.apps.tight import process_tight  # lazy: tight cells only
+    from aidnav.estimators.tight_solution import process_tight  # lazy: tight cells only
     from aidnav.filters.tight import TightConfig, apply_vehicle, run_tight  # lazy: tight cells only
 
     if config != "matched":

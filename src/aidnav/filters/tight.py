@@ -147,8 +147,13 @@ class RawGnssAiding(_Strict):
         default_factory=lambda: {"G": 1.0, "E": 1.0, "C": 1.0, "R": 1.5, "S": 3.0},
         description="zenith code and rate σ factor per system (RTKLIB's EFACT_*: GLONASS 1.5, SBAS 3)")
     use_phase: bool = Field(True, description="time-differenced L1 carrier phase (where the observations "
-                            "have it): one delta-range row per satellite between consecutive epochs, "
-                            "against clone states of the previous epoch (aidnav tight)")
+                            "have it), entered as tdcp_model says (aidnav tight)")
+    tdcp_model: Literal["velocity", "rows"] = Field(
+        "velocity", description="how the carrier phase enters: 'velocity', the TDCP mean velocity of each "
+        "interval with 4+ unslipped satellites as a velocity record at its middle; 'rows', one delta-range "
+        "row per satellite between consecutive epochs against clone states of the previous epoch (also with "
+        "1-3 satellites; on the shared walk its height drifts 0.8 m in 134 s, vertical RMS 4.2 m against "
+        "3.0 m: docs/results.md, issue 40 session 9)")
     phase_sigma_m: float = Field(0.005, gt=0, description="carrier-phase σ per epoch [m]")
     slip_threshold_cycles: float = Field(0.5, gt=0, description="phase-Doppler disagreement that is a "
                                          "cycle slip [cycles]")

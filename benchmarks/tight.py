@@ -1,9 +1,10 @@
 """Benchmark of the tightly coupled and federated filters (issue 24): IMU samples per second.
 
-* tight: :func:`aidnav.filters.tight.run_tight` on the rtklibexplorer walk (as ``aidnav tight`` runs it,
-  :func:`aidnav.estimators.tight_solution.process_tight`; SPP and reading outside the timing), forward and, where the
-  filter has it, forward + RTS smoother; horizontal RMS against the RTK reference (Q = 1) for both; with
-  no configuration (the unknown-grade IMU model: 27 INS states) and, forward, with the 15-state model.
+* tight: :func:`aidnav.filters.tight.run_tight` on the rtklibexplorer walk (as ``aidnav tight`` runs
+  it, :func:`aidnav.estimators.tight_solution.process_tight`; SPP and reading outside the timing), forward
+  and, where the filter has it, forward + RTS smoother; horizontal RMS against the RTK reference (Q = 1)
+  for both; with no configuration (the unknown-grade IMU model: 27 INS states) and, forward, with the
+  15-state model.
 * federated: :func:`aidnav.filters.federated.run_federated` on the seed-000 simulation (600 s, 100 Hz),
   fusion-reset and centralized, forward and forward + RTS.
 Best of 3, compiled code warm, CPU time of this process (single-threaded kernels: the figure that

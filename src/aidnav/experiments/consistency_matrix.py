@@ -25,9 +25,9 @@ the full nominal 24-satellite GPS sky elsewhere): the same drive and IMU, raw ps
 broadcast coefficients in the navigation records, troposphere, multipath, noise; TCXO receiver clock) on
 the GPS time scale, run through :func:`aidnav.estimators.tight_solution.process_tight` (what ``aidnav
 tight`` does: SPP start, static roll/pitch, heading by velocity matching, ZUPTs) with no configuration
-(``none``), a vehicle preset (:func:`aidnav.filters.tight.apply_vehicle`), or through :func:`aidnav.filters.tight.
-run_tight` with the matched IMU model and a perturbed initial state (``matched``). Evaluated as the loose
-cells: every second of the whole run.
+(``none``), a vehicle preset (:func:`aidnav.filters.tight.apply_vehicle`), or through
+:func:`aidnav.filters.tight.run_tight` with the matched IMU model and a perturbed initial state
+(``matched``). Evaluated as the loose cells: every second of the whole run.
 """
 
 from __future__ import annotations

@@ -51,7 +51,7 @@ def best_of(fn, n=3):
 def tight_case(module="aidnav.filters.tight"):
     import importlib
 
-    import aidnav.apps.tight as app
+    import aidnav.estimators.tight_solution as app  # the module whose run_tight process_tight calls
     from aidnav.apps.process import read_gnss_any, read_imu_any
     from aidnav.apps.tight import compare_with_reference, process_tight
     tight = importlib.import_module(module)

@@ -111,7 +111,7 @@ def choose_gnss_errors(imu, gnss, cfg, withheld, events, aids=(), span_s: float 
     """The configuration with ``gnss.error_tau_s`` (and ``error_sigma_m``) chosen by the test of the module
     doc when the configuration states neither; the decision and its figures appended to ``events``.
     ``imu``: the log (or its first ``span_s`` seconds; the passes use no more)."""
-    from .loose import run_loose  # lazy: filters.loose imports the engine (numba)
+    from .stream import stream_loose  # lazy: filters.stream imports the engine (numba)
 
     med = _test_applies(gnss, cfg)
     if med is None:
@@ -125,8 +125,9 @@ def choose_gnss_errors(imu, gnss, cfg, withheld, events, aids=(), span_s: float 
     wh = (~gsel) if wh is None else (wh | ~gsel)
     dt = float(np.median(np.diff(np.asarray(gnss.time, float)[gsel]))) if gsel.sum() > 1 else np.nan
 
-    def run(c):
-        return innovation_whiteness(run_loose(head, gnss, c, withheld=wh, events=[], aids=aids))
+    def run(c):  # the streamed engine (its kernel is the one the run itself then uses: loaded once)
+        res = stream_loose([head], gnss, c, lambda *a, **k: None, withheld=wh, events=[], aids=aids)
+        return innovation_whiteness(res)
 
     rho, n, _ = run(_with_tau(cfg, 0.0))
     span = f"first pass over {float(head.time[-1]) - t0:.0f} s"

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from aidnav.filters import measurements as ms
-from aidnav.filters.engine import Log, Models, Work, gated_update
+from aidnav.filters.engine import Log, Models, Work
+from aidnav.filters.gate import gated_update
 from aidnav.filters.layout import L_BARO, L_N, L_ODO, layout_names, make_layout
 from aidnav.io.aux_sensors import read_baro_csv, read_odometer_csv
 from aidnav.io.errors import DataError

@@ -1,6 +1,6 @@
 """Re-initialisation when the innovations say the filter is wrong (issue 26, item 3).
 
-The engine's policy (:func:`aidnav.filters.engine.policy_update`): after ``max_consecutive_rejections``
+The engine's policy (:func:`aidnav.filters.gate.policy_update`): after ``max_consecutive_rejections``
 rejected fixes of a type, or when the sum of the NIS of the last ``nis_window`` accepted fixes is above
 the 99.9 % quantile of χ²(N·m), the navigation block of P is scaled until the triggering innovation is
 consistent (NIS = m) and the fix is accepted; the event is logged and reported.

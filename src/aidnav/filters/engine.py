@@ -12,10 +12,10 @@ Gauss-Markov / random constant per calibration state) and its measurement models
   independent scalar states after the clock block (:func:`tail_start`: diagonal F, noise of their own;
   tight coupling's range errors) are discretised and predicted as scalars
   (:func:`.kalman.discretize_tail`, :func:`.kalman.predict_tail`: the matrix work is the head's);
-* **one update-with-gate policy** (:func:`gated_update`): χ² gate by the number of rows
+* **one update-with-gate policy** (:func:`.gate.gated_update`): χ² gate by the number of rows
   (``Models.gate[model, m]``, 0 = ungated), and after ``Models.max_rej[model]`` consecutive rejections
   of a model the next one is accepted ungated (a filter that went wrong must be able to come back);
-  in :func:`run_filter` (:func:`policy_update`) that acceptance is a **re-initialisation**, and so is a
+  in :func:`run_filter` (:func:`.gate.policy_update`) that acceptance is a **re-initialisation**, and so is a
   window of accepted updates whose NIS is far out of its χ² band (``Models.win_n[model]`` > 0: the sum
   of the last N accepted NIS above the 99.9 % quantile of χ²(Σ m)): the navigation block of P is scaled
   (:func:`inflate_nav`) until the innovation that triggered it is consistent (NIS = m), then the update
@@ -58,6 +58,7 @@ from aidnav.nav.earth import OMEGA_IE, radii
 from aidnav.nav.gnss_sat import C_LIGHT
 from aidnav.nav.rotations import dcm_from_quat, quat_from_rotvec, quat_mult, quat_normalize
 
+from .gate import WIN_MAX, gated_update, policy_update
 from .ins_errors import (
     ACC_FN,
     interval_model,
@@ -68,7 +69,7 @@ from .ins_errors import (
     reset_accumulator,
     set_heading,
 )
-from .kalman import discretize, discretize_tail, predict, predict_tail, update
+from .kalman import discretize, discretize_tail, predict, predict_tail
 from .layout import (
     DP,
     DV,
@@ -91,7 +92,7 @@ from .measurements import M_GNSS_POS, M_GNSS_VEL, M_PR, MAX_ROWS, MODELS_KEY, N_
 from .measurements.common import W_FIX, W_IB, W_IE, W_IN
 from .measurements.epoch import epoch_out, epoch_record, epoch_update
 from .measurements.gnss import W_FN
-from .reinit import chi2_quantile, inflate, inflate_nav, nis_of, scale_nav  # noqa: F401  (inflate_nav: re-exported)
+from .reinit import inflate_nav  # noqa: F401  (re-exported)
 
 # parameters of the GNSS velocity model (``Models.par[M_GNSS_VEL]``) for the heading hold after an IMU gap
 # (:func:`run_chunk`): mounting heading [rad], least speed of a course [m/s], course σ [rad], heading σ
@@ -137,8 +138,6 @@ Output = namedtuple("Output", ["every", "smooth", "cov_idx"])
 # log built without it (length 0) is never written to (no re-initialisation without ``Models.win_n``)
 Log = namedtuple("Log", ["t", "model", "status", "nis", "nu", "s", "ref", "reinit"],
                  defaults=(np.zeros(0, np.int8),))
-WIN_MAX = 64  # longest NIS window
-Z_999 = 3.090232  # standard normal quantile of 0.999 (the re-initialisation test's χ² band)
 Work = namedtuple("Work", ["H", "z", "R"])
 EngineOut = namedtuple("EngineOut", ["out_idx", "out_st", "out_bias", "out_pdiag", "out_node", "node_idx",
                                      "S_post", "S_prior", "S_phi", "S_dx", "log", "n_log", "reset_node",
@@ -163,56 +162,6 @@ def feedback(st, bias, dx, nstate):
         st[ST_POS + i] -= dx[DP + i]
     for i in range(nstate - NAV):
         bias[i] += dx[NAV + i]
-
-
-@njit(cache=True)
-def gated_update(x, P, wk, m, model, mod, rej, log, li):
-    """The update policy: χ² gate ``mod.gate[model, m]`` unless ``mod.max_rej[model]`` consecutive
-    rejections; writes status, NIS, innovation and diag S to log row ``li``. Returns accepted."""
-    gate = 0.0 if rej[model] >= mod.max_rej[model] else mod.gate[model, m]
-    nu, sd = np.zeros(m), np.zeros(m)
-    ok, nis = update(x, P, wk.H[:m].copy(), wk.R[:m, :m].copy(), wk.z[:m].copy(), gate, nu, sd)
-    rej[model] = 0 if ok else rej[model] + 1
-    log.status[li], log.nis[li], log.nu[li, :m], log.s[li, :m] = (1 if ok else 0), nis, nu, sd
-    return ok
-
-
-@njit(cache=True)
-def policy_update(x, P, wk, m, model, mod, rej, win, log, li):
-    """:func:`gated_update` with the re-initialisation (module doc): after ``mod.max_rej[model]``
-    consecutive rejections, or when the last ``mod.win_n[model]`` accepted NIS (this one included; ``win``
-    (N_MODELS, WIN_MAX + 2): the values, then count and ring position) sum above the 99.9 % χ²(Σ m)
-    quantile, P's navigation block is inflated (:func:`inflate_nav`) and the update is made ungated. A model
-    with ``win_n`` −1 (an aid that sees only part of the motion: odometer speed, barometric height) never
-    inflates: after ``max_rej`` rejections its update is accepted ungated, nothing more."""
-    H, R, z = wk.H[:m].copy(), wk.R[:m, :m].copy(), wk.z[:m].copy()
-    nw = mod.win_n[model]
-    why = 1 if rej[model] >= mod.max_rej[model] else 0
-    gate = mod.gate[model, m]
-    # the pre-update NIS is computed here only when the window or a re-initialisation needs it before the
-    # update; otherwise the update's own NIS (the same νᵀS⁻¹ν) is logged
-    nis0 = nis_of(x, P, H, R, z) if (nw > 0 or why > 0) else -1.0
-    if why == 0 and nw > 0 and (gate <= 0.0 or nis0 <= gate):
-        c, pos = int(win[model, WIN_MAX]), int(win[model, WIN_MAX + 1])
-        win[model, pos] = nis0
-        win[model, WIN_MAX + 1] = (pos + 1) % nw
-        c = min(c + 1, nw)
-        win[model, WIN_MAX] = c
-        if c == nw and win[model, :nw].sum() > chi2_quantile(nw * m, Z_999):
-            why = 2
-    if why == 2:  # the window's innovations are λ times larger than S says: P's blocks scaled by λ
-        scale_nav(P, win[model, :nw].sum() / (nw * m), mod.cal)
-    elif why > 0 and nw >= 0:
-        inflate(x, P, H, R, z, mod.cal)
-    if why > 0 and nw >= 0:
-        win[model, WIN_MAX], win[model, WIN_MAX + 1] = 0.0, 0.0
-        log.reinit[li] = why
-    nu, sd = np.zeros(m), np.zeros(m)
-    ok, nis = update(x, P, H, R, z, 0.0 if why > 0 else gate, nu, sd)
-    rej[model] = 0 if ok else rej[model] + 1
-    log.nis[li] = nis0 if nis0 >= 0.0 else nis
-    log.status[li], log.nu[li, :m], log.s[li, :m] = (1 if ok else 0), nu, sd
-    return ok
 
 
 @njit(cache=True)

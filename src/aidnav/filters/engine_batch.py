@@ -11,7 +11,7 @@ Per-run state and inputs are held in contiguous arrays with the run as the leadi
 ``P`` (R, n, n), increments (R, N, 3), ...), so that each run's slice is exactly the C-contiguous vector
 or matrix the engine's own functions take: every operation on a run is the engine's
 (:func:`.ins_errors.propagate_sample`, :func:`.ins_errors.interval_model`, :func:`.kalman.discretize`,
-:func:`.kalman.predict`, :func:`.engine.policy_update` with the measurement models of
+:func:`.kalman.predict`, :func:`.gate.policy_update` with the measurement models of
 :func:`.measurements.fill`, :func:`.engine.feedback`), called in the same order with the same arguments
 as in :func:`.engine.run_chunk`: each run's result is bit-identical to a one-run call of
 :func:`.engine.run_filter` (``tests/experiments/test_batch_runs.py``).
@@ -32,7 +32,6 @@ from aidnav.jit import njit
 from aidnav.nav.rotations import dcm_from_quat
 
 from .engine import (
-    WIN_MAX,
     EngineOut,
     Log,
     Work,
@@ -40,8 +39,8 @@ from .engine import (
     exact_blocks,
     feedback,
     node_rates,
-    policy_update,
 )
+from .gate import WIN_MAX, policy_update
 from .ins_errors import (
     ACC_FN,
     ACC_TN,

@@ -10,7 +10,7 @@ Carlson's federated filter (§1.1): one strapdown INS, local 1 = SINS/GPS, local
 master with a time update only; sharing factors β_1 + β_2 + β_m = 1 (β_m = 0: no master). At each node
 (each GPS or SAPV epoch, at most every ``prop_dt``): (1) time update of every filter with one Φ, Qd
 (local i: Qd/β_i); (2) updates in the locals with the engine's records, models, gate policy and log
-(:func:`aidnav.filters.engine.gated_update`); (3) fusion (:func:`fuse_information`) P_g = (Σ P_i⁻¹)⁻¹,
+(:func:`aidnav.filters.gate.gated_update`); (3) fusion (:func:`fuse_information`) P_g = (Σ P_i⁻¹)⁻¹,
 x_g = P_g Σ P_i⁻¹ x_i; (4) closed-loop feedback of x_g (:func:`aidnav.filters.engine.feedback`);
 (5) ``"reset"``: P_i ← P_g/β_i, x_i ← 0 (algebraically the centralized filter), ``"no_reset"``: the
 locals keep their covariances, x_i ← x_i − x_g (the fused covariance is a conservative bound).
@@ -41,9 +41,9 @@ from .engine import (
     Records,
     Work,
     feedback,
-    gated_update,
     node_rates,
 )
+from .gate import gated_update
 from .kalman import discretize, predict
 from .layout import ST_POS, ST_Q, make_layout
 from .measurements import M_GNSS_POS, M_GNSS_VEL, M_SAPV, MAX_ROWS, MODELS_KEY, N_MODELS, Nav, fill

@@ -1,4 +1,4 @@
-"""Re-initialisation of the filter engine (:func:`aidnav.filters.engine.policy_update`): the χ² band of
+"""Re-initialisation of the filter engine (:func:`aidnav.filters.gate.policy_update`): the χ² band of
 an NIS window and the scaling of the navigation block of P that makes a triggering innovation consistent."""
 
 from __future__ import annotations

@@ -23,8 +23,8 @@ import numpy as np
 import pytest
 from scipy.special import chdtri
 
-from aidnav.filters.engine import chi2_quantile, inflate_nav
 from aidnav.filters.loose import run_loose
+from aidnav.filters.reinit import chi2_quantile, inflate_nav
 from aidnav.filters.tuning import loose_config_from_specs
 from aidnav.nav.earth import lla_difference_enu
 from aidnav.sim.run import simulate

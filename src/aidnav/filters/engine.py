@@ -18,7 +18,7 @@ Gauss-Markov / random constant per calibration state) and its measurement models
   in :func:`run_filter` (:func:`.gate.policy_update`) that acceptance is a **re-initialisation**, and so is a
   window of accepted updates whose NIS is far out of its χ² band (``Models.win_n[model]`` > 0: the sum
   of the last N accepted NIS above the 99.9 % quantile of χ²(Σ m)): the navigation block of P is scaled
-  (:func:`inflate_nav`) until the innovation that triggered it is consistent (NIS = m), then the update
+  (:func:`.reinit.inflate_nav`) until the innovation that triggered it is consistent (NIS = m), then the update
   is made ungated; ``Log.reinit`` records why (1: consecutive rejections, 2: NIS window);
 * **one innovation log** (:class:`Log`): time, model id, status (1 accepted, 0 rejected, −1 not used),
   NIS, innovation, diag S (≤ ``MAX_ROWS``), record index (−1: node constraint); rows 0..M−1: records;
@@ -92,7 +92,6 @@ from .measurements import M_GNSS_POS, M_GNSS_VEL, M_PR, MAX_ROWS, MODELS_KEY, N_
 from .measurements.common import W_FIX, W_IB, W_IE, W_IN
 from .measurements.epoch import epoch_out, epoch_record, epoch_update
 from .measurements.gnss import W_FN
-from .reinit import inflate_nav  # noqa: F401  (re-exported)
 
 # parameters of the GNSS velocity model (``Models.par[M_GNSS_VEL]``) for the heading hold after an IMU gap
 # (:func:`run_chunk`): mounting heading [rad], least speed of a course [m/s], course σ [rad], heading σ

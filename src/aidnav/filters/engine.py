@@ -18,8 +18,8 @@ Gauss-Markov / random constant per calibration state) and its measurement models
   in :func:`run_filter` (:func:`.gate.policy_update`) that acceptance is a **re-initialisation**, and so is a
   window of accepted updates whose NIS is far out of its χ² band (``Models.win_n[model]`` > 0: the sum
   of the last N accepted NIS above the 99.9 % quantile of χ²(Σ m)): the navigation block of P is scaled
-  (:func:`.reinit.inflate_nav`) until the innovation that triggered it is consistent (NIS = m), then the update
-  is made ungated; ``Log.reinit`` records why (1: consecutive rejections, 2: NIS window);
+  (:func:`.reinit.inflate_nav`) until the innovation that triggered it is consistent (NIS = m), then the
+  update is made ungated; ``Log.reinit`` records why (1: consecutive rejections, 2: NIS window);
 * **one innovation log** (:class:`Log`): time, model id, status (1 accepted, 0 rejected, −1 not used),
   NIS, innovation, diag S (≤ ``MAX_ROWS``), record index (−1: node constraint); rows 0..M−1: records;
 * **re-initialisation event** at sample ``Init.reset_idx``: heading from a GNSS course and, when the

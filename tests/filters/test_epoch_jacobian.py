@@ -21,6 +21,7 @@ from aidnav.filters.engine import feedback, node_rates
 from aidnav.filters.layout import L_CLK, L_N, L_RERR
 from aidnav.filters.measurements import Nav
 from aidnav.filters.measurements import epoch as ep
+from aidnav.filters.measurements.check import step_response
 from aidnav.filters.tight import tight_layout
 from aidnav.nav.earth import lla_to_ecef
 from aidnav.nav.gnss_sat import az_el, geo_range, range_error_sigma, tropo_delay
@@ -88,18 +89,9 @@ def test_pseudorange_row_with_range_error_state_matches_finite_differences(u):
     nu, s, xp = _innovation(st0.copy(), b0.copy(), p_diag)
     assert np.isfinite(nu) and s > 0
     h = xp * s / (p_diag * nu)
-    D = np.zeros(N)
-    for j in range(N):
-        vals = []
-        for sgn in (1.0, -1.0):
-            st, b = st0.copy(), b0.copy()
-            dx = np.zeros(N)
-            dx[j] = sgn * STEPS[j]
-            feedback(st, b, dx, N)
-            vals.append(_innovation(st, b, p_diag)[0])
-        # meas = pred(true) ≈ pred(computed) + h δx, and feeding δx back makes the computed state the
-        # true one: ν after the feedback = ν − h δx, so column j of h is −∂ν/∂δx_j
-        D[j] = -(vals[0] - vals[1]) / 2.0
+    # meas = pred(true) ≈ pred(computed) + h δx, and feeding δx back makes the computed state the
+    # true one: ν after the feedback = ν − h δx, so column j of h is −∂ν/∂δx_j
+    D = step_response(lambda st, b: _innovation(st, b, p_diag)[0], st0, b0, STEPS, feedback)
     resp = h * STEPS
     tol = 1e-4 * np.abs(D).max() + 1e-9
     # the row neglects the height derivative of the troposphere delay (Saastamoinen at the INS height)

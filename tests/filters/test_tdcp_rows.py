@@ -17,6 +17,7 @@ from aidnav.filters.engine import feedback, node_rates
 from aidnav.filters.layout import DV, L_CLK, L_N, L_TDCP
 from aidnav.filters.measurements import Nav
 from aidnav.filters.measurements import epoch as ep
+from aidnav.filters.measurements.check import step_response
 from aidnav.filters.tight import tight_layout
 from aidnav.nav.earth import lla_to_ecef
 from aidnav.nav.gnss_sat import LAMBDA_L1, geo_range
@@ -76,16 +77,7 @@ def test_tdcp_row_matches_finite_differences():
     st0, b0 = _state()
     row = _row()
     _, h = _z(st0.copy(), b0.copy(), row)
-    D = np.zeros(N)
-    for j in range(N):
-        vals = []
-        for sgn in (1.0, -1.0):
-            st, b = st0.copy(), b0.copy()
-            dx = np.zeros(N)
-            dx[j] = sgn * STEPS[j]
-            feedback(st, b, dx, N)
-            vals.append(_z(st, b, row)[0])
-        D[j] = -(vals[0] - vals[1]) / 2.0
+    D = step_response(lambda st, b: _z(st, b, row)[0], st0, b0, STEPS, feedback)
     resp = h * STEPS
     tol = 1e-4 * np.abs(D).max() + 1e-9
     bad = np.abs(resp - D) > tol

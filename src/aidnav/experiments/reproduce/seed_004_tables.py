@@ -236,7 +236,7 @@ def structural_null(g: Group, q: str, keys) -> float | None:
 def _null_reason(q: str, dev: float, control: dict | None, spec: bool = True) -> str:
     """Why the sub's ``q`` does not depend on the GNSS baseline in the white-master model (``dev``: the
     largest per-run relative change between successive L0; ``control``: the first-epoch control; a spec
-    row's modelling choice and alternatives are appended by ``seed_004._point_to_alternatives``)."""
+    row's modelling choice and alternatives are appended by ``seed_004_verdicts._point_to_alternatives``)."""
     how = ("Velocity + attitude matching gives the sub the master's velocity error, and the white master of "
            "the seed's text has the same velocity noise (0.03 m/s) at every L0; its position noise, "
            "which does "

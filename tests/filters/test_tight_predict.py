@@ -83,3 +83,65 @@ def test_rotation_variance_closed_form():
     assert v[:256].max() < 1e-20
     np.testing.assert_allclose(v[319], s2 * (w * 0.5) ** 2, rtol=1e-12)
     assert not rotation_variance(t, dth, 0.0, 0.0, 1.0).any()
+
+
+def _const_system(rng, nd=17, nc=12, nt=4):
+    """A head of nd states with dynamics coupled to nc constant states (zero F row, no noise: scale
+    factors, misalignments) interleaved with them, then nt independent Markov states."""
+    F, G, q = _system(rng, nd + nc, nt)
+    n = nd + nc + nt
+    const = np.sort(rng.choice(np.arange(3, nd + nc), nc, replace=False))
+    F[const, :] = 0.0
+    G[const, :] = 0.0
+    G[const[0], 0] = 1.0  # an input of zero PSD shared with a dynamic state: still no noise
+    q[0] = 0.0
+    return F, G, q, const, n
+
+
+def test_split_predict_equals_the_full_matrix_predict():
+    """Constant states kept out of the series and the products give the full Φ P Φᵀ + Qd (issue 40)."""
+    from aidnav.filters.engine import head_split
+    from aidnav.filters.kalman import discretize_split, predict_split
+
+    rng = np.random.default_rng(42)
+    nh, nc, nt = 29, 12, 4
+    F, G, q, const, n = _const_system(rng, nh - nc, nc, nt)
+    T = 0.9
+    Phi, Qd = np.zeros((n, n)), np.zeros((n, n))
+    discretize(F, G, q, T, Phi, Qd)
+    hd, d = head_split(F[:nh, :nh], G[:nh, :], q, nh)
+    assert d == nh - nc and sorted(hd[d:]) == list(const) and sorted(hd) == list(range(nh))
+    D, C = hd[:d], hd[d:]
+    # the full series gives what the split assumes: Φ rows eᵢ and Qd rows 0 at the constant states
+    np.testing.assert_array_equal(Phi[C][:, C], np.eye(nc))
+    assert np.all(Phi[C][:, D] == 0) and np.all(Qd[C] == 0)
+    Phd, Phdc, Qdd = np.zeros((d, d)), np.zeros((d, nc)), np.zeros((d, d))
+    discretize_split(F[np.ix_(D, D)], F[np.ix_(D, C)].copy(), G[D].copy(), q, T, Phd, Phdc, Qdd)
+    np.testing.assert_allclose(Phd, Phi[np.ix_(D, D)], rtol=1e-13, atol=1e-15)
+    np.testing.assert_allclose(Phdc, Phi[np.ix_(D, C)], rtol=1e-13, atol=1e-15)
+    np.testing.assert_allclose(Qdd, Qd[np.ix_(D, D)], rtol=1e-12, atol=1e-15)
+    a = rng.normal(size=(n, n))
+    P0 = a @ a.T / n + 0.1 * np.eye(n)
+    x0 = rng.normal(size=n)
+    P1, x1, P2, x2 = P0.copy(), x0.copy(), P0.copy(), x0.copy()
+    predict(x1, P1, Phi, Qd)
+    Phi2, Qd2 = Phi.copy(), Qd.copy()
+    Phi2[C] = 99.0  # rows the split does not read
+    wk = (np.zeros((d, nh)), np.zeros((nh, d)), np.zeros((nh, n)), np.zeros((d, n)), np.zeros((d, nh)),
+          np.zeros((d, d)), np.zeros(nh))
+    predict_split(x2, P2, Phi2, Qd2, hd, d, wk)
+    np.testing.assert_allclose(P2, P1, rtol=1e-12, atol=1e-12 * np.abs(P1).max())
+    np.testing.assert_allclose(x2, x1, rtol=1e-12, atol=1e-14)
+    assert np.array_equal(P2, P2.T)
+    # it can fail: a constant state that is not (a noise of its own) makes the split wrong
+    q3 = q.copy()
+    G3 = G.copy()
+    G3[C[0], -1] = 1.0
+    Phi3, Qd3 = np.zeros((n, n)), np.zeros((n, n))
+    discretize(F, G3, q3, T, Phi3, Qd3)
+    assert head_split(F[:nh, :nh], G3[:nh, :], q3, nh)[1] == d + 1
+    P3 = P0.copy()
+    predict_split(x0.copy(), P3, Phi3, Qd3, hd, d, wk)
+    P4 = P0.copy()
+    predict(x0.copy(), P4, Phi3, Qd3)
+    assert np.abs(P3 - P4).max() > 1e-3 * np.abs(P4).max()

@@ -61,6 +61,7 @@ from aidnav.nav.rotations import dcm_from_quat, quat_from_rotvec, quat_mult, qua
 from .gate import WIN_MAX, gated_update, policy_update
 from .ins_errors import (
     ACC_FN,
+    fill_model,
     interval_model,
     model_arrays,
     new_accumulator,
@@ -69,7 +70,7 @@ from .ins_errors import (
     reset_accumulator,
     set_heading,
 )
-from .kalman import discretize, discretize_tail, predict, predict_tail
+from .kalman import discretize, discretize_split, discretize_tail, predict, predict_split, predict_tail
 from .layout import (
     DP,
     DV,
@@ -320,12 +321,35 @@ def run_filter(imu, rec, mod, proc, ini, out):
 
 
 @njit(cache=True)
+def head_split(F, G, q, nd):
+    """The head's order for :func:`.kalman.predict_split`: the states i < ``nd`` with dynamics first, then
+    the constant ones (a zero row of F and no noise: G[i, c]·q[c] = 0 for every input c). Returns (order,
+    number with dynamics)."""
+    const = np.zeros(nd, np.bool_)
+    for i in range(nd):
+        c = True
+        for j in range(F.shape[1]):
+            if F[i, j] != 0.0:
+                c = False
+        for j in range(G.shape[1]):
+            if G[i, j] * q[j] != 0.0:
+                c = False
+        const[i] = c
+    hd = np.concatenate((np.flatnonzero(~const), np.flatnonzero(const))).astype(np.int64)
+    return hd, nd - int(const.sum())
+
+
+@njit(cache=True)
 def _error_model(lay, proc, nfull, mins, naux, n, nins, nsub):
     """The error model's arrays of a chunk: F, G of the full INS layout (``Fi``, ``Gi``) and of the filter
     (``F``, ``G`` with the calibration states' Gauss–Markov or random-walk rows and the clock), Φ and Qd,
     and the split of the independent scalar states after the clock block (tight coupling's range errors):
-    ``nd`` the first of them (``n`` when none), the head's arrays (``Fh``, ``Gh``, ``Phh``, ``Qdh``,
-    noise ``qh``) discretised as a matrix, the tail's noise PSD ``qt`` (G row² · q) predicted by scaling."""
+    ``nd`` the first of them (``n`` when none), the head's arrays (``Fh``, ``Gh``, noise ``qh``), the tail's
+    noise PSD ``qt`` (G row² · q) predicted by scaling; with a tail, the head's order ``hd`` (states with
+    dynamics first, d of them, then the constant ones: :func:`head_split`, found on the INS model filled
+    at a generic nominal — every entry it can set nonzero is) and the work arrays of
+    :func:`.kalman.discretize_split` and :func:`.kalman.predict_split`: the constant states stay out of the
+    series and the products (Φ's constant rows are eᵢ, set here once)."""
     ic = lay[L_CLK]
     Fi, Gi, _, _ = model_arrays(nfull, mins)
     F, G, Phi, Qd = model_arrays(n, mins + naux)
@@ -337,25 +361,39 @@ def _error_model(lay, proc, nfull, mins, naux, n, nins, nsub):
         F[ic, ic + 1] = 1.0  # clock bias [m] integrates the drift [m/s]
     nd = tail_start(F, G, ic + 2 if (ic >= 0 and nsub == 0 and proc.gm.shape[0] == 0) else n)
     mh = mins + nd - nins if nd < n else 0
-    Fh, Gh, Phh, Qdh = model_arrays(nd if nd < n else 0, mh)
+    nh = nd if nd < n else 0
+    Fh, Gh, _, _ = model_arrays(nh, mh)
     qh = proc.q[:mh].copy()
     if nd < n:
         Fh[nins:nd, nins:nd] = F[nins:nd, nins:nd]
         Gh[nins:nd, mins:] = G[nins:nd, mins:mh]
+        c = np.cos(np.arange(9) + 0.3)  # a generic nominal: every entry fill_model can set is nonzero
+        fill_model(Fi, Gi, 0.7, 100.0, c[:3], c[3:6] + 9.8, np.outer(c[6:9], c[:3]) + np.eye(3), c[3:6],
+                   c[6:9], proc.tau)
+        Fh[:nins, :nins] = Fi[:nins, :nins]
+        Gh[:nins, :mins] = Gi[:nins, :mins]
+    hd, d = head_split(Fh, Gh, qh, nh)
+    for e in range(d, nh):
+        Phi[hd[e], hd[e]] = 1.0
     qt = np.zeros(n)
     for i in range(nd, n):
         for c in range(G.shape[1]):
             qt[i] += G[i, c] * G[i, c] * proc.q[c]
-    return Fi, Gi, F, G, Phi, Qd, nd, Fh, Gh, Phh, Qdh, qh, qt
+    sp = (hd, d, np.zeros((d, d)), np.zeros((d, nh - d)), np.zeros((d, mh)), np.zeros((d, d)),
+          np.zeros((d, nh - d)), np.zeros((d, d)))  # order, d, F_DD, F_DC, G_D, Φ_DD, Φ_DC, Qd_DD
+    wk = (np.zeros((d, nh)), np.zeros((nh, d)), np.zeros((nh, n)), np.zeros((d, n)), np.zeros((d, nh)),
+          np.zeros((d, d)), np.zeros(nh))
+    return Fi, Gi, F, G, Phi, Qd, nd, Fh, Gh, qh, qt, sp, wk
 
 
 @njit(cache=True, inline="always")  # per node: inlined in run_chunk (issue 40)
 def _predict_node(st, acc, bias, x, P, T, proc, em, dims):
     """The predict over the interval ``T`` that ends at a node: F, G of the interval (the subset's rows
-    and columns where the filter runs on one), Φ and Qd, P propagated (head as a matrix, the scalar tail
-    by scaling, or the exact Gauss–Markov blocks), the open-loop estimates carried; ``x`` zeroed. Returns
+    and columns where the filter runs on one), Φ and Qd, P propagated (with a scalar tail: the head's
+    states with dynamics as a matrix, its constant states and the tail by their structure; else the full
+    matrices, with the exact Gauss–Markov blocks), the open-loop estimates carried; ``x`` zeroed. Returns
     the body rate of the interval (for the models)."""
-    Fi, Gi, F, G, Phi, Qd, nd, Fh, Gh, Phh, Qdh, qh, qt = em
+    Fi, Gi, F, G, Phi, Qd, nd, Fh, Gh, qh, qt, sp, wk = em
     nins, mins, nh = dims  # INS states, noise inputs, states fed back
     sub = proc.sub
     n, nsub = P.shape[0], sub.shape[0]
@@ -368,19 +406,46 @@ def _predict_node(st, acc, bias, x, P, T, proc, em, dims):
         G[:nins, :mins] = Gi[:nins, :mins]
     x[:] = 0.0
     if nd < n:
-        Fh[:nins, :nins] = Fi[:nins, :nins]
-        Gh[:nins, :mins] = Gi[:nins, :mins]
-        discretize(Fh, Gh, qh, T, Phh, Qdh)
-        Phi[:nd, :nd] = Phh
-        Qd[:nd, :nd] = Qdh
+        _discretize_head(Fi, Gi, Fh, Gh, qh, T, Phi, Qd, sp, (nins, mins))
         discretize_tail(F, qt, T, Phi, Qd, nd)
-        predict_tail(x, P, Phi, Qd, nd)
+        if sp[1] < nd:  # constant states in the head
+            predict_split(x, P, Phi, Qd, sp[0], sp[1], wk)
+        else:  # (the same numbers; fewer index look-ups)
+            predict_tail(x, P, Phi, Qd, nd)
     else:
         discretize(F, G, proc.q, T, Phi, Qd)
         exact_blocks(Phi, Qd, proc.gm, T)
         predict(x, P, Phi, Qd)
     carry_estimates(st, bias, Phi, proc.open, nh)
     return wb
+
+
+@njit(cache=True, inline="always")  # per node: inlined in run_chunk (issue 40)
+def _discretize_head(Fi, Gi, Fh, Gh, qh, T, Phi, Qd, sp, dims):
+    """Φ, Qd of the head (the states before the scalar tail) from the INS model ``Fi``, ``Gi`` of the
+    interval: the states with dynamics by the series, their coupling into the constant states
+    (:func:`.kalman.discretize_split`), written into Φ's and Qd's rows of those states."""
+    nins, mins = dims
+    hd, d, Fd, Fdc, Gd, Phd, Phdc, Qdd = sp
+    Fh[:nins, :nins] = Fi[:nins, :nins]
+    Gh[:nins, :mins] = Gi[:nins, :mins]
+    nc = hd.shape[0] - d
+    for a in range(d):
+        ia = hd[a]
+        for b in range(d):
+            Fd[a, b] = Fh[ia, hd[b]]
+        for e in range(nc):
+            Fdc[a, e] = Fh[ia, hd[d + e]]
+        for c in range(Gh.shape[1]):
+            Gd[a, c] = Gh[ia, c]
+    discretize_split(Fd, Fdc, Gd, qh, T, Phd, Phdc, Qdd)
+    for a in range(d):
+        ia = hd[a]
+        for b in range(d):
+            Phi[ia, hd[b]] = Phd[a, b]
+            Qd[ia, hd[b]] = Qdd[a, b]
+        for e in range(nc):
+            Phi[ia, hd[d + e]] = Phdc[a, e]
 
 
 @njit(cache=True, inline="always")  # per node: inlined in run_chunk (issue 40)

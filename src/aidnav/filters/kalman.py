@@ -105,6 +105,87 @@ def predict_tail(x, P, Phi, Qd, nd):
 
 
 @njit(cache=True)
+def discretize_split(Fd, Fdc, Gd, q, T, Phd, Phdc, Qdd):
+    """:func:`discretize` of a head whose constant states (a zero row of F and no noise: Φ row eᵢ, Qd row 0;
+    sensor scale factors and misalignments without process noise) are left out of the series. ``Fd``
+    (d×d), ``Gd`` (d×m): F and G of the d states with dynamics; ``Fdc`` (d×c): their coupling to the c
+    constant states. Fills Φ_DD, Qd_DD (``Phd``, ``Qdd``: the full series' blocks, since F's constant rows
+    are zero) and Φ_DC = F_DC T + F_DD F_DC T²/2 (``Phdc``)."""
+    discretize(Fd, Gd, q, T, Phd, Qdd)
+    if Fdc.shape[1] == 0:
+        return
+    FT = Fd * T
+    FcT = Fdc * T
+    np.dot(FT, FcT, Phdc)
+    Phdc *= 0.5
+    Phdc += FcT
+
+
+@njit(cache=True)
+def predict_split(x, P, Phi, Qd, hd, d, wk):
+    """:func:`predict_tail` for a head whose constant states are kept out of the matrix products. The head
+    is the first ``nd`` = len(``hd``) states, ``hd`` its order: the d states with dynamics first, then the
+    constant ones (Φ row eᵢ, Qd row and column 0); the states from nd on are the diagonal tail. With
+    R = Φ_D· P (the D rows of Φ P, every column): P_DD ← R_D,head Φ_D,headᵀ + Qd_DD (symmetrised as
+    :func:`predict`), P_DC ← R_DC, P_Dt ← R_Dt D, P_CC unchanged, P_Ct ← P_Ct D, P_tt ← D P_tt D + Qd_tt.
+    Same result as :func:`predict` with the full Φ (to rounding); the constant rows of Φ and off-block
+    entries are not read. ``wk``: work arrays (Φ_D,head (d×nd), its transpose, P's head rows in ``hd``
+    order (nd×n), R (d×n), R's head columns (d×nd), the DD product (d×d), x's head (nd,))."""
+    Phr, PhrT, Pg, R, Rh, A, xh = wk
+    n, nd = P.shape[0], hd.shape[0]
+    for a in range(d):
+        for b in range(nd):
+            v = Phi[hd[a], hd[b]]
+            Phr[a, b] = v
+            PhrT[b, a] = v
+    for b in range(nd):
+        xh[b] = x[hd[b]]
+        for j in range(n):
+            Pg[b, j] = P[hd[b], j]
+    for a in range(d):
+        s = 0.0
+        for b in range(nd):
+            s += Phr[a, b] * xh[b]
+        x[hd[a]] = s
+    for i in range(nd, n):
+        x[i] *= Phi[i, i]
+    np.dot(Phr, Pg, R)  # (d, n)
+    for a in range(d):
+        for b in range(nd):
+            Rh[a, b] = R[a, hd[b]]
+    np.dot(Rh, PhrT, A)  # (d, d)
+    for a in range(d):
+        ia = hd[a]
+        for b in range(a, d):
+            ib = hd[b]
+            v = ((A[a, b] + Qd[ia, ib]) + (A[b, a] + Qd[ib, ia])) * 0.5
+            P[ia, ib] = v
+            P[ib, ia] = v
+        for e in range(d, nd):
+            ie = hd[e]
+            v = R[a, ie]
+            P[ia, ie] = v
+            P[ie, ia] = v
+        for j in range(nd, n):
+            v = R[a, j] * Phi[j, j]
+            P[ia, j] = v
+            P[j, ia] = v
+    for e in range(d, nd):
+        ie = hd[e]
+        for j in range(nd, n):
+            v = P[ie, j] * Phi[j, j]
+            P[ie, j] = v
+            P[j, ie] = v
+    for j in range(nd, n):
+        dj = Phi[j, j]
+        for i in range(nd, j + 1):
+            v = P[i, j] * (Phi[i, i] * dj)
+            P[i, j] = v
+            P[j, i] = v
+        P[j, j] += Qd[j, j]
+
+
+@njit(cache=True)
 def update(x, P, H, R, z, gate, innov_out, s_out):
     """Batch measurement update (Joseph form) with chi-square gating.
 

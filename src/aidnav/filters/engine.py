@@ -11,7 +11,10 @@ Gauss-Markov / random constant per calibration state) and its measurement models
 * **predict** at nodes (:func:`.kalman.discretize`, :func:`.kalman.predict`) + bridged-gap variance;
   independent scalar states after the clock block (:func:`tail_start`: diagonal F, noise of their own;
   tight coupling's range errors) are discretised and predicted as scalars
-  (:func:`.kalman.discretize_tail`, :func:`.kalman.predict_tail`: the matrix work is the head's);
+  (:func:`.kalman.discretize_tail`, :func:`.kalman.predict_tail`: the matrix work is the head's); the
+  head's constant states (a zero F row and no noise: scale factors and misalignments of a model without
+  their process noise, :func:`head_split`) stay out of the series and the products
+  (:func:`.kalman.discretize_split`, :func:`.kalman.predict_split`: Φ's rows there are eᵢ);
 * **one update-with-gate policy** (:func:`.gate.gated_update`): χ² gate by the number of rows
   (``Models.gate[model, m]``, 0 = ungated), and after ``Models.max_rej[model]`` consecutive rejections
   of a model the next one is accepted ungated (a filter that went wrong must be able to come back);

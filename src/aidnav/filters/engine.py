@@ -433,6 +433,11 @@ def _discretize_head(Fi, Gi, Fh, Gh, qh, T, Phi, Qd, sp, dims):
     Fh[:nins, :nins] = Fi[:nins, :nins]
     Gh[:nins, :mins] = Gi[:nins, :mins]
     nc = hd.shape[0] - d
+    if nc == 0:  # no constant state: the head as it is
+        discretize(Fh, Gh, qh, T, Phd, Qdd)
+        Phi[:d, :d] = Phd
+        Qd[:d, :d] = Qdd
+        return
     for a in range(d):
         ia = hd[a]
         for b in range(d):

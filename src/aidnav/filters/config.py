@@ -233,9 +233,8 @@ UNKNOWN_GRADE_IMU: dict = dict(
 class LooseConfig(_Strict):
     """Full configuration of ``aidnav process``."""
 
-    # no imu section: an IMU of unknown grade (UNKNOWN_GRADE_IMU), its noise also raised to what the log's
-    # static samples show (issue 35)
-    imu: ImuNoise = ImuNoise(**UNKNOWN_GRADE_IMU)
+    # no imu section: the noise is also raised to what the log's static samples show (issue 35)
+    imu: ImuNoise = ImuNoise(noise_from_static=True)
     gnss: GnssAiding = GnssAiding()
     init: Initialisation = Initialisation()
     constraints: Constraints = Constraints()

@@ -495,47 +495,18 @@ def _node_constraints(x, P, nav, static, tk, no_row, upd, li):
 
 
 @njit(cache=True, inline="always")  # per node: inlined in run_chunk (issue 40)
-def _hold_heading(P, iu, ini, before_alignment, gap, after_gap):
+def _hold_heading(P, iu, ini, before_alignment, gap):
     """A heading without information keeps its variance and no correlation: before the first alignment
     (``before_alignment``: an unknown initial heading, σ above ≈ 81°, with an alignment to come — a
     linearised filter would otherwise "gyrocompass" from a gyro bias model it cannot separate from the
-    heading at a standstill, or from noise), or after an IMU gap (``gap[4]``, with ``after_gap``) until a
-    GNSS course re-aligns it. Called after a node's updates, and at a static node also before them: at
-    rest nothing observes a held heading (no horizontal specific force), so the correlation one interval's
-    predict gave it (Earth rate, the tilt's horizontal specific force) must not let the updates move it
-    (issue 35, k35t)."""
+    heading at a standstill, or from noise), or after an IMU gap (``gap[4]``) until a GNSS course
+    re-aligns it."""
     if before_alignment:
         P[iu, :], P[:, iu] = 0.0, 0.0
         P[iu, iu] = ini.P[iu, iu]
-    elif after_gap and gap[4] > 0.0:
+    elif gap[4] > 0.0:
         P[iu, :], P[:, iu] = 0.0, 0.0
         P[iu, iu] = gap[4]
-
-
-@njit(cache=True, inline="always")  # per node: inlined in run_chunk (issue 40)
-def _feedback_held(st, bias, dx, nstate, P, held, ix):
-    """:func:`feedback`, then :func:`_turn_held_heading` by the heading change it made (``held``)."""
-    C = dcm_from_quat(st[ST_Q:ST_Q + 4])
-    h0 = np.arctan2(C[0, 1], C[1, 1])
-    feedback(st, bias, dx, nstate)
-    _turn_held_heading(st, P, h0, held, ix)
-
-
-@njit(cache=True)
-def _turn_held_heading(st, P, h0, held, ix):
-    """A heading held unknown (``held``: before the first course alignment or after an IMU gap) that a
-    node's updates moved (from ``h0`` [rad] to the strapdown's heading now) turns the tilt error and its
-    covariance with it, as a course alignment does (:func:`.ins_errors.set_heading`): the tilt belongs to
-    the body's roll and pitch, so in the navigation frame it turns with the heading. The updates of a
-    heading of σ 180° move it by tens of degrees (its correlations are one interval's linearisation);
-    without the turn the filter applies the tilt ↔ body-frame accelerometer-bias correlation it learnt
-    under the old heading to the new one, a rotation that did not happen, and "separates" the bias from
-    the tilt (issue 35: roll σ 0.7° → 0.3° while the roll error stays 1.5°)."""
-    if held and ix[PHI] >= 0:
-        C = dcm_from_quat(st[ST_Q:ST_Q + 4])
-        h1 = np.arctan2(C[0, 1], C[1, 1])
-        set_heading(st, P, h0, 0.0, -1, -1, -1)  # back to h0 (P untouched), then to h1 turning the tilt
-        set_heading(st, P, h1, 0.0, -1, ix[PHI], ix[PHI + 1])
 
 
 @njit(cache=True, inline="always")  # per sample: inlined (no call per sample)
@@ -688,16 +659,14 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
             node_rates(st, wb, dthc, dt, w)
             w[W_FN] = acc[ACC_FN] / T
             g0 = gi
-            held = hold_h and k0 + k < ini.reset_idx  # the initial heading held unknown (_hold_heading)
-            _hold_heading(P, iu, ini, imu.static[k] and held, gap, imu.static[k])
             gi, C = _update_records(x, P, (st, w, bias), C, rec, gi, imu.t[k], (gap, gap_k, ix, iu, pv), upd,
                                     (ic, itoff))
             li = _node_constraints(x, P, Nav(st, C, w, 0.0, bias), imu.static[k], imu.t[k], no_row, upd, li)
             if nsub:  # the subset's estimate in the INS block
                 dxf[sub] = x
-            _feedback_held(st, bias, dxf if nsub else x, nh, P, held or gap[4] > 0.0, ix)
+            feedback(st, bias, dxf if nsub else x, nh)
             ib[:] = bias[:nins - NAV]
-            _hold_heading(P, iu, ini, held, gap, True)
+            _hold_heading(P, iu, ini, hold_h and k0 + k < ini.reset_idx, gap)
             _after_updates(st, bias, P, rec, g0, gi, proc.reset_pos, lay)
             t_due = _due_time(rec, gi, bias, ic, itoff)  # d̂ may have changed
             node_idx[kn - kn0] = k0 + k

@@ -45,6 +45,9 @@ PROB = 0.95
 #: drew W1's overview in 0.35 instead of 0.41 CPU-s (min of 5, loaded machine) for a file of 351 instead of
 #: 300 kB (issue 41, session 9)
 PNG_COMPRESS_LEVEL = 1
+#: major tick objects made per axis before the run (:meth:`Skeleton.prime`): an empty axis draws 6, a run's
+#: time axis 9–10 (W1, its first 60 s), and each one made after the run is ≈ 1 ms of the overview's drawing
+PRIMED_TICKS = 10
 
 
 def tight_records(epochs: dict) -> dict:
@@ -167,11 +170,15 @@ class Skeleton:
         self.ax_h.grid(True, alpha=0.3)
 
     def prime(self) -> None:
-        """Draw the empty skeleton once (nothing is saved): its tick objects, the canvas's renderer and
-        the fixed labels' text are made now, not after the run."""
+        """Draw the empty skeleton once (nothing is saved): its tick objects (:data:`PRIMED_TICKS` per axis:
+        those a run's limits need; the unused ones are not drawn), the canvas's renderer and the fixed
+        labels' text are made now, not after the run."""
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # empty log axes
             self.fig.canvas.draw()
+        for ax in self.fig.axes:
+            ax.xaxis.get_major_ticks(PRIMED_TICKS)
+            ax.yaxis.get_major_ticks(PRIMED_TICKS)
 
 
 def overview_figure(traj: Trajectory, gnss: GnssData | None = None, summary: dict | None = None,

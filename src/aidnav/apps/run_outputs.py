@@ -80,7 +80,7 @@ def _serve(job_fd: int):
     with os.fdopen(job_fd, "rb") as f:
         try:
             job = pickle.load(f)
-            if job[0] == _PANELS:
+            if len(job) == 2 and job[0] == _PANELS:  # (a job has 5 items: its out_dir may be "panels")
                 skeleton = _skeleton(job[1])
                 job = pickle.load(f)
         except EOFError:

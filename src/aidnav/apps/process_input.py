@@ -108,10 +108,12 @@ def _first_rows(chunks, n: int) -> ImuData:
 
 class _Shared:
     """The chunks of one reader (``make()``: a new iterator over the file's chunks) shared by every pass
-    over the log: the chunks read so far are kept (:data:`SHARED_ROWS`, then only those a live pass has
-    yet to reach), and a pass that starts before the first one kept reads the file anew. The chunks are
-    the same objects in every pass: a consumer must not change their arrays in place (none does: the
-    arrays stay writable, as numba's kernels are compiled for writable arrays)."""
+    over the log. The chunks read are kept while they hold at most :data:`SHARED_ROWS` samples; past
+    that only those a live pass has yet to reach, and a pass that lags behind the one reading on is
+    given a reader of its own (the buffer never holds more than the first passes' span, or the cap). A
+    pass that starts after the log's first chunks were dropped reads the file anew. The chunks are the
+    same objects in every pass: no consumer changes their arrays in place (they stay writable: numba's
+    kernels are compiled for writable arrays)."""
 
     def __init__(self, make, hold_rows: int | None = None):
         self.make, self.hold = make, SHARED_ROWS if hold_rows is None else int(hold_rows)
@@ -125,8 +127,9 @@ class _Shared:
         self.passes.add(p)
         return p
 
-    def get(self, i: int):
-        """Chunk ``i`` (None past the end), read from the file when not read yet."""
+    def get(self, p: _Pass):
+        """The next chunk of the pass ``p`` (None past the end), read from the file when not read yet."""
+        i = p.i
         while i >= self.first + len(self.buf) and not self.done:
             if self.src is None:
                 self.src = self.make()
@@ -136,37 +139,52 @@ class _Shared:
                 break
             self.buf.append(c)
             self.rows += len(c)
-            self._drop()
+            self.spilled = self.spilled or self.rows > self.hold
+            if self.spilled:
+                self._detach_behind(p)
         k = i - self.first
         return self.buf[k] if 0 <= k < len(self.buf) else None
 
-    def _drop(self) -> None:
-        """Once more than :data:`SHARED_ROWS` samples were read: the chunks before every live pass
-        dropped."""
-        self.spilled = self.spilled or self.rows > self.hold
-        if not self.spilled:
-            return
-        low = min((p.i for p in self.passes), default=self.first + len(self.buf))
-        while self.buf and self.first < low:
-            self.rows -= len(self.buf.pop(0))
-            self.first += 1
+    def _detach_behind(self, p: _Pass) -> None:
+        """Past the cap, reading on for ``p``: the passes behind it read on with readers of their own."""
+        for q in list(self.passes):
+            if q is not p and q.i < p.i:
+                q.own = _skip(self.make(), q.i)
+                self.passes.discard(q)
+
+    def drop(self) -> None:
+        """Past the cap: the chunks before every live pass dropped."""
+        if self.spilled:
+            low = min((q.i for q in self.passes), default=self.first + len(self.buf))
+            while self.buf and self.first < low:
+                self.rows -= len(self.buf.pop(0))
+                self.first += 1
+
+
+def _skip(it, n: int):
+    """The iterator ``it`` after its first ``n`` items."""
+    for _ in range(n):
+        next(it, None)
+    return it
 
 
 class _Pass:
-    """One pass over a :class:`_Shared` log's chunks (an iterator; ``i`` the next chunk's index)."""
+    """One pass over a :class:`_Shared` log's chunks (an iterator; ``i`` the next chunk's index; ``own``
+    its own reader once detached)."""
 
     def __init__(self, shared: _Shared):
-        self.shared, self.i = shared, 0
+        self.shared, self.i, self.own = shared, 0, None
 
     def __iter__(self):
         return self
 
     def __next__(self):
-        c = self.shared.get(self.i)
+        c = self.shared.get(self) if self.own is None else next(self.own, None)
         if c is None:
             raise StopIteration
         self.i += 1
-        self.shared._drop()
+        if self.own is None:
+            self.shared.drop()
         return c
 
 

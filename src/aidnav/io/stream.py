@@ -28,8 +28,8 @@ import numpy as np
 from aidnav.data import ImuData, Trajectory
 from aidnav.io.errors import DataError
 
-__all__ = ["iter_imu", "release_arrow_memory", "TrajectoryWriter", "imu_time_span", "trajectory_chunks",
-           "TrajectoryChunks", "CsvColumnsWriter", "Spool", "take_rows", "concat_rows", "Background"]
+__all__ = ["iter_imu", "TrajectoryWriter", "imu_time_span", "trajectory_chunks", "TrajectoryChunks",
+           "CsvColumnsWriter", "Spool", "take_rows", "concat_rows", "Background"]
 
 # the largest block of a trajectory CSV read in batches (Arrow holds up to 32 of them: _FileChunks)
 CSV_BLOCK_BYTES = 1 << 20
@@ -119,26 +119,6 @@ def iter_imu(path, chunk_rows: int = 1 << 16, reader=None):
             yield ImuData(imu.time[a:b], imu.dtheta[a:b], imu.dv[a:b], t0=t0, week=imu.week,
                           events=imu.events if a == 0 else [])
         return
-    part = _parquet_chunks(path, got, chunk_rows)
-    try:
-        yield from part
-    finally:  # the reader closed (read to the end, or the pass stopped): its pages given back
-        part.close()
-        del part
-        release_arrow_memory()
-
-
-def release_arrow_memory() -> None:
-    """Give the pages Arrow's memory pool holds unused back to the system: jemalloc (the console script's
-    pool) keeps freed pages for seconds, so a reader's pages would stay resident while the rest of the
-    command (the figures, the maps) runs."""
-    import pyarrow as pa  # lazy: pyarrow is heavy to import
-
-    pa.default_memory_pool().release_unused()
-
-
-def _parquet_chunks(path: Path, got, chunk_rows: int):
-    """:func:`iter_imu`'s chunks of an interchange Parquet file (``got``: :func:`_parquet_imu`'s)."""
     from aidnav.io._arrow import column_to_f64  # lazy: pulls in pyarrow
     from aidnav.io.interchange import IMU_RATE_COLUMNS  # lazy: pulls in numba, pyarrow
 

@@ -25,7 +25,9 @@ whole-log fit before filtering (the coarse mounting: NHC or an aid in the vehicl
 configured, :func:`needs_whole_log`) is taken whole into the head (every chunk held); full covariances at
 given times are for :func:`run_loose`. Given as one chunk, the log is its own head and the result is
 :func:`run_loose`'s bit for bit (``aidnav process`` on a log in memory or in any format but interchange
-Parquet).
+Parquet). A chunk longer than :data:`ENGINE_ROWS` samples (a log given whole, the first passes' 10 or 20
+min) is run in engine calls of that many: the arrays of one call (outputs, gap bridge) stay bounded, and
+the carried state makes the result the one call's, bit for bit.
 """
 
 from __future__ import annotations

@@ -35,7 +35,7 @@ __all__ = ["iter_imu", "TrajectoryWriter", "imu_time_span", "trajectory_chunks",
 CSV_BLOCK_BYTES = 1 << 20
 # the read buffer of each column of an IMU Parquet file (:func:`iter_imu`): Arrow's reader holds, per
 # column, the buffer, the dictionary page and the page it decodes; W1's 7 columns (one row group, ≈ 1 MB
-# pages) 21.3 MB of Arrow pool with 1 MiB, 15.0 MB with 64 kiB (issue 41, session 10)
+# pages) 21.3 MiB of Arrow pool with 1 MiB, 15.0 MiB with 64 kiB (issue 41, session 10)
 IMU_READ_BUFFER = 1 << 16
 
 

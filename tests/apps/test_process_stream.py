@@ -310,3 +310,24 @@ def test_passes_share_one_reader(tmp_path, monkeypatch):
     same(whole, ref)
     same([head, *run], ref)
     assert len(opened) == 4 and log._chunks.__self__.rows <= 700
+
+
+def test_shared_reader_error_reaches_every_pass(tmp_path, monkeypatch):
+    """A bad row found by one pass over the shared reader is the error of every pass that reaches it (no
+    pass sees the log cut short there)."""
+    from aidnav.io.errors import DataError
+
+    imu_p, _, _ = static_log(tmp_path, 30)
+    t = pq.read_table(imu_p)
+    dv = t["dv_x_m_s"].to_numpy(zero_copy_only=False).copy()
+    dv[2200] = np.nan
+    bad = tmp_path / "bad.parquet"
+    pq.write_table(t.set_column(t.schema.get_field_index("dv_x_m_s"), "dv_x_m_s", pa.array(dv)), bad)
+    monkeypatch.setattr(pi, "CHUNK_ROWS", 700)
+    log = pi.open_imu(bad)
+    run = log.chunks()
+    next(run)
+    with pytest.raises(DataError, match="line 2201|row 2201|2201"):
+        list(log.chunks())
+    with pytest.raises(DataError, match="2201"):
+        list(run)

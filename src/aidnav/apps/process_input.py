@@ -118,6 +118,7 @@ class _Shared:
     def __init__(self, make, hold_rows: int | None = None):
         self.make, self.hold = make, SHARED_ROWS if hold_rows is None else int(hold_rows)
         self.src, self.buf, self.first, self.rows, self.done, self.spilled = None, [], 0, 0, False, False
+        self.error = None
         self.passes = weakref.WeakSet()
 
     def chunks(self):
@@ -131,9 +132,15 @@ class _Shared:
         """The next chunk of the pass ``p`` (None past the end), read from the file when not read yet."""
         i = p.i
         while i >= self.first + len(self.buf) and not self.done:
+            if self.error is not None:  # the file's error (a bad row): every pass that reaches it
+                raise self.error
             if self.src is None:
                 self.src = self.make()
-            c = next(self.src, None)
+            try:
+                c = next(self.src, None)
+            except Exception as e:
+                self.error, self.src = e, None
+                raise
             if c is None:
                 self.done, self.src = True, None
                 break

@@ -598,16 +598,6 @@ def _compute(plan: ExperimentPlan, out: Path, todo: list[RunTask], n_total: int,
              progress: bool) -> _Tally:
     """Compute the runs ``todo`` in batches on ``backend`` with a progress bar; returns the tally of the runs
     saved. Raises :class:`CampaignInterrupted` on Ctrl-C (the finished runs are on disk)."""
-    # lazy: rich is heavy to import
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeElapsedColumn,
-        TimeRemainingColumn,
-    )
-
     par = backend != "serial"
     size = batch or max(1, min(BATCH_RUNS, -(-len(todo) // (2 * workers)) if par else BATCH_RUNS))
     first = pool = None
@@ -626,6 +616,16 @@ def _compute(plan: ExperimentPlan, out: Path, todo: list[RunTask], n_total: int,
         except KeyboardInterrupt:
             raise CampaignInterrupted(f"interrupted: {n_reused} of {n_total} runs are in {out / 'runs'}; run "
                                       "the same command again to resume") from None
+
+    # lazy: rich is heavy to import (after the fork: the workers do not need it)
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
 
     cols = [TextColumn("{task.description}", markup=False), BarColumn(), MofNCompleteColumn(),
             TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn()]

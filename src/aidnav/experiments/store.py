@@ -36,11 +36,8 @@ import zipfile
 from pathlib import Path
 
 import numpy as np
-import pyarrow as pa
-import pyarrow.parquet as pq
 
 import aidnav
-from aidnav.io._arrow import to_arrow  # Arrow arrays without pa.array (which imports pandas)
 from aidnav.io.atomic import replacing
 
 from . import statistics_spec as _config
@@ -304,17 +301,31 @@ def _consistency(t, nees, blocks, states, spec) -> list[dict]:
 
 
 # ----------------------------------------------------------------------------------- merging
+def _arrow():
+    """pyarrow, pyarrow.parquet and :func:`aidnav.io._arrow.to_arrow` (Arrow arrays without ``pa.array``,
+    which imports pandas), imported where the tables are written: a campaign's workers, forked before the
+    merge, never load them (≈ 50 ms)."""
+    import pyarrow as pa  # lazy: the tables only (see above)
+    import pyarrow.parquet as pq  # lazy: the tables only (see above)
+
+    from aidnav.io._arrow import to_arrow  # lazy: pyarrow (see above)
+
+    return pa, pq, to_arrow
+
+
 def prepare_merge() -> None:
-    """Import what :func:`merge_campaign` imports on its first call (the NEES bands' scipy.special, ≈ 0.1 s):
-    a campaign on worker processes calls it while they compute, so that the merge after the last run is
-    shorter."""
+    """Import what :func:`merge_campaign` imports on its first call (pyarrow and the NEES bands'
+    scipy.special, ≈ 0.15 s): a campaign on worker processes calls it while they compute, so that the merge
+    after the last run is shorter."""
     from aidnav.analysis.consistency import binom_ppf, chi2_band  # lazy: pulls in scipy.special
 
+    _arrow()
     chi2_band(1, 2)
     binom_ppf(0.5, 2, 0.5)
 
 
 def _sweep_column(values: list):
+    to_arrow = _arrow()[2]
     if all(isinstance(v, str) for v in values):
         return to_arrow(values, "string")
     if all(isinstance(v, bool) for v in values):
@@ -357,6 +368,7 @@ def merge_campaign(plan, out_dir, loaded: dict | None = None) -> dict:
         process has just saved): taken from there instead of being read back from their files (the same
         arrays, so the same tables)."""
     loaded = loaded or {}
+    pa, pq, to_arrow = _arrow()
     out = Path(out_dir)
     stats = plan.experiment.statistics
     est_names = plan.estimators
@@ -429,6 +441,7 @@ def write_trajectories(out_dir, plan, truth_of, max_points: int = 2000) -> Path:
     """``DIR/trajectories.parquet``: the truth of every sweep point (``truth_of(point)`` →
     :class:`aidnav.data.Trajectory`), decimated to at most ``max_points`` samples: point, time_s,
     lat_deg, lon_deg, height_m."""
+    pa, pq, to_arrow = _arrow()
     cols: dict[str, list] = {"point": [], "time_s": [], "lat_deg": [], "lon_deg": [], "height_m": []}
     for p in plan.points:
         tr = truth_of(p)

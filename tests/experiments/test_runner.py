@@ -210,3 +210,17 @@ def test_quick_nees_tuned_consistent_mistuned_flagged(quick_campaign):
     assert all("<td>q_small</td>" in r for r in nees_rows if "INCONSISTENT (optimistic)" in r)
     assert any("<td>q_small</td>" in r and "INCONSISTENT (optimistic)" in r for r in nees_rows)
     assert not any("<td>tuned</td>" in r and "INCONSISTENT" in r for r in nees_rows)
+
+
+def test_merge_from_memory_equals_merge_from_files(tiny_file, tiny_serial, tmp_path):
+    """The campaign's merge takes the runs it has just computed from memory (``_Tally.kept``); merged from
+    their files instead (a resumed campaign, or one beyond ``KEEP_BYTES``), the tables are the same bytes."""
+    src, res = tiny_serial
+    assert res.complete
+    out = tmp_path / "from_files"
+    shutil.copytree(src / "runs", out / "runs")
+    plan = runner.load_experiment(tiny_file)
+    store.merge_campaign(plan, out)  # nothing in memory: every run read from its file
+    store.write_trajectories(out, plan, runner.point_truth)
+    _same_tables(src, out)
+    assert (src / "consistency.json").read_bytes() == (out / "consistency.json").read_bytes()

@@ -9,13 +9,15 @@
 3. the remaining runs are computed — in this process (``workers=1``), on a local process pool
    (``workers > 1``; ``backend="dask"`` uses a local Dask cluster instead) or on
    an existing Dask scheduler (``scheduler="tcp://host:8786"``) — each result is written to ``DIR/runs``
-   as it arrives (a rich progress bar shows the ETA); with local workers the first batch is computed in
-   this process, so that numba's on-disk cache is warm before the workers load it; the local process pool
-   forks its workers after that batch where the platform allows (Linux: they start with this process's
-   imports, loaded kernels and truth), else spawns them while it runs (:class:`_Pool`); the batches shrink
-   towards the end of the campaign so that the workers finish together (:func:`make_batches`);
+   as it arrives (a rich progress bar shows the ETA); the local process pool forks its workers where the
+   platform allows (Linux) as soon as this process has generated the first point's truth (they start with
+   its imports, numba's CPU target and the truth, and take every batch), else spawns them while this process
+   computes a first batch (:class:`_Pool`); a local Dask cluster's first batch is computed here, so that
+   numba's on-disk cache is warm before the workers load it; the batches shrink towards the end of the
+   campaign so that the workers finish together (:func:`make_batches`);
 4. when all runs exist, they are merged into ``runs.parquet``, ``epochs.parquet``, ``consistency.json``
-   and ``trajectories.parquet``, and ``manifest.json`` is written.
+   and ``trajectories.parquet`` (the runs computed now from memory, :class:`_Tally`), and ``manifest.json``
+   is written.
 
 Reproducibility: run k of every sweep point uses the random stream
 ``numpy.random.SeedSequence(base_seed).spawn(k + 1)[k]`` (= ``SeedSequence(base_seed, spawn_key=(k,))``),
@@ -605,8 +607,9 @@ def _compute(plan: ExperimentPlan, out: Path, todo: list[RunTask], n_total: int,
     # second campaign in one session), the first batch need not be computed here first
     inherited = backend == "processes" and START_METHOD == "fork" and bool(todo) and todo[0].key in _COMPUTED
     if len(todo) > 1 and par and not scheduler and not inherited:
-        # the first runs here: numba compiles (or loads) its kernels once and caches them on disk, so that the
-        # local workers load them (or, forked, inherit them) instead of each compiling them again
+        # the first runs here (Dask, spawn; fork: only where numba compiled, _Pool): numba compiles (or loads)
+        # its kernels once and caches them on disk, so that the local workers load them (or, forked, inherit
+        # them) instead of each compiling them again
         first = make_batches(todo[:min(2, size)], size)[0]
         todo = todo[len(first.runs):]
     todo = make_batches(todo, size, workers if par else None)

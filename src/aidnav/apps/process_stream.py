@@ -196,8 +196,7 @@ def run_process(log: ImuLog, gnss, cfg, smooth=False, outages=None, imu_name="im
     bg = Background(consume) if background else None
     events: list[str] = []
     decide_nhc = "constraints" not in cfg.model_fields_set and not cfg.constraints.nhc
-    # white or correlated GNSS errors (filters.gnss_errors), where the log is long enough to tell
-    decide_gnss = needs_first_pass(gnss, cfg) and long_enough_for_error_test(gnss, log.span[0], events)
+    decide_gnss = needs_first_pass(gnss, cfg)  # white or correlated GNSS errors (filters.gnss_errors)
     prefix = _prefix(log, DECIDE_SPAN_S) if decide_nhc or decide_gnss else None  # in memory once
     if decide_nhc:
         # no option (issue 35): the NHC decided from a first pass over the log's first DECIDE_SPAN_S
@@ -235,37 +234,6 @@ def run_process(log: ImuLog, gnss, cfg, smooth=False, outages=None, imu_name="im
     finish_summary(summary, res, applied, warnings)
     return ProcessRun(sink.whole(), summary, res, None if fwd is None else fwd.whole(), withheld, wins, gnss,
                       sink.decimated())
-
-
-#: the GNSS error model's test (:mod:`aidnav.filters.gnss_errors`) runs where the fixes it looks at hold at
-#: least this many independent samples of the errors it looks for: a first-order Gauss-Markov error of
-#: correlation time τ (:data:`~aidnav.filters.preprocess.GNSS_ERROR_TAU_S`, 30 s) sampled every Δt ≪ τ over
-#: T seconds has N(1 − ρ)/(1 + ρ) ≈ T/(2τ) independent samples (ρ = e^(−Δt/τ)); its lag-one
-#: autocorrelation, the mean of each axis removed, means little below ten of them (T < 20 τ = 600 s, the
-#: test's own span ``gnss_errors.DECIDE_SPAN_S``, over which its threshold was characterised). A choice,
-#: not fitted to a score
-MIN_ERROR_TEST_SAMPLES = 10
-
-
-def long_enough_for_error_test(gnss, t_start: float, events: list[str]) -> bool:
-    """Whether the fixes of the GNSS error model's first pass (the log's first
-    :data:`aidnav.filters.gnss_errors.DECIDE_SPAN_S`) hold :data:`MIN_ERROR_TEST_SAMPLES` independent
-    samples of a correlated error (T/(2τ), T the fixes' count × their median interval); where not, the
-    event says so (no first pass: the rate rule of ``filters.preprocess.correlated_gnss_errors`` decides)."""
-    from aidnav.filters.gnss_errors import DECIDE_SPAN_S  # lazy: the filters load with the job
-    from aidnav.filters.preprocess import GNSS_ERROR_TAU_S  # lazy: the filters load with the job
-
-    t = np.asarray(gnss.time, float)
-    t = t[t <= max(t_start, float(t[0])) + DECIDE_SPAN_S]
-    covered = len(t) * float(np.median(np.diff(t))) if len(t) > 1 else 0.0
-    samples = covered / (2.0 * GNSS_ERROR_TAU_S)
-    if samples >= MIN_ERROR_TEST_SAMPLES:
-        return True
-    events.append(f"GNSS error model: not tested (the fixes cover {covered:.0f} s, {samples:.1f} independent "
-                  f"samples of an error correlated over {GNSS_ERROR_TAU_S:g} s, fewer than "
-                  f"{MIN_ERROR_TEST_SAMPLES}: too short to tell white from correlated errors; no first "
-                  "pass); gnss.error_tau_s states the model")
-    return False
 
 
 def _checks(log: ImuLog, head, gnss, imu_name, gnss_name, skip_checks) -> list[str]:

@@ -72,10 +72,10 @@ def test_imu_gap_position_sigma_is_honest_and_useful(config):
 
 def test_matched_configuration_at_10_hz_covers_when_it_models_every_sensor_error():
     """10-Hz white fixes, the consumer IMU without its misalignments (the matched model then has no
-    misalignment term to leave out): every axis covered, 10 seeds (measured 100/100/99.7/100/100/100 %,
-    ratios 0.77-1.23, NEES/9 1.00; with only the accelerometer's misalignment removed the same). The 10-Hz
-    fixes alone do not make the filter overconfident; the cell below does not pass for the term its model
-    leaves out."""
+    misalignment term to leave out): every axis covered, 10 seeds (measured 99.9/99.6/99.8/100/99.7/100 %,
+    ratios 0.83-1.08, NEES/9 0.93; with only the accelerometer's misalignment removed from the simulated
+    IMU, gyro misalignment states kept: 99.9/99.6/99.8/100/100/100 %, NEES/9 0.97). The 10-Hz fixes alone
+    do not make the filter overconfident; the cell below fails for the one term its model leaves out."""
     cond = cm.variant(cm.condition("gnss 10 Hz white"), imu=(("misalignment_arcsec", 0.0),))
     _check(cm.run_cell(cond, "matched", SEEDS))
 
@@ -83,13 +83,13 @@ def test_matched_configuration_at_10_hz_covers_when_it_models_every_sensor_error
 @pytest.mark.xfail(strict=True, reason="issue 35 session 10 (k35g): the matched model folds the "
                    "accelerometer misalignment into the bias (m·g, exact while level), but in the drive's "
                    "first acceleration the z accelerometer's m_zx·a looks like a pitch error of m_zx in the "
-                   "vertical channel, which 10-Hz fixes resolve: pitch 92.2 % (seeds 2 and 4: 66 and 64 "
+                   "vertical channel, which 10-Hz fixes resolve: pitch 92.4 % (seeds 2 and 4: 49 and 81 "
                    "%, the pitch error moves 0.7° in 5 s at σ 0.26°); accelerometer misalignment states "
                    "(6, as the gyro's) are not in the filter")
 def test_matched_configuration_at_10_hz_covers_the_consumer_imu():
     """The consumer IMU with its 0.5° accelerometer misalignments at 10 Hz: the issue's 95 % on every
     axis (fails today, above: two seeds two-thirds out, more than the 10-seed bound's one seed; the
-    cell's mean, 92.2 %, is above the bound only because each seed is partly covered)."""
+    cell's mean, 92.4 %, is above the bound only because each seed is partly covered)."""
     _check(cm.run_cell(cm.condition("gnss 10 Hz white"), "matched", SEEDS))
 
 

@@ -153,7 +153,7 @@ def _print(r):
     print(f"{r['config']:5s} {r['shift']:+.2f} median {r['median_m']:.3f} m{ratio} RMS {r['rms_m']:.3f} "
           f"cov {100 * r['coverage']:.1f} % off {r['offset_s']:+.4f}±{r['offset_std_s']:.4f}{miss} "
           f"vd {r['vdelay_s']:+.4f} reinit {r['reinits']} {r['reinit_times']} conv "
-          f"{r.get('t_conv_s', float('nan')):.0f} s over3σ {100 * r.get('overconfident', float('nan')):.0f} % "
+          f"{r.get('t_conv_s', np.nan):.0f} s over3σ {100 * r.get('overconfident', np.nan):.0f} % "
           f"{at}\n      ends " + " ".join(f"{e:.2f}" for e in r["ends_m"]), flush=True)
 
 

@@ -92,7 +92,7 @@ from .layout import (
 from .measurements import M_GNSS_POS, M_GNSS_VEL, M_PR, MAX_ROWS, MODELS_KEY, N_MODELS, Nav, fill
 from .measurements.common import W_FIX, W_IB, W_IE, W_IN
 from .measurements.epoch import epoch_out, epoch_record, epoch_update
-from .measurements.gnss import W_FN, forget_timing, reset_time_tag
+from .measurements.gnss import W_FN, reset_time_tag
 
 # parameters of the GNSS velocity model (``Models.par[M_GNSS_VEL]``) for the heading hold after an IMU gap
 # (:func:`run_chunk`): mounting heading [rad], least speed of a course [m/s], course σ [rad], heading σ
@@ -177,12 +177,9 @@ def _reinit(st, P, ini, ix, held, cal):
     velocity is 3σ off: σ of the filter and the fix, or, when the heading was ``held`` unknown until now
     (the filter's velocity covariance, propagated with that heading, is meaningless), of the fix alone;
     the fix's time tag read with the time offset and velocity delay (``cal``: their indices and the
-    estimates, :func:`.measurements.gnss.reset_time_tag`), which are first set back to their start when
-    the heading was held (:func:`.measurements.gnss.forget_timing`).
+    estimates, :func:`.measurements.gnss.reset_time_tag`).
     ``ix`` (≥ 15,): index in P of each state of the full INS layout (−1: not in the filter, a subset)."""
     rn_ = ini.reset_nav  # layout.RN_*: the fix's velocity, position, their σ, the lever arm
-    if held:
-        forget_timing(cal[2], P, ini.P, cal)
     set_heading(st, P, ini.reset_heading, ini.reset_sigma, ix[PHI + 2], ix[PHI], ix[PHI + 1])
     dvr = np.sqrt((st[ST_VEL] - rn_[RN_VEL]) ** 2 + (st[ST_VEL + 1] - rn_[RN_VEL + 1]) ** 2)
     sv_e, sv_n = rn_[RN_SVEL], rn_[RN_SVEL + 1]

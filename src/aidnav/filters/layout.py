@@ -46,8 +46,8 @@ MIS_PAIRS = ("xy", "xz", "yx", "yz", "zx", "zy")  # gyro misalignment m_(out)(in
 # error-state blocks of the INS model (ins_errors)
 NAV = 9  # φ, δv, δp
 __all__ = ["PHI", "DV", "DP", "BG", "BA", "SG", "SA", "MG", "ST_POS", "ST_VEL", "ST_Q", "N_ST", "NAV",
-           "AUX_NAMES", "RN_VEL", "RN_POS", "RN_SVEL", "RN_SPOS", "RN_ACC", "RN_LEVER", "N_RN", "L_RERR", "L_ISB",
-           "L_TDCP", "L_TOFF", "L_MOUNT", "L_VDEL", "L_GPE", "L_FLEX", "make_layout", "layout_names",
+           "AUX_NAMES", "RN_VEL", "RN_POS", "RN_SVEL", "RN_SPOS", "RN_ACC", "RN_LEVER", "N_RN", "L_RERR",
+           "L_ISB", "L_TDCP", "L_TOFF", "L_MOUNT", "L_VDEL", "L_GPE", "L_FLEX", "make_layout", "layout_names",
            "LAYOUTS"]
 
 # the course fix of a re-initialisation event (engine ``Init.reset_nav``, N_RN,): its velocity ENU [m/s],

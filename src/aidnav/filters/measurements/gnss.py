@@ -221,18 +221,3 @@ def reset_time_tag(st, P, rn_, ix, cal):
             J[jp, itoff] = -v[k] * sc[k]
     P[:, :] = J @ P @ J.T
 
-
-@njit(cache=True)
-def forget_timing(bias, P, P0, cal):
-    """At the course alignment of a heading held unknown until then: the time offset and velocity delay
-    back to their start (estimate 0 about the configured value, prior variance, no correlation). What
-    they learnt before came from rows whose columns (v^n, a^n: :func:`gnss_position_model`,
-    :func:`gnss_velocity_model`) point along an arbitrary heading: the velocity innovation of the held
-    heading (the INS velocity integrated along the wrong direction) read as a timing error. ``cal`` as
-    :func:`reset_time_tag`'s; ``P0`` the initial covariance."""
-    for i in (cal[0], cal[1]):
-        if i >= 0:
-            bias[i - NAV] = 0.0
-            P[i, :] = 0.0
-            P[:, i] = 0.0
-            P[i, i] = P0[i, i]

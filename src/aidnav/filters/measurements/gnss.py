@@ -220,4 +220,3 @@ def reset_time_tag(st, P, rn_, ix, cal):
             k = 1 if i == 0 else (0 if i == 1 else 2)
             J[jp, itoff] = -v[k] * sc[k]
     P[:, :] = J @ P @ J.T
-

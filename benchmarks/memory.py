@@ -24,8 +24,16 @@ The streamed ``process`` converts and writes its output in a background thread w
 (:class:`aidnav.io.stream.Background`): its wall time depends on a second core being free (on the shared
 machine: ``chrt -f 1 python benchmarks/memory.py --process-only`` gives the run both cores). The growth
 from 1 h to 10 h is printed in MiB too: the ratio only holds on a smaller floor if the growth is small.
+``--per-process [N]`` (issue 41, session 10): W1 with the default outputs and ``--no-figures``, N runs each
+(default 3), alternating: per process (the command, its figures' child) the peak of its resident set (RSS),
+proportional set (PSS: a page shared with k processes counted 1/k) and unique set (USS: private pages),
+and the peaks of their sums over both, sampled every 4 ms from ``/proc/PID/smaps_rollup``, beside the
+command's ``ru_maxrss`` from ``wait4`` (Linux: the largest peak RSS of the command and the children it
+reaped, not their sum). The sums of RSS count twice the pages that parent and child share after the fork;
+PSS and USS do not, but the PSS depends on what else maps the same files (other Python processes of the
+same environment on a shared machine lower it).
 Run: ``python benchmarks/memory.py [--hours-long 10] [--evaluate-only] [--process-only]
-[--eval-csv | --eval-csv-only]``.
+[--eval-csv | --eval-csv-only] [--per-process [N]]``.
 """
 
 from __future__ import annotations
@@ -37,7 +45,9 @@ import tempfile
 import time
 from pathlib import Path
 
-W1 = Path(__file__).resolve().parents[2] / "shared" / "data" / "sim_w1_pyins"
+#: the data sets: ``$AIDNAV_DATA``, else ``../shared/data`` beside the repository
+DATA = Path(os.environ.get("AIDNAV_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"))
+W1 = DATA / "sim_w1_pyins"
 W1_CFG = Path(__file__).resolve().parents[1] / "examples" / "sim_w1_pyins.yaml"
 MIB = 1024 * 1024
 
@@ -186,7 +196,104 @@ def python_rss(code: str, cwd: Path) -> float:
     return ru.ru_maxrss / 1024.0
 
 
+_SMAPS = {"Rss:": "rss", "Pss:": "pss", "Private_Clean:": "uss", "Private_Dirty:": "uss"}
+
+
+def _smaps(pid: int) -> dict | None:
+    """RSS, PSS, USS [MiB] of a process (``/proc/PID/smaps_rollup``), None when it is gone."""
+    got = {"rss": 0.0, "pss": 0.0, "uss": 0.0}
+    try:
+        with open(f"/proc/{pid}/smaps_rollup") as f:
+            for line in f:
+                k = _SMAPS.get(line.split(maxsplit=1)[0])
+                if k:
+                    got[k] += int(line.split()[1]) / 1024.0
+    except OSError:
+        return None
+    return got
+
+
+def _children(pid: int) -> list[int]:
+    try:
+        with open(f"/proc/{pid}/task/{pid}/children") as f:
+            return [int(c) for c in f.read().split()]
+    except OSError:
+        return []
+
+
+def per_process(args, figures: bool) -> dict:
+    """Peaks of RSS/PSS/USS of ``aidnav process ARGS`` and of its figures' child, and of their sums,
+    sampled every 4 ms; ``maxrss``: the command's ``ru_maxrss`` (``wait4``)."""
+    import threading  # lazy: this mode only
+
+    env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1")
+    cmd = [sys.executable, "-c", "from aidnav.cli import main; main()", "process", *map(str, args)]
+    if not figures:
+        cmd.append("--no-figures")
+    p = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    peak: dict = {}
+    stop = threading.Event()
+
+    def sample():
+        while not stop.wait(0.004):
+            tot = {"rss": 0.0, "pss": 0.0, "uss": 0.0}
+            for role, q in [("command", p.pid), *(("child", c) for c in _children(p.pid))]:
+                m = _smaps(q)
+                if m is None:
+                    continue
+                for k, v in m.items():
+                    peak[role, k] = max(peak.get((role, k), 0.0), v)
+                    tot[k] += v
+            for k, v in tot.items():
+                peak["sum", k] = max(peak.get(("sum", k), 0.0), v)
+
+    t = threading.Thread(target=sample, daemon=True)
+    t.start()
+    _, status, ru = os.wait4(p.pid, 0)
+    stop.set()
+    t.join()
+    err = p.stderr.read().decode()
+    p.stderr.close()
+    if status != 0:
+        raise SystemExit(f"aidnav process failed:\n{err}")
+    peak["maxrss"] = ru.ru_maxrss / 1024.0
+    return peak
+
+
+def per_process_rows(d: Path, n: int) -> None:
+    """W1, default outputs and ``--no-figures`` alternately, ``n`` runs each: medians of the peaks."""
+    import statistics  # lazy: this mode only
+
+    a = ["--imu", W1 / "imu.parquet", "--gnss", W1 / "gnss.csv", "--config", W1_CFG, "-o", d / "w1"]
+    run(a)  # warm the numba cache
+    got = {True: [], False: []}
+    for _ in range(n):
+        for fig in (True, False):
+            got[fig].append(per_process(a, fig))
+    for fig, name in ((True, "default outputs"), (False, "--no-figures")):
+        rs = got[fig]
+
+        def med(key, rs=rs):
+            return statistics.median(r.get(key, 0.0) for r in rs)
+
+        mx = [r["maxrss"] for r in rs]
+        print(f"W1 {name}: ru_maxrss {min(mx):.1f}–{max(mx):.1f} MiB (median {statistics.median(mx):.1f}; "
+              f"target ≤ 300 MiB with the default outputs); medians of {n} runs [MiB]:")
+        for role in ("command", "child", "sum"):
+            if (role, "rss") in rs[0]:
+                print(f"  {role:8s} RSS {med((role, 'rss')):6.1f}  PSS {med((role, 'pss')):6.1f}  "
+                      f"USS {med((role, 'uss')):6.1f}")
+
+
 def main() -> None:
+    if "--per-process" in sys.argv:
+        k = sys.argv.index("--per-process") + 1
+        n = int(sys.argv[k]) if k < len(sys.argv) and sys.argv[k].isdigit() else 3
+        print(f"load average {' '.join(f'{x:.2f}' for x in os.getloadavg())} (2 cores shared)")
+        with tempfile.TemporaryDirectory() as td:
+            per_process_rows(Path(td), n)
+        print(f"load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+        return
     long_h = float(sys.argv[sys.argv.index("--hours-long") + 1]) if "--hours-long" in sys.argv else 10.0
     if "--evaluate-only" in sys.argv:  # only the evaluate rows (no W1)
         with tempfile.TemporaryDirectory() as td:

@@ -129,9 +129,15 @@ def bench_cli(runs: int, workers: int, out: Path) -> dict:
     man = json.loads((out / "campaign" / "manifest.json").read_text())
     samples = runs * 180_000
     cpu = (ch1.ru_utime + ch1.ru_stime) - (ch0.ru_utime + ch0.ru_stime)
+    tm = man.get("timings", {})
     return {"wall_s": wall, "runs": runs, "runs_per_s": runs / wall, "samples": samples,
             "samples_per_s": samples / wall, "campaign_cpu_s": cpu, "backend": man.get("backend"),
-            "load": os.getloadavg()[0]}
+            "load": os.getloadavg()[0],
+            # where the wall went: the command's start (interpreter, imports, the experiment read) until the
+            # campaign's clock starts, the runs (the workers' start and the first point's truth included),
+            # the merge (tables, trajectories), and the rest (manifest, summary, exit)
+            "start_s": wall - tm.get("wall_s", wall), "compute_wall_s": tm.get("compute_wall_s"),
+            "merge_s": tm.get("merge_s")}
 
 
 def main():
@@ -176,7 +182,11 @@ def main():
                       f"{r['samples_per_s']:,.0f} IMU samples/s (wall from the command's start, load average "
                       f"{r['load']:.1f}; {'meets' if r['samples_per_s'] >= TARGET else 'below'} the "
                       f"{TARGET:,} target); CPU {r['campaign_cpu_s']:.2f} s: on 2 free cores "
-                      f"{2 * c_all:,.0f} samples/s")
+                      f"{2 * c_all:,.0f} samples/s (serial phases aside)")
+                if r["compute_wall_s"] is not None:
+                    print(f"  wall: command start to the campaign {r['start_s']:.2f} s, runs "
+                          f"{r['compute_wall_s']:.2f} s, merge {r['merge_s']:.2f} s, rest "
+                          f"{r['wall_s'] - r['start_s'] - r['compute_wall_s'] - r['merge_s']:.2f} s")
                 continue
             ser = b.startswith("serial")
             kw = {"backend": "serial" if ser else b, "workers": 1 if ser else args.workers,

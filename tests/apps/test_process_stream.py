@@ -263,3 +263,71 @@ def test_no_option_decision_holds_a_bounded_prefix():
     p = ps._prefix(pi.ImuLog(chunks, (t[0], t[-1]), len(t)), ps.DECIDE_SPAN_S)
     assert p.time[0] == t[0] and ps.DECIDE_SPAN_S - 0.011 < p.time[-1] - p.time[0] <= ps.DECIDE_SPAN_S
     assert np.all(np.diff(p.time) > 0) and len(read) == 7  # 7 × 200 s chunks cover 1200 s (+ the cut one)
+
+
+def test_passes_share_one_reader(tmp_path, monkeypatch):
+    """Every pass over a streamed log (the checks, the first passes, the run) gets the chunks one reader
+    reads (the file decoded once), the same chunks a reader of its own gives. Past SHARED_ROWS samples
+    the chunks behind the passes are dropped (a pass that starts then reads the file anew), and a pass
+    lagging behind one that reads on past the cap gets a reader of its own (the buffer stays bounded)."""
+    import aidnav.io.stream as st
+
+    real, opened = st.iter_imu, []
+
+    def counting(path, rows, reader=None):
+        opened.append(rows)
+        return real(path, rows, reader)
+
+    imu_p, _, _ = static_log(tmp_path, 60, row_group=2500)
+    ref = list(real(imu_p, 700))  # 9 chunks (the last 400 rows)
+    monkeypatch.setattr(st, "iter_imu", counting)
+    monkeypatch.setattr(pi, "CHUNK_ROWS", 700)
+    monkeypatch.setattr(pi, "CHECK_ROWS", 2000)
+    monkeypatch.setattr(pi, "SHARED_ROWS", 3000)
+
+    def same(got, want):
+        assert len(got) == len(want)
+        for a, b in zip(got, want, strict=True):
+            assert a.t0 == b.t0 and all(np.array_equal(getattr(a, k), getattr(b, k)) for k in ("time", "dv"))
+
+    log = pi.open_imu(imu_p)
+    run = log.chunks()
+    head = next(run)
+    check = log.check_head()  # chunks 0–2 from the run's reader
+    first = [c for _, c in zip(range(4), log.chunks(), strict=False)]  # 2800 rows: within the cap
+    assert len(opened) == 1 and first[0] is head
+    np.testing.assert_array_equal(check.time, np.concatenate([c.time for c in ref])[:2000])
+    got = [head, *run]  # past the cap with no other pass: the chunks behind it dropped
+    same(got, ref)
+    assert len(opened) == 1 and log._chunks.__self__.rows <= 700
+    same(list(log.chunks()), ref)  # the first chunks gone: a reader of its own
+    assert len(opened) == 2
+
+    log = pi.open_imu(imu_p)
+    run = log.chunks()
+    head = next(run)
+    whole = list(log.chunks())  # reads on past the cap: the run, behind it, gets a reader of its own
+    same(whole, ref)
+    same([head, *run], ref)
+    assert len(opened) == 4 and log._chunks.__self__.rows <= 700
+
+
+def test_shared_reader_error_reaches_every_pass(tmp_path, monkeypatch):
+    """A bad row found by one pass over the shared reader is the error of every pass that reaches it (no
+    pass sees the log cut short there)."""
+    from aidnav.io.errors import DataError
+
+    imu_p, _, _ = static_log(tmp_path, 30)
+    t = pq.read_table(imu_p)
+    dv = t["dv_x_m_s"].to_numpy(zero_copy_only=False).copy()
+    dv[2200] = np.nan
+    bad = tmp_path / "bad.parquet"
+    pq.write_table(t.set_column(t.schema.get_field_index("dv_x_m_s"), "dv_x_m_s", pa.array(dv)), bad)
+    monkeypatch.setattr(pi, "CHUNK_ROWS", 700)
+    log = pi.open_imu(bad)
+    run = log.chunks()
+    next(run)
+    with pytest.raises(DataError, match="line 2201|row 2201|2201"):
+        list(log.chunks())
+    with pytest.raises(DataError, match="2201"):
+        list(run)

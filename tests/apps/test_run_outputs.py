@@ -11,7 +11,7 @@ import pytest
 
 import aidnav.apps.run_outputs as ro
 from aidnav.analysis.consistency import chi2_band
-from aidnav.apps.process import process_logs
+from aidnav.apps.process import job_config, process_logs
 
 from .test_process_stream import static_log
 
@@ -21,10 +21,18 @@ FILES = ("overview.png", "run.html", "trajectory.kml", "trajectory.geojson", "su
 
 @pytest.mark.skipif(not ro.FORK_OUTPUTS, reason="the figures' process is forked on Linux only")
 def test_forked_outputs_are_the_in_process_bytes(tmp_path):
+    """... with the overview's skeleton built by the child before the job (the panels guessed right)."""
+    from aidnav.report.overview import panel_names
+
     imu, gnss, cfg = static_log(tmp_path, 30)
     child = ro.OutputsProcess()  # the path under test: a forked child draws
     out = tmp_path / "o"  # (the page names the output folder: the same folder for both)
+    sent = []
+    child.send = lambda *job, send=child.send: (sent.append(job), send(*job))[1]
     process_logs(imu, gnss, cfg, out, outages=["10:5"], figures=child, timings=False)
+    _, traj, fixes, _, records = sent[0]
+    use = job_config(cfg, None, None, None, None, None, None)[0].gnss.use
+    assert ro.expected_panels(use, fixes.vel is not None) == panel_names(traj, fixes, records)
     forked = {name: (out / name).read_bytes() for name in FILES}
     shutil.rmtree(out)
     process_logs(imu, gnss, cfg, out, outages=["10:5"], figures=ro.IN_PROCESS, timings=False)

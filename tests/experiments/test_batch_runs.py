@@ -112,11 +112,12 @@ def test_make_batches_shrink_for_workers():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("method,warm", [("spawn", True), ("fork", True), ("fork", False)])
-def test_process_pool_start_methods(tiny_file, tiny_serial, tmp_path, monkeypatch, method, warm):
+@pytest.mark.parametrize("method,warm,cold_cache", [("spawn", True, False), ("fork", True, False),
+                                                    ("fork", False, False), ("fork", False, True)])
+def test_process_pool_start_methods(tiny_file, tiny_serial, tmp_path, monkeypatch, method, warm, cold_cache):
     """The local process pool gives the serial tables whether its workers are forked (Linux default: they
-    inherit the loaded kernels and truth; after a first batch here unless this process has computed the
-    point before) or spawned (they get the truth pickled from the main process)."""
+    inherit the truth generated here and take every batch; after a first batch here where numba had to
+    compile, ``cold_cache``) or spawned (they get the truth pickled from the main process)."""
     import multiprocessing
 
     from .test_runner import _same_tables
@@ -126,6 +127,7 @@ def test_process_pool_start_methods(tiny_file, tiny_serial, tmp_path, monkeypatc
     monkeypatch.setattr(runner, "START_METHOD", method)
     if not warm:
         monkeypatch.setattr(runner, "_COMPUTED", set())
+    monkeypatch.setattr(runner, "_compiled_here", lambda: cold_cache)
     seen = []
 
     class Pool(runner._Pool):  # records the runs computed in this process before the workers take over
@@ -138,7 +140,7 @@ def test_process_pool_start_methods(tiny_file, tiny_serial, tmp_path, monkeypatc
     r = runner.run_experiment(tiny_file, out, workers=2, backend="processes", progress=False, batch=2)
     assert r.complete and r.computed == 6
     _same_tables(tiny_serial[0], out)
-    assert seen == [[] if method == "fork" and warm else [0, 1]]
+    assert seen == [[0, 1] if method == "spawn" or cold_cache else []]
 
 
 @pytest.mark.parametrize("case", ["plain", "nan rows", "zero variance", "negative variance"])

@@ -11,7 +11,7 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from aidnav.experiments import runner, store
+from aidnav.experiments import run_inputs, runner, store
 from aidnav.experiments.runner import CampaignInterrupted, run_experiment
 
 TABLES = ("runs.parquet", "epochs.parquet")
@@ -166,7 +166,10 @@ def test_more_runs_reuses_the_first_ones(tiny_file, tiny_serial, tmp_path):
     assert a.equals(b)
 
 
-def test_gnss_template_matches_simulate_gnss():
+@pytest.mark.parametrize("rate_hz,latency_s", [(5, 0.3), (1, 0.0), (2, 0.3), (2, 0.013), (50, 0.0)])
+def test_gnss_template_matches_simulate_gnss(rate_hz, latency_s):
+    from dataclasses import replace
+
     from aidnav.sim.gnss import GnssSpec, simulate_gnss
     from aidnav.sim.scenario import parse_scenario
     from aidnav.sim.trajectory import generate_truth
@@ -176,9 +179,15 @@ def test_gnss_template_matches_simulate_gnss():
                           "segments": [{"type": "straight", "duration_s": 10},
                                        {"type": "u_turn", "duration_s": 10}]})
     truth, _, _ = generate_truth(scn)
-    spec = GnssSpec(rate_hz=5, sigma_pos_enu=[1, 2, 3], sigma_vel_enu=[0.1, 0.2, 0.3],
-                    lever_arm_b=[0.3, 1.0, 0.5], outages=[(3.0, 2.5)], latency_s=0.3)
+    spec = GnssSpec(rate_hz=rate_hz, sigma_pos_enu=[1, 2, 3], sigma_vel_enu=[0.1, 0.2, 0.3],
+                    lever_arm_b=[0.3, 1.0, 0.5], outages=[(3.0, 2.5)], latency_s=latency_s)
     tmpl = runner.GnssTemplate.build(truth, spec)
+    base = simulate_gnss(truth, replace(spec, sigma_pos_enu=np.zeros(3), sigma_vel_enu=np.zeros(3)),
+                         np.random.default_rng(0))
+    for k in ("time", "lat", "lon", "height", "vel"):  # from the samples around the fixes: the same bits
+        assert np.array_equal(getattr(tmpl.base, k), getattr(base, k)), k
+    sub = run_inputs._around(truth, tmpl.base.time, latency_s)
+    assert (len(sub) < len(truth) / 2) == (rate_hz <= 2)  # the samples around (else the whole truth)
     for seed in (1, 2):
         a = simulate_gnss(truth, spec, np.random.default_rng(seed))
         b = tmpl.draw(np.random.default_rng(seed))
@@ -210,3 +219,17 @@ def test_quick_nees_tuned_consistent_mistuned_flagged(quick_campaign):
     assert all("<td>q_small</td>" in r for r in nees_rows if "INCONSISTENT (optimistic)" in r)
     assert any("<td>q_small</td>" in r and "INCONSISTENT (optimistic)" in r for r in nees_rows)
     assert not any("<td>tuned</td>" in r and "INCONSISTENT" in r for r in nees_rows)
+
+
+def test_merge_from_memory_equals_merge_from_files(tiny_file, tiny_serial, tmp_path):
+    """The campaign's merge takes the runs it has just computed from memory (``_Tally.kept``); merged from
+    their files instead (a resumed campaign, or one beyond ``KEEP_BYTES``), the tables are the same bytes."""
+    src, res = tiny_serial
+    assert res.complete
+    out = tmp_path / "from_files"
+    shutil.copytree(src / "runs", out / "runs")
+    plan = runner.load_experiment(tiny_file)
+    store.merge_campaign(plan, out)  # nothing in memory: every run read from its file
+    store.write_trajectories(out, plan, runner.point_truth)
+    _same_tables(src, out)
+    assert (src / "consistency.json").read_bytes() == (out / "consistency.json").read_bytes()

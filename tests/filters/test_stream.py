@@ -157,13 +157,19 @@ def test_stream_automatic_init_time_offset_and_gap():
     assert res.counts == ref.counts
 
 
-@pytest.mark.parametrize("smooth", [False, True])
-def test_one_chunk_is_the_whole_log_filter(smooth):
+@pytest.mark.parametrize("smooth, engine_rows", [(False, None), (True, None), (True, 777)])
+def test_one_chunk_is_the_whole_log_filter(smooth, engine_rows, monkeypatch):
     """The log as one chunk (what ``aidnav process`` runs on a log in memory or any file but interchange
     Parquet) is run_loose bit for bit, also where the head's statistics would differ from the whole
     log's: 50 Hz for 40 s, then 25 Hz (increments of sample pairs joined: the whole log's median interval
     is 0.04 s, the first minute's 0.02 s), a 0.2-s gap, automatic initialisation, the time-offset state
-    (outputs spooled and shifted) and, with ``smooth``, the spooled RTS pass."""
+    (outputs spooled and shifted) and, with ``smooth``, the spooled RTS pass. With ``engine_rows`` the
+    chunk is run in engine calls of that many samples (:data:`aidnav.filters.stream.ENGINE_ROWS`: a long
+    chunk's memory bounded), the head statistics still the whole chunk's: the same numbers."""
+    import aidnav.filters.stream as fs
+
+    if engine_rows:
+        monkeypatch.setattr(fs, "ENGINE_ROWS", engine_rows)
     truth, imu, gnss, spec, gs, _ = _log(seed=5)
     k = 2000 + (len(imu) - 2000) // 2 * 2
     time = np.concatenate([imu.time[:2000], imu.time[2001:k:2]])

@@ -11,7 +11,14 @@ from scipy.stats import chi2
 
 from aidnav.analysis.consistency import chi2_band
 from aidnav.data import GnssData, Trajectory
-from aidnav.report.overview import nis_series, overview_figure, tight_records, write_overview
+from aidnav.report.overview import (
+    Skeleton,
+    nis_series,
+    overview_figure,
+    panel_names,
+    tight_records,
+    write_overview,
+)
 
 
 def _run(n=3000, m=300, seed=0):
@@ -139,3 +146,23 @@ def test_write_overview_png_width(tmp_path):
     with pytest.raises(ValueError, match="empty"):
         write_overview(tmp_path / "e.png", Trajectory(*(np.zeros((0,)),) * 4, np.zeros((0, 3)),
                                                       np.zeros((0, 3))))
+
+
+def test_primed_skeleton_draws_the_same_png(tmp_path):
+    """The figures' child builds and draws the overview's skeleton before the run's numbers come: the PNG
+    is the one drawn in one go, byte for byte (outages, a rejected fix, both NIS panels); a skeleton of
+    other panels, or one used already, is not used."""
+    tr, g, rec = _run()
+    wins = [[g.time[100], g.time[130]]]
+    summary = {"imu": "/x/imu.csv", "gnss": "/x/gnss.pos", "outage_windows": wins}
+    one_go = write_overview(tmp_path / "a.png", tr, g, summary, rec).read_bytes()
+    right = panel_names(tr, g, rec)
+    assert right == ["rp", "heading", "spos", "satt", "nis:pos", "nis:vel"]
+    sk = Skeleton(right)
+    sk.prime()
+    assert write_overview(tmp_path / "b.png", tr, g, summary, rec, skeleton=sk).read_bytes() == one_go
+    assert sk.used
+    fig = overview_figure(tr, g, summary, rec, skeleton=sk)  # used already: a new figure
+    assert fig is not sk.fig
+    other = Skeleton(right[:-1])
+    assert overview_figure(tr, g, summary, rec, skeleton=other) is not other.fig and not other.used

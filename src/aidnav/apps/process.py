@@ -91,7 +91,12 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
     :data:`aidnav.filters.aids.AIDS`), read by its aid's reader with the settings of its configuration
     section; the summary names each aid's file under the aid's name. imu_topic, gnss_topic,
     gnss_vel_topic : the topics of ROS bags (``--imu-topic``, ``--gnss-topic``, ``--gnss-vel-topic``)."""
-    from aidnav.apps.run_outputs import start_outputs, write_outputs  # lazy: the figures' fork
+    from aidnav.apps.run_outputs import (  # lazy: the figures' fork
+        OutputsProcess,
+        expected_panels,
+        start_outputs,
+        write_outputs,
+    )
     from aidnav.filters.aids import AIDS, read_aid  # lazy: the filters load with the job
     from aidnav.io.sanity import validate_skip  # lazy: with the job
     from aidnav.progress import NullProgress  # lazy: rich
@@ -118,6 +123,8 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
     cfg = cfg.model_copy(update={"gnss": cfg.gnss.model_copy(update={"height_offset_m": 0.0})})
     if len(gnss) < 1:
         raise DataError(gnss_path, None, "no GNSS fixes")
+    if isinstance(figures, OutputsProcess):  # the child builds the overview's skeleton while this filters
+        figures.expect(expected_panels(cfg.gnss.use, gnss.vel is not None))
     aids = [read_aid(name, path, cfg) for name, path in aid_paths]  # times on the GNSS time scale
     log = open_imu(imu_path, topic=imu_topic)  # Parquet in batches; any other format read whole
     bar.advance(1)

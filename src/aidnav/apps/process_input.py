@@ -3,12 +3,17 @@ time order (:class:`ImuLog`), whatever holds it, with the IMU time offset and th
 (``--start/--end``) applied to the chunks as they come.
 
 An interchange Parquet file is read in batches of :data:`CHUNK_ROWS` samples
-(:func:`aidnav.io.stream.iter_imu`: memory independent of the log length); any other format, and a log
-already in memory, is one chunk: the run is then the whole-log filter, number for number (its two head
-statistics, the nominal sample interval and the static window's rate, are the whole log's).
+(:func:`aidnav.io.stream.iter_imu`: memory independent of the log length) by one reader that every pass
+over the log shares (:class:`_Shared`: the checks' and the first passes' look at the log's head, then the
+run, all from one decoding of the file: a second reader would hold its own pages of every column, ≈ 15 MB
+on a one-row-group log); any other format, and a log already in memory, is one chunk: the run is then the
+whole-log filter, number for number (its two head statistics, the nominal sample interval and the static
+window's rate, are the whole log's).
 """
 
 from __future__ import annotations
+
+import weakref
 
 import numpy as np
 
@@ -18,6 +23,10 @@ from aidnav.errors import InputError
 CHUNK_ROWS = 1 << 13  #: IMU samples per chunk of a file read in batches (≈ 1.3 kB of buffers a sample)
 #: IMU samples the motion checks compare with the GNSS when the chunks are smaller (10 min at 100 Hz)
 CHECK_ROWS = 60_000
+#: the chunks read from a file are kept for the passes that start later (the checks, the first passes over
+#: the log's first 20 min) while they hold at most this many samples (≈ 7 MB; 21 min at 100 Hz), and
+#: dropped once every pass is beyond them
+SHARED_ROWS = 1 << 17
 
 
 class ImuLog:
@@ -97,6 +106,95 @@ def _first_rows(chunks, n: int) -> ImuData:
     return ImuData(t, dth, dv, t0=chunks[0].t0, events=list(chunks[0].events), week=chunks[0].week)
 
 
+class _Shared:
+    """The chunks of one reader (``make()``: a new iterator over the file's chunks) shared by every pass
+    over the log. The chunks read are kept while they hold at most :data:`SHARED_ROWS` samples; past
+    that only those a live pass has yet to reach, and a pass that lags behind the one reading on is
+    given a reader of its own (the buffer never holds more than the first passes' span, or the cap). A
+    pass that starts after the log's first chunks were dropped reads the file anew. The chunks are the
+    same objects in every pass: no consumer changes their arrays in place (they stay writable: numba's
+    kernels are compiled for writable arrays)."""
+
+    def __init__(self, make, hold_rows: int | None = None):
+        self.make, self.hold = make, SHARED_ROWS if hold_rows is None else int(hold_rows)
+        self.src, self.buf, self.first, self.rows, self.done, self.spilled = None, [], 0, 0, False, False
+        self.error = None
+        self.passes = weakref.WeakSet()
+
+    def chunks(self):
+        if self.first > 0:  # the log's first chunks are gone: this pass reads the file itself
+            return self.make()
+        p = _Pass(self)
+        self.passes.add(p)
+        return p
+
+    def get(self, p: _Pass):
+        """The next chunk of the pass ``p`` (None past the end), read from the file when not read yet."""
+        i = p.i
+        while i >= self.first + len(self.buf) and not self.done:
+            if self.error is not None:  # the file's error (a bad row): every pass that reaches it
+                raise self.error
+            if self.src is None:
+                self.src = self.make()
+            try:
+                c = next(self.src, None)
+            except Exception as e:
+                self.error, self.src = e, None
+                raise
+            if c is None:
+                self.done, self.src = True, None
+                break
+            self.buf.append(c)
+            self.rows += len(c)
+            self.spilled = self.spilled or self.rows > self.hold
+            if self.spilled:
+                self._detach_behind(p)
+        k = i - self.first
+        return self.buf[k] if 0 <= k < len(self.buf) else None
+
+    def _detach_behind(self, p: _Pass) -> None:
+        """Past the cap, reading on for ``p``: the passes behind it read on with readers of their own."""
+        for q in list(self.passes):
+            if q is not p and q.i < p.i:
+                q.own = _skip(self.make(), q.i)
+                self.passes.discard(q)
+
+    def drop(self) -> None:
+        """Past the cap: the chunks before every live pass dropped."""
+        if self.spilled:
+            low = min((q.i for q in self.passes), default=self.first + len(self.buf))
+            while self.buf and self.first < low:
+                self.rows -= len(self.buf.pop(0))
+                self.first += 1
+
+
+def _skip(it, n: int):
+    """The iterator ``it`` after its first ``n`` items."""
+    for _ in range(n):
+        next(it, None)
+    return it
+
+
+class _Pass:
+    """One pass over a :class:`_Shared` log's chunks (an iterator; ``i`` the next chunk's index; ``own``
+    its own reader once detached)."""
+
+    def __init__(self, shared: _Shared):
+        self.shared, self.i, self.own = shared, 0, None
+
+    def __iter__(self):
+        return self
+
+    def __next__(self):
+        c = self.shared.get(self) if self.own is None else next(self.own, None)
+        if c is None:
+            raise StopIteration
+        self.i += 1
+        if self.own is None:
+            self.shared.drop()
+        return c
+
+
 def open_imu(path, topic: str | None = None, chunk_rows: int | None = None) -> ImuLog:
     """The IMU log of a file: an interchange Parquet file in batches of ``chunk_rows`` samples (default
     :data:`CHUNK_ROWS`), any other format (a ROS bag: its ``topic``) read whole as one chunk."""
@@ -112,7 +210,7 @@ def open_imu(path, topic: str | None = None, chunk_rows: int | None = None) -> I
         span = imu_time_span(path) if fmt == "interchange" else None  # (its message: a bad time column)
     if span is not None:
         rows = chunk_rows or CHUNK_ROWS
-        return ImuLog(lambda: iter_imu(path, rows), span, _parquet_rows(path))
+        return ImuLog(_Shared(lambda: iter_imu(path, rows)).chunks, span, _parquet_rows(path))
     imu = read_imu(path, topic=topic)
     if len(imu) < 2:
         from aidnav.io.errors import DataError  # lazy: only on this error

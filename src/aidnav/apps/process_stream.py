@@ -221,6 +221,7 @@ def run_process(log: ImuLog, gnss, cfg, smooth=False, outages=None, imu_name="im
             bg.abort()  # the thread stopped before the caller closes what it writes to
         raise
     t_filt = _time.perf_counter() - t0
+    trim_heap()  # the run's temporaries freed: what follows (summary, maps, figures' job) starts lower
     if pieces is not None:
         _whole_result(res, pieces)
     offset_event = [f"IMU time offset {applied:+.4f} s added to the IMU stamps"] if applied else []

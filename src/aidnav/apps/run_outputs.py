@@ -5,7 +5,11 @@ with its :class:`aidnav.apps.characterise.FigureProcess`), a child that imports 
 modules and loads the default font while the parent reads the logs and runs the filter. The command
 forks it first thing, before numba and the filters load: the child needs neither (the report draws with
 :mod:`aidnav.nav.plain`), so it costs no numba import and no kernel load, and holds none of their memory.
-After the filter, :func:`write_outputs` sends the child what the page needs (the decimated trajectory, the
+Once the configuration and the fixes are read, the parent tells the child which panels the overview will
+have (:meth:`OutputsProcess.expect`, :func:`expected_panels`); the child builds and draws that figure's
+:class:`aidnav.report.overview.Skeleton` (figure, axes, labels, scales, grids: everything that does not
+depend on the run's numbers) while the filter runs. After the filter, :func:`write_outputs` sends the
+child what the page needs (the decimated trajectory, the
 fixes, the summary, the innovation records: a few MB through a pipe); the child draws ``overview.png``
 and writes ``run.html`` while the parent writes the maps (``trajectory.kml``, ``trajectory.geojson``);
 the parent then waits for the child and raises its error, with the child's traceback as a note. The
@@ -25,7 +29,8 @@ import weakref
 
 from .forked import error_answer, fork_worker, worker_answer
 
-__all__ = ["OutputsProcess", "start_outputs", "write_outputs", "FORK_OUTPUTS", "IN_PROCESS"]
+__all__ = ["OutputsProcess", "start_outputs", "write_outputs", "expected_panels", "FORK_OUTPUTS",
+           "IN_PROCESS"]
 
 #: draw in a forked child process (Linux; elsewhere: in this process after the filter)
 FORK_OUTPUTS = sys.platform.startswith("linux") and hasattr(os, "fork")
@@ -49,26 +54,57 @@ def _warm_up() -> None:
     font_manager.get_font(font_manager.findfont(font_manager.FontProperties()))
 
 
+def _skeleton(panels):
+    """The overview's :class:`~aidnav.report.overview.Skeleton` for ``panels``, drawn once; None where that
+    fails (the figure is then built after the run, and its error reported there)."""
+    try:
+        from aidnav.report.overview import Skeleton  # lazy: matplotlib (loaded by the warm-up)
+
+        skeleton = Skeleton(panels)
+        skeleton.prime()
+        return skeleton
+    except Exception:  # noqa: BLE001  (built again after the run, where an error is reported)
+        return None
+
+
 def _serve(job_fd: int):
-    """The child's work: warm up, then read one job (out_dir, traj, gnss, summary, records) and write the
-    overview and the page. Returns ("ok", paths), ("error", pickled exception or None, traceback) or None
-    (the parent closed the pipe without a job)."""
+    """The child's work: warm up, read the expected panels (:meth:`OutputsProcess.expect`, optional) and
+    build their skeleton, then read one job (out_dir, traj, gnss, summary, records) and write the overview
+    and the page. Returns ("ok", paths), ("error", pickled exception or None, traceback) or None (the
+    parent closed the pipe without a job)."""
     try:
         _warm_up()
     except Exception:  # noqa: BLE001  (the same import fails again below, and is reported)
         pass
+    skeleton = None
     with os.fdopen(job_fd, "rb") as f:
         try:
             job = pickle.load(f)
+            if len(job) == 2 and job[0] == _PANELS:  # (a job has 5 items: its out_dir may be "panels")
+                skeleton = _skeleton(job[1])
+                job = pickle.load(f)
         except EOFError:
             return None
     try:
         from aidnav.report.run_page import write_run_outputs  # lazy: matplotlib (loaded by the warm-up)
 
         out_dir, traj, gnss, summary, records = job
-        return "ok", write_run_outputs(out_dir, traj, gnss, summary, records, maps=False)
+        return "ok", write_run_outputs(out_dir, traj, gnss, summary, records, maps=False, skeleton=skeleton)
     except BaseException as e:  # noqa: BLE001  (raised in the parent)
         return error_answer(e)
+
+
+_PANELS = "panels"  #: the first word of the message of :meth:`OutputsProcess.expect`
+
+
+def expected_panels(use: str, has_velocity: bool) -> list[str]:
+    """The right column of the overview (:func:`aidnav.report.overview.panel_names`) that a loosely
+    coupled run gives, known before the run: roll/pitch, heading, position and attitude 1σ, a NIS panel
+    for the positions (``use`` of the GNSS configuration: both, position) and one for the velocities
+    (both, velocity, where the fixes have them). A guess: the child builds the figure afresh where the run
+    gives other panels (a measurement type without any update has none)."""
+    return ["rp", "heading", "spos", "satt"] + ["nis:pos"] * (use != "velocity") + \
+        ["nis:vel"] * (use != "position" and has_velocity)
 
 
 def _end(pid: int, fds: list) -> None:
@@ -95,6 +131,17 @@ class OutputsProcess:
         self._res_r = res_r
         self._sender = None
         self._finalizer = weakref.finalize(self, _end, pid, [self._job_w, res_r])
+
+    def expect(self, panels: list[str]) -> None:
+        """Tell the child the overview's panels (:func:`expected_panels`) before the job: it builds their
+        skeleton while this process runs the filter. At most once, before :meth:`send`."""
+        if self._job_w is None:
+            raise RuntimeError("OutputsProcess: expect after send")
+        try:
+            self._job_w.write(pickle.dumps((_PANELS, list(panels))))  # a few bytes: the pipe takes them now
+            self._job_w.flush()
+        except (BrokenPipeError, OSError):  # the child is gone: its status is reported by result()
+            pass
 
     def send(self, out_dir, traj, gnss, summary, records) -> None:
         """The job: the child draws from these (pickled now: later changes are not seen)."""

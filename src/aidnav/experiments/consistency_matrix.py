@@ -237,9 +237,10 @@ def config_for(name: str, cond: Condition, run: SimRun, sensor_model: bool = Tru
     pos_s, vel_s, att_s = (1.0, 1.0, 1.0), (0.1, 0.1, 0.1), (0.5, 0.5, 3.0)
     lla, vel, rph = perturbed_initial_state(run.truth, np.random.default_rng([run.seed, 36]), pos_s, vel_s,
                                             att_s)
-    over = {}
-    if cond.correlated:
-        over["gnss"] = {"error_tau_s": GM_TAU_S, "error_sigma_m": GM_SIGMA_M}
+    # the simulated fixes' errors as they are: Gauss–Markov where the condition makes them so, white
+    # otherwise (stated: unstated, a 10-Hz log gets the rate's Gauss–Markov states, a 1-Hz one a first pass)
+    over = {"gnss": {"error_tau_s": GM_TAU_S, "error_sigma_m": GM_SIGMA_M} if cond.correlated
+            else {"error_tau_s": 0.0}}
     return loose_config_from_specs(run.imu_spec, run.gnss_spec, init_rph_deg=rph, init_lla_deg_m=lla,
                                    init_vel=vel, position_sigma_m=pos_s, velocity_sigma_m_s=vel_s,
                                    attitude_sigma_deg=att_s, sensor_model=sensor_model, **over)

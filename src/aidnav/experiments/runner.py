@@ -9,13 +9,15 @@
 3. the remaining runs are computed — in this process (``workers=1``), on a local process pool
    (``workers > 1``; ``backend="dask"`` uses a local Dask cluster instead) or on
    an existing Dask scheduler (``scheduler="tcp://host:8786"``) — each result is written to ``DIR/runs``
-   as it arrives (a rich progress bar shows the ETA); with local workers the first batch is computed in
-   this process, so that numba's on-disk cache is warm before the workers load it; the local process pool
-   forks its workers after that batch where the platform allows (Linux: they start with this process's
-   imports, loaded kernels and truth), else spawns them while it runs (:class:`_Pool`); the batches shrink
-   towards the end of the campaign so that the workers finish together (:func:`make_batches`);
+   as it arrives (a rich progress bar shows the ETA); the local process pool forks its workers where the
+   platform allows (Linux) as soon as this process has generated the first point's truth (they start with
+   its imports, numba's CPU target and the truth, and take every batch), else spawns them while this process
+   computes a first batch (:class:`_Pool`); a local Dask cluster's first batch is computed here, so that
+   numba's on-disk cache is warm before the workers load it; the batches shrink towards the end of the
+   campaign so that the workers finish together (:func:`make_batches`);
 4. when all runs exist, they are merged into ``runs.parquet``, ``epochs.parquet``, ``consistency.json``
-   and ``trajectories.parquet``, and ``manifest.json`` is written.
+   and ``trajectories.parquet`` (the runs computed now from memory, :class:`_Tally`), and ``manifest.json``
+   is written.
 
 Reproducibility: run k of every sweep point uses the random stream
 ``numpy.random.SeedSequence(base_seed).spawn(k + 1)[k]`` (= ``SeedSequence(base_seed, spawn_key=(k,))``),
@@ -41,6 +43,7 @@ import pickle
 import platform
 import sys
 import tempfile
+import threading
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
@@ -186,7 +189,7 @@ def run_batch_task(task: BatchTask, batched: bool = True) -> list[dict]:
     sims, seeds = [], []
     # the runs' increments as rows of (R, N, 3) arrays: the batched filter reads them there, no copy
     n_imu = len(truth_of_point(ctx)[1])
-    inc = [np.empty((nr, n_imu, 3)) for _ in range(2)] if batched and nr > 1 else None
+    inc = _increments(nr, n_imu) if batched and nr > 1 else None
     for i, run in enumerate(task.runs):
         a = time.perf_counter()
         sim, s_est = simulate_run(ctx, run, None if inc is None else (inc[0][i], inc[1][i]))
@@ -220,6 +223,23 @@ def run_batch_task(task: BatchTask, batched: bool = True) -> list[dict]:
              "timing": tm[i], "estimators": res[i]} for i, run in enumerate(task.runs)]
 
 
+_BUFFERS = threading.local()  # a pool worker's increment arrays, reused from batch to batch (per thread)
+_REUSE_BUFFERS = False  # set in the pool's workers (_worker_init)
+
+
+def _increments(nr: int, n: int) -> list[np.ndarray]:
+    """Two (nr, n, 3) arrays for a batch's corrupted increments (every element is written by the runs).
+    In a pool worker the same memory serves every batch of up to the first batch's size: a batch of 8
+    30-min runs at 100 Hz needs 2 × 35 MB, above glibc's largest mmap threshold, so new arrays would be
+    fresh pages each time (≈ 2,000 page faults a run)."""
+    if not _REUSE_BUFFERS:
+        return [np.empty((nr, n, 3)) for _ in range(2)]
+    have = getattr(_BUFFERS, "inc", None)
+    if have is None or have[0].shape[0] < nr or have[0].shape[1] != n:
+        have = _BUFFERS.inc = [np.empty((nr, n, 3)) for _ in range(2)]
+    return [a[:nr] for a in have]
+
+
 def make_batches(tasks: list[RunTask], size: int, workers: int | None = None) -> list[BatchTask]:
     """Consecutive runs of the same sweep point in batches of at most ``size`` runs.
 
@@ -245,14 +265,37 @@ def _serial(tasks, on_result):
             on_result(r)
 
 
+def keep_freed_memory() -> bool:
+    """glibc only (Linux): large arrays from the heap instead of fresh ``mmap`` pages (threshold 32 MiB,
+    glibc's largest), and freed memory kept in the process instead of returned at once (trim threshold
+    1 GiB), through glibc's documented ``mallopt``. A run allocates and frees ~10 MB of arrays; a worker
+    that gets them as fresh pages each time pays a page fault per 4 KiB (a forked worker of a 100-run
+    campaign: ~2,800 faults and ~5 ms of system time a run; docs/results.md, issue 41 session 10). For
+    worker processes only (the pool's): their heap then stays at its largest. Returns whether it was set."""
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        import ctypes  # lazy: only where glibc's mallopt is called
+
+        libc = ctypes.CDLL(None)
+        m_trim_threshold, m_mmap_threshold = -1, -3  # <malloc.h>
+        ok = libc.mallopt(m_mmap_threshold, 32 << 20)
+        return bool(ok) and bool(libc.mallopt(m_trim_threshold, 1 << 30))
+    except (OSError, AttributeError):  # another C library (musl has no mallopt)
+        return False
+
+
 def _worker_init(seed: str | None):
-    """Start-up of a local worker process (:class:`_Pool`): single-threaded BLAS; with spawn, the truth and
-    noise-free GNSS fixes that the main process already generated (pickled to the file ``seed``) fill this
-    process's caches and the modules a run needs are imported, while the main process computes the first
-    batch."""
+    """Start-up of a local worker process (:class:`_Pool`): single-threaded BLAS, freed memory kept
+    (:func:`keep_freed_memory`); with spawn, the truth and noise-free GNSS fixes that the main process
+    already generated (pickled to the file ``seed``) fill this process's caches and the modules a run needs
+    are imported, while the main process computes the first batch."""
     worker_ignore()  # Ctrl-C reaches the process group: the parent stops the pool
     for v in _THREAD_VARS:
         os.environ.setdefault(v, "1")
+    keep_freed_memory()
+    global _REUSE_BUFFERS
+    _REUSE_BUFFERS = True
     if seed:
         with open(seed, "rb") as f:
             truth, gnss = pickle.load(f)
@@ -267,12 +310,30 @@ def _worker_ready() -> int:
     return os.getpid()
 
 
-def _seed_file(task: BatchTask, folder: Path) -> Path:
-    """The truth and GNSS template of ``task``'s point (generated here, cached) pickled for the workers."""
+def _prepare_point(task: BatchTask):
+    """The context, truth and GNSS template of ``task``'s point, generated here (and cached)."""
     ctx = point_context(task.key, task.doc)
     truth = truth_of_point(ctx)
+    return ctx, truth, gnss_template(ctx, truth[0])
+
+
+def _compiled_here() -> bool:
+    """Whether numba compiled a kernel of aidnav in this process (its on-disk cache was cold: a first run
+    after an install or an edit), from the dispatchers' public ``stats``."""
+    for name, mod in list(sys.modules.items()):
+        if not name.startswith("aidnav.") or mod is None:
+            continue
+        for v in list(vars(mod).values()):
+            st = getattr(v, "stats", None) if isinstance(v, numba.core.dispatcher.Dispatcher) else None
+            if st is not None and st.cache_misses:
+                return True
+    return False
+
+
+def _seed_file(task: BatchTask, folder: Path) -> Path:
+    """The truth and GNSS template of ``task``'s point (generated here, cached) pickled for the workers."""
+    ctx, truth, tmpl = _prepare_point(task)
     gk = (ctx.sim_key, ctx.gnss_key)
-    tmpl = gnss_template(ctx, truth[0])
     path = folder / "point.pickle"
     with open(path, "wb") as f:
         pickle.dump(({ctx.sim_key: truth}, {gk: tmpl}), f, protocol=pickle.HIGHEST_PROTOCOL)
@@ -289,18 +350,27 @@ class _Pool:
     """The local process pool of a campaign (``backend="processes"``), started before the progress bar (no
     other thread in this process when it forks).
 
-    ``first`` : a batch computed here (numba compiles or loads its kernels once, and with spawn caches them
-    on disk before the workers load them); its results are in ``early``. With fork it is computed before the
-    workers start (they inherit the loaded kernels and the truth); with spawn while they start (interpreter,
-    imports, and the truth pickled from here: :func:`_worker_init`).
+    ``first`` : the campaign's first batch. With spawn it is computed here while the workers start
+    (interpreter, imports, and the truth pickled from here: :func:`_worker_init`), so that numba compiles
+    or loads its kernels once and caches them on disk before the workers load them; its results are in
+    ``early``. With fork, this process generates the point's truth and GNSS template and the workers start
+    at once: they inherit the truth, the imports and numba's started CPU target, load the run's kernels from
+    numba's cache in parallel, and take ``first`` as their first task (``early`` is empty); a first batch
+    computed here before forking would leave a core idle while it runs (issue 41, session 10). Where that
+    truth had to be compiled (numba's cache cold), ``first`` is computed here before forking as with spawn:
+    the workers then inherit its kernels instead of each compiling them.
     """
 
     def __init__(self, workers: int, first: BatchTask | None, method: str | None = None):
         method = method or START_METHOD
-        self.early, self._tmp, self.ex = [], None, None
+        self.early, self._tmp, self.ex, self._first = [], None, None, None
         try:
             if method == "fork" and first is not None:
-                self.early = run_batch_task(first)
+                _prepare_point(first)
+                if _compiled_here():
+                    self.early = run_batch_task(first)
+                else:
+                    self._first = first
             seed = None
             if method != "fork" and first is not None:
                 self._tmp = tempfile.TemporaryDirectory(prefix="aidnav_pool_")
@@ -318,7 +388,9 @@ class _Pool:
             raise
 
     def run(self, tasks, on_result):
+        tasks = ([self._first] if self._first is not None else []) + list(tasks)
         futs = [self.ex.submit(run_batch_task, t) for t in tasks]
+        prepare_merge()  # while the workers compute (the merge's imports, ~0.1 s)
         try:
             for f in as_completed(futs):
                 for r in f.result():
@@ -335,6 +407,14 @@ class _Pool:
             self.ex.shutdown(wait=wait, cancel_futures=not wait)
         if self._tmp is not None:
             self._tmp.cleanup()
+
+
+def prepare_merge() -> None:
+    """Import what the merge needs (:func:`aidnav.experiments.store.prepare_merge`), in this process while
+    the workers compute."""
+    from . import store  # lazy: pyarrow; the workers do not write the tables
+
+    store.prepare_merge()
 
 
 def _dask(tasks, on_result, workers: int, scheduler: str | None, info: dict):
@@ -441,7 +521,8 @@ def run_experiment(experiment, out_dir, *, workers: int = 1, scheduler: str | No
         return result
 
     t_m = time.perf_counter()
-    merged = store.merge_campaign(plan, out)
+    merged = store.merge_campaign(plan, out, tally.kept)
+    tally.kept.clear()
     merged["paths"].append(store.write_trajectories(out, plan, point_truth))
     timings["merge_s"] = time.perf_counter() - t_m
     result.wall_s = time.perf_counter() - t_start
@@ -472,20 +553,35 @@ def _pending(plan: ExperimentPlan, out: Path, max_runs: int | None,
     return todo, n_total, n_reused
 
 
+#: the runs' arrays a campaign keeps in memory for its merge (:class:`_Tally`) [bytes]; beyond, the merge
+#: reads them back from their files
+KEEP_BYTES = 512 << 20
+
+
 class _Tally:
-    """Saves each finished run to the campaign directory and sums its timings (the manifest's
-    ``per_run_sums``); ``computed`` counts the runs."""
+    """Saves each finished run to the campaign directory, keeps its arrays for the merge while they fit in
+    :data:`KEEP_BYTES` (``kept``: {(point key, run): arrays}, no reading back of files just written: ≈ 0.1 s
+    of a 100-run campaign's serial merge) and sums its timings (the manifest's ``per_run_sums``);
+    ``computed`` counts the runs."""
 
     def __init__(self, out: Path, advance=None):
         from . import store  # lazy: pyarrow; the workers do not write the tables
 
         self.store, self.out, self.advance, self.computed = store, out, advance, 0
+        self.kept: dict = {}
+        self._kept_bytes = 0
         self.agg = {"setup_s": 0.0, "sim_s": 0.0, "errors_s": 0.0, "estimators_s": {}, "worker_total_s": 0.0,
                     "worker_cpu_s": 0.0, "imu_samples": 0}
 
     def __call__(self, res: dict) -> None:
         agg = self.agg
-        self.store.save_run(self.out, res)
+        arrays = self.store.run_arrays(res)
+        self.store.save_run(self.out, res, arrays)
+        size = sum(a.nbytes for e in arrays["estimators"].values() for a in e.values()
+                   if isinstance(a, np.ndarray))
+        if self._kept_bytes + size <= KEEP_BYTES:
+            self.kept[(res["key"], int(res["run"]))] = arrays
+            self._kept_bytes += size
         self.computed += 1
         tm = res["timing"]
         for k in ("setup_s", "sim_s", "errors_s"):
@@ -504,16 +600,6 @@ def _compute(plan: ExperimentPlan, out: Path, todo: list[RunTask], n_total: int,
              progress: bool) -> _Tally:
     """Compute the runs ``todo`` in batches on ``backend`` with a progress bar; returns the tally of the runs
     saved. Raises :class:`CampaignInterrupted` on Ctrl-C (the finished runs are on disk)."""
-    # lazy: rich is heavy to import
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeElapsedColumn,
-        TimeRemainingColumn,
-    )
-
     par = backend != "serial"
     size = batch or max(1, min(BATCH_RUNS, -(-len(todo) // (2 * workers)) if par else BATCH_RUNS))
     first = pool = None
@@ -521,8 +607,9 @@ def _compute(plan: ExperimentPlan, out: Path, todo: list[RunTask], n_total: int,
     # second campaign in one session), the first batch need not be computed here first
     inherited = backend == "processes" and START_METHOD == "fork" and bool(todo) and todo[0].key in _COMPUTED
     if len(todo) > 1 and par and not scheduler and not inherited:
-        # the first runs here: numba compiles (or loads) its kernels once and caches them on disk, so that the
-        # local workers load them (or, forked, inherit them) instead of each compiling them again
+        # the first runs here (Dask, spawn; fork: only where numba compiled, _Pool): numba compiles (or loads)
+        # its kernels once and caches them on disk, so that the local workers load them (or, forked, inherit
+        # them) instead of each compiling them again
         first = make_batches(todo[:min(2, size)], size)[0]
         todo = todo[len(first.runs):]
     todo = make_batches(todo, size, workers if par else None)
@@ -532,6 +619,16 @@ def _compute(plan: ExperimentPlan, out: Path, todo: list[RunTask], n_total: int,
         except KeyboardInterrupt:
             raise CampaignInterrupted(f"interrupted: {n_reused} of {n_total} runs are in {out / 'runs'}; run "
                                       "the same command again to resume") from None
+
+    # lazy: rich is heavy to import (after the fork: the workers do not need it)
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
 
     cols = [TextColumn("{task.description}", markup=False), BarColumn(), MofNCompleteColumn(),
             TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn()]
@@ -545,12 +642,12 @@ def _compute(plan: ExperimentPlan, out: Path, todo: list[RunTask], n_total: int,
             if first is not None and pool is None:
                 for r in run_batch_task(first):
                     on_result(r)
-            if not todo:
+            if backend == "processes":
+                pool.run(todo, on_result)  # with fork, the first batch too
+            elif not todo:
                 pass
             elif backend == "serial":
                 _serial(todo, on_result)
-            elif backend == "processes":
-                pool.run(todo, on_result)
             else:
                 _dask(todo, on_result, workers, scheduler, info)
             ok = True

@@ -36,11 +36,8 @@ import zipfile
 from pathlib import Path
 
 import numpy as np
-import pyarrow as pa
-import pyarrow.parquet as pq
 
 import aidnav
-from aidnav.io._arrow import to_arrow  # Arrow arrays without pa.array (which imports pandas)
 from aidnav.io.atomic import replacing
 
 from . import statistics_spec as _config
@@ -54,7 +51,8 @@ from .statistics_spec import (
 )
 
 __all__ = ["package_version", "run_path", "save_run", "load_run", "existing_runs", "statistic_columns",
-           "run_statistics", "epoch_summary", "merge_campaign", "write_trajectories", "write_json"]
+           "run_statistics", "epoch_summary", "merge_campaign", "prepare_merge", "write_trajectories",
+           "write_json", "run_arrays"]
 
 
 def package_version() -> str:
@@ -90,18 +88,30 @@ def run_path(out_dir, key: str, run: int) -> Path:
     return Path(out_dir) / "runs" / key[:16] / f"r{run:05d}.npz"
 
 
-def save_run(out_dir, result: dict) -> Path:
-    """Write one run's result (from :func:`aidnav.experiments.runner.run_task`) atomically."""
+def run_arrays(result: dict) -> dict:
+    """A run's result (from :func:`aidnav.experiments.runner.run_task`) as :func:`load_run` reads it back
+    from its file: {"key", "run", "estimators": {name: {time, error, sigma, nees (float64, C order),
+    states, blocks, info}}} (what :func:`merge_campaign` takes from memory instead of the file)."""
+    ests = {}
+    for name, r in result["estimators"].items():
+        ests[name] = {k: np.ascontiguousarray(r[k], dtype=np.float64)
+                      for k in ("time", "error", "sigma", "nees")}
+        ests[name].update(states=list(r["states"]), blocks=list(r["blocks"]), info=r.get("info", {}))
+    return {"key": result["key"], "run": int(result["run"]), "estimators": ests}
+
+
+def save_run(out_dir, result: dict, arrays_of: dict | None = None) -> Path:
+    """Write one run's result (from :func:`aidnav.experiments.runner.run_task`) atomically; ``arrays_of``:
+    its :func:`run_arrays` when already made."""
     path = run_path(out_dir, result["key"], result["run"])
     path.parent.mkdir(parents=True, exist_ok=True)
     arrays = {}
     meta = {"key": result["key"], "run": int(result["run"]), "imu_samples": int(result["imu_samples"]),
             "timing": result["timing"], "estimators": {}}
-    for name, r in result["estimators"].items():
+    for name, r in (arrays_of or run_arrays(result))["estimators"].items():
         for k in ("time", "error", "sigma", "nees"):
-            arrays[f"{name}.{k}"] = np.ascontiguousarray(r[k], dtype=np.float64)
-        meta["estimators"][name] = {"states": list(r["states"]), "blocks": list(r["blocks"]),
-                                    "info": r.get("info", {})}
+            arrays[f"{name}.{k}"] = r[k]
+        meta["estimators"][name] = {"states": r["states"], "blocks": r["blocks"], "info": r["info"]}
     arrays["meta"] = np.array(json.dumps(meta))
     tmp = path.with_name(path.name + f".tmp{os.getpid()}")
     with open(tmp, "wb") as f:
@@ -291,7 +301,31 @@ def _consistency(t, nees, blocks, states, spec) -> list[dict]:
 
 
 # ----------------------------------------------------------------------------------- merging
+def _arrow():
+    """pyarrow, pyarrow.parquet and :func:`aidnav.io._arrow.to_arrow` (Arrow arrays without ``pa.array``,
+    which imports pandas), imported where the tables are written: a campaign's workers, forked before the
+    merge, never load them (≈ 50 ms)."""
+    import pyarrow as pa  # lazy: the tables only (see above)
+    import pyarrow.parquet as pq  # lazy: the tables only (see above)
+
+    from aidnav.io._arrow import to_arrow  # lazy: pyarrow (see above)
+
+    return pa, pq, to_arrow
+
+
+def prepare_merge() -> None:
+    """Import what :func:`merge_campaign` imports on its first call (pyarrow and the NEES bands'
+    scipy.special, ≈ 0.15 s): a campaign on worker processes calls it while they compute, so that the merge
+    after the last run is shorter."""
+    from aidnav.analysis.consistency import binom_ppf, chi2_band  # lazy: pulls in scipy.special
+
+    _arrow()
+    chi2_band(1, 2)
+    binom_ppf(0.5, 2, 0.5)
+
+
 def _sweep_column(values: list):
+    to_arrow = _arrow()[2]
     if all(isinstance(v, str) for v in values):
         return to_arrow(values, "string")
     if all(isinstance(v, bool) for v in values):
@@ -303,12 +337,12 @@ def _sweep_column(values: list):
     return to_arrow([json.dumps(v, sort_keys=True) for v in values], "string")
 
 
-def _load_point(out_dir, point, runs: int, estimators: list[str]):
+def _load_point(out_dir, point, runs: int, estimators: list[str], loaded: dict):
     data = {e: {"time": None, "error": [], "sigma": [], "nees": [], "states": None, "blocks": None}
             for e in estimators}
     for k in range(runs):
         f = run_path(out_dir, point.key, k)
-        r = load_run(f)
+        r = loaded.get((point.key, k)) or load_run(f)
         if r is None or r["key"] != point.key:
             raise FileNotFoundError(f"run file {f} is missing or unreadable")
         for e in estimators:
@@ -326,9 +360,15 @@ def _load_point(out_dir, point, runs: int, estimators: list[str]):
     return data
 
 
-def merge_campaign(plan, out_dir) -> dict:
+def merge_campaign(plan, out_dir, loaded: dict | None = None) -> dict:
     """Merge the run files of a complete campaign into runs.parquet, epochs.parquet and
-    consistency.json (see the module docstring). Returns {"paths": [...], "consistency": [...]}."""
+    consistency.json (see the module docstring). Returns {"paths": [...], "consistency": [...]}.
+
+    loaded : {(point key, run): :func:`run_arrays` of the run} for runs still in memory (the runs this
+        process has just saved): taken from there instead of being read back from their files (the same
+        arrays, so the same tables)."""
+    loaded = loaded or {}
+    pa, pq, to_arrow = _arrow()
     out = Path(out_dir)
     stats = plan.experiment.statistics
     est_names = plan.estimators
@@ -340,7 +380,7 @@ def merge_campaign(plan, out_dir) -> dict:
     consistency = []
     all_states: list[tuple[str, tuple[str, ...]]] = []
     for p in plan.points:
-        data = _load_point(out, p, plan.runs, est_names)
+        data = _load_point(out, p, plan.runs, est_names, loaded)
         for e in est_names:
             d = data[e]
             states, blocks, t = tuple(d["states"]), list(d["blocks"]), d["time"]
@@ -401,6 +441,7 @@ def write_trajectories(out_dir, plan, truth_of, max_points: int = 2000) -> Path:
     """``DIR/trajectories.parquet``: the truth of every sweep point (``truth_of(point)`` →
     :class:`aidnav.data.Trajectory`), decimated to at most ``max_points`` samples: point, time_s,
     lat_deg, lon_deg, height_m."""
+    pa, pq, to_arrow = _arrow()
     cols: dict[str, list] = {"point": [], "time_s": [], "lat_deg": [], "lon_deg": [], "height_m": []}
     for p in plan.points:
         tr = truth_of(p)

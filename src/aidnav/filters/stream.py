@@ -25,10 +25,14 @@ whole-log fit before filtering (the coarse mounting: NHC or an aid in the vehicl
 configured, :func:`needs_whole_log`) is taken whole into the head (every chunk held); full covariances at
 given times are for :func:`run_loose`. Given as one chunk, the log is its own head and the result is
 :func:`run_loose`'s bit for bit (``aidnav process`` on a log in memory or in any format but interchange
-Parquet).
+Parquet). A chunk longer than :data:`ENGINE_ROWS` samples (a log given whole, the first passes' 10 or 20
+min) is run in engine calls of that many: the arrays of one call (outputs, gap bridge) stay bounded, and
+the carried state makes the result the one call's, bit for bit.
 """
 
 from __future__ import annotations
+
+from itertools import chain
 
 import numpy as np
 
@@ -73,16 +77,33 @@ def _head(chunks, gnss, head_s):
     return _concat(got), got, chunks
 
 
-def _lookahead(first, rest):
-    """(chunk, is_last) over the chunks ``first`` then the iterator ``rest``."""
-    pend = None
-    for c in first:
-        if pend is not None:
-            yield pend, False
-        pend = c
-    for c in rest:
-        yield pend, False
-        pend = c
+#: the most IMU samples one engine call gets: a longer chunk (a log given whole, the first passes' head) is
+#: run in pieces of this size (the engine's outputs and the gap bridge's arrays are per call: a whole-log
+#: call holds them for every sample; the carried state makes the pieces the one call's result)
+ENGINE_ROWS = 1 << 13
+
+
+def _pieces(c, rows: int):
+    """``c`` in consecutive pieces of at most ``rows`` samples (``t0`` of each the sample before it)."""
+    n = len(c)
+    if n <= rows:
+        yield c
+        return
+    for a in range(0, n, rows):
+        b = min(a + rows, n)
+        yield ImuData(c.time[a:b], c.dtheta[a:b], c.dv[a:b], t0=c.t0 if a == 0 else float(c.time[a - 1]),
+                      events=c.events if a == 0 else [], week=c.week)
+
+
+def _lookahead(first, rest, rows: int | None = None):
+    """(piece, is_last) over the chunks ``first`` then the iterator ``rest``, each cut into pieces of at
+    most ``rows`` samples."""
+    pend, rows = None, rows or ENGINE_ROWS
+    for c in chain(first, rest):
+        for p in _pieces(c, rows):
+            if pend is not None:
+                yield pend, False
+            pend = p
     yield pend, True
 
 

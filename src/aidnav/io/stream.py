@@ -33,6 +33,10 @@ __all__ = ["iter_imu", "TrajectoryWriter", "imu_time_span", "trajectory_chunks",
 
 # the largest block of a trajectory CSV read in batches (Arrow holds up to 32 of them: _FileChunks)
 CSV_BLOCK_BYTES = 1 << 20
+# the read buffer of each column of an IMU Parquet file (:func:`iter_imu`): Arrow's reader holds, per
+# column, the buffer, the dictionary page and the page it decodes; W1's 7 columns (one row group, ≈ 1 MB
+# pages) 21.3 MiB of Arrow pool with 1 MiB, 15.0 MiB with 64 kiB (issue 41, session 10)
+IMU_READ_BUFFER = 1 << 16
 
 
 def _parquet_imu(path: Path):
@@ -46,7 +50,7 @@ def _parquet_imu(path: Path):
     if path.suffix.lower() not in (".parquet", ".pq"):
         return None
     try:  # no pre-buffering: the reader then holds about one row group's pages, not a growing cache
-        pf = pq.ParquetFile(path, pre_buffer=False, buffer_size=1 << 20)
+        pf = pq.ParquetFile(path, pre_buffer=False, buffer_size=IMU_READ_BUFFER)
     except Exception:  # noqa: BLE001  (the whole-file reader gives the message)
         return None
     names = set(pf.schema_arrow.names)

@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from aidnav.data import GnssData, Trajectory
-from aidnav.io.atomic import write_text
+from aidnav.io.atomic import replacing
 from aidnav.io.gpstime import week_sow_to_utc_iso
 from aidnav.nav.plain import wrap_pi  # numpy: the figures' child runs without numba
 
@@ -317,32 +317,19 @@ def write_kml(path, traj: Trajectory, gnss: GnssData | None = None, outages=None
             body += ["<Folder><name>track</name><Placemark><name>trajectory (timed)</name>"
                      f"<styleUrl>#{style('line', _NO_SIGMA)}</styleUrl><gx:Track><altitudeMode>absolute"
                      f"</altitudeMode>{whens}{gxc}</gx:Track></Placemark></Folder>"]
-    if gnss is not None and len(gnss):
-        rej, wh = fix_groups(gnss, rejected_times, outages)
-        cls, gmode = _classes(gnss, color_by if color_by != "quality" or gnss.quality is not None else "auto")
-        sel = np.flatnonzero(np.isfinite(gnss.lat) & np.isfinite(gnss.lon))
-        if len(sel) > max_fixes:
-            desc.append(f"GNSS fixes decimated from {len(sel)} to at most {max_fixes}")
-            keep = sel[_decimate(len(sel), max_fixes)]
-            sel = np.union1d(keep, sel[rej[sel]])  # every rejected fix is kept
-        folders: dict[bool, list[str]] = {False: [], True: []}
-        coords = _coords(gnss, sel, dh)
-        for c, i in zip(coords, sel, strict=True):
-            colour = _REJECTED_COLOUR if rej[i] else ("#bbbbbb" if wh[i] else _colour(cls[i], gmode))
-            info = _fix_text(gnss, int(i), rej[i], wh[i], week)
-            folders[bool(rej[i])].append(_kml_placemark("Point", [c], style("point", colour),
-                                                        description=json.dumps(info), when=info.get("time")))
-        body += ["<Folder><name>gnss</name>", *folders[False], "</Folder>",
-                 "<Folder><name>rejected</name>", *folders[True], "</Folder>"]
-    body.append("<Folder><name>outage</name>")
+    fixes = _kml_fixes(gnss, rejected_times, outages, color_by, max_fixes, desc)
+    if fixes is not None:  # the points' styles in the order of the fixes (the ids: the same bytes as before)
+        for colour in fixes[1]:
+            style("point", colour)
+    tail = ["<Folder><name>outage</name>"]
     for k, (a, b) in enumerate(outages or []):
         ii = _outage_idx(traj, a, b, max_points)
         if len(ii) < 2:
             continue
-        body.append(_kml_placemark("LineString", _coords(traj, ii, dh), style("outage", _OUTAGE_COLOUR),
+        tail.append(_kml_placemark("LineString", _coords(traj, ii, dh), style("outage", _OUTAGE_COLOUR),
                                    f"outage {k + 1}", f"GNSS outage {a:.3f} – {b:.3f} s ({b - a:g} s)",
                                    span=span(a, b)))
-    body.append("</Folder>")
+    tail.append("</Folder>")
     head = ['<?xml version="1.0" encoding="UTF-8"?>\n<kml xmlns="http://www.opengis.net/kml/2.2" '
             'xmlns:gx="http://www.google.com/kml/ext/2.2">',
             f"<Document><name>{_xml(name or path.stem)}</name>",
@@ -355,18 +342,54 @@ def write_kml(path, traj: Trajectory, gnss: GnssData | None = None, outages=None
         else:
             head.append(f'<Style id="{sid}"><LineStyle><color>{_kml_colour(colour)}</color>'
                         f"<width>{6 if kind == 'outage' else 3}</width></LineStyle></Style>")
-    write_text(path, "\n".join(head + body + ["</Document></kml>"]) + "\n")  # whole or not at all
+    # written a placemark at a time (memory bounded by the decimated track, not by the fixes: issue 41),
+    # under a temporary name until complete
+    with replacing(path) as tmp, open(tmp, "w", encoding="utf-8") as f:
+        f.write("\n".join(head + body))
+        if fixes is not None:
+            for folder, rejected in (("gnss", False), ("rejected", True)):
+                f.write(f"\n<Folder><name>{folder}</name>")
+                for line in _kml_fix_placemarks(gnss, fixes, rejected, dh, week, style):
+                    f.write("\n" + line)
+                f.write("\n</Folder>")
+        f.write("\n" + "\n".join(tail + ["</Document></kml>"]) + "\n")
     return path
+
+
+def _kml_fixes(gnss, rejected_times, outages, color_by: str, max_fixes: int, desc: list):
+    """(indices of the fixes drawn, their colours, rejected flags, withheld flags) of a KML file, or None
+    without fixes; a decimation is said in ``desc``."""
+    if gnss is None or not len(gnss):
+        return None
+    rej, wh = fix_groups(gnss, rejected_times, outages)
+    cls, gmode = _classes(gnss, color_by if color_by != "quality" or gnss.quality is not None else "auto")
+    sel = np.flatnonzero(np.isfinite(gnss.lat) & np.isfinite(gnss.lon))
+    if len(sel) > max_fixes:
+        desc.append(f"GNSS fixes decimated from {len(sel)} to at most {max_fixes}")
+        keep = sel[_decimate(len(sel), max_fixes)]
+        sel = np.union1d(keep, sel[rej[sel]])  # every rejected fix is kept
+    colours = [_REJECTED_COLOUR if rej[i] else ("#bbbbbb" if wh[i] else _colour(cls[i], gmode)) for i in sel]
+    return sel, colours, rej, wh
+
+
+def _kml_fix_placemarks(gnss, fixes, rejected: bool, dh: float, week, style):
+    """The Point placemarks of the drawn fixes that are (not) ``rejected``, one at a time."""
+    sel, colours, rej, wh = fixes
+    for i, colour in zip(sel, colours, strict=True):
+        if bool(rej[i]) != rejected:
+            continue
+        info = _fix_text(gnss, int(i), rej[i], wh[i], week)
+        yield _kml_placemark("Point", _coords(gnss, [i], dh), style("point", colour),
+                             description=json.dumps(info), when=info.get("time"))
 
 
 def _feature(geom_type: str, coords, props: dict) -> dict:
     return {"type": "Feature", "geometry": {"type": geom_type, "coordinates": coords}, "properties": props}
 
 
-def geojson_dict(traj: Trajectory, gnss: GnssData | None = None, outages=None, rejected_times=None,
-                 color_by: str = "auto", max_points: int = 20000, max_fixes: int = 20000) -> dict:
-    """The GeoJSON FeatureCollection (a dict) written by :func:`write_geojson`."""
-    feats = []
+def _geojson_parts(traj: Trajectory, gnss: GnssData | None, outages, rejected_times, color_by: str,
+                   max_points: int, max_fixes: int):
+    """(the features, one at a time; the collection's properties) of :func:`geojson_dict`."""
     week = _week(traj, gnss)
 
     def times(t0, t1, stem="time"):
@@ -376,44 +399,63 @@ def geojson_dict(traj: Trajectory, gnss: GnssData | None = None, outages=None, r
         return {f"{stem}_start": a, f"{stem}_end": b, "gps_week": int(week)}
 
     pieces, mode, n_drop = track_pieces(traj, color_by, max_points)
-    for p in pieces:
-        props = {"layer": "trajectory", "class": p["label"], "color_by": mode, "stroke": p["colour"],
-                 "stroke-width": 3, **times(p["t0"], p["t1"]), "time_start_s": p["t0"], "time_end_s": p["t1"]}
-        feats.append(_feature("LineString", [list(c) for c in _coords(traj, p["idx"])], props))
-    if gnss is not None and len(gnss):
-        rej, wh = fix_groups(gnss, rejected_times, outages)
-        cls, gmode = _classes(gnss, color_by if color_by != "quality" or gnss.quality is not None else "auto")
-        sel = np.flatnonzero(np.isfinite(gnss.lat) & np.isfinite(gnss.lon))
-        if len(sel) > max_fixes:
-            sel = np.union1d(sel[_decimate(len(sel), max_fixes)], sel[rej[sel]])
-        for i in sel:
-            colour = _REJECTED_COLOUR if rej[i] else ("#bbbbbb" if wh[i] else _colour(cls[i], gmode))
-            props = {"layer": "rejected" if rej[i] else "gnss", "marker-color": colour,
-                     "marker-size": "small", **_fix_text(gnss, int(i), rej[i], wh[i], week)}
-            feats.append(_feature("Point", list(_coords(gnss, [i])[0]), props))
-    for k, (a, b) in enumerate(outages or []):
-        ii = _outage_idx(traj, a, b, max_points)
-        if len(ii) < 2:
-            continue
-        props = {"layer": "outage", "outage": k + 1, **times(a, b), "start_s": float(a), "end_s": float(b),
-                 "length_s": float(b - a), "stroke": _OUTAGE_COLOUR, "stroke-width": 6}
-        feats.append(_feature("LineString", [list(c) for c in _coords(traj, ii)], props))
-    return {"type": "FeatureCollection", "features": feats,
-            "properties": {"epochs": len(traj.time), "non_finite_epochs_left_out": n_drop, "color_by": mode,
-                           "sigma_classes_m": list(SIGMA_CLASSES_M), "height": "WGS-84 ellipsoidal [m]",
-                           "times": ("ISO 8601 UTC (time*, from GPS week + seconds of week *_s)"
-                                     if week is not None else "seconds (*_s); GPS week unknown")}}
+
+    def features():
+        for p in pieces:
+            props = {"layer": "trajectory", "class": p["label"], "color_by": mode, "stroke": p["colour"],
+                     "stroke-width": 3, **times(p["t0"], p["t1"]), "time_start_s": p["t0"],
+                     "time_end_s": p["t1"]}
+            yield _feature("LineString", [list(c) for c in _coords(traj, p["idx"])], props)
+        if gnss is not None and len(gnss):
+            rej, wh = fix_groups(gnss, rejected_times, outages)
+            cls, gmode = _classes(gnss, color_by if color_by != "quality" or gnss.quality is not None
+                                  else "auto")
+            sel = np.flatnonzero(np.isfinite(gnss.lat) & np.isfinite(gnss.lon))
+            if len(sel) > max_fixes:
+                sel = np.union1d(sel[_decimate(len(sel), max_fixes)], sel[rej[sel]])
+            for i in sel:
+                colour = _REJECTED_COLOUR if rej[i] else ("#bbbbbb" if wh[i] else _colour(cls[i], gmode))
+                props = {"layer": "rejected" if rej[i] else "gnss", "marker-color": colour,
+                         "marker-size": "small", **_fix_text(gnss, int(i), rej[i], wh[i], week)}
+                yield _feature("Point", list(_coords(gnss, [i])[0]), props)
+        for k, (a, b) in enumerate(outages or []):
+            ii = _outage_idx(traj, a, b, max_points)
+            if len(ii) < 2:
+                continue
+            props = {"layer": "outage", "outage": k + 1, **times(a, b), "start_s": float(a),
+                     "end_s": float(b), "length_s": float(b - a), "stroke": _OUTAGE_COLOUR, "stroke-width": 6}
+            yield _feature("LineString", [list(c) for c in _coords(traj, ii)], props)
+
+    props = {"epochs": len(traj.time), "non_finite_epochs_left_out": n_drop, "color_by": mode,
+             "sigma_classes_m": list(SIGMA_CLASSES_M), "height": "WGS-84 ellipsoidal [m]",
+             "times": ("ISO 8601 UTC (time*, from GPS week + seconds of week *_s)"
+                       if week is not None else "seconds (*_s); GPS week unknown")}
+    return features(), props
+
+
+def geojson_dict(traj: Trajectory, gnss: GnssData | None = None, outages=None, rejected_times=None,
+                 color_by: str = "auto", max_points: int = 20000, max_fixes: int = 20000) -> dict:
+    """The GeoJSON FeatureCollection (a dict) written by :func:`write_geojson`."""
+    feats, props = _geojson_parts(traj, gnss, outages, rejected_times, color_by, max_points, max_fixes)
+    return {"type": "FeatureCollection", "features": list(feats), "properties": props}
 
 
 def write_geojson(path, traj: Trajectory, gnss: GnssData | None = None, outages=None, rejected_times=None,
                   color_by: str = "auto", max_points: int = 20000, max_fixes: int = 20000) -> Path:
     """Write a GeoJSON FeatureCollection of ``traj`` (features tagged ``layer`` = trajectory / gnss /
     rejected / outage; arguments as :func:`write_kml`) and return its path. Colours follow the
-    simplestyle properties (``stroke``, ``marker-color``) understood by most web viewers."""
+    simplestyle properties (``stroke``, ``marker-color``) understood by most web viewers.
+
+    Written a feature at a time (the bytes of ``json.dumps(geojson_dict(...))``; memory bounded by the
+    decimated track, not by the fixes: issue 41), under a temporary name until complete."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    doc = geojson_dict(traj, gnss, outages, rejected_times, color_by, max_points, max_fixes)
-    write_text(path, json.dumps(doc, allow_nan=False) + "\n")  # under a temporary name until complete
+    feats, props = _geojson_parts(traj, gnss, outages, rejected_times, color_by, max_points, max_fixes)
+    with replacing(path) as tmp, open(tmp, "w", encoding="utf-8") as f:
+        f.write('{"type": "FeatureCollection", "features": [')
+        for k, feat in enumerate(feats):
+            f.write((", " if k else "") + json.dumps(feat, allow_nan=False))
+        f.write('], "properties": ' + json.dumps(props, allow_nan=False) + "}\n")
     return path
 
 

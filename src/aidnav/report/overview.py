@@ -34,7 +34,8 @@ from aidnav.nav.plain import lla_to_enu, wrap_360  # numpy: the figures' child r
 
 from .maps import fix_groups
 
-__all__ = ["write_overview", "overview_figure", "nis_series", "tight_records", "NIS_NAMES"]
+__all__ = ["write_overview", "overview_figure", "nis_series", "tight_records", "NIS_NAMES", "Skeleton",
+           "panel_names"]
 
 #: Panel names of the usual measurement types.
 NIS_NAMES = {"pos": "GNSS position", "vel": "GNSS velocity", "pr": "pseudorange", "rate": "range rate"}
@@ -44,6 +45,9 @@ PROB = 0.95
 #: drew W1's overview in 0.35 instead of 0.41 CPU-s (min of 5, loaded machine) for a file of 351 instead of
 #: 300 kB (issue 41, session 9)
 PNG_COMPRESS_LEVEL = 1
+#: major tick objects made per axis before the run (:meth:`Skeleton.prime`): an empty axis draws 6, a run's
+#: time axis 9–10 (W1, its first 60 s), and each one made after the run is ≈ 1 ms of the overview's drawing
+PRIMED_TICKS = 10
 
 
 def tight_records(epochs: dict) -> dict:
@@ -117,22 +121,82 @@ def _shade(ax, wins, t0):
                    label="GNSS outage" if k == 0 else None)
 
 
+def panel_names(traj: Trajectory, gnss: GnssData | None = None, records: dict | None = None) -> list[str]:
+    """The panels of the right column: ``rp`` (roll, pitch), ``heading``, ``spos`` / ``satt`` (position /
+    attitude 1σ, where the trajectory has them) and ``nis:<type>`` per measurement type with an update (a
+    type with none, e.g. GNSS without velocities, gets no panel: an empty panel costs as much to draw as a
+    full one; the run page's NIS table says which types had none)."""
+    return _panels(traj, _series(records, gnss))
+
+
+def _series(records, gnss) -> list[dict]:
+    return [x for x in nis_series(records, gnss) if np.any(np.isfinite(x["nis"]) & (x["dof"] > 0))]
+
+
+def _panels(traj: Trajectory, series: list[dict]) -> list[str]:
+    has_std_att = traj.std_att is not None and np.any(np.isfinite(traj.std_att))
+    has_std_pos = traj.std_pos is not None and np.any(np.isfinite(traj.std_pos))
+    return ["rp", "heading"] + (["spos"] if has_std_pos else []) + (["satt"] if has_std_att else []) + \
+        [f"nis:{s['key']}" for s in series]
+
+
+class Skeleton:
+    """What the overview draws whatever the run's numbers: the figure, its grid, axes, labels, scales,
+    fixed limits and grids for the right column ``right`` (:func:`panel_names`). The figures' child of
+    ``aidnav process`` builds it and draws it once (:meth:`prime`: the tick objects, the renderer and the
+    text of the fixed labels made) while the parent runs the filter; :func:`overview_figure` then only
+    adds the run's artists. The same figure, pixel for pixel, as one built after the run (tested)."""
+
+    def __init__(self, right: list[str]):
+        self.right = list(right)
+        self.used = False
+        self.fig, self.ax_map, self.ax_h, self.axes = _layout(self.right)
+        self.ax_map.set_title("map: local ENU about the first epoch")
+        self.ax_map.set_aspect("equal", adjustable="datalim")
+        self.ax_map.grid(True, alpha=0.3)
+        self.ax_h.set_ylabel("height [m]")
+        labels = {"rp": "roll, pitch [deg]", "heading": "heading [deg]", "spos": "position 1σ [m]",
+                  "satt": "attitude 1σ [deg]"}
+        for name, ax in self.axes.items():
+            ax.set_ylabel(labels.get(name) or f"NIS {name[4:]}")
+            if name in ("spos", "satt"):
+                _log_y(ax)
+            ax.grid(True, alpha=0.3)
+            if name != self.right[-1]:
+                ax.tick_params(labelbottom=False)
+        if "heading" in self.axes:
+            self.axes["heading"].set_ylim(0, 360)
+            self.axes["heading"].set_yticks([0, 90, 180, 270, 360])
+        self.ax_h.grid(True, alpha=0.3)
+
+    def prime(self) -> None:
+        """Draw the empty skeleton once (nothing is saved): its tick objects (:data:`PRIMED_TICKS` per axis:
+        those a run's limits need; the unused ones are not drawn), the canvas's renderer and the fixed
+        labels' text are made now, not after the run."""
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # empty log axes
+            self.fig.canvas.draw()
+        for ax in self.fig.axes:
+            ax.xaxis.get_major_ticks(PRIMED_TICKS)
+            ax.yaxis.get_major_ticks(PRIMED_TICKS)
+
+
 def overview_figure(traj: Trajectory, gnss: GnssData | None = None, summary: dict | None = None,
-                    records: dict | None = None, title: str | None = None, max_points: int = 20000) -> Figure:
-    """The figure of :func:`write_overview` (not saved): the layout, the map, the height, the time panels
-    on the right, then the shading, grids and title (in that order: the drawing is the same)."""
+                    records: dict | None = None, title: str | None = None, max_points: int = 20000,
+                    skeleton: Skeleton | None = None) -> Figure:
+    """The figure of :func:`write_overview` (not saved): the :class:`Skeleton` of its panels (``skeleton``
+    when it has those panels and was not used yet, else a new one), then the map, the height, the time
+    panels on the right, the shading and the title (in that order: the drawing is the same)."""
     if len(traj.time) == 0:
         raise ValueError("overview: empty trajectory")
     summary = summary or {}
     wins = [tuple(map(float, w)) for w in summary.get("outage_windows", [])]
-    # a measurement type with no update (GNSS without velocities) gets no panel: an empty panel costs as
-    # much to draw as a full one (the run page's NIS table says which types had none)
-    series = [x for x in nis_series(records, gnss) if np.any(np.isfinite(x["nis"]) & (x["dof"] > 0))]
-    has_std_att = traj.std_att is not None and np.any(np.isfinite(traj.std_att))
-    has_std_pos = traj.std_pos is not None and np.any(np.isfinite(traj.std_pos))
-    right = ["rp", "heading"] + (["spos"] if has_std_pos else []) + (["satt"] if has_std_att else []) + \
-        [f"nis:{s['key']}" for s in series]
-    fig, ax_map, ax_h, axes = _layout(right)
+    series = _series(records, gnss)
+    right = _panels(traj, series)
+    if skeleton is None or skeleton.used or skeleton.right != right:
+        skeleton = Skeleton(right)
+    skeleton.used = True
+    fig, ax_map, ax_h, axes = skeleton.fig, skeleton.ax_map, skeleton.ax_h, skeleton.axes
     step = max(1, int(np.ceil(len(traj.time) / max_points)))
     sl = slice(None, None, step)
     t0 = float(traj.time[0])
@@ -141,20 +205,14 @@ def overview_figure(traj: Trajectory, gnss: GnssData | None = None, summary: dic
     _map_panel(ax_map, traj, gnss, summary, records, wins, step)
     if gnss is not None and len(gnss):
         ax_h.plot(gnss.time - t0, gnss.height, ".", ms=2, color="C1", alpha=0.6, label="GNSS")
-    ax_map.set_title("map: local ENU about the first epoch")
     ax_h.plot(t, traj.height[sl], color="C0", lw=0.9, label="solution")
-    ax_h.set_ylabel("height [m]")
     ax_h.set_xlabel(xl)
     ax_h.legend(loc="best", fontsize=8)
     _time_panels(axes, traj, sl, t, t0, series)
-    for name, ax in axes.items():
+    for ax in axes.values():
         _shade(ax, wins, t0)
-        ax.grid(True, alpha=0.3)
-        if name != right[-1]:
-            ax.tick_params(labelbottom=False)
     axes[right[-1]].set_xlabel(xl)
     _shade(ax_h, wins, t0)
-    ax_h.grid(True, alpha=0.3)
     if title is None:
         inputs = [Path(str(summary[k])).name for k in ("imu", "gnss", "obs") if summary.get(k)]
         title = "aidnav run" + (": " + " + ".join(inputs) if inputs else "")
@@ -222,39 +280,28 @@ def _map_panel(ax_map, traj: Trajectory, gnss, summary: dict, records, wins, ste
     ax_map.plot(e[-1], n[-1], "s", color="C3", ms=7, label="end", zorder=6)
     ax_map.set_xlabel(f"East [{unit}]")
     ax_map.set_ylabel(f"North [{unit}]")
-    ax_map.set_aspect("equal", adjustable="datalim")
-    ax_map.grid(True, alpha=0.3)
     ax_map.legend(loc="best", fontsize=8)
 
 
 def _time_panels(axes: dict, traj: Trajectory, sl: slice, t, t0: float, series: list[dict]) -> None:
-    """The panels on the right: roll and pitch, heading, the position and attitude 1σ (log axes) where the
-    trajectory has them, and one NIS panel per measurement type of ``series``."""
+    """The panels on the right: roll and pitch, heading, the position and attitude 1σ (log axes of the
+    :class:`Skeleton`) where the trajectory has them, and one NIS panel per measurement type of ``series``."""
     ax = axes["rp"]
     ax.plot(t, np.degrees(traj.rph[sl, 0]), lw=0.8, label="roll")
     ax.plot(t, np.degrees(traj.rph[sl, 1]), lw=0.8, label="pitch")
-    ax.set_ylabel("roll, pitch [deg]")
     ax.legend(loc="upper right", fontsize=8)
-    ax = axes["heading"]
-    ax.plot(t, wrap_360(np.degrees(traj.rph[sl, 2])), ".", ms=1, color="C2")
-    ax.set_ylabel("heading [deg]")
-    ax.set_ylim(0, 360)
-    ax.set_yticks([0, 90, 180, 270, 360])
+    axes["heading"].plot(t, wrap_360(np.degrees(traj.rph[sl, 2])), ".", ms=1, color="C2")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # log axes with zero / NaN σ
         if "spos" in axes:
             ax = axes["spos"]
             for i, c in enumerate("ENU"):
                 ax.plot(t, traj.std_pos[sl, i], lw=0.8, label=f"σ{c}")
-            _log_y(ax)
-            ax.set_ylabel("position 1σ [m]")
             ax.legend(loc="upper right", fontsize=8, ncol=3)
         if "satt" in axes:
             ax = axes["satt"]
             for i, c in enumerate(("roll", "pitch", "heading")):
                 ax.plot(t, np.degrees(traj.std_att[sl, i]), lw=0.8, label=f"σ {c}")
-            _log_y(ax)
-            ax.set_ylabel("attitude 1σ [deg]")
             ax.legend(loc="upper right", fontsize=8, ncol=3)
         for s in series:
             _nis_panel(axes[f"nis:{s['key']}"], s, t0)
@@ -322,24 +369,25 @@ def _nis_panel(ax, s: dict, t0: float) -> None:
         dtxt = f"dof {int(d[0])}"
     else:
         dtxt = f"dof {int(d.min())}–{int(d.max())}" if len(d) else "no data"
-    ax.set_ylabel(f"NIS {s['key']}")
     ax.set_title(f"{s['name']} NIS ({dtxt}): {fin.sum()} updates, "
                  + (f"{100 * inside:.1f}% inside the band" if fin.any() else "none"), fontsize=9)
     ax.legend(loc="upper right", fontsize=7, ncol=2)
 
 
 def write_overview(path, traj: Trajectory, gnss: GnssData | None = None, summary: dict | None = None,
-                   records: dict | None = None, title: str | None = None, dpi: int = 100) -> Path:
+                   records: dict | None = None, title: str | None = None, dpi: int = 100,
+                   skeleton: Skeleton | None = None) -> Path:
     """Write ``overview.png`` (see the module docstring) to ``path`` and return the path.
 
     traj : the solution; gnss : the GNSS fixes used (antenna positions); summary : the dict of
     :func:`aidnav.apps.process.process_logs` (outage windows, rejected fix times, input names); records :
     innovation records (``res.records`` of ``run_loose``, or :func:`tight_records`); dpi : 100 gives a
-    1400-px-wide image.
+    1400-px-wide image; skeleton : a :class:`Skeleton` built beforehand (used when its panels are this
+    run's).
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig = overview_figure(traj, gnss, summary, records, title)
+    fig = overview_figure(traj, gnss, summary, records, title, skeleton=skeleton)
     fmt = path.suffix.lstrip(".") or "png"
     png = {"pil_kwargs": {"compress_level": PNG_COMPRESS_LEVEL}} if fmt == "png" else {}
     with replacing(path) as tmp:  # under a temporary name until complete

@@ -312,12 +312,14 @@ def write_run_page(path, summary: dict, figures=(), title: str | None = None) ->
 
 
 def write_run_outputs(out_dir, traj, gnss=None, summary: dict | None = None, records: dict | None = None,
-                      figures=(), maps: bool = True, base: str = "trajectory", progress=None) -> dict:
+                      figures=(), maps: bool = True, base: str = "trajectory", progress=None,
+                      skeleton=None) -> dict:
     """Everything a run leaves to look at, in ``out_dir``: ``overview.png``
     (:func:`aidnav.report.overview.write_overview`), ``<base>.kml`` and ``<base>.geojson``
     (:func:`aidnav.report.maps.write_maps`, when ``maps``) and ``run.html`` embedding the overview
     and the further ``figures``. progress : optional :class:`aidnav.progress.ProgressBar` (one stage
-    "figures and maps", 3 steps). Returns {"overview", "run_page", "kml", "geojson"} → paths."""
+    "figures and maps", 3 steps); skeleton : the overview's :class:`aidnav.report.overview.Skeleton`, built
+    beforehand. Returns {"overview", "run_page", "kml", "geojson"} → paths."""
     from .overview import write_overview  # lazy: pulls in matplotlib, scipy
 
     out = Path(out_dir)
@@ -325,7 +327,8 @@ def write_run_outputs(out_dir, traj, gnss=None, summary: dict | None = None, rec
     summary = summary or {}
     if progress is not None:
         progress.stage("figures and maps", total=3, unit="steps")
-    paths = {"overview": write_overview(out / "overview.png", traj, gnss, summary, records)}
+    paths = {"overview": write_overview(out / "overview.png", traj, gnss, summary, records,
+                                             skeleton=skeleton)}
     if progress is not None:
         progress.advance(1)
     if maps:

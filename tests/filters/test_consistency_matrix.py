@@ -46,11 +46,51 @@ def test_matched_configuration_covers_every_axis_on_every_grade(grade):
     _check(cell, cm.SEED_COVERAGE_BOUND if grade == "mems" else cm.COVERAGE_TARGET)
 
 
-@pytest.mark.parametrize("name", ["gnss outage 60 s", "moving start, position only"])
+@pytest.mark.parametrize("name", ["gnss outage 60 s", "moving start, position only",
+                                  "imu gap 30 s in a turn"])
 def test_matched_configuration_covers_an_outage_and_a_moving_start(name):
     """Consumer grade: 60 s without fixes over two turns; a log that starts at 10 m/s with 1 Hz
-    position-only fixes (before issue 35's sensor model: roll/pitch 42–51 %)."""
+    position-only fixes (before issue 35's sensor model: roll/pitch 42–51 %); 30 s without IMU samples in
+    the middle of a 180° turn (measured 99.8/99.9/99.5/99.5/98.6/100.0 %, ratios 0.83–1.20)."""
     _check(cm.run_cell(cm.condition(name), "matched", SEEDS))
+
+
+@pytest.mark.parametrize("config", ["none", "car"])
+def test_imu_gap_position_sigma_is_honest_and_useful(config):
+    """The 30-s IMU gap in a turn with no option and the car preset, position axes only (their tilt is the
+    IMU model's, the NO_HOLD cells below): the gap's motion bound (≈ 2 km with these bounds) must give way
+    to the first fix after the gap at the gap's closing node, so that no output after the gap carries it
+    (before issue 35 session 9: position ratio 0.01–0.05, the one output with a km σ dominating RMS(σ));
+    and the σ must still cover (measured on c11a759: none 97.0/95.1/99.8 %, ratio 1.41/1.82/0.80; car
+    98.7/96.8/100.0 %, 1.00/1.05/0.78)."""
+    cell = cm.run_cell(cm.condition("imu gap 30 s in a turn"), config, SEEDS)
+    print("\n" + cm.format_matrix([cell]))
+    assert cell.failed == 0, cell.errors
+    assert np.all(cell.coverage[POS] >= cm.COVERAGE_TARGET), cell.coverage[POS]
+    assert np.all(cell.ratio[POS] >= cm.RATIO_TARGET), cell.ratio[POS]
+
+
+def test_matched_configuration_at_10_hz_covers_when_it_models_every_sensor_error():
+    """10-Hz white fixes, the consumer IMU without its misalignments (the matched model then has no
+    misalignment term to leave out): every axis covered, 10 seeds (measured 99.9/99.6/99.8/100/99.7/100 %,
+    ratios 0.83-1.08, NEES/9 0.93; with only the accelerometer's misalignment removed from the simulated
+    IMU, gyro misalignment states kept: 99.9/99.6/99.8/100/100/100 %, NEES/9 0.97). The 10-Hz fixes alone
+    do not make the filter overconfident; the cell below fails for the one term its model leaves out."""
+    cond = cm.variant(cm.condition("gnss 10 Hz white"), imu=(("misalignment_arcsec", 0.0),))
+    _check(cm.run_cell(cond, "matched", SEEDS))
+
+
+@pytest.mark.xfail(strict=True, reason="issue 35 session 10 (k35g): the matched model folds the "
+                   "accelerometer misalignment into the bias (m·g, exact while level), but in the drive's "
+                   "first acceleration the z accelerometer's m_zx·a looks like a pitch error of m_zx in the "
+                   "vertical channel, which 10-Hz fixes resolve: pitch 92.4 % (seeds 2 and 4: 49 and 81 "
+                   "%, the pitch error moves 0.7° in 5 s at σ 0.26°); accelerometer misalignment states "
+                   "(6, as the gyro's) are not in the filter")
+def test_matched_configuration_at_10_hz_covers_the_consumer_imu():
+    """The consumer IMU with its 0.5° accelerometer misalignments at 10 Hz: the issue's 95 % on every
+    axis (fails today, above: two seeds two-thirds out, more than the 10-seed bound's one seed; the
+    cell's mean, 92.4 %, is above the bound only because each seed is partly covered)."""
+    _check(cm.run_cell(cm.condition("gnss 10 Hz white"), "matched", SEEDS))
 
 
 NO_HOLD = pytest.mark.xfail(

@@ -39,6 +39,24 @@ def test_consumer_grade_known_answers():
     assert m["gyro_misalignment_sigma_deg"] == pytest.approx(0.5)
 
 
+def test_rate_random_walk_of_the_spec_is_in_the_bias_random_walk():
+    """A spec's rate / acceleration random walk (bias random walk of PSD rrw²) adds its PSD to the
+    instability's 2σ²/τ (issue 35, session 10: before, the matched model left it out). Known answers in
+    the configuration's units: rrw alone gives rrw itself; with the instability, the root of the sum."""
+    only = sensor_error_model(ImuSpec.from_units(gyro_bias_deg_h=10.0, accel_bias_ug=100.0,
+                                                 gyro_rrw_deg_h_sqrt_h=3.0, accel_rrw_ug_sqrt_h=40.0))
+    assert only["gyro_bias_rw_deg_h_sqrt_h"] == pytest.approx(3.0)
+    assert only["accel_bias_rw_ug_sqrt_h"] == pytest.approx(40.0)
+    both = sensor_error_model(ImuSpec.from_units(
+        gyro_bias_instability_deg_h=20.0, accel_bias_instability_ug=500.0, bias_corr_time_s=100.0,
+        gyro_rrw_deg_h_sqrt_h=3.0, accel_rrw_ug_sqrt_h=40.0))
+    gm_g, gm_a = np.sqrt(2 * 20.0 ** 2 / 100.0) * 60.0, np.sqrt(2 * 500.0 ** 2 / 100.0) * 60.0
+    assert both["gyro_bias_rw_deg_h_sqrt_h"] == pytest.approx(np.hypot(gm_g, 3.0))
+    assert both["accel_bias_rw_ug_sqrt_h"] == pytest.approx(np.hypot(gm_a, 40.0))
+    none = sensor_error_model(ImuSpec.grade("seed000"))
+    assert none["gyro_bias_rw_deg_h_sqrt_h"] == 0.0 and none["accel_bias_rw_ug_sqrt_h"] == 0.0
+
+
 def test_no_sensor_error_no_states_and_legacy_switch():
     spec = ImuSpec.grade("seed000")  # constants + white noise only
     assert loose_config_from_specs(spec).nstate == 15

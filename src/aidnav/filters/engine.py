@@ -81,6 +81,7 @@ from .layout import (
     L_N,
     L_NINS,
     L_TOFF,
+    L_VDEL,
     NAV,
     PHI,
     RN_LEVER,
@@ -95,7 +96,7 @@ from .layout import (
 from .measurements import M_GNSS_POS, M_GNSS_VEL, M_PR, MAX_ROWS, MODELS_KEY, N_MODELS, Nav, fill
 from .measurements.common import W_FIX, W_IB, W_IE, W_IN
 from .measurements.epoch import epoch_out, epoch_record, epoch_update
-from .measurements.gnss import W_FN
+from .measurements.gnss import W_FN, reset_time_tag
 
 # parameters of the GNSS velocity model (``Models.par[M_GNSS_VEL]``) for the heading hold after an IMU gap
 # (:func:`run_chunk`): mounting heading [rad], least speed of a course [m/s], course σ [rad], heading σ
@@ -174,11 +175,13 @@ def _var(P, ix, i):
 
 
 @njit(cache=True)
-def _reinit(st, P, ini, ix, held):
+def _reinit(st, P, ini, ix, held, cal):
     """Re-initialisation event: heading, then velocity and position from ``reset_nav`` =
-    [v (3), lat, lon, h, σ_v (3), σ_pos E, N, U, lever (3)] of the fix that gave the course when the
+    [v (3), lat, lon, h, σ_v (3), σ_pos E, N, U, a (3), lever (3)] of the fix that gave the course when the
     velocity is 3σ off: σ of the filter and the fix, or, when the heading was ``held`` unknown until now
-    (the filter's velocity covariance, propagated with that heading, is meaningless), of the fix alone.
+    (the filter's velocity covariance, propagated with that heading, is meaningless), of the fix alone;
+    the fix's time tag read with the time offset and velocity delay (``cal``: their indices and the
+    estimates, :func:`.measurements.gnss.reset_time_tag`).
     ``ix`` (≥ 15,): index in P of each state of the full INS layout (−1: not in the filter, a subset)."""
     rn_ = ini.reset_nav  # layout.RN_*: the fix's velocity, position, their σ, the lever arm
     set_heading(st, P, ini.reset_heading, ini.reset_sigma, ix[PHI + 2], ix[PHI], ix[PHI + 1])
@@ -211,6 +214,7 @@ def _reinit(st, P, ini, ix, held):
         j = ix[DV + i]
         if j >= 0:
             P[j, j] = var[i]
+    reset_time_tag(st, P, rn_, ix, cal)
 
 
 @njit(cache=True)
@@ -719,7 +723,7 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
         gap_k = _gap_sample(gap, imu.gap_var, k)
         if k0 + k == ini.reset_idx:
             reset_node = kn  # the next node is the first one after the re-initialisation
-            _reinit(st, P, ini, ix, hold_h)
+            _reinit(st, P, ini, ix, hold_h, (-1, -1, bias) if nsub else (itoff, lay[L_VDEL], bias))
         is_node = T >= prop_dt - 1e-9 or t_due <= imu.t[k] or (cy.last and k == n_imu - 1)
         if is_node and T > 0.0:
             if kn - kn0 >= max_nodes:

@@ -46,13 +46,14 @@ MIS_PAIRS = ("xy", "xz", "yx", "yz", "zx", "zy")  # gyro misalignment m_(out)(in
 # error-state blocks of the INS model (ins_errors)
 NAV = 9  # φ, δv, δp
 __all__ = ["PHI", "DV", "DP", "BG", "BA", "SG", "SA", "MG", "ST_POS", "ST_VEL", "ST_Q", "N_ST", "NAV",
-           "AUX_NAMES", "RN_VEL", "RN_POS", "RN_SVEL", "RN_SPOS", "RN_LEVER", "N_RN", "L_RERR", "L_ISB",
-           "L_TDCP", "L_TOFF", "L_MOUNT", "L_VDEL", "L_GPE", "L_FLEX", "make_layout", "layout_names",
+           "AUX_NAMES", "RN_VEL", "RN_POS", "RN_SVEL", "RN_SPOS", "RN_ACC", "RN_LEVER", "N_RN", "L_RERR",
+           "L_ISB", "L_TDCP", "L_TOFF", "L_MOUNT", "L_VDEL", "L_GPE", "L_FLEX", "make_layout", "layout_names",
            "LAYOUTS"]
 
 # the course fix of a re-initialisation event (engine ``Init.reset_nav``, N_RN,): its velocity ENU [m/s],
-# position lat, lon [rad], h [m], velocity σ ENU [m/s], position σ E, N, U [m], antenna lever arm (body) [m]
-RN_VEL, RN_POS, RN_SVEL, RN_SPOS, RN_LEVER, N_RN = 0, 3, 6, 9, 12, 15
+# position lat, lon [rad], h [m], velocity σ ENU [m/s], position σ E, N, U [m], the vehicle's acceleration
+# ENU at the fix from the GNSS velocities [m/s²] (0 where unknown), antenna lever arm (body) [m]
+RN_VEL, RN_POS, RN_SVEL, RN_SPOS, RN_ACC, RN_LEVER, N_RN = 0, 3, 6, 9, 12, 15, 18
 
 # calibration (auxiliary) states the engine knows: name -> width
 AUX_NAMES = {"odometer_scale": 1, "baro_bias": 1, "clock": 2, "lever_arm": 3, "time_offset": 1, "mounting": 3,

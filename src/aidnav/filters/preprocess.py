@@ -284,7 +284,7 @@ def initial_state(imu, gnss, cfg, t_imu, g, use, events):
     g : the arrays of :func:`gnss_arrays`; use : bool mask of the usable fixes. Returns a dict with t0,
     k0 (first IMU sample used), lat0, lon0, h0, v0, rph, att_sig [rad], reset_idx (sample index of the
     course alignment, −1: none; relative to k0), reset_time (its time, inf: never, None: none),
-    reset_heading [rad], reset_nav (12,) of the course fix,
+    reset_heading [rad], reset_nav (15,) of the course fix (``layout.RN_*`` up to the lever arm),
     vel_sig (3,) [m/s] of an in-motion start (None: the configured σ).
     """
     if cfg.init.mode == "given":
@@ -424,13 +424,27 @@ def _course_reset(gsub, cfg, t0, vel_u, svel_u, iu, g, t_imu, k0, events):
     meas = ~np.isnan(vel_u[ica_u])
     vel_g = np.where(meas, np.nan_to_num(vel_u[ica_u]), 0.0)
     svel = np.where(meas, svel_u[ica_u], 1.0)
-    reset_nav = np.array([*vel_g, g_lat[ica], g_lon[ica], g_h[ica], *svel, *g_spos[ica]])
+    acc = fix_acceleration(gsub.time, vel_u, ica_u)
+    reset_nav = np.array([*vel_g, g_lat[ica], g_lon[ica], g_h[ica], *svel, *g_spos[ica], *acc])
     mount_h = cfg.imu.mounting_rph_deg[2] * DEG
     # vehicle heading = course; IMU heading = vehicle heading + mounting heading
     reset_heading = float(wrap_2pi(course + mount_h))
     reset_idx = int(np.searchsorted(t_imu[k0:], tca, side="left"))
     events.append(f"heading from GNSS course at t={tca:.3f}: {np.degrees(reset_heading):.2f} deg")
     return reset_idx, reset_heading, float(tca), reset_nav
+
+
+def fix_acceleration(t, vel, i, span_s: float = 1.0) -> np.ndarray:
+    """The vehicle's acceleration ENU [m/s²] at fix ``i`` from the velocities ``vel`` (n, 3) of the fixes
+    at times ``t``: the central difference of its neighbours, else the one-sided difference with the
+    fix's one neighbour, each within ``span_s`` (a fix after an outage has only the next one); 0 where
+    none is (or a component is not measured)."""
+    lo = i - 1 if i > 0 and t[i] - t[i - 1] <= span_s else i
+    hi = i + 1 if i + 1 < len(t) and t[i + 1] - t[i] <= span_s else i
+    if hi == lo:
+        return np.zeros(3)
+    a = (np.asarray(vel[hi], float) - np.asarray(vel[lo], float)) / (t[hi] - t[lo])
+    return np.where(np.isfinite(a), a, 0.0)
 
 
 def _course_ok(speed, sig_h, cfg):

@@ -67,7 +67,8 @@ def sensor_error_model(imu_spec, states: int = 15, floor_bias: bool = True) -> d
       of PSD 2σ_i²/τ started at σ0² = σ_c² + σ_i². Its increments over any T (2σ_i²T/τ) bound those of
       the constant plus the Gauss–Markov (2σ_i²(1 − e^(−T/τ))) and equal them for T ≪ τ, so the turn-on
       constant is never forgotten (one Gauss–Markov state of σ0 forgets it within τ); a random constant
-      when there is no instability;
+      when there is no instability; the spec's rate / acceleration random walk (``gyro_rrw``,
+      ``accel_rrw``: a bias random walk of PSD rrw²) adds its PSD to that random walk's;
     * scale factors: the 21-state model (random constants of the spec's σ) when the IMU has scale-factor
       errors (or ``states = 21``); otherwise none;
     * accelerometer misalignment: each off-diagonal entry m (σ_m) turns the 1 g the triad senses into
@@ -88,8 +89,9 @@ def sensor_error_model(imu_spec, states: int = 15, floor_bias: bool = True) -> d
     tiny_g, tiny_a = (1e-4 * DEG_H, 1e-3 * UG) if floor_bias else (0.0, 0.0)
     ab0 = np.sqrt(ab ** 2 + ai ** 2 + (am * G0) ** 2 + (0.0 if sf else asf * G0) ** 2)
 
-    def rw(sig, tau, unit):  # random walk [unit/√h] of the Gauss-Markov instability's PSD 2σ²/τ
-        return np.sqrt(2.0 * sig ** 2 / tau) * 60.0 / unit if (sig > 0 and np.isfinite(tau)) else 0.0
+    def rw(sig, tau, rrw, unit):  # random walk [unit/√h]: the instability's PSD 2σ²/τ plus the spec's rrw²
+        q = 2.0 * sig ** 2 / tau if (sig > 0 and np.isfinite(tau)) else 0.0
+        return np.sqrt(q + rrw ** 2) * 60.0 / unit
 
     return dict(
         arw_deg_sqrt_h=max(float(np.max(imu_spec.gyro_arw)) / DEG * 60.0, 1e-6),
@@ -97,7 +99,8 @@ def sensor_error_model(imu_spec, states: int = 15, floor_bias: bool = True) -> d
         gyro_bias_sigma_deg_h=max(np.hypot(gb, gi), tiny_g) / DEG_H,
         accel_bias_sigma_ug=max(ab0, tiny_a) / UG,
         gyro_bias_tau_s=0.0, accel_bias_tau_s=0.0,
-        gyro_bias_rw_deg_h_sqrt_h=rw(gi, tau_g, DEG_H), accel_bias_rw_ug_sqrt_h=rw(ai, tau_a, UG),
+        gyro_bias_rw_deg_h_sqrt_h=rw(gi, tau_g, float(np.max(imu_spec.gyro_rrw)), DEG_H),
+        accel_bias_rw_ug_sqrt_h=rw(ai, tau_a, float(np.max(imu_spec.accel_rrw)), UG),
         scale_factors=sf,
         gyro_sf_sigma_ppm=max(gsf * 1e6, 1e-3),
         accel_sf_sigma_ppm=max(asf * 1e6, 1e-3),

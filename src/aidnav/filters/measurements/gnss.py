@@ -11,7 +11,7 @@ import numpy as np
 from aidnav.jit import njit
 from aidnav.nav.earth import gravity, gravity_dh, radii
 
-from ..layout import BG, DP, DV, L_GPE, L_LEVER, L_TOFF, L_VDEL, NAV, PHI, ST_VEL
+from ..layout import BG, DP, DV, L_GPE, L_LEVER, L_TOFF, L_VDEL, NAV, PHI, RN_ACC, RN_VEL, ST_POS, ST_VEL
 from .common import W_FIX, W_IE, W_IN, cross, diag_r, skew, skew_into
 
 W_FN = 4  # row of ``Nav.w`` holding the interval's mean specific force f^n [m/s²] (engine)
@@ -171,3 +171,52 @@ def gnss_velocity_model(nav, row, par, lay, H, z, R):
             R[k, k] = row[3 + i] * row[3 + i]
             k += 1
     return r
+
+
+@njit(cache=True)
+def reset_time_tag(st, P, rn_, ix, cal):
+    """The time tag of a fix whose velocity and position the INS has just taken (the engine's course
+    re-initialisation: δv and δp set to the fix's σ, uncorrelated). ``rn_``: the fix (``layout.RN_*``: its
+    velocity v and acceleration a ENU); ``ix``: index in P of each INS state; ``cal``: (index of the time
+    offset, of the velocity delay (−1: not estimated), the estimate vector ``bias``).
+
+    The fix describes the vehicle at its tag, which is on the IMU clock at tag − d (the time offset) and
+    its velocity at tag − d − τ (the velocity delay), as :func:`gnss_position_model` and
+    :func:`gnss_velocity_model` read the INS: the INS is moved by v·d̂ and a·(d̂ + τ̂) so that those models
+    see the reset agree with its own fix, and the unknown part of d and τ is carried: δp = ε_p − v r_d,
+    δv = ε_v − a (r_d + r_τ) (r = true − estimated), P ← J P Jᵀ. Without it the reset ties the INS to
+    the fix as if d̂ were exact, and the fixes after it, all read with the same d̂, agree with it whatever
+    d is: they "confirm" a wrong offset to the fix σ / speed (the drive, issue 35: σ 0.013 s at 4σ off)."""
+    itoff, ivd, bias = cal
+    d = bias[itoff - NAV] if itoff >= 0 else 0.0
+    tau = bias[ivd - NAV] if ivd >= 0 else 0.0
+    if itoff < 0 and ivd < 0:
+        return
+    v = np.zeros(3)
+    a = np.zeros(3)
+    for i in range(3):
+        if not np.isnan(rn_[RN_VEL + i]):
+            v[i] = rn_[RN_VEL + i]
+        a[i] = rn_[RN_ACC + i]
+    rm, rn = radii(st[ST_POS])
+    h = st[ST_POS + 2]
+    # metres → δL, δλ, δh
+    sc = np.array([1.0 / ((rn + h) * np.cos(st[ST_POS])), 1.0 / (rm + h), 1.0])
+    st[ST_POS] += v[1] * d * sc[1]
+    st[ST_POS + 1] += v[0] * d * sc[0]
+    st[ST_POS + 2] += v[2] * d
+    for i in range(3):
+        st[ST_VEL + i] += a[i] * (d + tau)
+    n = P.shape[0]
+    J = np.eye(n)
+    for i in range(3):
+        jv, jp = ix[DV + i], ix[DP + i]
+        if jv >= 0:
+            if itoff >= 0:
+                J[jv, itoff] = -a[i]
+            if ivd >= 0:
+                J[jv, ivd] = -a[i]
+        if jp >= 0 and itoff >= 0:  # δp rows: δL (north), δλ (east), δh
+            k = 1 if i == 0 else (0 if i == 1 else 2)
+            J[jp, itoff] = -v[k] * sc[k]
+    P[:, :] = J @ P @ J.T

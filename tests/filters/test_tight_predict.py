@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from aidnav.filters.engine import tail_start
 from aidnav.filters.kalman import discretize, discretize_tail, predict, predict_tail
+from aidnav.filters.predict import tail_start
 from aidnav.filters.tight import rotation_variance
 
 
@@ -100,8 +100,8 @@ def _const_system(rng, nd=17, nc=12, nt=4):
 
 def test_split_predict_equals_the_full_matrix_predict():
     """Constant states kept out of the series and the products give the full Φ P Φᵀ + Qd (issue 40)."""
-    from aidnav.filters.engine import head_split
     from aidnav.filters.kalman import discretize_split, predict_split
+    from aidnav.filters.predict import head_split
 
     rng = np.random.default_rng(42)
     nh, nc, nt = 29, 12, 4

@@ -19,6 +19,7 @@ from aidnav.filters import transfer as tf
 from aidnav.filters.kalman import van_loan
 from aidnav.filters.layout import L_FLEX, L_MOUNT, L_N, NAV
 from aidnav.filters.measurements.check import check_jacobian
+from aidnav.filters.predict import exact_blocks
 from aidnav.filters.transfer_model import transfer_layout
 from aidnav.nav.earth import OMEGA_IE
 from aidnav.nav.rotations import dcm_from_euler, dcm_from_quat, dcm_from_rotvec, quat_from_euler
@@ -47,7 +48,7 @@ def test_exact_blocks_against_van_loan(order):
     Phi_e, Qd_e = van_loan(F, G, q, T)
     blk = [i] if j < 0 else [i, j]
     Phi[0:2, 0:2], Qd[0:2, 0:2] = Phi_e[0:2, 0:2], Qd_e[0:2, 0:2]
-    eng.exact_blocks(Phi, Qd, np.array([[i, j, beta, sig]], float), T)
+    exact_blocks(Phi, Qd, np.array([[i, j, beta, sig]], float), T)
     np.testing.assert_allclose(Phi[np.ix_(blk, blk)], Phi_e[np.ix_(blk, blk)], rtol=1e-12)
     np.testing.assert_allclose(Qd[np.ix_(blk, blk)], Qd_e[np.ix_(blk, blk)], rtol=1e-9)
     assert Phi[0, 0] == Phi_e[0, 0] and Phi[0, blk[0]] == 0.0 and Qd[blk[-1], 0] == 0.0

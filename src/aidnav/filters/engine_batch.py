@@ -36,7 +36,6 @@ from .engine import (
     Log,
     Work,
     carry_estimates,
-    exact_blocks,
     feedback,
     node_rates,
 )
@@ -54,6 +53,7 @@ from .kalman import discretize, predict
 from .layout import L_N, L_NINS, L_SIZE, NAV, ST_Q
 from .measurements import MAX_ROWS, MODELS_KEY, N_MODELS, Nav, fill
 from .measurements.gnss import W_FN
+from .predict import exact_blocks
 
 __all__ = ["BatchIn", "BatchInit", "BatchOut", "run_batch", "batchable", "stack_inputs", "run_outputs"]
 

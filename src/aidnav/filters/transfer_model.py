@@ -29,7 +29,7 @@ Process model: the 15 INS error states of :func:`aidnav.filters.ins_errors.fill_
 constants, white gyro/accelerometer noise of the sub-IMU grade), ρ̇ = 0, the flexure block above.
 F is block diagonal between (INS, ρ) and the flexure, so the engine discretises the INS+ρ block with
 :func:`aidnav.filters.kalman.discretize` (third-order Taylor of Van Loan) and the flexure block
-exactly (``Process.gm``, :func:`aidnav.filters.engine.exact_blocks`: ‖F_flex‖·T ≈ 2βT ≈ 2 at T = 1 s,
+exactly (``Process.gm``, :func:`aidnav.filters.predict.exact_blocks`: ‖F_flex‖·T ≈ 2βT ≈ 2 at T = 1 s,
 far too large for a Taylor series). ρ, θ, θ̇ are open-loop states (``Process.open``): their estimate
 is propagated as x̂ ← Φ x̂ and never reset (:func:`aidnav.filters.engine.carry_estimates`).
 
@@ -54,11 +54,12 @@ from aidnav.nav.earth import radii
 from aidnav.units import DEG, DEG_H, UG
 
 from . import measurements as ms
-from .engine import NEVER, Models, Process, exact_blocks
+from .engine import NEVER, Models, Process
 from .ins_errors import fill_model
 from .kalman import discretize
 from .layout import L_FLEX, make_layout
 from .measurements.attitude import left_jacobian
+from .predict import exact_blocks
 
 if TYPE_CHECKING:  # the simulator's containers, for annotations only (filters do not import sim)
     from aidnav.sim.distributed_pos import DistributedPosConfig
@@ -213,7 +214,7 @@ def fill_transfer_model(F, G, q, lat, h, v, fn, Cbn, wb, fb, beta, sigma, q_gyro
 def discretize_transfer(F, G, q, T, beta, sigma, Phi, Qd):
     """Φ, Qd (n×n) over ``T`` [s] of the model of :func:`fill_transfer_model`, as the engine forms
     them: :func:`aidnav.filters.kalman.discretize` for the whole model, then the flexure block exact
-    (:func:`aidnav.filters.engine.exact_blocks`; F is block diagonal, so the INS + ρ block is that of
+    (:func:`aidnav.filters.predict.exact_blocks`; F is block diagonal, so the INS + ρ block is that of
     the Taylor series alone)."""
     discretize(F, G, q, T, Phi, Qd)
     exact_blocks(Phi, Qd, gm_blocks(F.shape[0], beta, sigma), float(T))

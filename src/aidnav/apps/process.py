@@ -13,6 +13,7 @@ Conversions (datum offset, IMU time offset) happen once, here at the boundary th
 
 from __future__ import annotations
 
+import os
 import time as _time
 
 import numpy as np
@@ -92,6 +93,7 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
     section; the summary names each aid's file under the aid's name. imu_topic, gnss_topic,
     gnss_vel_topic : the topics of ROS bags (``--imu-topic``, ``--gnss-topic``, ``--gnss-vel-topic``)."""
     from aidnav.apps.run_outputs import (  # lazy: the figures' fork
+        SKELETON_MIN_CPUS,
         OutputsProcess,
         expected_panels,
         start_outputs,
@@ -123,7 +125,8 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
     cfg = cfg.model_copy(update={"gnss": cfg.gnss.model_copy(update={"height_offset_m": 0.0})})
     if len(gnss) < 1:
         raise DataError(gnss_path, None, "no GNSS fixes")
-    if isinstance(figures, OutputsProcess):  # the child builds the overview's skeleton while this filters
+    if isinstance(figures, OutputsProcess) and (os.cpu_count() or 1) >= SKELETON_MIN_CPUS:
+        # the child builds the overview's skeleton while this filters, where a core is free for it
         figures.expect(expected_panels(cfg.gnss.use, gnss.vel is not None))
     aids = [read_aid(name, path, cfg) for name, path in aid_paths]  # times on the GNSS time scale
     log = open_imu(imu_path, topic=imu_topic)  # Parquet in batches; any other format read whole

@@ -37,6 +37,11 @@ FORK_OUTPUTS = sys.platform.startswith("linux") and hasattr(os, "fork")
 #: ``figures=IN_PROCESS``: drawn in this process, no child (``aidnav fleet``'s workers draw log after log
 #: with matplotlib loaded once)
 IN_PROCESS = "in-process"
+#: the overview's skeleton is built by the child while the filter runs only on a machine with at least this
+#: many CPUs: the run holds two (the filter and its writer thread), and on two the child's ≈ 0.4 CPU-s of
+#: skeleton competes with them (W1 on this project's 2-core machine, idle: +0.26 s wall with it, the 60-s log
+#: unchanged; docs/results.md, issue 41 session 10)
+SKELETON_MIN_CPUS = 3
 
 
 def _warm_up() -> None:

@@ -55,14 +55,7 @@ def test_matched_configuration_covers_an_outage_and_a_moving_start(name):
     _check(cm.run_cell(cm.condition(name), "matched", SEEDS))
 
 
-GAP_NONE_AFTER_RESET = pytest.mark.xfail(strict=True, reason=(
-    "issue 35 session 10 (lead, after merging k35s's time-tag-aware course reset): N coverage 95.1 -> 92.3 "
-    "%, "
-    "the uncovered epochs at the start of motion (30-40 s: the course alignment's reset) on seeds 1, 3, 6, 7 "
-    "(N 91, 80, 65, 91 %); the reset's interplay with the no-option time-offset states not investigated"))
-
-
-@pytest.mark.parametrize("config", [pytest.param("none", marks=GAP_NONE_AFTER_RESET), "car"])
+@pytest.mark.parametrize("config", ["none", "car"])
 def test_imu_gap_position_sigma_is_honest_and_useful(config):
     """The 30-s IMU gap in a turn with no option and the car preset, position axes only (their tilt is the
     IMU model's, the NO_HOLD cells below): the gap's motion bound (≈ 2 km with these bounds) must give way

@@ -167,13 +167,14 @@ def _var(P, ix, i):
 
 
 @njit(cache=True)
-def _reinit(st, P, ini, ix, held, cal):
+def _reinit(st, P, ini, ix, held, cal, cal_rows):
     """Re-initialisation event: heading, then velocity and position from ``reset_nav`` =
     [v (3), lat, lon, h, σ_v (3), σ_pos E, N, U, a (3), lever (3)] of the fix that gave the course when the
     velocity is 3σ off: σ of the filter and the fix, or, when the heading was ``held`` unknown until now
     (the filter's velocity covariance, propagated with that heading, is meaningless), of the fix alone;
     the fix's time tag read with the time offset and velocity delay (``cal``: their indices and the
-    estimates, :func:`.measurements.gnss.reset_time_tag`).
+    estimates, :func:`.measurements.gnss.reset_time_tag`); after a ``held`` heading, their covariance is
+    first repaired to the prior of ``cal_rows`` (``Models.cal``: :func:`_repair_timing`).
     ``ix`` (≥ 15,): index in P of each state of the full INS layout (−1: not in the filter, a subset)."""
     rn_ = ini.reset_nav  # layout.RN_*: the fix's velocity, position, their σ, the lever arm
     set_heading(st, P, ini.reset_heading, ini.reset_sigma, ix[PHI + 2], ix[PHI], ix[PHI + 1])
@@ -206,7 +207,25 @@ def _reinit(st, P, ini, ix, held, cal):
         j = ix[DV + i]
         if j >= 0:
             P[j, j] = var[i]
+    if held:
+        _repair_timing(P, cal, cal_rows)
     reset_time_tag(st, P, rn_, ix, cal)
+
+
+@njit(cache=True)
+def _repair_timing(P, cal, cal_rows):
+    """The time offset and velocity delay (indices ``cal[0]``, ``cal[1]``) learnt while the heading was held
+    unknown were learnt against a velocity integrated with that heading, whose covariance meant nothing:
+    as suspect as that velocity, which the reset replaces; their variance goes back to the prior of
+    ``cal_rows`` (rows index, prior variance, …; ``Models.cal``), uncorrelated, their estimates kept (a
+    calibration is repaired, never thrown away: issue 35, item 5). Without it a course reset read the fix
+    with an offset learnt 3.5σ off (0.30 ± 0.08 s against 0) and moved the INS by a·(d̂ + τ̂)."""
+    for r in range(cal_rows.shape[0]):
+        i = int(cal_rows[r, 0])
+        if i >= 0 and (i == cal[0] or i == cal[1]):
+            P[i, :] = 0.0
+            P[:, i] = 0.0
+            P[i, i] = cal_rows[r, 1]
 
 
 @njit(cache=True)
@@ -565,7 +584,8 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
         gap_k = _gap_sample(gap, imu.gap_var, k)
         if k0 + k == ini.reset_idx:
             reset_node = kn  # the next node is the first one after the re-initialisation
-            _reinit(st, P, ini, ix, hold_h, (-1, -1, bias) if nsub else (itoff, lay[L_VDEL], bias))
+            _reinit(st, P, ini, ix, hold_h, (-1, -1, bias) if nsub else (itoff, lay[L_VDEL], bias),
+                    mod.cal)
         is_node = T >= prop_dt - 1e-9 or t_due <= imu.t[k] or (cy.last and k == n_imu - 1)
         if is_node and T > 0.0:
             if kn - kn0 >= max_nodes:

@@ -53,16 +53,9 @@ def load(config: str):
 
 def coverage(run) -> float:
     """Share of the withheld Q = 1 fixes whose E and N errors are both within 3σ of the output."""
-    from aidnav.nav.earth import lla_difference_enu
+    from aidnav.apps.outages import withheld_coverage  # lazy: after the environment is set
 
-    tr, g = run.trajectory, run.gnss
-    ok = run.withheld & (g.quality == 1) & (g.time > tr.time[0]) & (g.time < tr.time[-1])
-    lat = np.interp(g.time[ok], tr.time, tr.lat)
-    lon = np.interp(g.time[ok], tr.time, tr.lon)
-    e, n, _ = lla_difference_enu(lat, lon, 0.0, g.lat[ok], g.lon[ok], 0.0)
-    se = np.interp(g.time[ok], tr.time, tr.std_pos[:, 0])
-    sn = np.interp(g.time[ok], tr.time, tr.std_pos[:, 1])
-    return float(np.mean((np.abs(e) <= 3 * se) & (np.abs(n) <= 3 * sn)))
+    return withheld_coverage(run.trajectory, run.gnss, run.withheld)
 
 
 def offset_history(run, t_first: float) -> dict:

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from aidnav.apps.outages import withheld_coverage
 from aidnav.apps.process import load_config, process, read_gnss_any, read_imu_any
 from aidnav.filters.result import calibration_summary
 from aidnav.nav.earth import lla_difference_enu
@@ -170,15 +171,8 @@ def test_car_preset_no_long_rejection_runs(car_only):
 
 def _coverage(run):
     """Share of the withheld Q = 1 fixes whose E and N errors are both within 3σ of the output's σ
-    (interpolated to the fix), and the end-of-outage median (issue 35's acceptance)."""
-    tr, g = run.trajectory, run.gnss
-    ok = run.withheld & (g.quality == 1) & (g.time > tr.time[0]) & (g.time < tr.time[-1])
-    lat = np.interp(g.time[ok], tr.time, tr.lat)
-    lon = np.interp(g.time[ok], tr.time, tr.lon)
-    e, n, _ = lla_difference_enu(lat, lon, 0.0, g.lat[ok], g.lon[ok], 0.0)
-    se = np.interp(g.time[ok], tr.time, tr.std_pos[:, 0])
-    sn = np.interp(g.time[ok], tr.time, tr.std_pos[:, 1])
-    return float(np.mean((np.abs(e) <= 3 * se) & (np.abs(n) <= 3 * sn)))
+    (interpolated to the fix): issue 35's acceptance (:func:`aidnav.apps.outages.withheld_coverage`)."""
+    return withheld_coverage(run.trajectory, run.gnss, run.withheld)
 
 
 def test_car_preset_accuracy_and_coverage(car_only):

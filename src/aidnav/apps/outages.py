@@ -81,6 +81,19 @@ def outage_errors(traj, gnss: GnssData, withheld, after: float = -np.inf):
     return t, np.hypot(de, dn)
 
 
+def withheld_coverage(traj, gnss: GnssData, withheld) -> float:
+    """Share of the withheld fixes of quality 1 inside the output's span whose east and north errors are
+    both within 3σ of the output's σ (both interpolated to the fix): issue 35's coverage on a real log."""
+    from aidnav.nav.earth import lla_difference_enu  # lazy: pulls in numba
+
+    ok = withheld & (gnss.quality == 1) & (gnss.time > traj.time[0]) & (gnss.time < traj.time[-1])
+    t = gnss.time[ok]
+    lat, lon = np.interp(t, traj.time, traj.lat), np.interp(t, traj.time, traj.lon)
+    e, n, _ = lla_difference_enu(lat, lon, 0.0, gnss.lat[ok], gnss.lon[ok], 0.0)
+    se, sn = np.interp(t, traj.time, traj.std_pos[:, 0]), np.interp(t, traj.time, traj.std_pos[:, 1])
+    return float(np.mean((np.abs(e) <= 3 * se) & (np.abs(n) <= 3 * sn)))
+
+
 def score_outages(traj, gnss: GnssData, wins, withheld) -> dict:
     """Horizontal errors at the withheld fixes: end-of-outage statistics and RMS over all of them."""
     return outage_score(*outage_errors(traj, gnss, withheld), wins, withheld, gnss)

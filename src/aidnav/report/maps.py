@@ -317,7 +317,7 @@ def write_kml(path, traj: Trajectory, gnss: GnssData | None = None, outages=None
             body += ["<Folder><name>track</name><Placemark><name>trajectory (timed)</name>"
                      f"<styleUrl>#{style('line', _NO_SIGMA)}</styleUrl><gx:Track><altitudeMode>absolute"
                      f"</altitudeMode>{whens}{gxc}</gx:Track></Placemark></Folder>"]
-    fixes = _kml_fixes(gnss, rejected_times, outages, color_by, max_fixes, desc)
+    fixes = _kml_fixes(gnss, rejected_times, outages, color_by, max_fixes, desc, dh)
     if fixes is not None:  # the points' styles in the order of the fixes (the ids: the same bytes as before)
         for colour in fixes[1]:
             style("point", colour)
@@ -349,16 +349,17 @@ def write_kml(path, traj: Trajectory, gnss: GnssData | None = None, outages=None
         if fixes is not None:
             for folder, rejected in (("gnss", False), ("rejected", True)):
                 f.write(f"\n<Folder><name>{folder}</name>")
-                for line in _kml_fix_placemarks(gnss, fixes, rejected, dh, week, style):
+                for line in _kml_fix_placemarks(gnss, fixes, rejected, week, style):
                     f.write("\n" + line)
                 f.write("\n</Folder>")
         f.write("\n" + "\n".join(tail + ["</Document></kml>"]) + "\n")
     return path
 
 
-def _kml_fixes(gnss, rejected_times, outages, color_by: str, max_fixes: int, desc: list):
-    """(indices of the fixes drawn, their colours, rejected flags, withheld flags) of a KML file, or None
-    without fixes; a decimation is said in ``desc``."""
+def _kml_fixes(gnss, rejected_times, outages, color_by: str, max_fixes: int, desc: list, dh: float):
+    """(indices of the fixes drawn, their colours, their coordinates (lon, lat [deg], altitude [m] with
+    ``dh`` removed), rejected flags, withheld flags) of a KML file, or None without fixes; a decimation is
+    said in ``desc``."""
     if gnss is None or not len(gnss):
         return None
     rej, wh = fix_groups(gnss, rejected_times, outages)
@@ -369,17 +370,17 @@ def _kml_fixes(gnss, rejected_times, outages, color_by: str, max_fixes: int, des
         keep = sel[_decimate(len(sel), max_fixes)]
         sel = np.union1d(keep, sel[rej[sel]])  # every rejected fix is kept
     colours = [_REJECTED_COLOUR if rej[i] else ("#bbbbbb" if wh[i] else _colour(cls[i], gmode)) for i in sel]
-    return sel, colours, rej, wh
+    return sel, colours, _coords(gnss, sel, dh), rej, wh
 
 
-def _kml_fix_placemarks(gnss, fixes, rejected: bool, dh: float, week, style):
+def _kml_fix_placemarks(gnss, fixes, rejected: bool, week, style):
     """The Point placemarks of the drawn fixes that are (not) ``rejected``, one at a time."""
-    sel, colours, rej, wh = fixes
-    for i, colour in zip(sel, colours, strict=True):
+    sel, colours, coords, rej, wh = fixes
+    for i, colour, c in zip(sel, colours, coords, strict=True):
         if bool(rej[i]) != rejected:
             continue
         info = _fix_text(gnss, int(i), rej[i], wh[i], week)
-        yield _kml_placemark("Point", _coords(gnss, [i], dh), style("point", colour),
+        yield _kml_placemark("Point", [c], style("point", colour),
                              description=json.dumps(info), when=info.get("time"))
 
 
@@ -413,11 +414,11 @@ def _geojson_parts(traj: Trajectory, gnss: GnssData | None, outages, rejected_ti
             sel = np.flatnonzero(np.isfinite(gnss.lat) & np.isfinite(gnss.lon))
             if len(sel) > max_fixes:
                 sel = np.union1d(sel[_decimate(len(sel), max_fixes)], sel[rej[sel]])
-            for i in sel:
+            for i, c in zip(sel, _coords(gnss, sel), strict=True):
                 colour = _REJECTED_COLOUR if rej[i] else ("#bbbbbb" if wh[i] else _colour(cls[i], gmode))
                 props = {"layer": "rejected" if rej[i] else "gnss", "marker-color": colour,
                          "marker-size": "small", **_fix_text(gnss, int(i), rej[i], wh[i], week)}
-                yield _feature("Point", list(_coords(gnss, [i])[0]), props)
+                yield _feature("Point", list(c), props)
         for k, (a, b) in enumerate(outages or []):
             ii = _outage_idx(traj, a, b, max_points)
             if len(ii) < 2:

@@ -83,10 +83,15 @@ def outage_errors(traj, gnss: GnssData, withheld, after: float = -np.inf):
 
 def withheld_coverage(traj, gnss: GnssData, withheld) -> float:
     """Share of the withheld fixes of quality 1 inside the output's span whose east and north errors are
-    both within 3σ of the output's σ (both interpolated to the fix): issue 35's coverage on a real log."""
+    both within 3σ of the output's σ (both interpolated to the fix): issue 35's coverage on a real log;
+    NaN where no such fix (no quality column, or none withheld inside the span)."""
     from aidnav.nav.earth import lla_difference_enu  # lazy: pulls in numba
 
+    if gnss.quality is None:
+        return float("nan")
     ok = withheld & (gnss.quality == 1) & (gnss.time > traj.time[0]) & (gnss.time < traj.time[-1])
+    if not ok.any():
+        return float("nan")
     t = gnss.time[ok]
     lat, lon = np.interp(t, traj.time, traj.lat), np.interp(t, traj.time, traj.lon)
     e, n, _ = lla_difference_enu(lat, lon, 0.0, gnss.lat[ok], gnss.lon[ok], 0.0)

@@ -35,7 +35,6 @@ from ..io.motion_checks import centred_velocity as _centred_velocity
 from ..io.motion_checks import course_rate as _course_rate
 from ..io.motion_checks import turn_rate_residuals as _residual_curve
 
-
 COARSE_STEP_S = 0.02  #: the coarse lag grid [s] (module doc: method)
 FINE_HALF_WIDTH_S = 0.06  #: the fine grid spans the coarse minimum ± this [s]
 

@@ -423,7 +423,8 @@ def test_correct_increments_removes_the_accelerometer_misalignment():
     six); the angle increments as with nb = 18."""
     dt = 0.01
     dth, dv = W_IB * dt, F_B * dt
-    m_g, m_a = np.array([1e-3, 2e-3, 3e-3, 4e-3, 5e-3, 6e-3]), np.array([-7e-3, 8e-3, 9e-3, -1e-3, 2e-3, 3e-3])
+    m_g = np.array([1e-3, 2e-3, 3e-3, 4e-3, 5e-3, 6e-3])
+    m_a = np.array([-7e-3, 8e-3, 9e-3, -1e-3, 2e-3, 3e-3])
     bias = np.concatenate([[1e-4, -2e-4, 3e-4, 0.02, -0.01, 0.03, 1e-3, -2e-3, 5e-4, 2e-3, 1e-3, -1e-3],
                            m_g, m_a])
     dthc, dvc = np.zeros(3), np.zeros(3)

@@ -19,7 +19,6 @@ from aidnav.sim.imu import ImuSpec
 from .test_stream import _same, _streamed
 
 
-
 def test_consumer_grade_known_answers():
     """Consumer row of the grade table: gyro 360 deg/h + 20 deg/h GM (τ 100 s), accel 10000 µg + 500 µg,
     scale factors 5000 ppm, misalignment 1800″ on both triads (states for both: the accelerometer's

@@ -31,9 +31,9 @@ AUX       calibration states (odometer scale factor   after the INS block
 
 The named layouts: 15 = navigation + biases; 17 = 15 + receiver clock (tight); 21 = 15 + scale
 factors; 27 = 21 + gyro misalignment (6, ``ins_errors.MIS_OUT``/``MIS_IN``); 33 = 27 + accelerometer
-misalignment (6, the same order); 24 = 21 + 3 calibration states (e.g. a lever arm). :func:`make_layout` builds the index table
-of any INS block plus calibration states; kernels read indices from it (``L_*`` entries), never
-literal slices.
+misalignment (6, the same order); 24 = 21 + 3 calibration states (e.g. a lever arm). :func:`make_layout`
+builds the index table of any INS block plus calibration states; kernels read indices from it (``L_*``
+entries), never literal slices.
 """
 
 from __future__ import annotations

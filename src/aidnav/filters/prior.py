@@ -21,7 +21,24 @@ import numpy as np
 from aidnav.nav.earth import radii
 from aidnav.units import DEG, DEG_H, UG
 
-from .layout import BA, BG, DP, DV, L_BARO, L_GPE, L_LEVER, L_MOUNT, L_ODO, L_TOFF, L_VDEL, MA, MG, PHI, SA, SG
+from .layout import (
+    BA,
+    BG,
+    DP,
+    DV,
+    L_BARO,
+    L_GPE,
+    L_LEVER,
+    L_MOUNT,
+    L_ODO,
+    L_TOFF,
+    L_VDEL,
+    MA,
+    MG,
+    PHI,
+    SA,
+    SG,
+)
 
 __all__ = ["markov_psd", "ins_psd", "ins_p0_diag", "process_noise", "initial_covariance",
            "calibration_prior", "given_initial_state"]
@@ -54,8 +71,8 @@ def _three(x):
 
 def ins_p0_diag(n: int, lat: float, h: float, att, vel, pos_m, gyro_bias, accel_bias, sf=(0.0, 0.0),
                 mis: float = 0.0, amis: float = 0.0):
-    """Initial variances (n,) of the INS block (n = 9, 15, 21, 27 or 33; more: zeros for the caller to fill) from
-    1σ values (scalars or 3-vectors): attitude [rad], velocity [m/s], position E, N, U [m] (→ δL, δλ,
+    """Initial variances (n,) of the INS block (n = 9, 15, 21, 27 or 33; more: zeros for the caller to fill)
+    from 1σ values (scalars or 3-vectors): attitude [rad], velocity [m/s], position E, N, U [m] (→ δL, δλ,
     δh at lat [rad], h [m]), gyro bias [rad/s], accelerometer bias [m/s²], ``sf`` scale factors [-],
     ``mis`` gyro misalignment [rad] (n ≥ 27), ``amis`` accelerometer misalignment [rad] (n ≥ 33)."""
     rm, rn = radii(lat)
@@ -81,7 +98,8 @@ def ins_p0_diag(n: int, lat: float, h: float, att, vel, pos_m, gyro_bias, accel_
 
 # ------------------------------------------------------------------ from the filters' configuration
 def process_noise(cfg, nstate: int) -> np.ndarray:
-    """PSD vector q of the INS block (15, 21, 27 or 33 states) from ``cfg.imu`` (:class:`.config.ImuNoise`)."""
+    """PSD vector q of the INS block (15, 21, 27 or 33 states) from ``cfg.imu`` (:class:`.config.ImuNoise`).
+    """
     im = cfg.imu
     sg = im.gyro_bias_instability_deg_h
     sg = im.gyro_bias_sigma_deg_h if sg is None else sg
@@ -100,9 +118,10 @@ def process_noise(cfg, nstate: int) -> np.ndarray:
 
 
 def initial_covariance(cfg, nstate: int, lat: float, h: float, att_sigma_rad) -> np.ndarray:
-    """Diagonal P0 of the INS block from ``cfg.init`` and ``cfg.imu`` (attitude σ given in radians). The
-    accelerometer misalignment without the gyro's (``imu.accel_misalignment`` alone: the 33-state block)
-    holds the gyro misalignment states at zero (σ 1e-6 deg: a positive definite P for the smoother's solve)."""
+    """Diagonal P0 of the INS block from ``cfg.init`` and ``cfg.imu`` (attitude σ given in radians).
+    The accelerometer misalignment without the gyro's (``imu.accel_misalignment`` alone: the 33-state
+    block) holds the gyro misalignment states at zero (σ 1e-6 deg: a positive definite P for the
+    smoother's solve)."""
     im = cfg.imu
     gmis = 1e-6 if (im.accel_misalignment and not im.gyro_misalignment) else im.gyro_misalignment_sigma_deg
     return np.diag(ins_p0_diag(nstate, lat, h, att_sigma_rad, cfg.init.velocity_sigma_m_s,

@@ -10,6 +10,7 @@ import pytest
 
 from aidnav.experiments import consistency_matrix as cm
 from aidnav.filters.config import LooseConfig
+from aidnav.filters.ins_errors import MIS_IN, MIS_OUT
 from aidnav.filters.layout import L_LEVER, L_N, L_NINS, MA, MG, layout_names, make_layout
 from aidnav.filters.loose import run_loose
 from aidnav.filters.prior import initial_covariance, process_noise
@@ -133,3 +134,25 @@ def test_33_states_streamed_equal_in_memory():
     assert res.layout[L_NINS] == 33 and np.any(ref.bias[-1, 12:18] != 0) and np.any(ref.bias[-1, 18:24] != 0)
     for k in ("time", "state", "bias", "pdiag"):
         _same(cat[k], getattr(ref, k))
+
+
+def test_accelerometer_misalignment_estimates_agree_with_the_simulated_ones():
+    """Simulator against estimator on the new states: the 10-Hz consumer cell of the matrix, 10 seeds,
+    the final estimates of the six accelerometer-misalignment entries against the ones ``corrupt_imu``
+    drew, in units of the filter's σ. 60 normalised errors: the mean square inside the χ²₆₀ band
+    (0.1 %–99.9 %: 0.53–1.66; measured 1.26) and none beyond 3.5σ (measured: 2.16σ at most). The same
+    estimates against the truth with the opposite sign give 3.82 (5.4σ at most), against the transposed
+    truth (pair order swapped) 2.49 (4.4σ): the test tells the conventions apart. The m_zx entry (the one
+    that looked like pitch at 10 Hz) keeps ≈ its prior σ: the filter now knows that it does not know it."""
+    cond = cm.condition("gnss 10 Hz white")
+    z = []
+    for seed in range(10):
+        run = cm.simulate_condition(cond, seed)
+        res = run_loose(run.imu, run.gnss, cm.config_for("matched", cond, run))
+        assert res.layout[L_NINS] == 33
+        Ma = run.imu_errors["accel_misalignment"]
+        true = np.array([Ma[r, c] for r, c in zip(MIS_OUT, MIS_IN, strict=True)])
+        z.append((res.bias[-1, MA - 9:MA - 3] - true) / np.sqrt(res.pdiag[-1, MA:MA + 6]))
+    z = np.array(z)
+    assert 0.53 <= np.mean(z ** 2) <= 1.66, np.round(z, 2)
+    assert np.abs(z).max() <= 3.5, np.round(z, 2)

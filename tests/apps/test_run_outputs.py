@@ -31,7 +31,7 @@ def test_forked_outputs_are_the_in_process_bytes(tmp_path, monkeypatch):
     child = ro.OutputsProcess()  # the path under test: a forked child draws
     out = tmp_path / "o"  # (the page names the output folder: the same folder for both)
     sent = []
-    child.send = lambda *job, send=child.send: (sent.append(job), send(*job))[1]
+    child.send = lambda *job, send=child.send, **kw: (sent.append(job), send(*job, **kw))[1]
     process_logs(imu, gnss, cfg, out, outages=["10:5"], figures=child, timings=False)
     _, traj, fixes, _, records = sent[0]
     use = job_config(cfg, None, None, None, None, None, None)[0].gnss.use

@@ -38,10 +38,12 @@ FORK_OUTPUTS = sys.platform.startswith("linux") and hasattr(os, "fork")
 #: with matplotlib loaded once)
 IN_PROCESS = "in-process"
 #: the overview's skeleton is built by the child while the filter runs only on a machine with at least this
-#: many CPUs: the run holds two (the filter and its writer thread), and on two the child's ≈ 0.4 CPU-s of
-#: skeleton competes with them (W1 on this project's 2-core machine, idle: +0.26 s wall with it, the 60-s log
-#: unchanged; docs/results.md, issue 41 session 10)
-SKELETON_MIN_CPUS = 3
+#: many CPUs (on one, it would take the CPU from the filter). It is built during the parent's numba start
+#: and first passes, one thread, so on two cores it runs on the free one: paired runs on this project's
+#: 2-core machine (RT priority, load 7–10; docs/results.md, issue 41 session 11), with the command's fewer
+#: garbage collections: W1 default outputs 1.43 s with it, 1.65 s without; the 60-s log 1.08 vs 1.24 s
+#: (session 10 had set 3 from an idle run where it cost +0.26 s on W1: not reproduced)
+SKELETON_MIN_CPUS = 2
 
 
 def _warm_up() -> None:

@@ -79,6 +79,8 @@ class GnssAiding(_Strict):
     lever_arm_m: tuple[float, float, float] = Field((0.0, 0.0, 0.0), description="IMU→antenna, body RFU [m]")
     use: Literal["both", "position", "velocity"] = "both"
     pos_std_scale: float = Field(1.0, gt=0, description="multiplies the receiver's σ")
+    pos_std_scale_up: float = Field(1.0, gt=0, description="multiplies the vertical σ too (after "
+                                    "pos_std_scale); both unstated: measured (aidnav.filters.gnss_errors)")
     vel_std_scale: float = Field(1.0, gt=0)
     min_pos_std_m: float = Field(0.05, gt=0, description="floor on position σ [m]")
     min_vel_std_m_s: float = Field(0.02, gt=0, description="floor on velocity σ [m/s]")

@@ -40,7 +40,11 @@ def test_stated_error_model_is_kept():
     run = cm.simulate_condition(cm.condition("gnss 1 Hz correlated"), 0)
     cfg = LooseConfig.model_validate({"gnss": {"error_tau_s": 0.0}})
     events: list[str] = []
-    assert choose_gnss_errors(run.imu, run.gnss, cfg, None, events) is cfg and not events
+    out = choose_gnss_errors(run.imu, run.gnss, cfg, None, events)  # the σ test still runs (its own event)
+    assert out.gnss.error_tau_s == 0.0 and not any(e.startswith("GNSS error model") for e in events), events
+    stated = LooseConfig.model_validate({"gnss": {"error_tau_s": 0.0, "pos_std_scale": 1.0}})
+    events = []
+    assert choose_gnss_errors(run.imu, run.gnss, stated, None, events) is stated and not events
 
 
 def test_car_preset_covers_correlated_errors_at_1_hz():

@@ -26,6 +26,9 @@ def run_summary(res, n_imu, rate_hz, gnss, withheld, wins, events, warnings, t_f
         # which GNSS error model the run used and why (white or Gauss-Markov states: filters.gnss_errors,
         # filters.preprocess.correlated_gnss_errors; None when the configuration stated it)
         "gnss_error_model": next((e for e in events if e.startswith(("GNSS error model", "GNSS at "))), None),
+        # the fixes' stated σ as measured by the first pass and the factor applied (filters.gnss_errors;
+        # None when the configuration stated gnss.pos_std_scale or no first pass ran)
+        "gnss_sigma": next((e for e in events if e.startswith("GNSS sigma")), None),
         "events": events,
         "warnings": warnings,
         "timing_s": {"filter": t_filt},

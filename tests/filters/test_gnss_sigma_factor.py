@@ -38,9 +38,8 @@ def test_understated_sigma_is_measured_and_the_run_holds(seed):
     sim, g = _floored(seed)
     events: list[str] = []
     cfg = choose_gnss_errors(sim.imu, g, LooseConfig(), None, events)
-    scale = np.array([cfg.gnss.pos_std_scale, cfg.gnss.pos_std_scale * cfg.gnss.pos_std_scale_up])
-    assert np.all(scale <= TRUE_FACTOR * np.sqrt(K_SIGMA)) and np.all(scale >= TRUE_FACTOR / np.sqrt(K_SIGMA)), \
-        (scale, events)
+    scale = np.array(cfg.gnss.pos_std_scales[1:])
+    assert np.all(np.abs(np.log(scale / TRUE_FACTOR)) <= np.log(np.sqrt(K_SIGMA))), (scale, events)
     assert any(e.startswith("GNSS sigma: the fixes' stated position sigma is understated") for e in events)
     run = process(sim.imu, g)
     assert run.summary["gnss_sigma"].startswith("GNSS sigma: the fixes' stated position sigma is understated")

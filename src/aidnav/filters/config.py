@@ -90,6 +90,12 @@ class GnssAiding(_Strict):
                                     "the quality rules: aidnav.io._std")
     single_std_factor: float = Field(5.0, gt=0, description="σ multiplier for single epochs (Q = 5 only; "
                                      "fixed, SBAS, DGPS, PPP: 1)")
+
+    @property
+    def pos_std_scales(self) -> tuple[float, float, float]:
+        """The factors on the fixes' E, N, U position σ (``pos_std_scale``, ``pos_std_scale_up``)."""
+        s = float(self.pos_std_scale)
+        return s, s, s * float(self.pos_std_scale_up)
     height_offset_m: float = Field(0.0, description="added to GNSS heights (e.g. MSL → ellipsoidal) where "
                                    "the file does not declare ellipsoidal heights (aidnav.io.formats)")
     gate_probability: float = Field(0.9999, gt=0, le=1, description="chi-square gate; 1 disables")

@@ -59,8 +59,8 @@ from aidnav.data import ImuData
 
 from .preprocess import CARRIER_PHASE_SIGMA_M, GNSS_ERROR_TAU_S, gnss_arrays
 
-__all__ = ["DECIDE_SPAN_S", "K_SIGMA", "RHO_MIN", "choose_gnss_errors", "innovation_whiteness", "needs_first_pass",
-           "sigma_factor"]
+__all__ = ["DECIDE_SPAN_S", "K_SIGMA", "RHO_MIN", "choose_gnss_errors", "innovation_whiteness",
+           "needs_first_pass", "sigma_factor"]
 
 #: the first pass runs over the log's first 10 min at most (enough fixes at any rate ≥ 0.5 Hz)
 DECIDE_SPAN_S = 600.0
@@ -134,7 +134,7 @@ def _test_applies(gnss, cfg):
     g = cfg.gnss
     if "error_tau_s" in g.model_fields_set or g.use == "velocity" or len(gnss) < MIN_PAIRS:
         return None
-    med = np.nanmedian(gnss_arrays(gnss, cfg)[5], axis=0) * g.pos_std_scale * np.array([1, 1, g.pos_std_scale_up])
+    med = np.nanmedian(gnss_arrays(gnss, cfg)[5], axis=0) * np.asarray(g.pos_std_scales)
     if not np.nanmax(med[:2]) >= CARRIER_PHASE_SIGMA_M:
         return None  # carrier-phase fixes: the rate rule (white) of preprocess.correlated_gnss_errors
     if float(np.median(np.diff(np.asarray(gnss.time, float)))) < 1.0 - 1e-6:
@@ -161,13 +161,13 @@ def _scale_sigma(run, cfg, span, events):
     (vertical) raised by the factors of the module doc, over the passes ``run(cfg)``; the factors and
     their passes appended to ``events``."""
     g = cfg.gnss
-    scale, ks, res = np.array([g.pos_std_scale, g.pos_std_scale * g.pos_std_scale_up]), [], None
+    scale, ks, res = np.array(g.pos_std_scales[1:]), [], None
     for _ in range(MAX_SIGMA_PASSES):
         res = run(_with_scale(cfg, scale) if ks else cfg)
         k = np.array(sigma_factor(res))
         if not (k[2] >= 2 * MIN_PAIRS and np.all(np.isfinite(k[:2]))):
-            events.append(f"GNSS sigma: {span}: {int(k[2]) // 2} fixes with a position innovation, too few to "
-                          "test their stated sigma; kept")
+            events.append(f"GNSS sigma: {span}: {int(k[2]) // 2} fixes with a position innovation, too few "
+                          "to test their stated sigma; kept")
             return cfg, res
         ks.append(k)
         if np.all(k[:2] <= K_SIGMA):
@@ -179,9 +179,9 @@ def _scale_sigma(run, cfg, span, events):
     if len(ks) == 1:
         events.append(f"GNSS sigma: as stated ({stat}); gnss.pos_std_scale scales it")
         return cfg, res
-    s0 = np.array([g.pos_std_scale, g.pos_std_scale * g.pos_std_scale_up])
-    events.append(f"GNSS sigma: the fixes' stated position sigma is understated: scaled by {scale[0] / s0[0]:.3g} "
-                  f"horizontal, {scale[1] / s0[1]:.3g} vertical ({stat}; covariance matching, "
+    f = scale / np.array(g.pos_std_scales)[1:]
+    events.append(f"GNSS sigma: the fixes' stated position sigma is understated: scaled by {f[0]:.3g} "
+                  f"horizontal, {f[1]:.3g} vertical ({stat}; covariance matching, "
                   "filters.gnss_errors); gnss.pos_std_scale and pos_std_scale_up state it")
     return _with_scale(cfg, scale), res
 
@@ -217,7 +217,7 @@ def choose_gnss_errors(imu, gnss, cfg, withheld, events, aids=(), span_s: float 
         if "pos_std_scale" not in gw.model_fields_set:  # kept as stated
             res = res if white else None
         else:
-            cfg = _with_scale(cfg, (gw.pos_std_scale, gw.pos_std_scale * gw.pos_std_scale_up))
+            cfg = _with_scale(cfg, gw.pos_std_scales[1:])
             res = res if white and _test_applies(gnss, cfg) is not None else None
             # the last pass ran with the final scale only when it stopped below K_SIGMA: else rerun
             res = res if res is not None and max(sigma_factor(res)[:2]) <= K_SIGMA else None

@@ -165,7 +165,7 @@ def _records(cfg, g, use, aids):
     g_t, g_lat, g_lon, g_h, g_vel, g_spos, g_svel = g
     m = len(g_t)
     sc = cfg.gnss
-    pos = np.column_stack([g_lat, g_lon, g_h, g_spos * sc.pos_std_scale * np.array([1.0, 1.0, sc.pos_std_scale_up])])
+    pos = np.column_stack([g_lat, g_lon, g_h, g_spos * np.asarray(sc.pos_std_scales)])
     vel = np.column_stack([g_vel, g_svel * sc.vel_std_scale])
     has_vel = np.any(~np.isnan(g_vel), axis=1)
     t, mdl, rows, u, src = [], [], [], [], []

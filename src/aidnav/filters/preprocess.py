@@ -626,7 +626,7 @@ def correlated_gnss_errors(cfg, gnss, events):
         return cfg
     dt = float(np.median(np.diff(np.asarray(gnss.time, float))))
     rate = 1.0 / dt if dt > 0 else 0.0
-    med = np.nanmedian(gnss_arrays(gnss, cfg)[5], axis=0) * g.pos_std_scale * np.array([1.0, 1.0, g.pos_std_scale_up])
+    med = np.nanmedian(gnss_arrays(gnss, cfg)[5], axis=0) * np.asarray(g.pos_std_scales)
     if not rate > 1.0 + 1e-6:
         events.append(f"GNSS at {rate:.2g} Hz: position errors treated as white (correlated-error states "
                       "only above 1 Hz; gnss.error_tau_s sets them)")

@@ -157,33 +157,44 @@ def needs_first_pass(gnss, cfg) -> bool:
 
 
 def _scale_sigma(run, cfg, span, events):
-    """(cfg, the last pass's result): ``gnss.pos_std_scale`` (horizontal) and ``pos_std_scale_up``
-    (vertical) raised by the factors of the module doc, over the passes ``run(cfg)``; the factors and
-    their passes appended to ``events``."""
-    g = cfg.gnss
-    scale, ks, res = np.array(g.pos_std_scales[1:]), [], None
-    for _ in range(MAX_SIGMA_PASSES):
+    """(cfg, the first pass's result): ``cfg`` with ``gnss.pos_std_scale`` (horizontal) and
+    ``pos_std_scale_up`` (vertical) raised by the factors of the module doc, over the passes
+    ``run(cfg)``: an axis's step is kept only when its k then falls and stays ≥ 1/K_SIGMA (the fixes' σ
+    explained the excess), else undone and the axis left (the excess is the navigation model's, not the
+    fixes'). The factors and passes go into ``events``."""
+    s0 = np.array(cfg.gnss.pos_std_scales[1:])
+    scale, prev, live, ks, undone = s0.copy(), s0.copy(), np.ones(2, bool), [], np.zeros(2, bool)
+    first = None
+    for i in range(MAX_SIGMA_PASSES):
         res = run(_with_scale(cfg, scale) if ks else cfg)
+        first = res if first is None else first
         k = np.array(sigma_factor(res))
         if not (k[2] >= 2 * MIN_PAIRS and np.all(np.isfinite(k[:2]))):
             events.append(f"GNSS sigma: {span}: {int(k[2]) // 2} fixes with a position innovation, too few "
                           "to test their stated sigma; kept")
-            return cfg, res
+            return (_with_scale(cfg, prev) if ks else cfg), first
+        if ks:  # the last step must have moved k towards the fixed point without passing it
+            bad = (scale != prev) & ((k[:2] >= ks[-1][:2]) | (k[:2] < 1.0 / K_SIGMA))
+            scale, live, undone = np.where(bad, prev, scale), live & ~bad, undone | bad
         ks.append(k)
-        if np.all(k[:2] <= K_SIGMA):
+        step = live & (k[:2] > K_SIGMA)
+        if not step.any() or i == MAX_SIGMA_PASSES - 1:
             break
-        scale = np.where(k[:2] > K_SIGMA, scale * np.sqrt(k[:2]), scale)
+        prev, scale = scale, np.where(step, scale * np.sqrt(k[:2]), scale)
     figs = ", then ".join(f"{k[0]:.3g}/{k[1]:.3g}" for k in ks)
     stat = (f"{span}: median normalised innovation^2 / chi2(1) median, horizontal/vertical, {figs} over "
-            f"{int(ks[-1][2])} horizontal innovations; > {K_SIGMA:g} scales")
-    if len(ks) == 1:
-        events.append(f"GNSS sigma: as stated ({stat}); gnss.pos_std_scale scales it")
-        return cfg, res
-    f = scale / np.array(g.pos_std_scales)[1:]
+            f"{int(ks[-1][2])} horizontal innovations; > {K_SIGMA:g} scales while it falls towards 1")
+    left = [a for a, u in zip(("horizontal", "vertical"), undone, strict=True) if u]
+    left = (f"; {' and '.join(left)} not scaled: k did not fall towards 1 with the fixes' sigma (it rose, "
+            f"or fell below {1 / K_SIGMA:g}): the excess is not theirs") if left else ""
+    f = scale / s0
+    if np.all(f == 1.0):
+        events.append(f"GNSS sigma: as stated ({stat}{left}); gnss.pos_std_scale scales it")
+        return cfg, first
     events.append(f"GNSS sigma: the fixes' stated position sigma is understated: scaled by {f[0]:.3g} "
-                  f"horizontal, {f[1]:.3g} vertical ({stat}; covariance matching, "
+                  f"horizontal, {f[1]:.3g} vertical ({stat}{left}; covariance matching, "
                   "filters.gnss_errors); gnss.pos_std_scale and pos_std_scale_up state it")
-    return _with_scale(cfg, scale), res
+    return _with_scale(cfg, scale), first
 
 
 def choose_gnss_errors(imu, gnss, cfg, withheld, events, aids=(), span_s: float = DECIDE_SPAN_S):
@@ -207,20 +218,15 @@ def choose_gnss_errors(imu, gnss, cfg, withheld, events, aids=(), span_s: float 
         return stream_loose([head], gnss, c, lambda *a, **k: None, withheld=wh, events=[], aids=aids)
 
     span = f"first pass over {float(head.time[-1]) - t0:.0f} s"
-    res = None
     if _scale_applies(gnss, cfg):
-        # at 1 Hz or slower (the white/correlated test's domain) the passes are white-error ones: the
-        # test's own pass, reused when the σ is kept
+        # at 1 Hz or slower (the white/correlated test's domain) the passes are white-error ones
         white = _test_applies(gnss, cfg) is not None
-        cfg_w, res = _scale_sigma(run, _with_tau(cfg, 0.0) if white else cfg, span, events)
-        gw = cfg_w.gnss
-        if "pos_std_scale" not in gw.model_fields_set:  # kept as stated
-            res = res if white else None
-        else:
-            cfg = _with_scale(cfg, gw.pos_std_scales[1:])
-            res = res if white and _test_applies(gnss, cfg) is not None else None
-            # the last pass ran with the final scale only when it stopped below K_SIGMA: else rerun
-            res = res if res is not None and max(sigma_factor(res)[:2]) <= K_SIGMA else None
+        scaled, res = _scale_sigma(run, _with_tau(cfg, 0.0) if white else cfg, span, events)
+        if "pos_std_scale" in scaled.gnss.model_fields_set:
+            cfg, res = _with_scale(cfg, scaled.gnss.pos_std_scales[1:]), None
+        res = res if white else None  # the first pass is the white/correlated test's own when kept
+    else:
+        res = None
     med = _test_applies(gnss, cfg)
     if med is None:
         return cfg

@@ -320,8 +320,9 @@ def loose_inputs(imu, gnss, cfg, withheld=None, events=None, cov_times=None, aid
     su = loose_setup(imu, gnss, cfg, withheld, events, aids)
     cfg, k0, t_imu = su.cfg, su.k0, su.t_imu
     dth_in, dv_in, gap_var = bridge_gaps(imu, events, bounds=cfg.motion)
-    static = (static_flags(imu, visible_fixes(gnss, withheld), cfg) if cfg.constraints.zupt
-              else np.zeros(len(imu), np.bool_))
+    # static flags for every run: the ZUPT/ZARU where the configuration asks for them (counted), and the
+    # engine's tilt turn and heading hold at rest (engine._turn_tilt_at_rest) always
+    static = static_flags(imu, visible_fixes(gnss, withheld), cfg)
     cov_idx = np.zeros(0, np.int64)
     if cov_times is not None:
         ct = np.sort(np.atleast_1d(np.asarray(cov_times, float)))
@@ -330,7 +331,7 @@ def loose_inputs(imu, gnss, cfg, withheld=None, events=None, cov_times=None, aid
         cov_idx = cov_idx[cov_idx < len(t_imu) - k0]
     sl = slice(k0, None)
     imu_in = Imu(t_imu[sl], dth_in[sl], dv_in[sl], static[sl], gap_var[sl], np.zeros((0, 2)))
-    return su, imu_in, int(static[sl].sum()), cov_idx
+    return su, imu_in, int(static[sl].sum()) if cfg.constraints.zupt else 0, cov_idx
 
 
 def loose_result(su, r, imu, gnss, static_used, events) -> FilterResult:

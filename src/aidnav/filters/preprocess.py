@@ -115,6 +115,19 @@ def _spread_flags(time, dtheta, dv, t_prev, ring, k, n, thr_w, thr_f, ok):
         ok[i] = good
 
 
+STATIC_BASELINE_MAX_S = 30.0  #: the longest baseline of the position-difference speed of the static test [s]
+
+
+def static_baseline_s(gnss, speed_m_s: float) -> float:
+    """The baseline [s] of the position-difference speed of the static test (:class:`StaticDetector`) for
+    fixes without a receiver velocity: the one at which the fixes' median horizontal σ gives a speed σ of
+    a third of the threshold ``speed_m_s`` (√2·σ/T), from 1 s to :data:`STATIC_BASELINE_MAX_S`."""
+    sp = gnss.std_pos if gnss.std_pos is not None else np.ones((len(gnss), 3))
+    sig = float(np.nanmedian(np.hypot(sp[:, 0], sp[:, 1]) / np.sqrt(2.0))) if len(gnss) else 1.0
+    need = 3.0 * np.sqrt(2.0) * sig / speed_m_s if np.isfinite(sig) else STATIC_BASELINE_MAX_S
+    return float(min(max(need, 1.0), STATIC_BASELINE_MAX_S))
+
+
 class StaticDetector:
     """:func:`static_flags` over consecutive chunks of a log (call it with each chunk in order: the
     running sums carry over, so the flags are the whole-log ones)."""
@@ -126,8 +139,11 @@ class StaticDetector:
         gv = gnss.vel if gnss is not None else None
         if gnss is not None and len(gnss) > 1 and (gv is None or np.all(np.isnan(gv[:, :2]))):
             # no receiver velocity: from position differences, and "static" only where their σ can tell
-            # the threshold apart (σ_v <= threshold / 2): noisy fixes never say static
-            vd, sd = velocity_from_positions(gnss, 1.0)
+            # the threshold apart (σ_v <= threshold / 2): noisy fixes never say static. The baseline is
+            # long enough for the fixes' median σ to do so (σ_v = √2·σ/T = threshold / 3: a fix at rest
+            # reads above the threshold with probability e^(−4.5) ≈ 1 %), 1 s at least, at most
+            # STATIC_BASELINE_MAX_S; a long baseline only shortens the static spans (by T/2 at each end)
+            vd, sd = velocity_from_positions(gnss, static_baseline_s(gnss, c.static_gnss_speed_m_s))
             sig = np.hypot(sd[:, 0], sd[:, 1])
             gv = np.where((sig <= 0.5 * c.static_gnss_speed_m_s)[:, None], vd, np.inf)
             gv = np.where(np.isnan(gv), np.inf, gv)

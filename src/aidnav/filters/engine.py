@@ -388,9 +388,10 @@ def _hold_heading_at_rest(st, P, ix):
 def _gap_at_node(st, P, gap, ix, hold_thr, static):
     """The variance an IMU gap added since the last node; a heading σ left above the hold threshold holds
     the heading unknown (``gap[4]``) until a GNSS course re-aligns it; the tilt turned with the heading's
-    change at rest (:func:`_turn_tilt_at_rest`)."""
+    change at rest (:func:`_turn_tilt_at_rest`; ``static``: the node is static and its heading is not held
+    unknown before the first alignment — a held heading is :func:`_hold_heading`'s)."""
     iu = ix[PHI + 2]
-    _turn_tilt_at_rest(st, P, gap, ix, static)
+    _turn_tilt_at_rest(st, P, gap, ix, static and gap[4] == 0.0)  # (a held heading: _hold_heading's)
     if gap[0] > 0.0 or gap[1] > 0.0:  # (indices of the full layout through ix: a subset has its own)
         _add_gap(st, P, gap, ix)
         if hold_thr > 0.0 and iu >= 0 and P[iu, iu] >= hold_thr * hold_thr:
@@ -659,7 +660,7 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
             C = dcm_from_quat(st[ST_Q:ST_Q + 4])
             wb = predict_node(st, acc, x, P, T, proc, em, (nins, mins, nh))
             carry_estimates(st, bias, em[4], proc.open, nh)  # em[4]: Φ of the interval
-            _gap_at_node(st, P, gap, ix, hold_thr, imu.static[k])
+            _gap_at_node(st, P, gap, ix, hold_thr, imu.static[k] and not (hold_h and k0 + k < ini.reset_idx))
             if out.smooth:
                 S_phi[kn - kn0], S_prior[kn - kn0] = em[4], P
             node_rates(st, wb, dthc, dt, w)

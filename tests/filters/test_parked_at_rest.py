@@ -11,8 +11,10 @@ matched configuration, cut to its first 200 s parked. At a standstill with posit
   the z bias's own small learning (asserted at 90 % of it);
 * and 3σ covers the roll, pitch and heading errors.
 
-Before session 11 (main 85e1138) the tilt σ fell to 0.26–0.31° (seed 1: roll 1.6° off at σ 0.31°) and the
-heading σ stalled at 10° while its error reached 12–55° (seeds 1, 2, 5): the linearised model let the
+On main 85e1138 five of the six cases fail: the tilt σ falls to 0.31° and 0.30° (bound 0.42°), the heading
+σ is 9.3° and 9.9° at 120 s (bound 12.4°), and seed 1's roll is covered at 35.5 % of the epochs (1.0–1.6°
+off at σ 0.3°; over the full 600 s parked seeds 2 and 5 reach heading errors of +50° and −93° at σ 7–10°):
+the linearised model let the
 heading that wanders at rest turn the accelerometer bias's image against a still tilt, and its Earth-rate
 column against the gyro bias's image, and so separated what the sensors do not separate
 (:func:`aidnav.filters.engine._turn_tilt_at_rest`, :func:`aidnav.filters.engine._hold_heading_at_rest`).

@@ -11,7 +11,8 @@ import pytest
 from aidnav.experiments import runner
 from aidnav.experiments.config import parse_experiment
 from aidnav.experiments.estimators import _loose_run_config
-from aidnav.filters.loose import run_loose, run_loose_batch
+from aidnav.filters.loose import run_loose, run_loose_batch, shared_times
+from aidnav.filters.preprocess import bridge_gaps
 
 from .conftest import TINY
 
@@ -67,6 +68,26 @@ def test_batched_filter_equals_run_loose(sims):
             assert np.array_equal(a.records[k], b.records[k], equal_nan=True), k
         assert a.counts == b.counts and a.events == b.events
         assert np.isfinite(a.innovations["nis"]).sum() > 0
+
+
+def test_shared_times_are_what_each_run_computes(sims):
+    """The batch's shared sample-time quantities are each run's own (rate, gap variances of bridge_gaps);
+    none where the runs' times differ, no shared zeros where the times have a gap."""
+    imus = [s.imu for s, _ in sims]
+    assert imus[0].time is not imus[1].time  # each run its own copy: the values are compared
+    sh = shared_times(imus)
+    assert sh is not None and sh.rate_hz == imus[1].rate_hz
+    dth, dv, gv = bridge_gaps(imus[1], [])
+    assert sh.no_gaps.shape == gv.shape and not np.any(sh.no_gaps) and not np.any(gv)
+    assert dth is imus[1].dtheta or np.shares_memory(dth, imus[1].dtheta)
+    late = copy.copy(imus[1])
+    late.time = imus[1].time + 1e-3
+    assert shared_times([imus[0], late]) is None
+    gap = copy.copy(imus[1])
+    gap.time = imus[1].time.copy()
+    gap.time[100:] += 0.5  # a 0.5-s gap (50 nominal intervals) before sample 100
+    sh_gap = shared_times([gap, gap])
+    assert sh_gap is not None and sh_gap.no_gaps is None and np.any(bridge_gaps(gap, [])[2])
 
 
 def test_not_batchable_falls_back(sims):

@@ -8,9 +8,11 @@ import copy
 import numpy as np
 import pytest
 
+import aidnav.experiments.estimators as est
 from aidnav.experiments import runner
 from aidnav.experiments.config import parse_experiment
 from aidnav.experiments.estimators import _loose_run_config
+from aidnav.filters import loose
 from aidnav.filters.loose import run_loose, run_loose_batch, shared_times
 from aidnav.filters.preprocess import bridge_gaps
 
@@ -51,6 +53,24 @@ def test_batch_task_equals_run_by_run(point):
     # the runs differ (their own sensor errors and initial states): the comparison is not vacuous
     e0, e1 = (batch[i]["estimators"]["loose"]["error"] for i in (0, 1))
     assert not np.array_equal(e0, e1)
+
+
+def test_pool_worker_one_run_task_equals_run_task(point, monkeypatch):
+    """In a pool worker a one-run task takes the batched engine (R = 1, the kernels loaded for the batches):
+    the same results as run_task's one-run engine, bit for bit."""
+    calls = []
+    real = loose.run_loose_batch
+    monkeypatch.setattr(runner, "_REUSE_BUFFERS", True)
+    monkeypatch.setattr(loose, "run_loose_batch", lambda *a: calls.append(len(a[0])) or real(*a))
+    monkeypatch.setattr(est, "run_loose_batch", loose.run_loose_batch)  # the name the batch form calls
+    (r,) = runner.run_batch_task(runner.BatchTask(point.key, point.index, (2,), point.doc))
+    assert calls == [1]  # the batched engine, one run
+    one = runner.run_task(runner.RunTask(point.key, point.index, 2, point.doc))
+    assert calls == [1]  # run_task: the one-run engine
+    a, b = one["estimators"]["loose"], r["estimators"]["loose"]
+    for k in ("time", "error", "sigma", "nees"):
+        assert a[k].shape == b[k].shape and np.array_equal(a[k], b[k]), k
+    assert a["info"] == b["info"]
 
 
 def test_batched_filter_equals_run_loose(sims):

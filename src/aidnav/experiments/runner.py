@@ -166,7 +166,7 @@ def _process(out, name: str) -> dict:
 def run_task(task: RunTask) -> dict:
     """Compute one run (in whatever process): simulate the sensors, run every estimator, return the
     per-epoch arrays (see :func:`aidnav.experiments.store.save_run`) and a timing breakdown [s]."""
-    return run_batch_task(BatchTask(task.key, task.point, (task.run,), task.doc))[0]
+    return run_batch_task(BatchTask(task.key, task.point, (task.run,), task.doc), batched=False)[0]
 
 
 def run_batch_task(task: BatchTask, batched: bool = True) -> list[dict]:
@@ -175,7 +175,10 @@ def run_batch_task(task: BatchTask, batched: bool = True) -> list[dict]:
     (:attr:`aidnav.experiments.estimators.EstimatorType.batch`, e.g. the loose filter on
     :mod:`aidnav.filters.engine_batch`: its outputs identical to run by run; ``batched`` False: run by run
     always); one result per run, as :func:`run_task`. A batch's estimator time is shared equally among
-    its runs in the timing breakdown."""
+    its runs in the timing breakdown. In a local pool's worker a task of one run takes the batched form too
+    (R = 1, the same results): the worker has loaded its kernels for the batches before, and the one-run
+    engine's would be loaded at the campaign's end, where the batches shrink to one run (≈ 0.13 s of each
+    worker's time on the campaign's last tasks, issue 41 session 11)."""
     for v in _THREAD_VARS:
         os.environ.setdefault(v, "1")
     t0, c0 = time.perf_counter(), time.process_time()
@@ -187,9 +190,10 @@ def run_batch_task(task: BatchTask, batched: bool = True) -> list[dict]:
     setup = (time.perf_counter() - t0) / nr
     tm = [{"setup_s": setup, "estimators_s": {}, "errors_s": 0.0} for _ in task.runs]
     sims, seeds = [], []
+    together = batched and (nr > 1 or _REUSE_BUFFERS)  # the batched form (a pool worker: for one run too)
     # the runs' increments as rows of (R, N, 3) arrays: the batched filter reads them there, no copy
     n_imu = len(truth_of_point(ctx)[1])
-    inc = _increments(nr, n_imu) if batched and nr > 1 else None
+    inc = _increments(nr, n_imu) if together else None
     for i, run in enumerate(task.runs):
         a = time.perf_counter()
         sim, s_est = simulate_run(ctx, run, None if inc is None else (inc[0][i], inc[1][i]))
@@ -200,7 +204,7 @@ def run_batch_task(task: BatchTask, batched: bool = True) -> list[dict]:
     for name, et, cfg in ctx.estimators:
         a = time.perf_counter()
         outs = None
-        if batched and et.batch is not None and nr > 1:
+        if together and et.batch is not None:
             outs = et.batch(sims, cfg, [np.random.default_rng(s) for s in seeds])
         if outs is not None:
             for t in tm:

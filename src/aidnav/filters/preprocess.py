@@ -174,6 +174,15 @@ class StaticDetector:
 GAP_TILT, GAP_HEADING, GAP_VEL, GAP_POS = range(4)
 
 
+def imu_gaps(imu, factor: float = 5.0, med: float | None = None):
+    """The sample intervals of ``imu`` (Δt_k = t_k − t_{k−1}, t_{−1} = ``imu.t0``), the nominal interval
+    (``med``, default their median) and the indices of the samples after a gap (Δt > ``factor`` × nominal):
+    what :func:`bridge_gaps` decides from the sample times alone."""
+    dt = np.diff(np.concatenate([[imu.t0], imu.time]))
+    med = float(np.median(dt)) if med is None else med
+    return dt, med, np.flatnonzero(dt > factor * med)
+
+
 def bridge_gaps(imu, events: list, factor: float = 5.0, window_s: float = 1.0, med: float | None = None,
                 start: int = 0, bounds=None):
     """Increments ready for the kernel, with IMU time gaps (interval > ``factor`` × median) bridged.
@@ -204,9 +213,7 @@ def bridge_gaps(imu, events: list, factor: float = 5.0, window_s: float = 1.0, m
         from .config import MotionBounds  # lazy: pydantic (the filters' kernels do not need it)
 
         bounds = MotionBounds()
-    dt = np.diff(np.concatenate([[imu.t0], imu.time]))
-    med = float(np.median(dt)) if med is None else med
-    gaps = np.flatnonzero(dt > factor * med)
+    dt, med, gaps = imu_gaps(imu, factor, med)
     gaps = gaps[gaps >= start]
     gap_var = np.zeros((len(imu) - start, 4))
     if len(gaps) == 0:

@@ -265,6 +265,7 @@ def test_update_scalar_sequential_equals_batch_for_diagonal_r():
         assert ok
     assert np.allclose(xs, xb, rtol=0, atol=1e-10 * np.abs(xb).max())
     assert np.allclose(Ps, Pb, rtol=0, atol=1e-10 * np.abs(Pb).max())
+    assert np.array_equal(Ps, Ps.T)  # exactly symmetric, scalar by scalar
     # scalar gating: ν²/s against the threshold; rejected updates change nothing
     h = H[0].copy()
     s_exp = h @ P @ h + r[0]

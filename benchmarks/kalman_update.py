@@ -84,7 +84,8 @@ def per_call(fn, n, m, rng, sparse):
 
 
 def main():
-    print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs; per call, best of {REPS} x {CALLS}")
+    print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs; per call, best of {REPS} x "
+          f"{CALLS}")
     rng = np.random.default_rng(0)
     for n, m, sparse in ((21, 3, True), (33, 3, True), (37, 3, True), (21, 1, False), (33, 1, False),
                          (33, 3, False), (33, 6, False), (37, 6, False)):

@@ -69,6 +69,22 @@ def test_leave_waits_for_a_running_thread():
     assert "thread done" in r.stdout
 
 
+def test_the_command_collects_garbage_less_often_the_library_as_python_does():
+    from aidnav.console_script import GC_YOUNG_OBJECTS
+
+    code = "import gc, sys\n{}import aidnav.cli\nprint(*gc.get_threshold())"
+    library = _python(code.format(""))
+    command = _python(code.format("sys.argv[0] = '/usr/bin/aidnav'\n"))  # as the console script starts
+    assert library.returncode == 0 and command.returncode == 0, library.stderr + command.stderr
+    default = _python("import gc\nprint(*gc.get_threshold())").stdout.split()
+    assert library.stdout.split() == default  # importing the library changes nothing
+    assert command.stdout.split() == [str(GC_YOUNG_OBJECTS), *default[1:]]
+    kept = _python("import gc\nfrom aidnav.console_script import fewer_collections\n"
+                   "gc.set_threshold(10**6, 3, 4)\nfewer_collections()\nprint(*gc.get_threshold())\n"
+                   "gc.set_threshold(0)\nfewer_collections()\nprint(gc.get_threshold()[0])")
+    assert kept.stdout.split() == ["1000000", "3", "4", "0"]  # higher, or switched off: left as it is
+
+
 def test_blas_modules_alone_serve_numba_and_scipy():
     # numba's first dispatch must not import scipy.linalg; np.linalg inside a kernel still works (numba
     # calls scipy's BLAS/LAPACK through the modules loaded alone); scipy.linalg imports afterwards

@@ -33,9 +33,11 @@ if sys.platform.startswith("linux"):
 from pathlib import Path  # noqa: E402
 
 from aidnav import interrupts as _interrupts  # noqa: E402
+from aidnav.console_script import fewer_collections as _fewer_collections  # noqa: E402
 
 if Path(sys.argv[0]).name == "aidnav" or sys.argv[0].endswith(os.path.join("aidnav", "__main__.py")):
     _interrupts.install(hold=True)  # the aidnav command: a Ctrl-C during the imports is raised in main
+    _fewer_collections()  # the command's imports: fewer garbage collections (console_script.GC_YOUNG_OBJECTS)
 
 import typer  # noqa: E402
 
@@ -653,6 +655,7 @@ def main():  # pragma: no cover - the console script (tests call `app` in-proces
     """The ``aidnav`` command: the typer app, with numba's start-up made cheaper and a quick exit."""
     global _CONSOLE_SCRIPT
     _CONSOLE_SCRIPT = True
+    _fewer_collections()  # a command's few million long-lived objects: fewer garbage collections
     try:
         try:
             _interrupts.install()  # SIGINT/SIGTERM raised where Python can take them (not numba's glue): 130

@@ -31,7 +31,7 @@ def test_forked_outputs_are_the_in_process_bytes(tmp_path, monkeypatch):
     child = ro.OutputsProcess()  # the path under test: a forked child draws
     out = tmp_path / "o"  # (the page names the output folder: the same folder for both)
     sent = []
-    child.send = lambda *job, send=child.send: (sent.append(job), send(*job))[1]
+    child.send = lambda *job, send=child.send, **kw: (sent.append(job), send(*job, **kw))[1]
     process_logs(imu, gnss, cfg, out, outages=["10:5"], figures=child, timings=False)
     _, traj, fixes, _, records = sent[0]
     use = job_config(cfg, None, None, None, None, None, None)[0].gnss.use
@@ -49,6 +49,28 @@ def test_forked_outputs_are_the_in_process_bytes(tmp_path, monkeypatch):
         other.join()
     for name in FILES:
         assert forked[name] == (out / name).read_bytes(), name
+
+
+@pytest.mark.skipif(not ro.FORK_OUTPUTS, reason="the figures' process is forked on Linux only")
+def test_page_shows_the_summary_completed_after_the_overview_job(tmp_path):
+    """The overview's job goes to the child before the trajectory file is closed and timed; the page
+    (drawn by the child) must show the stages' wall times of the summary completed after it."""
+    import json
+
+    imu, gnss, cfg = static_log(tmp_path, 30)
+    child = ro.OutputsProcess()
+    calls = []
+    child.send = lambda *job, send=child.send, **kw: (calls.append(kw), send(*job, **kw))[1]
+    out = tmp_path / "o"
+    process_logs(imu, gnss, cfg, out, figures=child)
+    assert calls == [{"page_follows": True}]  # the job went before the timings were known
+    timing = json.loads((out / "summary.json").read_text())["timing_s"]
+    page = (out / "run.html").read_text()
+    assert timing["filter"] > 0
+    for k, v in timing.items():
+        assert f"&quot;{k}&quot;: {v!r}" in page, k
+    with pytest.raises(RuntimeError):  # one job per child
+        child.send_page({})
 
 
 def test_child_dropped_without_a_job_is_ended(tmp_path):

@@ -248,18 +248,54 @@ def walk_rows(data_dir, load_walk):
 
 
 def _vel_rms_h(res, ref):
-    """Horizontal RMS of the filter's velocity against the RTK solution's velocity at its epochs."""
-    j = np.clip(np.searchsorted(res.time, ref.time), 0, len(res.time) - 1)
-    inside = (ref.time >= res.time[0]) & (ref.time <= res.time[-1])
-    dv = res.state[j[inside], 3:5] - ref.vel[inside, :2]
-    return float(np.sqrt(np.mean(np.sum(dv**2, axis=1))))
+    """Horizontal RMS [m/s] of the filter's mean velocity over each interval of the RTK reference whose
+    ends are both fixed (Q = 1) against the RTK positions' difference over it: the mean velocity over the
+    interval by definition, so no time-tag convention enters (:mod:`aidnav.analysis.velocity_reference`).
+    The reference file's own velocity is not used: it is the u-blox receiver's NAV-PVT velocity, 0.13 s
+    late on its positions (``test_walk_reference_velocity_is_late_on_its_own_positions``)."""
+    from aidnav.analysis.velocity_reference import interval_velocity_errors
+
+    iv = interval_velocity_errors(res.time, res.state[:, 3:6], ref.time, ref.lat, ref.lon, ref.height,
+                                  use=ref.quality == 1)
+    assert len(iv) > 300
+    return iv.rms_horizontal()
+
+
+def test_walk_reference_velocity_is_late_on_its_own_positions(data_dir):
+    """The walk's ``gnss_1730_sf.pos`` is the receiver's UBX-NAV-PVT (lat, lon, hMSL, velN/E/D, carrSoln,
+    numSV, hAcc/√2, sAcc/√2, checked field by field: results.md, issue 40 session 11): its velocity comes out
+    of the u-blox navigation filter late on its positions — measured 0.134 s (the loose filter's velocity
+    delay state on the same file: 0.135 ± 0.003 s; the drive log of the same receiver: 0.13 s) — so scoring
+    a velocity against it at its stamps charges the reference's lag to the estimate."""
+    from aidnav.analysis.velocity_reference import velocity_lateness
+    from aidnav.io.rtklib import read_pos
+
+    d = data_dir / "rtklibexplorer_walk_0827"
+    if not d.is_dir():
+        pytest.skip("walk data set not found")
+    ref = read_pos(d / "gnss_1730_sf.pos", height_offset_m=-21.4)
+    lag, _ = velocity_lateness(ref.time, ref.vel, ref.time, ref.lat, ref.lon, ref.height,
+                               use=ref.quality == 1)
+    assert 0.10 <= lag <= 0.16, lag
+
+
+def test_walk_tight_velocity_is_on_the_positions_time(walk_default):
+    """aidnav's velocity (IMU + Doppler + phase) against the same positions: measured 0.021 s late — the
+    IMU's stamps: the loose filter's time-offset state on the walk gives −0.028 ± 0.002 s, and ``aidnav
+    tight`` estimates no time offset — not the reference velocity's 0.13 s."""
+    from aidnav.analysis.velocity_reference import velocity_lateness
+
+    _, _, res, _, (ref, *_rest) = walk_default
+    lag, _ = velocity_lateness(res.time, res.state[:, 3:6], ref.time, ref.lat, ref.lon, ref.height,
+                               use=ref.quality == 1)
+    assert abs(lag) <= 0.05, lag
 
 
 def test_walk_velocity_with_and_without_the_carrier_phase(walk_default):
-    """Horizontal velocity RMS against the RTK velocity, no configuration: measured 0.137 m/s with the TDCP
-    velocity records, 0.160 m/s without (code + Doppler only); with the 15-state IMU model before issue
-    40's session 9: 0.155 and 0.230 m/s (the unknown-grade model's noise from the static samples lets the
-    Doppler do more, so the phase's share is smaller: the bound was 0.8x, now 0.9x)."""
+    """Horizontal mean-velocity RMS against the RTK positions' differences (``_vel_rms_h``), no
+    configuration: measured 0.077 m/s with the TDCP velocity records, 0.125 m/s without the phase (code +
+    Doppler); against the reference file's velocity at its stamps (the figure before session 11) 0.137 and
+    0.160 m/s."""
     from aidnav.apps.process import read_imu_any
     from aidnav.apps.tight import process_tight
 
@@ -267,21 +303,21 @@ def test_walk_velocity_with_and_without_the_carrier_phase(walk_default):
     cfg = TightConfig(gnss={"use_phase": False})
     res0, _ = process_tight(read_imu_any(d / "imu_1730.csv"), obs, nav, cfg)
     assert res0.counts["velocity_records"] == 0 and res0.counts["tdcp_used"] == 0
-    assert _vel_rms_h(res, ref) < 0.9 * _vel_rms_h(res0, ref)
+    assert _vel_rms_h(res, ref) < 0.75 * _vel_rms_h(res0, ref)
 
 
 def test_walk_tdcp_rows_velocity_as_good_as_the_records(walk_rows, walk_default):
-    """The TDCP delta-range rows: measured 0.137 m/s at the reference's stamps (as the records), 1,902 rows
-    used and 13 gated; 0.067 m/s against the reference's velocity taken as the mean over the interval before
-    its stamp (results.md, j40t)."""
+    """The TDCP delta-range rows: measured 0.077 m/s (as the records: 0.077 m/s), 1,902 rows used and 13
+    gated."""
     _, _, res, _, (ref, *_rest) = walk_rows
     assert res.counts["tdcp_used"] > 1500 and res.counts["velocity_used"] == 0
     assert _vel_rms_h(res, ref) <= 1.05 * _vel_rms_h(walk_default[2], ref)
 
 
-@pytest.mark.xfail(strict=True, reason="issue 40 target not reached: 0.137 m/s measured; the RTK velocity "
-                   "lags its own positions by ~half an epoch (0.125 s): its position differences agree with "
-                   "it to 0.16 m/s at the same time stamp, to 0.055 m/s 0.125 s later (results.md, j40t)")
+@pytest.mark.xfail(strict=True, reason="issue 40 target not reached: 0.077 m/s measured against the RTK "
+                   "positions' differences (0.125 m/s without the phase; 0.074 m/s with the IMU time offset "
+                   "the loose filter estimates, -0.028 s; 0.068 m/s smoothed); the TDCP least-squares mean "
+                   "velocity of the 4 satellites itself scores 0.090 m/s (results.md, issue 40 session 11)")
 def test_walk_velocity_within_5_cm_s(walk_default):
     _, _, res, _, (ref, *_rest) = walk_default
     assert _vel_rms_h(res, ref) <= 0.05

@@ -20,8 +20,9 @@ appears in the IMU stamps at t + lag. The correction that aligns the IMU with th
 Method: the gyro rate is projected on the body "up" axis (the mean specific force over the whole log:
 no mounting needed), averaged over the same window the GNSS course rate spans (a central difference
 over t[k−1]…t[k+1]), shifted by each candidate lag on a grid, and compared with the course rate by a
-least-squares fit with a free gain; the lag minimising the residual, refined by a parabola through the
-three best grid points, is returned. The σ is a block-jackknife over 10 contiguous blocks of the
+least-squares fit with a free gain; the lag minimising the residual on a coarse grid (every 20 ms), then
+on the fine grid (``step_s``) within ±60 ms of it, refined by a parabola through the three best grid
+points, is returned. The σ is a block-jackknife over 10 contiguous blocks of the
 epochs used (turns are sparse events, so the blocks are the independent units).
 """
 
@@ -33,6 +34,9 @@ from ..data import GnssData, ImuData
 from ..io.motion_checks import centred_velocity as _centred_velocity
 from ..io.motion_checks import course_rate as _course_rate
 from ..io.motion_checks import turn_rate_residuals as _residual_curve
+
+COARSE_STEP_S = 0.02  #: the coarse lag grid [s] (module doc: method)
+FINE_HALF_WIDTH_S = 0.06  #: the fine grid spans the coarse minimum ± this [s]
 
 
 def _refine(lags, cost):
@@ -90,6 +94,14 @@ def imu_gnss_lag(imu: ImuData, gnss: GnssData, reference: str = "velocity", max_
         raise ValueError(f"the course rate over the {idx.size} moving epochs is below 0.5 deg/s RMS: "
                          "the lag needs a drive with turns")
 
+    # coarse to fine: the cost over ±max_lag_s every COARSE_STEP_S, then every step_s around its minimum
+    # (the turn-rate cost varies on the scale of the turns, tenths of a second: the coarse grid cannot
+    # step over its minimum), the jackknife on the fine grid only
+    coarse = np.arange(-max_lag_s, max_lag_s + 0.5 * COARSE_STEP_S, max(COARSE_STEP_S, step_s))
+    c_cost, _ = _residual_curve(coarse, t_imu, cum_up, t_lo, t_hi, r)
+    mid = coarse[int(np.argmin(c_cost))]
+    half = FINE_HALF_WIDTH_S
+    lags = lags[(lags >= mid - half - 1e-12) & (lags <= mid + half + 1e-12)]
     cost, gains = _residual_curve(lags, t_imu, cum_up, t_lo, t_hi, r)
     lag, i_best = _refine(lags, cost)
     blocks = np.array_split(np.arange(idx.size), 10)

@@ -138,16 +138,21 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
         run = run_process(log, gnss, cfg, smooth=smooth, outages=outages, imu_name=str(imu_path),
                           gnss_name=str(gnss_path), skip_checks=skip_checks, start_s=start_s, end_s=end_s,
                           aids=aids, write=out.write, progress=bar.advance, spool_dir=out_dir)
+        summary = {"imu": str(imu_path), "gnss": str(gnss_path),
+                   **{name: next((a.source for a in aids if a.name == name), None) for name in AIDS},
+                   "config": str(config_path) if config_path else None, "output": str(traj_path),
+                   "gnss_height_offset_m": datum, "gnss_height_datum": height_datum,
+                   **run.summary, "notes": notes}
+        if isinstance(figures, OutputsProcess):  # the overview drawn while the trajectory file is closed;
+            # the page (which shows the timings) waits for the summary's last values (write_outputs)
+            figures.send(out_dir, run.decimated, run.gnss, summary, run.result.records, page_follows=True)
         out.close()
     except BaseException:
         out.abort()
+        if isinstance(figures, OutputsProcess):
+            figures.close()
         raise
     t_filt = t_write = _time.perf_counter()
-    summary = {"imu": str(imu_path), "gnss": str(gnss_path),
-               **{name: next((a.source for a in aids if a.name == name), None) for name in AIDS},
-               "config": str(config_path) if config_path else None, "output": str(traj_path),
-               "gnss_height_offset_m": datum, "gnss_height_datum": height_datum,
-               **run.summary, "notes": notes}
     summary["timing_s"] = {"read": t_read - t_start, "filter": t_filt - t_read, "write": t_write - t_filt}
     if not timings:
         del summary["timing_s"]

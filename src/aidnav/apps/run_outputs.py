@@ -38,10 +38,12 @@ FORK_OUTPUTS = sys.platform.startswith("linux") and hasattr(os, "fork")
 #: with matplotlib loaded once)
 IN_PROCESS = "in-process"
 #: the overview's skeleton is built by the child while the filter runs only on a machine with at least this
-#: many CPUs: the run holds two (the filter and its writer thread), and on two the child's ≈ 0.4 CPU-s of
-#: skeleton competes with them (W1 on this project's 2-core machine, idle: +0.26 s wall with it, the 60-s log
-#: unchanged; docs/results.md, issue 41 session 10)
-SKELETON_MIN_CPUS = 3
+#: many CPUs (on one, it would take the CPU from the filter). It is built during the parent's numba start
+#: and first passes, one thread, so on two cores it runs on the free one: paired runs on this project's
+#: 2-core machine (RT priority, load 7–10; docs/results.md, issue 41 session 11), with the command's fewer
+#: garbage collections: W1 default outputs 1.43 s with it, 1.65 s without; the 60-s log 1.08 vs 1.24 s
+#: (session 10 had set 3 from an idle run where it cost +0.26 s on W1: not reproduced)
+SKELETON_MIN_CPUS = 2
 
 
 def _warm_up() -> None:
@@ -74,9 +76,10 @@ def _skeleton(panels):
 
 def _serve(job_fd: int):
     """The child's work: warm up, read the expected panels (:meth:`OutputsProcess.expect`, optional) and
-    build their skeleton, then read one job (out_dir, traj, gnss, summary, records) and write the overview
-    and the page. Returns ("ok", paths), ("error", pickled exception or None, traceback) or None (the
-    parent closed the pipe without a job)."""
+    build their skeleton, then read one job (out_dir, traj, gnss, summary, records) and write the overview,
+    then the page (with the summary that follows the job where the parent sent one: :meth:`OutputsProcess.
+    send`'s ``page_follows``). Returns ("ok", paths), ("error", pickled exception or None, traceback) or
+    None (the parent closed the pipe without a job)."""
     try:
         _warm_up()
     except Exception:  # noqa: BLE001  (the same import fails again below, and is reported)
@@ -84,22 +87,29 @@ def _serve(job_fd: int):
     skeleton = None
     with os.fdopen(job_fd, "rb") as f:
         try:
-            job = pickle.load(f)
-            if len(job) == 2 and job[0] == _PANELS:  # (a job has 5 items: its out_dir may be "panels")
-                skeleton = _skeleton(job[1])
-                job = pickle.load(f)
+            msg = pickle.load(f)
+            if msg[0] == _PANELS:
+                skeleton = _skeleton(msg[1])
+                msg = pickle.load(f)
         except EOFError:
             return None
-    try:
-        from aidnav.report.run_page import write_run_outputs  # lazy: matplotlib (loaded by the warm-up)
+        try:
+            from aidnav.report.run_page import write_run_outputs  # lazy: matplotlib (loaded by the warm-up)
 
-        out_dir, traj, gnss, summary, records = job
-        return "ok", write_run_outputs(out_dir, traj, gnss, summary, records, maps=False, skeleton=skeleton)
-    except BaseException as e:  # noqa: BLE001  (raised in the parent)
-        return error_answer(e)
+            _, out_dir, traj, gnss, summary, records, page_follows = msg
+
+            def page_summary():  # the summary completed by the parent meanwhile (its timings)
+                return pickle.load(f)[1] if page_follows else summary
+
+            return "ok", write_run_outputs(out_dir, traj, gnss, summary, records, maps=False,
+                                           skeleton=skeleton, page_summary=page_summary)
+        except BaseException as e:  # noqa: BLE001  (raised in the parent)
+            return error_answer(e)
 
 
-_PANELS = "panels"  #: the first word of the message of :meth:`OutputsProcess.expect`
+#: the first word of each message to the child: the expected panels (:meth:`OutputsProcess.expect`), the job
+#: (:meth:`OutputsProcess.send`), the page's summary (:meth:`OutputsProcess.send_page`)
+_PANELS, _JOB, _PAGE = "panels", "job", "page"
 
 
 def expected_panels(use: str, has_velocity: bool) -> list[str]:
@@ -110,6 +120,13 @@ def expected_panels(use: str, has_velocity: bool) -> list[str]:
     gives other panels (a measurement type without any update has none)."""
     return ["rp", "heading", "spos", "satt"] + ["nis:pos"] * (use != "velocity") + \
         ["nis:vel"] * (use != "position" and has_velocity)
+
+
+def _close(f) -> None:
+    try:
+        f.close()
+    except OSError:  # the child is gone (a broken pipe at the flush): its status is reported by result()
+        pass
 
 
 def _end(pid: int, fds: list) -> None:
@@ -140,7 +157,7 @@ class OutputsProcess:
     def expect(self, panels: list[str]) -> None:
         """Tell the child the overview's panels (:func:`expected_panels`) before the job: it builds their
         skeleton while this process runs the filter. At most once, before :meth:`send`."""
-        if self._job_w is None:
+        if self._job_w is None or self._sender is not None:
             raise RuntimeError("OutputsProcess: expect after send")
         try:
             self._job_w.write(pickle.dumps((_PANELS, list(panels))))  # a few bytes: the pipe takes them now
@@ -148,22 +165,48 @@ class OutputsProcess:
         except (BrokenPipeError, OSError):  # the child is gone: its status is reported by result()
             pass
 
-    def send(self, out_dir, traj, gnss, summary, records) -> None:
-        """The job: the child draws from these (pickled now: later changes are not seen)."""
-        job_w, self._job_w = self._job_w, None
-        if job_w is None:
+    def send(self, out_dir, traj, gnss, summary, records, page_follows: bool = False) -> None:
+        """The job: the child draws from these (pickled now: later changes are not seen). page_follows : the
+        page's summary comes later (:meth:`send_page`; the overview is drawn meanwhile), else the page is
+        written with ``summary``."""
+        job_w = self._job_w
+        if job_w is None or self._sender is not None:
             raise RuntimeError("OutputsProcess: send called twice")
-        data = pickle.dumps((str(out_dir), traj, gnss, summary, records), protocol=pickle.HIGHEST_PROTOCOL)
+        if not page_follows:
+            self._job_w = None
+        data = pickle.dumps((_JOB, str(out_dir), traj, gnss, summary, records, page_follows),
+                            protocol=pickle.HIGHEST_PROTOCOL)
 
         def write():  # in a thread: the child may still be warming up, the maps are written meanwhile
             try:
-                with job_w:
-                    job_w.write(data)
+                job_w.write(data)
+                job_w.flush()
             except (BrokenPipeError, OSError):  # the child is gone: its status is reported by result()
                 pass
+            finally:
+                if not page_follows:
+                    _close(job_w)
 
         self._sender = threading.Thread(target=write, name="aidnav-outputs-job", daemon=True)
         self._sender.start()
+
+    def send_page(self, summary) -> None:
+        """The page's summary, after a :meth:`send` with ``page_follows`` (pickled now; a few kB)."""
+        job_w, self._job_w = self._job_w, None
+        if job_w is None or self._sender is None:
+            raise RuntimeError("OutputsProcess: send_page without a job that awaits it")
+        self._sender.join()  # the job's bytes first
+        try:
+            job_w.write(pickle.dumps((_PAGE, summary), protocol=pickle.HIGHEST_PROTOCOL))
+        except (BrokenPipeError, OSError):  # the child is gone: its status is reported by result()
+            pass
+        finally:
+            _close(job_w)
+
+    @property
+    def page_awaited(self) -> bool:
+        """A job was sent whose page's summary is still to come (:meth:`send_page`)."""
+        return self._sender is not None and self._job_w is not None
 
     def result(self) -> dict:
         """The paths the child wrote; its error raised here."""
@@ -206,7 +249,10 @@ def write_outputs(figures, out_dir, traj, gnss, summary, records, progress=None)
 
     if progress is not None:
         progress.stage("figures and maps", total=3, unit="steps")
-    figures.send(out_dir, traj, gnss, summary, records)
+    if figures.page_awaited:  # the overview's job went before the trajectory file was closed
+        figures.send_page(summary)
+    else:
+        figures.send(out_dir, traj, gnss, summary, records)
     kml, gj = write_maps(Path(out_dir) / "trajectory", traj, gnss, summary)
     if progress is not None:
         progress.advance(1)

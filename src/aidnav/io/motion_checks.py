@@ -58,23 +58,41 @@ MAX_EPOCHS = 800  #: moving GNSS epochs compared at most
 HOURS = (1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12)
 
 
+#: a central difference over t[k−1]…t[k+1] longer than this many nominal fix intervals (the median) spans a
+#: gap (an outage, withheld or rejected fixes): the chord between its ends is not the track at t[k]
+GAP_FACTOR = 2.5
+
+
+def _across_gap(time) -> np.ndarray:
+    """(n − 2,) mask of the central differences t[k−1]…t[k+1], k = 1…n−2, that span a gap."""
+    t = np.asarray(time, float)
+    if t.size < 3:
+        return np.zeros(0, bool)
+    return (t[2:] - t[:-2]) > GAP_FACTOR * 2.0 * float(np.median(np.diff(t)))
+
+
 def course_rate(time, v_e, v_n):
-    """Rate of the course over ground about the up axis [rad/s] (counter-clockwise positive), centred."""
+    """Rate of the course over ground about the up axis [rad/s] (counter-clockwise positive), centred;
+    NaN where the difference spans a gap (:data:`GAP_FACTOR`)."""
     course = np.arctan2(v_n, v_e)  # angle from east, counter-clockwise = yaw about up
     fin = np.isfinite(course)
     course[fin] = np.unwrap(course[fin])  # missing velocities stay NaN (their neighbours' rates too)
     rate = np.full_like(course, np.nan)
     rate[1:-1] = (course[2:] - course[:-2]) / (time[2:] - time[:-2])
+    rate[1:-1][_across_gap(time)] = np.nan
     return rate
 
 
 def centred_velocity(gnss):
-    """ENU velocity from central differences of the positions (no lag at the epoch)."""
+    """ENU velocity from central differences of the positions (no lag at the epoch); NaN where the
+    difference spans a gap (:data:`GAP_FACTOR`)."""
     e, n, _ = lla_to_enu(gnss.lat, gnss.lon, gnss.height, gnss.lat[0], gnss.lon[0], gnss.height[0])
     t = gnss.time
     v_e, v_n = np.full_like(e, np.nan), np.full_like(n, np.nan)
     v_e[1:-1] = (e[2:] - e[:-2]) / (t[2:] - t[:-2])
     v_n[1:-1] = (n[2:] - n[:-2]) / (t[2:] - t[:-2])
+    gap = _across_gap(t)
+    v_e[1:-1][gap], v_n[1:-1][gap] = np.nan, np.nan
     v_e[[0, -1]], v_n[[0, -1]] = v_e[[1, -2]], v_n[[1, -2]]  # ends: never used (no centred course rate)
     return v_e, v_n
 

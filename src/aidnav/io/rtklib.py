@@ -9,6 +9,13 @@ Supported layout (RTKLIB ``outsol`` with lat/lon/height in degrees, time in GPST
 with the time either as calendar GPST ``YYYY/MM/DD HH:MM:SS.sss`` or as ``week tow``. Standard
 deviations are in NEU order in the file (m, m/s) and are returned in ENU order; velocities are
 returned as ENU [ve, vn, vu] (vu positive up).
+
+Time tags: positions and velocities are both kept at the line's stamp (RTKLIB writes the solution's
+state at its epoch; no reader shifts a velocity, docs/conventions.md "Time"). Files in this layout need
+not come from RTKLIB: the rtklibexplorer ``*_sf.pos`` files are the u-blox receiver's UBX-NAV-PVT
+(lat, lon, hMSL, velN/velE/−velD, carrSoln → Q, numSV, hAcc/√2, sAcc/√2, the UTC time + 18 s written to
+the ms), whose velocity is 0.13 s late on its positions (measured: docs/results.md, issue 40 session 11);
+score a velocity against such a file with :mod:`aidnav.analysis.velocity_reference`.
 """
 
 from __future__ import annotations

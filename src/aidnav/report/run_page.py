@@ -313,13 +313,16 @@ def write_run_page(path, summary: dict, figures=(), title: str | None = None) ->
 
 def write_run_outputs(out_dir, traj, gnss=None, summary: dict | None = None, records: dict | None = None,
                       figures=(), maps: bool = True, base: str = "trajectory", progress=None,
-                      skeleton=None) -> dict:
+                      skeleton=None, page_summary=None) -> dict:
     """Everything a run leaves to look at, in ``out_dir``: ``overview.png``
     (:func:`aidnav.report.overview.write_overview`), ``<base>.kml`` and ``<base>.geojson``
     (:func:`aidnav.report.maps.write_maps`, when ``maps``) and ``run.html`` embedding the overview
     and the further ``figures``. progress : optional :class:`aidnav.progress.ProgressBar` (one stage
     "figures and maps", 3 steps); skeleton : the overview's :class:`aidnav.report.overview.Skeleton`, built
-    beforehand. Returns {"overview", "run_page", "kml", "geojson"} → paths."""
+    beforehand; page_summary : called once the overview and maps are written, it returns the summary of
+    the page (the figure's ``summary`` completed meanwhile: ``aidnav process``'s figures' child draws the
+    overview while its parent closes the trajectory file and times it). Returns {"overview", "run_page",
+    "kml", "geojson"} → paths."""
     from .overview import write_overview  # lazy: pulls in matplotlib, scipy
 
     out = Path(out_dir)
@@ -336,6 +339,8 @@ def write_run_outputs(out_dir, traj, gnss=None, summary: dict | None = None, rec
         paths.update(kml=kml, geojson=gj)
     if progress is not None:
         progress.advance(1)
+    if page_summary is not None:
+        summary = page_summary() or {}
     paths["run_page"] = write_run_page(out / "run.html", summary, [(paths["overview"], "Overview"), *figures])
     if progress is not None:
         progress.advance(1)

@@ -217,6 +217,17 @@ def test_update_joseph_form_keeps_p_positive_definite_with_suboptimal_round_off(
     assert np.linalg.eigvalsh(P).min() > 0
 
 
+def test_update_with_a_singular_innovation_covariance_raises():
+    """S = H P Hᵀ + R singular (a row repeated, R = 0): the update raises as LAPACK's inverse did before
+    issue 40's loops, instead of returning NaNs; x and P are left untouched."""
+    P, x = np.eye(3), np.zeros(3)
+    for H in (np.array([[0.0, 0.0, 0.0]]), np.array([[1.0, 0.0, 0.0], [1.0, 0.0, 0.0]])):
+        m = H.shape[0]
+        with pytest.raises(np.linalg.LinAlgError):
+            update(x, P, H, np.zeros((m, m)), np.ones(m), 0.0, np.zeros(m), np.zeros(m))
+        assert np.array_equal(P, np.eye(3)) and not x.any()
+
+
 def test_update_gating_rejects_beyond_chi2_threshold_and_records():
     rng = np.random.default_rng(5)
     n, m = 6, 3

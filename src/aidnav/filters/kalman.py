@@ -253,7 +253,8 @@ def update(x, P, H, R, z, gate, innov_out, s_out):
 
 @njit(cache=True)
 def _inverse(S):
-    """The inverse of a small matrix (Gauss–Jordan, partial pivoting): no LAPACK call per update."""
+    """The inverse of a small matrix (Gauss–Jordan, partial pivoting): no LAPACK call per update. A zero
+    pivot (S singular) goes to ``np.linalg.inv``, which raises as the update did before (no silent NaN)."""
     m = S.shape[0]
     A, Y = S.copy(), np.eye(m)
     for c in range(m):
@@ -261,6 +262,8 @@ def _inverse(S):
         for r in range(c + 1, m):
             if abs(A[r, c]) > abs(A[p, c]):
                 p = r
+        if A[p, c] == 0.0:
+            return np.linalg.inv(S)
         if p != c:
             for j in range(m):
                 A[c, j], A[p, j] = A[p, j], A[c, j]

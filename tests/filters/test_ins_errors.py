@@ -25,6 +25,7 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
+from aidnav.data import ImuData
 from aidnav.filters import ins_errors
 from aidnav.filters.ins_errors import fill_model, noise_count
 from aidnav.nav.earth import E2, OMEGA_IE, gravity, radii
@@ -36,6 +37,7 @@ from aidnav.nav.rotations import (
     rotvec_from_dcm,
 )
 from aidnav.nav.strapdown import make_state, strapdown_step
+from aidnav.sim.imu import ImuSpec, corrupt_imu
 
 H = 2000.0
 VEL = np.array([120.0, -80.0, 3.0])  # 144 m/s horizontal
@@ -338,16 +340,23 @@ def test_set_heading_turns_the_tilt_error_and_its_covariance_with_the_heading(dp
     assert P[2, 2] == pytest.approx(0.01) and not np.delete(P[2], 2).any()
 
 
-def _sensor_error_rate(dx, pt=(LAT, W_IB, F_B)):
-    """d/dt (φ, δv, δp) with the 27-state sensor residuals entering the measurements as the truth model
-    of :mod:`aidnav.sim.imu` writes them: ω̃ = ω + ε + s_g∘ω + M ω (M: zero diagonal, its six entries
-    m_xy, m_xz, m_yx, m_yz, m_zx, m_zy), f̃ = f + ∇ + s_a∘f."""
-    lat, w_ib, f_b = pt
+def _off_diagonal(m6):
+    """The misalignment matrix (zero diagonal) of the six entries m_xy, m_xz, m_yx, m_yz, m_zx, m_zy."""
     M = np.zeros((3, 3))
     for k, (r, c) in enumerate(((0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1))):
-        M[r, c] = dx[21 + k]
-    w = w_ib + dx[15:18] * w_ib + M @ w_ib
-    f = f_b + dx[18:21] * f_b
+        M[r, c] = m6[k]
+    return M
+
+
+def _sensor_error_rate(dx, pt=(LAT, W_IB, F_B)):
+    """d/dt (φ, δv, δp) with the 27- or 33-state sensor residuals entering the measurements as the truth
+    model of :mod:`aidnav.sim.imu` writes them: ω̃ = ω + ε + s_g∘ω + M_g ω, f̃ = f + ∇ + s_a∘f + M_a f
+    (M: zero diagonal, its six entries m_xy, m_xz, m_yx, m_yz, m_zx, m_zy; M_a from index 27 on)."""
+    lat, w_ib, f_b = pt
+    Mg = _off_diagonal(dx[21:27])
+    Ma = _off_diagonal(dx[27:33]) if len(dx) >= 33 else np.zeros((3, 3))
+    w = w_ib + dx[15:18] * w_ib + Mg @ w_ib
+    f = f_b + dx[18:21] * f_b + Ma @ f_b
     return _error_rate(np.concatenate([dx[:9], dx[9:12] + (w - w_ib), dx[12:15] + (f - f_b)]), None, pt)
 
 
@@ -381,3 +390,71 @@ def test_correct_increments_removes_the_misalignment():
     ins_errors.correct_increments(dth, dv, bias, dt, dthc, dvc)
     np.testing.assert_allclose(dthc, dth - bias[0:3] * dt - bias[6:9] * dth - M @ dth, rtol=0, atol=1e-18)
     np.testing.assert_allclose(dvc, dv - bias[3:6] * dt - bias[9:12] * dv, rtol=0, atol=1e-18)
+
+
+def test_accelerometer_misalignment_columns_match_numerical_jacobian():
+    """The 33-state model (issue 35, session 11): the accelerometer-misalignment columns of F against
+    central differences of the nonlinear mechanization with f̃ = f + M_a f in the accelerometers (the
+    simulator's model, :mod:`aidnav.sim.imu`; linear in M_a: exact up to round-off), G's inputs of those
+    states, ``noise_count``, and the 27-state block unchanged. The test point has specific force on every
+    body axis (a turning, accelerating, pulling-up vehicle), so each of the six columns is nonzero."""
+    n = 33
+    steps = np.concatenate([STEPS, [1e-4] * 18])
+    J = np.zeros((9, n))
+    for j in range(n):
+        e = np.zeros(n)
+        e[j] = steps[j]
+        J[:, j] = (_sensor_error_rate(e) - _sensor_error_rate(-e)) / (2.0 * steps[j])
+    F, G = _analytic(300.0, 600.0, n=n)
+    assert np.all(np.abs(J[3:6, 27:33]).max(axis=0) > 0.1)  # f_b ≈ g along each column's input axis
+    np.testing.assert_allclose(F[:9, 9:33], J[:, 9:33], rtol=1e-6, atol=1e-9)
+    assert not F[:3, 27:33].any() and not F[6:9, 27:33].any()  # a specific-force error: velocity rows only
+    assert noise_count(33) == 30 and G.shape == (33, 30)
+    np.testing.assert_array_equal(G[27:33, 24:30], np.eye(6))
+    assert not np.delete(G[:, 24:30], np.s_[27:33], axis=0).any()
+    assert not F[27:33].any()  # random constants
+    F27, G27 = _analytic(300.0, 600.0, n=27)
+    np.testing.assert_array_equal(F[:27, :27], F27)
+    np.testing.assert_array_equal(G[:27, :24], G27)
+
+
+def test_correct_increments_removes_the_accelerometer_misalignment():
+    """nb = 24: Δv_c = Δv − b_a Δt − s_a∘Δv − M_a Δv (M_a in ``MIS_OUT``/``MIS_IN`` order, after the gyro's
+    six); the angle increments as with nb = 18."""
+    dt = 0.01
+    dth, dv = W_IB * dt, F_B * dt
+    m_g = np.array([1e-3, 2e-3, 3e-3, 4e-3, 5e-3, 6e-3])
+    m_a = np.array([-7e-3, 8e-3, 9e-3, -1e-3, 2e-3, 3e-3])
+    bias = np.concatenate([[1e-4, -2e-4, 3e-4, 0.02, -0.01, 0.03, 1e-3, -2e-3, 5e-4, 2e-3, 1e-3, -1e-3],
+                           m_g, m_a])
+    dthc, dvc = np.zeros(3), np.zeros(3)
+    ins_errors.correct_increments(dth, dv, bias, dt, dthc, dvc)
+    Mg, Ma = _off_diagonal(m_g), _off_diagonal(m_a)
+    np.testing.assert_allclose(dthc, dth - bias[0:3] * dt - bias[6:9] * dth - Mg @ dth, rtol=0, atol=1e-18)
+    np.testing.assert_allclose(dvc, dv - bias[3:6] * dt - bias[9:12] * dv - Ma @ dv, rtol=0, atol=1e-17)
+
+
+def test_correction_with_the_simulators_misalignment_recovers_the_true_increments():
+    """Sign and definition against the simulator itself: increments corrupted by :func:`aidnav.sim.imu.
+    corrupt_imu` with misalignments only (no bias, noise, scale factor), then corrected with the realised
+    misalignment matrices in the state order (``MIS_OUT``/``MIS_IN``): what is left is (I − M)(I + M) − I
+    = −M², second order (≤ 3·(3σ)² relative for 3σ entries); with the wrong sign (or transposed M) it
+    would be 2M (or M − Mᵀ), first order."""
+    rng = np.random.default_rng(5)
+    n, sig = 200, np.radians(0.5)
+    imu = ImuData(0.01 * np.arange(1, n + 1), rng.normal(size=(n, 3)) * 0.01, rng.normal(size=(n, 3)) * 0.1,
+                  t0=0.0)
+    out, real = corrupt_imu(imu, ImuSpec.from_units(misalignment_arcsec=sig / (np.pi / 180 / 3600)),
+                            np.random.default_rng(6))
+    idx = list(zip(ins_errors.MIS_OUT, ins_errors.MIS_IN, strict=True))
+    bias = np.zeros(24)
+    bias[12:18] = [real["gyro_misalignment"][r, c] for r, c in idx]
+    bias[18:24] = [real["accel_misalignment"][r, c] for r, c in idx]
+    assert np.abs(bias[12:]).min() > 0.02 * sig  # every entry drawn (seed 6)
+    dthc, dvc = np.zeros(3), np.zeros(3)
+    for k in range(n):
+        ins_errors.correct_increments(out.dtheta[k], out.dv[k], bias, 0.01, dthc, dvc)
+        for got, raw, true in ((dthc, out.dtheta[k], imu.dtheta[k]), (dvc, out.dv[k], imu.dv[k])):
+            left = np.linalg.norm(got - true)
+            assert left <= 3 * (3 * sig) ** 2 * np.linalg.norm(true) + 1e-15
+            assert left < 0.05 * np.linalg.norm(raw - true)  # the first-order error is gone

@@ -47,6 +47,13 @@ class ImuNoise(_Strict):
         "axis j read on axis i; 27 states, with the scale factors): a consumer IMU's tenths of a degree "
         "tilt the solution in every turn")
     gyro_misalignment_sigma_deg: float = Field(0.5, ge=0, description="1σ of each misalignment entry [deg]")
+    accel_misalignment: bool = Field(
+        False, description="estimate the accelerometer triad's misalignment (6 random constants m_ij: the "
+        "specific force along axis j read on axis i; 33 states, after the gyro's): a consumer IMU's "
+        "tenths of a degree turn every acceleration into a tilt-like vertical/lateral error; off, the "
+        "accel bias σ has to cover m·g")
+    accel_misalignment_sigma_deg: float = Field(0.5, ge=0, description="1σ of each accelerometer "
+                                                "misalignment entry [deg]")
     noise_from_static: bool = Field(
         False, description="raise the ARW / VRW not stated here to the white-noise equivalent of the rates' "
         "spread at the log's static samples (engine vibration; filters.preprocess.noise_from_static); on "
@@ -56,6 +63,14 @@ class ImuNoise(_Strict):
     mounting_rph_deg: tuple[float, float, float] = Field(
         (0.0, 0.0, 0.0), description="IMU body → vehicle frame rotation as roll, pitch, heading [deg] "
         "(C_b^v = C(r,p,h)^T); used by the non-holonomic constraint")
+
+    @property
+    def nins(self) -> int:
+        """Size of the INS error block this section asks for: 15, 21 (scale factors), 27 (and the gyro
+        misalignment) or 33 (and the accelerometer misalignment)."""
+        if self.accel_misalignment:
+            return 33
+        return 27 if self.gyro_misalignment else (21 if self.scale_factors else 15)
 
 
 class GnssAiding(_Strict):
@@ -202,7 +217,7 @@ class MagAiding(_Strict):
 
 
 class FilterSettings(_Strict):
-    states: Literal[15, 21, 27] | None = None  # derived from imu.scale_factors, gyro_misalignment when None
+    states: Literal[15, 21, 27, 33] | None = None  # from imu.scale_factors, gyro/accel_misalignment when None
     prop_dt_s: float = Field(1.0, gt=0, description="max covariance propagation interval [s]")
     output_rate_hz: float | None = Field(None, description="output rate; None = every IMU sample")
 
@@ -249,4 +264,4 @@ class LooseConfig(_Strict):
     def nstate(self) -> int:
         if self.filter.states is not None:
             return self.filter.states
-        return 27 if self.imu.gyro_misalignment else (21 if self.imu.scale_factors else 15)
+        return self.imu.nins

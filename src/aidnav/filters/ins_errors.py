@@ -12,10 +12,15 @@ State layout (indices below), errors defined as computed − true:
 18:21 accelerometer scale-factor residual (optional)                 -
 21:27 gyro misalignment residual m_xy, m_xz, m_yx, m_yz, m_zx, m_zy  rad
       (optional, ``nstate`` = 27: δω_x = m_xy ω_y + m_xz ω_z, …)
+27:33 accelerometer misalignment residual, the same six entries     rad
+      (optional, ``nstate`` = 33: δf_x = m_xy f_y + m_xz f_z, …)
 ====  ==========================================================  =================
 
 Process noise w (continuous, PSD diag ``q``): [gyro white (rad²/s), accel white (m²/s³),
-gyro-bias driving, accel-bias driving, (gyro SF driving, accel SF driving), (misalignment driving ×6)].
+gyro-bias driving, accel-bias driving, (gyro SF driving, accel SF driving), (gyro misalignment driving
+×6), (accelerometer misalignment driving ×6)]. Both misalignments are the simulator's
+(:mod:`aidnav.sim.imu`): measured = (I + S + M)·true + b, M with zero diagonal, entry (i, j) the input
+about/along body axis j read on axis i.
 A bias with
 correlation time τ > 0 is first-order Gauss-Markov (ẋ = −x/τ + w); τ ≤ 0 means a random walk.
 
@@ -41,10 +46,11 @@ from aidnav.nav.earth import OMEGA_IE, gravity, gravity_dh, radii
 from aidnav.nav.rotations import dcm_entries, dcm_from_quat, quat_mult, quat_normalize
 from aidnav.nav.strapdown import strapdown_step
 
-PHI, DV, DP, BG, BA, SG, SA, MG = 0, 3, 6, 9, 12, 15, 18, 21
+PHI, DV, DP, BG, BA, SG, SA, MG, MA = 0, 3, 6, 9, 12, 15, 18, 21, 27
 # strapdown (nominal) state st (N_ST,): lat, lon [rad], h [m]; v^n ENU [m/s]; q_b^n
 ST_POS, ST_VEL, ST_Q, N_ST = 0, 3, 6, 10
-# gyro misalignment state k (MG + k) couples the rate about body axis MIS_IN[k] into axis MIS_OUT[k]
+# misalignment state k (MG + k, gyro; MA + k, accelerometer) couples the rate about (specific force along)
+# body axis MIS_IN[k] into axis MIS_OUT[k]
 MIS_OUT = (0, 0, 1, 1, 2, 2)
 MIS_IN = (1, 2, 0, 2, 0, 1)
 
@@ -59,8 +65,8 @@ ACC_TN = 6  # [T = Σ dt [s], number of samples, unused]
 
 @njit(cache=True)
 def noise_count(nstate):
-    """Number of process-noise inputs for a 15-, 21- or 27-state model."""
-    return 12 if nstate == 15 else (18 if nstate == 21 else 24)
+    """Number of process-noise inputs for a 15-, 21-, 27- or 33-state model."""
+    return 12 if nstate == 15 else (18 if nstate == 21 else (24 if nstate == 27 else 30))
 
 
 @njit(cache=True)
@@ -70,7 +76,8 @@ def fill_model(F, G, lat, h, v, fn, Cbn, wb, fb, tau):
     lat [rad], h [m], v^n [m/s], f^n [m/s²] (mean specific force over the interval, nav frame),
     Cbn (3×3), wb ω_ib^b [rad/s] and fb f^b [m/s²] (body, for the scale-factor columns),
     tau (4,) correlation times [s] of the gyro bias, accel bias, gyro and accel scale factors (≤ 0:
-    random walk; an array or a tuple); the gyro misalignment (n = 27) is a random walk/constant.
+    random walk; an array or a tuple); the gyro misalignment (n ≥ 27) and the accelerometer misalignment
+    (n = 33) are random walks/constants.
     """
     tau_g, tau_a, tau_sg, tau_sa = tau[0], tau[1], tau[2], tau[3]
     n = F.shape[0]
@@ -170,6 +177,12 @@ def fill_model(F, G, lat, h, v, fn, Cbn, wb, fb, tau):
             for i in range(3):
                 F[i, MG + k] = -Cbn[i, r] * wb[c]
             G[MG + k, 18 + k] = 1.0
+    if n >= 33:  # accelerometer misalignment: δf_r = m f_c, as the gyro's (random constants by default)
+        for k in range(6):
+            r, c = MIS_OUT[k], MIS_IN[k]
+            for i in range(3):
+                F[3 + i, MA + k] = Cbn[i, r] * fb[c]
+            G[MA + k, 24 + k] = 1.0
 
 
 @njit(cache=True, inline="always")
@@ -177,8 +190,9 @@ def correct_increments(dth, dv, bias, dt, dthc, dvc):
     """IMU increments corrected by the estimated sensor errors of this state layout (in place).
 
     dth [rad], dv [m/s] (3,): raw increments over dt [s], body RFU; ``bias`` (nb,): [gyro bias (rad/s),
-    accel bias (m/s²), gyro scale factor, accel scale factor, gyro misalignment (6)], as far as the model
-    has them (nb = 0, 6, 12 or 18). dthc = dth − b_g dt − s_g∘dth − M_g dth, dvc = dv − b_a dt − s_a∘dv.
+    accel bias (m/s²), gyro scale factor, accel scale factor, gyro misalignment (6), accelerometer
+    misalignment (6)], as far as the model has them (nb = 0, 6, 12, 18 or 24).
+    dthc = dth − b_g dt − s_g∘dth − M_g dth, dvc = dv − b_a dt − s_a∘dv − M_a dv.
     """
     nb = bias.shape[0]
     for i in range(3):
@@ -195,6 +209,9 @@ def correct_increments(dth, dv, bias, dt, dthc, dvc):
     if nb >= 18:
         for k in range(6):
             dthc[MIS_OUT[k]] -= bias[12 + k] * dth[MIS_IN[k]]
+    if nb >= 24:
+        for k in range(6):
+            dvc[MIS_OUT[k]] -= bias[18 + k] * dv[MIS_IN[k]]
 
 
 # ------------------------------------------------------------------ shared pieces of the filter kernels
@@ -244,7 +261,7 @@ def propagate_sample(st, acc, dth, dv, bias, dt, dthc, dvc, dth_prev, dv_prev):
     acc (7, 3): interval accumulator (rows ``ACC_*``): Σ C_b^n, Σ C_b^n Δv_c, Σ Δθ_c, Σ Δv_c, and
     [T, count]; C_b^n is the attitude *before* this sample's strapdown step.
     dth [rad], dv [m/s] (3,): raw increments of the sample, body RFU; bias (nb,): sensor-error
-    estimates as in :func:`correct_increments` (nb = 0, 6 or 12); dt [s]: sample interval.
+    estimates as in :func:`correct_increments` (nb = 0, 6, 12, 18 or 24); dt [s]: sample interval.
     dthc, dvc (3,): out, the corrected increments of this sample; dth_prev, dv_prev (3,): the corrected
     increments of the previous sample (coning/sculling), replaced by this sample's.
     Returns T [s], the length of the interval accumulated so far.

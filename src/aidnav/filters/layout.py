@@ -10,11 +10,12 @@ block     content                                    layouts
 PHI  0:3  misalignment φ [rad]                        all
 DV   3:6  δv^n [m/s]                                  all
 DP   6:9  δL, δλ [rad], δh [m]                        all
-BG  9:12  gyro bias residual [rad/s]                  15, 17, 21, 24
-BA 12:15  accel bias residual [m/s²]                  15, 17, 21, 24
-SG 15:18  gyro scale-factor residual [-]              21, 24, 27
-SA 18:21  accel scale-factor residual [-]             21, 24, 27
-MG 21:27  gyro misalignment residual [rad]            27
+BG  9:12  gyro bias residual [rad/s]                  15, 17, 21, 24, 27, 33
+BA 12:15  accel bias residual [m/s²]                  15, 17, 21, 24, 27, 33
+SG 15:18  gyro scale-factor residual [-]              21, 24, 27, 33
+SA 18:21  accel scale-factor residual [-]             21, 24, 27, 33
+MG 21:27  gyro misalignment residual [rad]            27, 33
+MA 27:33  accel misalignment residual [rad]           33
 CLK       receiver clock bias [m], drift [m/s]        17 (15:17), 11 (9:11)
 ISB       inter-system biases [m] (tight: one per     after CLK (before RERR)
           non-GPS system, that system's receiver
@@ -29,23 +30,23 @@ AUX       calibration states (odometer scale factor   after the INS block
 ========  =========================================  ======================
 
 The named layouts: 15 = navigation + biases; 17 = 15 + receiver clock (tight); 21 = 15 + scale
-factors; 27 = 21 + gyro misalignment (6, ``ins_errors.MIS_OUT``/``MIS_IN``); 24 = 21 + 3 calibration
-states (e.g. a lever arm). :func:`make_layout` builds the index table
-of any INS block plus calibration states; kernels read indices from it (``L_*`` entries), never
-literal slices.
+factors; 27 = 21 + gyro misalignment (6, ``ins_errors.MIS_OUT``/``MIS_IN``); 33 = 27 + accelerometer
+misalignment (6, the same order); 24 = 21 + 3 calibration states (e.g. a lever arm). :func:`make_layout`
+builds the index table of any INS block plus calibration states; kernels read indices from it (``L_*``
+entries), never literal slices.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .ins_errors import BA, BG, DP, DV, MG, N_ST, PHI, SA, SG, ST_POS, ST_Q, ST_VEL
+from .ins_errors import BA, BG, DP, DV, MA, MG, N_ST, PHI, SA, SG, ST_POS, ST_Q, ST_VEL
 
-MIS_PAIRS = ("xy", "xz", "yx", "yz", "zx", "zy")  # gyro misalignment m_(out)(in), the MG block's order
+MIS_PAIRS = ("xy", "xz", "yx", "yz", "zx", "zy")  # misalignment m_(out)(in), the MG and MA blocks' order
 
 # error-state blocks of the INS model (ins_errors)
 NAV = 9  # φ, δv, δp
-__all__ = ["PHI", "DV", "DP", "BG", "BA", "SG", "SA", "MG", "ST_POS", "ST_VEL", "ST_Q", "N_ST", "NAV",
+__all__ = ["PHI", "DV", "DP", "BG", "BA", "SG", "SA", "MG", "MA", "ST_POS", "ST_VEL", "ST_Q", "N_ST", "NAV",
            "AUX_NAMES", "RN_VEL", "RN_POS", "RN_SVEL", "RN_SPOS", "RN_ACC", "RN_LEVER", "N_RN", "L_RERR",
            "L_ISB", "L_TDCP", "L_TOFF", "L_MOUNT", "L_VDEL", "L_GPE", "L_FLEX", "make_layout", "layout_names",
            "LAYOUTS"]
@@ -61,7 +62,7 @@ AUX_NAMES = {"odometer_scale": 1, "baro_bias": 1, "clock": 2, "lever_arm": 3, "t
 
 # entries of the int64 layout table (kernels read these)
 L_N = 0  # total number of error states
-L_NINS = 1  # size of the INS block (15, 21 or 27: ins_errors.fill_model)
+L_NINS = 1  # size of the INS block (15, 21, 27 or 33: ins_errors.fill_model)
 L_ODO = 2  # index of the odometer scale-factor residual, -1: none
 L_BARO = 3  # index of the barometer bias residual, -1: none
 L_CLK = 4  # index of the clock bias (drift at +1), -1: none
@@ -82,15 +83,17 @@ L_SIZE = 14
 
 LAYOUTS = {15: dict(scale_factors=False), 17: dict(scale_factors=False, aux=("clock",)),
            21: dict(scale_factors=True), 24: dict(scale_factors=True, aux=("lever_arm",)),
-           27: dict(scale_factors=True, misalignment=True)}
+           27: dict(scale_factors=True, misalignment=True),
+           33: dict(scale_factors=True, misalignment=True, accel_misalignment=True)}
 
 
-def make_layout(scale_factors: bool = False, aux: tuple[str, ...] = (), misalignment: bool = False
-                ) -> np.ndarray:
-    """Index table (int64, ``L_*`` entries) of the INS block (15, 21 or, with the gyro ``misalignment``,
-    27 states) plus calibration states ``aux`` (names of :data:`AUX_NAMES`, appended in the given order)."""
+def make_layout(scale_factors: bool = False, aux: tuple[str, ...] = (), misalignment: bool = False,
+                accel_misalignment: bool = False) -> np.ndarray:
+    """Index table (int64, ``L_*`` entries) of the INS block (15, 21, with the gyro ``misalignment`` 27,
+    with the ``accel_misalignment`` too 33 states) plus calibration states ``aux`` (names of
+    :data:`AUX_NAMES`, appended in the given order)."""
     lay = np.full(L_SIZE, -1, np.int64)
-    n = 27 if misalignment else (21 if scale_factors else 15)
+    n = 33 if accel_misalignment else (27 if misalignment else (21 if scale_factors else 15))
     lay[L_NINS] = n
     slot = {"odometer_scale": L_ODO, "baro_bias": L_BARO, "clock": L_CLK, "lever_arm": L_LEVER,
             "time_offset": L_TOFF, "mounting": L_MOUNT, "velocity_delay": L_VDEL, "gnss_pos_error": L_GPE,
@@ -117,8 +120,9 @@ def layout_names(lay: np.ndarray) -> list[str]:
     names = [f"{b}_{a}" for b in ("phi", "dv") for a in "enu"] + ["dlat", "dlon", "dh"]
     blocks = ["gyro_bias", "accel_bias"] + (["gyro_sf", "accel_sf"] if lay[L_NINS] >= 21 else [])
     names += [f"{b}_{a}" for b in blocks for a in "xyz"]
-    if lay[L_NINS] == 27:
-        names += [f"gyro_mis_{MIS_PAIRS[k]}" for k in range(6)]
+    n_mis = max(int(lay[L_NINS]) - 21, 0) // 6  # misalignment triads: gyro (27), then accelerometer (33)
+    for tri in ("gyro", "accel")[:n_mis]:
+        names += [f"{tri}_mis_{MIS_PAIRS[k]}" for k in range(6)]
     aux = sorted((int(lay[s]), nm) for s, nm in ((L_ODO, "odometer_scale"), (L_BARO, "baro_bias"),
                                                   (L_CLK, "clock"), (L_LEVER, "lever_arm"),
                                                   (L_TOFF, "time_offset"), (L_MOUNT, "mounting"),

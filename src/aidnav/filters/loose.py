@@ -79,11 +79,11 @@ __all__ = ["run_loose", "LooseResult", "FilterResult", "to_trajectory", "process
 
 
 def loose_layout(cfg, aids=(), gnss=True, gnss_velocity=True) -> np.ndarray:
-    """Layout of the loose filter: 15 or 21 INS states, then the calibration states of the ``aids``
-    (:class:`aidnav.filters.aids.Aid`; e.g. the odometer scale factor, the barometer bias, where their
-    section enables them), then the self-calibration states of ``cfg.calibration`` where they are
-    observable: GNSS lever arm and IMU–GNSS time offset (with GNSS fixes), the mounting angles (with the
-    NHC or an aid in the vehicle frame, the odometer)."""
+    """Layout of the loose filter: 15, 21, 27 or 33 INS states (``cfg.nstate``), then the calibration
+    states of the ``aids`` (:class:`aidnav.filters.aids.Aid`; e.g. the odometer scale factor, the
+    barometer bias, where their section enables them), then the self-calibration states of
+    ``cfg.calibration`` where they are observable: GNSS lever arm and IMU–GNSS time offset (with GNSS
+    fixes), the mounting angles (with the NHC or an aid in the vehicle frame, the odometer)."""
     aux = aid_kinds.layout_states(cfg, aids)
     est = calibration_switches(cfg, aid_kinds.vehicle_frame(aids), gnss_velocity)
     for name in ("lever_arm", "time_offset", "mounting", "velocity_delay"):
@@ -91,7 +91,8 @@ def loose_layout(cfg, aids=(), gnss=True, gnss_velocity=True) -> np.ndarray:
             aux.append(name)
     if gnss and cfg.gnss.error_tau_s > 0 and cfg.gnss.use in ("both", "position"):
         aux.append("gnss_pos_error")
-    return make_layout(cfg.nstate >= 21, tuple(aux), misalignment=cfg.nstate == 27)
+    return make_layout(cfg.nstate >= 21, tuple(aux), misalignment=cfg.nstate >= 27,
+                       accel_misalignment=cfg.nstate == 33)
 
 
 def calibration_switches(cfg, odometer: bool = False, gnss_velocity: bool = True) -> dict:

@@ -4,7 +4,8 @@ initial state of ``init.mode = "given"``.
 
 PSD vector q (continuous, SI), in the order of the noise inputs of :mod:`aidnav.filters.ins_errors`:
 gyro white ×3 [rad²/s], accelerometer white ×3 [m²/s³], gyro-bias driving ×3, accelerometer-bias
-driving ×3, (gyro and accelerometer scale-factor driving ×3 each), (gyro misalignment driving ×6), then
+driving ×3, (gyro and accelerometer scale-factor driving ×3 each), (gyro misalignment driving ×6),
+(accelerometer misalignment driving ×6), then
 one per calibration state of
 the layout. A first-order Gauss-Markov state of steady-state σ and correlation time τ > 0 is driven by
 q = 2σ²/τ; τ ≤ 0 is a random walk of PSD rw² (rw = 0: a random constant) (:func:`markov_psd`).
@@ -20,7 +21,24 @@ import numpy as np
 from aidnav.nav.earth import radii
 from aidnav.units import DEG, DEG_H, UG
 
-from .layout import BA, BG, DP, DV, L_BARO, L_GPE, L_LEVER, L_MOUNT, L_ODO, L_TOFF, L_VDEL, MG, PHI, SA, SG
+from .layout import (
+    BA,
+    BG,
+    DP,
+    DV,
+    L_BARO,
+    L_GPE,
+    L_LEVER,
+    L_MOUNT,
+    L_ODO,
+    L_TOFF,
+    L_VDEL,
+    MA,
+    MG,
+    PHI,
+    SA,
+    SG,
+)
 
 __all__ = ["markov_psd", "ins_psd", "ins_p0_diag", "process_noise", "initial_covariance",
            "calibration_prior", "given_initial_state"]
@@ -32,15 +50,18 @@ def markov_psd(sigma: float, tau: float, rw: float = 0.0) -> float:
 
 
 def ins_psd(arw: float, vrw: float, q_gyro_bias: float, q_accel_bias: float, q_sf=None,
-            q_mis: float | None = None) -> np.ndarray:
+            q_mis: float | None = None, q_amis: float | None = None) -> np.ndarray:
     """PSD vector of the INS block: arw [rad/√s], vrw [m/s/√s], bias driving PSDs; ``q_sf`` (gyro,
     accelerometer) scale-factor driving PSDs for the 21-state model (18 inputs), None: 15 states (12);
-    ``q_mis`` the gyro misalignment's driving PSD for the 27-state model (24 inputs)."""
+    ``q_mis`` the gyro misalignment's driving PSD for the 27-state model (24 inputs); ``q_amis`` the
+    accelerometer misalignment's for the 33-state model (30 inputs)."""
     q = [arw**2] * 3 + [vrw**2] * 3 + [q_gyro_bias] * 3 + [q_accel_bias] * 3
     if q_sf is not None:
         q += [q_sf[0]] * 3 + [q_sf[1]] * 3
     if q_mis is not None:
         q += [q_mis] * 6
+    if q_amis is not None:
+        q += [q_amis] * 6
     return np.array(q, dtype=float)
 
 
@@ -49,11 +70,11 @@ def _three(x):
 
 
 def ins_p0_diag(n: int, lat: float, h: float, att, vel, pos_m, gyro_bias, accel_bias, sf=(0.0, 0.0),
-                mis: float = 0.0):
-    """Initial variances (n,) of the INS block (n = 9, 15, 21 or 27; more: zeros for the caller to fill) from
-    1σ values (scalars or 3-vectors): attitude [rad], velocity [m/s], position E, N, U [m] (→ δL, δλ,
+                mis: float = 0.0, amis: float = 0.0):
+    """Initial variances (n,) of the INS block (n = 9, 15, 21, 27 or 33; more: zeros for the caller to fill)
+    from 1σ values (scalars or 3-vectors): attitude [rad], velocity [m/s], position E, N, U [m] (→ δL, δλ,
     δh at lat [rad], h [m]), gyro bias [rad/s], accelerometer bias [m/s²], ``sf`` scale factors [-],
-    ``mis`` gyro misalignment [rad] (n = 27)."""
+    ``mis`` gyro misalignment [rad] (n ≥ 27), ``amis`` accelerometer misalignment [rad] (n ≥ 33)."""
     rm, rn = radii(lat)
     ps = _three(pos_m)
     d = np.zeros(n)
@@ -70,35 +91,44 @@ def ins_p0_diag(n: int, lat: float, h: float, att, vel, pos_m, gyro_bias, accel_
         d[SA:SA + 3] = sf[1] ** 2
     if n >= 27:
         d[MG:MG + 6] = mis ** 2
+    if n >= 33:
+        d[MA:MA + 6] = amis ** 2
     return d
 
 
 # ------------------------------------------------------------------ from the filters' configuration
 def process_noise(cfg, nstate: int) -> np.ndarray:
-    """PSD vector q of the INS block (15, 21 or 27 states) from ``cfg.imu`` (:class:`.config.ImuNoise`)."""
+    """PSD vector q of the INS block (15, 21, 27 or 33 states) from ``cfg.imu`` (:class:`.config.ImuNoise`).
+    """
     im = cfg.imu
     sg = im.gyro_bias_instability_deg_h
     sg = im.gyro_bias_sigma_deg_h if sg is None else sg
     sa = im.accel_bias_sigma_ug if im.accel_bias_instability_ug is None else im.accel_bias_instability_ug
     qg = markov_psd(sg * DEG_H, im.gyro_bias_tau_s, im.gyro_bias_rw_deg_h_sqrt_h * DEG_H / 60)
     qa = markov_psd(sa * UG, im.accel_bias_tau_s, im.accel_bias_rw_ug_sqrt_h * UG / 60)
-    q_sf = q_mis = None
+    q_sf = q_mis = q_amis = None
     if nstate >= 21:
         qs = 2.0 * (1e-6) ** 2 / im.sf_tau_s if im.sf_tau_s > 0 else 0.0
         q_sf = (qs * im.gyro_sf_sigma_ppm**2, qs * im.accel_sf_sigma_ppm**2)
     if nstate >= 27:
         q_mis = 0.0  # a random constant
-    return ins_psd(im.arw_deg_sqrt_h * DEG / 60.0, im.vrw_m_s_sqrt_h / 60.0, qg, qa, q_sf, q_mis)
+    if nstate >= 33:
+        q_amis = 0.0  # a random constant
+    return ins_psd(im.arw_deg_sqrt_h * DEG / 60.0, im.vrw_m_s_sqrt_h / 60.0, qg, qa, q_sf, q_mis, q_amis)
 
 
 def initial_covariance(cfg, nstate: int, lat: float, h: float, att_sigma_rad) -> np.ndarray:
-    """Diagonal P0 of the INS block from ``cfg.init`` and ``cfg.imu`` (attitude σ given in radians)."""
+    """Diagonal P0 of the INS block from ``cfg.init`` and ``cfg.imu`` (attitude σ given in radians).
+    The accelerometer misalignment without the gyro's (``imu.accel_misalignment`` alone: the 33-state
+    block) holds the gyro misalignment states at zero (σ 1e-6 deg: a positive definite P for the
+    smoother's solve)."""
     im = cfg.imu
+    gmis = 1e-6 if (im.accel_misalignment and not im.gyro_misalignment) else im.gyro_misalignment_sigma_deg
     return np.diag(ins_p0_diag(nstate, lat, h, att_sigma_rad, cfg.init.velocity_sigma_m_s,
                                cfg.init.position_sigma_m, im.gyro_bias_sigma_deg_h * DEG_H,
                                im.accel_bias_sigma_ug * UG, (im.gyro_sf_sigma_ppm * 1e-6,
                                                              im.accel_sf_sigma_ppm * 1e-6),
-                               im.gyro_misalignment_sigma_deg * np.pi / 180.0))
+                               gmis * np.pi / 180.0, im.accel_misalignment_sigma_deg * np.pi / 180.0))
 
 
 def calibration_prior(cfg, lay) -> np.ndarray:

@@ -17,13 +17,14 @@ from .layout import L_BARO, L_LEVER, L_MOUNT, L_NINS, L_ODO, L_TOFF, L_VDEL, MIS
 #: the INS sensor-error states in the file units, by group of three (x, y, z): column name, factor from SI
 SENSOR_ERROR_UNITS = (("gyro_bias_{}_deg_h", 1.0 / DEG_H), ("accel_bias_{}_ug", 1.0 / UG),
                       ("gyro_sf_{}_ppm", 1.0 / PPM), ("accel_sf_{}_ppm", 1.0 / PPM),
-                      ("gyro_mis_{}_arcsec", 1.0 / ARCSEC), ("gyro_mis_{}_arcsec", 1.0 / ARCSEC))
+                      ("gyro_mis_{}_arcsec", 1.0 / ARCSEC), ("gyro_mis_{}_arcsec", 1.0 / ARCSEC),
+                      ("accel_mis_{}_arcsec", 1.0 / ARCSEC), ("accel_mis_{}_arcsec", 1.0 / ARCSEC))
 
 
 def sensor_error_axis(k: int) -> str:
     """Axis label of sensor-error state k (0-based after the navigation block): x, y, z per triad; the
-    gyro misalignment's pair (out, in) from k = 12 on."""
-    return MIS_PAIRS[k - 12] if k >= 12 else "xyz"[k % 3]
+    misalignments' pair (out, in) from k = 12 on (gyro 12–17, accelerometer 18–23)."""
+    return MIS_PAIRS[(k - 12) % 6] if k >= 12 else "xyz"[k % 3]
 
 
 @dataclass

@@ -8,7 +8,8 @@ reference-week scale, IMU times on the same GPS scale.
 **States** (§2.1, seed eq. 8): ``states=11`` = [φ, δv, δL δλ δh, δt_u, δf] (the seed's model),
 ``states=17`` = [φ, δv, δp, ε (gyro bias), ∇ (accel bias), δt_u, δf]: the layout of
 :mod:`aidnav.filters.layout` with the clock block (``L_CLK``) after the INS block of 9 or 15 states
-(21 with ``imu.scale_factors``, 27 with ``imu.gyro_misalignment``: the loose filter's sensor states, so
+(21 with ``imu.scale_factors``, 27 with ``imu.gyro_misalignment``, 33 with ``imu.accel_misalignment``: the
+loose filter's sensor states, so
 free inertia — an outage, too few satellites — grows with the full error model, issue 35 item 3). Without
 an ``imu`` section the model is that of an IMU of unknown grade (:data:`.config.UNKNOWN_GRADE_IMU`:
 Groves' consumer row through :func:`.tuning.sensor_error_model`, 27 states, noise raised to the log's
@@ -174,7 +175,7 @@ def clock_allan(g: RawGnssAiding) -> tuple[float, float]:
 class TightConfig(_Strict):
     """Configuration of :func:`run_tight` (the loosely coupled filter's sections plus ``gnss``). The INS
     block (:attr:`nins`): 9 states (``states=11``), else 15, 21 with ``imu.scale_factors``, 27 with
-    ``imu.gyro_misalignment`` (the loose filter's layouts)."""
+    ``imu.gyro_misalignment``, 33 with ``imu.accel_misalignment`` (the loose filter's layouts)."""
 
     states: Literal[11, 17] = 17
     # no imu section: the error model of an IMU of unknown grade (what a phone or any consumer IMU is),
@@ -191,10 +192,9 @@ class TightConfig(_Strict):
 
     @property
     def nins(self) -> int:
-        """Size of the INS error block: 9, 15, 21 (scale factors) or 27 (and gyro misalignment)."""
-        if self.states == 11:
-            return 9
-        return 27 if self.imu.gyro_misalignment else (21 if self.imu.scale_factors else 15)
+        """Size of the INS error block: 9, 15, 21 (scale factors), 27 (and gyro misalignment) or 33 (and
+        accelerometer misalignment)."""
+        return 9 if self.states == 11 else self.imu.nins
 
 
 def rotation_variance(t, dth, sf, mis, block_s):
@@ -256,7 +256,7 @@ class TightResult:
 def tight_layout(states: int, n_range: int = 0, n_isb: int = 0, nins: int = 15, phase: bool = False
                  ) -> np.ndarray:
     """Layout table (:mod:`aidnav.filters.layout`): INS block of 9 (11 states) or ``nins`` (15, 21 with
-    scale factors, 27 with the gyro misalignment too), then the clock,
+    scale factors, 27 with the gyro misalignment too, 33 with the accelerometer's), then the clock,
     then ``n_isb`` inter-system biases (``L_ISB``, none: 0), then with ``phase`` the 4 clone states of the
     time-differenced carrier phase (``L_TDCP``), then ``n_range`` per-satellite range-error states
     (``L_RERR``, none: 0; kept last: they are the open-loop Gauss-Markov block)."""
@@ -278,7 +278,7 @@ def tight_layout(states: int, n_range: int = 0, n_isb: int = 0, nins: int = 15, 
 
 def _noise_vector(cfg: TightConfig, n_range: int = 0, n_isb: int = 0, n_clone: int = 0) -> np.ndarray:
     nfull = max(cfg.nins, 15)
-    m = noise_count(nfull)  # the INS noise inputs of ins_errors (12, 18 or 24), then the clock's two
+    m = noise_count(nfull)  # the INS noise inputs of ins_errors (12, 18, 24 or 30), then the clock's two
     q = np.zeros(m + 2 + n_isb + n_clone + n_range)  # clone states: constant between epochs (q 0)
     q[:m] = process_noise(cfg, nfull)  # reads cfg.imu (the loose schema's section)
     g = cfg.gnss

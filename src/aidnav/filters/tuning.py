@@ -36,7 +36,8 @@ def loose_config_from_specs(imu_spec, gnss_spec=None, *, init_rph_deg=None, init
     """
     if sensor_model:
         imu = sensor_error_model(imu_spec, states, floor_bias)
-        states = 27 if imu["gyro_misalignment"] else (21 if imu["scale_factors"] else 15)
+        states = 33 if imu["accel_misalignment"] else (27 if imu["gyro_misalignment"] else
+                                                        (21 if imu["scale_factors"] else 15))
     else:
         imu = _one_markov_bias(imu_spec, states, floor_bias)
     gnss = {}
@@ -71,9 +72,12 @@ def sensor_error_model(imu_spec, states: int = 15, floor_bias: bool = True) -> d
       ``accel_rrw``: a bias random walk of PSD rrw²) adds its PSD to that random walk's;
     * scale factors: the 21-state model (random constants of the spec's σ) when the IMU has scale-factor
       errors (or ``states = 21``); otherwise none;
-    * accelerometer misalignment: each off-diagonal entry m (σ_m) turns the 1 g the triad senses into
-      m·g on another axis, a constant bias while the vehicle is level: added to the accelerometer bias
-      σ0 (with the accelerometer scale factor's s·g on the vertical when scale factors are not states);
+    * accelerometer misalignment: each off-diagonal entry m (σ_m) turns the specific force along one
+      axis into m·f on another: m·g, a constant bias, while the vehicle is level, but m·a in every
+      acceleration (at 10 Hz fixes resolve the z accelerometer's m_zx·a as a pitch error: issue 35,
+      session 10): six random-constant states of the spec's σ (33 states, after the gyro's) when the IMU
+      has it (or ``states = 33``); the accelerometer bias σ0 then holds only the scale factor's s·g on
+      the vertical when scale factors are not states;
     * gyro misalignment: m·ω, a rate error while the vehicle turns (a consumer IMU's 0.5° tilts the
       solution by 0.5° × the angle turned): six random-constant states of the spec's σ (27 states) when
       the IMU has it.
@@ -85,9 +89,10 @@ def sensor_error_model(imu_spec, states: int = 15, floor_bias: bool = True) -> d
     gsf, asf = float(np.max(imu_spec.gyro_scale)), float(np.max(imu_spec.accel_scale))
     am = float(np.max(imu_spec.accel_misalignment))
     gm = float(np.max(imu_spec.gyro_misalignment))
-    sf = states >= 21 or gsf > 0 or asf > 0 or gm > 0
+    sf = states >= 21 or gsf > 0 or asf > 0 or gm > 0 or am > 0
+    ams = am > 0 or states == 33  # accelerometer misalignment states (then not in the bias σ)
     tiny_g, tiny_a = (1e-4 * DEG_H, 1e-3 * UG) if floor_bias else (0.0, 0.0)
-    ab0 = np.sqrt(ab ** 2 + ai ** 2 + (am * G0) ** 2 + (0.0 if sf else asf * G0) ** 2)
+    ab0 = np.sqrt(ab ** 2 + ai ** 2 + (0.0 if ams else am * G0) ** 2 + (0.0 if sf else asf * G0) ** 2)
 
     def rw(sig, tau, rrw, unit):  # random walk [unit/√h]: the instability's PSD 2σ²/τ plus the spec's rrw²
         q = 2.0 * sig ** 2 / tau if (sig > 0 and np.isfinite(tau)) else 0.0
@@ -104,8 +109,10 @@ def sensor_error_model(imu_spec, states: int = 15, floor_bias: bool = True) -> d
         scale_factors=sf,
         gyro_sf_sigma_ppm=max(gsf * 1e6, 1e-3),
         accel_sf_sigma_ppm=max(asf * 1e6, 1e-3),
-        gyro_misalignment=gm > 0 or states == 27,
+        gyro_misalignment=gm > 0 or states >= 27,
         gyro_misalignment_sigma_deg=gm / DEG,
+        accel_misalignment=ams,
+        accel_misalignment_sigma_deg=am / DEG,
     )
 
 

@@ -41,9 +41,9 @@ def calibration_estimates(res) -> dict:
     pdiag = np.asarray(res.pdiag, float)
     if bias.ndim != 2 or len(bias) == 0:
         return {}
-    nb = min(bias.shape[1] // 3, len(SENSOR_ERROR_UNITS) - 2) * 3  # without the gyro misalignment:
+    nb = min(bias.shape[1] // 3, 4) * 3  # biases and scale factors, without the misalignments:
     lay = getattr(res, "layout", None)
-    if lay is not None:  # the INS block's sensor errors as the layout says (the misalignment with 27 states)
+    if lay is not None:  # the INS block's sensor errors as the layout says (the misalignments: 27, 33 states)
         nb = int(lay[1]) - 9
     if pdiag.shape[1] < 9 + nb:
         raise ValueError(f"calibration: pdiag has {pdiag.shape[1]} states, fewer than 9 + {nb} bias states")

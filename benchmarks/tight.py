@@ -39,12 +39,16 @@ BEFORE = {"tight": 625_559, "reset": 1_151_719, "centralized": 1_511_781}
 TARGET_TIGHT = 800_000  # issue 40: tight forward with the range-error states on (IMU samples/s)
 
 
-def best_of(fn, n=3):
-    best, out = float("inf"), None
+def best_of(fn, n=3, wall=None):
+    """Best CPU time of ``n`` calls and the last result; the best wall time appended to ``wall`` if given."""
+    best, best_wall, out = float("inf"), float("inf"), None
     for _ in range(n):
-        t = time.process_time()
+        t, w = time.process_time(), time.perf_counter()
         out = fn()
         best = min(best, time.process_time() - t)
+        best_wall = min(best_wall, time.perf_counter() - w)
+    if wall is not None:
+        wall.append(best_wall)
     return best, out
 
 
@@ -83,13 +87,18 @@ def tight_case(module="aidnav.filters.tight"):
         if cfg is None and "smooth" in inspect.signature(orig).parameters:
             modes.append(("forward + RTS", {"smooth": True}))
         for name, extra in modes:
-            dt, res = best_of(lambda kw={**k, **extra}, args=a: orig(*args, **kw))
+            wall = []
+            dt, res = best_of(lambda kw={**k, **extra}, args=a: orig(*args, **kw), wall=wall)
             traj = tight.to_trajectory(res)
             c = compare_with_reference(traj.time, traj.lat, traj.lon, traj.height, ref, quality=1)
             sig = np.median(np.hypot(traj.std_pos[:, 0], traj.std_pos[:, 1]))
-            print(f"tight {name:14s} ({label}, {res.nstate} states): {n / dt:12,.0f} IMU samples/s "
-                  f"({dt:.3f} s for {n} samples); horizontal RMS (Q=1) {c['horizontal_rms']:.2f} m; median "
-                  f"horizontal sigma {sig:.2f} m")
+            # three decimals and the vertical: the two models' horizontal figures agree to 1 cm (8.378 and
+            # 8.384 m; median sigma 6.0062 and 6.0063 m; positions up to 0.26 m apart): on the walk the
+            # pseudoranges and range-error states, not the IMU's error model, set the horizontal position
+            print(f"tight {name:14s} ({label}, {res.nstate} states): {n / dt:10,.0f} IMU samples/s "
+                  f"({dt:.4f} CPU-s, wall {n / wall[0]:,.0f}/s, for {n} samples); RMS (Q=1) horizontal "
+                  f"{c['horizontal_rms']:.3f} m, vertical {c['vertical_rms']:.3f} m; median horizontal sigma "
+                  f"{sig:.4f} m")
             if name == "forward":
                 met = "met" if n / dt >= TARGET_TIGHT else "NOT met"
                 print(f"  target (issue 40): >= {TARGET_TIGHT:,} forward with the range-error states on "

@@ -442,7 +442,7 @@ def run_experiment_cmd(
     try:
         res = run_experiment(experiment, out, workers=workers, scheduler=scheduler, max_runs=max_runs,
                              backend="dask" if dask and not no_dask and workers > 1 else None,
-                             console=_console())
+                             console=_console)  # made once needed: after the workers start
     except ExperimentError as e:
         _fail(str(e))
     except CampaignInterrupted as e:

@@ -8,10 +8,13 @@ import copy
 import numpy as np
 import pytest
 
+import aidnav.experiments.estimators as est
 from aidnav.experiments import runner
 from aidnav.experiments.config import parse_experiment
 from aidnav.experiments.estimators import _loose_run_config
-from aidnav.filters.loose import run_loose, run_loose_batch
+from aidnav.filters import loose
+from aidnav.filters.loose import run_loose, run_loose_batch, shared_times
+from aidnav.filters.preprocess import bridge_gaps
 
 from .conftest import TINY
 
@@ -52,6 +55,24 @@ def test_batch_task_equals_run_by_run(point):
     assert not np.array_equal(e0, e1)
 
 
+def test_pool_worker_one_run_task_equals_run_task(point, monkeypatch):
+    """In a pool worker a one-run task takes the batched engine (R = 1, the kernels loaded for the batches):
+    the same results as run_task's one-run engine, bit for bit."""
+    calls = []
+    real = loose.run_loose_batch
+    monkeypatch.setattr(runner, "_REUSE_BUFFERS", True)
+    monkeypatch.setattr(loose, "run_loose_batch", lambda *a: calls.append(len(a[0])) or real(*a))
+    monkeypatch.setattr(est, "run_loose_batch", loose.run_loose_batch)  # the name the batch form calls
+    (r,) = runner.run_batch_task(runner.BatchTask(point.key, point.index, (2,), point.doc))
+    assert calls == [1]  # the batched engine, one run
+    one = runner.run_task(runner.RunTask(point.key, point.index, 2, point.doc))
+    assert calls == [1]  # run_task: the one-run engine
+    a, b = one["estimators"]["loose"], r["estimators"]["loose"]
+    for k in ("time", "error", "sigma", "nees"):
+        assert a[k].shape == b[k].shape and np.array_equal(a[k], b[k]), k
+    assert a["info"] == b["info"]
+
+
 def test_batched_filter_equals_run_loose(sims):
     """States, covariance diagonals, final covariances and the innovation log (NIS, innovations, S) of
     run_loose_batch equal run_loose's for every run."""
@@ -67,6 +88,26 @@ def test_batched_filter_equals_run_loose(sims):
             assert np.array_equal(a.records[k], b.records[k], equal_nan=True), k
         assert a.counts == b.counts and a.events == b.events
         assert np.isfinite(a.innovations["nis"]).sum() > 0
+
+
+def test_shared_times_are_what_each_run_computes(sims):
+    """The batch's shared sample-time quantities are each run's own (rate, gap variances of bridge_gaps);
+    none where the runs' times differ, no shared zeros where the times have a gap."""
+    imus = [s.imu for s, _ in sims]
+    assert imus[0].time is not imus[1].time  # each run its own copy: the values are compared
+    sh = shared_times(imus)
+    assert sh is not None and sh.rate_hz == imus[1].rate_hz
+    dth, dv, gv = bridge_gaps(imus[1], [])
+    assert sh.no_gaps.shape == gv.shape and not np.any(sh.no_gaps) and not np.any(gv)
+    assert dth is imus[1].dtheta or np.shares_memory(dth, imus[1].dtheta)
+    late = copy.copy(imus[1])
+    late.time = imus[1].time + 1e-3
+    assert shared_times([imus[0], late]) is None
+    gap = copy.copy(imus[1])
+    gap.time = imus[1].time.copy()
+    gap.time[100:] += 0.5  # a 0.5-s gap (50 nominal intervals) before sample 100
+    sh_gap = shared_times([gap, gap])
+    assert sh_gap is not None and sh_gap.no_gaps is None and np.any(bridge_gaps(gap, [])[2])
 
 
 def test_not_batchable_falls_back(sims):

@@ -57,6 +57,30 @@ def test_epoch_summary():
     np.testing.assert_allclose(out["nees_att"], 1.0)
 
 
+@pytest.mark.parametrize("nan", [False, True])
+def test_epoch_summary_equals_nan_functions(nan):
+    """The per-epoch summaries are numpy's nan-functions across runs bit for bit, with NaNs (the
+    nan-functions themselves) and without (mean/std on the runs' strided columns, no NaN-free copies)."""
+    rng = np.random.default_rng(3)
+    err = rng.normal(size=(7, 40, 3)) * 10.0 ** rng.uniform(-3, 3, (7, 40, 3))
+    sig = np.abs(rng.normal(size=(7, 40, 3)))
+    nees = rng.chisquare(3, size=(7, 40, 1))
+    if nan:
+        err[2, 5, 1] = sig[0, 7, 2] = nees[4, 9, 0] = np.nan
+    out = store.epoch_summary(err, sig, nees, ["pos_e", "pos_n", "pos_u"], ["pos"])
+    for i, s in enumerate(["pos_e_m", "pos_n_m", "pos_u_m"]):
+        e = err[:, :, i]
+        want = {"mean": np.nanmean(e, axis=0), "std": np.nanstd(e, axis=0, ddof=1),
+                "rms": np.sqrt(np.nanmean(e * e, axis=0)), "sigma": np.nanmean(sig[:, :, i], axis=0)}
+        for k, v in want.items():
+            assert np.array_equal(out[f"{s}_{k}"], v, equal_nan=True), (s, k)
+    assert np.array_equal(out["nees_pos"], np.nanmean(nees[:, :, 0], axis=0), equal_nan=True)
+    # a run's NaN is left out of its epoch (not a NaN mean): the nan-functions' path where it must be
+    assert np.isfinite(out["pos_n_m_mean"]).all() and np.isfinite(out["nees_pos"]).all()
+    if nan:
+        assert out["pos_n_m_mean"][5] == np.mean(np.delete(err[:, 5, 1], 2))
+
+
 def test_run_file_roundtrip_and_corruption(tmp_path):
     res = {"key": "ab" * 32, "point": 0, "run": 3, "imu_samples": 10,
            "timing": {"total_s": 0.1},

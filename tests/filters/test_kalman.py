@@ -3,7 +3,8 @@
 (a) ``discretize`` (third-order Taylor Φ, Qd) against the exact ``van_loan`` on random stable
     systems: error bounds from the first neglected series term and the convergence order
     (Φ error ∝ T³, Qd error ∝ T⁴); ``van_loan`` itself against a quadrature of ∫ Φ Q Φᵀ.
-(b) ``update`` = the textbook gain form (I − KH)P and the information form; gating.
+(b) ``update`` = the textbook gain form (I − KH)P and the information form; = the Joseph product form it
+    replaced (issue 40) on ill-scaled SPD P with diagonal and full R; gating.
 (c) ``update_scalar`` sequentially = ``update`` in one batch for a diagonal R.
 (d) RTS: the forward filter + ``rts_gain`` backward pass, and the closed-loop ``_rts_kernel`` used by
     the loosely coupled smoother, equal the dense Gaussian conditioning of the stacked linear system.
@@ -162,6 +163,45 @@ def test_update_equals_gain_form_and_information_form(seed):
     assert nis == pytest.approx(nu @ np.linalg.solve(S, nu), rel=1e-10)
 
 
+def _joseph_product(x, P, H, R, z):
+    """The Joseph update in its product form, (I − K H) P (I − K H)ᵀ + K R Kᵀ then symmetrised: ``update``'s
+    form before issue 40 (2n³ per update; ``update`` now expands it, O(n²m))."""
+    S = H @ P @ H.T + R
+    K = P @ H.T @ np.linalg.inv(S)
+    IKH = np.eye(x.shape[0]) - K @ H
+    Pn = IKH @ P @ IKH.T + K @ R @ K.T
+    return x + K @ (z - H @ x), 0.5 * (Pn + Pn.T)
+
+
+@pytest.mark.parametrize("m", [1, 3, 6])
+@pytest.mark.parametrize("full_r", [False, True])
+def test_update_equals_the_joseph_product_form(m, full_r):
+    """A 33-state P scaled like the tight filter's (variances 1e-10 … 1e6: attitude, biases, clock) with
+    correlations; R diagonal or full: the expanded update = the product form to 1e-9 of each entry's scale
+    (√(Pᵢᵢ Pⱼⱼ)), over 5 chained updates."""
+    rng = np.random.default_rng(300 + m + 10 * full_r)
+    n = 33
+    d = 10.0 ** rng.uniform(-5, 3, n)  # standard deviations
+    C = random_spd(rng, n)
+    C /= np.sqrt(np.outer(np.diag(C), np.diag(C)))
+    P = C * np.outer(d, d)
+    x = rng.normal(size=n) * d
+    xk, Pk, xr, Pr = x.copy(), P.copy(), x.copy(), P.copy()
+    for _ in range(5):
+        H = rng.normal(size=(m, n)) * (rng.uniform(size=(m, n)) < 0.3) / d.mean()
+        R = random_spd(rng, m, 0.5) if full_r else np.diag(rng.uniform(0.1, 2.0, m))
+        z = H @ x + rng.normal(size=m)
+        ok, _ = update(xk, Pk, H, R, z, 0.0, np.zeros(m), np.zeros(m))
+        assert ok
+        xr, Pr = _joseph_product(xr, Pr, H, R, z)
+        sc = np.sqrt(np.outer(np.diag(Pr), np.diag(Pr)))
+        assert np.abs(Pk - Pr).max() > 0 or m == 1  # a different computation, not a copy of the reference
+        assert np.all(np.abs(Pk - Pr) <= 1e-9 * sc)
+        assert np.all(np.abs(xk - xr) <= 1e-9 * np.sqrt(np.diag(Pr)))
+        assert np.array_equal(Pk, Pk.T)
+        assert np.linalg.eigvalsh(Pk / sc).min() > 0
+
+
 def test_update_joseph_form_keeps_p_positive_definite_with_suboptimal_round_off():
     """A very precise measurement of an uncertain state (κ(S) large): P stays symmetric PD."""
     rng = np.random.default_rng(7)
@@ -175,6 +215,17 @@ def test_update_joseph_form_keeps_p_positive_definite_with_suboptimal_round_off(
         update(x, P, H, R, z, 0.0, np.zeros(3), np.zeros(3))
     assert np.array_equal(P, P.T)
     assert np.linalg.eigvalsh(P).min() > 0
+
+
+def test_update_with_a_singular_innovation_covariance_raises():
+    """S = H P Hᵀ + R singular (a row repeated, R = 0): the update raises as LAPACK's inverse did before
+    issue 40's loops, instead of returning NaNs; x and P are left untouched."""
+    P, x = np.eye(3), np.zeros(3)
+    for H in (np.array([[0.0, 0.0, 0.0]]), np.array([[1.0, 0.0, 0.0], [1.0, 0.0, 0.0]])):
+        m = H.shape[0]
+        with pytest.raises(np.linalg.LinAlgError):
+            update(x, P, H, np.zeros((m, m)), np.ones(m), 0.0, np.zeros(m), np.zeros(m))
+        assert np.array_equal(P, np.eye(3)) and not x.any()
 
 
 def test_update_gating_rejects_beyond_chi2_threshold_and_records():
@@ -225,6 +276,7 @@ def test_update_scalar_sequential_equals_batch_for_diagonal_r():
         assert ok
     assert np.allclose(xs, xb, rtol=0, atol=1e-10 * np.abs(xb).max())
     assert np.allclose(Ps, Pb, rtol=0, atol=1e-10 * np.abs(Pb).max())
+    assert np.array_equal(Ps, Ps.T)  # exactly symmetric, scalar by scalar
     # scalar gating: ν²/s against the threshold; rejected updates change nothing
     h = H[0].copy()
     s_exp = h @ P @ h + r[0]

@@ -166,7 +166,7 @@ def _process(out, name: str) -> dict:
 def run_task(task: RunTask) -> dict:
     """Compute one run (in whatever process): simulate the sensors, run every estimator, return the
     per-epoch arrays (see :func:`aidnav.experiments.store.save_run`) and a timing breakdown [s]."""
-    return run_batch_task(BatchTask(task.key, task.point, (task.run,), task.doc))[0]
+    return run_batch_task(BatchTask(task.key, task.point, (task.run,), task.doc), batched=False)[0]
 
 
 def run_batch_task(task: BatchTask, batched: bool = True) -> list[dict]:
@@ -175,7 +175,10 @@ def run_batch_task(task: BatchTask, batched: bool = True) -> list[dict]:
     (:attr:`aidnav.experiments.estimators.EstimatorType.batch`, e.g. the loose filter on
     :mod:`aidnav.filters.engine_batch`: its outputs identical to run by run; ``batched`` False: run by run
     always); one result per run, as :func:`run_task`. A batch's estimator time is shared equally among
-    its runs in the timing breakdown."""
+    its runs in the timing breakdown. In a local pool's worker a task of one run takes the batched form too
+    (R = 1, the same results): the worker has loaded its kernels for the batches before, and the one-run
+    engine's would be loaded at the campaign's end, where the batches shrink to one run (≈ 0.13 s of each
+    worker's time on the campaign's last tasks, issue 41 session 11)."""
     for v in _THREAD_VARS:
         os.environ.setdefault(v, "1")
     t0, c0 = time.perf_counter(), time.process_time()
@@ -187,9 +190,10 @@ def run_batch_task(task: BatchTask, batched: bool = True) -> list[dict]:
     setup = (time.perf_counter() - t0) / nr
     tm = [{"setup_s": setup, "estimators_s": {}, "errors_s": 0.0} for _ in task.runs]
     sims, seeds = [], []
+    together = batched and (nr > 1 or _REUSE_BUFFERS)  # the batched form (a pool worker: for one run too)
     # the runs' increments as rows of (R, N, 3) arrays: the batched filter reads them there, no copy
     n_imu = len(truth_of_point(ctx)[1])
-    inc = _increments(nr, n_imu) if batched and nr > 1 else None
+    inc = _increments(nr, n_imu) if together else None
     for i, run in enumerate(task.runs):
         a = time.perf_counter()
         sim, s_est = simulate_run(ctx, run, None if inc is None else (inc[0][i], inc[1][i]))
@@ -200,7 +204,7 @@ def run_batch_task(task: BatchTask, batched: bool = True) -> list[dict]:
     for name, et, cfg in ctx.estimators:
         a = time.perf_counter()
         outs = None
-        if batched and et.batch is not None and nr > 1:
+        if together and et.batch is not None:
             outs = et.batch(sims, cfg, [np.random.default_rng(s) for s in seeds])
         if outs is not None:
             for t in tm:
@@ -359,18 +363,22 @@ class _Pool:
     computed here before forking would leave a core idle while it runs (issue 41, session 10). Where that
     truth had to be compiled (numba's cache cold), ``first`` is computed here before forking as with spawn:
     the workers then inherit its kernels instead of each compiling them.
+
+    ``tasks`` : the other batches, submitted as soon as the workers exist (before the progress bar's import
+    and set-up, and, with spawn, before this process computes ``first``): :meth:`run` collects them.
+    :meth:`close` after the last result lets the workers exit while this process merges (:meth:`join`).
     """
 
-    def __init__(self, workers: int, first: BatchTask | None, method: str | None = None):
+    def __init__(self, workers: int, first: BatchTask | None, method: str | None = None, tasks=()):
         method = method or START_METHOD
-        self.early, self._tmp, self.ex, self._first = [], None, None, None
+        self.early, self._tmp, self.ex, self.futs, self._closing = [], None, None, [], None
         try:
             if method == "fork" and first is not None:
                 _prepare_point(first)
                 if _compiled_here():
                     self.early = run_batch_task(first)
                 else:
-                    self._first = first
+                    tasks = [first] + list(tasks)
             seed = None
             if method != "fork" and first is not None:
                 self._tmp = tempfile.TemporaryDirectory(prefix="aidnav_pool_")
@@ -381,32 +389,44 @@ class _Pool:
                                               initargs=(seed,))
                 # all workers start now (fork: at the first submit; spawn: one per submit while none is idle)
                 self._ready = [self.ex.submit(_worker_ready) for _ in range(workers)]
+                self.futs = [self.ex.submit(run_batch_task, t) for t in tasks]
             if method != "fork" and first is not None:
                 self.early = run_batch_task(first)
         except BaseException:
             self.close(wait=False)
             raise
 
-    def run(self, tasks, on_result):
-        tasks = ([self._first] if self._first is not None else []) + list(tasks)
-        futs = [self.ex.submit(run_batch_task, t) for t in tasks]
+    def run(self, on_result):
+        """Hand each run of the submitted batches to ``on_result`` as their batch finishes."""
         prepare_merge()  # while the workers compute (the merge's imports, ~0.1 s)
         try:
-            for f in as_completed(futs):
+            for f in as_completed(self.futs):
                 for r in f.result():
                     on_result(r)
             for f in self._ready:
                 f.result()
         except BaseException:
-            for f in futs:
+            for f in self.futs:
                 f.cancel()
             raise
 
-    def close(self, wait: bool = True):
-        if self.ex is not None:
+    def close(self, wait: bool = True, background: bool = False):
+        """Stop the pool (``wait``: for the workers' exit; else cancel what has not started). ``background``
+        (every result in): the workers exit while this process goes on; :meth:`join` waits for them."""
+        if self.ex is not None and background:
+            self._closing = threading.Thread(target=self.ex.shutdown, name="aidnav-pool-close")
+            self._closing.start()
+        elif self.ex is not None:
             self.ex.shutdown(wait=wait, cancel_futures=not wait)
         if self._tmp is not None:
             self._tmp.cleanup()
+
+    def join(self):
+        """Wait for the workers' exit after :meth:`close` in the background (their CPU time is then counted
+        in this process's ``RUSAGE_CHILDREN``)."""
+        if self._closing is not None:
+            self._closing.join()
+            self._closing = None
 
 
 def prepare_merge() -> None:
@@ -473,7 +493,9 @@ def run_experiment(experiment, out_dir, *, workers: int = 1, scheduler: str | No
         the process pool for more (the fastest: its forked workers inherit the loaded kernels and truth).
     max_runs : compute at most this many new runs, then stop without merging (a campaign cut short on
         purpose; rerun to complete it).
-    console : rich console for the progress bar and messages; progress : show the bar.
+    console : rich console for the progress bar and messages, or a function that makes one (called once, when
+        a message or the bar needs it: after a local pool's workers have started; default: a console on
+        stderr); progress : show the bar.
     batch : runs of a sweep point computed together in one task (:func:`run_batch_task`; they share the
         trajectory); default :data:`BATCH_RUNS`, fewer where that leaves a worker fewer than two tasks;
         1: one run per task.
@@ -481,13 +503,9 @@ def run_experiment(experiment, out_dir, *, workers: int = 1, scheduler: str | No
     Raises :class:`~aidnav.experiments.config.ExperimentError` (before computing anything) for a bad
     experiment and :class:`CampaignInterrupted` on Ctrl-C (finished runs stay on disk).
     """
-    from rich.console import Console  # lazy: rich is heavy to import
-
-    from . import store  # lazy: pyarrow; the workers do not write the tables
-
     t_start = time.perf_counter()
     plan = experiment if isinstance(experiment, ExperimentPlan) else load_experiment(experiment)
-    console = console or Console(stderr=True)
+    console = _console_maker(console)
     if backend is None:  # the fastest correct one (issue 41): the process pool locally, Dask on a scheduler
         backend = "dask" if scheduler else ("processes" if workers > 1 else "serial")
     if backend not in ("serial", "processes", "dask"):
@@ -505,6 +523,17 @@ def run_experiment(experiment, out_dir, *, workers: int = 1, scheduler: str | No
     tally = _compute(plan, out, todo, n_total, n_reused, backend, workers, scheduler, info, batch, console,
                      progress)
     t_compute = time.perf_counter() - t_comp
+    try:  # the pool's workers exit meanwhile
+        return _finish(plan, out, tally, t_start, t_compute, n_total, n_reused, info, console)
+    finally:
+        if tally.pool is not None:
+            tally.pool.join()
+
+
+def _finish(plan: ExperimentPlan, out: Path, tally: _Tally, t_start: float, t_compute: float, n_total: int,
+            n_reused: int, info: dict, console) -> CampaignResult:
+    """The campaign's tables and manifest once its runs are computed (:func:`run_experiment`)."""
+    from . import store  # lazy: pyarrow; the workers do not write the tables
 
     computed = tally.computed
     complete = n_reused + computed == n_total
@@ -516,7 +545,7 @@ def run_experiment(experiment, out_dir, *, workers: int = 1, scheduler: str | No
     result = CampaignResult(out, complete, computed, n_reused, n_total, 0.0, timings=timings)
     if not complete:
         result.wall_s = time.perf_counter() - t_start
-        console.print(f"stopped after {computed} new runs: {n_reused + computed} of {n_total} on disk; "
+        console().print(f"stopped after {computed} new runs: {n_reused + computed} of {n_total} on disk; "
                       "rerun to complete")
         return result
 
@@ -534,6 +563,27 @@ def run_experiment(experiment, out_dir, *, workers: int = 1, scheduler: str | No
     return result
 
 
+def _console_maker(console):
+    """A function that gives the campaign's console (:func:`run_experiment`'s ``console``: a console, a
+    function that makes one, or None for a console on stderr), made on its first call (rich.console's
+    import, ~25 ms, after a local pool's workers have started)."""
+    made = []
+
+    def get():
+        if not made:
+            if console is not None and not callable(console):
+                made.append(console)
+            elif console is not None:
+                made.append(console())
+            else:
+                from rich.console import Console  # lazy: rich is heavy (imported after the workers start)
+
+                made.append(Console(stderr=True))
+        return made[0]
+
+    return get
+
+
 def _pending(plan: ExperimentPlan, out: Path, max_runs: int | None,
              console) -> tuple[list[RunTask], int, int]:
     """The runs of the campaign still to compute (at most ``max_runs``), the number of runs in all and the
@@ -549,7 +599,8 @@ def _pending(plan: ExperimentPlan, out: Path, max_runs: int | None,
         (out / "manifest.json").unlink(missing_ok=True)  # `aidnav report` refuses the directory
     n_total, n_reused = len(tasks), len(tasks) - len([t for t in tasks if (t.key, t.run) not in done])
     if n_reused:
-        console.print(f"{out}: {n_reused} of {n_total} runs already on disk, {n_total - n_reused} to compute")
+        console().print(f"{out}: {n_reused} of {n_total} runs already on disk, {n_total - n_reused} to "
+                        "compute")
     return todo, n_total, n_reused
 
 
@@ -568,6 +619,7 @@ class _Tally:
         from . import store  # lazy: pyarrow; the workers do not write the tables
 
         self.store, self.out, self.advance, self.computed = store, out, advance, 0
+        self.pool: _Pool | None = None  # the local process pool, its workers exiting (_compute)
         self.kept: dict = {}
         self._kept_bytes = 0
         self.agg = {"setup_s": 0.0, "sim_s": 0.0, "errors_s": 0.0, "estimators_s": {}, "worker_total_s": 0.0,
@@ -615,7 +667,7 @@ def _compute(plan: ExperimentPlan, out: Path, todo: list[RunTask], n_total: int,
     todo = make_batches(todo, size, workers if par else None)
     if backend == "processes":
         try:
-            pool = _Pool(workers, first)
+            pool = _Pool(workers, first, tasks=todo)
         except KeyboardInterrupt:
             raise CampaignInterrupted(f"interrupted: {n_reused} of {n_total} runs are in {out / 'runs'}; run "
                                       "the same command again to resume") from None
@@ -632,7 +684,7 @@ def _compute(plan: ExperimentPlan, out: Path, todo: list[RunTask], n_total: int,
 
     cols = [TextColumn("{task.description}", markup=False), BarColumn(), MofNCompleteColumn(),
             TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn()]
-    with Progress(*cols, console=console, disable=not progress or not todo, transient=False) as bar:
+    with Progress(*cols, console=console(), disable=not progress or not todo, transient=False) as bar:
         task_id = bar.add_task(f"{plan.experiment.name}: runs", total=n_total, completed=n_reused)
         on_result = _Tally(out, lambda: bar.advance(task_id))
         ok = False
@@ -643,7 +695,7 @@ def _compute(plan: ExperimentPlan, out: Path, todo: list[RunTask], n_total: int,
                 for r in run_batch_task(first):
                     on_result(r)
             if backend == "processes":
-                pool.run(todo, on_result)  # with fork, the first batch too
+                pool.run(on_result)  # with fork, the first batch too
             elif not todo:
                 pass
             elif backend == "serial":
@@ -656,7 +708,8 @@ def _compute(plan: ExperimentPlan, out: Path, todo: list[RunTask], n_total: int,
                                       f"in {out / 'runs'}; run the same command again to resume") from None
         finally:
             if pool is not None:
-                pool.close(wait=ok)
+                pool.close(wait=ok, background=ok)
+    on_result.pool = pool
     return on_result
 
 

@@ -259,17 +259,22 @@ def epoch_summary(err: np.ndarray, sig: np.ndarray, nees: np.ndarray, states,
     """
     out: dict[str, np.ndarray] = {}
     r = err.shape[0]
+    # without a NaN, numpy's nan-functions return what mean/std return (they replace the NaNs in a copy, then
+    # make the same sums in the same order): those, without the copies
+    e_mean, e_std = (np.nanmean, np.nanstd) if np.isnan(err).any() else (np.mean, np.std)
+    s_mean = np.nanmean if np.isnan(sig).any() else np.mean
+    n_mean = np.nanmean if np.isnan(nees).any() else np.mean
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         for i, s in enumerate(states):
             c = f"{s}_{state_unit(s)[0]}"
             e = err[:, :, i]
-            out[f"{c}_mean"] = np.nanmean(e, axis=0)
-            out[f"{c}_std"] = np.nanstd(e, axis=0, ddof=1) if r > 1 else np.full(e.shape[1], np.nan)
-            out[f"{c}_rms"] = np.sqrt(np.nanmean(e * e, axis=0))
-            out[f"{c}_sigma"] = np.nanmean(sig[:, :, i], axis=0)
+            out[f"{c}_mean"] = e_mean(e, axis=0)
+            out[f"{c}_std"] = e_std(e, axis=0, ddof=1) if r > 1 else np.full(e.shape[1], np.nan)
+            out[f"{c}_rms"] = np.sqrt(e_mean(e * e, axis=0))
+            out[f"{c}_sigma"] = s_mean(sig[:, :, i], axis=0)
         for j, b in enumerate(blocks):
-            out[f"nees_{b}"] = np.nanmean(nees[:, :, j], axis=0)
+            out[f"nees_{b}"] = n_mean(nees[:, :, j], axis=0)
     return out
 
 

@@ -54,7 +54,7 @@ import numpy as np
 from aidnav.jit import njit
 from aidnav.nav.earth import OMEGA_IE, radii
 from aidnav.nav.gnss_sat import C_LIGHT
-from aidnav.nav.rotations import dcm_from_quat, quat_from_rotvec, quat_mult, quat_normalize
+from aidnav.nav.rotations import dcm_from_quat, quat_from_rotvec, quat_mult, quat_normalize, wrap_pi
 
 from .gate import WIN_MAX, gated_update, policy_update
 from .ins_errors import (
@@ -66,6 +66,7 @@ from .ins_errors import (
     set_heading,
 )
 from .layout import (
+    BG,
     DP,
     DV,
     L_CLK,
@@ -141,8 +142,9 @@ EngineOut = namedtuple("EngineOut", ["out_idx", "out_st", "out_bias", "out_pdiag
 # what a pass carries from one chunk of samples to the next: k0 (global index of the chunk's first
 # sample), last (the chunk ends the log), tp (time of the previous sample), kn (nodes so far), gi (next
 # record), ci (next cov_idx), reset_node; st, bias, P (updated in place), rej (consecutive rejections),
-# acc (interval accumulator), gap (4,): bridged-gap variance not yet added (roll/pitch, heading,
-# velocity, position), then 1 while the heading is held after a gap; buf (4, 3) increment buffers
+# acc (interval accumulator), gap (6,): bridged-gap variance not yet added (roll/pitch, heading,
+# velocity, position), then 1 while the heading is held after a gap, then the computed heading [rad] at
+# the last node if that node was static (NaN otherwise: _turn_tilt_at_rest); buf (4, 3) increment buffers
 Carry = namedtuple("Carry", ["k0", "last", "tp", "kn", "gi", "ci", "reset_node", "st", "bias", "P", "rej",
                              "acc", "gap", "buf"])
 
@@ -311,7 +313,7 @@ def start_carry(rec, proc, ini, last):
     while _due_time(rec, gi, bias, ic, itoff) <= ini.t0:
         gi += 1
     return Carry(0, last, ini.t0, 0, gi, 0, -1, ini.st.copy(), bias, ini.P.copy(),
-                 np.zeros(N_MODELS, np.int64), new_accumulator(), np.zeros(5), np.zeros((4, 3)))
+                 np.zeros(N_MODELS, np.int64), new_accumulator(), _new_gap(), np.zeros((4, 3)))
 
 
 @njit(cache=True, depends=MODELS_KEY)
@@ -321,10 +323,75 @@ def run_filter(imu, rec, mod, proc, ini, out):
     return run_chunk(imu, rec, mod, proc, ini, out, start_carry(rec, proc, ini, True))
 
 
+@njit(cache=True)
+def _new_gap():
+    """The carry's ``gap`` array before the first sample (:class:`Carry`)."""
+    gap = np.zeros(6)
+    gap[5] = np.nan
+    return gap
+
+
+@njit(cache=True, inline="always")  # per node: inlined in run_chunk
+def _turn_tilt_at_rest(st, P, gap, ix, static):
+    """At a node whose interval was static (the vehicle does not turn), every change of the computed
+    heading since the last node — the strapdown's drift with the z gyro's bias error, the feedback of a
+    heading correction — is a change of the heading *error*: the computed frame turned about the vertical
+    while the true one stood still. The tilt error belongs to the body's roll and pitch, so in the
+    navigation frame it turns with that change (φ_EN ← R φ_EN, R the rotation applied to C_b^n, as at a
+    heading reset: :func:`.ins_errors.set_heading`), and with it its covariance with the body-frame sensor
+    errors; the first-order model holds φ_EN still instead (the term δb_z × φ is of second order). Without
+    the turn, a heading that wanders at rest (a consumer gyro's z bias, σ hundreds of deg/h) makes the
+    accelerometer bias's image C_b^n b_a turn against a still tilt: a rotation that separates the tilt from
+    the bias in the filter's model but not in the sensor, and the tilt σ falls far below what the bias
+    allows (issue 35, parked 10 min then driving). ``gap[5]``: the computed heading at the last node when
+    that node was static, NaN otherwise."""
+    ie, inn = ix[PHI], ix[PHI + 1]
+    C = dcm_from_quat(st[ST_Q:ST_Q + 4])
+    h = np.arctan2(C[0, 1], C[1, 1])
+    if static and ie >= 0 and inn >= 0 and not np.isnan(gap[5]):
+        y = -wrap_pi(h - gap[5])  # rotation about Up that turned C_b^n (heading is clockwise)
+        a, b = np.cos(y), -np.sin(y)
+        for j in range(P.shape[0]):  # P ← T P Tᵀ, T the rotation of the tilt rows
+            pe, pn = P[ie, j], P[inn, j]
+            P[ie, j], P[inn, j] = a * pe + b * pn, -b * pe + a * pn
+        for j in range(P.shape[0]):
+            pe, pn = P[j, ie], P[j, inn]
+            P[j, ie], P[j, inn] = a * pe + b * pn, -b * pe + a * pn
+    if static and not np.isnan(gap[5]):
+        _hold_heading_at_rest(st, P, ix)
+    gap[5] = h if static else np.nan
+
+
+@njit(cache=True, inline="always")  # per node: inlined in run_chunk
+def _hold_heading_at_rest(st, P, ix):
+    """At rest, with a gyro that cannot gyrocompass (the horizontal gyro bias σ above the horizontal Earth
+    rate Ω cos L: the Earth rate would fix the heading to worse than 1 rad), the heading and the z gyro
+    bias are not observable: the only coupling, Ω cos L · ψ into the east tilt rate, is indistinguishable
+    from the horizontal gyro bias. The linearised model nonetheless separates them once the computed
+    heading wanders (its Earth-rate column stays fixed in the navigation frame while the bias's image
+    C_b^n b_g turns): the updates then move the heading and the z bias on that spurious information and
+    claim a σ they do not have. So before the updates of a static node the correlations of the heading
+    and the z gyro bias with every other state are zeroed (their own 2×2 block kept, so the heading σ
+    grows with the z bias as it should): the updates cannot move them at rest."""
+    iu, ibz, ibx, iby = ix[PHI + 2], ix[BG + 2], ix[BG], ix[BG + 1]
+    if iu < 0 or ibz < 0 or ibx < 0 or iby < 0:
+        return
+    wh = OMEGA_IE * np.cos(st[ST_POS])
+    if 0.5 * (P[ibx, ibx] + P[iby, iby]) <= wh * wh:
+        return
+    for j in range(P.shape[0]):
+        if j != iu and j != ibz:
+            P[iu, j], P[j, iu], P[ibz, j], P[j, ibz] = 0.0, 0.0, 0.0, 0.0
+
+
 @njit(cache=True, inline="always")  # per node: inlined in run_chunk (issue 40)
-def _gap_at_node(st, P, gap, ix, hold_thr, iu):
+def _gap_at_node(st, P, gap, ix, hold_thr, static):
     """The variance an IMU gap added since the last node; a heading σ left above the hold threshold holds
-    the heading unknown (``gap[4]``) until a GNSS course re-aligns it."""
+    the heading unknown (``gap[4]``) until a GNSS course re-aligns it; the tilt turned with the heading's
+    change at rest (:func:`_turn_tilt_at_rest`; ``static``: the node is static and its heading is not held
+    unknown before the first alignment — a held heading is :func:`_hold_heading`'s)."""
+    iu = ix[PHI + 2]
+    _turn_tilt_at_rest(st, P, gap, ix, static and gap[4] == 0.0)  # (a held heading: _hold_heading's)
     if gap[0] > 0.0 or gap[1] > 0.0:  # (indices of the full layout through ix: a subset has its own)
         _add_gap(st, P, gap, ix)
         if hold_thr > 0.0 and iu >= 0 and P[iu, iu] >= hold_thr * hold_thr:
@@ -564,7 +631,7 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
     cov_out = np.zeros((out.cov_idx.shape[0], n, n))
     ci, reset_node, gi = cy.ci, cy.reset_node, cy.gi
     acc = cy.acc
-    gap = cy.gap  # (5,): variances to add at the next node, then the heading-hold flag
+    gap = cy.gap  # (6,): variances to add at the next node, the heading-hold flag, the last heading
     pv = mod.par[M_GNSS_VEL]
     hold_thr = pv[C_HOLD] if pv.shape[0] > C_HOLD else 0.0  # (other filters: fewer parameters)
     dthc, dvc, dth_prev, dv_prev = cy.buf[0], cy.buf[1], cy.buf[2], cy.buf[3]
@@ -593,7 +660,7 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
             C = dcm_from_quat(st[ST_Q:ST_Q + 4])
             wb = predict_node(st, acc, x, P, T, proc, em, (nins, mins, nh))
             carry_estimates(st, bias, em[4], proc.open, nh)  # em[4]: Φ of the interval
-            _gap_at_node(st, P, gap, ix, hold_thr, iu)
+            _gap_at_node(st, P, gap, ix, hold_thr, imu.static[k] and not (hold_h and k0 + k < ini.reset_idx))
             if out.smooth:
                 S_phi[kn - kn0], S_prior[kn - kn0] = em[4], P
             node_rates(st, wb, dthc, dt, w)

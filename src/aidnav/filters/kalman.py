@@ -13,7 +13,7 @@ frequency and 1/τ of the Markov states (≤ 1e-2 s⁻¹ typical; up to 1 s⁻¹
 T ≤ 1 s the truncation is below 1e-3 relative for navigation states. :func:`van_loan` (scipy
 ``expm``, exact for a piecewise-constant F) is the reference used in the tests.
 
-Update: Joseph form P = (I − K H) P (I − K H)ᵀ + K R Kᵀ, then symmetrised; the innovation
+Update: Joseph form P = (I − K H) P (I − K H)ᵀ + K R Kᵀ (expanded: O(n²m), symmetric); the innovation
 ν = z − H x is gated with its Mahalanobis distance νᵀ S⁻¹ ν against a chi-square quantile
 (``gate`` ≤ 0 disables gating).
 """
@@ -193,29 +193,93 @@ def update(x, P, H, R, z, gate, innov_out, s_out):
     ``gate``: chi-square threshold for νᵀS⁻¹ν (≤ 0: no gating).
     Writes the innovation ν into ``innov_out`` (m,) and diag(S) into ``s_out`` (m,).
     Returns (accepted, nis).
-    """
-    m = z.shape[0]
-    nu = z - H @ x
-    PHt = P @ H.T
-    S = H @ PHt + R
-    for i in range(m):
-        innov_out[i] = nu[i]
-        s_out[i] = S[i, i]
-    Sinv = np.linalg.inv(S)
-    nis = nu @ Sinv @ nu
+
+    The Joseph form (I − K H) P (I − K H)ᵀ + K R Kᵀ expanded, P − K Bᵀ − B Kᵀ + (K S) Kᵀ with B = P Hᵀ,
+    S = H B + R: the same matrix for any K (so the same first-order insensitivity to an error in K as the
+    product form), in O(n²m) instead of the product's 2n³, symmetric by construction; the m-row form of
+    :func:`update_scalar`'s (issue 40). Any R (no whitening needed: S, K and the gate are the batch's).
+    P must be symmetric (Bᵀ is computed as H P). Loops, not BLAS calls: at the engine's sizes (n ≤ 40,
+    m ≤ 6) the calls' overhead was most of the update's time."""
+    m, n = z.shape[0], x.shape[0]
+    # Bᵀ = H P (P symmetric) as row updates over H's nonzero entries (a velocity row has ~3 of 33)
+    Bt = np.zeros((m, n))
+    nu = z.copy()
+    for a in range(m):
+        for k in range(n):
+            hak = H[a, k]
+            if hak != 0.0:
+                nu[a] -= hak * x[k]
+                for j in range(n):
+                    Bt[a, j] += hak * P[k, j]
+    S = R.copy()
+    for a in range(m):
+        for b in range(m):
+            v = 0.0
+            for j in range(n):
+                v += H[a, j] * Bt[b, j]
+            S[a, b] += v
+        innov_out[a] = nu[a]
+        s_out[a] = S[a, a]
+    Sinv = _inverse(S)
+    nis = 0.0
+    for a in range(m):
+        for b in range(m):
+            nis += nu[a] * Sinv[a, b] * nu[b]
     if gate > 0.0 and nis > gate:
         return False, nis
-    K = PHt @ Sinv
-    x += K @ nu
-    n = x.shape[0]
-    IKH = -K @ H
+    Kt, KSt = np.zeros((m, n)), np.zeros((m, n))  # Kᵀ = S⁻¹ Bᵀ, (K S)ᵀ
+    for a in range(m):
+        for b in range(m):
+            c = Sinv[b, a]
+            for j in range(n):
+                Kt[a, j] += c * Bt[b, j]
+    for a in range(m):
+        for b in range(m):
+            c = S[b, a]
+            for j in range(n):
+                KSt[a, j] += c * Kt[b, j]
+        for j in range(n):
+            x[j] += Kt[a, j] * nu[a]
+    for i in range(n):  # the upper triangle, row by row (vectorised over j), then mirrored
+        for a in range(m):
+            ksa, ka, ba = KSt[a, i], Kt[a, i], Bt[a, i]
+            for j in range(i, n):
+                P[i, j] += ksa * Kt[a, j] - (ka * Bt[a, j] + ba * Kt[a, j])
     for i in range(n):
-        IKH[i, i] += 1.0
-    P[:, :] = IKH @ P @ IKH.T + K @ R @ K.T
-    Pt = P.T.copy()
-    P += Pt
-    P *= 0.5
+        for j in range(i + 1, n):
+            P[j, i] = P[i, j]
     return True, nis
+
+
+@njit(cache=True)
+def _inverse(S):
+    """The inverse of a small matrix (Gauss–Jordan, partial pivoting): no LAPACK call per update. A zero
+    pivot (S singular) goes to ``np.linalg.inv``, which raises as the update did before (no silent NaN)."""
+    m = S.shape[0]
+    A, Y = S.copy(), np.eye(m)
+    for c in range(m):
+        p = c
+        for r in range(c + 1, m):
+            if abs(A[r, c]) > abs(A[p, c]):
+                p = r
+        if A[p, c] == 0.0:
+            return np.linalg.inv(S)
+        if p != c:
+            for j in range(m):
+                A[c, j], A[p, j] = A[p, j], A[c, j]
+                Y[c, j], Y[p, j] = Y[p, j], Y[c, j]
+        d = 1.0 / A[c, c]
+        for j in range(m):
+            A[c, j] *= d
+            Y[c, j] *= d
+        for r in range(m):
+            if r != c:
+                f = A[r, c]
+                if f != 0.0:
+                    for j in range(m):
+                        A[r, j] -= f * A[c, j]
+                        Y[r, j] -= f * Y[c, j]
+    return Y
 
 
 @njit(cache=True)
@@ -224,7 +288,9 @@ def update_scalar(x, P, h, r, z, gate):
 
     The Joseph form (I − k hᵀ) P (I − k hᵀ)ᵀ + r k kᵀ expanded, P − k pᵀ − p kᵀ + s k kᵀ with p = P h,
     s = hᵀ p + r: the same matrix (first-order insensitive to an error in k, as the product form) in
-    O(n²) instead of two n×n products, symmetric by construction."""
+    O(n²) instead of two n×n products. Every entry is computed, row by row (vectorised), with a term
+    symmetric in (i, j) bit for bit — P_ij − (k_i p_j + p_i k_j) + s (k_i k_j) — so P stays exactly
+    symmetric without a triangle's strided writes (issue 40: 2× faster at n = 33)."""
     nu = z - h @ x
     ph = P @ h
     s = h @ ph + r
@@ -235,10 +301,8 @@ def update_scalar(x, P, h, r, z, gate):
     n = x.shape[0]
     for i in range(n):
         ki, pi = k[i], ph[i]
-        for j in range(i, n):
-            v = P[i, j] - ki * ph[j] - pi * k[j] + s * ki * k[j]
-            P[i, j] = v
-            P[j, i] = v
+        for j in range(n):
+            P[i, j] = P[i, j] - (ki * ph[j] + pi * k[j]) + s * (ki * k[j])
     return True, nu, s
 
 

@@ -59,6 +59,7 @@ from .preprocess import (
     course_alignment,
     gnss_arrays,
     gnss_velocity_for_init,
+    imu_gaps,
     initial_state,
     noise_from_static,
     static_flags,
@@ -191,12 +192,13 @@ Setup = namedtuple("Setup", ["cfg", "lay", "n", "k0", "t_imu", "proc", "ini", "m
                              "out_every", "reset_time"])
 
 
-def loose_setup(imu, gnss, cfg, withheld, events, aids=()) -> Setup:
+def loose_setup(imu, gnss, cfg, withheld, events, aids=(), rate_hz: float | None = None) -> Setup:
     """Everything :func:`run_loose` gives the engine except the per-sample IMU arrays: the configuration
     (with a coarse mounting where it is unknown), layout, process model, initial state (``ini``;
     ``reset_idx`` relative to ``k0``, the first IMU sample used; ``reset_time`` the time of the course
     alignment or None), models, records (``rmap``: their GNSS fix of origin) and the output decimation.
-    ``imu`` may be the head of the log (:mod:`aidnav.filters.stream`) when no coarse mounting is needed."""
+    ``imu`` may be the head of the log (:mod:`aidnav.filters.stream`) when no coarse mounting is needed.
+    ``rate_hz``: ``imu.rate_hz`` when the caller already has it (:func:`run_loose_batch`)."""
     has_vel = gnss.vel is not None and bool(np.any(np.isfinite(gnss.vel)))
     cfg = correlated_gnss_errors(cfg, gnss, events)  # fixes above 1 Hz: Gauss-Markov error states
     lay = loose_layout(cfg, aids, gnss=len(gnss) > 0, gnss_velocity=has_vel)
@@ -239,7 +241,8 @@ def loose_setup(imu, gnss, cfg, withheld, events, aids=()) -> Setup:
                    open=markov)
     out_every = 1
     if cfg.filter.output_rate_hz:
-        out_every = max(1, int(round(imu.rate_hz / cfg.filter.output_rate_hz)))
+        rate = imu.rate_hz if rate_hz is None else rate_hz
+        out_every = max(1, int(round(rate / cfg.filter.output_rate_hz)))
     rec, rmap = _records(cfg, g, use, aids)
     reset_nav = np.concatenate([i0["reset_nav"], cfg.gnss.lever_arm_m])
     ini = Init(float(i0["t0"]), st0, np.zeros(n - 9), P0, int(i0["reset_idx"]), float(i0["reset_heading"]),
@@ -314,15 +317,37 @@ def run_loose(imu, gnss, cfg=None, withheld=None, smooth: bool = False, events: 
     return res
 
 
-def loose_inputs(imu, gnss, cfg, withheld=None, events=None, cov_times=None, aids=()):
+#: what a batch's runs share through their common sample times (:func:`run_loose_batch`): ``rate_hz``
+#: (:attr:`aidnav.data.ImuData.rate_hz`) and, where the times have no gap (:func:`.preprocess.imu_gaps`),
+#: the all-zero gap variances ``no_gaps`` (N, 4) that :func:`.preprocess.bridge_gaps` would return, else None
+SharedTimes = namedtuple("SharedTimes", ["rate_hz", "no_gaps"])
+
+
+def shared_times(imus) -> SharedTimes | None:
+    """The :class:`SharedTimes` of runs whose IMU logs have the same sample times and ``t0`` (None where
+    they differ): the medians and the (N, 4) zeros computed once for a batch instead of once a run."""
+    i0 = imus[0]
+    if any(im.t0 != i0.t0 or not (im.time is i0.time or np.array_equal(im.time, i0.time)) for im in imus):
+        return None
+    gaps = imu_gaps(i0)[2]
+    return SharedTimes(i0.rate_hz, np.zeros((len(i0), 4)) if len(gaps) == 0 else None)
+
+
+def loose_inputs(imu, gnss, cfg, withheld=None, events=None, cov_times=None, aids=(), shared=None):
     """What :func:`run_loose` gives the engine: (:class:`Setup`, the engine's :class:`.engine.Imu` from the
-    first sample used, the number of static samples among them, the sample indices of ``cov_times``)."""
+    first sample used, the number of static samples among them, the sample indices of ``cov_times``).
+    ``shared``: the :class:`SharedTimes` of ``imu``'s sample times (the same values, computed once for a
+    batch of runs); its ``no_gaps`` is then this run's gap variances (read only)."""
     events = events if events is not None else []
-    su = loose_setup(imu, gnss, cfg, withheld, events, aids)
+    su = loose_setup(imu, gnss, cfg, withheld, events, aids, None if shared is None else shared.rate_hz)
     cfg, k0, t_imu = su.cfg, su.k0, su.t_imu
-    dth_in, dv_in, gap_var = bridge_gaps(imu, events, bounds=cfg.motion)
-    static = (static_flags(imu, visible_fixes(gnss, withheld), cfg) if cfg.constraints.zupt
-              else np.zeros(len(imu), np.bool_))
+    if shared is not None and shared.no_gaps is not None:  # what bridge_gaps returns without a gap
+        dth_in, dv_in, gap_var = imu.dtheta, imu.dv, shared.no_gaps
+    else:
+        dth_in, dv_in, gap_var = bridge_gaps(imu, events, bounds=cfg.motion)
+    # static flags for every run: the ZUPT/ZARU where the configuration asks for them (counted), and the
+    # engine's tilt turn and heading hold at rest (engine._turn_tilt_at_rest) always
+    static = static_flags(imu, visible_fixes(gnss, withheld), cfg)
     cov_idx = np.zeros(0, np.int64)
     if cov_times is not None:
         ct = np.sort(np.atleast_1d(np.asarray(cov_times, float)))
@@ -331,7 +356,7 @@ def loose_inputs(imu, gnss, cfg, withheld=None, events=None, cov_times=None, aid
         cov_idx = cov_idx[cov_idx < len(t_imu) - k0]
     sl = slice(k0, None)
     imu_in = Imu(t_imu[sl], dth_in[sl], dv_in[sl], static[sl], gap_var[sl], np.zeros((0, 2)))
-    return su, imu_in, int(static[sl].sum()), cov_idx
+    return su, imu_in, int(static[sl].sum()) if cfg.constraints.zupt else 0, cov_idx
 
 
 def loose_result(su, r, imu, gnss, static_used, events) -> FilterResult:
@@ -365,9 +390,10 @@ def run_loose_batch(imus, gnss_list, cfgs):
     ``run_loose(imu, gnss, cfg)``. Returns the list of :class:`FilterResult`, or None when the runs
     cannot be batched (:func:`aidnav.filters.engine_batch.batchable`: then run them one by one)."""
     ins = []
+    shared = shared_times(imus)
     for imu, gnss, cfg in zip(imus, gnss_list, cfgs, strict=True):
         events = []
-        su, imu_in, static_used, _ = loose_inputs(imu, gnss, cfg, events=events)
+        su, imu_in, static_used, _ = loose_inputs(imu, gnss, cfg, events=events, shared=shared)
         ins.append((su, imu_in, static_used, events))
     sus, imu_ins = [i[0] for i in ins], [i[1] for i in ins]
     every = sus[0].out_every

@@ -115,6 +115,19 @@ def _spread_flags(time, dtheta, dv, t_prev, ring, k, n, thr_w, thr_f, ok):
         ok[i] = good
 
 
+STATIC_BASELINE_MAX_S = 30.0  #: the longest baseline of the position-difference speed of the static test [s]
+
+
+def static_baseline_s(gnss, speed_m_s: float) -> float:
+    """The baseline [s] of the position-difference speed of the static test (:class:`StaticDetector`) for
+    fixes without a receiver velocity: the one at which the fixes' median horizontal σ gives a speed σ of
+    a third of the threshold ``speed_m_s`` (√2·σ/T), from 1 s to :data:`STATIC_BASELINE_MAX_S`."""
+    sp = gnss.std_pos if gnss.std_pos is not None else np.ones((len(gnss), 3))
+    sig = float(np.nanmedian(np.hypot(sp[:, 0], sp[:, 1]) / np.sqrt(2.0))) if len(gnss) else 1.0
+    need = 3.0 * np.sqrt(2.0) * sig / speed_m_s if np.isfinite(sig) else STATIC_BASELINE_MAX_S
+    return float(min(max(need, 1.0), STATIC_BASELINE_MAX_S))
+
+
 class StaticDetector:
     """:func:`static_flags` over consecutive chunks of a log (call it with each chunk in order: the
     running sums carry over, so the flags are the whole-log ones)."""
@@ -126,8 +139,11 @@ class StaticDetector:
         gv = gnss.vel if gnss is not None else None
         if gnss is not None and len(gnss) > 1 and (gv is None or np.all(np.isnan(gv[:, :2]))):
             # no receiver velocity: from position differences, and "static" only where their σ can tell
-            # the threshold apart (σ_v <= threshold / 2): noisy fixes never say static
-            vd, sd = velocity_from_positions(gnss, 1.0)
+            # the threshold apart (σ_v <= threshold / 2): noisy fixes never say static. The baseline is
+            # long enough for the fixes' median σ to do so (σ_v = √2·σ/T = threshold / 3: a fix at rest
+            # reads above the threshold with probability e^(−4.5) ≈ 1 %), 1 s at least, at most
+            # STATIC_BASELINE_MAX_S; a long baseline only shortens the static spans (by T/2 at each end)
+            vd, sd = velocity_from_positions(gnss, static_baseline_s(gnss, c.static_gnss_speed_m_s))
             sig = np.hypot(sd[:, 0], sd[:, 1])
             gv = np.where((sig <= 0.5 * c.static_gnss_speed_m_s)[:, None], vd, np.inf)
             gv = np.where(np.isnan(gv), np.inf, gv)
@@ -156,6 +172,15 @@ class StaticDetector:
 #: columns of the gap variance (:func:`bridge_gaps`): roll/pitch [rad²], heading [rad²], velocity per axis
 #: [(m/s)²], position per axis [m²]
 GAP_TILT, GAP_HEADING, GAP_VEL, GAP_POS = range(4)
+
+
+def imu_gaps(imu, factor: float = 5.0, med: float | None = None):
+    """The sample intervals of ``imu`` (Δt_k = t_k − t_{k−1}, t_{−1} = ``imu.t0``), the nominal interval
+    (``med``, default their median) and the indices of the samples after a gap (Δt > ``factor`` × nominal):
+    what :func:`bridge_gaps` decides from the sample times alone."""
+    dt = np.diff(np.concatenate([[imu.t0], imu.time]))
+    med = float(np.median(dt)) if med is None else med
+    return dt, med, np.flatnonzero(dt > factor * med)
 
 
 def bridge_gaps(imu, events: list, factor: float = 5.0, window_s: float = 1.0, med: float | None = None,
@@ -188,9 +213,7 @@ def bridge_gaps(imu, events: list, factor: float = 5.0, window_s: float = 1.0, m
         from .config import MotionBounds  # lazy: pydantic (the filters' kernels do not need it)
 
         bounds = MotionBounds()
-    dt = np.diff(np.concatenate([[imu.t0], imu.time]))
-    med = float(np.median(dt)) if med is None else med
-    gaps = np.flatnonzero(dt > factor * med)
+    dt, med, gaps = imu_gaps(imu, factor, med)
     gaps = gaps[gaps >= start]
     gap_var = np.zeros((len(imu) - start, 4))
     if len(gaps) == 0:

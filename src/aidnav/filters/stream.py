@@ -157,8 +157,10 @@ class _Forward:
         dt_head = np.diff(np.concatenate([[head.t0], head.time]))
         self.med, rate = float(np.median(dt_head)), head.rate_hz
         self.nwin = max(2, int(round(1.0 / self.med)))
-        zupt = self.cfg.constraints.zupt
-        self.static = StaticDetector(visible_fixes(gnss, withheld), self.cfg, rate) if zupt else None
+        # static flags for every run: the ZUPT/ZARU where the configuration asks for them, and the engine's
+        # tilt turn and heading hold at rest (engine._turn_tilt_at_rest) always
+        self.zupt = self.cfg.constraints.zupt
+        self.static = StaticDetector(visible_fixes(gnss, withheld), self.cfg, rate)
         self.out = Output(su.out_every, bool(smooth), np.zeros(0, np.int64))
         self.M = len(su.rec.t)
         self.rec_log = None
@@ -185,8 +187,7 @@ class _Forward:
             j = ImuData(np.concatenate([tail.time, ch.time]), np.concatenate([tail.dtheta, ch.dtheta]),
                         np.concatenate([tail.dv, ch.dv]), t0=tail.t0)
             dth, dv, gap_var = bridge_gaps(j, self.events, med=self.med, start=len(tail), bounds=cfg.motion)
-        st_fl = (self.static(ch.time, ch.dtheta, ch.dv, self.t_prev) if self.static is not None
-                 else np.zeros(m, np.bool_))
+        st_fl = self.static(ch.time, ch.dtheta, ch.dv, self.t_prev)
         keep = max(0, min(self.nwin, m))
         self.tail = ImuData(ch.time[m - keep:], ch.dtheta[m - keep:], ch.dv[m - keep:],
                             t0=float(ch.time[m - keep - 1]) if m - keep > 0 else self.t_prev)
@@ -205,7 +206,7 @@ class _Forward:
         kb, rt = self.cy.k0, self.rt
         if self.ini.reset_idx == NEVER and rt is not None and np.isfinite(rt) and t[-1] >= rt:
             self.ini = self.ini._replace(reset_idx=kb + int(np.searchsorted(t, rt, side="left")))
-        self.static_used += int(st_fl[a:].sum())
+        self.static_used += int(st_fl[a:].sum()) if self.zupt else 0  # the ZUPT samples
         # the records this chunk can reach (the engine's own bound, with a margin): its log then holds
         # those rows, not the whole log's (memory and time independent of the log length)
         g0 = self.cy.gi

@@ -4,11 +4,11 @@ matching (median normalised innovation² over the χ²₁ median) and scales the
 
 Known answers: the true factors are 10 (horizontal) and 20 (vertical); a consistent filter's median
 normalised innovation² per axis is the χ²₁ median (k = 1), so the iteration stops within k ≤ K_SIGMA = 2
-of the fixed point: the scale is within a factor √2 of the truth (measured on seeds 0–7: 8.1–9.2
-horizontal, 17–20 vertical). Fixes with honest σ (the same scenario unaltered) are kept as stated
-(k 0.9–1.1 measured). The run itself, with no option: horizontal RMS ≤ 1.2 m (the issue's bound) on
-seeds 0, 1 and 5, where main gave 2.90, 2.89 and 3.78 m (chains of rejections and re-initialisations;
-docs/results.md, issue 35 session 11, m35r)."""
+of the fixed point: the scale is within a factor √2 of the truth (measured on seeds 0–7: 8.6–9.1
+horizontal, 16.4–20.7 vertical). Fixes with honest σ (the same scenario unaltered) are kept as stated
+(k 0.84–0.98 horizontal, 0.72–1.14 vertical, measured). The run itself, with no option: horizontal RMS
+≤ 1.2 m (the issue's bound) on seeds 0, 1 and 5, where main (e82c72a) gives 2.30, 2.12 and 3.78 m
+(chains of rejections and re-initialisations; docs/results.md, issue 35 session 11, m35r)."""
 
 from __future__ import annotations
 

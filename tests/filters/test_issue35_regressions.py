@@ -71,8 +71,9 @@ def test_gnss_at_0_2_hz():
 
 
 def test_zero_sigma_in_the_file(sim1):
-    """Fixes claiming 5 cm against 0.5 m of noise: rejected in runs and re-initialising the filter (no
-    adaptive R yet); the run must still stay within the older code's figure."""
+    """Fixes claiming 5 cm against 0.5 m of noise: the first pass measures their σ understated and scales
+    it (filters.gnss_errors; over seeds: test_gnss_sigma_factor.py); the run must stay within the older
+    code's figure."""
     g = sim1.gnss.subset(np.ones(len(sim1.gnss), bool))
     g.std_pos = np.full((len(g), 3), ZERO_POS_STD_FLOOR_M)  # what the readers make of σ = 0
     tr, e, n, dh, m = _errors(process(sim1.imu, g), sim1.truth)

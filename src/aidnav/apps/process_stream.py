@@ -196,7 +196,7 @@ def run_process(log: ImuLog, gnss, cfg, smooth=False, outages=None, imu_name="im
     bg = Background(consume) if background else None
     events: list[str] = []
     decide_nhc = "constraints" not in cfg.model_fields_set and not cfg.constraints.nhc
-    decide_gnss = needs_first_pass(gnss, cfg)  # white or correlated GNSS errors (filters.gnss_errors)
+    decide_gnss = needs_first_pass(gnss, cfg)  # the fixes' σ; white/correlated errors (filters.gnss_errors)
     prefix = _prefix(log, DECIDE_SPAN_S) if decide_nhc or decide_gnss else None  # in memory once
     if decide_nhc:
         # no option (issue 35): the NHC decided from a first pass over the log's first DECIDE_SPAN_S
@@ -206,7 +206,7 @@ def run_process(log: ImuLog, gnss, cfg, smooth=False, outages=None, imu_name="im
         if log.span[1] - log.span[0] > DECIDE_SPAN_S:
             events[before:] = [f"{e} (decided from the log's first {DECIDE_SPAN_S:g} s)"
                                for e in events[before:]]
-    if decide_gnss:  # white or correlated GNSS errors, from a first pass's innovations (filters.gnss_errors)
+    if decide_gnss:  # the fixes' σ, white/correlated errors: a first pass's innovations (filters.gnss_errors)
         cfg = choose_gnss_errors(prefix, gnss, cfg, withheld, events, aids)
     del prefix
     t0 = _time.perf_counter()

@@ -148,9 +148,15 @@ class StaticDetector:
             gv = np.where((sig <= 0.5 * c.static_gnss_speed_m_s)[:, None], vd, np.inf)
             gv = np.where(np.isnan(gv), np.inf, gv)
         self.sp = None if gnss is None or gv is None or len(gnss) == 0 else np.hypot(gv[:, 0], gv[:, 1])
+        # no fix of the log below the speed threshold: no sample is static, whatever the IMU's spread (the
+        # flags need both), so the spread's running sums are never needed (a flight, a drive without stops)
+        self.never = self.sp is None or not np.any(self.sp < c.static_gnss_speed_m_s)
 
     def __call__(self, time, dtheta, dv, t_prev):
         c = self.c
+        if self.never:
+            self.k += len(time)
+            return np.zeros(len(time), np.bool_)
         ok = np.empty(len(time), np.bool_)
         if self.ring is None:  # running sums of the rates and their squares at the last n + 1 samples
             self.ring = np.zeros((4, self.n + 1, 3))
@@ -159,13 +165,10 @@ class StaticDetector:
                       c.static_gyro_std_deg_s * DEG, float(c.static_accel_std_m_s2), ok)
         self.k += len(time)
         gnss = self.gnss
-        if self.sp is not None:
-            j = np.clip(np.searchsorted(gnss.time, time), 0, len(gnss) - 1)
-            jp = np.clip(j - 1, 0, len(gnss) - 1)
-            near = (np.abs(gnss.time[j] - time) < 1.0) | (np.abs(gnss.time[jp] - time) < 1.0)
-            ok &= near & (np.maximum(self.sp[j], self.sp[jp]) < c.static_gnss_speed_m_s)
-        else:
-            ok &= False
+        j = np.clip(np.searchsorted(gnss.time, time), 0, len(gnss) - 1)
+        jp = np.clip(j - 1, 0, len(gnss) - 1)
+        near = (np.abs(gnss.time[j] - time) < 1.0) | (np.abs(gnss.time[jp] - time) < 1.0)
+        ok &= near & (np.maximum(self.sp[j], self.sp[jp]) < c.static_gnss_speed_m_s)
         return ok
 
 

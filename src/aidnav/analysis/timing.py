@@ -39,13 +39,16 @@ COARSE_STEP_S = 0.02  #: the coarse lag grid [s] (module doc: method)
 FINE_HALF_WIDTH_S = 0.06  #: the fine grid spans the coarse minimum ± this [s]
 
 
-def _refine(lags, cost):
-    i = int(np.clip(np.argmin(cost), 1, lags.size - 2))
+def parabola_minimum(grid, cost):
+    """The minimum of ``cost`` sampled on the uniform ``grid``: the best interior grid point refined by the
+    parabola through it and its two neighbours (the step clipped to ±1 grid step). Returns (the refined
+    abscissa, the parabola's value there, the index of the best point)."""
+    i = int(np.clip(np.argmin(cost), 1, grid.size - 2))
     c0, c1, c2 = cost[i - 1], cost[i], cost[i + 1]
     den = c0 - 2.0 * c1 + c2
-    step = lags[1] - lags[0]
-    shift = 0.5 * (c0 - c2) / den if den > 0 else 0.0
-    return float(lags[i] + np.clip(shift, -1.0, 1.0) * step), i
+    step = grid[1] - grid[0]
+    shift = float(np.clip(0.5 * (c0 - c2) / den, -1.0, 1.0)) if den > 0 else 0.0
+    return float(grid[i] + shift * step), float(c1 - 0.25 * (c0 - c2) * shift), i
 
 
 def imu_gnss_lag(imu: ImuData, gnss: GnssData, reference: str = "velocity", max_lag_s: float = 0.5,
@@ -103,13 +106,13 @@ def imu_gnss_lag(imu: ImuData, gnss: GnssData, reference: str = "velocity", max_
     half = FINE_HALF_WIDTH_S
     lags = lags[(lags >= mid - half - 1e-12) & (lags <= mid + half + 1e-12)]
     cost, gains = _residual_curve(lags, t_imu, cum_up, t_lo, t_hi, r)
-    lag, i_best = _refine(lags, cost)
+    lag, _, i_best = parabola_minimum(lags, cost)
     blocks = np.array_split(np.arange(idx.size), 10)
     jack = []
     for b in blocks:
         keep = np.setdiff1d(np.arange(idx.size), b)
         c_b, _ = _residual_curve(lags, t_imu, cum_up, t_lo[keep], t_hi[keep], r[keep])
-        jack.append(_refine(lags, c_b)[0])
+        jack.append(parabola_minimum(lags, c_b)[0])
     jack = np.asarray(jack)
     sigma = float(np.sqrt((jack.size - 1) / jack.size * np.sum((jack - jack.mean()) ** 2)))
     return {"lag_s": lag, "sigma_s": sigma, "time_offset_s": -lag, "gain": float(gains[i_best]),

@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..nav.earth import lla_to_enu
+from .timing import parabola_minimum
 
 __all__ = ["IntervalVelocity", "interval_velocity_errors", "velocity_lateness", "reference_enu"]
 
@@ -78,10 +79,13 @@ def _cumulative(time, vel):
 def interval_means(time, vel, t_start, t_end) -> np.ndarray:
     """Mean of ``vel`` (N, 3), linear between its ``time`` samples, over each [t_start, t_end] (K, 3)."""
     time = np.asarray(time, float)
-    vel = np.asarray(vel, float)
-    cum = _cumulative(time, vel)
-    a = np.column_stack([np.interp(t_start, time, cum[:, i]) for i in range(vel.shape[1])])
-    b = np.column_stack([np.interp(t_end, time, cum[:, i]) for i in range(vel.shape[1])])
+    return _window_means(time, _cumulative(time, np.asarray(vel, float)), t_start, t_end)
+
+
+def _window_means(time, cum, t_start, t_end) -> np.ndarray:
+    """Means over [t_start, t_end] (K, c) from the running integral ``cum`` (N, c) at ``time``."""
+    a = np.column_stack([np.interp(t_start, time, cum[:, i]) for i in range(cum.shape[1])])
+    b = np.column_stack([np.interp(t_end, time, cum[:, i]) for i in range(cum.shape[1])])
     return (b - a) / (np.asarray(t_end) - np.asarray(t_start))[:, None]
 
 
@@ -125,16 +129,10 @@ def velocity_lateness(series_time, series_vel, ref_time, ref_lat, ref_lon, ref_h
     if t0.size < 3:
         raise ValueError("fewer than 3 reference intervals inside the series' span")
     lags = np.arange(-max_lag_s, max_lag_s + 0.5 * step_s, step_s)
-    cum = _cumulative(st, sv)
+    cum = _cumulative(st, sv[:, :2])
     cost = np.empty(lags.size)
     for i, lag in enumerate(lags):
-        a = np.column_stack([np.interp(t0 + lag, st, cum[:, j]) for j in range(2)])
-        b = np.column_stack([np.interp(t1 + lag, st, cum[:, j]) for j in range(2)])
-        m = (b - a) / (t1 - t0)[:, None]
+        m = _window_means(st, cum, t0 + lag, t1 + lag)
         cost[i] = np.mean(np.sum((m - d[:, :2]) ** 2, axis=1))
-    i = int(np.clip(np.argmin(cost), 1, lags.size - 2))
-    c0, c1, c2 = cost[i - 1], cost[i], cost[i + 1]
-    den = c0 - 2 * c1 + c2
-    shift = 0.5 * (c0 - c2) / den if den > 0 else 0.0
-    lag = float(lags[i] + np.clip(shift, -1, 1) * step_s)
-    return lag, float(np.sqrt(max(c1 - 0.25 * (c0 - c2) * np.clip(shift, -1, 1), 0.0)))
+    lag, c_min, _ = parabola_minimum(lags, cost)
+    return lag, float(np.sqrt(max(c_min, 0.0)))

@@ -345,21 +345,24 @@ def _turn_tilt_at_rest(st, P, gap, ix, static):
     the bias in the filter's model but not in the sensor, and the tilt σ falls far below what the bias
     allows (issue 35, parked 10 min then driving). ``gap[5]``: the computed heading at the last node when
     that node was static, NaN otherwise."""
+    if not static:  # a moving node: nothing to turn, and the next static node has no heading to turn from
+        gap[5] = np.nan
+        return
     ie, inn = ix[PHI], ix[PHI + 1]
     C = dcm_from_quat(st[ST_Q:ST_Q + 4])
     h = np.arctan2(C[0, 1], C[1, 1])
-    if static and ie >= 0 and inn >= 0 and not np.isnan(gap[5]):
-        y = -wrap_pi(h - gap[5])  # rotation about Up that turned C_b^n (heading is clockwise)
-        a, b = np.cos(y), -np.sin(y)
-        for j in range(P.shape[0]):  # P ← T P Tᵀ, T the rotation of the tilt rows
-            pe, pn = P[ie, j], P[inn, j]
-            P[ie, j], P[inn, j] = a * pe + b * pn, -b * pe + a * pn
-        for j in range(P.shape[0]):
-            pe, pn = P[j, ie], P[j, inn]
-            P[j, ie], P[j, inn] = a * pe + b * pn, -b * pe + a * pn
-    if static and not np.isnan(gap[5]):
+    if not np.isnan(gap[5]):
+        if ie >= 0 and inn >= 0:
+            y = -wrap_pi(h - gap[5])  # rotation about Up that turned C_b^n (heading is clockwise)
+            a, b = np.cos(y), -np.sin(y)
+            for j in range(P.shape[0]):  # P ← T P Tᵀ, T the rotation of the tilt rows
+                pe, pn = P[ie, j], P[inn, j]
+                P[ie, j], P[inn, j] = a * pe + b * pn, -b * pe + a * pn
+            for j in range(P.shape[0]):
+                pe, pn = P[j, ie], P[j, inn]
+                P[j, ie], P[j, inn] = a * pe + b * pn, -b * pe + a * pn
         _hold_heading_at_rest(st, P, ix)
-    gap[5] = h if static else np.nan
+    gap[5] = h
 
 
 @njit(cache=True, inline="always")  # per node: inlined in run_chunk

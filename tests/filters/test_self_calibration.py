@@ -167,7 +167,8 @@ def test_layout_switches():
     cfg = LooseConfig.model_validate({"constraints": {"nhc": True}, "calibration": {
         "time_offset": False, "lever_arm": False, "mounting": False}})
     lay = loose_layout(cfg)
-    assert lay[L_LEVER] < 0 and lay[L_TOFF] < 0 and lay[L_MOUNT] < 0 and lay[L_N] == 15
+    # the INS block only: the default IMU model's 27 states (config.DEFAULT_IMU)
+    assert lay[L_LEVER] < 0 and lay[L_TOFF] < 0 and lay[L_MOUNT] < 0 and lay[L_N] == 27
 
 
 def test_calibration_summary_names_and_mounting_round_trip():

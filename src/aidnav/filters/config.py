@@ -251,13 +251,17 @@ UNKNOWN_GRADE_IMU: dict = dict(
     gyro_misalignment=True, gyro_misalignment_sigma_deg=0.5,
     noise_from_static=True,
 )
+#: The loose filter's IMU model without an ``imu`` section, with or without a preset (issue 35, m35u):
+#: :data:`UNKNOWN_GRADE_IMU` with its accelerometer bias (the same 13.3 mg σ) as a Gauss–Markov process of
+#: τ 3600 s, the structure of the field default's, instead of a random constant.
+DEFAULT_IMU: dict = {**UNKNOWN_GRADE_IMU, "accel_bias_tau_s": 3600.0}
 
 
 class LooseConfig(_Strict):
     """Full configuration of ``aidnav process``."""
 
     # no imu section: the noise is also raised to what the log's static samples show (issue 35)
-    imu: ImuNoise = ImuNoise(noise_from_static=True)
+    imu: ImuNoise = ImuNoise(**DEFAULT_IMU)
     gnss: GnssAiding = GnssAiding()
     init: Initialisation = Initialisation()
     constraints: Constraints = Constraints()

@@ -517,6 +517,28 @@ def _hold_heading(P, iu, ini, before_alignment, gap):
         P[iu, iu] = gap[4]
 
 
+@njit(cache=True, inline="always")  # per node: inlined in run_chunk (issue 40)
+def _feedback_held(st, bias, dx, nstate, P, held, ix):
+    """:func:`feedback`, then :func:`_turn_held_heading` by the heading change it made (``held``)."""
+    C = dcm_from_quat(st[ST_Q:ST_Q + 4])
+    h0 = np.arctan2(C[0, 1], C[1, 1])
+    feedback(st, bias, dx, nstate)
+    _turn_held_heading(st, P, h0, held, ix)
+
+
+@njit(cache=True)
+def _turn_held_heading(st, P, h0, held, ix):
+    """A heading held unknown (``held``: before the first course alignment or after an IMU gap) that a
+    node's updates moved (from ``h0`` [rad] to the strapdown's heading now) turns the tilt error and its
+    covariance with it, as a course alignment does (:func:`.ins_errors.set_heading`): the tilt belongs to
+    the body's roll and pitch, so in the navigation frame it turns with the heading (issue 35, k35t)."""
+    if held and ix[PHI] >= 0:
+        C = dcm_from_quat(st[ST_Q:ST_Q + 4])
+        h1 = np.arctan2(C[0, 1], C[1, 1])
+        set_heading(st, P, h0, 0.0, -1, -1, -1)  # back to h0 (P untouched), then to h1 turning the tilt
+        set_heading(st, P, h1, 0.0, -1, ix[PHI], ix[PHI + 1])
+
+
 @njit(cache=True, inline="always")  # per sample: inlined (no call per sample)
 def _write_output(o, oi, k, st, bias, nb, P, node):
     """The output row ``oi`` (sample ``k``): state, the first ``nb`` biases, diagonal of P, last node.
@@ -632,8 +654,7 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
     rej = cy.rej
     upd = (mod, lay, rej, win, log, wk, sub, ws)  # the update context of the records and node constraints
     cov_out = np.zeros((out.cov_idx.shape[0], n, n))
-    ci, reset_node, gi = cy.ci, cy.reset_node, cy.gi
-    acc = cy.acc
+    ci, reset_node, gi, acc = cy.ci, cy.reset_node, cy.gi, cy.acc
     gap = cy.gap  # (6,): variances to add at the next node, the heading-hold flag, the last heading
     pv = mod.par[M_GNSS_VEL]
     hold_thr = pv[C_HOLD] if pv.shape[0] > C_HOLD else 0.0  # (other filters: fewer parameters)
@@ -674,9 +695,10 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
             li = _node_constraints(x, P, Nav(st, C, w, 0.0, bias), imu.static[k], imu.t[k], no_row, upd, li)
             if nsub:  # the subset's estimate in the INS block
                 dxf[sub] = x
-            feedback(st, bias, dxf if nsub else x, nh)
+            held = hold_h and k0 + k < ini.reset_idx  # the initial heading held unknown (_hold_heading)
+            _feedback_held(st, bias, dxf if nsub else x, nh, P, held or gap[4] > 0.0, ix)
             ib[:] = bias[:nins - NAV]
-            _hold_heading(P, iu, ini, hold_h and k0 + k < ini.reset_idx, gap)
+            _hold_heading(P, iu, ini, held, gap)
             _after_updates(st, bias, P, rec, g0, gi, proc.reset_pos, lay)
             t_due = _due_time(rec, gi, bias, ic, itoff)  # d̂ may have changed
             node_idx[kn - kn0] = k0 + k

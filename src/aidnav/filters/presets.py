@@ -41,7 +41,7 @@ bounds of an unknown vehicle (:class:`aidnav.filters.config.MotionBounds`).
 
 from __future__ import annotations
 
-from .config import LooseConfig
+from .config import DEFAULT_IMU, LooseConfig
 
 PRESETS: dict[str, dict] = {
     "car": {
@@ -110,6 +110,8 @@ def apply_preset(cfg: LooseConfig | None, name: str | None) -> LooseConfig:
     merged: dict = {}
     for section, vals in PRESETS[name].items():
         merged[section] = dict(vals)
+    if "imu" not in data:  # no imu section: the default model under the preset's keys (config.DEFAULT_IMU)
+        merged["imu"] = {**DEFAULT_IMU, **merged.get("imu", {})}
     for section, vals in data.items():
         if isinstance(vals, dict):
             merged.setdefault(section, {}).update(vals)

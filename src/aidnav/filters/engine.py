@@ -696,7 +696,7 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
             if nsub:  # the subset's estimate in the INS block
                 dxf[sub] = x
             held = hold_h and k0 + k < ini.reset_idx  # the initial heading held unknown (_hold_heading)
-            _feedback_held(st, bias, dxf if nsub else x, nh, P, held or gap[4] > 0.0, ix)
+            _feedback_held(st, bias, dxf if nsub else x, nh, P, held or gap[4] > 0.0 or not imu.static[k], ix)
             ib[:] = bias[:nins - NAV]
             _hold_heading(P, iu, ini, held, gap)
             _after_updates(st, bias, P, rec, g0, gi, proc.reset_pos, lay)

@@ -77,4 +77,7 @@ def _scaled_nav(P0, a, cal, window):
             continue
         i = int(cal[r, 0])
         d[i] = np.sqrt(min(a, max(1.0, cal[r, 1] / max(P0[i, i], 1e-30))))
-    return P0 * np.outer(d, d)
+    P = P0.copy()
+    for i in range(P0.shape[0]):
+        P[i, i] += (d[i] * d[i] - 1.0) * P0[i, i]
+    return P

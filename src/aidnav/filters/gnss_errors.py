@@ -16,15 +16,19 @@ and follows the slow error. The test:
    median σ per axis (the fixes' own σ then the white part, as
    :func:`~aidnav.filters.preprocess.correlated_gnss_errors`).
 
-The test is one-sided: it runs where the rate rule of
-:func:`~aidnav.filters.preprocess.correlated_gnss_errors` says white (fixes at 1 Hz or slower), and can
-only add the states there (1-Hz fixes with correlated errors get them). Above 1 Hz the rate rule's states
-stay: a receiver's fixes that fast are correlated by its own tracking loops and filtering, and a filter
-given ten white fixes a second for minutes leans on its linearisation more than it can bear (measured on
-the consistency matrix's "parked 10 min then driving", 10-Hz white fixes: the test rightly says white,
-ρ̂ ≈ 0.00 over 18,000 pairs, and without the states the matched configuration's roll/pitch/heading
-coverage falls from 88/96/91 to 65/86/77 %, while the no-option U coverage moves from 40 to 49 %:
-docs/results.md, issue 35 session 9).
+The test runs at any rate (for code fixes). At 1 Hz or slower it adds the states where the rate rule of
+:func:`~aidnav.filters.preprocess.correlated_gnss_errors` says white (1-Hz fixes with correlated errors
+get them); above 1 Hz it keeps the rate rule's states where the innovations are correlated — a
+receiver's fixes that fast usually are, by its own tracking loops and filtering — and removes them where
+they are white (issue 35, session 12). Until then the test was one-sided, because without the states a
+filter given ten white fixes a second for minutes leaned on its linearisation more than it could bear
+(session 9: the matrix's "parked 10 min then driving", 10-Hz white fixes, ρ̂ ≈ 0.00 over 18,000 pairs;
+without the states the matched configuration's roll/pitch/heading coverage fell from 88/96/91 to
+65/86/77 %). What it leaned on was the heading that wanders at rest and the tilt's frame, since repaired
+(:func:`aidnav.filters.engine._turn_tilt_at_rest`, the tilt turned with the feedback's heading changes,
+the re-initialisation that adds variance): the matched configuration (white, as the fixes are) passes
+that cell, and the states on white fixes left the no-option and preset position σ 3–4× the error
+(RMS(error)/RMS(σ) 0.26–0.31 < 0.3: a σ uselessly large) with the gaps in the σ's favour.
 
 The correlation time itself is not estimated: the innovations of a white-error first pass decay over the
 filter's own memory, not the errors', and a maximum-likelihood choice of τ over a grid (5–300 s) from
@@ -137,15 +141,13 @@ def _with_tau(cfg, tau, sigma=None):
 
 def _test_applies(gnss, cfg):
     """The fixes' median position σ per axis when the test of the module doc applies to ``gnss`` under
-    ``cfg`` (no ``error_tau_s`` stated, positions used, enough code fixes at 1 Hz or slower), else None."""
+    ``cfg`` (no ``error_tau_s`` stated, positions used, enough code fixes), else None."""
     g = cfg.gnss
     if "error_tau_s" in g.model_fields_set or g.use == "velocity" or len(gnss) < MIN_PAIRS:
         return None
     med = np.nanmedian(gnss_arrays(gnss, cfg)[5], axis=0) * np.asarray(g.pos_std_scales)
     if not np.nanmax(med[:2]) >= CARRIER_PHASE_SIGMA_M:
         return None  # carrier-phase fixes: the rate rule (white) of preprocess.correlated_gnss_errors
-    if float(np.median(np.diff(np.asarray(gnss.time, float)))) < 1.0 - 1e-6:
-        return None  # above 1 Hz: the rate rule's Gauss-Markov states (module doc)
     return med
 
 
@@ -228,7 +230,7 @@ def choose_gnss_errors(imu, gnss, cfg, withheld, events, aids=(), span_s: float 
 
     span = f"first pass over {float(head.time[-1]) - t0:.0f} s"
     if _scale_applies(gnss, cfg):
-        # at 1 Hz or slower (the white/correlated test's domain) the passes are white-error ones
+        # where the white/correlated test applies (code fixes) the passes are white-error ones
         white = _test_applies(gnss, cfg) is not None
         scaled, res = _scale_sigma(run, _with_tau(cfg, 0.0) if white else cfg, span, events)
         if "pos_std_scale" in scaled.gnss.model_fields_set:

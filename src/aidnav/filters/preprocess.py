@@ -118,11 +118,13 @@ def _spread_flags(time, dtheta, dv, t_prev, ring, k, n, thr_w, thr_f, ok):
 STATIC_BASELINE_MAX_S = 30.0  #: the longest baseline of the position-difference speed of the static test [s]
 
 
-def static_baseline_s(gnss, speed_m_s: float) -> float:
+def static_baseline_s(gnss, speed_m_s: float, std_pos=None) -> float:
     """The baseline [s] of the position-difference speed of the static test (:class:`StaticDetector`) for
     fixes without a receiver velocity: the one at which the fixes' median horizontal σ gives a speed σ of
-    a third of the threshold ``speed_m_s`` (√2·σ/T), from 1 s to :data:`STATIC_BASELINE_MAX_S`."""
-    sp = gnss.std_pos if gnss.std_pos is not None else np.ones((len(gnss), 3))
+    a third of the threshold ``speed_m_s`` (√2·σ/T), from 1 s to :data:`STATIC_BASELINE_MAX_S`. ``std_pos``
+    (m, 3): the σ the filter uses (:func:`effective_std_pos`); else the file's, else 1 m."""
+    sp = std_pos if std_pos is not None else (gnss.std_pos if gnss.std_pos is not None
+                                              else np.ones((len(gnss), 3)))
     sig = float(np.nanmedian(np.hypot(sp[:, 0], sp[:, 1]) / np.sqrt(2.0))) if len(gnss) else 1.0
     need = 3.0 * np.sqrt(2.0) * sig / speed_m_s if np.isfinite(sig) else STATIC_BASELINE_MAX_S
     return float(min(max(need, 1.0), STATIC_BASELINE_MAX_S))
@@ -143,7 +145,10 @@ class StaticDetector:
             # long enough for the fixes' median σ to do so (σ_v = √2·σ/T = threshold / 3: a fix at rest
             # reads above the threshold with probability e^(−4.5) ≈ 1 %), 1 s at least, at most
             # STATIC_BASELINE_MAX_S; a long baseline only shortens the static spans (by T/2 at each end)
-            vd, sd = velocity_from_positions(gnss, static_baseline_s(gnss, c.static_gnss_speed_m_s))
+            # with the σ the filter uses (quality factors, floors, the first pass's scale): a file that
+            # understates it (σ = 0, floored) would otherwise get a baseline too short to tell static
+            sp = effective_std_pos(gnss, cfg)
+            vd, sd = velocity_from_positions(gnss, static_baseline_s(gnss, c.static_gnss_speed_m_s, sp), sp)
             sig = np.hypot(sd[:, 0], sd[:, 1])
             gv = np.where((sig <= 0.5 * c.static_gnss_speed_m_s)[:, None], vd, np.inf)
             gv = np.where(np.isnan(gv), np.inf, gv)
@@ -274,6 +279,12 @@ def gnss_arrays(gnss, cfg):
     # heights arrive ellipsoidal: the datum offset is applied once, by the reader (aidnav.io)
     return (gnss.time, gnss.lat, gnss.lon, gnss.height,
             np.ascontiguousarray(vel), np.ascontiguousarray(spos), np.ascontiguousarray(svel))
+
+
+def effective_std_pos(gnss, cfg) -> np.ndarray:
+    """The position σ (m, 3) [m] the filter gives the fixes: the file's (or the default), the quality
+    factors and floors of :func:`gnss_arrays`, times ``gnss.pos_std_scale`` / ``pos_std_scale_up``."""
+    return gnss_arrays(gnss, cfg)[5] * np.asarray(cfg.gnss.pos_std_scales)
 
 
 def course_alignment(gnss, cfg, t_start: float, vel=None, std=None):

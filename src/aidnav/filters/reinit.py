@@ -38,8 +38,9 @@ def inflate(x, P, H, R, z, cal):
     δv and δp, √min(α, (π/2)² / P_ii) on φ (attitude σ's never grown past 90°) and √min(α, prior / P_ii)
     on each calibration state of ``cal`` (grown at most back to its prior: a time offset, velocity delay
     or mounting that converged to a wrong value under a wrong navigation solution is part of the
-    repair), a congruence, so P stays positive semi-definite; α ≥ 1 the smallest with
-    NIS(ν, H D P D Hᵀ + R) ≤ m (bisection in log α up to 1e12). Returns α."""
+    repair) — added as variance, P ← P + (D² − I) diag(P) (:func:`_scaled_nav`: the diagonal of D P D,
+    the covariances kept), so no combination of the states is known better than before; α ≥ 1 the
+    smallest with NIS(ν, H P(α) Hᵀ + R) ≤ m (bisection in log α up to 1e12). Returns α."""
     m = z.shape[0]
     if nis_of(x, P, H, R, z) <= m:
         return 1.0
@@ -58,15 +59,22 @@ def inflate(x, P, H, R, z, cal):
 
 @njit(cache=True)
 def scale_nav(P, a, cal):
-    """P ← D P D of :func:`inflate` for the given factor ``a`` (≥ 1): the re-initialisation of an NIS
+    """P grown as by :func:`inflate` for the given factor ``a`` (≥ 1): the re-initialisation of an NIS
     window, whose factor is the window's mean NIS per degree of freedom."""
     P[:, :] = _scaled_nav(P.copy(), max(a, 1.0), cal, True)
 
 
 @njit(cache=True)
 def _scaled_nav(P0, a, cal, window):
-    """D P0 D of :func:`inflate` for the factor a. A row of ``cal`` with a third column of 0 (the IMU's
-    sensor errors, :func:`aidnav.filters.loose._reinit_cal`) is scaled only by an NIS ``window``'s factor:
+    """P0 grown by the factor a (:func:`inflate`): each variance to its value in D P0 D, the covariances
+    kept, i.e. P0 + (D² − I) diag(P0) — a variance added, so P0 grows in the Loewner order. The congruence
+    D P0 D itself does not: with unequal factors on two strongly correlated states (at rest, the tilt
+    grown by α and the accelerometer bias at most to its prior, their correlation −1 through the one
+    observed sum φ·g + b) it keeps the correlation and changes its slope, a new exact relation between
+    the two that the next fixes turn into a tilt σ far below what the sensors allow (issue 35, session 12:
+    0.25° against the bound of 0.71°, the presets' parked cell). A row of ``cal`` with a third column of
+    0 (the IMU's sensor errors, :func:`aidnav.filters.loose._reinit_cal`) is scaled only by an NIS
+    ``window``'s factor:
     the mean NIS of N fixes says the whole covariance is λ too small, while the factor that makes one
     rejected innovation consistent (up to 1e12, a jump of the navigation) says nothing of the sensors."""
     d = np.ones(P0.shape[0])

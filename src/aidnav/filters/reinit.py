@@ -38,8 +38,8 @@ def inflate(x, P, H, R, z, cal):
     δv and δp, √min(α, (π/2)² / P_ii) on φ (attitude σ's never grown past 90°) and √min(α, prior / P_ii)
     on each calibration state of ``cal`` (grown at most back to its prior: a time offset, velocity delay
     or mounting that converged to a wrong value under a wrong navigation solution is part of the
-    repair) — added as variance, P ← P + (D² − I) diag(P) (:func:`_scaled_nav`: the diagonal of D P D,
-    the covariances kept), so no combination of the states is known better than before; α ≥ 1 the
+    repair) — grown as P + G P G, G = (D² − I)^½ (:func:`_scaled_nav`: D P D where the factors are equal),
+    so no combination of the states is known better than before; α ≥ 1 the
     smallest with NIS(ν, H P(α) Hᵀ + R) ≤ m (bisection in log α up to 1e12). Returns α."""
     m = z.shape[0]
     if nis_of(x, P, H, R, z) <= m:
@@ -66,9 +66,11 @@ def scale_nav(P, a, cal):
 
 @njit(cache=True)
 def _scaled_nav(P0, a, cal, window):
-    """P0 grown by the factor a (:func:`inflate`): each variance to its value in D P0 D, the covariances
-    kept, i.e. P0 + (D² − I) diag(P0) — a variance added, so P0 grows in the Loewner order. The congruence
-    D P0 D itself does not: with unequal factors on two strongly correlated states (at rest, the tilt
+    """P0 grown by the factor a (:func:`inflate`): P0 + G P0 G, G = (D² − I)^½ — a scaled copy of P0
+    added (positive semi-definite), so P0 grows in the Loewner order and no combination of the states is
+    known better than before; each variance is the one of D P0 D, and where the factors are equal (the
+    navigation block's δv, δp) so is every covariance. The congruence D P0 D itself does not grow P0:
+    with unequal factors on two strongly correlated states (at rest, the tilt
     grown by α and the accelerometer bias at most to its prior, their correlation −1 through the one
     observed sum φ·g + b) it keeps the correlation and changes its slope, a new exact relation between
     the two that the next fixes turn into a tilt σ far below what the sensors allow (issue 35, session 12:
@@ -85,7 +87,5 @@ def _scaled_nav(P0, a, cal, window):
             continue
         i = int(cal[r, 0])
         d[i] = np.sqrt(min(a, max(1.0, cal[r, 1] / max(P0[i, i], 1e-30))))
-    P = P0.copy()
-    for i in range(P0.shape[0]):
-        P[i, i] += (d[i] * d[i] - 1.0) * P0[i, i]
-    return P
+    g = np.sqrt(d * d - 1.0)
+    return P0 + P0 * np.outer(g, g)

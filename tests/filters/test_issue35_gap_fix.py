@@ -67,11 +67,13 @@ def test_first_fix_after_an_imu_gap_bounds_the_sigma_whatever_the_offset_sign(ga
     _check_after_gap(run, tr, offset_s, 2.0)
 
 
-@pytest.mark.parametrize("seed", [0, 1])
+@pytest.mark.parametrize("seed", [2, 6])
 def test_gap_with_a_negative_time_offset_estimate(seed):
     """No option, as the matrix runs it; the offset estimate d̂ < 0 (asserted); the outputs after the
     gap: horizontal σ ≤ 10 m (the fix 20–120 ms after the node, moved back with the velocity's σ and
-    the unmodelled motion) and covering."""
+    the unmodelled motion) and covering. (Seeds 0 and 1 until issue 35 session 12, n35p: their estimates
+    are now +0.018 and +0.085 s; seeds 2 and 6 give −0.015 and −0.063 s; seeds 0–7 all pass the check
+    after the gap.)"""
     run = cm.simulate_condition(COND, seed)
     cfg = no_option_constraint(run.imu, run.gnss, cm.config_for("none", COND, run), None, [])[0]
     cfg = choose_gnss_errors(run.imu, run.gnss, cfg, None, [])

@@ -79,8 +79,9 @@ def test_unknown_attitude_is_not_used():
 
 
 def test_window_scaling_closed_form():
-    """scale_nav: D P D with D = √λ on δv, δp, attitude grown at most to 90°, each calibration state at
-    most back to its prior; positive definite; λ < 1 does nothing."""
+    """scale_nav: P + G P G, G = (D² − I)^½ with D = √λ on δv, δp, attitude grown at most to 90°, each
+    calibration state at most back to its prior (the variances of D P D; issue 35 session 12: a scaled
+    copy of P added, so no combination's variance falls); positive definite; λ < 1 does nothing."""
     rng = np.random.default_rng(3)
     A = rng.standard_normal((17, 17))
     P = A @ A.T * 1e-4 + np.eye(17) * 1e-6
@@ -95,8 +96,10 @@ def test_window_scaling_closed_form():
         d[i] = np.sqrt(min(lam, max(1.0, (np.pi / 2) ** 2 / P[i, i])))
     d[9:15] = 1.0  # the sensor-error states are not part of the navigation block
     d[15], d[16] = np.sqrt(3.0), np.sqrt(1.5)
-    np.testing.assert_allclose(Q, P * np.outer(d, d), rtol=1e-12)
-    assert np.all(np.linalg.eigvalsh(Q) > 0)
+    g = np.sqrt(d * d - 1.0)
+    np.testing.assert_allclose(Q, P + P * np.outer(g, g), rtol=1e-12)
+    np.testing.assert_allclose(np.diag(Q), np.diag(P) * d * d, rtol=1e-12)
+    assert np.all(np.linalg.eigvalsh(Q) > 0) and np.linalg.eigvalsh(Q - P).min() > -1e-15
     Q1 = P.copy()
     scale_nav(Q1, 0.5, cal)
     np.testing.assert_array_equal(Q1, P)

@@ -114,7 +114,7 @@ def discretize_sparse(F, G, q, T, Phi, Qd):
     at the dense cost)."""
     n, m = F.shape[0], G.shape[1]
     cnt, col = np.zeros(n, np.int64), np.empty((n, n), np.int64)  # F's nonzero columns by row
-    FT, FQ, FFQ = F * T, np.zeros((n, n)), np.zeros((n, n))
+    FT, FQ, FFQ, FQT, FQFT = F * T, np.zeros((n, n)), np.zeros((n, n)), np.empty((n, n)), np.zeros((n, n))
     for i in range(n):
         for k in range(n):
             if F[i, k] != 0.0:
@@ -144,21 +144,22 @@ def discretize_sparse(F, G, q, T, Phi, Qd):
             f = F[i, k]
             for j in range(n):
                 FQ[i, j] += f * Qd[k, j]
-    for i in range(n):  # F (F Q)
+    for i in range(n):
+        for j in range(n):
+            FQT[i, j] = FQ[j, i]
+    for i in range(n):  # F (F Q), and F (F Q)ᵀ = (F Q Fᵀ)ᵀ in FQFT
         for e in range(cnt[i]):
             k = col[i, e]
             f = F[i, k]
             for j in range(n):
                 FFQ[i, j] += f * FQ[k, j]
-    # Qd = Q T + (FQ + QFᵀ) T²/2 + (F²Q + 2 F Q Fᵀ + Q F²ᵀ) T³/6, F Q Fᵀ entry by entry over F's row j
+                FQFT[i, j] += f * FQT[k, j]
+    # Qd = Q T + (FQ + QFᵀ) T²/2 + (F²Q + 2 F Q Fᵀ + Q F²ᵀ) T³/6
     c2, c3 = 0.5 * T * T, T * T * T / 6.0
     for i in range(n):
         for j in range(n):
-            s = 0.0
-            for e in range(cnt[j]):
-                k = col[j, e]
-                s += FQ[i, k] * F[j, k]
-            Qd[i, j] = (Qd[i, j] * T + (FQ[i, j] + FQ[j, i]) * c2 + (FFQ[i, j] + FFQ[j, i] + 2.0 * s) * c3)
+            Qd[i, j] = (Qd[i, j] * T + (FQ[i, j] + FQT[i, j]) * c2
+                        + (FFQ[i, j] + FFQ[j, i] + 2.0 * FQFT[j, i]) * c3)
 
 
 @njit(cache=True)
@@ -197,34 +198,32 @@ def predict_split(x, P, Phi, Qd, hd, d, wk, f=-1):
     Qd_FF (symmetrised as :func:`predict`), P_FG ← R_FG φ_G + Qd_FG, P_GG ← φ P_GG φ + Qd_GG, P_FC ← R_FC,
     P_GC ← φ P_GC, P_Ft ← R_Ft D, P_Gt ← φ P_Gt D, P_CC unchanged, P_Ct ← P_Ct D, P_tt ← D P_tt D + Qd_tt.
     Same result as :func:`predict` with the full Φ (to rounding); the constant rows of Φ, the diagonal
-    rows' off-diagonal entries and off-block entries are not read. ``wk``: work arrays (Φ_F,head (f×nd),
-    its transpose, P's head rows in ``hd`` order (nd×n), R (f×n), R's head columns (f×nd), the FF product
-    (f×f), x's head (nd,))."""
-    Phr, PhrT, Pg, R, Rh, A, xh = wk
+    rows' off-diagonal entries and off-block entries are not read. ``wk``: work arrays (Φ_F,head (f×nd,
+    columns in P's order), its transpose, an unused (nd×n) array, R (f×n), R's head columns (f×nd), the FF
+    product (f×f), Φ_F,head x (≥ f,))."""
+    Phr, PhrT, _, R, Rh, A, xh = wk
     n, nd = P.shape[0], hd.shape[0]
     f = d if f < 0 else f
-    for a in range(f):
+    for a in range(f):  # Φ_F,head with the head's columns in P's order (P's first nd rows need no copy)
         for b in range(nd):
-            v = Phi[hd[a], hd[b]]
+            v = Phi[hd[a], b]
             Phr[a, b] = v
             PhrT[b, a] = v
-    for b in range(nd):
-        xh[b] = x[hd[b]]
-        for j in range(n):
-            Pg[b, j] = P[hd[b], j]
     for a in range(f):
         s = 0.0
         for b in range(nd):
-            s += Phr[a, b] * xh[b]
-        x[hd[a]] = s
+            s += Phr[a, b] * x[b]
+        xh[a] = s
+    for a in range(f):
+        x[hd[a]] = xh[a]
     for a in range(f, d):
         x[hd[a]] *= Phi[hd[a], hd[a]]
     for i in range(nd, n):
         x[i] *= Phi[i, i]
-    np.dot(Phr, Pg, R)  # (f, n)
+    np.dot(Phr, P[:nd], R)  # (f, n)
     for a in range(f):
         for b in range(nd):
-            Rh[a, b] = R[a, hd[b]]
+            Rh[a, b] = R[a, b]
     np.dot(Rh, PhrT, A)  # (f, f)
     for a in range(f):
         ia = hd[a]
@@ -247,21 +246,21 @@ def predict_split(x, P, Phi, Qd, hd, d, wk, f=-1):
             v = R[a, j] * Phi[j, j]
             P[ia, j] = v
             P[j, ia] = v
-    for a in range(f, d):  # the diagonal rows, from P's rows before the predict (Pg)
+    for a in range(f, d):  # the diagonal rows: entries the loop above did not write, each read before written
         ia = hd[a]
         pa = Phi[ia, ia]
         for b in range(a, d):
             ib = hd[b]
-            v = pa * Pg[a, ib] * Phi[ib, ib] + (Qd[ia, ib] + Qd[ib, ia]) * 0.5
+            v = pa * P[ia, ib] * Phi[ib, ib] + (Qd[ia, ib] + Qd[ib, ia]) * 0.5
             P[ia, ib] = v
             P[ib, ia] = v
         for e in range(d, nd):
             ie = hd[e]
-            v = pa * Pg[a, ie]
+            v = pa * P[ia, ie]
             P[ia, ie] = v
             P[ie, ia] = v
         for j in range(nd, n):
-            v = pa * Pg[a, j] * Phi[j, j]
+            v = pa * P[ia, j] * Phi[j, j]
             P[ia, j] = v
             P[j, ia] = v
     for e in range(d, nd):

@@ -9,7 +9,8 @@ misalignments of a model without their process noise, :func:`head_split`), which
 and the products (:func:`discretize_head`, :func:`.kalman.discretize_split`, :func:`.kalman.predict_split`:
 Φ's rows there are eᵢ); the head's series runs over F's nonzero entries (:func:`.kalman.discretize_sparse`)
 and its diagonal rows (a bias's Gauss–Markov or random-walk row, the clock drift: :func:`diagonal_last`)
-are scaled in the predict, not multiplied (issue 40). :func:`predict_node` is the predict over the interval that ends at a node,
+are scaled in the predict, not multiplied (issue 40). :func:`predict_node` is the predict over the
+interval that ends at a node,
 inlined in :func:`.engine.run_chunk`; :func:`exact_blocks` replaces the series by the exact Φ, Qd of
 Gauss–Markov blocks (transfer alignment's flexure). The engine (:mod:`.engine`) owns the node loop, the
 updates and the feedback; this module only the propagation of P.

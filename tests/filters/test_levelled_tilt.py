@@ -61,7 +61,8 @@ def test_levelling_tilt_is_the_accelerometer_errors_through_the_prior(seed, rph_
     assert np.linalg.norm(pred - phi[:2]) <= 0.03 * np.linalg.norm(phi[:2]), (pred, phi[:2])
     # the tilt's variance: the accelerometer states' image plus the levelling's own σ_w²; P stays a
     # covariance; the heading row and every other state untouched
-    np.testing.assert_allclose(P[np.ix_(t, t)] - A @ P[np.ix_(ACC, ACC)] @ A.T, sw ** 2 * np.eye(2), atol=1e-14)
+    image = A @ P[np.ix_(ACC, ACC)] @ A.T
+    np.testing.assert_allclose(P[np.ix_(t, t)] - image, sw ** 2 * np.eye(2), atol=1e-14)
     np.testing.assert_allclose(P, P.T)
     assert np.linalg.eigvalsh(P).min() > 0
     rest = np.r_[2:33]

@@ -117,15 +117,16 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
 
 def _no_option_nhc(res, cfg: TightConfig, sp, events: list):
     """What ``aidnav process`` does with no option (issue 35 item 6,
-    :func:`aidnav.filters.wheeled.no_option_constraint`), on the tight solution ``res`` computed without
-    the NHC (smoothed): a wheeled vehicle (:func:`aidnav.filters.wheeled.wheeled_vehicle`, over the SPP epochs) gets
-    the NHC with the cautious σ of :data:`~aidnav.filters.wheeled.NHC_SIGMA_M_S` and the unknown lever
-    arm's σ. The tight filter has no mounting states (its NHC takes the configured mounting as exact), so
-    the NHC is used only where the log's own axis of motion is the IMU's forward axis (y, RFU) within
-    the test's median bound :data:`~aidnav.filters.wheeled.MEDIAN_DEG`; otherwise it says so. Without the
-    NHC a wheeled vehicle's IMU-to-body rotation (the common part of the sensors' misalignments) is
-    unobservable and its tilt error follows it; with it, the pitch and heading of the IMU against the
-    vehicle are observed. Returns the configuration with the NHC, or None."""
+    :func:`aidnav.filters.wheeled.no_option_constraint`), on the tight solution ``res`` computed without the
+    NHC (smoothed): a wheeled vehicle (:func:`aidnav.filters.wheeled.wheeled_vehicle`, over the SPP epochs)
+    gets the NHC with the cautious σ of :data:`~aidnav.filters.wheeled.NHC_SIGMA_M_S` and the unknown lever
+    arm's σ. The tight filter has no mounting states (its NHC takes the configured mounting as exact), so the
+    NHC is used only where the log's own axis of motion is the IMU's forward axis (y, RFU) within the test's
+    median bound :data:`~aidnav.filters.wheeled.MEDIAN_DEG`; otherwise it says so. Without the NHC a wheeled
+    vehicle's IMU-to-body rotation (the common part of the sensors' misalignments) is unobservable and its
+    tilt error follows it; with it, the pitch and heading of the IMU against the vehicle are observed. Returns
+    the configuration with the NHC, or None.
+    """
     tr = to_trajectory(res)
     d = wheeled_vehicle(tr.time, tr.vel, tr.rph, tr.std_att, sp["time"][np.isfinite(sp["lat"])])
     if not d["wheeled"]:

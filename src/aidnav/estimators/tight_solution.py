@@ -59,9 +59,7 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
     win = (t_imu >= sp["time"][i0]) & (t_imu < sp["time"][i0] + ini.static_window_s)
     dtw = np.diff(np.concatenate([[imu.t0], imu.time]))[win]
     f = imu.dv[win].sum(axis=0) / dtw.sum()
-    # the levelling's own error: the mean force's standard error (noise and vibration in the window) / g
-    se = (imu.dv[win] / dtw[:, None]).std(axis=0) / np.sqrt(max(int(win.sum()), 1))
-    level = (f, float(np.max(se[:2]) / np.linalg.norm(f)))
+    level = (f, _levelling_sigma(imu, win, dtw, f))
     roll = np.arctan2(-f[0], f[2])
     pitch = np.arctan2(f[1], np.hypot(f[0], f[2]))
     wb = _rest_gyro_bias(imu, win)
@@ -144,6 +142,22 @@ def _no_option_nhc(res, cfg: TightConfig, sp, events: list):
                   f"sigma {NHC_LEVER_ARM_SIGMA_M:g} m); a constraints section in the configuration decides "
                   "instead")
     return cfg.model_copy(update={"constraints": con})
+
+
+def _levelling_sigma(imu, win, dtw, f, block_s: float = 1.0) -> float:
+    """The levelling's own tilt error [rad] (beyond what the accelerometer errors do, which the prior
+    carries: :func:`aidnav.filters.prior.levelled_tilt_covariance`): the standard error of the window's mean
+    specific force, from the scatter of its ``block_s`` means (a still IMU: its noise; a walker or a
+    vibrating car: the motion, correlated within a block, counts), largest horizontal body axis, / g."""
+    t = imu.time[win]
+    blk = np.floor((t - t[0]) / block_s).astype(np.int64)
+    nb = int(blk[-1]) + 1 if t.size else 0
+    if nb < 2:
+        return float(np.radians(2.0))  # no scatter to measure: the field default's attitude σ
+    dv, dt = imu.dv[win], dtw
+    means = np.array([dv[blk == k].sum(axis=0) / dt[blk == k].sum() for k in range(nb) if np.any(blk == k)])
+    se = means.std(axis=0, ddof=1) / np.sqrt(len(means))
+    return float(np.max(se[:2]) / np.linalg.norm(f))
 
 
 def _rest_gyro_bias(imu, win, block_s: float = 1.0, quiet: float = 3.0):

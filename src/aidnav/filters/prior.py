@@ -183,9 +183,9 @@ def levelled_tilt_covariance(P: np.ndarray, nins: int, fb, cbn, sigma_w) -> np.n
     φ_EN = A·x + w: the tilt's variance A P Aᵀ + σ_w², its covariance with every state A·P (the sensor
     states' prior holds what they are), ``sigma_w`` (scalar or (2,)) [rad] the levelling's own error (the
     mean force's standard error / g). An independent tilt σ instead (``init.attitude_sigma_deg``) claims
-    the tilt and the accelerometer errors unrelated: the filter then apportions the unobservable rotation
-    of the sensor triads against the body (their misalignments) as if the start tilt carried information
-    of its own, and its tilt σ is ~1.5× small on a consumer IMU. Returns a new array; φ_U untouched."""
+    the tilt and the accelerometer errors unrelated, i.e. a start tilt that carries information of its own
+    (on the consistency matrix's consumer IMU a small effect: results.md, n35t). Returns a new array; φ_U
+    untouched."""
     P = np.array(P, float, copy=True)
     n = P.shape[0]
     fb = np.asarray(fb, float)

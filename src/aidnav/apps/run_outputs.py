@@ -235,10 +235,11 @@ def start_outputs(figures=True):
     return figures
 
 
-def write_outputs(figures, out_dir, traj, gnss, summary, records, progress=None) -> dict:
+def write_outputs(figures, out_dir, traj, gnss, summary, records, progress=None, waiting=None) -> dict:
     """Everything a run leaves to look at (:func:`aidnav.report.run_page.write_run_outputs`): by the
     child of ``figures`` (an :class:`OutputsProcess`) with the maps written here meanwhile, or all here
-    (``figures`` True). Returns {"overview", "run_page", "kml", "geojson"} → paths."""
+    (``figures`` True). ``waiting``: called after the maps, while the child still draws (what the caller
+    needs next, made then). Returns {"overview", "run_page", "kml", "geojson"} → paths."""
     if not isinstance(figures, OutputsProcess):
         from aidnav.report.run_page import write_run_outputs  # lazy: pulls in matplotlib
 
@@ -256,6 +257,8 @@ def write_outputs(figures, out_dir, traj, gnss, summary, records, progress=None)
     kml, gj = write_maps(Path(out_dir) / "trajectory", traj, gnss, summary)
     if progress is not None:
         progress.advance(1)
+    if waiting is not None:
+        waiting()
     paths = figures.result()
     if progress is not None:
         progress.advance(2)

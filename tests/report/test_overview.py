@@ -197,3 +197,23 @@ def test_overview_drawn_by_two_processes_is_the_one_drawn_whole(tmp_path):
             helper.end()
         assert helper.parts == parts
         assert png.read_bytes() == whole
+    # a helper gone before its job (killed): the child draws the figure whole and writes both maps itself
+    import signal
+
+    from aidnav.report.maps import write_maps
+
+    sk = Skeleton(right)
+    sk.prime()
+    helper = DrawingHelper.start(sk, 1)
+    os.kill(helper.pid, signal.SIGKILL)
+    job = ("job", str(tmp_path / "m"), tr, g, summary, rec, False, True)
+    (tmp_path / "m").mkdir()
+    helper.send(pickle.dumps(job), job)
+    try:
+        png = write_overview(tmp_path / "c.png", tr, g, summary, rec, skeleton=sk, draw=helper.draw)
+        maps = helper.maps()
+    finally:
+        helper.end()
+    assert helper.parts == 1 and png.read_bytes() == whole
+    ref = write_maps(tmp_path / "trajectory", tr, g, summary)  # (the maps' names are the base's)
+    assert [p.read_bytes() for p in (maps["kml"], maps["geojson"])] == [p.read_bytes() for p in ref]

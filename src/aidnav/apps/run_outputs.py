@@ -31,7 +31,7 @@ import threading
 import weakref
 
 from .forked import error_answer, fork_worker, frame, receive, worker_answer
-from .overview_helper import MAPS_BASE, DrawingHelper, split_panels
+from .overview_helper import MAPS_BASE, DrawingHelper, split_panels, usable_cpus
 
 __all__ = ["OutputsProcess", "start_outputs", "write_outputs", "expected_panels", "FORK_OUTPUTS",
            "IN_PROCESS"]
@@ -190,7 +190,7 @@ class OutputsProcess:
         if self._job_w is None or self._sender is not None:
             raise RuntimeError("OutputsProcess: expect after send")
         # where the child will have a drawing helper, the two write the maps (the parent only waits)
-        self.maps_in_child = (os.cpu_count() or 1) >= SPLIT_MIN_CPUS and bool(split_panels(panels))
+        self.maps_in_child = usable_cpus() >= SPLIT_MIN_CPUS and bool(split_panels(panels))
         try:
             self._job_w.write(frame((_PANELS, list(panels))))  # a few bytes: the pipe takes them now
             self._job_w.flush()

@@ -176,7 +176,7 @@ def main(argv: list[str]) -> int:
         print(f"  W1: default / --no-figures wall, median of {pairs} pairs: {r:.2f} (target <= "
               f"{TARGETS['ratio']}: {verdict}); CPU ratio {cpu_ratio:.2f}; load average "
               + " ".join(f"{x:.2f}" for x in os.getloadavg()))
-        print(f"  W1 peak summed PSS of the command and its figures' processes (sampled every 10 ms): default "
+        print(f"  W1 peak summed PSS of the command and the figures' processes (every 10 ms): default "
               f"{max(PSS['w1 True']):.1f} MiB, --no-figures {max(PSS['w1 False']):.1f} MiB")
         verdict = "PASS" if peak <= TARGETS["peak_mib"] else "FAIL"
         ok &= verdict == "PASS"

@@ -5,7 +5,8 @@ A *cell* is one condition (a simulated car drive with its IMU grade, GNSS rate a
 outage or start it stresses) × one configuration of the loosely coupled filter (no option at all, each
 vehicle preset of :mod:`aidnav.filters.presets`, or the configuration matched to the simulated sensors,
 :func:`aidnav.filters.tuning.loose_config_from_specs`), run over several seeds. Its figures, over all
-seeds and over the evaluation epochs (every second of the filter's output, gaps excluded):
+seeds and over the evaluation epochs (every second of the filter's output, gaps excluded; at each the
+filter's last output row at or before it, against the truth interpolated at that row's time):
 
 * ``coverage``: per axis (E, N, U, roll, pitch, heading) the fraction of epochs with |error| ≤ 3σ (σ the
   one the solution reports, :func:`aidnav.filters.result.to_trajectory`); an honest Gaussian σ covers

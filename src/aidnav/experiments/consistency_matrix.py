@@ -5,7 +5,8 @@ A *cell* is one condition (a simulated car drive with its IMU grade, GNSS rate a
 outage or start it stresses) × one configuration of the loosely coupled filter (no option at all, each
 vehicle preset of :mod:`aidnav.filters.presets`, or the configuration matched to the simulated sensors,
 :func:`aidnav.filters.tuning.loose_config_from_specs`), run over several seeds. Its figures, over all
-seeds and over the evaluation epochs (every second of the filter's output, gaps excluded):
+seeds and over the evaluation epochs (every second of the filter's output, gaps excluded; at each the
+filter's last output row at or before it, against the truth interpolated at that row's time):
 
 * ``coverage``: per axis (E, N, U, roll, pitch, heading) the fraction of epochs with |error| ≤ 3σ (σ the
   one the solution reports, :func:`aidnav.filters.result.to_trajectory`); an honest Gaussian σ covers
@@ -38,7 +39,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from aidnav.analysis.consistency import nees
-from aidnav.analysis.errors import ins_error_state, trajectory_errors, truth_index
+from aidnav.analysis.errors import ins_error_state, trajectory_errors
 from aidnav.data import ImuData, Trajectory
 from aidnav.filters.config import LooseConfig
 from aidnav.filters.gnss_errors import choose_gnss_errors
@@ -73,6 +74,7 @@ GM_TAU_S = 30.0  #: correlation time of the time-correlated GNSS position errors
 GM_SIGMA_M = (0.5, 0.5, 1.0)  #: their steady-state σ E, N, U [m]
 GM_WHITE_M = 0.05  #: the white part of those fixes [m]
 EVAL_DT_S = 1.0  #: spacing of the evaluation epochs [s]
+EVAL_MAX_DT_S = 0.05  #: an epoch is evaluated at the filter's last output at most this much before it [s]
 #: a heading σ at or above this (90°) says "heading unknown" (the filter holds it so until a GNSS course
 #: aligns it: static with a gyro that cannot gyrocompass, after an IMU gap): such epochs count for the
 #: coverage (always covered) but not for the heading's RMS(error)/RMS(σ), which asks whether a claimed σ
@@ -306,6 +308,23 @@ def _loose_seed(cond: Condition, config: str, seed: int, sensor_model: bool):
     return _evaluate(res, run)
 
 
+def _output_at(traj: Trajectory, ev: np.ndarray, max_dt: float) -> Trajectory:
+    """The filter's own output rows at the evaluation epochs ``ev``: for each, the last output at or before
+    it, if within ``max_dt`` [s] (each row once). Not interpolated: between two outputs that a reset
+    separates (the course alignment that ends a heading held unknown, σ 180° → 5°, falls on a fix's time,
+    and so on an evaluation epoch) an interpolated σ (e.g. 90°) and attitude are neither output's; the
+    truth is interpolated at the rows' times instead (:func:`_truth_at`)."""
+    i = np.searchsorted(traj.time, ev + 1e-9, side="right") - 1
+    ok = i >= 0
+    i = np.unique(i[ok][ev[ok] - traj.time[i[ok]] <= max_dt])
+
+    def sub(a):
+        return None if a is None else a[i]
+
+    return Trajectory(traj.time[i], traj.lat[i], traj.lon[i], traj.height[i], traj.vel[i], traj.rph[i],
+                      sub(traj.std_pos), sub(traj.std_vel), sub(traj.std_att))
+
+
 def _evaluate(res, run: SimRun):
     """(errors (K, 6), σ (K, 6), NEES (K,)) of one run at the evaluation epochs (a loose or a tight
     result: each through its own trajectory conversion)."""
@@ -316,12 +335,8 @@ def _evaluate(res, run: SimRun):
     else:
         traj = to_trajectory(res)
     tt = run.truth.time
-    ev = np.arange(tt[0], tt[-1], EVAL_DT_S)
-    ev = ev[ev >= traj.time[0]]
-    j = truth_index(tt, np.round(ev, 6), atol=1e-3)
-    t = run.truth
-    ref = Trajectory(t.time[j], t.lat[j], t.lon[j], t.height[j], t.vel[j], t.rph[j])
-    err = trajectory_errors(traj, ref, max_dt=0.05)
+    est = _output_at(traj, np.arange(tt[0], tt[-1], EVAL_DT_S), EVAL_MAX_DT_S)
+    err = trajectory_errors(est, _truth_at(run.truth, est.time), max_dt=0.0)
     e = np.hstack([err.pos, err.att])
     s = np.hstack([err.std_pos, err.std_att])
     ne = np.full(0, np.nan)

@@ -423,15 +423,31 @@ def _automatic_attitude(imu, t_imu, k0, gsub, vel_u, svel_u, j0, cfg, events, la
     if not moving:
         events.append(f"coarse alignment over {ini.static_window_s:g} s: roll {np.degrees(roll):.2f} "
                       f"deg, pitch {np.degrees(pitch):.2f} deg (mean specific force {np.round(f, 4)} g)")
+    stated = "attitude_sigma_deg" in ini.model_fields_set
+    if not moving and not stated:  # the static alignment's own σ (the field default is for no alignment)
+        att_sig[0:2] = _levelling_sigma(ainfo, cfg)
     if ini.heading_deg is None and gc_heading is not None:
         events.append(f"heading by gyrocompassing: {np.degrees(gc_heading):.2f} deg "
                       f"(sigma {np.degrees(ainfo['heading_std']):.2f} deg)")
-        att_sig[2] = max(att_sig[2], ainfo["heading_std"])
+        att_sig[2] = max(att_sig[2], ainfo["heading_std"]) if stated else ainfo["heading_std"]
     elif ini.heading_deg is None and heading_now is not None:
         att_sig[2] = heading_now[1]
     elif ini.heading_deg is None:
         events.append(f"no gyrocompass heading ({ainfo['heading_reason']}): heading from GNSS course")
     return rph, att_sig, v0, vsig0, gc_heading is not None or heading_now is not None
+
+
+def _levelling_sigma(ainfo, cfg) -> float:
+    """Roll/pitch σ [rad] of a static coarse alignment (:func:`aidnav.nav.alignment.coarse_align_static`):
+    the standard error of its mean specific force (noise, and a vehicle that sways) ⊕ what the model's
+    horizontal accelerometer errors make of the levelling, atan(b/g): the bias σ, and the misalignment σ × g
+    where it is a state (the bias σ holds it otherwise)."""
+    im = cfg.imu
+    b = im.accel_bias_sigma_ug * UG
+    if im.accel_misalignment:
+        b = float(np.hypot(b, np.radians(im.accel_misalignment_sigma_deg) * G0))
+    noise = ainfo["roll_pitch_std"] if np.isfinite(ainfo["roll_pitch_std"]) else np.inf
+    return float(np.hypot(noise, np.arctan2(b, G0)))
 
 
 def _course_reset(gsub, cfg, t0, vel_u, svel_u, iu, g, t_imu, k0, events):

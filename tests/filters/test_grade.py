@@ -115,3 +115,13 @@ def test_the_filter_takes_the_grade_only_without_an_imu_section():
     assert gr.grade_from_static(sim.imu, np.arange(len(sim.imu)) < 500, lat, 50.0, LooseConfig(), ev) \
         .imu.gyro_bias_sigma_deg_h == DEFAULT_IMU["gyro_bias_sigma_deg_h"]
     assert "IMU grade unknown" in ev[0]
+
+
+def test_a_mems_imu_keeps_the_unknown_grade_model():
+    """Classed MEMS (the cautious choice), modelled as the unknown grade (grade.ADOPTED)."""
+    sim = _static_log("mems", 2)
+    ev: list[str] = []
+    cfg = gr.grade_from_static(sim.imu, np.ones(len(sim.imu), bool), float(sim.gnss.lat[0]), 50.0,
+                               LooseConfig(), ev)
+    assert "-> mems: the unknown-grade model" in ev[0], ev
+    assert cfg.imu == LooseConfig().imu

@@ -424,8 +424,6 @@ def _automatic_attitude(imu, t_imu, k0, gsub, vel_u, svel_u, j0, cfg, events, la
         events.append(f"coarse alignment over {ini.static_window_s:g} s: roll {np.degrees(roll):.2f} "
                       f"deg, pitch {np.degrees(pitch):.2f} deg (mean specific force {np.round(f, 4)} g)")
     stated = "attitude_sigma_deg" in ini.model_fields_set
-    if not moving and not stated:  # the static alignment's own σ (the field default is for no alignment)
-        att_sig[0:2] = _levelling_sigma(ainfo, cfg)
     if ini.heading_deg is None and gc_heading is not None:
         events.append(f"heading by gyrocompassing: {np.degrees(gc_heading):.2f} deg "
                       f"(sigma {np.degrees(ainfo['heading_std']):.2f} deg)")
@@ -434,20 +432,28 @@ def _automatic_attitude(imu, t_imu, k0, gsub, vel_u, svel_u, j0, cfg, events, la
         att_sig[2] = heading_now[1]
     elif ini.heading_deg is None:
         events.append(f"no gyrocompass heading ({ainfo['heading_reason']}): heading from GNSS course")
+    if not moving and not stated and ini.roll_deg is None and ini.pitch_deg is None:
+        att_sig[0:2] = _levelling_sigma(ainfo, cfg, att_sig[0:2])
     return rph, att_sig, v0, vsig0, gc_heading is not None or heading_now is not None
 
 
-def _levelling_sigma(ainfo, cfg) -> float:
-    """Roll/pitch σ [rad] of a static coarse alignment (:func:`aidnav.nav.alignment.coarse_align_static`):
-    the standard error of its mean specific force (noise, and a vehicle that sways) ⊕ what the model's
-    horizontal accelerometer errors make of the levelling, atan(b/g): the bias σ, and the misalignment σ × g
-    where it is a state (the bias σ holds it otherwise)."""
+def _levelling_sigma(ainfo, cfg, configured):
+    """Roll/pitch σ [rad] of a static coarse levelling (:func:`aidnav.nav.alignment.coarse_align_static`)
+    where it is a diagonal prior's to give: the standard error of its mean specific force ``se`` (noise, a
+    swaying vehicle) ⊕ what the horizontal accelerometer errors of the model make of it (b/g: the bias σ,
+    and the misalignment σ × g where it is a state). The tilt error of a levelling is −b/g + noise, so the
+    tilt and the biases are correlated by σ_b/g against that total: where the bias part is the larger
+    (|ρ| > 1/√2: an IMU of unknown grade, 13 mg) a diagonal prior cannot hold it and the ``configured``
+    σ stays, the first updates at rest tying the two; where the noise is the larger (a navigation-grade
+    accelerometer: 10 µg against the mean's ~0.2 mg) the levelling's σ is the prior (issue 35, session 12:
+    the configured 2° otherwise decides the first epochs' RMS σ of a run whose tilt error is 0.01°)."""
     im = cfg.imu
     b = im.accel_bias_sigma_ug * UG
     if im.accel_misalignment:
         b = float(np.hypot(b, np.radians(im.accel_misalignment_sigma_deg) * G0))
-    noise = ainfo["roll_pitch_std"] if np.isfinite(ainfo["roll_pitch_std"]) else np.inf
-    return float(np.hypot(noise, np.arctan2(b, G0)))
+    se = float(np.hypot(ainfo["se_f"][0], ainfo["se_f"][1])) if np.all(np.isfinite(ainfo["se_f"])) else np.inf
+    lev = np.hypot(se, b) / G0
+    return np.where(lev < 0.1 * np.asarray(configured), lev, configured)
 
 
 def _course_reset(gsub, cfg, t0, vel_u, svel_u, iu, g, t_imu, k0, events):

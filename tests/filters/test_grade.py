@@ -13,7 +13,9 @@ import pytest
 
 from aidnav.filters import grade as gr
 from aidnav.filters.config import DEFAULT_IMU, ImuNoise, LooseConfig
+from aidnav.filters.layout import ST_Q
 from aidnav.nav.earth import OMEGA_IE
+from aidnav.nav.rotations import euler_from_quat
 from aidnav.sim.imu import ImuSpec
 from aidnav.sim.run import simulate
 from aidnav.sim.scenario import parse_scenario
@@ -28,8 +30,8 @@ def test_grade_rows_are_the_grade_table(i):
     s = ImuSpec.grade(name)
     np.testing.assert_allclose([np.max(s.gyro_bias) / DEG_H, np.max(s.gyro_bias_instability) / DEG_H,
                                 np.max(s.accel_bias) / UG, np.max(s.accel_bias_instability) / UG,
-                                np.min(s.gyro_bias_tau), np.max(s.gyro_scale) * 1e6, np.max(s.accel_scale) * 1e6,
-                                np.max(s.gyro_misalignment) / DEG * 3600.0],
+                                np.min(s.gyro_bias_tau), np.max(s.gyro_scale) * 1e6,
+                                np.max(s.accel_scale) * 1e6, np.max(s.gyro_misalignment) / DEG * 3600.0],
                                [gb, gi, ab, ai, tau, gsf, asf, mis], rtol=1e-9)
 
 
@@ -46,8 +48,8 @@ def test_choice_known_answers():
     for _, m in models:
         sg = m["gyro_bias_sigma_deg_h"] * DEG_H
         sa = np.hypot(m["accel_bias_sigma_ug"], m["accel_sf_sigma_ppm"] * 9.80665e-6 / UG)
-        s.append([np.hypot(sg, se[0]), np.hypot(sg, se[1]), np.sqrt((sa * UG) ** 2 + (gr.GRAVITY_MODEL_UG * UG)
-                                                                    ** 2 + se[2] ** 2)])
+        sv = np.sqrt((sa * UG) ** 2 + (gr.GRAVITY_MODEL_UG * UG) ** 2 + se[2] ** 2)
+        s.append([np.hypot(sg, se[0]), np.hypot(sg, se[1]), sv])
     like = 1.0 / np.prod(np.array(s), axis=1)
     np.testing.assert_allclose(p, like / like.sum(), rtol=1e-9)
     assert name == ORDER[max(i for i in range(4) if p[i] >= gr.ALPHA)]
@@ -92,7 +94,8 @@ def test_static_logs_are_never_classed_better_than_their_grade(grade):
 
 def test_earth_rate_residuals_of_a_perfect_imu_are_zero():
     sim = _static_log("perfect", 0, lat_deg=-33.0)
-    r, se = gr.static_residuals(sim.imu, float(sim.gnss.lat[0]), 50.0, sim.imu.time[0], sim.imu.time[-1] + 1e-9)
+    t = sim.imu.time
+    r, se = gr.static_residuals(sim.imu, float(sim.gnss.lat[0]), 50.0, t[0], t[-1] + 1e-9)
     assert abs(r[0]) < 1e-3 * OMEGA_IE and abs(r[1]) < 1e-3 * OMEGA_IE and abs(r[2]) < 1 * UG
 
 
@@ -125,3 +128,36 @@ def test_a_mems_imu_keeps_the_unknown_grade_model():
                                LooseConfig(), ev)
     assert "-> mems: the unknown-grade model" in ev[0], ev
     assert cfg.imu == LooseConfig().imu
+
+
+def _drive_log(grade: str, seed: int):
+    scn = parse_scenario({"name": "start", "seed": seed, "imu_rate_hz": 100,
+                          "initial": {"lat_deg": 40.0, "lon_deg": 116.0, "height_m": 50.0,
+                                      "heading_deg": 20.0},
+                          "segments": [{"type": "static", "duration_s": 30},
+                                       {"type": "accelerate", "duration_s": 10, "to_speed_m_s": 10}],
+                          "sensors": {"imu": {"grade": grade}, "gnss": {"rate_hz": 1.0}}})
+    return simulate(scn, seed)
+
+
+@pytest.mark.parametrize("grade", ["navigation", "consumer"])
+def test_static_start_prior_is_the_levelling_where_the_bias_is_small(grade):
+    """No option: a navigation-grade IMU, classed, starts with its levelling's tilt σ (the standard error
+    of the mean specific force ⊕ the grade's bias / g: hundredths of a degree, covering its error) and its
+    gyrocompass heading σ; an IMU of unknown grade keeps the configured 2° (its levelling's 0.76° is the
+    13-mg bias, correlated with the bias states) and an unknown heading until the GNSS course."""
+    from aidnav.filters.loose import loose_setup  # lazy: the filter's setup, only this test
+
+    sim = _drive_log(grade, 3)
+    ev: list[str] = []
+    su = loose_setup(sim.imu, sim.gnss, LooseConfig(), None, ev)
+    sig = np.sqrt(np.diag(su.ini.P)[:3])
+    if grade == "navigation":
+        rph = np.array(euler_from_quat(su.ini.st[ST_Q:ST_Q + 4]))
+        err = rph - sim.truth.rph[0]
+        err[2] = (err[2] + np.pi) % (2 * np.pi) - np.pi
+        assert np.all(sig[:2] < 0.05 * DEG) and sig[2] < 1.0 * DEG, (np.degrees(sig), ev)
+        assert np.all(np.abs(err) <= 3.0 * sig), (np.degrees(err), np.degrees(sig))
+    else:
+        np.testing.assert_allclose(sig[:2], 2.0 * DEG, rtol=1e-9)
+        assert sig[2] > 80 * DEG

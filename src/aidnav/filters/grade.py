@@ -44,8 +44,8 @@ from aidnav.units import DEG, DEG_H, G0, UG
 from .config import DEFAULT_IMU
 from .tuning import sensor_error_model
 
-__all__ = ["GRADE_ROWS", "ADOPTED", "ALPHA", "MIN_STATIC_S", "BRIDGE_S", "GRAVITY_MODEL_UG", "grade_models", "static_residuals",
-           "grade_posterior", "choose_grade", "grade_from_static"]
+__all__ = ["GRADE_ROWS", "ADOPTED", "ALPHA", "MIN_STATIC_S", "BRIDGE_S", "GRAVITY_MODEL_UG", "grade_models",
+           "static_residuals", "grade_posterior", "choose_grade", "grade_from_static"]
 
 #: The better-than-unknown grades, best first: gyro turn-on bias, instability [deg/h], accelerometer
 #: turn-on bias, instability [µg], instability τ [s], gyro / accelerometer scale factor [ppm],

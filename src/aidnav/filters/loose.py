@@ -39,6 +39,7 @@ from .engine import (
     run_filter,
 )
 from .engine_batch import batchable, run_batch, run_outputs, stack_inputs
+from .grade import grade_from_static
 from .layout import (
     DV,
     L_LEVER,
@@ -52,7 +53,6 @@ from .layout import (
     layout_names,
     make_layout,
 )
-from .grade import grade_from_static
 from .preprocess import (
     bridge_gaps,
     coarse_mounting,

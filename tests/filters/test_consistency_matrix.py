@@ -124,6 +124,14 @@ def test_no_option_does_not_claim_a_tilt_it_cannot_have(name):
     _check(cm.run_cell(cm.condition(name), "none", SEEDS), cm.SEED_COVERAGE_BOUND)
 
 
+def test_no_option_on_a_navigation_grade_imu_is_honest_and_useful():
+    """No option on a navigation-grade IMU (issue 35, session 12, n35g): its 29-s standstill classes it
+    (filters.grade) and its σ becomes the grade's — before, the unknown-grade model's: every coverage
+    100 % but RMS(err)/RMS(σ) roll 0.23, heading 0.19 (σ uselessly large); measured after: 100 100 100 100
+    100 100 % | 0.68 0.69 0.70 0.54 0.46 0.97."""
+    _check(cm.run_cell(cm.condition("grade navigation"), "none", SEEDS))
+
+
 def test_model_without_misalignment_states_is_not_covered_on_a_consumer_imu():
     cell = cm.run_cell(cm.condition("grade consumer"), "matched", SEEDS, sensor_model=False)
     print("\n" + cm.format_matrix([cell]))

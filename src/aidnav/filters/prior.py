@@ -170,4 +170,3 @@ def given_initial_state(ini, who: str):
         raise ValueError(f"{who} needs init.mode = given with init.{', init.'.join(missing)}")
     return (ini.lat_deg * DEG, ini.lon_deg * DEG, ini.height_m, np.array(ini.velocity_m_s, float),
             np.array([ini.roll_deg, ini.pitch_deg, ini.heading_deg]) * DEG)
-

@@ -59,6 +59,11 @@ class ImuNoise(_Strict):
         "spread at the log's static samples (engine vibration; filters.preprocess.noise_from_static); on "
         "in the loose filter without an imu section in the configuration (issue 35: a vibrating IMU's noise "
         "is unknown until the log shows it) and in the engine-driven vehicle presets")
+    grade_from_static: bool = Field(
+        False, description="class the IMU by the bias components its longest static run measures (gyro "
+        "vertical and horizontal against the Earth rate, accelerometer vertical against gravity) and take "
+        "the bias, instability, scale-factor and misalignment model of the loosest grade the data leave "
+        "possible (filters.grade); on without an imu section in the loose filter (issue 35)")
     time_offset_s: float = Field(0.0, description="added to IMU time stamps (IMU clock → GNSS time)")
     mounting_rph_deg: tuple[float, float, float] = Field(
         (0.0, 0.0, 0.0), description="IMU body → vehicle frame rotation as roll, pitch, heading [deg] "
@@ -254,7 +259,9 @@ UNKNOWN_GRADE_IMU: dict = dict(
 #: The loose filter's IMU model without an ``imu`` section, with or without a preset (issue 35, m35u):
 #: :data:`UNKNOWN_GRADE_IMU` with its accelerometer bias (the same 13.3 mg σ) as a Gauss–Markov process of
 #: τ 3600 s, the structure of the field default's, instead of a random constant.
-DEFAULT_IMU: dict = {**UNKNOWN_GRADE_IMU, "accel_bias_tau_s": 3600.0}
+#: With ``grade_from_static`` (issue 35, session 12): a log that starts at rest may show a better IMU, whose
+#: grade's model then replaces this one (:mod:`aidnav.filters.grade`).
+DEFAULT_IMU: dict = {**UNKNOWN_GRADE_IMU, "accel_bias_tau_s": 3600.0, "grade_from_static": True}
 
 
 class LooseConfig(_Strict):

@@ -39,6 +39,7 @@ from .engine import (
     run_filter,
 )
 from .engine_batch import batchable, run_batch, run_outputs, stack_inputs
+from .grade import grade_from_static
 from .layout import (
     DV,
     L_LEVER,
@@ -201,6 +202,11 @@ def loose_setup(imu, gnss, cfg, withheld, events, aids=(), rate_hz: float | None
     ``rate_hz``: ``imu.rate_hz`` when the caller already has it (:func:`run_loose_batch`)."""
     has_vel = gnss.vel is not None and bool(np.any(np.isfinite(gnss.vel)))
     cfg = correlated_gnss_errors(cfg, gnss, events)  # fixes above 1 Hz: Gauss-Markov error states
+    static = None
+    if cfg.imu.grade_from_static or cfg.imu.noise_from_static:
+        static = static_flags(imu, visible_fixes(gnss, withheld), cfg)
+    if cfg.imu.grade_from_static:  # a log at rest measures three bias components: the IMU's grade
+        cfg = grade_from_static(imu, static, *_where(gnss), cfg, events)
     lay = loose_layout(cfg, aids, gnss=len(gnss) > 0, gnss_velocity=has_vel)
     n_ins, n = cfg.nstate, int(lay[L_N])
     t_imu = imu.time + cfg.imu.time_offset_s
@@ -215,7 +221,7 @@ def loose_setup(imu, gnss, cfg, withheld, events, aids=(), rate_hz: float | None
         use &= finite
     cfg = _coarse_mounting_if_unknown(cfg, imu, gnss, t_imu, g, use, aids, events)
     if cfg.imu.noise_from_static:  # engine vibration: IMU noise from the log's static samples
-        cfg = noise_from_static(imu, static_flags(imu, visible_fixes(gnss, withheld), cfg), cfg, events)
+        cfg = noise_from_static(imu, static, cfg, events)
     ev0: list[str] = []
     i0, ev0 = _aid_heading(initial_state(imu, gnss, cfg, t_imu, g, use, ev0), cfg, aids, ev0)
     events += ev0
@@ -250,6 +256,12 @@ def loose_setup(imu, gnss, cfg, withheld, events, aids=(), rate_hz: float | None
     models = _models(cfg)._replace(cal=_reinit_cal(lay, P0))
     return Setup(cfg, lay, n, int(i0["k0"]), t_imu, proc, ini, models, rec, rmap, out_every,
                  i0.get("reset_time"))
+
+
+def _where(gnss) -> tuple[float, float]:
+    """Latitude [rad] and height [m] of the first fix with a finite position (0, 0: none)."""
+    ok = np.flatnonzero(np.isfinite(gnss.lat) & np.isfinite(gnss.height))
+    return (float(gnss.lat[ok[0]]), float(gnss.height[ok[0]])) if len(ok) else (0.0, 0.0)
 
 
 def _reinit_cal(lay, P0) -> np.ndarray:

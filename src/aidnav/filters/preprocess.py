@@ -434,15 +434,40 @@ def _automatic_attitude(imu, t_imu, k0, gsub, vel_u, svel_u, j0, cfg, events, la
     if not moving:
         events.append(f"coarse alignment over {ini.static_window_s:g} s: roll {np.degrees(roll):.2f} "
                       f"deg, pitch {np.degrees(pitch):.2f} deg (mean specific force {np.round(f, 4)} g)")
+    stated = "attitude_sigma_deg" in ini.model_fields_set
     if ini.heading_deg is None and gc_heading is not None:
         events.append(f"heading by gyrocompassing: {np.degrees(gc_heading):.2f} deg "
                       f"(sigma {np.degrees(ainfo['heading_std']):.2f} deg)")
-        att_sig[2] = max(att_sig[2], ainfo["heading_std"])
+        att_sig[2] = max(att_sig[2], ainfo["heading_std"]) if stated else ainfo["heading_std"]
     elif ini.heading_deg is None and heading_now is not None:
         att_sig[2] = heading_now[1]
     elif ini.heading_deg is None:
         events.append(f"no gyrocompass heading ({ainfo['heading_reason']}): heading from GNSS course")
+    if not moving and not stated and ini.roll_deg is None and ini.pitch_deg is None:
+        att_sig[0:2] = _levelling_sigma(ainfo, cfg, att_sig[0:2])
     return rph, att_sig, v0, vsig0, gc_heading is not None or heading_now is not None
+
+
+def _levelling_sigma(ainfo, cfg, configured):
+    """Roll/pitch σ [rad] of a static coarse levelling (:func:`aidnav.nav.alignment.coarse_align_static`):
+    the standard error of its mean horizontal specific force (noise, a swaying vehicle) ⊕ what the
+    model's horizontal accelerometer errors make of it (b/g: the bias σ, and the misalignment σ × g where
+    it is a state), where that is below a tenth of the ``configured`` σ; the configured σ otherwise.
+
+    Why the tenth (a choice, not fitted): a levelling's tilt error is −b/g + noise, correlated with the
+    biases, which a diagonal prior cannot hold; where the bias part is large (the unknown grade: 13 mg,
+    0.76° against the configured 2°) the configured σ stays and the first updates at rest tie the two —
+    the diagonal 0.76° measured worse (imu gap × no option, roll/pitch 97.3/96.3 → 82.8/85.8 %); where it
+    is small (a navigation-grade IMU: 0.002°) the correlation cannot matter against the filter's own
+    tilt σ, and the configured 2° would decide the RMS σ of the first epochs of a run whose tilt error is
+    0.01° (grade navigation × no option, roll RMS(err)/RMS(σ) 0.23 → 0.54; issue 35, session 12)."""
+    im = cfg.imu
+    b = im.accel_bias_sigma_ug * UG
+    if im.accel_misalignment:
+        b = float(np.hypot(b, np.radians(im.accel_misalignment_sigma_deg) * G0))
+    se = float(np.hypot(ainfo["se_f"][0], ainfo["se_f"][1])) if np.all(np.isfinite(ainfo["se_f"])) else np.inf
+    lev = np.hypot(se, b) / G0
+    return np.where(lev < 0.1 * np.asarray(configured), lev, configured)
 
 
 def _course_reset(gsub, cfg, t0, vel_u, svel_u, iu, g, t_imu, k0, events):

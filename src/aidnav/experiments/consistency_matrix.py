@@ -323,6 +323,7 @@ def _evaluate(res, run: SimRun):
     err = trajectory_errors(traj, ref, max_dt=0.05)
     e = np.hstack([err.pos, err.att])
     s = np.hstack([err.std_pos, err.std_att])
+    _held_heading_sigma(s, traj, err.time)
     ne = np.full(0, np.nan)
     if res.cov is not None and len(res.cov_time):
         idx, keep = np.unique(np.searchsorted(res.time, res.cov_time), return_index=True)
@@ -331,6 +332,23 @@ def _evaluate(res, run: SimRun):
         x = ins_error_state(res, _truth_at(run.truth, res.time[idx]), None, idx)[:, :9]
         ne = nees(x, cov[:, :9, :9]) / 9.0
     return e, s, ne
+
+
+def _held_heading_sigma(s: np.ndarray, traj: Trajectory, t: np.ndarray) -> None:
+    """The heading σ (column 5 of ``s``, at the epochs ``t``) where an output bracketing the epoch holds the
+    heading unknown (σ ≥ :data:`HEADING_UNKNOWN_RAD`): the larger of the two outputs' σ, in place. The
+    errors interpolate the outputs linearly, but a course alignment is a step (180° → 2° from one IMU
+    sample to the next): an epoch between the last held output and the first aligned one is, on the
+    filter's clock, still held, and its interpolated σ (anything between, e.g. 79° for an epoch 4 ms
+    before the step: m35u's mems cell, where that one epoch took the cell's heading ratio from 0.7 to
+    0.2) is a σ the filter never claimed."""
+    if traj.std_att is None or len(traj.time) < 2 or len(t) == 0:
+        return
+    hs = traj.std_att[:, 2]
+    k = np.clip(np.searchsorted(traj.time, t), 1, len(hs) - 1)
+    hi = np.maximum(hs[k - 1], hs[k])
+    held = hi >= HEADING_UNKNOWN_RAD
+    s[held, 5] = hi[held]
 
 
 TIGHT_SOW = 345600.0  #: GPS seconds of week at the tight cells' start (the sky of the nominal constellation)

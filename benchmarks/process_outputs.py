@@ -1,9 +1,10 @@
 """``aidnav process`` with its default outputs (overview, maps, page) against ``--no-figures`` (issue 41).
 
 Each run is the command in a fresh process (``python -c "from aidnav.cli import main; main()"``), its wall
-time, CPU time (user + system, of it and of the figures' child) and peak resident set (``wait4``: the
-largest of the command and the child it forks for the figures) measured from outside; for W1 also the peak
-of the summed proportional set size of the command and its child (``/proc``, sampled every 10 ms). Cases:
+time, CPU time (user + system, of it and of the figures' child and the child's drawing helper) and peak
+resident set (``wait4``: the largest of the command and the processes it forks for the figures) measured
+from outside; for W1 also the peak of the summed proportional set size of the command and its descendants
+(``/proc``, sampled every 10 ms). Cases:
 
 * W1 (``../shared/data/sim_w1_pyins``, one hour at 100 Hz, ``examples/sim_w1_pyins.yaml``): default outputs
   and ``--no-figures`` alternately, N pairs: the median ratio of the pairs' wall times (target ≤ 1.3) and
@@ -175,7 +176,7 @@ def main(argv: list[str]) -> int:
         print(f"  W1: default / --no-figures wall, median of {pairs} pairs: {r:.2f} (target <= "
               f"{TARGETS['ratio']}: {verdict}); CPU ratio {cpu_ratio:.2f}; load average "
               + " ".join(f"{x:.2f}" for x in os.getloadavg()))
-        print(f"  W1 peak summed PSS of the command and its figures' child (sampled every 10 ms): default "
+        print(f"  W1 peak summed PSS of the command and the figures' processes (every 10 ms): default "
               f"{max(PSS['w1 True']):.1f} MiB, --no-figures {max(PSS['w1 False']):.1f} MiB")
         verdict = "PASS" if peak <= TARGETS["peak_mib"] else "FAIL"
         ok &= verdict == "PASS"

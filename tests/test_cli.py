@@ -85,6 +85,25 @@ def test_the_command_collects_garbage_less_often_the_library_as_python_does():
     assert kept.stdout.split() == ["1000000", "3", "4", "0"]  # higher, or switched off: left as it is
 
 
+def test_the_command_starts_without_collections_and_resumes_them():
+    # the console script: no automatic collection while it starts; resumed with the start's objects frozen
+    # (the first young collection does not walk them); the library imported by a program: untouched
+    r = _python("import gc, sys\nsys.argv[0] = '/usr/bin/aidnav'\nimport aidnav.cli\nprint(gc.isenabled())\n"
+                "from aidnav.console_script import resume_collections\nresume_collections()\n"
+                "print(gc.isenabled(), gc.get_freeze_count() > 10000)\nresume_collections()\n"
+                "gc.disable()\nresume_collections()\nprint(gc.isenabled())")
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split() == ["False", "True", "True", "False"]  # once; an off switched by others is kept
+    lib = _python("import gc\nimport aidnav.cli\nprint(gc.isenabled(), gc.get_freeze_count())")
+    assert lib.stdout.split() == ["True", "0"]
+    # a command other than process collects from its start (process: from its run, the next test)
+    cmd = _python("import gc, sys\nfrom aidnav import cli\n"
+                  "@cli._command('gc-state')\ndef gc_state():\n    print('GC', gc.isenabled())\n"
+                  "sys.argv[1:] = ['gc-state']\ncli.main()")
+    assert cmd.returncode == 0 and "GC True" in cmd.stdout, cmd.stdout + cmd.stderr
+
+
+
 def test_blas_modules_alone_serve_numba_and_scipy():
     # numba's first dispatch must not import scipy.linalg; np.linalg inside a kernel still works (numba
     # calls scipy's BLAS/LAPACK through the modules loaded alone); scipy.linalg imports afterwards

@@ -34,16 +34,19 @@ from pathlib import Path  # noqa: E402
 
 from aidnav import interrupts as _interrupts  # noqa: E402
 from aidnav.console_script import fewer_collections as _fewer_collections  # noqa: E402
+from aidnav.console_script import pause_collections as _pause_collections  # noqa: E402
 
 if Path(sys.argv[0]).name == "aidnav" or sys.argv[0].endswith(os.path.join("aidnav", "__main__.py")):
     _interrupts.install(hold=True)  # the aidnav command: a Ctrl-C during the imports is raised in main
     _fewer_collections()  # the command's imports: fewer garbage collections (console_script.GC_YOUNG_OBJECTS)
+    _pause_collections()  # and none until the command runs (console_script.pause_collections)
 
 import typer  # noqa: E402
 
 from aidnav.console_script import exit_status as _exit_status  # noqa: E402
 from aidnav.console_script import leave as _leave  # noqa: E402
 from aidnav.console_script import preload_scipy_blas as _preload_scipy_blas  # noqa: E402
+from aidnav.console_script import resume_collections as _resume_collections  # noqa: E402
 
 # rich_markup_mode=None: help texts are printed as written ("[deg]" would otherwise vanish)
 app = typer.Typer(add_completion=False, no_args_is_help=True, rich_markup_mode=None,
@@ -95,14 +98,21 @@ def _user_errors() -> tuple[type[BaseException], ...]:
     return tuple(errs)
 
 
-def guarded(fn):
+def guarded(fn, collects_from_its_run: bool = False):
     """Every command fails the same way: user errors → exit 2 with ``error: …``; anything else → exit 1
-    with ``internal error`` and the traceback only when ``AIDNAV_DEBUG`` is set."""
+    with ``internal error`` and the traceback only when ``AIDNAV_DEBUG`` is set.
+
+    In the ``aidnav`` command the garbage collector, paused while it starts
+    (:func:`aidnav.console_script.pause_collections`), runs again from here, or with
+    ``collects_from_its_run`` from where the command's job says its run starts (``process``: its
+    ``started`` callback, after its imports, reading, checks and first passes)."""
 
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
         if _CONSOLE_SCRIPT:  # a command runs (not --help): kernels from a build, or numba starts
             _start_kernels()
+            if not collects_from_its_run:
+                _resume_collections()
         try:
             return fn(*args, **kwargs)
         except (typer.Exit, typer.Abort, SystemExit):
@@ -139,11 +149,11 @@ def _interrupted_note(kwargs) -> str:
     return "nothing complete was written: run the same command again"
 
 
-def _command(*args, **kwargs):
-    """``@app.command`` with the error guard."""
+def _command(*args, collects_from_its_run: bool = False, **kwargs):
+    """``@app.command`` with the error guard (:func:`guarded`)."""
 
     def deco(fn):
-        return app.command(*args, **kwargs)(guarded(fn))
+        return app.command(*args, **kwargs)(guarded(fn, collects_from_its_run))
 
     return deco
 
@@ -241,7 +251,7 @@ def evaluate(
         _console().print(f"wrote {p}")
 
 
-@_command()
+@_command(collects_from_its_run=True)
 def process(
     imu: Path = typer.Option(..., "--imu", help="IMU log: " + _IMU_FORMATS_HELP),
     gnss: Path = typer.Option(..., "--gnss", help="GNSS fixes: " + _GNSS_FORMATS_HELP),
@@ -302,9 +312,10 @@ def process(
     aid_paths = [("odometer", odometer)] * (odometer is not None) + [("baro", baro)] * (baro is not None)
     aid_paths += [parse_aid(a) for a in aid]
     with progress_bar("aidnav process") as bar, run_directory(out, "process"):
-        s = process_logs(imu, gnss, config, out, smooth=smooth, outages=outage, console=_console(), fmt=fmt,
+        s = process_logs(imu, gnss, config, out, smooth=smooth, outages=outage, fmt=fmt,
                          height_offset_m=height_offset, time_offset_s=time_offset, start_s=start, end_s=end,
-                         skip_checks=skip_check, progress=bar, figures=figures,
+                         skip_checks=skip_check, progress=bar, figures=figures, started=_resume_collections,
+                         waiting=_console,
                          aid_paths=aid_paths, kfgins_nav=kfgins_nav,
                          output_rate_hz=output_rate, vehicle=vehicle, imu_topic=imu_topic,
                          gnss_topic=gnss_topic, gnss_vel_topic=gnss_vel_topic)
@@ -656,6 +667,7 @@ def main():  # pragma: no cover - the console script (tests call `app` in-proces
     global _CONSOLE_SCRIPT
     _CONSOLE_SCRIPT = True
     _fewer_collections()  # a command's few million long-lived objects: fewer garbage collections
+    _pause_collections()  # and none while it starts (console_script.pause_collections)
     try:
         try:
             _interrupts.install()  # SIGINT/SIGTERM raised where Python can take them (not numba's glue): 130

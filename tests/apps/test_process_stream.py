@@ -331,3 +331,21 @@ def test_shared_reader_error_reaches_every_pass(tmp_path, monkeypatch):
         list(log.chunks())
     with pytest.raises(DataError, match="2201"):
         list(run)
+
+
+def test_started_is_called_once_just_before_the_run(tmp_path, monkeypatch):
+    # the aidnav command resumes its garbage collector there (console_script.resume_collections): after
+    # the reading, the checks and the first passes (no configuration: the vehicle and GNSS-error passes)
+    import aidnav.filters.stream as fs
+
+    imu, gnss, _ = static_log(tmp_path, 30)
+    events, run = [], fs.stream_loose
+
+    def stream_loose(*a, **k):  # every filter pass: the first passes, then the run
+        events.append("pass")
+        return run(*a, **k)
+
+    monkeypatch.setattr(fs, "stream_loose", stream_loose)
+    process_logs(imu, gnss, None, tmp_path / "o", figures=False, started=lambda: events.append("started"))
+    assert events.count("started") == 1 and events[-2:] == ["started", "pass"]
+    assert events.count("pass") >= 2

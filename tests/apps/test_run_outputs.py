@@ -22,10 +22,12 @@ FILES = ("overview.png", "run.html", "trajectory.kml", "trajectory.geojson", "su
 @pytest.mark.skipif(not ro.FORK_OUTPUTS, reason="the figures' process is forked on Linux only")
 def test_forked_outputs_are_the_in_process_bytes(tmp_path, monkeypatch):
     """... with the overview's skeleton built by the child before the job (the panels guessed right; the
-    skeleton's path whatever the machine's CPU count)."""
+    skeleton's path whatever the machine's CPU count) and drawn by the child and its helper, which also
+    write the maps (the parent only waits)."""
     from aidnav.report.overview import panel_names
 
     monkeypatch.setattr(ro, "SKELETON_MIN_CPUS", 1)
+    monkeypatch.setattr(ro, "SPLIT_MIN_CPUS", 1)
 
     imu, gnss, cfg = static_log(tmp_path, 30)
     child = ro.OutputsProcess()  # the path under test: a forked child draws
@@ -33,6 +35,7 @@ def test_forked_outputs_are_the_in_process_bytes(tmp_path, monkeypatch):
     sent = []
     child.send = lambda *job, send=child.send, **kw: (sent.append(job), send(*job, **kw))[1]
     process_logs(imu, gnss, cfg, out, outages=["10:5"], figures=child, timings=False)
+    assert child.maps_in_child
     _, traj, fixes, _, records = sent[0]
     use = job_config(cfg, None, None, None, None, None, None)[0].gnss.use
     assert ro.expected_panels(use, fixes.vel is not None) == panel_names(traj, fixes, records)

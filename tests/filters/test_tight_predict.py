@@ -7,9 +7,22 @@ from __future__ import annotations
 
 import numpy as np
 
-from aidnav.filters.kalman import discretize, discretize_tail, predict, predict_tail
-from aidnav.filters.predict import tail_start
-from aidnav.filters.tight import rotation_variance
+from aidnav.filters.config import UNKNOWN_GRADE_IMU
+from aidnav.filters.engine import Process
+from aidnav.filters.ins_errors import ACC_FB, ACC_FN, ACC_TN, ACC_WB, new_accumulator, noise_count
+from aidnav.filters.kalman import (
+    discretize,
+    discretize_sparse,
+    discretize_tail,
+    predict,
+    predict_split,
+    predict_tail,
+)
+from aidnav.filters.layout import L_CLK, L_N
+from aidnav.filters.predict import error_model, predict_node, tail_start
+from aidnav.filters.prior import process_noise
+from aidnav.filters.tight import TightConfig, rotation_variance, tight_layout
+from aidnav.nav.rotations import dcm_from_quat, quat_from_euler
 
 
 def _system(rng, nd=17, nt=5):
@@ -145,3 +158,88 @@ def test_split_predict_equals_the_full_matrix_predict():
     P4 = P0.copy()
     predict(x0.copy(), P4, Phi3, Qd3)
     assert np.abs(P3 - P4).max() > 1e-3 * np.abs(P4).max()
+
+
+def test_sparse_series_equals_the_dense_series():
+    """:func:`discretize_sparse` (products over F's and G's nonzero entries) gives :func:`discretize`'s Φ
+    and Qd, for an INS-like sparse F and a dense one."""
+    rng = np.random.default_rng(7)
+    for dense in (False, True):
+        F, G, q = _system(rng, 17, 0)
+        if not dense:
+            F[rng.random(F.shape) < 0.75] = 0.0
+            G[rng.random(G.shape) < 0.7] = 0.0
+        Phi, Qd, Phi2, Qd2 = (np.full((17, 17), np.nan) for _ in range(4))
+        discretize(F, G, q, 0.8, Phi, Qd)
+        discretize_sparse(F, G, q, 0.8, Phi2, Qd2)
+        np.testing.assert_allclose(Phi2, Phi, rtol=1e-14, atol=1e-15)
+        np.testing.assert_allclose(Qd2, Qd, rtol=1e-13, atol=1e-15 * np.abs(Qd).max())
+
+
+def _tight_model(nins, n_range=4, n_isb=1):
+    """The tight filter's process model of an IMU grade with ``nins`` INS states (27: the no-configuration
+    unknown-grade model, its scale factors and misalignments random constants), its clock, ``n_isb``
+    inter-system biases and ``n_range`` range errors; the engine's error-model arrays of it."""
+
+    cfg = TightConfig(imu=UNKNOWN_GRADE_IMU if nins == 27 else {})
+    assert cfg.nins == nins
+    lay = tight_layout(cfg.states, n_range, n_isb, nins)
+    n, nfull = int(lay[L_N]), max(nins, 15)
+    mins = noise_count(nfull)
+    q = np.r_[process_noise(cfg, nfull), 1e-2, 1e-4, np.full(n_isb, 1e-3), np.full(n_range, 2.0 / 600.0)]
+    taus = np.array([cfg.imu.gyro_bias_tau_s, cfg.imu.accel_bias_tau_s, cfg.imu.sf_tau_s, cfg.imu.sf_tau_s])
+    aux_tau = np.r_[0.0, 3600.0, np.zeros(n_isb), np.full(n_range, 600.0)]
+    proc = Process(lay, q, taus, aux_tau, 1.0, open=np.arange(n - n_range, n, dtype=np.int64))
+    return proc, error_model(lay, proc, nfull, mins, n - nins, n, nins, 0), (nins, mins, n)
+
+
+def test_node_predict_equals_the_full_matrix_algebra():
+    """The tight filter's predict at a node (:func:`aidnav.filters.predict.predict_node`: the head's series
+    over F's nonzero entries, its constant and diagonal rows and the range-error tail out of the products)
+    equals the slow path — the full F, G of the same interval, :func:`discretize`, Φ P Φᵀ + Qd — over a
+    chain of nodes, for the no-configuration model (27 INS states: 12 constant, 6 diagonal bias rows) and
+    the 15-state one (issue 40)."""
+
+    rng = np.random.default_rng(40)
+    for nins in (27, 15):
+        proc, em, dims = _tight_model(nins)
+        n, nd, sp = dims[2], em[6], em[11]
+        hd, d, f = sp[0], sp[1], sp[8]
+        ic = int(proc.lay[L_CLK])
+        assert nd == ic + 2  # the tail: the inter-system bias and the range errors
+        if nins == 27:  # full rows: navigation and clock bias; diagonal: the six biases and the clock drift
+            assert (d, f) == (17, 10) and sorted(hd[f:d]) == [9, 10, 11, 12, 13, 14, ic + 1]
+        a = rng.normal(size=(n, n))
+        P = a @ a.T / n + np.diag(rng.uniform(0.1, 2.0, n))
+        P_ref = P.copy()
+        for k in range(4):
+            st = np.r_[0.7 + 0.01 * k, 2.1, 100.0 * k, rng.normal(0.0, 3.0, 3), quat_from_euler(
+                *rng.uniform(-1.0, 1.0, 3))]
+            C = dcm_from_quat(st[6:10])
+            T, ns = rng.uniform(0.2, 1.0), 100
+            acc = new_accumulator()
+            acc[0:3] = C * ns
+            acc[ACC_FN] = C @ (np.array([0.1, 0.2, 9.8]) + rng.normal(0.0, 1.0, 3)) * T
+            acc[ACC_WB], acc[ACC_FB] = rng.normal(0.0, 0.05, 3) * T, np.array([0.3, -0.2, 9.8]) * T
+            acc[ACC_TN, :2] = T, ns
+            x = rng.normal(size=n)
+            predict_node(st, acc, x, P, T, proc, em, dims)
+            Fi, Gi, F, G = (m.copy() for m in em[:4])  # Fi, Gi: the interval's INS model
+            F[:nins, :nins], G[:nins, :dims[1]] = Fi[:nins, :nins], Gi[:nins, :dims[1]]
+            Phi, Qd = np.zeros((n, n)), np.zeros((n, n))
+            discretize(F, G, proc.q, T, Phi, Qd)
+            x_ref = np.zeros(n)
+            predict(x_ref, P_ref, Phi, Qd)
+            np.testing.assert_allclose(em[4], Phi, rtol=1e-13, atol=1e-15)
+            scale = np.sqrt(np.outer(np.diag(P_ref), np.diag(P_ref)))
+            assert np.abs(P - P_ref).max() / scale.max() < 1e-13
+            assert np.all(np.abs(P - P_ref) <= 1e-11 * scale)
+            assert np.array_equal(P, P.T) and not x.any()
+        if nins == 27:  # it can fail: a full row (the clock bias) taken as diagonal
+            P1, P2, x = P.copy(), P.copy(), np.zeros(n)
+            wk, nh = em[12], len(hd)
+            predict_split(x, P1, em[4], em[5], hd, d, wk, f)
+            wk2 = (np.zeros((f - 1, nh)), np.zeros((nh, f - 1)), wk[2], np.zeros((f - 1, n)),
+                   np.zeros((f - 1, nh)), np.zeros((f - 1, f - 1)), wk[6])
+            predict_split(x, P2, em[4], em[5], hd, d, wk2, f - 1)
+            assert (np.abs(P1 - P2) / np.sqrt(np.outer(np.diag(P1), np.diag(P1)))).max() > 1e-3

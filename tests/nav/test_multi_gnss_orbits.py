@@ -8,6 +8,10 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from aidnav.nav.gnss_sat import (
+    E_AF0,
+    E_AF1,
+    E_AF2,
+    E_ECC,
     E_I0,
     E_M0,
     E_OMEGA0,
@@ -23,6 +27,7 @@ from aidnav.nav.gnss_sat import (
     OMEGA_E_BDS,
     OMEGA_E_GLO,
     RE_GLO,
+    eph_clock,
     eph_state,
     glonass_orbit,
     sat_id,
@@ -77,6 +82,18 @@ def _kepler_record(sid, a, inc, om0, m0, toe):
     r[E_PRN], r[E_SQRTA], r[E_I0], r[E_OMEGA0], r[E_M0] = sid, np.sqrt(a), inc, om0, m0
     r[E_TOE] = r[E_TOC] = r[E_TOES] = toe
     return r
+
+
+def test_the_clock_alone_is_eph_states_clock_bit_for_bit():
+    """``eph_clock`` (the transmit-time passes' clock without the orbit, issue 40) returns exactly the
+    dts of ``eph_state`` for a Keplerian record of every system (GPS, Galileo, BeiDou MEO and GEO) with an
+    eccentric orbit, a clock polynomial and its relativistic term, over ±2 h."""
+    for name in ("G05", "E11", "C25", "C03"):
+        rec = _kepler_record(sat_id(name), 26560e3, np.radians(55.0), 0.3, 0.2, 345600.0)
+        rec[E_ECC], rec[E_AF0], rec[E_AF1], rec[E_AF2] = 0.013, 1.7e-4, -3.2e-12, 1e-19
+        for dt in (-7200.0, -0.07, 0.0, 13.7, 7199.0):
+            dts = eph_state(rec, 345600.0 + dt)[2]
+            assert eph_clock(rec, 345600.0 + dt) == dts and abs(dts - 1.7e-4) < 1e-7
 
 
 def test_beidou_geo_record_of_a_geostationary_satellite_stays_put():

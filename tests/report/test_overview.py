@@ -3,6 +3,7 @@ coupled records, the panels and markers of the figure."""
 
 from __future__ import annotations
 
+import os
 import struct
 
 import numpy as np
@@ -166,3 +167,53 @@ def test_primed_skeleton_draws_the_same_png(tmp_path):
     assert fig is not sk.fig
     other = Skeleton(right[:-1])
     assert overview_figure(tr, g, summary, rec, skeleton=other) is not other.fig and not other.used
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="the helper is a forked process")
+def test_overview_drawn_by_two_processes_is_the_one_drawn_whole(tmp_path):
+    """``aidnav process``'s figures' child and its helper each draw half of the panels; the helper's box
+    of painted pixels put into the child's canvas gives the PNG drawn whole, byte for byte (outages, a
+    rejected fix, both NIS panels). Where the halves would meet (the helper given the first and the last
+    panel of the column: its box holds the child's panels), the child draws the figure whole."""
+    import pickle
+
+    from aidnav.apps.overview_helper import DrawingHelper, split_panels
+
+    tr, g, rec = _run()
+    wins = [[g.time[100], g.time[130]]]
+    summary = {"imu": "/x/imu.csv", "gnss": "/x/gnss.pos", "outage_windows": wins}
+    whole = write_overview(tmp_path / "a.png", tr, g, summary, rec).read_bytes()
+    right = panel_names(tr, g, rec)
+    assert split_panels(right) == right[1:]
+    for names, parts in ((None, 2), (["rp", "nis:vel"], 1)):
+        sk = Skeleton(right)
+        sk.prime()
+        helper = DrawingHelper.start(sk, 1, names=names)
+        job = ("job", str(tmp_path), tr, g, summary, rec, False, False)
+        helper.send(pickle.dumps(job), job)
+        try:
+            png = write_overview(tmp_path / "b.png", tr, g, summary, rec, skeleton=sk, draw=helper.draw)
+        finally:
+            helper.end()
+        assert helper.parts == parts
+        assert png.read_bytes() == whole
+    # a helper gone before its job (killed): the child draws the figure whole and writes both maps itself
+    import signal
+
+    from aidnav.report.maps import write_maps
+
+    sk = Skeleton(right)
+    sk.prime()
+    helper = DrawingHelper.start(sk, 1)
+    os.kill(helper.pid, signal.SIGKILL)
+    job = ("job", str(tmp_path / "m"), tr, g, summary, rec, False, True)
+    (tmp_path / "m").mkdir()
+    helper.send(pickle.dumps(job), job)
+    try:
+        png = write_overview(tmp_path / "c.png", tr, g, summary, rec, skeleton=sk, draw=helper.draw)
+        maps = helper.maps()
+    finally:
+        helper.end()
+    assert helper.parts == 1 and png.read_bytes() == whole
+    ref = write_maps(tmp_path / "trajectory", tr, g, summary)  # (the maps' names are the base's)
+    assert [p.read_bytes() for p in (maps["kml"], maps["geojson"])] == [p.read_bytes() for p in ref]

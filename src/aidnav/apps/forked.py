@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import os
 import pickle
+import struct
 import traceback
 
 
@@ -34,6 +35,25 @@ def fork_worker(work):
     return pid, os.fdopen(job_w, "wb"), res_r
 
 
+def frame(msg) -> bytes:
+    """``msg`` pickled as one message of a pipe: its length (8 bytes), then the pickle (a reader can pass
+    the pickle's bytes on as they came: :func:`receive`)."""
+    data = pickle.dumps(msg, protocol=pickle.HIGHEST_PROTOCOL)
+    return struct.pack("<Q", len(data)) + data
+
+
+def receive(f) -> bytes:
+    """The next message's pickle (:func:`frame`) from the binary file ``f``; EOFError at its end."""
+    head = f.read(8)
+    if len(head) < 8:
+        raise EOFError
+    (n,) = struct.unpack("<Q", head)
+    data = f.read(n)
+    if len(data) < n:
+        raise EOFError
+    return data
+
+
 def error_answer(e: BaseException) -> tuple:
     """The answer of a child whose work raised ``e`` (in its ``except`` clause): ``("error", the pickled
     exception, the traceback text)``, the exception None when it does not pickle (its text only);
@@ -56,6 +76,11 @@ def worker_answer(pid: int, res_r: int, missing: str) -> tuple:
     res = pickle.loads(out) if out else None
     if not res:
         raise RuntimeError(f"{missing} (wait status {status})")
+    return checked_answer(res)
+
+
+def checked_answer(res: tuple) -> tuple:
+    """A child's answer (:func:`worker_answer`) as it is where it is ``("ok", …)``; its error raised."""
     if res[0] == "ok":
         return res
     _, exc, tb = res

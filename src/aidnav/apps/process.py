@@ -76,7 +76,8 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
                  progress=None, figures: bool = True, aid_paths=(),
                  kfgins_nav: bool = False, output_rate_hz: float | None = None,
                  vehicle: str | None = None, timings: bool = True, imu_topic: str | None = None,
-                 gnss_topic: str | None = None, gnss_vel_topic: str | None = None) -> dict:
+                 gnss_topic: str | None = None, gnss_vel_topic: str | None = None, started=None,
+                 waiting=None) -> dict:
     """Run the whole ``aidnav process`` job into the directory ``out_dir``; returns the summary dict
     (also written as ``summary.json`` and ``summary.txt`` beside ``trajectory.<fmt>``).
 
@@ -91,7 +92,13 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
     aid_paths : (name, path) of each aid file (``--aid NAME=FILE``; names of
     :data:`aidnav.filters.aids.AIDS`), read by its aid's reader with the settings of its configuration
     section; the summary names each aid's file under the aid's name. imu_topic, gnss_topic,
-    gnss_vel_topic : the topics of ROS bags (``--imu-topic``, ``--gnss-topic``, ``--gnss-vel-topic``)."""
+    gnss_vel_topic : the topics of ROS bags (``--imu-topic``, ``--gnss-topic``, ``--gnss-vel-topic``).
+    started : called once when the filter's run starts (:func:`aidnav.apps.process_stream.run_process`:
+    after the reading, the checks and the first passes); the ``aidnav`` command switches its garbage
+    collector back on there (:func:`aidnav.console_script.resume_collections`). waiting : called while the
+    figures' child draws (:func:`aidnav.apps.run_outputs.write_outputs`); the command makes the console it
+    prints the summary with there (rich's import, ≈ 25 ms, off the path). console : not used (kept for
+    callers that pass one)."""
     from aidnav.apps.run_outputs import (  # lazy: the figures' fork
         SKELETON_MIN_CPUS,
         OutputsProcess,
@@ -137,7 +144,8 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
     try:
         run = run_process(log, gnss, cfg, smooth=smooth, outages=outages, imu_name=str(imu_path),
                           gnss_name=str(gnss_path), skip_checks=skip_checks, start_s=start_s, end_s=end_s,
-                          aids=aids, write=out.write, progress=bar.advance, spool_dir=out_dir)
+                          aids=aids, write=out.write, progress=bar.advance, spool_dir=out_dir,
+                          started=started)
         summary = {"imu": str(imu_path), "gnss": str(gnss_path),
                    **{name: next((a.source for a in aids if a.name == name), None) for name in AIDS},
                    "config": str(config_path) if config_path else None, "output": str(traj_path),
@@ -157,7 +165,8 @@ def process_logs(imu_path, gnss_path, config_path=None, out_dir="out", smooth=Fa
     if not timings:
         del summary["timing_s"]
     if figures:  # overview.png, trajectory.kml / .geojson, run.html
-        write_outputs(figures, out_dir, run.decimated, run.gnss, summary, run.result.records, progress=bar)
+        write_outputs(figures, out_dir, run.decimated, run.gnss, summary, run.result.records, progress=bar,
+                      waiting=waiting)
     common.write_summary_files(out_dir, summary, format_summary(summary))  # last: "status": "complete"
     return summary
 

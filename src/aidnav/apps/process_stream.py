@@ -139,7 +139,7 @@ def _prefix(log: ImuLog, span_s: float) -> ImuData:
 
 def run_process(log: ImuLog, gnss, cfg, smooth=False, outages=None, imu_name="imu", gnss_name="gnss",
                 skip_checks=(), start_s=None, end_s=None, aids=(), write=None, keep: bool = False,
-                progress=None, spool_dir=None, background: bool = True) -> ProcessRun:
+                progress=None, spool_dir=None, background: bool = True, started=None) -> ProcessRun:
     """One ``aidnav process`` run over ``log`` (module doc): ``cfg.imu.time_offset_s`` is added to the IMU
     stamps here, once; ``start_s``/``end_s`` cut both logs (seconds after the first IMU sample); ``write``
     gets each piece of the solution (a :class:`aidnav.data.Trajectory`) in time order; ``keep``: the
@@ -149,7 +149,8 @@ def run_process(log: ImuLog, gnss, cfg, smooth=False, outages=None, imu_name="im
     ``background``: each piece of the solution is converted, checked, scored and written in one
     background thread (:class:`aidnav.io.stream.Background`, at most 2 pieces waiting) while the filter
     runs the next chunk (the engine releases the GIL) — the same pieces in the same order, so the same
-    file and numbers; a failure there is raised here."""
+    file and numbers; a failure there is raised here. ``started``: called once just before the run (after
+    the checks and the first passes; the ``aidnav`` command resumes its garbage collector there)."""
     from aidnav.filters.gnss_errors import (  # lazy: the filters load with the job
         choose_gnss_errors,
         needs_first_pass,
@@ -209,6 +210,8 @@ def run_process(log: ImuLog, gnss, cfg, smooth=False, outages=None, imu_name="im
     if decide_gnss:  # the fixes' σ, white/correlated errors: a first pass's innovations (filters.gnss_errors)
         cfg = choose_gnss_errors(prefix, gnss, cfg, withheld, events, aids)
     del prefix
+    if started is not None:
+        started()
     t0 = _time.perf_counter()
     try:
         res = stream_loose(chain([head], chunks), gnss, cfg, consume if bg is None else bg.put,

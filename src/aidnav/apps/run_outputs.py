@@ -12,7 +12,10 @@ depend on the run's numbers) while the filter runs. After the filter, :func:`wri
 child what the page needs (the decimated trajectory, the
 fixes, the summary, the innovation records: a few MB through a pipe); the child draws ``overview.png``
 and writes ``run.html`` while the parent writes the maps (``trajectory.kml``, ``trajectory.geojson``);
-the parent then waits for the child and raises its error, with the child's traceback as a note. The
+the parent then waits for the child and raises its error, with the child's traceback as a note. On a
+machine with :data:`SPLIT_MIN_CPUS`, the child forks a second drawing process once its skeleton is primed
+(:mod:`aidnav.apps.overview_helper`): after the run the two draw half of the overview each and write the
+maps, and the parent only waits. The
 files are those :func:`aidnav.report.run_page.write_run_outputs` writes in one process (a test compares
 the bytes). Where no fork is possible (another OS, a thread running: a Dask worker, a notebook's kernel),
 everything is drawn in this process after the filter.
@@ -27,7 +30,8 @@ import sys
 import threading
 import weakref
 
-from .forked import error_answer, fork_worker, worker_answer
+from .forked import error_answer, fork_worker, frame, receive, worker_answer
+from .overview_helper import MAPS_BASE, DrawingHelper, split_panels, usable_cpus
 
 __all__ = ["OutputsProcess", "start_outputs", "write_outputs", "expected_panels", "FORK_OUTPUTS",
            "IN_PROCESS"]
@@ -44,6 +48,11 @@ IN_PROCESS = "in-process"
 #: garbage collections: W1 default outputs 1.43 s with it, 1.65 s without; the 60-s log 1.08 vs 1.24 s
 #: (session 10 had set 3 from an idle run where it cost +0.26 s on W1: not reproduced)
 SKELETON_MIN_CPUS = 2
+#: the overview is drawn by two processes (the child and its :class:`~.overview_helper.DrawingHelper`), which
+#: also write the maps, on a machine with at least this many CPUs: W1's first 60 s 0.165 instead of 0.215 s
+#: from the job to the PNG, W1 0.19–0.23 instead of 0.26–0.31 s (a captured job replayed in a primed child,
+#: RT; docs/results.md, issue 41 session 12)
+SPLIT_MIN_CPUS = 2
 
 
 def _warm_up() -> None:
@@ -75,36 +84,56 @@ def _skeleton(panels):
 
 
 def _serve(job_fd: int):
-    """The child's work: warm up, read the expected panels (:meth:`OutputsProcess.expect`, optional) and
-    build their skeleton, then read one job (out_dir, traj, gnss, summary, records) and write the overview,
-    then the page (with the summary that follows the job where the parent sent one: :meth:`OutputsProcess.
-    send`'s ``page_follows``). Returns ("ok", paths), ("error", pickled exception or None, traceback) or
-    None (the parent closed the pipe without a job)."""
+    """The child's work: warm up, read the expected panels (:meth:`OutputsProcess.expect`, optional), build
+    their skeleton and fork its drawing helper, then read one job (out_dir, traj, gnss, summary, records)
+    and write the overview, then the page (with the summary that follows the job where the parent sent
+    one: :meth:`OutputsProcess.send`'s ``page_follows``), and the maps where the job says so. Returns
+    ("ok", paths), ("error", pickled exception or None, traceback) or None (the parent closed the pipe
+    without a job)."""
     try:
         _warm_up()
     except Exception:  # noqa: BLE001  (the same import fails again below, and is reported)
         pass
-    skeleton = None
+    skeleton = helper = None
     with os.fdopen(job_fd, "rb") as f:
         try:
-            msg = pickle.load(f)
-            if msg[0] == _PANELS:
-                skeleton = _skeleton(msg[1])
-                msg = pickle.load(f)
-        except EOFError:
-            return None
-        try:
-            from aidnav.report.run_page import write_run_outputs  # lazy: matplotlib (loaded by the warm-up)
+            try:
+                raw = receive(f)
+                msg = pickle.loads(raw)
+                if msg[0] == _PANELS:
+                    skeleton = _skeleton(msg[1])
+                    helper = DrawingHelper.start(skeleton, SPLIT_MIN_CPUS, f.fileno())
+                    raw = receive(f)
+            except EOFError:
+                return None
+            try:
+                return "ok", _job(f, raw, skeleton, helper)
+            except BaseException as e:  # noqa: BLE001  (raised in the parent)
+                return error_answer(e)
+        finally:
+            if helper is not None:
+                helper.end()
 
-            _, out_dir, traj, gnss, summary, records, page_follows = msg
 
-            def page_summary():  # the summary completed by the parent meanwhile (its timings)
-                return pickle.load(f)[1] if page_follows else summary
+def _job(f, raw: bytes, skeleton, helper) -> dict:
+    """The child's job (:func:`_serve`): the overview (with the helper, where there is one), the page, the
+    maps where the job asks for them. Returns the paths written."""
+    from aidnav.report.run_page import write_run_outputs  # lazy: matplotlib (loaded by the warm-up)
 
-            return "ok", write_run_outputs(out_dir, traj, gnss, summary, records, maps=False,
-                                           skeleton=skeleton, page_summary=page_summary)
-        except BaseException as e:  # noqa: BLE001  (raised in the parent)
-            return error_answer(e)
+    job = pickle.loads(raw)
+    if helper is not None:
+        helper.send(raw, job)
+    _, out_dir, traj, gnss, summary, records, page_follows, maps = job
+
+    def page_summary():  # the summary completed by the parent meanwhile (its timings)
+        return pickle.loads(receive(f))[1] if page_follows else summary
+
+    paths = write_run_outputs(out_dir, traj, gnss, summary, records, maps=maps and helper is None,
+                              skeleton=skeleton, page_summary=page_summary,
+                              draw=None if helper is None else helper.draw)
+    if maps and helper is not None:
+        paths.update(helper.maps())
+    return paths
 
 
 #: the first word of each message to the child: the expected panels (:meth:`OutputsProcess.expect`), the job
@@ -152,6 +181,7 @@ class OutputsProcess:
         self.pid = pid
         self._res_r = res_r
         self._sender = None
+        self.maps_in_child = False  # the maps written by the child and its helper (expect, send)
         self._finalizer = weakref.finalize(self, _end, pid, [self._job_w, res_r])
 
     def expect(self, panels: list[str]) -> None:
@@ -159,8 +189,10 @@ class OutputsProcess:
         skeleton while this process runs the filter. At most once, before :meth:`send`."""
         if self._job_w is None or self._sender is not None:
             raise RuntimeError("OutputsProcess: expect after send")
+        # where the child will have a drawing helper, the two write the maps (the parent only waits)
+        self.maps_in_child = usable_cpus() >= SPLIT_MIN_CPUS and bool(split_panels(panels))
         try:
-            self._job_w.write(pickle.dumps((_PANELS, list(panels))))  # a few bytes: the pipe takes them now
+            self._job_w.write(frame((_PANELS, list(panels))))  # a few bytes: the pipe takes them now
             self._job_w.flush()
         except (BrokenPipeError, OSError):  # the child is gone: its status is reported by result()
             pass
@@ -174,8 +206,7 @@ class OutputsProcess:
             raise RuntimeError("OutputsProcess: send called twice")
         if not page_follows:
             self._job_w = None
-        data = pickle.dumps((_JOB, str(out_dir), traj, gnss, summary, records, page_follows),
-                            protocol=pickle.HIGHEST_PROTOCOL)
+        data = frame((_JOB, str(out_dir), traj, gnss, summary, records, page_follows, self.maps_in_child))
 
         def write():  # in a thread: the child may still be warming up, the maps are written meanwhile
             try:
@@ -197,7 +228,7 @@ class OutputsProcess:
             raise RuntimeError("OutputsProcess: send_page without a job that awaits it")
         self._sender.join()  # the job's bytes first
         try:
-            job_w.write(pickle.dumps((_PAGE, summary), protocol=pickle.HIGHEST_PROTOCOL))
+            job_w.write(frame((_PAGE, summary)))
         except (BrokenPipeError, OSError):  # the child is gone: its status is reported by result()
             pass
         finally:
@@ -235,10 +266,11 @@ def start_outputs(figures=True):
     return figures
 
 
-def write_outputs(figures, out_dir, traj, gnss, summary, records, progress=None) -> dict:
+def write_outputs(figures, out_dir, traj, gnss, summary, records, progress=None, waiting=None) -> dict:
     """Everything a run leaves to look at (:func:`aidnav.report.run_page.write_run_outputs`): by the
     child of ``figures`` (an :class:`OutputsProcess`) with the maps written here meanwhile, or all here
-    (``figures`` True). Returns {"overview", "run_page", "kml", "geojson"} → paths."""
+    (``figures`` True). ``waiting``: called after the maps, while the child still draws (what the caller
+    needs next, made then). Returns {"overview", "run_page", "kml", "geojson"} → paths."""
     if not isinstance(figures, OutputsProcess):
         from aidnav.report.run_page import write_run_outputs  # lazy: pulls in matplotlib
 
@@ -253,10 +285,14 @@ def write_outputs(figures, out_dir, traj, gnss, summary, records, progress=None)
         figures.send_page(summary)
     else:
         figures.send(out_dir, traj, gnss, summary, records)
-    kml, gj = write_maps(Path(out_dir) / "trajectory", traj, gnss, summary)
+    maps = {}
+    if not figures.maps_in_child:
+        maps["kml"], maps["geojson"] = write_maps(Path(out_dir) / MAPS_BASE, traj, gnss, summary)
     if progress is not None:
         progress.advance(1)
+    if waiting is not None:
+        waiting()
     paths = figures.result()
     if progress is not None:
         progress.advance(2)
-    return {**paths, "kml": kml, "geojson": gj}
+    return {**paths, **maps}

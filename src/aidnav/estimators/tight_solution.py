@@ -22,7 +22,8 @@ from aidnav.estimators.dgps import spp_series
 from aidnav.filters.config import UNKNOWN_GRADE_IMU, ImuNoise, LooseConfig
 from aidnav.filters.heading_match import velocity_match_heading
 from aidnav.filters.loose import static_flags
-from aidnav.filters.tight import TightConfig, run_tight
+from aidnav.filters.tight import TightConfig, run_tight, to_trajectory
+from aidnav.filters.wheeled import MEDIAN_DEG, NHC_LEVER_ARM_SIGMA_M, NHC_SIGMA_M_S, wheeled_vehicle
 from aidnav.nav.rotations import wrap_2pi
 from aidnav.units import DEG
 
@@ -46,6 +47,8 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
     from aidnav.filters.preprocess import noise_from_static  # lazy: as the other filter imports here
 
     cfg = cfg or TightConfig()
+    # no constraints section and no vehicle: the NHC is decided from the log (_no_option_nhc)
+    no_option = "constraints" not in cfg.model_fields_set and not cfg.constraints.nhc
     events = events if events is not None else []
     keys = set(UNKNOWN_GRADE_IMU) - {"noise_from_static"}
     if cfg.imu.model_dump(include=keys) == ImuNoise(**UNKNOWN_GRADE_IMU).model_dump(include=keys):
@@ -56,6 +59,7 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
     win = (t_imu >= sp["time"][i0]) & (t_imu < sp["time"][i0] + ini.static_window_s)
     dtw = np.diff(np.concatenate([[imu.t0], imu.time]))[win]
     f = imu.dv[win].sum(axis=0) / dtw.sum()
+    level = (f, _levelling_sigma(imu, win, dtw, f))
     roll = np.arctan2(-f[0], f[2])
     pitch = np.arctan2(f[1], np.hypot(f[0], f[2]))
     wb = _rest_gyro_bias(imu, win)
@@ -90,11 +94,70 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
     rows = cfg.gnss.tdcp_model == "rows"
     dphi = _tdcp_increments(obs, eph, cfg, events) if rows else None
     vfix = None if rows else _tdcp_velocities(imu, obs, eph, sp, cfg, events)
-    res = run_tight(
-        imu, obs, eph, cfg, init_state=init_state, static=static, heading_reset=heading_reset, events=events,
-        smooth=smooth, velocity_fixes=vfix, phase_increments=dphi, cov_times=cov_times,
-    )
-    return res, sp
+
+    def run(c, smooth_it, ev):
+        return run_tight(imu, obs, eph, c, init_state=init_state, static=static, heading_reset=heading_reset,
+                         events=ev, smooth=smooth_it, velocity_fixes=vfix, phase_increments=dphi,
+                         cov_times=cov_times, level=level)
+
+    if not no_option:
+        return run(cfg, smooth, events), sp
+    # the decision on the whole log: the smoothed first pass (its attitude σ is what the log supports; the
+    # forward pass's heading σ stays above the test's 1° through a partial sky)
+    first_events: list = []
+    first = run(cfg, True, first_events)
+    nhc_cfg = _no_option_nhc(first, cfg, sp, events)
+    if nhc_cfg is None and smooth:
+        events.extend(first_events)
+        return first, sp
+    return run(cfg if nhc_cfg is None else nhc_cfg, smooth, events), sp
+
+
+def _no_option_nhc(res, cfg: TightConfig, sp, events: list):
+    """What ``aidnav process`` does with no option (issue 35 item 6,
+    :func:`aidnav.filters.wheeled.no_option_constraint`), on the tight solution ``res`` computed without the
+    NHC (smoothed): a wheeled vehicle (:func:`aidnav.filters.wheeled.wheeled_vehicle`, over the SPP epochs)
+    gets the NHC with the cautious σ of :data:`~aidnav.filters.wheeled.NHC_SIGMA_M_S` and the unknown lever
+    arm's σ. The tight filter has no mounting states (its NHC takes the configured mounting as exact), so the
+    NHC is used only where the log's own axis of motion is the IMU's forward axis (y, RFU) within the test's
+    median bound :data:`~aidnav.filters.wheeled.MEDIAN_DEG`; otherwise it says so. Without the NHC a wheeled
+    vehicle's IMU-to-body rotation (the common part of the sensors' misalignments) is unobservable and its
+    tilt error follows it; with it, the pitch and heading of the IMU against the vehicle are observed. Returns
+    the configuration with the NHC, or None.
+    """
+    tr = to_trajectory(res)
+    d = wheeled_vehicle(tr.time, tr.vel, tr.rph, tr.std_att, sp["time"][np.isfinite(sp["lat"])])
+    if not d["wheeled"]:
+        events.append(f"vehicle from the log: NHC off, {d['reason']}")
+        return None
+    off = float(np.degrees(np.arccos(min(1.0, abs(d["axis"][1])))))
+    if off > MEDIAN_DEG or any(cfg.imu.mounting_rph_deg):
+        events.append(f"vehicle from the log: {d['reason']}, but its axis of motion is {off:.1f} deg off the "
+                      "IMU's forward axis (or a mounting is configured) and the tightly coupled filter has "
+                      "no mounting states: NHC off; give constraints.nhc and imu.mounting_rph_deg to use it")
+        return None
+    con = cfg.constraints.model_copy(update={"nhc": True, "nhc_sigma_m_s": NHC_SIGMA_M_S,
+                                             "nhc_lever_arm_sigma_m": NHC_LEVER_ARM_SIGMA_M})
+    events.append(f"vehicle from the log: {d['reason']}: NHC on with sigma {NHC_SIGMA_M_S:g} m/s (lever arm "
+                  f"sigma {NHC_LEVER_ARM_SIGMA_M:g} m); a constraints section in the configuration decides "
+                  "instead")
+    return cfg.model_copy(update={"constraints": con})
+
+
+def _levelling_sigma(imu, win, dtw, f, block_s: float = 1.0) -> float:
+    """The levelling's own tilt error [rad] (beyond what the accelerometer errors do, which the prior
+    carries: :func:`aidnav.filters.prior.levelled_tilt_covariance`): the standard error of the window's mean
+    specific force, from the scatter of its ``block_s`` means (a still IMU: its noise; a walker or a
+    vibrating car: the motion, correlated within a block, counts), largest horizontal body axis, / g."""
+    t = imu.time[win]
+    blk = np.floor((t - t[0]) / block_s).astype(np.int64)
+    nb = int(blk[-1]) + 1 if t.size else 0
+    if nb < 2:
+        return float(np.radians(2.0))  # no scatter to measure: the field default's attitude σ
+    dv, dt = imu.dv[win], dtw
+    means = np.array([dv[blk == k].sum(axis=0) / dt[blk == k].sum() for k in range(nb) if np.any(blk == k)])
+    se = means.std(axis=0, ddof=1) / np.sqrt(len(means))
+    return float(np.max(se[:2]) / np.linalg.norm(f))
 
 
 def _rest_gyro_bias(imu, win, block_s: float = 1.0, quiet: float = 3.0):

@@ -24,8 +24,9 @@ the full nominal 24-satellite GPS sky elsewhere): the same drive and IMU, raw ps
 :mod:`aidnav.sim.gnss_raw` at 1 Hz (its full error model: orbit, satellite clock, ionosphere with the
 broadcast coefficients in the navigation records, troposphere, multipath, noise; TCXO receiver clock) on
 the GPS time scale, run through :func:`aidnav.estimators.tight_solution.process_tight` (what ``aidnav
-tight`` does: SPP start, static roll/pitch, heading by velocity matching, ZUPTs) with no configuration
-(``none``), a vehicle preset (:func:`aidnav.filters.tight.apply_vehicle`), or through
+tight`` does: SPP start, static roll/pitch, heading by velocity matching, ZUPTs; with no option the
+NHC decided from the log as ``aidnav process`` decides it) with no configuration (``none``), a vehicle
+preset (:func:`aidnav.filters.tight.apply_vehicle`), or through
 :func:`aidnav.filters.tight.run_tight` with the matched IMU model and a perturbed initial state
 (``matched``). Evaluated as the loose cells: every second of the whole run.
 """

@@ -105,60 +105,136 @@ def predict_tail(x, P, Phi, Qd, nd):
 
 
 @njit(cache=True)
+def discretize_sparse(F, G, q, T, Phi, Qd):
+    """:func:`discretize` (the same series: Φ and Qd equal to rounding) with its products taken over F's
+    and G's nonzero entries only: an INS error model's F has ~60 nonzero entries of 17² (the bias rows
+    are diagonal, the clock block 2 × 2) and G ~3 per row, so each product is a few row updates, in loops
+    with no temporaries, instead of five small BLAS calls (issue 40: the tight filter's head at each of
+    the walk's 887 nodes). Which entries are zero is read at each call: any F, G is handled (a dense one
+    at the dense cost)."""
+    n, m = F.shape[0], G.shape[1]
+    cnt, col = np.zeros(n, np.int64), np.empty((n, n), np.int64)  # F's nonzero columns by row
+    FT, FQ, FFQ, FQT, FQFT = F * T, np.zeros((n, n)), np.zeros((n, n)), np.empty((n, n)), np.zeros((n, n))
+    for i in range(n):
+        for k in range(n):
+            if F[i, k] != 0.0:
+                col[i, cnt[i]] = k
+                cnt[i] += 1
+    for i in range(n):
+        for j in range(n):
+            Phi[i, j] = 0.0
+            Qd[i, j] = 0.0
+        for e in range(cnt[i]):  # Φ's row first holds (F T)² …
+            k = col[i, e]
+            f = FT[i, k]
+            for j in range(n):
+                Phi[i, j] += f * FT[k, j]
+        for c in range(m):  # … and Qd's Q = G diag(q) Gᵀ
+            g = G[i, c] * q[c]
+            if g != 0.0:
+                for j in range(n):
+                    Qd[i, j] += g * G[j, c]
+    for i in range(n):  # Φ = I + F T + (F T)²/2
+        for j in range(n):
+            Phi[i, j] = Phi[i, j] * 0.5 + FT[i, j]
+        Phi[i, i] += 1.0
+    for i in range(n):  # F Q
+        for e in range(cnt[i]):
+            k = col[i, e]
+            f = F[i, k]
+            for j in range(n):
+                FQ[i, j] += f * Qd[k, j]
+    for i in range(n):
+        for j in range(n):
+            FQT[i, j] = FQ[j, i]
+    for i in range(n):  # F (F Q), and F (F Q)ᵀ = (F Q Fᵀ)ᵀ in FQFT
+        for e in range(cnt[i]):
+            k = col[i, e]
+            f = F[i, k]
+            for j in range(n):
+                FFQ[i, j] += f * FQ[k, j]
+                FQFT[i, j] += f * FQT[k, j]
+    # Qd = Q T + (FQ + QFᵀ) T²/2 + (F²Q + 2 F Q Fᵀ + Q F²ᵀ) T³/6
+    c2, c3 = 0.5 * T * T, T * T * T / 6.0
+    for i in range(n):
+        for j in range(n):
+            Qd[i, j] = (Qd[i, j] * T + (FQ[i, j] + FQT[i, j]) * c2
+                        + (FFQ[i, j] + FFQ[j, i] + 2.0 * FQFT[j, i]) * c3)
+
+
+@njit(cache=True)
 def discretize_split(Fd, Fdc, Gd, q, T, Phd, Phdc, Qdd):
     """:func:`discretize` of a head whose constant states (a zero row of F and no noise: Φ row eᵢ, Qd row 0;
     sensor scale factors and misalignments without process noise) are left out of the series. ``Fd``
     (d×d), ``Gd`` (d×m): F and G of the d states with dynamics; ``Fdc`` (d×c): their coupling to the c
     constant states. Fills Φ_DD, Qd_DD (``Phd``, ``Qdd``: the full series' blocks, since F's constant rows
-    are zero) and Φ_DC = F_DC T + F_DD F_DC T²/2 (``Phdc``)."""
-    discretize(Fd, Gd, q, T, Phd, Qdd)
-    if Fdc.shape[1] == 0:
+    are zero; :func:`discretize_sparse`) and Φ_DC = F_DC T + F_DD F_DC T²/2 (``Phdc``, over F_DD's nonzero
+    entries)."""
+    discretize_sparse(Fd, Gd, q, T, Phd, Qdd)
+    d, c = Fdc.shape
+    if c == 0:
         return
-    FT = Fd * T
     FcT = Fdc * T
-    np.dot(FT, FcT, Phdc)
-    Phdc *= 0.5
-    Phdc += FcT
+    for a in range(d):
+        for e in range(c):
+            Phdc[a, e] = 0.0
+        for k in range(d):
+            f = Fd[a, k] * T
+            if f != 0.0:
+                for e in range(c):
+                    Phdc[a, e] += f * FcT[k, e]
+        for e in range(c):
+            Phdc[a, e] = Phdc[a, e] * 0.5 + FcT[a, e]
 
 
 @njit(cache=True)
-def predict_split(x, P, Phi, Qd, hd, d, wk):
+def predict_split(x, P, Phi, Qd, hd, d, wk, f=-1):
     """:func:`predict_tail` for a head whose constant states are kept out of the matrix products. The head
-    is the first ``nd`` = len(``hd``) states, ``hd`` its order: the d states with dynamics first, then the
-    constant ones (Φ row eᵢ, Qd row and column 0); the states from nd on are the diagonal tail. With
-    R = Φ_D· P (the D rows of Φ P, every column): P_DD ← R_D,head Φ_D,headᵀ + Qd_DD (symmetrised as
-    :func:`predict`), P_DC ← R_DC, P_Dt ← R_Dt D, P_CC unchanged, P_Ct ← P_Ct D, P_tt ← D P_tt D + Qd_tt.
-    Same result as :func:`predict` with the full Φ (to rounding); the constant rows of Φ and off-block
-    entries are not read. ``wk``: work arrays (Φ_D,head (d×nd), its transpose, P's head rows in ``hd``
-    order (nd×n), R (d×n), R's head columns (d×nd), the DD product (d×d), x's head (nd,))."""
-    Phr, PhrT, Pg, R, Rh, A, xh = wk
+    is the first ``nd`` = len(``hd``) states, ``hd`` its order: the d states with dynamics first — of them
+    the first ``f`` (< 0: all d) with a full Φ row, then the diagonal ones (Φ's only nonzero entry in the
+    head on the diagonal: Gauss–Markov or random-walk sensor biases, the clock drift) — then the constant
+    ones (Φ row eᵢ, Qd row and column 0); the states from nd on are the diagonal tail. With
+    R = Φ_F· P (the F rows of Φ P, every column) and φ the diagonal rows' Φ: P_FF ← R_F,head Φ_F,headᵀ +
+    Qd_FF (symmetrised as :func:`predict`), P_FG ← R_FG φ_G + Qd_FG, P_GG ← φ P_GG φ + Qd_GG, P_FC ← R_FC,
+    P_GC ← φ P_GC, P_Ft ← R_Ft D, P_Gt ← φ P_Gt D, P_CC unchanged, P_Ct ← P_Ct D, P_tt ← D P_tt D + Qd_tt.
+    Same result as :func:`predict` with the full Φ (to rounding); the constant rows of Φ, the diagonal
+    rows' off-diagonal entries and off-block entries are not read. ``wk``: work arrays (Φ_F,head (f×nd,
+    columns in P's order), its transpose, an unused (nd×n) array, R (f×n), R's head columns (f×nd), the FF
+    product (f×f), Φ_F,head x (≥ f,))."""
+    Phr, PhrT, _, R, Rh, A, xh = wk
     n, nd = P.shape[0], hd.shape[0]
-    for a in range(d):
+    f = d if f < 0 else f
+    for a in range(f):  # Φ_F,head with the head's columns in P's order (P's first nd rows need no copy)
         for b in range(nd):
-            v = Phi[hd[a], hd[b]]
+            v = Phi[hd[a], b]
             Phr[a, b] = v
             PhrT[b, a] = v
-    for b in range(nd):
-        xh[b] = x[hd[b]]
-        for j in range(n):
-            Pg[b, j] = P[hd[b], j]
-    for a in range(d):
+    for a in range(f):
         s = 0.0
         for b in range(nd):
-            s += Phr[a, b] * xh[b]
-        x[hd[a]] = s
+            s += Phr[a, b] * x[b]
+        xh[a] = s
+    for a in range(f):
+        x[hd[a]] = xh[a]
+    for a in range(f, d):
+        x[hd[a]] *= Phi[hd[a], hd[a]]
     for i in range(nd, n):
         x[i] *= Phi[i, i]
-    np.dot(Phr, Pg, R)  # (d, n)
-    for a in range(d):
+    np.dot(Phr, P[:nd], R)  # (f, n)
+    for a in range(f):
         for b in range(nd):
-            Rh[a, b] = R[a, hd[b]]
-    np.dot(Rh, PhrT, A)  # (d, d)
-    for a in range(d):
+            Rh[a, b] = R[a, b]
+    np.dot(Rh, PhrT, A)  # (f, f)
+    for a in range(f):
         ia = hd[a]
-        for b in range(a, d):
+        for b in range(a, f):
             ib = hd[b]
             v = ((A[a, b] + Qd[ia, ib]) + (A[b, a] + Qd[ib, ia])) * 0.5
+            P[ia, ib] = v
+            P[ib, ia] = v
+        for b in range(f, d):
+            ib = hd[b]
+            v = R[a, ib] * Phi[ib, ib] + (Qd[ia, ib] + Qd[ib, ia]) * 0.5
             P[ia, ib] = v
             P[ib, ia] = v
         for e in range(d, nd):
@@ -168,6 +244,23 @@ def predict_split(x, P, Phi, Qd, hd, d, wk):
             P[ie, ia] = v
         for j in range(nd, n):
             v = R[a, j] * Phi[j, j]
+            P[ia, j] = v
+            P[j, ia] = v
+    for a in range(f, d):  # the diagonal rows: entries the loop above did not write, each read before written
+        ia = hd[a]
+        pa = Phi[ia, ia]
+        for b in range(a, d):
+            ib = hd[b]
+            v = pa * P[ia, ib] * Phi[ib, ib] + (Qd[ia, ib] + Qd[ib, ia]) * 0.5
+            P[ia, ib] = v
+            P[ib, ia] = v
+        for e in range(d, nd):
+            ie = hd[e]
+            v = pa * P[ia, ie]
+            P[ia, ie] = v
+            P[ie, ia] = v
+        for j in range(nd, n):
+            v = pa * P[ia, j] * Phi[j, j]
             P[ia, j] = v
             P[j, ia] = v
     for e in range(d, nd):

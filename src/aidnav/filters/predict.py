@@ -7,7 +7,10 @@ range errors, discretised and predicted as scalars, :func:`.kalman.discretize_ta
 :func:`.kalman.predict_tail`) and the head's constant states (a zero F row and no noise: scale factors and
 misalignments of a model without their process noise, :func:`head_split`), which stay out of the series
 and the products (:func:`discretize_head`, :func:`.kalman.discretize_split`, :func:`.kalman.predict_split`:
-Φ's rows there are eᵢ). :func:`predict_node` is the predict over the interval that ends at a node,
+Φ's rows there are eᵢ); the head's series runs over F's nonzero entries (:func:`.kalman.discretize_sparse`)
+and its diagonal rows (a bias's Gauss–Markov or random-walk row, the clock drift: :func:`diagonal_last`)
+are scaled in the predict, not multiplied (issue 40). :func:`predict_node` is the predict over the
+interval that ends at a node,
 inlined in :func:`.engine.run_chunk`; :func:`exact_blocks` replaces the series by the exact Φ, Qd of
 Gauss–Markov blocks (transfer alignment's flexure). The engine (:mod:`.engine`) owns the node loop, the
 updates and the feedback; this module only the propagation of P.
@@ -21,7 +24,15 @@ from aidnav.jit import njit
 from aidnav.models.distributed_pos import flexure_transition
 
 from .ins_errors import fill_model, interval_model, model_arrays
-from .kalman import discretize, discretize_split, discretize_tail, predict, predict_split, predict_tail
+from .kalman import (
+    discretize,
+    discretize_sparse,
+    discretize_split,
+    discretize_tail,
+    predict,
+    predict_split,
+    predict_tail,
+)
 from .layout import L_CLK
 
 
@@ -62,6 +73,23 @@ def head_split(F, G, q, nd):
 
 
 @njit(cache=True)
+def diagonal_last(F, hd, d):
+    """The head's order ``hd`` (:func:`head_split`) with its d states with dynamics reordered: those with
+    a full F row first, then the diagonal ones (F's only nonzero entry in the row on the diagonal, so
+    Φ's too: sensor biases as Gauss–Markov processes or random walks, a clock drift), for
+    :func:`.kalman.predict_split`. Returns (order, number of full rows f)."""
+    diag = np.zeros(d, np.bool_)
+    for a in range(d):
+        ia = hd[a]
+        diag[a] = True
+        for j in range(F.shape[1]):
+            if j != ia and F[ia, j] != 0.0:
+                diag[a] = False
+    out = np.concatenate((hd[:d][~diag], hd[:d][diag], hd[d:])).astype(np.int64)
+    return out, d - int(diag.sum())
+
+
+@njit(cache=True)
 def error_model(lay, proc, nfull, mins, naux, n, nins, nsub):
     """The error model's arrays of a chunk: F, G of the full INS layout (``Fi``, ``Gi``) and of the filter
     (``F``, ``G`` with the calibration states' Gauss–Markov or random-walk rows and the clock), Φ and Qd,
@@ -95,6 +123,7 @@ def error_model(lay, proc, nfull, mins, naux, n, nins, nsub):
         Fh[:nins, :nins] = Fi[:nins, :nins]
         Gh[:nins, :mins] = Gi[:nins, :mins]
     hd, d = head_split(Fh, Gh, qh, nh)
+    hd, f = diagonal_last(Fh, hd, d)
     for e in range(d, nh):
         Phi[hd[e], hd[e]] = 1.0
     qt = np.zeros(n)
@@ -102,9 +131,9 @@ def error_model(lay, proc, nfull, mins, naux, n, nins, nsub):
         for c in range(G.shape[1]):
             qt[i] += G[i, c] * G[i, c] * proc.q[c]
     sp = (hd, d, np.zeros((d, d)), np.zeros((d, nh - d)), np.zeros((d, mh)), np.zeros((d, d)),
-          np.zeros((d, nh - d)), np.zeros((d, d)))  # order, d, F_DD, F_DC, G_D, Φ_DD, Φ_DC, Qd_DD
-    wk = (np.zeros((d, nh)), np.zeros((nh, d)), np.zeros((nh, n)), np.zeros((d, n)), np.zeros((d, nh)),
-          np.zeros((d, d)), np.zeros(nh))
+          np.zeros((d, nh - d)), np.zeros((d, d)), f)  # order, d, F_DD, F_DC, G_D, Φ_DD, Φ_DC, Qd_DD, f
+    wk = (np.zeros((f, nh)), np.zeros((nh, f)), np.zeros((nh, n)), np.zeros((f, n)), np.zeros((f, nh)),
+          np.zeros((f, f)), np.zeros(nh))
     return Fi, Gi, F, G, Phi, Qd, nd, Fh, Gh, qh, qt, sp, wk
 
 
@@ -121,21 +150,21 @@ def predict_node(st, acc, x, P, T, proc, em, dims):
     sub = proc.sub
     n, nsub = P.shape[0], sub.shape[0]
     wb = interval_model(Fi, Gi, st, acc, proc.tau[0], proc.tau[1], proc.tau[2], proc.tau[3])
-    if nsub:
-        for i in range(n):
-            F[i, :], G[i, :] = Fi[sub[i]][sub], Gi[sub[i], :mins]
-    else:
-        F[:nins, :nins] = Fi[:nins, :nins]
-        G[:nins, :mins] = Gi[:nins, :mins]
     x[:] = 0.0
-    if nd < n:
+    if nd < n:  # (F's INS block is not read here: discretize_head takes Fi, discretize_tail F's tail)
         discretize_head(Fi, Gi, Fh, Gh, qh, T, Phi, Qd, sp, (nins, mins))
         discretize_tail(F, qt, T, Phi, Qd, nd)
         if sp[1] < nd:  # constant states in the head
-            predict_split(x, P, Phi, Qd, sp[0], sp[1], wk)
+            predict_split(x, P, Phi, Qd, sp[0], sp[1], wk, sp[8])
         else:  # (the same numbers; fewer index look-ups)
             predict_tail(x, P, Phi, Qd, nd)
     else:
+        if nsub:
+            for i in range(n):
+                F[i, :], G[i, :] = Fi[sub[i]][sub], Gi[sub[i], :mins]
+        else:
+            F[:nins, :nins] = Fi[:nins, :nins]
+            G[:nins, :mins] = Gi[:nins, :mins]
         discretize(F, G, proc.q, T, Phi, Qd)
         exact_blocks(Phi, Qd, proc.gm, T)
         predict(x, P, Phi, Qd)
@@ -148,23 +177,33 @@ def discretize_head(Fi, Gi, Fh, Gh, qh, T, Phi, Qd, sp, dims):
     interval: the states with dynamics by the series, their coupling into the constant states
     (:func:`.kalman.discretize_split`), written into Φ's and Qd's rows of those states."""
     nins, mins = dims
-    hd, d, Fd, Fdc, Gd, Phd, Phdc, Qdd = sp
-    Fh[:nins, :nins] = Fi[:nins, :nins]
-    Gh[:nins, :mins] = Gi[:nins, :mins]
+    hd, d, Fd, Fdc, Gd, Phd, Phdc, Qdd, _ = sp
     nc = hd.shape[0] - d
     if nc == 0:  # no constant state: the head as it is
-        discretize(Fh, Gh, qh, T, Phd, Qdd)
+        Fh[:nins, :nins] = Fi[:nins, :nins]
+        Gh[:nins, :mins] = Gi[:nins, :mins]
+        discretize_sparse(Fh, Gh, qh, T, Phd, Qdd)
         Phi[:d, :d] = Phd
         Qd[:d, :d] = Qdd
         return
-    for a in range(d):
+    for a in range(d):  # the INS rows from Fi, Gi (the interval's), the others' constant rows from Fh, Gh
         ia = hd[a]
-        for b in range(d):
-            Fd[a, b] = Fh[ia, hd[b]]
-        for e in range(nc):
-            Fdc[a, e] = Fh[ia, hd[d + e]]
-        for c in range(Gh.shape[1]):
-            Gd[a, c] = Gh[ia, c]
+        if ia < nins:
+            for b in range(d):
+                ib = hd[b]
+                Fd[a, b] = Fi[ia, ib] if ib < nins else 0.0
+            for e in range(nc):
+                ie = hd[d + e]
+                Fdc[a, e] = Fi[ia, ie] if ie < nins else 0.0
+            for c in range(Gh.shape[1]):
+                Gd[a, c] = Gi[ia, c] if c < mins else 0.0
+        else:
+            for b in range(d):
+                Fd[a, b] = Fh[ia, hd[b]]
+            for e in range(nc):
+                Fdc[a, e] = Fh[ia, hd[d + e]]
+            for c in range(Gh.shape[1]):
+                Gd[a, c] = Gh[ia, c]
     discretize_split(Fd, Fdc, Gd, qh, T, Phd, Phdc, Qdd)
     for a in range(d):
         ia = hd[a]

@@ -21,6 +21,7 @@ import numpy as np
 from aidnav.nav.earth import radii
 from aidnav.units import DEG, DEG_H, UG
 
+from .ins_errors import MIS_IN, MIS_OUT
 from .layout import (
     BA,
     BG,
@@ -41,7 +42,7 @@ from .layout import (
 )
 
 __all__ = ["markov_psd", "ins_psd", "ins_p0_diag", "process_noise", "initial_covariance",
-           "calibration_prior", "given_initial_state"]
+           "calibration_prior", "given_initial_state", "levelled_tilt_covariance"]
 
 
 def markov_psd(sigma: float, tau: float, rw: float = 0.0) -> float:
@@ -170,3 +171,40 @@ def given_initial_state(ini, who: str):
         raise ValueError(f"{who} needs init.mode = given with init.{', init.'.join(missing)}")
     return (ini.lat_deg * DEG, ini.lon_deg * DEG, ini.height_m, np.array(ini.velocity_m_s, float),
             np.array([ini.roll_deg, ini.pitch_deg, ini.heading_deg]) * DEG)
+
+
+def levelled_tilt_covariance(P: np.ndarray, nins: int, fb, cbn, sigma_w) -> np.ndarray:
+    """``P`` (n×n, INS block first) with the tilt rows of a static coarse alignment (levelling: roll and
+    pitch from the mean specific force ``fb`` (3,) [m/s²] in the body, attitude ``cbn`` = C_b^n at the
+    start). The levelling puts the measured specific force on the vertical, so its tilt error is what the
+    accelerometer errors do to that force (issue 35/40): with δf = ∇ + diag(f^b)·s_a + M_a·f^b (the residual
+    states of :mod:`.ins_errors`, whichever the block has: bias ≥ 15, scale factors ≥ 21, misalignment 33)
+    and φ as computed − true, C_b^n(computed) f̃^b vertical gives g·φ_N = (C δf)_E, g·φ_E = −(C δf)_N. So
+    φ_EN = A·x + w: the tilt's variance A P Aᵀ + σ_w², its covariance with every state A·P (the sensor
+    states' prior holds what they are), ``sigma_w`` (scalar or (2,)) [rad] the levelling's own error (the
+    mean force's standard error / g). An independent tilt σ instead (``init.attitude_sigma_deg``) claims
+    the tilt and the accelerometer errors unrelated, i.e. a start tilt that carries information of its own
+    (on the consistency matrix's consumer IMU a small effect: results.md, n35t). Returns a new array; φ_U
+    untouched."""
+    P = np.array(P, float, copy=True)
+    n = P.shape[0]
+    fb = np.asarray(fb, float)
+    J = np.zeros((3, n))
+    if nins >= 15:
+        J[:, BA:BA + 3] = np.eye(3)
+    if nins >= 21:
+        J[[0, 1, 2], [SA, SA + 1, SA + 2]] = fb
+    if nins >= 33:
+        for k in range(6):
+            J[MIS_OUT[k], MA + k] = fb[MIS_IN[k]]
+    cj = np.asarray(cbn, float) @ J / np.linalg.norm(fb)
+    A = np.vstack([-cj[1], cj[0]])  # rows φ_E, φ_N
+    t = [PHI, PHI + 1]
+    P[t, :] = 0.0
+    P[:, t] = 0.0
+    X = A @ P
+    P[t, :] = X
+    P[:, t] = X.T
+    sw = np.broadcast_to(np.asarray(sigma_w, float), (2,))
+    P[np.ix_(t, t)] = A @ P @ A.T + np.diag(sw ** 2)
+    return P

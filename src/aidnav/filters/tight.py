@@ -66,7 +66,7 @@ from aidnav.nav.gnss_sat import (
     klobuchar_coefficients,
     satellite_states_epochs,
 )
-from aidnav.nav.rotations import quat_from_euler
+from aidnav.nav.rotations import dcm_from_euler, quat_from_euler
 from aidnav.units import DEG
 
 from . import measurements as ms
@@ -78,7 +78,7 @@ from .layout import L_CLK, L_ISB, L_N, L_NINS, L_RERR, L_SIZE, L_TDCP
 from .loose import LooseResult, bridge_gaps
 from .loose import to_trajectory as nav_trajectory
 from .measurements import epoch as ep
-from .prior import given_initial_state, initial_covariance, process_noise
+from .prior import given_initial_state, initial_covariance, levelled_tilt_covariance, process_noise
 from .run_log import log_dict
 from .smoother import rts, smooth_outputs
 
@@ -393,8 +393,8 @@ def _satellite_arrays(obs, eph, use_tgd, max_age):
 
 def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, static=None, heading_reset=None,
               events: list | None = None, output_rate_hz: float | None = None,
-              smooth: bool = False, velocity_fixes=None, cov_times=None, phase_increments=None
-              ) -> TightResult:
+              smooth: bool = False, velocity_fixes=None, cov_times=None, phase_increments=None,
+              level=None) -> TightResult:
     """Tightly coupled GNSS/INS over whole logs.
 
     imu : :class:`aidnav.data.ImuData` (increments, body RFU; time on the GNSS scale: GPS seconds on the
@@ -414,6 +414,9 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     smooth : also run the RTS smoother (``state``, ``clock``, ``pdiag`` are then the smoothed ones).
     cov_times : optional times [s] at which to keep the full forward covariance (``cov_time``, ``cov``:
     the first IMU sample at or after each; outside the processed span dropped).
+    level : optional (f^b (3,) [m/s²], σ_w [rad]) when ``init_state``'s roll and pitch come from levelling
+    on that mean specific force: the start tilt is then correlated with the accelerometer states
+    (:func:`.prior.levelled_tilt_covariance`) instead of ``init.attitude_sigma_deg``'s independent σ.
     """
     cfg = cfg or TightConfig()
     events = events if events is not None else []
@@ -436,6 +439,8 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     lay = tight_layout(cfg.states, nr, nb, nnav, nc > 0)
     n = int(lay[L_N])
     P0 = _initial_P(cfg, lat0, h0, np.array(cfg.init.attitude_sigma_deg) * DEG, nr, nb, nc)
+    if level is not None and nnav >= 15:
+        P0 = levelled_tilt_covariance(P0, nnav, level[0], dcm_from_euler(*rph0), level[1])
     M, S = obs.code1.shape
     rec, sel = _records(obs.time, rows.reshape(M, S * ep.E_W), velocity_fixes, S)
     if velocity_fixes is not None:

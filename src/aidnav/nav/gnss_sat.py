@@ -155,6 +155,31 @@ def eph_state(eph, t):
 
 
 @njit(cache=True)
+def eph_clock(eph, t):
+    """dts [s] of :func:`eph_state` (the same arithmetic, so the same bits) without the orbit where the
+    record is Keplerian (GPS, Galileo, BeiDou MEO/IGSO: E_k only); the others through :func:`eph_state`.
+    The transmit-time passes of :func:`sat_from_pseudorange` need only the clock."""
+    sys, prn = int(eph[E_PRN]) // 100, int(eph[E_PRN]) % 100
+    if sys == SYS_GLO or sys == SYS_SBS or (sys == SYS_BDS and (prn <= 5 or prn >= 59)):
+        return eph_state(eph, t)[2]
+    if sys == SYS_BDS:
+        gm, f_rel = GM_BDS, -2.0 * np.sqrt(GM_BDS) / (C_LIGHT * C_LIGHT)
+    elif sys == SYS_GAL:
+        gm, f_rel = GM_GAL, -2.0 * np.sqrt(GM_GAL) / (C_LIGHT * C_LIGHT)
+    else:
+        gm, f_rel = GM_GPS, F_REL
+    a = eph[E_SQRTA] ** 2  # as _kepler_state
+    ecc = eph[E_ECC]
+    n0 = np.sqrt(gm / (a * a * a))
+    tk = t - eph[E_TOE]
+    n = n0 + eph[E_DN]
+    mk = eph[E_M0] + n * tk
+    se = np.sin(eccentric_anomaly(mk, ecc))
+    dt = t - eph[E_TOC]
+    return eph[E_AF0] + eph[E_AF1] * dt + eph[E_AF2] * dt * dt + f_rel * ecc * eph[E_SQRTA] * se
+
+
+@njit(cache=True)
 def eccentric_anomaly(mk, ecc):
     """Kepler's equation E − e sin E = M solved for the eccentric anomaly E [rad] by Newton's iteration from
     E = M (at most 30 steps, until a step is below 1e-14 rad), for mean anomaly ``mk`` [rad] and
@@ -311,8 +336,7 @@ def sat_from_pseudorange(eph, t_rx, pr, use_tgd):
     t_sv = t_rx - pr / C_LIGHT
     t = t_sv
     for _ in range(2):
-        _, _, dts, _ = eph_state(eph, t)
-        t = t_sv - dts
+        t = t_sv - eph_clock(eph, t)
     pos, vel, dts, ddts = eph_state(eph, t)
     if use_tgd:
         dts -= eph[E_TGD]
@@ -549,6 +573,7 @@ __all__ = [
     "N_EPH",
     "EPH_COLUMNS",
     "eph_state",
+    "eph_clock",
     "sat_from_pseudorange",
     "geo_range",
     "geo_range_rate",
@@ -614,12 +639,17 @@ def satellite_states_epochs(eph_table, prns, t_rx, pr, use_tgd, max_age):
     m, s = pr.shape
     pos, vel = np.full((m, s, 3), np.nan), np.full((m, s, 3), np.nan)
     clk, clk_rate, ura = np.full((m, s), np.nan), np.full((m, s), np.nan), np.full((m, s), np.nan)
-    for k in range(m):
-        pos[k], vel[k], clk[k], clk_rate[k] = satellite_states(eph_table, prns, t_rx[k], pr[k], use_tgd,
-                                                               max_age)
+    for k in range(m):  # satellite_states' loop, written into the epoch's rows (no per-epoch arrays)
         for j in range(s):
-            if np.isfinite(pos[k, j, 0]):
-                ura[k, j] = eph_table[select_ephemeris(eph_table, prns[j], t_rx[k], max_age), E_URA]
+            if not np.isfinite(pr[k, j]):
+                continue
+            i = select_ephemeris(eph_table, prns[j], t_rx[k], max_age)
+            if i < 0:
+                continue
+            p, v, dts, ddts = sat_from_pseudorange(eph_table[i], t_rx[k], pr[k, j], use_tgd)
+            pos[k, j], vel[k, j] = p, v
+            clk[k, j], clk_rate[k, j] = dts * C_LIGHT, ddts * C_LIGHT
+            ura[k, j] = eph_table[i, E_URA]
     return pos, vel, clk, clk_rate, ura
 
 

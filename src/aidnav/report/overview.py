@@ -35,7 +35,7 @@ from aidnav.nav.plain import lla_to_enu, wrap_360  # numpy: the figures' child r
 from .maps import fix_groups
 
 __all__ = ["write_overview", "overview_figure", "nis_series", "tight_records", "NIS_NAMES", "Skeleton",
-           "panel_names"]
+           "panel_names", "draw_panels", "painted_box", "figure_key", "save_png"]
 
 #: Panel names of the usual measurement types.
 NIS_NAMES = {"pos": "GNSS position", "vel": "GNSS velocity", "pr": "pseudorange", "rate": "range rate"}
@@ -374,16 +374,55 @@ def _nis_panel(ax, s: dict, t0: float) -> None:
     ax.legend(loc="upper right", fontsize=7, ncol=2)
 
 
+def draw_panels(fig: Figure, axes: list, title: bool) -> np.ndarray:
+    """Draw only ``axes`` of ``fig`` (the others hidden) and, with ``title``, its title into its canvas;
+    returns the canvas's pixels, one ``uint32`` (RGBA) per pixel, rows from the top (a view)."""
+    for ax in fig.axes:
+        ax.set_visible(any(ax is a for a in axes))
+    if not title:
+        fig.suptitle("")
+    fig.canvas.draw()
+    return np.asarray(fig.canvas.buffer_rgba()).view(np.uint32)[..., 0]
+
+
+def painted_box(px: np.ndarray) -> tuple[int, int, int, int] | None:
+    """(first row, end row, first column, end column) of the pixels of ``px`` (:func:`draw_panels`) that are
+    not the white background; None when all are."""
+    ink = px != np.uint32(0xFFFFFFFF)
+    rows, cols = np.flatnonzero(ink.any(axis=1)), np.flatnonzero(ink.any(axis=0))
+    if not len(rows):
+        return None
+    return int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1
+
+
+def figure_key(fig: Figure) -> tuple:
+    """What two drawing processes compare before their pixels are put together: every axes' limits and the
+    figure's title (the same job and skeleton give the same figure; a difference means another one)."""
+    return tuple(ax.get_xlim() + ax.get_ylim() for ax in fig.axes) + (fig.get_suptitle(),)
+
+
+def save_png(fig: Figure, path) -> None:
+    """The canvas of ``fig``, already drawn, written as ``fig.savefig(path, format="png")`` at the figure's
+    dpi writes it after its own draw (matplotlib's PNG writer, the same metadata and zlib level): the same
+    bytes (tested)."""
+    from matplotlib.image import imsave  # lazy: matplotlib's PNG writer (loaded with the figure)
+
+    imsave(path, fig.canvas.buffer_rgba(), format="png", origin="upper", dpi=fig.dpi,
+           pil_kwargs={"compress_level": PNG_COMPRESS_LEVEL})
+
+
 def write_overview(path, traj: Trajectory, gnss: GnssData | None = None, summary: dict | None = None,
                    records: dict | None = None, title: str | None = None, dpi: int = 100,
-                   skeleton: Skeleton | None = None) -> Path:
+                   skeleton: Skeleton | None = None, draw=None) -> Path:
     """Write ``overview.png`` (see the module docstring) to ``path`` and return the path.
 
     traj : the solution; gnss : the GNSS fixes used (antenna positions); summary : the dict of
     :func:`aidnav.apps.process.process_logs` (outage windows, rejected fix times, input names); records :
     innovation records (``res.records`` of ``run_loose``, or :func:`tight_records`); dpi : 100 gives a
     1400-px-wide image; skeleton : a :class:`Skeleton` built beforehand (used when its panels are this
-    run's).
+    run's); draw : called with the figure to draw it into its canvas (the figures' child of ``aidnav
+    process`` draws it with a second process: :mod:`aidnav.apps.run_outputs`), a PNG at the figure's dpi
+    only; the canvas is then written by :func:`save_png`.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -391,5 +430,9 @@ def write_overview(path, traj: Trajectory, gnss: GnssData | None = None, summary
     fmt = path.suffix.lstrip(".") or "png"
     png = {"pil_kwargs": {"compress_level": PNG_COMPRESS_LEVEL}} if fmt == "png" else {}
     with replacing(path) as tmp:  # under a temporary name until complete
-        fig.savefig(tmp, dpi=dpi, format=fmt, **png)
+        if draw is not None and fmt == "png" and dpi == fig.dpi:
+            draw(fig)
+            save_png(fig, tmp)
+        else:
+            fig.savefig(tmp, dpi=dpi, format=fmt, **png)
     return path

@@ -313,7 +313,7 @@ def write_run_page(path, summary: dict, figures=(), title: str | None = None) ->
 
 def write_run_outputs(out_dir, traj, gnss=None, summary: dict | None = None, records: dict | None = None,
                       figures=(), maps: bool = True, base: str = "trajectory", progress=None,
-                      skeleton=None, page_summary=None) -> dict:
+                      skeleton=None, page_summary=None, draw=None) -> dict:
     """Everything a run leaves to look at, in ``out_dir``: ``overview.png``
     (:func:`aidnav.report.overview.write_overview`), ``<base>.kml`` and ``<base>.geojson``
     (:func:`aidnav.report.maps.write_maps`, when ``maps``) and ``run.html`` embedding the overview
@@ -321,7 +321,8 @@ def write_run_outputs(out_dir, traj, gnss=None, summary: dict | None = None, rec
     "figures and maps", 3 steps); skeleton : the overview's :class:`aidnav.report.overview.Skeleton`, built
     beforehand; page_summary : called once the overview and maps are written, it returns the summary of
     the page (the figure's ``summary`` completed meanwhile: ``aidnav process``'s figures' child draws the
-    overview while its parent closes the trajectory file and times it). Returns {"overview", "run_page",
+    overview while its parent closes the trajectory file and times it); draw : how the overview is drawn
+    (:func:`aidnav.report.overview.write_overview`'s ``draw``). Returns {"overview", "run_page",
     "kml", "geojson"} → paths."""
     from .overview import write_overview  # lazy: pulls in matplotlib, scipy
 
@@ -331,7 +332,7 @@ def write_run_outputs(out_dir, traj, gnss=None, summary: dict | None = None, rec
     if progress is not None:
         progress.stage("figures and maps", total=3, unit="steps")
     paths = {"overview": write_overview(out / "overview.png", traj, gnss, summary, records,
-                                             skeleton=skeleton)}
+                                        skeleton=skeleton, draw=draw)}
     if progress is not None:
         progress.advance(1)
     if maps:

@@ -415,14 +415,46 @@ def _unmodelled_motion(R, m, md, pv, dtu):
         R[i, i] += g * g
 
 
+@njit(cache=True)
+def _consider_timing(H, R, m, P, tc):
+    """A fix read while the heading is held unknown (before the first course alignment, after an IMU gap)
+    does not update the time offset and velocity delay (indices ``tc``; −1: not estimated): their columns
+    of ``H`` (m rows) are the INS's v^n and a^n, whose horizontal direction is the held heading's, i.e.
+    unknown; a heading error ψ puts an innovation of up to 2|v| (|a|·Δt) along any direction, and near
+    ψ = 180° along v (a) itself, which the linear model can only read as a time offset (issue 35, m35u's
+    no-``vu`` run: 0.43 s learnt from one velocity fix at the start of motion with the heading 156° off,
+    then confirmed by the fixes at constant speed, where an offset and an along-track shift look alike).
+    So they are *considered*, not estimated: their correlations with the other states are zeroed (their
+    own block kept, as the held heading's are) and their part of the innovation, H_T P_TT H_Tᵀ, goes into
+    R, so the update is honest about them and leaves them as they are."""
+    for a in tc:
+        if a < 0:
+            continue
+        for j in range(P.shape[0]):
+            if j != tc[0] and j != tc[1]:
+                P[a, j], P[j, a] = 0.0, 0.0
+    for i in range(m):
+        for j in range(m):
+            for a in tc:
+                for b in tc:
+                    if a >= 0 and b >= 0:
+                        R[i, j] += H[i, a] * P[a, b] * H[j, b]
+    for a in tc:
+        if a >= 0:
+            for i in range(m):
+                H[i, a] = 0.0
+
+
 @njit(cache=True, depends=MODELS_KEY, inline="always")  # per record: inlined in run_chunk (issue 40)
 def _use_record(x, P, nv, C, rec, gi, tt, hd, upd):
     """Record ``gi`` through its model at the node: a whole pseudorange epoch by its scalar updates, any
     other by the gate policy (with R grown by :func:`_unmodelled_motion` at a node that closes an IMU
-    gap); a velocity record re-aligns a heading held unknown. ``tt``: (node time, record time, the motion
-    left unmodelled [s]: 0 but at a gap's closing node). Returns the attitude matrix."""
+    gap); a velocity record re-aligns a heading held unknown, and while it is held the time states are
+    considered, not estimated (:func:`_consider_timing`; ``hd[5]``: their indices, ``hd[6]``: the initial
+    heading held). ``tt``: (node time, record time, the motion left unmodelled [s]: 0 but at a gap's
+    closing node). Returns the attitude matrix."""
     st, w, bias = nv
-    gap, gap_k, ix, iu, pv = hd
+    gap, gap_k, ix, iu, pv, tcal, held = hd
     mod, lay, rej, win, log, wk, sub, ws = upd
     tk, tr, dtu = tt
     md = rec.model[gi]
@@ -441,6 +473,8 @@ def _use_record(x, P, nv, C, rec, gi, tt, hd, upd):
         if m > 0:
             if dtu > 0.0:
                 _unmodelled_motion(wk.R, m, md, pv, dtu)
+            if held or gap[4] > 0.0:
+                _consider_timing(wk.H, wk.R, m, P, tcal)
             policy_update(x, P, _subset(wk, m, sub, ws), m, md, mod, rej, win, log, gi)
     return C
 
@@ -450,8 +484,9 @@ def _update_records(x, P, nv, C, rec, gi, tk, hd, upd, tm):
     """The records due at the node at IMU time ``tk`` (in (t_{k-1}, t_k] on the IMU clock), each by
     :func:`_use_record`. ``nv``: (strapdown state, node rates, biases); ``hd``: (gap variances and
     heading-hold flag, whether the sample closes a gap, INS index map, heading index, the GNSS velocity
-    model's parameters); ``upd``: the update context (:func:`_node_constraints`); ``tm``: (clock index,
-    time-offset index). Returns the next record's index and the attitude matrix.
+    model's parameters, the time states' indices, the initial heading held); ``upd``: the update context
+    (:func:`_node_constraints`); ``tm``: (clock index, time-offset index). Returns the next record's
+    index and the attitude matrix.
 
     At the node that closes an IMU gap: records more than ``GAP_REC_S`` older than it are not used (the
     INS cannot be moved back across the unknown motion); the rest, and the first record due after the node
@@ -629,7 +664,7 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
     M = rec.t.shape[0]
     st, bias, P, x = cy.st, cy.bias, cy.P, np.zeros(n)
     k0, kn0 = cy.k0, cy.kn
-    itoff = lay[L_TOFF]
+    itoff, tcal = lay[L_TOFF], (-1, -1) if nsub else (lay[L_TOFF], lay[L_VDEL])  # time states (in P)
     ix = _index_map(nfull, sub, nins)
     iu = ix[PHI + 2]
     # an unknown heading with an alignment to come stays unknown until then (_hold_heading)
@@ -689,13 +724,12 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
                 S_phi[kn - kn0], S_prior[kn - kn0] = em[4], P
             node_rates(st, wb, dthc, dt, w)
             w[W_FN] = acc[ACC_FN] / T
-            g0 = gi
-            gi, C = _update_records(x, P, (st, w, bias), C, rec, gi, imu.t[k], (gap, gap_k, ix, iu, pv), upd,
-                                    (ic, itoff))
+            g0, held = gi, hold_h and k0 + k < ini.reset_idx  # the initial heading held (_hold_heading)
+            hd = (gap, gap_k, ix, iu, pv, tcal, held)
+            gi, C = _update_records(x, P, (st, w, bias), C, rec, gi, imu.t[k], hd, upd, (ic, itoff))
             li = _node_constraints(x, P, Nav(st, C, w, 0.0, bias), imu.static[k], imu.t[k], no_row, upd, li)
             if nsub:  # the subset's estimate in the INS block
                 dxf[sub] = x
-            held = hold_h and k0 + k < ini.reset_idx  # the initial heading held unknown (_hold_heading)
             _feedback_held(st, bias, dxf if nsub else x, nh, P, held or gap[4] > 0.0 or not imu.static[k], ix)
             ib[:] = bias[:nins - NAV]
             _hold_heading(P, iu, ini, held, gap)

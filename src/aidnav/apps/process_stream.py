@@ -212,10 +212,7 @@ def run_process(log: ImuLog, gnss, cfg, smooth=False, outages=None, imu_name="im
     if started is not None:
         started()
     t0 = _time.perf_counter()
-    # the writer's thread starts here, under the try that ends it: a first pass (or ``started``) that raises
-    # leaves no thread behind (it would wait for pieces forever, and a later fork would be refused: the
-    # figures' processes need a process with no other thread)
-    bg = Background(consume) if background else None
+    bg = Background(consume) if background else None  # here: a failure above leaves no thread behind
     try:
         res = stream_loose(chain([head], chunks), gnss, cfg, consume if bg is None else bg.put,
                            withheld=withheld, smooth=smooth, events=events, aids=aids, spool_dir=spool_dir,

@@ -349,3 +349,19 @@ def test_started_is_called_once_just_before_the_run(tmp_path, monkeypatch):
     process_logs(imu, gnss, None, tmp_path / "o", figures=False, started=lambda: events.append("started"))
     assert events.count("started") == 1 and events[-2:] == ["started", "pass"]
     assert events.count("pass") >= 2
+
+
+def test_a_failure_before_the_run_leaves_no_thread(tmp_path):
+    # the writer's thread starts with the run: an error in the first passes (here: ``started``) leaves no
+    # thread waiting for pieces (a later fork of the figures' processes needs a process with no other thread)
+    import threading
+
+    imu, gnss, _ = static_log(tmp_path, 30)
+    before = threading.active_count()
+
+    def started():
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        process_logs(imu, gnss, None, tmp_path / "o", figures=False, started=started)
+    assert threading.active_count() == before, threading.enumerate()

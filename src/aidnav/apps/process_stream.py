@@ -194,7 +194,6 @@ def run_process(log: ImuLog, gnss, cfg, smooth=False, outages=None, imu_name="im
         if progress is not None:
             progress(m)
 
-    bg = Background(consume) if background else None
     events: list[str] = []
     decide_nhc = "constraints" not in cfg.model_fields_set and not cfg.constraints.nhc
     decide_gnss = needs_first_pass(gnss, cfg)  # the fixes' σ; white/correlated errors (filters.gnss_errors)
@@ -213,6 +212,7 @@ def run_process(log: ImuLog, gnss, cfg, smooth=False, outages=None, imu_name="im
     if started is not None:
         started()
     t0 = _time.perf_counter()
+    bg = Background(consume) if background else None  # here: a failure above leaves no thread behind
     try:
         res = stream_loose(chain([head], chunks), gnss, cfg, consume if bg is None else bg.put,
                            withheld=withheld, smooth=smooth, events=events, aids=aids, spool_dir=spool_dir,

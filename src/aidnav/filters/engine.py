@@ -57,14 +57,7 @@ from aidnav.nav.gnss_sat import C_LIGHT
 from aidnav.nav.rotations import dcm_from_quat, quat_from_rotvec, quat_mult, quat_normalize, wrap_pi
 
 from .gate import WIN_MAX, gated_update, policy_update
-from .ins_errors import (
-    ACC_FN,
-    new_accumulator,
-    noise_count,
-    propagate_sample,
-    reset_accumulator,
-    set_heading,
-)
+from .ins_errors import ACC_FN, new_accumulator, noise_count, propagate_sample, reset_accumulator, set_heading
 from .layout import (
     BG,
     DP,
@@ -103,6 +96,9 @@ NEVER = 2**62
 #: the initial heading variance [rad²] (σ ≈ 81°) from which the heading is unknown: held until the course
 #: alignment of ``Init.reset_idx``
 UNKNOWN_HEADING_VAR = 2.0
+#: one node's heading correction [rad] from which a moving node's tilt turns with it (:func:`_feedback_held`;
+#: a choice: 5°, where the rotation a first-order model drops moves sin 5° ≈ 9 % of the tilt across axes)
+TURN_MIN_RAD = float(np.radians(5.0))
 
 # t (N,) [s]; dth, dv (N, 3) raw increments [rad, m/s]; static (N,) bool; gap_var (N, 2) [rad², (m/s)²]
 # (attitude, velocity) or (N, 4) [rad², rad², (m/s)², m²] (roll/pitch, heading, velocity, position:
@@ -553,12 +549,15 @@ def _hold_heading(P, iu, ini, before_alignment, gap):
 
 
 @njit(cache=True, inline="always")  # per node: inlined in run_chunk (issue 40)
-def _feedback_held(st, bias, dx, nstate, P, held, ix):
-    """:func:`feedback`, then :func:`_turn_held_heading` by the heading change it made (``held``)."""
+def _feedback_held(st, bias, dx, nstate, P, held, moving, ix):
+    """:func:`feedback`, then :func:`_turn_held_heading` by the heading change it made where the heading is
+    ``held``, or at a ``moving`` node where the change exceeds :data:`TURN_MIN_RAD` (after a long stop)."""
     C = dcm_from_quat(st[ST_Q:ST_Q + 4])
     h0 = np.arctan2(C[0, 1], C[1, 1])
     feedback(st, bias, dx, nstate)
-    _turn_held_heading(st, P, h0, held, ix)
+    C = dcm_from_quat(st[ST_Q:ST_Q + 4])
+    big = moving and abs(wrap_pi(np.arctan2(C[0, 1], C[1, 1]) - h0)) > TURN_MIN_RAD
+    _turn_held_heading(st, P, h0, held or big, ix)
 
 
 @njit(cache=True)
@@ -730,7 +729,7 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
             li = _node_constraints(x, P, Nav(st, C, w, 0.0, bias), imu.static[k], imu.t[k], no_row, upd, li)
             if nsub:  # the subset's estimate in the INS block
                 dxf[sub] = x
-            _feedback_held(st, bias, dxf if nsub else x, nh, P, held or gap[4] > 0.0 or not imu.static[k], ix)
+            _feedback_held(st, bias, dxf if nsub else x, nh, P, held or gap[4] > 0.0, not imu.static[k], ix)
             ib[:] = bias[:nins - NAV]
             _hold_heading(P, iu, ini, held, gap)
             _after_updates(st, bias, P, rec, g0, gi, proc.reset_pos, lay)

@@ -57,7 +57,15 @@ from aidnav.nav.gnss_sat import C_LIGHT
 from aidnav.nav.rotations import dcm_from_quat, quat_from_rotvec, quat_mult, quat_normalize, wrap_pi
 
 from .gate import WIN_MAX, gated_update, policy_update
-from .ins_errors import ACC_FN, new_accumulator, noise_count, propagate_sample, reset_accumulator, set_heading
+from .ins_errors import (
+    ACC_FN,
+    new_accumulator,
+    noise_count,
+    propagate_sample,
+    reset_accumulator,
+    set_heading,
+    turn_tilt_by,
+)
 from .layout import (
     BG,
     DP,
@@ -349,14 +357,7 @@ def _turn_tilt_at_rest(st, P, gap, ix, static):
     h = np.arctan2(C[0, 1], C[1, 1])
     if not np.isnan(gap[5]):
         if ie >= 0 and inn >= 0:
-            y = -wrap_pi(h - gap[5])  # rotation about Up that turned C_b^n (heading is clockwise)
-            a, b = np.cos(y), -np.sin(y)
-            for j in range(P.shape[0]):  # P ← T P Tᵀ, T the rotation of the tilt rows
-                pe, pn = P[ie, j], P[inn, j]
-                P[ie, j], P[inn, j] = a * pe + b * pn, -b * pe + a * pn
-            for j in range(P.shape[0]):
-                pe, pn = P[j, ie], P[j, inn]
-                P[j, ie], P[j, inn] = a * pe + b * pn, -b * pe + a * pn
+            turn_tilt_by(P, ie, inn, h - gap[5])
         _hold_heading_at_rest(st, P, ix)
     gap[5] = h
 
@@ -566,11 +567,9 @@ def _turn_held_heading(st, P, h0, held, ix):
     node's updates moved (from ``h0`` [rad] to the strapdown's heading now) turns the tilt error and its
     covariance with it, as a course alignment does (:func:`.ins_errors.set_heading`): the tilt belongs to
     the body's roll and pitch, so in the navigation frame it turns with the heading (issue 35, k35t)."""
-    if held and ix[PHI] >= 0:
+    if held and ix[PHI] >= 0 and ix[PHI + 1] >= 0:
         C = dcm_from_quat(st[ST_Q:ST_Q + 4])
-        h1 = np.arctan2(C[0, 1], C[1, 1])
-        set_heading(st, P, h0, 0.0, -1, -1, -1)  # back to h0 (P untouched), then to h1 turning the tilt
-        set_heading(st, P, h1, 0.0, -1, ix[PHI], ix[PHI + 1])
+        turn_tilt_by(P, ix[PHI], ix[PHI + 1], np.arctan2(C[0, 1], C[1, 1]) - h0)
 
 
 @njit(cache=True, inline="always")  # per sample: inlined (no call per sample)

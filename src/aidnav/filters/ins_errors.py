@@ -43,7 +43,7 @@ import numpy as np
 
 from aidnav.jit import njit
 from aidnav.nav.earth import OMEGA_IE, gravity, gravity_dh, radii
-from aidnav.nav.rotations import dcm_entries, dcm_from_quat, quat_mult, quat_normalize
+from aidnav.nav.rotations import dcm_entries, dcm_from_quat, quat_mult, quat_normalize, wrap_pi
 from aidnav.nav.strapdown import strapdown_step
 
 PHI, DV, DP, BG, BA, SG, SA, MG, MA = 0, 3, 6, 9, 12, 15, 18, 21, 27
@@ -319,19 +319,35 @@ def set_heading(st, P, heading, sigma, iu=PHI + 2, ie=-1, inn=-1):
     st[ST_Q:ST_Q + 4] = quat_normalize(quat_mult(qz, st[ST_Q:ST_Q + 4]))
     if ie >= 0 and inn >= 0:
         R = dcm_from_quat(st[ST_Q:ST_Q + 4]) @ Cn.T  # C_new = R C_old
-        a, b, c, d = R[0, 0], R[0, 1], R[1, 0], R[1, 1]
-        for j in range(P.shape[0]):  # rows, then columns: P ← T P Tᵀ
-            pe, pn = P[ie, j], P[inn, j]
-            P[ie, j], P[inn, j] = a * pe + b * pn, c * pe + d * pn
-        for j in range(P.shape[0]):
-            pe, pn = P[j, ie], P[j, inn]
-            P[j, ie], P[j, inn] = a * pe + b * pn, c * pe + d * pn
+        turn_tilt(P, ie, inn, R[0, 0], R[0, 1], R[1, 0], R[1, 1])
     if iu < 0:
         return
     for j in range(P.shape[0]):
         P[iu, j] = 0.0
         P[j, iu] = 0.0
     P[iu, iu] = sigma * sigma
+
+
+@njit(cache=True)
+def turn_tilt(P, ie, inn, a, b, c, d):
+    """The tilt's rows and columns of ``P`` (φ_E, φ_N at ``ie``, ``inn``) turned with a rotation about Up
+    of the computed frame, in place: P ← T P Tᵀ with T = [[a, b], [c, d]] on those rows (the horizontal
+    block of R, C_b^n ← R C_b^n; dimensionless). The tilt belongs to the body's roll and pitch, so in the
+    navigation frame it turns with the heading (:func:`set_heading`, the engine's tilt turns)."""
+    for j in range(P.shape[0]):  # rows, then columns
+        pe, pn = P[ie, j], P[inn, j]
+        P[ie, j], P[inn, j] = a * pe + b * pn, c * pe + d * pn
+    for j in range(P.shape[0]):
+        pe, pn = P[j, ie], P[j, inn]
+        P[j, ie], P[j, inn] = a * pe + b * pn, c * pe + d * pn
+
+
+@njit(cache=True)
+def turn_tilt_by(P, ie, inn, dh):
+    """:func:`turn_tilt` for a heading change ``dh`` [rad, clockwise from North] of the computed frame: the
+    rotation about Up by −dh."""
+    y = -wrap_pi(dh)
+    turn_tilt(P, ie, inn, np.cos(y), -np.sin(y), np.sin(y), np.cos(y))
 
 
 @njit(cache=True)

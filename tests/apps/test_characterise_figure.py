@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import os
 import sys
+import threading
 
 import numpy as np
 import pytest
@@ -18,6 +19,17 @@ from aidnav.report import allan_plot
 from aidnav.sim.imu import ImuSpec, corrupt_imu
 
 pytestmark = pytest.mark.skipif(not A.FORK_FIGURE, reason="the forked figure is Linux-only")
+
+
+@pytest.fixture(autouse=True)
+def _single_threaded():
+    """The forked figure is made only from a process with no other thread (characterise_file's documented
+    fallback draws the same file in-process otherwise). A thread another test of the same xdist worker
+    left alive makes these assertions about the fork meaningless: skipped, the thread named (issue 41,
+    session 12: seen twice in clean-clone CI runs, not reproduced; the cause is not found)."""
+    others = [t.name for t in threading.enumerate() if t is not threading.main_thread()]
+    if others:
+        pytest.skip(f"another thread is alive in this test process: {others}")
 
 SPEC = ImuSpec.from_units(arw_deg_sqrt_h=0.2, vrw_m_s_sqrt_h=0.05, gyro_bias_instability_deg_h=5.0,
                           accel_bias_instability_ug=50.0, bias_corr_time_s=60.0)

@@ -57,7 +57,6 @@ from aidnav.nav.gnss_sat import C_LIGHT
 from aidnav.nav.rotations import dcm_from_quat, quat_from_rotvec, quat_mult, quat_normalize, wrap_pi
 
 from .gate import WIN_MAX, gated_update, policy_update
-from .held_heading import N_GAP, note_held_correction, repair_held_tilt, turn_held_heading
 from .ins_errors import (
     ACC_FN,
     new_accumulator,
@@ -147,10 +146,9 @@ EngineOut = namedtuple("EngineOut", ["out_idx", "out_st", "out_bias", "out_pdiag
 # what a pass carries from one chunk of samples to the next: k0 (global index of the chunk's first
 # sample), last (the chunk ends the log), tp (time of the previous sample), kn (nodes so far), gi (next
 # record), ci (next cov_idx), reset_node; st, bias, P (updated in place), rej (consecutive rejections),
-# acc (interval accumulator), gap (held_heading.N_GAP,): bridged-gap variance not yet added (roll/pitch,
-# heading, velocity, position), then 1 while the heading is held after a gap, then the computed heading
-# [rad] at the last node if that node was static (NaN otherwise: _turn_tilt_at_rest), then the tilt and
-# accelerometer-bias corrections of the initial hold (held_heading); buf (4, 3) increment buffers
+# acc (interval accumulator), gap (6,): bridged-gap variance not yet added (roll/pitch, heading,
+# velocity, position), then 1 while the heading is held after a gap, then the computed heading [rad] at
+# the last node if that node was static (NaN otherwise: _turn_tilt_at_rest); buf (4, 3) increment buffers
 Carry = namedtuple("Carry", ["k0", "last", "tp", "kn", "gi", "ci", "reset_node", "st", "bias", "P", "rej",
                              "acc", "gap", "buf"])
 
@@ -182,14 +180,10 @@ def _reinit(st, P, ini, ix, held, cal, cal_rows):
     (the filter's velocity covariance, propagated with that heading, is meaningless), of the fix alone;
     the fix's time tag read with the time offset and velocity delay (``cal``: their indices and the
     estimates, :func:`.measurements.gnss.reset_time_tag`); after a ``held`` heading, their covariance is
-    first repaired to the prior of ``cal_rows`` (``Models.cal``: :func:`_repair_timing`), and the tilt and
-    accelerometer bias moved while it was held and moving get the covariance of that move
-    (:func:`.held_heading.repair_held_tilt`; ``cal[3]``: the carried gap array with its sums).
+    first repaired to the prior of ``cal_rows`` (``Models.cal``: :func:`_repair_timing`).
     ``ix`` (≥ 15,): index in P of each state of the full INS layout (−1: not in the filter, a subset)."""
     rn_ = ini.reset_nav  # layout.RN_*: the fix's velocity, position, their σ, the lever arm
     set_heading(st, P, ini.reset_heading, ini.reset_sigma, ix[PHI + 2], ix[PHI], ix[PHI + 1])
-    if held:  # the tilt and accelerometer bias moved by the held, moving period: repaired
-        repair_held_tilt(P, cal[3], ini.reset_heading, ix)
     dvr = np.sqrt((st[ST_VEL] - rn_[RN_VEL]) ** 2 + (st[ST_VEL + 1] - rn_[RN_VEL + 1]) ** 2)
     sv_e, sv_n = rn_[RN_SVEL], rn_[RN_SVEL + 1]
     v2 = sv_e ** 2 + sv_n ** 2 if held else _var(P, ix, DV) + _var(P, ix, DV + 1) + sv_e ** 2
@@ -221,7 +215,7 @@ def _reinit(st, P, ini, ix, held, cal, cal_rows):
             P[j, j] = var[i]
     if held:
         _repair_timing(P, cal, cal_rows)
-    reset_time_tag(st, P, rn_, ix, (cal[0], cal[1], cal[2]))
+    reset_time_tag(st, P, rn_, ix, cal)
 
 
 @njit(cache=True)
@@ -336,7 +330,7 @@ def run_filter(imu, rec, mod, proc, ini, out):
 @njit(cache=True)
 def _new_gap():
     """The carry's ``gap`` array before the first sample (:class:`Carry`)."""
-    gap = np.zeros(N_GAP)  # (from held_heading.G_TILT on: held_heading's sums)
+    gap = np.zeros(6)
     gap[5] = np.nan
     return gap
 
@@ -556,20 +550,26 @@ def _hold_heading(P, iu, ini, before_alignment, gap):
 
 
 @njit(cache=True, inline="always")  # per node: inlined in run_chunk (issue 40)
-def _feedback_held(st, bias, dx, nstate, P, held, gap, moving, ix):
-    """:func:`feedback`, then :func:`.held_heading.turn_held_heading` by the heading change it made where the
-    heading is held (``held``: the initial hold; ``gap[4]``: after an IMU gap), or at a ``moving`` node where
-    the change exceeds :data:`TURN_MIN_RAD` (after a long stop); a moving node's tilt and accelerometer-bias
-    corrections under the initial hold are summed for the course alignment's repair
-    (:func:`.held_heading.note_held_correction`)."""
+def _feedback_held(st, bias, dx, nstate, P, held, moving, ix):
+    """:func:`feedback`, then :func:`_turn_held_heading` by the heading change it made where the heading is
+    ``held``, or at a ``moving`` node where the change exceeds :data:`TURN_MIN_RAD` (after a long stop)."""
     C = dcm_from_quat(st[ST_Q:ST_Q + 4])
     h0 = np.arctan2(C[0, 1], C[1, 1])
-    if held and moving:
-        note_held_correction(dx, h0, gap)
     feedback(st, bias, dx, nstate)
     C = dcm_from_quat(st[ST_Q:ST_Q + 4])
     big = moving and abs(wrap_pi(np.arctan2(C[0, 1], C[1, 1]) - h0)) > TURN_MIN_RAD
-    turn_held_heading(st, P, h0, held or gap[4] > 0.0 or big, ix)
+    _turn_held_heading(st, P, h0, held or big, ix)
+
+
+@njit(cache=True)
+def _turn_held_heading(st, P, h0, held, ix):
+    """A heading held unknown (``held``: before the first course alignment or after an IMU gap) that a
+    node's updates moved (from ``h0`` [rad] to the strapdown's heading now) turns the tilt error and its
+    covariance with it, as a course alignment does (:func:`.ins_errors.set_heading`): the tilt belongs to
+    the body's roll and pitch, so in the navigation frame it turns with the heading (issue 35, k35t)."""
+    if held and ix[PHI] >= 0 and ix[PHI + 1] >= 0:
+        C = dcm_from_quat(st[ST_Q:ST_Q + 4])
+        turn_tilt_by(P, ix[PHI], ix[PHI + 1], np.arctan2(C[0, 1], C[1, 1]) - h0)
 
 
 @njit(cache=True, inline="always")  # per sample: inlined (no call per sample)
@@ -708,7 +708,7 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
         gap_k = _gap_sample(gap, imu.gap_var, k)
         if k0 + k == ini.reset_idx:
             reset_node = kn  # the next node is the first one after the re-initialisation
-            _reinit(st, P, ini, ix, hold_h, (-1, -1, bias, gap) if nsub else (itoff, lay[L_VDEL], bias, gap),
+            _reinit(st, P, ini, ix, hold_h, (-1, -1, bias) if nsub else (itoff, lay[L_VDEL], bias),
                     mod.cal)
         is_node = T >= prop_dt - 1e-9 or t_due <= imu.t[k] or (cy.last and k == n_imu - 1)
         if is_node and T > 0.0:
@@ -728,7 +728,7 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
             li = _node_constraints(x, P, Nav(st, C, w, 0.0, bias), imu.static[k], imu.t[k], no_row, upd, li)
             if nsub:  # the subset's estimate in the INS block
                 dxf[sub] = x
-            _feedback_held(st, bias, dxf if nsub else x, nh, P, held, gap, not imu.static[k], ix)
+            _feedback_held(st, bias, dxf if nsub else x, nh, P, held or gap[4] > 0.0, not imu.static[k], ix)
             ib[:] = bias[:nins - NAV]
             _hold_heading(P, iu, ini, held, gap)
             _after_updates(st, bias, P, rec, g0, gi, proc.reset_pos, lay)

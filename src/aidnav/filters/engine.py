@@ -57,6 +57,7 @@ from aidnav.nav.gnss_sat import C_LIGHT
 from aidnav.nav.rotations import dcm_from_quat, quat_from_rotvec, quat_mult, quat_normalize, wrap_pi
 
 from .gate import WIN_MAX, gated_update, policy_update
+from .held_heading import consider_states, considered_states
 from .ins_errors import (
     ACC_FN,
     new_accumulator,
@@ -412,44 +413,14 @@ def _unmodelled_motion(R, m, md, pv, dtu):
         R[i, i] += g * g
 
 
-@njit(cache=True)
-def _consider_timing(H, R, m, P, tc):
-    """A fix read while the heading is held unknown (before the first course alignment, after an IMU gap)
-    does not update the time offset and velocity delay (indices ``tc``; −1: not estimated): their columns
-    of ``H`` (m rows) are the INS's v^n and a^n, whose horizontal direction is the held heading's, i.e.
-    unknown; a heading error ψ puts an innovation of up to 2|v| (|a|·Δt) along any direction, and near
-    ψ = 180° along v (a) itself, which the linear model can only read as a time offset (issue 35, m35u's
-    no-``vu`` run: 0.43 s learnt from one velocity fix at the start of motion with the heading 156° off,
-    then confirmed by the fixes at constant speed, where an offset and an along-track shift look alike).
-    So they are *considered*, not estimated: their correlations with the other states are zeroed (their
-    own block kept, as the held heading's are) and their part of the innovation, H_T P_TT H_Tᵀ, goes into
-    R, so the update is honest about them and leaves them as they are."""
-    for a in tc:
-        if a < 0:
-            continue
-        for j in range(P.shape[0]):
-            if j != tc[0] and j != tc[1]:
-                P[a, j], P[j, a] = 0.0, 0.0
-    for i in range(m):
-        for j in range(m):
-            for a in tc:
-                for b in tc:
-                    if a >= 0 and b >= 0:
-                        R[i, j] += H[i, a] * P[a, b] * H[j, b]
-    for a in tc:
-        if a >= 0:
-            for i in range(m):
-                H[i, a] = 0.0
-
-
 @njit(cache=True, depends=MODELS_KEY, inline="always")  # per record: inlined in run_chunk (issue 40)
 def _use_record(x, P, nv, C, rec, gi, tt, hd, upd):
     """Record ``gi`` through its model at the node: a whole pseudorange epoch by its scalar updates, any
     other by the gate policy (with R grown by :func:`_unmodelled_motion` at a node that closes an IMU
-    gap); a velocity record re-aligns a heading held unknown, and while it is held the time states are
-    considered, not estimated (:func:`_consider_timing`; ``hd[5]``: their indices, ``hd[6]``: the initial
-    heading held). ``tt``: (node time, record time, the motion left unmodelled [s]: 0 but at a gap's
-    closing node). Returns the attitude matrix."""
+    gap); a velocity record re-aligns a heading held unknown, and while it is held the time states and
+    the lever arm are considered, not estimated (:func:`.held_heading.consider_states`; ``hd[5]``: their
+    indices, ``hd[6]``: the initial heading held). ``tt``: (node time, record time, the motion left
+    unmodelled [s]: 0 but at a gap's closing node). Returns the attitude matrix."""
     st, w, bias = nv
     gap, gap_k, ix, iu, pv, tcal, held = hd
     mod, lay, rej, win, log, wk, sub, ws = upd
@@ -471,7 +442,7 @@ def _use_record(x, P, nv, C, rec, gi, tt, hd, upd):
             if dtu > 0.0:
                 _unmodelled_motion(wk.R, m, md, pv, dtu)
             if held or gap[4] > 0.0:
-                _consider_timing(wk.H, wk.R, m, P, tcal)
+                consider_states(wk.H, wk.R, m, P, tcal)
             policy_update(x, P, _subset(wk, m, sub, ws), m, md, mod, rej, win, log, gi)
     return C
 
@@ -662,7 +633,7 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
     M = rec.t.shape[0]
     st, bias, P, x = cy.st, cy.bias, cy.P, np.zeros(n)
     k0, kn0 = cy.k0, cy.kn
-    itoff, tcal = lay[L_TOFF], (-1, -1) if nsub else (lay[L_TOFF], lay[L_VDEL])  # time states (in P)
+    itoff, tcal = lay[L_TOFF], considered_states(lay, nsub)  # the states considered while the heading is held
     ix = _index_map(nfull, sub, nins)
     iu = ix[PHI + 2]
     # an unknown heading with an alignment to come stays unknown until then (_hold_heading)

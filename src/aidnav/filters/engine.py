@@ -57,7 +57,7 @@ from aidnav.nav.gnss_sat import C_LIGHT
 from aidnav.nav.rotations import dcm_from_quat, quat_from_rotvec, quat_mult, quat_normalize, wrap_pi
 
 from .gate import WIN_MAX, gated_update, policy_update
-from .held_heading import consider_states, considered_states
+from .held_heading import consider_states, considered_states, reset_lever
 from .ins_errors import (
     ACC_FN,
     new_accumulator,
@@ -174,7 +174,7 @@ def _var(P, ix, i):
 
 
 @njit(cache=True)
-def _reinit(st, P, ini, ix, held, cal, cal_rows):
+def _reinit(st, P, ini, ix, held, cal, cal_rows, il):
     """Re-initialisation event: heading, then velocity and position from ``reset_nav`` =
     [v (3), lat, lon, h, σ_v (3), σ_pos E, N, U, a (3), lever (3)] of the fix that gave the course when the
     velocity is 3σ off: σ of the filter and the fix, or, when the heading was ``held`` unknown until now
@@ -214,6 +214,7 @@ def _reinit(st, P, ini, ix, held, cal, cal_rows):
         j = ix[DV + i]
         if j >= 0:
             P[j, j] = var[i]
+    reset_lever(st, P, ix, il)  # the lever arm's unknown part (index il) carried into δp
     if held:
         _repair_timing(P, cal, cal_rows)
     reset_time_tag(st, P, rn_, ix, cal)
@@ -680,7 +681,7 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
         if k0 + k == ini.reset_idx:
             reset_node = kn  # the next node is the first one after the re-initialisation
             _reinit(st, P, ini, ix, hold_h, (-1, -1, bias) if nsub else (itoff, lay[L_VDEL], bias),
-                    mod.cal)
+                    mod.cal, tcal[2])
         is_node = T >= prop_dt - 1e-9 or t_due <= imu.t[k] or (cy.last and k == n_imu - 1)
         if is_node and T > 0.0:
             if kn - kn0 >= max_nodes:

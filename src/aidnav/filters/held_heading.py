@@ -9,11 +9,15 @@ update (a Schmidt "consider" update); :func:`considered_states` names them.
 
 from __future__ import annotations
 
+import numpy as np
+
 from aidnav.jit import njit
+from aidnav.nav.earth import radii
+from aidnav.nav.rotations import dcm_from_quat
 
-from .layout import L_LEVER, L_TOFF, L_VDEL
+from .layout import DP, L_LEVER, L_TOFF, L_VDEL, ST_POS, ST_Q
 
-__all__ = ["consider_states", "considered_states"]
+__all__ = ["consider_states", "considered_states", "reset_lever"]
 
 
 @njit(cache=True)
@@ -62,3 +66,31 @@ def consider_states(H, R, m, P, tc):
         if a >= 0:
             for i in range(m):
                 H[i, a] = 0.0
+
+
+@njit(cache=True)
+def reset_lever(st, P, ix, il):
+    """The GNSS lever arm's unknown part in a course re-initialisation's position (:func:`.engine._reinit`:
+    the INS position taken from the fix as antenna − C_b^n l̂, δp set to the fix's σ, uncorrelated). The
+    IMU's position is then off by the fix's error plus C_b^n r_l (r_l = true − estimated lever, index
+    ``il`` in P, −1: not estimated; :func:`.measurements.gnss.gnss_position_model`: H_l = −C_b^n), so
+    δp = ε_p + C_b^n r_l, P ← J P Jᵀ: the position fixes after the reset see what they saw before it, the
+    lever arm and the position error one sum, not two independent errors whose split the next fixes
+    would "learn" (issue 35, p35h: with the lever arm estimated, the first fixes after a held start's
+    course alignment took the tilt σ from ≈ 0.6° to 0.2° against errors of 1–1.7°; the velocity's
+    C_b^n [ω×] r_l, at the start of motion, is left out). ``ix``: index in P of each INS state."""
+    if il < 0:
+        return
+    C = dcm_from_quat(st[ST_Q:ST_Q + 4])
+    rm, rn = radii(st[ST_POS])
+    h = st[ST_POS + 2]
+    sc = np.array([1.0 / ((rn + h) * np.cos(st[ST_POS])), 1.0 / (rm + h), 1.0])  # E, N, U metres → δλ, δL, δh
+    n = P.shape[0]
+    J = np.eye(n)
+    for i in range(3):  # δp rows: δL (north), δλ (east), δh
+        jp = ix[DP + i]
+        k = 1 if i == 0 else (0 if i == 1 else 2)
+        if jp >= 0:
+            for j in range(3):
+                J[jp, il + j] = C[k, j] * sc[k]
+    P[:, :] = J @ P @ J.T

@@ -57,7 +57,6 @@ from aidnav.nav.gnss_sat import C_LIGHT
 from aidnav.nav.rotations import dcm_from_quat, quat_from_rotvec, quat_mult, quat_normalize, wrap_pi
 
 from .gate import WIN_MAX, gated_update, policy_update
-from .held_heading import consider_states, considered_states, reset_lever
 from .ins_errors import (
     ACC_FN,
     new_accumulator,
@@ -174,7 +173,7 @@ def _var(P, ix, i):
 
 
 @njit(cache=True)
-def _reinit(st, P, ini, ix, held, cal, cal_rows, il):
+def _reinit(st, P, ini, ix, held, cal, cal_rows):
     """Re-initialisation event: heading, then velocity and position from ``reset_nav`` =
     [v (3), lat, lon, h, σ_v (3), σ_pos E, N, U, a (3), lever (3)] of the fix that gave the course when the
     velocity is 3σ off: σ of the filter and the fix, or, when the heading was ``held`` unknown until now
@@ -214,7 +213,6 @@ def _reinit(st, P, ini, ix, held, cal, cal_rows, il):
         j = ix[DV + i]
         if j >= 0:
             P[j, j] = var[i]
-    reset_lever(st, P, ix, il)  # the lever arm's unknown part (index il) carried into δp
     if held:
         _repair_timing(P, cal, cal_rows)
     reset_time_tag(st, P, rn_, ix, cal)
@@ -414,14 +412,44 @@ def _unmodelled_motion(R, m, md, pv, dtu):
         R[i, i] += g * g
 
 
+@njit(cache=True)
+def _consider_timing(H, R, m, P, tc):
+    """A fix read while the heading is held unknown (before the first course alignment, after an IMU gap)
+    does not update the time offset and velocity delay (indices ``tc``; −1: not estimated): their columns
+    of ``H`` (m rows) are the INS's v^n and a^n, whose horizontal direction is the held heading's, i.e.
+    unknown; a heading error ψ puts an innovation of up to 2|v| (|a|·Δt) along any direction, and near
+    ψ = 180° along v (a) itself, which the linear model can only read as a time offset (issue 35, m35u's
+    no-``vu`` run: 0.43 s learnt from one velocity fix at the start of motion with the heading 156° off,
+    then confirmed by the fixes at constant speed, where an offset and an along-track shift look alike).
+    So they are *considered*, not estimated: their correlations with the other states are zeroed (their
+    own block kept, as the held heading's are) and their part of the innovation, H_T P_TT H_Tᵀ, goes into
+    R, so the update is honest about them and leaves them as they are."""
+    for a in tc:
+        if a < 0:
+            continue
+        for j in range(P.shape[0]):
+            if j != tc[0] and j != tc[1]:
+                P[a, j], P[j, a] = 0.0, 0.0
+    for i in range(m):
+        for j in range(m):
+            for a in tc:
+                for b in tc:
+                    if a >= 0 and b >= 0:
+                        R[i, j] += H[i, a] * P[a, b] * H[j, b]
+    for a in tc:
+        if a >= 0:
+            for i in range(m):
+                H[i, a] = 0.0
+
+
 @njit(cache=True, depends=MODELS_KEY, inline="always")  # per record: inlined in run_chunk (issue 40)
 def _use_record(x, P, nv, C, rec, gi, tt, hd, upd):
     """Record ``gi`` through its model at the node: a whole pseudorange epoch by its scalar updates, any
     other by the gate policy (with R grown by :func:`_unmodelled_motion` at a node that closes an IMU
-    gap); a velocity record re-aligns a heading held unknown, and while it is held the time states and
-    the lever arm are considered, not estimated (:func:`.held_heading.consider_states`; ``hd[5]``: their
-    indices, ``hd[6]``: the initial heading held). ``tt``: (node time, record time, the motion left
-    unmodelled [s]: 0 but at a gap's closing node). Returns the attitude matrix."""
+    gap); a velocity record re-aligns a heading held unknown, and while it is held the time states are
+    considered, not estimated (:func:`_consider_timing`; ``hd[5]``: their indices, ``hd[6]``: the initial
+    heading held). ``tt``: (node time, record time, the motion left unmodelled [s]: 0 but at a gap's
+    closing node). Returns the attitude matrix."""
     st, w, bias = nv
     gap, gap_k, ix, iu, pv, tcal, held = hd
     mod, lay, rej, win, log, wk, sub, ws = upd
@@ -443,7 +471,7 @@ def _use_record(x, P, nv, C, rec, gi, tt, hd, upd):
             if dtu > 0.0:
                 _unmodelled_motion(wk.R, m, md, pv, dtu)
             if held or gap[4] > 0.0:
-                consider_states(wk.H, wk.R, m, P, tcal)
+                _consider_timing(wk.H, wk.R, m, P, tcal)
             policy_update(x, P, _subset(wk, m, sub, ws), m, md, mod, rej, win, log, gi)
     return C
 
@@ -634,7 +662,7 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
     M = rec.t.shape[0]
     st, bias, P, x = cy.st, cy.bias, cy.P, np.zeros(n)
     k0, kn0 = cy.k0, cy.kn
-    itoff, tcal = lay[L_TOFF], considered_states(lay, nsub)  # the states considered while the heading is held
+    itoff, tcal = lay[L_TOFF], (-1, -1) if nsub else (lay[L_TOFF], lay[L_VDEL])  # time states (in P)
     ix = _index_map(nfull, sub, nins)
     iu = ix[PHI + 2]
     # an unknown heading with an alignment to come stays unknown until then (_hold_heading)
@@ -681,7 +709,7 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
         if k0 + k == ini.reset_idx:
             reset_node = kn  # the next node is the first one after the re-initialisation
             _reinit(st, P, ini, ix, hold_h, (-1, -1, bias) if nsub else (itoff, lay[L_VDEL], bias),
-                    mod.cal, tcal[2])
+                    mod.cal)
         is_node = T >= prop_dt - 1e-9 or t_due <= imu.t[k] or (cy.last and k == n_imu - 1)
         if is_node and T > 0.0:
             if kn - kn0 >= max_nodes:

@@ -143,3 +143,65 @@ def test_walk_tdcp_velocity_against_the_rtk_position_differences(walk):
     assert ok.sum() > 200
     rms = np.sqrt(np.mean(np.sum(d**2, axis=1)))
     assert rms < 0.12, (rms, ok.sum())
+
+
+# ------------------------------------------------------------------ receiver phase wind-up
+def _enu_axes(p):
+    """Columns: east, north, up at the ECEF point p (a level antenna's x̂, ŷ, boresight)."""
+    from aidnav.nav.earth import dcm_ecef_to_enu, ecef_to_lla
+
+    lat, lon, _ = ecef_to_lla(*p)
+    return dcm_ecef_to_enu(lat, lon).T
+
+
+def _rot(axis, th):
+    """Rotation matrix of angle th [rad] about the unit vector axis (right-handed)."""
+    a = np.asarray(axis, float) / np.linalg.norm(axis)
+    K = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+    return np.eye(3) + np.sin(th) * K + (1 - np.cos(th)) * K @ K
+
+
+@pytest.mark.parametrize("tilt_deg", [0.0, 35.0])
+def test_windup_of_a_boresight_rotation_is_the_same_for_every_satellite(tilt_deg):
+    """Known answer (module doc): turning the antenna by θ about its own boresight changes every
+    satellite's wind-up by −θ/2π cycles (λθ/2π less phase: 1.0 cm for 0.33 rad at L1), whatever the
+    satellite's direction and the antenna's tilt; the clock change takes it."""
+    from aidnav.estimators.tdcp import windup_increments
+
+    sats, _ = _geometry(np.random.default_rng(11), 7)
+    c0 = _rot(_enu_axes(R0)[:, 1], np.radians(tilt_deg)) @ _enu_axes(R0)  # tilted about north
+    th = 0.33
+    c1 = _rot(c0[:, 2], th) @ c0  # about the antenna's own boresight
+    d = windup_increments(np.stack([sats, sats]), np.stack([R0, R0]), np.stack([c0, c1]))
+    assert np.all(np.isnan(d[0]))
+    np.testing.assert_allclose(d[1], -th / (2 * np.pi) * LAMBDA_L1, atol=1e-9)
+
+
+def test_windup_of_a_tilt_differs_between_satellites_and_is_minus_theta_for_the_one_on_the_axis():
+    """A rotation about the direction to satellite j turns that satellite's effective dipole by −θ about
+    its line of sight (the same closed form): its increment is −λθ/2π; the others' differ (a rocking
+    antenna's wind-up is not all clock)."""
+    from aidnav.estimators.tdcp import windup_increments
+
+    sats, _ = _geometry(np.random.default_rng(12), 6)
+    c0 = _enu_axes(R0)
+    th = 0.25
+    for j in range(len(sats)):
+        u = (sats[j] - R0) / np.linalg.norm(sats[j] - R0)
+        d = windup_increments(np.stack([sats, sats]), np.stack([R0, R0]), np.stack([c0, _rot(u, th) @ c0]))[1]
+        assert d[j] == pytest.approx(-th / (2 * np.pi) * LAMBDA_L1, abs=1e-9)
+        assert np.ptp(d) > 1e-3  # the rest see other projected rotations (mm)
+
+
+def test_windup_increment_wraps_and_a_fixed_antenna_has_none():
+    """No rotation, no wind-up change (the satellite's half is held fixed); 1.9 turns in one interval read
+    as −0.1 turn, +0.1 cycle (increments are taken modulo a cycle)."""
+    from aidnav.estimators.tdcp import windup_increments
+
+    sats, vel = _geometry(np.random.default_rng(13), 5)
+    c0 = _enu_axes(R0)
+    d = windup_increments(np.stack([sats, sats + 0.25 * vel]), np.stack([R0, R0 + 0.3]), np.stack([c0, c0]))
+    assert np.nanmax(np.abs(d[1])) < 1e-6  # 0.3 m and 1 km of satellite motion: µm
+    d = windup_increments(np.stack([sats, sats]), np.stack([R0, R0]),
+                          np.stack([c0, _rot(c0[:, 2], 1.9 * 2 * np.pi) @ c0]))
+    np.testing.assert_allclose(d[1], 0.1 * LAMBDA_L1, atol=1e-9)

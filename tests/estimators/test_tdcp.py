@@ -53,6 +53,33 @@ def test_displacement_closed_form_and_chi_square_consistency():
     assert tdcp_displacement(sats0[:3], sats1[:3], R0, y[:3]) is None
 
 
+def test_displacement_per_satellite_sigma_is_weighted_least_squares_and_consistent():
+    """σ per satellite (7 satellites, σ 3–30 mm): NEES of (Δr, Δb) over 300 draws within the χ²(4·300)
+    99.9 % band, and one satellite of σ 10⁶× the others' gives the solution without it."""
+    rng = np.random.default_rng(5)
+    sats0, vel = _geometry(rng)
+    sats1 = sats0 + 0.25 * vel
+    dr_true, db_true = np.array([-0.2, 0.4, 0.01]), 3.0
+    y = np.array([geo_range(sats1[j], R0 + dr_true)[0] - geo_range(sats0[j], R0)[0]
+                  for j in range(len(sats0))]) + db_true
+    s = np.linspace(0.003, 0.03, len(y))
+    nees = 0.0
+    for _ in range(300):
+        yn = y + rng.normal(0, s) - rng.normal(0, s)
+        x, cov, _ = tdcp_displacement(sats0, sats1, R0, yn, s)
+        e = x - np.r_[dr_true, db_true]
+        nees += e @ np.linalg.solve(cov, e)
+    assert chi2.ppf(5e-4, 1200) < nees < chi2.ppf(1 - 5e-4, 1200)
+    yn = y + rng.normal(0, 0.005, len(y))
+    yn[2] += 0.5
+    s = np.full(len(y), 0.005)
+    s[2] = 5e3
+    x_w = tdcp_displacement(sats0, sats1, R0, yn, s)[0]
+    keep = np.arange(len(y)) != 2
+    x_drop = tdcp_displacement(sats0[keep], sats1[keep], R0, yn[keep], 0.005)[0]
+    np.testing.assert_allclose(x_w, x_drop, atol=1e-6)
+
+
 def test_cycle_slips_from_the_indicator_and_the_doppler():
     t = np.arange(0, 5.0, 0.25)
     rate = np.column_stack([np.full(len(t), 120.0), 300.0 * np.sin(t)])  # m/s

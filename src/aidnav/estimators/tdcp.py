@@ -114,12 +114,13 @@ def windup_increments(sat_pos, rx_pos, c_ae, wavelength=LAMBDA_L1):
     return d * np.broadcast_to(np.asarray(wavelength, float), (S,))
 
 
-def tdcp_displacement(rs_prev, rs_cur, r_prev, y_phase, sigma_phase_m: float = 0.005):
+def tdcp_displacement(rs_prev, rs_cur, r_prev, y_phase, sigma_phase_m=0.005):
     """Receiver displacement Δr (3,) [m] and clock change Δb [m] between two epochs (module doc).
 
     rs_prev, rs_cur (S, 3) satellite ECEF at the two epochs [m]; r_prev (3,) prior receiver position at the
-    first epoch; y_phase (S,) λΔL + Δ(c·dt_s) [m] (NaN: not used). Returns (x (4,) = [Δr, Δb], cov (4, 4),
-    used (S,) bool) or None with fewer than 4 satellites."""
+    first epoch; y_phase (S,) λΔL + Δ(c·dt_s) [m] (NaN: not used); sigma_phase_m the phase σ per epoch [m],
+    scalar or (S,) per satellite (weighted least squares). Returns (x (4,) = [Δr, Δb], cov (4, 4), used
+    (S,) bool) or None with fewer than 4 satellites."""
     rs_prev = np.asarray(rs_prev, float)
     rs_cur = np.asarray(rs_cur, float)
     r0 = np.asarray(r_prev, float)
@@ -133,12 +134,13 @@ def tdcp_displacement(rs_prev, rs_cur, r_prev, y_phase, sigma_phase_m: float = 0
         H.append([-e[0], -e[1], -e[2], 1.0])
         z.append(y_phase[j] - (r1 - r0j))
     H = np.array(H)
-    N = H.T @ H
+    w = 1.0 / (2.0 * np.broadcast_to(np.asarray(sigma_phase_m, float), used.shape)[used] ** 2)
+    N = H.T @ (w[:, None] * H)
     if np.linalg.cond(N) > 1e12:
         return None
     Q = np.linalg.inv(N)
-    x = Q @ H.T @ np.array(z)
-    return x, 2.0 * sigma_phase_m**2 * Q, used
+    x = Q @ H.T @ (w * np.array(z))
+    return x, Q, used
 
 
 def tdcp_series(obs, eph, positions_ecef, sigma_phase_m: float = 0.005, slip_threshold_cycles: float = 0.5,

@@ -238,11 +238,10 @@ def test_walk_sbas_phase_increments_are_unbiased_against_the_rtk_displacements(w
     """The walk's three SBAS GEO satellites (S31, S33, S35: broadcast state vectors, quadratic propagation,
     on the GPS clock) give time-differenced phase: per interval with fixed RTK positions at both ends, the
     increment λΔL + Δ(c·dt_s) minus the geometric range change (Sagnac-corrected, satellite at each epoch's
-    transmit time) minus the 4 GPS satellites' mean (the clock change) has no bias (measured means −0.02, +0.53, −1.47 mm
-    over 180, 116, 154 intervals, SD 17.4, 13.3, 16.3 mm, against 7.6–13.2 mm for the GPS satellites: the
-    GEOs' C/N0 is ~40 dB-Hz against 42–49),
-    so the satellites' motion and clock rate are right to well under a millimetre per 0.25 s (a GEO moves
-    metres per second in ECEF)."""
+    transmit time) minus the 4 GPS satellites' mean (the clock change) has no bias (measured means −0.02,
+    +0.53, −1.47 mm over 180, 116, 154 intervals, SD 17.4, 13.3, 16.3 mm, against 7.6–13.2 mm for the GPS
+    satellites: the GEOs' C/N0 is ~40 dB-Hz against 42–49), so the satellites' motion and clock rate are
+    right to well under a millimetre per 0.25 s (a GEO moves metres per second in ECEF)."""
     import warnings
 
     from aidnav.io.rinex import read_rinex_pair

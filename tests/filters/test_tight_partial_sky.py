@@ -478,5 +478,4 @@ def test_walk_receiver_windup_is_common_to_the_satellites(walk_default):
         diff = np.sqrt(np.nanmean((w - np.nanmean(w, axis=1, keepdims=True)) ** 2))
     dv = r1["vel_enu"] - r0["vel_enu"]
     dv_h = np.sqrt(np.nanmean(np.sum(dv[:, :2] ** 2, axis=1)))
-    print(f"wind-up {common * 1e3:.2f} mm, between satellites {diff * 1e3:.2f} mm, velocity {dv_h * 1e3:.2f} mm/s")
     assert 3e-3 < common < 1e-2 and diff < 1e-3 and dv_h < 5e-3

@@ -24,7 +24,9 @@ circularly polarised signal (IS-GPS-200 §3.3.1.1) received by an antenna of dip
 wind-up φ_w [cycles] is the angle from the satellite's effective dipole to D about k, over 2π, and the
 phase model is λL = ρ + … + λφ_w. Rotating the antenna by θ (right-handed) about its boresight turns D
 by −θ about k **for every k** (D' = D cos θ − (k × D) sin θ), so every satellite's φ_w changes by
-−θ/2π: the same for all, it goes into the clock change; only rotations about other axes (a tilted or
+−θ/2π (the sign of a RHCP wave on crossed dipoles whose ŷ output lags a quarter cycle: the received phase
+advances by θ, RINEX's phase falls; tests/estimators/test_tdcp.py simulates it): the same for all, it goes
+into the clock change; only rotations about other axes (a tilted or
 rocking antenna) change satellites differently. The antenna frame is the body frame (x̂ = body x, ŷ =
 body y, boresight the body z: up for the RFU IMU at rest); a constant rotation of x̂, ŷ about the
 boresight adds the same constant to every φ_w and cancels in an increment. The satellite's half

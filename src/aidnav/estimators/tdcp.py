@@ -32,7 +32,7 @@ body y, boresight the body z: up for the RFU IMU at rest); a constant rotation o
 boresight adds the same constant to every φ_w and cancels in an increment. The satellite's half
 (its attitude, sun-dependent) changes by far less than a millimetre over an interval of a second and
 is held fixed here (its reference dipoles from the ECEF z axis and k). Measured on the walk: the
-increments are 5.9 mm RMS per satellite per 0.25 s, their part that differs between satellites 0.3 mm
+increments are 5.2 mm RMS per satellite per 0.25 s, their part that differs between satellites 0.3 mm
 RMS (the hand-held antenna is within ~5° of level), against a 12 mm TDCP residual (docs/results.md, issue
 40 session 13): a model term with no free parameter that the walk's figures do not need, applied where an
 attitude is given (:func:`tdcp_series`'s ``attitude``).

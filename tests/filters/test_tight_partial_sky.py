@@ -320,7 +320,8 @@ def test_walk_tdcp_rows_velocity_as_good_as_the_records(walk_rows, walk_default)
                    "the loose filter estimates, -0.028 s; 0.068 m/s smoothed); the TDCP least-squares mean "
                    "velocity of the 4 satellites itself scores 0.090 m/s (results.md, issue 40 session 11); "
                    "the receiver wind-up moves it to 0.0766 m/s, the SBAS phase (gnss.systems GECRS) to "
-                   "0.0925 m/s, 0.073 m/s with a C/N0-weighted phase sigma (results.md, session 13)")
+                   "0.0925 m/s (0.0751 with the rows' phase weights); every lever at once 0.071 m/s "
+                   "(results.md, issue 40 session 13)")
 def test_walk_velocity_within_5_cm_s(walk_default):
     _, _, res, _, (ref, *_rest) = walk_default
     assert _vel_rms_h(res, ref) <= 0.05

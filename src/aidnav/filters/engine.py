@@ -193,7 +193,9 @@ def _reinit(st, P, ini, ix, held, cal, cal_rows, acc):
     the fix's time tag read with the time offset and velocity delay (``cal``: their indices and the
     estimates, :func:`.measurements.gnss.reset_time_tag`); after a ``held`` heading, their covariance is
     first repaired to the prior of ``cal_rows`` (``Models.cal``: :func:`_repair_timing`).
-    ``ix`` (≥ 15,): index in P of each state of the full INS layout (−1: not in the filter, a subset)."""
+    ``ix`` (≥ 15,): index in P of each state of the full INS layout (−1: not in the filter, a subset).
+    ``acc``: the accumulator of the interval the reset falls in, turned with the heading
+    (:func:`_turn_accumulator`; issue 35, session 13)."""
     rn_ = ini.reset_nav  # layout.RN_*: the fix's velocity, position, their σ, the lever arm
     C0 = dcm_from_quat(st[ST_Q:ST_Q + 4])
     set_heading(st, P, ini.reset_heading, ini.reset_sigma, ix[PHI + 2], ix[PHI], ix[PHI + 1])

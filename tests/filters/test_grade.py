@@ -120,14 +120,53 @@ def test_the_filter_takes_the_grade_only_without_an_imu_section():
     assert "IMU grade unknown" in ev[0]
 
 
-def test_a_mems_imu_keeps_the_unknown_grade_model():
-    """Classed MEMS (the cautious choice), modelled as the unknown grade (grade.ADOPTED)."""
+def test_a_mems_imu_is_modelled_by_the_posterior_mixture():
+    """Classed MEMS (the cautious choice) with a tactical posterior above ALPHA: modelled by the mixture of
+    the possible grades (each σ² = Σ p σ², the MEMS one by the unknown-grade model, grade.ADOPTED) — not
+    the tactical model, and no looser than the unknown grade (issue 35, session 13)."""
     sim = _static_log("mems", 2)
+    ev: list[str] = []
+    lat = float(sim.gnss.lat[0])
+    cfg = gr.grade_from_static(sim.imu, np.ones(len(sim.imu), bool), lat, 50.0, LooseConfig(), ev)
+    r, se = gr.static_residuals(sim.imu, lat, 50.0, sim.imu.time[0], sim.imu.time[-1] + 1e-9)
+    p = gr.grade_posterior(r, se)
+    assert p[1] >= gr.ALPHA and p[2] >= gr.ALPHA and p[0] < gr.ALPHA, p  # tactical and MEMS possible
+    w = np.where(p >= gr.ALPHA, p, 0.0)
+    w = w / w.sum()
+    tac, unk = gr.grade_models()[1][1], gr.grade_models()[3][1]
+    for k in ("gyro_bias_sigma_deg_h", "accel_bias_sigma_ug", "gyro_sf_sigma_ppm"):
+        want = np.sqrt(w[1] * tac[k] ** 2 + (w[2] + w[3]) * unk[k] ** 2)
+        assert getattr(cfg.imu, k) == pytest.approx(want, rel=1e-9), k
+        assert tac[k] < getattr(cfg.imu, k) <= unk[k]
+    assert "-> mems: the posterior mixture of the models of tactical, mems" in ev[0], ev
+
+
+def test_a_consumer_imu_keeps_the_unknown_grade_model():
+    """No better grade possible (posterior < ALPHA): the configuration is left as it is."""
+    sim = _static_log("consumer", 1)
     ev: list[str] = []
     cfg = gr.grade_from_static(sim.imu, np.ones(len(sim.imu), bool), float(sim.gnss.lat[0]), 50.0,
                                LooseConfig(), ev)
-    assert "-> mems: the unknown-grade model" in ev[0], ev
+    assert "-> unknown: the unknown-grade model" in ev[0], ev
     assert cfg.imu == LooseConfig().imu
+
+
+def test_mixture_model_known_answer():
+    """Σ p σ² per σ (and per random-walk density), renormalised; a state any part has is on, a part
+    without it adds nothing; the correlation time of the part with most of that bias's variance."""
+    a = {"gyro_bias_sigma_deg_h": 1.0, "accel_bias_sigma_ug": 100.0, "accel_bias_tau_s": 0.0,
+         "gyro_bias_rw_deg_h_sqrt_h": 2.0, "scale_factors": True, "accel_misalignment": True,
+         "accel_misalignment_sigma_deg": 0.02}
+    b = {"gyro_bias_sigma_deg_h": 10.0, "accel_bias_sigma_ug": 1000.0, "accel_bias_tau_s": 3600.0,
+         "gyro_bias_rw_deg_h_sqrt_h": 4.0, "scale_factors": False}
+    m = gr.mixture_model([(0.3, a), (0.1, b)])  # renormalised to 0.75 / 0.25
+    assert m["gyro_bias_sigma_deg_h"] == pytest.approx(np.sqrt(0.75 * 1.0 + 0.25 * 100.0))
+    assert m["accel_bias_sigma_ug"] == pytest.approx(np.sqrt(0.75 * 1e4 + 0.25 * 1e6))
+    assert m["gyro_bias_rw_deg_h_sqrt_h"] == pytest.approx(np.sqrt(0.75 * 4.0 + 0.25 * 16.0))
+    assert m["accel_misalignment_sigma_deg"] == pytest.approx(np.sqrt(0.75) * 0.02)
+    assert m["scale_factors"] is True and m["accel_misalignment"] is True
+    assert m["accel_bias_tau_s"] == 3600.0  # b: 0.25e6 of the variance against a's 0.75e4
+    assert gr.mixture_model([(1.0, a)]) == pytest.approx({k: float(v) for k, v in a.items()})
 
 
 def _drive_log(grade: str, seed: int):

@@ -58,6 +58,7 @@ from aidnav.nav.rotations import dcm_from_quat, quat_from_rotvec, quat_mult, qua
 
 from .gate import WIN_MAX, gated_update, policy_update
 from .ins_errors import (
+    ACC_C,
     ACC_FN,
     new_accumulator,
     noise_count,
@@ -173,7 +174,18 @@ def _var(P, ix, i):
 
 
 @njit(cache=True)
-def _reinit(st, P, ini, ix, held, cal, cal_rows):
+def _turn_accumulator(acc, R):
+    """The nav-frame sums of the interval being accumulated (Σ C_b^n, Σ C_b^n Δv) turned with the computed
+    frame (C_b^n ← R C_b^n, a heading reset inside the interval): the interval's error model (F's
+    sensor-error columns C_b^n, its f^n) must be the frame that P's tilt is expressed in after the reset."""
+    Cs = R @ acc[ACC_C:ACC_C + 3]
+    fn = R @ acc[ACC_FN]
+    acc[ACC_C:ACC_C + 3] = Cs
+    acc[ACC_FN] = fn
+
+
+@njit(cache=True)
+def _reinit(st, P, ini, ix, held, cal, cal_rows, acc):
     """Re-initialisation event: heading, then velocity and position from ``reset_nav`` =
     [v (3), lat, lon, h, σ_v (3), σ_pos E, N, U, a (3), lever (3)] of the fix that gave the course when the
     velocity is 3σ off: σ of the filter and the fix, or, when the heading was ``held`` unknown until now
@@ -181,9 +193,13 @@ def _reinit(st, P, ini, ix, held, cal, cal_rows):
     the fix's time tag read with the time offset and velocity delay (``cal``: their indices and the
     estimates, :func:`.measurements.gnss.reset_time_tag`); after a ``held`` heading, their covariance is
     first repaired to the prior of ``cal_rows`` (``Models.cal``: :func:`_repair_timing`).
-    ``ix`` (≥ 15,): index in P of each state of the full INS layout (−1: not in the filter, a subset)."""
+    ``ix`` (≥ 15,): index in P of each state of the full INS layout (−1: not in the filter, a subset).
+    ``acc``: the accumulator of the interval the reset falls in, turned with the heading
+    (:func:`_turn_accumulator`; issue 35, session 13)."""
     rn_ = ini.reset_nav  # layout.RN_*: the fix's velocity, position, their σ, the lever arm
+    C0 = dcm_from_quat(st[ST_Q:ST_Q + 4])
     set_heading(st, P, ini.reset_heading, ini.reset_sigma, ix[PHI + 2], ix[PHI], ix[PHI + 1])
+    _turn_accumulator(acc, dcm_from_quat(st[ST_Q:ST_Q + 4]) @ C0.T)
     dvr = np.sqrt((st[ST_VEL] - rn_[RN_VEL]) ** 2 + (st[ST_VEL + 1] - rn_[RN_VEL + 1]) ** 2)
     sv_e, sv_n = rn_[RN_SVEL], rn_[RN_SVEL + 1]
     v2 = sv_e ** 2 + sv_n ** 2 if held else _var(P, ix, DV) + _var(P, ix, DV + 1) + sv_e ** 2
@@ -709,7 +725,7 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
         if k0 + k == ini.reset_idx:
             reset_node = kn  # the next node is the first one after the re-initialisation
             _reinit(st, P, ini, ix, hold_h, (-1, -1, bias) if nsub else (itoff, lay[L_VDEL], bias),
-                    mod.cal)
+                    mod.cal, acc)
         is_node = T >= prop_dt - 1e-9 or t_due <= imu.t[k] or (cy.last and k == n_imu - 1)
         if is_node and T > 0.0:
             if kn - kn0 >= max_nodes:

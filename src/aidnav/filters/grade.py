@@ -45,7 +45,7 @@ from .config import DEFAULT_IMU
 from .tuning import sensor_error_model
 
 __all__ = ["GRADE_ROWS", "ADOPTED", "ALPHA", "MIN_STATIC_S", "BRIDGE_S", "GRAVITY_MODEL_UG", "grade_models",
-           "static_residuals", "grade_posterior", "choose_grade", "grade_from_static"]
+           "static_residuals", "grade_posterior", "choose_grade", "mixture_model", "grade_from_static"]
 
 #: The better-than-unknown grades, best first: gyro turn-on bias, instability [deg/h], accelerometer
 #: turn-on bias, instability [µg], instability τ [s], gyro / accelerometer scale factor [ppm],
@@ -139,12 +139,48 @@ def grade_posterior(r, se, models=None) -> np.ndarray:
 
 
 def choose_grade(r, se, models=None) -> tuple[str, dict, np.ndarray]:
-    """The cautious choice (module doc): the loosest candidate with posterior ≥ :data:`ALPHA` → (name,
-    model keys, posterior of every candidate)."""
+    """The cautious class and the model (module doc) → (name, model keys, posterior of every candidate):
+    the class is the loosest candidate with posterior ≥ :data:`ALPHA`; the model is the posterior mixture
+    of the candidates with posterior ≥ :data:`ALPHA` (:func:`mixture_model`, each one not in
+    :data:`ADOPTED` by the unknown-grade model) — the loosest's alone where it is the only one."""
     models = grade_models() if models is None else models
     p = grade_posterior(r, se, models)
     i = max(j for j in range(len(models)) if p[j] >= ALPHA)
-    return models[i][0], models[i][1], p
+    unknown = models[-1][1]
+    parts = [(float(p[j]), models[j][1] if models[j][0] in ADOPTED else unknown)
+             for j in range(len(models)) if p[j] >= ALPHA]
+    return models[i][0], mixture_model(parts), p
+
+
+#: the model keys that are a σ (mixed as variances) and a random walk's density (mixed as PSDs)
+_SIGMA_KEYS = ("gyro_bias_sigma_deg_h", "accel_bias_sigma_ug", "gyro_bias_rw_deg_h_sqrt_h",
+               "accel_bias_rw_ug_sqrt_h", "gyro_sf_sigma_ppm", "accel_sf_sigma_ppm",
+               "gyro_misalignment_sigma_deg", "accel_misalignment_sigma_deg")
+_FLAG_KEYS = ("scale_factors", "gyro_misalignment", "accel_misalignment")
+
+
+def mixture_model(parts) -> dict:
+    """One model for an IMU that is one of several grades with probabilities ``parts`` [(p, model keys)]
+    (renormalised): each sensor error's prior variance (and each random walk's PSD) is the mixture's,
+    Σ p_i σ_i² (the law of total variance, every grade's errors zero-mean): the single Gaussian with the
+    mixture's covariance, honest for whichever grade the IMU is, and no larger than the loosest grade's.
+    A grade without a state (``False``, or no key) adds nothing to it; a state any grade has is on. The
+    bias correlation times are those of the grade that contributes most of that bias's variance."""
+    w = np.array([q for q, _ in parts], float)
+    w = w / w.sum()
+    ms = [m for _, m in parts]
+    out: dict = {}
+    for k in _FLAG_KEYS:
+        if any(k in m for m in ms):
+            out[k] = any(bool(m.get(k, False)) for m in ms)
+    for k in _SIGMA_KEYS:
+        if any(k in m for m in ms):
+            out[k] = float(np.sqrt(sum(wi * float(m.get(k, 0.0)) ** 2 for wi, m in zip(w, ms, strict=True))))
+    for k, ref in (("gyro_bias_tau_s", "gyro_bias_sigma_deg_h"), ("accel_bias_tau_s", "accel_bias_sigma_ug")):
+        if any(k in m for m in ms):
+            j = int(np.argmax([wi * float(m.get(ref, 0.0)) ** 2 for wi, m in zip(w, ms, strict=True)]))
+            out[k] = float(ms[j].get(k, 0.0))
+    return out
 
 
 def _longest_run(static, time, bridge_s: float = BRIDGE_S) -> tuple[int, int]:
@@ -181,14 +217,20 @@ def grade_from_static(imu, static, lat: float, height: float, cfg, events):
         return cfg
     r, se = static_residuals(imu, lat, height, t[a], t[b - 1] + 1e-9)
     name, model, p = choose_grade(r, se)
+    names = [n for n, _ in grade_models()]
+    possible = [n for n, q in zip(names, p, strict=True) if q >= ALPHA]
+    adopt = any(n in ADOPTED for n in possible)
+    how = ("the grade's model (bias instability, scale factors, misalignment: the grade table's)"
+           if possible == [name] else "the posterior mixture of the models of " + ", ".join(possible)
+           + (" (" + ", ".join(n for n in possible if n not in ADOPTED) + ": the unknown-grade model)"
+              if any(n not in ADOPTED for n in possible) else ""))
     events.append(
         f"IMU grade from {t[b - 1] - t[a]:.1f} s static: bias components gyro vertical {r[0] / DEG_H:.3g}, "
         f"horizontal {r[1] / DEG_H:.3g} deg/h (se {se[0] / DEG_H:.2g}), accelerometer vertical "
         f"{r[2] / UG:.4g} ug (se {se[2] / UG:.2g}); posterior "
         + ", ".join(f"{n} {q:.2g}" for (n, _), q in zip(grade_models(), p, strict=True))
-        + f" -> {name}: " + ("the grade's model (bias instability, scale factors, misalignment: the grade "
-                             "table's)" if name in ADOPTED else "the unknown-grade model"))
-    if name not in ADOPTED:
+        + f" -> {name}: " + (how if adopt else "the unknown-grade model"))
+    if not adopt:
         return cfg
     # a key the configuration states with a value of its own (not the default model's) is kept
     own = {k for k in im.model_fields_set if k in DEFAULT_IMU and getattr(im, k) != DEFAULT_IMU[k]}

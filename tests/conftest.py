@@ -3,11 +3,31 @@
 from __future__ import annotations
 
 import os
+import threading
+import time
 from pathlib import Path
 
 import pytest
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
+#: how long a thread a test started may take to end after the test before it counts as left behind [s]
+THREAD_GRACE_S = 2.0
+
+
+@pytest.fixture(autouse=True)
+def _no_thread_left(request):
+    """No test leaves a thread alive (issue 41): the figures' processes of ``process`` and ``characterise``
+    are forked only from a process with no other thread, so a thread one test leaves makes every later
+    test of the same (xdist) process that checks the fork fail, far from its cause. A thread the test
+    started that is still alive :data:`THREAD_GRACE_S` after it fails the test that started it, named."""
+    before = set(threading.enumerate())
+    yield
+    new = [t for t in threading.enumerate() if t not in before]
+    deadline = time.monotonic() + THREAD_GRACE_S
+    for t in new:
+        t.join(max(0.0, deadline - time.monotonic()))
+    left = [f"{t.name} (daemon {t.daemon})" for t in new if t.is_alive()]
+    assert not left, f"{request.node.nodeid} left thread(s) alive: {left}"
 
 
 @pytest.fixture(scope="session")

@@ -37,6 +37,12 @@ _state = {"pending": False, "installed": False, "hold": False}
 #: frames where an exception is lost or breaks the caller: numba's glue around a kernel call, weak
 #: reference callbacks and finalizers (Python prints "Exception ignored" and goes on)
 _UNSAFE = (os.sep + "numba" + os.sep, os.sep + "llvmlite" + os.sep, "weakref", os.sep + "gc")
+#: code run by ``eval``/``exec`` of a string (``collections.namedtuple`` builds its ``__new__`` so): a
+#: ``KeyboardInterrupt`` raised there, or below it and passing through it, sets CPython's "unhandled
+#: interrupt" flag (3.11: ``run_eval_code_obj``) even when the command then handles it, and the interpreter
+#: ends itself by SIGINT at its exit (status −2, no traceback; issue 41, session 13: a campaign interrupted
+#: while rich built a named tuple, or during an import under such code)
+_EVAL = "<string>"
 
 
 def pending() -> bool:
@@ -44,8 +50,18 @@ def pending() -> bool:
     return _state["pending"]
 
 
+def _in_eval(frame) -> bool:
+    """Whether ``frame`` or one of its callers is code run by ``eval``/``exec`` of a string (:data:`_EVAL`;
+    not the program's own outermost frame: ``python -c``'s code is a string too)."""
+    while frame is not None and frame.f_back is not None:
+        if frame.f_code.co_filename == _EVAL:
+            return True
+        frame = frame.f_back
+    return False
+
+
 def _unsafe(frame) -> bool:
-    return frame is not None and (frame.f_code.co_name == "__del__"
+    return frame is not None and (frame.f_code.co_name == "__del__" or _in_eval(frame)
                                   or any(u in frame.f_code.co_filename for u in _UNSAFE))
 
 

@@ -24,12 +24,12 @@ pytestmark = pytest.mark.skipif(not A.FORK_FIGURE, reason="the forked figure is 
 @pytest.fixture(autouse=True)
 def _single_threaded():
     """The forked figure is made only from a process with no other thread (characterise_file's documented
-    fallback draws the same file in-process otherwise). A thread another test of the same xdist worker
-    left alive makes these assertions about the fork meaningless: skipped, the thread named (issue 41,
-    session 12: seen twice in clean-clone CI runs, not reproduced; the cause is not found)."""
+    fallback draws the same file in-process otherwise): no other thread is alive here. In session 12 two
+    clean-clone CI runs found one left by an earlier test of the same xdist worker; since issue 41's session
+    13 no test leaves one (tests/conftest.py's ``_no_thread_left`` fails the test that does, named)."""
     others = [t.name for t in threading.enumerate() if t is not threading.main_thread()]
-    if others:
-        pytest.skip(f"another thread is alive in this test process: {others}")
+    assert not others, f"another thread is alive in this test process: {others}"
+
 
 SPEC = ImuSpec.from_units(arw_deg_sqrt_h=0.2, vrw_m_s_sqrt_h=0.05, gyro_bias_instability_deg_h=5.0,
                           accel_bias_instability_ug=50.0, bias_corr_time_s=60.0)

@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import json
-import logging
 import re
 import shutil
+import subprocess
+import sys
 
 import numpy as np
 import pyarrow.parquet as pq
@@ -51,20 +52,32 @@ def test_tiny_campaign_tables(tiny_serial):
     assert [p["label"] for p in man["points"]] == ["imu.grade=tactical", "imu.grade=mems"]
 
 
+_DASK_CAMPAIGN = """
+import logging, sys
+from distributed import LocalCluster
+from aidnav.experiments.runner import run_experiment
+with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0",
+                  silence_logs=logging.ERROR) as cluster:
+    r = run_experiment(sys.argv[1], sys.argv[2], scheduler=cluster.scheduler_address, progress=False)
+print(r.complete, r.computed)
+"""
+
+
 @pytest.mark.slow
 def test_identical_serial_processes_and_dask(tiny_file, tiny_serial, tmp_path):
-    from distributed import LocalCluster
-
     serial_dir, _ = tiny_serial
     proc = tmp_path / "proc"
     r = run_experiment(tiny_file, proc, workers=2, backend="processes", progress=False)
     assert r.complete and r.computed == 6
     _same_tables(serial_dir, proc)
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0",
-                      silence_logs=logging.ERROR) as cluster:
-        dsk = tmp_path / "dask"
-        r = run_experiment(tiny_file, dsk, scheduler=cluster.scheduler_address, progress=False)
-    assert r.complete and r.computed == 6
+    # the Dask campaign in a child interpreter: a scheduler run in this process (a local cluster's is) leaves
+    # distributed's process-wide offload thread alive until the process ends, and a later test of this
+    # process that forks (the figures' processes) needs a process with no other thread (issue 41)
+    dsk = tmp_path / "dask"
+    run = subprocess.run([sys.executable, "-c", _DASK_CAMPAIGN, str(tiny_file), str(dsk)],
+                         capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.split()[-2:] == ["True", "6"]  # complete, computed
     _same_tables(serial_dir, dsk)
     assert json.loads((dsk / "manifest.json").read_text())["backend"]["kind"] == "dask"
 

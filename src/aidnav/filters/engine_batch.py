@@ -12,7 +12,8 @@ Per-run state and inputs are held in contiguous arrays with the run as the leadi
 or matrix the engine's own functions take: every operation on a run is the engine's
 (:func:`.ins_errors.propagate_sample`, :func:`.ins_errors.interval_model`, :func:`.kalman.discretize`,
 :func:`.kalman.predict`, :func:`.gate.policy_update` with the measurement models of
-:func:`.measurements.fill`, :func:`.engine.feedback`), called in the same order with the same arguments
+:func:`.measurements.fill`, :func:`.engine.feedback_turn` — the feedback and the tilt turned with the heading
+change it made), called in the same order with the same arguments
 as in :func:`.engine.run_chunk`: each run's result is bit-identical to a one-run call of
 :func:`.engine.run_filter` (``tests/experiments/test_batch_runs.py``).
 
@@ -36,7 +37,7 @@ from .engine import (
     Log,
     Work,
     carry_estimates,
-    feedback,
+    feedback_turn,
     node_rates,
 )
 from .gate import WIN_MAX, policy_update
@@ -101,7 +102,7 @@ def _node(ru, wo, proc, mod, rec_t, rec_model, g0, tk, dt):
             if m > 0:
                 policy_update(x, P, wk, m, md, mod, ru.rej, ru.win, ru.log, gi)
         gi += 1
-    feedback(st, bias, x, nins)
+    feedback_turn(st, bias, x, nins, P, False, True, wo.ix)  # a moving node (no static samples here)
     ru.ib[:] = bias[:nins - NAV]
     reset_accumulator(acc)
     return gi
@@ -121,7 +122,7 @@ def run_batch(inp, mod, proc, ini):
     acc, buf = np.zeros((R, 7, 3)), np.zeros((R, 4, 3))
     F, G, Phi, Qd = model_arrays(n, noise_count(n))
     wk = Work(np.zeros((MAX_ROWS, n)), np.zeros(MAX_ROWS), np.zeros((MAX_ROWS, MAX_ROWS)))
-    wo = _NodeWork(np.zeros(n), F, G, Phi, Qd, wk, np.zeros((5, 3)))
+    wo = _NodeWork(np.zeros(n), F, G, Phi, Qd, wk, np.zeros((5, 3)), np.arange(n))
     rej, win = np.zeros((R, N_MODELS), np.int64), np.zeros((R, N_MODELS, WIN_MAX + 2))
     log_t, log_model, log_ref = rec_t.copy(), inp.rec_model.astype(np.int8), np.arange(M)
     status, nis, reinit = np.full((R, M), -1, np.int8), np.full((R, M), np.nan), np.zeros((R, M), np.int8)

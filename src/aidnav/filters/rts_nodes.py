@@ -1,0 +1,83 @@
+"""What the engine keeps of a node for the RTS pass (:func:`aidnav.filters.smoother.rts`), with the node's
+tilt turns as part of its transition (issue 35, session 13).
+
+The RTS pass takes at each node k the prior P⁻_k and the Φ_k that made it (kept before the updates), the
+update dx_k and the posterior P⁺_k (kept after the feedback), and assumes one linear model of one error
+state: e⁻_k = Φ_k e⁺_{k−1} + w, e⁺_k = e⁻_k − dx_k. The engine also turns the tilt rows of P with a heading
+change of the computed frame (:func:`.ins_errors.turn_tilt_by`; the tilt belongs to the body's roll and
+pitch): at a static node, before the updates, with the heading's change since the last node
+(``engine._turn_tilt_at_rest``), and after the feedback with the heading change it made
+(``engine.feedback_turn``). A turn T is a change of the error state's coordinates, e ← T e, and P ← T P Tᵀ:
+unless the kept matrices say so, the pass mixes the coordinates before and after it (``Ps_k − P⁻_k`` of
+two frames: the smoothed P then exceeds the forward P).
+
+* The turn at rest is made after the prediction: P⁻_k = T (Φ_k P⁺_{k−1} Φ_kᵀ + Q) Tᵀ, so the transition
+  is T Φ_k (:func:`keep_prior` keeps T Φ_k beside the turned P⁻_k).
+* The turn after the feedback gives P⁺_k = T P_k Tᵀ in the turned coordinates; the prior and the update are
+  written in them too (:func:`keep_post`: P⁻_k ← T P⁻_k Tᵀ, Φ_k ← T Φ_k, dx_k ← T dx_k). With these the
+  pass's gain is A = P⁺ (TΦ)ᵀ (T P⁻ Tᵀ)⁻¹ = P⁺ Φᵀ P⁻⁻¹ Tᵀ and it computes exactly
+  ds_{k−1} = A₀ (dx_k + Tᵀ ds_k), Ps_{k−1} = P⁺ + A₀ (Tᵀ Ps_k T − P⁻_k) A₀ᵀ (A₀ = P⁺ Φᵀ P⁻⁻¹): the
+  smoothed error of the node's prior nominal, in its own coordinates. Ps ≤ P⁺ holds at every node.
+
+The smoothed outputs (:func:`.smoother.smooth_outputs`) between node k−1 and a node k with a feedback turn
+interpolate towards ds_k + dx_k, which is then in the turned coordinates: over that one interval the tilt
+part of the correction is turned by the node's heading correction (outputs at and after node k exact).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from aidnav.jit import njit
+from aidnav.nav.rotations import wrap_pi
+
+from .ins_errors import turn_tilt_by
+from .layout import PHI
+
+__all__ = ["keep_prior", "keep_post", "turn_rows_by", "turn_vector_by"]
+
+
+@njit(cache=True)
+def turn_rows_by(M, ie, inn, dh):
+    """The tilt's rows (φ_E, φ_N at ``ie``, ``inn``) of the matrix ``M`` turned with a heading change ``dh``
+    [rad, clockwise from North] of the computed frame, in place: M ← T M, the rows of
+    :func:`.ins_errors.turn_tilt_by`'s P ← T P Tᵀ (the rotation about Up by −dh)."""
+    y = -wrap_pi(dh)
+    c, s = np.cos(y), np.sin(y)
+    for j in range(M.shape[1]):
+        pe, pn = M[ie, j], M[inn, j]
+        M[ie, j], M[inn, j] = c * pe - s * pn, s * pe + c * pn
+
+
+@njit(cache=True)
+def turn_vector_by(v, ie, inn, dh):
+    """:func:`turn_rows_by` of a vector: v ← T v."""
+    y = -wrap_pi(dh)
+    c, s = np.cos(y), np.sin(y)
+    pe, pn = v[ie], v[inn]
+    v[ie], v[inn] = c * pe - s * pn, s * pe + c * pn
+
+
+@njit(cache=True, inline="always")  # per node: inlined in run_chunk
+def keep_prior(smooth, S, j, Phi, P, dh, ix):
+    """Before node j's updates: P⁻ and the transition into it, T Φ where the node turned the tilt at rest by
+    ``dh`` [rad] after the prediction (module doc). ``S``: (S_post, S_prior, S_phi, S_dx); ``ix``: the
+    index in P of each state of the full INS layout."""
+    if not smooth:
+        return
+    S[2][j], S[1][j] = Phi, P
+    if dh != 0.0 and ix[PHI] >= 0 and ix[PHI + 1] >= 0:
+        turn_rows_by(S[2][j], ix[PHI], ix[PHI + 1], dh)
+
+
+@njit(cache=True, inline="always")  # per node: inlined in run_chunk
+def keep_post(smooth, S, j, P, dx, dh, ix):
+    """After node j's feedback: P⁺ and the update dx; where the feedback turned the tilt by ``dh`` [rad], the
+    node's prior, transition and update in the turned coordinates of P⁺ (module doc)."""
+    if not smooth:
+        return
+    S[0][j], S[3][j] = P, dx
+    if dh != 0.0 and ix[PHI] >= 0 and ix[PHI + 1] >= 0:
+        turn_tilt_by(S[1][j], ix[PHI], ix[PHI + 1], dh)
+        turn_rows_by(S[2][j], ix[PHI], ix[PHI + 1], dh)
+        turn_vector_by(S[3][j], ix[PHI], ix[PHI + 1], dh)

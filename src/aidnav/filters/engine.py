@@ -91,7 +91,7 @@ from .measurements.common import W_FIX, W_IB, W_IE, W_IN
 from .measurements.epoch import epoch_out, epoch_record, epoch_update
 from .measurements.gnss import W_FN, reset_time_tag
 from .predict import error_model, predict_node
-from .rts_nodes import keep_post, keep_prior
+from .tilt_turn import keep_post, keep_prior, turn_with_feedback
 
 # parameters of the GNSS velocity model (``Models.par[M_GNSS_VEL]``) for the heading hold after an IMU gap
 # (:func:`run_chunk`): mounting heading [rad], least speed of a course [m/s], course σ [rad], heading σ
@@ -105,9 +105,6 @@ NEVER = 2**62
 #: the initial heading variance [rad²] (σ ≈ 81°) from which the heading is unknown: held until the course
 #: alignment of ``Init.reset_idx``
 UNKNOWN_HEADING_VAR = 2.0
-#: one node's heading correction [rad] from which a moving node's tilt turns with it (:func:`feedback_turn`;
-#: a choice: 5°, where the rotation a first-order model drops moves sin 5° ≈ 9 % of the tilt across axes)
-TURN_MIN_RAD = float(np.radians(5.0))
 
 # t (N,) [s]; dth, dv (N, 3) raw increments [rad, m/s]; static (N,) bool; gap_var (N, 2) [rad², (m/s)²]
 # (attitude, velocity) or (N, 4) [rad², rad², (m/s)², m²] (roll/pitch, heading, velocity, position:
@@ -147,9 +144,10 @@ EngineOut = namedtuple("EngineOut", ["out_idx", "out_st", "out_bias", "out_pdiag
 # what a pass carries from one chunk of samples to the next: k0 (global index of the chunk's first
 # sample), last (the chunk ends the log), tp (time of the previous sample), kn (nodes so far), gi (next
 # record), ci (next cov_idx), reset_node; st, bias, P (updated in place), rej (consecutive rejections),
-# acc (interval accumulator), gap (6,): bridged-gap variance not yet added (roll/pitch, heading,
+# acc (interval accumulator), gap (7,): bridged-gap variance not yet added (roll/pitch, heading,
 # velocity, position), then 1 while the heading is held after a gap, then the computed heading [rad] at
-# the last node if that node was static (NaN otherwise: _turn_tilt_at_rest); buf (4, 3) increment buffers
+# the last node if that node was static (NaN otherwise: _turn_tilt_at_rest), then the moving nodes' heading
+# corrections [rad] not yet turned into the tilt (.tilt_turn.turn_with_feedback); buf (4, 3) increment buffers
 Carry = namedtuple("Carry", ["k0", "last", "tp", "kn", "gi", "ci", "reset_node", "st", "bias", "P", "rej",
                              "acc", "gap", "buf"])
 
@@ -331,7 +329,7 @@ def run_filter(imu, rec, mod, proc, ini, out):
 @njit(cache=True)
 def _new_gap():
     """The carry's ``gap`` array before the first sample (:class:`Carry`)."""
-    gap = np.zeros(6)
+    gap = np.zeros(7)
     gap[5] = np.nan
     return gap
 
@@ -553,27 +551,6 @@ def _hold_heading(P, iu, ini, before_alignment, gap):
         P[iu, iu] = gap[4]
 
 
-@njit(cache=True, inline="always")  # per node: inlined in run_chunk (issue 40)
-def feedback_turn(st, bias, dx, nstate, P, held, moving, ix):
-    """:func:`feedback`, then the tilt error and its covariance turned with the heading change it made
-    (:func:`.ins_errors.turn_tilt_by`), as a course alignment does (:func:`.ins_errors.set_heading`): the
-    tilt belongs to the body's roll and pitch, so in the navigation frame it turns with the heading — the
-    exact composition of the heading correction with the tilt, which the first-order model drops (issue 35,
-    k35t, n35p). Where the heading is ``held`` unknown (before the first course alignment, after an IMU gap)
-    and at a ``moving`` node whose change exceeds :data:`TURN_MIN_RAD`; at a static node
-    :func:`_turn_tilt_at_rest` turns it at the next node. Returns the turn [rad] (0: none), which the RTS
-    pass sees as part of the node (:func:`.rts_nodes.keep_post`)."""
-    C = dcm_from_quat(st[ST_Q:ST_Q + 4])
-    h0 = np.arctan2(C[0, 1], C[1, 1])
-    feedback(st, bias, dx, nstate)
-    C = dcm_from_quat(st[ST_Q:ST_Q + 4])
-    dh = wrap_pi(np.arctan2(C[0, 1], C[1, 1]) - h0)
-    if not (held or (moving and abs(dh) > TURN_MIN_RAD)) or ix[PHI] < 0 or ix[PHI + 1] < 0:
-        return 0.0
-    turn_tilt_by(P, ix[PHI], ix[PHI + 1], dh)
-    return dh
-
-
 @njit(cache=True, inline="always")  # per sample: inlined (no call per sample)
 def _write_output(o, oi, k, st, bias, nb, P, node):
     """The output row ``oi`` (sample ``k``): state, the first ``nb`` biases, diagonal of P, last node.
@@ -684,7 +661,7 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
     ns = max_nodes if out.smooth else 1
     S_post, S_prior, S_phi = np.zeros((ns, n, n)), np.zeros((ns, n, n)), np.zeros((ns, n, n))
     S_dx = np.zeros((ns, n))
-    S = (S_post, S_prior, S_phi, S_dx)  # what the RTS pass keeps of a node (.rts_nodes)
+    S = (S_post, S_prior, S_phi, S_dx)  # what the RTS pass keeps of a node (.tilt_turn)
     log, li = _chunk_log(rec, M + max_nodes * mod.node.shape[0]), M
     win = np.zeros((N_MODELS, WIN_MAX + 2))  # NIS windows of the re-initialisation test
     rej = cy.rej
@@ -730,7 +707,8 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
             li = _node_constraints(x, P, Nav(st, C, w, 0.0, bias), imu.static[k], imu.t[k], no_row, upd, li)
             if nsub:  # the subset's estimate in the INS block
                 dxf[sub] = x
-            dh = feedback_turn(st, bias, dxf if nsub else x, nh, P, held or gap[4] > 0, not imu.static[k], ix)
+            feedback(st, bias, dxf if nsub else x, nh)
+            dh = turn_with_feedback(dxf if nsub else x, P, held or gap[4] > 0, not imu.static[k], ix, gap)
             ib[:] = bias[:nins - NAV]
             _hold_heading(P, iu, ini, held, gap)
             _after_updates(st, bias, P, rec, g0, gi, proc.reset_pos, lay)

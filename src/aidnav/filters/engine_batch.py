@@ -12,10 +12,9 @@ Per-run state and inputs are held in contiguous arrays with the run as the leadi
 or matrix the engine's own functions take: every operation on a run is the engine's
 (:func:`.ins_errors.propagate_sample`, :func:`.ins_errors.interval_model`, :func:`.kalman.discretize`,
 :func:`.kalman.predict`, :func:`.gate.policy_update` with the measurement models of
-:func:`.measurements.fill`, :func:`.engine.feedback_turn` — the feedback and the tilt turned with the heading
-change it made), called in the same order with the same arguments
-as in :func:`.engine.run_chunk`: each run's result is bit-identical to a one-run call of
-:func:`.engine.run_filter` (``tests/experiments/test_batch_runs.py``).
+:func:`.measurements.fill`, :func:`.engine.feedback` and :func:`.tilt_turn.turn_with_feedback`), called
+in the same order with the same arguments as in :func:`.engine.run_chunk`: each run's result is
+bit-identical to a one-run call of :func:`.engine.run_filter` (``tests/experiments/test_batch_runs.py``).
 
 Scope (what a Monte Carlo campaign of the loose filter uses; :func:`batchable` says whether a set of
 one-run inputs qualifies, else run them one by one): the INS block only (15 or 21 states, no
@@ -37,7 +36,7 @@ from .engine import (
     Log,
     Work,
     carry_estimates,
-    feedback_turn,
+    feedback,
     node_rates,
 )
 from .gate import WIN_MAX, policy_update
@@ -55,6 +54,7 @@ from .layout import L_N, L_NINS, L_SIZE, NAV, ST_Q
 from .measurements import MAX_ROWS, MODELS_KEY, N_MODELS, Nav, fill
 from .measurements.gnss import W_FN
 from .predict import exact_blocks
+from .tilt_turn import turn_with_feedback
 
 __all__ = ["BatchIn", "BatchInit", "BatchOut", "run_batch", "batchable", "stack_inputs", "run_outputs"]
 
@@ -72,10 +72,12 @@ BatchOut = namedtuple("BatchOut", ["out_idx", "out_st", "out_bias", "out_pdiag",
                                    "log_t", "log_model", "log_ref", "status", "nis", "nu", "s", "reinit",
                                    "n_log", "st", "bias", "P"])
 # one run's slices at a node (its strapdown state, sensor errors and their copy for the strapdown, P,
-# accumulator, increment buffers, rejection counters, NIS windows, log, records) and the node's shared work
-# arrays (error state, F, G, Φ, Qd of the INS block, measurement work arrays, rates)
-_Run = namedtuple("_Run", ["st", "bias", "ib", "P", "acc", "buf", "rej", "win", "log", "data", "use"])
-_NodeWork = namedtuple("_NodeWork", ["x", "F", "G", "Phi", "Qd", "wk", "w"])
+# accumulator, increment buffers, rejection counters, NIS windows, log, records, the heading correction not
+# yet turned into the tilt: engine.Carry's gap) and the node's shared work
+# arrays (error state, F, G, Φ, Qd of the INS block, measurement work arrays, rates, the index in P of each
+# INS state: tilt_turn.turn_with_feedback's ``ix``)
+_Run = namedtuple("_Run", ["st", "bias", "ib", "P", "acc", "buf", "rej", "win", "log", "data", "use", "gap"])
+_NodeWork = namedtuple("_NodeWork", ["x", "F", "G", "Phi", "Qd", "wk", "w", "ix"])
 
 
 @njit(cache=True, depends=MODELS_KEY)
@@ -102,7 +104,8 @@ def _node(ru, wo, proc, mod, rec_t, rec_model, g0, tk, dt):
             if m > 0:
                 policy_update(x, P, wk, m, md, mod, ru.rej, ru.win, ru.log, gi)
         gi += 1
-    feedback_turn(st, bias, x, nins, P, False, True, wo.ix)  # a moving node (no static samples here)
+    feedback(st, bias, x, nins)
+    turn_with_feedback(x, P, False, True, wo.ix, ru.gap)  # a moving node (no static samples here)
     ru.ib[:] = bias[:nins - NAV]
     reset_accumulator(acc)
     return gi
@@ -119,7 +122,7 @@ def run_batch(inp, mod, proc, ini):
     nins = proc.lay[L_NINS]
     st, bias, P = ini.st.copy(), ini.bias.copy(), ini.P.copy()
     ib = bias[:, :nins - NAV].copy()
-    acc, buf = np.zeros((R, 7, 3)), np.zeros((R, 4, 3))
+    acc, buf, gap = np.zeros((R, 7, 3)), np.zeros((R, 4, 3)), np.zeros((R, 7))  # gap: engine.Carry's
     F, G, Phi, Qd = model_arrays(n, noise_count(n))
     wk = Work(np.zeros((MAX_ROWS, n)), np.zeros(MAX_ROWS), np.zeros((MAX_ROWS, MAX_ROWS)))
     wo = _NodeWork(np.zeros(n), F, G, Phi, Qd, wk, np.zeros((5, 3)), np.arange(n))
@@ -147,7 +150,7 @@ def run_batch(inp, mod, proc, ini):
             for r in range(R):
                 log = Log(log_t, log_model, status[r], nis[r], nu[r], s[r], log_ref, reinit[r])
                 ru = _Run(st[r], bias[r], ib[r], P[r], acc[r], buf[r], rej[r], win[r], log, inp.rec_data[r],
-                          inp.rec_use[r])
+                          inp.rec_use[r], gap[r])
                 g1 = _node(ru, wo, proc, mod, rec_t, inp.rec_model, gi, t[k], dt)
             gi = g1
             node_idx[kn] = k

@@ -1,13 +1,21 @@
-"""What the engine keeps of a node for the RTS pass (:func:`aidnav.filters.smoother.rts`), with the node's
-tilt turns as part of its transition (issue 35, session 13).
+"""The tilt's turn with the feedback's heading correction (:func:`turn_with_feedback`), and what the engine
+keeps of a node for the RTS pass (:func:`aidnav.filters.smoother.rts`) with the node's tilt turns as part of
+its transition (:func:`keep_prior`, :func:`keep_post`; issue 35, session 13).
 
+**The turn.** The tilt error belongs to the body's roll and pitch, so in the navigation frame it turns with
+every rotation about Up applied to the computed frame: the exact composition of a heading correction with
+the tilt (R_err = R_U(ψ) R_tilt: a correction R_U(ψ̂) leaves R_U(ψ − ψ̂) R_U(ψ̂) R_tilt R_U(−ψ̂), the tilt
+turned by ψ̂), which the first-order model drops as second order and which matters once the correction is
+tens of degrees (the heading after a long stop; a course alignment, :func:`.ins_errors.set_heading`).
+
+**The RTS pass.**
 The RTS pass takes at each node k the prior P⁻_k and the Φ_k that made it (kept before the updates), the
 update dx_k and the posterior P⁺_k (kept after the feedback), and assumes one linear model of one error
 state: e⁻_k = Φ_k e⁺_{k−1} + w, e⁺_k = e⁻_k − dx_k. The engine also turns the tilt rows of P with a heading
 change of the computed frame (:func:`.ins_errors.turn_tilt_by`; the tilt belongs to the body's roll and
 pitch): at a static node, before the updates, with the heading's change since the last node
-(``engine._turn_tilt_at_rest``), and after the feedback with the heading change it made
-(``engine.feedback_turn``). A turn T is a change of the error state's coordinates, e ← T e, and P ← T P Tᵀ:
+(``engine._turn_tilt_at_rest``), and after the feedback with the heading correction it made
+(:func:`turn_with_feedback`). A turn T is a change of the error state's coordinates, e ← T e, and P ← T P Tᵀ:
 unless the kept matrices say so, the pass mixes the coordinates before and after it (``Ps_k − P⁻_k`` of
 two frames: the smoothed P then exceeds the forward P).
 
@@ -29,12 +37,41 @@ from __future__ import annotations
 import numpy as np
 
 from aidnav.jit import njit
-from aidnav.nav.rotations import wrap_pi
+from aidnav.nav.rotations import quat_from_rotvec, wrap_pi
 
 from .ins_errors import turn_tilt_by
 from .layout import PHI
 
-__all__ = ["keep_prior", "keep_post", "turn_rows_by", "turn_vector_by"]
+__all__ = ["TURN_MIN_RAD", "turn_with_feedback", "keep_prior", "keep_post", "turn_rows_by", "turn_vector_by"]
+
+#: the heading corrections [rad] from which a moving node's tilt turns with them (:func:`turn_with_feedback`;
+#: a choice: 5°, where the rotation a first-order model drops moves sin 5° ≈ 9 % of the tilt across axes)
+TURN_MIN_RAD = float(np.radians(5.0))
+
+
+@njit(cache=True, inline="always")  # per node: inlined in run_chunk
+def turn_with_feedback(dx, P, held, moving, ix, gap):
+    """After the feedback of ``dx`` (``engine.feedback``): the tilt rows of P turned with its heading
+    correction (:func:`.ins_errors.turn_tilt_by`; module doc). Where the heading is ``held`` unknown (before
+    the first course alignment, after an IMU gap) at every node; at a ``moving`` node once the corrections
+    not yet turned (``gap[6]``, this one's included) exceed :data:`TURN_MIN_RAD`, so that the tilt's frame
+    is never more than that off, whether the heading comes back in one correction of tens of degrees or in
+    many small ones (after a long stop); at a static node ``engine._turn_tilt_at_rest`` turns it at the next
+    node. The correction is the feedback rotation's part about Up (its twist, 2 atan2(q_U, q_0) of its
+    quaternion, for R = R_U(ψ) R_tilt in either order), not the change of the body's Euler heading, which a
+    tilt correction also moves where the body is not level (by ~ε tan θ at pitch θ). ``ix``: the index in P
+    of each state of the full INS layout. Returns the turn as a heading change [rad] (0: none), which the
+    RTS pass sees as part of the node (:func:`keep_post`)."""
+    if not (held or moving) or ix[PHI] < 0 or ix[PHI + 1] < 0:
+        return 0.0
+    q = quat_from_rotvec(dx[PHI:PHI + 3])
+    dh = gap[6] - 2.0 * np.arctan2(q[3], q[0])  # (a rotation about Up by ψ turns the heading by −ψ)
+    if not held and abs(dh) <= TURN_MIN_RAD:
+        gap[6] = dh
+        return 0.0
+    gap[6] = 0.0
+    turn_tilt_by(P, ix[PHI], ix[PHI + 1], dh)
+    return dh
 
 
 @njit(cache=True)

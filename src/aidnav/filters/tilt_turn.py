@@ -46,7 +46,7 @@ __all__ = ["TURN_MIN_RAD", "turn_with_feedback", "keep_prior", "keep_post", "tur
 
 #: the heading corrections [rad] from which a moving node's tilt turns with them (:func:`turn_with_feedback`;
 #: a choice: 5°, where the rotation a first-order model drops moves sin 5° ≈ 9 % of the tilt across axes)
-TURN_MIN_RAD = float(np.radians(5.0))
+TURN_MIN_RAD = 0.0
 
 
 @njit(cache=True, inline="always")  # per node: inlined in run_chunk

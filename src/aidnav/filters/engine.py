@@ -144,10 +144,9 @@ EngineOut = namedtuple("EngineOut", ["out_idx", "out_st", "out_bias", "out_pdiag
 # what a pass carries from one chunk of samples to the next: k0 (global index of the chunk's first
 # sample), last (the chunk ends the log), tp (time of the previous sample), kn (nodes so far), gi (next
 # record), ci (next cov_idx), reset_node; st, bias, P (updated in place), rej (consecutive rejections),
-# acc (interval accumulator), gap (7,): bridged-gap variance not yet added (roll/pitch, heading,
+# acc (interval accumulator), gap (6,): bridged-gap variance not yet added (roll/pitch, heading,
 # velocity, position), then 1 while the heading is held after a gap, then the computed heading [rad] at
-# the last node if that node was static (NaN otherwise: _turn_tilt_at_rest), then the moving nodes' heading
-# corrections [rad] not yet turned into the tilt (.tilt_turn.turn_with_feedback); buf (4, 3) increment buffers
+# the last node if that node was static (NaN otherwise: _turn_tilt_at_rest); buf (4, 3) increment buffers
 Carry = namedtuple("Carry", ["k0", "last", "tp", "kn", "gi", "ci", "reset_node", "st", "bias", "P", "rej",
                              "acc", "gap", "buf"])
 
@@ -329,7 +328,7 @@ def run_filter(imu, rec, mod, proc, ini, out):
 @njit(cache=True)
 def _new_gap():
     """The carry's ``gap`` array before the first sample (:class:`Carry`)."""
-    gap = np.zeros(7)
+    gap = np.zeros(6)
     gap[5] = np.nan
     return gap
 
@@ -708,7 +707,7 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
             if nsub:  # the subset's estimate in the INS block
                 dxf[sub] = x
             feedback(st, bias, dxf if nsub else x, nh)
-            dh = turn_with_feedback(dxf if nsub else x, P, held or gap[4] > 0, not imu.static[k], ix, gap)
+            dh = turn_with_feedback(dxf if nsub else x, P, held or gap[4] > 0 or not imu.static[k], ix)
             ib[:] = bias[:nins - NAV]
             _hold_heading(P, iu, ini, held, gap)
             _after_updates(st, bias, P, rec, g0, gi, proc.reset_pos, lay)

@@ -72,11 +72,10 @@ BatchOut = namedtuple("BatchOut", ["out_idx", "out_st", "out_bias", "out_pdiag",
                                    "log_t", "log_model", "log_ref", "status", "nis", "nu", "s", "reinit",
                                    "n_log", "st", "bias", "P"])
 # one run's slices at a node (its strapdown state, sensor errors and their copy for the strapdown, P,
-# accumulator, increment buffers, rejection counters, NIS windows, log, records, the heading correction not
-# yet turned into the tilt: engine.Carry's gap) and the node's shared work
+# accumulator, increment buffers, rejection counters, NIS windows, log, records) and the node's shared work
 # arrays (error state, F, G, Φ, Qd of the INS block, measurement work arrays, rates, the index in P of each
 # INS state: tilt_turn.turn_with_feedback's ``ix``)
-_Run = namedtuple("_Run", ["st", "bias", "ib", "P", "acc", "buf", "rej", "win", "log", "data", "use", "gap"])
+_Run = namedtuple("_Run", ["st", "bias", "ib", "P", "acc", "buf", "rej", "win", "log", "data", "use"])
 _NodeWork = namedtuple("_NodeWork", ["x", "F", "G", "Phi", "Qd", "wk", "w", "ix"])
 
 
@@ -105,7 +104,7 @@ def _node(ru, wo, proc, mod, rec_t, rec_model, g0, tk, dt):
                 policy_update(x, P, wk, m, md, mod, ru.rej, ru.win, ru.log, gi)
         gi += 1
     feedback(st, bias, x, nins)
-    turn_with_feedback(x, P, False, True, wo.ix, ru.gap)  # a moving node (no static samples here)
+    turn_with_feedback(x, P, True, wo.ix)  # a moving node (no static samples here)
     ru.ib[:] = bias[:nins - NAV]
     reset_accumulator(acc)
     return gi
@@ -122,7 +121,7 @@ def run_batch(inp, mod, proc, ini):
     nins = proc.lay[L_NINS]
     st, bias, P = ini.st.copy(), ini.bias.copy(), ini.P.copy()
     ib = bias[:, :nins - NAV].copy()
-    acc, buf, gap = np.zeros((R, 7, 3)), np.zeros((R, 4, 3)), np.zeros((R, 7))  # gap: engine.Carry's
+    acc, buf = np.zeros((R, 7, 3)), np.zeros((R, 4, 3))
     F, G, Phi, Qd = model_arrays(n, noise_count(n))
     wk = Work(np.zeros((MAX_ROWS, n)), np.zeros(MAX_ROWS), np.zeros((MAX_ROWS, MAX_ROWS)))
     wo = _NodeWork(np.zeros(n), F, G, Phi, Qd, wk, np.zeros((5, 3)), np.arange(n))
@@ -150,7 +149,7 @@ def run_batch(inp, mod, proc, ini):
             for r in range(R):
                 log = Log(log_t, log_model, status[r], nis[r], nu[r], s[r], log_ref, reinit[r])
                 ru = _Run(st[r], bias[r], ib[r], P[r], acc[r], buf[r], rej[r], win[r], log, inp.rec_data[r],
-                          inp.rec_use[r], gap[r])
+                          inp.rec_use[r])
                 g1 = _node(ru, wo, proc, mod, rec_t, inp.rec_model, gi, t[k], dt)
             gi = g1
             node_idx[kn] = k

@@ -6,7 +6,11 @@ its transition (:func:`keep_prior`, :func:`keep_post`; issue 35, session 13).
 every rotation about Up applied to the computed frame: the exact composition of a heading correction with
 the tilt (R_err = R_U(ψ) R_tilt: a correction R_U(ψ̂) leaves R_U(ψ − ψ̂) R_U(ψ̂) R_tilt R_U(−ψ̂), the tilt
 turned by ψ̂), which the first-order model drops as second order and which matters once the correction is
-tens of degrees (the heading after a long stop; a course alignment, :func:`.ins_errors.set_heading`).
+tens of degrees (the heading after a long stop; a course alignment, :func:`.ins_errors.set_heading`). It is
+made at every moving node: for one small correction it is of the order of the terms the model drops, but a
+heading that comes back in many small corrections would otherwise leave the tilt's frame off by their sum
+(session 12 kept it to single corrections above 5°, because the RTS pass and the batched engine did not see
+it: the parked cells then failed on roll; with a threshold on the corrections' sum the ship preset's did).
 
 **The RTS pass.**
 The RTS pass takes at each node k the prior P⁻_k and the Φ_k that made it (kept before the updates), the
@@ -29,7 +33,8 @@ two frames: the smoothed P then exceeds the forward P).
 
 The smoothed outputs (:func:`.smoother.smooth_outputs`) between node k−1 and a node k with a feedback turn
 interpolate towards ds_k + dx_k, which is then in the turned coordinates: over that one interval the tilt
-part of the correction is turned by the node's heading correction (outputs at and after node k exact).
+part of the correction is turned by the node's heading correction (outputs at and after node k exact; the
+difference is that correction times the tilt's, of second order unless the correction is large).
 """
 
 from __future__ import annotations
@@ -42,34 +47,24 @@ from aidnav.nav.rotations import quat_from_rotvec, wrap_pi
 from .ins_errors import turn_tilt_by
 from .layout import PHI
 
-__all__ = ["TURN_MIN_RAD", "turn_with_feedback", "keep_prior", "keep_post", "turn_rows_by", "turn_vector_by"]
-
-#: the heading corrections [rad] from which a moving node's tilt turns with them (:func:`turn_with_feedback`;
-#: a choice: 5°, where the rotation a first-order model drops moves sin 5° ≈ 9 % of the tilt across axes)
-TURN_MIN_RAD = 0.0
+__all__ = ["turn_with_feedback", "keep_prior", "keep_post", "turn_rows_by", "turn_vector_by"]
 
 
 @njit(cache=True, inline="always")  # per node: inlined in run_chunk
-def turn_with_feedback(dx, P, held, moving, ix, gap):
+def turn_with_feedback(dx, P, turn, ix):
     """After the feedback of ``dx`` (``engine.feedback``): the tilt rows of P turned with its heading
-    correction (:func:`.ins_errors.turn_tilt_by`; module doc). Where the heading is ``held`` unknown (before
-    the first course alignment, after an IMU gap) at every node; at a ``moving`` node once the corrections
-    not yet turned (``gap[6]``, this one's included) exceed :data:`TURN_MIN_RAD`, so that the tilt's frame
-    is never more than that off, whether the heading comes back in one correction of tens of degrees or in
-    many small ones (after a long stop); at a static node ``engine._turn_tilt_at_rest`` turns it at the next
-    node. The correction is the feedback rotation's part about Up (its twist, 2 atan2(q_U, q_0) of its
-    quaternion, for R = R_U(ψ) R_tilt in either order), not the change of the body's Euler heading, which a
-    tilt correction also moves where the body is not level (by ~ε tan θ at pitch θ). ``ix``: the index in P
-    of each state of the full INS layout. Returns the turn as a heading change [rad] (0: none), which the
-    RTS pass sees as part of the node (:func:`keep_post`)."""
-    if not (held or moving) or ix[PHI] < 0 or ix[PHI + 1] < 0:
+    correction (:func:`.ins_errors.turn_tilt_by`; module doc) where ``turn``: at every moving node and
+    wherever the heading is held unknown (before the first course alignment, after an IMU gap); at a static
+    node ``engine._turn_tilt_at_rest`` turns it at the next node. The correction is the feedback rotation's
+    part about Up (its twist, 2 atan2(q_U, q_0) of its quaternion, for R = R_U(ψ) R_tilt in either order),
+    not the change of the body's Euler heading, which a tilt correction also moves where the body is not
+    level (by ~ε tan θ at pitch θ). ``ix``: the index in P of each state of the full INS layout. Returns the
+    turn as a heading change [rad] (0: none), which the RTS pass sees as part of the node
+    (:func:`keep_post`)."""
+    if not turn or ix[PHI] < 0 or ix[PHI + 1] < 0:
         return 0.0
     q = quat_from_rotvec(dx[PHI:PHI + 3])
-    dh = gap[6] - 2.0 * np.arctan2(q[3], q[0])  # (a rotation about Up by ψ turns the heading by −ψ)
-    if not held and abs(dh) <= TURN_MIN_RAD:
-        gap[6] = dh
-        return 0.0
-    gap[6] = 0.0
+    dh = -2.0 * np.arctan2(q[3], q[0])  # (a rotation about Up by ψ turns the heading by −ψ)
     turn_tilt_by(P, ix[PHI], ix[PHI + 1], dh)
     return dh
 

@@ -91,7 +91,7 @@ from .measurements.common import W_FIX, W_IB, W_IE, W_IN
 from .measurements.epoch import epoch_out, epoch_record, epoch_update
 from .measurements.gnss import W_FN, reset_time_tag
 from .predict import error_model, predict_node
-from .tilt_turn import keep_post, keep_prior, turn_with_feedback
+from .tilt_turn import TILT_TURN_KEY, keep_post, keep_prior, turn_with_feedback
 
 # parameters of the GNSS velocity model (``Models.par[M_GNSS_VEL]``) for the heading hold after an IMU gap
 # (:func:`run_chunk`): mounting heading [rad], least speed of a course [m/s], course σ [rad], heading σ
@@ -318,7 +318,7 @@ def start_carry(rec, proc, ini, last):
                  np.zeros(N_MODELS, np.int64), new_accumulator(), _new_gap(), np.zeros((4, 3)))
 
 
-@njit(cache=True, depends=MODELS_KEY)
+@njit(cache=True, depends=MODELS_KEY + TILT_TURN_KEY)
 def run_filter(imu, rec, mod, proc, ini, out):
     """Forward pass of the closed-loop error-state filter (module doc) over all samples in one call;
     returns :class:`EngineOut`."""
@@ -627,7 +627,7 @@ def _index_map(nfull, sub, nins):
 
 
 # nogil: the streamed job overlaps writing with it (issue 29)
-@njit(cache=True, nogil=True, depends=MODELS_KEY)
+@njit(cache=True, nogil=True, depends=MODELS_KEY + TILT_TURN_KEY)
 def run_chunk(imu, rec, mod, proc, ini, out, cy):
     """The forward pass over the samples ``imu`` from the carry ``cy`` (module doc: chunks)."""
     n_imu = imu.t.shape[0]

@@ -54,7 +54,7 @@ from .layout import L_N, L_NINS, L_SIZE, NAV, ST_Q
 from .measurements import MAX_ROWS, MODELS_KEY, N_MODELS, Nav, fill
 from .measurements.gnss import W_FN
 from .predict import exact_blocks
-from .tilt_turn import turn_with_feedback
+from .tilt_turn import TILT_TURN_KEY, turn_with_feedback
 
 __all__ = ["BatchIn", "BatchInit", "BatchOut", "run_batch", "batchable", "stack_inputs", "run_outputs"]
 
@@ -79,7 +79,7 @@ _Run = namedtuple("_Run", ["st", "bias", "ib", "P", "acc", "buf", "rej", "win", 
 _NodeWork = namedtuple("_NodeWork", ["x", "F", "G", "Phi", "Qd", "wk", "w", "ix"])
 
 
-@njit(cache=True, depends=MODELS_KEY)
+@njit(cache=True, depends=MODELS_KEY + TILT_TURN_KEY)
 def _node(ru, wo, proc, mod, rec_t, rec_model, g0, tk, dt):
     """One run's node at sample time tk (the node block of :func:`.engine.run_chunk` for the scope of
     this module): predict, the records g0.. due by tk, feedback. Returns the next record."""
@@ -110,7 +110,7 @@ def _node(ru, wo, proc, mod, rec_t, rec_model, g0, tk, dt):
     return gi
 
 
-@njit(cache=True, depends=MODELS_KEY)
+@njit(cache=True, depends=MODELS_KEY + TILT_TURN_KEY)
 def run_batch(inp, mod, proc, ini):
     """Forward pass of R runs together (module doc): inputs :class:`BatchIn`, the engine's
     :class:`.engine.Models` and :class:`.engine.Process` (shared), initial states :class:`BatchInit`.

@@ -39,6 +39,9 @@ difference is that correction times the tilt's, of second order unless the corre
 
 from __future__ import annotations
 
+import hashlib
+from pathlib import Path
+
 import numpy as np
 
 from aidnav.jit import njit
@@ -47,7 +50,11 @@ from aidnav.nav.rotations import quat_from_rotvec, wrap_pi
 from .ins_errors import turn_tilt_by
 from .layout import PHI
 
-__all__ = ["turn_with_feedback", "keep_prior", "keep_post", "turn_rows_by", "turn_vector_by"]
+__all__ = ["TILT_TURN_KEY", "turn_with_feedback", "keep_prior", "keep_post", "turn_rows_by", "turn_vector_by"]
+
+#: a hash of this module's source, part of the ``depends`` key of the kernels that inline its kernels
+#: (``engine.run_chunk``, ``engine_batch``): numba keys a cached kernel on its own source file only
+TILT_TURN_KEY = hashlib.sha256(Path(__file__).read_bytes()).hexdigest()[:20]
 
 
 @njit(cache=True, inline="always")  # per node: inlined in run_chunk

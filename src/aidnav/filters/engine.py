@@ -701,8 +701,6 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
             keep_prior(out.smooth, S, kn - kn0, em[4], P, dh, ix)  # dh: the tilt turned at rest
             node_rates(st, wb, dthc, dt, w)
             w[W_FN] = acc[ACC_FN] / T
-            if imu.static[k]:  # a heading held unknown at rest: nothing observes it, no update may move it
-                _hold_heading(P, iu, ini, held, gap)
             hd = (gap, gap_k, ix, iu, pv, tcal, held)
             gi, C = _update_records(x, P, (st, w, bias), C, rec, gi, imu.t[k], hd, upd, (ic, itoff))
             li = _node_constraints(x, P, Nav(st, C, w, 0.0, bias), imu.static[k], imu.t[k], no_row, upd, li)

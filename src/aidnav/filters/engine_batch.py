@@ -12,9 +12,9 @@ Per-run state and inputs are held in contiguous arrays with the run as the leadi
 or matrix the engine's own functions take: every operation on a run is the engine's
 (:func:`.ins_errors.propagate_sample`, :func:`.ins_errors.interval_model`, :func:`.kalman.discretize`,
 :func:`.kalman.predict`, :func:`.gate.policy_update` with the measurement models of
-:func:`.measurements.fill`, :func:`.engine.feedback`), called in the same order with the same arguments
-as in :func:`.engine.run_chunk`: each run's result is bit-identical to a one-run call of
-:func:`.engine.run_filter` (``tests/experiments/test_batch_runs.py``).
+:func:`.measurements.fill`, :func:`.engine.feedback` and :func:`.tilt_turn.turn_with_feedback`), called
+in the same order with the same arguments as in :func:`.engine.run_chunk`: each run's result is
+bit-identical to a one-run call of :func:`.engine.run_filter` (``tests/experiments/test_batch_runs.py``).
 
 Scope (what a Monte Carlo campaign of the loose filter uses; :func:`batchable` says whether a set of
 one-run inputs qualifies, else run them one by one): the INS block only (15 or 21 states, no
@@ -54,6 +54,7 @@ from .layout import L_N, L_NINS, L_SIZE, NAV, ST_Q
 from .measurements import MAX_ROWS, MODELS_KEY, N_MODELS, Nav, fill
 from .measurements.gnss import W_FN
 from .predict import exact_blocks
+from .tilt_turn import TILT_TURN_KEY, turn_with_feedback
 
 __all__ = ["BatchIn", "BatchInit", "BatchOut", "run_batch", "batchable", "stack_inputs", "run_outputs"]
 
@@ -72,12 +73,13 @@ BatchOut = namedtuple("BatchOut", ["out_idx", "out_st", "out_bias", "out_pdiag",
                                    "n_log", "st", "bias", "P"])
 # one run's slices at a node (its strapdown state, sensor errors and their copy for the strapdown, P,
 # accumulator, increment buffers, rejection counters, NIS windows, log, records) and the node's shared work
-# arrays (error state, F, G, Φ, Qd of the INS block, measurement work arrays, rates)
+# arrays (error state, F, G, Φ, Qd of the INS block, measurement work arrays, rates, the index in P of each
+# INS state: tilt_turn.turn_with_feedback's ``ix``)
 _Run = namedtuple("_Run", ["st", "bias", "ib", "P", "acc", "buf", "rej", "win", "log", "data", "use"])
-_NodeWork = namedtuple("_NodeWork", ["x", "F", "G", "Phi", "Qd", "wk", "w"])
+_NodeWork = namedtuple("_NodeWork", ["x", "F", "G", "Phi", "Qd", "wk", "w", "ix"])
 
 
-@njit(cache=True, depends=MODELS_KEY)
+@njit(cache=True, depends=MODELS_KEY + TILT_TURN_KEY)
 def _node(ru, wo, proc, mod, rec_t, rec_model, g0, tk, dt):
     """One run's node at sample time tk (the node block of :func:`.engine.run_chunk` for the scope of
     this module): predict, the records g0.. due by tk, feedback. Returns the next record."""
@@ -102,12 +104,13 @@ def _node(ru, wo, proc, mod, rec_t, rec_model, g0, tk, dt):
                 policy_update(x, P, wk, m, md, mod, ru.rej, ru.win, ru.log, gi)
         gi += 1
     feedback(st, bias, x, nins)
+    turn_with_feedback(x, P, True, wo.ix)  # a moving node (no static samples here)
     ru.ib[:] = bias[:nins - NAV]
     reset_accumulator(acc)
     return gi
 
 
-@njit(cache=True, depends=MODELS_KEY)
+@njit(cache=True, depends=MODELS_KEY + TILT_TURN_KEY)
 def run_batch(inp, mod, proc, ini):
     """Forward pass of R runs together (module doc): inputs :class:`BatchIn`, the engine's
     :class:`.engine.Models` and :class:`.engine.Process` (shared), initial states :class:`BatchInit`.
@@ -121,7 +124,7 @@ def run_batch(inp, mod, proc, ini):
     acc, buf = np.zeros((R, 7, 3)), np.zeros((R, 4, 3))
     F, G, Phi, Qd = model_arrays(n, noise_count(n))
     wk = Work(np.zeros((MAX_ROWS, n)), np.zeros(MAX_ROWS), np.zeros((MAX_ROWS, MAX_ROWS)))
-    wo = _NodeWork(np.zeros(n), F, G, Phi, Qd, wk, np.zeros((5, 3)))
+    wo = _NodeWork(np.zeros(n), F, G, Phi, Qd, wk, np.zeros((5, 3)), np.arange(n))
     rej, win = np.zeros((R, N_MODELS), np.int64), np.zeros((R, N_MODELS, WIN_MAX + 2))
     log_t, log_model, log_ref = rec_t.copy(), inp.rec_model.astype(np.int8), np.arange(M)
     status, nis, reinit = np.full((R, M), -1, np.int8), np.full((R, M), np.nan), np.zeros((R, M), np.int8)

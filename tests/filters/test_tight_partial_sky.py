@@ -184,15 +184,25 @@ def test_walk_two_satellites_within_25_m(walk_partial):
     assert np.linalg.norm(dev, axis=1).max() <= 25.0
 
 
-def test_walk_three_satellites_within_10_m(walk_partial):
+def test_walk_three_satellites_covered_and_near_10_m(walk_partial):
     """No configuration: measured 9.2 m with the TDCP velocity records (7.3 m with the TDCP rows; 27.6 m
     before session 9); 8.8 m in session 12 (n35t, with and without the levelled tilt's correlation).
     Session 13 (p35p): 10.08 m with the tilt turned at every moving node's heading correction
     (filters.tilt_turn; 8.8 m when only corrections above 5° turned it), 3σ covering it at every epoch of
-    the window (ratio RMS(dev)/RMS(σ) 0.12 / 0.62 / 0.35 E/N/U): the bound is 10.5 m, and the σ must cover."""
+    the window (ratio RMS(dev)/RMS(σ) 0.12 / 0.62 / 0.35 E/N/U). A regression guard: 10.5 m, and the σ
+    must cover; the issue's 10 m is the strict xfail below."""
     dev, sig, _ = walk_partial[3]
     assert np.linalg.norm(dev, axis=1).max() <= 10.5
     assert np.all(np.mean(np.abs(dev) <= 3 * sig, axis=0) >= 0.95)
+
+
+@pytest.mark.xfail(strict=True, reason="issue 40 acceptance, 3 satellites ≤ 10 m: 10.08 m measured since the "
+                   "tilt turns at every moving node's heading correction (session 13, p35p; 8.8 m with "
+                   "session 12's 5° threshold, which failed the parked cells of issue 35)")
+def test_walk_three_satellites_within_10_m(walk_partial):
+    """The issue's bound on the largest deviation from the full-sky solution with 3 satellites for 40 s."""
+    dev, _, _ = walk_partial[3]
+    assert np.linalg.norm(dev, axis=1).max() <= 10.0
 
 
 def test_walk_no_satellites_3_sigma_coverage(walk_partial):

@@ -22,7 +22,8 @@ from aidnav.io.rtklib import read_pos
 from aidnav.nav import gnss_sat as gs
 from aidnav.nav.earth import lla_to_ecef
 
-WALK = Path(os.environ.get("AIDNAV_DATA", Path(__file__).resolve().parents[2] / "shared" / "data")) / "rtklibexplorer_walk_0827"
+_DATA = Path(os.environ.get("AIDNAV_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"))
+WALK = _DATA / "rtklibexplorer_walk_0827"
 
 
 def residuals(data_dir: Path, step_s: float = 10.0):
@@ -79,10 +80,11 @@ def main():
         v = np.asarray(out[s]) - (offset if s >= 100 else 0.0)
         if s >= 100:
             allg.append(v)
-        print(f"  {gs.sat_name(s)}: n {len(v):3d}  mean {np.mean(v):7.2f} m  RMS {np.sqrt(np.mean(v * v)):6.2f} m")
+        rms = np.sqrt(np.mean(v * v))
+        print(f"  {gs.sat_name(s)}: n {len(v):3d}  mean {np.mean(v):7.2f} m  RMS {rms:6.2f} m")
     allg = np.concatenate(allg)
     c1 = os.times()
-    print(f"Galileo residual RMS {np.sqrt(np.mean(allg ** 2)):.2f} m over {len(allg)} (target: metres level); "
+    print(f"Galileo residual RMS {np.sqrt(np.mean(allg**2)):.2f} m over {len(allg)} (target: metres level); "
           f"CPU {c1.user - c0.user + c1.system - c0.system:.1f} s, load {os.getloadavg()[0]:.2f}")
 
 

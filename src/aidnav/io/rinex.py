@@ -409,14 +409,20 @@ def _header_systems(path: Path) -> list[str]:
     return out
 
 
-def read_rinex_pair(obs_path, nav_path, systems: str = "GECR") -> tuple[GnssObservations, GpsEphemerides,
-                                                                         list[str]]:
+def read_rinex_pair(obs_path, nav_path, systems: str = "GECR", ubx_nav=None) -> tuple[
+        GnssObservations, GpsEphemerides, list[str]]:
     """The observations of every system of ``systems`` (letters of G, E, C, R, S) that has ephemerides in
     the navigation file, with the ephemerides on the observations' week; ``events`` name the systems of
-    the observation file left out and why (no ephemeris; not asked for; QZSS, NavIC: not supported)."""
+    the observation file left out and why (no ephemeris; not asked for; QZSS, NavIC: not supported).
+
+    ubx_nav : a u-blox UBX log (or None) whose Galileo I/NAV ephemerides (RXM-SFRBX,
+    :mod:`aidnav.io.galileo_inav`) are added to the navigation file's when ``systems`` has E and the
+    navigation file has no Galileo record of the same satellite and IODnav."""
     if not Path(obs_path).exists():  # a missing observation file is named first (as before)
         raise DataError(Path(obs_path), None, "file not found")
     eph = read_rinex_nav(nav_path, systems=systems)
+    if ubx_nav is not None and "E" in systems:
+        eph = _add_galileo_inav(eph, ubx_nav)
     have = "".join(c for c in SYSTEMS if np.any(eph.table[:, E_PRN] // 100 == SYSTEMS.index(c)))
     obs = read_rinex_obs(obs_path, systems=have or "G")
     eph = eph.to_week(obs.ref_week) if eph.ref_week != obs.ref_week else eph
@@ -432,3 +438,18 @@ def read_rinex_pair(obs_path, nav_path, systems: str = "GECR") -> tuple[GnssObse
             events.append(f"{Path(obs_path).name}: {_SYSTEM_NAMES.get(c, c)} observations not used (aidnav "
                           "reads GPS, Galileo, BeiDou, GLONASS and SBAS)")
     return obs, eph, events
+
+
+def _add_galileo_inav(eph: GpsEphemerides, ubx_path) -> GpsEphemerides:
+    """``eph`` with the Galileo I/NAV records of the UBX log ``ubx_path`` that it lacks (same satellite and
+    IODnav: the navigation file's record is kept), on ``eph``'s week."""
+    from aidnav.io.galileo_inav import read_ubx_galileo_inav  # lazy: pyubx2 only when a UBX log is given
+
+    gal = read_ubx_galileo_inav(ubx_path, ref_week=eph.ref_week)
+    have = {(int(r[E_PRN]), int(r[E_IODE])) for r in eph.table}
+    new = np.array([r for r in gal.table if (int(r[E_PRN]), int(r[E_IODE])) not in have]).reshape(-1, N_EPH)
+    table = np.vstack([eph.table, new])
+    table = table[np.lexsort((table[:, E_TOE], table[:, E_PRN]))]
+    events = list(eph.events) + gal.events + [f"{Path(ubx_path).name}: {len(new)} Galileo I/NAV record(s) "
+                                              "added to the navigation file's"]
+    return GpsEphemerides(table, eph.ref_week, eph.iono_alpha, eph.iono_beta, events)

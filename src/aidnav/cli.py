@@ -540,6 +540,8 @@ def tight(
     no_figures: bool = typer.Option(False, "--no-figures", help="skip overview.png, maps and run.html"),
     vehicle: str | None = typer.Option(None, "--vehicle", help="vehicle preset under the configuration, as "
                                        "in process: car (NHC), aircraft, pedestrian, ship"),
+    ubx_nav: Path | None = typer.Option(None, "--ubx-nav", help="u-blox UBX log whose Galileo I/NAV "
+                                        "ephemerides (RXM-SFRBX) are added to the navigation file's"),
 ):
     """Tightly coupled GNSS/INS (pseudorange + Doppler) on an IMU log and RINEX files."""
     from aidnav.apps.common import run_directory  # lazy: loaded when the command runs (--help: typer only)
@@ -552,7 +554,7 @@ def tight(
         bar.stage("SPP, alignment, tightly coupled filter", total=None)
         s = process_tight_files(imu, obs, nav, config, out, truth, truth_height_offset, fmt=fmt,
                                 time_offset_s=time_offset, smooth=smooth, progress=bar,
-                                figures=not no_figures, vehicle=vehicle)
+                                figures=not no_figures, vehicle=vehicle, ubx_nav=ubx_nav)
     _print_summary(s, format_tight_summary(s), as_json)
 
 

@@ -81,10 +81,11 @@ def score_against_reference(traj, ref: GnssData) -> dict:
 def process_tight_files(imu_path, obs_path, nav_path, config_path=None, out_dir="out", truth=None,
                         truth_height_offset_m: float = 0.0, fmt: str = "parquet",
                         time_offset_s: float | None = None, smooth: bool = False, progress=None,
-                        figures: bool = True, vehicle: str | None = None) -> dict:
+                        figures: bool = True, vehicle: str | None = None, ubx_nav=None) -> dict:
     """File-level job behind ``aidnav tight``: read IMU + RINEX obs/nav (+ optional reference ``truth``,
     RTKLIB ``.pos`` or interchange, with its own datum offset), run :func:`process_tight`, write
-    ``trajectory.<fmt>``, ``summary.json`` and ``summary.txt`` into ``out_dir``."""
+    ``trajectory.<fmt>``, ``summary.json`` and ``summary.txt`` into ``out_dir``. ``ubx_nav``: a UBX log
+    whose Galileo I/NAV ephemerides are added (:func:`aidnav.io.rinex.read_rinex_pair`)."""
     from aidnav.io.interchange import write_trajectory  # lazy: pulls in pyarrow
 
     out_dir = prepare_out_dir(out_dir)
@@ -96,7 +97,7 @@ def process_tight_files(imu_path, obs_path, nav_path, config_path=None, out_dir=
         cfg = cfg.model_copy(update={"imu": cfg.imu.model_copy(update={"time_offset_s": time_offset_s})})
     imu = shift_imu_time(read_imu_any(imu_path), cfg.imu.time_offset_s)
     cfg = cfg.model_copy(update={"imu": cfg.imu.model_copy(update={"time_offset_s": 0.0})})
-    obs, eph, rinex_events = read_rinex_pair(obs_path, nav_path, cfg.gnss.systems)  # with ephemerides
+    obs, eph, rinex_events = read_rinex_pair(obs_path, nav_path, cfg.gnss.systems, ubx_nav=ubx_nav)
     events += rinex_events
     res, sp = process_tight(imu, obs, eph, cfg, events=events, smooth=smooth)
     traj = to_trajectory(res)

@@ -132,3 +132,28 @@ def test_walk_galileo_residuals(data_dir):
     rms_e, rms_g = np.sqrt(np.mean(e**2)), np.sqrt(np.mean(g**2))
     print(f"walk Galileo residual RMS {rms_e:.2f} m ({len(e)}), GPS {rms_g:.2f} m, offset {offset:.2f} m")
     assert rms_e < 8.0 and np.max(np.abs(e)) < 25.0  # a wrong field or week gives km
+
+
+def test_walk_pair_with_ubx_nav(data_dir):
+    """``read_rinex_pair(..., ubx_nav=)``: the walk's nav file has no Galileo record, the UBX log adds its 7
+    (E14 flagged unhealthy, as broadcast), the Galileo observations are kept, and nothing else changes."""
+    import warnings  # lazy: only this test reads RINEX (georinex's FutureWarnings)
+
+    from aidnav.io.rinex import read_rinex_pair  # lazy: georinex is heavy to import
+
+    d = data_dir / "rtklibexplorer_walk_0827"
+    if not d.is_dir():
+        pytest.skip("walk data set not found")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FutureWarning)
+        args = (d / "rinex_converted" / "gnss_1730.obs", d / "rinex_converted" / "gnss_1730.nav", "GE")
+        obs0, eph0, ev0 = read_rinex_pair(*args)
+        obs1, eph1, ev1 = read_rinex_pair(*args, ubx_nav=d / "gnss_1730.ubx")
+    gal = eph1.table[eph1.table[:, gs.E_PRN] // 100 == 1]
+    assert not np.any(obs0.prn // 100 == 1) and any("no Galileo ephemeris" in e for e in ev0)
+    assert sorted(gal[:, gs.E_PRN].astype(int) % 100) == [7, 8, 13, 14, 26, 29, 33]
+    assert [int(r[gs.E_PRN]) % 100 for r in gal if r[gs.E_HEALTH] != 0] == [14]
+    assert np.all(np.abs(gal[:, gs.E_TOE] - obs1.time[0]) < 7200)  # on the observations' week
+    assert set(obs1.prn[obs1.prn // 100 == 1] % 100) >= {7, 26, 29, 33}
+    gps = [e.table[e.table[:, gs.E_PRN] < 100] for e in (eph0, eph1)]
+    assert np.array_equal(gps[0], gps[1])

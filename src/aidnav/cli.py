@@ -571,6 +571,8 @@ def spp(
     code_sigma: float = typer.Option(3.0, "--code-sigma", help="code range σ [m]: the fixes' σ = DOP × it"),
     as_json: bool = typer.Option(False, "--json", help="print the JSON summary instead of the text"),
     no_figures: bool = typer.Option(False, "--no-figures", help="skip overview.png, maps and run.html"),
+    ubx_nav: Path | None = typer.Option(None, "--ubx-nav", help="u-blox UBX log whose Galileo I/NAV "
+                                        "ephemerides (RXM-SFRBX) are added to the navigation file's"),
 ):
     """Single point positioning on RINEX files: a GNSS solution file (interchange: process --gnss and
     evaluate read it), a summary and run.html."""
@@ -578,7 +580,7 @@ def spp(
     from aidnav.apps.spp import format_spp_summary, spp_files
 
     s = spp_files(obs, nav, out, fmt=fmt, iono=iono, mask_deg=mask, code_sigma_m=code_sigma,
-                  figures=not no_figures)
+                  figures=not no_figures, ubx_nav=ubx_nav)
     _print_summary(s, format_spp_summary(s), as_json)
 
 

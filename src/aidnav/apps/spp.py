@@ -30,9 +30,9 @@ __all__ = ["spp_files", "format_spp_summary"]
 
 
 def spp_files(obs_path, nav_path, out_dir="spp", fmt: str = "parquet", iono: str = "klobuchar",
-              mask_deg: float = 10.0, code_sigma_m: float = 3.0, figures: bool = True) -> dict:
+              mask_deg: float = 10.0, code_sigma_m: float = 3.0, figures: bool = True, ubx_nav=None) -> dict:
     """Run SPP on the RINEX files and write the solution, the summary and the page into ``out_dir``;
-    returns the summary dict."""
+    returns the summary dict. ``ubx_nav``: a UBX log whose Galileo I/NAV ephemerides are added."""
     if fmt not in ("parquet", "csv"):
         raise InputError(f"--format {fmt}: expected parquet or csv")
     if iono not in ("klobuchar", "none", "dual"):
@@ -40,7 +40,7 @@ def spp_files(obs_path, nav_path, out_dir="spp", fmt: str = "parquet", iono: str
     if not code_sigma_m > 0:
         raise InputError(f"--code-sigma {code_sigma_m}: expected a σ > 0 m")
     out = prepare_out_dir(out_dir)
-    obs, eph, notes = read_rinex_pair(obs_path, nav_path)  # every system with ephemerides
+    obs, eph, notes = read_rinex_pair(obs_path, nav_path, ubx_nav=ubx_nav)  # every system with ephemerides
     sp = spp_series(obs, eph, sigma0=code_sigma_m, iono=iono, mask_deg=mask_deg)
     no_coef = iono == "klobuchar" and getattr(eph, "iono_alpha", None) is None
     default = no_coef and any("default coefficients" in e for e in sp["events"])

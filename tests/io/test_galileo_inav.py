@@ -157,3 +157,14 @@ def test_walk_pair_with_ubx_nav(data_dir):
     assert set(obs1.prn[obs1.prn // 100 == 1] % 100) >= {7, 26, 29, 33}
     gps = [e.table[e.table[:, gs.E_PRN] < 100] for e in (eph0, eph1)]
     assert np.array_equal(gps[0], gps[1])
+
+
+def test_log_without_galileo_pages_refused(tmp_path):
+    from aidnav.io.errors import DataError  # lazy: only this test
+
+    p = tmp_path / "x.ubx"
+    p.write_bytes(b"\xb5\x62\x01\x07\x00\x00" + b"not a log" * 10)
+    with pytest.raises(DataError, match="no complete Galileo I/NAV ephemeris"):
+        gi.read_ubx_galileo_inav(p)
+    with pytest.raises(DataError, match="file not found"):
+        gi.read_ubx_galileo_inav(tmp_path / "none.ubx")

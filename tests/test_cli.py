@@ -166,3 +166,58 @@ def test_console_entry_process(sim_dir):
                 str(sim_dir / "sim/gnss.parquet"), "-o", str(sim_dir / "bad"))
     assert r.returncode == 2
     assert r.stderr.startswith("error:") and "missing.parquet" in r.stderr
+
+
+def test_figures_child_forked_early_only_for_process_with_figures():
+    from aidnav.cli import _fork_figures_early
+
+    # no fork for these (decided before anything is forked)
+    for argv in (["simulate", "x.yaml"], ["process", "--imu", "a", "--no-figures"], ["process", "--help"], [],
+                 ["--version"], ["evaluate", "process"]):
+        assert _fork_figures_early(argv) is None, argv
+
+
+_SPY = """
+import os, sys
+sys.argv[0] = 'aidnav'
+sys.argv[1:] = {argv!r}
+from aidnav import cli
+from aidnav.apps import run_outputs
+forked, starts = [], []
+early, start = cli._fork_figures_early, run_outputs.start_outputs
+def spy(argv):
+    forked.append(early(argv))
+    return forked[-1]
+def counted(*a, **k):
+    r = start(*a, **k)
+    if isinstance(r, run_outputs.OutputsProcess) and all(r is not x for x in starts):
+        starts.append(r)  # a child forked (an OutputsProcess passed in is returned as it is)
+    return r
+cli._fork_figures_early, run_outputs.start_outputs = spy, counted
+def leave(status):
+    f = forked[0]
+    try:
+        os.waitpid(f.pid, os.WNOHANG)
+        alive = True
+    except ChildProcessError:
+        alive = False
+    print('FORKED', f is not None, 'ALIVE', alive, 'FORKS', len(starts), 'STATUS', status, flush=True)
+    os._exit(0)
+cli._leave = leave
+cli.main()
+"""
+
+
+def test_figures_child_forked_before_parsing_taken_by_process_or_ended(sim_dir):
+    # the console script forks the figures' child before typer parses (cli._fork_figures_early): a command
+    # line typer rejects ends it (reaped: no child left behind); process takes it (no second fork) and
+    # writes the figures with it
+    r = _python(_SPY.format(argv=["process", "--bogus-option"]))
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split() == ["FORKED", "True", "ALIVE", "False", "FORKS", "1", "STATUS", "2"]
+    out = sim_dir / "early"
+    r = _python(_SPY.format(argv=["process", "--imu", str(sim_dir / "sim/imu.parquet"), "--gnss",
+                                  str(sim_dir / "sim/gnss.parquet"), "-o", str(out)]))
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split()[-8:] == ["FORKED", "True", "ALIVE", "False", "FORKS", "1", "STATUS", "0"]
+    assert (out / "overview.png").stat().st_size > 0 and (out / "run.html").is_file()

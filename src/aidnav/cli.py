@@ -67,6 +67,9 @@ def _console(stderr: bool = False):
 _INTERRUPT_REPORTED = False
 #: True in the ``aidnav`` command itself (:func:`main`), False where ``app`` is called in-process (tests)
 _CONSOLE_SCRIPT = False
+#: the figures' child of ``aidnav process`` forked by :func:`main` before typer parses the command line
+#: (:func:`_fork_figures_early`), until ``process`` takes it
+_FORKED_FIGURES = None
 #: the formats the readers know (aidnav.io.formats IMU_FORMATS / GNSS_FORMATS / TRAJECTORY_FORMATS), written
 #: out here so that --help needs no numpy; a test checks they name every format
 _IMU_FORMATS_HELP = ("aidnav interchange CSV/Parquet, raw rtklibexplorer CSV + its .tag, KF-GINS IMU text, "
@@ -302,8 +305,9 @@ def process(
     from aidnav.apps.run_outputs import start_outputs  # lazy: (the standard library only)
 
     # the figures' process forked first: before numba and the filters load here (it needs neither) and
-    # before the progress bar's thread starts; it imports matplotlib while this process reads and filters
-    figures = start_outputs(not no_figures)
+    # before the progress bar's thread starts; it imports matplotlib while this process reads and filters.
+    # In the aidnav command it was forked before typer parsed the command line (_fork_figures_early)
+    figures = _take_forked_figures(not no_figures) or start_outputs(not no_figures)
     from aidnav.apps.common import run_directory  # lazy: loaded when the command runs (--help: typer only)
     from aidnav.apps.process import format_summary, process_logs  # lazy: (as above)
     from aidnav.filters.aids import parse_aid  # lazy: numpy and the filters only when a command runs
@@ -666,21 +670,50 @@ def _start_kernels() -> None:
                                     "once per install) makes every command start faster[/dim]")
 
 
+def _fork_figures_early(argv: list[str]):
+    """The figures' child of ``aidnav process`` (:func:`aidnav.apps.run_outputs.start_outputs`) forked at
+    the command's start, before typer parses the command line (≈ 0.1 s: its 21 pydantic adapters) and
+    before numpy loads: its imports of matplotlib and the overview's skeleton then start that much
+    earlier beside this process's work, and are ready before the filter's job on a short log (issue 41,
+    session 14). Only for ``process`` without ``--no-figures`` or ``--help`` (a first word that is the
+    command: the app has no option that takes a value); anything else, or a command line that typer
+    then rejects, gets no child or has it ended (:func:`main`). Returns the child or None."""
+    if argv[:1] != ["process"] or {"--no-figures", "--help"} & set(argv):
+        return None
+    from aidnav.apps.run_outputs import OutputsProcess, start_outputs  # lazy: the standard library only
+
+    figures = start_outputs(True)
+    return figures if isinstance(figures, OutputsProcess) else None
+
+
+def _take_forked_figures(wanted: bool):
+    """The figures' child forked by :func:`main` (None where there is none); ended where the command
+    draws no figures after all."""
+    global _FORKED_FIGURES
+    figures, _FORKED_FIGURES = _FORKED_FIGURES, None
+    if figures is not None and not wanted:
+        figures.close()
+        return None
+    return figures
+
+
 def main():  # pragma: no cover - the console script (tests call `app` in-process, and main in a subprocess)
     """The ``aidnav`` command: the typer app, with numba's start-up made cheaper and a quick exit."""
-    global _CONSOLE_SCRIPT
+    global _CONSOLE_SCRIPT, _FORKED_FIGURES
     _CONSOLE_SCRIPT = True
     _fewer_collections()  # a command's few million long-lived objects: fewer garbage collections
     _pause_collections()  # and none while it starts (console_script.pause_collections)
     try:
         try:
             _interrupts.install()  # SIGINT/SIGTERM raised where Python can take them (not numba's glue): 130
+            _FORKED_FIGURES = _fork_figures_early(sys.argv[1:])  # process: drawn beside typer's parsing
             app()
             status = 0
         except SystemExit as e:
             status = _exit_status(e.code)
     except KeyboardInterrupt:
         status = 130
+    _take_forked_figures(False)  # a child that process never took (typer rejected the command line): ended
     if status == 130 and not _INTERRUPT_REPORTED:  # before or after a command (typer: exit 130, silent)
         print(f"error: {_interrupts.MESSAGE}", file=sys.stderr)
     import signal  # lazy: only this command needs it

@@ -1,9 +1,10 @@
 """The figures, maps and page of ``aidnav process`` drawn beside the filter (issue 41).
 
-:func:`start_outputs` forks, on Linux and from a process with no other thread (as ``characterise`` does
-with its :class:`aidnav.apps.characterise.FigureProcess`), a child that imports matplotlib and the report
-modules and loads the default font while the parent reads the logs and runs the filter. The command
-forks it first thing, before numba and the filters load: the child needs neither (the report draws with
+:func:`start_outputs` forks, on Linux and from a process with no other thread (as ``characterise`` does with
+its :class:`aidnav.apps.characterise.FigureProcess`), a child that imports matplotlib and the report modules
+and loads the default font while the parent reads the logs and runs the filter. The command forks it first
+thing, before numba and the filters load (the ``aidnav`` console script even before typer parses the command
+line: :func:`aidnav.cli._fork_figures_early`): the child needs neither (the report draws with
 :mod:`aidnav.nav.plain`), so it costs no numba import and no kernel load, and holds none of their memory.
 Once the configuration and the fixes are read, the parent tells the child which panels the overview will
 have (:meth:`OutputsProcess.expect`, :func:`expected_panels`); the child builds and draws that figure's

@@ -144,15 +144,13 @@ _IN_EXEC = """
 import signal, time
 from aidnav import interrupts
 interrupts.install()
+g = {"signal": signal}
 try:
-    exec("signal.raise_signal(signal.SIGINT)\\nx = 1", {"signal": signal})  # lands in code run from a string
+    exec("signal.raise_signal(signal.SIGINT)\\nx = 1\\ndone = True", g)  # lands in code run from a string
+    time.sleep(1.0)  # the retry (SIGALRM, a few ms) raises it here at the latest
+    print("not raised")
 except KeyboardInterrupt:
-    print("raised inside")
-print("pending", interrupts.pending())
-try:
-    time.sleep(1.0)  # the retry (SIGALRM, a few ms) raises it here
-except KeyboardInterrupt:
-    print("raised after")
+    print("raised", "after" if g.get("done") else "inside")  # the string's code ran to its end first
 """
 
 
@@ -163,4 +161,6 @@ def test_an_interrupt_in_code_run_from_a_string_is_raised_after_it():
     r = subprocess.run([sys.executable, "-c", _IN_EXEC], capture_output=True, text=True, env=_env(),
                        timeout=60)
     assert r.returncode == 0, (r.returncode, r.stdout, r.stderr)
-    assert r.stdout.split("\n")[:2] == ["pending True", "raised after"], r.stdout
+    # where the retry lands (right after the string's code, or in the sleep) depends on the machine's load:
+    # the string's code ran to its end before it (not "inside"), and the program handled it (status 0)
+    assert r.stdout.split("\n")[0] == "raised after", r.stdout

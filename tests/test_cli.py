@@ -5,6 +5,7 @@ whole `simulate` → `process` run through the console entry point."""
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 
@@ -175,6 +176,11 @@ def test_figures_child_forked_early_only_for_process_with_figures():
     for argv in (["simulate", "x.yaml"], ["process", "--imu", "a", "--no-figures"], ["process", "--help"], [],
                  ["--version"], ["evaluate", "process"]):
         assert _fork_figures_early(argv) is None, argv
+    # nor where the process may run on one CPU only (its affinity): the child's work would only move earlier
+    r = _python("import os\nos.sched_setaffinity(0, {min(os.sched_getaffinity(0))})\n"
+                "from aidnav.cli import _fork_figures_early\n"
+                "print(_fork_figures_early(['process', '--imu', 'a', '--gnss', 'b']))")
+    assert r.returncode == 0 and r.stdout.split() == ["None"], r.stdout + r.stderr
 
 
 _SPY = """
@@ -208,6 +214,7 @@ cli.main()
 """
 
 
+@pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2, reason="the early fork needs two usable CPUs")
 def test_figures_child_forked_before_parsing_taken_by_process_or_ended(sim_dir):
     # the console script forks the figures' child before typer parses (cli._fork_figures_early): a command
     # line typer rejects ends it (reaped: no child left behind); process takes it (no second fork) and

@@ -336,8 +336,8 @@ def initial_state(imu, gnss, cfg, t_imu, g, use, events):
     gs = (g_t[iu], g_lat[iu], g_lon[iu], g_h[iu], g_vel[iu], g_spos[iu], g_svel[iu])
     vel_u, svel_u = gnss_velocity_for_init(gsub, gs)
     j0 = int(np.searchsorted(iu, i0))
-    rph, att_sig, v0, vsig0, known_h = _automatic_attitude(imu, t_imu, k0, gsub, vel_u, svel_u, j0, cfg,
-                                                           events, lat0, h0)
+    rph, att_sig, v0, vsig0, known_h, level = _automatic_attitude(imu, t_imu, k0, gsub, vel_u, svel_u, j0,
+                                                                  cfg, events, lat0, h0)
     reset_idx, reset_heading, reset_time = -1, 0.0, None
     reset_nav = np.full(RN_LEVER, np.nan)
     if ini.heading_deg is None and not known_h:
@@ -349,7 +349,7 @@ def initial_state(imu, gnss, cfg, t_imu, g, use, events):
                       f"{np.round(vsig0, 3)} m/s)")
     return dict(t0=t0, k0=k0, lat0=lat0, lon0=lon0, h0=h0, v0=v0, rph=rph, att_sig=att_sig,
                 reset_idx=reset_idx, reset_heading=reset_heading, reset_nav=reset_nav, vel_sig=vsig0,
-                reset_time=reset_time)
+                reset_time=reset_time, level=level)
 
 
 def _given_state(imu, cfg) -> dict:
@@ -364,7 +364,7 @@ def _given_state(imu, cfg) -> dict:
                 lon0=ini.lon_deg * DEG, h0=ini.height_m, v0=np.array(ini.velocity_m_s, float),
                 rph=np.array([ini.roll_deg, ini.pitch_deg, ini.heading_deg]) * DEG,
                 att_sig=np.array(ini.attitude_sigma_deg) * DEG, reset_idx=-1, reset_heading=0.0,
-                reset_nav=np.full(RN_LEVER, np.nan), vel_sig=None, reset_time=None)
+                reset_nav=np.full(RN_LEVER, np.nan), vel_sig=None, reset_time=None, level=None)
 
 
 def _first_fix(t_imu, g_t, use, events):
@@ -390,7 +390,17 @@ def _automatic_attitude(imu, t_imu, k0, gsub, vel_u, svel_u, j0, cfg, events, la
     """Roll, pitch and heading of an automatic start at sample k0 (fix j0 of the usable ones): static
     coarse alignment and gyrocompassing (:mod:`aidnav.nav.alignment`), or the in-motion start
     (:func:`_moving_start`); the configured angles win. Returns (rph, att_sig, v0, vel_sig or None,
-    whether the heading is known now)."""
+    whether the heading is known now, the levelling (f^b [m/s²], σ_w [rad]) or None).
+
+    A start at rest (the fixes do not move) whose roll and pitch are the mean specific force's and whose
+    σ is not stated is a *levelling*: its tilt error is what the accelerometer errors do to that force
+    (−b/g, …) plus the levelling's own error σ_w, one combination with the accelerometer states that the
+    fixes at rest observe and nothing at rest separates (issue 35). The filter's prior then holds it so
+    (:func:`aidnav.filters.prior.levelled_tilt_covariance`, applied by the loose set-up): an independent
+    tilt σ of the same size as the bias's b/g halves in the first seconds at rest (the updates read the one
+    observed sum as two independent pieces of information), a σ the bias draw then escapes. σ_w: the
+    static window's standard error of the mean force / g; where the force's magnitude is not g's (the
+    in-motion start's check) the in-motion tilt σ's part beyond the accelerometer's."""
     ini = cfg.init
     v_first = vel_u[j0]
     # static coarse alignment (aidnav.nav.alignment): roll/pitch from the mean specific force over
@@ -443,9 +453,26 @@ def _automatic_attitude(imu, t_imu, k0, gsub, vel_u, svel_u, j0, cfg, events, la
         att_sig[2] = heading_now[1]
     elif ini.heading_deg is None:
         events.append(f"no gyrocompass heading ({ainfo['heading_reason']}): heading from GNSS course")
+    level = None
     if not moving and not stated and ini.roll_deg is None and ini.pitch_deg is None:
+        se = float(np.hypot(ainfo["se_f"][0], ainfo["se_f"][1])) / G0 if np.all(np.isfinite(ainfo["se_f"])) \
+            else float(att_sig[0])
+        if vsig0 is not None:  # |f| ≠ g at rest: the in-motion tilt σ beyond the accelerometer's b/g
+            b = _accel_sigma(cfg) / G0
+            se = float(np.sqrt(max(float(np.max(att_sig[0:2])) ** 2 - b * b, se * se)))
         att_sig[0:2] = _levelling_sigma(ainfo, cfg, att_sig[0:2])
-    return rph, att_sig, v0, vsig0, gc_heading is not None or heading_now is not None
+        level = (np.array(ainfo["mean_f"], float), se)
+    return rph, att_sig, v0, vsig0, gc_heading is not None or heading_now is not None, level
+
+
+def _accel_sigma(cfg) -> float:
+    """The model's horizontal accelerometer error σ at rest [m/s²]: the bias σ ⊕ the misalignment σ × g
+    where the misalignment is a state."""
+    im = cfg.imu
+    b = im.accel_bias_sigma_ug * UG
+    if im.accel_misalignment:
+        b = float(np.hypot(b, np.radians(im.accel_misalignment_sigma_deg) * G0))
+    return b
 
 
 def _levelling_sigma(ainfo, cfg, configured):
@@ -461,10 +488,7 @@ def _levelling_sigma(ainfo, cfg, configured):
     is small (a navigation-grade IMU: 0.002°) the correlation cannot matter against the filter's own
     tilt σ, and the configured 2° would decide the RMS σ of the first epochs of a run whose tilt error is
     0.01° (grade navigation × no option, roll RMS(err)/RMS(σ) 0.23 → 0.54; issue 35, session 12)."""
-    im = cfg.imu
-    b = im.accel_bias_sigma_ug * UG
-    if im.accel_misalignment:
-        b = float(np.hypot(b, np.radians(im.accel_misalignment_sigma_deg) * G0))
+    b = _accel_sigma(cfg)
     se = float(np.hypot(ainfo["se_f"][0], ainfo["se_f"][1])) if np.all(np.isfinite(ainfo["se_f"])) else np.inf
     lev = np.hypot(se, b) / G0
     return np.where(lev < 0.1 * np.asarray(configured), lev, configured)

@@ -392,15 +392,8 @@ def _automatic_attitude(imu, t_imu, k0, gsub, vel_u, svel_u, j0, cfg, events, la
     (:func:`_moving_start`); the configured angles win. Returns (rph, att_sig, v0, vel_sig or None,
     whether the heading is known now, the levelling (f^b [m/s²], σ_w [rad]) or None).
 
-    A start at rest (the fixes do not move) whose roll and pitch are the mean specific force's and whose
-    σ is not stated is a *levelling*: its tilt error is what the accelerometer errors do to that force
-    (−b/g, …) plus the levelling's own error σ_w, one combination with the accelerometer states that the
-    fixes at rest observe and nothing at rest separates (issue 35). The filter's prior then holds it so
-    (:func:`aidnav.filters.prior.levelled_tilt_covariance`, applied by the loose set-up): an independent
-    tilt σ of the same size as the bias's b/g halves in the first seconds at rest (the updates read the one
-    observed sum as two independent pieces of information), a σ the bias draw then escapes. σ_w: the
-    static window's standard error of the mean force / g; where the force's magnitude is not g's (the
-    in-motion start's check) the in-motion tilt σ's part beyond the accelerometer's."""
+    Roll and pitch from the specific force (static or in motion) whose σ is not stated are a
+    *levelling* (:func:`_start_levelling`)."""
     ini = cfg.init
     v_first = vel_u[j0]
     # static coarse alignment (aidnav.nav.alignment): roll/pitch from the mean specific force over
@@ -422,7 +415,7 @@ def _automatic_attitude(imu, t_imu, k0, gsub, vel_u, svel_u, j0, cfg, events, la
     vsig0 = None
     heading_now = None
     if moving or abs(ainfo["f_norm"] - ainfo["gravity"]) > 0.02 * ainfo["gravity"]:
-        roll, pitch, gc_heading, heading_now, vsig0 = _moving_start(
+        roll, pitch, gc_heading, heading_now, vsig0, f_move = _moving_start(
             imu, t_imu, k0, gsub, vel_u, svel_u, j0, cfg, events, ainfo)
         att_sig[0:2] = np.maximum(att_sig[0:2], _moving_tilt_sigma(gsub, vel_u, svel_u, j0, cfg))
         if np.all(np.isfinite(v_first)):
@@ -454,15 +447,35 @@ def _automatic_attitude(imu, t_imu, k0, gsub, vel_u, svel_u, j0, cfg, events, la
     elif ini.heading_deg is None:
         events.append(f"no gyrocompass heading ({ainfo['heading_reason']}): heading from GNSS course")
     level = None
-    if not moving and not stated and ini.roll_deg is None and ini.pitch_deg is None:
-        se = float(np.hypot(ainfo["se_f"][0], ainfo["se_f"][1])) / G0 if np.all(np.isfinite(ainfo["se_f"])) \
-            else float(att_sig[0])
-        if vsig0 is not None:  # |f| ≠ g at rest: the in-motion tilt σ beyond the accelerometer's b/g
-            b = _accel_sigma(cfg) / G0
-            se = float(np.sqrt(max(float(np.max(att_sig[0:2])) ** 2 - b * b, se * se)))
-        att_sig[0:2] = _levelling_sigma(ainfo, cfg, att_sig[0:2])
-        level = (np.array(ainfo["mean_f"], float), se)
+    if not stated and ini.roll_deg is None and ini.pitch_deg is None:
+        level = _start_levelling(ainfo, cfg, att_sig, f_move if vsig0 is not None else None)
+        if not moving:
+            att_sig[0:2] = _levelling_sigma(ainfo, cfg, att_sig[0:2])
     return rph, att_sig, v0, vsig0, gc_heading is not None or heading_now is not None, level
+
+
+def _start_levelling(ainfo, cfg, att_sig, f_move):
+    """(f^b [m/s²], σ_w [rad]) of a start whose roll and pitch are the specific force's (issue 35).
+
+    Its tilt error is what the accelerometer errors do to that force (−b/g, …) plus the levelling's own
+    error σ_w: one combination with the accelerometer states, which the fixes observe (at rest, as the sum
+    φ·g + C b) and nothing but turns separates. The loose set-up's prior holds it so
+    (:func:`aidnav.filters.prior.levelled_tilt_covariance`): an independent tilt σ of the size of b/g
+    halves in the first seconds (the updates read the one observed sum as two independent pieces of
+    information) and a bias draw of 2–3σ then escapes the tilt's 3σ (the matrix's parked and moving-start
+    rows, seed 10: −36 mg on x, roll 2.5° off at σ 0.55°).
+
+    σ_w: at rest (``f_move`` None) the static window's standard error of the mean force / g; in motion
+    (the 1-s force ``f_move`` the roll and pitch came from, corrected by the GNSS acceleration where the
+    heading is known; also a start at rest whose force's magnitude is not g's) the in-motion tilt σ's part
+    beyond the accelerometer's, √(σ_tilt² − (σ_b/g)²): the acceleration correction's error (and without a
+    heading the whole horizontal acceleration), and the floor of 2°, stay independent."""
+    if f_move is None:
+        se_f = ainfo["se_f"]
+        sw = float(np.hypot(se_f[0], se_f[1])) / G0 if np.all(np.isfinite(se_f)) else float(att_sig[0])
+        return np.array(ainfo["mean_f"], float), sw
+    b = _accel_sigma(cfg) / G0
+    return np.array(f_move, float), float(np.sqrt(max(float(np.max(att_sig[0:2])) ** 2 - b * b, 0.0)))
 
 
 def _accel_sigma(cfg) -> float:
@@ -543,7 +556,8 @@ def _moving_start(imu, t_imu, k0, gsub, vel, svel, j0, cfg, events, ainfo):
     """In-motion start at fix j0: heading from the course now when it is meaningful (:func:`_course_ok`),
     roll and pitch from the mean specific force over 1 s corrected by the GNSS-derived acceleration
     (rotated into the IMU's level frame with that heading; without it only the magnitude is known and
-    enters the tilt σ). Returns (roll, pitch, None, (heading, σ) or None, σ_v (3,))."""
+    enters the tilt σ). Returns (roll, pitch, None, (heading, σ) or None, σ_v (3,), the 1-s mean specific
+    force f^b (3,) [m/s², uncorrected])."""
     sp = float(np.hypot(vel[j0, 0], vel[j0, 1]))
     sg = float(np.hypot(svel[j0, 0], svel[j0, 1])) if np.all(np.isfinite(svel[j0, :2])) else np.inf
     heading_now = None
@@ -570,7 +584,7 @@ def _moving_start(imu, t_imu, k0, gsub, vel, svel, j0, cfg, events, ainfo):
                   + (f"; heading {np.degrees(heading_now[0]):.2f} deg from the course (sigma "
                      f"{np.degrees(heading_now[1]):.2f} deg)" if heading_now is not None else
                      "; heading unknown until the course is meaningful"))
-    return roll, pitch, None, heading_now, np.nan_to_num(svel[j0], nan=1.0)
+    return roll, pitch, None, heading_now, np.nan_to_num(svel[j0], nan=1.0), f_b
 
 
 def _gnss_acceleration(gsub, vel, j0, window_s: float = 1.0):

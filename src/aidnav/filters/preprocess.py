@@ -449,8 +449,6 @@ def _automatic_attitude(imu, t_imu, k0, gsub, vel_u, svel_u, j0, cfg, events, la
     level = None
     if not stated and ini.roll_deg is None and ini.pitch_deg is None:
         level = _start_levelling(ainfo, cfg, att_sig, f_move if vsig0 is not None else None)
-        if not moving:
-            att_sig[0:2] = _levelling_sigma(ainfo, cfg, att_sig[0:2])
     return rph, att_sig, v0, vsig0, gc_heading is not None or heading_now is not None, level
 
 
@@ -460,10 +458,12 @@ def _start_levelling(ainfo, cfg, att_sig, f_move):
     Its tilt error is what the accelerometer errors do to that force (−b/g, …) plus the levelling's own
     error σ_w: one combination with the accelerometer states, which the fixes observe (at rest, as the sum
     φ·g + C b) and nothing but turns separates. The loose set-up's prior holds it so
-    (:func:`aidnav.filters.prior.levelled_tilt_covariance`): an independent tilt σ of the size of b/g
-    halves in the first seconds (the updates read the one observed sum as two independent pieces of
-    information) and a bias draw of 2–3σ then escapes the tilt's 3σ (the matrix's parked and moving-start
-    rows, seed 10: −36 mg on x, roll 2.5° off at σ 0.55°).
+    (:func:`aidnav.filters.prior.levelled_tilt_covariance`). An independent tilt σ (main until session 14:
+    the configured 2°, or b/g itself where that was below a tenth of it) lets the first fixes read the one
+    observed sum as two pieces of information: of the size of b/g, the tilt's variance halves in seconds
+    and a bias draw of 2–3σ escapes the tilt's 3σ (the matrix's parked row, seed 10: −36 mg on x, roll
+    2.5° off at σ 0.55°); and where the prior leaves the split loose, a heading held unknown at rest spins
+    the tilt's frame and moves the split (parked × ship, seed 0: tilt 6–14° off at σ 1–2°).
 
     σ_w: at rest (``f_move`` None) the static window's standard error of the mean force / g; in motion
     (the 1-s force ``f_move`` the roll and pitch came from, corrected by the GNSS acceleration where the
@@ -486,25 +486,6 @@ def _accel_sigma(cfg) -> float:
     if im.accel_misalignment:
         b = float(np.hypot(b, np.radians(im.accel_misalignment_sigma_deg) * G0))
     return b
-
-
-def _levelling_sigma(ainfo, cfg, configured):
-    """Roll/pitch σ [rad] of a static coarse levelling (:func:`aidnav.nav.alignment.coarse_align_static`):
-    the standard error of its mean horizontal specific force (noise, a swaying vehicle) ⊕ what the
-    model's horizontal accelerometer errors make of it (b/g: the bias σ, and the misalignment σ × g where
-    it is a state), where that is below a tenth of the ``configured`` σ; the configured σ otherwise.
-
-    Why the tenth (a choice, not fitted): a levelling's tilt error is −b/g + noise, correlated with the
-    biases, which a diagonal prior cannot hold; where the bias part is large (the unknown grade: 13 mg,
-    0.76° against the configured 2°) the configured σ stays and the first updates at rest tie the two —
-    the diagonal 0.76° measured worse (imu gap × no option, roll/pitch 97.3/96.3 → 82.8/85.8 %); where it
-    is small (a navigation-grade IMU: 0.002°) the correlation cannot matter against the filter's own
-    tilt σ, and the configured 2° would decide the RMS σ of the first epochs of a run whose tilt error is
-    0.01° (grade navigation × no option, roll RMS(err)/RMS(σ) 0.23 → 0.54; issue 35, session 12)."""
-    b = _accel_sigma(cfg)
-    se = float(np.hypot(ainfo["se_f"][0], ainfo["se_f"][1])) if np.all(np.isfinite(ainfo["se_f"])) else np.inf
-    lev = np.hypot(se, b) / G0
-    return np.where(lev < 0.1 * np.asarray(configured), lev, configured)
 
 
 def _course_reset(gsub, cfg, t0, vel_u, svel_u, iu, g, t_imu, k0, events):

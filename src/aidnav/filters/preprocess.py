@@ -322,7 +322,9 @@ def initial_state(imu, gnss, cfg, t_imu, g, use, events):
     k0 (first IMU sample used), lat0, lon0, h0, v0, rph, att_sig [rad], reset_idx (sample index of the
     course alignment, −1: none; relative to k0), reset_time (its time, inf: never, None: none),
     reset_heading [rad], reset_nav (15,) of the course fix (``layout.RN_*`` up to the lever arm),
-    vel_sig (3,) [m/s] of an in-motion start (None: the configured σ).
+    vel_sig (3,) [m/s] of an in-motion start (None: the configured σ), level: (f^b (3,) [m/s²], σ_w [rad])
+    where roll and pitch are the specific force's with an unstated σ (:func:`_start_levelling`; the set-up
+    then ties the tilt to the accelerometer states), else None.
     """
     if cfg.init.mode == "given":
         return _given_state(imu, cfg)

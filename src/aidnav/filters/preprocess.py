@@ -467,17 +467,26 @@ def _start_levelling(ainfo, cfg, att_sig, f_move):
     2.5° off at σ 0.55°); and where the prior leaves the split loose, a heading held unknown at rest spins
     the tilt's frame and moves the split (parked × ship, seed 0: tilt 6–14° off at σ 1–2°).
 
-    σ_w: at rest (``f_move`` None) the static window's standard error of the mean force / g; in motion
-    (the 1-s force ``f_move`` the roll and pitch came from, corrected by the GNSS acceleration where the
-    heading is known; also a start at rest whose force's magnitude is not g's) the in-motion tilt σ's part
-    beyond the accelerometer's, √(σ_tilt² − (σ_b/g)²): the acceleration correction's error (and without a
-    heading the whole horizontal acceleration), and the floor of 2°, stay independent."""
-    if f_move is None:
-        se_f = ainfo["se_f"]
-        sw = float(np.hypot(se_f[0], se_f[1])) / G0 if np.all(np.isfinite(se_f)) else float(att_sig[0])
-        return np.array(ainfo["mean_f"], float), sw
+    σ_w, the part that stays independent: the tilt σ the start would have had alone (in motion: the
+    in-motion σ, :func:`_moving_tilt_sigma`, with the 1-s force ``f_move`` the roll and pitch came from;
+    at rest the configured ``init.attitude_sigma_deg``) less the accelerometer's part,
+    √(σ_tilt² − (σ_b/g)²): the marginal tilt σ stays what it was, only its correlation is new, and the
+    first fixes (not the prior) decide how well the sum is known. The static window's standard error of
+    the mean force alone (0.009° on the real drive) claimed the sum to 0.15 mg before any fix: on the
+    drive with its GNSS tags 0.2 s early (the time offset still unknown when the car moves off) the first
+    outage's RMS error became 49 m (1.7 m with the configured part). Where the levelling ⊕ the
+    accelerometer's part is below a tenth of the configured σ (a navigation-grade IMU: 0.002°), that
+    levelling is used as σ_w instead, so the configured 2° does not decide the σ of the first epochs of a
+    run whose tilt error is 0.01° (grade navigation × no option, roll RMS(err)/RMS(σ) 0.23 with it; the
+    rule of session 12's ``_levelling_sigma``)."""
     b = _accel_sigma(cfg) / G0
-    return np.array(f_move, float), float(np.sqrt(max(float(np.max(att_sig[0:2])) ** 2 - b * b, 0.0)))
+    rest = float(np.sqrt(max(float(np.max(att_sig[0:2])) ** 2 - b * b, 0.0)))
+    if f_move is not None:
+        return np.array(f_move, float), rest
+    se_f = ainfo["se_f"]
+    se = float(np.hypot(se_f[0], se_f[1])) / G0 if np.all(np.isfinite(se_f)) else np.inf
+    fine = float(np.hypot(se, b)) < 0.1 * float(np.max(att_sig[0:2]))
+    return np.array(ainfo["mean_f"], float), se if fine else rest
 
 
 def _accel_sigma(cfg) -> float:

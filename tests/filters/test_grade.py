@@ -204,9 +204,9 @@ def test_static_start_tilt_prior_is_joint_with_the_accelerometer_errors(grade):
     the levelled tilt is g·φ_N = (C ∇)_E, g·φ_E = −(C ∇)_N; an independent σ let the ZUPTs at rest observe
     the same sum again and shrink the tilt σ below its error). Known answer from the model's σ's; the
     navigation IMU's levelling and gyrocompass errors are covered; an unknown grade's heading is unknown."""
-    from aidnav.filters.loose import loose_setup  # lazy: the filter's setup, only this test
     from aidnav.filters.ins_errors import MIS_IN, MIS_OUT  # lazy: only this test
     from aidnav.filters.layout import BA, MA, SA  # lazy: only this test
+    from aidnav.filters.loose import loose_setup  # lazy: the filter's setup, only this test
 
     sim = _drive_log(grade, 3)
     ev: list[str] = []

@@ -462,7 +462,8 @@ def _levelling(ainfo):
     Why not an independent tilt σ (before: the model's b/g where below a tenth of the configured σ): it
     claims the tilt and the accelerometer errors unrelated, and the ZUPTs at rest, which observe
     g·φ + ∇ again, then shrink the tilt's σ by up to √2 below the error the levelling left (grade mems
-    with the MEMS row's model: roll/pitch σ 0.08° at rest against the grade's 0.115°; issue 35, session 14)."""
+    with the MEMS row's model: roll/pitch σ 0.08° at rest against the grade's 0.115°; issue 35,
+    session 14)."""
     se = np.asarray(ainfo["se_f"], float)
     if not np.all(np.isfinite(se[:2])):
         return None

@@ -62,8 +62,8 @@ class ImuNoise(_Strict):
     grade_from_static: bool = Field(
         False, description="class the IMU by the bias components its longest static run measures (gyro "
         "vertical and horizontal against the Earth rate, accelerometer vertical against gravity) and take "
-        "the bias, instability, scale-factor and misalignment model of the loosest grade the data leave "
-        "possible (filters.grade); on without an imu section in the loose filter (issue 35)")
+        "the bias, instability, scale-factor and misalignment model of the posterior mixture of the grades "
+        "the data leave possible (filters.grade); on without an imu section in the loose filter (issue 35)")
     time_offset_s: float = Field(0.0, description="added to IMU time stamps (IMU clock → GNSS time)")
     mounting_rph_deg: tuple[float, float, float] = Field(
         (0.0, 0.0, 0.0), description="IMU body → vehicle frame rotation as roll, pitch, heading [deg] "

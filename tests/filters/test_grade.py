@@ -200,7 +200,8 @@ def _drive_log(grade: str, seed: int):
 def test_static_start_tilt_prior_is_joint_with_the_accelerometer_errors(grade):
     """No option: a static start's tilt prior is the levelling's — the accelerometer errors of the model
     the filter takes (a navigation-grade IMU: its grade's, classed; otherwise the unknown grade's) divided
-    by g, plus the mean force's standard error — *correlated* with those error states (issue 35, session 14:
+    by g, plus an independent part (the mean force's standard error for a fine levelling, else the
+    configured σ's part beyond b/g, q35t) — *correlated* with those error states (issue 35, session 14:
     the levelled tilt is g·φ_N = (C ∇)_E, g·φ_E = −(C ∇)_N; an independent σ let the ZUPTs at rest observe
     the same sum again and shrink the tilt σ below its error). Known answer from the model's σ's; the
     navigation IMU's levelling and gyrocompass errors are covered; an unknown grade's heading is unknown."""
@@ -218,8 +219,10 @@ def test_static_start_tilt_prior_is_joint_with_the_accelerometer_errors(grade):
     if im.accel_misalignment:
         b = np.hypot(b, np.radians(im.accel_misalignment_sigma_deg) * 9.80665)
     want = b / 9.80665
-    assert np.all(sig[:2] >= 0.99 * want) and np.all(sig[:2] <= want + 0.01 * DEG), (np.degrees(sig),
-                                                                                   np.degrees(want))
+    # the marginal: a fine levelling's (≤ b/g + its standard error) for the navigation IMU; otherwise the
+    # configured σ it would have had alone (q35t's σ_w: only the correlation is new)
+    hi = want + 0.01 * DEG if grade == "navigation" else 1.01 * np.radians(2.0)
+    assert np.all(sig[:2] >= 0.99 * want) and np.all(sig[:2] <= hi), (np.degrees(sig), np.degrees(want))
     C = dcm_from_quat(su.ini.st[ST_Q:ST_Q + 4])
     fb = C.T @ np.array([0.0, 0.0, 9.80665])  # the specific force at rest, body
     n = su.cfg.nstate
@@ -231,8 +234,8 @@ def test_static_start_tilt_prior_is_joint_with_the_accelerometer_errors(grade):
         if n >= 33:
             for k in range(6):
                 v[MA + k] = C[row, MIS_OUT[k]] * fb[MIS_IN[k]]
-        corr = (P[t] @ v) / np.sqrt(P[t, t] * (v @ P @ v))
-        assert abs(corr) > 0.99, (row, corr)
+        k = (P[t] @ v) / (v @ P @ v)  # the tilt's regression on the accelerometer combination: ∓1/g
+        assert abs(abs(k) * 9.80665 - 1.0) < 0.01, (row, k)
     if grade == "navigation":
         rph = np.array(euler_from_quat(su.ini.st[ST_Q:ST_Q + 4]))
         err = rph - sim.truth.rph[0]

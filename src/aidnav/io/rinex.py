@@ -415,14 +415,21 @@ def read_rinex_pair(obs_path, nav_path, systems: str = "GECR", ubx_nav=None) -> 
     the navigation file, with the ephemerides on the observations' week; ``events`` name the systems of
     the observation file left out and why (no ephemeris; not asked for; QZSS, NavIC: not supported).
 
-    ubx_nav : a u-blox UBX log (or None) whose Galileo I/NAV ephemerides (RXM-SFRBX,
-    :mod:`aidnav.io.galileo_inav`) are added to the navigation file's when ``systems`` has E and the
-    navigation file has no Galileo record of the same satellite and IODnav."""
+    ubx_nav : a u-blox UBX log (or None) whose broadcast ephemerides (RXM-SFRBX) are merged into the
+    navigation file's: Galileo I/NAV (:mod:`aidnav.io.galileo_inav`) when ``systems`` has E, GPS LNAV
+    (:mod:`aidnav.io.gps_lnav`) when it has G. **The merge rule**: a record is identified by (satellite,
+    IODE/IODnav, toe); a UBX record whose identity the navigation file already holds is dropped (the
+    file's record is kept: the same broadcast, equal to the RINEX rounding, < 1 mm on the walk); every
+    other UBX record is added beside the file's. The ephemeris used at an epoch is then the healthy
+    record of the satellite with the nearest toe (:func:`aidnav.nav.gnss_sat.select_ephemeris`; the
+    later record on a tie, and the UBX ones sort after the file's of the same toe), so a satellite with
+    a RINEX ephemeris keeps it unless the log holds one of a toe nearer the epoch (a newer upload) —
+    and a satellite missing from the file gets the log's."""
     if not Path(obs_path).exists():  # a missing observation file is named first (as before)
         raise DataError(Path(obs_path), None, "file not found")
     eph = read_rinex_nav(nav_path, systems=systems)
-    if ubx_nav is not None and "E" in systems:
-        eph = _add_galileo_inav(eph, ubx_nav)
+    if ubx_nav is not None and ("E" in systems or "G" in systems):
+        eph = _add_ubx_nav(eph, ubx_nav, systems)
     have = "".join(c for c in SYSTEMS if np.any(eph.table[:, E_PRN] // 100 == SYSTEMS.index(c)))
     obs = read_rinex_obs(obs_path, systems=have or "G")
     eph = eph.to_week(obs.ref_week) if eph.ref_week != obs.ref_week else eph
@@ -440,16 +447,43 @@ def read_rinex_pair(obs_path, nav_path, systems: str = "GECR", ubx_nav=None) -> 
     return obs, eph, events
 
 
-def _add_galileo_inav(eph: GpsEphemerides, ubx_path) -> GpsEphemerides:
-    """``eph`` with the Galileo I/NAV records of the UBX log ``ubx_path`` that it lacks (same satellite and
-    IODnav: the navigation file's record is kept), on ``eph``'s week."""
-    from aidnav.io.galileo_inav import read_ubx_galileo_inav  # lazy: pyubx2 only when a UBX log is given
+def merge_ephemerides(eph: GpsEphemerides, table: np.ndarray) -> tuple[GpsEphemerides, int]:
+    """``eph`` with the rows of ``table`` (same week scale) whose (satellite, IODE, toe) it lacks
+    (:func:`read_rinex_pair`'s merge rule), and how many were added."""
+    have = {(int(r[E_PRN]), int(r[E_IODE]), round(float(r[E_TOE]))) for r in eph.table}
+    new = np.array([r for r in table if (int(r[E_PRN]), int(r[E_IODE]), round(float(r[E_TOE]))) not in have])
+    new = new.reshape(-1, N_EPH)
+    both = np.vstack([eph.table, new])
+    order = np.arange(len(both))  # a tie of toe keeps the file's record first (select_ephemeris: last wins)
+    both = both[np.lexsort((order, both[:, E_TOE], both[:, E_PRN]))]
+    return GpsEphemerides(both, eph.ref_week, eph.iono_alpha, eph.iono_beta, list(eph.events)), len(new)
 
-    gal = read_ubx_galileo_inav(ubx_path, ref_week=eph.ref_week)
-    have = {(int(r[E_PRN]), int(r[E_IODE])) for r in eph.table}
-    new = np.array([r for r in gal.table if (int(r[E_PRN]), int(r[E_IODE])) not in have]).reshape(-1, N_EPH)
-    table = np.vstack([eph.table, new])
-    table = table[np.lexsort((table[:, E_TOE], table[:, E_PRN]))]
-    events = list(eph.events) + gal.events + [f"{Path(ubx_path).name}: {len(new)} Galileo I/NAV record(s) "
-                                              "added to the navigation file's"]
-    return GpsEphemerides(table, eph.ref_week, eph.iono_alpha, eph.iono_beta, events)
+
+def _add_ubx_nav(eph: GpsEphemerides, ubx_path, systems: str) -> GpsEphemerides:
+    """``eph`` with the Galileo I/NAV (E in ``systems``) and GPS LNAV (G) records of the UBX log
+    ``ubx_path`` merged in (:func:`read_rinex_pair`), on ``eph``'s week. A log that holds no complete
+    record of one system adds none of it (an event says so); a log with none of either is refused."""
+    from aidnav.io.galileo_inav import read_ubx_galileo_inav  # lazy: the UBX decoders only with a log
+    from aidnav.io.gps_lnav import read_ubx_gps_lnav  # lazy: as above
+    from aidnav.io.sfrbx import read_sfrbx  # lazy: as above
+
+    log = read_sfrbx(ubx_path)
+    name = Path(ubx_path).name
+    events, added, errors = list(eph.events), 0, []
+    for letter, reader, what in (("E", read_ubx_galileo_inav, "Galileo I/NAV"),
+                                 ("G", read_ubx_gps_lnav, "GPS LNAV")):
+        if letter not in systems:
+            continue
+        try:
+            got = reader(ubx_path, ref_week=eph.ref_week, log=log)
+        except DataError as e:
+            errors.append(e)
+            events.append(f"{name}: no {what} record added ({e.problem})")
+            continue
+        eph, n = merge_ephemerides(eph, got.table)
+        added += n
+        events += got.events + [f"{name}: {n} {what} record(s) added to the navigation file's (the others "
+                                f"are the file's own: same satellite, IOD and toe)"]
+    if errors and len(errors) == sum(c in systems for c in "EG"):  # every asked system failed
+        raise errors[0]
+    return GpsEphemerides(eph.table, eph.ref_week, eph.iono_alpha, eph.iono_beta, events)

@@ -62,6 +62,7 @@ from aidnav.nav.gnss_sat import (
     N_EPH,
     SYSTEMS,
     sat_id,
+    sat_name,
 )
 from aidnav.nav.gnss_types import GnssObservations, GpsEphemerides
 
@@ -417,14 +418,16 @@ def read_rinex_pair(obs_path, nav_path, systems: str = "GECR", ubx_nav=None) -> 
 
     ubx_nav : a u-blox UBX log (or None) whose broadcast ephemerides (RXM-SFRBX) are merged into the
     navigation file's: Galileo I/NAV (:mod:`aidnav.io.galileo_inav`) when ``systems`` has E, GPS LNAV
-    (:mod:`aidnav.io.gps_lnav`) when it has G. **The merge rule**: a record is identified by (satellite,
-    IODE/IODnav, toe); a UBX record whose identity the navigation file already holds is dropped (the
-    file's record is kept: the same broadcast, equal to the RINEX rounding, < 1 mm on the walk); every
-    other UBX record is added beside the file's. The ephemeris used at an epoch is then the healthy
-    record of the satellite with the nearest toe (:func:`aidnav.nav.gnss_sat.select_ephemeris`; the
-    later record on a tie, and the UBX ones sort after the file's of the same toe), so a satellite with
-    a RINEX ephemeris keeps it unless the log holds one of a toe nearer the epoch (a newer upload) —
-    and a satellite missing from the file gets the log's."""
+    (:mod:`aidnav.io.gps_lnav`) and GPS CNAV from L2C/L5 (:mod:`aidnav.io.gps_cnav`) when it has G.
+    **The merge rule**: a record is identified by (satellite, IODE/IODnav, toe); a UBX record whose
+    identity the navigation file already holds is dropped (the file's record is kept: the same broadcast,
+    equal to the RINEX rounding, < 1 mm on the walk); every other Galileo or GPS LNAV record is added
+    beside the file's. The ephemeris used at an epoch is then the healthy record of the satellite with the
+    nearest toe (:func:`aidnav.nav.gnss_sat.select_ephemeris`; the later record on a tie, and the UBX
+    ones sort after the file's of the same toe), so a satellite with a RINEX ephemeris keeps it unless
+    the log holds one of a toe nearer the epoch (a newer upload), and a satellite missing from the file
+    gets the log's. A GPS CNAV record is added only for a satellite with no LNAV record at all (file or
+    log): LNAV is the L1 C/A user's message, CNAV fills the satellites whose LNAV subframes the log lacks."""
     if not Path(obs_path).exists():  # a missing observation file is named first (as before)
         raise DataError(Path(obs_path), None, "file not found")
     eph = read_rinex_nav(nav_path, systems=systems)
@@ -464,6 +467,7 @@ def _add_ubx_nav(eph: GpsEphemerides, ubx_path, systems: str) -> GpsEphemerides:
     ``ubx_path`` merged in (:func:`read_rinex_pair`), on ``eph``'s week. A log that holds no complete
     record of one system adds none of it (an event says so); a log with none of either is refused."""
     from aidnav.io.galileo_inav import read_ubx_galileo_inav  # lazy: the UBX decoders only with a log
+    from aidnav.io.gps_cnav import read_ubx_gps_cnav  # lazy: as above
     from aidnav.io.gps_lnav import read_ubx_gps_lnav  # lazy: as above
     from aidnav.io.sfrbx import read_sfrbx  # lazy: as above
 
@@ -471,7 +475,7 @@ def _add_ubx_nav(eph: GpsEphemerides, ubx_path, systems: str) -> GpsEphemerides:
     name = Path(ubx_path).name
     events, added, errors = list(eph.events), 0, []
     for letter, reader, what in (("E", read_ubx_galileo_inav, "Galileo I/NAV"),
-                                 ("G", read_ubx_gps_lnav, "GPS LNAV")):
+                                 ("G", read_ubx_gps_lnav, "GPS LNAV"), ("G", read_ubx_gps_cnav, "GPS CNAV")):
         if letter not in systems:
             continue
         try:
@@ -480,10 +484,15 @@ def _add_ubx_nav(eph: GpsEphemerides, ubx_path, systems: str) -> GpsEphemerides:
             errors.append(e)
             events.append(f"{name}: no {what} record added ({e.problem})")
             continue
-        eph, n = merge_ephemerides(eph, got.table)
+        table = got.table
+        if what == "GPS CNAV":  # only for satellites without an LNAV record
+            table = table[~np.isin(table[:, E_PRN], eph.table[:, E_PRN])]
+        before = set(eph.table[:, E_PRN].astype(int))
+        eph, n = merge_ephemerides(eph, table)
         added += n
-        events += got.events + [f"{name}: {n} {what} record(s) added to the navigation file's (the others "
-                                f"are the file's own: same satellite, IOD and toe)"]
-    if errors and len(errors) == sum(c in systems for c in "EG"):  # every asked system failed
+        new = sorted(set(eph.table[:, E_PRN].astype(int)) - before)
+        events += got.events + [f"{name}: {n} {what} record(s) added to the navigation file's"
+                                + (f" (new: {', '.join(sat_name(s) for s in new)})" if new else "")]
+    if errors and len(errors) == sum(c in systems for c in "EG") + ("G" in systems):  # every source failed
         raise errors[0]
     return GpsEphemerides(eph.table, eph.ref_week, eph.iono_alpha, eph.iono_beta, events)

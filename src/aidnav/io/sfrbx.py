@@ -9,7 +9,8 @@ UBX-RXM-SFRBX (class 0x02, id 0x13) payload: gnssId, svId, sigId, freqId, numWor
 reserved (u1 each), then numWords little-endian u32 words ("dwrd"), in the order the receiver decoded
 them. What a word holds depends on the signal: :mod:`aidnav.io.gps_lnav` (GPS L1 C/A LNAV),
 :mod:`aidnav.io.galileo_inav` (Galileo E1-B I/NAV). UBX-RXM-RAWX (0x02 0x15) gives the receiver's GPS
-week (u16 at payload byte 8), which resolves the 10-bit week number of the GPS LNAV message.
+week (u16 at payload byte 8) and time of week (f64 at byte 0): the week resolves the 10-bit week number of
+the GPS LNAV message, the span of the log's epochs is where :mod:`aidnav.io.gps_cnav` fits its records.
 """
 
 from __future__ import annotations
@@ -30,10 +31,12 @@ _SYNC = b"\xb5\x62"
 @dataclass
 class SfrbxLog:
     """The SFRBX frames of a log: ``frames`` (gnssId, svId, sigId, words) in log order, the GPS week of
-    the first RXM-RAWX (None without one) and ``counts`` of what the scan met."""
+    the first RXM-RAWX (None without one), the GPS time [s from the start of ``rawx_week``] of the first
+    and last RXM-RAWX (``rawx_span``, None without one) and ``counts`` of what the scan met."""
 
     frames: list = field(default_factory=list)
     rawx_week: int | None = None
+    rawx_span: tuple[float, float] | None = None
     counts: Counter = field(default_factory=Counter)
 
     def of(self, gnss_id: int) -> list:
@@ -68,8 +71,13 @@ def read_sfrbx(path) -> SfrbxLog:
         p = data[i + 6:end]
         if (cls, mid) == (0x02, 0x13) and n >= 8 and n == 8 + 4 * p[4]:
             out.frames.append((p[0], p[1], p[2], struct.unpack_from(f"<{p[4]}I", p, 8)))
-        elif (cls, mid) == (0x02, 0x15) and n >= 16 and out.rawx_week is None:
-            out.rawx_week = struct.unpack_from("<H", p, 8)[0]
+        elif (cls, mid) == (0x02, 0x15) and n >= 16:
+            tow, week = struct.unpack_from("<dH", p, 0)
+            if out.rawx_week is None:
+                out.rawx_week = week
+            t = (week - out.rawx_week) * SECONDS_PER_WEEK + tow
+            lo, hi = out.rawx_span or (t, t)
+            out.rawx_span = (min(lo, t), max(hi, t))
         out.counts["UBX frames"] += 1
         i = data.find(_SYNC, end + 2)
     return out

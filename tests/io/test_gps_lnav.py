@@ -168,8 +168,9 @@ def test_assembled_record_and_iod_matching():
 def test_walk_lnav_equals_the_nav_file(walk_dir):
     """The walk's log: every L1 C/A subframe passes its parity (80), the 4 satellites with subframes 1-3
     (G10, G23, G27, G32) get records equal to the RINEX file's (RTKLIB convbin, same broadcast): positions
-    within 1 cm over ±2 h, clocks within 1 mm; merged by ``read_rinex_pair`` they add nothing."""
-    from aidnav.io.rinex import read_rinex_nav, read_rinex_pair  # lazy: georinex is heavy to import
+    within 1 cm over ±2 h, clocks within 1 mm (merged by ``read_rinex_pair`` they add nothing:
+    test_gps_cnav.py)."""
+    from aidnav.io.rinex import read_rinex_nav  # lazy: georinex is heavy to import
 
     lnav = gl.read_ubx_gps_lnav(walk_dir / "gnss_1730.ubx")
     ev = lnav.events[0]
@@ -191,10 +192,3 @@ def test_walk_lnav_equals_the_nav_file(walk_dir):
             assert abs(c1 - c2) * gs.C_LIGHT < 1e-3
     print(f"largest position difference LNAV vs RINEX: {worst * 1000:.2f} mm")
     assert worst < 0.01
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", FutureWarning)
-        rinex = walk_dir / "rinex_converted"
-        args = (rinex / "gnss_1730.obs", rinex / "gnss_1730.nav")
-        _, eph, _ = read_rinex_pair(*args, "G", ubx_nav=walk_dir / "gnss_1730.ubx")
-    assert np.array_equal(eph.table, nav.to_week(eph.ref_week).table)
-    assert any("0 GPS LNAV record(s) added" in e for e in eph.events)

@@ -159,3 +159,16 @@ def test_walk_cnav(walk_dir):
     print(f"walk GPS residual RMS: CNAV-added {rms_new:.2f} m ({len(new)}), the nav file's {rms_old:.2f} m "
           f"({len(old)})")
     assert rms_new < 2.0 * rms_old and np.max(np.abs(new)) < 25.0  # a wrong field or week gives km
+
+
+def test_cnav_span_warning():
+    """Observations reaching beyond CNAV_SPAN_S from a CNAV row's epoch are named; LNAV rows never."""
+    from aidnav.io.rinex import CNAV_SPAN_S, cnav_span_warning  # lazy: georinex-backed module
+
+    rows = np.zeros((2, gs.N_EPH))
+    rows[:, gs.E_TOE] = 1000.0
+    rows[1, gs.E_IODE] = -1.0  # a CNAV row
+    assert cnav_span_warning(rows, np.array([900.0, 1100.0]), "x.ubx") == []
+    w = cnav_span_warning(rows, np.array([900.0, 1000.0 + CNAV_SPAN_S + 1]), "x.ubx")
+    assert len(w) == 1 and w[0].startswith("warning: x.ubx") and f"{CNAV_SPAN_S + 1:.0f} s" in w[0]
+    assert cnav_span_warning(rows[:1], np.array([0.0, 1e5]), "x.ubx") == []

@@ -33,7 +33,9 @@ carried by a sinusoid added to C_rs, C_rc that is zero at t_ref: K sin(2φ − 2
 E)/(2 v̇) (off by K x³/6, x = 2 v̇ (t − t_ref): 20 µm at 67 s, 1.5 cm at 10 min). The position is then
 exact at t_ref and so are the rates; what is left is the mean anomaly's ½ Δn0-dot (t − t_ref)² along the
 track: measured against :func:`cnav_state` (the ICD's full equations) on the walk ≤ 4 mm over its 134 s
-(0.1 mm/s). The rows are meant for the log's span; far from it (an hour) they are off by metres.
+(0.1 mm/s). The rows are meant for the log's span: ~0.3 m at 10 min from t_ref, metres at an hour
+(:func:`aidnav.io.rinex.read_rinex_pair` warns past :data:`aidnav.io.rinex.CNAV_SPAN_S`). A CNAV row has
+IODE −1.
 """
 
 from __future__ import annotations
@@ -224,7 +226,7 @@ def cnav_row(prn: int, m: dict, ref_week: int, t_ref: float | None) -> np.ndarra
     isc = 0.0 if m30["isc_l1ca"] == _NOT_AVAILABLE else m30["isc_l1ca"]
     r[E_TGD] = tgd - isc
     r[E_HEALTH] = (int(m10["health"]) >> 2) & 1  # the L1 bit (L1, L2, L5: most significant first)
-    r[E_IODE] = -1.0  # CNAV has no IODE: a data set is its toe
+    r[E_IODE] = -1.0  # CNAV has no IODE (a data set is its toe): −1 also marks a CNAV row
     r[E_URA] = float(np.hypot(ura_nominal_m(m10["ura_ed"]), ura_nominal_m(m30["ura_ned0"])))
     r[E_FIT] = 3.0  # a CNAV data set's curve fit is 3 h (§30.3.3.1.1)
     return r

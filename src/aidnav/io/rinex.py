@@ -66,7 +66,11 @@ from aidnav.nav.gnss_sat import (
 )
 from aidnav.nav.gnss_types import GnssObservations, GpsEphemerides
 
-__all__ = ["GpsEphemerides", "GnssObservations", "read_rinex_nav", "read_rinex_obs", "read_rinex_pair"]
+__all__ = ["GpsEphemerides", "GnssObservations", "read_rinex_nav", "read_rinex_obs", "read_rinex_pair",
+           "merge_ephemerides", "cnav_span_warning", "CNAV_SPAN_S"]
+#: how far [s] from a GPS CNAV row's epoch (the UBX log's middle) the observations may reach before
+#: ``read_rinex_pair`` warns: the re-epoched orbit's ½ Δn0-dot τ² term reaches ~0.3 m there (io.gps_cnav)
+CNAV_SPAN_S = 600.0
 
 
 def _load(path, systems: str):
@@ -437,6 +441,8 @@ def read_rinex_pair(obs_path, nav_path, systems: str = "GECR", ubx_nav=None) -> 
     obs = read_rinex_obs(obs_path, systems=have or "G")
     eph = eph.to_week(obs.ref_week) if eph.ref_week != obs.ref_week else eph
     events = []
+    if ubx_nav is not None:
+        events += cnav_span_warning(eph.table, obs.time, Path(ubx_nav).name)
     for c in _header_systems(Path(obs_path)):
         if c in SYSTEMS and c not in systems:
             events.append(f"{Path(obs_path).name}: {_SYSTEM_NAMES[c]} observations not used (systems "
@@ -448,6 +454,21 @@ def read_rinex_pair(obs_path, nav_path, systems: str = "GECR", ubx_nav=None) -> 
             events.append(f"{Path(obs_path).name}: {_SYSTEM_NAMES.get(c, c)} observations not used (aidnav "
                           "reads GPS, Galileo, BeiDou, GLONASS and SBAS)")
     return obs, eph, events
+
+
+def cnav_span_warning(table: np.ndarray, times: np.ndarray, name: str) -> list[str]:
+    """A warning (list of one) when observations at ``times`` reach farther than :data:`CNAV_SPAN_S` from
+    the epoch of a GPS CNAV row of ``table`` (IODE −1, :mod:`aidnav.io.gps_cnav`: re-epoched to the middle
+    of the UBX log ``name``); else []."""
+    cnav = table[:, E_IODE] < 0
+    if not cnav.any() or len(times) == 0:
+        return []
+    far = float(np.max(np.abs(table[cnav, E_TOE][:, None] - np.asarray(times)[[0, -1]][None, :])))
+    if far <= CNAV_SPAN_S:
+        return []
+    return [f"warning: {name}: its GPS CNAV orbits are fitted to the log's own epochs and the observations "
+            f"reach {far:.0f} s from them (> {CNAV_SPAN_S:.0f} s: errors over 0.3 m): is the log the one the "
+            "observations were converted from?"]
 
 
 def merge_ephemerides(eph: GpsEphemerides, table: np.ndarray) -> tuple[GpsEphemerides, int]:

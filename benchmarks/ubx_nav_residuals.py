@@ -3,7 +3,8 @@ walk's UBX log (GPS LNAV, GPS CNAV, Galileo I/NAV: :func:`aidnav.io.rinex.read_r
 beside the 4 GPS satellites of the RINEX navigation file.
 
 Per epoch (every ``--step`` s): residual = pseudorange − geometric range (Sagnac) + c·(dt_sat − T_GD) −
-Klobuchar (RTKLIB's default coefficients; the nav file has none) − Saastamoinen, elevation ≥ 10°, at the
+Klobuchar (RTKLIB's default coefficients, the nav file has none; ``--broadcast-iono``: the log's) −
+Saastamoinen, elevation ≥ 10°, at the
 RTK position (nearest `.pos` epoch, hMSL − 21.4 m); the receiver clock is the median of the residuals of the
 GPS satellites *of the RINEX file* (so the new ones are judged against them), and one GPS–Galileo offset
 the median of the Galileo residuals. Prints per-satellite mean/RMS [m] and the RMS of the GPS satellites
@@ -29,9 +30,10 @@ _DATA = Path(os.environ.get("AIDNAV_DATA", Path(__file__).resolve().parents[2] /
 WALK = _DATA / "rtklibexplorer_walk_0827"
 
 
-def residuals(data_dir: Path, step_s: float = 10.0):
+def residuals(data_dir: Path, step_s: float = 10.0, broadcast_iono: bool = False):
     """(residuals per satellite id {id: [m]}, GPS–Galileo offset [m], ids of the nav file's GPS satellites,
-    the merged ephemerides)."""
+    the merged ephemerides). ``broadcast_iono``: the log's Klobuchar coefficients (CNAV type 30) instead of
+    RTKLIB's defaults."""
     rinex = data_dir / "rinex_converted"
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FutureWarning)
@@ -39,7 +41,8 @@ def residuals(data_dir: Path, step_s: float = 10.0):
                                       ubx_nav=data_dir / "gnss_1730.ubx")
         file_gps = set(read_rinex_nav(rinex / "gnss_1730.nav", systems="G").table[:, gs.E_PRN].astype(int))
     ref = read_pos(data_dir / "gnss_1730_sf.pos", height_offset_m=-21.4)
-    alpha, beta, _ = gs.klobuchar_coefficients(None, None)
+    klob = (eph.iono_alpha, eph.iono_beta) if broadcast_iono else (None, None)
+    alpha, beta, _ = gs.klobuchar_coefficients(*klob)
     out: dict[int, list] = {}
     t_next = -np.inf
     for k, t in enumerate(obs.time):
@@ -76,9 +79,10 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", type=Path, default=WALK)
     ap.add_argument("--step", type=float, default=10.0)
+    ap.add_argument("--broadcast-iono", action="store_true", help="the log's Klobuchar coefficients")
     a = ap.parse_args()
     c0, w0 = time.process_time(), time.perf_counter()
-    out, offset, file_gps, eph = residuals(a.data, a.step)
+    out, offset, file_gps, eph = residuals(a.data, a.step, a.broadcast_iono)
     print("\n".join(e for e in eph.events if "ubx" in e))
     print(f"GPS-Galileo offset (median): {offset:.2f} m")
     groups: dict[str, list] = {"GPS, RINEX nav file": [], "GPS, from the UBX log": [], "Galileo, UBX log": []}

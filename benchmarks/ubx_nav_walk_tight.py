@@ -1,9 +1,10 @@
-"""Issue 40 (report only): the walk's `aidnav tight` (no configuration) with the ephemerides of the UBX log
-merged into the RINEX navigation file's (:func:`aidnav.io.rinex.read_rinex_pair` with ``ubx_nav``): the nav
-file alone; + the log's GPS records only (``gnss.systems`` G: LNAV, and CNAV for G08, G18, G24); + the
-log's Galileo I/NAV only (GECR, the GPS CNAV rows dropped: session 13's ``--ubx-nav``); + every record of
-the log (GECR, the default systems). ``--cut-g08 N``: a diagnostic, G08's first N code epochs removed (its
-acquisition: the receiver's own prStdev 82 → 5 m over ~10 s).
+"""Issue 40 (report only): the walk's `aidnav tight` (no configuration) with the data of the UBX log merged
+into the RINEX navigation file's (:func:`aidnav.io.rinex.read_rinex_pair` with ``ubx_nav`` and
+``ubx_sources``): per case the ``gnss.systems`` and the sources (inav: Galileo I/NAV records, lnav / cnav:
+GPS LNAV / CNAV records — CNAV adds G08, G18, G24 —, klobuchar ("+iono"): the log's Klobuchar
+coefficients; the nav file has none, so without it RTKLIB's default coefficients are used).
+``--cut-g08 N``: a diagnostic, G08's first N code epochs removed (its acquisition: the receiver's own
+prStdev 82 → 5 m over ~10 s).
 
 Prints per case, forward and smoothed: position RMS against the RTK `.pos` at its Q = 1 epochs (horizontal,
 vertical; :func:`aidnav.apps.tight.compare_with_reference`), the 3σ coverage of the position per ENU axis
@@ -31,23 +32,23 @@ from aidnav.estimators.tight_solution import process_tight
 from aidnav.filters.tight import TightConfig, to_trajectory
 from aidnav.io.rinex import read_rinex_pair
 from aidnav.io.rtklib import read_pos
-from aidnav.nav.gnss_sat import E_IODE, sat_name
+from aidnav.nav.gnss_sat import sat_name
 
 _DATA = Path(os.environ.get("AIDNAV_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"))
 WALK = _DATA / "rtklibexplorer_walk_0827"
-CASES = {"nav file": ("GECR", False), "+ UBX GPS (G)": ("G", True), "+ UBX Galileo": ("GECR", "E"),
-         "+ UBX all (GECR)": ("GECR", True)}
+CASES = {"nav file": ("GECR", None), "+GPS": ("G", "lnav,cnav"), "+GPS +iono": ("G", "lnav,cnav,klobuchar"),
+         "+Galileo": ("GECR", "inav"), "+Galileo +iono": ("GECR", "inav,klobuchar"),
+         "+all": ("GECR", "inav,lnav,cnav"), "+all +iono (default)": ("GECR", "inav,lnav,cnav,klobuchar")}
 
 
-def run(systems: str, ubx, smooth: bool, data: Path = WALK, cut_g08: int = 0) -> dict:
+def run(systems: str, sources: str | None, smooth: bool, data: Path = WALK, cut_g08: int = 0) -> dict:
     cfg = TightConfig(gnss={"systems": systems})
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FutureWarning)
         obs, eph, ev = read_rinex_pair(data / "rinex_converted" / "gnss_1730.obs",
                                        data / "rinex_converted" / "gnss_1730.nav", systems,
-                                       ubx_nav=data / "gnss_1730.ubx" if ubx else None)
-    if ubx == "E":  # the log's Galileo records only: drop the GPS CNAV rows (IODE −1)
-        eph = replace(eph, table=eph.table[eph.table[:, E_IODE] >= 0])
+                                       ubx_nav=data / "gnss_1730.ubx" if sources else None,
+                                       ubx_sources=sources or "")
     if cut_g08 and 8 in obs.prn:
         j = list(obs.prn).index(8)
         code = obs.code1.copy()
@@ -80,12 +81,12 @@ def main():
     ap.add_argument("--cut-g08", type=int, default=0, help="diagnostic: remove G08's first N code epochs")
     a = ap.parse_args()
     for name in a.cases.split(","):
-        systems, ubx = CASES[name]
+        systems, sources = CASES[name]
         for smooth in (False, True):
             c0, w0 = time.process_time(), time.perf_counter()
-            r = run(systems, ubx, smooth, a.data, a.cut_g08)
+            r = run(systems, sources, smooth, a.data, a.cut_g08)
             pc, vc = "/".join(f"{x:.1f}" for x in r["cov"]), "/".join(f"{x:.1f}" for x in r["vcov"])
-            print(f"{name:17s} {'smoothed' if smooth else 'forward '}: H {r['h']:.3f} m, V {r['v']:.3f} m, "
+            print(f"{name:20s} {'smoothed' if smooth else 'forward '}: H {r['h']:.3f} m, V {r['v']:.3f} m, "
                   f"3σ E/N/U {pc} %; velocity H RMS {r['vel']:.4f} m/s ({r['n_iv']} intervals; target <= "
                   f"0.05), 3σ E/N/U {vc} %; CPU {time.process_time() - c0:.1f} s, wall "
                   f"{time.perf_counter() - w0:.1f} s, load {os.getloadavg()[0]:.2f}")

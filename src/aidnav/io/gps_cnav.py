@@ -13,9 +13,10 @@ Type 10 (Table 30-I): week number (13 bits), L1/L2/L5 health, t_op, URA_ED index
 = 26 559 710 m), Ȧ, Δn0, Δn0-dot, M0, e, ω. Type 11 (Table 30-II): toe, Ω0, i0, ΔΩ̇ (from Ω̇_ref =
 −2.6e-9 semicircles/s), i0-dot, C_is, C_ic, C_rs, C_rc, C_us, C_uc. Types 30–37 (Table 30-III) start with
 the clock: t_op, URA_NED0–2, toc, a_f0, a_f1, a_f2; type 30 adds T_GD and the inter-signal corrections
-ISC (L1 C/A, L2C, L5I5, L5Q5) and Klobuchar coefficients. u-blox delivers a message as 10 words of 32 bits
-(sigId 3/4: L2 CL/CM, 6/7: L5 I/Q): the 300 bits are the first 300 of the 320 (checked on the walk: all
-153 L2 CM and 108 L5 I messages pass their CRC in that reading).
+ISC (L1 C/A, L2C, L5I5, L5Q5) and the Klobuchar coefficients α0–α3, β0–β3 (the LNAV parameters, same
+scales; §30.3.3.3.1.2; the reader returns those of the last type 30 in the log). u-blox delivers a
+message as 10 words of 32 bits (sigId 3/4: L2 CL/CM, 6/7: L5 I/Q): the 300 bits are the first 300 of the
+320 (checked on the walk: all 40 L2 CM and 108 L5 I messages pass their CRC in that reading).
 
 **A data set** is messages 10 and 11 of one satellite with the same toe and a message 30 whose toc is that
 toe (the latest of each kept); once per (satellite, toe). Its clock for an L1 C/A pseudorange is
@@ -113,7 +114,11 @@ MESSAGE_FIELDS = {
                  ("cuc", 249, 21, True, 2.0**-30)],
     30: _HEAD + _CLOCK + [("tgd", 128, 13, True, 2.0**-35), ("isc_l1ca", 141, 13, True, 2.0**-35),
                           ("isc_l2c", 154, 13, True, 2.0**-35), ("isc_l5i5", 167, 13, True, 2.0**-35),
-                          ("isc_l5q5", 180, 13, True, 2.0**-35)],
+                          ("isc_l5q5", 180, 13, True, 2.0**-35), ("alpha0", 193, 8, True, 2.0**-30),
+                          ("alpha1", 201, 8, True, 2.0**-27), ("alpha2", 209, 8, True, 2.0**-24),
+                          ("alpha3", 217, 8, True, 2.0**-24), ("beta0", 225, 8, True, 2.0**11),
+                          ("beta1", 233, 8, True, 2.0**14), ("beta2", 241, 8, True, 2.0**16),
+                          ("beta3", 249, 8, True, 2.0**16)],
 }
 _NOT_AVAILABLE = -(2**12) * 2.0**-35  # T_GD / ISC "1000000000000": not available (§30.3.3.3.1.1.2)
 _L2C_L5_SIGNALS = (3, 4, 6, 7)  # u-blox sigId of GPS L2 CL, L2 CM, L5 I, L5 Q
@@ -265,8 +270,9 @@ def assemble(messages, ref_week: int, t_ref: float | None = None) -> tuple[np.nd
 def read_ubx_gps_cnav(path, ref_week: int | None = None, log=None) -> GpsEphemerides:
     """The GPS CNAV data sets broadcast on L2C and L5 in the RXM-SFRBX frames of the UBX log ``path``
     (module doc), re-epoched to the middle of the log's RXM-RAWX epochs, on the GPS week ``ref_week``
-    (default: the log's first RXM-RAWX week). Raises DataError when the file is missing or holds no complete
-    CNAV data set (or no RXM-RAWX to date it)."""
+    (default: the log's first RXM-RAWX week), with the Klobuchar coefficients of the last type 30 (None
+    without one). Raises DataError when the file is missing or holds no complete CNAV data set (or no
+    RXM-RAWX to date it)."""
     path = Path(path)
     log = read_sfrbx(path) if log is None else log
     if log.rawx_week is None or log.rawx_span is None:
@@ -287,6 +293,11 @@ def read_ubx_gps_cnav(path, ref_week: int | None = None, log=None) -> GpsEphemer
             messages.append((sv, f))
     rows, c2, _ = assemble(messages, ref, t_ref)
     count.update(c2)
+    alpha = beta = None
+    t30 = [f for _, f in messages if int(f["type"]) == 30]
+    if t30:  # the Klobuchar coefficients of the last type 30 received (the latest upload)
+        alpha = np.array([t30[-1][f"alpha{i}"] for i in range(4)])
+        beta = np.array([t30[-1][f"beta{i}"] for i in range(4)])
     if len(rows) == 0:
         raise DataError(path, None, "no complete GPS CNAV data set (messages 10, 11, 30 of one toe) in the "
                         "RXM-SFRBX frames of this log")
@@ -298,4 +309,4 @@ def read_ubx_gps_cnav(path, ref_week: int | None = None, log=None) -> GpsEphemer
     bad = int(np.sum(rows[:, E_HEALTH] != 0))
     if bad:
         events.append(f"{path.name}: {bad} GPS CNAV record(s) flagged unhealthy on L1 (not used)")
-    return GpsEphemerides(rows, ref, None, None, events)
+    return GpsEphemerides(rows, ref, alpha, beta, events)

@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from aidnav.errors import InputError
 from aidnav.io.errors import DataError
 from aidnav.io.gpstime import SECONDS_PER_WEEK, calendar_to_week_sow, leap_seconds
 from aidnav.nav.gnss_sat import (
@@ -67,10 +68,12 @@ from aidnav.nav.gnss_sat import (
 from aidnav.nav.gnss_types import GnssObservations, GpsEphemerides
 
 __all__ = ["GpsEphemerides", "GnssObservations", "read_rinex_nav", "read_rinex_obs", "read_rinex_pair",
-           "merge_ephemerides", "cnav_span_warning", "CNAV_SPAN_S"]
+           "merge_ephemerides", "cnav_span_warning", "CNAV_SPAN_S", "UBX_SOURCES"]
 #: how far [s] from a GPS CNAV row's epoch (the UBX log's middle) the observations may reach before
 #: ``read_rinex_pair`` warns: the re-epoched orbit's ½ Δn0-dot τ² term reaches ~0.3 m there (io.gps_cnav)
 CNAV_SPAN_S = 600.0
+#: what :func:`read_rinex_pair` takes from a UBX log by default (its ``ubx_sources``)
+UBX_SOURCES = "inav,lnav,cnav,klobuchar"
 
 
 def _load(path, systems: str):
@@ -414,8 +417,8 @@ def _header_systems(path: Path) -> list[str]:
     return out
 
 
-def read_rinex_pair(obs_path, nav_path, systems: str = "GECR", ubx_nav=None) -> tuple[
-        GnssObservations, GpsEphemerides, list[str]]:
+def read_rinex_pair(obs_path, nav_path, systems: str = "GECR", ubx_nav=None,
+                    ubx_sources: str = UBX_SOURCES) -> tuple[GnssObservations, GpsEphemerides, list[str]]:
     """The observations of every system of ``systems`` (letters of G, E, C, R, S) that has ephemerides in
     the navigation file, with the ephemerides on the observations' week; ``events`` name the systems of
     the observation file left out and why (no ephemeris; not asked for; QZSS, NavIC: not supported).
@@ -431,12 +434,17 @@ def read_rinex_pair(obs_path, nav_path, systems: str = "GECR", ubx_nav=None) -> 
     ones sort after the file's of the same toe), so a satellite with a RINEX ephemeris keeps it unless
     the log holds one of a toe nearer the epoch (a newer upload), and a satellite missing from the file
     gets the log's. A GPS CNAV record is added only for a satellite with no LNAV record at all (file or
-    log): LNAV is the L1 C/A user's message, CNAV fills the satellites whose LNAV subframes the log lacks."""
+    log): LNAV is the L1 C/A user's message, CNAV fills the satellites whose LNAV subframes the log lacks.
+    When the navigation file has no Klobuchar coefficients, the log's (CNAV type 30) are used.
+
+    ubx_sources : which of the log's data are used, comma-separated (:data:`UBX_SOURCES`, all by default):
+    ``inav`` Galileo I/NAV records, ``lnav`` GPS LNAV records, ``cnav`` GPS CNAV records, ``klobuchar`` the
+    log's Klobuchar coefficients."""
     if not Path(obs_path).exists():  # a missing observation file is named first (as before)
         raise DataError(Path(obs_path), None, "file not found")
     eph = read_rinex_nav(nav_path, systems=systems)
     if ubx_nav is not None and ("E" in systems or "G" in systems):
-        eph = _add_ubx_nav(eph, ubx_nav, systems)
+        eph = _add_ubx_nav(eph, ubx_nav, systems, ubx_sources)
     have = "".join(c for c in SYSTEMS if np.any(eph.table[:, E_PRN] // 100 == SYSTEMS.index(c)))
     obs = read_rinex_obs(obs_path, systems=have or "G")
     eph = eph.to_week(obs.ref_week) if eph.ref_week != obs.ref_week else eph
@@ -483,37 +491,53 @@ def merge_ephemerides(eph: GpsEphemerides, table: np.ndarray) -> tuple[GpsEpheme
     return GpsEphemerides(both, eph.ref_week, eph.iono_alpha, eph.iono_beta, list(eph.events)), len(new)
 
 
-def _add_ubx_nav(eph: GpsEphemerides, ubx_path, systems: str) -> GpsEphemerides:
-    """``eph`` with the Galileo I/NAV (E in ``systems``) and GPS LNAV (G) records of the UBX log
-    ``ubx_path`` merged in (:func:`read_rinex_pair`), on ``eph``'s week. A log that holds no complete
-    record of one system adds none of it (an event says so); a log with none of either is refused."""
+def _add_ubx_nav(eph: GpsEphemerides, ubx_path, systems: str,
+                 ubx_sources: str = UBX_SOURCES) -> GpsEphemerides:
+    """``eph`` with the records of the UBX log ``ubx_path`` merged in (:func:`read_rinex_pair`: its rule and
+    ``ubx_sources``), on ``eph``'s week. A source with no complete record adds none (an event says so); a
+    log where every asked source has none is refused."""
     from aidnav.io.galileo_inav import read_ubx_galileo_inav  # lazy: the UBX decoders only with a log
     from aidnav.io.gps_cnav import read_ubx_gps_cnav  # lazy: as above
     from aidnav.io.gps_lnav import read_ubx_gps_lnav  # lazy: as above
     from aidnav.io.sfrbx import read_sfrbx  # lazy: as above
 
+    sources = {x.strip() for x in ubx_sources.split(",") if x.strip()}
+    if sources - set(UBX_SOURCES.split(",")):
+        raise InputError(f"UBX navigation sources {', '.join(sorted(sources - set(UBX_SOURCES.split(','))))}"
+                         f": unknown (known: {UBX_SOURCES})")
     log = read_sfrbx(ubx_path)
     name = Path(ubx_path).name
-    events, added, errors = list(eph.events), 0, []
-    for letter, reader, what in (("E", read_ubx_galileo_inav, "Galileo I/NAV"),
-                                 ("G", read_ubx_gps_lnav, "GPS LNAV"), ("G", read_ubx_gps_cnav, "GPS CNAV")):
-        if letter not in systems:
+    events, errors, asked = list(eph.events), [], 0
+    for key, letter, reader, what in (("inav", "E", read_ubx_galileo_inav, "Galileo I/NAV"),
+                                      ("lnav", "G", read_ubx_gps_lnav, "GPS LNAV"),
+                                      ("cnav", "G", read_ubx_gps_cnav, "GPS CNAV")):
+        rows = key in sources and letter in systems
+        iono = key == "cnav" and "klobuchar" in sources and eph.iono_alpha is None
+        if not (rows or iono):
             continue
+        asked += rows
         try:
             got = reader(ubx_path, ref_week=eph.ref_week, log=log)
         except DataError as e:
-            errors.append(e)
-            events.append(f"{name}: no {what} record added ({e.problem})")
+            if rows:
+                errors.append(e)
+                events.append(f"{name}: no {what} record added ({e.problem})")
+            continue
+        if iono and got.iono_alpha is not None:  # the file has no Klobuchar coefficients: the log's
+            eph = GpsEphemerides(eph.table, eph.ref_week, got.iono_alpha, got.iono_beta, eph.events)
+            events.append(f"{name}: GPS Klobuchar coefficients from the log's {what} (the navigation file "
+                          "has none): alpha " + ", ".join(f"{a:.3g}" for a in got.iono_alpha) + "; beta "
+                          + ", ".join(f"{b:.3g}" for b in got.iono_beta))
+        if not rows:
             continue
         table = got.table
-        if what == "GPS CNAV":  # only for satellites without an LNAV record
+        if key == "cnav":  # only for satellites without an LNAV record
             table = table[~np.isin(table[:, E_PRN], eph.table[:, E_PRN])]
         before = set(eph.table[:, E_PRN].astype(int))
         eph, n = merge_ephemerides(eph, table)
-        added += n
         new = sorted(set(eph.table[:, E_PRN].astype(int)) - before)
         events += got.events + [f"{name}: {n} {what} record(s) added to the navigation file's"
                                 + (f" (new: {', '.join(sat_name(s) for s in new)})" if new else "")]
-    if errors and len(errors) == sum(c in systems for c in "EG") + ("G" in systems):  # every source failed
+    if asked and len(errors) == asked:  # every asked source failed
         raise errors[0]
     return GpsEphemerides(eph.table, eph.ref_week, eph.iono_alpha, eph.iono_beta, events)

@@ -32,7 +32,11 @@ ICD = {
          ("crc", 204, 227, 1, 2.0**-8), ("cus", 228, 248, 1, 2.0**-30), ("cuc", 249, 269, 1, 2.0**-30)],
     30: [("top", 39, 49, 0, 300), ("ura_ned0", 50, 54, 1, 1), ("toc", 61, 71, 0, 300),
          ("af0", 72, 97, 1, 2.0**-35), ("af1", 98, 117, 1, 2.0**-48), ("af2", 118, 127, 1, 2.0**-60),
-         ("tgd", 128, 140, 1, 2.0**-35), ("isc_l1ca", 141, 153, 1, 2.0**-35)],
+         ("tgd", 128, 140, 1, 2.0**-35), ("isc_l1ca", 141, 153, 1, 2.0**-35),
+         ("alpha0", 193, 200, 1, 2.0**-30), ("alpha1", 201, 208, 1, 2.0**-27),
+         ("alpha2", 209, 216, 1, 2.0**-24), ("alpha3", 217, 224, 1, 2.0**-24),
+         ("beta0", 225, 232, 1, 2.0**11), ("beta1", 233, 240, 1, 2.0**14),
+         ("beta2", 241, 248, 1, 2.0**16), ("beta3", 249, 256, 1, 2.0**16)],
 }
 #: chosen raw values (a GPS-like orbit: A ≈ A_ref + 3.2 km, e ≈ 0.012, i ≈ 55°)
 RAW = {
@@ -41,7 +45,8 @@ RAW = {
     11: {"toe": 1362, "omega0": -2123456789, "i0": 1309000000, "domegadot": -2500, "idot": -400, "cis": 50,
          "cic": -70, "crs": 2500000, "crc": 5000000, "cus": 300000, "cuc": -250000},
     30: {"top": 1300, "ura_ned0": -6, "toc": 1362, "af0": -12345678, "af1": -4000, "af2": 3, "tgd": 150,
-         "isc_l1ca": -40},
+         "isc_l1ca": -40, "alpha0": 26, "alpha1": 2, "alpha2": -2, "alpha3": -1, "beta0": 65, "beta1": 3,
+         "beta2": -4, "beta3": 7},
 }
 
 
@@ -159,6 +164,16 @@ def test_walk_cnav(walk_dir):
     print(f"walk GPS residual RMS: CNAV-added {rms_new:.2f} m ({len(new)}), the nav file's {rms_old:.2f} m "
           f"({len(old)})")
     assert rms_new < 2.0 * rms_old and np.max(np.abs(new)) < 25.0  # a wrong field or week gives km
+    # the log's Klobuchar coefficients (the nav file has none): those of a type 30; a zenith delay of metres
+    assert cnav.iono_alpha is not None and np.array_equal(eph.iono_alpha, cnav.iono_alpha)
+    assert any("Klobuchar coefficients from the log" in e for e in eph.events)
+    scales = [2.0**-30, 2.0**-27, 2.0**-24, 2.0**-24, 2.0**11, 2.0**14, 2.0**16, 2.0**16]
+    steps = np.r_[eph.iono_alpha, eph.iono_beta] / scales
+    assert np.array_equal(steps, np.round(steps)) and np.all(np.abs(steps) < 128)
+    zenith = gs.klobuchar(0.6998, -1.8352, 0.0, np.pi / 2, eph.table[0, gs.E_TOE] % 604800.0, eph.iono_alpha,
+                          eph.iono_beta)
+    print(f"broadcast Klobuchar zenith delay at the walk: {zenith:.2f} m")
+    assert 0.5 < zenith < 30.0
 
 
 def test_cnav_span_warning():
@@ -172,3 +187,13 @@ def test_cnav_span_warning():
     w = cnav_span_warning(rows, np.array([900.0, 1000.0 + CNAV_SPAN_S + 1]), "x.ubx")
     assert len(w) == 1 and w[0].startswith("warning: x.ubx") and f"{CNAV_SPAN_S + 1:.0f} s" in w[0]
     assert cnav_span_warning(rows[:1], np.array([0.0, 1e5]), "x.ubx") == []
+
+
+def test_ubx_sources_parsed():
+    from aidnav.errors import InputError  # lazy: only this test
+    from aidnav.io.rinex import UBX_SOURCES, parse_ubx_sources  # lazy: georinex-backed module
+
+    assert parse_ubx_sources(UBX_SOURCES) == {"inav", "lnav", "cnav", "klobuchar"}
+    assert parse_ubx_sources(" inav, klobuchar ,") == {"inav", "klobuchar"} and parse_ubx_sources("") == set()
+    with pytest.raises(InputError, match="almanac unknown"):
+        parse_ubx_sources("inav,almanac")

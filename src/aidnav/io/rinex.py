@@ -68,7 +68,8 @@ from aidnav.nav.gnss_sat import (
 from aidnav.nav.gnss_types import GnssObservations, GpsEphemerides
 
 __all__ = ["GpsEphemerides", "GnssObservations", "read_rinex_nav", "read_rinex_obs", "read_rinex_pair",
-           "merge_ephemerides", "cnav_span_warning", "CNAV_SPAN_S", "UBX_SOURCES"]
+           "merge_ephemerides", "cnav_span_warning", "CNAV_SPAN_S", "UBX_SOURCES",
+           "parse_ubx_sources"]
 #: how far [s] from a GPS CNAV row's epoch (the UBX log's middle) the observations may reach before
 #: ``read_rinex_pair`` warns: the re-epoched orbit's ½ Δn0-dot τ² term reaches ~0.3 m there (io.gps_cnav)
 CNAV_SPAN_S = 600.0
@@ -464,6 +465,17 @@ def read_rinex_pair(obs_path, nav_path, systems: str = "GECR", ubx_nav=None,
     return obs, eph, events
 
 
+def parse_ubx_sources(text: str) -> set[str]:
+    """The set of :func:`read_rinex_pair`'s ``ubx_sources`` (comma-separated names of :data:`UBX_SOURCES`);
+    an unknown name raises InputError."""
+    sources = {x.strip() for x in str(text).split(",") if x.strip()}
+    unknown = sources - set(UBX_SOURCES.split(","))
+    if unknown:
+        raise InputError(f"UBX navigation source(s) {', '.join(sorted(unknown))} unknown: use a "
+                         f"comma-separated subset of {UBX_SOURCES}")
+    return sources
+
+
 def cnav_span_warning(table: np.ndarray, times: np.ndarray, name: str) -> list[str]:
     """A warning (list of one) when observations at ``times`` reach farther than :data:`CNAV_SPAN_S` from
     the epoch of a GPS CNAV row of ``table`` (IODE −1, :mod:`aidnav.io.gps_cnav`: re-epoched to the middle
@@ -501,10 +513,7 @@ def _add_ubx_nav(eph: GpsEphemerides, ubx_path, systems: str,
     from aidnav.io.gps_lnav import read_ubx_gps_lnav  # lazy: as above
     from aidnav.io.sfrbx import read_sfrbx  # lazy: as above
 
-    sources = {x.strip() for x in ubx_sources.split(",") if x.strip()}
-    if sources - set(UBX_SOURCES.split(",")):
-        raise InputError(f"UBX navigation sources {', '.join(sorted(sources - set(UBX_SOURCES.split(','))))}"
-                         f": unknown (known: {UBX_SOURCES})")
+    sources = parse_ubx_sources(ubx_sources)
     log = read_sfrbx(ubx_path)
     name = Path(ubx_path).name
     events, errors, asked = list(eph.events), [], 0

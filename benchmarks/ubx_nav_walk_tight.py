@@ -36,7 +36,8 @@ from aidnav.nav.gnss_sat import sat_name
 
 _DATA = Path(os.environ.get("AIDNAV_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"))
 WALK = _DATA / "rtklibexplorer_walk_0827"
-CASES = {"nav file": ("GECR", None), "+GPS": ("G", "lnav,cnav"), "+GPS +iono": ("G", "lnav,cnav,klobuchar"),
+CASES = {"nav file": ("GECR", None), "nav file +iono": ("GECR", "klobuchar"),
+         "+GPS": ("G", "lnav,cnav"), "+GPS +iono": ("G", "lnav,cnav,klobuchar"),
          "+Galileo": ("GECR", "inav"), "+Galileo +iono": ("GECR", "inav,klobuchar"),
          "+all": ("GECR", "inav,lnav,cnav"), "+all +iono (default)": ("GECR", "inav,lnav,cnav,klobuchar")}
 

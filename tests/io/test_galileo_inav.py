@@ -136,7 +136,8 @@ def test_walk_galileo_residuals(data_dir):
 
 def test_walk_pair_with_ubx_nav(data_dir):
     """``read_rinex_pair(..., ubx_nav=)``: the walk's nav file has no Galileo record, the UBX log adds its 7
-    (E14 flagged unhealthy, as broadcast), the Galileo observations are kept, and nothing else changes."""
+    (E14 flagged unhealthy, as broadcast), the Galileo observations are kept, and the file's GPS records
+    are unchanged (test_gps_cnav.py: the GPS satellites the log adds)."""
     import warnings  # lazy: only this test reads RINEX (georinex's FutureWarnings)
 
     from aidnav.io.rinex import read_rinex_pair  # lazy: georinex is heavy to import
@@ -156,7 +157,8 @@ def test_walk_pair_with_ubx_nav(data_dir):
     assert np.all(np.abs(gal[:, gs.E_TOE] - obs1.time[0]) < 7200)  # on the observations' week
     assert set(obs1.prn[obs1.prn // 100 == 1] % 100) >= {7, 26, 29, 33}
     gps = [e.table[e.table[:, gs.E_PRN] < 100] for e in (eph0, eph1)]
-    assert np.array_equal(gps[0], gps[1])
+    kept = np.isin(gps[1][:, gs.E_PRN], gps[0][:, gs.E_PRN])  # the log's GPS CNAV adds G08, G18, G24
+    assert np.array_equal(gps[0], gps[1][kept]) and sorted(gps[1][~kept, gs.E_PRN]) == [8, 18, 24]
 
 
 def test_log_without_galileo_pages_refused(tmp_path):

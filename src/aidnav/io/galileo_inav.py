@@ -17,7 +17,8 @@ GST–GPST offset, a few ns, is not applied, as for RINEX records), its group de
 I/NAV user's, as :func:`aidnav.io.rinex.read_rinex_nav` takes), its URA the SISA [m] and its health the
 RINEX health word (bit 0 E1-B DVS, bits 1–2 E1-B HS, bit 6 E5b DVS, bits 7–8 E5b HS).
 
-Alert pages, pages with a bad CRC and F/NAV or E6 frames (other ``sigId``) are counted and not used.
+Alert pages, pages with a bad CRC and F/NAV or E6 frames (other ``sigId``) are counted and not used. The
+log's frames are read by :func:`aidnav.io.sfrbx.read_sfrbx` (shared with :mod:`aidnav.io.gps_lnav`).
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ import numpy as np
 
 from aidnav.io.errors import DataError
 from aidnav.io.gpstime import SECONDS_PER_WEEK
+from aidnav.io.sfrbx import near_week, read_sfrbx
 from aidnav.nav.gnss_sat import (
     E_AF0,
     E_AF1,
@@ -157,21 +159,12 @@ def sisa_m(index: int) -> float:
     return float("nan")
 
 
-def _near_week(t_sow: float, wn: int, tow: float) -> int:
-    """The week of a time of week ``t_sow`` given the current week and time of week (± half a week)."""
-    if t_sow - tow > SECONDS_PER_WEEK / 2:
-        return wn - 1
-    if t_sow - tow < -SECONDS_PER_WEEK / 2:
-        return wn + 1
-    return wn
-
-
 def _record(prn: int, w: dict, ref_week: int | None) -> np.ndarray:
     """One ephemeris row (columns of :mod:`aidnav.nav.gnss_sat`) from words 1–5 (``w[k]`` fields)."""
     w1, w2, w3, w4, w5 = (w[k] for k in range(1, 6))
     wn = int(w5["wn"]) + GST_GPS_WEEK
-    wk_toe = _near_week(w1["toe"], wn, w5["tow"])
-    wk_toc = _near_week(w4["toc"], wn, w5["tow"])
+    wk_toe = near_week(w1["toe"], wn, w5["tow"])
+    wk_toc = near_week(w4["toc"], wn, w5["tow"])
     ref = wk_toe if ref_week is None else ref_week
     r = np.zeros(N_EPH)
     r[E_PRN] = sat_id(f"E{prn:02d}")
@@ -223,28 +216,22 @@ def assemble(pages, ref_week: int | None = None) -> tuple[np.ndarray, Counter]:
     return (np.array(rows) if rows else np.zeros((0, N_EPH))), count
 
 
-def read_ubx_galileo_inav(path, ref_week: int | None = None) -> GpsEphemerides:
+def read_ubx_galileo_inav(path, ref_week: int | None = None, log=None) -> GpsEphemerides:
     """The Galileo I/NAV ephemerides broadcast in the RXM-SFRBX frames of the UBX log ``path`` (module doc),
-    toe/toc on the GPS week ``ref_week`` (default: the earliest record's week). Raises DataError when the
-    file is missing or holds no complete Galileo ephemeris."""
+    toe/toc on the GPS week ``ref_week`` (default: the earliest record's week). ``log``: the log already
+    read by :func:`aidnav.io.sfrbx.read_sfrbx` (else it is read here). Raises DataError when the file is
+    missing or holds no complete Galileo ephemeris."""
     path = Path(path)
-    if not path.exists():
-        raise DataError(path, None, "file not found")
-    from pyubx2 import UBXReader  # lazy: pyubx2 is only needed to read UBX logs
-
+    log = read_sfrbx(path) if log is None else log
     pages, count = [], Counter()
-    with open(path, "rb") as f:
-        for raw, msg in UBXReader(f, protfilter=2, quitonerror=0):
-            if msg is None or msg.identity != "RXM-SFRBX" or raw[6] != 2:
-                continue
-            if raw[8] != 1:  # sigId: E1-B only (F/NAV on E5a, E6 frames are not I/NAV)
-                count["not E1-B frames"] += 1
-                continue
-            words = [getattr(msg, f"dwrd_{i:02d}") for i in range(1, msg.numWords + 1)]
-            word, why = inav_page(words)
-            count[f"pages {why}"] += 1
-            if word is not None:
-                pages.append((int(raw[7]), word))
+    for sv, sig, words in log.of(2):
+        if sig != 1:  # sigId: E1-B only (F/NAV on E5a, E6 frames are not I/NAV)
+            count["not E1-B frames"] += 1
+            continue
+        word, why = inav_page(words)
+        count[f"pages {why}"] += 1
+        if word is not None:
+            pages.append((int(sv), word))
     rows, c2 = assemble(pages, None)
     count.update(c2)
     if len(rows) == 0:

@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from aidnav.errors import InputError
 from aidnav.io.errors import DataError
 from aidnav.io.gpstime import SECONDS_PER_WEEK, calendar_to_week_sow, leap_seconds
 from aidnav.nav.gnss_sat import (
@@ -62,10 +63,18 @@ from aidnav.nav.gnss_sat import (
     N_EPH,
     SYSTEMS,
     sat_id,
+    sat_name,
 )
 from aidnav.nav.gnss_types import GnssObservations, GpsEphemerides
 
-__all__ = ["GpsEphemerides", "GnssObservations", "read_rinex_nav", "read_rinex_obs", "read_rinex_pair"]
+__all__ = ["GpsEphemerides", "GnssObservations", "read_rinex_nav", "read_rinex_obs", "read_rinex_pair",
+           "merge_ephemerides", "cnav_span_warning", "CNAV_SPAN_S", "UBX_SOURCES",
+           "parse_ubx_sources"]
+#: how far [s] from a GPS CNAV row's epoch (the UBX log's middle) the observations may reach before
+#: ``read_rinex_pair`` warns: the re-epoched orbit's ½ Δn0-dot τ² term reaches ~0.3 m there (io.gps_cnav)
+CNAV_SPAN_S = 600.0
+#: what :func:`read_rinex_pair` takes from a UBX log by default (its ``ubx_sources``)
+UBX_SOURCES = "inav,lnav,cnav,klobuchar"
 
 
 def _load(path, systems: str):
@@ -409,24 +418,40 @@ def _header_systems(path: Path) -> list[str]:
     return out
 
 
-def read_rinex_pair(obs_path, nav_path, systems: str = "GECR", ubx_nav=None) -> tuple[
-        GnssObservations, GpsEphemerides, list[str]]:
+def read_rinex_pair(obs_path, nav_path, systems: str = "GECR", ubx_nav=None,
+                    ubx_sources: str = UBX_SOURCES) -> tuple[GnssObservations, GpsEphemerides, list[str]]:
     """The observations of every system of ``systems`` (letters of G, E, C, R, S) that has ephemerides in
     the navigation file, with the ephemerides on the observations' week; ``events`` name the systems of
     the observation file left out and why (no ephemeris; not asked for; QZSS, NavIC: not supported).
 
-    ubx_nav : a u-blox UBX log (or None) whose Galileo I/NAV ephemerides (RXM-SFRBX,
-    :mod:`aidnav.io.galileo_inav`) are added to the navigation file's when ``systems`` has E and the
-    navigation file has no Galileo record of the same satellite and IODnav."""
+    ubx_nav : a u-blox UBX log (or None) whose broadcast ephemerides (RXM-SFRBX) are merged into the
+    navigation file's: Galileo I/NAV (:mod:`aidnav.io.galileo_inav`) when ``systems`` has E, GPS LNAV
+    (:mod:`aidnav.io.gps_lnav`) and GPS CNAV from L2C/L5 (:mod:`aidnav.io.gps_cnav`) when it has G.
+    **The merge rule**: a record is identified by (satellite, IODE/IODnav, toe); a UBX record whose
+    identity the navigation file already holds is dropped (the file's record is kept: the same broadcast,
+    equal to the RINEX rounding, < 1 mm on the walk); every other Galileo or GPS LNAV record is added
+    beside the file's. The ephemeris used at an epoch is then the healthy record of the satellite with the
+    nearest toe (:func:`aidnav.nav.gnss_sat.select_ephemeris`; the later record on a tie, and the UBX
+    ones sort after the file's of the same toe), so a satellite with a RINEX ephemeris keeps it unless
+    the log holds one of a toe nearer the epoch (a newer upload), and a satellite missing from the file
+    gets the log's. A GPS CNAV record is added only for a satellite with no LNAV record at all (file or
+    log): LNAV is the L1 C/A user's message, CNAV fills the satellites whose LNAV subframes the log lacks.
+    When the navigation file has no Klobuchar coefficients, the log's (CNAV type 30) are used.
+
+    ubx_sources : which of the log's data are used, comma-separated (:data:`UBX_SOURCES`, all by default):
+    ``inav`` Galileo I/NAV records, ``lnav`` GPS LNAV records, ``cnav`` GPS CNAV records, ``klobuchar`` the
+    log's Klobuchar coefficients."""
     if not Path(obs_path).exists():  # a missing observation file is named first (as before)
         raise DataError(Path(obs_path), None, "file not found")
     eph = read_rinex_nav(nav_path, systems=systems)
-    if ubx_nav is not None and "E" in systems:
-        eph = _add_galileo_inav(eph, ubx_nav)
+    if ubx_nav is not None and ("E" in systems or "G" in systems):
+        eph = _add_ubx_nav(eph, ubx_nav, systems, ubx_sources)
     have = "".join(c for c in SYSTEMS if np.any(eph.table[:, E_PRN] // 100 == SYSTEMS.index(c)))
     obs = read_rinex_obs(obs_path, systems=have or "G")
     eph = eph.to_week(obs.ref_week) if eph.ref_week != obs.ref_week else eph
     events = []
+    if ubx_nav is not None:
+        events += cnav_span_warning(eph.table, obs.time, Path(ubx_nav).name)
     for c in _header_systems(Path(obs_path)):
         if c in SYSTEMS and c not in systems:
             events.append(f"{Path(obs_path).name}: {_SYSTEM_NAMES[c]} observations not used (systems "
@@ -440,16 +465,88 @@ def read_rinex_pair(obs_path, nav_path, systems: str = "GECR", ubx_nav=None) -> 
     return obs, eph, events
 
 
-def _add_galileo_inav(eph: GpsEphemerides, ubx_path) -> GpsEphemerides:
-    """``eph`` with the Galileo I/NAV records of the UBX log ``ubx_path`` that it lacks (same satellite and
-    IODnav: the navigation file's record is kept), on ``eph``'s week."""
-    from aidnav.io.galileo_inav import read_ubx_galileo_inav  # lazy: pyubx2 only when a UBX log is given
+def parse_ubx_sources(text: str) -> set[str]:
+    """The set of :func:`read_rinex_pair`'s ``ubx_sources`` (comma-separated names of :data:`UBX_SOURCES`);
+    an unknown name raises InputError."""
+    sources = {x.strip() for x in str(text).split(",") if x.strip()}
+    unknown = sources - set(UBX_SOURCES.split(","))
+    if unknown:
+        raise InputError(f"UBX navigation source(s) {', '.join(sorted(unknown))} unknown: use a "
+                         f"comma-separated subset of {UBX_SOURCES}")
+    return sources
 
-    gal = read_ubx_galileo_inav(ubx_path, ref_week=eph.ref_week)
-    have = {(int(r[E_PRN]), int(r[E_IODE])) for r in eph.table}
-    new = np.array([r for r in gal.table if (int(r[E_PRN]), int(r[E_IODE])) not in have]).reshape(-1, N_EPH)
-    table = np.vstack([eph.table, new])
-    table = table[np.lexsort((table[:, E_TOE], table[:, E_PRN]))]
-    events = list(eph.events) + gal.events + [f"{Path(ubx_path).name}: {len(new)} Galileo I/NAV record(s) "
-                                              "added to the navigation file's"]
-    return GpsEphemerides(table, eph.ref_week, eph.iono_alpha, eph.iono_beta, events)
+
+def cnav_span_warning(table: np.ndarray, times: np.ndarray, name: str) -> list[str]:
+    """A warning (list of one) when observations at ``times`` reach farther than :data:`CNAV_SPAN_S` from
+    the epoch of a GPS CNAV row of ``table`` (IODE −1, :mod:`aidnav.io.gps_cnav`: re-epoched to the middle
+    of the UBX log ``name``); else []."""
+    cnav = table[:, E_IODE] < 0
+    if not cnav.any() or len(times) == 0:
+        return []
+    far = float(np.max(np.abs(table[cnav, E_TOE][:, None] - np.asarray(times)[[0, -1]][None, :])))
+    if far <= CNAV_SPAN_S:
+        return []
+    return [f"warning: {name}: its GPS CNAV orbits are fitted to the log's own epochs and the observations "
+            f"reach {far:.0f} s from them (> {CNAV_SPAN_S:.0f} s: errors over 0.3 m): is the log the one the "
+            "observations were converted from?"]
+
+
+def merge_ephemerides(eph: GpsEphemerides, table: np.ndarray) -> tuple[GpsEphemerides, int]:
+    """``eph`` with the rows of ``table`` (same week scale) whose (satellite, IODE, toe) it lacks
+    (:func:`read_rinex_pair`'s merge rule), and how many were added."""
+    have = {(int(r[E_PRN]), int(r[E_IODE]), round(float(r[E_TOE]))) for r in eph.table}
+    new = np.array([r for r in table if (int(r[E_PRN]), int(r[E_IODE]), round(float(r[E_TOE]))) not in have])
+    new = new.reshape(-1, N_EPH)
+    both = np.vstack([eph.table, new])
+    order = np.arange(len(both))  # a tie of toe keeps the file's record first (select_ephemeris: last wins)
+    both = both[np.lexsort((order, both[:, E_TOE], both[:, E_PRN]))]
+    return GpsEphemerides(both, eph.ref_week, eph.iono_alpha, eph.iono_beta, list(eph.events)), len(new)
+
+
+def _add_ubx_nav(eph: GpsEphemerides, ubx_path, systems: str,
+                 ubx_sources: str = UBX_SOURCES) -> GpsEphemerides:
+    """``eph`` with the records of the UBX log ``ubx_path`` merged in (:func:`read_rinex_pair`: its rule and
+    ``ubx_sources``), on ``eph``'s week. A source with no complete record adds none (an event says so); a
+    log where every asked source has none is refused."""
+    from aidnav.io.galileo_inav import read_ubx_galileo_inav  # lazy: the UBX decoders only with a log
+    from aidnav.io.gps_cnav import read_ubx_gps_cnav  # lazy: as above
+    from aidnav.io.gps_lnav import read_ubx_gps_lnav  # lazy: as above
+    from aidnav.io.sfrbx import read_sfrbx  # lazy: as above
+
+    sources = parse_ubx_sources(ubx_sources)
+    log = read_sfrbx(ubx_path)
+    name = Path(ubx_path).name
+    events, errors, asked = list(eph.events), [], 0
+    for key, letter, reader, what in (("inav", "E", read_ubx_galileo_inav, "Galileo I/NAV"),
+                                      ("lnav", "G", read_ubx_gps_lnav, "GPS LNAV"),
+                                      ("cnav", "G", read_ubx_gps_cnav, "GPS CNAV")):
+        rows = key in sources and letter in systems
+        iono = key == "cnav" and "klobuchar" in sources and eph.iono_alpha is None
+        if not (rows or iono):
+            continue
+        asked += rows
+        try:
+            got = reader(ubx_path, ref_week=eph.ref_week, log=log)
+        except DataError as e:
+            if rows:
+                errors.append(e)
+                events.append(f"{name}: no {what} record added ({e.problem})")
+            continue
+        if iono and got.iono_alpha is not None:  # the file has no Klobuchar coefficients: the log's
+            eph = GpsEphemerides(eph.table, eph.ref_week, got.iono_alpha, got.iono_beta, eph.events)
+            events.append(f"{name}: GPS Klobuchar coefficients from the log's {what} (the navigation file "
+                          "has none): alpha " + ", ".join(f"{a:.3g}" for a in got.iono_alpha) + "; beta "
+                          + ", ".join(f"{b:.3g}" for b in got.iono_beta))
+        if not rows:
+            continue
+        table = got.table
+        if key == "cnav":  # only for satellites without an LNAV record
+            table = table[~np.isin(table[:, E_PRN], eph.table[:, E_PRN])]
+        before = set(eph.table[:, E_PRN].astype(int))
+        eph, n = merge_ephemerides(eph, table)
+        new = sorted(set(eph.table[:, E_PRN].astype(int)) - before)
+        events += got.events + [f"{name}: {n} {what} record(s) added to the navigation file's"
+                                + (f" (new: {', '.join(sat_name(s) for s in new)})" if new else "")]
+    if asked and len(errors) == asked:  # every asked source failed
+        raise errors[0]
+    return GpsEphemerides(eph.table, eph.ref_week, eph.iono_alpha, eph.iono_beta, events)

@@ -72,7 +72,8 @@ def main():
         d = offsets(sp, ref)
         h = np.sqrt(np.mean(d[:, 0] ** 2 + d[:, 1] ** 2))
         print(f"{label:44s} {len(d):4d} epochs: mean E/N/U {' / '.join(f'{x:6.2f}' for x in d.mean(0))}, SD "
-              f"{' / '.join(f'{x:4.2f}' for x in d.std(0))}, H RMS {h:.2f} m, PDOP {np.nanmedian(sp['pdop']):.2f}")
+              f"{' / '.join(f'{x:4.2f}' for x in d.std(0))}, H RMS {h:.2f} m, "
+              f"PDOP {np.nanmedian(sp['pdop']):.2f}")
     means = []
     for s in gps + gal:
         rest = [x for x in gps + gal if x != s]

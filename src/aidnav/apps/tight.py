@@ -26,7 +26,8 @@ from aidnav.io.nav_sources import format_sources, read_observations_and_navigati
 from aidnav.nav.earth import lla_difference_enu
 from aidnav.report.run_page import calibration_estimates
 
-__all__ = ["process_tight", "compare_with_reference", "process_tight_files", "score_against_reference"]
+__all__ = ["process_tight", "compare_with_reference", "process_tight_files", "score_against_reference",
+           "ubx_nav_setting"]
 
 
 def compare_with_reference(time, lat, lon, h, ref: GnssData, quality: int | None = 1, max_dt: float = 0.01):
@@ -99,10 +100,8 @@ def process_tight_files(imu_path, obs_path, nav_path, config_path=None, out_dir=
         cfg = cfg.model_copy(update={"imu": cfg.imu.model_copy(update={"time_offset_s": time_offset_s})})
     imu = shift_imu_time(read_imu_any(imu_path), cfg.imu.time_offset_s)
     cfg = cfg.model_copy(update={"imu": cfg.imu.model_copy(update={"time_offset_s": 0.0})})
-    from_cfg = ubx_nav is None
     obs, eph, rinex_events, sources = read_observations_and_navigation(
-        obs_path, nav_path, cfg.gnss.systems, cfg.gnss.ubx_nav if from_cfg else ubx_nav,
-        base_dir=os.path.dirname(os.path.abspath(config_path)) if from_cfg and config_path else None)
+        obs_path, nav_path, cfg.gnss.systems, *ubx_nav_setting(cfg, ubx_nav, config_path))
     events += rinex_events
     res, sp = process_tight(imu, obs, eph, cfg, events=events, smooth=smooth)
     traj = to_trajectory(res)
@@ -148,6 +147,15 @@ def process_tight_files(imu_path, obs_path, nav_path, config_path=None, out_dir=
         write_run_outputs(out_dir, traj, spp, page, records, figures=extra, progress=progress)
     write_summary_files(out_dir, summary, format_tight_summary(summary))  # last: "status": "complete"
     return summary
+
+
+def ubx_nav_setting(cfg: TightConfig, option, config_path) -> tuple:
+    """(setting, base directory) of the UBX log for :func:`aidnav.io.nav_sources.resolve_ubx_nav`: the
+    command-line ``option`` (a path relative to the current directory, "auto" or "none") when given, else
+    the configuration's ``gnss.ubx_nav`` (a relative path there is the configuration file's)."""
+    if option is not None:
+        return str(option), None
+    return cfg.gnss.ubx_nav, (os.path.dirname(os.path.abspath(config_path)) if config_path else None)
 
 
 def _iono_note(event: str) -> bool:

@@ -1,0 +1,119 @@
+"""The walk with `aidnav tight`'s default navigation data (issue 40): the RINEX navigation file and the UBX
+log its observation file names (`gnss.ubx_nav: auto`, :mod:`aidnav.io.nav_sources`), whose Galileo I/NAV
+ephemerides add 6 healthy satellites to the file's 4 GPS ones. Figures: docs/results.md, issue 40 session
+14 (q40e); `benchmarks/galileo_walk_tight.py`, `benchmarks/walk_reference_offset.py`."""
+
+from __future__ import annotations
+
+import copy
+import warnings
+
+import numpy as np
+import pytest
+
+from aidnav.filters.tight import TightConfig
+from aidnav.nav.gnss_sat import sat_name
+
+#: why the horizontal figures against the walk's reference fail with the Galileo satellites
+REFERENCE_OFFSET = ("the walk's reference (the receiver's own RTK NAV-PVT, its base station's coordinates "
+                    "unknown) is offset from every broadcast-ephemeris solution by ~8 m horizontally: "
+                    "GPS-only SPP mean E/N 7.37/4.12 m, Galileo-only 5.59/5.53 m, each satellite left out "
+                    "7.6-8.5 m (benchmarks/walk_reference_offset.py); the tight solution's SD about its mean "
+                    "is 0.23/0.25 m")
+
+
+def test_the_option_wins_and_a_configured_path_is_the_configuration_files(tmp_path):
+    from aidnav.apps.tight import ubx_nav_setting
+
+    cfg = TightConfig(gnss={"ubx_nav": "logs/rover.ubx"})
+    assert TightConfig().gnss.ubx_nav == "auto"
+    assert ubx_nav_setting(cfg, None, tmp_path / "c.yaml") == ("logs/rover.ubx", str(tmp_path))
+    assert ubx_nav_setting(cfg, "none", tmp_path / "c.yaml") == ("none", None)
+    assert ubx_nav_setting(TightConfig(), None, None) == ("auto", None)
+    assert TightConfig(gnss={"ubx_nav": None}).gnss.ubx_nav is None
+
+
+@pytest.fixture(scope="module")
+def walk_ubx(walk_dir, load_walk):
+    """`aidnav tight`'s processing with no configuration and the default navigation data: ENU errors
+    against the RTK reference at every reference epoch, their σ, the result, the observations and the
+    ephemerides used."""
+    from aidnav.apps.tight import process_tight
+    from aidnav.filters.tight import to_trajectory
+    from aidnav.io.nav_sources import read_observations_and_navigation
+    from aidnav.nav.earth import lla_difference_enu
+
+    imu, _, _, ref = load_walk()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FutureWarning)
+        obs, eph, ev, src = read_observations_and_navigation(
+            walk_dir / "rinex_converted" / "gnss_1730.obs", walk_dir / "rinex_converted" / "gnss_1730.nav",
+            TightConfig().gnss.systems, TightConfig().gnss.ubx_nav)
+    res, _ = process_tight(imu, obs, eph, None, events=ev)
+    tr = to_trajectory(res)
+    sel = (ref.time >= tr.time[0]) & (ref.time <= tr.time[-1])
+    j = np.clip(np.searchsorted(tr.time, ref.time[sel]), 0, len(tr.time) - 1)
+    d = np.column_stack(lla_difference_enu(tr.lat[j], tr.lon[j], tr.height[j], ref.lat[sel], ref.lon[sel],
+                                           ref.height[sel]))
+    return d, tr.std_pos[j], res, (obs, eph, src, ref)
+
+
+def test_walk_default_uses_the_galileo_satellites_of_the_ubx_log(walk_ubx):
+    """The log's Galileo satellites get range-error states and a Galileo inter-system bias; the vertical
+    RMS stays ≤ 3.5 m (measured 2.01 m; 2.98 m with the navigation file alone) and the velocity against
+    the RTK positions' differences is better than the navigation file alone gives (measured 0.0677 m/s;
+    0.0772 m/s alone: test_tight_partial_sky.py's walk_default)."""
+    from aidnav.analysis.velocity_reference import interval_velocity_errors
+
+    d, _, res, (_, _, src, ref) = walk_ubx
+    gal = {sat_name(p) for p in res.range_error_prn if sat_name(p)[0] == "E"}
+    assert gal == set(src["satellites"]["Galileo"]) and len(gal) == 6
+    assert res.isb_systems == "E" and res.isb_std[-1, 0] < 5.0
+    assert np.sqrt(np.mean(d[:, 2] ** 2)) <= 3.5
+    iv = interval_velocity_errors(res.time, res.state[:, 3:6], ref.time, ref.lat, ref.lon, ref.height,
+                                  use=ref.quality == 1)
+    assert len(iv) > 300 and iv.rms_horizontal() < 0.072
+
+
+def test_walk_reference_offset_is_common_to_gps_and_galileo(walk_ubx):
+    """Why the horizontal figures against the walk's reference are a constant ~8 m: single point positions
+    of the GPS satellites alone and of the Galileo satellites alone (independent orbits, clocks and group
+    delays) are both ≥ 6 m from the reference on average and within 3 m of each other, and the tight
+    solution's scatter about its mean is < 0.5 m while its mean is ~8 m away: the offset is common to the
+    constellations (the reference's absolute position, not a satellite's error)."""
+    from aidnav.estimators.spp import spp_series
+    from aidnav.nav.earth import lla_difference_enu
+
+    d, _, _, (obs, eph, src, ref) = walk_ubx
+    means = {}
+    for system in ("GPS", "Galileo"):
+        o = copy.deepcopy(obs)
+        keep = set(src["satellites"][system])
+        for j, p in enumerate(o.prn):
+            if sat_name(p) not in keep:
+                o.code1[:, j] = np.nan
+        sp = spp_series(o, eph, sigma0=3.0, iono="klobuchar", mask_deg=10.0)
+        ok = np.isfinite(sp["lat"])
+        i = np.clip(np.searchsorted(ref.time, sp["time"][ok]), 0, len(ref) - 1)
+        e, n, _ = lla_difference_enu(sp["lat"][ok], sp["lon"][ok], sp["h"][ok], ref.lat[i], ref.lon[i],
+                                     ref.height[i])
+        assert ok.sum() > 500
+        means[system] = np.array([e.mean(), n.mean()])
+    print({k: np.round(v, 2) for k, v in means.items()})  # measured GPS 7.37/4.12, Galileo 5.59/5.53 m
+    assert np.hypot(*means["GPS"]) >= 6.0 and np.hypot(*means["Galileo"]) >= 6.0
+    assert np.hypot(*(means["GPS"] - means["Galileo"])) < 3.0
+    assert np.hypot(*d[:, :2].mean(0)) > 8.0 and np.all(d[:, :2].std(0) < 0.5)
+
+
+@pytest.mark.xfail(strict=True, reason=f"8.884 m measured with the Galileo satellites (8.446 m with the "
+                   f"navigation file alone): {REFERENCE_OFFSET}")
+def test_walk_default_horizontal_rms_at_most_rtklib_spp(walk_ubx):
+    d = walk_ubx[0]
+    assert np.sqrt(np.mean(d[:, 0] ** 2 + d[:, 1] ** 2)) <= 8.50
+
+
+@pytest.mark.xfail(strict=True, reason=f"east 52.7 % measured (north and up 100 %): ten satellites bring the "
+                   f"east sigma to ~2 m against the reference's east offset of 6.6 m; {REFERENCE_OFFSET}")
+def test_walk_default_3_sigma_coverage(walk_ubx):
+    d, s, *_ = walk_ubx
+    assert np.all(np.mean(np.abs(d) <= 3 * s, axis=0) >= 0.95)

@@ -79,8 +79,8 @@ def test_walk_reference_offset_is_common_to_gps_and_galileo(walk_ubx):
     """Why the horizontal figures against the walk's reference are a constant ~8 m: single point positions
     of the GPS satellites alone and of the Galileo satellites alone (independent orbits, clocks and group
     delays) are both ≥ 6 m from the reference on average and within 3 m of each other, and the tight
-    solution's scatter about its mean is < 0.5 m while its mean is ~8 m away: the offset is common to the
-    constellations (the reference's absolute position, not a satellite's error)."""
+    solution's scatter about its mean is < 1 m (measured 0.23/0.25 m) while its mean is ~8 m away: the
+    offset is common to the constellations (the reference's absolute position, not a satellite's error)."""
     from aidnav.estimators.spp import spp_series
     from aidnav.nav.earth import lla_difference_enu
 
@@ -102,7 +102,7 @@ def test_walk_reference_offset_is_common_to_gps_and_galileo(walk_ubx):
     print({k: np.round(v, 2) for k, v in means.items()})  # measured GPS 7.37/4.12, Galileo 5.59/5.53 m
     assert np.hypot(*means["GPS"]) >= 6.0 and np.hypot(*means["Galileo"]) >= 6.0
     assert np.hypot(*(means["GPS"] - means["Galileo"])) < 3.0
-    assert np.hypot(*d[:, :2].mean(0)) > 8.0 and np.all(d[:, :2].std(0) < 0.5)
+    assert np.hypot(*d[:, :2].mean(0)) > 8.0 and np.all(d[:, :2].std(0) < 1.0)
 
 
 @pytest.mark.xfail(strict=True, reason=f"8.884 m measured with the Galileo satellites (8.446 m with the "
@@ -119,31 +119,30 @@ def test_walk_default_3_sigma_coverage(walk_ubx):
     assert np.all(np.mean(np.abs(d) <= 3 * s, axis=0) >= 0.95)
 
 
-def test_walk_the_galileo_satellites_move_the_solution_as_its_sigma_says(walk_ubx):
+def test_walk_the_ubx_satellites_move_the_solution_as_its_sigma_says(walk_ubx, walk_dir):
     """Without a truth free of the reference's offset, the filter's own σ is checked against itself: the
-    solution without the Galileo ephemerides (σ_G) and with them (σ_GE ≤ σ_G) differ by an amount whose
-    variance, for nested optimal estimators, is σ_G² − σ_GE² per axis; ≥ 95 % of the reference epochs
-    within 3 of those σ (measured: mean differences without − with E/N/U +1.30/−2.93/+1.27 m, σ
-    2.5/4.2/8.7 m)."""
+    solution with the navigation file alone (σ_N) and with the UBX log's records too (σ_U ≤ σ_N: a superset
+    of the satellites) differ by an amount whose variance, for nested optimal estimators, is σ_N² − σ_U² per
+    axis; ≥ 95 % of the reference epochs within 3 of those σ (measured with the Galileo records: mean
+    differences without − with E/N/U +1.30/−2.93/+1.27 m, σ 2.5/4.2/8.7 m)."""
     from aidnav.apps.tight import process_tight
     from aidnav.filters.tight import to_trajectory
+    from aidnav.io.rinex import read_rinex_nav
     from aidnav.nav.earth import lla_difference_enu
-    from aidnav.nav.gnss_sat import E_PRN, SYSTEMS
-    from aidnav.nav.gnss_types import GpsEphemerides
 
     d, s, _, (obs, eph, _, ref, imu, _) = walk_ubx
-    gps = eph.table[eph.table[:, E_PRN] // 100 != SYSTEMS.index("E")]
-    res, _ = process_tight(imu, obs, GpsEphemerides(gps, eph.ref_week, eph.iono_alpha, eph.iono_beta), None)
+    nav = read_rinex_nav(walk_dir / "rinex_converted" / "gnss_1730.nav", systems=TightConfig().gnss.systems)
+    res, _ = process_tight(imu, obs, nav.to_week(obs.ref_week), None)
     tr = to_trajectory(res)
     sel = (ref.time >= tr.time[0]) & (ref.time <= tr.time[-1])
     j = np.clip(np.searchsorted(tr.time, ref.time[sel]), 0, len(tr.time) - 1)
-    d_g = np.column_stack(lla_difference_enu(tr.lat[j], tr.lon[j], tr.height[j], ref.lat[sel], ref.lon[sel],
+    d_n = np.column_stack(lla_difference_enu(tr.lat[j], tr.lon[j], tr.height[j], ref.lat[sel], ref.lon[sel],
                                              ref.height[sel]))
-    assert len(d_g) == len(d)
+    assert len(d_n) == len(d)
     var = tr.std_pos[j] ** 2 - s**2
-    assert np.all(np.median(var, axis=0) > 0)  # the Galileo satellites shrink every axis' σ
-    z = (d_g - d) / np.sqrt(np.maximum(var, 1e-6))
-    print("mean difference", np.round((d_g - d).mean(0), 2), "sigma", np.round(np.sqrt(np.median(var, 0)), 2))
+    assert np.all(np.median(var, axis=0) > 0)  # the UBX log's satellites shrink every axis' σ
+    z = (d_n - d) / np.sqrt(np.maximum(var, 1e-6))
+    print("mean difference", np.round((d_n - d).mean(0), 2), "sigma", np.round(np.sqrt(np.median(var, 0)), 2))
     assert np.all(np.mean(np.abs(z) <= 3, axis=0) >= 0.95)
 
 

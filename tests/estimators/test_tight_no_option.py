@@ -35,3 +35,28 @@ def test_no_option_decides_the_nhc_and_refuses_an_unknown_mounting():
     dec, res = _decision(run.imu, obs, eph, TightConfig(constraints={"zupt": True}))
     assert dec == []  # a constraints section: no decision, one pass
     assert len(res.time) > 0
+
+
+def test_a_satellite_enters_once_the_spp_has_used_it():
+    """`process_tight` gives the filter a satellite's pseudoranges from the first epoch at which the SPP
+    used it (past its residual check where there is redundancy): before it, its code is removed (the walk's
+    G08: +20…+34 m for its first 10 s after acquisition, issue 40 session 14); a satellite never used is
+    not given; nothing removed, the same observations."""
+    from aidnav.estimators.tight_solution import _admitted
+    from aidnav.nav.gnss_types import GnssObservations
+
+    T = 6
+    code = np.full((T, 3), 2.0e7)
+    code[:2, 1] = np.nan  # satellite 2 rises at epoch 2 ...
+    res = np.zeros((T, 3))
+    res[:4, 1] = np.nan  # ... and the SPP excludes it at epochs 2, 3 (its acquisition)
+    res[:, 2] = np.nan  # satellite 3: never used (no ephemeris, always excluded, below the mask)
+    obs = GnssObservations(np.arange(T) * 0.25, 2381, np.array([10, 23, 108]), code, code * 0, code * 0)
+    ev: list = []
+    out = _admitted(obs, {"residuals": res}, ev)
+    assert np.array_equal(np.isnan(out.code1[:, 1]), [True] * 4 + [False] * 2)
+    assert np.isnan(out.code1[:, 2]).all() and np.array_equal(out.code1[:, 0], code[:, 0])
+    assert len(ev) == 1 and "G23 2, E08 6 epochs" in ev[0], ev
+    res[:, 2] = 0.0
+    res[:2, 1] = 0.0
+    assert _admitted(obs, {"residuals": res}, ev) is obs and len(ev) == 1

@@ -9,7 +9,9 @@ velocity changes to the SPP velocity changes (:func:`aidnav.filters.heading_matc
 no mounting or vehicle assumed; used when its σ ≤ 30°), else from the first SPP course above
 ``init.course_min_speed_m_s`` (plus the IMU mounting heading); ZUPTs where the IMU is still and the
 SPP speed is low (:func:`aidnav.filters.loose.static_flags`); the carrier phase as ``gnss.tdcp_model``
-says; then :func:`aidnav.filters.tight.run_tight`. Times stay GPS seconds of the observations' reference
+says; each satellite's pseudoranges from the first epoch at which the SPP used it (a newly acquired
+satellite enters past the snapshot solution's residual check: :func:`_admitted`); then
+:func:`aidnav.filters.tight.run_tight`. Times stay GPS seconds of the observations' reference
 week.
 """
 

@@ -125,8 +125,8 @@ def _admitted(obs, sp, events: list):
     removed (its Doppler and phase at those epochs go with them: the filter places a satellite by its code):
     a newly acquired satellite enters the filter once an epoch's snapshot solution has taken it — with
     redundancy, past the residual check (:func:`aidnav.estimators.spp.spp`). A receiver's code of the first
-    seconds after acquisition can be tens of metres off while its tracking loops settle (the walk's G08, 26
-    of its first 30 epochs excluded by the check, +20…+34 m; issue 40, session 14): in the filter one such
+    seconds after acquisition can be tens of metres off while its tracking loops settle (the walk's G08: its
+    first 30 code epochs, all excluded by the check, +20…+34 m; issue 40, session 14): in the filter one such
     range accepted at the gate's edge goes into the satellite's range-error state and the position for the
     rest of the run. A satellite the SPP never uses is not used. Returns the observations (the same object
     when nothing is removed)."""

@@ -1,6 +1,8 @@
 """The job behind ``aidnav spp``: single point positioning on RINEX files → a GNSS solution file and a page.
 
-RINEX observation + navigation (GPS broadcast ephemerides) → :func:`aidnav.estimators.spp.spp_series`
+RINEX observation + navigation (broadcast ephemerides; with the receiver's UBX log the observation file
+names, its RXM-SFRBX ephemerides too: ``--ubx-nav``, :mod:`aidnav.io.nav_sources`) →
+:func:`aidnav.estimators.spp.spp_series`
 (weighted least squares per epoch, Klobuchar / none / dual-frequency ionosphere, Saastamoinen troposphere,
 residual check; Doppler velocity) → ``DIR/solution.<fmt>``: an interchange GNSS file (``time`` GPS seconds
 of week, ``gps_week`` in its metadata, ``lat_deg, lon_deg, height_m`` ellipsoidal, ``ve, vn, vu``,

@@ -56,10 +56,10 @@ def test_a_satellite_enters_once_the_spp_has_used_it():
     out = _admitted(obs, {"residuals": res}, ev)
     assert np.array_equal(np.isnan(out.code1[:, 1]), [True] * 4 + [False] * 2)
     assert np.isnan(out.code1[:, 2]).all() and np.array_equal(out.code1[:, 0], code[:, 0])
-    assert len(ev) == 1 and "G23 2, E08 6 epochs" in ev[0], ev
+    assert len(ev) == 2 and "(G23 2 epochs)" in ev[0] and ev[1].endswith("filter: E08"), ev
     res[:, 2] = 0.0
     res[:2, 1] = 0.0
-    assert _admitted(obs, {"residuals": res}, ev) is obs and len(ev) == 1
+    assert _admitted(obs, {"residuals": res}, ev) is obs and len(ev) == 2
 
 
 def test_an_acquisition_transient_moves_the_tight_solution_less_than_its_sigma(monkeypatch):

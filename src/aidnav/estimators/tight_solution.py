@@ -136,9 +136,15 @@ def _admitted(obs, sp, events: list):
     before = has & (np.arange(len(obs.time))[:, None] < first[None, :])
     if not before.any():
         return obs
-    per = [f"{sat_name(p)} {int(before[:, j].sum())}" for j, p in enumerate(obs.prn) if before[:, j].any()]
-    events.append(f"pseudoranges before the SPP first used their satellite not used ({', '.join(per)} "
-                  "epochs): a satellite enters once a snapshot solution has taken it")
+    late = [f"{sat_name(p)} {int(before[:, j].sum())}" for j, p in enumerate(obs.prn)
+            if before[:, j].any() and first[j] < len(obs.time)]
+    never = [sat_name(p) for j, p in enumerate(obs.prn) if before[:, j].any() and first[j] == len(obs.time)]
+    if late:
+        events.append(f"pseudoranges before the SPP first used their satellite not used ({', '.join(late)} "
+                      "epochs): a satellite enters once a snapshot solution has taken it")
+    if never:
+        events.append(f"satellites the SPP never used (no usable ephemeris, below the mask or excluded by "
+                      f"its residual check) not given to the filter: {' '.join(never)}")
     return dataclasses.replace(obs, code1=np.where(before, np.nan, obs.code1))
 
 

@@ -9,9 +9,11 @@ import json
 import shutil
 from pathlib import Path
 
+import pytest
 from typer.testing import CliRunner
 
 from aidnav.cli import app
+from aidnav.io.errors import DataError
 from aidnav.io.nav_sources import format_sources, resolve_ubx_nav, source_log
 
 _HEADER = """     3.04           OBSERVATION DATA    M: Mixed            RINEX VERSION / TYPE
@@ -61,8 +63,12 @@ def test_the_setting(tmp_path):
         assert resolve_ubx_nav(off, obs)[0] is None
     assert resolve_ubx_nav("auto", obs) == (tmp_path / "rover.ubx",
                                             "auto: rover.obs's header names rover.ubx as its source log")
-    assert resolve_ubx_nav("logs/x.ubx", obs, base_dir=tmp_path / "cfg")[0] == tmp_path / "cfg" / "logs/x.ubx"
-    assert resolve_ubx_nav("x.ubx", obs) == (Path("x.ubx"), "given")
+    (tmp_path / "cfg" / "logs").mkdir(parents=True)
+    (tmp_path / "cfg" / "logs" / "x.ubx").write_bytes(b"\xb5\x62")
+    assert resolve_ubx_nav("logs/x.ubx", obs, base_dir=tmp_path / "cfg") == (tmp_path / "cfg" / "logs/x.ubx",
+                                                                            "given")
+    with pytest.raises(DataError, match="UBX log not found — give"):
+        resolve_ubx_nav("logs/x.ubx", obs, base_dir=tmp_path)
     line = format_sources({"nav": "a/n.nav", "ubx_nav": None, "how": "not asked for (ubx_nav: none)",
                            "satellites": {"GPS": ["G01", "G02"]}, "unhealthy": ["E14"]})
     assert line == ("ephemerides: n.nav (not asked for (ubx_nav: none)); satellites with a healthy "

@@ -69,7 +69,7 @@ def source_log(obs_path) -> tuple[Path | None, str]:
 def resolve_ubx_nav(setting, obs_path, base_dir=None) -> tuple[Path | None, str]:
     """The UBX log of ``setting`` (module doc) for the observation file ``obs_path``: (path or None, how it
     was chosen). A path is taken as given (relative to ``base_dir`` when it is relative and ``base_dir`` is
-    given); its existence is checked by the reader."""
+    given); a given path that is not a file is a DataError."""
     if setting is None or str(setting).strip().lower() == NONE:
         return None, "not asked for (ubx_nav: none)"
     s = str(setting).strip()
@@ -79,6 +79,9 @@ def resolve_ubx_nav(setting, obs_path, base_dir=None) -> tuple[Path | None, str]
     p = Path(s).expanduser()
     if not p.is_absolute() and base_dir is not None:
         p = Path(base_dir) / p
+    if not p.is_file():
+        raise DataError(p, None, "UBX log not found — give the receiver's UBX log, 'auto' (the log the "
+                        "observation file names) or 'none' (--ubx-nav, gnss.ubx_nav)")
     return p, "given"
 
 

@@ -544,8 +544,11 @@ def tight(
     no_figures: bool = typer.Option(False, "--no-figures", help="skip overview.png, maps and run.html"),
     vehicle: str | None = typer.Option(None, "--vehicle", help="vehicle preset under the configuration, as "
                                        "in process: car (NHC), aircraft, pedestrian, ship"),
-    ubx_nav: Path | None = typer.Option(None, "--ubx-nav", help="u-blox UBX log whose Galileo I/NAV "
-                                        "ephemerides (RXM-SFRBX) are added to the navigation file's"),
+    ubx_nav: str | None = typer.Option(None, "--ubx-nav", help="u-blox UBX log whose broadcast ephemerides "
+                                       "(RXM-SFRBX) are added to the navigation file's: a path, 'auto' (the "
+                                       "log the observation file's header names, beside it or in its parent "
+                                       "directory) or 'none'; default: the configuration's gnss.ubx_nav, "
+                                       "'auto'"),
 ):
     """Tightly coupled GNSS/INS (pseudorange + Doppler) on an IMU log and RINEX files."""
     from aidnav.apps.common import run_directory  # lazy: loaded when the command runs (--help: typer only)
@@ -575,8 +578,10 @@ def spp(
     code_sigma: float = typer.Option(3.0, "--code-sigma", help="code range σ [m]: the fixes' σ = DOP × it"),
     as_json: bool = typer.Option(False, "--json", help="print the JSON summary instead of the text"),
     no_figures: bool = typer.Option(False, "--no-figures", help="skip overview.png, maps and run.html"),
-    ubx_nav: Path | None = typer.Option(None, "--ubx-nav", help="u-blox UBX log whose Galileo I/NAV "
-                                        "ephemerides (RXM-SFRBX) are added to the navigation file's"),
+    ubx_nav: str = typer.Option("auto", "--ubx-nav", help="u-blox UBX log whose broadcast ephemerides "
+                                "(RXM-SFRBX) are added to the navigation file's: a path, 'auto' (the log the "
+                                "observation file's header names, beside it or in its parent directory) or "
+                                "'none'"),
 ):
     """Single point positioning on RINEX files: a GNSS solution file (interchange: process --gnss and
     evaluate read it), a summary and run.html."""

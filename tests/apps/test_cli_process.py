@@ -138,8 +138,9 @@ def test_nan_gnss_fix_is_skipped_and_reported(simdir):
 
 
 def test_tight_cli_on_walk_data(data_dir, tmp_path):
-    """`aidnav tight` on the walk set (4 GPS satellites with ephemeris, code only): a solution within
-    the metre-level accuracy such a solution can have (the RTK reference, Q = 1 epochs)."""
+    """`aidnav tight` on the walk set (4 GPS satellites with an ephemeris in the nav file, 6 Galileo ones in
+    the UBX log): a solution within the metre-level accuracy such a solution can have (the RTK reference,
+    Q = 1 epochs)."""
     d = data_dir / "rtklibexplorer_walk_0827"
     out = tmp_path / "tight"
     r = runner.invoke(app, ["tight", "--imu", str(d / "imu_1730.csv"), "--obs",
@@ -151,6 +152,10 @@ def test_tight_cli_on_walk_data(data_dir, tmp_path):
     s = json.loads((out / "summary.json").read_text())
     assert s["reference"]["Q=1"]["epochs"] > 300
     assert s["reference"]["Q=1"]["horizontal_rms_m"] < 15.0
+    # by default the UBX log the observation file names adds its Galileo ephemerides, said in the summary
+    src = s["ephemerides"]
+    assert src["ubx_nav"].endswith("gnss_1730.ubx") and "Galileo" in src["satellites"]
+    assert "E" in s["inter_system_bias_m"] and "ephemerides: gnss_1730.nav + gnss_1730.ubx" in r.output
     # every reference epoch is scored too, not only the fixed ones
     assert s["reference"]["all"]["epochs"] >= s["reference"]["Q=1"]["epochs"]
     # the page (issue 38): the reference track and the differences against time, the NIS table, and

@@ -1,6 +1,8 @@
 """The job behind ``aidnav spp``: single point positioning on RINEX files → a GNSS solution file and a page.
 
-RINEX observation + navigation (GPS broadcast ephemerides) → :func:`aidnav.estimators.spp.spp_series`
+RINEX observation + navigation (broadcast ephemerides; with the receiver's UBX log the observation file
+names, its RXM-SFRBX ephemerides too: ``--ubx-nav``, :mod:`aidnav.io.nav_sources`) →
+:func:`aidnav.estimators.spp.spp_series`
 (weighted least squares per epoch, Klobuchar / none / dual-frequency ionosphere, Saastamoinen troposphere,
 residual check; Doppler velocity) → ``DIR/solution.<fmt>``: an interchange GNSS file (``time`` GPS seconds
 of week, ``gps_week`` in its metadata, ``lat_deg, lon_deg, height_m`` ellipsoidal, ``ve, vn, vu``,
@@ -24,15 +26,17 @@ from aidnav.errors import InputError
 from aidnav.estimators.spp import spp_series
 from aidnav.io.formats import gnss_to_trajectory
 from aidnav.io.interchange import write_gnss
-from aidnav.io.rinex import read_rinex_pair
+from aidnav.io.nav_sources import AUTO, format_sources, read_observations_and_navigation
 
 __all__ = ["spp_files", "format_spp_summary"]
 
 
 def spp_files(obs_path, nav_path, out_dir="spp", fmt: str = "parquet", iono: str = "klobuchar",
-              mask_deg: float = 10.0, code_sigma_m: float = 3.0, figures: bool = True, ubx_nav=None) -> dict:
+              mask_deg: float = 10.0, code_sigma_m: float = 3.0, figures: bool = True, ubx_nav=AUTO) -> dict:
     """Run SPP on the RINEX files and write the solution, the summary and the page into ``out_dir``;
-    returns the summary dict. ``ubx_nav``: a UBX log whose Galileo I/NAV ephemerides are added."""
+    returns the summary dict. ``ubx_nav``: the UBX log whose broadcast ephemerides are added — a path,
+    "auto" (the log the observation file's header names, where it is found) or "none"
+    (:mod:`aidnav.io.nav_sources`)."""
     if fmt not in ("parquet", "csv"):
         raise InputError(f"--format {fmt}: expected parquet or csv")
     if iono not in ("klobuchar", "none", "dual"):
@@ -40,7 +44,8 @@ def spp_files(obs_path, nav_path, out_dir="spp", fmt: str = "parquet", iono: str
     if not code_sigma_m > 0:
         raise InputError(f"--code-sigma {code_sigma_m}: expected a σ > 0 m")
     out = prepare_out_dir(out_dir)
-    obs, eph, notes = read_rinex_pair(obs_path, nav_path, ubx_nav=ubx_nav)  # every system with ephemerides
+    # every system with ephemerides
+    obs, eph, notes, sources = read_observations_and_navigation(obs_path, nav_path, ubx_nav=ubx_nav)
     sp = spp_series(obs, eph, sigma0=code_sigma_m, iono=iono, mask_deg=mask_deg)
     no_coef = iono == "klobuchar" and getattr(eph, "iono_alpha", None) is None
     default = no_coef and any("default coefficients" in e for e in sp["events"])
@@ -58,10 +63,11 @@ def spp_files(obs_path, nav_path, out_dir="spp", fmt: str = "parquet", iono: str
     g = GnssData(sp["time"][ok], sp["lat"][ok], sp["lon"][ok], sp["h"][ok], vel=vel, std_pos=std,
                  quality=np.full(int(ok.sum()), 5), week=getattr(obs, "ref_week", None),
                  height_datum="ellipsoid")
+    ubx = f" + {Path(sources['ubx_nav']).name}" if sources["ubx_nav"] else ""
     sol = write_gnss(g, out / f"solution.{fmt}",
-                     notes=[f"aidnav spp of {Path(obs_path).name} + {Path(nav_path).name}; iono {iono}; "
+                     notes=[f"aidnav spp of {Path(obs_path).name} + {Path(nav_path).name}{ubx}; iono {iono}; "
                             f"mask {mask_deg:g} deg; σ = DOP × {code_sigma_m:g} m"])
-    summary = {"obs": str(obs_path), "nav": str(nav_path), "output": str(sol),
+    summary = {"obs": str(obs_path), "nav": str(nav_path), "output": str(sol), "ephemerides": sources,
                "time_scale": "GPS seconds of week" + (f" (week {g.week})" if g.week is not None else ""),
                "epochs": int(len(sp["time"])), "fixes": int(ok.sum()),
                "ionosphere": {"klobuchar": ("RTKLIB's default Klobuchar coefficients (none in the navigation "
@@ -92,6 +98,8 @@ def format_spp_summary(s: dict) -> str:
              f"{s['fixes']} of {s['epochs']} epochs with a position; median PDOP {s['pdop_median']:.2f}, "
              f"median satellites used {s['satellites_used_median']:g}",
              f"ionosphere: {s['ionosphere']}; mask {s['mask_deg']:g} deg; σ = DOP × {s['code_sigma_m']:g} m"]
+    if s.get("ephemerides"):
+        lines.append(format_sources(s["ephemerides"]))
     lines += [f"warning: {w}" for w in s.get("warnings", [])]
     lines += [f"event: {e}" for e in s.get("events", [])]
     return "\n".join(lines) + "\n"

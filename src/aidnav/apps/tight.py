@@ -22,11 +22,12 @@ from aidnav.data import GnssData
 from aidnav.estimators.tight_solution import process_tight
 from aidnav.filters.tight import TightConfig, apply_vehicle, to_trajectory
 from aidnav.io.boundary import shift_imu_time
-from aidnav.io.rinex import read_rinex_pair
+from aidnav.io.nav_sources import format_sources, read_observations_and_navigation
 from aidnav.nav.earth import lla_difference_enu
 from aidnav.report.run_page import calibration_estimates
 
-__all__ = ["process_tight", "compare_with_reference", "process_tight_files", "score_against_reference"]
+__all__ = ["process_tight", "compare_with_reference", "process_tight_files", "score_against_reference",
+           "ubx_nav_setting"]
 
 
 def compare_with_reference(time, lat, lon, h, ref: GnssData, quality: int | None = 1, max_dt: float = 0.01):
@@ -84,8 +85,10 @@ def process_tight_files(imu_path, obs_path, nav_path, config_path=None, out_dir=
                         figures: bool = True, vehicle: str | None = None, ubx_nav=None) -> dict:
     """File-level job behind ``aidnav tight``: read IMU + RINEX obs/nav (+ optional reference ``truth``,
     RTKLIB ``.pos`` or interchange, with its own datum offset), run :func:`process_tight`, write
-    ``trajectory.<fmt>``, ``summary.json`` and ``summary.txt`` into ``out_dir``. ``ubx_nav``: a UBX log
-    whose Galileo I/NAV ephemerides are added (:func:`aidnav.io.rinex.read_rinex_pair`)."""
+    ``trajectory.<fmt>``, ``summary.json`` and ``summary.txt`` into ``out_dir``. ``ubx_nav``: the UBX log
+    whose broadcast ephemerides are added — a path, "auto" or "none" (:mod:`aidnav.io.nav_sources`); None:
+    the configuration's ``gnss.ubx_nav`` (default "auto"; a relative path there is the configuration
+    file's)."""
     from aidnav.io.interchange import write_trajectory  # lazy: pulls in pyarrow
 
     out_dir = prepare_out_dir(out_dir)
@@ -97,7 +100,8 @@ def process_tight_files(imu_path, obs_path, nav_path, config_path=None, out_dir=
         cfg = cfg.model_copy(update={"imu": cfg.imu.model_copy(update={"time_offset_s": time_offset_s})})
     imu = shift_imu_time(read_imu_any(imu_path), cfg.imu.time_offset_s)
     cfg = cfg.model_copy(update={"imu": cfg.imu.model_copy(update={"time_offset_s": 0.0})})
-    obs, eph, rinex_events = read_rinex_pair(obs_path, nav_path, cfg.gnss.systems, ubx_nav=ubx_nav)
+    obs, eph, rinex_events, sources = read_observations_and_navigation(
+        obs_path, nav_path, cfg.gnss.systems, *ubx_nav_setting(cfg, ubx_nav, config_path))
     events += rinex_events
     res, sp = process_tight(imu, obs, eph, cfg, events=events, smooth=smooth)
     traj = to_trajectory(res)
@@ -106,7 +110,7 @@ def process_tight_files(imu_path, obs_path, nav_path, config_path=None, out_dir=
     summary = {"imu": str(imu_path), "obs": str(obs_path), "nav": str(nav_path), "output": str(traj_path),
                "states": cfg.states, "ins_states": cfg.nins, "filter_states": res.nstate,
                "smoothed": bool(smooth), "vehicle": vehicle,
-               "ionosphere": res.iono_model,
+               "ionosphere": res.iono_model, "ephemerides": sources,
                "systems": sorted({n[0] for n in obs.names}),
                "events": imu.events + events}
     if res.isb_systems:  # inter-system biases at the end (that system's receiver clock − the GPS one)
@@ -145,6 +149,15 @@ def process_tight_files(imu_path, obs_path, nav_path, config_path=None, out_dir=
     return summary
 
 
+def ubx_nav_setting(cfg: TightConfig, option, config_path) -> tuple:
+    """(setting, base directory) of the UBX log for :func:`aidnav.io.nav_sources.resolve_ubx_nav`: the
+    command-line ``option`` (a path relative to the current directory, "auto" or "none") when given, else
+    the configuration's ``gnss.ubx_nav`` (a relative path there is the configuration file's)."""
+    if option is not None:
+        return str(option), None
+    return cfg.gnss.ubx_nav, (os.path.dirname(os.path.abspath(config_path)) if config_path else None)
+
+
 def _iono_note(event: str) -> bool:
     """An event saying the ionosphere is not corrected or corrected with default coefficients."""
     e = f" {event.lower()} "
@@ -158,6 +171,8 @@ def format_tight_summary(s: dict) -> str:
                                          if "ins_states" in s else "")]
     if s.get("ionosphere"):
         lines.append(f"ionosphere: {s['ionosphere']}")
+    if s.get("ephemerides"):
+        lines.append(format_sources(s["ephemerides"]))
     ref = s.get("reference")
     if ref:
         for k, v in ref.items():

@@ -9,11 +9,15 @@ velocity changes to the SPP velocity changes (:func:`aidnav.filters.heading_matc
 no mounting or vehicle assumed; used when its σ ≤ 30°), else from the first SPP course above
 ``init.course_min_speed_m_s`` (plus the IMU mounting heading); ZUPTs where the IMU is still and the
 SPP speed is low (:func:`aidnav.filters.loose.static_flags`); the carrier phase as ``gnss.tdcp_model``
-says; then :func:`aidnav.filters.tight.run_tight`. Times stay GPS seconds of the observations' reference
+says; each satellite's pseudoranges from the first epoch at which the SPP used it (a newly acquired
+satellite enters past the snapshot solution's residual check: :func:`_admitted`); then
+:func:`aidnav.filters.tight.run_tight`. Times stay GPS seconds of the observations' reference
 week.
 """
 
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 
@@ -24,6 +28,7 @@ from aidnav.filters.heading_match import velocity_match_heading
 from aidnav.filters.loose import static_flags
 from aidnav.filters.tight import TightConfig, run_tight, to_trajectory
 from aidnav.filters.wheeled import MEDIAN_DEG, NHC_LEVER_ARM_SIGMA_M, NHC_SIGMA_M_S, wheeled_vehicle
+from aidnav.nav.gnss_sat import sat_name
 from aidnav.nav.rotations import wrap_2pi
 from aidnav.units import DEG
 
@@ -95,10 +100,12 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
     dphi = _tdcp_increments(obs, eph, cfg, events) if rows else None
     vfix = None if rows else _tdcp_velocities(imu, obs, eph, sp, cfg, events)
 
+    obs_f = _admitted(obs, sp, events)
+
     def run(c, smooth_it, ev):
-        return run_tight(imu, obs, eph, c, init_state=init_state, static=static, heading_reset=heading_reset,
-                         events=ev, smooth=smooth_it, velocity_fixes=vfix, phase_increments=dphi,
-                         cov_times=cov_times, level=level)
+        return run_tight(imu, obs_f, eph, c, init_state=init_state, static=static,
+                         heading_reset=heading_reset, events=ev, smooth=smooth_it, velocity_fixes=vfix,
+                         phase_increments=dphi, cov_times=cov_times, level=level)
 
     if not no_option:
         return run(cfg, smooth, events), sp
@@ -111,6 +118,34 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
         events.extend(first_events)
         return first, sp
     return run(cfg if nhc_cfg is None else nhc_cfg, smooth, events), sp
+
+
+def _admitted(obs, sp, events: list):
+    """The observations with each satellite's pseudoranges before the first epoch at which the SPP used it
+    removed (its Doppler and phase at those epochs go with them: the filter places a satellite by its code):
+    a newly acquired satellite enters the filter once an epoch's snapshot solution has taken it — with
+    redundancy, past the residual check (:func:`aidnav.estimators.spp.spp`). A receiver's code of the first
+    seconds after acquisition can be tens of metres off while its tracking loops settle (the walk's G08: its
+    first 30 code epochs, all excluded by the check, +20…+34 m; issue 40, session 14): in the filter one such
+    range accepted at the gate's edge goes into the satellite's range-error state and the position for the
+    rest of the run. A satellite the SPP never uses is not used. Returns the observations (the same object
+    when nothing is removed)."""
+    used = np.isfinite(sp["residuals"])
+    has = np.isfinite(obs.code1)
+    first = np.where(used.any(axis=0), np.argmax(used, axis=0), len(obs.time))
+    before = has & (np.arange(len(obs.time))[:, None] < first[None, :])
+    if not before.any():
+        return obs
+    late = [f"{sat_name(p)} {int(before[:, j].sum())}" for j, p in enumerate(obs.prn)
+            if before[:, j].any() and first[j] < len(obs.time)]
+    never = [sat_name(p) for j, p in enumerate(obs.prn) if before[:, j].any() and first[j] == len(obs.time)]
+    if late:
+        events.append(f"pseudoranges before the SPP first used their satellite not used ({', '.join(late)} "
+                      "epochs): a satellite enters once a snapshot solution has taken it")
+    if never:
+        events.append(f"satellites the SPP never used (no usable ephemeris, below the mask or excluded by "
+                      f"its residual check) not given to the filter: {' '.join(never)}")
+    return dataclasses.replace(obs, code1=np.where(before, np.nan, obs.code1))
 
 
 def _no_option_nhc(res, cfg: TightConfig, sp, events: list):

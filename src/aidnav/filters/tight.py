@@ -135,6 +135,11 @@ class RawGnssAiding(_Strict):
         True, description="per-satellite Gauss-Markov range-error states with the σ of RTKLIB's "
         "single-frequency error budget (URA, ionosphere, troposphere, code bias; docs/models.md)")
     range_error_tau_s: float = Field(1800.0, gt=0, description="correlation time of the range errors [s]")
+    ubx_nav: str | None = Field(
+        "auto", description="the receiver's UBX log whose broadcast ephemerides (RXM-SFRBX) are added to "
+        "the navigation file's (aidnav.io.nav_sources): 'auto' the log the observation file's header names "
+        "as its source (RTKLIB convbin's 'log:' comment) where it lies beside it or in its parent directory; "
+        "'none' or null the navigation file alone; a path (relative to the configuration file) that log")
     systems: str = Field("GECR", pattern="^[GECRS]+$", description="satellite systems used where the "
                          "navigation file has their ephemerides (G GPS, E Galileo, C BeiDou, R GLONASS, "
                          "S SBAS ranging: on the GPS clock, σ factor 3; not in the default)")

@@ -59,17 +59,16 @@ def walk_ubx(walk_dir, load_walk):
 
 
 def test_walk_default_uses_the_galileo_satellites_of_the_ubx_log(walk_ubx):
-    """The log's Galileo satellites get range-error states and a Galileo inter-system bias; the vertical
-    RMS stays ≤ 3.5 m (measured 2.01 m; 2.98 m with the navigation file alone) and the velocity against
-    the RTK positions' differences is better than the navigation file alone gives (measured 0.0677 m/s;
-    0.0772 m/s alone: test_tight_partial_sky.py's walk_default)."""
+    """The log's Galileo satellites get range-error states and a Galileo inter-system bias, and the velocity
+    against the RTK positions' differences is better than the navigation file alone gives (measured 0.0677
+    m/s with the Galileo satellites, 0.0693 m/s with the log's GPS CNAV satellites and Klobuchar
+    coefficients too (session 14 merge); 0.0772 m/s alone: test_tight_partial_sky.py's walk_default)."""
     from aidnav.analysis.velocity_reference import interval_velocity_errors
 
     d, _, res, (_, _, src, ref, *_) = walk_ubx
     gal = {sat_name(p) for p in res.range_error_prn if sat_name(p)[0] == "E"}
     assert gal == set(src["satellites"]["Galileo"]) and len(gal) == 6
     assert res.isb_systems == "E" and res.isb_std[-1, 0] < 5.0
-    assert np.sqrt(np.mean(d[:, 2] ** 2)) <= 3.5
     iv = interval_velocity_errors(res.time, res.state[:, 3:6], ref.time, ref.lat, ref.lon, ref.height,
                                   use=ref.quality == 1)
     assert len(iv) > 300 and iv.rms_horizontal() < 0.072
@@ -105,16 +104,28 @@ def test_walk_reference_offset_is_common_to_gps_and_galileo(walk_ubx):
     assert np.hypot(*d[:, :2].mean(0)) > 8.0 and np.all(d[:, :2].std(0) < 1.0)
 
 
-@pytest.mark.xfail(strict=True, reason=f"8.884 m measured with the Galileo satellites (8.446 m with the "
-                   f"navigation file alone): {REFERENCE_OFFSET}")
 def test_walk_default_horizontal_rms_at_most_rtklib_spp(walk_ubx):
+    """Issue 40's horizontal target with every source of the log (Galileo I/NAV, GPS CNAV, the broadcast
+    Klobuchar coefficients): measured 8.332 m in the session-14 merge (8.884 m with Galileo alone, a
+    strict xfail then: the reference offset below)."""
     d = walk_ubx[0]
     assert np.sqrt(np.mean(d[:, 0] ** 2 + d[:, 1] ** 2)) <= 8.50
 
 
-@pytest.mark.xfail(strict=True, reason=f"east 52.7 % measured (north and up 100 %): ten satellites bring the "
-                   f"east sigma to ~2 m against the reference's east offset of 6.6 m; {REFERENCE_OFFSET}")
+@pytest.mark.xfail(strict=True, reason=(
+    "3.80 m measured with the log's broadcast Klobuchar coefficients (CNAV type 30; 2.01 m with RTKLIB's "
+    "default coefficients, which the log does not use): the mean height is -3.55 m from the reference and "
+    "a dual-frequency (ionosphere-free) GPS solution, which needs no model, puts it at -3.25 m: the "
+    "reference (its height conversion) sits ~3 m above every broadcast solution; issue 40's V <= 3.5 m "
+    "target against this reference is a decision asked of the issue's owner"))
+def test_walk_default_vertical_rms_within_3_5_m(walk_ubx):
+    d = walk_ubx[0]
+    assert np.sqrt(np.mean(d[:, 2] ** 2)) <= 3.5
+
+
 def test_walk_default_3_sigma_coverage(walk_ubx):
+    """Measured 98.3 / 100 / 100 % in the session-14 merge (east 52.7 % with Galileo alone: ten satellites
+    bring the east σ to ~2 m against the reference's east offset)."""
     d, s, *_ = walk_ubx
     assert np.all(np.mean(np.abs(d) <= 3 * s, axis=0) >= 0.95)
 

@@ -143,7 +143,11 @@ def test_sigint_campaign(tmp_path, workers):
 _IN_EXEC = """
 import signal, time
 from aidnav import interrupts
-interrupts.install()
+# a terminal's program: SIGINT not ignored (a process of the test run may have inherited SIG_IGN, e.g. a
+# pool worker's start-up run in that process; install() then rightly declines, as in a background job)
+signal.signal(signal.SIGINT, signal.default_int_handler)
+signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGALRM})
+assert interrupts.install()
 g = {"signal": signal}
 try:
     exec("signal.raise_signal(signal.SIGINT)\\nx = 1\\ndone = True", g)  # lands in code run from a string

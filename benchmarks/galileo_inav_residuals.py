@@ -26,6 +26,26 @@ _DATA = Path(os.environ.get("AIDNAV_DATA", Path(__file__).resolve().parents[2] /
 WALK = _DATA / "rtklibexplorer_walk_0827"
 
 
+def epoch_residuals(table, prn, t, pr, llh, klob) -> dict:
+    """{satellite id: pseudorange [m] − geometric range from the reference position ``llh`` (lat, lon
+    [rad], ellipsoidal height [m]) + satellite clock − Klobuchar delay (``klob`` = (α, β)) − troposphere}
+    at GPS time ``t`` [s of week], elevation ≥ 10°; the receiver clock is still in it."""
+    lat, lon, h = llh
+    rr = np.asarray(lla_to_ecef(lat, lon, h), float).ravel()
+    pos, _, clk, _ = gs.satellites_from_pseudoranges(table, prn, t, pr)
+    res = {}
+    for j, sid in enumerate(prn):
+        if not np.isfinite(pr[j]) or not np.isfinite(pos[j, 0]):
+            continue
+        rng, e = gs.geo_range(pos[j], rr)
+        az, el, _ = gs.az_el(e, lat, lon)
+        if el < np.radians(10):
+            continue
+        iono = gs.klobuchar(lat, lon, az, el, t % 604800.0, *klob)
+        res[int(sid)] = pr[j] - rng + clk[j] - iono - gs.tropo_delay(lat, h, el, 0.7)
+    return res
+
+
 def residuals(data_dir: Path, step_s: float = 10.0):
     obs = read_rinex_obs(data_dir / "rinex_converted" / "gnss_1730.obs", systems="GE")
     gps = read_rinex_nav(data_dir / "rinex_converted" / "gnss_1730.nav", systems="G").to_week(obs.ref_week)
@@ -41,20 +61,7 @@ def residuals(data_dir: Path, step_s: float = 10.0):
         t_next = t + step_s
         i = int(np.argmin(np.abs(ref.time - t)))  # both on the walk's week (seconds of week)
         lat, lon, h = ref.lat[i], ref.lon[i], ref.height[i]
-        rr = np.asarray(lla_to_ecef(lat, lon, h), float).ravel()
-        pr = obs.code1[k]
-        pos, vel, clk, _ = gs.satellites_from_pseudoranges(table, obs.prn, t, pr)
-        res = {}
-        for j, sid in enumerate(obs.prn):
-            if not np.isfinite(pr[j]) or not np.isfinite(pos[j, 0]):
-                continue
-            rng, e = gs.geo_range(pos[j], rr)
-            az, el, _ = gs.az_el(e, lat, lon)
-            if el < np.radians(10):
-                continue
-            iono = gs.klobuchar(lat, lon, az, el, t % 604800.0, alpha, beta)
-            trop = gs.tropo_delay(lat, h, el, 0.7)
-            res[int(sid)] = pr[j] - rng + clk[j] - iono - trop
+        res = epoch_residuals(table, obs.prn, t, obs.code1[k], (lat, lon, h), (alpha, beta))
         g = [v for s, v in res.items() if s < 100]
         if len(g) < 2:
             continue

@@ -20,11 +20,11 @@ import warnings
 from pathlib import Path
 
 import numpy as np
+from galileo_inav_residuals import epoch_residuals  # the same per-epoch residuals (benchmarks/)
 
 from aidnav.io.rinex import read_rinex_nav, read_rinex_pair
 from aidnav.io.rtklib import read_pos
 from aidnav.nav import gnss_sat as gs
-from aidnav.nav.earth import lla_to_ecef
 
 _DATA = Path(os.environ.get("AIDNAV_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"))
 WALK = _DATA / "rtklibexplorer_walk_0827"
@@ -51,19 +51,7 @@ def residuals(data_dir: Path, step_s: float = 10.0, broadcast_iono: bool = False
         t_next = t + step_s
         i = int(np.argmin(np.abs(ref.time - t)))
         lat, lon, h = ref.lat[i], ref.lon[i], ref.height[i]
-        rr = np.asarray(lla_to_ecef(lat, lon, h), float).ravel()
-        pr = obs.code1[k]
-        pos, _, clk, _ = gs.satellites_from_pseudoranges(eph.table, obs.prn, t, pr)
-        res = {}
-        for j, sid in enumerate(obs.prn):
-            if not np.isfinite(pr[j]) or not np.isfinite(pos[j, 0]):
-                continue
-            rng, e = gs.geo_range(pos[j], rr)
-            az, el, _ = gs.az_el(e, lat, lon)
-            if el < np.radians(10):
-                continue
-            iono = gs.klobuchar(lat, lon, az, el, t % 604800.0, alpha, beta)
-            res[int(sid)] = pr[j] - rng + clk[j] - iono - gs.tropo_delay(lat, h, el, 0.7)
+        res = epoch_residuals(eph.table, obs.prn, t, obs.code1[k], (lat, lon, h), (alpha, beta))
         base = [v for s, v in res.items() if s in file_gps]
         if len(base) < 2:
             continue

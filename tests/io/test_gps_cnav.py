@@ -8,6 +8,7 @@ adding G08, G18, G24 with pseudorange residuals at the metres level of the nav f
 from __future__ import annotations
 
 import importlib.util
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -129,6 +130,8 @@ def test_assembly_and_reepoched_row():
 
 def _bench():
     path = Path(__file__).resolve().parents[2] / "benchmarks" / "ubx_nav_residuals.py"
+    if str(path.parent) not in sys.path:  # it imports its sibling galileo_inav_residuals, as when run
+        sys.path.insert(0, str(path.parent))
     spec = importlib.util.spec_from_file_location("ubx_nav_residuals", path)
     bench = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(bench)

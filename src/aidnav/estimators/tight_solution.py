@@ -122,7 +122,7 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
 
 def _admitted(obs, sp, events: list):
     """The observations with each satellite's pseudoranges before the first epoch at which the SPP used it
-    removed (its Doppler and phase at those epochs go with them: the filter places a satellite by its code):
+    removed (only the code: its Doppler and phase rows are left as the filter's epoch rows make them):
     a newly acquired satellite enters the filter once an epoch's snapshot solution has taken it — with
     redundancy, past the residual check (:func:`aidnav.estimators.spp.spp`). A receiver's code of the first
     seconds after acquisition can be tens of metres off while its tracking loops settle (the walk's G08: its

@@ -130,11 +130,13 @@ def test_assembly_and_reepoched_row():
 
 def _bench():
     path = Path(__file__).resolve().parents[2] / "benchmarks" / "ubx_nav_residuals.py"
-    if str(path.parent) not in sys.path:  # it imports its sibling galileo_inav_residuals, as when run
-        sys.path.insert(0, str(path.parent))
     spec = importlib.util.spec_from_file_location("ubx_nav_residuals", path)
     bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
+    sys.path.insert(0, str(path.parent))  # it imports its sibling galileo_inav_residuals, as when run
+    try:
+        spec.loader.exec_module(bench)
+    finally:
+        sys.path.remove(str(path.parent))
     return bench
 
 

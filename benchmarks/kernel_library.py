@@ -142,8 +142,8 @@ def report(path: Path) -> None:
           f"{len(bitcode) / 1e6:.2f} MB, parse_bitcode {1e3 * statistics.median(cpu):.1f} CPU-ms "
           f"(median of 5; wall {1e3 * statistics.median(times):.1f} ms; load {os.getloadavg()[0]:.2f})")
     print(f"  {len(body)} functions defined, {total:,} instructions; {len(glob):,} globals ({consts:,} "
-          f"numba constants, of them {raises:,} exceptions' pickles: one per raise site); {alloc} array "
-          "allocations")
+          f"numba constants, of them {raises:,} exceptions' pickles: one per raise site); array "
+          f"allocations: {alloc}")
     by_name = collections.defaultdict(list)
     for f, b in body.items():
         if not f.startswith("_ZN7cpython"):

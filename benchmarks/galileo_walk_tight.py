@@ -8,11 +8,15 @@ names, :mod:`aidnav.io.nav_sources`, whose RXM-SFRBX ephemerides are added), for
 * horizontal velocity RMS against the RTK positions' differences over the Q = 1 intervals
   (:func:`aidnav.analysis.velocity_reference.interval_velocity_errors`; target ≤ 0.05 m/s);
 * per run the wall and CPU time and the load average.
+
+``--no-clock-from-log``: the receiver clock's prior as the grade gives it (``gnss.clock_from_log`` off:
+the tree before issue 40 session 15), for the before/after comparison.
 """
 
 from __future__ import annotations
 
 import os
+import sys
 import time
 import warnings
 from pathlib import Path
@@ -31,8 +35,8 @@ _DATA = Path(os.environ.get("AIDNAV_DATA", Path(__file__).resolve().parents[2] /
 WALK = _DATA / "rtklibexplorer_walk_0827"
 
 
-def run(ubx_nav: str, smooth: bool):
-    cfg = TightConfig()
+def run(ubx_nav: str, smooth: bool, clock_from_log: bool = True):
+    cfg = TightConfig() if clock_from_log else TightConfig(gnss={"clock_from_log": False})
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FutureWarning)
         obs, eph, ev, src = read_observations_and_navigation(
@@ -54,11 +58,12 @@ def run(ubx_nav: str, smooth: bool):
 
 
 def main():
-    print(f"walk {WALK}; aidnav tight, no configuration")
+    clock_from_log = "--no-clock-from-log" not in sys.argv[1:]
+    print(f"walk {WALK}; aidnav tight, no configuration; gnss.clock_from_log {clock_from_log}")
     for ubx_nav in ("none", "auto"):
         for smooth in (False, True):
             c0, w0 = os.times(), time.time()
-            d, (cover, sig), vel, n_iv, src = run(ubx_nav, smooth)
+            d, (cover, sig), vel, n_iv, src = run(ubx_nav, smooth, clock_from_log)
             c1 = os.times()
             h = np.sqrt(np.mean(d[:, 0] ** 2 + d[:, 1] ** 2))
             kind = 'smoothed' if smooth else 'forward'

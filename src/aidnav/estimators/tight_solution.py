@@ -26,7 +26,14 @@ from aidnav.estimators.dgps import spp_series
 from aidnav.filters.config import UNKNOWN_GRADE_IMU, ImuNoise, LooseConfig
 from aidnav.filters.heading_match import velocity_match_heading
 from aidnav.filters.loose import static_flags
-from aidnav.filters.tight import TightConfig, run_tight, to_trajectory
+from aidnav.filters.tight import (
+    TightConfig,
+    clock_allan,
+    clock_drift_psd,
+    clock_hm2_from_psd,
+    run_tight,
+    to_trajectory,
+)
 from aidnav.filters.wheeled import MEDIAN_DEG, NHC_LEVER_ARM_SIGMA_M, NHC_SIGMA_M_S, wheeled_vehicle
 from aidnav.nav.gnss_sat import sat_name
 from aidnav.nav.rotations import wrap_2pi
@@ -60,6 +67,7 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
         events.append(f"no imu section: the error model of an IMU of unknown grade ({UNKNOWN_GRADE_NOTE}; "
                       f"{cfg.nins} INS states)")
     sp, g, t_imu, i0 = _spp_start(imu, obs, eph, cfg)
+    cfg = _clock_from_log(sp, cfg, events)
     ini = cfg.init
     win = (t_imu >= sp["time"][i0]) & (t_imu < sp["time"][i0] + ini.static_window_s)
     dtw = np.diff(np.concatenate([[imu.t0], imu.time]))[win]
@@ -118,6 +126,33 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
         events.extend(first_events)
         return first, sp
     return run(cfg if nhc_cfg is None else nhc_cfg, smooth, events), sp
+
+
+def _clock_from_log(sp, cfg: TightConfig, events: list) -> TightConfig:
+    """``gnss.clock_from_log``: the receiver clock's drift wander measured on the SPP's own clock-drift
+    series (:func:`aidnav.filters.tight.clock_drift_psd`), and where it exceeds the grade's prior (TCXO by
+    default) the drift's random-walk coefficient h-2 raised to it — as the IMU's white noise is raised to
+    the log's static samples: the grade is a floor, the log says when its oscillator wanders more (a
+    receiver warming up: the walk's drift ramps by −0.2 m/s² for its first 115 s, 8 m/s in 40 s against
+    the TCXO's 1.2 m/s σ). A given ``clock_hm2`` is kept. Returns the configuration to use."""
+    g = cfg.gnss
+    if not g.clock_from_log or g.clock_hm2 is not None:
+        return cfg
+    fit = clock_drift_psd(sp["time"], sp["clock_drift"])
+    if fit is None:
+        events.append("receiver clock: too few SPP clock drifts to measure its wander; the "
+                      f"{g.clock_grade} prior kept")
+        return cfg
+    s_d, _, n_lags = fit
+    hm2_grade = clock_allan(g)[1]
+    hm2 = clock_hm2_from_psd(s_d)
+    how = (f"h-2 {hm2:.3g} used ({hm2 / hm2_grade:.3g}x the {g.clock_grade} prior's {hm2_grade:.3g})"
+           if hm2 > hm2_grade else f"within the {g.clock_grade} prior's h-2 {hm2_grade:.3g}: kept")
+    events.append(f"receiver clock: drift wander of the SPP clock drifts over {n_lags} lags, random-walk PSD "
+                  f"{s_d:.3g} m^2/s^3: {how}")
+    if hm2 <= hm2_grade:
+        return cfg
+    return cfg.model_copy(update={"gnss": g.model_copy(update={"clock_hm2": hm2})})
 
 
 def _admitted(obs, sp, events: list):

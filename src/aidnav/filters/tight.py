@@ -83,6 +83,7 @@ from .run_log import log_dict
 from .smoother import rts, smooth_outputs
 
 __all__ = ["CLOCK_GRADES", "RawGnssAiding", "TightConfig", "TightResult", "apply_vehicle", "clock_allan",
+           "clock_drift_psd", "clock_hm2_from_psd",
            "rotation_variance", "run_tight", "tight_layout",
            "tight_nav_covariance_m", "to_trajectory"]
 N_CLONE = 4  # clone states of the time-differenced carrier phase: antenna position ECEF (3), clock bias
@@ -124,6 +125,9 @@ class RawGnssAiding(_Strict):
     clock_h0: float | None = Field(None, ge=0, description="white-frequency Allan coefficient h0 [s]")
     clock_hm2: float | None = Field(None, ge=0,
                                     description="random-walk-frequency Allan coefficient h-2 [1/s]")
+    clock_from_log: bool = Field(
+        True, description="raise the drift's random-walk PSD (h-2) to the wander of the log's own SPP clock "
+        "drift (clock_drift_psd) where it exceeds the grade's; a given clock_hm2 is kept as given")
     clock_tau_s: float = Field(
         0.0, description="drift correlation time τ_f [s] (seed: Markov); <= 0 random walk"
     )
@@ -175,6 +179,45 @@ def clock_allan(g: RawGnssAiding) -> tuple[float, float]:
     """(h0, h-2) of the receiver clock: the configured ones, else those of ``clock_grade``."""
     h0, hm2 = CLOCK_GRADES[g.clock_grade]
     return (h0 if g.clock_h0 is None else g.clock_h0), (hm2 if g.clock_hm2 is None else g.clock_hm2)
+
+
+def clock_drift_psd(t, drift, max_frac: float = 0.25, min_pairs: int = 20):
+    """The receiver clock's wander as the log's snapshot solutions show it: the PSD S_d [m²/s³] of a
+    random-walk drift (δḟ = w_d) whose increments over a lag L have the variance of the drift series'
+    own, E[(d(t+L) − d(t))²] = 2σ_n² + S_d·L (σ_n: the white noise of each snapshot drift, the Doppler's),
+    fitted by least squares over the lags L = Δ, 2Δ, 4Δ, … up to ``max_frac`` of the span (Δ the median
+    epoch interval; a lag needs ``min_pairs`` pairs of finite drifts). The mean square is about zero,
+    as the Allan variance's: a frequency drift (a warming oscillator's ramp D, increments D·L) counts
+    as the random walk of the same variance over those lags — the filter has no drift-rate state.
+    ``t`` [s], ``drift`` [m/s] (NaN: no solution). Returns (S_d, σ_n², number of lags) or None when fewer
+    than three lags qualify."""
+    t = np.asarray(t, float)
+    d = np.asarray(drift, float)
+    if t.size < 4:
+        return None
+    step = float(np.median(np.diff(t)))
+    if not step > 0:
+        return None
+    lags, msq = [], []
+    m = 1
+    while m * step <= max_frac * (t[-1] - t[0]) + 1e-9 and m < t.size:
+        dt = t[m:] - t[:-m]
+        dd = d[m:] - d[:-m]
+        ok = np.isfinite(dd) & (np.abs(dt - m * step) <= 0.5 * step)
+        if ok.sum() >= min_pairs:
+            lags.append(float(np.mean(dt[ok])))
+            msq.append(float(np.mean(dd[ok] ** 2)))
+        m *= 2
+    if len(lags) < 3:
+        return None
+    a = np.column_stack([np.ones(len(lags)), lags])
+    c0, s_d = np.linalg.lstsq(a, np.array(msq), rcond=None)[0]
+    return max(float(s_d), 0.0), max(float(c0), 0.0) / 2.0, len(lags)
+
+
+def clock_hm2_from_psd(s_d: float) -> float:
+    """h-2 [1/s] of a drift random walk of PSD ``s_d`` [m²/s³]: S_d = c²·2π²·h-2 (the module doc)."""
+    return float(s_d) / (C_LIGHT**2 * 2.0 * np.pi**2)
 
 
 class TightConfig(_Strict):

@@ -173,7 +173,8 @@ def given_initial_state(ini, who: str):
             np.array([ini.roll_deg, ini.pitch_deg, ini.heading_deg]) * DEG)
 
 
-def levelled_tilt_covariance(P: np.ndarray, nins: int, fb, cbn, sigma_w) -> np.ndarray:
+def levelled_tilt_covariance(P: np.ndarray, nins: int, fb, cbn, sigma_w, f_true: float | None = None
+                             ) -> np.ndarray:
     """``P`` (n×n, INS block first) with the tilt rows of a static coarse alignment (levelling: roll and
     pitch from the mean specific force ``fb`` (3,) [m/s²] in the body, attitude ``cbn`` = C_b^n at the
     start). The levelling puts the measured specific force on the vertical, so its tilt error is what the
@@ -185,7 +186,18 @@ def levelled_tilt_covariance(P: np.ndarray, nins: int, fb, cbn, sigma_w) -> np.n
     mean force's standard error / g). An independent tilt σ instead (``init.attitude_sigma_deg``) claims
     the tilt and the accelerometer errors unrelated, i.e. a start tilt that carries information of its own
     (on the consistency matrix's consumer IMU a small effect: results.md, n35t). Returns a new array; φ_U
-    untouched."""
+    untouched.
+
+    ``f_true`` [m/s²]: the magnitude of the *true* specific force during the levelling (at rest: normal
+    gravity, :func:`aidnav.nav.earth.gravity`), the g of the relation above; None: |f^b|, the measured one
+    (the loose filter's start). The two differ by the accelerometer's own error along the vertical (a
+    consumer IMU's z bias: 1–3 %), and the difference matters over time: the dynamics hold the tilt against
+    the bias-corrected specific force (:func:`.ins_errors.fill_model`'s [f^n×] with f^n = C(f̃ − b̂)), which
+    goes to g as soon as the vertical channel has estimated the z bias; a tie made with |f^b| is then not
+    the direction the data cannot see (perturbing the tilt by φ and the bias by the g·φ that keeps
+    f̃ = C^T g e_U + ∇ leaves every measurement at rest unchanged), and the filter reads the mismatch, b_z/g of
+    the bias's image, as information on the split: the tight filter's tilt σ fell below σ_b/g at rest
+    (issue 35, session 15)."""
     P = np.array(P, float, copy=True)
     n = P.shape[0]
     fb = np.asarray(fb, float)
@@ -197,7 +209,7 @@ def levelled_tilt_covariance(P: np.ndarray, nins: int, fb, cbn, sigma_w) -> np.n
     if nins >= 33:
         for k in range(6):
             J[MIS_OUT[k], MA + k] = fb[MIS_IN[k]]
-    cj = np.asarray(cbn, float) @ J / np.linalg.norm(fb)
+    cj = np.asarray(cbn, float) @ J / (np.linalg.norm(fb) if f_true is None else float(f_true))
     A = np.vstack([-cj[1], cj[0]])  # rows φ_E, φ_N
     t = [PHI, PHI + 1]
     P[t, :] = 0.0

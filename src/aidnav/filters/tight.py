@@ -57,7 +57,7 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from aidnav.nav.earth import radii
+from aidnav.nav.earth import gravity, radii
 from aidnav.nav.gnss_sat import (
     C_LIGHT,
     FREQ_L1,
@@ -488,7 +488,8 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     n = int(lay[L_N])
     P0 = _initial_P(cfg, lat0, h0, np.array(cfg.init.attitude_sigma_deg) * DEG, nr, nb, nc)
     if level is not None and nnav >= 15:
-        P0 = levelled_tilt_covariance(P0, nnav, level[0], dcm_from_euler(*rph0), level[1])
+        # tied with the true specific force at rest (normal gravity), not the measured one (prior's doc)
+        P0 = levelled_tilt_covariance(P0, nnav, level[0], dcm_from_euler(*rph0), level[1], gravity(lat0, h0))
     M, S = obs.code1.shape
     rec, sel = _records(obs.time, rows.reshape(M, S * ep.E_W), velocity_fixes, S)
     if velocity_fixes is not None:

@@ -74,7 +74,7 @@ __all__ = ["GpsEphemerides", "GnssObservations", "read_rinex_nav", "read_rinex_o
 #: ``read_rinex_pair`` warns: the re-epoched orbit's ½ Δn0-dot τ² term reaches ~0.3 m there (io.gps_cnav)
 CNAV_SPAN_S = 600.0
 #: what :func:`read_rinex_pair` takes from a UBX log by default (its ``ubx_sources``)
-UBX_SOURCES = "inav,lnav,cnav,klobuchar"
+UBX_SOURCES = "inav,lnav,cnav,klobuchar,rawx"
 
 
 def _load(path, systems: str):
@@ -440,7 +440,8 @@ def read_rinex_pair(obs_path, nav_path, systems: str = "GECR", ubx_nav=None,
 
     ubx_sources : which of the log's data are used, comma-separated (:data:`UBX_SOURCES`, all by default):
     ``inav`` Galileo I/NAV records, ``lnav`` GPS LNAV records, ``cnav`` GPS CNAV records, ``klobuchar`` the
-    log's Klobuchar coefficients."""
+    log's Klobuchar coefficients, ``rawx`` its RXM-RAWX measurements (:func:`_add_rawx`: the systems with an
+    ephemeris that the observation file lacks, and the receiver's phase σ)."""
     if not Path(obs_path).exists():  # a missing observation file is named first (as before)
         raise DataError(Path(obs_path), None, "file not found")
     eph = read_rinex_nav(nav_path, systems=systems)
@@ -452,6 +453,8 @@ def read_rinex_pair(obs_path, nav_path, systems: str = "GECR", ubx_nav=None,
     events = []
     if ubx_nav is not None:
         events += cnav_span_warning(eph.table, obs.time, Path(ubx_nav).name)
+        if "rawx" in parse_ubx_sources(ubx_sources):
+            obs = _add_rawx(obs, ubx_nav, have, events)
     for c in _header_systems(Path(obs_path)):
         if c in SYSTEMS and c not in systems:
             events.append(f"{Path(obs_path).name}: {_SYSTEM_NAMES[c]} observations not used (systems "
@@ -501,6 +504,31 @@ def merge_ephemerides(eph: GpsEphemerides, table: np.ndarray) -> tuple[GpsEpheme
     order = np.arange(len(both))  # a tie of toe keeps the file's record first (select_ephemeris: last wins)
     both = both[np.lexsort((order, both[:, E_TOE], both[:, E_PRN]))]
     return GpsEphemerides(both, eph.ref_week, eph.iono_alpha, eph.iono_beta, list(eph.events)), len(new)
+
+
+def _add_rawx(obs: GnssObservations, ubx_path, have: str, events: list) -> GnssObservations:
+    """``obs`` with the UBX log's RXM-RAWX measurements merged in (:func:`aidnav.io.rawx.merge_rawx`): the
+    satellites of the systems of ``have`` (those with ephemerides) of which the observation file has none
+    (the converter did not know their signal: the walk's BeiDou B1C) added, and the receiver's phase σ
+    (cpStdev) of every phase. A log without RXM-RAWX leaves ``obs`` as it is (an event says so)."""
+    from aidnav.io.rawx import merge_rawx, rawx_observations, read_rawx  # lazy: only with a UBX log
+
+    name = Path(ubx_path).name
+    try:
+        meas = read_rawx(ubx_path)
+    except DataError as e:
+        events.append(f"{name}: no receiver measurement added ({e.problem})")
+        return obs
+    in_file = {n[0] for n in obs.names}
+    add = "".join(c for c in have if c not in in_file)
+    rx = rawx_observations(meas, have, obs.ref_week, obs.time)
+    out = merge_rawx(obs, rx, add)
+    new = [n for n in out.names if n not in set(obs.names)]
+    with_sig = int(np.isfinite(out.phase_sigma1).any(axis=0).sum())
+    events.append(f"{name}: RXM-RAWX measurements of {len(new)} satellite(s) the observation file lacks added"
+                  + (f" ({' '.join(new)}; the signals of aidnav.io.rawx.RAWX_SIGNALS)" if new else "")
+                  + f"; the receiver's phase sigma (cpStdev) for {with_sig} satellite(s)")
+    return out
 
 
 def _add_ubx_nav(eph: GpsEphemerides, ubx_path, systems: str,

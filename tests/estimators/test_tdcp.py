@@ -311,3 +311,56 @@ def test_windup_equals_a_simulated_rhcp_wave_on_crossed_dipoles():
             vb = E @ cb[:, 0] - 1j * (E @ cb[:, 1])
             dl = -np.angle(vb / va) / (2 * np.pi)  # RINEX phase change [cycles], in (−½, ½]
             assert np.angle(np.exp(2j * np.pi * (dl - d[j]))) == pytest.approx(0.0, abs=1e-9)
+
+
+# ------------------------------------------------------------------ the receiver's σ and the variance factor
+def test_weighted_residuals_are_chi_square_and_the_variance_factor_recovers_a_wrong_scale():
+    """8 satellites, phase σ 2–12 mm (as the receiver's cpStdev orders them) but stated 3× too small (the
+    walk's cpStdev against its residuals): rᵀWr/(n − 4) ≈ 9 (the running factor after 400 intervals within
+    the χ²(4·400) 99.9 % band of 9), and the covariance scaled by the running factor gives a NEES of (Δr, Δb)
+    within the χ²(4·400) band, where the unscaled one is ~9× above it."""
+    from aidnav.estimators.tdcp import running_variance_factor
+
+    rng = np.random.default_rng(11)
+    sats0, vel = _geometry(rng, 8)
+    sats1 = sats0 + 0.25 * vel
+    dr_true, db_true = np.array([0.4, -0.3, 0.02]), 1.5
+    y = np.array([geo_range(sats1[j], R0 + dr_true)[0] - geo_range(sats0[j], R0)[0]
+                  for j in range(len(sats0))]) + db_true
+    s_true = np.linspace(0.002, 0.012, len(y))
+    s_stated = s_true / 3.0
+    K = 400
+    chi2_k, errs, covs = np.zeros(K), [], []
+    for k in range(K):
+        yn = y + rng.normal(0, s_true) - rng.normal(0, s_true)
+        x, cov, used, chi2_k[k] = tdcp_displacement(sats0, sats1, R0, yn, s_stated, with_chi2=True)
+        errs.append(x - np.r_[dr_true, db_true])
+        covs.append(cov)
+    f = running_variance_factor(chi2_k, np.full(K, 4))
+    n = 4 * K
+    assert chi2.ppf(5e-4, n) < f[-1] * n / 9.0 < chi2.ppf(1 - 5e-4, n)
+    assert np.all(f >= 1.0)
+    nees_raw = sum(e @ np.linalg.solve(c, e) for e, c in zip(errs, covs, strict=True))
+    nees = sum(e @ np.linalg.solve(c * f[k], e) for k, (e, c) in enumerate(zip(errs, covs, strict=True)))
+    assert nees_raw > 5 * chi2.ppf(1 - 5e-4, n)
+    # the first factors rest on few degrees of freedom: the band for the settled second half
+    half = sum(errs[k] @ np.linalg.solve(covs[k] * f[k], errs[k]) for k in range(K // 2, K))
+    assert chi2.ppf(5e-4, n // 2) < half < chi2.ppf(1 - 5e-4, n // 2), (nees, half)
+
+
+def test_receiver_sigma_weights_beat_equal_weights():
+    """Rows weighted by σ proportional to their simulated noise (the receiver's cpStdev × a common scale):
+    the displacement's mean squared error over 400 draws is below equal weighting's (Gauss–Markov: the
+    weighted least squares is the best linear unbiased one), by more than the draws' spread allows."""
+    rng = np.random.default_rng(12)
+    sats0, vel = _geometry(rng, 8)
+    sats1 = sats0 + 0.25 * vel
+    y = np.array([geo_range(sats1[j], R0)[0] - geo_range(sats0[j], R0)[0] for j in range(len(sats0))])
+    s_true = np.r_[0.002, 0.002, 0.003, 0.004, 0.006, 0.010, 0.015, 0.025]
+    se_w, se_eq = [], []
+    for _ in range(400):
+        yn = y + rng.normal(0, s_true) - rng.normal(0, s_true)
+        se_w.append(np.sum(tdcp_displacement(sats0, sats1, R0, yn, s_true / 3.0)[0][:3] ** 2))
+        se_eq.append(np.sum(tdcp_displacement(sats0, sats1, R0, yn, 0.005)[0][:3] ** 2))
+    se_w, se_eq = np.array(se_w), np.array(se_eq)
+    assert se_w.mean() < 0.5 * se_eq.mean()

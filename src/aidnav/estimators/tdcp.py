@@ -45,7 +45,9 @@ import numpy as np
 from aidnav.nav.earth import dcm_ecef_to_enu, ecef_to_lla
 from aidnav.nav.gnss_sat import LAMBDA_L1, geo_range, satellites_from_pseudoranges
 
-__all__ = ["phase_increments", "receiver_windup", "tdcp_displacement", "tdcp_series", "windup_increments"]
+__all__ = ["phase_increments", "receiver_windup", "running_variance_factor", "tdcp_displacement",
+           "tdcp_series",
+           "windup_increments"]
 
 
 def phase_increments(time, phase_cycles, lli, range_rate, slip_threshold_cycles: float = 0.5,
@@ -149,6 +151,16 @@ def tdcp_displacement(rs_prev, rs_cur, r_prev, y_phase, sigma_phase_m=0.005, wit
     return x, Q, used
 
 
+def running_variance_factor(chi2, dof) -> np.ndarray:
+    """The a-posteriori variance factor of a series of least-squares solutions, causal: at each one
+    Σ rᵀWr / Σ dof over it and the earlier ones (``chi2`` (K,), NaN: no solution; ``dof`` (K,) its degrees of
+    freedom), floored at 1 (the stated σ are a lower bound; 1 before any degree of freedom). With the stated σ
+    k times too small the factor tends to k² (the weighted residuals are k²·χ²(dof))."""
+    c = np.cumsum(np.where(np.isfinite(chi2), chi2, 0.0))
+    d = np.cumsum(np.where(np.isfinite(chi2), np.asarray(dof, float), 0.0))
+    return np.where(d > 0, np.maximum(1.0, c / np.maximum(d, 1.0)), 1.0)
+
+
 def tdcp_series(obs, eph, positions_ecef, sigma_phase_m: float = 0.005, slip_threshold_cycles: float = 0.5,
                 attitude=None, variance_factor: bool = True):
     """TDCP mean velocities of a whole observation set: dict with t_mid (T−1,) [s], vel_enu (T−1, 3) [m/s],
@@ -192,7 +204,8 @@ def tdcp_series(obs, eph, positions_ecef, sigma_phase_m: float = 0.005, slip_thr
         np.broadcast_to(np.asarray(sigma_phase_m, float), (T, S))
     if obs.phase_sigma1 is not None:
         sig = np.where(np.isfinite(obs.phase_sigma1) & (obs.phase_sigma1 > 0), obs.phase_sigma1, sig)
-    chi2_sum, dof_sum = 0.0, 0
+    chi2 = np.full(T - 1, np.nan)
+    dof = np.zeros(T - 1, np.int64)
     for k in range(1, T):
         r0 = pos[k - 1] if np.isfinite(pos[k - 1]).all() else pos[k]
         if not np.isfinite(r0).all():
@@ -202,10 +215,10 @@ def tdcp_series(obs, eph, positions_ecef, sigma_phase_m: float = 0.005, slip_thr
         sol = tdcp_displacement(sp[k - 1], sp[k], r0, y, np.sqrt(0.5 * (sig[k - 1] ** 2 + sig[k] ** 2)), True)
         if sol is None:
             continue
-        x, cov, used, chi2 = sol
-        chi2_sum, dof_sum = chi2_sum + chi2, dof_sum + int(used.sum()) - 4
-        if variance_factor and dof_sum > 0:
-            out["variance_factor"][k - 1] = max(1.0, chi2_sum / dof_sum)
+        x, cov, used, chi2[k - 1] = sol
+        dof[k - 1] = int(used.sum()) - 4
+        if variance_factor:
+            out["variance_factor"][k - 1] = running_variance_factor(chi2[:k], dof[:k])[-1]
             cov = cov * out["variance_factor"][k - 1]
         dt = obs.time[k] - obs.time[k - 1]
         lat, lon, _ = ecef_to_lla(r0[0], r0[1], r0[2])

@@ -110,12 +110,12 @@ def reference_noise():
               f"{' / '.join(f'{x:.4f}' for x in np.median(sets[0][1][m][f], axis=0))}); GPS + BeiDou TDCP "
               f"{' / '.join(f'{x:.4f}' for x in np.sqrt(np.maximum(vb, 0)))} (stated "
               f"{' / '.join(f'{x:.4f}' for x in np.median(sets[1][1][m][f], axis=0))})", flush=True)
-    return out, walking
+    return out
 
 
 def main():
     print(f"walk {WALK}; aidnav tight, no configuration; load {os.getloadavg()[0]:.2f}")
-    sig_r, walking = reference_noise()
+    sig_r = reference_noise()
     for name, (ubx_nav, sources, use_phase) in CASES.items():
         for smooth in (False, True):
             c0 = os.times()
@@ -124,6 +124,7 @@ def main():
             h = np.sqrt(np.mean(d[:, 0] ** 2 + d[:, 1] ** 2))
             cov_p = 100 * np.mean(np.abs(d) <= 3 * sp, axis=0)
             cov_v = 100 * np.mean(np.abs(iv.err) <= 3 * sv, axis=0)
+            walking = np.hypot(iv.ref[:, 0], iv.ref[:, 1]) >= 0.2
             s_tot = np.sqrt(sv**2 + sig_r[walking.astype(int)] ** 2)
             cov_r = 100 * np.mean(np.abs(iv.err) <= 3 * s_tot, axis=0)
             print(f"{name}, {'smoothed' if smooth else 'forward'}: velocity H {iv.rms_horizontal():.4f} m/s "

@@ -406,3 +406,46 @@ def test_tdcp_records_taken_as_independent_are_conservative_for_the_velocity(q):
     lo, hi = chi2.ppf(5e-4, n_run), chi2.ppf(1 - 5e-4, n_run)
     assert lo < nees_b < hi, nees_b
     assert nees_a < (lo if q < 1e-3 else hi), nees_a
+
+
+def test_walk_reference_noise_by_the_three_cornered_hat_is_near_the_target(walk_dir):
+    """The walk's reference velocity (the RTK positions' differences) against two TDCP least-squares
+    velocities of disjoint satellites (Galileo; GPS + the log's BeiDou B1C), three-cornered hat: the
+    reference's own noise while walking (speed ≥ 0.2 m/s) is measured 0.040 / 0.033 m/s east / north
+    (standing 0.011 / 0.015), so a perfect estimate would score ≈ 0.049 m/s horizontal over the walk's
+    intervals — the issue's 0.05 m/s target is at this reference's floor (results.md, issue 40 session 15).
+    Bounds: walking ≥ 0.025 m/s per horizontal axis, standing ≤ 0.025, and the floor over all intervals
+    ≥ 0.04 m/s."""
+    import warnings
+
+    from aidnav.analysis.velocity_reference import interval_velocity_errors, three_cornered_hat
+    from aidnav.estimators.dgps import spp_series
+    from aidnav.estimators.tdcp import tdcp_series
+    from aidnav.io.nav_sources import read_observations_and_navigation
+    from aidnav.io.rinex import UBX_SOURCES_ALL
+    from aidnav.io.rtklib import read_pos
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FutureWarning)
+        obs, eph, _, _ = read_observations_and_navigation(
+            walk_dir / "rinex_converted" / "gnss_1730.obs", walk_dir / "rinex_converted" / "gnss_1730.nav",
+            "GECR", "auto", ubx_sources=UBX_SOURCES_ALL)
+    assert sum(n[0] == "C" for n in obs.names) >= 7
+    ref = read_pos(walk_dir / "gnss_1730_sf.pos", height_offset_m=-21.4)
+    pos = spp_series(obs, eph)["ecef"]
+    iv = interval_velocity_errors(ref.time, ref.vel, ref.time, ref.lat, ref.lon, ref.height,
+                                  use=ref.quality == 1)
+    k = np.clip(np.searchsorted(obs.time, iv.t_end - 0.005), 1, len(obs.time) - 1)
+    same = (np.abs(obs.time[k] - iv.t_end) < 0.005) & (np.abs(obs.time[k - 1] - iv.t_start) < 0.005)
+    v = []
+    for letters in ("E", "GC"):
+        o = obs.subset_sats(obs.prn[np.array([n[0] in letters for n in obs.names])])
+        v.append(np.where(same[:, None], tdcp_series(o, eph, pos)["vel_enu"][k - 1], np.nan))
+    walking = np.hypot(iv.ref[:, 0], iv.ref[:, 1]) >= 0.2
+    var_r = []
+    for m in (walking, ~walking):
+        var_r.append(three_cornered_hat(v[0][m], v[1][m], iv.ref[m])[2])
+    assert np.all(np.sqrt(var_r[0][:2]) >= 0.025) and np.all(np.sqrt(np.maximum(var_r[1][:2], 0)) <= 0.025)
+    n_w = walking.sum()
+    floor = np.sqrt((n_w * var_r[0][:2].sum() + (len(walking) - n_w) * var_r[1][:2].sum()) / len(walking))
+    assert floor >= 0.04, floor

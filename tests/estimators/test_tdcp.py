@@ -311,3 +311,141 @@ def test_windup_equals_a_simulated_rhcp_wave_on_crossed_dipoles():
             vb = E @ cb[:, 0] - 1j * (E @ cb[:, 1])
             dl = -np.angle(vb / va) / (2 * np.pi)  # RINEX phase change [cycles], in (−½, ½]
             assert np.angle(np.exp(2j * np.pi * (dl - d[j]))) == pytest.approx(0.0, abs=1e-9)
+
+
+# ------------------------------------------------------------------ the receiver's σ and the variance factor
+def test_weighted_residuals_are_chi_square_and_the_variance_factor_recovers_a_wrong_scale():
+    """8 satellites, phase σ 2–12 mm (as the receiver's cpStdev orders them) but stated 3× too small (the
+    walk's cpStdev against its residuals): rᵀWr/(n − 4) ≈ 9 (the running factor after 400 intervals within
+    the χ²(4·400) 99.9 % band of 9), and the covariance scaled by the running factor gives a NEES of (Δr, Δb)
+    within the χ²(4·400) band, where the unscaled one is ~9× above it."""
+    from aidnav.estimators.tdcp import running_variance_factor
+
+    rng = np.random.default_rng(11)
+    sats0, vel = _geometry(rng, 8)
+    sats1 = sats0 + 0.25 * vel
+    dr_true, db_true = np.array([0.4, -0.3, 0.02]), 1.5
+    y = np.array([geo_range(sats1[j], R0 + dr_true)[0] - geo_range(sats0[j], R0)[0]
+                  for j in range(len(sats0))]) + db_true
+    s_true = np.linspace(0.002, 0.012, len(y))
+    s_stated = s_true / 3.0
+    K = 400
+    chi2_k, errs, covs = np.zeros(K), [], []
+    for k in range(K):
+        yn = y + rng.normal(0, s_true) - rng.normal(0, s_true)
+        x, cov, used, chi2_k[k] = tdcp_displacement(sats0, sats1, R0, yn, s_stated, with_chi2=True)
+        errs.append(x - np.r_[dr_true, db_true])
+        covs.append(cov)
+    f = running_variance_factor(chi2_k, np.full(K, 4))
+    n = 4 * K
+    assert chi2.ppf(5e-4, n) < f[-1] * n / 9.0 < chi2.ppf(1 - 5e-4, n)
+    assert np.all(f >= 1.0)
+    nees_raw = sum(e @ np.linalg.solve(c, e) for e, c in zip(errs, covs, strict=True))
+    nees = sum(e @ np.linalg.solve(c * f[k], e) for k, (e, c) in enumerate(zip(errs, covs, strict=True)))
+    assert nees_raw > 5 * chi2.ppf(1 - 5e-4, n)
+    # the first factors rest on few degrees of freedom: the band for the settled second half
+    half = sum(errs[k] @ np.linalg.solve(covs[k] * f[k], errs[k]) for k in range(K // 2, K))
+    assert chi2.ppf(5e-4, n // 2) < half < chi2.ppf(1 - 5e-4, n // 2), (nees, half)
+
+
+def test_receiver_sigma_weights_beat_equal_weights():
+    """Rows weighted by σ proportional to their simulated noise (the receiver's cpStdev × a common scale):
+    the displacement's mean squared error over 400 draws is below equal weighting's (Gauss–Markov: the
+    weighted least squares is the best linear unbiased one), by more than the draws' spread allows."""
+    rng = np.random.default_rng(12)
+    sats0, vel = _geometry(rng, 8)
+    sats1 = sats0 + 0.25 * vel
+    y = np.array([geo_range(sats1[j], R0)[0] - geo_range(sats0[j], R0)[0] for j in range(len(sats0))])
+    s_true = np.r_[0.002, 0.002, 0.003, 0.004, 0.006, 0.010, 0.015, 0.025]
+    se_w, se_eq = [], []
+    for _ in range(400):
+        yn = y + rng.normal(0, s_true) - rng.normal(0, s_true)
+        se_w.append(np.sum(tdcp_displacement(sats0, sats1, R0, yn, s_true / 3.0)[0][:3] ** 2))
+        se_eq.append(np.sum(tdcp_displacement(sats0, sats1, R0, yn, 0.005)[0][:3] ** 2))
+    se_w, se_eq = np.array(se_w), np.array(se_eq)
+    assert se_w.mean() < 0.5 * se_eq.mean()
+
+
+@pytest.mark.parametrize("q", [0.3**2, 0.01**2])
+def test_tdcp_records_taken_as_independent_are_conservative_for_the_velocity(q):
+    """The phase of epoch k enters the delta-ranges k−1→k and k→k+1 (their errors correlated −½). One axis,
+    the velocity a random walk of q [m²/s²] per 0.25 s (0.3²: a walker with nothing else; 0.01²: the
+    prediction of an IMU-aided filter), phase σ 5 mm: a Kalman filter of the velocity that takes the TDCP
+    mean velocities as independent (R = 2σ²/Δt²) against the proper model, the phase as a measurement of
+    the position (state p, v; what an ambiguity state gives), 400 independent runs of 40 epochs, the
+    velocity at the last epoch: the proper model's NEES is within the χ²(400) 99.9 % band; the independent
+    one's is never above it, and below it where the filter averages many records (q = 0.01²: its σ too
+    large; measured 361 and 213, the proper model 360 and 362): the correlation does not make the records' σ
+    optimistic."""
+    rng = np.random.default_rng(21)
+    n_run, K, dt, s = 400, 40, 0.25, 0.005
+    v = np.cumsum(rng.normal(0, np.sqrt(q), (n_run, K)), axis=1) + rng.normal(0, 1.0, (n_run, 1))
+    p = np.cumsum(v * dt, axis=1)
+    phi = p + rng.normal(0, s, (n_run, K))
+    # (a) the velocity records as independent measurements
+    va, Pa = np.zeros(n_run), 1.0
+    for k in range(1, K):
+        Pa += q
+        y = (phi[:, k] - phi[:, k - 1]) / dt
+        g = Pa / (Pa + 2 * s**2 / dt**2)
+        va, Pa = va + g * (y - va), (1 - g) * Pa
+    # (b) the phase as a position measurement (p_k = p_{k−1} + v_k Δt, v a random walk)
+    x = np.zeros((n_run, 2))
+    x[:, 0] = phi[:, 0]
+    P = np.diag([s**2, 1.0])
+    F = np.array([[1.0, dt], [0.0, 1.0]])
+    Q = q * np.array([[dt * dt, dt], [dt, 1.0]])  # v_k = v_{k−1} + w enters p_k through v_k Δt
+    for k in range(1, K):
+        x = x @ F.T
+        P = F @ P @ F.T + Q
+        g = P[:, 0] / (P[0, 0] + s**2)
+        x = x + (phi[:, k] - x[:, 0])[:, None] * g[None, :]
+        P = P - np.outer(g, P[0])
+    nees_a = np.sum((va - v[:, -1]) ** 2) / Pa
+    nees_b = np.sum((x[:, 1] - v[:, -1]) ** 2) / P[1, 1]
+    lo, hi = chi2.ppf(5e-4, n_run), chi2.ppf(1 - 5e-4, n_run)
+    assert lo < nees_b < hi, nees_b
+    assert nees_a < (lo if q < 1e-3 else hi), nees_a
+
+
+def test_walk_reference_noise_by_the_three_cornered_hat_is_near_the_target(walk_dir):
+    """The walk's reference velocity (the RTK positions' differences) against two TDCP least-squares
+    velocities of disjoint satellites (Galileo; GPS + the log's BeiDou B1C), three-cornered hat: the
+    reference's own noise while walking (speed ≥ 0.2 m/s) is measured 0.040 / 0.033 m/s east / north
+    (standing 0.011 / 0.015), so a perfect estimate would score ≈ 0.049 m/s horizontal over the walk's
+    intervals — the issue's 0.05 m/s target is at this reference's floor (results.md, issue 40 session 15).
+    Bounds: walking ≥ 0.025 m/s per horizontal axis, standing ≤ 0.025, and the floor over all intervals
+    ≥ 0.04 m/s."""
+    import warnings
+
+    from aidnav.analysis.velocity_reference import interval_velocity_errors, three_cornered_hat
+    from aidnav.estimators.dgps import spp_series
+    from aidnav.estimators.tdcp import tdcp_series
+    from aidnav.io.nav_sources import read_observations_and_navigation
+    from aidnav.io.rinex import UBX_SOURCES_ALL
+    from aidnav.io.rtklib import read_pos
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FutureWarning)
+        obs, eph, _, _ = read_observations_and_navigation(
+            walk_dir / "rinex_converted" / "gnss_1730.obs", walk_dir / "rinex_converted" / "gnss_1730.nav",
+            "GECR", "auto", ubx_sources=UBX_SOURCES_ALL)
+    assert sum(n[0] == "C" for n in obs.names) >= 7
+    ref = read_pos(walk_dir / "gnss_1730_sf.pos", height_offset_m=-21.4)
+    pos = spp_series(obs, eph)["ecef"]
+    iv = interval_velocity_errors(ref.time, ref.vel, ref.time, ref.lat, ref.lon, ref.height,
+                                  use=ref.quality == 1)
+    k = np.clip(np.searchsorted(obs.time, iv.t_end - 0.005), 1, len(obs.time) - 1)
+    same = (np.abs(obs.time[k] - iv.t_end) < 0.005) & (np.abs(obs.time[k - 1] - iv.t_start) < 0.005)
+    v = []
+    for letters in ("E", "GC"):
+        o = obs.subset_sats(obs.prn[np.array([n[0] in letters for n in obs.names])])
+        v.append(np.where(same[:, None], tdcp_series(o, eph, pos)["vel_enu"][k - 1], np.nan))
+    walking = np.hypot(iv.ref[:, 0], iv.ref[:, 1]) >= 0.2
+    var_r = []
+    for m in (walking, ~walking):
+        var_r.append(three_cornered_hat(v[0][m], v[1][m], iv.ref[m])[2])
+    assert np.all(np.sqrt(var_r[0][:2]) >= 0.025) and np.all(np.sqrt(np.maximum(var_r[1][:2], 0)) <= 0.025)
+    n_w = walking.sum()
+    floor = np.sqrt((n_w * var_r[0][:2].sum() + (len(walking) - n_w) * var_r[1][:2].sum()) / len(walking))
+    assert floor >= 0.04, floor

@@ -198,7 +198,7 @@ def test_ubx_sources_parsed():
     from aidnav.errors import InputError  # lazy: only this test
     from aidnav.io.rinex import UBX_SOURCES, parse_ubx_sources  # lazy: georinex-backed module
 
-    assert parse_ubx_sources(UBX_SOURCES) == {"inav", "lnav", "cnav", "klobuchar"}
+    assert parse_ubx_sources(UBX_SOURCES) == {"inav", "lnav", "cnav", "klobuchar", "cpstdev"}
     assert parse_ubx_sources(" inav, klobuchar ,") == {"inav", "klobuchar"} and parse_ubx_sources("") == set()
     with pytest.raises(InputError, match="almanac unknown"):
         parse_ubx_sources("inav,almanac")

@@ -22,6 +22,15 @@ e^{−iπfΔt}·sinc(fΔt), a pure delay of Δt/2 at every frequency (so, late b
 (p_{k+1} − p_{k−1}) / (2Δt) at t_k has the real response sinc(2fΔt) (no lag); for constant acceleration a
 the backward difference is a·(t_k − Δt/2) exactly.
 
+The reference's own noise (its position differences are noisy too, and a filtered RTK solution's more so
+in motion) is measured by the **three-cornered hat** (:func:`three_cornered_hat`; Gray & Allan 1974, the
+clock-comparison method): with three estimates a, b, r of one quantity whose errors are independent,
+var(a − r) = σ_a² + σ_r², var(b − r) = σ_b² + σ_r², var(a − b) = σ_a² + σ_b², so σ_r² = ½[var(a − r) +
+var(b − r) − var(a − b)] and likewise σ_a², σ_b². With a and b two TDCP velocities of disjoint satellite
+sets (independent phase noise) and r the reference, it gives the reference's noise without a truth;
+errors common to a and b (the antenna's motion) count as signal, and errors r shares with them (the same
+receiver's phase) lower σ_r²: the estimate is a lower bound on the reference's own noise.
+
 Frames and units: positions geodetic (lat, lon [rad], ellipsoidal or any consistent height [m]) turned into
 the tangent-plane ENU frame at the first reference position (:func:`aidnav.nav.earth.lla_to_enu`; over
 a few hundred metres its axes turn by d/R ≈ 5e-5 rad from the local ones: negligible here); velocities
@@ -37,7 +46,8 @@ import numpy as np
 from ..nav.earth import lla_to_enu
 from .timing import parabola_minimum
 
-__all__ = ["IntervalVelocity", "interval_velocity_errors", "velocity_lateness", "reference_enu"]
+__all__ = ["IntervalVelocity", "interval_velocity_errors", "velocity_lateness", "reference_enu",
+           "three_cornered_hat"]
 
 
 @dataclass
@@ -136,3 +146,17 @@ def velocity_lateness(series_time, series_vel, ref_time, ref_lat, ref_lon, ref_h
         cost[i] = np.mean(np.sum((m - d[:, :2]) ** 2, axis=1))
     lag, c_min, _ = parabola_minimum(lags, cost)
     return lag, float(np.sqrt(max(c_min, 0.0)))
+
+
+def three_cornered_hat(a, b, r) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Error variances (σ_a², σ_b², σ_r²) per column of three estimates (K, ...) of the same quantity with
+    independent errors (module doc), from the sample variances of their pairwise differences (rows with a
+    NaN in any of the three left out). A negative value (sampling noise about a small variance) is
+    returned as it is."""
+    a, b, r = (np.asarray(x, float) for x in (a, b, r))
+    ok = np.isfinite(a) & np.isfinite(b) & np.isfinite(r)
+    if a.ndim > 1:
+        ok = ok.all(axis=tuple(range(1, a.ndim)))
+    var_ar, var_br, var_ab = (np.var(x[ok], axis=0, ddof=1) for x in (a - r, b - r, a - b))
+    return (0.5 * (var_ar + var_ab - var_br), 0.5 * (var_br + var_ab - var_ar),
+            0.5 * (var_ar + var_br - var_ab))

@@ -45,7 +45,9 @@ import numpy as np
 from aidnav.nav.earth import dcm_ecef_to_enu, ecef_to_lla
 from aidnav.nav.gnss_sat import LAMBDA_L1, geo_range, satellites_from_pseudoranges
 
-__all__ = ["phase_increments", "receiver_windup", "tdcp_displacement", "tdcp_series", "windup_increments"]
+__all__ = ["phase_increments", "receiver_windup", "running_variance_factor", "tdcp_displacement",
+           "tdcp_series",
+           "windup_increments"]
 
 
 def phase_increments(time, phase_cycles, lli, range_rate, slip_threshold_cycles: float = 0.5,
@@ -116,13 +118,14 @@ def windup_increments(sat_pos, rx_pos, c_ae, wavelength=LAMBDA_L1):
     return d * np.broadcast_to(np.asarray(wavelength, float), (S,))
 
 
-def tdcp_displacement(rs_prev, rs_cur, r_prev, y_phase, sigma_phase_m=0.005):
+def tdcp_displacement(rs_prev, rs_cur, r_prev, y_phase, sigma_phase_m=0.005, with_chi2: bool = False):
     """Receiver displacement Δr (3,) [m] and clock change Δb [m] between two epochs (module doc).
 
     rs_prev, rs_cur (S, 3) satellite ECEF at the two epochs [m]; r_prev (3,) prior receiver position at the
     first epoch; y_phase (S,) λΔL + Δ(c·dt_s) [m] (NaN: not used); sigma_phase_m the phase σ per epoch [m],
     scalar or (S,) per satellite (weighted least squares). Returns (x (4,) = [Δr, Δb], cov (4, 4), used
-    (S,) bool) or None with fewer than 4 satellites."""
+    (S,) bool) — with ``with_chi2`` also the weighted residual sum of squares rᵀWr (χ²(n − 4) when the σ
+    are right) — or None with fewer than 4 satellites."""
     rs_prev = np.asarray(rs_prev, float)
     rs_cur = np.asarray(rs_cur, float)
     r0 = np.asarray(r_prev, float)
@@ -142,17 +145,40 @@ def tdcp_displacement(rs_prev, rs_cur, r_prev, y_phase, sigma_phase_m=0.005):
         return None
     Q = np.linalg.inv(N)
     x = Q @ H.T @ (w * np.array(z))
+    if with_chi2:
+        r = np.array(z) - H @ x
+        return x, Q, used, float(np.sum(w * r * r))
     return x, Q, used
 
 
+def running_variance_factor(chi2, dof) -> np.ndarray:
+    """The a-posteriori variance factor of a series of least-squares solutions, causal: at each one
+    Σ rᵀWr / Σ dof over it and the earlier ones (``chi2`` (K,), NaN: no solution; ``dof`` (K,) its degrees of
+    freedom), floored at 1 (the stated σ are a lower bound; 1 before any degree of freedom). With the stated σ
+    k times too small the factor tends to k² (the weighted residuals are k²·χ²(dof))."""
+    c = np.cumsum(np.where(np.isfinite(chi2), chi2, 0.0))
+    d = np.cumsum(np.where(np.isfinite(chi2), np.asarray(dof, float), 0.0))
+    return np.where(d > 0, np.maximum(1.0, c / np.maximum(d, 1.0)), 1.0)
+
+
 def tdcp_series(obs, eph, positions_ecef, sigma_phase_m: float = 0.005, slip_threshold_cycles: float = 0.5,
-                attitude=None):
+                attitude=None, variance_factor: bool = True):
     """TDCP mean velocities of a whole observation set: dict with t_mid (T−1,) [s], vel_enu (T−1, 3) [m/s],
     vel_cov_enu (T−1, 3, 3), drift (T−1,) [m/s], n_used (T−1,), slips (T, S) codes of
     :func:`phase_increments`, windup (T, S) the wind-up increments removed [m] (zeros without
-    ``attitude``). positions_ecef (T, 3): prior receiver positions (e.g. SPP; NaN: none). attitude (T, 3, 3):
+    ``attitude``), variance_factor (T−1,) the factor applied to each covariance (module doc; 1 where
+    none). positions_ecef (T, 3): prior receiver positions (e.g. SPP; NaN: none). attitude (T, 3, 3):
     optional antenna (= body) → ECEF rotation at each epoch: the receiver wind-up is then removed from the
-    phase increments (:func:`windup_increments`)."""
+    phase increments (:func:`windup_increments`).
+
+    **Weights and σ**: each phase's σ is the receiver's own (``obs.phase_sigma1``, u-blox cpStdev) where
+    given, else ``sigma_phase_m``; an increment's variance is the sum of its two epochs' (σ_{k−1}² + σ_k²).
+    With ``variance_factor`` the covariance is scaled by the a-posteriori variance factor of the least
+    squares so far, Σ rᵀWr / Σ (n − 4) over this and the earlier intervals (causal, no constant; floored at
+    1: the stated σ are a lower bound). The receiver's cpStdev is its tracking loop's noise: on the shared
+    walk it orders the phases' errors (their residual against the RTK displacement grows from 5 to 31 mm
+    as it grows from 1 to 10 mm) but it is ~3× too small in scale (multipath, a hand-held antenna in
+    turns), which is what the factor measures (docs/results.md, issue 40 session 15)."""
     if obs.phase1 is None:
         raise ValueError("no L1 carrier phase in the observations")
     eph = eph.to_week(obs.ref_week) if eph.ref_week != obs.ref_week else eph
@@ -173,16 +199,27 @@ def tdcp_series(obs, eph, positions_ecef, sigma_phase_m: float = 0.005, slip_thr
         dphi = dphi - np.where(np.isfinite(wind), wind, 0.0)
     out = dict(t_mid=0.5 * (obs.time[1:] + obs.time[:-1]), vel_enu=np.full((T - 1, 3), np.nan),
                vel_cov_enu=np.full((T - 1, 3, 3), np.nan), drift=np.full(T - 1, np.nan),
-               n_used=np.zeros(T - 1, np.int64), slips=slips, windup=wind)
+               n_used=np.zeros(T - 1, np.int64), slips=slips, windup=wind, variance_factor=np.ones(T - 1))
+    sig = np.full((T, S), float(sigma_phase_m)) if np.ndim(sigma_phase_m) == 0 else \
+        np.broadcast_to(np.asarray(sigma_phase_m, float), (T, S))
+    if obs.phase_sigma1 is not None:
+        sig = np.where(np.isfinite(obs.phase_sigma1) & (obs.phase_sigma1 > 0), obs.phase_sigma1, sig)
+    chi2 = np.full(T - 1, np.nan)
+    dof = np.zeros(T - 1, np.int64)
     for k in range(1, T):
         r0 = pos[k - 1] if np.isfinite(pos[k - 1]).all() else pos[k]
         if not np.isfinite(r0).all():
             continue
         y = dphi[k] + (sc[k] - sc[k - 1])
-        sol = tdcp_displacement(sp[k - 1], sp[k], r0, y, sigma_phase_m)
+        # the increment's σ as tdcp_displacement takes it (its variance 2σ² = σ_{k−1}² + σ_k²)
+        sol = tdcp_displacement(sp[k - 1], sp[k], r0, y, np.sqrt(0.5 * (sig[k - 1] ** 2 + sig[k] ** 2)), True)
         if sol is None:
             continue
-        x, cov, used = sol
+        x, cov, used, chi2[k - 1] = sol
+        dof[k - 1] = int(used.sum()) - 4
+        if variance_factor:
+            out["variance_factor"][k - 1] = running_variance_factor(chi2[:k], dof[:k])[-1]
+            cov = cov * out["variance_factor"][k - 1]
         dt = obs.time[k] - obs.time[k - 1]
         lat, lon, _ = ecef_to_lla(r0[0], r0[1], r0[2])
         C = dcm_ecef_to_enu(lat, lon)

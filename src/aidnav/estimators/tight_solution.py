@@ -353,8 +353,11 @@ def _tdcp_velocities(imu, obs, eph, sp, cfg, events):
     sig = np.sqrt(np.einsum("kii->ki", r["vel_cov_enu"]) + dyn[:, None] ** 2)
     n_ok = int(np.isfinite(r["vel_enu"][:, 0]).sum())
     n_slip = int((r["slips"] != 0).sum())
+    src = "the receiver's (cpStdev)" if obs.phase_sigma1 is not None else f"{g.phase_sigma_m:g} m"
     events.append(f"carrier phase: {n_ok} TDCP velocities of {len(t0)} intervals (4+ satellites without a "
-                  f"slip); {n_slip} cycle slip(s) flagged (loss-of-lock indicator or phase-Doppler test)")
+                  f"slip); {n_slip} cycle slip(s) flagged (loss-of-lock indicator or phase-Doppler test); "
+                  f"phase sigma {src}, scaled by the least squares' variance factor (at the end "
+                  f"{r['variance_factor'][-1]:.2f})")
     return r["t_mid"], r["vel_enu"], sig
 
 

@@ -164,7 +164,9 @@ class RawGnssAiding(_Strict):
         "row per satellite between consecutive epochs against clone states of the previous epoch (also with "
         "1-3 satellites; on the shared walk its height drifts 0.8 m in 134 s, vertical RMS 4.2 m against "
         "3.0 m: docs/results.md, issue 40 session 9)")
-    phase_sigma_m: float = Field(0.005, gt=0, description="carrier-phase σ per epoch [m]")
+    phase_sigma_m: float = Field(0.005, gt=0, description="carrier-phase σ per epoch [m] where the receiver "
+                                 "gives none (its cpStdev from the UBX log is used for the TDCP velocities "
+                                 "where read: aidnav.io.rawx; the 'rows' model takes this one)")
     slip_threshold_cycles: float = Field(0.5, gt=0, description="phase-Doppler disagreement that is a "
                                          "cycle slip [cycles]")
 

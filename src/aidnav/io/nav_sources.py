@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from aidnav.io.errors import DataError
-from aidnav.io.rinex import read_rinex_pair
+from aidnav.io.rinex import UBX_SOURCES, read_rinex_pair
 from aidnav.nav.gnss_sat import E_HEALTH, E_PRN, SYSTEMS, sat_name
 
 __all__ = ["AUTO", "NONE", "source_log", "resolve_ubx_nav", "read_observations_and_navigation",
@@ -86,24 +86,26 @@ def resolve_ubx_nav(setting, obs_path, base_dir=None) -> tuple[Path | None, str]
 
 
 def read_observations_and_navigation(obs_path, nav_path, systems: str = "GECR", ubx_nav=AUTO,
-                                     base_dir=None):
+                                     base_dir=None, ubx_sources: str = UBX_SOURCES):
     """:func:`aidnav.io.rinex.read_rinex_pair` with the UBX log of the setting ``ubx_nav`` (module doc).
     Returns (observations, ephemerides, events, sources): ``sources`` = {"nav": the navigation file,
     "ubx_nav": the log used or None, "how": how it was chosen, "satellites": {system name: satellites with
     a healthy ephemeris}, "unhealthy": [satellites whose every record is flagged]}. An automatic log that
-    cannot be read into any ephemeris is left out with a warning event; a given one is an input error."""
+    cannot be read into any ephemeris is left out with a warning event; a given one is an input error.
+    ``ubx_sources``: what is taken from the log (as :func:`aidnav.io.rinex.read_rinex_pair`'s; all by
+    default)."""
     ubx, how = resolve_ubx_nav(ubx_nav, obs_path, base_dir)
     events: list[str] = []
     if ubx is not None and how.startswith(AUTO):
         try:
-            obs, eph, ev = read_rinex_pair(obs_path, nav_path, systems, ubx_nav=ubx)
+            obs, eph, ev = read_rinex_pair(obs_path, nav_path, systems, ubx_nav=ubx, ubx_sources=ubx_sources)
         except DataError as e:
             events.append(f"warning: {ubx.name} (auto: named by {Path(obs_path).name}) not used: "
                           f"{e.problem}; the navigation file alone")
             ubx, how = None, f"auto: {ubx.name} holds no usable ephemeris"
             obs, eph, ev = read_rinex_pair(obs_path, nav_path, systems)
     else:
-        obs, eph, ev = read_rinex_pair(obs_path, nav_path, systems, ubx_nav=ubx)
+        obs, eph, ev = read_rinex_pair(obs_path, nav_path, systems, ubx_nav=ubx, ubx_sources=ubx_sources)
     events += ev
     t = eph.table
     sats: dict[str, list[str]] = {}

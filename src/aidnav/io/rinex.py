@@ -68,13 +68,17 @@ from aidnav.nav.gnss_sat import (
 from aidnav.nav.gnss_types import GnssObservations, GpsEphemerides
 
 __all__ = ["GpsEphemerides", "GnssObservations", "read_rinex_nav", "read_rinex_obs", "read_rinex_pair",
-           "merge_ephemerides", "cnav_span_warning", "CNAV_SPAN_S", "UBX_SOURCES",
+           "merge_ephemerides", "cnav_span_warning", "CNAV_SPAN_S", "UBX_SOURCES", "UBX_SOURCES_ALL",
            "parse_ubx_sources"]
 #: how far [s] from a GPS CNAV row's epoch (the UBX log's middle) the observations may reach before
 #: ``read_rinex_pair`` warns: the re-epoched orbit's ½ Δn0-dot τ² term reaches ~0.3 m there (io.gps_cnav)
 CNAV_SPAN_S = 600.0
 #: what :func:`read_rinex_pair` takes from a UBX log by default (its ``ubx_sources``)
-UBX_SOURCES = "inav,lnav,cnav,klobuchar"
+UBX_SOURCES = "inav,lnav,cnav,klobuchar,cpstdev"
+#: every source it knows (``rawx``: the RXM-RAWX satellites the observation file lacks; not by default: on
+#: the walk its BeiDou code moves the position toward the broadcast frame, away from the offset RTK
+#: reference — docs/results.md, issue 40 session 15)
+UBX_SOURCES_ALL = UBX_SOURCES + ",rawx"
 
 
 def _load(path, systems: str):
@@ -440,7 +444,9 @@ def read_rinex_pair(obs_path, nav_path, systems: str = "GECR", ubx_nav=None,
 
     ubx_sources : which of the log's data are used, comma-separated (:data:`UBX_SOURCES`, all by default):
     ``inav`` Galileo I/NAV records, ``lnav`` GPS LNAV records, ``cnav`` GPS CNAV records, ``klobuchar`` the
-    log's Klobuchar coefficients."""
+    log's Klobuchar coefficients, ``cpstdev`` the receiver's phase σ of each phase (RXM-RAWX cpStdev,
+    :func:`_add_rawx`), ``rawx`` (not by default, :data:`UBX_SOURCES_ALL`) also the RXM-RAWX measurements
+    of the systems with an ephemeris that the observation file lacks."""
     if not Path(obs_path).exists():  # a missing observation file is named first (as before)
         raise DataError(Path(obs_path), None, "file not found")
     eph = read_rinex_nav(nav_path, systems=systems)
@@ -452,6 +458,9 @@ def read_rinex_pair(obs_path, nav_path, systems: str = "GECR", ubx_nav=None,
     events = []
     if ubx_nav is not None:
         events += cnav_span_warning(eph.table, obs.time, Path(ubx_nav).name)
+        sources = parse_ubx_sources(ubx_sources)
+        if sources & {"rawx", "cpstdev"}:
+            obs = _add_rawx(obs, ubx_nav, have if "rawx" in sources else "", events)
     for c in _header_systems(Path(obs_path)):
         if c in SYSTEMS and c not in systems:
             events.append(f"{Path(obs_path).name}: {_SYSTEM_NAMES[c]} observations not used (systems "
@@ -469,10 +478,10 @@ def parse_ubx_sources(text: str) -> set[str]:
     """The set of :func:`read_rinex_pair`'s ``ubx_sources`` (comma-separated names of :data:`UBX_SOURCES`);
     an unknown name raises InputError."""
     sources = {x.strip() for x in str(text).split(",") if x.strip()}
-    unknown = sources - set(UBX_SOURCES.split(","))
+    unknown = sources - set(UBX_SOURCES_ALL.split(","))
     if unknown:
         raise InputError(f"UBX navigation source(s) {', '.join(sorted(unknown))} unknown: use a "
-                         f"comma-separated subset of {UBX_SOURCES}")
+                         f"comma-separated subset of {UBX_SOURCES_ALL}")
     return sources
 
 
@@ -501,6 +510,31 @@ def merge_ephemerides(eph: GpsEphemerides, table: np.ndarray) -> tuple[GpsEpheme
     order = np.arange(len(both))  # a tie of toe keeps the file's record first (select_ephemeris: last wins)
     both = both[np.lexsort((order, both[:, E_TOE], both[:, E_PRN]))]
     return GpsEphemerides(both, eph.ref_week, eph.iono_alpha, eph.iono_beta, list(eph.events)), len(new)
+
+
+def _add_rawx(obs: GnssObservations, ubx_path, have: str, events: list) -> GnssObservations:
+    """``obs`` with the UBX log's RXM-RAWX measurements merged in (:func:`aidnav.io.rawx.merge_rawx`): the
+    receiver's phase σ (cpStdev) of every phase, and the satellites of the systems of ``have`` (those with
+    ephemerides; "" none) of which the observation file has none (the converter did not know their signal:
+    the walk's BeiDou B1C) added. A log without RXM-RAWX leaves ``obs`` as it is (an event says so)."""
+    from aidnav.io.rawx import merge_rawx, rawx_observations, read_rawx  # lazy: only with a UBX log
+
+    name = Path(ubx_path).name
+    try:
+        meas = read_rawx(ubx_path)
+    except DataError as e:
+        events.append(f"{name}: no receiver measurement added ({e.problem})")
+        return obs
+    in_file = {n[0] for n in obs.names}
+    add = "".join(c for c in have if c not in in_file)
+    rx = rawx_observations(meas, "".join(in_file) + add, obs.ref_week, obs.time)
+    out = merge_rawx(obs, rx, add)
+    new = [n for n in out.names if n not in set(obs.names)]
+    with_sig = int(np.isfinite(out.phase_sigma1).any(axis=0).sum())
+    events.append(f"{name}: the receiver's phase sigma (RXM-RAWX cpStdev) for {with_sig} satellite(s)"
+                  + (f"; RXM-RAWX measurements of {len(new)} satellite(s) the observation file lacks added "
+                     f"({' '.join(new)}; the signals of aidnav.io.rawx.RAWX_SIGNALS)" if new else ""))
+    return out
 
 
 def _add_ubx_nav(eph: GpsEphemerides, ubx_path, systems: str,

@@ -57,7 +57,9 @@ class GnssObservations:
     L1 Doppler [Hz]; cn0 : (T, S) L1 C/N0 [dB-Hz]; code2 : (T, S) L2 pseudorange [m] or None;
     code2_type : its RINEX code (e.g. "C2L"). approx_ecef : header position [m] or None. phase1 : (T, S)
     L1 carrier phase [cycles] and lli1 its loss-of-lock indicator (bit 0: lock lost, a cycle slip is
-    possible; bit 1: half-cycle ambiguity), both None when the file has no L1 phase.
+    possible; bit 1: half-cycle ambiguity), both None when the file has no L1 phase. phase_sigma1 : (T, S)
+    the receiver's own σ of each L1 phase [m] (u-blox RXM-RAWX cpStdev, :mod:`aidnav.io.rawx`; RINEX has
+    none) or None.
     """
 
     time: np.ndarray
@@ -73,6 +75,7 @@ class GnssObservations:
     phase1: np.ndarray | None = None  # (T, S) L1 carrier phase [cycles] (NaN = none), or None
     lli1: np.ndarray | None = None  # (T, S) its loss-of-lock indicator (RINEX bits; 0 where none)
     freq1: np.ndarray | None = None  # (S,) carrier frequency of the L1 arrays [Hz] (None: from the ids)
+    phase_sigma1: np.ndarray | None = None  # (T, S) the receiver's σ of each L1 phase [m] (NaN: none)
 
     def __len__(self) -> int:
         return len(self.time)
@@ -91,8 +94,12 @@ class GnssObservations:
         return C_LIGHT / self.frequencies()
 
     def with_frequencies(self, eph) -> GnssObservations:
-        """The same observations with ``freq1`` from the ids and the GLONASS channels of ``eph``'s records."""
-        return replace(self, freq1=carrier_frequencies(self.prn, eph.table))
+        """The same observations with ``freq1`` from the ids and the GLONASS channels of ``eph``'s records
+        where it is not given (a given one stays: e.g. BeiDou B1C at 1575.42 MHz, :mod:`aidnav.io.rawx`)."""
+        f = carrier_frequencies(self.prn, eph.table)
+        if self.freq1 is not None:
+            f = np.where(np.isfinite(self.freq1), self.freq1, f)
+        return replace(self, freq1=f)
 
     def range_rate(self) -> np.ndarray:
         """Pseudorange rate [m/s] = −λ · Doppler (T, S) (λ per satellite: :meth:`wavelengths`)."""
@@ -125,4 +132,5 @@ class GnssObservations:
             pick(self.phase1),
             None if self.lli1 is None else np.nan_to_num(pick(self.lli1.astype(float))).astype(np.int64),
             None if self.freq1 is None else np.array([self.freq1[i] if i >= 0 else np.nan for i in idx]),
+            pick(self.phase_sigma1),
         )

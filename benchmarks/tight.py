@@ -12,10 +12,14 @@
   Timing (issue 40, session 15): one pass is 20,455 samples, ~25-45 ms, too short for one figure to hold a
   10 % margin on a shared machine (a best of 3 scattered 516-848 k in session 13). Each case is called
   repeatedly, compiled code warm, for at least ``MIN_CPU_S`` CPU-s and ``MIN_CALLS`` calls; each call's CPU
-  time (``time.process_time``: this process only, single-threaded kernels) and wall time are taken; the
-  figure is the **median** call (its rate), printed with the best call, the interquartile range of the
-  rates and the load average before and after. The collector is as the command leaves it (the objects of
-  the start frozen: :func:`aidnav.console_script.resume_collections`).
+  time (``time.process_time``: this process only, single-threaded kernels; system time included) and wall
+  time are taken; the figure is the **median** call (its rate), printed with the best call, the
+  interquartile range of the rates and the load average before and after. Before each call the previous
+  result is dropped, the collector run and the freed memory handed back to the OS (glibc ``malloc_trim``):
+  each call first-touches its memory — a page fault per page — as a lone ``aidnav tight`` call does, instead
+  of reusing what the allocator kept from the call before (which made the figure depend on the allocator's
+  state: 0 or 2,583 faults per call). The collector is as the command leaves it (the objects of the start
+  frozen: :func:`aidnav.console_script.resume_collections`).
 * federated: :func:`aidnav.filters.federated.run_federated` on the seed-000 simulation (600 s, 100 Hz),
   fusion-reset and centralized, forward and forward + RTS; best of 3 CPU time. Target (issue 24): no slower
   than before the engine migration (``BEFORE``, measured with the pre-engine kernels, wall time).
@@ -33,7 +37,10 @@ import os
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
+import ctypes  # noqa: E402
+import ctypes.util  # noqa: E402
 import functools  # noqa: E402
+import gc  # noqa: E402
 import inspect  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
@@ -48,6 +55,17 @@ WALK = DATA / "rtklibexplorer_walk_0827"
 BEFORE = {"tight": 625_559, "reset": 1_151_719, "centralized": 1_511_781}
 TARGET_TIGHT = 800_000  # issue 40: tight forward with the range-error states on (IMU samples/s)
 MIN_CPU_S, MIN_CALLS = 1.5, 31  # each tight case: at least this much CPU time and this many calls
+
+
+def _malloc_trim():
+    """glibc's ``malloc_trim`` (None elsewhere)."""
+    try:
+        return ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6").malloc_trim
+    except (OSError, AttributeError):
+        return None
+
+
+TRIM = _malloc_trim()
 
 
 def best_of(fn, n=3, wall=None):
@@ -71,6 +89,10 @@ def timed_calls(fn, min_cpu_s=None, min_calls=None):
     out = fn()
     cpu, wall, load0 = [], [], os.getloadavg()[0]
     while len(cpu) < min_calls or sum(cpu) < min_cpu_s:
+        out = None
+        gc.collect()
+        if TRIM is not None:  # freed memory back to the OS: the call first-touches its memory as a lone one
+            TRIM(0)
         t, w = time.process_time(), time.perf_counter()
         out = fn()
         cpu.append(time.process_time() - t)
@@ -121,8 +143,6 @@ def captured_arguments(module, ubx_nav, cfg):
 
 
 def tight_case(module="aidnav.filters.tight"):
-    import gc
-
     from aidnav.apps.tight import compare_with_reference
 
     both = [("forward", {}), ("forward + RTS", {"smooth": True})]
@@ -130,6 +150,8 @@ def tight_case(module="aidnav.filters.tight"):
              ("no config, default (auto: + UBX log)", "auto", None, [("forward", {})]),
              ("15 INS states, nav file alone", "none", "15", [("forward", {})])]
     rates = {}
+    print("each call first-touches its memory (glibc malloc_trim before it)" if TRIM is not None else
+          "malloc_trim not found: calls may reuse the memory the allocator kept")
     for label, ubx_nav, model, modes in cases:
         import importlib
 

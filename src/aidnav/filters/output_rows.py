@@ -17,6 +17,7 @@ import numpy as np
 
 from aidnav.jit import njit
 
+HUGE = 2 << 20  # bytes of a huge page (x86-64)
 #: ``Output.rows`` of a run that allocates its outputs in the kernel (state, biases, P's diagonal)
 NO_ROWS = (np.empty((0, 10)), np.empty((0, 1)), np.empty((0, 1)))
 
@@ -24,7 +25,10 @@ NO_ROWS = (np.empty((0, 10)), np.empty((0, 1)), np.empty((0, 1)))
 def whole_run_rows(n_out: int, nb: int, n: int) -> tuple:
     """The output rows of a whole-log run with ``n_out`` outputs, ``nb`` bias columns (``max(n_b, 1)``) and
     ``n`` states: views (n_out, 10), (n_out, nb), (n_out, n) of one block."""
-    buf = np.empty(n_out * (10 + nb + n))  # one block: numpy advises huge pages for it (>= 4 MiB)
+    size = n_out * (10 + nb + n)
+    raw = np.empty(size + HUGE // 8)  # one block: numpy advises huge pages for it (from 4 MiB on) …
+    o = (-raw.ctypes.data % HUGE) // 8 if raw.ctypes.data % 8 == 0 else 0
+    buf = raw[o:o + size]  # … and it starts on a huge page's boundary (the 2 MiB before it never touched)
     a, b = n_out * 10, n_out * (10 + nb)
     return buf[:a].reshape(n_out, 10), buf[a:b].reshape(n_out, nb), buf[b:].reshape(n_out, n)
 

@@ -33,7 +33,7 @@ def test_open_loop_change_equals_the_matrix_product():
         else:
             np.testing.assert_allclose(got, ref, rtol=1e-14, atol=1e-14 * np.abs(ref).max())
         # it can fail: an open state left out changes the result by its column
-        assert np.abs(open_loop_change(Phi, bias, opn[1:], n) - ref).max() > 1e-3
+        assert np.abs(open_loop_change(Phi, bias, opn[1:], n) - ref).max() > 0.05 * np.abs(ref).max()
     assert not open_loop_change(np.eye(n), bias, np.zeros(0, np.int64), n).any()
 
 

@@ -42,6 +42,7 @@ import ctypes.util  # noqa: E402
 import functools  # noqa: E402
 import gc  # noqa: E402
 import inspect  # noqa: E402
+import resource  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -83,21 +84,24 @@ def best_of(fn, n=3, wall=None):
 
 def timed_calls(fn, min_cpu_s=None, min_calls=None):
     """``fn`` called (after one warm call) until ``min_cpu_s`` CPU-s and ``min_calls`` calls have passed;
-    returns (CPU times (K,), wall times (K,), load average before and after, the last result)."""
+    returns (CPU times (K,), wall times (K,), (load average before, after, median page faults per call),
+    the last result)."""
     min_cpu_s = MIN_CPU_S if min_cpu_s is None else min_cpu_s
     min_calls = MIN_CALLS if min_calls is None else min_calls
     out = fn()
-    cpu, wall, load0 = [], [], os.getloadavg()[0]
+    cpu, wall, flt, load0 = [], [], [], os.getloadavg()[0]
     while len(cpu) < min_calls or sum(cpu) < min_cpu_s:
         out = None
         gc.collect()
         if TRIM is not None:  # freed memory back to the OS: the call first-touches its memory as a lone one
             TRIM(0)
+        f0 = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
         t, w = time.process_time(), time.perf_counter()
         out = fn()
         cpu.append(time.process_time() - t)
         wall.append(time.perf_counter() - w)
-    return np.array(cpu), np.array(wall), (load0, os.getloadavg()[0]), out
+        flt.append(resource.getrusage(resource.RUSAGE_SELF).ru_minflt - f0)
+    return np.array(cpu), np.array(wall), (load0, os.getloadavg()[0], np.median(flt)), out
 
 
 def rate_line(n, cpu, wall, loads):
@@ -106,7 +110,8 @@ def rate_line(n, cpu, wall, loads):
     q1, q3 = np.percentile(r, [25, 75])
     return (f"{n / np.median(cpu):10,.0f} IMU samples/s (median of {len(cpu)} calls, CPU time; best "
             f"{r.max():,.0f}, IQR {q1:,.0f}-{q3:,.0f}; median {np.median(cpu) * 1e3:.2f} CPU-ms per call; "
-            f"wall median {n / np.median(wall):,.0f}/s; load {loads[0]:.1f} -> {loads[1]:.1f})")
+            f"wall median {n / np.median(wall):,.0f}/s; {loads[2]:.0f} page faults; load {loads[0]:.1f} -> "
+            f"{loads[1]:.1f})")
 
 
 def captured_arguments(module, ubx_nav, cfg):

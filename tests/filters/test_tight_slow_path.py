@@ -17,6 +17,7 @@ from aidnav.filters import tight as tight_module
 from aidnav.filters.config import UNKNOWN_GRADE_IMU
 from aidnav.filters.engine import run_filter
 from aidnav.filters.layout import L_N, L_RERR
+from aidnav.filters.output_rows import NO_ROWS, whole_run_rows
 from aidnav.filters.tight import TightConfig, run_tight
 from aidnav.nav.earth import radii
 from aidnav.sim.gnss_constellation import nominal_constellation
@@ -75,7 +76,7 @@ def test_the_fast_predict_gives_the_slow_paths_solution(engine_inputs):
     tau = TightConfig().gnss.range_error_tau_s
     slow_proc = proc._replace(gm=np.array([[n - 1.0, -1.0, 1.0 / tau, 1.0]]))  # unit-variance Markov state
     assert ir >= 0 and n - 1 >= ir
-    slow = run_filter(imu, rec, mod, slow_proc, ini, out)
+    slow = run_filter(imu, rec, mod, slow_proc, ini, out._replace(rows=NO_ROWS))  # (not fast's rows)
     assert fast.n_log == slow.n_log and np.array_equal(fast.log.status, slow.log.status)
     np.testing.assert_array_equal(fast.out_idx, slow.out_idx)
     pos = np.abs(fast.out_st[:, :3] - slow.out_st[:, :3]) * np.array([6.4e6, 6.4e6, 1.0])  # [m]
@@ -85,3 +86,19 @@ def test_the_fast_predict_gives_the_slow_paths_solution(engine_inputs):
     assert np.all(np.abs(fast.P - slow.P) <= 1e-7 * scale)
     np.testing.assert_allclose(fast.out_pdiag, slow.out_pdiag, rtol=1e-7, atol=1e-30)
     np.testing.assert_allclose(fast.bias, slow.bias, rtol=1e-7, atol=1e-12)
+
+
+def test_the_callers_output_block_gives_the_kernels_own_arrays(engine_inputs):
+    """``run_tight``'s outputs in one block it allocates (:mod:`aidnav.filters.output_rows`: huge pages) are
+    the numbers the kernel writes into its own arrays, bit for bit; the block is the one filled."""
+    imu, rec, mod, proc, ini, out = engine_inputs
+    own = run_filter(imu, rec, mod, proc, ini, out._replace(rows=NO_ROWS))
+    rows = whole_run_rows(out.rows[0].shape[0], out.rows[1].shape[1], out.rows[2].shape[1])
+    blk = run_filter(imu, rec, mod, proc, ini, out._replace(rows=rows))
+    assert len(own.out_idx) == rows[0].shape[0]
+    for a, b, r in zip((own.out_st, own.out_bias, own.out_pdiag), (blk.out_st, blk.out_bias, blk.out_pdiag),
+                       rows, strict=True):
+        assert np.shares_memory(b, r) and not np.shares_memory(a, r)
+        np.testing.assert_array_equal(b, a)
+    np.testing.assert_array_equal(blk.P, own.P)
+    np.testing.assert_array_equal(blk.out_node, own.out_node)

@@ -91,7 +91,8 @@ from .measurements import M_GNSS_POS, M_GNSS_VEL, M_PR, MAX_ROWS, MODELS_KEY, N_
 from .measurements.common import W_FIX, W_IB, W_IE, W_IN
 from .measurements.epoch import epoch_out, epoch_record, epoch_update
 from .measurements.gnss import W_FN, reset_time_tag
-from .predict import error_model, predict_node
+from .output_rows import NO_ROWS, output_rows
+from .predict import error_model, open_loop_change, predict_node
 from .tilt_turn import TILT_TURN_KEY, keep_post, keep_prior, turn_with_feedback
 
 # parameters of the GNSS velocity model (``Models.par[M_GNSS_VEL]``) for the heading hold after an IMU gap
@@ -132,8 +133,8 @@ Models = namedtuple("Models", ["par", "gate", "max_rej", "node", "win_n", "cal"]
 Process = namedtuple("Process", ["lay", "q", "tau", "aux_tau", "prop_dt", "sub", "reset_pos", "gm", "open"],
                      defaults=(np.zeros(0, np.int64), False, np.zeros((0, 4)), np.zeros(0, np.int64)))
 Init = namedtuple("Init", ["t0", "st", "bias", "P", "reset_idx", "reset_heading", "reset_sigma", "reset_nav"])
-# decimation (≤ 0: an output after every node instead); store nodes for RTS; P at samples
-Output = namedtuple("Output", ["every", "smooth", "cov_idx"])
+# decimation (≤ 0: an output after every node instead); store nodes for RTS; P at samples; rows (.output_rows)
+Output = namedtuple("Output", ["every", "smooth", "cov_idx", "rows"], defaults=(NO_ROWS,))
 # reinit: 0, or why the update was a re-initialisation (1: consecutive rejections, 2: NIS window); a
 # log built without it (length 0) is never written to (no re-initialisation without ``Models.win_n``)
 Log = namedtuple("Log", ["t", "model", "status", "nis", "nu", "s", "ref", "reinit"],
@@ -669,8 +670,8 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
     no_row = np.zeros(rec.data.shape[1])  # the row of a node constraint (unused)
     prop_dt = proc.prop_dt
     max_nodes, n_out = _chunk_sizes(imu, rec, out, cy, prop_dt)
-    out_idx, out_st, out_node = np.empty(n_out, np.int64), np.empty((n_out, 10)), np.empty(n_out, np.int64)
-    out_bias, out_pdiag = np.empty((n_out, max(nb, 1))), np.empty((n_out, n))  # out_node: last node ≤ sample
+    out_idx, out_node = np.empty(n_out, np.int64), np.empty(n_out, np.int64)  # out_node: last node ≤ sample
+    out_st, out_bias, out_pdiag = output_rows(out.rows, cy.k0 == 0 and cy.last, n_out, max(nb, 1), n)
     o = (out_idx, out_st, out_bias, out_pdiag, out_node)
     node_idx = np.empty(max_nodes, np.int64)
     ns = max_nodes if out.smooth else 1
@@ -755,10 +756,7 @@ def carry_estimates(st, bias, Phi, opn, nstate):
     open-loop estimator x̂⁻ = Φ x̂⁺, x̂⁺ = x̂⁻ + K ν, exactly, and the RTS pass sees a prior of zero."""
     if opn.shape[0] == 0:
         return
-    xo = np.zeros(nstate)
-    for i in opn:
-        xo[i] = bias[i - NAV]
-    feedback(st, bias, Phi @ xo - xo, nstate)
+    feedback(st, bias, open_loop_change(Phi, bias, opn, nstate), nstate)
 
 
 @njit(cache=True, depends=MODELS_KEY)

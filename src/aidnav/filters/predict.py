@@ -33,7 +33,7 @@ from .kalman import (
     predict_split,
     predict_tail,
 )
-from .layout import L_CLK
+from .layout import L_CLK, NAV
 
 
 @njit(cache=True)
@@ -212,6 +212,23 @@ def discretize_head(Fi, Gi, Fh, Gh, qh, T, Phi, Qd, sp, dims):
             Qd[ia, hd[b]] = Qdd[a, b]
         for e in range(nc):
             Phi[ia, hd[d + e]] = Phdc[a, e]
+
+
+@njit(cache=True)
+def open_loop_change(Phi, bias, opn, n):
+    """Φ x̂ − x̂ (n,) for the estimate x̂ that is zero but at the open-loop states ``opn`` (indices ≥ 9, their
+    estimates ``bias[i − 9]``), for :func:`.engine.carry_estimates` at each node: the products over those
+    columns of Φ only, no product with the zeros and no allocation but the result (issue 40). Equal to
+    the matrix product to rounding, exactly where a row has one open column (tight coupling's range errors:
+    the diagonal tail)."""
+    dx = np.zeros(n)
+    for i in opn:
+        xi = bias[i - NAV]
+        for j in range(n):
+            dx[j] += Phi[j, i] * xi
+    for i in opn:
+        dx[i] -= bias[i - NAV]
+    return dx
 
 
 @njit(cache=True)

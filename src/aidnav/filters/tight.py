@@ -78,6 +78,7 @@ from .layout import L_CLK, L_ISB, L_N, L_NINS, L_RERR, L_SIZE, L_TDCP
 from .loose import LooseResult, bridge_gaps
 from .loose import to_trajectory as nav_trajectory
 from .measurements import epoch as ep
+from .output_rows import whole_run_rows
 from .prior import given_initial_state, initial_covariance, levelled_tilt_covariance, process_noise
 from .run_log import log_dict
 from .smoother import rts, smooth_outputs
@@ -423,13 +424,15 @@ def _records(t_obs, rows, velocity_fixes, S):
     ok = np.isfinite(tv) & np.isfinite(vv).all(axis=1) & np.isfinite(sv).all(axis=1)
     tv, vv, sv = tv[ok], vv[ok], sv[ok]
     K = len(tv)
-    vrows = np.full((K, rows.shape[1]), np.nan)
-    vrows[:, 0:3], vrows[:, 3:6] = vv, sv
     t_all = np.concatenate([np.asarray(t_obs, float), tv])
     order = np.argsort(t_all, kind="stable")
     model = np.concatenate([np.full(M, ms.M_PR, np.int64), np.full(K, ms.M_GNSS_VEL, np.int64)])[order]
-    rec = Records(t_all[order], model, np.vstack([rows, vrows])[order], np.ones(M + K, np.bool_),
-                  ep.epoch_out(M + K, S))
+    at = np.empty(M + K, np.int64)  # the row of each record in time order (one array written once: the
+    at[order] = np.arange(M + K)  # stacked and reordered copies of the rows were 3 more, ~9 MB on the walk)
+    data = np.full((M + K, rows.shape[1]), np.nan)
+    data[at[:M]] = rows
+    data[at[M:], 0:3], data[at[M:], 3:6] = vv, sv
+    rec = Records(t_all[order], model, data, np.ones(M + K, np.bool_), ep.epoch_out(M + K, S))
     return rec, np.flatnonzero(model == ms.M_PR)
 
 
@@ -521,7 +524,9 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     if cov_times is not None:
         cov_idx = np.searchsorted(imu_in.t, np.sort(np.atleast_1d(np.asarray(cov_times, float))) - 1e-6)
         cov_idx = cov_idx[cov_idx < len(imu_in.t)].astype(np.int64)
-    r = run_filter(imu_in, rec, mod, proc, init, Output(out_every, bool(smooth), cov_idx))
+    n_out = -(-len(imu_in.t) // out_every)  # the outputs into one block the kernel fills (.output_rows)
+    rows = whole_run_rows(n_out, max(n - 9, 1), n)
+    r = run_filter(imu_in, rec, mod, proc, init, Output(out_every, bool(smooth), cov_idx, rows))
     ge = rec.grp._replace(**{k: getattr(rec.grp, k)[sel] for k in rec.grp._fields if k != "flags"})
     if gate > 0:
         _gate_events(ge, gate, obs.names, events)

@@ -45,7 +45,7 @@ def _rv2q(x, y, z):
     return c, s * x, s * y, s * z
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")  # per sample: inlined (a call passed 5 arrays, 10 refcount ops: issue 40)
 def strapdown_step(st, dth, dvb, dth_prev, dv_prev, dt):
     """Advance the state ``st`` (length-10 array, updated in place) by one IMU interval.
 

@@ -35,6 +35,7 @@ import numpy as np
 
 from aidnav.io.errors import DataError
 from aidnav.io.gpstime import SECONDS_PER_WEEK
+from aidnav.io.sfrbx import ubx_checksum
 from aidnav.nav.gnss_sat import C_LIGHT, FREQ_L1, sat_id
 from aidnav.nav.gnss_types import GnssObservations
 
@@ -84,7 +85,7 @@ def read_rawx(path) -> RawxMeasurements:
     while 0 <= i <= len(data) - 8:
         cls, mid, n = data[i + 2], data[i + 3], struct.unpack_from("<H", data, i + 4)[0]
         end = i + 6 + n
-        if end + 2 > len(data) or _checksum(data[i + 2:end]) != (data[end], data[end + 1]):
+        if end + 2 > len(data) or ubx_checksum(data[i + 2:end]) != (data[end], data[end + 1]):
             i = data.find(_SYNC, i + 1)
             continue
         if (cls, mid) == (0x02, 0x15) and n >= 16:
@@ -105,14 +106,6 @@ def read_rawx(path) -> RawxMeasurements:
     return RawxMeasurements(week0, a[:, 0], letter, sv, b[:, 2], b[:, 4], b[:, 5].astype(float), a[:, 1],
                             a[:, 2], a[:, 3], 0.01 * 2.0 ** (b[:, 6] & 15), 0.004 * (b[:, 7] & 15),
                             0.002 * 2.0 ** (b[:, 8] & 15), b[:, 9])
-
-
-def _checksum(body: bytes) -> tuple[int, int]:
-    a = b = 0
-    for x in body:
-        a = (a + x) & 0xFF
-        b = (b + a) & 0xFF
-    return a, b
 
 
 @dataclass

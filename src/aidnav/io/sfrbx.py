@@ -44,7 +44,8 @@ class SfrbxLog:
         return [(sv, sig, w) for g, sv, sig, w in self.frames if g == gnss_id]
 
 
-def _checksum(body: bytes) -> tuple[int, int]:
+def ubx_checksum(body: bytes) -> tuple[int, int]:
+    """UBX's 8-bit Fletcher checksum (CK_A, CK_B) of a frame's class, id, length and payload."""
     a = b = 0
     for x in body:
         a = (a + x) & 0xFF
@@ -64,7 +65,7 @@ def read_sfrbx(path) -> SfrbxLog:
     while 0 <= i <= len(data) - 8:
         cls, mid, n = data[i + 2], data[i + 3], struct.unpack_from("<H", data, i + 4)[0]
         end = i + 6 + n
-        if end + 2 > len(data) or _checksum(data[i + 2:end]) != (data[end], data[end + 1]):
+        if end + 2 > len(data) or ubx_checksum(data[i + 2:end]) != (data[end], data[end + 1]):
             out.counts["UBX frames with a bad checksum (skipped)"] += 1
             i = data.find(_SYNC, i + 1)
             continue

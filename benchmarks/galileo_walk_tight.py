@@ -35,13 +35,16 @@ _DATA = Path(os.environ.get("AIDNAV_DATA", Path(__file__).resolve().parents[2] /
 WALK = _DATA / "rtklibexplorer_walk_0827"
 
 
-def run(ubx_nav: str, smooth: bool, clock_from_log: bool = True):
-    cfg = TightConfig() if clock_from_log else TightConfig(gnss={"clock_from_log": False})
+def walk_run(cfg, ubx_nav: str, smooth: bool, ubx_sources: str | None = None):
+    """``aidnav tight`` on the walk as the command reads it, scored: (ENU errors (N, 3) [m] at the reference
+    epochs in the run, the output rows ``j`` of those epochs, the interval velocity errors, the trajectory,
+    the result, the ephemeris sources)."""
+    kw = {} if ubx_sources is None else {"ubx_sources": ubx_sources}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FutureWarning)
         obs, eph, ev, src = read_observations_and_navigation(
             WALK / "rinex_converted" / "gnss_1730.obs", WALK / "rinex_converted" / "gnss_1730.nav",
-            cfg.gnss.systems, ubx_nav)
+            cfg.gnss.systems, ubx_nav, **kw)
     imu = read_imu_any(WALK / "imu_1730.csv")
     ref = read_pos(WALK / "gnss_1730_sf.pos", height_offset_m=-21.4)
     res, _ = process_tight(imu, obs, eph, cfg, events=ev, smooth=smooth)
@@ -50,10 +53,16 @@ def run(ubx_nav: str, smooth: bool, clock_from_log: bool = True):
     j = np.clip(np.searchsorted(tr.time, ref.time[sel]), 0, len(tr.time) - 1)
     d = np.column_stack(lla_difference_enu(tr.lat[j], tr.lon[j], tr.height[j], ref.lat[sel], ref.lon[sel],
                                            ref.height[sel]))
-    cover = np.mean(np.abs(d) <= 3 * tr.std_pos[j], axis=0)
-    sig = np.median(tr.std_pos[j], axis=0)
     iv = interval_velocity_errors(res.time, res.state[:, 3:6], ref.time, ref.lat, ref.lon, ref.height,
                                   use=ref.quality == 1)
+    return d, j, iv, tr, res, src
+
+
+def run(ubx_nav: str, smooth: bool, clock_from_log: bool = True):
+    cfg = TightConfig() if clock_from_log else TightConfig(gnss={"clock_from_log": False})
+    d, j, iv, tr, _, src = walk_run(cfg, ubx_nav, smooth)
+    cover = np.mean(np.abs(d) <= 3 * tr.std_pos[j], axis=0)
+    sig = np.median(tr.std_pos[j], axis=0)
     return d, (cover, sig), iv.rms_horizontal(), len(iv), src
 
 

@@ -23,21 +23,16 @@ from __future__ import annotations
 
 import os
 import warnings
-from pathlib import Path
 
 import numpy as np
+from galileo_walk_tight import WALK, walk_run  # the walk's tight run, scored as there (benchmarks/)
 
 from aidnav.analysis.velocity_reference import interval_velocity_errors, three_cornered_hat
-from aidnav.apps.process import read_imu_any
-from aidnav.apps.tight import process_tight
-from aidnav.filters.tight import TightConfig, to_trajectory
+from aidnav.filters.tight import TightConfig
 from aidnav.io.nav_sources import read_observations_and_navigation
 from aidnav.io.rinex import UBX_SOURCES, UBX_SOURCES_ALL
 from aidnav.io.rtklib import read_pos
-from aidnav.nav.earth import lla_difference_enu
 
-_DATA = Path(os.environ.get("AIDNAV_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"))
-WALK = _DATA / "rtklibexplorer_walk_0827"
 CASES = {  # name: (ubx_nav, ubx_sources, use_phase)
     "default": ("auto", UBX_SOURCES, True),
     "+ rawx (BeiDou B1C)": ("auto", UBX_SOURCES_ALL, True),
@@ -53,21 +48,7 @@ def run(ubx_nav: str, sources: str, use_phase: bool, smooth: bool):
     cfg = TightConfig()
     if not use_phase:
         cfg = cfg.model_copy(update={"gnss": cfg.gnss.model_copy(update={"use_phase": False})})
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", FutureWarning)
-        obs, eph, ev, _ = read_observations_and_navigation(
-            WALK / "rinex_converted" / "gnss_1730.obs", WALK / "rinex_converted" / "gnss_1730.nav",
-            cfg.gnss.systems, ubx_nav, ubx_sources=sources)
-    imu = read_imu_any(WALK / "imu_1730.csv")
-    ref = read_pos(WALK / "gnss_1730_sf.pos", height_offset_m=-21.4)
-    res, _ = process_tight(imu, obs, eph, cfg, events=ev, smooth=smooth)
-    tr = to_trajectory(res)
-    sel = (ref.time >= tr.time[0]) & (ref.time <= tr.time[-1])
-    j = np.clip(np.searchsorted(tr.time, ref.time[sel]), 0, len(tr.time) - 1)
-    d = np.column_stack(lla_difference_enu(tr.lat[j], tr.lon[j], tr.height[j], ref.lat[sel], ref.lon[sel],
-                                           ref.height[sel]))
-    iv = interval_velocity_errors(res.time, res.state[:, 3:6], ref.time, ref.lat, ref.lon, ref.height,
-                                  use=ref.quality == 1)
+    d, j, iv, tr, res, _ = walk_run(cfg, ubx_nav, smooth, ubx_sources=sources)
     mid = 0.5 * (iv.t_start + iv.t_end)
     sv = np.column_stack([np.interp(mid, tr.time, tr.std_vel[:, i]) for i in range(3)])
     return d, tr.std_pos[j], iv, sv, res

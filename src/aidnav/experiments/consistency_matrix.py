@@ -59,7 +59,8 @@ from aidnav.sim.scenario import parse_scenario
 __all__ = ["AXES", "COVERAGE_TARGET", "RATIO_TARGET", "SEED_COVERAGE_BOUND", "GM_TAU_S",
            "HEADING_UNKNOWN_RAD", "TILT_UNKNOWN_RAD", "Condition", "CellResult", "CONDITIONS",
            "configurations", "condition", "simulate_condition", "config_for", "run_cell", "run_matrix",
-           "flags", "format_matrix", "matrix_page", "variant", "add_gauss_markov"]
+           "SeedRun", "aggregate",
+           "flags", "format_matrix", "matrix_table", "matrix_page", "variant", "add_gauss_markov"]
 
 AXES = ("E", "N", "U", "roll", "pitch", "heading")
 COVERAGE_TARGET = 0.95  #: the issue's acceptance: ≥ 95 % of the epochs within 3σ on every axis
@@ -256,10 +257,28 @@ def config_for(name: str, cond: Condition, run: SimRun, sensor_model: bool = Tru
 
 
 @dataclass
+class SeedRun:
+    """One seed of a cell at its evaluation epochs: ``time`` (K,) [s from the run's start], ``err`` and
+    ``sigma`` (K, 6) in :data:`AXES` order [m, rad] (error = estimate − truth), ``nees`` (L,) the 9
+    navigation states' NEES per dof at the covariance epochs ``nees_time`` (L,), ``nees_att`` (L,) the
+    attitude error's (φ, 3 dof) NEES there (not divided)."""
+
+    seed: int
+    time: np.ndarray
+    err: np.ndarray
+    sigma: np.ndarray
+    nees: np.ndarray
+    nees_time: np.ndarray
+    nees_att: np.ndarray
+
+
+@dataclass
 class CellResult:
     """Figures of one cell (module doc): per-axis ``coverage`` and ``ratio`` (:data:`AXES` order),
     ``nees`` (mean / 9), ``epochs`` evaluated over ``seeds`` runs, ``failed`` runs (exceptions, with
-    their messages in ``errors``) and the per-seed coverage of the worst axis."""
+    their messages in ``errors``), the per-seed coverage of the worst axis and each seed's
+    :class:`SeedRun` (``runs``: what the seed-level statistics of :mod:`aidnav.analysis.seed_consistency`
+    and a block of the seeds, :func:`aggregate`, are computed from)."""
 
     condition: str
     config: str
@@ -271,6 +290,7 @@ class CellResult:
     failed: int = 0
     errors: list = field(default_factory=list)
     per_seed_min: list = field(default_factory=list)
+    runs: list = field(default_factory=list, repr=False)
 
     @property
     def ok(self) -> bool:
@@ -301,7 +321,7 @@ def _truth_at(truth: Trajectory, t: np.ndarray) -> Trajectory:
 
 
 def _loose_seed(cond: Condition, config: str, seed: int, sensor_model: bool):
-    """(errors, σ, NEES) of one loose seed."""
+    """The :class:`SeedRun` of one loose seed."""
     run = simulate_condition(cond, seed)
     cfg = config_for(config, cond, run, sensor_model)
     if config == "none":  # what `aidnav process` does with no option: the NHC decided from the log
@@ -331,9 +351,9 @@ def _output_at(traj: Trajectory, ev: np.ndarray, max_dt: float) -> Trajectory:
                       sub(traj.std_pos), sub(traj.std_vel), sub(traj.std_att))
 
 
-def _evaluate(res, run: SimRun):
-    """(errors (K, 6), σ (K, 6), NEES (K,)) of one run at the evaluation epochs (a loose or a tight
-    result: each through its own trajectory conversion)."""
+def _evaluate(res, run: SimRun) -> SeedRun:
+    """The :class:`SeedRun` of one run at the evaluation epochs (a loose or a tight result: each through
+    its own trajectory conversion)."""
     if hasattr(res, "clock"):
         from aidnav.filters.tight import to_trajectory as tight_trajectory  # lazy: tight cells only
 
@@ -345,14 +365,15 @@ def _evaluate(res, run: SimRun):
     err = trajectory_errors(est, _truth_at(run.truth, est.time), max_dt=0.0)
     e = np.hstack([err.pos, err.att])
     s = np.hstack([err.std_pos, err.std_att])
-    ne = np.full(0, np.nan)
+    ne, ne_att, t_ne = np.full(0, np.nan), np.full(0, np.nan), np.full(0, np.nan)
     if res.cov is not None and len(res.cov_time):
         idx, keep = np.unique(np.searchsorted(res.time, res.cov_time), return_index=True)
         ok = idx < len(res.time)
         idx, cov = idx[ok], res.cov[keep[ok]]
         x = ins_error_state(res, _truth_at(run.truth, res.time[idx]), None, idx)[:, :9]
         ne = nees(x, cov[:, :9, :9]) / 9.0
-    return e, s, ne
+        ne_att, t_ne = nees(x[:, :3], cov[:, :3, :3]), res.time[idx]
+    return SeedRun(run.seed, est.time, e, s, ne, t_ne, ne_att)
 
 
 TIGHT_SOW = 345600.0  #: GPS seconds of week at the tight cells' start (the sky of the nominal constellation)
@@ -400,7 +421,7 @@ def _run_tight_cell(cond: Condition, config: str, run: SimRun, obs, eph, sensor_
 
 
 def _tight_seed(cond: Condition, config: str, seed: int, sensor_model: bool):
-    """(errors, σ, NEES) of one tight seed (:func:`_evaluate` on the GPS-shifted result)."""
+    """The :class:`SeedRun` of one tight seed (:func:`_evaluate` on the GPS-shifted result)."""
     run, obs, eph = simulate_tight(cond, seed)
     cov_t = np.arange(run.truth.time[0], run.truth.time[-1], EVAL_DT_S) - 1e-6 + TIGHT_SOW
     res = _run_tight_cell(cond, config, run, obs, eph, sensor_model, cov_t)
@@ -410,25 +431,33 @@ def _tight_seed(cond: Condition, config: str, seed: int, sensor_model: bool):
 
 def run_cell(cond: Condition, config: str, seeds, sensor_model: bool = True) -> CellResult:
     """Run the cell ``cond`` × ``config`` over ``seeds`` (module doc)."""
-    es, ss, ns, per, errors = [], [], [], [], []
+    runs, errors = [], []
     for seed in seeds:
         try:
             if cond.coupling == "tight":
-                e, s, ne = _tight_seed(cond, config, seed, sensor_model)
+                r = _tight_seed(cond, config, seed, sensor_model)
             else:
-                e, s, ne = _loose_seed(cond, config, seed, sensor_model)
+                r = _loose_seed(cond, config, seed, sensor_model)
         except Exception as ex:  # a diverged or refused run is a defect of the cell, reported as such
             errors.append(f"seed {seed}: {type(ex).__name__}: {ex}")
             continue
-        e[:, 3:] = (e[:, 3:] + np.pi) % (2 * np.pi) - np.pi
-        es.append(e)
-        ss.append(s)
-        ns.append(ne)
-        per.append(float(np.min(np.mean(np.abs(e) <= 3.0 * s, axis=0))))
-    if not es:
+        r.err[:, 3:] = (r.err[:, 3:] + np.pi) % (2 * np.pi) - np.pi
+        runs.append(r)
+    return aggregate(cond.name, config, runs, len(seeds), errors)
+
+
+def aggregate(condition: str, config: str, runs: list[SeedRun], n_seeds: int | None = None,
+              errors: list | None = None) -> CellResult:
+    """The cell's figures (module doc) from its seeds' ``runs`` (the attitude errors already wrapped to
+    ±π); ``n_seeds`` the seeds asked for (default: ``len(runs)``), ``errors`` the failed ones' messages.
+    A block of a cell's seeds is ``aggregate(name, config, runs[i:j])``: the cell those seeds alone give."""
+    errors = list(errors or [])
+    n_seeds = len(runs) + len(errors) if n_seeds is None else n_seeds
+    if not runs:
         nan6 = np.full(6, np.nan)
-        return CellResult(cond.name, config, nan6, nan6, np.nan, 0, len(seeds), len(errors), errors)
-    e, s = np.vstack(es), np.vstack(ss)
+        return CellResult(condition, config, nan6, nan6, np.nan, 0, n_seeds, len(errors), errors)
+    per = [float(np.min(np.mean(np.abs(r.err) <= 3.0 * r.sigma, axis=0))) for r in runs]
+    e, s = np.vstack([r.err for r in runs]), np.vstack([r.sigma for r in runs])
     good = np.all(np.isfinite(e) & np.isfinite(s), axis=1)
     e, s = e[good], s[good]
     cov = np.mean(np.abs(e) <= 3.0 * s, axis=0)
@@ -437,10 +466,10 @@ def run_cell(cond: Condition, config: str, seeds, sensor_model: bool = True) -> 
         known = s[:, a] < bound  # the attitude ratios: epochs where the filter claims that angle
         if np.any(known):
             ratio[a] = np.sqrt(np.mean(e[known, a] ** 2)) / np.sqrt(np.mean(s[known, a] ** 2))
-    n_all = np.concatenate(ns) if ns else np.full(0, np.nan)
+    n_all = np.concatenate([r.nees for r in runs])
     n_mean = float(np.nanmean(n_all)) if np.any(np.isfinite(n_all)) else np.nan
-    return CellResult(cond.name, config, cov, ratio, n_mean, int(len(e)), len(seeds), len(errors), errors,
-                      per)
+    return CellResult(condition, config, cov, ratio, n_mean, int(len(e)), n_seeds, len(errors), errors,
+                      per, list(runs))
 
 
 def run_matrix(conditions=None, configs=None, seeds=range(10), sensor_model: bool = True,
@@ -475,8 +504,9 @@ def _cell_html(v, bad: bool, fmt: str):
     return (fmt.format(v), "bad" if bad else "good")
 
 
-def matrix_page(cells: list[CellResult], title: str, notes: list[str]) -> str:
-    """A self-contained HTML page of the matrix (:mod:`aidnav.report.html`)."""
+def matrix_table(cells: list[CellResult]) -> str:
+    """The matrix as an HTML table (:mod:`aidnav.report.html`): coverage and ratio per axis, the cells
+    below the targets marked."""
     header = ["condition", "config"] + [f"cov {a} %" for a in AXES] + [f"ratio {a}" for a in AXES] + \
         ["NEES/9", "epochs", "failed"]
     rows = []
@@ -485,10 +515,16 @@ def matrix_page(cells: list[CellResult], title: str, notes: list[str]) -> str:
                     + [_cell_html(100 * v, not v >= COVERAGE_TARGET, "{:.1f}") for v in c.coverage]
                     + [_cell_html(v, not v >= RATIO_TARGET, "{:.2f}") for v in c.ratio]
                     + [H.fmt(c.nees), c.epochs, c.failed])
+    return H.table(header, rows)
+
+
+def matrix_page(cells: list[CellResult], title: str, notes: list[str], extra: list[str] | None = None) -> str:
+    """A self-contained HTML page of the matrix (:mod:`aidnav.report.html`); ``extra``: more HTML parts
+    after the matrix (the seed-level statistics, :mod:`aidnav.experiments.consistency_seeds`)."""
     conds = [[c.name, c.grade, f"{c.rate_hz:g} Hz" + ("" if c.velocity else ", position only"),
               "correlated" if c.correlated else "white", c.note] for c in CONDITIONS]
     parts = [f"<h1>{title}</h1>", "".join(f"<p class='note'>{n}</p>" for n in notes),
-             H.table(header, rows), "<h2>Conditions</h2>",
+             matrix_table(cells), *(extra or []), "<h2>Conditions</h2>",
              H.table(["condition", "IMU grade", "GNSS", "GNSS errors", "note"], conds)]
     return H.page(title, parts)
 

@@ -1,0 +1,160 @@
+"""Seed-level consistency statistics: how far a coverage figure over a few Monte-Carlo seeds can decide
+whether a filter's σ is honest, when the error is dominated by a few random constants per seed.
+
+Setting. A run r of a filter gives, at its epochs t, errors e_r(t) and the σ_r(t) it claims; its
+normalised error z_r(t) = e_r(t)/σ_r(t) is N(0, 1) at every epoch for an honest Gaussian σ. The 3σ
+*coverage* of a block of R seeds is the fraction of all their epochs with |z| ≤ 3; its expectation is
+1 − p₃, p₃ = 2Φ(−3) = 0.0027, but its spread depends on how z is correlated in time. Where the error is
+made of constants drawn once per seed (sensor biases, misalignments), z_r(t) barely changes within a
+run and a seed is wholly inside or wholly outside 3σ: the number of seeds out is Binomial(R, p₃)
+(:func:`constant_block_failure`); where z decorrelates within a run the coverage concentrates on
+1 − p₃. Between the two, z is modelled as a stationary unit first-order Gauss–Markov process of
+correlation time τ (:func:`correlation_time` estimates it from the runs' own z, pooled;
+:func:`honest_block_failure` simulates the block's coverage under it).
+
+Seed-level tests at a fixed epoch (independent across seeds, so the χ² and KS tests are exact, unlike
+a pooled test over the correlated epochs of each run): the NEES of an n-dof error state ~ χ²(n) per
+seed, so the sum over R seeds ~ χ²(R·n) (:func:`chi2_sum`); the z of one axis ~ N(0, 1)
+(:func:`ks_normal`). Bar-Shalom, Li & Kirubarajan, *Estimation with Applications to Tracking and
+Navigation*, §5.4.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["P3", "coverage", "values_at", "chi2_sum", "ks_normal", "correlation_time",
+           "constant_block_failure", "honest_block_failure", "resampled_block_failure", "histogram"]
+
+P3 = 0.0026997960632601866  #: P(|N(0, 1)| > 3) = 2Φ(−3)
+
+
+def coverage(err, sigma, k: float = 3.0) -> np.ndarray:
+    """Per column the fraction of rows with |err| ≤ k·sigma, over the rows where both are finite in every
+    column (the pooled coverage of the stacked runs of a block)."""
+    e, s = np.atleast_2d(np.asarray(err, float)), np.atleast_2d(np.asarray(sigma, float))
+    good = np.all(np.isfinite(e) & np.isfinite(s), axis=1)
+    return np.mean(np.abs(e[good]) <= k * s[good], axis=0)
+
+
+def values_at(times: list, values: list, t: float, max_dt: float = 1.0) -> np.ndarray:
+    """Per run the value at the epoch nearest ``t`` (``times[r]`` (K_r,), ``values[r]`` (K_r, ...));
+    NaN where the nearest epoch is more than ``max_dt`` away. Returns (R, ...)."""
+    out = []
+    for tt, v in zip(times, values, strict=True):
+        tt, v = np.asarray(tt, float), np.asarray(v, float)
+        if len(tt) == 0:
+            out.append(np.full(v.shape[1:], np.nan))
+            continue
+        i = int(np.argmin(np.abs(tt - t)))
+        out.append(v[i] if abs(tt[i] - t) <= max_dt else np.full(v.shape[1:], np.nan))
+    return np.asarray(out, float)
+
+
+def chi2_sum(values, dof: int) -> dict:
+    """Seed-level χ² test of per-seed quadratic forms ``values`` (each ~ χ²(dof) for an honest filter,
+    independent across seeds; NaN ignored): the mean per dof, and the tail probabilities of their sum
+    under χ²(R·dof): ``p_upper`` = P(Σ ≥ observed) (small: over-confident σ), ``p_lower`` = P(Σ ≤
+    observed) (small: σ too large)."""
+    from scipy.stats import chi2  # lazy: scipy only where the statistics are asked for
+
+    v = np.asarray(values, float)
+    v = v[np.isfinite(v)]
+    n = len(v) * int(dof)
+    if n == 0:
+        return {"n": 0, "mean_per_dof": np.nan, "p_upper": np.nan, "p_lower": np.nan}
+    tot = float(v.sum())
+    return {"n": len(v), "mean_per_dof": tot / n, "p_upper": float(chi2.sf(tot, n)),
+            "p_lower": float(chi2.cdf(tot, n))}
+
+
+def ks_normal(z) -> tuple[float, float]:
+    """One-sample Kolmogorov–Smirnov test of ``z`` (NaN ignored) against N(0, 1): (statistic, p)."""
+    from scipy.stats import kstest  # lazy: scipy only where the statistics are asked for
+
+    z = np.asarray(z, float)
+    z = z[np.isfinite(z)]
+    if len(z) == 0:
+        return np.nan, np.nan
+    r = kstest(z, "norm")
+    return float(r.statistic), float(r.pvalue)
+
+
+def correlation_time(z_runs: list, dt: float, max_lag: int | None = None) -> float:
+    """The correlation time [s] of normalised errors ``z_runs`` (one (K_r,) series per run, epochs ``dt``
+    apart; NaN allowed), pooled over the runs and *not* demeaned per run (a constant per seed is the
+    correlation sought): ρ(k) = mean_{r,t} z_r(t) z_r(t+k) / mean z², τ = dt·(Σ_{k≥0} ρ(k) − ½), the sum
+    up to the first lag with ρ ≤ 0 or ``max_lag`` (default half the longest run). For a first-order
+    Gauss–Markov series Σ_k e^(−k·dt/τ) = 1/(1 − e^(−dt/τ)) ≈ τ/dt + ½, so this returns τ; a series
+    constant over its run returns about half its length × dt (the estimate is capped by the runs)."""
+    zs = [np.asarray(z, float) for z in z_runs if len(z)]
+    if not zs:
+        return np.nan
+    kmax = max(len(z) for z in zs) // 2 if max_lag is None else int(max_lag)
+    z0 = np.concatenate(zs)
+    var = np.nanmean(z0 * z0)
+    if not var > 0:
+        return np.nan
+    total = 0.5
+    for k in range(1, kmax + 1):
+        prods = [z[:-k] * z[k:] for z in zs if len(z) > k]
+        if not prods:
+            break
+        p = np.concatenate(prods)
+        rho = np.nanmean(p) / var if np.any(np.isfinite(p)) else np.nan
+        if not rho > 0:
+            break
+        total += rho
+    return float(dt * total)
+
+
+def constant_block_failure(n_seeds: int, target: float = 0.95, p_out: float = P3) -> float:
+    """P(a block of ``n_seeds`` fails ``target``) when each seed is wholly inside or wholly outside (with
+    probability ``p_out``) and the seeds weigh equally: the block's coverage is 1 − J/n, J ~ Binomial(n,
+    p_out), so it fails when J > n(1 − target) (the τ → ∞ limit of :func:`honest_block_failure`)."""
+    from scipy.stats import binom  # lazy: scipy only where the statistics are asked for
+
+    j_max = int(np.floor(n_seeds * (1.0 - target) + 1e-9))  # the most seeds out that still pass
+    return float(binom.sf(j_max, n_seeds, p_out))
+
+
+def honest_block_failure(n_seeds: int, n_epochs: int, tau_s: float, dt: float = 1.0, target: float = 0.95,
+                         k: float = 3.0, n_sim: int = 20000, rng=None) -> float:
+    """P(the k·σ coverage of a block of ``n_seeds`` runs of ``n_epochs`` epochs is below ``target``) for an
+    honest filter whose normalised error is, in each run, a stationary unit first-order Gauss–Markov
+    series of correlation time ``tau_s`` sampled every ``dt`` (independent runs), by Monte Carlo over
+    ``n_sim`` blocks (``rng``: a numpy Generator or seed; its standard error √(P(1 − P)/n_sim))."""
+    rng = np.random.default_rng(rng)
+    a = float(np.exp(-dt / tau_s)) if tau_s > 0 else 0.0
+    b = float(np.sqrt(1.0 - a * a))
+    out = np.zeros(n_sim)
+    chunk = max(1, 200000 // max(1, n_seeds))
+    for lo in range(0, n_sim, chunk):
+        m = min(chunk, n_sim - lo)
+        x = rng.standard_normal((m, n_seeds))
+        inside = (np.abs(x) <= k).sum(axis=1).astype(float)
+        for _ in range(n_epochs - 1):
+            x = a * x + b * rng.standard_normal((m, n_seeds))
+            inside += (np.abs(x) <= k).sum(axis=1)
+        out[lo:lo + m] = inside / (n_seeds * n_epochs)
+    return float(np.mean(out < target))
+
+
+def resampled_block_failure(covered, epochs, block: int, target: float = 0.95, n_draw: int = 20000,
+                            rng=None) -> float:
+    """The fraction of blocks of ``block`` seeds drawn without replacement from the observed seeds (their
+    ``covered`` epoch counts and ``epochs``) whose pooled coverage is below ``target``: how often a block of
+    that size of *this* filter fails, from its own seeds (no model)."""
+    rng = np.random.default_rng(rng)
+    c, n = np.asarray(covered, float), np.asarray(epochs, float)
+    if block > len(c):
+        raise ValueError(f"block {block} > {len(c)} seeds")
+    idx = np.argsort(rng.random((n_draw, len(c))), axis=1)[:, :block]
+    return float(np.mean(c[idx].sum(axis=1) / n[idx].sum(axis=1) < target))
+
+
+def histogram(values, edges=(0.5, 0.9, 0.95, 0.99)) -> list[int]:
+    """Counts of ``values`` in [−∞, e₀), [e₀, e₁), …, [e_last, ∞) (the per-seed coverages' distribution)."""
+    v = np.asarray(values, float)
+    return [int(x) for x in np.bincount(np.searchsorted(np.asarray(edges, float), v, side="right"),
+                                         minlength=len(edges) + 1)]

@@ -1,0 +1,151 @@
+"""Seed-level statistics of the consistency matrix's cells (issue 35, session 16): can a cell's 10-seed
+coverage decide whether the filter's σ is honest?
+
+In the tight rows (:mod:`aidnav.experiments.consistency_matrix`) the attitude error is made of a handful
+of constants drawn once per seed (accelerometer biases, gyro misalignments), so a seed is nearly wholly
+inside or wholly outside 3σ and one 3σ draw among ~12 constants × 10 seeds fails a cell. For a cell run
+over more seeds (``benchmarks/consistency_matrix.py --tight-seeds 40``) :func:`seed_statistics` gives:
+
+* the pooled coverage over all its seeds, and each consecutive block of ``block`` seeds' (the default
+  10-seed figure is the first block's, :func:`aggregate` of those seeds);
+* at fixed epochs (:func:`fixed_times`: the end of the first turn, where the turn has split the
+  accelerometer bias from the tilt as far as it can, and the end of the run), per seed: the NEES of the 9
+  navigation states (χ²₉) and of the attitude error φ (χ²₃), and the z = error/σ of roll and pitch; their
+  sums over the seeds against χ²(R·n) (:func:`aidnav.analysis.seed_consistency.chi2_sum`: independent across
+  seeds, so exact, unlike a test over each run's correlated epochs) and the z's KS test against N(0, 1);
+* the per-seed worst-axis coverage distribution;
+* for roll and pitch: the correlation time τ of z within a run (pooled), the probability that an honest
+  filter with that τ fails a block (:func:`~aidnav.analysis.seed_consistency.honest_block_failure`) and in
+  the limit τ → ∞ (:func:`~aidnav.analysis.seed_consistency.constant_block_failure`: 2.7 % per axis for
+  10 seeds), against the failure rate of blocks resampled from the cell's own seeds.
+"""
+
+from __future__ import annotations
+
+import html
+
+import numpy as np
+
+from aidnav.analysis import seed_consistency as sc
+from aidnav.report import html as H
+
+from .consistency_matrix import AXES, COVERAGE_TARGET, EVAL_DT_S, CellResult, Condition, aggregate
+
+__all__ = ["fixed_times", "seed_statistics", "format_seed_statistics", "seed_statistics_html"]
+
+TILT = (3, 4)  #: roll, pitch in AXES
+
+
+def fixed_times(cond: Condition) -> dict[str, float]:
+    """The fixed epochs [s from the start] of the seed-level tests: the end of the condition's first turn
+    segment (absent without one) and the end of the run (the last evaluation epoch before its end)."""
+    t, out = 0.0, {}
+    for seg in cond.segments:
+        t += float(seg.get("duration_s", 0.0))
+        if seg.get("type") == "turn" and "first turn" not in out:
+            out["first turn"] = t
+    out["end"] = float(np.floor((t - 1e-6) / EVAL_DT_S) * EVAL_DT_S)
+    return out
+
+
+def _z(run):
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return run.err / run.sigma
+
+
+def seed_statistics(cell: CellResult, cond: Condition, block: int = 10, n_sim: int = 20000,
+                    rng=35) -> dict:
+    """The statistics of the module doc for ``cell`` (its ``runs``: the seeds that ran) of ``cond``."""
+    runs = cell.runs
+    out: dict = {"condition": cell.condition, "config": cell.config, "seeds": len(runs),
+                 "pooled": [float(x) for x in cell.coverage]}
+    blocks = [aggregate(cell.condition, cell.config, runs[i:i + block])
+              for i in range(0, len(runs) - block + 1, block)]
+    out["blocks"] = [dict(first=int(runs[i * block].seed), coverage=[float(x) for x in b.coverage],
+                          ok=bool(b.ok)) for i, b in enumerate(blocks)]
+    out["per_seed_min"] = [float(x) for x in cell.per_seed_min]
+    out["per_seed_hist"] = sc.histogram(cell.per_seed_min)
+    fixed = {}
+    for name, t in fixed_times(cond).items():
+        n9 = sc.values_at([r.nees_time for r in runs], [r.nees * 9.0 for r in runs], t)
+        na = sc.values_at([r.nees_time for r in runs], [r.nees_att for r in runs], t)
+        z = sc.values_at([r.time for r in runs], [_z(r) for r in runs], t)
+        fixed[name] = dict(t=t, nees9=sc.chi2_sum(n9, 9), nees_att=sc.chi2_sum(na, 3),
+                           tilt={AXES[a]: dict(chi2=sc.chi2_sum(z[:, a] ** 2, 1), ks=sc.ks_normal(z[:, a]),
+                                              worst=float(np.nanmax(np.abs(z[:, a]))) if len(z) else np.nan,
+                                              worst_seed=int(runs[int(np.nanargmax(np.abs(z[:, a])))].seed))
+                                 for a in TILT})
+    out["fixed"] = fixed
+    n_ep = int(np.median([len(r.time) for r in runs])) if runs else 0
+    tilt = {}
+    for a in TILT:
+        tau = sc.correlation_time([_z(r)[:, a] for r in runs], EVAL_DT_S)
+        covered = [np.sum(np.abs(r.err[:, a]) <= 3.0 * r.sigma[:, a]) for r in runs]
+        tilt[AXES[a]] = dict(
+            tau_s=tau,
+            p_honest=sc.honest_block_failure(block, n_ep, tau, EVAL_DT_S, COVERAGE_TARGET, n_sim=n_sim,
+                                             rng=rng),
+            p_constant=sc.constant_block_failure(block, COVERAGE_TARGET),
+            p_resampled=(sc.resampled_block_failure(covered, [len(r.time) for r in runs], block,
+                                                    COVERAGE_TARGET, n_sim, rng) if len(runs) >= block
+                         else np.nan))
+    out["tilt"] = tilt
+    return out
+
+
+def _p(x: float) -> str:
+    return "nan" if not np.isfinite(x) else (f"{x:.2g}" if x < 0.01 else f"{x:.2f}")
+
+
+def _rows(st: dict) -> list[list[str]]:
+    """The fields of one cell's statistics, in the order of :data:`HEADER`."""
+    f = st["fixed"]
+    first = f.get("first turn", f["end"])
+    blocks = " ".join(("ok" if b["ok"] else "FAIL") for b in st["blocks"])
+    tilt = st["tilt"]
+    return [[st["condition"], st["config"], str(st["seeds"]),
+             " ".join(f"{100 * st['pooled'][a]:.1f}" for a in TILT), blocks,
+             f"{_p(first['nees_att']['p_upper'])} / {_p(f['end']['nees_att']['p_upper'])}",
+             f"{_p(first['nees9']['p_upper'])} / {_p(f['end']['nees9']['p_upper'])}",
+             " ".join(f"{_p(first['tilt'][a]['ks'][1])}" for a in ("roll", "pitch")),
+             " ".join(f"{first['tilt'][a]['worst']:.1f}({first['tilt'][a]['worst_seed']})"
+                      for a in ("roll", "pitch")),
+             "/".join(str(c) for c in st["per_seed_hist"]),
+             " ".join(f"{tilt[a]['tau_s']:.0f}" for a in ("roll", "pitch")),
+             " ".join(f"{100 * tilt[a]['p_honest']:.1f}" for a in ("roll", "pitch")),
+             " ".join(f"{100 * tilt[a]['p_resampled']:.1f}" for a in ("roll", "pitch"))]]
+
+
+HEADER = ["condition", "config", "seeds", "pooled cov roll pitch %", "10-seed blocks",
+          "p NEES φ (turn / end)", "p NEES 9 (turn / end)", "KS p roll pitch (turn)",
+          "max |z| (seed) roll pitch", "worst-axis cov/seed <.5/.9/.95/.99/≥.99", "τ roll pitch [s]",
+          "P honest block fails roll pitch %", "P resampled block fails %"]
+
+
+def format_seed_statistics(stats: list[dict]) -> str:
+    """The statistics as text: one line per cell (fields of :data:`HEADER`, ' | '-separated)."""
+    if not stats:
+        return ""
+    st0 = stats[0]
+    lines = [f"seed-level statistics over {st0['seeds']} seeds; fixed epochs "
+             + ", ".join(f"{k} t={v['t']:.0f} s" for k, v in st0["fixed"].items())
+             + f"; an honest filter fails a 10-seed block in the limit tau -> inf with P = "
+             f"{100 * st0['tilt']['roll']['p_constant']:.1f} % per axis",
+             " | ".join(HEADER)]
+    for st in stats:
+        lines += [" | ".join(r) for r in _rows(st)]
+    return "\n".join(lines)
+
+
+def seed_statistics_html(stats: list[dict]) -> list[str]:
+    """The statistics as parts of the matrix page
+    (:func:`aidnav.experiments.consistency_matrix.matrix_page`)."""
+    if not stats:
+        return []
+    rows = [r for st in stats for r in _rows(st)]
+    head = html.escape(format_seed_statistics(stats).splitlines()[0])
+    return ["<h2>Seed-level statistics</h2>",
+            f"<p class='note'>{head}; p: the upper tail of the sum "
+            "over the seeds against χ²(R·n) (small: σ over-confident); τ: the correlation time of "
+            "error/σ within a run; P honest: a simulated honest filter with that τ; P resampled: blocks "
+            "drawn from these seeds.</p>", H.table(HEADER, rows)]

@@ -112,12 +112,14 @@ def main(argv=None):
         n_ok = sum(c.ok for c in pooled)
         print(f"pooled over {n_tight} seeds: {n_ok} of {len(pooled)} tight cells pass")
         stats = [cs.seed_statistics(c, cm.condition(c.condition), block=a.seeds) for c in pooled]
+        row = cs.row_statistics(pooled, stats)
         print()
         print(cs.format_seed_statistics(stats))
+        print(cs.format_row_statistics(row))
         extra = [f"<h2>Tight rows pooled over {n_tight} seeds</h2>",
                  f"<p class='note'>{n_ok} of {len(pooled)} tight cells pass pooled over {n_tight} seeds</p>",
                  cm.matrix_table(pooled)]
-        extra += cs.seed_statistics_html(stats)
+        extra += cs.seed_statistics_html(stats) + [f"<p class='note'>{cs.format_row_statistics(row)}</p>"]
     print(f"time: {wall:.0f} s wall, {cpu:.0f} s CPU; load average before {load0[0]:.2f}, after "
           f"{os.getloadavg()[0]:.2f} ({os.cpu_count()} CPUs)")
     notes = [f"{a.seeds} seeds per cell (from seed {a.first_seed}); "

@@ -125,3 +125,18 @@ def test_values_at_and_histogram():
     np.testing.assert_allclose(out[0], [7.0, 14.0])
     assert np.all(np.isnan(out[1])) and np.all(np.isnan(out[2]))  # nearest 4.0: 3.2 s away; empty run
     assert sc.histogram([0.1, 0.5, 0.92, 0.95, 0.999, 1.0]) == [1, 1, 1, 1, 2]
+
+
+def test_effective_tests_known_answers():
+    """Uncorrelated columns: M; copies of one column (and its negative): 1; two independent pairs of copies:
+    2 (within the sampling noise of the correlation estimate over 2000 rows); 1 − (1 − p)^n."""
+    rng = np.random.default_rng(9)
+    x = rng.standard_normal((2000, 4))
+    assert sc.effective_tests(x) == pytest.approx(4.0, abs=0.1)
+    a = x[:, :1]
+    assert sc.effective_tests(np.hstack([a, a, -a, 2 * a])) == pytest.approx(1.0, abs=1e-6)
+    pairs = np.hstack([x[:, :1], x[:, :1], x[:, 1:2], x[:, 1:2]])
+    assert sc.effective_tests(pairs) == pytest.approx(2.0, abs=0.1)
+    assert sc.effective_tests(np.hstack([x[:, :1], np.ones((2000, 1))])) == 1.0
+    assert sc.any_failure(0.0267, 1) == pytest.approx(0.0267)
+    assert sc.any_failure(0.5, 2) == pytest.approx(0.75)

@@ -66,3 +66,20 @@ def test_seed_statistics_known_answers():
     text = cs.format_seed_statistics([st])
     assert "FAIL ok ok ok" in text and "1/0/0/0/39" in text
     assert "Seed-level statistics" in "".join(cs.seed_statistics_html([st]))
+
+
+def test_row_statistics_counts_shared_draws_once():
+    """Two configurations of one row on the same seeds' draws (identical runs), roll and pitch drawn
+    independently and constant within a run: 8 z-tests (2 cells × 2 axes × 2 fixed epochs) are 2
+    independent ones (Galwey's M_eff, within the 40 seeds' sampling noise of a correlation: ±0.3); the block
+    holding the bad seed fails in both: 1 of 4 blocks; P(an honest block fails ≥ 1 cell) at τ → ∞:
+    1 − (1 − 0.0267)^M_eff."""
+    cond = cm.condition("tight 3 satellites")
+    a, b = _cell(), _cell()
+    stats = [cs.seed_statistics(c, cond, n_sim=2000) for c in (a, b)]
+    row = cs.row_statistics([a, b], stats)
+    assert row["tests"] == 8
+    assert row["m_eff"] == pytest.approx(2.0, abs=0.3)
+    assert (row["blocks"], row["blocks_failed"]) == (4, 1)
+    assert row["p_any_constant"] == pytest.approx(1 - (1 - sc.constant_block_failure(10)) ** row["m_eff"])
+    assert "1 of 4 blocks" in cs.format_row_statistics(row)

@@ -24,7 +24,8 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["P3", "coverage", "values_at", "chi2_sum", "ks_normal", "correlation_time",
-           "constant_block_failure", "honest_block_failure", "resampled_block_failure", "histogram"]
+           "constant_block_failure", "honest_block_failure", "resampled_block_failure", "histogram",
+           "effective_tests", "any_failure"]
 
 P3 = 0.0026997960632601866  #: P(|N(0, 1)| > 3) = 2Φ(−3)
 
@@ -158,3 +159,25 @@ def histogram(values, edges=(0.5, 0.9, 0.95, 0.99)) -> list[int]:
     v = np.asarray(values, float)
     return [int(x) for x in np.bincount(np.searchsorted(np.asarray(edges, float), v, side="right"),
                                          minlength=len(edges) + 1)]
+
+
+def effective_tests(samples) -> float:
+    """The effective number of independent tests among M correlated statistics (``samples`` (R, M): R
+    seeds' values of each, e.g. the z of roll and pitch in every cell of a row), Galwey (Genet. Epidemiol.
+    33, 2009): from the eigenvalues λ ≥ 0 of their correlation matrix, M_eff = (Σ√λ)² / Σλ. M uncorrelated
+    statistics give M, M copies of one give 1, k independent groups of copies give k. Columns constant or
+    with NaN are left out."""
+    x = np.asarray(samples, float)
+    x = x[:, np.all(np.isfinite(x), axis=0) & (np.nanstd(x, axis=0) > 0)]
+    if x.shape[1] == 0:
+        return 0.0
+    if x.shape[1] == 1:
+        return 1.0
+    lam = np.clip(np.linalg.eigvalsh(np.corrcoef(x, rowvar=False)), 0.0, None)
+    return float(np.sum(np.sqrt(lam)) ** 2 / np.sum(lam))
+
+
+def any_failure(p_each: float, n_tests: float) -> float:
+    """P(at least one of ``n_tests`` independent tests fails), each with probability ``p_each``:
+    1 − (1 − p)^n (n need not be whole: an effective number, :func:`effective_tests`)."""
+    return float(1.0 - (1.0 - p_each) ** n_tests)

@@ -31,7 +31,8 @@ from aidnav.report import html as H
 
 from .consistency_matrix import AXES, COVERAGE_TARGET, EVAL_DT_S, CellResult, Condition, aggregate
 
-__all__ = ["fixed_times", "seed_statistics", "format_seed_statistics", "seed_statistics_html"]
+__all__ = ["fixed_times", "seed_statistics", "row_statistics", "format_row_statistics",
+           "format_seed_statistics", "seed_statistics_html"]
 
 TILT = (3, 4)  #: roll, pitch in AXES
 
@@ -91,6 +92,40 @@ def seed_statistics(cell: CellResult, cond: Condition, block: int = 10, n_sim: i
                          else np.nan))
     out["tilt"] = tilt
     return out
+
+
+def row_statistics(cells: list[CellResult], stats: list[dict]) -> dict:
+    """Over several cells run on the same seeds (e.g. the tight rows): how many of their roll/pitch
+    tests are independent — the effective number (:func:`~aidnav.analysis.seed_consistency.effective_tests`)
+    of the per-seed z of roll and pitch at the fixed epochs over every cell (the configurations of a row
+    share the seed's draws) — and so the probability that an honest filter fails at least one cell of a
+    block (each test failing with the τ → ∞ bound, or with the median simulated P of :func:`seed_statistics`),
+    against the blocks observed to fail some cell."""
+    cols = []
+    for c, st in zip(cells, stats, strict=True):
+        for t in (v["t"] for v in st["fixed"].values()):
+            z = sc.values_at([r.time for r in c.runs], [_z(r) for r in c.runs], t)
+            cols += [z[:, a] for a in TILT]
+    n = min((len(x) for x in cols), default=0)
+    m_eff = sc.effective_tests(np.column_stack([x[:n] for x in cols])) if cols else np.nan
+    p_const = stats[0]["tilt"]["roll"]["p_constant"] if stats else np.nan
+    p_sim = float(np.median([st["tilt"][a]["p_honest"] for st in stats for a in ("roll", "pitch")])) \
+        if stats else np.nan
+    n_blocks = min((len(st["blocks"]) for st in stats), default=0)
+    failed = sum(any(not st["blocks"][i]["ok"] for st in stats) for i in range(n_blocks))
+    return dict(tests=len(cols), m_eff=m_eff, p_constant=p_const, p_honest=p_sim,
+                p_any_constant=sc.any_failure(p_const, m_eff), p_any_honest=sc.any_failure(p_sim, m_eff),
+                blocks=n_blocks, blocks_failed=failed)
+
+
+def format_row_statistics(row: dict) -> str:
+    """One line of :func:`row_statistics`."""
+    return (f"{row['tests']} roll/pitch tests (cells x axes x fixed epochs) ~ {row['m_eff']:.1f} "
+            f"independent: an honest filter fails >= 1 cell of a block with P = "
+            f"{100 * row['p_any_honest']:.0f} % (each {100 * row['p_honest']:.1f} %, the simulated median) "
+            f"to {100 * row['p_any_constant']:.0f} % "
+            f"(tau -> inf, each {100 * row['p_constant']:.1f} %); observed: {row['blocks_failed']} of "
+            f"{row['blocks']} blocks fail some cell")
 
 
 def _p(x: float) -> str:

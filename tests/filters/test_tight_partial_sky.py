@@ -216,14 +216,25 @@ def test_walk_no_satellites_3_sigma_coverage(walk_partial):
 
 def test_no_configuration_is_the_unknown_grade_imu_model_under_every_preset():
     """No imu section: the unknown-grade IMU model (Groves' consumer row, config.UNKNOWN_GRADE_IMU) with
-    its scale-factor and misalignment states (27 INS states); a preset keeps it (noise from the static
-    samples included); an imu section is the user's model (the field defaults under its keys)."""
-    from aidnav.filters.config import UNKNOWN_GRADE_IMU, ImuNoise
+    its scale-factor and misalignment states (27 INS states); the car preset keeps it (noise from the static
+    samples included); a preset without the NHC (pedestrian, aircraft, ship) takes the accelerometer
+    misalignment as states too (33; issue 35 session 16), and so does the car with the NHC turned off, while
+    a pedestrian given the NHC keeps 27; an imu section is the user's model (the field defaults under its
+    keys)."""
+    from aidnav.filters.config import UNKNOWN_GRADE_IMU, UNKNOWN_GRADE_IMU_ACCEL_MISALIGNMENT, ImuNoise
 
     unknown = ImuNoise(**UNKNOWN_GRADE_IMU)
+    free = ImuNoise(**UNKNOWN_GRADE_IMU_ACCEL_MISALIGNMENT)
     assert TightConfig().imu == unknown and TightConfig().nins == 27
-    for name in ("pedestrian", "car", "aircraft", "ship"):
-        assert apply_vehicle(TightConfig(), name).imu == unknown
+    assert apply_vehicle(TightConfig(), "car").imu == unknown
+    for name in ("pedestrian", "aircraft", "ship"):
+        c = apply_vehicle(TightConfig(), name)
+        assert c.imu == free and c.nins == 33
+    # the folded σ is the bias ⊕ m·g (the same row's 10 mg, 0.5 mg, 0.5°): unfolded, m·g leaves it
+    assert free.accel_bias_sigma_ug == pytest.approx(np.sqrt(unknown.accel_bias_sigma_ug ** 2
+                                                             - (np.radians(0.5) * 1e6) ** 2))
+    assert apply_vehicle(TightConfig(constraints={"nhc": False}), "car").imu == free
+    assert apply_vehicle(TightConfig(constraints={"nhc": True}), "pedestrian").imu == unknown
     own = TightConfig(imu={"gyro_bias_sigma_deg_h": 10.0})
     ped = apply_vehicle(own, "pedestrian").imu
     assert own.nins == 15 and ped.gyro_bias_sigma_deg_h == 10.0 and not ped.scale_factors

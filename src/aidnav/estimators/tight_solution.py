@@ -23,7 +23,12 @@ import numpy as np
 
 from aidnav.data import GnssData
 from aidnav.estimators.dgps import spp_series
-from aidnav.filters.config import UNKNOWN_GRADE_IMU, ImuNoise, LooseConfig
+from aidnav.filters.config import (
+    UNKNOWN_GRADE_IMU,
+    UNKNOWN_GRADE_IMU_ACCEL_MISALIGNMENT,
+    ImuNoise,
+    LooseConfig,
+)
 from aidnav.filters.heading_match import velocity_match_heading
 from aidnav.filters.loose import static_flags
 from aidnav.filters.tight import (
@@ -62,10 +67,15 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
     # no constraints section and no vehicle: the NHC is decided from the log (_no_option_nhc)
     no_option = "constraints" not in cfg.model_fields_set and not cfg.constraints.nhc
     events = events if events is not None else []
-    keys = set(UNKNOWN_GRADE_IMU) - {"noise_from_static"}
+    keys = set(UNKNOWN_GRADE_IMU_ACCEL_MISALIGNMENT) - {"noise_from_static"}
     if cfg.imu.model_dump(include=keys) == ImuNoise(**UNKNOWN_GRADE_IMU).model_dump(include=keys):
         events.append(f"no imu section: the error model of an IMU of unknown grade ({UNKNOWN_GRADE_NOTE}; "
                       f"{cfg.nins} INS states)")
+    elif cfg.imu.model_dump(include=keys) == ImuNoise(**UNKNOWN_GRADE_IMU_ACCEL_MISALIGNMENT).model_dump(
+            include=keys):
+        events.append(f"no imu section and no NHC: the error model of an IMU of unknown grade "
+                      f"({UNKNOWN_GRADE_NOTE}; the accelerometer misalignment 0.5 deg as states, the bias "
+                      f"10 mg + 0.5 mg; {cfg.nins} INS states)")
     sp, g, t_imu, i0 = _spp_start(imu, obs, eph, cfg)
     cfg = _clock_from_log(sp, cfg, events)
     ini = cfg.init

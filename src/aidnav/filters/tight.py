@@ -71,7 +71,14 @@ from aidnav.units import DEG
 
 from . import measurements as ms
 from .chi2 import chi2_isf as _chi2_isf
-from .config import UNKNOWN_GRADE_IMU, Constraints, FilterSettings, ImuNoise, Initialisation
+from .config import (
+    UNKNOWN_GRADE_IMU,
+    UNKNOWN_GRADE_IMU_ACCEL_MISALIGNMENT,
+    Constraints,
+    FilterSettings,
+    ImuNoise,
+    Initialisation,
+)
 from .engine import NEVER, Imu, Init, Models, Output, Process, Records, run_filter
 from .ins_errors import noise_count
 from .layout import L_CLK, L_ISB, L_N, L_NINS, L_RERR, L_SIZE, L_TDCP
@@ -389,7 +396,9 @@ def apply_vehicle(cfg: TightConfig, name: str | None, events: list | None = None
     (:data:`aidnav.filters.presets.PRESETS`) applied under it: the sections the two schemas share
     (``imu``, ``init``, ``constraints``); a key the configuration states explicitly wins. Preset keys
     of sections tight does not have (loose-only GNSS fix settings, mounting calibration) are listed in
-    ``events``. Unknown names raise ValueError naming the known ones."""
+    ``events``. Without an ``imu`` section the IMU model is the unknown-grade one, with the accelerometer
+    misalignment as states where the preset has no NHC (issue 35 session 16). Unknown names raise
+    ValueError naming the known ones."""
     from .presets import PRESETS, preset_names  # lazy: only with --vehicle
 
     if name is None:
@@ -399,13 +408,18 @@ def apply_vehicle(cfg: TightConfig, name: str | None, events: list | None = None
     data = cfg.model_dump(exclude_unset=True)
     merged: dict = {k: v for k, v in data.items()}
     skipped = []
+    nhc = {**PRESETS[name].get("constraints", {}), **data.get("constraints", {})}.get("nhc", False)
     for section, vals in PRESETS[name].items():
         if section not in ("imu", "init", "constraints"):
             skipped += [f"{section}.{k}" for k in vals]
             continue
         # without an imu section the IMU model stays the unknown-grade one (the default's), its noise
-        # from the log's static samples included: a phone at rest shows its own noise, vibrating or not
-        over = UNKNOWN_GRADE_IMU if section == "imu" and "imu" not in data else {}
+        # from the log's static samples included: a phone at rest shows its own noise, vibrating or not;
+        # without the NHC with the accelerometer misalignment as states (config.UNKNOWN_GRADE_IMU_ACCEL_
+        # MISALIGNMENT: only the turns then split the tilt from the bias, and the folded misalignment's
+        # error in a turn would be read as information on that split)
+        unknown = UNKNOWN_GRADE_IMU if nhc else UNKNOWN_GRADE_IMU_ACCEL_MISALIGNMENT
+        over = unknown if section == "imu" and "imu" not in data else {}
         merged[section] = {**vals, **over, **data.get(section, {})}
     if events is not None and skipped:
         events.append(f"--vehicle {name}: {', '.join(skipped)} of the preset not used by the tightly coupled "

@@ -88,17 +88,52 @@ def test_constant_block_failure_is_binomial():
     assert sc.constant_block_failure(40) < 2e-4
 
 
-def test_honest_block_failure_limits():
+def _segments(rng, runs, n, length):
+    """Runs of n epochs (1 s) whose value is a fresh N(0, 1) every ``length`` s, at a random phase."""
+    out = np.empty((runs, n))
+    for r in range(runs):
+        u = rng.uniform(0, length)
+        idx = np.floor((np.arange(n) - u) / length).astype(int) + 1
+        out[r] = rng.standard_normal(idx.max() + 1)[idx]
+    return out
+
+
+def test_segment_length_known_answers():
+    """Stretches of 100 s at a random phase: L within 15 %; a constant per run: ∞; a Gauss–Markov series of
+    τ 20 s: between 0.8 τ and 1.6 τ (the doc's ≈ 1.2 τ)."""
+    rng = np.random.default_rng(10)
+    assert sc.segment_length(list(_segments(rng, 400, 280, 100.0)), 1.0) == pytest.approx(100.0, rel=0.15)
+    assert sc.segment_length([np.full(280, z) for z in rng.standard_normal(40)], 1.0) == np.inf
+    lg = sc.segment_length(list(_ar1(rng, 400, 280, 20.0)), 1.0)
+    assert 16.0 < lg < 32.0
+
+
+@pytest.mark.parametrize("model", ["segments", "gauss-markov"])
+def test_honest_block_failure_limits(model):
     """τ → ∞: the binomial limit within 4 Monte-Carlo standard errors; white errors (τ → 0): a 10 × 280
     block's coverage is 1 − P3 ± 0.001, never below 95 %; in between, monotone in τ."""
     p_const = sc.constant_block_failure(10)
     n = 20000
-    p_inf = sc.honest_block_failure(10, 280, 1e12, n_sim=n, rng=5)
+    p_inf = sc.honest_block_failure(10, 280, np.inf if model == "segments" else 1e12, n_sim=n, rng=5,
+                                    model=model)
     assert p_inf == pytest.approx(p_const, abs=4 * np.sqrt(p_const * (1 - p_const) / n))
-    assert sc.honest_block_failure(10, 280, 1e-3, n_sim=2000, rng=6) == 0.0
-    p30 = sc.honest_block_failure(10, 280, 30.0, n_sim=n, rng=7)
-    p300 = sc.honest_block_failure(10, 280, 300.0, n_sim=n, rng=7)
+    assert sc.honest_block_failure(10, 280, 1e-3, n_sim=2000, rng=6, model=model) == 0.0
+    p30 = sc.honest_block_failure(10, 280, 30.0, n_sim=n, rng=7, model=model)
+    p300 = sc.honest_block_failure(10, 280, 300.0, n_sim=n, rng=7, model=model)
     assert p30 < p300 < p_inf + 4 * np.sqrt(p_const / n)
+
+
+def test_segments_model_needs_one_long_stretch_out():
+    """A block of 10 runs of 280 s fails when more than 140 s are out: with stretches of 2× the run a
+    run is whole or split in two, and its longer piece (≥ 140 s) alone decides — the binomial limit within
+    4 standard errors; with stretches of 70 s a run needs 2 or more of its 4–5 stretches out: P ≈ 0."""
+    p_const = sc.constant_block_failure(10)
+    n = 40000
+    p2 = sc.honest_block_failure(10, 280, 560.0, n_sim=n, rng=11)
+    assert p2 == pytest.approx(p_const, abs=4 * np.sqrt(p_const * (1 - p_const) / n))
+    assert sc.honest_block_failure(10, 280, 70.0, n_sim=n, rng=11) < 1e-3
+    with pytest.raises(ValueError):
+        sc.honest_block_failure(10, 280, 10.0, n_sim=10, model="ar2")
 
 
 def test_resampled_block_failure_counts_the_blocks_holding_the_bad_seed():

@@ -61,7 +61,10 @@ def test_seed_statistics_known_answers():
     assert pitch["chi2"]["p_upper"] == pytest.approx(sc.chi2_sum(z ** 2, 1)["p_upper"])
     t = st["tilt"]["pitch"]
     assert t["tau_s"] == pytest.approx(140.5, rel=1e-6)  # constant runs: the cap, half the run
+    assert t["segment_s"] == np.inf  # constant runs: one stretch per run
     assert t["p_constant"] == pytest.approx(1 - (1 - sc.P3) ** 10)
+    assert t["p_honest"] == pytest.approx(t["p_constant"], abs=4 * np.sqrt(t["p_constant"] / 4000))
+    assert t["p_gauss_markov"] < t["p_honest"]
     assert t["p_resampled"] == pytest.approx(0.25, abs=4 * np.sqrt(0.25 * 0.75 / 4000))
     text = cs.format_seed_statistics([st])
     assert "FAIL ok ok ok" in text and "1/0/0/0/39" in text

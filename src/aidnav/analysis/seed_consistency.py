@@ -23,7 +23,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["P3", "coverage", "values_at", "chi2_sum", "ks_normal", "correlation_time",
+__all__ = ["P3", "coverage", "values_at", "chi2_sum", "ks_normal", "autocorrelation", "correlation_time",
+           "segment_length",
            "constant_block_failure", "honest_block_failure", "resampled_block_failure", "histogram",
            "effective_tests", "any_failure"]
 
@@ -81,32 +82,59 @@ def ks_normal(z) -> tuple[float, float]:
     return float(r.statistic), float(r.pvalue)
 
 
-def correlation_time(z_runs: list, dt: float, max_lag: int | None = None) -> float:
-    """The correlation time [s] of normalised errors ``z_runs`` (one (K_r,) series per run, epochs ``dt``
-    apart; NaN allowed), pooled over the runs and *not* demeaned per run (a constant per seed is the
-    correlation sought): ρ(k) = mean_{r,t} z_r(t) z_r(t+k) / mean z², τ = dt·(Σ_{k≥0} ρ(k) − ½), the sum
-    up to the first lag with ρ ≤ 0 or ``max_lag`` (default half the longest run). For a first-order
-    Gauss–Markov series Σ_k e^(−k·dt/τ) = 1/(1 − e^(−dt/τ)) ≈ τ/dt + ½, so this returns τ; a series
-    constant over its run returns about half its length × dt (the estimate is capped by the runs)."""
+def autocorrelation(z_runs: list, max_lag: int | None = None) -> np.ndarray:
+    """ρ(k), k = 0 … ``max_lag`` (default half the longest run), of normalised errors ``z_runs`` (one (K_r,)
+    series per run; NaN allowed), pooled over the runs and *not* demeaned per run (a constant per seed is
+    the correlation sought): mean_{r,t} z_r(t) z_r(t+k) / mean z²; NaN past the runs' length."""
     zs = [np.asarray(z, float) for z in z_runs if len(z)]
     if not zs:
-        return np.nan
+        return np.full(1, np.nan)
     kmax = max(len(z) for z in zs) // 2 if max_lag is None else int(max_lag)
-    z0 = np.concatenate(zs)
-    var = np.nanmean(z0 * z0)
+    var = np.nanmean(np.concatenate(zs) ** 2)
+    rho = np.full(kmax + 1, np.nan)
     if not var > 0:
-        return np.nan
-    total = 0.5
+        return rho
+    rho[0] = 1.0
     for k in range(1, kmax + 1):
         prods = [z[:-k] * z[k:] for z in zs if len(z) > k]
-        if not prods:
-            break
-        p = np.concatenate(prods)
-        rho = np.nanmean(p) / var if np.any(np.isfinite(p)) else np.nan
-        if not rho > 0:
-            break
-        total += rho
-    return float(dt * total)
+        p = np.concatenate(prods) if prods else np.full(0, np.nan)
+        if np.any(np.isfinite(p)):
+            rho[k] = np.nanmean(p) / var
+    return rho
+
+
+def correlation_time(z_runs: list, dt: float, max_lag: int | None = None) -> float:
+    """The correlation time [s] of normalised errors ``z_runs`` (epochs ``dt`` apart,
+    :func:`autocorrelation`): τ = dt·(Σ_{k≥0} ρ(k) − ½), the sum up to the first lag with ρ ≤ 0 or
+    ``max_lag`` (default half the longest run). For a first-order Gauss–Markov series Σ_k e^(−k·dt/τ) =
+    1/(1 − e^(−dt/τ)) ≈ τ/dt + ½, so this returns τ; a series constant over its run returns about half its
+    length × dt (capped by the runs)."""
+    rho = autocorrelation(z_runs, max_lag)
+    if not np.isfinite(rho[0]):
+        return np.nan
+    bad = np.flatnonzero(~(rho > 0))
+    last = bad[0] if len(bad) else len(rho)
+    return float(dt * (np.sum(rho[:last]) - 0.5))
+
+
+def segment_length(z_runs: list, dt: float, max_lag: int | None = None) -> float:
+    """The length L [s] of the stretches over which normalised errors ``z_runs`` are constant, in the
+    model "z constant within stretches of length L at a random phase, independent between them" (a few
+    random constants per seed, each holding until a manoeuvre re-observes it), whose pooled autocorrelation
+    is ρ(k) = 1 − k·dt/L for k·dt < L: L = dt / b, b the least-squares slope of 1 − ρ(k) on k over the lags
+    with ρ ≥ ½ (up to ``max_lag``, default half the longest run); ∞ where ρ does not fall (a constant per
+    run). A first-order Gauss–Markov series of correlation time τ gives L ≈ 1.2 τ."""
+    rho = autocorrelation(z_runs, max_lag)
+    if not np.isfinite(rho[0]):
+        return np.nan
+    k = np.arange(len(rho), dtype=float)
+    bad = np.flatnonzero(~(rho >= 0.5))
+    last = bad[0] if len(bad) else len(rho)
+    k, y = k[1:last], 1.0 - rho[1:last]
+    if len(k) == 0:
+        return float(dt)  # ρ(1) < ½: shorter than an epoch
+    b = float(np.sum(k * y) / np.sum(k * k))
+    return float(dt / b) if b > 1e-9 else np.inf  # 1e-9: the rounding of a constant's ρ = 1
 
 
 def constant_block_failure(n_seeds: int, target: float = 0.95, p_out: float = P3) -> float:
@@ -120,18 +148,34 @@ def constant_block_failure(n_seeds: int, target: float = 0.95, p_out: float = P3
 
 
 def honest_block_failure(n_seeds: int, n_epochs: int, tau_s: float, dt: float = 1.0, target: float = 0.95,
-                         k: float = 3.0, n_sim: int = 20000, rng=None) -> float:
-    """P(the k·σ coverage of a block of ``n_seeds`` runs of ``n_epochs`` epochs is below ``target``) for an
-    honest filter whose normalised error is, in each run, a stationary unit first-order Gauss–Markov
-    series of correlation time ``tau_s`` sampled every ``dt`` (independent runs), by Monte Carlo over
-    ``n_sim`` blocks (``rng``: a numpy Generator or seed; its standard error √(P(1 − P)/n_sim))."""
+                         k: float = 3.0, n_sim: int = 20000, rng=None, model: str = "segments") -> float:
+    """P(the k·σ coverage of a block of ``n_seeds`` runs of ``n_epochs`` epochs ``dt`` apart is below
+    ``target``) for an honest filter, by Monte Carlo over ``n_sim`` blocks (``rng``: a numpy Generator or
+    seed; standard error √(P(1 − P)/n_sim)); the runs independent, each one's normalised error z(t) N(0, 1)
+    at every epoch and, by ``model``:
+
+    * ``"segments"``: constant within stretches of ``tau_s`` seconds (:func:`segment_length`) at a random
+      phase, independent between them — a few random constants per seed; ∞: one per run, the binomial
+      limit of :func:`constant_block_failure`;
+    * ``"gauss-markov"``: a stationary first-order Gauss–Markov series of correlation time ``tau_s``
+      (:func:`correlation_time`), which forgets a 3σ draw within τ and so fails a block far less often
+      than constants that hold until a manoeuvre."""
     rng = np.random.default_rng(rng)
-    a = float(np.exp(-dt / tau_s)) if tau_s > 0 else 0.0
-    b = float(np.sqrt(1.0 - a * a))
+    if model not in ("segments", "gauss-markov"):
+        raise ValueError(f"model {model!r}: 'segments' or 'gauss-markov'")
+    if model == "segments" and tau_s < dt:  # stretches shorter than an epoch: white at the epochs
+        model, tau_s = "gauss-markov", 0.0
     out = np.zeros(n_sim)
-    chunk = max(1, 200000 // max(1, n_seeds))
+    width = n_epochs + 2 if model == "segments" and not np.isfinite(tau_s) else (
+        int(np.ceil(n_epochs * dt / tau_s)) + 2 if model == "segments" else 1)
+    chunk = max(1, 2_000_000 // (max(1, n_seeds) * (1 if not np.isfinite(tau_s) else width)))
     for lo in range(0, n_sim, chunk):
         m = min(chunk, n_sim - lo)
+        if model == "segments":
+            out[lo:lo + m] = _segments_coverage(m, n_seeds, n_epochs * dt, tau_s, k, rng)
+            continue
+        a = float(np.exp(-dt / tau_s)) if tau_s > 0 else 0.0
+        b = float(np.sqrt(1.0 - a * a))
         x = rng.standard_normal((m, n_seeds))
         inside = (np.abs(x) <= k).sum(axis=1).astype(float)
         for _ in range(n_epochs - 1):
@@ -139,6 +183,19 @@ def honest_block_failure(n_seeds: int, n_epochs: int, tau_s: float, dt: float = 
             inside += (np.abs(x) <= k).sum(axis=1)
         out[lo:lo + m] = inside / (n_seeds * n_epochs)
     return float(np.mean(out < target))
+
+
+def _segments_coverage(m: int, n_seeds: int, span: float, length: float, k: float, rng) -> np.ndarray:
+    """The coverage of ``m`` blocks of ``n_seeds`` runs of ``span`` seconds whose z is constant within
+    stretches of ``length`` seconds at a random phase (:func:`honest_block_failure`)."""
+    if not np.isfinite(length) or length >= 1e6 * span:
+        return np.mean(np.abs(rng.standard_normal((m, n_seeds))) <= k, axis=1)
+    length = max(float(length), 1e-9)
+    nseg = int(np.ceil(span / length)) + 1
+    u = rng.random((m, n_seeds, 1)) * length
+    edges = np.clip(u + length * (np.arange(nseg + 1) - 1.0), 0.0, span)
+    inside = np.abs(rng.standard_normal((m, n_seeds, nseg))) <= k
+    return np.sum(np.diff(edges, axis=2) * inside, axis=(1, 2)) / (n_seeds * span)
 
 
 def resampled_block_failure(covered, epochs, block: int, target: float = 0.95, n_draw: int = 20000,

@@ -14,10 +14,13 @@ over more seeds (``benchmarks/consistency_matrix.py --tight-seeds 40``) :func:`s
   sums over the seeds against χ²(R·n) (:func:`aidnav.analysis.seed_consistency.chi2_sum`: independent across
   seeds, so exact, unlike a test over each run's correlated epochs) and the z's KS test against N(0, 1);
 * the per-seed worst-axis coverage distribution;
-* for roll and pitch: the correlation time τ of z within a run (pooled), the probability that an honest
-  filter with that τ fails a block (:func:`~aidnav.analysis.seed_consistency.honest_block_failure`) and in
-  the limit τ → ∞ (:func:`~aidnav.analysis.seed_consistency.constant_block_failure`: 2.7 % per axis for
-  10 seeds), against the failure rate of blocks resampled from the cell's own seeds.
+* for roll and pitch: the length L of the stretches over which z stays constant within a run and its
+  correlation time τ (pooled; :func:`~aidnav.analysis.seed_consistency.segment_length`,
+  :func:`~aidnav.analysis.seed_consistency.correlation_time`), the probability that an honest filter with
+  those fails a block (:func:`~aidnav.analysis.seed_consistency.honest_block_failure`: z constant over
+  stretches of L, or Gauss–Markov of τ) and in the limit L → ∞
+  (:func:`~aidnav.analysis.seed_consistency.constant_block_failure`: 2.7 % per axis for 10 seeds), against
+  the failure rate of blocks resampled from the cell's own seeds.
 """
 
 from __future__ import annotations
@@ -80,12 +83,15 @@ def seed_statistics(cell: CellResult, cond: Condition, block: int = 10, n_sim: i
     n_ep = int(np.median([len(r.time) for r in runs])) if runs else 0
     tilt = {}
     for a in TILT:
-        tau = sc.correlation_time([_z(r)[:, a] for r in runs], EVAL_DT_S)
+        zs = [_z(r)[:, a] for r in runs]
+        tau, seg = sc.correlation_time(zs, EVAL_DT_S), sc.segment_length(zs, EVAL_DT_S)
         covered = [np.sum(np.abs(r.err[:, a]) <= 3.0 * r.sigma[:, a]) for r in runs]
         tilt[AXES[a]] = dict(
-            tau_s=tau,
-            p_honest=sc.honest_block_failure(block, n_ep, tau, EVAL_DT_S, COVERAGE_TARGET, n_sim=n_sim,
+            tau_s=tau, segment_s=seg,
+            p_honest=sc.honest_block_failure(block, n_ep, seg, EVAL_DT_S, COVERAGE_TARGET, n_sim=n_sim,
                                              rng=rng),
+            p_gauss_markov=sc.honest_block_failure(block, n_ep, tau, EVAL_DT_S, COVERAGE_TARGET, n_sim=n_sim,
+                                                   rng=rng, model="gauss-markov"),
             p_constant=sc.constant_block_failure(block, COVERAGE_TARGET),
             p_resampled=(sc.resampled_block_failure(covered, [len(r.time) for r in runs], block,
                                                     COVERAGE_TARGET, n_sim, rng) if len(runs) >= block
@@ -122,7 +128,7 @@ def format_row_statistics(row: dict) -> str:
     """One line of :func:`row_statistics`."""
     return (f"{row['tests']} roll/pitch tests (cells x axes x fixed epochs) ~ {row['m_eff']:.1f} "
             f"independent: an honest filter fails >= 1 cell of a block with P = "
-            f"{100 * row['p_any_honest']:.0f} % (each {100 * row['p_honest']:.1f} %, the simulated median) "
+            f"{100 * row['p_any_honest']:.0f} % (each {100 * row['p_honest']:.1f} %, the segments' median) "
             f"to {100 * row['p_any_constant']:.0f} % "
             f"(tau -> inf, each {100 * row['p_constant']:.1f} %); observed: {row['blocks_failed']} of "
             f"{row['blocks']} blocks fail some cell")
@@ -146,15 +152,17 @@ def _rows(st: dict) -> list[list[str]]:
              " ".join(f"{first['tilt'][a]['worst']:.1f}({first['tilt'][a]['worst_seed']})"
                       for a in ("roll", "pitch")),
              "/".join(str(c) for c in st["per_seed_hist"]),
-             " ".join(f"{tilt[a]['tau_s']:.0f}" for a in ("roll", "pitch")),
-             " ".join(f"{100 * tilt[a]['p_honest']:.1f}" for a in ("roll", "pitch")),
+             " ".join(f"{tilt[a]['segment_s']:.0f}/{tilt[a]['tau_s']:.0f}" for a in ("roll", "pitch")),
+             " ".join(f"{100 * tilt[a]['p_honest']:.1f}/{100 * tilt[a]['p_gauss_markov']:.1f}"
+                      for a in ("roll", "pitch")),
              " ".join(f"{100 * tilt[a]['p_resampled']:.1f}" for a in ("roll", "pitch"))]]
 
 
 HEADER = ["condition", "config", "seeds", "pooled cov roll pitch %", "10-seed blocks",
           "p NEES φ (turn / end)", "p NEES 9 (turn / end)", "KS p roll pitch (turn)",
-          "max |z| (seed) roll pitch", "worst-axis cov/seed <.5/.9/.95/.99/≥.99", "τ roll pitch [s]",
-          "P honest block fails roll pitch %", "P resampled block fails %"]
+          "max |z| (seed) roll pitch", "worst-axis cov/seed <.5/.9/.95/.99/≥.99",
+          "L/τ roll pitch [s]", "P honest block fails (segments/GM) roll pitch %",
+          "P resampled block fails %"]
 
 
 def format_seed_statistics(stats: list[dict]) -> str:
@@ -181,6 +189,7 @@ def seed_statistics_html(stats: list[dict]) -> list[str]:
     head = html.escape(format_seed_statistics(stats).splitlines()[0])
     return ["<h2>Seed-level statistics</h2>",
             f"<p class='note'>{head}; p: the upper tail of the sum "
-            "over the seeds against χ²(R·n) (small: σ over-confident); τ: the correlation time of "
-            "error/σ within a run; P honest: a simulated honest filter with that τ; P resampled: blocks "
-            "drawn from these seeds.</p>", H.table(HEADER, rows)]
+            "over the seeds against χ²(R·n) (small: σ over-confident); L: the length of the stretches "
+            "over which error/σ stays constant within a run, τ: its correlation time; P honest: a "
+            "simulated honest filter whose error/σ is constant over stretches of L (segments) or "
+            "Gauss–Markov of τ (GM); P resampled: blocks drawn from these seeds.</p>", H.table(HEADER, rows)]

@@ -13,7 +13,8 @@ loose filter's sensor states, so
 free inertia — an outage, too few satellites — grows with the full error model, issue 35 item 3). Without
 an ``imu`` section the model is that of an IMU of unknown grade (:data:`.config.UNKNOWN_GRADE_IMU`:
 Groves' consumer row through :func:`.tuning.sensor_error_model`, 27 states, noise raised to the log's
-static samples), also under the vehicle presets;
+static samples), also under the car preset; under a preset without the NHC (aircraft, pedestrian, ship) with
+the accelerometer misalignment as states (:data:`.config.UNKNOWN_GRADE_IMU_ACCEL_MISALIGNMENT`, 33);
 δt_u = b − b̂ [m], δf = d − d̂ [m/s] (true − estimated, ρ_GPS = ρ_true + b). Clock dynamics: δṫ_u = δf +
 w_b, δḟ = −δf/τ_f + w_d (τ_f ≤ 0: random walk), PSDs S_b = c²h₀/2, S_d = c²·2π²h₋₂ (Allan
 coefficients of the receiver oscillator). With ``gnss.range_errors`` (default) one more state per satellite

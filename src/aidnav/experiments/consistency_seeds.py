@@ -61,7 +61,7 @@ def seed_statistics(cell: CellResult, cond: Condition, block: int = 10, n_sim: i
                     rng=35) -> dict:
     """The statistics of the module doc for ``cell`` (its ``runs``: the seeds that ran) of ``cond``."""
     runs = cell.runs
-    out: dict = {"condition": cell.condition, "config": cell.config, "seeds": len(runs),
+    out: dict = {"condition": cell.condition, "config": cell.config, "seeds": len(runs), "block": block,
                  "pooled": [float(x) for x in cell.coverage]}
     blocks = [aggregate(cell.condition, cell.config, runs[i:i + block])
               for i in range(0, len(runs) - block + 1, block)]
@@ -158,7 +158,7 @@ def _rows(st: dict) -> list[list[str]]:
              " ".join(f"{100 * tilt[a]['p_resampled']:.1f}" for a in ("roll", "pitch"))]]
 
 
-HEADER = ["condition", "config", "seeds", "pooled cov roll pitch %", "10-seed blocks",
+HEADER = ["condition", "config", "seeds", "pooled cov roll pitch %", "blocks",
           "p NEES φ (turn / end)", "p NEES 9 (turn / end)", "KS p roll pitch (turn)",
           "max |z| (seed) roll pitch", "worst-axis cov/seed <.5/.9/.95/.99/≥.99",
           "L/τ roll pitch [s]", "P honest block fails (segments/GM) roll pitch %",
@@ -172,7 +172,8 @@ def format_seed_statistics(stats: list[dict]) -> str:
     st0 = stats[0]
     lines = [f"seed-level statistics over {st0['seeds']} seeds; fixed epochs "
              + ", ".join(f"{k} t={v['t']:.0f} s" for k, v in st0["fixed"].items())
-             + f"; an honest filter fails a 10-seed block in the limit tau -> inf with P = "
+             + f"; an honest filter fails a {st0.get('block', 10)}-seed block in the limit tau -> inf "
+             f"with P = "
              f"{100 * st0['tilt']['roll']['p_constant']:.1f} % per axis",
              " | ".join(HEADER)]
     for st in stats:

@@ -62,7 +62,7 @@ from .ins_errors import (
     ACC_FN,
     new_accumulator,
     noise_count,
-    propagate_sample,
+    propagate_sample_rows,
     reset_accumulator,
     set_heading,
     turn_tilt_by,
@@ -296,19 +296,19 @@ def node_rates(st, wb, dthc, dt, w):
     w[W_IN, 2] = OMEGA_IE * sl + st[3] * sl / cl / (rn + st[2])
 
 
-@njit(cache=True)
-def _rec_time(rec, i, bias, ic):
-    """Time of record i: the tag, or with clock states (ic ≥ 0) the tag − b̂/c."""
-    return rec.t[i] - bias[ic - NAV] / C_LIGHT if ic >= 0 else rec.t[i]
+@njit(cache=True, inline="always")  # per sample and node: the record times alone (issue 40)
+def _rec_time(rt, i, bias, ic):
+    """Time of record i (``rt``: ``Records.t``): the tag, or with clock states (ic ≥ 0) the tag − b̂/c."""
+    return rt[i] - bias[ic - NAV] / C_LIGHT if ic >= 0 else rt[i]
 
 
-@njit(cache=True)
-def _due_time(rec, i, bias, ic, itoff):
-    """Time on the IMU clock at which record i is due: its receive time (:func:`_rec_time`) − d̂, the
-    time-offset estimate (itoff ≥ 0); +inf past the last record."""
-    if i >= rec.t.shape[0]:
+@njit(cache=True, inline="always")  # per sample and node: ``Records.t`` only (rec's 20 arrays: 20 refcounts)
+def _due_time(rt, i, bias, ic, itoff):
+    """Time on the IMU clock at which record i is due (``rt``: ``Records.t``): its receive time
+    (:func:`_rec_time`) − d̂, the time-offset estimate (itoff ≥ 0); +inf past the last record."""
+    if i >= rt.shape[0]:
         return np.inf
-    t = _rec_time(rec, i, bias, ic)
+    t = _rec_time(rt, i, bias, ic)
     return t - bias[itoff - NAV] if itoff >= 0 else t
 
 
@@ -329,7 +329,7 @@ def start_carry(rec, proc, ini, last):
     bias = ini.bias.copy()
     itoff, ic = proc.lay[L_TOFF], proc.lay[L_CLK]
     gi = 0
-    while _due_time(rec, gi, bias, ic, itoff) <= ini.t0:
+    while _due_time(rec.t, gi, bias, ic, itoff) <= ini.t0:
         gi += 1
     return Carry(0, last, ini.t0, 0, gi, 0, -1, ini.st.copy(), bias, ini.P.copy(),
                  np.zeros(N_MODELS, np.int64), new_accumulator(), _new_gap(), np.zeros((4, 3)))
@@ -514,9 +514,9 @@ def _update_records(x, P, nv, C, rec, gi, tk, hd, upd, tm):
     ic, itoff = tm
     lim, near = tk, GAP_REC_S
     while True:
-        while _due_time(rec, gi, bias, ic, itoff) <= lim:
-            tr = _rec_time(rec, gi, bias, ic)
-            dtu = abs(tk - _due_time(rec, gi, bias, ic, itoff)) if gap_k else 0.0
+        while _due_time(rec.t, gi, bias, ic, itoff) <= lim:
+            tr = _rec_time(rec.t, gi, bias, ic)
+            dtu = abs(tk - _due_time(rec.t, gi, bias, ic, itoff)) if gap_k else 0.0
             # a record inside an IMU gap cannot be moved back across the unknown motion: not used
             if rec.use[gi] and not (gap_k and tk - tr > GAP_REC_S):
                 near = min(near, dtu)
@@ -527,7 +527,7 @@ def _update_records(x, P, nv, C, rec, gi, tk, hd, upd, tm):
         j = gi
         while j < rec.t.shape[0] and not rec.use[j]:
             j += 1
-        nxt = _due_time(rec, j, bias, ic, itoff)
+        nxt = _due_time(rec.t, j, bias, ic, itoff)
         epoch = j < rec.t.shape[0] and rec.grp.t.shape[0] > 0 and rec.model[j] == M_PR  # (tight: not ahead)
         if epoch or not nxt - tk < near:
             break
@@ -687,18 +687,18 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
     gap = cy.gap  # (6,): variances to add at the next node, the heading-hold flag, the last heading
     pv = mod.par[M_GNSS_VEL]
     hold_thr = pv[C_HOLD] if pv.shape[0] > C_HOLD else 0.0  # (other filters: fewer parameters)
-    dthc, dvc, dth_prev, dv_prev = cy.buf[0], cy.buf[1], cy.buf[2], cy.buf[3]
+    buf = cy.buf  # Δθ_c, Δv_c of the sample, of the previous one (rows: no views per sample, issue 40)
     tp, kn, oi = cy.tp, cy.kn, 0
     hold = imu.hold.shape[0] == n_imu
     # a record is due when its time on the IMU clock has come: its receive time (the tag, or with clock
     # states tag − b̂/c) − d̂, the time-offset estimate; b̂ changes at every sample, d̂ at the feedback
-    t_due = _due_time(rec, gi, bias, ic, itoff)
+    t_due = _due_time(rec.t, gi, bias, ic, itoff)
     for k in range(n_imu):
         dt, tp = imu.t[k] - tp, imu.t[k]
-        T = propagate_sample(st, acc, imu.dth[k], imu.dv[k], ib, dt, dthc, dvc, dth_prev, dv_prev)
+        T = propagate_sample_rows(st, acc, imu.dth, imu.dv, k, ib, dt, buf)
         if ic >= 0:
             bias[ic - NAV] += bias[ic - NAV + 1] * dt
-            t_due = _due_time(rec, gi, bias, ic, itoff)
+            t_due = _due_time(rec.t, gi, bias, ic, itoff)
         if hold:
             st[ST_POS + 2], st[ST_VEL + 2] = imu.hold[k, 0], imu.hold[k, 1]
         gap_k = _gap_sample(gap, imu.gap_var, k)
@@ -716,7 +716,7 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
             g0, held = gi, hold_h and k0 + k < ini.reset_idx  # the initial heading held (_hold_heading)
             dh = _gap_at_node(st, P, gap, ix, hold_thr, imu.static[k] and not held)
             keep_prior(out.smooth, S, kn - kn0, em[4], P, dh, ix)  # dh: the tilt turned at rest
-            node_rates(st, wb, dthc, dt, w)
+            node_rates(st, wb, buf[0], dt, w)
             w[W_FN] = acc[ACC_FN] / T
             hd = (gap, gap_k, ix, iu, pv, tcal, held)
             gi, C = _update_records(x, P, (st, w, bias), C, rec, gi, imu.t[k], hd, upd, (ic, itoff))
@@ -728,7 +728,7 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
             ib[:] = bias[:nins - NAV]
             _hold_heading(P, iu, ini, held, gap)
             _after_updates(st, bias, P, rec, g0, gi, proc.reset_pos, lay)
-            t_due = _due_time(rec, gi, bias, ic, itoff)  # d̂ may have changed
+            t_due = _due_time(rec.t, gi, bias, ic, itoff)  # d̂ may have changed
             node_idx[kn - kn0] = k0 + k
             keep_post(out.smooth, S, kn - kn0, P, x, dh, ix)
             kn += 1

@@ -111,20 +111,40 @@ def discretize_sparse(F, G, q, T, Phi, Qd):
     are diagonal, the clock block 2 × 2) and G ~3 per row, so each product is a few row updates, in loops
     with no temporaries, instead of five small BLAS calls (issue 40: the tight filter's head at each of
     the walk's 887 nodes). Which entries are zero is read at each call: any F, G is handled (a dense one
-    at the dense cost)."""
+    at the dense cost). Its work arrays allocated here: :func:`discretize_sparse_ws` takes them."""
+    return discretize_sparse_ws(F, G, q, T, Phi, Qd, sparse_work(F.shape[0]))
+
+
+@njit(cache=True)
+def sparse_work(n):
+    """The work arrays of :func:`discretize_sparse_ws` for up to n states: (5 n×n products, F's nonzero
+    columns by row with their count in the last column)."""
+    m = max(n, 1)
+    return np.zeros((5, m, m)), np.zeros((m, m + 1), np.int64)
+
+
+@njit(cache=True)
+def discretize_sparse_ws(F, G, q, T, Phi, Qd, ws):
+    """:func:`discretize_sparse` with its work arrays ``ws`` (:func:`sparse_work`, at least F's size) passed
+    in: no allocation per call (issue 40, session 16: seven per node before). The same arithmetic in the
+    same order, so the same bits."""
     n, m = F.shape[0], G.shape[1]
-    cnt, col = np.zeros(n, np.int64), np.empty((n, n), np.int64)  # F's nonzero columns by row
-    FT, FQ, FFQ, FQT, FQFT = F * T, np.zeros((n, n)), np.zeros((n, n)), np.empty((n, n)), np.zeros((n, n))
-    for i in range(n):
+    W, col = ws
+    FT, FQ, FFQ, FQT, FQFT = W[0], W[1], W[2], W[3], W[4]  # (views: the first n rows and columns used)
+    for i in range(n):  # F's nonzero columns by row (count in col[i, -1]); products reset
+        c = 0
         for k in range(n):
+            FT[i, k] = F[i, k] * T
+            FQ[i, k], FFQ[i, k], FQFT[i, k] = 0.0, 0.0, 0.0
             if F[i, k] != 0.0:
-                col[i, cnt[i]] = k
-                cnt[i] += 1
+                col[i, c] = k
+                c += 1
+        col[i, W.shape[1]] = c
     for i in range(n):
         for j in range(n):
             Phi[i, j] = 0.0
             Qd[i, j] = 0.0
-        for e in range(cnt[i]):  # Φ's row first holds (F T)² …
+        for e in range(col[i, W.shape[1]]):  # Φ's row first holds (F T)² …
             k = col[i, e]
             f = FT[i, k]
             for j in range(n):
@@ -139,7 +159,7 @@ def discretize_sparse(F, G, q, T, Phi, Qd):
             Phi[i, j] = Phi[i, j] * 0.5 + FT[i, j]
         Phi[i, i] += 1.0
     for i in range(n):  # F Q
-        for e in range(cnt[i]):
+        for e in range(col[i, W.shape[1]]):
             k = col[i, e]
             f = F[i, k]
             for j in range(n):
@@ -148,7 +168,7 @@ def discretize_sparse(F, G, q, T, Phi, Qd):
         for j in range(n):
             FQT[i, j] = FQ[j, i]
     for i in range(n):  # F (F Q), and F (F Q)ᵀ = (F Q Fᵀ)ᵀ in FQFT
-        for e in range(cnt[i]):
+        for e in range(col[i, W.shape[1]]):
             k = col[i, e]
             f = F[i, k]
             for j in range(n):
@@ -163,28 +183,30 @@ def discretize_sparse(F, G, q, T, Phi, Qd):
 
 
 @njit(cache=True)
-def discretize_split(Fd, Fdc, Gd, q, T, Phd, Phdc, Qdd):
+def discretize_split(Fd, Fdc, Gd, q, T, Phd, Phdc, Qdd, ws=None):
     """:func:`discretize` of a head whose constant states (a zero row of F and no noise: Φ row eᵢ, Qd row 0;
     sensor scale factors and misalignments without process noise) are left out of the series. ``Fd``
     (d×d), ``Gd`` (d×m): F and G of the d states with dynamics; ``Fdc`` (d×c): their coupling to the c
     constant states. Fills Φ_DD, Qd_DD (``Phd``, ``Qdd``: the full series' blocks, since F's constant rows
     are zero; :func:`discretize_sparse`) and Φ_DC = F_DC T + F_DD F_DC T²/2 (``Phdc``, over F_DD's nonzero
-    entries)."""
-    discretize_sparse(Fd, Gd, q, T, Phd, Qdd)
+    entries). ``ws``: the series' work arrays (:func:`sparse_work`; None: allocated here)."""
+    if ws is None:
+        discretize_sparse(Fd, Gd, q, T, Phd, Qdd)
+    else:
+        discretize_sparse_ws(Fd, Gd, q, T, Phd, Qdd, ws)
     d, c = Fdc.shape
     if c == 0:
         return
-    FcT = Fdc * T
-    for a in range(d):
+    for a in range(d):  # (F_DC T taken where it is read: no temporary)
         for e in range(c):
             Phdc[a, e] = 0.0
         for k in range(d):
             f = Fd[a, k] * T
             if f != 0.0:
                 for e in range(c):
-                    Phdc[a, e] += f * FcT[k, e]
+                    Phdc[a, e] += f * (Fdc[k, e] * T)
         for e in range(c):
-            Phdc[a, e] = Phdc[a, e] * 0.5 + FcT[a, e]
+            Phdc[a, e] = Phdc[a, e] * 0.5 + Fdc[a, e] * T
 
 
 @njit(cache=True)
@@ -383,15 +405,39 @@ def update_scalar(x, P, h, r, z, gate):
     s = hᵀ p + r: the same matrix (first-order insensitive to an error in k, as the product form) in
     O(n²) instead of two n×n products. Every entry is computed, row by row (vectorised), with a term
     symmetric in (i, j) bit for bit — P_ij − (k_i p_j + p_i k_j) + s (k_i k_j) — so P stays exactly
-    symmetric without a triangle's strided writes (issue 40: 2× faster at n = 33)."""
-    nu = z - h @ x
-    ph = P @ h
-    s = h @ ph + r
+    symmetric without a triangle's strided writes (issue 40: 2× faster at n = 33). Its work rows
+    allocated here: :func:`update_scalar_ws` takes them."""
+    return update_scalar_ws(x, P, h, r, z, gate, np.empty((2, x.shape[0])))
+
+
+@njit(cache=True)
+def update_scalar_ws(x, P, h, r, z, gate, ws):
+    """:func:`update_scalar` with its work rows ``ws`` (2, n) (p = P h, k) passed in, and hᵀx, p = P h
+    (P symmetric: p = Σ_c h_c P_c·, contiguous rows), hᵀp taken over h's nonzero entries only (a
+    pseudorange row has ~10 of 33): no allocation, no BLAS call (issue 40, session 16). Equal to the
+    products to rounding (their order of summation differs)."""
+    n = x.shape[0]
+    ph, k = ws[0], ws[1]
+    for j in range(n):
+        ph[j] = 0.0
+    hx = 0.0
+    for c in range(n):
+        hc = h[c]
+        if hc != 0.0:
+            hx += hc * x[c]
+            for j in range(n):
+                ph[j] += hc * P[c, j]
+    nu = z - hx
+    hp = 0.0
+    for c in range(n):
+        if h[c] != 0.0:
+            hp += h[c] * ph[c]
+    s = hp + r
     if gate > 0.0 and nu * nu / s > gate:
         return False, nu, s
-    k = ph / s
-    x += k * nu
-    n = x.shape[0]
+    for i in range(n):
+        k[i] = ph[i] / s
+        x[i] += k[i] * nu
     for i in range(n):
         ki, pi = k[i], ph[i]
         for j in range(n):

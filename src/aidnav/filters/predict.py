@@ -26,12 +26,13 @@ from aidnav.models.distributed_pos import flexure_transition
 from .ins_errors import fill_model, interval_model, model_arrays
 from .kalman import (
     discretize,
-    discretize_sparse,
+    discretize_sparse_ws,
     discretize_split,
     discretize_tail,
     predict,
     predict_split,
     predict_tail,
+    sparse_work,
 )
 from .layout import L_CLK, NAV
 
@@ -131,7 +132,8 @@ def error_model(lay, proc, nfull, mins, naux, n, nins, nsub):
         for c in range(G.shape[1]):
             qt[i] += G[i, c] * G[i, c] * proc.q[c]
     sp = (hd, d, np.zeros((d, d)), np.zeros((d, nh - d)), np.zeros((d, mh)), np.zeros((d, d)),
-          np.zeros((d, nh - d)), np.zeros((d, d)), f)  # order, d, F_DD, F_DC, G_D, Φ_DD, Φ_DC, Qd_DD, f
+          np.zeros((d, nh - d)), np.zeros((d, d)), f, sparse_work(nh))  # order, d, F_DD, F_DC, G_D, Φ_DD,
+    # Φ_DC, Qd_DD, f, the series' work arrays (allocated once per chunk, not at each node: issue 40)
     wk = (np.zeros((f, nh)), np.zeros((nh, f)), np.zeros((nh, n)), np.zeros((f, n)), np.zeros((f, nh)),
           np.zeros((f, f)), np.zeros(nh))
     return Fi, Gi, F, G, Phi, Qd, nd, Fh, Gh, qh, qt, sp, wk
@@ -177,12 +179,12 @@ def discretize_head(Fi, Gi, Fh, Gh, qh, T, Phi, Qd, sp, dims):
     interval: the states with dynamics by the series, their coupling into the constant states
     (:func:`.kalman.discretize_split`), written into Φ's and Qd's rows of those states."""
     nins, mins = dims
-    hd, d, Fd, Fdc, Gd, Phd, Phdc, Qdd, _ = sp
+    hd, d, Fd, Fdc, Gd, Phd, Phdc, Qdd, _, ws = sp
     nc = hd.shape[0] - d
     if nc == 0:  # no constant state: the head as it is
         Fh[:nins, :nins] = Fi[:nins, :nins]
         Gh[:nins, :mins] = Gi[:nins, :mins]
-        discretize_sparse(Fh, Gh, qh, T, Phd, Qdd)
+        discretize_sparse_ws(Fh, Gh, qh, T, Phd, Qdd, ws)
         Phi[:d, :d] = Phd
         Qd[:d, :d] = Qdd
         return
@@ -204,7 +206,7 @@ def discretize_head(Fi, Gi, Fh, Gh, qh, T, Phi, Qd, sp, dims):
                 Fdc[a, e] = Fh[ia, hd[d + e]]
             for c in range(Gh.shape[1]):
                 Gd[a, c] = Gh[ia, c]
-    discretize_split(Fd, Fdc, Gd, qh, T, Phd, Phdc, Qdd)
+    discretize_split(Fd, Fdc, Gd, qh, T, Phd, Phdc, Qdd, ws)
     for a in range(d):
         ia = hd[a]
         for b in range(d):

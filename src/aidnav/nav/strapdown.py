@@ -52,6 +52,43 @@ def strapdown_step(st, dth, dvb, dth_prev, dv_prev, dt):
     ``dth``, ``dvb``: increments of this interval [rad], [m/s] (body RFU); ``dth_prev``, ``dv_prev``:
     those of the previous interval (zeros at the first sample) for coning/sculling; ``dt`` [s].
     """
+    ax, ay, az = dth[0], dth[1], dth[2]
+    px, py, pz = dth_prev[0], dth_prev[1], dth_prev[2]
+    vx, vy, vz = dvb[0], dvb[1], dvb[2]
+    ux, uy, uz = dv_prev[0], dv_prev[1], dv_prev[2]
+    # coning / sculling
+    phx = ax + (py * az - pz * ay) / 12.0
+    phy = ay + (pz * ax - px * az) / 12.0
+    phz = az + (px * ay - py * ax) / 12.0
+    sx = vx + 0.5 * (ay * vz - az * vy) + ((py * vz - pz * vy) + (uy * az - uz * ay)) / 12.0
+    sy = vy + 0.5 * (az * vx - ax * vz) + ((pz * vx - px * vz) + (uz * ax - ux * az)) / 12.0
+    sz = vz + 0.5 * (ax * vy - ay * vx) + ((px * vy - py * vx) + (ux * ay - uy * ax)) / 12.0
+    _strapdown_core(st, phx, phy, phz, sx, sy, sz, dt)
+
+
+@njit(cache=True, inline="always")  # per sample: inlined
+def strapdown_step_rows(st, b, dt):
+    """:func:`strapdown_step` with the increments as rows of one array ``b`` (≥ 4, 3): this interval's Δθ,
+    Δv, then the previous interval's. One array where the kernel's per-sample loop passed four views of
+    it: each inlined argument cost an atomic reference-count increment and decrement per sample (issue 40,
+    session 16). The same arithmetic, so the same bits."""
+    ax, ay, az = b[0, 0], b[0, 1], b[0, 2]
+    px, py, pz = b[2, 0], b[2, 1], b[2, 2]
+    vx, vy, vz = b[1, 0], b[1, 1], b[1, 2]
+    ux, uy, uz = b[3, 0], b[3, 1], b[3, 2]
+    # coning / sculling
+    phx = ax + (py * az - pz * ay) / 12.0
+    phy = ay + (pz * ax - px * az) / 12.0
+    phz = az + (px * ay - py * ax) / 12.0
+    sx = vx + 0.5 * (ay * vz - az * vy) + ((py * vz - pz * vy) + (uy * az - uz * ay)) / 12.0
+    sy = vy + 0.5 * (az * vx - ax * vz) + ((pz * vx - px * vz) + (uz * ax - ux * az)) / 12.0
+    sz = vz + 0.5 * (ax * vy - ay * vx) + ((px * vy - py * vx) + (ux * ay - uy * ax)) / 12.0
+    _strapdown_core(st, phx, phy, phz, sx, sy, sz, dt)
+
+
+@njit(cache=True, inline="always")
+def _strapdown_core(st, phx, phy, phz, sx, sy, sz, dt):
+    """The strapdown step after coning and sculling: rotation vector φ and velocity increment s (body)."""
     lat, h = st[0], st[2]
     ve, vn, vu = st[3], st[4], st[5]
     q0, q1, q2, q3 = st[6], st[7], st[8], st[9]
@@ -73,18 +110,6 @@ def strapdown_step(st, dth, dvb, dth_prev, dv_prev, dt):
     win_e = wen_e
     win_n = wie_n + wen_n
     win_u = wie_u + wen_u
-
-    # coning / sculling
-    ax, ay, az = dth[0], dth[1], dth[2]
-    px, py, pz = dth_prev[0], dth_prev[1], dth_prev[2]
-    vx, vy, vz = dvb[0], dvb[1], dvb[2]
-    ux, uy, uz = dv_prev[0], dv_prev[1], dv_prev[2]
-    phx = ax + (py * az - pz * ay) / 12.0
-    phy = ay + (pz * ax - px * az) / 12.0
-    phz = az + (px * ay - py * ax) / 12.0
-    sx = vx + 0.5 * (ay * vz - az * vy) + ((py * vz - pz * vy) + (uy * az - uz * ay)) / 12.0
-    sy = vy + 0.5 * (az * vx - ax * vz) + ((pz * vx - px * vz) + (uz * ax - ux * az)) / 12.0
-    sz = vz + 0.5 * (ax * vy - ay * vx) + ((px * vy - py * vx) + (ux * ay - uy * ax)) / 12.0
 
     # C_b^n(k-1) * dv_sf^b
     c00, c01, c02, c10, c11, c12, c20, c21, c22 = dcm_entries(q0, q1, q2, q3)

@@ -53,7 +53,7 @@ from aidnav.jit import njit
 from aidnav.nav.earth import dcm_ecef_to_enu, lla_to_ecef
 from aidnav.nav.gnss_sat import az_el, geo_range, geo_range_rate, klobuchar, range_error_sigma, tropo_delay
 
-from ..kalman import update_scalar
+from ..kalman import update_scalar_ws
 from ..layout import DV, L_CLK, L_ISB, L_NINS, L_RERR, L_TDCP, NAV, ST_VEL
 from .common import W_IB, W_IN
 from .gnss import gnss_position, gnss_velocity
@@ -94,20 +94,36 @@ def _antenna(nav, lever, Hp, Hv):
 
 
 @njit(cache=True)
-def _clock_start(P, nav, row, par, lay, grp, ra, va):
-    """Clock start / jump from the median pseudorange (and at the start rate) residuals."""
+def _geometry(row, ra, lat, lon, geo):
+    """Each satellite's geometry at the antenna ``ra`` (ECEF) at (lat, lon) [rad], once per epoch: rows of
+    ``geo`` (S, 6) = [range with the Sagnac term, e^e (3), azimuth, elevation] where the row has a code and
+    a satellite position (others left as they are). The clock start, the visible count and the updates
+    read them (issue 40, session 16: each satellite's range and azimuth/elevation were computed 3 and 2
+    times an epoch, an allocation and six libm calls each; the same arithmetic, so the same bits)."""
+    for j in range(row.shape[0] // E_W):
+        o = j * E_W
+        if np.isnan(row[o + 6]) or np.isnan(row[o]):
+            continue
+        rho, e = geo_range(row[o:o + 3], ra)
+        az, el, _ = az_el(e, lat, lon)
+        geo[j, 0], geo[j, 1], geo[j, 2], geo[j, 3], geo[j, 4], geo[j, 5] = rho, e[0], e[1], e[2], az, el
+
+
+@njit(cache=True)
+def _clock_start(P, nav, row, par, lay, grp, geo, ra, va):
+    """Clock start / jump from the median pseudorange (and at the start rate) residuals (``geo``: the
+    satellites' geometry, :func:`_geometry`)."""
     S = row.shape[0] // E_W
     res, res_r = np.full(S, np.nan), np.full(S, np.nan)
     for j in range(S):
         o = j * E_W
         if np.isnan(row[o + 6]) or np.isnan(row[o]):
             continue
-        rho, e = geo_range(row[o:o + 3], ra)
-        res[j] = row[o + 6] - rho
+        res[j] = row[o + 6] - geo[j, 0]
         if lay[L_ISB] >= 0 and not np.isnan(row[o + 11]):
             res[j] -= nav.bias[lay[L_ISB] + int(row[o + 11]) - NAV]
         if not np.isnan(row[o + 7]):
-            res_r[j] = row[o + 7] - geo_range_rate(row[o:o + 3], row[o + 3:o + 6], ra, va, e)
+            res_r[j] = row[o + 7] - geo_range_rate(row[o:o + 3], row[o + 3:o + 6], ra, va, geo[j, 1:4])
     ok = np.isfinite(res)
     if ok.sum() == 0:
         return
@@ -154,28 +170,29 @@ def epoch_update(x, P, nav, row, par, lay, gate, grp, g, t_gps):
     ra, va, Cen = _antenna(nav, lever, Hp, Hv)
     grp.t[g] = t_gps
     f0, f1 = grp.flags[0], grp.flags[1]
-    _clock_start(P, nav, row, par, lay, grp, ra, va)
-    tdcp = _clone_of_previous(row, lay, grp, t_gps) and f0 == grp.flags[0] and f1 == grp.flags[1]
     lat, lon, hh = nav.st[0], nav.st[1], nav.st[2]
+    geo, en = np.empty((S, 6)), np.empty(3)  # the satellites' geometry (_geometry); Cen e
+    _geometry(row, ra, lat, lon, geo)
+    _clock_start(P, nav, row, par, lay, grp, geo, ra, va)
+    tdcp = _clone_of_previous(row, lay, grp, t_gps) and f0 == grp.flags[0] and f1 == grp.flags[1]
     alpha, beta = par[E_ALPHA:E_ALPHA + 4].copy(), par[E_BETA:E_BETA + 4].copy()
     n_vis = 0
     for j in range(S):
         o = j * E_W
-        if not (np.isnan(row[o + 6]) or np.isnan(row[o])):
-            _, e = geo_range(row[o:o + 3], ra)
-            if az_el(e, lat, lon)[1] >= par[E_MASK]:
-                n_vis += 1
+        if not (np.isnan(row[o + 6]) or np.isnan(row[o])) and geo[j, 5] >= par[E_MASK]:
+            n_vis += 1
     use_code = n_vis >= par[E_CODE_MIN]
     ir, isb = lay[L_RERR], lay[L_ISB]
-    h = np.zeros(n)
+    hw = np.zeros((3, n))  # the row h, then update_scalar_ws's work rows (one allocation per epoch)
+    h, uw = hw[0], hw[1:]
     nrej = 0
     for j in range(S):
         o = j * E_W
         if np.isnan(row[o + 6]) or np.isnan(row[o]):
             continue
-        rho, e = geo_range(row[o:o + 3], ra)
-        en = Cen @ e
-        az, el, _ = az_el(e, lat, lon)
+        rho, e, az, el = geo[j, 0], geo[j, 1:4], geo[j, 4], geo[j, 5]
+        for a in range(3):  # Cen e (a 3 × 3 product: no BLAS call)
+            en[a] = Cen[a, 0] * e[0] + Cen[a, 1] * e[1] + Cen[a, 2] * e[2]
         grp.el[g, j] = el
         if el < par[E_MASK]:
             continue
@@ -205,21 +222,22 @@ def epoch_update(x, P, nav, row, par, lay, gate, grp, g, t_gps):
                 iu = ir + int(row[o + 10])
                 h[iu] = range_error_sigma(el, row[o + 9], i_mode, i_delay, par[E_TROPO] > 0)
                 pred += h[iu] * nav.bias[iu - NAV]
-            ok, nu, s = update_scalar(x, P, h, par[E_SIG_CODE] ** 2 * mfac, row[o + 6] - corr - pred, gate)
+            ok, nu, s = update_scalar_ws(x, P, h, par[E_SIG_CODE] ** 2 * mfac, row[o + 6] - corr - pred, gate,
+                                         uw)
             grp.pr_nu[g, j], grp.pr_s[g, j] = nu, s
             grp.npr[g] += ok
             nrej += not ok
         if par[E_RATE] > 0 and not np.isnan(row[o + 7]):
             rr = geo_range_rate(row[o:o + 3], row[o + 3:o + 6], ra, va, e)
             _row(h, en, Hv, nn, ib + 1)
-            ok, nu, s = update_scalar(x, P, h, par[E_SIG_RATE] ** 2 * mfac,
-                                      row[o + 7] - (rr + nav.bias[bi + 1]), gate)
+            ok, nu, s = update_scalar_ws(x, P, h, par[E_SIG_RATE] ** 2 * mfac,
+                                         row[o + 7] - (rr + nav.bias[bi + 1]), gate, uw)
             grp.rate_nu[g, j], grp.rate_s[g, j] = nu, s
             grp.nrate[g] += ok
             nrej += not ok
         if tdcp and not np.isnan(row[o + E_PHASE]):
             z = tdcp_row(nav, row, o, lay, ra, Cen, Hp, h)
-            ok, nu, s = update_scalar(x, P, h, 2.0 * par[E_SIG_PHASE] ** 2 * mfac, z, gate)
+            ok, nu, s = update_scalar_ws(x, P, h, 2.0 * par[E_SIG_PHASE] ** 2 * mfac, z, gate, uw)
             grp.ntd[g] += ok
             grp.ntdrej[g] += not ok
     grp.nrej[g] = nrej

@@ -76,34 +76,60 @@ def test_simulated_tdcp_velocities_are_consistent_with_their_sigma(pedestrian):
     assert np.all((nees > lo) & (nees < hi)), (nees, lo, hi)
 
 
-def _run(run, smooth):
+def _run(run, smooth, **gnss):
     from aidnav.estimators.tight_solution import process_tight
     from aidnav.filters.tight import TightConfig
 
-    return process_tight(run.imu, run.obs, run.eph, TightConfig(), smooth=smooth)[0]
+    cfg = TightConfig(gnss=gnss) if gnss else TightConfig()
+    return process_tight(run.imu, run.obs, run.eph, cfg, smooth=smooth)[0]
+
+
+def _late(run, late_s):
+    """The run with the IMU's stamps ``late_s`` late (an IMU-GNSS time offset of −``late_s``)."""
+    return type(run)(run.truth, ImuData(run.imu.time + late_s, run.imu.dtheta, run.imu.dv,
+                                        t0=run.imu.t0 + late_s), run.obs, run.eph, run.walk)
+
+
+def _honest(e, s) -> bool:
+    """Coverage ≥ 95 % per axis and mean (e/σ)² below the 99.9 % χ² quantile of N_INDEPENDENT errors."""
+    cover = np.mean(np.abs(e) <= 3 * s, axis=0)
+    nees = np.mean((e / s) ** 2, axis=0)
+    return bool(np.all(cover >= 0.95) and np.all(nees < chi2.ppf(0.999, N_INDEPENDENT) / N_INDEPENDENT))
 
 
 @pytest.mark.parametrize("smooth", [False, True])
-def test_tight_velocity_sigma_is_honest_while_walking(pedestrian, smooth):
-    """``aidnav tight``'s solution, no configuration: while walking the interval velocity errors are inside
-    3σ at ≥ 95 % per axis and their mean (e/σ)² is below the 99.9 % χ² quantile of
-    :data:`N_INDEPENDENT` independent errors (forward and smoothed)."""
-    e, s = _walking_errors(_run(pedestrian, smooth), pedestrian)
-    cover = np.mean(np.abs(e) <= 3 * s, axis=0)
-    nees = np.mean((e / s) ** 2, axis=0)
+@pytest.mark.parametrize("late_s", [0.0, 0.025])
+def test_tight_velocity_sigma_is_honest_while_walking(pedestrian, smooth, late_s):
+    """``aidnav tight``'s solution, no configuration, with the IMU's stamps on time and 25 ms late: while
+    walking the interval velocity errors are inside 3σ at ≥ 95 % per axis and their mean (e/σ)² is below
+    the 99.9 % χ² quantile of :data:`N_INDEPENDENT` independent errors (forward and smoothed)."""
+    run = _late(pedestrian, late_s)
+    e, s = _walking_errors(_run(run, smooth), run)
     assert len(e) > 350
-    assert np.all(cover >= 0.95), cover
-    assert np.all(nees < chi2.ppf(0.999, N_INDEPENDENT) / N_INDEPENDENT), nees
+    assert _honest(e, s), (np.mean(np.abs(e) <= 3 * s, axis=0), np.mean((e / s) ** 2, axis=0))
 
 
-def test_an_imu_gnss_time_offset_makes_the_walking_velocity_sigma_optimistic(pedestrian):
-    """The same check fails for the cause the walk shows: the IMU's stamps 25 ms late (the tight filter has
-    no time-offset state) leave the smoothed velocity error ≈ a·δt at every step (±2.5 m/s² × 25 ms)
-    while its σ averages the records down: mean (e/σ)² far above the χ² bound, coverage below 95 %."""
-    run = pedestrian
-    late = type(run)(run.truth, ImuData(run.imu.time + 0.025, run.imu.dtheta, run.imu.dv,
-                                        t0=run.imu.t0 + 0.025), run.obs, run.eph, run.walk)
-    e, s = _walking_errors(_run(late, True), late)
+def test_an_unmodelled_imu_gnss_time_offset_makes_the_walking_velocity_sigma_optimistic(pedestrian):
+    """The same check fails for the cause the walk shows: without the time offset from the phase
+    (``gnss.time_offset_from_phase`` off) the IMU's stamps 25 ms late leave the smoothed velocity error ≈
+    a·δt at every step while its σ averages the records down: mean (e/σ)² far above the χ² bound,
+    coverage below 95 %."""
+    run = _late(pedestrian, 0.025)
+    e, s = _walking_errors(_run(run, True, time_offset_from_phase=False), run)
     nees = np.mean((e / s) ** 2, axis=0)
-    assert np.all(nees[:2] > 2.0 * chi2.ppf(0.999, N_INDEPENDENT) / N_INDEPENDENT), nees
-    assert np.all(np.mean(np.abs(e[:, :2]) <= 3 * s[:, :2], axis=0) < 0.95)
+    assert np.all(nees > 2.0 * chi2.ppf(0.999, N_INDEPENDENT) / N_INDEPENDENT), nees
+    assert np.all(np.mean(np.abs(e) <= 3 * s, axis=0) < 0.95)
+
+
+@pytest.mark.parametrize("late_s", [0.0, 0.025, -0.05])
+def test_the_time_offset_from_the_specific_force_norm_recovers_a_known_shift(pedestrian, late_s):
+    """:func:`aidnav.estimators.tdcp.imu_time_offset` on the pedestrian: −late within 3σ, σ < 10 ms."""
+    from aidnav.estimators.dgps import spp_series
+    from aidnav.estimators.tdcp import imu_time_offset, tdcp_series
+    from aidnav.nav.earth import gravity
+
+    run = _late(pedestrian, late_s)
+    r = tdcp_series(run.obs, run.eph, spp_series(run.obs, run.eph)["ecef"])
+    d, sd, n = imu_time_offset(run.imu, run.obs.time, r["vel_enu"], gravity(np.radians(40.0), 50.0))
+    assert n > 400 and sd < 0.010
+    assert abs(d + late_s) < 3 * sd, (d, sd)

@@ -54,7 +54,7 @@ def _primitives(speed, step_hz, accel_amp, bounce_deg, turns, walk_s, stand_s, s
     return prims, n * q
 
 
-def walking_truth(speed=1.3, step_hz=STEP_HZ, speed_amp=0.2, bounce_deg=1.5, walk_s=100.0, stand_s=12.0,
+def walking_truth(speed=1.3, step_hz=STEP_HZ, speed_amp=0.2, bounce_deg=5.0, walk_s=100.0, stand_s=12.0,
                   end_s=15.0, imu_rate_hz=100.0, transition_s=0.08, lat_deg=40.0, lon_deg=116.0,
                   height_m=50.0, heading_deg=20.0):
     """(truth :class:`Trajectory`, perfect :class:`ImuData`, the walking span (start, end) [s]) of the

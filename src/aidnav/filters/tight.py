@@ -177,9 +177,9 @@ class RawGnssAiding(_Strict):
         "imu.time_offset_s, and its sigma as time_offset_sigma_s")
     time_offset_sigma_s: float = Field(
         0.0, ge=0, description="sigma of the IMU-GNSS time offset left after imu.time_offset_s [s] (the "
-        "tight filter has no state for it): at each record the velocity variance grows by (sigma·|Δf|)² per "
-        "axis, Δf the IMU's specific-force change since the previous record — the velocity error a timing "
-        "error δt leaves between records, δt·Δa (0: the offset is exact)")
+        "tight filter has no state for it): at each velocity record the velocity variance grows by "
+        "(sigma·|Δf|)² per axis, Δf the IMU's specific-force change since the previous one — the velocity "
+        "error a timing error δt leaves between them, δt·Δa (0: the offset is exact)")
 
 
 @lru_cache(maxsize=64)
@@ -513,7 +513,10 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
         gates[ms.M_GNSS_VEL, 1:4] = [chi2_isf(m, 1.0 - g.gate_probability) if g.gate_probability < 1 else 0.0
                                      for m in (1, 2, 3)]
         max_rej[ms.M_GNSS_VEL] = g.max_consecutive_rejections
-    imu_in = _imu_input(imu, cfg, t_imu, k0, static, events, rec.t)
+    vt = None
+    if velocity_fixes is not None:  # the velocity records used: the times the timing noise applies at
+        vt = np.asarray(velocity_fixes[0], float)[np.all(np.isfinite(velocity_fixes[1]), axis=1)]
+    imu_in = _imu_input(imu, cfg, t_imu, k0, static, events, vt)
     reset_idx, reset_heading = -1, 0.0
     if heading_reset is not None:
         reset_idx = int(np.searchsorted(t_imu[k0:], heading_reset[0], side="left"))
@@ -631,8 +634,8 @@ def _epoch_rows(obs, eph, g, events: list, phase_increments=None):
 def _imu_input(imu, cfg: TightConfig, t_imu, k0: int, static, events: list, rec_t=None) -> Imu:
     """The engine's IMU input from sample ``k0`` on: increments with gaps bridged, the static flags for
     the ZUPTs, the attitude variance of gyro scale factor and misalignment per node
-    (``cfg.rotation_noise``) and the velocity variance of the time offset's σ at the records (times
-    ``rec_t``: :func:`timing_variance`)."""
+    (``cfg.rotation_noise``) and the velocity variance of the time offset's σ at the velocity records
+    (times ``rec_t``: :func:`timing_variance`)."""
     stat = np.zeros(len(t_imu), np.bool_) if static is None else np.asarray(static, np.bool_)
     dth_in, dv_in = bridge_gaps(imu, events)[:2]  # gap variances not used (as before the engine)
     sl = slice(k0, None)
@@ -651,8 +654,9 @@ def _imu_input(imu, cfg: TightConfig, t_imu, k0: int, static, events: list, rec_
 
 def timing_variance(t, dv, rec_t, sigma_s: float) -> np.ndarray:
     """Per IMU sample (N,) the velocity variance [(m/s)²] per axis that an IMU-GNSS timing error of σ
-    ``sigma_s`` [s] leaves between consecutive records: the strapdown integrates a(t + δt) for a(t), so the
-    velocity it carries from one record (the last update) to the next is off by δt·(a(t_j) − a(t_{j−1}));
+    ``sigma_s`` [s] leaves between consecutive velocity records: the strapdown integrates a(t + δt) for
+    a(t), so the velocity it carries from one record (the last velocity update) to the next is off by
+    δt·(a(t_j) − a(t_{j−1})) — bounded, not a random walk: without records (an outage) nothing is added;
     its variance (σ·|Δf|)², Δf the specific-force change between the samples at the records (body frame:
     the turn between records neglected; a 5-sample mean at each end), is put at the sample of record j (the
     engine adds it at that node). ``t`` (N,) sample times, ``dv`` (N, 3) increments, ``rec_t`` (M,) record

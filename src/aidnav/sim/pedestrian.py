@@ -19,6 +19,7 @@ every time difference); code-minus-phase is not used by anything that reads this
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -88,9 +89,9 @@ def with_carrier_phase(obs, truth, eph, spec, seed, t0_gps, phase_sigma_m=0.005)
     """A copy of ``obs`` (the rover of :func:`aidnav.sim.gnss_raw.simulate_raw_gnss` run with ``spec`` and a
     generator seeded ``seed``) with an L1 carrier phase [cycles] (module doc) where it has a code; its
     loss-of-lock indicator 0."""
-    import dataclasses
-
-    from aidnav.sim.gnss_raw import simulate_raw_gnss  # lazy: a sibling that imports this module's users
+    from aidnav.sim.gnss_raw import (
+        simulate_raw_gnss,  # lazy: the raw GNSS simulator only where a phase is made
+    )
 
     clean = simulate_raw_gnss(truth, eph, spec.perfect(), np.random.default_rng(seed), t0_gps).rover
     rng = np.random.default_rng([int(np.atleast_1d(seed)[0]), 77])
@@ -116,9 +117,9 @@ def simulate_pedestrian(seed: int, grade: str = "consumer", rate_hz: float = 4.0
                         phase_sigma_m: float = 0.005, **motion) -> PedestrianRun:
     """The module's pedestrian with an IMU of ``grade`` (:meth:`aidnav.sim.imu.ImuSpec.grade`) and raw GNSS
     of ``systems`` at ``rate_hz`` with carrier phase; every draw from ``seed``."""
-    from aidnav.sim.gnss_constellation import nominal_multi_constellation  # lazy: as with_carrier_phase
-    from aidnav.sim.gnss_raw import RawGnssSpec, simulate_raw_gnss  # lazy: as with_carrier_phase
-    from aidnav.sim.imu import ImuSpec, corrupt_imu  # lazy: as with_carrier_phase
+    from aidnav.sim.gnss_constellation import nominal_multi_constellation  # lazy: the sensors only here
+    from aidnav.sim.gnss_raw import RawGnssSpec, simulate_raw_gnss  # lazy: the sensors only here
+    from aidnav.sim.imu import ImuSpec, corrupt_imu  # lazy: the sensors only here
 
     truth, imu_true, (w0, w1) = walking_truth(**motion)
     imu, _ = corrupt_imu(imu_true, ImuSpec.grade(grade), np.random.default_rng([seed, 35]))

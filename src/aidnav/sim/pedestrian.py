@@ -89,9 +89,7 @@ def with_carrier_phase(obs, truth, eph, spec, seed, t0_gps, phase_sigma_m=0.005)
     """A copy of ``obs`` (the rover of :func:`aidnav.sim.gnss_raw.simulate_raw_gnss` run with ``spec`` and a
     generator seeded ``seed``) with an L1 carrier phase [cycles] (module doc) where it has a code; its
     loss-of-lock indicator 0."""
-    from aidnav.sim.gnss_raw import (
-        simulate_raw_gnss,  # lazy: the raw GNSS simulator only where a phase is made
-    )
+    from aidnav.sim.gnss_raw import simulate_raw_gnss  # lazy: the raw simulator only for a phase
 
     clean = simulate_raw_gnss(truth, eph, spec.perfect(), np.random.default_rng(seed), t0_gps).rover
     rng = np.random.default_rng([int(np.atleast_1d(seed)[0]), 77])

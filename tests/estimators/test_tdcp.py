@@ -449,3 +449,43 @@ def test_walk_reference_noise_by_the_three_cornered_hat_is_near_the_target(walk_
     n_w = walking.sum()
     floor = np.sqrt((n_w * var_r[0][:2].sum() + (len(walking) - n_w) * var_r[1][:2].sum()) / len(walking))
     assert floor >= 0.04, floor
+
+
+@pytest.mark.parametrize("d_true", [0.0, 0.031, -0.07])
+def test_imu_time_offset_recovers_a_shift_of_a_noise_free_bounce(d_true):
+    """Closed form: a body at a fixed attitude (body = ENU) bouncing vertically, z(t) = A sin(2πft) (A = 3 cm,
+    f = 1.9 Hz), the IMU's Δv exact on its own stamps, which are ``d_true`` late against the GNSS epochs
+    (4 Hz); the TDCP mean velocities exact. The offset to add is −d_true, to a fraction of a ms."""
+    from types import SimpleNamespace
+
+    from aidnav.estimators.tdcp import imu_time_offset
+
+    g, amp, w = 9.80, 0.03, 2 * np.pi * 1.9
+    t_imu = np.arange(0.0, 60.0, 0.005)
+    z = lambda t: amp * np.sin(w * t)  # noqa: E731
+    vz = lambda t: amp * w * np.cos(w * t)  # noqa: E731
+    dv = np.zeros((t_imu.size - 1, 3))
+    dv[:, 2] = vz(t_imu[1:]) - vz(t_imu[:-1]) + g * np.diff(t_imu)  # ∫(a + g) over each sample
+    imu = SimpleNamespace(t0=t_imu[0] + d_true, time=t_imu[1:] + d_true, dv=dv)
+    t_e = np.arange(1.0, 59.0, 0.25)
+    vel = np.zeros((t_e.size - 1, 3))
+    vel[:, 2] = (z(t_e[1:]) - z(t_e[:-1])) / 0.25
+    d, sd, n = imu_time_offset(imu, t_e, vel, g)
+    assert n == t_e.size - 2
+    assert d == pytest.approx(-d_true, abs=5e-4)
+    assert sd < 1e-3
+
+
+def test_timing_variance_is_the_specific_force_change_between_records():
+    """Closed form: a specific force that steps from (0, 0, 9.8) to (1, 2, 9.8) m/s² between two records
+    and back before the third: (σ·√5)² at the second record's sample and at the third's, 0 elsewhere."""
+    from aidnav.filters.tight import timing_variance
+
+    t = np.arange(1, 1001) * 0.01
+    f = np.tile([0.0, 0.0, 9.8], (t.size, 1))
+    f[(t > 3.0) & (t <= 6.0)] = [1.0, 2.0, 9.8]
+    out = timing_variance(t, f * 0.01, np.array([2.0, 4.0, 8.0]), 0.02)
+    k = np.searchsorted(t, [2.0, 4.0, 8.0])
+    expect = np.zeros(t.size)
+    expect[k[1:]] = (0.02 * np.sqrt(5.0)) ** 2
+    np.testing.assert_allclose(out, expect, atol=1e-15)

@@ -98,8 +98,11 @@ def process_tight_files(imu_path, obs_path, nav_path, config_path=None, out_dir=
     cfg = apply_vehicle(cfg, vehicle, events)
     if time_offset_s is not None:
         cfg = cfg.model_copy(update={"imu": cfg.imu.model_copy(update={"time_offset_s": time_offset_s})})
-    imu = shift_imu_time(read_imu_any(imu_path), cfg.imu.time_offset_s)
-    cfg = cfg.model_copy(update={"imu": cfg.imu.model_copy(update={"time_offset_s": 0.0})})
+    imu = read_imu_any(imu_path)
+    if "time_offset_s" in cfg.imu.model_fields_set:  # a given offset: the stamps shifted here, once
+        imu = shift_imu_time(imu, cfg.imu.time_offset_s)
+        cfg = cfg.model_copy(update={"imu": cfg.imu.model_copy(update={"time_offset_s": 0.0})})
+    # none given: the stamps as they are, and process_tight may estimate it (gnss.time_offset_from_phase)
     obs, eph, rinex_events, sources = read_observations_and_navigation(
         obs_path, nav_path, cfg.gnss.systems, *ubx_nav_setting(cfg, ubx_nav, config_path))
     events += rinex_events

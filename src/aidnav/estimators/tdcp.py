@@ -45,8 +45,8 @@ import numpy as np
 from aidnav.nav.earth import dcm_ecef_to_enu, ecef_to_lla
 from aidnav.nav.gnss_sat import LAMBDA_L1, geo_range, satellites_from_pseudoranges
 
-__all__ = ["phase_increments", "receiver_windup", "running_variance_factor", "tdcp_displacement",
-           "tdcp_series",
+__all__ = ["imu_time_offset", "phase_increments", "receiver_windup", "running_variance_factor",
+           "tdcp_displacement", "tdcp_series",
            "windup_increments"]
 
 
@@ -228,3 +228,90 @@ def tdcp_series(obs, eph, positions_ecef, sigma_phase_m: float = 0.005, slip_thr
         out["drift"][k - 1] = x[3] / dt
         out["n_used"][k - 1] = int(used.sum())
     return out
+
+
+def imu_time_offset(imu, t_epoch, vel_mean, gravity_m_s2: float, max_lag_s: float = 0.2,
+                    step_s: float = 0.001, min_epochs: int = 40):
+    """The IMU-GNSS time offset d [s] to add to the IMU stamps, from the specific force's **norm**, which
+    the IMU and the carrier phase both give without an attitude (a walker's steps: ±2–3 m/s² at 2 Hz).
+
+    GNSS side: the TDCP mean velocities ``vel_mean`` (K, 3) ENU [m/s] over the intervals [t_k, t_{k+1}]
+    of ``t_epoch`` (K + 1,) [s] give at each inner epoch of two equal intervals Δ the second difference of
+    position, a_k = (v̄_k − v̄_{k−1})/Δ: the acceleration seen through a triangle kernel Λ of half-width Δ
+    (unit area, centred on t_k: no lag), and the specific force's norm s_k = ‖a_k − g^n‖ − g (g^n =
+    (0, 0, −``gravity_m_s2``)). IMU side: f^b = Δv/Δt through the same kernel — the second difference of
+    its double integral P(t) = ∫∫f^b, (P(t + Δ) − 2P(t) + P(t − Δ))/Δ² — at the stamps t_k − d, each f^b
+    turned into the body frame at t_k by the gyro's angle θ (small turns: f + (θ(s) − θ(t_k)) × f, so
+    that the kernel mean is of one frame's vector), and its norm minus g. For each lag d
+    on a grid of ``step_s`` over ±``max_lag_s`` the least squares s_k = α·s_imu,k(d) + β (α absorbs the
+    accelerometer's scale, β its bias along the force); d̂ is the least residual, refined by a parabola
+    through its neighbours; its σ the linearised slope's (x = α ∂s/∂d; the residuals' correlation between
+    neighbouring epochs counted, Newey–West to lag 3; never below the white-residual sandwich Σx²e²/(Σx²)²).
+    Returns (d̂, σ_d, n epochs) or None (fewer than ``min_epochs`` usable epochs, or the least residual on
+    the grid's edge)."""
+    t_e = np.asarray(t_epoch, float)
+    v = np.asarray(vel_mean, float)
+    dt_i = np.diff(t_e)
+    k = np.arange(1, len(t_e) - 1)
+    ok = (np.isfinite(v[k]).all(axis=1) & np.isfinite(v[k - 1]).all(axis=1)
+          & (np.abs(dt_i[k] - dt_i[k - 1]) < 1e-3 * dt_i[k]))
+    k = k[ok]
+    if k.size < min_epochs:
+        return None
+    delta = dt_i[k]
+    a = (v[k] - v[k - 1]) / delta[:, None]
+    a[:, 2] += gravity_m_s2
+    s_g = np.linalg.norm(a, axis=1) - gravity_m_s2
+    t_imu = np.concatenate([[imu.t0], imu.time])
+    dth = getattr(imu, "dtheta", None)
+    th = np.vstack([np.zeros(3), np.cumsum(np.zeros_like(imu.dv) if dth is None else dth, axis=0)])
+    th_mid = 0.5 * (th[1:] + th[:-1])  # the rotation angle at each increment's middle
+
+    def double_integral(inc):  # ∫∫ of the increments' rate, at the sample times
+        v = np.vstack([np.zeros(3), np.cumsum(inc, axis=0)])
+        return np.vstack([np.zeros(3), np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t_imu)[:, None], axis=0)])
+
+    pos = double_integral(imu.dv)
+    pos_rot = double_integral(np.cross(th_mid, imu.dv))  # ∫∫ θ × f: the turn within the kernel (below)
+
+    def at(p, tc):
+        return np.column_stack([np.interp(tc, t_imu, p[:, i], left=np.nan, right=np.nan) for i in range(3)])
+
+    def s_imu(d):
+        # the kernel mean of f in the body frame at t_k (small turns: f_t = f_s + (θ_s − θ_t) × f_s)
+        tc = t_e[k] - d
+        sec = [(at(pos, tc - delta) - 2.0 * at(pos, tc) + at(pos, tc + delta)) / delta[:, None] ** 2
+               for pos in (pos, pos_rot)]
+        f = sec[0] + sec[1] - np.cross(at(th, tc), sec[0])
+        return np.linalg.norm(f, axis=1) - gravity_m_s2
+
+    lags = np.arange(-max_lag_s, max_lag_s + 0.5 * step_s, step_s)
+    inside = np.isfinite(s_imu(-max_lag_s)) & np.isfinite(s_imu(max_lag_s))
+    if inside.sum() < min_epochs:
+        return None
+    y = s_g[inside]
+    rss = np.full(lags.size, np.inf)
+    fits = []
+    for j, d in enumerate(lags):
+        x = s_imu(d)[inside]
+        A = np.column_stack([x, np.ones_like(x)])
+        c, res, *_ = np.linalg.lstsq(A, y, rcond=None)
+        rss[j] = float(res[0]) if res.size else float(np.sum((y - A @ c) ** 2))
+        fits.append(c)
+    j = int(np.argmin(rss))
+    if j == 0 or j == lags.size - 1:
+        return None
+    r0, r1, r2 = rss[j - 1], rss[j], rss[j + 1]
+    den = r0 - 2.0 * r1 + r2
+    d_hat = lags[j] + (0.5 * step_s * (r0 - r2) / den if den > 0 else 0.0)
+    alpha, beta = fits[j]
+    x = alpha * (s_imu(lags[j] + step_s)[inside] - s_imu(lags[j] - step_s)[inside]) / (2.0 * step_s)
+    e = y - alpha * s_imu(lags[j])[inside] - beta
+    # the residuals are correlated (a second difference shares each velocity with its neighbours: −2/3 at
+    # lag 1, 1/6 at lag 2 for white phase noise): the slope's variance Σ_ij x_i x_j C_ij / (Σx²)² with C from
+    # the residuals' autocovariances up to lag 3 (Newey–West, Bartlett weights)
+    var = float(np.sum(x * x * e * e))
+    for lag in range(1, 4):
+        var += 2.0 * (1.0 - lag / 4.0) * float(np.sum(x[lag:] * x[:-lag] * e[lag:] * e[:-lag]))
+    sigma = float(np.sqrt(max(var, float(np.sum(x * x * e * e))) / max(np.sum(x * x), 1e-30) ** 2))
+    return float(d_hat), sigma, int(y.size)

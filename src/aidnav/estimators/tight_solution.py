@@ -78,6 +78,10 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
                       f"10 mg + 0.5 mg; {cfg.nins} INS states)")
     sp, g, t_imu, i0 = _spp_start(imu, obs, eph, cfg)
     cfg = _clock_from_log(sp, cfg, events)
+    tdcp = _tdcp(obs, eph, sp, cfg)
+    cfg = _time_offset_from_phase(imu, obs, tdcp, sp, cfg, events)
+    if cfg.imu.time_offset_s != 0.0:
+        sp, g, t_imu, i0 = _spp_start(imu, obs, eph, cfg, sp)
     ini = cfg.init
     win = (t_imu >= sp["time"][i0]) & (t_imu < sp["time"][i0] + ini.static_window_s)
     dtw = np.diff(np.concatenate([[imu.t0], imu.time]))[win]
@@ -116,7 +120,7 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
     )
     rows = cfg.gnss.tdcp_model == "rows"
     dphi = _tdcp_increments(obs, eph, cfg, events) if rows else None
-    vfix = None if rows else _tdcp_velocities(imu, obs, eph, sp, cfg, events)
+    vfix = None if rows else _tdcp_velocities(imu, obs, tdcp, cfg, events)
 
     obs_f = _admitted(obs, sp, events)
 
@@ -266,19 +270,15 @@ def _rest_gyro_bias(imu, win, block_s: float = 1.0, quiet: float = 3.0):
     return imu.dtheta[idx][sel].sum(axis=0) / dt[sel].sum()
 
 
-def _spp_start(imu, obs, eph, cfg: TightConfig):
-    """The SPP solution of the observations (dict of :func:`spp_series`), its fixes inside the IMU's time
-    span as :class:`GnssData` (for the static detector and the course), the IMU times on the GNSS scale and
-    the index of the first SPP fix inside the IMU span (an input error when there is none)."""
+def _spp_start(imu, obs, eph, cfg: TightConfig, sp=None):
+    """The SPP solution of the observations (dict of :func:`spp_series`; ``sp`` when given), its fixes
+    inside the IMU's time span as :class:`GnssData` (for the static detector and the course), the IMU times
+    on the GNSS scale and the index of the first SPP fix inside the IMU span (an input error when there is
+    none)."""
     iono = cfg.gnss.iono
-    sp = spp_series(
-        obs,
-        eph,
-        sigma0=cfg.gnss.code_sigma_m,
-        iono=iono,
-        mask_deg=cfg.gnss.mask_deg,
-        iono_window_s=cfg.gnss.iono_window_s,
-    )
+    if sp is None:
+        sp = spp_series(obs, eph, sigma0=cfg.gnss.code_sigma_m, iono=iono, mask_deg=cfg.gnss.mask_deg,
+                        iono_window_s=cfg.gnss.iono_window_s)
     t_imu = imu.time + cfg.imu.time_offset_s
     ok = np.isfinite(sp["lat"]) & (sp["time"] >= t_imu[0]) & (sp["time"] < t_imu[-1])
     if not ok.any():
@@ -341,18 +341,58 @@ def _start_heading(imu, sp, i0: int, g, level, cfg: TightConfig, events: list):
     return heading, heading_reset, cfg
 
 
-def _tdcp_velocities(imu, obs, eph, sp, cfg, events):
-    """TDCP mean velocities (:func:`aidnav.estimators.tdcp.tdcp_series`) as velocity records at the middle
-    of each interval, or None (``gnss.use_phase`` off or no phase). Their σ per axis: the TDCP σ and the
-    difference between the interval's mean velocity and the velocity at its middle, Δt²/24 times the jerk,
-    the jerk taken as the change of the IMU's specific force over the interval divided by Δt (the change of
-    gravity's projection when the body turns counts too: conservative)."""
+def _tdcp(obs, eph, sp, cfg):
+    """The TDCP mean velocities (:func:`aidnav.estimators.tdcp.tdcp_series`) of ``gnss.tdcp_model``
+    'velocity', or None (``gnss.use_phase`` off, the 'rows' model or no phase)."""
     from aidnav.estimators.tdcp import tdcp_series  # lazy: only where the observations have a phase
 
     g = cfg.gnss
-    if not g.use_phase or obs.phase1 is None:
+    if not g.use_phase or obs.phase1 is None or g.tdcp_model == "rows":
         return None
-    r = tdcp_series(obs, eph, sp["ecef"], g.phase_sigma_m, g.slip_threshold_cycles)
+    return tdcp_series(obs, eph, sp["ecef"], g.phase_sigma_m, g.slip_threshold_cycles)
+
+
+def _time_offset_from_phase(imu, obs, r, sp, cfg, events):
+    """``gnss.time_offset_from_phase``: with TDCP velocities ``r`` and no ``imu.time_offset_s`` in the
+    configuration, the IMU-GNSS time offset from the specific force's norm
+    (:func:`aidnav.estimators.tdcp.imu_time_offset`; TDCP velocities of 5+ satellites) as
+    ``imu.time_offset_s`` and its σ as
+    ``gnss.time_offset_sigma_s`` (unless configured). Returns the configuration to use."""
+    from aidnav.estimators.tdcp import imu_time_offset  # lazy: as _tdcp
+    from aidnav.nav.earth import gravity  # lazy: as _tdcp
+
+    g = cfg.gnss
+    if r is None or not g.time_offset_from_phase or "time_offset_s" in cfg.imu.model_fields_set:
+        return cfg
+    ok = np.isfinite(sp["lat"])
+    if not ok.any():
+        return cfg
+    # only TDCP velocities with a redundant satellite (5+): with 4 the least squares has no check of its own
+    # errors (no residual, no variance factor) and the vertical, which the norm reads, is the weakest
+    vel = np.where((r["n_used"] >= 5)[:, None], r["vel_enu"], np.nan)
+    est = imu_time_offset(imu, obs.time, vel, gravity(np.median(sp["lat"][ok]), np.median(sp["h"][ok])))
+    if est is None:
+        events.append("IMU-GNSS time offset: not estimated from the phase (too few TDCP accelerations of 5+ "
+                      "satellites, or the fit at the edge of its ±0.2 s grid); the IMU stamps as they are")
+        return cfg
+    d, sd, n = est
+    events.append(f"IMU-GNSS time offset from the specific force's norm (IMU against the TDCP accelerations, "
+                  f"{n} epochs): {d:+.4f} s, sigma {sd:.4f} s, added to the IMU stamps; its sigma as the "
+                  "velocity's timing noise at each record (gnss.time_offset_sigma_s)")
+    gu = {} if "time_offset_sigma_s" in g.model_fields_set else {"time_offset_sigma_s": sd}
+    return cfg.model_copy(update={"imu": cfg.imu.model_copy(update={"time_offset_s": d}),
+                                  "gnss": g.model_copy(update=gu)})
+
+
+def _tdcp_velocities(imu, obs, r, cfg, events):
+    """TDCP mean velocities ``r`` (:func:`_tdcp`) as velocity records at the middle of each interval, or
+    None. Their σ per axis: the TDCP σ and the
+    difference between the interval's mean velocity and the velocity at its middle, Δt²/24 times the jerk,
+    the jerk taken as the change of the IMU's specific force over the interval divided by Δt (the change of
+    gravity's projection when the body turns counts too: conservative)."""
+    g = cfg.gnss
+    if r is None:
+        return None
     t0, t1 = obs.time[:-1], obs.time[1:]
     t_imu = imu.time + cfg.imu.time_offset_s
     dt_imu = np.diff(np.concatenate([[imu.t0], imu.time]))

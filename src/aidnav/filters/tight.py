@@ -93,7 +93,7 @@ from .smoother import rts, smooth_outputs
 
 __all__ = ["CLOCK_GRADES", "RawGnssAiding", "TightConfig", "TightResult", "apply_vehicle", "clock_allan",
            "clock_drift_psd", "clock_hm2_from_psd",
-           "rotation_variance", "run_tight", "tight_layout",
+           "rotation_variance", "run_tight", "tight_layout", "timing_variance",
            "tight_nav_covariance_m", "to_trajectory"]
 N_CLONE = 4  # clone states of the time-differenced carrier phase: antenna position ECEF (3), clock bias
 
@@ -178,6 +178,16 @@ class RawGnssAiding(_Strict):
                                  "where read: aidnav.io.rawx; the 'rows' model takes this one)")
     slip_threshold_cycles: float = Field(0.5, gt=0, description="phase-Doppler disagreement that is a "
                                          "cycle slip [cycles]")
+    time_offset_from_phase: bool = Field(
+        True, description="where the configuration gives no imu.time_offset_s and TDCP velocities are used "
+        "(aidnav tight): the IMU-GNSS time offset from the specific force's norm, which the IMU and the "
+        "carrier phase both give without an attitude (aidnav.estimators.tdcp.imu_time_offset), as "
+        "imu.time_offset_s, and its sigma as time_offset_sigma_s")
+    time_offset_sigma_s: float = Field(
+        0.0, ge=0, description="sigma of the IMU-GNSS time offset left after imu.time_offset_s [s] (the "
+        "tight filter has no state for it): at each velocity record the velocity variance grows by "
+        "(sigma·|Δf|)² per axis, Δf the IMU's specific-force change since the previous one — the velocity "
+        "error a timing error δt leaves between them, δt·Δa (0: the offset is exact)")
 
 
 @lru_cache(maxsize=64)
@@ -518,7 +528,10 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
         gates[ms.M_GNSS_VEL, 1:4] = [chi2_isf(m, 1.0 - g.gate_probability) if g.gate_probability < 1 else 0.0
                                      for m in (1, 2, 3)]
         max_rej[ms.M_GNSS_VEL] = g.max_consecutive_rejections
-    imu_in = _imu_input(imu, cfg, t_imu, k0, static, events)
+    vt = None
+    if velocity_fixes is not None:  # the velocity records used: the times the timing noise applies at
+        vt = np.asarray(velocity_fixes[0], float)[np.all(np.isfinite(velocity_fixes[1]), axis=1)]
+    imu_in = _imu_input(imu, cfg, t_imu, k0, static, events, vt)
     reset_idx, reset_heading = -1, 0.0
     if heading_reset is not None:
         reset_idx = int(np.searchsorted(t_imu[k0:], heading_reset[0], side="left"))
@@ -633,10 +646,11 @@ def _epoch_rows(obs, eph, g, events: list, phase_increments=None):
     return rows, with_eph, isb_sys
 
 
-def _imu_input(imu, cfg: TightConfig, t_imu, k0: int, static, events: list) -> Imu:
+def _imu_input(imu, cfg: TightConfig, t_imu, k0: int, static, events: list, rec_t=None) -> Imu:
     """The engine's IMU input from sample ``k0`` on: increments with gaps bridged, the static flags for
-    the ZUPTs, and the attitude variance of gyro scale factor and misalignment per node
-    (``cfg.rotation_noise``)."""
+    the ZUPTs, the attitude variance of gyro scale factor and misalignment per node
+    (``cfg.rotation_noise``) and the velocity variance of the time offset's σ at the velocity records
+    (times ``rec_t``: :func:`timing_variance`)."""
     stat = np.zeros(len(t_imu), np.bool_) if static is None else np.asarray(static, np.bool_)
     dth_in, dv_in = bridge_gaps(imu, events)[:2]  # gap variances not used (as before the engine)
     sl = slice(k0, None)
@@ -645,7 +659,33 @@ def _imu_input(imu, cfg: TightConfig, t_imu, k0: int, static, events: list) -> I
         im = cfg.imu
         gap_var[:, 0] = rotation_variance(t_imu[sl], dth_in[sl], im.gyro_sf_sigma_ppm * 1e-6,
                                           im.gyro_misalignment_sigma_deg * DEG, float(cfg.filter.prop_dt_s))
+    if cfg.gnss.time_offset_sigma_s > 0 and rec_t is not None and len(rec_t) > 1:
+        gap_var[:, 1] = timing_variance(t_imu[sl], dv_in[sl], np.asarray(rec_t, float),
+                                        cfg.gnss.time_offset_sigma_s)
+        # the engine adds a node's gap variance where it has an attitude part (_gap_at_node): a negligible one
+        gap_var[:, 0] = np.where((gap_var[:, 1] > 0) & (gap_var[:, 0] == 0), 1e-30, gap_var[:, 0])
     return Imu(t_imu[sl], dth_in[sl], dv_in[sl], stat[sl], gap_var, np.zeros((0, 2)))
+
+
+def timing_variance(t, dv, rec_t, sigma_s: float) -> np.ndarray:
+    """Per IMU sample (N,) the velocity variance [(m/s)²] per axis that an IMU-GNSS timing error of σ
+    ``sigma_s`` [s] leaves between consecutive velocity records: the strapdown integrates a(t + δt) for
+    a(t), so the velocity it carries from one record (the last velocity update) to the next is off by
+    δt·(a(t_j) − a(t_{j−1})) — bounded, not a random walk: without records (an outage) nothing is added;
+    its variance (σ·|Δf|)², Δf the specific-force change between the samples at the records (body frame:
+    the turn between records neglected; a 5-sample mean at each end), is put at the sample of record j (the
+    engine adds it at that node). ``t`` (N,) sample times, ``dv`` (N, 3) increments, ``rec_t`` (M,) record
+    times, all on one scale."""
+    t = np.asarray(t, float)
+    dt = np.diff(np.concatenate([[t[0] - np.median(np.diff(t))], t]))
+    f = np.asarray(dv, float) / dt[:, None]
+    f = np.column_stack([np.convolve(f[:, i], np.full(5, 0.2), mode="same") for i in range(3)])  # 5 samples
+    k = np.unique(np.clip(np.searchsorted(t, np.sort(rec_t)), 0, len(t) - 1))
+    out = np.zeros(len(t))
+    if k.size > 1:
+        df = np.linalg.norm(f[k[1:]] - f[k[:-1]], axis=1)
+        out[k[1:]] = (sigma_s * df) ** 2
+    return out
 
 
 def _gate_events(ge, gate: float, names, events: list) -> None:

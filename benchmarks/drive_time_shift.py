@@ -11,6 +11,14 @@ car moves off (38 s) whose estimate is more than 3σ (its own σ) off the final 
 
 Target (issue 35): Δoffset within 3σ of s, and the median within 1.2× of the unshifted run's.
 
+Two scores of the outage's end (issue 35 session 16, s35k): ``old`` = the run summary's (the output
+interpolated to the last withheld fix); ``new`` (:func:`aidnav.apps.outages.run_outage_ends`, the target's
+median) = the same, except where the forward output stamped at the last withheld fix has already taken the
+first fix after the outage (``loose.loose_result`` stamps with the *final* offset estimate, the fix was
+applied with the *online* one): then the last output before that update, against the fixes interpolated to
+its time — the drive README's protocol, "the error at the last withheld epoch", what the outage did before
+GNSS returns. ``carried`` lists the 1-based outages where the two differ.
+
 Run: ``python benchmarks/drive_time_shift.py`` (18 runs, ~3 CPU-min once compiled);
 ``--configs facts,car --shifts 0,-0.1`` for a part; ``--outages`` another outage set; ``--json FILE``.
 Needs ``rtklibexplorer_drive_0708`` in ``$AIDNAV_DATA`` (default ``../shared/data``).
@@ -94,14 +102,20 @@ def one(config: str, shift: float, outages: str, base=None):
     sc, cal = run.summary["outage_score"], calibration_summary(run.result)
     to = cal["time_offset_s"]
     vd = cal.get("gnss_velocity_delay_s", {"value": None, "std": None})
-    ends = sorted(o["end_error_m"] for o in sc["outages"])
-    return {"config": config, "shift": shift, "median_m": sc["end_error_median_m"], "rms_m": sc["rms_m"],
+    from aidnav.apps.outages import run_outage_ends  # lazy: after the environment is set
+
+    old = np.array([o["end_error_m"] for o in sc["outages"]])
+    new = run_outage_ends(run)
+    carried = [int(i) + 1 for i in np.flatnonzero(np.abs(new - old) > 1e-9)] if len(new) == len(old) else []
+    return {"config": config, "shift": shift, "median_m": float(np.median(new)), "rms_m": sc["rms_m"],
             "coverage": coverage(run), "offset_s": to["value"], "offset_std_s": to["std"],
             "vdelay_s": vd["value"], "vdelay_std_s": vd["std"],
             "reinits": len(run.summary.get("reinitialisations") or []),
             "reinit_times": [round(r["time"] - float(g.time[0]), 1) for r in
                              run.summary.get("reinitialisations") or []],
-            "ends_m": ends, **offset_history(run, float(g.time[0]))}
+            "ends_m": [float(e) for e in new], "old_ends_m": [float(e) for e in old],
+            "old_median_m": sc["end_error_median_m"], "carried": carried,
+            **offset_history(run, float(g.time[0]))}
 
 
 def main(argv=None):
@@ -126,6 +140,7 @@ def main(argv=None):
             if ref is not None:
                 r["d_offset_s"] = r["offset_s"] - ref["offset_s"]
                 r["ratio"] = r["median_m"] / ref["median_m"]
+                r["old_ratio"] = r["old_median_m"] / ref["old_median_m"]
             rows.append(r)
             _print(r)
     print(f"target: |Δoffset − s| ≤ 3σ and median ≤ 1.2× the unshifted run's | {len(rows)} runs, "
@@ -147,7 +162,10 @@ def _print(r):
           f"cov {100 * r['coverage']:.1f} % off {r['offset_s']:+.4f}±{r['offset_std_s']:.4f}{miss} "
           f"vd {r['vdelay_s']:+.4f} reinit {r['reinits']} {r['reinit_times']} conv "
           f"{r.get('t_conv_s', np.nan):.0f} s over3σ {100 * r.get('overconfident', np.nan):.0f} % "
-          f"{at}\n      ends " + " ".join(f"{e:.2f}" for e in r["ends_m"]), flush=True)
+          f"{at}\n      ends " + " ".join(f"{e:.2f}" for e in r["ends_m"]) + f" | carried {r['carried']} old "
+          f"score: median {r['old_median_m']:.3f} m"
+          + (f" ({r['old_ratio']:.2f}×)" if "old_ratio" in r else ""),
+          flush=True)
 
 
 if __name__ == "__main__":

@@ -140,6 +140,75 @@ def outage_score(t, herr, wins, withheld, gnss: GnssData | None = None) -> dict:
     }
 
 
+def first_updates(result, wins) -> list[float]:
+    """Per outage window [a, b): the output time (the forward result's stamps) of the first GNSS update
+    after it — the first fix tagged ≥ b whose position or velocity was accepted (``result.records``) is
+    applied at the first sample whose IMU time reaches its tag − the online time-offset estimate (the
+    engine's due time), i.e. the first output row i with ``time[i] − d̂_final ≥ tag − d̂[i − 1]``
+    (``loose.loose_result`` stamps every output with the final estimate d̂_final); NaN where no update
+    follows. Without a time-offset state the update's time is its tag."""
+    from aidnav.filters.layout import NAV  # lazy: the filter layer only where a result is scored
+
+    tg = np.asarray(result.gnss_time, float)
+    rec = result.records
+    used = (np.asarray(rec.get("pos_status", np.full(len(tg), -1))) == 1) | \
+        (np.asarray(rec.get("vel_status", np.full(len(tg), -1))) == 1)
+    t = np.asarray(result.time, float)
+    if "time_offset" in result.state_names:
+        d = np.asarray(result.bias[:, result.state_names.index("time_offset") - NAV], float)
+        d_prev = np.concatenate([[d[0]], d[:-1]])
+        u, due_shift = t - d[-1], d_prev
+    else:
+        u, due_shift = t, np.zeros_like(t)
+    out = []
+    for _, b in wins:
+        j = np.flatnonzero(used & (tg >= b))
+        if not len(j):
+            out.append(float("nan"))
+            continue
+        i = np.flatnonzero(u >= tg[j[0]] - due_shift)
+        out.append(float(t[i[0]]) if len(i) else float("nan"))
+    return out
+
+
+def outage_end_errors(traj, gnss: GnssData, withheld, wins, t_update=None) -> np.ndarray:
+    """End-of-outage horizontal error of each outage with a scored fix (the drive README's protocol: the
+    error at the last withheld epoch, what the outage did before GNSS returns): the output interpolated to
+    its last scored withheld fix against that fix; where that fix falls at or after the outage's first
+    update (``t_update``, :func:`first_updates`, output times), the **last output before that update**
+    against the scored fixes interpolated to that output's time (the one owner of this score)."""
+    from aidnav.nav.earth import lla_difference_enu  # lazy: pulls in numba
+
+    t, herr = outage_errors(traj, gnss, withheld)
+    good = scored_fixes(gnss, withheld)
+    tg, lat_g, lon_g = gnss.time[good], gnss.lat[good], np.unwrap(gnss.lon[good])
+    ends = []
+    for w, (a, b) in enumerate(wins):
+        m = np.flatnonzero((t >= a) & (t < b))
+        if not len(m):
+            continue
+        tu = np.nan if t_update is None else t_update[w]
+        if not (np.isfinite(tu) and t[m[-1]] >= tu):
+            ends.append(float(herr[m[-1]]))
+            continue
+        i = int(np.searchsorted(traj.time, tu)) - 1  # the last output strictly before the update
+        to = traj.time[i]
+        de, dn, _ = lla_difference_enu(traj.lat[i:i + 1], traj.lon[i:i + 1], 0.0,
+                                       np.interp([to], tg, lat_g), np.interp([to], tg, lon_g), 0.0)
+        ends.append(float(np.hypot(de[0], dn[0])))
+    return np.array(ends)
+
+
+def run_outage_ends(run) -> np.ndarray:
+    """:func:`outage_end_errors` of a :class:`aidnav.apps.process_stream.ProcessRun` kept whole (``keep``):
+    its forward output scored with :func:`first_updates` of its result; a smoothed output (every fix in
+    it) is scored at the last withheld fixes as they are."""
+    res = run.result
+    fwd = res is not None and not res.smoothed and res.gnss_time is not None and len(res.time) > 1
+    return outage_end_errors(run.trajectory, run.gnss, run.withheld, run.windows,
+                             first_updates(res, run.windows) if fwd else None)
+
+
 def withheld_fixes(gnss: GnssData, wins) -> np.ndarray:
     """The fixes inside the outage windows ``wins`` ([start, end) each): not given to the filter."""
     withheld = np.zeros(len(gnss), bool)

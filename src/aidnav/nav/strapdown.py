@@ -56,13 +56,7 @@ def strapdown_step(st, dth, dvb, dth_prev, dv_prev, dt):
     px, py, pz = dth_prev[0], dth_prev[1], dth_prev[2]
     vx, vy, vz = dvb[0], dvb[1], dvb[2]
     ux, uy, uz = dv_prev[0], dv_prev[1], dv_prev[2]
-    # coning / sculling
-    phx = ax + (py * az - pz * ay) / 12.0
-    phy = ay + (pz * ax - px * az) / 12.0
-    phz = az + (px * ay - py * ax) / 12.0
-    sx = vx + 0.5 * (ay * vz - az * vy) + ((py * vz - pz * vy) + (uy * az - uz * ay)) / 12.0
-    sy = vy + 0.5 * (az * vx - ax * vz) + ((pz * vx - px * vz) + (uz * ax - ux * az)) / 12.0
-    sz = vz + 0.5 * (ax * vy - ay * vx) + ((px * vy - py * vx) + (ux * ay - uy * ax)) / 12.0
+    phx, phy, phz, sx, sy, sz = _coning_sculling((ax, ay, az), (px, py, pz), (vx, vy, vz), (ux, uy, uz))
     _strapdown_core(st, phx, phy, phz, sx, sy, sz, dt)
 
 
@@ -76,14 +70,26 @@ def strapdown_step_rows(st, b, dt):
     px, py, pz = b[2, 0], b[2, 1], b[2, 2]
     vx, vy, vz = b[1, 0], b[1, 1], b[1, 2]
     ux, uy, uz = b[3, 0], b[3, 1], b[3, 2]
-    # coning / sculling
+    phx, phy, phz, sx, sy, sz = _coning_sculling((ax, ay, az), (px, py, pz), (vx, vy, vz), (ux, uy, uz))
+    _strapdown_core(st, phx, phy, phz, sx, sy, sz, dt)
+
+
+@njit(cache=True, inline="always")
+def _coning_sculling(a, p, v, u):
+    """Coning and sculling of one interval from this interval's Δθ = a, Δv = v and the previous interval's
+    Δθ = p, Δv = u (body; tuples of three floats, no array: nothing to reference-count per sample): the
+    rotation vector φ and the velocity increment s, as six scalars."""
+    ax, ay, az = a
+    px, py, pz = p
+    vx, vy, vz = v
+    ux, uy, uz = u
     phx = ax + (py * az - pz * ay) / 12.0
     phy = ay + (pz * ax - px * az) / 12.0
     phz = az + (px * ay - py * ax) / 12.0
     sx = vx + 0.5 * (ay * vz - az * vy) + ((py * vz - pz * vy) + (uy * az - uz * ay)) / 12.0
     sy = vy + 0.5 * (az * vx - ax * vz) + ((pz * vx - px * vz) + (uz * ax - ux * az)) / 12.0
     sz = vz + 0.5 * (ax * vy - ay * vx) + ((px * vy - py * vx) + (ux * ay - uy * ax)) / 12.0
-    _strapdown_core(st, phx, phy, phz, sx, sy, sz, dt)
+    return phx, phy, phz, sx, sy, sz
 
 
 @njit(cache=True, inline="always")

@@ -409,9 +409,10 @@ def _gap_at_node(st, P, gap, ix, hold_thr, static):
     unknown before the first alignment — a held heading is :func:`_hold_heading`'s). Returns that turn."""
     iu = ix[PHI + 2]
     dh = _turn_tilt_at_rest(st, P, gap, ix, static and gap[4] == 0.0)  # (a held heading: _hold_heading's)
-    if gap[0] > 0.0 or gap[1] > 0.0:  # (indices of the full layout through ix: a subset has its own)
+    att = gap[0] > 0.0 or gap[1] > 0.0  # the hold below only where the attitude's variance grew
+    if att or gap[2] > 0.0 or gap[3] > 0.0:  # (indices of the full layout through ix: a subset has its own)
         _add_gap(st, P, gap, ix)
-        if hold_thr > 0.0 and iu >= 0 and P[iu, iu] >= hold_thr * hold_thr:
+        if att and hold_thr > 0.0 and iu >= 0 and P[iu, iu] >= hold_thr * hold_thr:
             gap[4] = min(P[iu, iu], np.pi * np.pi)  # heading unknown until a course re-aligns it
             P[iu, :], P[:, iu] = 0.0, 0.0
             P[iu, iu] = gap[4]

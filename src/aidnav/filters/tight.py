@@ -662,8 +662,6 @@ def _imu_input(imu, cfg: TightConfig, t_imu, k0: int, static, events: list, rec_
     if cfg.gnss.time_offset_sigma_s > 0 and rec_t is not None and len(rec_t) > 1:
         gap_var[:, 1] = timing_variance(t_imu[sl], dv_in[sl], np.asarray(rec_t, float),
                                         cfg.gnss.time_offset_sigma_s)
-        # the engine adds a node's gap variance where it has an attitude part (_gap_at_node): a negligible one
-        gap_var[:, 0] = np.where((gap_var[:, 1] > 0) & (gap_var[:, 0] == 0), 1e-30, gap_var[:, 0])
     return Imu(t_imu[sl], dth_in[sl], dv_in[sl], stat[sl], gap_var, np.zeros((0, 2)))
 
 

@@ -59,6 +59,7 @@ from aidnav.sim.scenario import parse_scenario
 __all__ = ["AXES", "COVERAGE_TARGET", "RATIO_TARGET", "SEED_COVERAGE_BOUND", "GM_TAU_S",
            "HEADING_UNKNOWN_RAD", "TILT_UNKNOWN_RAD", "Condition", "CellResult", "CONDITIONS",
            "configurations", "condition", "simulate_condition", "config_for", "run_cell", "run_matrix",
+           "simulate_pedestrian_cell", "tight_result",
            "SeedRun", "aggregate",
            "flags", "format_matrix", "matrix_table", "matrix_page", "variant", "add_gauss_markov"]
 
@@ -116,7 +117,9 @@ class Condition:
     Gauss–Markov (σ ``GM_SIGMA_M``, τ ``GM_TAU_S``) plus ``GM_WHITE_M`` white, the fixes' σ the total
     (what a receiver that does not know the correlation reports); imu_gap, outage : (start, duration) [s]
     from the start without IMU samples / without GNSS fixes (tight: with only ``satellites`` in view);
-    coupling : "loose", or "tight" (raw GNSS, module doc).
+    coupling : "loose", or "tight" (raw GNSS, module doc); pedestrian : the tight cell is the simulated
+    pedestrian of :mod:`aidnav.sim.pedestrian` (GPS + Galileo at ``rate_hz`` with an L1 carrier phase; its
+    own walk, not ``segments``) with the IMU's stamps ``imu_late_s`` late (an IMU-GNSS time offset).
     """
 
     name: str
@@ -131,6 +134,8 @@ class Condition:
     outage: tuple[float, float] | None = None
     coupling: str = "loose"
     satellites: int | None = None
+    pedestrian: bool = False
+    imu_late_s: float = 0.0
     note: str = ""
 
 
@@ -157,6 +162,9 @@ CONDITIONS: tuple[Condition, ...] = (
               note="raw GNSS, 2 satellites for 60 s"),
     Condition("tight 0 satellites", coupling="tight", satellites=0, outage=(120.0, 60.0),
               note="raw GNSS, none for 60 s (free inertia)"),
+    Condition("tight pedestrian phase, IMU 25 ms late", coupling="tight", rate_hz=4.0, pedestrian=True,
+              imu_late_s=0.025, note="a walker (sim.pedestrian), GPS + Galileo at 4 Hz with carrier phase, "
+              "the IMU's stamps 25 ms late"),
 )
 
 
@@ -331,7 +339,7 @@ def _loose_seed(cond: Condition, config: str, seed: int, sensor_model: bool):
     cfg = choose_gnss_errors(run.imu, run.gnss, cfg, None, [])
     cov_t = np.arange(run.truth.time[0], run.truth.time[-1], EVAL_DT_S) - 1e-6
     res = run_loose(run.imu, run.gnss, cfg, cov_times=cov_t)
-    return _evaluate(res, run)
+    return evaluate(res, run)
 
 
 def _output_at(traj: Trajectory, ev: np.ndarray, max_dt: float) -> Trajectory:
@@ -351,7 +359,7 @@ def _output_at(traj: Trajectory, ev: np.ndarray, max_dt: float) -> Trajectory:
                       sub(traj.std_pos), sub(traj.std_vel), sub(traj.std_att))
 
 
-def _evaluate(res, run: SimRun) -> SeedRun:
+def evaluate(res, run: SimRun) -> SeedRun:
     """The :class:`SeedRun` of one run at the evaluation epochs (a loose or a tight result: each through
     its own trajectory conversion)."""
     if hasattr(res, "clock"):
@@ -406,8 +414,25 @@ def simulate_tight(cond: Condition, seed: int):
     return replace(run, imu=imu), obs, eph
 
 
+def simulate_pedestrian_cell(cond: Condition, seed: int):
+    """The pedestrian cell's run (``cond.pedestrian``) with ``seed``: (:class:`SimRun` with the truth from
+    0 and the IMU on the GPS time scale, its stamps ``cond.imu_late_s`` late; the observations with the
+    carrier phase; the ephemerides). Every draw from ``seed``
+    (:func:`aidnav.sim.pedestrian.simulate_pedestrian`)."""
+    from aidnav.sim.pedestrian import SOW, simulate_pedestrian  # lazy: the pedestrian cell only
+
+    p = simulate_pedestrian(seed, grade=cond.grade, rate_hz=cond.rate_hz)
+    tr = p.truth
+    truth = Trajectory(tr.time - SOW, tr.lat, tr.lon, tr.height, tr.vel, tr.rph)
+    late = cond.imu_late_s + TIGHT_SOW - SOW  # (the same week second: SOW is TIGHT_SOW)
+    imu = ImuData(p.imu.time + late, p.imu.dtheta, p.imu.dv, t0=p.imu.t0 + late)
+    return SimRun(truth, imu, p.obs, ImuSpec.grade(cond.grade), GnssSpec(), {}, seed), p.obs, p.eph
+
+
 def _run_tight_cell(cond: Condition, config: str, run: SimRun, obs, eph, sensor_model: bool, cov_t):
-    """The tight filter's result of one seed with the configuration ``config`` (module doc)."""
+    """The tight filter's result of one seed with the configuration ``config`` (module doc). The pedestrian
+    cell's ``matched`` is ``aidnav tight`` (its start, the carrier phase, the time offset from the phase)
+    with the matched IMU model: :func:`aidnav.filters.tight.run_tight` alone reads no phase."""
     from aidnav.estimators.tight_solution import process_tight  # lazy: tight cells only
     from aidnav.filters.tight import TightConfig, apply_vehicle, run_tight  # lazy: tight cells only
 
@@ -415,18 +440,24 @@ def _run_tight_cell(cond: Condition, config: str, run: SimRun, obs, eph, sensor_
         cfg = apply_vehicle(TightConfig(), None if config == "none" else config)
         return process_tight(run.imu, obs, eph, cfg, cov_times=cov_t)[0]
     lc = config_for("matched", cond, run, sensor_model)
+    if cond.pedestrian:
+        return process_tight(run.imu, obs, eph, TightConfig(imu=lc.imu), cov_times=cov_t)[0]
     ini = lc.init.model_copy(update={"mode": "given"})
     cfg = TightConfig(imu=lc.imu, init=ini, constraints={"zupt": False})
     return run_tight(run.imu, obs, eph, cfg, cov_times=cov_t)
 
 
-def _tight_seed(cond: Condition, config: str, seed: int, sensor_model: bool):
-    """The :class:`SeedRun` of one tight seed (:func:`_evaluate` on the GPS-shifted result)."""
-    run, obs, eph = simulate_tight(cond, seed)
+def tight_result(cond: Condition, config: str, seed: int, sensor_model: bool = True):
+    """(the tight filter's result of one seed, times from the run's start; its :class:`SimRun`)."""
+    run, obs, eph = (simulate_pedestrian_cell if cond.pedestrian else simulate_tight)(cond, seed)
     cov_t = np.arange(run.truth.time[0], run.truth.time[-1], EVAL_DT_S) - 1e-6 + TIGHT_SOW
     res = _run_tight_cell(cond, config, run, obs, eph, sensor_model, cov_t)
-    res = replace(res, time=res.time - TIGHT_SOW, cov_time=res.cov_time - TIGHT_SOW)
-    return _evaluate(res, run)
+    return replace(res, time=res.time - TIGHT_SOW, cov_time=res.cov_time - TIGHT_SOW), run
+
+
+def _tight_seed(cond: Condition, config: str, seed: int, sensor_model: bool):
+    """The :class:`SeedRun` of one tight seed (:func:`evaluate` on :func:`tight_result`)."""
+    return evaluate(*tight_result(cond, config, seed, sensor_model))
 
 
 def run_cell(cond: Condition, config: str, seeds, sensor_model: bool = True) -> CellResult:

@@ -106,6 +106,15 @@ _GAP_DRIVE = [{"type": "accelerate", "duration_s": 10, "to_speed_m_s": 10},
               {"type": "straight", "duration_s": 60}]
 
 
+# the simulated pedestrian's timeline (sim.pedestrian.walking_truth: 12 s standing, a 3-s start, 100 s of
+# walking whose first turn, 90° in 2.5 s, begins 15 s in, a 3-s stop, 15 s standing): not simulated from
+# here, only read for its times (the seed statistics' end of the first turn and of the run)
+_PEDESTRIAN = [{"type": "static", "duration_s": 12}, {"type": "accelerate", "duration_s": 3},
+               {"type": "straight", "duration_s": 15}, {"type": "turn", "duration_s": 2.5},
+               {"type": "straight", "duration_s": 82.5}, {"type": "accelerate", "duration_s": 3},
+               {"type": "static", "duration_s": 15}]
+
+
 @dataclass(frozen=True)
 class Condition:
     """One row of the matrix: the simulated drive and sensors.
@@ -119,7 +128,8 @@ class Condition:
     from the start without IMU samples / without GNSS fixes (tight: with only ``satellites`` in view);
     coupling : "loose", or "tight" (raw GNSS, module doc); pedestrian : the tight cell is the simulated
     pedestrian of :mod:`aidnav.sim.pedestrian` (GPS + Galileo at ``rate_hz`` with an L1 carrier phase; its
-    own walk, not ``segments``) with the IMU's stamps ``imu_late_s`` late (an IMU-GNSS time offset).
+    own walk; ``segments`` only its timeline) with the IMU's stamps ``imu_late_s`` late (an IMU-GNSS time
+    offset).
     """
 
     name: str
@@ -162,7 +172,8 @@ CONDITIONS: tuple[Condition, ...] = (
               note="raw GNSS, 2 satellites for 60 s"),
     Condition("tight 0 satellites", coupling="tight", satellites=0, outage=(120.0, 60.0),
               note="raw GNSS, none for 60 s (free inertia)"),
-    Condition("tight pedestrian phase, IMU 25 ms late", coupling="tight", rate_hz=4.0, pedestrian=True,
+    Condition("tight pedestrian phase, IMU 25 ms late", segments=tuple(_PEDESTRIAN), coupling="tight",
+              rate_hz=4.0, pedestrian=True,
               imu_late_s=0.025, note="a walker (sim.pedestrian), GPS + Galileo at 4 Hz with carrier phase, "
               "the IMU's stamps 25 ms late"),
 )

@@ -462,16 +462,15 @@ def _consider_timing(H, R, m, P, tc):
 
 @njit(cache=True, depends=MODELS_KEY, inline="always")  # per node: inlined in run_chunk (issue 40)
 def _update_records(x, P, nv, C, rec, gi, tk, hd, upd, tm):
-    """The records due at the node at IMU time ``tk`` (in (t_{k-1}, t_k] on the IMU clock), each through its
-    model: a whole pseudorange epoch by its scalar updates, any other by the gate policy (with R grown by
+    """The records due at the node at IMU time ``tk`` (in (t_{k-1}, t_k] on the IMU clock), each by its model:
+    a whole pseudorange epoch by its scalar updates, any other by the gate policy (R grown by
     :func:`_unmodelled_motion` at a node that closes an IMU gap); a velocity record re-aligns a heading held
-    unknown, and while it is held the time states are considered, not estimated (:func:`_consider_timing`).
-    ``nv``: (strapdown state, node rates, biases); ``hd``: (gap variances and heading-hold flag, whether the
-    sample closes a gap, INS index map, heading index, the GNSS velocity model's parameters, the time
-    states' indices, the initial heading held, whether the records hold whole epochs); ``upd``: the update
-    context (:func:`_node_constraints`); ``tm``: (clock index, time-offset index). Returns the next record's
-    index and the attitude matrix. (One function: each inlined binding of ``rec``, ``upd``, ``hd``, ``nv``
-    costs a reference-count pair per array, issue 40.)
+    unknown, while it is held the time states are considered (:func:`_consider_timing`). ``nv``: (strapdown
+    state, node rates, biases); ``hd``: (gap variances and heading-hold flag, the sample closes a gap, INS
+    index map, heading index, GNSS velocity model parameters, time states' indices, the initial heading
+    held, the records are whole epochs); ``upd``: :func:`_node_constraints`'; ``tm``: (clock, time-offset
+    index). Returns the next record's index and the attitude matrix. (One function, issue 40: each inlined
+    binding of ``rec``, ``upd``, ``hd``, ``nv`` costs a reference-count pair per array.)
 
     At the node that closes an IMU gap: records more than ``GAP_REC_S`` older than it are not used (the
     INS cannot be moved back across the unknown motion); the rest, and the first record due after the node
@@ -541,6 +540,15 @@ def _node_constraints(x, P, nav, static, tk, no_row, upd, li):
     return li
 
 
+@njit(cache=True)
+def _constraint_counts(node):
+    """Node constraints (``Models.node``) at moving (0), static (1) samples: none skips their binding."""
+    c = np.zeros(2, np.int64)
+    for r in range(node.shape[0]):
+        c[1 if node[r, 1] == 1 else 0] += 1
+    return c
+
+
 @njit(cache=True, inline="always")  # per node: inlined in run_chunk (issue 40)
 def _hold_heading(P, iu, ini, before_alignment, gap):
     """A heading without information keeps its variance and no correlation: before the first alignment
@@ -588,18 +596,15 @@ def _gap_sample(gap, gap_var, k):
 
 @njit(cache=True, inline="always")  # per node: inlined in run_chunk (issue 40)
 def _after_updates(st, bias, P, rec, gs, flags, lay):
-    """After a node's updates: the position (and height rate) reset to the records ``gs`` = (g0, gi): g0 …
-    gi−1 (``flags[0]``: ``Process.reset_pos``), and each whole-epoch record's state written back (tight
-    coupling; ``flags[1]``: the records are whole epochs)."""
+    """After a node's updates: the position (and height rate) reset to the records g0 … gi−1 (``gs``; if
+    ``flags[0]``, ``Process.reset_pos``), each whole-epoch record's state written back (``flags[1]``)."""
     g0, gi = gs
     for g in range(g0, gi if flags[0] else g0):
         st[0], st[1], st[2] = rec.data[g, 6], rec.data[g, 7], rec.data[g, 8]
         if not np.isnan(rec.data[g, 9]):
             st[5] = rec.data[g, 9]
-    if flags[1] and gi > g0:
-        grp = rec.grp
-        for g in range(g0, gi):
-            epoch_record(grp, g, st, bias, P, lay)
+    for g in range(g0, gi if flags[1] else g0):
+        epoch_record(rec.grp, g, st, bias, P, lay)
 
 
 @njit(cache=True)
@@ -682,7 +687,7 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
     hold_thr = pv[C_HOLD] if pv.shape[0] > C_HOLD else 0.0  # (other filters: fewer parameters)
     buf = cy.buf  # Δθ_c, Δv_c of the sample, of the previous one (rows: no views per sample, issue 40)
     tp, kn, oi = cy.tp, cy.kn, 0
-    hold, epochs = imu.hold.shape[0] == n_imu, rec.grp.t.shape[0] > 0  # (epochs: tight coupling's records)
+    hold, epochs, ncon = imu.hold.shape[0] == n_imu, rec.grp.t.shape[0] > 0, _constraint_counts(mod.node)
     # a record is due when its time on the IMU clock has come: its receive time (the tag, or with clock
     # states tag − b̂/c) − d̂, the time-offset estimate; b̂ changes at every sample, d̂ at the feedback
     t_due = _due_time(rec.t, gi, bias, ic, itoff)
@@ -706,14 +711,15 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
             C = dcm_from_quat(st[ST_Q:ST_Q + 4])
             wb = predict_node(st, acc, x, P, T, proc, em, (nins, mins, nh))
             carry_estimates(st, bias, em[4], proc.open, nh)  # em[4]: Φ of the interval
-            g0, held = gi, hold_h and k0 + k < ini.reset_idx  # the initial heading held (_hold_heading)
+            g0, held, sk = gi, hold_h and k0 + k < ini.reset_idx, imu.static[k]  # held: _hold_heading
             dh = _gap_at_node(st, P, gap, ix, hold_thr, imu.static[k] and not held)
             keep_prior(out.smooth, S, kn - kn0, em[4], P, dh, ix)  # dh: the tilt turned at rest
             node_rates(st, wb, buf[0], dt, w)
             w[W_FN] = acc[ACC_FN] / T
             hd = (gap, gap_k, ix, iu, pv, tcal, held, epochs)
             gi, C = _update_records(x, P, (st, w, bias), C, rec, gi, imu.t[k], hd, upd, (ic, itoff))
-            li = _node_constraints(x, P, Nav(st, C, w, 0.0, bias), imu.static[k], imu.t[k], no_row, upd, li)
+            if ncon[1 if sk else 0] > 0:  # (none: no binding of the update context, issue 40)
+                li = _node_constraints(x, P, Nav(st, C, w, 0.0, bias), sk, imu.t[k], no_row, upd, li)
             if nsub:  # the subset's estimate in the INS block
                 dxf[sub] = x
             feedback(st, bias, dxf if nsub else x, nh)

@@ -686,7 +686,7 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
     pv = mod.par[M_GNSS_VEL]
     hold_thr = pv[C_HOLD] if pv.shape[0] > C_HOLD else 0.0  # (other filters: fewer parameters)
     buf = cy.buf  # Δθ_c, Δv_c of the sample, of the previous one (rows: no views per sample, issue 40)
-    tp, kn, oi = cy.tp, cy.kn, 0
+    tp, kn, oi, ev = cy.tp, cy.kn, 0, out.every  # ev 1: no integer division per sample (issue 40)
     hold, epochs, ncon = imu.hold.shape[0] == n_imu, rec.grp.t.shape[0] > 0, _constraint_counts(mod.node)
     # a record is due when its time on the IMU clock has come: its receive time (the tag, or with clock
     # states tag − b̂/c) − d̂, the time-offset estimate; b̂ changes at every sample, d̂ at the feedback
@@ -732,7 +732,7 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
             keep_post(out.smooth, S, kn - kn0, P, x, dh, ix)
             kn += 1
             reset_accumulator(acc)
-        if ((k0 + k) % out.every == 0) if out.every > 0 else (kn > kn0 and node_idx[kn - 1 - kn0] == k0 + k):
+        if (ev == 1 or (k0 + k) % ev == 0) if ev > 0 else (kn > kn0 and node_idx[kn - 1 - kn0] == k0 + k):
             oi = _write_output(o, oi, k0 + k, st, bias, nb, P, kn - 1)
         while ci < out.cov_idx.shape[0] and out.cov_idx[ci] == k0 + k:
             cov_out[ci] = P

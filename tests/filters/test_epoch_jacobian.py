@@ -79,7 +79,7 @@ def _innovation(st, bias, p_diag):
     grp.flags[0] = 1  # clock initialised: no reset from the median residual
     x, P = np.zeros(N), np.diag(p_diag)
     ep.epoch_update(x, P, _nav(st, bias), row, par, LAY, 0.0, grp, 0, T_GPS)
-    return grp.pr_nu[0, 0], grp.pr_s[0, 0], x
+    return grp.sat[ep.S_PR_NU, 0, 0], grp.sat[ep.S_PR_S, 0, 0], x
 
 
 @pytest.mark.parametrize("u", [0.0, 2.0])

@@ -461,48 +461,17 @@ def _consider_timing(H, R, m, P, tc):
                 H[i, a] = 0.0
 
 
-@njit(cache=True, depends=MODELS_KEY, inline="always")  # per record: inlined in run_chunk (issue 40)
-def _use_record(x, P, nv, C, rec, gi, tt, hd, upd):
-    """Record ``gi`` through its model at the node: a whole pseudorange epoch by its scalar updates, any
-    other by the gate policy (with R grown by :func:`_unmodelled_motion` at a node that closes an IMU
-    gap); a velocity record re-aligns a heading held unknown, and while it is held the time states are
-    considered, not estimated (:func:`_consider_timing`; ``hd[5]``: their indices, ``hd[6]``: the initial
-    heading held). ``tt``: (node time, record time, the motion left unmodelled [s]: 0 but at a gap's
-    closing node). Returns the attitude matrix."""
-    st, w, bias = nv
-    gap, gap_k, ix, iu, pv, tcal, held = hd
-    mod, lay, rej, win, log, wk, sub, ws = upd
-    tk, tr, dtu = tt
-    md = rec.model[gi]
-    if gap[4] > 0.0 and md == M_GNSS_VEL and _course_heading(st, P, rec.data[gi], pv, iu, ix[PHI],
-                                                             ix[PHI + 1]):
-        gap[4] = 0.0
-        C = dcm_from_quat(st[ST_Q:ST_Q + 4])
-    nav = Nav(st, C, w, tk - tr, bias)  # the models add d̂ to dt_back themselves
-    if rec.grp.t.shape[0] > 0 and md == M_PR:  # a whole epoch: its scalar updates and rejection rule
-        gate = mod.gate[md, 1] if rej[md] < mod.max_rej[md] else 0.0
-        ok = epoch_update(x, P, nav, rec.data[gi], mod.par[md], lay, gate, rec.grp, gi, tr)
-        rej[md] = 0 if ok else rej[md] + 1
-        log.status[gi] = 1 if ok else 0
-    else:
-        m = fill(md, nav, rec.data[gi], mod.par[md], lay, wk.H, wk.z, wk.R)
-        if m > 0:
-            if dtu > 0.0:
-                _unmodelled_motion(wk.R, m, md, pv, dtu)
-            if held or gap[4] > 0.0:
-                _consider_timing(wk.H, wk.R, m, P, tcal)
-            policy_update(x, P, _subset(wk, m, sub, ws), m, md, mod, rej, win, log, gi)
-    return C
-
-
 @njit(cache=True, depends=MODELS_KEY, inline="always")  # per node: inlined in run_chunk (issue 40)
 def _update_records(x, P, nv, C, rec, gi, tk, hd, upd, tm):
-    """The records due at the node at IMU time ``tk`` (in (t_{k-1}, t_k] on the IMU clock), each by
-    :func:`_use_record`. ``nv``: (strapdown state, node rates, biases); ``hd``: (gap variances and
-    heading-hold flag, whether the sample closes a gap, INS index map, heading index, the GNSS velocity
-    model's parameters, the time states' indices, the initial heading held); ``upd``: the update context
-    (:func:`_node_constraints`); ``tm``: (clock index, time-offset index). Returns the next record's
-    index and the attitude matrix.
+    """The records due at the node at IMU time ``tk`` (in (t_{k-1}, t_k] on the IMU clock), each by its model:
+    a whole pseudorange epoch by its scalar updates, any other by the gate policy (R grown by
+    :func:`_unmodelled_motion` at a node that closes an IMU gap); a velocity record re-aligns a heading held
+    unknown, while it is held the time states are considered (:func:`_consider_timing`). ``nv``: (strapdown
+    state, node rates, biases); ``hd``: (gap variances and heading-hold flag, the sample closes a gap, INS
+    index map, heading index, GNSS velocity model parameters, time states' indices, the initial heading
+    held, the records are whole epochs); ``upd``: :func:`_node_constraints`'; ``tm``: (clock, time-offset
+    index). Returns the next record's index and the attitude matrix. (One function, issue 40: each inlined
+    binding of ``rec``, ``upd``, ``hd``, ``nv`` costs a reference-count pair per array.)
 
     At the node that closes an IMU gap: records more than ``GAP_REC_S`` older than it are not used (the
     INS cannot be moved back across the unknown motion); the rest, and the first record due after the node
@@ -510,8 +479,9 @@ def _update_records(x, P, nv, C, rec, gi, tk, hd, upd, tm):
     used now with R grown by the unmodelled motion over their distance from the node — so the gap's
     covariance bound gives way to the first fix after the gap whichever side of the first IMU sample the
     time-offset estimate puts it (issue 35)."""
-    bias = nv[2]
-    gap_k = hd[1]
+    st, w, bias = nv
+    gap, gap_k, ix, iu, pv, tcal, held, epochs = hd
+    mod, lay, rej, win, log, wk, sub, ws = upd
     ic, itoff = tm
     lim, near = tk, GAP_REC_S
     while True:
@@ -521,7 +491,25 @@ def _update_records(x, P, nv, C, rec, gi, tk, hd, upd, tm):
             # a record inside an IMU gap cannot be moved back across the unknown motion: not used
             if rec.use[gi] and not (gap_k and tk - tr > GAP_REC_S):
                 near = min(near, dtu)
-                C = _use_record(x, P, nv, C, rec, gi, (tk, tr, dtu), hd, upd)
+                md = rec.model[gi]
+                if gap[4] > 0.0 and md == M_GNSS_VEL and _course_heading(st, P, rec.data[gi], pv, iu, ix[PHI],
+                                                                         ix[PHI + 1]):
+                    gap[4] = 0.0
+                    C = dcm_from_quat(st[ST_Q:ST_Q + 4])
+                nav = Nav(st, C, w, tk - tr, bias)  # the models add d̂ to dt_back themselves
+                if epochs and md == M_PR:  # a whole epoch: its scalar updates and rejection rule
+                    gate = mod.gate[md, 1] if rej[md] < mod.max_rej[md] else 0.0
+                    ok = epoch_update(x, P, nav, rec.data[gi], mod.par[md], lay, gate, rec.grp, gi, tr)
+                    rej[md] = 0 if ok else rej[md] + 1
+                    log.status[gi] = 1 if ok else 0
+                else:
+                    m = fill(md, nav, rec.data[gi], mod.par[md], lay, wk.H, wk.z, wk.R)
+                    if m > 0:
+                        if dtu > 0.0:
+                            _unmodelled_motion(wk.R, m, md, pv, dtu)
+                        if held or gap[4] > 0.0:
+                            _consider_timing(wk.H, wk.R, m, P, tcal)
+                        policy_update(x, P, _subset(wk, m, sub, ws), m, md, mod, rej, win, log, gi)
             gi += 1
         if not gap_k or lim > tk:
             break
@@ -529,8 +517,8 @@ def _update_records(x, P, nv, C, rec, gi, tk, hd, upd, tm):
         while j < rec.t.shape[0] and not rec.use[j]:
             j += 1
         nxt = _due_time(rec.t, j, bias, ic, itoff)
-        epoch = j < rec.t.shape[0] and rec.grp.t.shape[0] > 0 and rec.model[j] == M_PR  # (tight: not ahead)
-        if epoch or not nxt - tk < near:
+        ahead = j < rec.t.shape[0] and epochs and rec.model[j] == M_PR  # (an epoch: not taken ahead)
+        if ahead or not nxt - tk < near:
             break
         lim = nxt  # the first fix after the gap, moved back to the node
     return gi, C
@@ -551,6 +539,15 @@ def _node_constraints(x, P, nav, static, tk, no_row, upd, li):
                 policy_update(x, P, _subset(wk, m, sub, ws), m, md, mod, rej, win, log, li)
                 li += 1
     return li
+
+
+@njit(cache=True)
+def _constraint_counts(node):
+    """Node constraints (``Models.node``) at moving (0), static (1) samples: none skips their binding."""
+    c = np.zeros(2, np.int64)
+    for r in range(node.shape[0]):
+        c[1 if node[r, 1] == 1 else 0] += 1
+    return c
 
 
 @njit(cache=True, inline="always")  # per node: inlined in run_chunk (issue 40)
@@ -599,14 +596,15 @@ def _gap_sample(gap, gap_var, k):
 
 
 @njit(cache=True, inline="always")  # per node: inlined in run_chunk (issue 40)
-def _after_updates(st, bias, P, rec, g0, gi, reset_pos, lay):
-    """After a node's updates: the position (and height rate) reset to the records ``g0 … gi−1``
-    (``reset_pos``), and each whole-epoch record's state written back (tight coupling)."""
-    for g in range(g0, gi if reset_pos else g0):
+def _after_updates(st, bias, P, rec, gs, flags, lay):
+    """After a node's updates: the position (and height rate) reset to the records g0 … gi−1 (``gs``; if
+    ``flags[0]``, ``Process.reset_pos``), each whole-epoch record's state written back (``flags[1]``)."""
+    g0, gi = gs
+    for g in range(g0, gi if flags[0] else g0):
         st[0], st[1], st[2] = rec.data[g, 6], rec.data[g, 7], rec.data[g, 8]
         if not np.isnan(rec.data[g, 9]):
             st[5] = rec.data[g, 9]
-    for g in range(g0, gi if rec.grp.t.shape[0] > 0 else g0):
+    for g in range(g0, gi if flags[1] else g0):
         epoch_record(rec.grp, g, st, bias, P, lay)
 
 
@@ -689,8 +687,8 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
     pv = mod.par[M_GNSS_VEL]
     hold_thr = pv[C_HOLD] if pv.shape[0] > C_HOLD else 0.0  # (other filters: fewer parameters)
     buf = cy.buf  # Δθ_c, Δv_c of the sample, of the previous one (rows: no views per sample, issue 40)
-    tp, kn, oi = cy.tp, cy.kn, 0
-    hold = imu.hold.shape[0] == n_imu
+    tp, kn, oi, ev = cy.tp, cy.kn, 0, out.every  # ev 1: no integer division per sample (issue 40)
+    hold, epochs, ncon = imu.hold.shape[0] == n_imu, rec.grp.t.shape[0] > 0, _constraint_counts(mod.node)
     # a record is due when its time on the IMU clock has come: its receive time (the tag, or with clock
     # states tag − b̂/c) − d̂, the time-offset estimate; b̂ changes at every sample, d̂ at the feedback
     t_due = _due_time(rec.t, gi, bias, ic, itoff)
@@ -714,27 +712,28 @@ def run_chunk(imu, rec, mod, proc, ini, out, cy):
             C = dcm_from_quat(st[ST_Q:ST_Q + 4])
             wb = predict_node(st, acc, x, P, T, proc, em, (nins, mins, nh))
             carry_estimates(st, bias, em[4], proc.open, nh)  # em[4]: Φ of the interval
-            g0, held = gi, hold_h and k0 + k < ini.reset_idx  # the initial heading held (_hold_heading)
+            g0, held, sk = gi, hold_h and k0 + k < ini.reset_idx, imu.static[k]  # held: _hold_heading
             dh = _gap_at_node(st, P, gap, ix, hold_thr, imu.static[k] and not held)
             keep_prior(out.smooth, S, kn - kn0, em[4], P, dh, ix)  # dh: the tilt turned at rest
             node_rates(st, wb, buf[0], dt, w)
             w[W_FN] = acc[ACC_FN] / T
-            hd = (gap, gap_k, ix, iu, pv, tcal, held)
+            hd = (gap, gap_k, ix, iu, pv, tcal, held, epochs)
             gi, C = _update_records(x, P, (st, w, bias), C, rec, gi, imu.t[k], hd, upd, (ic, itoff))
-            li = _node_constraints(x, P, Nav(st, C, w, 0.0, bias), imu.static[k], imu.t[k], no_row, upd, li)
+            if ncon[1 if sk else 0] > 0:  # (none: no binding of the update context, issue 40)
+                li = _node_constraints(x, P, Nav(st, C, w, 0.0, bias), sk, imu.t[k], no_row, upd, li)
             if nsub:  # the subset's estimate in the INS block
                 dxf[sub] = x
             feedback(st, bias, dxf if nsub else x, nh)
             dh = turn_with_feedback(dxf if nsub else x, P, held or gap[4] > 0 or not imu.static[k], ix)
             ib[:] = bias[:nins - NAV]
             _hold_heading(P, iu, ini, held, gap)
-            _after_updates(st, bias, P, rec, g0, gi, proc.reset_pos, lay)
+            _after_updates(st, bias, P, rec, (g0, gi), (proc.reset_pos, epochs), lay)
             t_due = _due_time(rec.t, gi, bias, ic, itoff)  # d̂ may have changed
             node_idx[kn - kn0] = k0 + k
             keep_post(out.smooth, S, kn - kn0, P, x, dh, ix)
             kn += 1
             reset_accumulator(acc)
-        if ((k0 + k) % out.every == 0) if out.every > 0 else (kn > kn0 and node_idx[kn - 1 - kn0] == k0 + k):
+        if (ev == 1 or (k0 + k) % ev == 0) if ev > 0 else (kn > kn0 and node_idx[kn - 1 - kn0] == k0 + k):
             oi = _write_output(o, oi, k0 + k, st, bias, nb, P, kn - 1)
         while ci < out.cov_idx.shape[0] and out.cov_idx[ci] == k0 + k:
             cov_out[ci] = P

@@ -356,7 +356,11 @@ def update(x, P, H, R, z, gate, innov_out, s_out):
         for j in range(n):
             x[j] += Kt[a, j] * nu[a]
     for i in range(n):  # the upper triangle, row by row (vectorised over j), then mirrored
-        for a in range(m):
+        a0 = 0
+        while a0 + 3 <= m:  # three rows' terms in one pass over j, added in the same order (issue 40)
+            _joseph_three(P, i, a0, KSt, Kt, Bt)
+            a0 += 3
+        for a in range(a0, m):
             ksa, ka, ba = KSt[a, i], Kt[a, i], Bt[a, i]
             for j in range(i, n):
                 P[i, j] += ksa * Kt[a, j] - (ka * Bt[a, j] + ba * Kt[a, j])
@@ -364,6 +368,20 @@ def update(x, P, H, R, z, gate, innov_out, s_out):
         for j in range(i + 1, n):
             P[j, i] = P[i, j]
     return True, nis
+
+
+@njit(cache=True, inline="always")
+def _joseph_three(P, i, a, KSt, Kt, Bt):
+    """Row i (j ≥ i) of :func:`update`'s P += (K S)_i Kᵀ − (K_i Bᵀ + B_i Kᵀ) for the measurement rows a, a+1,
+    a+2 in one pass over j: the terms added one after the other as three passes would add them (the same
+    bits), with P's row read and written once (a 3-row update, 541 on the walk: its P loop 2.0 → 1.4 µs)."""
+    k0, k1, k2 = KSt[a, i], KSt[a + 1, i], KSt[a + 2, i]
+    c0, c1, c2 = Kt[a, i], Kt[a + 1, i], Kt[a + 2, i]
+    b0, b1, b2 = Bt[a, i], Bt[a + 1, i], Bt[a + 2, i]
+    for j in range(i, P.shape[0]):
+        v = P[i, j] + (k0 * Kt[a, j] - (c0 * Bt[a, j] + b0 * Kt[a, j]))
+        v = v + (k1 * Kt[a + 1, j] - (c1 * Bt[a + 1, j] + b1 * Kt[a + 1, j]))
+        P[i, j] = v + (k2 * Kt[a + 2, j] - (c2 * Bt[a + 2, j] + b2 * Kt[a + 2, j]))
 
 
 @njit(cache=True)

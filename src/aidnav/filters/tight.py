@@ -555,7 +555,7 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     n_out = -(-len(imu_in.t) // out_every)  # the outputs into one block the kernel fills (.output_rows)
     rows = whole_run_rows(n_out, max(n - 9, 1), n)
     r = run_filter(imu_in, rec, mod, proc, init, Output(out_every, bool(smooth), cov_idx, rows))
-    ge = rec.grp._replace(**{k: getattr(rec.grp, k)[sel] for k in rec.grp._fields if k != "flags"})
+    ge = ep.epoch_fields(rec.grp, sel)
     if gate > 0:
         _gate_events(ge, gate, obs.names, events)
     t_out = t_imu[k0:]

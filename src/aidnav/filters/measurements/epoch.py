@@ -62,20 +62,40 @@ E_W = 19  # values per satellite in a row
 E_PHASE = 14  # offset of the TDCP values of a satellite: y [m], r_s at the previous epoch (3), Δt [s]
 E_LEVER, E_MASK, E_SIG_CODE, E_SIG_RATE, E_IONO, E_TROPO, E_HUMID, E_RATE = 0, 3, 4, 5, 6, 7, 8, 9
 E_JUMP, E_SIG_B, E_SIG_D, E_CODE_MIN, E_ALPHA, E_BETA, E_SIG_PHASE, E_NPAR = 10, 11, 12, 13, 14, 18, 22, 23
-# per-epoch outputs (filled in place): GPS receive time, satellites above the mask, pseudoranges and
-# rates used, rows rejected, TDCP rows used and rejected, (M, S) innovations / their variance /
-# elevation, after the epoch's node: 9×9 navigation covariance, clock (b̂, d̂), strapdown state; flags
-# [clock initialised, jumps, 1 + the epoch of the clone (0: none)]
-EpochOut = namedtuple("EpochOut", ["t", "navail", "npr", "nrate", "nrej", "ntd", "ntdrej", "pr_nu", "pr_s",
-                                   "rate_nu", "rate_s", "el", "P_nav", "clk", "state", "flags"])
+# per-epoch outputs (filled in place), in five arrays (issue 40, session 17: the engine binds the records at
+# each node, and every binding of a tuple costs one atomic reference-count pair per array — 16 arrays were
+# 16 pairs): t (M,) GPS receive time; cnt (M, 6) satellites above the mask, pseudoranges and rates used,
+# rows rejected, TDCP rows used and rejected (``C_*``); sat (5, M, S) innovations and their variance of the
+# pseudoranges and the rates, elevation (``S_*``); node (M, 93) after the epoch's node: clock (b̂, d̂),
+# strapdown state (10), 9×9 navigation covariance (``N_*``); flags [clock initialised, jumps, 1 + the
+# epoch of the clone (0: none)]. :func:`epoch_fields` names them (:class:`EpochFields`).
+EpochOut = namedtuple("EpochOut", ["t", "cnt", "sat", "node", "flags"])
+C_AVAIL, C_PR, C_RATE, C_REJ, C_TD, C_TDREJ = range(6)
+S_PR_NU, S_PR_S, S_RATE_NU, S_RATE_S, S_EL = range(5)
+N_CLK, N_STATE, N_PNAV, N_W = 0, 2, 12, 93
+EpochFields = namedtuple("EpochFields", ["t", "navail", "npr", "nrate", "nrej", "ntd", "ntdrej", "pr_nu",
+                                         "pr_s", "rate_nu", "rate_s", "el", "P_nav", "clk", "state", "flags"])
 
 
 def epoch_out(M: int, S: int) -> EpochOut:
     """Empty per-epoch outputs for M epochs of S satellites (M = 0: no epoch records)."""
-    nan2 = [np.full((M, S), np.nan) for _ in range(5)]
-    z = [np.zeros(M, np.int64) for _ in range(6)]
-    return EpochOut(np.full(M, np.nan), *z, *nan2, np.zeros((M, 9, 9)), np.full((M, 2), np.nan),
-                    np.zeros((M, 10)), np.zeros(3, np.int64))
+    node = np.zeros((M, N_W))
+    node[:, N_CLK:N_CLK + 2] = np.nan
+    return EpochOut(np.full(M, np.nan), np.zeros((M, 6), np.int64), np.full((5, M, S), np.nan), node,
+                    np.zeros(3, np.int64))
+
+
+def epoch_fields(grp: EpochOut, sel=slice(None)) -> EpochFields:
+    """The per-epoch outputs ``grp`` by name (contiguous copies of the epochs ``sel``; ``flags`` as it is):
+    t, navail, npr, nrate, nrej, ntd, ntdrej (M,), pr_nu, pr_s, rate_nu, rate_s, el (M, S), P_nav (M, 9, 9),
+    clk (M, 2), state (M, 10), flags (3,)."""
+    cnt, sat, node = grp.cnt[sel], grp.sat[:, sel], grp.node[sel]
+    c = [np.ascontiguousarray(cnt[:, i]) for i in range(6)]
+    s = [np.ascontiguousarray(sat[i]) for i in range(5)]
+    pnav = np.ascontiguousarray(node[:, N_PNAV:]).reshape(len(node), 9, 9)
+    return EpochFields(np.asarray(grp.t[sel]).copy(), *c, *s, pnav,
+                       np.ascontiguousarray(node[:, N_CLK:N_CLK + 2]),
+                       np.ascontiguousarray(node[:, N_STATE:N_STATE + 10]), grp.flags)
 
 
 @njit(cache=True)
@@ -193,10 +213,10 @@ def epoch_update(x, P, nav, row, par, lay, gate, grp, g, t_gps):
         rho, e, az, el = geo[j, 0], geo[j, 1:4], geo[j, 4], geo[j, 5]
         for a in range(3):  # Cen e (a 3 × 3 product: no BLAS call)
             en[a] = Cen[a, 0] * e[0] + Cen[a, 1] * e[1] + Cen[a, 2] * e[2]
-        grp.el[g, j] = el
+        grp.sat[S_EL, g, j] = el
         if el < par[E_MASK]:
             continue
-        grp.navail[g] += 1
+        grp.cnt[g, C_AVAIL] += 1
         corr, i_mode = 0.0, 0
         ifac = 1.0 if np.isnan(row[o + 12]) else row[o + 12]
         sfac = 1.0 if np.isnan(row[o + 13]) else row[o + 13]
@@ -224,27 +244,27 @@ def epoch_update(x, P, nav, row, par, lay, gate, grp, g, t_gps):
                 pred += h[iu] * nav.bias[iu - NAV]
             ok, nu, s = update_scalar_ws(x, P, h, par[E_SIG_CODE] ** 2 * mfac, row[o + 6] - corr - pred, gate,
                                          uw)
-            grp.pr_nu[g, j], grp.pr_s[g, j] = nu, s
-            grp.npr[g] += ok
+            grp.sat[S_PR_NU, g, j], grp.sat[S_PR_S, g, j] = nu, s
+            grp.cnt[g, C_PR] += ok
             nrej += not ok
         if par[E_RATE] > 0 and not np.isnan(row[o + 7]):
             rr = geo_range_rate(row[o:o + 3], row[o + 3:o + 6], ra, va, e)
             _row(h, en, Hv, nn, ib + 1)
             ok, nu, s = update_scalar_ws(x, P, h, par[E_SIG_RATE] ** 2 * mfac,
                                          row[o + 7] - (rr + nav.bias[bi + 1]), gate, uw)
-            grp.rate_nu[g, j], grp.rate_s[g, j] = nu, s
-            grp.nrate[g] += ok
+            grp.sat[S_RATE_NU, g, j], grp.sat[S_RATE_S, g, j] = nu, s
+            grp.cnt[g, C_RATE] += ok
             nrej += not ok
         if tdcp and not np.isnan(row[o + E_PHASE]):
             z = tdcp_row(nav, row, o, lay, ra, Cen, Hp, h)
             ok, nu, s = update_scalar_ws(x, P, h, 2.0 * par[E_SIG_PHASE] ** 2 * mfac, z, gate, uw)
-            grp.ntd[g] += ok
-            grp.ntdrej[g] += not ok
-    grp.nrej[g] = nrej
+            grp.cnt[g, C_TD] += ok
+            grp.cnt[g, C_TDREJ] += not ok
+    grp.cnt[g, C_REJ] = nrej
     if lay[L_TDCP] >= 0:
         clone_epoch(x, P, nav, lay, ra, Cen, Hp)
         grp.flags[2] = g + 1
-    return not (nrej > 0 and grp.npr[g] == 0)
+    return not (nrej > 0 and grp.cnt[g, C_PR] == 0)
 
 
 @njit(cache=True)
@@ -314,12 +334,16 @@ def clone_epoch(x, P, nav, lay, ra, Cen, Hp):
 
 @njit(cache=True)
 def epoch_record(grp, g, st, bias, P, lay):
-    """Outputs of epoch g after its node's feedback: P_nav, clock, strapdown state."""
-    grp.P_nav[g] = P[:9, :9]
-    grp.clk[g, 0] = bias[lay[L_CLK] - NAV]
-    grp.clk[g, 1] = bias[lay[L_CLK] - NAV + 1]
-    grp.state[g] = st
+    """Outputs of epoch g after its node's feedback (``grp.node[g]``): clock, strapdown state, P_nav."""
+    nd = grp.node[g]
+    nd[N_CLK] = bias[lay[L_CLK] - NAV]
+    nd[N_CLK + 1] = bias[lay[L_CLK] - NAV + 1]
+    for i in range(10):
+        nd[N_STATE + i] = st[i]
+    for i in range(9):
+        for j in range(9):
+            nd[N_PNAV + 9 * i + j] = P[i, j]
 
 
-__all__ = ["E_W", "E_PHASE", "EpochOut", "epoch_out", "epoch_update", "epoch_record", "tdcp_row",
-           "clone_epoch"]
+__all__ = ["E_W", "E_PHASE", "EpochOut", "EpochFields", "epoch_out", "epoch_fields", "epoch_update",
+           "epoch_record", "tdcp_row", "clone_epoch"]

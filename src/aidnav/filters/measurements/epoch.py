@@ -70,8 +70,14 @@ EpochOut = namedtuple("EpochOut", ["t", "navail", "npr", "nrate", "nrej", "ntd",
                                    "rate_nu", "rate_s", "el", "P_nav", "clk", "state", "flags"])
 
 
-def epoch_out(M: int, S: int) -> EpochOut:
-    """Empty per-epoch outputs for M epochs of S satellites (M = 0: no epoch records)."""
+def epoch_out(M: int, S: int, full=None) -> EpochOut:
+    """Empty per-epoch outputs for M epochs of S satellites (M = 0: no epoch records); ``full``: an
+    allocator like ``np.full`` (:class:`aidnav.filters.tight_input.Arena`'s: one block for a call's
+    arrays)."""
+    if full is not None:
+        z = [full(M, 0, np.int64) for _ in range(6)]
+        return EpochOut(full(M, np.nan), *z, *[full((M, S), np.nan) for _ in range(5)], full((M, 9, 9), 0.0),
+                        full((M, 2), np.nan), full((M, 10), 0.0), np.zeros(3, np.int64))
     nan2 = [np.full((M, S), np.nan) for _ in range(5)]
     z = [np.zeros(M, np.int64) for _ in range(6)]
     return EpochOut(np.full(M, np.nan), *z, *nan2, np.zeros((M, 9, 9)), np.full((M, 2), np.nan),

@@ -90,6 +90,7 @@ from .tight_input import (
     epoch_records,
     epoch_rows,
     imu_input,
+    rejected_per_satellite,
     rotation_variance,
     timing_variance,
 )
@@ -512,11 +513,11 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     n_out = -(-len(imu_in.t) // out_every)  # the outputs into one block the kernel fills (.output_rows)
     rows = whole_run_rows(n_out, max(n - 9, 1), n)
     r = run_filter(imu_in, rec, mod, proc, init, Output(out_every, bool(smooth), cov_idx, rows))
-    ge = epoch_outputs(rec.grp, sel, arena)
+    ge = epoch_outputs(rec.grp, sel)
     if gate > 0:
         _gate_events(ge, gate, obs.names, events)
     t_out = t_imu[k0:]
-    res = _tight_result(r, ge, obs, lay, nnav, with_eph, isb_sys, iono_model, events, t_out)
+    res = _tight_result(r, ge, obs, lay, nnav, with_eph, isb_sys, iono_model, events, t_out, arena)
     res.counts.update(imu_samples_skipped=k0, velocity_records=len(rec.t) - len(sel))
     if nc:
         events.append(f"time-differenced carrier phase: {res.counts['tdcp_used']} delta-range rows used, "
@@ -559,18 +560,18 @@ def _tight_models(cfg: TightConfig, eph, with_static: bool, events: list):
 
 def _gate_events(ge, gate: float, names, events: list) -> None:
     """One event per satellite with pseudoranges or rates outside the innovation gate."""
-    with np.errstate(invalid="ignore"):
-        rej_pr = (ge.pr_nu**2 > gate * ge.pr_s).sum(axis=0)
-        rej_rate = (ge.rate_nu**2 > gate * ge.rate_s).sum(axis=0)
+    rej_pr = rejected_per_satellite(ge.pr_nu, ge.pr_s, float(gate))
+    rej_rate = rejected_per_satellite(ge.rate_nu, ge.rate_s, float(gate))
     for j in np.flatnonzero(rej_pr + rej_rate):
         events.append(f"{names[j]}: {int(rej_pr[j])} pseudorange(s) and {int(rej_rate[j])} "
                       "rate(s) outside the innovation gate (rejected unless the gate was suspended)")
 
 
 def _tight_result(r, ge, obs, lay, nnav: int, with_eph, isb_sys, iono_model: str, events: list,
-                  t_out) -> TightResult:
+                  t_out, arena=None) -> TightResult:
     """The forward :class:`TightResult` of the engine's run ``r`` (per-epoch records ``ge``, counts, the
-    clock, range errors and inter-system biases; ``t_out``: the IMU times from the first sample on)."""
+    clock, range errors and inter-system biases; ``t_out``: the IMU times from the first sample on; the
+    output times into ``arena``'s block where given)."""
     n, nr, nb = int(lay[L_N]), len(with_eph), len(isb_sys)
     epochs = dict(time=ge.t, n_avail=ge.navail, n_pr=ge.npr, n_rate=ge.nrate, n_rejected=ge.nrej,
                   n_tdcp=ge.ntd, n_tdcp_rejected=ge.ntdrej,
@@ -584,7 +585,9 @@ def _tight_result(r, ge, obs, lay, nnav: int, with_eph, isb_sys, iono_model: str
                velocity_records=0, tdcp_used=int(ge.ntd.sum()), tdcp_rejected=int(ge.ntdrej.sum()),
                velocity_used=int(((log["model"] == ms.M_GNSS_VEL) & (log["status"] == 1)).sum()))
     ck = slice(int(lay[L_CLK]) - 9, int(lay[L_CLK]) - 7)
-    res = TightResult(time=t_out[r.out_idx], state=r.out_st, bias=r.out_bias[:, :nnav - 9],
+    t_res = t_out[r.out_idx] if arena is None else np.take(t_out, r.out_idx, out=arena.empty(len(r.out_idx)),
+                                                           mode="clip")
+    res = TightResult(time=t_res, state=r.out_st, bias=r.out_bias[:, :nnav - 9],
                       clock=r.out_bias[:, ck], pdiag=r.out_pdiag, epochs=epochs, counts=cnt, events=events,
                       nstate=n, final_P=r.P, range_error=r.out_bias[:, n - nr - 9:n - 9],
                       range_error_prn=np.asarray(obs.prn)[with_eph], iono_model=iono_model,

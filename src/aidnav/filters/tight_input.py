@@ -22,6 +22,8 @@ per-satellite slots), with no (M, S) intermediate arrays: the same arithmetic as
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from aidnav.jit import njit
@@ -38,9 +40,10 @@ from aidnav.units import DEG
 from . import measurements as ms
 from .engine import Imu, Records
 from .measurements import epoch as ep
-from .preprocess import bridge_gaps
+from .preprocess import bridge_gaps, imu_gaps
 
-__all__ = ["Arena", "epoch_records", "imu_input", "rotation_variance", "timing_variance"]
+__all__ = ["Arena", "arena_bytes", "epoch_outputs", "epoch_records", "epoch_rows", "imu_input",
+           "rejected_per_satellite", "rotation_variance", "timing_variance"]
 
 HUGE = 2 << 20  # bytes of a huge page (x86-64)
 MIN_BLOCK = 4 << 20  # numpy advises huge pages for allocations from 4 MiB on
@@ -60,8 +63,8 @@ class Arena:
 
     def empty(self, shape, dtype=float) -> np.ndarray:
         dt = np.dtype(dtype)
-        shape = (shape,) if np.isscalar(shape) else tuple(shape)
-        n = int(np.prod(shape, dtype=np.int64)) * dt.itemsize
+        shape = (int(shape),) if isinstance(shape, (int, np.integer)) else tuple(shape)
+        n = math.prod(shape) * dt.itemsize
         start = -(-self.pos // ALIGN) * ALIGN
         if start + n > self.buf.size:
             return np.empty(shape, dt)
@@ -76,12 +79,12 @@ class Arena:
 
 def arena_bytes(n_imu: int, M: int, K: int, S: int) -> int:
     """Bytes of the :class:`Arena` of a call: the records' data block and per-epoch outputs (M epochs, K
-    velocity records, S satellites), their copy for the M epochs, the IMU times, intervals and gap
-    variances (``n_imu`` samples); a cache line per array on top."""
+    velocity records, S satellites), the IMU times, intervals (twice where there are gaps), gap variances
+    and bridged increments, the output times (``n_imu`` samples); a cache line per array on top."""
     R = M + K
     out_row = 8 * (1 + 6 + 5 * S + 81 + 2 + 10)  # one record's EpochOut values
-    imu = 8 * n_imu * (1 + 2 + 2 + 6)  # times, intervals and the median's scratch, gap variances, copies
-    return R * S * ep.E_W * 8 + R * out_row + M * out_row + imu + 64 * ALIGN
+    imu = 8 * n_imu * (1 + 2 * 2 + 2 + 6 + 1)  # times, intervals + scratch, gap variances, copies, out
+    return R * S * ep.E_W * 8 + R * out_row + imu + 64 * ALIGN
 
 
 @njit(cache=True)
@@ -214,17 +217,41 @@ def epoch_records(t_obs, velocity_fixes, S: int, arena: Arena):
     return rec, np.flatnonzero(model == ms.M_PR), at[:M]
 
 
-def epoch_outputs(grp, sel, arena: Arena):
-    """The per-epoch outputs of the epoch records ``sel`` (all of them: ``grp`` itself), copies into
-    ``arena`` (the clock-jump flags kept whole)."""
+@njit(cache=True)
+def _compact_rows(a, sel):
+    """Rows ``sel`` (ascending, so sel[i] >= i) of ``a`` moved to its first rows, in place."""
+    for i in range(sel.shape[0]):
+        s = sel[i]
+        if s != i:
+            a[i, :] = a[s, :]
+
+
+def epoch_outputs(grp, sel):
+    """The per-epoch outputs of the epoch records ``sel`` (ascending; all of them: ``grp`` itself): each
+    array's rows ``sel`` moved to its first rows in place, and views of those (the clock-jump flags kept
+    whole). ``grp`` is the call's own (:func:`epoch_records`), used up by this."""
     if len(sel) == len(grp.t):
         return grp
+    sel = np.asarray(sel, np.int64)
     out = {}
     for k in grp._fields:
         a = getattr(grp, k)
         if k != "flags":
-            out[k] = np.take(a, sel, axis=0, out=arena.empty((len(sel), *a.shape[1:]), a.dtype), mode="clip")
+            _compact_rows(a.reshape(len(a), -1), sel)
+            out[k] = a[:len(sel)]
     return grp._replace(**out)
+
+
+@njit(cache=True)
+def rejected_per_satellite(nu, s, gate):
+    """Per satellite (column) the epochs whose innovation ``nu`` (M, S) lies outside the gate: ν² > gate·s
+    (NaN: not counted)."""
+    out = np.zeros(nu.shape[1], np.int64)
+    for k in range(nu.shape[0]):
+        for j in range(nu.shape[1]):
+            if nu[k, j] * nu[k, j] > gate * s[k, j]:  # numpy's square: the same product
+                out[j] += 1
+    return out
 
 
 def imu_input(imu, cfg, t_imu, k0: int, static, events: list, rec_t=None, arena: Arena | None = None) -> Imu:
@@ -234,7 +261,10 @@ def imu_input(imu, cfg, t_imu, k0: int, static, events: list, rec_t=None, arena:
     (times ``rec_t``: :func:`timing_variance`); the large arrays from ``arena``."""
     stat = np.zeros(len(t_imu), np.bool_) if static is None else np.asarray(static, np.bool_)
     empty = None if arena is None else arena.empty
-    dth_in, dv_in = bridge_gaps(imu, events, empty=empty)[:2]  # gap variances not used (as before the engine)
+    if len(imu_gaps(imu, empty=empty)[2]):  # bridge_gaps' rule; its (N, 4) gap variances not used here
+        dth_in, dv_in = bridge_gaps(imu, events, empty=empty)[:2]  # (as before the engine)
+    else:
+        dth_in, dv_in = imu.dtheta, imu.dv
     sl = slice(k0, None)
     # (attitude, velocity) variance added at the next node
     gap_var = np.zeros((len(t_imu) - k0, 2)) if arena is None else arena.full((len(t_imu) - k0, 2), 0.0)

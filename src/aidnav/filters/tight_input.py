@@ -13,7 +13,7 @@ keep it alive with them.
 
 **Epoch rows** (:mod:`.measurements.epoch`'s layout, ``E_W`` values per satellite): the satellites'
 positions, velocities and clocks from the broadcast ephemerides at the transmit time implied by each
-pseudorange (:func:`aidnav.nav.gnss_sat.sat_from_pseudorange`, the ephemeris of
+pseudorange (:func:`aidnav.nav.gnss_sat.sat_from_pseudorange_scalars`, the ephemeris of
 :func:`~aidnav.nav.gnss_sat.select_ephemeris`) are computed and written straight into the engine records'
 data block (:func:`_fill_epoch_rows`, one compiled call over all epochs; :func:`_fill_sat_columns` the
 per-satellite slots), with no (M, S) intermediate arrays: the same arithmetic as
@@ -32,7 +32,7 @@ from aidnav.nav.gnss_sat import (
     E_URA,
     FREQ_L1,
     dual_frequency_iono,
-    sat_from_pseudorange,
+    sat_from_pseudorange_scalars,
     select_ephemeris,
 )
 from aidnav.units import DEG
@@ -115,10 +115,11 @@ def _fill_epoch_rows(eph_table, prns, t_rx, obs, ion, dphi, wl, opts, data, at):
             if i < 0:
                 no_eph[j] += 1
                 continue
-            p, v, dts, ddts = sat_from_pseudorange(eph_table[i], t_rx[k], code[k, j], use_tgd)
-            r[o], r[o + 1], r[o + 2], r[o + 3], r[o + 4], r[o + 5] = p[0], p[1], p[2], v[0], v[1], v[2]
+            x, y, z, vx, vy, vz, dts, ddts = sat_from_pseudorange_scalars(eph_table[i], t_rx[k], code[k, j],
+                                                                          use_tgd)
+            r[o], r[o + 1], r[o + 2], r[o + 3], r[o + 4], r[o + 5] = x, y, z, vx, vy, vz
             clk[j] = dts * C_LIGHT
-            if np.isfinite(p[0]):
+            if np.isfinite(x):
                 r[o + 6] = code[k, j] + clk[j]
                 usable[j] = True
             else:

@@ -458,9 +458,7 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
         eph = eph.to_week(obs.ref_week)
     g = cfg.gnss
     nnav = cfg.nins
-    M, S = obs.code1.shape
-    K = 0 if velocity_fixes is None else len(velocity_fixes[0])
-    arena = Arena(arena_bytes(len(imu), M, K, S))  # the call's large arrays in one block (.tight_input)
+    arena = Arena(arena_bytes(imu, obs, velocity_fixes))  # the large arrays in one block (.tight_input)
     t_imu = np.add(imu.time, cfg.imu.time_offset_s, out=arena.empty(len(imu.time)))
     if init_state is None:
         init_state = (float(imu.t0 + cfg.imu.time_offset_s),
@@ -471,7 +469,7 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     st0 = np.array([lat0, lon0, h0, *np.asarray(v0, float), *q0], float)
     mod, gate, iono_model = _tight_models(cfg, eph, static is not None, events)
     obs = obs.with_frequencies(eph)  # GLONASS channels from the records
-    rec, sel, at = epoch_records(obs.time, velocity_fixes, S, arena)
+    rec, sel, at = epoch_records(obs.time, velocity_fixes, obs.code1.shape[1], arena)
     with_eph, isb_sys = epoch_rows(obs, eph, g, events, rec.data, at, phase_increments)
     nb, nr, nc = len(isb_sys), len(with_eph), N_CLONE if phase_increments is not None else 0
     lay = tight_layout(cfg.states, nr, nb, nnav, nc > 0)
@@ -486,8 +484,8 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
         gates[ms.M_GNSS_VEL, 1:4] = [chi2_isf(m, 1.0 - g.gate_probability) if g.gate_probability < 1 else 0.0
                                      for m in (1, 2, 3)]
         max_rej[ms.M_GNSS_VEL] = g.max_consecutive_rejections
-    vt = None
-    if velocity_fixes is not None:  # the velocity records used: the times the timing noise applies at
+    vt = None  # the velocity records used: the times the timing noise applies at
+    if velocity_fixes is not None:
         vt = np.asarray(velocity_fixes[0], float)[np.all(np.isfinite(velocity_fixes[1]), axis=1)]
     imu_in = imu_input(imu, cfg, t_imu, k0, static, events, vt, arena)
     reset_idx, reset_heading = -1, 0.0

@@ -77,11 +77,13 @@ class Arena:
         return a
 
 
-def arena_bytes(n_imu: int, M: int, K: int, S: int) -> int:
-    """Bytes of the :class:`Arena` of a call: the records' data block and per-epoch outputs (M epochs, K
-    velocity records, S satellites), the IMU times, intervals (twice where there are gaps), gap variances
-    and bridged increments, the output times (``n_imu`` samples); a cache line per array on top."""
-    R = M + K
+def arena_bytes(imu, obs, velocity_fixes=None) -> int:
+    """Bytes of the :class:`Arena` of a ``run_tight`` call: the records' data block and per-epoch outputs
+    (the epochs and satellites of ``obs``, the velocity records), the IMU times, intervals (twice where
+    there are gaps), gap variances and bridged increments, the output times; a cache line per array on
+    top."""
+    (M, S), n_imu = obs.code1.shape, len(imu.time)
+    R = M + (0 if velocity_fixes is None else len(velocity_fixes[0]))
     out_row = 8 * (1 + 6 + 5 * S + 81 + 2 + 10)  # one record's EpochOut values
     imu = 8 * n_imu * (1 + 2 * 2 + 2 + 6 + 1)  # times, intervals + scratch, gap variances, copies, out
     return R * S * ep.E_W * 8 + R * out_row + imu + 64 * ALIGN

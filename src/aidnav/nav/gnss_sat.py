@@ -147,11 +147,19 @@ def eph_state(eph, t):
         dts += fr * eph[E_ECC] * eph[E_SQRTA] * np.sin(ek)
         ddts = eph[E_AF1] + 2.0 * eph[E_AF2] * dt + fr * eph[E_ECC] * eph[E_SQRTA] * np.cos(ek) * ek_dot
         return pos, p2 - p1, dts, ddts
+    gm, om_e, f_rel = _kepler_system(sys)
+    x, y, z, vx, vy, vz, dts, ddts = _kepler_scalars(eph, t, gm, om_e, f_rel)
+    return np.array([x, y, z]), np.array([vx, vy, vz]), dts, ddts
+
+
+@njit(cache=True)
+def _kepler_system(sys):
+    """(μ, ω_e, relativistic F) of a Keplerian system's records (GPS, Galileo, BeiDou MEO/IGSO)."""
     if sys == SYS_BDS:
-        return _kepler_state(eph, t, GM_BDS, OMEGA_E_BDS, -2.0 * np.sqrt(GM_BDS) / (C_LIGHT * C_LIGHT))
+        return GM_BDS, OMEGA_E_BDS, -2.0 * np.sqrt(GM_BDS) / (C_LIGHT * C_LIGHT)
     if sys == SYS_GAL:
-        return _kepler_state(eph, t, GM_GAL, OMEGA_E_GPS, -2.0 * np.sqrt(GM_GAL) / (C_LIGHT * C_LIGHT))
-    return _kepler_state(eph, t, GM_GPS, OMEGA_E_GPS, F_REL)
+        return GM_GAL, OMEGA_E_GPS, -2.0 * np.sqrt(GM_GAL) / (C_LIGHT * C_LIGHT)
+    return GM_GPS, OMEGA_E_GPS, F_REL
 
 
 @njit(cache=True)
@@ -168,7 +176,7 @@ def eph_clock(eph, t):
         gm, f_rel = GM_GAL, -2.0 * np.sqrt(GM_GAL) / (C_LIGHT * C_LIGHT)
     else:
         gm, f_rel = GM_GPS, F_REL
-    a = eph[E_SQRTA] ** 2  # as _kepler_state
+    a = eph[E_SQRTA] ** 2  # as _kepler_scalars
     ecc = eph[E_ECC]
     n0 = np.sqrt(gm / (a * a * a))
     tk = t - eph[E_TOE]
@@ -276,18 +284,9 @@ def glonass_state(eph, t):
 
 
 @njit(cache=True)
-def _kepler_state(eph, t, gm, om_e, f_rel):
-    """Keplerian record (GPS, Galileo, BeiDou MEO/IGSO) with the system's μ, ω_e and relativistic F."""
-    x, y, z, vx, vy, vz, dts, ddts = _kepler_scalars(eph, t, gm, om_e, f_rel)
-    pos, vel = np.empty(3), np.empty(3)
-    pos[0], pos[1], pos[2], vel[0], vel[1], vel[2] = x, y, z, vx, vy, vz
-    return pos, vel, dts, ddts
-
-
-@njit(cache=True)
 def _kepler_scalars(eph, t, gm, om_e, f_rel):
-    """:func:`_kepler_state`'s values as scalars (x, y, z, vx, vy, vz, dts, ddts): no arrays (issue 40,
-    session 17: the tight filter's epoch rows take ~2,000 satellite states a call)."""
+    """Keplerian record (GPS, Galileo, BeiDou MEO/IGSO) with the system's μ, ω_e and relativistic F: (x, y,
+    z, vx, vy, vz, dts, ddts) as scalars, no arrays (issue 40, session 17: ~2,000 satellites a tight call)."""
     a = eph[E_SQRTA] ** 2
     ecc = eph[E_ECC]
     n0 = np.sqrt(gm / (a * a * a))
@@ -353,9 +352,8 @@ def sat_from_pseudorange(eph, t_rx, pr, use_tgd):
 
 @njit(cache=True)
 def sat_from_pseudorange_scalars(eph, t_rx, pr, use_tgd):
-    """:func:`sat_from_pseudorange`'s values (the same arithmetic, so the same bits) as scalars (x, y, z,
-    vx, vy, vz, dts, ddts), with no arrays made for a Keplerian record (GPS, Galileo, BeiDou MEO/IGSO;
-    the others through :func:`eph_state`)."""
+    """:func:`sat_from_pseudorange`'s values (the same arithmetic: the same bits) as scalars (x, y, z, vx,
+    vy, vz, dts, ddts), no arrays for a Keplerian record (the others through :func:`eph_state`)."""
     t_sv = t_rx - pr / C_LIGHT
     t = t_sv
     for _ in range(2):
@@ -364,14 +362,9 @@ def sat_from_pseudorange_scalars(eph, t_rx, pr, use_tgd):
     if sys == SYS_GLO or sys == SYS_SBS or (sys == SYS_BDS and (prn <= 5 or prn >= 59)):
         p, v, dts, ddts = eph_state(eph, t)
         x, y, z, vx, vy, vz = p[0], p[1], p[2], v[0], v[1], v[2]
-    elif sys == SYS_BDS:  # eph_state's constants of each system
-        x, y, z, vx, vy, vz, dts, ddts = _kepler_scalars(eph, t, GM_BDS, OMEGA_E_BDS,
-                                                         -2.0 * np.sqrt(GM_BDS) / (C_LIGHT * C_LIGHT))
-    elif sys == SYS_GAL:
-        x, y, z, vx, vy, vz, dts, ddts = _kepler_scalars(eph, t, GM_GAL, OMEGA_E_GPS,
-                                                         -2.0 * np.sqrt(GM_GAL) / (C_LIGHT * C_LIGHT))
     else:
-        x, y, z, vx, vy, vz, dts, ddts = _kepler_scalars(eph, t, GM_GPS, OMEGA_E_GPS, F_REL)
+        gm, om_e, f_rel = _kepler_system(sys)
+        x, y, z, vx, vy, vz, dts, ddts = _kepler_scalars(eph, t, gm, om_e, f_rel)
     if use_tgd:
         dts -= eph[E_TGD]
     return x, y, z, vx, vy, vz, dts, ddts

@@ -17,9 +17,12 @@ from aidnav.nav.gnss_sat import (
     E_OMEGA0,
     E_PRN,
     E_SQRTA,
+    E_TGD,
     E_TOC,
     E_TOE,
     E_TOES,
+    G_POS,
+    G_VEL,
     GM_BDS,
     J2_GLO,
     MU_GLO,
@@ -30,6 +33,8 @@ from aidnav.nav.gnss_sat import (
     eph_clock,
     eph_state,
     glonass_orbit,
+    sat_from_pseudorange,
+    sat_from_pseudorange_scalars,
     sat_id,
     sat_name,
 )
@@ -188,3 +193,25 @@ def test_walk_beidou_records_against_the_icd_in_bdt(walk_nav_file, walk_nav):
             assert 2.6e7 < np.linalg.norm(ref) < 2.95e7  # MEO
     print("worst BeiDou orbit difference [m]:", worst)
     assert worst < 1e-3
+
+
+def test_pseudorange_state_as_scalars_is_the_array_path_bit_for_bit():
+    """``sat_from_pseudorange_scalars`` (the tight filter's epoch rows, issue 40 session 17: no arrays per
+    satellite) returns exactly ``sat_from_pseudorange``'s position, velocity, clock and rate for a record of
+    every system (GPS, Galileo, BeiDou MEO and GEO, GLONASS), with and without T_GD."""
+    recs = []
+    for name in ("G05", "E11", "C25", "C03"):
+        rec = _kepler_record(sat_id(name), 26560e3, np.radians(55.0), 0.3, 0.2, 345600.0)
+        rec[E_ECC], rec[E_AF0], rec[E_AF1], rec[E_AF2], rec[E_TGD] = 0.013, 1.7e-4, -3.2e-12, 1e-19, 4e-9
+        recs.append(rec)
+    glo = np.zeros(N_EPH)
+    glo[E_PRN], glo[E_TOE], glo[E_AF0], glo[E_AF1] = sat_id("R05"), 345600.0, 2e-5, 1e-12
+    glo[G_POS:G_POS + 3] = 7003.008789e3, -12206.626953e3, 21280.765625e3
+    glo[G_VEL:G_VEL + 3] = 0.7835417e3, 2.8042530e3, 1.3525150e3
+    recs.append(glo)
+    for rec in recs:
+        for dt, pr in ((-1500.0, 2.1e7), (0.0, 2.25e7), (913.7, 2.4e7)):
+            for tgd in (True, False):
+                p, v, dts, ddts = sat_from_pseudorange(rec, 345600.0 + dt, pr, tgd)
+                got = sat_from_pseudorange_scalars(rec, 345600.0 + dt, pr, tgd)
+                assert got == (*p, *v, dts, ddts) and np.all(np.isfinite(got))

@@ -182,17 +182,29 @@ class StaticDetector:
 GAP_TILT, GAP_HEADING, GAP_VEL, GAP_POS = range(4)
 
 
-def imu_gaps(imu, factor: float = 5.0, med: float | None = None):
+def imu_gaps(imu, factor: float = 5.0, med: float | None = None, empty=None):
     """The sample intervals of ``imu`` (Δt_k = t_k − t_{k−1}, t_{−1} = ``imu.t0``), the nominal interval
     (``med``, default their median) and the indices of the samples after a gap (Δt > ``factor`` × nominal):
-    what :func:`bridge_gaps` decides from the sample times alone."""
-    dt = np.diff(np.concatenate([[imu.t0], imu.time]))
-    med = float(np.median(dt)) if med is None else med
+    what :func:`bridge_gaps` decides from the sample times alone. ``empty``: an allocator ``(shape) ->
+    array`` for the intervals and the median's scratch (:class:`aidnav.filters.tight_input.Arena`; the
+    same values)."""
+    t = imu.time
+    if empty is None or len(t) == 0:
+        dt = np.diff(np.concatenate([[imu.t0], t]))
+        med = float(np.median(dt)) if med is None else med
+        return dt, med, np.flatnonzero(dt > factor * med)
+    dt = empty(len(t))
+    dt[0] = t[0] - imu.t0
+    np.subtract(t[1:], t[:-1], out=dt[1:])
+    if med is None:
+        scratch = empty(len(t))
+        scratch[:] = dt
+        med = float(np.median(scratch, overwrite_input=True))  # the same order statistics, in place
     return dt, med, np.flatnonzero(dt > factor * med)
 
 
 def bridge_gaps(imu, events: list, factor: float = 5.0, window_s: float = 1.0, med: float | None = None,
-                start: int = 0, bounds=None):
+                start: int = 0, bounds=None, empty=None):
     """Increments ready for the kernel, with IMU time gaps (interval > ``factor`` × median) bridged.
 
     A sample after a gap either already spans the gap (e.g. rates × Δt from a reader: |Δv|/Δt ≈ g)
@@ -215,18 +227,23 @@ def bridge_gaps(imu, events: list, factor: float = 5.0, window_s: float = 1.0, m
     only when something was changed.
     Streaming (:mod:`aidnav.filters.stream`): ``med`` the nominal interval (default: the median here),
     ``start`` the first sample to look at (the ones before it are the window of the previous chunk);
-    the arrays returned begin at ``start``.
+    the arrays returned begin at ``start``. ``empty``: an allocator ``(shape) -> array`` for the large
+    arrays (:func:`imu_gaps`' intervals, the copies; the same values).
     """
     if bounds is None:
         from .config import MotionBounds  # lazy: pydantic (the filters' kernels do not need it)
 
         bounds = MotionBounds()
-    dt, med, gaps = imu_gaps(imu, factor, med)
+    dt, med, gaps = imu_gaps(imu, factor, med, empty)
     gaps = gaps[gaps >= start]
     gap_var = np.zeros((len(imu) - start, 4))
     if len(gaps) == 0:
         return imu.dtheta[start:], imu.dv[start:], gap_var
-    dth, dv = imu.dtheta.copy(), imu.dv.copy()
+    if empty is None:
+        dth, dv = imu.dtheta.copy(), imu.dv.copy()
+    else:
+        dth, dv = empty(imu.dtheta.shape), empty(imu.dv.shape)
+        dth[:], dv[:] = imu.dtheta, imu.dv
     nwin = max(2, int(round(window_s / med)))
     w_max, a_max = bounds.max_turn_rate_deg_s * DEG, bounds.max_accel_m_s2
     v_max, tilt_max = bounds.max_speed_m_s, bounds.max_tilt_deg * DEG

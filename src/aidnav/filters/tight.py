@@ -59,14 +59,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from aidnav.nav.earth import gravity, radii
-from aidnav.nav.gnss_sat import (
-    C_LIGHT,
-    FREQ_L1,
-    dual_frequency_iono,
-    iono_fallback_note,
-    klobuchar_coefficients,
-    satellite_states_epochs,
-)
+from aidnav.nav.gnss_sat import C_LIGHT, iono_fallback_note, klobuchar_coefficients
 from aidnav.nav.rotations import dcm_from_euler, quat_from_euler
 from aidnav.units import DEG
 
@@ -80,16 +73,27 @@ from .config import (
     ImuNoise,
     Initialisation,
 )
-from .engine import NEVER, Imu, Init, Models, Output, Process, Records, run_filter
+from .engine import NEVER, Init, Models, Output, Process, run_filter
 from .ins_errors import noise_count
 from .layout import L_CLK, L_ISB, L_N, L_NINS, L_RERR, L_SIZE, L_TDCP
-from .loose import LooseResult, bridge_gaps
+from .loose import LooseResult
 from .loose import to_trajectory as nav_trajectory
 from .measurements import epoch as ep
 from .output_rows import whole_run_rows
 from .prior import given_initial_state, initial_covariance, levelled_tilt_covariance, process_noise
 from .run_log import log_dict
 from .smoother import rts, smooth_outputs
+from .tight_input import (
+    Arena,
+    arena_bytes,
+    epoch_outputs,
+    epoch_records,
+    epoch_rows,
+    imu_input,
+    rejected_per_satellite,
+    rotation_variance,
+    timing_variance,
+)
 
 __all__ = ["CLOCK_GRADES", "RawGnssAiding", "TightConfig", "TightResult", "apply_vehicle", "clock_allan",
            "clock_drift_psd", "clock_hm2_from_psd",
@@ -266,23 +270,6 @@ class TightConfig(_Strict):
         return 9 if self.states == 11 else self.imu.nins
 
 
-def rotation_variance(t, dth, sf, mis, block_s):
-    """Attitude variance [rad²] per IMU sample from gyro scale-factor (σ ``sf`` [-]) and misalignment
-    (σ ``mis`` [rad]) errors that are not states: over each block of ``block_s`` seconds the error they
-    leave is (S + M)·Δθ, Δθ the block's net body rotation (sum of the increments ``dth`` (N, 3)); on any
-    navigation axis its variance is at most (σ_sf² + σ_m²)·|Δθ|² (a rotated diagonal S, off-diagonal M),
-    placed at the block's last sample. Blocks are independent (a constant error over a steady turn of K
-    blocks grows K times faster than this; back-and-forth rotation cancels in the truth, not here)."""
-    out = np.zeros(len(t))
-    if len(t) == 0 or sf <= 0 and mis <= 0:
-        return out
-    blk = np.floor((np.asarray(t) - t[0]) / block_s).astype(np.int64)
-    ends = np.flatnonzero(np.diff(np.r_[blk, blk[-1] + 1]))
-    net = np.add.reduceat(np.asarray(dth, float), np.r_[0, ends[:-1] + 1], axis=0)
-    out[ends] = (sf * sf + mis * mis) * (net * net).sum(axis=1)
-    return out
-
-
 @dataclass
 class TightResult:
     """Output of :func:`run_tight`.
@@ -438,37 +425,6 @@ def apply_vehicle(cfg: TightConfig, name: str | None, events: list | None = None
     return TightConfig.model_validate(merged)
 
 
-def _records(t_obs, rows, velocity_fixes, S):
-    """Engine records: one whole-epoch pseudorange record per epoch and, with ``velocity_fixes``, velocity
-    records among them in time order. Returns (Records, indices of the epoch records)."""
-    M = len(t_obs)
-    if velocity_fixes is None:
-        return Records(np.asarray(t_obs, float), np.full(M, ms.M_PR, np.int64), rows, np.ones(M, np.bool_),
-                       ep.epoch_out(M, S)), np.arange(M)
-    tv, vv, sv = (np.asarray(a, float) for a in velocity_fixes)
-    ok = np.isfinite(tv) & np.isfinite(vv).all(axis=1) & np.isfinite(sv).all(axis=1)
-    tv, vv, sv = tv[ok], vv[ok], sv[ok]
-    K = len(tv)
-    t_all = np.concatenate([np.asarray(t_obs, float), tv])
-    order = np.argsort(t_all, kind="stable")
-    model = np.concatenate([np.full(M, ms.M_PR, np.int64), np.full(K, ms.M_GNSS_VEL, np.int64)])[order]
-    at = np.empty(M + K, np.int64)  # the row of each record in time order (one array written once: the
-    at[order] = np.arange(M + K)  # stacked and reordered copies of the rows were 3 more, ~9 MB on the walk)
-    data = np.full((M + K, rows.shape[1]), np.nan)
-    data[at[:M]] = rows
-    data[at[M:], 0:3], data[at[M:], 3:6] = vv, sv
-    rec = Records(t_all[order], model, data, np.ones(M + K, np.bool_), ep.epoch_out(M + K, S))
-    return rec, np.flatnonzero(model == ms.M_PR)
-
-
-def _satellite_arrays(obs, eph, use_tgd, max_age):
-    """Satellite positions, velocities, clocks, clock rates (M, S, ...) and the URA [m] of the
-    ephemeris used (M, S): one compiled call over all epochs."""
-    return satellite_states_epochs(np.ascontiguousarray(eph.table, float), np.asarray(obs.prn, np.int64),
-                                   np.asarray(obs.time, float), np.ascontiguousarray(obs.code1, float),
-                                   bool(use_tgd), float(max_age))
-
-
 def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, static=None, heading_reset=None,
               events: list | None = None, output_rate_hz: float | None = None,
               smooth: bool = False, velocity_fixes=None, cov_times=None, phase_increments=None,
@@ -502,7 +458,8 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
         eph = eph.to_week(obs.ref_week)
     g = cfg.gnss
     nnav = cfg.nins
-    t_imu = imu.time + cfg.imu.time_offset_s
+    arena = Arena(arena_bytes(imu, obs, velocity_fixes))  # the large arrays in one block (.tight_input)
+    t_imu = np.add(imu.time, cfg.imu.time_offset_s, out=arena.empty(len(imu.time)))
     if init_state is None:
         init_state = (float(imu.t0 + cfg.imu.time_offset_s),
                       *given_initial_state(cfg.init, "run_tight without init_state"))
@@ -512,7 +469,8 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     st0 = np.array([lat0, lon0, h0, *np.asarray(v0, float), *q0], float)
     mod, gate, iono_model = _tight_models(cfg, eph, static is not None, events)
     obs = obs.with_frequencies(eph)  # GLONASS channels from the records
-    rows, with_eph, isb_sys = _epoch_rows(obs, eph, g, events, phase_increments)
+    rec, sel, at = epoch_records(obs.time, velocity_fixes, obs.code1.shape[1], arena)
+    with_eph, isb_sys = epoch_rows(obs, eph, g, events, rec.data, at, phase_increments)
     nb, nr, nc = len(isb_sys), len(with_eph), N_CLONE if phase_increments is not None else 0
     lay = tight_layout(cfg.states, nr, nb, nnav, nc > 0)
     n = int(lay[L_N])
@@ -520,18 +478,16 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     if level is not None and nnav >= 15:
         # tied with the true specific force at rest (normal gravity), not the measured one (prior's doc)
         P0 = levelled_tilt_covariance(P0, nnav, level[0], dcm_from_euler(*rph0), level[1], gravity(lat0, h0))
-    M, S = obs.code1.shape
-    rec, sel = _records(obs.time, rows.reshape(M, S * ep.E_W), velocity_fixes, S)
     if velocity_fixes is not None:
         par, gates, max_rej = mod.par, mod.gate, mod.max_rej
         par[ms.M_GNSS_VEL, 0:3] = g.lever_arm_m
         gates[ms.M_GNSS_VEL, 1:4] = [chi2_isf(m, 1.0 - g.gate_probability) if g.gate_probability < 1 else 0.0
                                      for m in (1, 2, 3)]
         max_rej[ms.M_GNSS_VEL] = g.max_consecutive_rejections
-    vt = None
-    if velocity_fixes is not None:  # the velocity records used: the times the timing noise applies at
+    vt = None  # the velocity records used: the times the timing noise applies at
+    if velocity_fixes is not None:
         vt = np.asarray(velocity_fixes[0], float)[np.all(np.isfinite(velocity_fixes[1]), axis=1)]
-    imu_in = _imu_input(imu, cfg, t_imu, k0, static, events, vt)
+    imu_in = imu_input(imu, cfg, t_imu, k0, static, events, vt, arena)
     reset_idx, reset_heading = -1, 0.0
     if heading_reset is not None:
         reset_idx = int(np.searchsorted(t_imu[k0:], heading_reset[0], side="left"))
@@ -555,11 +511,11 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     n_out = -(-len(imu_in.t) // out_every)  # the outputs into one block the kernel fills (.output_rows)
     rows = whole_run_rows(n_out, max(n - 9, 1), n)
     r = run_filter(imu_in, rec, mod, proc, init, Output(out_every, bool(smooth), cov_idx, rows))
-    ge = ep.epoch_fields(rec.grp, sel)
+    ge = epoch_outputs(rec.grp, sel)
     if gate > 0:
         _gate_events(ge, gate, obs.names, events)
     t_out = t_imu[k0:]
-    res = _tight_result(r, ge, obs, lay, nnav, with_eph, isb_sys, iono_model, events, t_out)
+    res = _tight_result(r, ge, obs, lay, nnav, with_eph, isb_sys, iono_model, events, t_out, arena)
     res.counts.update(imu_samples_skipped=k0, velocity_records=len(rec.t) - len(sel))
     if nc:
         events.append(f"time-differenced carrier phase: {res.counts['tdcp_used']} delta-range rows used, "
@@ -600,106 +556,20 @@ def _tight_models(cfg: TightConfig, eph, with_static: bool, events: list):
     return mod, gate, iono_model
 
 
-def _epoch_rows(obs, eph, g, events: list, phase_increments=None):
-    """The whole-epoch pseudorange/rate rows of :mod:`.measurements.epoch` (M, S, ``E_W``): satellite
-    position, velocity, corrected code and rate, dual-frequency ionosphere, URA, the range-error and
-    inter-system-bias state of each satellite, the Klobuchar scale (f_L1/f)² and the system's σ factor;
-    with the satellites that get a range-error state and the systems that get a bias state (one per
-    non-GPS system with a usable satellite). With ``phase_increments`` (M, S) [m]: the TDCP values y =
-    λΔL + Δ(c·dt_s), the satellite's previous position and the interval."""
-    if g.iono == "dual":
-        if obs.code2 is None:
-            raise ValueError("iono = dual needs an L2 code")
-        ion_dual = dual_frequency_iono(obs.time, obs.code1, obs.code2, g.iono_window_s)
-    else:
-        ion_dual = np.full(obs.code1.shape, np.nan)
-    sp, sv, sc, scr, ura = _satellite_arrays(obs, eph, g.iono != "dual", g.max_eph_age_s)
-    no_eph = (np.isfinite(obs.code1) & ~np.isfinite(sp[:, :, 0])).sum(axis=0)
-    names = obs.names
-    for j in np.flatnonzero(no_eph):
-        events.append(f"{names[j]}: {int(no_eph[j])} epoch(s) with a pseudorange but no usable "
-                      "ephemeris; skipped")
-    M, S = obs.code1.shape
-    rows = np.full((M, S, ep.E_W), np.nan)
-    rows[:, :, 0:3], rows[:, :, 3:6] = sp, sv
-    rows[:, :, 6] = np.where(np.isfinite(sp[:, :, 0]), obs.code1 + sc, np.nan)
-    rows[:, :, 7], rows[:, :, 8], rows[:, :, 9] = obs.range_rate() + scr, ion_dual, ura
-    # range-error states: one per satellite with a usable ephemeris somewhere in the log
-    usable = np.isfinite(sp[:, :, 0]).any(axis=0)
-    with_eph = np.flatnonzero(usable) if g.range_errors else np.zeros(0, int)
-    rows[:, with_eph, 10] = np.arange(len(with_eph))
-    # inter-system biases: one per non-GPS system with a usable satellite; Klobuchar scale, σ factor
-    letters = np.array([nm[0] for nm in names])
-    isb_sys = [c for c in "ECR" if (usable & (letters == c)).any()]
-    for k, c in enumerate(isb_sys):
-        rows[:, letters == c, 11] = k
-    f = obs.frequencies()
-    rows[:, :, 12] = np.where(np.isfinite(f), (FREQ_L1 / f) ** 2, 1.0)
-    rows[:, :, 13] = np.array([g.system_sigma_factor.get(c, 1.0) for c in letters])
-    if phase_increments is not None and M > 1:
-        o = ep.E_PHASE
-        dphi = np.asarray(phase_increments, float)
-        rows[1:, :, o] = np.where(np.isfinite(sp[1:, :, 0]) & np.isfinite(sp[:-1, :, 0]),
-                                  dphi[1:] + sc[1:] - sc[:-1], np.nan)
-        rows[1:, :, o + 1:o + 4] = sp[:-1]
-        rows[1:, :, o + 4] = np.diff(np.asarray(obs.time, float))[:, None]
-    return rows, with_eph, isb_sys
-
-
-def _imu_input(imu, cfg: TightConfig, t_imu, k0: int, static, events: list, rec_t=None) -> Imu:
-    """The engine's IMU input from sample ``k0`` on: increments with gaps bridged, the static flags for
-    the ZUPTs, the attitude variance of gyro scale factor and misalignment per node
-    (``cfg.rotation_noise``) and the velocity variance of the time offset's σ at the velocity records
-    (times ``rec_t``: :func:`timing_variance`)."""
-    stat = np.zeros(len(t_imu), np.bool_) if static is None else np.asarray(static, np.bool_)
-    dth_in, dv_in = bridge_gaps(imu, events)[:2]  # gap variances not used (as before the engine)
-    sl = slice(k0, None)
-    gap_var = np.zeros((len(t_imu) - k0, 2))  # (attitude, velocity) variance added at the next node
-    if cfg.rotation_noise:
-        im = cfg.imu
-        gap_var[:, 0] = rotation_variance(t_imu[sl], dth_in[sl], im.gyro_sf_sigma_ppm * 1e-6,
-                                          im.gyro_misalignment_sigma_deg * DEG, float(cfg.filter.prop_dt_s))
-    if cfg.gnss.time_offset_sigma_s > 0 and rec_t is not None and len(rec_t) > 1:
-        gap_var[:, 1] = timing_variance(t_imu[sl], dv_in[sl], np.asarray(rec_t, float),
-                                        cfg.gnss.time_offset_sigma_s)
-    return Imu(t_imu[sl], dth_in[sl], dv_in[sl], stat[sl], gap_var, np.zeros((0, 2)))
-
-
-def timing_variance(t, dv, rec_t, sigma_s: float) -> np.ndarray:
-    """Per IMU sample (N,) the velocity variance [(m/s)²] per axis that an IMU-GNSS timing error of σ
-    ``sigma_s`` [s] leaves between consecutive velocity records: the strapdown integrates a(t + δt) for
-    a(t), so the velocity it carries from one record (the last velocity update) to the next is off by
-    δt·(a(t_j) − a(t_{j−1})) — bounded, not a random walk: without records (an outage) nothing is added;
-    its variance (σ·|Δf|)², Δf the specific-force change between the samples at the records (body frame:
-    the turn between records neglected; a 5-sample mean at each end), is put at the sample of record j (the
-    engine adds it at that node). ``t`` (N,) sample times, ``dv`` (N, 3) increments, ``rec_t`` (M,) record
-    times, all on one scale."""
-    t = np.asarray(t, float)
-    dt = np.diff(np.concatenate([[t[0] - np.median(np.diff(t))], t]))
-    f = np.asarray(dv, float) / dt[:, None]
-    f = np.column_stack([np.convolve(f[:, i], np.full(5, 0.2), mode="same") for i in range(3)])  # 5 samples
-    k = np.unique(np.clip(np.searchsorted(t, np.sort(rec_t)), 0, len(t) - 1))
-    out = np.zeros(len(t))
-    if k.size > 1:
-        df = np.linalg.norm(f[k[1:]] - f[k[:-1]], axis=1)
-        out[k[1:]] = (sigma_s * df) ** 2
-    return out
-
-
 def _gate_events(ge, gate: float, names, events: list) -> None:
     """One event per satellite with pseudoranges or rates outside the innovation gate."""
-    with np.errstate(invalid="ignore"):
-        rej_pr = (ge.pr_nu**2 > gate * ge.pr_s).sum(axis=0)
-        rej_rate = (ge.rate_nu**2 > gate * ge.rate_s).sum(axis=0)
+    rej_pr = rejected_per_satellite(ge.pr_nu, ge.pr_s, float(gate))
+    rej_rate = rejected_per_satellite(ge.rate_nu, ge.rate_s, float(gate))
     for j in np.flatnonzero(rej_pr + rej_rate):
         events.append(f"{names[j]}: {int(rej_pr[j])} pseudorange(s) and {int(rej_rate[j])} "
                       "rate(s) outside the innovation gate (rejected unless the gate was suspended)")
 
 
 def _tight_result(r, ge, obs, lay, nnav: int, with_eph, isb_sys, iono_model: str, events: list,
-                  t_out) -> TightResult:
+                  t_out, arena=None) -> TightResult:
     """The forward :class:`TightResult` of the engine's run ``r`` (per-epoch records ``ge``, counts, the
-    clock, range errors and inter-system biases; ``t_out``: the IMU times from the first sample on)."""
+    clock, range errors and inter-system biases; ``t_out``: the IMU times from the first sample on; the
+    output times into ``arena``'s block where given)."""
     n, nr, nb = int(lay[L_N]), len(with_eph), len(isb_sys)
     epochs = dict(time=ge.t, n_avail=ge.navail, n_pr=ge.npr, n_rate=ge.nrate, n_rejected=ge.nrej,
                   n_tdcp=ge.ntd, n_tdcp_rejected=ge.ntdrej,
@@ -713,7 +583,9 @@ def _tight_result(r, ge, obs, lay, nnav: int, with_eph, isb_sys, iono_model: str
                velocity_records=0, tdcp_used=int(ge.ntd.sum()), tdcp_rejected=int(ge.ntdrej.sum()),
                velocity_used=int(((log["model"] == ms.M_GNSS_VEL) & (log["status"] == 1)).sum()))
     ck = slice(int(lay[L_CLK]) - 9, int(lay[L_CLK]) - 7)
-    res = TightResult(time=t_out[r.out_idx], state=r.out_st, bias=r.out_bias[:, :nnav - 9],
+    t_res = t_out[r.out_idx] if arena is None else np.take(t_out, r.out_idx, out=arena.empty(len(r.out_idx)),
+                                                           mode="clip")
+    res = TightResult(time=t_res, state=r.out_st, bias=r.out_bias[:, :nnav - 9],
                       clock=r.out_bias[:, ck], pdiag=r.out_pdiag, epochs=epochs, counts=cnt, events=events,
                       nstate=n, final_P=r.P, range_error=r.out_bias[:, n - nr - 9:n - 9],
                       range_error_prn=np.asarray(obs.prn)[with_eph], iono_model=iono_model,

@@ -147,11 +147,19 @@ def eph_state(eph, t):
         dts += fr * eph[E_ECC] * eph[E_SQRTA] * np.sin(ek)
         ddts = eph[E_AF1] + 2.0 * eph[E_AF2] * dt + fr * eph[E_ECC] * eph[E_SQRTA] * np.cos(ek) * ek_dot
         return pos, p2 - p1, dts, ddts
+    gm, om_e, f_rel = _kepler_system(sys)
+    x, y, z, vx, vy, vz, dts, ddts = _kepler_scalars(eph, t, gm, om_e, f_rel)
+    return np.array([x, y, z]), np.array([vx, vy, vz]), dts, ddts
+
+
+@njit(cache=True)
+def _kepler_system(sys):
+    """(μ, ω_e, relativistic F) of a Keplerian system's records (GPS, Galileo, BeiDou MEO/IGSO)."""
     if sys == SYS_BDS:
-        return _kepler_state(eph, t, GM_BDS, OMEGA_E_BDS, -2.0 * np.sqrt(GM_BDS) / (C_LIGHT * C_LIGHT))
+        return GM_BDS, OMEGA_E_BDS, -2.0 * np.sqrt(GM_BDS) / (C_LIGHT * C_LIGHT)
     if sys == SYS_GAL:
-        return _kepler_state(eph, t, GM_GAL, OMEGA_E_GPS, -2.0 * np.sqrt(GM_GAL) / (C_LIGHT * C_LIGHT))
-    return _kepler_state(eph, t, GM_GPS, OMEGA_E_GPS, F_REL)
+        return GM_GAL, OMEGA_E_GPS, -2.0 * np.sqrt(GM_GAL) / (C_LIGHT * C_LIGHT)
+    return GM_GPS, OMEGA_E_GPS, F_REL
 
 
 @njit(cache=True)
@@ -168,7 +176,7 @@ def eph_clock(eph, t):
         gm, f_rel = GM_GAL, -2.0 * np.sqrt(GM_GAL) / (C_LIGHT * C_LIGHT)
     else:
         gm, f_rel = GM_GPS, F_REL
-    a = eph[E_SQRTA] ** 2  # as _kepler_state
+    a = eph[E_SQRTA] ** 2  # as _kepler_scalars
     ecc = eph[E_ECC]
     n0 = np.sqrt(gm / (a * a * a))
     tk = t - eph[E_TOE]
@@ -276,8 +284,9 @@ def glonass_state(eph, t):
 
 
 @njit(cache=True)
-def _kepler_state(eph, t, gm, om_e, f_rel):
-    """Keplerian record (GPS, Galileo, BeiDou MEO/IGSO) with the system's μ, ω_e and relativistic F."""
+def _kepler_scalars(eph, t, gm, om_e, f_rel):
+    """Keplerian record (GPS, Galileo, BeiDou MEO/IGSO) with the system's μ, ω_e and relativistic F: (x, y,
+    z, vx, vy, vz, dts, ddts) as scalars, no arrays (issue 40, session 17: ~2,000 satellites a tight call)."""
     a = eph[E_SQRTA] ** 2
     ecc = eph[E_ECC]
     n0 = np.sqrt(gm / (a * a * a))
@@ -302,10 +311,9 @@ def _kepler_state(eph, t, gm, om_e, f_rel):
     om = eph[E_OMEGA0] + omk_dot * tk - om_e * eph[E_TOES]
     so, co = np.sin(om), np.cos(om)
     si, ci = np.sin(inc), np.cos(inc)
-    pos = np.empty(3)
-    pos[0] = xp * co - yp * ci * so
-    pos[1] = xp * so + yp * ci * co
-    pos[2] = yp * si
+    x = xp * co - yp * ci * so
+    y = xp * so + yp * ci * co
+    z = yp * si
     # derivatives
     ek_dot = n / den
     vk_dot = ek_dot * sq / den
@@ -314,14 +322,13 @@ def _kepler_state(eph, t, gm, om_e, f_rel):
     i_dot = eph[E_IDOT] + 2.0 * vk_dot * (eph[E_CIS] * c2 - eph[E_CIC] * s2)
     xp_dot = r_dot * np.cos(u) - r * u_dot * np.sin(u)
     yp_dot = r_dot * np.sin(u) + r * u_dot * np.cos(u)
-    vel = np.empty(3)
-    vel[0] = xp_dot * co - yp_dot * ci * so + yp * si * so * i_dot - pos[1] * omk_dot
-    vel[1] = xp_dot * so + yp_dot * ci * co - yp * si * co * i_dot + pos[0] * omk_dot
-    vel[2] = yp_dot * si + yp * ci * i_dot
+    vx = xp_dot * co - yp_dot * ci * so + yp * si * so * i_dot - y * omk_dot
+    vy = xp_dot * so + yp_dot * ci * co - yp * si * co * i_dot + x * omk_dot
+    vz = yp_dot * si + yp * ci * i_dot
     dt = t - eph[E_TOC]
     dts = eph[E_AF0] + eph[E_AF1] * dt + eph[E_AF2] * dt * dt + f_rel * ecc * eph[E_SQRTA] * se
     ddts = eph[E_AF1] + 2.0 * eph[E_AF2] * dt + f_rel * ecc * eph[E_SQRTA] * ce * ek_dot
-    return pos, vel, dts, ddts
+    return x, y, z, vx, vy, vz, dts, ddts
 
 
 @njit(cache=True)
@@ -341,6 +348,26 @@ def sat_from_pseudorange(eph, t_rx, pr, use_tgd):
     if use_tgd:
         dts -= eph[E_TGD]
     return pos, vel, dts, ddts
+
+
+@njit(cache=True)
+def sat_from_pseudorange_scalars(eph, t_rx, pr, use_tgd):
+    """:func:`sat_from_pseudorange`'s values (the same arithmetic: the same bits) as scalars (x, y, z, vx,
+    vy, vz, dts, ddts), no arrays for a Keplerian record (the others through :func:`eph_state`)."""
+    t_sv = t_rx - pr / C_LIGHT
+    t = t_sv
+    for _ in range(2):
+        t = t_sv - eph_clock(eph, t)
+    sys, prn = int(eph[E_PRN]) // 100, int(eph[E_PRN]) % 100
+    if sys == SYS_GLO or sys == SYS_SBS or (sys == SYS_BDS and (prn <= 5 or prn >= 59)):
+        p, v, dts, ddts = eph_state(eph, t)
+        x, y, z, vx, vy, vz = p[0], p[1], p[2], v[0], v[1], v[2]
+    else:
+        gm, om_e, f_rel = _kepler_system(sys)
+        x, y, z, vx, vy, vz, dts, ddts = _kepler_scalars(eph, t, gm, om_e, f_rel)
+    if use_tgd:
+        dts -= eph[E_TGD]
+    return x, y, z, vx, vy, vz, dts, ddts
 
 
 @njit(cache=True)
@@ -575,6 +602,7 @@ __all__ = [
     "eph_state",
     "eph_clock",
     "sat_from_pseudorange",
+    "sat_from_pseudorange_scalars",
     "geo_range",
     "geo_range_rate",
     "az_el",

@@ -77,25 +77,25 @@ EpochFields = namedtuple("EpochFields", ["t", "navail", "npr", "nrate", "nrej", 
                                          "pr_s", "rate_nu", "rate_s", "el", "P_nav", "clk", "state", "flags"])
 
 
-def epoch_out(M: int, S: int) -> EpochOut:
-    """Empty per-epoch outputs for M epochs of S satellites (M = 0: no epoch records)."""
-    node = np.zeros((M, N_W))
+def epoch_out(M: int, S: int, full=None) -> EpochOut:
+    """Empty per-epoch outputs for M epochs of S satellites (M = 0: no epoch records); ``full``: an
+    allocator like ``np.full`` (:class:`aidnav.filters.tight_input.Arena`'s: one block for a call's
+    arrays)."""
+    full = np.full if full is None else full
+    node = full((M, N_W), 0.0)
     node[:, N_CLK:N_CLK + 2] = np.nan
-    return EpochOut(np.full(M, np.nan), np.zeros((M, 6), np.int64), np.full((5, M, S), np.nan), node,
+    return EpochOut(full(M, np.nan), full((M, 6), 0, np.int64), full((5, M, S), np.nan), node,
                     np.zeros(3, np.int64))
 
 
 def epoch_fields(grp: EpochOut, sel=slice(None)) -> EpochFields:
-    """The per-epoch outputs ``grp`` by name (contiguous copies of the epochs ``sel``; ``flags`` as it is):
-    t, navail, npr, nrate, nrej, ntd, ntdrej (M,), pr_nu, pr_s, rate_nu, rate_s, el (M, S), P_nav (M, 9, 9),
-    clk (M, 2), state (M, 10), flags (3,)."""
+    """The per-epoch outputs ``grp`` by name (views of ``grp`` where ``sel`` is a slice, copies of the epochs
+    ``sel`` where it is an index array; ``flags`` as it is): t, navail, npr, nrate, nrej, ntd, ntdrej (M,),
+    pr_nu, pr_s, rate_nu, rate_s, el (M, S), P_nav (M, 9, 9), clk (M, 2), state (M, 10), flags (3,)."""
     cnt, sat, node = grp.cnt[sel], grp.sat[:, sel], grp.node[sel]
-    c = [np.ascontiguousarray(cnt[:, i]) for i in range(6)]
-    s = [np.ascontiguousarray(sat[i]) for i in range(5)]
-    pnav = np.ascontiguousarray(node[:, N_PNAV:]).reshape(len(node), 9, 9)
-    return EpochFields(np.asarray(grp.t[sel]).copy(), *c, *s, pnav,
-                       np.ascontiguousarray(node[:, N_CLK:N_CLK + 2]),
-                       np.ascontiguousarray(node[:, N_STATE:N_STATE + 10]), grp.flags)
+    pnav = node[:, N_PNAV:].reshape(len(node), 9, 9)
+    return EpochFields(grp.t[sel], *[cnt[:, i] for i in range(6)], *[sat[i] for i in range(5)], pnav,
+                       node[:, N_CLK:N_CLK + 2], node[:, N_STATE:N_STATE + 10], grp.flags)
 
 
 @njit(cache=True)

@@ -1,0 +1,146 @@
+"""The tight filter's per-call inputs (:mod:`aidnav.filters.tight_input`, issue 40 session 17) against the
+path they replace: the epoch rows written by one kernel into the records' data block must hold, bit for
+bit, what :func:`aidnav.nav.gnss_sat.satellite_states_epochs` and the numpy row building of main 715bc5d
+give (positions, velocities, corrected code and rate, ionosphere, URA, slots, scales, TDCP values), with
+and without velocity records among the epochs; the in-place compaction of the per-epoch outputs equals the
+fancy-indexed copy; the arena hands out independent, aligned arrays and falls back to numpy when full."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from aidnav.filters import measurements as ms
+from aidnav.filters.measurements import epoch as ep
+from aidnav.filters.tight import TightConfig
+from aidnav.filters.tight_input import (
+    Arena,
+    epoch_outputs,
+    epoch_records,
+    epoch_rows,
+    rejected_per_satellite,
+)
+from aidnav.nav.gnss_sat import E_PRN, E_URA, FREQ_L1, satellite_states_epochs
+from aidnav.nav.gnss_types import GnssObservations, GpsEphemerides
+from aidnav.sim.gnss_constellation import nominal_constellation
+
+SOW = 345_600.0
+
+
+def _case(seed=3, M=40, n_gps=8):
+    """GPS satellites and their Galileo twins (ids + 100), pseudoranges near the true ranges with gaps, a
+    satellite without an ephemeris, Dopplers, L2 codes and phase increments."""
+    rng = np.random.default_rng(seed)
+    g = nominal_constellation(2381, SOW, n_gps).table.copy()
+    g[:, E_URA] = rng.uniform(1.0, 4.0, len(g))
+    e = g.copy()
+    e[:, E_PRN] += 100
+    eph = GpsEphemerides(np.vstack([g, e]), 2381, None, None, [])
+    prn = np.r_[np.arange(1, n_gps + 1), np.arange(101, 101 + n_gps), 30]  # PRN 30: no ephemeris
+    S = len(prn)
+    t = SOW + np.arange(M) * 1.0 + rng.uniform(-1e-4, 1e-4, M)
+    code = rng.uniform(2.0e7, 2.5e7, (M, S))
+    code[rng.random((M, S)) < 0.2] = np.nan
+    dop = rng.normal(0.0, 2000.0, (M, S))
+    dop[rng.random((M, S)) < 0.1] = np.nan
+    code2 = code + rng.normal(3.0, 0.5, (M, S))
+    obs = GnssObservations(t, 2381, prn, code, dop, np.full((M, S), 40.0), code2, "C2W")
+    dphi = rng.normal(0.0, 500.0, (M, S))
+    dphi[0] = np.nan
+    return obs.with_frequencies(eph), eph, dphi
+
+
+def _reference_rows(obs, eph, g, phase_increments=None):
+    """The epoch rows as main 715bc5d built them (tight._epoch_rows: satellite_states_epochs, numpy)."""
+    from aidnav.nav.gnss_sat import dual_frequency_iono
+
+    ion = (dual_frequency_iono(obs.time, obs.code1, obs.code2, g.iono_window_s) if g.iono == "dual" else
+           np.full(obs.code1.shape, np.nan))
+    sp, sv, sc, scr, ura = satellite_states_epochs(np.ascontiguousarray(eph.table, float),
+                                                   np.asarray(obs.prn, np.int64), np.asarray(obs.time, float),
+                                                   np.ascontiguousarray(obs.code1, float), g.iono != "dual",
+                                                   float(g.max_eph_age_s))
+    M, S = obs.code1.shape
+    rows = np.full((M, S, ep.E_W), np.nan)
+    rows[:, :, 0:3], rows[:, :, 3:6] = sp, sv
+    rows[:, :, 6] = np.where(np.isfinite(sp[:, :, 0]), obs.code1 + sc, np.nan)
+    rows[:, :, 7], rows[:, :, 8], rows[:, :, 9] = obs.range_rate() + scr, ion, ura
+    usable = np.isfinite(sp[:, :, 0]).any(axis=0)
+    with_eph = np.flatnonzero(usable) if g.range_errors else np.zeros(0, int)
+    rows[:, with_eph, 10] = np.arange(len(with_eph))
+    letters = np.array([nm[0] for nm in obs.names])
+    isb_sys = [c for c in "ECR" if (usable & (letters == c)).any()]
+    for k, c in enumerate(isb_sys):
+        rows[:, letters == c, 11] = k
+    f = obs.frequencies()
+    rows[:, :, 12] = np.where(np.isfinite(f), (FREQ_L1 / f) ** 2, 1.0)
+    rows[:, :, 13] = np.array([g.system_sigma_factor.get(c, 1.0) for c in letters])
+    if phase_increments is not None and M > 1:
+        o = ep.E_PHASE
+        rows[1:, :, o] = np.where(np.isfinite(sp[1:, :, 0]) & np.isfinite(sp[:-1, :, 0]),
+                                  phase_increments[1:] + sc[1:] - sc[:-1], np.nan)
+        rows[1:, :, o + 1:o + 4] = sp[:-1]
+        rows[1:, :, o + 4] = np.diff(np.asarray(obs.time, float))[:, None]
+    no_eph = (np.isfinite(obs.code1) & ~np.isfinite(sp[:, :, 0])).sum(axis=0)
+    return rows, with_eph, isb_sys, no_eph
+
+
+@pytest.mark.parametrize("iono, tdcp, velocity", [("klobuchar", False, False), ("klobuchar", True, True),
+                                                  ("dual", True, False), ("none", False, True)])
+def test_epoch_rows_are_the_old_paths_bits(iono, tdcp, velocity):
+    obs, eph, dphi = _case()
+    g = TightConfig(gnss={"iono": iono}).gnss
+    M, S = obs.code1.shape
+    vf = None
+    if velocity:  # velocity records between (and one before, one at) the epochs
+        tv = np.r_[obs.time[0] - 0.5, obs.time[:-1] + 0.5, obs.time[5]]
+        vf = (tv, np.ones((len(tv), 3)), np.full((len(tv), 3), 0.1))
+    arena = Arena(1 << 20)
+    rec, sel, at = epoch_records(obs.time, vf, S, arena)
+    events = []
+    with_eph, isb_sys = epoch_rows(obs, eph, g, events, rec.data, at, dphi if tdcp else None)
+    ref, ref_eph, ref_isb, no_eph = _reference_rows(obs, eph, g, dphi if tdcp else None)
+    assert np.array_equal(rec.data[at].reshape(M, S, ep.E_W), ref, equal_nan=True)
+    assert np.array_equal(with_eph, ref_eph) and isb_sys == ref_isb == ["E"]
+    assert np.array_equal(sel, at) and np.all(rec.model[sel] == ms.M_PR) and np.all(np.diff(rec.t) >= 0)
+    assert len(events) == 1 and events[0].startswith(f"G30: {no_eph[-1]} epoch(s)") and no_eph[-1] > 0
+    assert np.isfinite(ref[:, :, 0]).sum() > M * (S - 1) // 2  # the case exercises the orbits
+    if velocity:
+        vel = np.setdiff1d(np.arange(len(rec.t)), sel)
+        assert np.all(rec.model[vel] == ms.M_GNSS_VEL) and np.all(rec.data[vel, 0:3] == 1.0)
+        assert np.all(np.isnan(rec.data[vel, 6:]))
+
+
+def test_epoch_outputs_compacted_in_place_equal_the_selection():
+    rng = np.random.default_rng(1)
+    arena = Arena(1 << 20)
+    grp = ep.epoch_out(30, 4, arena.full)
+    for k in grp._fields:
+        a = getattr(grp, k)
+        a[...] = rng.normal(0, 1, a.shape) if a.dtype == float else rng.integers(0, 9, a.shape)
+    copies = {k: getattr(grp, k).copy() for k in grp._fields}
+    sel = np.sort(rng.choice(30, 17, replace=False))
+    out = epoch_outputs(grp, sel)
+    for k in grp._fields:
+        want = copies[k] if k == "flags" else copies[k][sel]
+        assert np.array_equal(getattr(out, k), want), k
+    assert epoch_outputs(grp, np.arange(30)) is grp
+
+
+def test_rejected_per_satellite_counts_outside_the_gate():
+    nu = np.array([[3.0, np.nan, 1.0], [0.5, 2.0, -4.0]])
+    s = np.array([[1.0, 1.0, 1.0], [1.0, np.nan, 1.0]])
+    with np.errstate(invalid="ignore"):
+        want = (nu**2 > 4.0 * s).sum(axis=0)
+    assert np.array_equal(rejected_per_satellite(nu, s, 4.0), want) and want.tolist() == [1, 0, 1]
+
+
+def test_arena_arrays_are_aligned_disjoint_and_fall_back_to_numpy():
+    a = Arena(5 << 20)
+    assert a.buf.ctypes.data % (2 << 20) == 0 and a.buf.size == 5 << 20
+    x, y = a.full((3, 5), 1.5), a.full(7, 2, np.int64)
+    assert x.flags.c_contiguous and x.ctypes.data % 64 == 0 and y.ctypes.data % 64 == 0
+    assert np.all(x == 1.5) and np.all(y == 2) and y.dtype == np.int64
+    assert not np.shares_memory(x, y) and np.shares_memory(x, a.buf)
+    big = a.empty(1 << 20)  # 8 MB: more than is left
+    assert big.shape == (1 << 20,) and not np.shares_memory(big, a.buf)

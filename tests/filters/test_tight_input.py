@@ -118,13 +118,16 @@ def test_epoch_outputs_compacted_in_place_equal_the_selection():
     for k in grp._fields:
         a = getattr(grp, k)
         a[...] = rng.normal(0, 1, a.shape) if a.dtype == float else rng.integers(0, 9, a.shape)
-    copies = {k: getattr(grp, k).copy() for k in grp._fields}
+    want = ep.epoch_fields(ep.EpochOut(*[getattr(grp, k).copy() for k in grp._fields]))  # by name, copies
     sel = np.sort(rng.choice(30, 17, replace=False))
     out = epoch_outputs(grp, sel)
-    for k in grp._fields:
-        want = copies[k] if k == "flags" else copies[k][sel]
-        assert np.array_equal(getattr(out, k), want), k
-    assert epoch_outputs(grp, np.arange(30)) is grp
+    assert isinstance(out, ep.EpochFields)
+    for k in out._fields:
+        w = getattr(want, k) if k == "flags" else getattr(want, k)[sel]
+        assert np.array_equal(getattr(out, k), w), k
+    grp2 = ep.epoch_out(30, 4, arena.full)
+    grp2.t[:] = np.arange(30.0)
+    assert np.array_equal(epoch_outputs(grp2, np.arange(30)).t, np.arange(30.0))  # all: nothing moved
 
 
 def test_rejected_per_satellite_counts_outside_the_gate():

@@ -43,6 +43,67 @@ def data_dir() -> Path:
     return d
 
 
+# ------------------------------------------------------------------ tight filter engine tests
+def _tight_engine_args(segments, vel_noise_m_s: float = 0.0, start_error: bool = False,
+                       sow: float = 400000.0):
+    """A simulated tight run captured at the engine: a MEMS IMU at 50 Hz (seed 3) over ``segments``, raw GNSS
+    at 2 Hz (seed 4) from a 24-satellite constellation, velocity records of the truth half-way between the
+    epochs (σ 0.02 m/s, white noise of ``vel_noise_m_s`` added, seed 5), the no-configuration IMU model; the
+    start at the truth or (``start_error``) 1 m north, 1 m up, 0.05 m/s and (0.1, −0.1, 0.5)° off. Returns
+    (the arguments ``run_tight`` gave ``run_filter``, its result, the number of velocity records)."""
+    import numpy as np  # lazy: the package's imports kept out of collection
+
+    from aidnav.data import ImuData
+    from aidnav.filters import tight as tight_module
+    from aidnav.filters.config import UNKNOWN_GRADE_IMU
+    from aidnav.nav.earth import radii
+    from aidnav.sim.gnss_constellation import nominal_constellation
+    from aidnav.sim.gnss_raw import RawGnssSpec, simulate_raw_gnss
+    from aidnav.sim.imu import ImuSpec, corrupt_imu
+    from aidnav.sim.scenario import parse_scenario
+    from aidnav.sim.trajectory import generate_truth
+
+    scn = parse_scenario({
+        "initial": {"lat_deg": 34.2, "lon_deg": 108.9, "height_m": 500, "speed_m_s": 10, "heading_deg": 30},
+        "imu_rate_hz": 50, "transition_s": 2.0, "segments": segments})
+    truth, imu_true, _ = generate_truth(scn)
+    imu, _ = corrupt_imu(imu_true, ImuSpec.grade("mems"), np.random.default_rng(3))
+    imu = ImuData(imu.time + sow, imu.dtheta, imu.dv, t0=imu.t0 + sow)
+    eph = nominal_constellation(2381, sow, 24)
+    gnss = simulate_raw_gnss(truth, eph, RawGnssSpec(rate_hz=2.0), np.random.default_rng(4), sow).rover
+    tv = 0.5 * (gnss.time[1:] + gnss.time[:-1])  # as the TDCP mean velocities: nodes of their own
+    j = np.searchsorted(truth.time, tv - sow)
+    noise = np.random.default_rng(5).normal(0.0, vel_noise_m_s, (len(j), 3)) if vel_noise_m_s else 0.0
+    v = truth.vel[j] + noise
+    vel = (tv, v, np.full((len(j), 3), 0.02))
+    init = (sow + truth.time[0], truth.lat[0], truth.lon[0], truth.height[0], truth.vel[0], truth.rph[0])
+    if start_error:
+        rm = radii(truth.lat[0])[0]
+        init = (init[0], init[1] + 1.0 / rm, init[2], init[3] - 1.0, init[4] + 0.05,
+                init[5] + np.radians([0.1, -0.1, 0.5]))
+    captured = {}
+
+    def capture(*a):
+        captured["a"] = a
+        return run_filter(*a)
+
+    run_filter = tight_module.run_filter
+    mp = pytest.MonkeyPatch()
+    mp.setattr(tight_module, "run_filter", capture)  # (this project's own module)
+    try:
+        res = tight_module.run_tight(imu, gnss, eph, tight_module.TightConfig(imu=UNKNOWN_GRADE_IMU),
+                                     init_state=init, velocity_fixes=vel)
+    finally:
+        mp.undo()
+    return captured["a"], res, len(tv)
+
+
+@pytest.fixture(scope="session")
+def tight_engine_args():
+    """The function :func:`_tight_engine_args` (segments, …) → (run_filter's arguments, result, records)."""
+    return _tight_engine_args
+
+
 # ------------------------------------------------------------------ loosely coupled filter tests
 def _loose_error_state(res, truth, imu_errors, idx):
     """15-state error of a loose filter result against the truth: the library's

@@ -10,51 +10,18 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from aidnav.data import ImuData
-from aidnav.filters import tight as tight_module
-from aidnav.filters.config import UNKNOWN_GRADE_IMU
 from aidnav.filters.engine import C_HOLD, run_filter
 from aidnav.filters.layout import DV, PHI
 from aidnav.filters.measurements import M_GNSS_VEL
 from aidnav.filters.output_rows import NO_ROWS
-from aidnav.filters.tight import TightConfig, run_tight
-from aidnav.sim.gnss_constellation import nominal_constellation
-from aidnav.sim.gnss_raw import RawGnssSpec, simulate_raw_gnss
-from aidnav.sim.imu import ImuSpec, corrupt_imu
-from aidnav.sim.scenario import parse_scenario
-from aidnav.sim.trajectory import generate_truth
 
 SOW = 400000.0
 
 
 @pytest.fixture(scope="module")
-def engine_inputs():
+def engine_inputs(tight_engine_args):
     """The engine's arguments of a short tight run with velocity records (captured at ``run_filter``)."""
-    scn = parse_scenario({
-        "initial": {"lat_deg": 34.2, "lon_deg": 108.9, "height_m": 500, "speed_m_s": 10, "heading_deg": 30},
-        "imu_rate_hz": 50, "transition_s": 2.0, "segments": [{"type": "straight", "duration_s": 12}]})
-    truth, imu_true, _ = generate_truth(scn)
-    imu, _ = corrupt_imu(imu_true, ImuSpec.grade("mems"), np.random.default_rng(3))
-    imu = ImuData(imu.time + SOW, imu.dtheta, imu.dv, t0=imu.t0 + SOW)
-    eph = nominal_constellation(2381, SOW, 24)
-    gnss = simulate_raw_gnss(truth, eph, RawGnssSpec(rate_hz=2.0), np.random.default_rng(4), SOW).rover
-    tv = 0.5 * (gnss.time[1:] + gnss.time[:-1])
-    j = np.searchsorted(truth.time, tv - SOW)
-    vel = (tv, truth.vel[j], np.full((len(j), 3), 0.02))
-    init = (SOW + truth.time[0], truth.lat[0], truth.lon[0], truth.height[0], truth.vel[0], truth.rph[0])
-    captured = {}
-
-    def capture(*a):
-        captured["a"] = a
-        return run_filter(*a)
-
-    mp = pytest.MonkeyPatch()
-    mp.setattr(tight_module, "run_filter", capture)  # (this project's own module)
-    try:
-        run_tight(imu, gnss, eph, TightConfig(imu=UNKNOWN_GRADE_IMU), init_state=init, velocity_fixes=vel)
-    finally:
-        mp.undo()
-    return captured["a"]
+    return tight_engine_args([{"type": "straight", "duration_s": 12}], sow=SOW)[0]
 
 
 def _run(args, gap_var, k, hold_rad):

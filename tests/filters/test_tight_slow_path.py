@@ -12,61 +12,23 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from aidnav.data import ImuData
-from aidnav.filters import tight as tight_module
-from aidnav.filters.config import UNKNOWN_GRADE_IMU
 from aidnav.filters.engine import run_filter
 from aidnav.filters.layout import L_N, L_RERR
 from aidnav.filters.output_rows import NO_ROWS, whole_run_rows
-from aidnav.filters.tight import TightConfig, run_tight
-from aidnav.nav.earth import radii
-from aidnav.sim.gnss_constellation import nominal_constellation
-from aidnav.sim.gnss_raw import RawGnssSpec, simulate_raw_gnss
-from aidnav.sim.imu import ImuSpec, corrupt_imu
-from aidnav.sim.scenario import parse_scenario
-from aidnav.sim.trajectory import generate_truth
+from aidnav.filters.tight import TightConfig
 
 SOW = 400000.0
 
 
 @pytest.fixture(scope="module")
-def engine_inputs():
+def engine_inputs(tight_engine_args):
     """The engine's arguments of a tight run (no-configuration IMU model, TDCP-like velocity records)."""
-    scn = parse_scenario({
-        "initial": {"lat_deg": 34.2, "lon_deg": 108.9, "height_m": 500, "speed_m_s": 10, "heading_deg": 30},
-        "imu_rate_hz": 50, "transition_s": 2.0,
-        "segments": [{"type": "straight", "duration_s": 30},
-                     {"type": "turn", "angle_deg": 90, "rate_deg_s": 6},
-                     {"type": "straight", "duration_s": 45}]})
-    truth, imu_true, _ = generate_truth(scn)
-    imu, _ = corrupt_imu(imu_true, ImuSpec.grade("mems"), np.random.default_rng(3))
-    imu = ImuData(imu.time + SOW, imu.dtheta, imu.dv, t0=imu.t0 + SOW)
-    eph = nominal_constellation(2381, SOW, 24)
-    gnss = simulate_raw_gnss(truth, eph, RawGnssSpec(rate_hz=2.0), np.random.default_rng(4), SOW).rover
-    # velocity records half-way between the epochs (as the TDCP mean velocities): nodes of their own
-    tv = 0.5 * (gnss.time[1:] + gnss.time[:-1])
-    j = np.searchsorted(truth.time, tv - SOW)
-    rng = np.random.default_rng(5)
-    vel = (tv, truth.vel[j] + rng.normal(0.0, 0.02, (len(j), 3)), np.full((len(j), 3), 0.02))
-    rm, rn = radii(truth.lat[0])
-    init = (SOW + truth.time[0], truth.lat[0] + 1.0 / rm, truth.lon[0], truth.height[0] - 1.0,
-            truth.vel[0] + 0.05, truth.rph[0] + np.radians([0.1, -0.1, 0.5]))
-    captured = {}
-
-    def capture(*a):
-        captured["a"] = a
-        return run_filter(*a)
-
-    cfg = TightConfig(imu=UNKNOWN_GRADE_IMU)
-    mp = pytest.MonkeyPatch()
-    mp.setattr(tight_module, "run_filter", capture)  # (this project's own module)
-    try:
-        res = run_tight(imu, gnss, eph, cfg, init_state=init, velocity_fixes=vel)
-    finally:
-        mp.undo()
+    segments = [{"type": "straight", "duration_s": 30}, {"type": "turn", "angle_deg": 90, "rate_deg_s": 6},
+                {"type": "straight", "duration_s": 45}]
+    args, res, n_vel = tight_engine_args(segments, vel_noise_m_s=0.02, start_error=True, sow=SOW)
     assert res.nstate == 27 + 2 + int(res.range_error.shape[1]) and res.range_error.shape[1] >= 6
-    assert res.counts["velocity_records"] == len(tv) and res.counts["pr_used"] > 0
-    return captured["a"]
+    assert res.counts["velocity_records"] == n_vel and res.counts["pr_used"] > 0
+    return args
 
 
 def test_the_fast_predict_gives_the_slow_paths_solution(engine_inputs):

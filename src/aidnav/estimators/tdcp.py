@@ -17,8 +17,8 @@ constant half-cycle threshold before issue 40 session 17 flagged 8.4 % of its in
 common to the satellites through the geometry, so each interval's statistics are fitted as s_j = e_j·δ + c
 (δ the motion error, c the clock's) by weighted least squares and the largest studentized residual is
 flagged while above z and two or more degrees of freedom remain (data snooping, Baarda;
-:func:`slip_outliers`): its stated variances scaled by the running a-posteriori variance factor of the earlier intervals (floored
-at 1: the stated σ are a lower bound). A satellite without a line of sight, or an interval with fewer than
+:func:`slip_outliers`): its stated variances scaled by the running a-posteriori variance factor of the
+earlier intervals (floored at 1: the stated σ are a lower bound). A satellite without a line of sight, or an interval with fewer than
 six, is tested alone with the motion term added: the statistic's robust variance (MAD) over the run beyond
 the stated one. The smallest slip found with 99 % probability is (z + 2.33)·σ_s/√(1 − h) (h the
 leverage): with the tight filter's zenith Doppler σ 0.1 m/s and 5 mm phase at 0.25 s, one cycle (19 cm)

@@ -4,26 +4,26 @@ Frames and units: ECEF [m]; phase in cycles of L1 (λ = c/f_L1); times GPS secon
 reference-week scale; clock terms in metres. Carrier phase λL = ρ + b − c·dt_s − I + T + λN + ε_φ (N
 constant while the receiver keeps lock), Doppler rate ρ̇_D = −λD.
 
-**Cycle slips** (:func:`phase_increments`): between epochs k−1 and k of one satellite the phase increment
-λΔL is used when both phases exist, the loss-of-lock indicator has no bit 0 at k (RINEX: lock lost, a slip
+**Cycle slips** (:func:`phase_increments`): between epochs k−1 and k of one satellite the phase increment λΔL
+is used when both phases exist, the loss-of-lock indicator has no bit 0 at k (RINEX: lock lost, a slip
 possible) and it agrees with the Doppler: the statistic s = λΔL − ½(ρ̇_D,k−1 + ρ̇_D,k)Δt (the trapezoidal
 integral of the Doppler) is tested at a false-alarm probability α per increment (``false_alarm``, default
 :data:`SLIP_FALSE_ALARM` 1e-3; two-sided normal quantile z, 3.29). Its stated variance is the Doppler's and
 the phase's, (Δt²/4)(σ_ρ̇(E_k−1)² + σ_ρ̇(E_k)²) + σ_φ,k−1² + σ_φ,k² (σ_ρ̇(E) = σ_ρ̇0 √(½ + ½/sin²E),
 :func:`slip_sigma2`). The trapezoid's own error is the receiver's motion, −e_j·δr: a walker's 1.9-Hz bounce
-seen at 4 Hz (ωΔt ≈ 3 rad, near Nyquist: no polynomial fit of the Dopplers follows it) leaves 5 cm RMS on
-the simulated pedestrian (:mod:`aidnav.sim.pedestrian`), where the Doppler's noise leaves 1–3 cm; the
-constant half-cycle threshold before issue 40 session 17 flagged 8.4 % of its increments. The motion is
-common to the satellites through the geometry, so each interval's statistics are fitted as s_j = e_j·δ + c
-(δ the motion error, c the clock's) by weighted least squares and the largest studentized residual is
-flagged while above z and two or more degrees of freedom remain (data snooping, Baarda;
-:func:`slip_outliers`): its stated variances scaled by the running a-posteriori variance factor of the
-earlier intervals (floored at 1: the stated σ are a lower bound). A satellite without a line of sight, or an interval with fewer than
-six, is tested alone with the motion term added: the statistic's robust variance (MAD) over the run beyond
-the stated one. The smallest slip found with 99 % probability is (z + 2.33)·σ_s/√(1 − h) (h the
-leverage): with the tight filter's zenith Doppler σ 0.1 m/s and 5 mm phase at 0.25 s, one cycle (19 cm)
-down to 24° elevation, 1.5 cycles at 15°, 2.2 at 10° (σ 0.05 m/s: one cycle down to 12°). A constant
-``slip_threshold_cycles`` gives the old test, |s| > threshold·λ.
+seen at 4 Hz (ωΔt ≈ 3 rad, near Nyquist: no polynomial fit of the Dopplers follows it) leaves 5 cm RMS on the
+simulated pedestrian (:mod:`aidnav.sim.pedestrian`), where the Doppler's noise leaves 1–3 cm; the constant
+half-cycle threshold before issue 40 session 17 flagged 8.4 % of its increments. The motion is common to the
+satellites through the geometry, so each interval's statistics are fitted as s_j = e_j·δ + c (δ the motion
+error, c the clock's) by weighted least squares and the largest studentized residual is flagged while above z
+and two or more degrees of freedom remain (data snooping, Baarda; :func:`slip_outliers`): its stated variances
+scaled by the running a-posteriori variance factor of the earlier intervals (floored at 1: the stated σ are a
+lower bound). A satellite without a line of sight, or an interval with fewer than six, is tested alone with
+the motion term added: the statistic's robust variance (MAD) over the run beyond the stated one. The smallest
+slip found with 99 % probability is (z + 2.33)·σ_s/√(1 − h) (h the leverage): with the tight filter's zenith
+Doppler σ 0.1 m/s and 5 mm phase at 0.25 s, one cycle (19 cm) down to 24° elevation, 1.5 cycles at 15°, 2.2 at
+10° (σ 0.05 m/s: one cycle down to 12°). A constant ``slip_threshold_cycles`` gives the old test, |s| >
+threshold·λ.
 
 **Displacement** (:func:`tdcp_displacement`): with y_j = λΔL_j + Δ(c·dt_s,j) − (|r_s,j(k) − r(k−1)| −
 |r_s,j(k−1) − r(k−1)|) (Sagnac-corrected ranges, :func:`aidnav.nav.gnss_sat.geo_range`, from a prior

@@ -18,8 +18,9 @@ satellites through the geometry, so each interval's statistics are fitted as s_j
 error, c the clock's) by weighted least squares and the largest studentized residual is flagged while above z
 and two or more degrees of freedom remain (data snooping, Baarda; :func:`slip_outliers`): its stated variances
 scaled by the running a-posteriori variance factor of the earlier intervals (floored at 1: the stated σ are a
-lower bound). A satellite without a line of sight, or an interval with fewer than six, is tested alone with
-the motion term added: the statistic's robust variance (MAD) over the run beyond the stated one. The smallest
+lower bound). A satellite without a line of sight, or an interval with fewer than six, is tested alone, its
+stated variance scaled by the larger of that factor and the statistic's own over the run (the mean (s/σ)²,
+gross errors beyond 5 robust SDs left out: it holds the motion term and the Doppler's tails). The smallest
 slip found with 99 % probability is (z + 2.33)·σ_s/√(1 − h) (h the leverage): with the tight filter's zenith
 Doppler σ 0.1 m/s and 5 mm phase at 0.25 s, one cycle (19 cm) down to 24° elevation, 1.5 cycles at 15°, 2.2 at
 10° (σ 0.05 m/s: one cycle down to 12°). A constant ``slip_threshold_cycles`` gives the old test, |s| >
@@ -144,10 +145,12 @@ def slip_outliers(s, cand, var, los=None, false_alarm: float = SLIP_FALSE_ALARM)
     c = cand & np.isfinite(s)
     if not c.any():
         return bad
-    # the motion term of the satellite-by-satellite test: the statistic's robust variance beyond the stated
-    # one (the trapezoid's error, Δt³/12 times the line-of-sight jerk, common to the run's satellites)
+    # the satellite-by-satellite test's variance factor: the statistic's own mean (s/σ)² over the run (the
+    # trapezoid's motion error and the Doppler's tails), gross errors (beyond 5 robust SDs: slips) left out
     med = np.median(s[c])
-    sm2 = max(0.0, (1.4826 * np.median(np.abs(s[c] - med))) ** 2 - float(np.median(var[c])))
+    mad = 1.4826 * np.median(np.abs(s[c] - med))
+    core = c & (np.abs(s - med) <= 5.0 * mad)
+    fa = max(1.0, float(np.mean((s[core] - med) ** 2 / var[core]))) if core.any() else 1.0
     chi2_sum, dof_sum = 0.0, 0
     for k in range(n_int):
         f = max(1.0, chi2_sum / dof_sum) if dof_sum else 1.0
@@ -160,7 +163,7 @@ def slip_outliers(s, cand, var, los=None, false_alarm: float = SLIP_FALSE_ALARM)
             alone = c[k] & ~g
         else:
             alone = c[k]
-        bad[k] |= alone & (np.abs(s[k]) > z * np.sqrt(var[k] * f + sm2))
+        bad[k] |= alone & (np.abs(s[k]) > z * np.sqrt(var[k] * max(f, fa)))
     return bad
 
 

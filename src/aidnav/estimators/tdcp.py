@@ -4,11 +4,27 @@ Frames and units: ECEF [m]; phase in cycles of L1 (λ = c/f_L1); times GPS secon
 reference-week scale; clock terms in metres. Carrier phase λL = ρ + b − c·dt_s − I + T + λN + ε_φ (N
 constant while the receiver keeps lock), Doppler rate ρ̇_D = −λD.
 
-**Cycle slips** (:func:`phase_increments`): between epochs k−1 and k of one satellite the phase increment
-λΔL is used when both phases exist, the loss-of-lock indicator has no bit 0 at k (RINEX: lock lost, a slip
-possible) and it agrees with the Doppler: |λΔL − ½(ρ̇_D,k−1 + ρ̇_D,k)Δt| ≤ ``slip_threshold_cycles``·λ (the
-trapezoidal integral of the Doppler; its error, Δt³/12 times the line-of-sight jerk plus the Doppler
-noise, is a few cm for a walker at 4 Hz, under half a cycle).
+**Cycle slips** (:func:`phase_increments`): between epochs k−1 and k of one satellite the phase increment λΔL
+is used when both phases exist, the loss-of-lock indicator has no bit 0 at k (RINEX: lock lost, a slip
+possible) and it agrees with the Doppler: the statistic s = λΔL − ½(ρ̇_D,k−1 + ρ̇_D,k)Δt (the trapezoidal
+integral of the Doppler) is tested at a false-alarm probability α per increment (``false_alarm``, default
+:data:`SLIP_FALSE_ALARM` 1e-3; two-sided normal quantile z, 3.29). Its stated variance is the Doppler's and
+the phase's, (Δt²/4)(σ_ρ̇(E_k−1)² + σ_ρ̇(E_k)²) + σ_φ,k−1² + σ_φ,k² (σ_ρ̇(E) = σ_ρ̇0 √(½ + ½/sin²E),
+:func:`slip_sigma2`). The trapezoid's own error is the receiver's motion, −e_j·δr: a walker's 1.9-Hz bounce
+seen at 4 Hz (ωΔt ≈ 3 rad, near Nyquist: no polynomial fit of the Dopplers follows it) leaves 5 cm RMS on the
+simulated pedestrian (:mod:`aidnav.sim.pedestrian`), where the Doppler's noise leaves 1–3 cm; the constant
+half-cycle threshold before issue 40 session 17 flagged 8.4 % of its increments. The motion is common to the
+satellites through the geometry, so each interval's statistics are fitted as s_j = e_j·δ + c (δ the motion
+error, c the clock's) by weighted least squares and the largest studentized residual is flagged while above z
+and two or more degrees of freedom remain (data snooping, Baarda; :func:`slip_outliers`): its stated variances
+scaled by the running a-posteriori variance factor of the earlier intervals (floored at 1: the stated σ are a
+lower bound). A satellite without a line of sight, or an interval with fewer than six, is tested alone, its
+stated variance scaled by the larger of that factor and the statistic's own over the run (the mean (s/σ)²,
+gross errors beyond 5 robust SDs left out: it holds the motion term and the Doppler's tails). The smallest
+slip found with 99 % probability is (z + 2.33)·σ_s/√(1 − h) (h the leverage): with the tight filter's zenith
+Doppler σ 0.1 m/s and 5 mm phase at 0.25 s, one cycle (19 cm) down to 24° elevation, 1.5 cycles at 15°, 2.2 at
+10° (σ 0.05 m/s: one cycle down to 12°). A constant ``slip_threshold_cycles`` gives the old test, |s| >
+threshold·λ.
 
 **Displacement** (:func:`tdcp_displacement`): with y_j = λΔL_j + Δ(c·dt_s,j) − (|r_s,j(k) − r(k−1)| −
 |r_s,j(k−1) − r(k−1)|) (Sagnac-corrected ranges, :func:`aidnav.nav.gnss_sat.geo_range`, from a prior
@@ -40,22 +56,39 @@ attitude is given (:func:`tdcp_series`'s ``attitude``).
 
 from __future__ import annotations
 
+from statistics import NormalDist
+
 import numpy as np
 
 from aidnav.nav.earth import dcm_ecef_to_enu, ecef_to_lla
 from aidnav.nav.gnss_sat import LAMBDA_L1, geo_range, satellites_from_pseudoranges
 
-__all__ = ["MA_ORDER", "imu_time_offset", "phase_increments", "receiver_windup", "running_variance_factor",
-           "slope_variance_ma", "tdcp_displacement", "tdcp_series", "windup_increments"]
+#: the phase–Doppler slip test's defaults (module doc, "Cycle slips"): the probability that an increment
+#: without a slip is flagged, and the stated noises where the caller gives none (the tight filter's default
+#: zenith Doppler σ, ``gnss.rate_sigma_m_s``, and phase σ, ``gnss.phase_sigma_m``)
+SLIP_FALSE_ALARM = 1e-3
+SLIP_RATE_SIGMA_M_S = 0.1
+SLIP_PHASE_SIGMA_M = 0.005
+
+__all__ = ["MA_ORDER", "SLIP_FALSE_ALARM", "SLIP_PHASE_SIGMA_M", "SLIP_RATE_SIGMA_M_S", "imu_time_offset",
+           "line_of_sight", "phase_increments", "receiver_windup", "running_variance_factor", "slip_outliers",
+           "slip_sigma2", "slope_variance_ma", "tdcp_displacement", "tdcp_series", "windup_increments"]
 
 
-def phase_increments(time, phase_cycles, lli, range_rate, slip_threshold_cycles: float = 0.5,
-                     wavelength=LAMBDA_L1):
+def phase_increments(time, phase_cycles, lli, range_rate, slip_threshold_cycles: float | None = None,
+                     wavelength=LAMBDA_L1, geometry=None, sigma=(SLIP_RATE_SIGMA_M_S, SLIP_PHASE_SIGMA_M),
+                     false_alarm: float = SLIP_FALSE_ALARM):
     """Phase increments λΔL [m] (T, S) between consecutive epochs (row k: from k−1 to k; row 0 NaN) with
     cycle slips removed (NaN), and the slips (T, S) as codes: 0 none, 1 loss-of-lock indicator, 2 phase
     disagrees with the Doppler (module doc). range_rate (T, S) [m/s] = −λ·Doppler (NaN: no Doppler: only
     the indicator is checked). wavelength [m]: scalar or (S,) per satellite (GLONASS FDMA channels, BeiDou
-    B1I)."""
+    B1I).
+
+    The phase–Doppler test (module doc, "Cycle slips"): with ``slip_threshold_cycles`` the constant
+    threshold |s| > slip_threshold_cycles·λ (the test before issue 40 session 17); without it the
+    statistical one at ``false_alarm`` per increment: ``geometry`` = (unit vectors receiver → satellite
+    (T, S, 3), elevations (T, S) [rad]) (:func:`line_of_sight`; None or NaN: each satellite tested alone,
+    the elevation taken as 90°), ``sigma`` = (zenith Doppler σ [m/s], phase σ [m]: scalar or (T, S))."""
     L = np.asarray(phase_cycles, float)
     T, S = L.shape
     dphi = np.full((T, S), np.nan)
@@ -67,14 +100,129 @@ def phase_increments(time, phase_cycles, lli, range_rate, slip_threshold_cycles:
     d = lam * (L[1:] - L[:-1])
     lost = (np.asarray(lli, np.int64)[1:] & 1) == 1
     rr = np.asarray(range_rate, float)
-    pred = 0.5 * (rr[1:] + rr[:-1]) * dt
-    with np.errstate(invalid="ignore"):
-        bad = np.abs(d - pred) > slip_threshold_cycles * lam
+    s = d - 0.5 * (rr[1:] + rr[:-1]) * dt
     ok = np.isfinite(d)
+    if slip_threshold_cycles is not None:
+        with np.errstate(invalid="ignore"):
+            bad = np.abs(s) > slip_threshold_cycles * lam
+    else:
+        los, elev = geometry if geometry is not None else (None, None)
+        bad = slip_outliers(s, ok & ~lost, np.broadcast_to(slip_sigma2(dt, elev, sigma), s.shape), los,
+                            false_alarm)
     slip[1:][ok & lost] = 1
     slip[1:][ok & ~lost & bad] = 2
     dphi[1:] = np.where(ok & (slip[1:] == 0), d, np.nan)
     return dphi, slip
+
+
+def slip_sigma2(dt, elevation, sigma):
+    """Variance [m²] (T−1, S) of the phase–Doppler statistic s = λΔL − ½(ρ̇_{k−1} + ρ̇_k)Δt from the stated
+    noises alone (module doc): (Δt²/4)(σ_ρ̇(E_{k−1})² + σ_ρ̇(E_k)²) + σ_φ,k−1² + σ_φ,k², σ_ρ̇(E) the zenith
+    Doppler σ times √(½ + ½/sin²E) (E clamped at 2°; NaN elevation: the zenith's). dt (T−1, 1) [s];
+    elevation (T, S) [rad] or None; sigma = (zenith Doppler σ [m/s], phase σ [m]: scalar or (T, S))."""
+    sr, sp = sigma
+    if elevation is None:
+        fac2 = np.ones((1, 1))
+    else:
+        s = np.sin(np.maximum(np.where(np.isfinite(elevation), elevation, 0.5 * np.pi), 0.035))
+        fac2 = 0.5 + 0.5 / (s * s)
+    fac2 = np.broadcast_to(fac2, (dt.shape[0] + 1, fac2.shape[1]))
+    v_rate = 0.25 * dt**2 * sr**2 * (fac2[1:] + fac2[:-1])
+    sp2 = np.asarray(sp, float) ** 2
+    v_phase = 2.0 * sp2 if np.ndim(sp2) == 0 else sp2[1:] + sp2[:-1]
+    return v_rate + v_phase
+
+
+def slip_outliers(s, cand, var, los=None, false_alarm: float = SLIP_FALSE_ALARM):
+    """The phase–Doppler test's alarms (T−1, S) bool (module doc, "Cycle slips") on the statistic ``s``
+    (T−1, S) [m] of the candidates ``cand`` (T−1, S) (both phases, no lost lock), its stated variance ``var``
+    (T−1, S) [m²] (:func:`slip_sigma2`). ``los`` (T, S, 3): unit vectors receiver → satellite at each epoch
+    (None or NaN: that satellite is tested alone). ``false_alarm``: the probability that an increment with
+    no slip is flagged (two-sided normal quantile z)."""
+    z = NormalDist().inv_cdf(1.0 - 0.5 * false_alarm)
+    n_int, S = s.shape
+    bad = np.zeros((n_int, S), bool)
+    c = cand & np.isfinite(s)
+    if not c.any():
+        return bad
+    # the satellite-by-satellite test's variance factor: the statistic's own mean (s/σ)² over the run (the
+    # trapezoid's motion error and the Doppler's tails), gross errors (beyond 5 robust SDs: slips) left out
+    med = np.median(s[c])
+    mad = 1.4826 * np.median(np.abs(s[c] - med))
+    core = c & (np.abs(s - med) <= 5.0 * mad)
+    fa = max(1.0, float(np.mean((s[core] - med) ** 2 / var[core]))) if core.any() else 1.0
+    chi2_sum, dof_sum = 0.0, 0
+    for k in range(n_int):
+        f = max(1.0, chi2_sum / dof_sum) if dof_sum else 1.0
+        g = c[k] & (np.isfinite(los[k + 1]).all(axis=1) if los is not None else False)
+        if g.sum() >= 6:
+            flagged, chi2, dof = _snoop(s[k], g, var[k] * f, los[k + 1], z)
+            bad[k, flagged] = True
+            chi2_sum += chi2 * f
+            dof_sum += dof
+            alone = c[k] & ~g
+        else:
+            alone = c[k]
+        bad[k] |= alone & (np.abs(s[k]) > z * np.sqrt(var[k] * max(f, fa)))
+    return bad
+
+
+def _snoop(s, use, var, los, z):
+    """Data snooping (Baarda) of one interval: the weighted least-squares fit of s_j = e_j·δ + c (δ the
+    receiver's common motion error, c the clock's) over the satellites ``use``, the largest studentized
+    residual flagged while above ``z`` and two or more degrees of freedom remain (with one, every residual
+    has the same studentized value: none can be singled out). Returns (flagged indices, the final fit's
+    Σ r²/var, its degrees of freedom)."""
+    idx = list(np.flatnonzero(use))
+    flagged = []
+    while True:
+        H = np.column_stack([los[idx], np.ones(len(idx))])
+        w = 1.0 / var[idx]
+        Q = np.linalg.inv(H.T @ (w[:, None] * H))
+        r = s[idx] - H @ (Q @ (H.T @ (w * s[idx])))
+        h = w * np.einsum("ij,jk,ik->i", H, Q, H)
+        t = np.abs(r) * np.sqrt(w / np.maximum(1.0 - h, 1e-9))
+        i = int(np.argmax(t))
+        if t[i] <= z or len(idx) - 4 < 2:
+            return flagged, float(np.sum(w * r * r)), len(idx) - 4
+        flagged.append(idx.pop(i))
+
+
+def line_of_sight(sat_pos, rx_pos):
+    """Unit vectors receiver → satellite (T, S, 3) and elevations (T, S) [rad] of the satellites at
+    ``sat_pos`` (T, S, 3) ECEF [m] seen from ``rx_pos`` (T, 3) ECEF [m] (NaN where either is missing; the
+    receiver's metres of error do not matter). The up direction is the geodetic normal at the receiver."""
+    sp = np.asarray(sat_pos, float)
+    rp = np.asarray(rx_pos, float)
+    d = sp - rp[:, None, :]
+    los = d / np.linalg.norm(d, axis=2, keepdims=True)
+    up = np.full(rp.shape, np.nan)
+    for k in np.flatnonzero(np.isfinite(rp).all(axis=1)):
+        lat, lon, _ = ecef_to_lla(rp[k, 0], rp[k, 1], rp[k, 2])
+        up[k] = dcm_ecef_to_enu(lat, lon)[2]
+    return los, np.arcsin(np.clip(np.einsum("tsi,ti->ts", los, up), -1.0, 1.0))
+
+
+def slip_geometry(obs, eph, positions_ecef):
+    """:func:`line_of_sight` of the observations' satellites (positions at the transmit times their
+    pseudoranges imply, :func:`aidnav.nav.gnss_sat.satellites_from_pseudoranges`) from the prior receiver
+    positions ``positions_ecef`` (T, 3) (e.g. SPP; NaN: none, then the nearest epoch's), for
+    :func:`phase_increments`' test."""
+    T, S = obs.code1.shape
+    sp = np.full((T, S, 3), np.nan)
+    for k in range(T):
+        sp[k] = satellites_from_pseudoranges(eph.table, obs.prn, obs.time[k], obs.code1[k])[0]
+    return line_of_sight(sp, _nearest_finite(positions_ecef))
+
+
+def _nearest_finite(pos):
+    """Each epoch's position (T, 3), NaN rows replaced by the next finite one (the last finite at the end;
+    all NaN: unchanged)."""
+    pos = np.asarray(pos, float)
+    fin = np.flatnonzero(np.isfinite(pos).all(axis=1))
+    if not fin.size:
+        return pos
+    return pos[fin[np.clip(np.searchsorted(fin, np.arange(len(pos))), 0, len(fin) - 1)]]
 
 
 def receiver_windup(rs, rr, c_ae) -> float:
@@ -160,8 +308,9 @@ def running_variance_factor(chi2, dof) -> np.ndarray:
     return np.where(d > 0, np.maximum(1.0, c / np.maximum(d, 1.0)), 1.0)
 
 
-def tdcp_series(obs, eph, positions_ecef, sigma_phase_m: float = 0.005, slip_threshold_cycles: float = 0.5,
-                attitude=None, variance_factor: bool = True):
+def tdcp_series(obs, eph, positions_ecef, sigma_phase_m: float = 0.005,
+                slip_threshold_cycles: float | None = None, attitude=None, variance_factor: bool = True,
+                rate_sigma_m_s: float = SLIP_RATE_SIGMA_M_S, slip_false_alarm: float = SLIP_FALSE_ALARM):
     """TDCP mean velocities of a whole observation set: dict with t_mid (T−1,) [s], vel_enu (T−1, 3) [m/s],
     vel_cov_enu (T−1, 3, 3), drift (T−1,) [m/s], n_used (T−1,), slips (T, S) codes of
     :func:`phase_increments`, windup (T, S) the wind-up increments removed [m] (zeros without
@@ -183,13 +332,18 @@ def tdcp_series(obs, eph, positions_ecef, sigma_phase_m: float = 0.005, slip_thr
     eph = eph.to_week(obs.ref_week) if eph.ref_week != obs.ref_week else eph
     obs = obs.with_frequencies(eph)  # wavelengths per satellite (GLONASS channels from the records)
     T, S = obs.code1.shape
-    dphi, slips = phase_increments(obs.time, obs.phase1, obs.lli1, obs.range_rate(), slip_threshold_cycles,
-                                   obs.wavelengths())
     sp = np.full((T, S, 3), np.nan)
     sc = np.full((T, S), np.nan)
     for k in range(T):
         sp[k], _, sc[k], _ = satellites_from_pseudoranges(eph.table, obs.prn, obs.time[k], obs.code1[k])
     pos = np.asarray(positions_ecef, float)
+    sig = np.full((T, S), float(sigma_phase_m)) if np.ndim(sigma_phase_m) == 0 else \
+        np.broadcast_to(np.asarray(sigma_phase_m, float), (T, S))
+    if obs.phase_sigma1 is not None:
+        sig = np.where(np.isfinite(obs.phase_sigma1) & (obs.phase_sigma1 > 0), obs.phase_sigma1, sig)
+    dphi, slips = phase_increments(obs.time, obs.phase1, obs.lli1, obs.range_rate(), slip_threshold_cycles,
+                                   obs.wavelengths(), line_of_sight(sp, _nearest_finite(pos)),
+                                   (rate_sigma_m_s, sig), slip_false_alarm)
     wind = np.zeros((T, S))
     if attitude is not None:  # the line of sight from the nearest prior position (metres do not matter)
         fin = np.flatnonzero(np.isfinite(pos).all(axis=1))
@@ -199,10 +353,6 @@ def tdcp_series(obs, eph, positions_ecef, sigma_phase_m: float = 0.005, slip_thr
     out = dict(t_mid=0.5 * (obs.time[1:] + obs.time[:-1]), vel_enu=np.full((T - 1, 3), np.nan),
                vel_cov_enu=np.full((T - 1, 3, 3), np.nan), drift=np.full(T - 1, np.nan),
                n_used=np.zeros(T - 1, np.int64), slips=slips, windup=wind, variance_factor=np.ones(T - 1))
-    sig = np.full((T, S), float(sigma_phase_m)) if np.ndim(sigma_phase_m) == 0 else \
-        np.broadcast_to(np.asarray(sigma_phase_m, float), (T, S))
-    if obs.phase_sigma1 is not None:
-        sig = np.where(np.isfinite(obs.phase_sigma1) & (obs.phase_sigma1 > 0), obs.phase_sigma1, sig)
     chi2 = np.full(T - 1, np.nan)
     dof = np.zeros(T - 1, np.int64)
     for k in range(1, T):

@@ -119,7 +119,7 @@ def process_tight(imu, obs, eph, cfg: TightConfig | None = None, events: list | 
         f"{np.degrees(pitch):.2f} deg from the mean specific force over {ini.static_window_s:g} s"
     )
     rows = cfg.gnss.tdcp_model == "rows"
-    dphi = _tdcp_increments(obs, eph, cfg, events) if rows else None
+    dphi = _tdcp_increments(obs, eph, cfg, events, sp) if rows else None
     vfix = None if rows else _tdcp_velocities(imu, obs, tdcp, cfg, events)
 
     obs_f = _admitted(obs, sp, events)
@@ -349,7 +349,8 @@ def _tdcp(obs, eph, sp, cfg):
     g = cfg.gnss
     if not g.use_phase or obs.phase1 is None or g.tdcp_model == "rows":
         return None
-    return tdcp_series(obs, eph, sp["ecef"], g.phase_sigma_m, g.slip_threshold_cycles)
+    return tdcp_series(obs, eph, sp["ecef"], g.phase_sigma_m, g.slip_threshold_cycles,
+                       rate_sigma_m_s=g.rate_sigma_m_s, slip_false_alarm=g.slip_false_alarm)
 
 
 def _time_offset_from_phase(imu, obs, r, sp, cfg, events):
@@ -411,12 +412,12 @@ def _tdcp_velocities(imu, obs, r, cfg, events):
     return r["t_mid"], r["vel_enu"], sig
 
 
-def _tdcp_increments(obs, eph, cfg, events):
+def _tdcp_increments(obs, eph, cfg, events, sp):
     """The carrier-phase increments λΔL [m] (M, S) between consecutive epochs with cycle slips removed
     (:func:`aidnav.estimators.tdcp.phase_increments`: loss-of-lock indicator and phase–Doppler test), for
     the tight filter's time-differenced carrier-phase rows; None when ``gnss.use_phase`` is off or the
     observations have no phase."""
-    from aidnav.estimators.tdcp import phase_increments  # lazy: only where the observations have a phase
+    from aidnav.estimators.tdcp import phase_increments, slip_geometry  # lazy: only with a phase
 
     g = cfg.gnss
     if not g.use_phase or obs.phase1 is None:
@@ -424,8 +425,12 @@ def _tdcp_increments(obs, eph, cfg, events):
     if eph.ref_week != obs.ref_week:
         eph = eph.to_week(obs.ref_week)
     o = obs.with_frequencies(eph)  # wavelengths per satellite (GLONASS channels from the records)
+    sig = g.phase_sigma_m
+    if o.phase_sigma1 is not None:  # the receiver's own σ where it gives one (as the TDCP velocities take it)
+        sig = np.where(np.nan_to_num(o.phase_sigma1) > 0, o.phase_sigma1, sig)
     dphi, slips = phase_increments(o.time, o.phase1, o.lli1, o.range_rate(), g.slip_threshold_cycles,
-                                   o.wavelengths())
+                                   o.wavelengths(), slip_geometry(o, eph, sp["ecef"]),
+                                   (g.rate_sigma_m_s, sig), g.slip_false_alarm)
     n_ok = int(np.isfinite(dphi).sum())
     n_slip = int((slips != 0).sum())
     events.append(f"carrier phase: {n_ok} phase increments for time-differenced delta-range rows; {n_slip} "

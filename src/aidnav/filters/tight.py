@@ -180,8 +180,13 @@ class RawGnssAiding(_Strict):
     phase_sigma_m: float = Field(0.005, gt=0, description="carrier-phase σ per epoch [m] where the receiver "
                                  "gives none (its cpStdev from the UBX log is used for the TDCP velocities "
                                  "where read: aidnav.io.rawx; the 'rows' model takes this one)")
-    slip_threshold_cycles: float = Field(0.5, gt=0, description="phase-Doppler disagreement that is a "
-                                         "cycle slip [cycles]")
+    slip_threshold_cycles: float | None = Field(
+        None, gt=0, description="a constant phase-Doppler disagreement that is a cycle slip [cycles] (the "
+        "test before issue 40 session 17, 0.5 there); null: the statistical test at slip_false_alarm "
+        "(aidnav.estimators.tdcp.phase_increments)")
+    slip_false_alarm: float = Field(1e-3, gt=0, lt=0.5, description="probability that a phase increment "
+                                    "without a slip is flagged by the phase-Doppler test (its threshold "
+                                    "from the Doppler and phase sigma, rate_sigma_m_s and the phase's)")
     time_offset_from_phase: bool = Field(
         True, description="where the configuration gives no imu.time_offset_s and TDCP velocities are used "
         "(aidnav tight): the IMU-GNSS time offset from the specific force's norm, which the IMU and the "

@@ -7,7 +7,9 @@ noises: zenith Doppler σ ``gnss.rate_sigma_m_s`` 0.1 m/s, the receiver's phase 
   ``--seeds`` seeds (default 3), the geometry from the SPP positions as ``aidnav tight`` takes it; and the
   one-cycle slips injected there (one every 20 epochs, satellites in turn) found, by elevation band;
 * the walk ``rtklibexplorer_walk_0827`` (its RINEX with the UBX log's ephemerides and cpStdev, as ``aidnav
-  tight`` reads it; no known slip: the flags are upper bounds on its false alarms), per satellite.
+  tight`` reads it, ``ubx_nav auto``; and with the RINEX nav file alone, ``none``: four GPS satellites with
+  an ephemeris, every interval tested satellite by satellite; no known slip: the flags are upper bounds on
+  its false alarms), per satellite.
 
 Targets: the false-alarm rate near ``slip_false_alarm`` (its binomial 99.9 % quantile); a one-cycle slip
 found where the stated σ put the smallest slip found with 99 % probability under a cycle (module doc).
@@ -84,20 +86,29 @@ def main(argv=None):
     for b, (fo, fn, n, _) in found.items():
         print(f"  injected one-cycle slips at elevation {b} deg: found {fo}/{n} (constant), {fn}/{n} "
               "(statistical)")
+    for nav in ("auto", "none"):
+        walk(nav)
+
+
+def walk(nav):
+    """The walk's flags with ``ubx_nav`` = ``nav`` (none: the RINEX nav file alone, four GPS satellites with
+    an ephemeris: the satellite-by-satellite test), all and on the satellites with an ephemeris (used)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FutureWarning)
         obs, eph, _, _ = read_observations_and_navigation(
             WALK / "rinex_converted" / "gnss_1730.obs", WALK / "rinex_converted" / "gnss_1730.nav",
-            TightConfig().gnss.systems, "auto")
+            TightConfig().gnss.systems, nav)
     eph = eph.to_week(obs.ref_week) if eph.ref_week != obs.ref_week else eph
     old, new, cand, el = tests(obs, eph)
-    line("walk", old[1:][cand], new[1:][cand], int(cand.sum()))
+    used = np.isfinite(el).any(axis=0)
+    line(f"walk {nav}", old[1:][cand], new[1:][cand], int(cand.sum()))
+    cu = cand & used[None]
+    line(f"walk {nav}, used satellites", old[1:][cu], new[1:][cu], int(cu.sum()))
     for j, name in enumerate(obs.names):
         if cand[:, j].any():
             e = np.nanmedian(np.degrees(el[:, j])) if np.isfinite(el[:, j]).any() else np.nan
             print(f"  {name}: {int(cand[:, j].sum())} increments, median elevation {e:.0f} deg; flagged "
                   f"{int((old[:, j] == 2).sum())} (constant), {int((new[:, j] == 2).sum())} (statistical)")
-
 
 if __name__ == "__main__":
     main()

@@ -69,10 +69,19 @@ from aidnav.nav.gnss_sat import LAMBDA_L1, geo_range, satellites_from_pseudorang
 SLIP_FALSE_ALARM = 1e-3
 SLIP_RATE_SIGMA_M_S = 0.1
 SLIP_PHASE_SIGMA_M = 0.005
+#: the thresholds' tails and scale from the run's own statistics (:func:`slip_threshold`): the window
+#: [robust SDs] of the trimmed kurtosis (one-cycle slips beyond it on the walk and the simulated
+#: pedestrian: they would read as heavy tails), the floor of the variance factor (the stated σ at most
+#: √10 times the run's: the filter's default Doppler σ is twice the simulator's), the fewest statistics
+#: for an estimate (else the normal quantile on the stated σ)
+SLIP_TAIL_TRIM = 4.0
+SLIP_VARIANCE_FLOOR = 0.1
+SLIP_MIN_SAMPLE = 300
 
-__all__ = ["MA_ORDER", "SLIP_FALSE_ALARM", "SLIP_PHASE_SIGMA_M", "SLIP_RATE_SIGMA_M_S", "imu_time_offset",
-           "line_of_sight", "phase_increments", "receiver_windup", "running_variance_factor", "slip_outliers",
-           "slip_sigma2", "slope_variance_ma", "tdcp_displacement", "tdcp_series", "windup_increments"]
+__all__ = ["MA_ORDER", "SLIP_FALSE_ALARM", "SLIP_PHASE_SIGMA_M", "SLIP_RATE_SIGMA_M_S", "SLIP_TAIL_TRIM",
+           "SLIP_VARIANCE_FLOOR", "SLIP_MIN_SAMPLE", "imu_time_offset", "line_of_sight", "phase_increments",
+           "receiver_windup", "running_variance_factor", "slip_outliers", "slip_sigma2", "slip_threshold",
+           "slope_variance_ma", "tdcp_displacement", "tdcp_series", "windup_increments"]
 
 
 def phase_increments(time, phase_cycles, lli, range_rate, slip_threshold_cycles: float | None = None,
@@ -138,53 +147,116 @@ def slip_outliers(s, cand, var, los=None, false_alarm: float = SLIP_FALSE_ALARM)
     (T−1, S) [m] of the candidates ``cand`` (T−1, S) (both phases, no lost lock), its stated variance ``var``
     (T−1, S) [m²] (:func:`slip_sigma2`). ``los`` (T, S, 3): unit vectors receiver → satellite at each epoch
     (None or NaN: that satellite is tested alone). ``false_alarm``: the probability that an increment with
-    no slip is flagged (two-sided normal quantile z)."""
-    z = NormalDist().inv_cdf(1.0 - 0.5 * false_alarm)
+    no slip is flagged; the thresholds are :func:`slip_threshold`'s of the run's own statistics (the whole
+    run's, taken before the test: not causal): the studentized residuals of one fit per interval for the
+    geometric test, s/σ for the satellite-by-satellite one."""
     n_int, S = s.shape
     bad = np.zeros((n_int, S), bool)
     c = cand & np.isfinite(s)
     if not c.any():
         return bad
-    # the satellite-by-satellite test's variance factor: the statistic's own mean (s/σ)² over the run (the
-    # trapezoid's motion error and the Doppler's tails), gross errors (beyond 5 robust SDs: slips) left out
-    med = np.median(s[c])
-    mad = 1.4826 * np.median(np.abs(s[c] - med))
-    core = c & (np.abs(s - med) <= 5.0 * mad)
-    fa = max(1.0, float(np.mean((s[core] - med) ** 2 / var[core]))) if core.any() else 1.0
-    chi2_sum, dof_sum = 0.0, 0
-    for k in range(n_int):
-        f = max(1.0, chi2_sum / dof_sum) if dof_sum else 1.0
-        g = c[k] & (np.isfinite(los[k + 1]).all(axis=1) if los is not None else False)
-        if g.sum() >= 6:
-            flagged, chi2, dof = _snoop(s[k], g, var[k] * f, los[k + 1], z)
-            bad[k, flagged] = True
-            chi2_sum += chi2 * f
-            dof_sum += dof
-            alone = c[k] & ~g
-        else:
-            alone = c[k]
-        bad[k] |= alone & (np.abs(s[k]) > z * np.sqrt(var[k] * max(f, fa)))
+    geo = c & (np.isfinite(los[1:]).all(axis=2) if los is not None else False)
+    geo &= (geo.sum(axis=1) >= 6)[:, None]
+    rows = np.flatnonzero(geo.any(axis=1))
+    t_geo = [_studentized(s[k], np.flatnonzero(geo[k]), var[k], los[k + 1])[0] for k in rows]
+    z_geo = slip_threshold(np.concatenate(t_geo) if t_geo else np.zeros(0), false_alarm)
+    for k in rows:
+        bad[k, _snoop(s[k], geo[k], var[k], los[k + 1], z_geo)] = True
+    z_alone = slip_threshold(s[c] / np.sqrt(var[c]), false_alarm)
+    with np.errstate(invalid="ignore"):
+        bad |= c & ~geo & (np.abs(s) > z_alone * np.sqrt(var))
     return bad
 
 
+def slip_threshold(z, false_alarm: float = SLIP_FALSE_ALARM) -> float:
+    """The two-sided threshold on a statistic ``z`` stated in units of its stated σ (a run's sample,
+    slips among them) at which an increment without a slip is flagged with probability ``false_alarm``
+    (module doc, "Cycle slips"): a Student-t of ν degrees of freedom and scale a, ν where the excess
+    kurtosis of the sample within :data:`SLIP_TAIL_TRIM` robust SDs of its median is the t's truncated
+    the same way (normal where it is no larger than the normal's), a from the median absolute deviation
+    (MAD = a·t_ν(0.75)); its variance a²ν/(ν − 2) floored at :data:`SLIP_VARIANCE_FLOOR` (the stated σ
+    at most √10 times the run's). Fewer than :data:`SLIP_MIN_SAMPLE` values: the normal quantile on the
+    stated σ."""
+    z = np.asarray(z, float)
+    z = z[np.isfinite(z)]
+    if z.size < SLIP_MIN_SAMPLE:
+        return NormalDist().inv_cdf(1.0 - 0.5 * false_alarm)
+    d = z - np.median(z)
+    mad = float(np.median(np.abs(d)))
+    if mad <= 0.0:
+        return NormalDist().inv_cdf(1.0 - 0.5 * false_alarm)
+    y = d[np.abs(d) <= SLIP_TAIL_TRIM * 1.4826 * mad]
+    kurt = float(np.mean(y**4) / np.mean(y**2) ** 2 - 3.0)
+    nu = _student_dof(kurt)
+    if np.isinf(nu):
+        q75, q = NormalDist().inv_cdf(0.75), NormalDist().inv_cdf(1.0 - 0.5 * false_alarm)
+        var_ratio = 1.0
+    else:
+        from scipy.special import stdtrit  # lazy: the slip test's Student-t quantiles only
+
+        q75, q = float(stdtrit(nu, 0.75)), float(stdtrit(nu, 1.0 - 0.5 * false_alarm))
+        var_ratio = nu / (nu - 2.0)
+    a2 = max((mad / q75) ** 2 * var_ratio, SLIP_VARIANCE_FLOOR) / var_ratio
+    return q * np.sqrt(a2)
+
+
+def _truncated_kurtosis(nu: float) -> float:
+    """Excess kurtosis of a Student-t of ``nu`` degrees of freedom (inf: the normal) truncated at
+    :data:`SLIP_TAIL_TRIM` robust SDs (1.4826 MAD) of its centre (numerical moments)."""
+    if np.isinf(nu):
+        c = SLIP_TAIL_TRIM * 1.4826 * NormalDist().inv_cdf(0.75)
+        x = np.linspace(-c, c, 4001)
+        f = np.exp(-0.5 * x * x)
+    else:
+        from scipy.special import stdtrit  # lazy: the slip test's Student-t quantiles only
+
+        c = SLIP_TAIL_TRIM * 1.4826 * float(stdtrit(nu, 0.75))
+        x = np.linspace(-c, c, 4001)
+        f = (1.0 + x * x / nu) ** (-0.5 * (nu + 1.0))
+    m0, m2, m4 = (np.trapezoid(x**p * f, x) for p in (0, 2, 4))
+    return float(m4 * m0 / m2**2 - 3.0)
+
+
+def _student_dof(kurt: float) -> float:
+    """The degrees of freedom ν in [2.5, 300] whose truncated kurtosis (:func:`_truncated_kurtosis`) is
+    ``kurt`` (bisection on log ν; the kurtosis falls with ν); inf at or below ν = 300's."""
+    if kurt <= _truncated_kurtosis(300.0):
+        return np.inf
+    lo, hi = np.log(2.5), np.log(300.0)
+    if kurt >= _truncated_kurtosis(2.5):
+        return 2.5
+    for _ in range(30):
+        mid = 0.5 * (lo + hi)
+        if _truncated_kurtosis(float(np.exp(mid))) > kurt:
+            lo = mid
+        else:
+            hi = mid
+    return float(np.exp(0.5 * (lo + hi)))
+
+
+def _studentized(s, idx, var, los):
+    """The weighted least-squares fit of s_j = e_j·δ + c over the satellites ``idx`` (module doc): the
+    studentized residuals r_j/√(var_j(1 − h_j)) and the leverages h."""
+    H = np.column_stack([los[idx], np.ones(len(idx))])
+    w = 1.0 / var[idx]
+    Q = np.linalg.inv(H.T @ (w[:, None] * H))
+    r = s[idx] - H @ (Q @ (H.T @ (w * s[idx])))
+    h = w * np.einsum("ij,jk,ik->i", H, Q, H)
+    return r * np.sqrt(w / np.maximum(1.0 - h, 1e-9)), h
+
+
 def _snoop(s, use, var, los, z):
-    """Data snooping (Baarda) of one interval: the weighted least-squares fit of s_j = e_j·δ + c (δ the
-    receiver's common motion error, c the clock's) over the satellites ``use``, the largest studentized
-    residual flagged while above ``z`` and two or more degrees of freedom remain (with one, every residual
-    has the same studentized value: none can be singled out). Returns (flagged indices, the final fit's
-    Σ r²/var, its degrees of freedom)."""
+    """Data snooping (Baarda) of one interval: the fit of :func:`_studentized` over the satellites ``use``,
+    the largest studentized residual flagged while above ``z`` and two or more degrees of freedom remain
+    (with one, every residual has the same studentized value: none can be singled out). Returns the
+    flagged indices."""
     idx = list(np.flatnonzero(use))
     flagged = []
     while True:
-        H = np.column_stack([los[idx], np.ones(len(idx))])
-        w = 1.0 / var[idx]
-        Q = np.linalg.inv(H.T @ (w[:, None] * H))
-        r = s[idx] - H @ (Q @ (H.T @ (w * s[idx])))
-        h = w * np.einsum("ij,jk,ik->i", H, Q, H)
-        t = np.abs(r) * np.sqrt(w / np.maximum(1.0 - h, 1e-9))
+        t = np.abs(_studentized(s, idx, var, los)[0])
         i = int(np.argmax(t))
         if t[i] <= z or len(idx) - 4 < 2:
-            return flagged, float(np.sum(w * r * r)), len(idx) - 4
+            return flagged
         flagged.append(idx.pop(i))
 
 

@@ -8,23 +8,30 @@ constant while the receiver keeps lock), Doppler rate ρ̇_D = −λD.
 is used when both phases exist, the loss-of-lock indicator has no bit 0 at k (RINEX: lock lost, a slip
 possible) and it agrees with the Doppler: the statistic s = λΔL − ½(ρ̇_D,k−1 + ρ̇_D,k)Δt (the trapezoidal
 integral of the Doppler) is tested at a false-alarm probability α per increment (``false_alarm``, default
-:data:`SLIP_FALSE_ALARM` 1e-3; two-sided normal quantile z, 3.29). Its stated variance is the Doppler's and
-the phase's, (Δt²/4)(σ_ρ̇(E_k−1)² + σ_ρ̇(E_k)²) + σ_φ,k−1² + σ_φ,k² (σ_ρ̇(E) = σ_ρ̇0 √(½ + ½/sin²E),
-:func:`slip_sigma2`). The trapezoid's own error is the receiver's motion, −e_j·δr: a walker's 1.9-Hz bounce
+:data:`SLIP_FALSE_ALARM` 1e-3; the threshold z that quantile of the run's own statistic, below). Its stated
+variance is the Doppler's and the phase's, (Δt²/4)(σ_ρ̇(E_k−1)² + σ_ρ̇(E_k)²) + σ_φ,k−1² + σ_φ,k² (σ_ρ̇(E) =
+σ_ρ̇0 √(½ + ½/sin²E), :func:`slip_sigma2`). The trapezoid's own error is the receiver's motion, −e_j·δr: a
+walker's 1.9-Hz bounce
 seen at 4 Hz (ωΔt ≈ 3 rad, near Nyquist: no polynomial fit of the Dopplers follows it) leaves 5 cm RMS on the
 simulated pedestrian (:mod:`aidnav.sim.pedestrian`), where the Doppler's noise leaves 1–3 cm; the constant
 half-cycle threshold before issue 40 session 17 flagged 8.4 % of its increments. The motion is common to the
 satellites through the geometry, so each interval's statistics are fitted as s_j = e_j·δ + c (δ the motion
 error, c the clock's) by weighted least squares and the largest studentized residual is flagged while above z
-and two or more degrees of freedom remain (data snooping, Baarda; :func:`slip_outliers`): its stated variances
-scaled by the running a-posteriori variance factor of the earlier intervals (floored at 1: the stated σ are a
-lower bound). A satellite without a line of sight, or an interval with fewer than six, is tested alone, its
-stated variance scaled by the larger of that factor and the statistic's own over the run (the mean (s/σ)²,
-gross errors beyond 5 robust SDs left out: it holds the motion term and the Doppler's tails). The smallest
-slip found with 99 % probability is (z + 2.33)·σ_s/√(1 − h) (h the leverage): with the tight filter's zenith
-Doppler σ 0.1 m/s and 5 mm phase at 0.25 s, one cycle (19 cm) down to 24° elevation, 1.5 cycles at 15°, 2.2 at
-10° (σ 0.05 m/s: one cycle down to 12°). A constant ``slip_threshold_cycles`` gives the old test, |s| >
-threshold·λ.
+and two or more degrees of freedom remain (data snooping, Baarda; :func:`slip_outliers`). A satellite
+without a line of sight, or an interval with fewer than six, is tested alone on s/σ_s. Both thresholds come
+from the run's own statistics, taken over the whole run before the test (not causal; issue 40 session 18,
+:func:`slip_threshold`): the studentized residuals of one fit per interval for the geometric test, s/σ_s for
+the lone one, each modelled as a Student-t whose degrees of freedom ν make its kurtosis within four (six for
+the lone test) robust SDs (:data:`SLIP_TAIL_TRIM`; a slip further out does not count as tail) the sample's,
+its scale from the median absolute deviation, its variance factor against the stated one floored at 0.1
+(:data:`SLIP_VARIANCE_FLOOR`; fewer than :data:`SLIP_MIN_SAMPLE` = 300 values: the normal quantile on the
+stated σ). The real walk's statistic has heavy tails (ν ≈ 5–6: the normal quantile flagged 0.5 % of the lone
+satellites' increments at α = 1e-3); the simulated pedestrian's is normal with a factor ≈ 0.3 (the filter's
+default Doppler σ 0.1 m/s is twice the simulator's 0.05). The smallest slip found with 99 % probability is
+about (z + 2.33)·σ/√(1 − h) (σ the statistic's true σ, h the leverage, z the threshold): with a zenith
+Doppler σ of 0.1 m/s and 5 mm phase at 0.25 s, one cycle (19 cm) down to 24° elevation, 1.5 cycles at
+15°; with 0.05 m/s (the simulator's, its factor learnt) one cycle down to ≈ 12°. A constant
+``slip_threshold_cycles`` gives the old test, |s| > threshold·λ.
 
 **Displacement** (:func:`tdcp_displacement`): with y_j = λΔL_j + Δ(c·dt_s,j) − (|r_s,j(k) − r(k−1)| −
 |r_s,j(k−1) − r(k−1)|) (Sagnac-corrected ranges, :func:`aidnav.nav.gnss_sat.geo_range`, from a prior
@@ -69,19 +76,24 @@ from aidnav.nav.gnss_sat import LAMBDA_L1, geo_range, satellites_from_pseudorang
 SLIP_FALSE_ALARM = 1e-3
 SLIP_RATE_SIGMA_M_S = 0.1
 SLIP_PHASE_SIGMA_M = 0.005
-#: the thresholds' tails and scale from the run's own statistics (:func:`slip_threshold`): the window
-#: [robust SDs] of the trimmed kurtosis (one-cycle slips beyond it on the walk and the simulated
-#: pedestrian: they would read as heavy tails), the floor of the variance factor (the stated σ at most
-#: √10 times the run's: the filter's default Doppler σ is twice the simulator's), the fewest statistics
-#: for an estimate (else the normal quantile on the stated σ)
+#: the thresholds' tails and scale from the run's own statistics (:func:`slip_threshold`): the windows
+#: [robust SDs] of the trimmed kurtosis, the geometric test's residuals and the lone satellites' statistic
+#: (one-cycle slips beyond them: they would read as heavy tails; on the simulated pedestrian a low
+#: satellite's slip is ≈ 5 robust SDs of the pooled residuals, on the walk a cycle is 11 of the lone
+#: statistic's; the wider window estimates the far tail better: 1.3 α against 1.7 α at 4 on a t₅ error
+#: with 3 192 values), the floor of the variance factor (the stated σ at most √10 times the run's: the
+#: filter's default Doppler σ is twice the simulator's), the fewest statistics for an estimate (else the
+#: normal quantile on the stated σ)
 SLIP_TAIL_TRIM = 4.0
+SLIP_TAIL_TRIM_ALONE = 6.0
 SLIP_VARIANCE_FLOOR = 0.1
 SLIP_MIN_SAMPLE = 300
 
 __all__ = ["MA_ORDER", "SLIP_FALSE_ALARM", "SLIP_PHASE_SIGMA_M", "SLIP_RATE_SIGMA_M_S", "SLIP_TAIL_TRIM",
-           "SLIP_VARIANCE_FLOOR", "SLIP_MIN_SAMPLE", "imu_time_offset", "line_of_sight", "phase_increments",
-           "receiver_windup", "running_variance_factor", "slip_outliers", "slip_sigma2", "slip_threshold",
-           "slope_variance_ma", "tdcp_displacement", "tdcp_series", "windup_increments"]
+           "SLIP_TAIL_TRIM_ALONE", "SLIP_VARIANCE_FLOOR", "SLIP_MIN_SAMPLE", "imu_time_offset",
+           "line_of_sight", "phase_increments", "receiver_windup", "running_variance_factor", "slip_outliers",
+           "slip_sigma2", "slip_threshold", "slope_variance_ma", "tdcp_displacement", "tdcp_series",
+           "windup_increments"]
 
 
 def phase_increments(time, phase_cycles, lli, range_rate, slip_threshold_cycles: float | None = None,
@@ -162,17 +174,17 @@ def slip_outliers(s, cand, var, los=None, false_alarm: float = SLIP_FALSE_ALARM)
     z_geo = slip_threshold(np.concatenate(t_geo) if t_geo else np.zeros(0), false_alarm)
     for k in rows:
         bad[k, _snoop(s[k], geo[k], var[k], los[k + 1], z_geo)] = True
-    z_alone = slip_threshold(s[c] / np.sqrt(var[c]), false_alarm)
+    z_alone = slip_threshold(s[c] / np.sqrt(var[c]), false_alarm, SLIP_TAIL_TRIM_ALONE)
     with np.errstate(invalid="ignore"):
         bad |= c & ~geo & (np.abs(s) > z_alone * np.sqrt(var))
     return bad
 
 
-def slip_threshold(z, false_alarm: float = SLIP_FALSE_ALARM) -> float:
+def slip_threshold(z, false_alarm: float = SLIP_FALSE_ALARM, trim: float = SLIP_TAIL_TRIM) -> float:
     """The two-sided threshold on a statistic ``z`` stated in units of its stated σ (a run's sample,
     slips among them) at which an increment without a slip is flagged with probability ``false_alarm``
     (module doc, "Cycle slips"): a Student-t of ν degrees of freedom and scale a, ν where the excess
-    kurtosis of the sample within :data:`SLIP_TAIL_TRIM` robust SDs of its median is the t's truncated
+    kurtosis of the sample within ``trim`` robust SDs (1.4826 MAD) of its median is the t's truncated
     the same way (normal where it is no larger than the normal's), a from the median absolute deviation
     (MAD = a·t_ν(0.75)); its variance a²ν/(ν − 2) floored at :data:`SLIP_VARIANCE_FLOOR` (the stated σ
     at most √10 times the run's). Fewer than :data:`SLIP_MIN_SAMPLE` values: the normal quantile on the
@@ -185,9 +197,8 @@ def slip_threshold(z, false_alarm: float = SLIP_FALSE_ALARM) -> float:
     mad = float(np.median(np.abs(d)))
     if mad <= 0.0:
         return NormalDist().inv_cdf(1.0 - 0.5 * false_alarm)
-    y = d[np.abs(d) <= SLIP_TAIL_TRIM * 1.4826 * mad]
-    kurt = float(np.mean(y**4) / np.mean(y**2) ** 2 - 3.0)
-    nu = _student_dof(kurt)
+    y = d[np.abs(d) <= trim * 1.4826 * mad]
+    nu = _student_dof(float(np.mean(y**4) / np.mean(y**2) ** 2 - 3.0), trim)
     if np.isinf(nu):
         q75, q = NormalDist().inv_cdf(0.75), NormalDist().inv_cdf(1.0 - 0.5 * false_alarm)
         var_ratio = 1.0
@@ -200,34 +211,34 @@ def slip_threshold(z, false_alarm: float = SLIP_FALSE_ALARM) -> float:
     return q * np.sqrt(a2)
 
 
-def _truncated_kurtosis(nu: float) -> float:
-    """Excess kurtosis of a Student-t of ``nu`` degrees of freedom (inf: the normal) truncated at
-    :data:`SLIP_TAIL_TRIM` robust SDs (1.4826 MAD) of its centre (numerical moments)."""
+def _truncated_kurtosis(nu: float, trim: float) -> float:
+    """Excess kurtosis of a Student-t of ``nu`` degrees of freedom (inf: the normal) truncated at ``trim``
+    robust SDs (1.4826 MAD) of its centre (numerical moments)."""
     if np.isinf(nu):
-        c = SLIP_TAIL_TRIM * 1.4826 * NormalDist().inv_cdf(0.75)
+        c = trim * 1.4826 * NormalDist().inv_cdf(0.75)
         x = np.linspace(-c, c, 4001)
         f = np.exp(-0.5 * x * x)
     else:
         from scipy.special import stdtrit  # lazy: the slip test's Student-t quantiles only
 
-        c = SLIP_TAIL_TRIM * 1.4826 * float(stdtrit(nu, 0.75))
+        c = trim * 1.4826 * float(stdtrit(nu, 0.75))
         x = np.linspace(-c, c, 4001)
         f = (1.0 + x * x / nu) ** (-0.5 * (nu + 1.0))
     m0, m2, m4 = (np.trapezoid(x**p * f, x) for p in (0, 2, 4))
     return float(m4 * m0 / m2**2 - 3.0)
 
 
-def _student_dof(kurt: float) -> float:
+def _student_dof(kurt: float, trim: float) -> float:
     """The degrees of freedom ν in [2.5, 300] whose truncated kurtosis (:func:`_truncated_kurtosis`) is
     ``kurt`` (bisection on log ν; the kurtosis falls with ν); inf at or below ν = 300's."""
-    if kurt <= _truncated_kurtosis(300.0):
+    if kurt <= _truncated_kurtosis(300.0, trim):
         return np.inf
     lo, hi = np.log(2.5), np.log(300.0)
-    if kurt >= _truncated_kurtosis(2.5):
+    if kurt >= _truncated_kurtosis(2.5, trim):
         return 2.5
     for _ in range(30):
         mid = 0.5 * (lo + hi)
-        if _truncated_kurtosis(float(np.exp(mid))) > kurt:
+        if _truncated_kurtosis(float(np.exp(mid)), trim) > kurt:
             lo = mid
         else:
             hi = mid

@@ -186,7 +186,9 @@ class RawGnssAiding(_Strict):
         "(aidnav.estimators.tdcp.phase_increments)")
     slip_false_alarm: float = Field(1e-3, gt=0, lt=0.5, description="probability that a phase increment "
                                     "without a slip is flagged by the phase-Doppler test (its threshold "
-                                    "from the Doppler and phase sigma, rate_sigma_m_s and the phase's)")
+                                    "on the statistic over its stated sigma, rate_sigma_m_s and the "
+                                    "phase's, a Student-t quantile with the tails and scale of the run's "
+                                    "own statistics: aidnav.estimators.tdcp.slip_threshold)")
     time_offset_from_phase: bool = Field(
         True, description="where the configuration gives no imu.time_offset_s and TDCP velocities are used "
         "(aidnav tight): the IMU-GNSS time offset from the specific force's norm, which the IMU and the "

@@ -13,11 +13,13 @@ keep it alive with them.
 
 **Epoch rows** (:mod:`.measurements.epoch`'s layout, ``E_W`` values per satellite): the satellites'
 positions, velocities and clocks from the broadcast ephemerides at the transmit time implied by each
-pseudorange (:func:`aidnav.nav.gnss_sat.sat_from_pseudorange_scalars`, the ephemeris of
+pseudorange (:func:`aidnav.nav.gnss_sat.sat_from_pseudorange_once`, the ephemeris of
 :func:`~aidnav.nav.gnss_sat.select_ephemeris`) are computed and written straight into the engine records'
 data block (:func:`_fill_epoch_rows`, one compiled call over all epochs; :func:`_fill_sat_columns` the
-per-satellite slots), with no (M, S) intermediate arrays: the same arithmetic as
-:func:`aidnav.nav.gnss_sat.satellite_states_epochs` and the numpy expressions it replaces, so the same bits.
+per-satellite slots), with no (M, S) intermediate arrays: the arithmetic of
+:func:`aidnav.nav.gnss_sat.satellite_states_epochs` and the numpy expressions it replaces, but one Kepler
+solve per satellite and epoch, warm-started from the satellite's previous epoch (issue 40, session 18:
+three before, one for each transmit-time pass; the values differ by a few ulps of E_k, ~1e-8 m).
 """
 
 from __future__ import annotations
@@ -32,7 +34,7 @@ from aidnav.nav.gnss_sat import (
     E_URA,
     FREQ_L1,
     dual_frequency_iono,
-    sat_from_pseudorange_scalars,
+    sat_from_pseudorange_once,
     select_ephemeris,
 )
 from aidnav.units import DEG
@@ -40,9 +42,9 @@ from aidnav.units import DEG
 from . import measurements as ms
 from .engine import Imu, Records
 from .measurements import epoch as ep
-from .preprocess import bridge_gaps, imu_gaps
+from .preprocess import bridge_gaps, imu_gaps, surely_no_gap
 
-__all__ = ["Arena", "arena_bytes", "epoch_outputs", "epoch_records", "epoch_rows", "imu_input",
+__all__ = ["Arena", "arena_bytes", "epoch_outputs", "epoch_records", "epoch_rows", "imu_input", "imu_times",
            "rejected_per_satellite", "rotation_variance", "timing_variance"]
 
 HUGE = 2 << 20  # bytes of a huge page (x86-64)
@@ -103,6 +105,7 @@ def _fill_epoch_rows(eph_table, prns, t_rx, obs, ion, dphi, wl, opts, data, at):
     use_tgd, max_age = opts[0] != 0.0, opts[1]
     no_eph, usable = np.zeros(S, np.int64), np.zeros(S, np.bool_)
     clk, prev = np.full(S, np.nan), np.full(S, np.nan)  # c·dt_s of this epoch and the previous one
+    warm = np.full((S, 4), np.nan)  # per satellite: its last Kepler solve (E, M, 1 − e cos E), its record
     tdcp = dphi.shape[0] == M and M > 1
     for k in range(M):
         r = data[at[k]]
@@ -117,8 +120,11 @@ def _fill_epoch_rows(eph_table, prns, t_rx, obs, ion, dphi, wl, opts, data, at):
             if i < 0:
                 no_eph[j] += 1
                 continue
-            x, y, z, vx, vy, vz, dts, ddts = sat_from_pseudorange_scalars(eph_table[i], t_rx[k], code[k, j],
-                                                                          use_tgd)
+            w = warm[j]
+            if w[3] != i:
+                w[0], w[3] = np.nan, i
+            x, y, z, vx, vy, vz, dts, ddts = sat_from_pseudorange_once(eph_table[i], t_rx[k], code[k, j],
+                                                                       use_tgd, w)
             r[o], r[o + 1], r[o + 2], r[o + 3], r[o + 4], r[o + 5] = x, y, z, vx, vy, vz
             clk[j] = dts * C_LIGHT
             if np.isfinite(x):
@@ -229,18 +235,24 @@ def _compact_rows(a, sel):
             a[i, :] = a[s, :]
 
 
+@njit(cache=True)
+def _compact_epoch_out(t, cnt, node, sat, sel):
+    """:func:`_compact_rows` of every per-record output array (``sat`` (5, R, S): each of its five) in one
+    call (issue 40, session 18: eight calls were ~0.1 ms of dispatch)."""
+    _compact_rows(t.reshape(-1, 1), sel)
+    _compact_rows(cnt, sel)
+    _compact_rows(node, sel)
+    for i in range(sat.shape[0]):
+        _compact_rows(sat[i], sel)
+
+
 def epoch_outputs(grp, sel):
     """The per-epoch outputs of the epoch records ``sel`` (ascending) by name (:func:`.measurements.epoch.
     epoch_fields`): each array's rows ``sel`` moved to its first rows in place, and views of those (the
     clock-jump flags kept whole). ``grp`` is the call's own (:func:`epoch_records`), used up by this."""
     n = len(sel)
     if n != len(grp.t):
-        sel = np.asarray(sel, np.int64)
-        _compact_rows(grp.t.reshape(-1, 1), sel)
-        _compact_rows(grp.cnt, sel)
-        _compact_rows(grp.node, sel)
-        for i in range(grp.sat.shape[0]):
-            _compact_rows(grp.sat[i], sel)
+        _compact_epoch_out(grp.t, grp.cnt, grp.node, grp.sat, np.asarray(sel, np.int64))
     return ep.epoch_fields(grp, slice(0, n))
 
 
@@ -256,6 +268,14 @@ def rejected_per_satellite(nu, s, gate):
     return out
 
 
+def imu_times(imu, offset: float, arena: Arena) -> np.ndarray:
+    """The IMU times on the GNSS scale, t + ``offset`` [s] (into ``arena``); the log's own array where the
+    offset is 0 (t + 0.0 is t: no copy)."""
+    if offset == 0.0:
+        return np.ascontiguousarray(imu.time, float)
+    return np.add(imu.time, offset, out=arena.empty(len(imu.time)))
+
+
 def imu_input(imu, cfg, t_imu, k0: int, static, events: list, rec_t=None, arena: Arena | None = None) -> Imu:
     """The engine's IMU input from sample ``k0`` on: increments with gaps bridged, the static flags for
     the ZUPTs, the attitude variance of gyro scale factor and misalignment per node
@@ -263,10 +283,12 @@ def imu_input(imu, cfg, t_imu, k0: int, static, events: list, rec_t=None, arena:
     (times ``rec_t``: :func:`timing_variance`); the large arrays from ``arena``."""
     stat = np.zeros(len(t_imu), np.bool_) if static is None else np.asarray(static, np.bool_)
     empty = None if arena is None else arena.empty
-    if len(imu_gaps(imu, empty=empty)[2]):  # bridge_gaps' rule; its (N, 4) gap variances not used here
-        dth_in, dv_in = bridge_gaps(imu, events, empty=empty)[:2]  # (as before the engine)
-    else:
-        dth_in, dv_in = imu.dtheta, imu.dv
+    dth_in, dv_in = imu.dtheta, imu.dv
+    # bridge_gaps' rule (its (N, 4) gap variances not used here): the median only where a gap is possible
+    if not surely_no_gap(np.asarray(imu.time, float), float(imu.t0), 5.0):
+        _, med, gaps = imu_gaps(imu, empty=empty)
+        if len(gaps):
+            dth_in, dv_in = bridge_gaps(imu, events, med=med, empty=empty)[:2]  # (as before the engine)
     sl = slice(k0, None)
     # (attitude, velocity) variance added at the next node
     gap_var = np.zeros((len(t_imu) - k0, 2)) if arena is None else arena.full((len(t_imu) - k0, 2), 0.0)

@@ -33,6 +33,7 @@ from aidnav.nav.gnss_sat import (
     C_LIGHT,
     E_URA,
     FREQ_L1,
+    SYSTEMS,
     dual_frequency_iono,
     sat_from_pseudorange_once,
     select_ephemeris,
@@ -177,25 +178,25 @@ def epoch_rows(obs, eph, g, events: list, data, at, phase_increments=None):
     code = np.ascontiguousarray(obs.code1, float)
     dop = np.ascontiguousarray(obs.doppler1, float)
     opts = np.array([float(g.iono != "dual"), float(g.max_eph_age_s)])
+    f, sysid = obs.frequencies(), np.asarray(obs.prn, np.int64) // 100  # (wavelengths(): C / f)
     no_eph, usable = _fill_epoch_rows(np.ascontiguousarray(eph.table, float), np.asarray(obs.prn, np.int64),
                                       np.ascontiguousarray(obs.time, float), (code, dop), ion, dphi,
-                                      np.ascontiguousarray(obs.wavelengths(), float), opts, data, at)
-    names = obs.names
-    for j in np.flatnonzero(no_eph):
-        events.append(f"{names[j]}: {int(no_eph[j])} epoch(s) with a pseudorange but no usable "
-                      "ephemeris; skipped")
+                                      np.ascontiguousarray(C_LIGHT / f, float), opts, data, at)
+    if no_eph.any():
+        names = obs.names
+        for j in np.flatnonzero(no_eph):
+            events.append(f"{names[j]}: {int(no_eph[j])} epoch(s) with a pseudorange but no usable "
+                          "ephemeris; skipped")
     # range-error states: one per satellite with a usable ephemeris somewhere in the log
     with_eph = np.flatnonzero(usable) if g.range_errors else np.zeros(0, int)
     cols = np.full((len(usable), 4), np.nan)
     cols[with_eph, 0] = np.arange(len(with_eph))
     # inter-system biases: one per non-GPS system with a usable satellite; Klobuchar scale, σ factor
-    letters = np.array([nm[0] for nm in names])
-    isb_sys = [c for c in "ECR" if (usable & (letters == c)).any()]
+    isb_sys = [c for c in "ECR" if usable[sysid == SYSTEMS.index(c)].any()]
     for k, c in enumerate(isb_sys):
-        cols[letters == c, 1] = k
-    f = obs.frequencies()
+        cols[sysid == SYSTEMS.index(c), 1] = k
     cols[:, 2] = np.where(np.isfinite(f), (FREQ_L1 / f) ** 2, 1.0)
-    cols[:, 3] = np.array([g.system_sigma_factor.get(c, 1.0) for c in letters])
+    cols[:, 3] = [g.system_sigma_factor.get(SYSTEMS[i], 1.0) for i in sysid]
     _fill_sat_columns(data, at, cols)
     return with_eph, isb_sys
 

@@ -211,3 +211,28 @@ def test_imu_input_with_a_gap_is_bridge_gaps_result():
             assert len(ev) == 1 and "IMU gap" in ev[0] and not np.array_equal(got.dth, imu.dtheta)
         else:
             assert got.dth is imu.dtheta or np.shares_memory(got.dth, imu.dtheta)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_record_order_is_numpys_stable_merge(seed):
+    """The records' time order of one kernel call (session 18) equals the numpy expressions it replaced:
+    velocity records with a NaN time, velocity or σ dropped, a stable argsort of epochs then velocity
+    records (ties with epochs and among velocity records kept in that order), the row of each record."""
+    from aidnav.filters.tight_input import _record_order
+
+    rng = np.random.default_rng(seed)
+    M, K = 60, 70
+    t_obs = np.sort(rng.choice(np.arange(100.0), M, replace=False))
+    tv = np.r_[rng.choice(t_obs, 10), np.round(rng.uniform(-5.0, 105.0, K - 10), 1)]  # ties with epochs
+    tv[rng.integers(0, K, 3)] = tv[0]  # ties among velocity records
+    vv, sv = rng.normal(0.0, 1.0, (K, 3)), rng.uniform(0.1, 1.0, (K, 3))
+    tv[5], vv[7, 1], sv[9, 2] = np.nan, np.nan, np.inf
+    ok = np.isfinite(tv) & np.isfinite(vv).all(axis=1) & np.isfinite(sv).all(axis=1)
+    t_all = np.concatenate([t_obs, tv[ok]])
+    order = np.argsort(t_all, kind="stable")
+    model = np.concatenate([np.full(M, 1, np.int64), np.full(ok.sum(), 2, np.int64)])[order]
+    at = np.empty(len(t_all), np.int64)
+    at[order] = np.arange(len(t_all))
+    t, mod, at2, keep = _record_order(t_obs, tv, vv, sv, 1, 2)
+    assert np.array_equal(keep, np.flatnonzero(ok)) and np.array_equal(t, t_all[order])
+    assert np.array_equal(mod, model) and np.array_equal(at2, at)

@@ -30,10 +30,13 @@ from aidnav.nav.gnss_sat import (
     OMEGA_E_BDS,
     OMEGA_E_GLO,
     RE_GLO,
+    eccentric_anomaly,
+    eccentric_anomaly_from,
     eph_clock,
     eph_state,
     glonass_orbit,
     sat_from_pseudorange,
+    sat_from_pseudorange_once,
     sat_from_pseudorange_scalars,
     sat_id,
     sat_name,
@@ -215,3 +218,72 @@ def test_pseudorange_state_as_scalars_is_the_array_path_bit_for_bit():
                 p, v, dts, ddts = sat_from_pseudorange(rec, 345600.0 + dt, pr, tgd)
                 got = sat_from_pseudorange_scalars(rec, 345600.0 + dt, pr, tgd)
                 assert got == (*p, *v, dts, ddts) and np.all(np.isfinite(got))
+
+
+def _glonass_and_sbas_records():
+    glo = np.zeros(N_EPH)
+    glo[E_PRN], glo[E_TOE], glo[E_AF0], glo[E_AF1] = sat_id("R05"), 345600.0, 2e-5, 1e-12
+    glo[G_POS:G_POS + 3] = 7003.008789e3, -12206.626953e3, 21280.765625e3
+    glo[G_VEL:G_VEL + 3] = 0.7835417e3, 2.8042530e3, 1.3525150e3
+    sbs = np.zeros(N_EPH)
+    sbs[E_PRN], sbs[E_TOE], sbs[E_AF0], sbs[E_AF1] = sat_id("S31"), 345600.0, -3e-8, 2e-12
+    sbs[G_POS:G_POS + 3] = 24000e3, 33000e3, 100e3
+    sbs[G_VEL:G_VEL + 3] = 1.0, -0.5, 0.2
+    return glo, sbs
+
+
+def test_glonass_and_sbas_clocks_alone_are_eph_states_bit_for_bit():
+    """``eph_clock`` of a GLONASS and an SBAS record (no orbit propagated since session 18: the transmit-time
+    passes propagated the GLONASS orbit twice for its linear clock) is exactly ``eph_state``'s dts."""
+    for rec in _glonass_and_sbas_records():
+        for dt in (-300.0, -0.07, 0.0, 13.7, 299.0):
+            assert eph_clock(rec, 345600.0 + dt) == eph_state(rec, 345600.0 + dt)[2]
+
+
+def test_pseudorange_state_with_one_kepler_solve_is_the_passes_to_round_off():
+    """``sat_from_pseudorange_once`` (the tight filter's epoch rows, issue 40 session 18: one Kepler solve a
+    satellite and epoch, warm-started from the satellite's previous one) against ``sat_from_pseudorange``
+    (two transmit-time clock passes, then the state; three cold solves): a Keplerian record of every system
+    (GPS, Galileo, BeiDou MEO; eccentric, with a clock polynomial and T_GD) over 1 h of 1-s epochs and
+    after jumps the warm start must not take (> 0.1 rad of mean anomaly): position within 1e-6 m (an ulp
+    of the transmit time near 4e5 s, 6e-11 s, is 2.3e-7 m of orbit; an ulp of E_k, 9e-16 rad, 2.4e-8 m),
+    velocity within 1e-9 m/s, clock within 1e-18 s (a 1e-3 s offset's ulp is 2e-19 s), its rate within
+    1e-20; BeiDou GEO and GLONASS/SBAS records go through the passes: the same bits, and no warm state."""
+    for name in ("G05", "E11", "C25"):
+        rec = _kepler_record(sat_id(name), 26560e3, np.radians(55.0), 0.3, 0.2, 345600.0)
+        rec[E_ECC], rec[E_AF0], rec[E_AF1], rec[E_AF2], rec[E_TGD] = 0.02, 6.7e-4, -3.2e-12, 1e-19, 4e-9
+        warm, worst, steps = np.full(3, np.nan), np.zeros(4), 0
+        t_rx = 345600.0 - 1800.0 + np.r_[np.arange(3600.0) + 0.0731, 5000.0, 5001.0, 3000.0, 3001.0]
+        pr = 2.2e7 + 6e5 * np.sin(t_rx / 900.0)
+        for k, (t, p) in enumerate(zip(t_rx, pr, strict=True)):
+            tgd = k % 2 == 0
+            pos, vel, dts, ddts = sat_from_pseudorange(rec, t, p, tgd)
+            m_prev = warm[1]
+            got = sat_from_pseudorange_once(rec, t, p, tgd, warm)
+            steps += abs(warm[1] - m_prev) < 0.1  # warm-started
+            worst = np.maximum(worst, [np.max(np.abs(np.array(got[0:3]) - pos)),
+                                       np.max(np.abs(np.array(got[3:6]) - vel)), abs(got[6] - dts),
+                                       abs(got[7] - ddts)])
+            assert np.isfinite(warm).all() and abs(warm[0] - eccentric_anomaly(warm[1], 0.02)) < 1e-13
+        print(name, "largest differences (position m, velocity m/s, clock s, rate):", worst)
+        assert worst[0] < 1e-6 and worst[1] < 1e-9 and worst[2] < 1e-18 and worst[3] < 1e-20
+        assert steps == len(t_rx) - 3  # the first epoch and the two jumps start cold
+    geo = _kepler_record(sat_id("C03"), 42164e3, np.radians(1.0), 0.3, 0.2, 345600.0)
+    for rec in (geo, *_glonass_and_sbas_records()):
+        warm = np.array([1.0, 2.0, 1.0])
+        for t in (345600.0 - 200.0, 345600.0 + 13.7):
+            assert sat_from_pseudorange_once(rec, t, 3.7e7, True, warm) == sat_from_pseudorange_scalars(
+                rec, t, 3.7e7, True) and np.isnan(warm[0])
+
+
+def test_eccentric_anomaly_from_any_start_solves_keplers_equation():
+    """Newton's iteration from a warm start converges to the same root as from M (within 2 ulps of E) for
+    starts off by up to 0.5 rad, eccentricities to 0.1; from M it is ``eccentric_anomaly`` itself."""
+    rng = np.random.default_rng(4)
+    for _ in range(500):
+        mk, ecc = rng.uniform(-4.0, 10.0), rng.uniform(0.0, 0.1)
+        ek = eccentric_anomaly(mk, ecc)
+        assert abs(ek - ecc * np.sin(ek) - mk) < 1e-14
+        assert eccentric_anomaly_from(mk, ecc, mk) == ek
+        start = ek + rng.uniform(-0.5, 0.5)
+        assert abs(eccentric_anomaly_from(mk, ecc, start) - ek) <= 2 * np.spacing(abs(ek))

@@ -182,6 +182,27 @@ class StaticDetector:
 GAP_TILT, GAP_HEADING, GAP_VEL, GAP_POS = range(4)
 
 
+@njit(cache=True)
+def surely_no_gap(t, t0, factor):
+    """True where :func:`imu_gaps` can find no gap in the sample times ``t`` (from ``t0``) without their
+    median: where at most (n − 1) // 2 of the n intervals are ≤ max/``factor`` (times 1 + 1e-9), the
+    median's lower middle value, so the median too, exceeds it and no interval exceeds ``factor`` × the
+    median. False where that does not hold (a gap possible: ask :func:`imu_gaps`). Two passes, no array
+    (issue 40, session 18: the median's partition of a copy was ~0.2 ms of a tight call)."""
+    n = t.shape[0]
+    if n < 2:
+        return False
+    mx = t[0] - t0
+    for k in range(1, n):
+        mx = max(mx, t[k] - t[k - 1])
+    thr = mx / factor * (1.0 + 1e-9)
+    c = 1 if t[0] - t0 <= thr else 0
+    for k in range(1, n):
+        if t[k] - t[k - 1] <= thr:
+            c += 1
+    return c <= (n - 1) // 2
+
+
 def imu_gaps(imu, factor: float = 5.0, med: float | None = None, empty=None):
     """The sample intervals of ``imu`` (Δt_k = t_k − t_{k−1}, t_{−1} = ``imu.t0``), the nominal interval
     (``med``, default their median) and the indices of the samples after a gap (Δt > ``factor`` × nominal):

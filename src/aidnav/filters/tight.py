@@ -81,7 +81,6 @@ from .loose import to_trajectory as nav_trajectory
 from .measurements import epoch as ep
 from .output_rows import whole_run_rows
 from .prior import given_initial_state, initial_covariance, levelled_tilt_covariance, process_noise
-from .run_log import log_dict
 from .smoother import rts, smooth_outputs
 from .tight_input import (
     Arena,
@@ -90,6 +89,7 @@ from .tight_input import (
     epoch_records,
     epoch_rows,
     imu_input,
+    imu_times,
     rejected_per_satellite,
     rotation_variance,
     timing_variance,
@@ -466,7 +466,7 @@ def run_tight(imu, obs, eph, cfg: TightConfig | None = None, init_state=None, st
     g = cfg.gnss
     nnav = cfg.nins
     arena = Arena(arena_bytes(imu, obs, velocity_fixes))  # the large arrays in one block (.tight_input)
-    t_imu = np.add(imu.time, cfg.imu.time_offset_s, out=arena.empty(len(imu.time)))
+    t_imu = imu_times(imu, cfg.imu.time_offset_s, arena)
     if init_state is None:
         init_state = (float(imu.t0 + cfg.imu.time_offset_s),
                       *given_initial_state(cfg.init, "run_tight without init_state"))
@@ -582,13 +582,13 @@ def _tight_result(r, ge, obs, lay, nnav: int, with_eph, isb_sys, iono_model: str
                   n_tdcp=ge.ntd, n_tdcp_rejected=ge.ntdrej,
                   pr_innov=ge.pr_nu, pr_s=ge.pr_s, rate_innov=ge.rate_nu, rate_s=ge.rate_s, elevation=ge.el,
                   P_nav=ge.P_nav, clock=ge.clk, state=ge.state, prn=obs.prn)
-    log = log_dict(r.log, r.n_log)
-    cnt = dict(zupt_updates=int((log["model"] == ms.M_ZUPT).sum()),
-               nhc_updates=int((log["model"] == ms.M_NHC).sum()), clock_jumps=int(ge.flags[1]),
+    model, status = r.log.model[:r.n_log], r.log.status[:r.n_log]  # (run_log.log_dict's, no names)
+    cnt = dict(zupt_updates=int(np.count_nonzero(model == ms.M_ZUPT)),
+               nhc_updates=int(np.count_nonzero(model == ms.M_NHC)), clock_jumps=int(ge.flags[1]),
                epochs=int(np.isfinite(ge.t).sum()), pr_used=int(ge.npr.sum()), rate_used=int(ge.nrate.sum()),
                rejected=int(ge.nrej.sum()), imu_samples_skipped=0, nodes=len(r.node_idx),
                velocity_records=0, tdcp_used=int(ge.ntd.sum()), tdcp_rejected=int(ge.ntdrej.sum()),
-               velocity_used=int(((log["model"] == ms.M_GNSS_VEL) & (log["status"] == 1)).sum()))
+               velocity_used=int(np.count_nonzero((model == ms.M_GNSS_VEL) & (status == 1))))
     ck = slice(int(lay[L_CLK]) - 9, int(lay[L_CLK]) - 7)
     t_res = t_out[r.out_idx] if arena is None else np.take(t_out, r.out_idx, out=arena.empty(len(r.out_idx)),
                                                            mode="clip")

@@ -13,11 +13,13 @@ keep it alive with them.
 
 **Epoch rows** (:mod:`.measurements.epoch`'s layout, ``E_W`` values per satellite): the satellites'
 positions, velocities and clocks from the broadcast ephemerides at the transmit time implied by each
-pseudorange (:func:`aidnav.nav.gnss_sat.sat_from_pseudorange_scalars`, the ephemeris of
+pseudorange (:func:`aidnav.nav.gnss_sat.sat_from_pseudorange_once`, the ephemeris of
 :func:`~aidnav.nav.gnss_sat.select_ephemeris`) are computed and written straight into the engine records'
 data block (:func:`_fill_epoch_rows`, one compiled call over all epochs; :func:`_fill_sat_columns` the
-per-satellite slots), with no (M, S) intermediate arrays: the same arithmetic as
-:func:`aidnav.nav.gnss_sat.satellite_states_epochs` and the numpy expressions it replaces, so the same bits.
+per-satellite slots), with no (M, S) intermediate arrays: the arithmetic of
+:func:`aidnav.nav.gnss_sat.satellite_states_epochs` and the numpy expressions it replaces, but one Kepler
+solve per satellite and epoch, warm-started from the satellite's previous epoch (issue 40, session 18:
+three before, one for each transmit-time pass; the values differ by a few ulps of E_k, ~1e-8 m).
 """
 
 from __future__ import annotations
@@ -31,8 +33,9 @@ from aidnav.nav.gnss_sat import (
     C_LIGHT,
     E_URA,
     FREQ_L1,
+    SYSTEMS,
     dual_frequency_iono,
-    sat_from_pseudorange_scalars,
+    sat_from_pseudorange_once,
     select_ephemeris,
 )
 from aidnav.units import DEG
@@ -40,9 +43,9 @@ from aidnav.units import DEG
 from . import measurements as ms
 from .engine import Imu, Records
 from .measurements import epoch as ep
-from .preprocess import bridge_gaps, imu_gaps
+from .preprocess import bridge_gaps, imu_gaps, surely_no_gap
 
-__all__ = ["Arena", "arena_bytes", "epoch_outputs", "epoch_records", "epoch_rows", "imu_input",
+__all__ = ["Arena", "arena_bytes", "epoch_outputs", "epoch_records", "epoch_rows", "imu_input", "imu_times",
            "rejected_per_satellite", "rotation_variance", "timing_variance"]
 
 HUGE = 2 << 20  # bytes of a huge page (x86-64)
@@ -103,6 +106,7 @@ def _fill_epoch_rows(eph_table, prns, t_rx, obs, ion, dphi, wl, opts, data, at):
     use_tgd, max_age = opts[0] != 0.0, opts[1]
     no_eph, usable = np.zeros(S, np.int64), np.zeros(S, np.bool_)
     clk, prev = np.full(S, np.nan), np.full(S, np.nan)  # c·dt_s of this epoch and the previous one
+    warm = np.full((S, 4), np.nan)  # per satellite: its last Kepler solve (E, M, 1 − e cos E), its record
     tdcp = dphi.shape[0] == M and M > 1
     for k in range(M):
         r = data[at[k]]
@@ -117,8 +121,11 @@ def _fill_epoch_rows(eph_table, prns, t_rx, obs, ion, dphi, wl, opts, data, at):
             if i < 0:
                 no_eph[j] += 1
                 continue
-            x, y, z, vx, vy, vz, dts, ddts = sat_from_pseudorange_scalars(eph_table[i], t_rx[k], code[k, j],
-                                                                          use_tgd)
+            w = warm[j]
+            if w[3] != i:
+                w[0], w[3] = np.nan, i
+            x, y, z, vx, vy, vz, dts, ddts = sat_from_pseudorange_once(eph_table[i], t_rx[k], code[k, j],
+                                                                       use_tgd, w)
             r[o], r[o + 1], r[o + 2], r[o + 3], r[o + 4], r[o + 5] = x, y, z, vx, vy, vz
             clk[j] = dts * C_LIGHT
             if np.isfinite(x):
@@ -171,25 +178,25 @@ def epoch_rows(obs, eph, g, events: list, data, at, phase_increments=None):
     code = np.ascontiguousarray(obs.code1, float)
     dop = np.ascontiguousarray(obs.doppler1, float)
     opts = np.array([float(g.iono != "dual"), float(g.max_eph_age_s)])
+    f, sysid = obs.frequencies(), np.asarray(obs.prn, np.int64) // 100  # (wavelengths(): C / f)
     no_eph, usable = _fill_epoch_rows(np.ascontiguousarray(eph.table, float), np.asarray(obs.prn, np.int64),
                                       np.ascontiguousarray(obs.time, float), (code, dop), ion, dphi,
-                                      np.ascontiguousarray(obs.wavelengths(), float), opts, data, at)
-    names = obs.names
-    for j in np.flatnonzero(no_eph):
-        events.append(f"{names[j]}: {int(no_eph[j])} epoch(s) with a pseudorange but no usable "
-                      "ephemeris; skipped")
+                                      np.ascontiguousarray(C_LIGHT / f, float), opts, data, at)
+    if no_eph.any():
+        names = obs.names
+        for j in np.flatnonzero(no_eph):
+            events.append(f"{names[j]}: {int(no_eph[j])} epoch(s) with a pseudorange but no usable "
+                          "ephemeris; skipped")
     # range-error states: one per satellite with a usable ephemeris somewhere in the log
     with_eph = np.flatnonzero(usable) if g.range_errors else np.zeros(0, int)
     cols = np.full((len(usable), 4), np.nan)
     cols[with_eph, 0] = np.arange(len(with_eph))
     # inter-system biases: one per non-GPS system with a usable satellite; Klobuchar scale, σ factor
-    letters = np.array([nm[0] for nm in names])
-    isb_sys = [c for c in "ECR" if (usable & (letters == c)).any()]
+    isb_sys = [c for c in "ECR" if usable[sysid == SYSTEMS.index(c)].any()]
     for k, c in enumerate(isb_sys):
-        cols[letters == c, 1] = k
-    f = obs.frequencies()
+        cols[sysid == SYSTEMS.index(c), 1] = k
     cols[:, 2] = np.where(np.isfinite(f), (FREQ_L1 / f) ** 2, 1.0)
-    cols[:, 3] = np.array([g.system_sigma_factor.get(c, 1.0) for c in letters])
+    cols[:, 3] = [g.system_sigma_factor.get(SYSTEMS[i], 1.0) for i in sysid]
     _fill_sat_columns(data, at, cols)
     return with_eph, isb_sys
 
@@ -205,19 +212,42 @@ def epoch_records(t_obs, velocity_fixes, S: int, arena: Arena):
         at = np.arange(M)
         return Records(np.asarray(t_obs, float), np.full(M, ms.M_PR, np.int64), data, np.ones(M, np.bool_),
                        ep.epoch_out(M, S, arena.full)), at, at
-    tv, vv, sv = (np.asarray(a, float) for a in velocity_fixes)
-    ok = np.isfinite(tv) & np.isfinite(vv).all(axis=1) & np.isfinite(sv).all(axis=1)
-    tv, vv, sv = tv[ok], vv[ok], sv[ok]
-    K = len(tv)
-    t_all = np.concatenate([np.asarray(t_obs, float), tv])
-    order = np.argsort(t_all, kind="stable")
-    model = np.concatenate([np.full(M, ms.M_PR, np.int64), np.full(K, ms.M_GNSS_VEL, np.int64)])[order]
-    at = np.empty(M + K, np.int64)  # the row of each record in time order (one array written once)
-    at[order] = np.arange(M + K)
-    data = arena.full((M + K, W), np.nan)
-    data[at[M:], 0:3], data[at[M:], 3:6] = vv, sv
-    rec = Records(t_all[order], model, data, np.ones(M + K, np.bool_), ep.epoch_out(M + K, S, arena.full))
+    tv, vv, sv = (np.ascontiguousarray(a, float) for a in velocity_fixes)
+    t, model, at, keep = _record_order(np.ascontiguousarray(t_obs, float), tv, vv, sv, ms.M_PR, ms.M_GNSS_VEL)
+    data = arena.full((len(t), W), np.nan)
+    data[at[M:], 0:3], data[at[M:], 3:6] = vv[keep], sv[keep]
+    rec = Records(t, model, data, np.ones(len(t), np.bool_), ep.epoch_out(len(t), S, arena.full))
     return rec, np.flatnonzero(model == ms.M_PR), at[:M]
+
+
+@njit(cache=True)
+def _record_order(t_obs, tv, vv, sv, m_pr, m_vel):
+    """The records in time order: the M epochs ``t_obs`` and the K velocity records whose time ``tv``,
+    velocity ``vv`` and σ ``sv`` (K, 3) are finite (their indices ``keep``), sorted stably (epochs first
+    at a tie: numpy's stable argsort of the concatenation). Returns (times, model, the row of each record
+    — the epochs', then the kept velocity records' —, keep). One call for ~10 numpy ones (session 18)."""
+    M = t_obs.shape[0]
+    keep = np.empty(tv.shape[0], np.int64)
+    K = 0
+    for i in range(tv.shape[0]):
+        good = np.isfinite(tv[i])
+        for c in range(3):
+            good = good and np.isfinite(vv[i, c]) and np.isfinite(sv[i, c])
+        if good:
+            keep[K] = i
+            K += 1
+    keep = keep[:K]
+    t_all = np.empty(M + K)
+    t_all[:M] = t_obs
+    for i in range(K):
+        t_all[M + i] = tv[keep[i]]
+    order = np.argsort(t_all, kind="mergesort")
+    t, model, at = np.empty(M + K), np.empty(M + K, np.int64), np.empty(M + K, np.int64)
+    for r in range(M + K):
+        o = order[r]
+        t[r], at[o] = t_all[o], r
+        model[r] = m_pr if o < M else m_vel
+    return t, model, at, keep
 
 
 @njit(cache=True)
@@ -229,18 +259,24 @@ def _compact_rows(a, sel):
             a[i, :] = a[s, :]
 
 
+@njit(cache=True)
+def _compact_epoch_out(t, cnt, node, sat, sel):
+    """:func:`_compact_rows` of every per-record output array (``sat`` (5, R, S): each of its five) in one
+    call (issue 40, session 18: eight calls were ~0.1 ms of dispatch)."""
+    _compact_rows(t.reshape(-1, 1), sel)
+    _compact_rows(cnt, sel)
+    _compact_rows(node, sel)
+    for i in range(sat.shape[0]):
+        _compact_rows(sat[i], sel)
+
+
 def epoch_outputs(grp, sel):
     """The per-epoch outputs of the epoch records ``sel`` (ascending) by name (:func:`.measurements.epoch.
     epoch_fields`): each array's rows ``sel`` moved to its first rows in place, and views of those (the
     clock-jump flags kept whole). ``grp`` is the call's own (:func:`epoch_records`), used up by this."""
     n = len(sel)
     if n != len(grp.t):
-        sel = np.asarray(sel, np.int64)
-        _compact_rows(grp.t.reshape(-1, 1), sel)
-        _compact_rows(grp.cnt, sel)
-        _compact_rows(grp.node, sel)
-        for i in range(grp.sat.shape[0]):
-            _compact_rows(grp.sat[i], sel)
+        _compact_epoch_out(grp.t, grp.cnt, grp.node, grp.sat, np.asarray(sel, np.int64))
     return ep.epoch_fields(grp, slice(0, n))
 
 
@@ -256,6 +292,14 @@ def rejected_per_satellite(nu, s, gate):
     return out
 
 
+def imu_times(imu, offset: float, arena: Arena) -> np.ndarray:
+    """The IMU times on the GNSS scale, t + ``offset`` [s] (into ``arena``); the log's own array where the
+    offset is 0 (t + 0.0 is t: no copy)."""
+    if offset == 0.0:
+        return np.ascontiguousarray(imu.time, float)
+    return np.add(imu.time, offset, out=arena.empty(len(imu.time)))
+
+
 def imu_input(imu, cfg, t_imu, k0: int, static, events: list, rec_t=None, arena: Arena | None = None) -> Imu:
     """The engine's IMU input from sample ``k0`` on: increments with gaps bridged, the static flags for
     the ZUPTs, the attitude variance of gyro scale factor and misalignment per node
@@ -263,10 +307,12 @@ def imu_input(imu, cfg, t_imu, k0: int, static, events: list, rec_t=None, arena:
     (times ``rec_t``: :func:`timing_variance`); the large arrays from ``arena``."""
     stat = np.zeros(len(t_imu), np.bool_) if static is None else np.asarray(static, np.bool_)
     empty = None if arena is None else arena.empty
-    if len(imu_gaps(imu, empty=empty)[2]):  # bridge_gaps' rule; its (N, 4) gap variances not used here
-        dth_in, dv_in = bridge_gaps(imu, events, empty=empty)[:2]  # (as before the engine)
-    else:
-        dth_in, dv_in = imu.dtheta, imu.dv
+    dth_in, dv_in = imu.dtheta, imu.dv
+    # bridge_gaps' rule (its (N, 4) gap variances not used here): the median only where a gap is possible
+    if not surely_no_gap(np.asarray(imu.time, float), float(imu.t0), 5.0):
+        _, med, gaps = imu_gaps(imu, empty=empty)
+        if len(gaps):
+            dth_in, dv_in = bridge_gaps(imu, events, med=med, empty=empty)[:2]  # (as before the engine)
     sl = slice(k0, None)
     # (attitude, velocity) variance added at the next node
     gap_var = np.zeros((len(t_imu) - k0, 2)) if arena is None else arena.full((len(t_imu) - k0, 2), 0.0)

@@ -87,36 +87,9 @@ N_EPH = 28
 # GLONASS records: PZ-90 position [m], velocity [m/s], luni-solar acceleration [m/s²] at t_b (= E_TOE), the
 # frequency channel k (E_AF0 = −τ_n [s], E_AF1 = γ_n [-], E_HEALTH, E_URA as for the others)
 G_POS, G_VEL, G_ACC, G_FCN = 7, 10, 13, 16
-EPH_COLUMNS = (
-    "prn",
-    "week",
-    "toe",
-    "toc",
-    "af0",
-    "af1",
-    "af2",
-    "sqrtA",
-    "e",
-    "i0",
-    "Omega0",
-    "omega",
-    "M0",
-    "deltaN",
-    "IDOT",
-    "OmegaDot",
-    "Cuc",
-    "Cus",
-    "Crc",
-    "Crs",
-    "Cic",
-    "Cis",
-    "TGD",
-    "health",
-    "IODE",
-    "URA",
-    "fit_h",
-    "toe_sow",
-)
+EPH_COLUMNS = ("prn", "week", "toe", "toc", "af0", "af1", "af2", "sqrtA", "e", "i0", "Omega0", "omega",
+    "M0", "deltaN", "IDOT", "OmegaDot", "Cuc", "Cus", "Crc", "Crs", "Cic", "Cis", "TGD", "health", "IODE",
+    "URA", "fit_h", "toe_sow")
 #: toe and toc in an ephemeris record are on the reference-week scale of the table (see module doc).
 
 
@@ -148,7 +121,7 @@ def eph_state(eph, t):
         ddts = eph[E_AF1] + 2.0 * eph[E_AF2] * dt + fr * eph[E_ECC] * eph[E_SQRTA] * np.cos(ek) * ek_dot
         return pos, p2 - p1, dts, ddts
     gm, om_e, f_rel = _kepler_system(sys)
-    x, y, z, vx, vy, vz, dts, ddts = _kepler_scalars(eph, t, gm, om_e, f_rel)
+    x, y, z, vx, vy, vz, dts, ddts = _kepler_scalars(eph, t, gm, om_e, f_rel, np.nan)
     return np.array([x, y, z]), np.array([vx, vy, vz]), dts, ddts
 
 
@@ -164,18 +137,16 @@ def _kepler_system(sys):
 
 @njit(cache=True)
 def eph_clock(eph, t):
-    """dts [s] of :func:`eph_state` (the same arithmetic, so the same bits) without the orbit where the
-    record is Keplerian (GPS, Galileo, BeiDou MEO/IGSO: E_k only); the others through :func:`eph_state`.
+    """dts [s] of :func:`eph_state` (the same arithmetic, so the same bits) without the orbit: E_k alone
+    for a Keplerian record (GPS, Galileo, BeiDou MEO/IGSO), GLONASS and SBAS clocks as they are (no
+    propagation); BeiDou GEO through :func:`eph_state`.
     The transmit-time passes of :func:`sat_from_pseudorange` need only the clock."""
     sys, prn = int(eph[E_PRN]) // 100, int(eph[E_PRN]) % 100
-    if sys == SYS_GLO or sys == SYS_SBS or (sys == SYS_BDS and (prn <= 5 or prn >= 59)):
+    if sys == SYS_GLO or sys == SYS_SBS:  # eph_state's clock of these records (no orbit propagated)
+        return eph[E_AF0] + eph[E_AF1] * (t - eph[E_TOE])
+    if sys == SYS_BDS and (prn <= 5 or prn >= 59):
         return eph_state(eph, t)[2]
-    if sys == SYS_BDS:
-        gm, f_rel = GM_BDS, -2.0 * np.sqrt(GM_BDS) / (C_LIGHT * C_LIGHT)
-    elif sys == SYS_GAL:
-        gm, f_rel = GM_GAL, -2.0 * np.sqrt(GM_GAL) / (C_LIGHT * C_LIGHT)
-    else:
-        gm, f_rel = GM_GPS, F_REL
+    gm, _, f_rel = _kepler_system(sys)
     a = eph[E_SQRTA] ** 2  # as _kepler_scalars
     ecc = eph[E_ECC]
     n0 = np.sqrt(gm / (a * a * a))
@@ -192,7 +163,12 @@ def eccentric_anomaly(mk, ecc):
     """Kepler's equation E − e sin E = M solved for the eccentric anomaly E [rad] by Newton's iteration from
     E = M (at most 30 steps, until a step is below 1e-14 rad), for mean anomaly ``mk`` [rad] and
     eccentricity ``ecc`` (0 ≤ e < 1): the one solver of every Keplerian record (GPS, Galileo, BeiDou)."""
-    ek = mk
+    return eccentric_anomaly_from(mk, ecc, mk)
+
+
+@njit(cache=True)
+def eccentric_anomaly_from(mk, ecc, ek):
+    """:func:`eccentric_anomaly` by Newton's iteration from ``ek`` (a warm start; from ``mk`` the same)."""
     for _ in range(30):
         d = (ek - ecc * np.sin(ek) - mk) / (1.0 - ecc * np.cos(ek))
         ek -= d
@@ -284,16 +260,17 @@ def glonass_state(eph, t):
 
 
 @njit(cache=True)
-def _kepler_scalars(eph, t, gm, om_e, f_rel):
+def _kepler_scalars(eph, t, gm, om_e, f_rel, ek):
     """Keplerian record (GPS, Galileo, BeiDou MEO/IGSO) with the system's μ, ω_e and relativistic F: (x, y,
-    z, vx, vy, vz, dts, ddts) as scalars, no arrays (issue 40, session 17: ~2,000 satellites a tight call)."""
+    z, vx, vy, vz, dts, ddts) as scalars, no arrays (issue 40, session 17: ~2,000 satellites a tight call);
+    ``ek`` E_k at ``t`` where known (NaN: solved here)."""
     a = eph[E_SQRTA] ** 2
     ecc = eph[E_ECC]
     n0 = np.sqrt(gm / (a * a * a))
     tk = t - eph[E_TOE]
     n = n0 + eph[E_DN]
-    mk = eph[E_M0] + n * tk
-    ek = eccentric_anomaly(mk, ecc)
+    if np.isnan(ek):
+        ek = eccentric_anomaly(eph[E_M0] + n * tk, ecc)
     se, ce = np.sin(ek), np.cos(ek)
     den = 1.0 - ecc * ce
     sq = np.sqrt(1.0 - ecc * ecc)
@@ -364,7 +341,39 @@ def sat_from_pseudorange_scalars(eph, t_rx, pr, use_tgd):
         x, y, z, vx, vy, vz = p[0], p[1], p[2], v[0], v[1], v[2]
     else:
         gm, om_e, f_rel = _kepler_system(sys)
-        x, y, z, vx, vy, vz, dts, ddts = _kepler_scalars(eph, t, gm, om_e, f_rel)
+        x, y, z, vx, vy, vz, dts, ddts = _kepler_scalars(eph, t, gm, om_e, f_rel, np.nan)
+    if use_tgd:
+        dts -= eph[E_TGD]
+    return x, y, z, vx, vy, vz, dts, ddts
+
+
+@njit(cache=True)
+def sat_from_pseudorange_once(eph, t_rx, pr, use_tgd, warm):
+    """:func:`sat_from_pseudorange_scalars`' values with one Kepler solve for a Keplerian record (the others
+    through it): E_k at t_sv = t_rx − pr/c by Newton's iteration from ``warm`` = (E, M, 1 − e cos E) of an
+    earlier solve of this record within 0.1 rad of M, which become this one's (NaN: from M); the two
+    fixed-point passes t = t_sv − dt_s(t) to first order in dt_s's rate and E_k at t by its rate (second
+    orders ~1e-22 s and ~1e-19 rad, below the round-off: results differ from the passes' by a few ulps of
+    E_k, ~1e-8 m). Issue 40, session 18: three Newton solves a satellite were ~40 % of the tight call's
+    satellite states."""
+    sys, prn = int(eph[E_PRN]) // 100, int(eph[E_PRN]) % 100
+    if sys == SYS_GLO or sys == SYS_SBS or (sys == SYS_BDS and (prn <= 5 or prn >= 59)):
+        warm[0] = np.nan
+        return sat_from_pseudorange_scalars(eph, t_rx, pr, use_tgd)
+    gm, om_e, f_rel = _kepler_system(sys)
+    t_sv = t_rx - pr / C_LIGHT
+    a, ecc = eph[E_SQRTA] ** 2, eph[E_ECC]
+    n = np.sqrt(gm / (a * a * a)) + eph[E_DN]
+    mk = eph[E_M0] + n * (t_sv - eph[E_TOE])
+    dm = mk - warm[1]
+    ek = eccentric_anomaly_from(mk, ecc, warm[0] + dm / warm[2] if abs(dm) < 0.1 else mk)
+    se, ce = np.sin(ek), np.cos(ek)
+    dt = t_sv - eph[E_TOC]
+    warm[0], warm[1], warm[2] = ek, mk, 1.0 - ecc * ce
+    dts = eph[E_AF0] + eph[E_AF1] * dt + eph[E_AF2] * dt * dt + f_rel * ecc * eph[E_SQRTA] * se
+    ddts = eph[E_AF1] + 2.0 * eph[E_AF2] * dt + f_rel * ecc * eph[E_SQRTA] * ce * n / warm[2]
+    t = t_sv - (dts - ddts * dts)  # t_sv − dt_s(t_sv − dt_s(t_sv)) to first order
+    x, y, z, vx, vy, vz, dts, ddts = _kepler_scalars(eph, t, gm, om_e, f_rel, ek + n / warm[2] * (t - t_sv))
     if use_tgd:
         dts -= eph[E_TGD]
     return x, y, z, vx, vy, vz, dts, ddts
@@ -588,45 +597,13 @@ def dual_frequency_iono(time, code1, code2, window_s: float) -> np.ndarray:
     return out
 
 
-__all__ = [
-    "dual_frequency_iono",
-    "C_LIGHT",
-    "GM_GPS",
-    "OMEGA_E_GPS",
-    "F_REL",
-    "FREQ_L1",
-    "FREQ_L2",
-    "LAMBDA_L1",
-    "N_EPH",
-    "EPH_COLUMNS",
-    "eph_state",
-    "eph_clock",
-    "sat_from_pseudorange",
-    "sat_from_pseudorange_scalars",
-    "geo_range",
-    "geo_range_rate",
-    "az_el",
-    "klobuchar",
-    "klobuchar_coefficients",
-    "KLOBUCHAR_DEFAULT_ALPHA",
-    "KLOBUCHAR_DEFAULT_BETA",
-    "iono_fallback_note",
-    "std_atmosphere",
-    "saastamoinen_zenith",
-    "trop_mapping",
-    "tropo_delay",
-    "select_ephemeris",
-    "sat_states",
-    "dop",
-    "visible",
-    "OMEGA_IE",
-    "range_error_sigma",
-    "ERR_BRDCI",
-    "ERR_ION",
-    "ERR_SAAS",
-    "ERR_TROP",
-    "ERR_CBIAS",
-]
+__all__ = ["dual_frequency_iono", "C_LIGHT", "GM_GPS", "OMEGA_E_GPS", "F_REL", "FREQ_L1", "FREQ_L2",
+           "LAMBDA_L1", "N_EPH", "EPH_COLUMNS", "eph_state", "eph_clock", "sat_from_pseudorange",
+           "sat_from_pseudorange_scalars", "sat_from_pseudorange_once", "geo_range", "geo_range_rate",
+           "az_el", "klobuchar", "klobuchar_coefficients", "KLOBUCHAR_DEFAULT_ALPHA",
+           "KLOBUCHAR_DEFAULT_BETA", "iono_fallback_note", "std_atmosphere", "saastamoinen_zenith",
+           "trop_mapping", "tropo_delay", "select_ephemeris", "sat_states", "dop", "visible", "OMEGA_IE",
+           "range_error_sigma", "ERR_BRDCI", "ERR_ION", "ERR_SAAS", "ERR_TROP", "ERR_CBIAS"]
 
 
 # ------------------------------------------------------- satellites of an epoch, measurement weights
@@ -794,7 +771,7 @@ def carrier_frequencies(ids, eph_table=None) -> np.ndarray:
 
 
 __all__ += ["sat_id", "sat_name", "sat_system", "glonass_channels", "carrier_frequencies", "glonass_state",
-            "eccentric_anomaly",
+            "eccentric_anomaly", "eccentric_anomaly_from",
             "glonass_orbit", "SYSTEMS", "SYS_GPS", "SYS_GAL", "SYS_BDS", "SYS_GLO", "SYS_SBS",
             "SYSTEM_SIGMA_FACTOR",
             "MAX_AGE_S", "FREQ_B1I", "FREQ_G1", "DFREQ_G1", "E_TOES", "G_POS", "G_VEL", "G_ACC", "G_FCN"]

@@ -125,7 +125,8 @@ def fill_model(F, G, lat, h, v, fn, Cbn, wb, fb, tau):
     wx[0, 1], wx[0, 2] = -w2[2], w2[1]
     wx[1, 0], wx[1, 2] = w2[2], -w2[0]
     wx[2, 0], wx[2, 1] = -w2[1], w2[0]
-    F[3:6, 3:6] = vx @ Mav - wx
+    _product3(F, 3, 3, vx, Mav)  # [v x] M_av (3 × 3 products in loops: no BLAS call per node, issue 40)
+    F[3:6, 3:6] -= wx
     # M_vp = [v x](2 M_a1 + M_a2) + gravity gradient
     Ma = np.zeros((3, 3))
     Ma[1, 0] = -2.0 * OMEGA_IE * sl
@@ -133,7 +134,7 @@ def fill_model(F, G, lat, h, v, fn, Cbn, wb, fb, tau):
     Ma[0, 2] = vn / rmh**2
     Ma[1, 2] = -ve / rnh**2
     Ma[2, 2] = -ve * tl / rnh**2
-    F[3:6, 6:9] = vx @ Ma
+    _product3(F, 3, 6, vx, Ma)
     # gravity: g^n_U = -g(L, h); d(-g)/dh = -gravity_dh > 0
     dgdl = (gravity(lat + 1e-6, h) - gravity(lat - 1e-6, h)) / 2e-6
     F[5, 6] += -dgdl
@@ -183,6 +184,15 @@ def fill_model(F, G, lat, h, v, fn, Cbn, wb, fb, tau):
             for i in range(3):
                 F[3 + i, MA + k] = Cbn[i, r] * fb[c]
             G[MA + k, 24 + k] = 1.0
+
+
+@njit(cache=True, inline="always")
+def _product3(F, r, c, A, B):
+    """F[r:r+3, c:c+3] = A B of two 3 × 3 matrices, in loops (issue 40, session 18: the two BLAS calls of
+    :func:`fill_model` at each node were ~0.4 µs of its ~1.4; the sums in the order k = 0, 1, 2)."""
+    for i in range(3):
+        for j in range(3):
+            F[r + i, c + j] = A[i, 0] * B[0, j] + A[i, 1] * B[1, j] + A[i, 2] * B[2, j]
 
 
 @njit(cache=True, inline="always")

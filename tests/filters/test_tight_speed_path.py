@@ -106,3 +106,54 @@ def test_output_rows_take_the_callers_block_only_where_it_fits():
         assert [g.shape for g in got] == [(shape[0], 10), (shape[0], shape[1]), (shape[0], shape[2])]
     got = output_rows(NO_ROWS, True, n_out, nb, n)
     assert [g.shape for g in got] == [(n_out, 10), (n_out, nb), (n_out, n)]
+
+
+def test_head_predict_fast_math_keeps_ieee_nan_handling():
+    """:func:`predict_split` is compiled with :data:`SAFE_FASTMATH` (issue 40, session 18): no ``nnan`` or
+    ``ninf``, so it equals the strict-IEEE compilation of the same function to rounding, and a NaN in P, x
+    or Qd reaches exactly the entries of P and x that it reaches there (none lost, none added)."""
+    import numba  # lazy: the strict-IEEE compilation of the same function, for this test only
+
+    from aidnav.filters.kalman import SAFE_FASTMATH
+
+    assert not SAFE_FASTMATH & {"fast", "nnan", "ninf", "afn"}
+    strict = numba.njit(predict_split.py_func)
+    rng = np.random.default_rng(18)
+    F, G, q, nh, n = _head_system(rng)
+    Phi, Qd = np.zeros((n, n)), np.zeros((n, n))
+    discretize(F, G, q, 0.5, Phi, Qd)
+    hd, d = head_split(F[:nh, :nh], G[:nh, :], q, nh)
+    hd, f = diagonal_last(F[:nh, :nh], hd, d)
+    a = rng.normal(size=(n, n))
+    P0 = a @ a.T / n + np.diag(10.0 ** rng.uniform(-6, 3, n))
+    x0 = rng.normal(size=n)
+
+    def both(P, x, Qd_):
+        out = []
+        for fn in (predict_split, strict):
+            Pw, xw = P.copy(), x.copy()
+            wk = (np.zeros((f, nh)), np.zeros((nh, f)), np.zeros((nh, n)), np.zeros((f, n)),
+                  np.zeros((f, nh)), np.zeros((f, f)), np.zeros(nh))
+            fn(xw, Pw, Phi, Qd_, hd, d, wk, f)
+            out.append((Pw, xw))
+        return out
+
+    (Pf, xf), (Ps, xs) = both(P0, x0, Qd)
+    scale = np.sqrt(np.outer(np.diag(Ps), np.diag(Ps)))
+    assert np.all(np.abs(Pf - Ps) <= 1e-13 * scale) and np.array_equal(Pf, Pf.T)
+    np.testing.assert_allclose(xf, xs, rtol=1e-13, atol=1e-15)
+    for where in ("P full", "P diagonal", "P constant", "x", "Qd tail"):
+        P, x, Qn = P0.copy(), x0.copy(), Qd.copy()
+        if where == "x":
+            x[hd[1]] = np.nan
+        elif where == "Qd tail":
+            Qn[n - 1, n - 1] = np.nan
+        else:
+            i = hd[{"P full": 0, "P diagonal": f, "P constant": d}[where]]
+            P[i, n - 2] = P[n - 2, i] = np.nan
+        (Pf, xf), (Ps, xs) = both(P, x, Qn)
+        assert np.isnan(Ps).any() or np.isnan(xs).any()  # the NaN went somewhere (the test can fail)
+        np.testing.assert_array_equal(np.isnan(Pf), np.isnan(Ps))
+        np.testing.assert_array_equal(np.isnan(xf), np.isnan(xs))
+        ok = ~np.isnan(Ps)
+        assert np.all(np.abs(Pf - Ps)[ok] <= 1e-13 * np.nan_to_num(scale, nan=np.inf)[ok] + 1e-300)

@@ -197,8 +197,9 @@ def discretize_head(Fi, Gi, Fh, Gh, qh, T, Phi, Qd, sp, dims):
             for e in range(nc):
                 ie = hd[d + e]
                 Fdc[a, e] = Fi[ia, ie] if ie < nins else 0.0
-            for c in range(Gh.shape[1]):
-                Gd[a, c] = Gi[ia, c] if c < mins else 0.0
+            for c in range(mins):  # (two contiguous loops, no test per entry)
+                Gd[a, c] = Gi[ia, c]
+            Gd[a, mins:] = 0.0
         else:
             for b in range(d):
                 Fd[a, b] = Fh[ia, hd[b]]

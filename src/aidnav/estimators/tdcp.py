@@ -234,12 +234,13 @@ def tdcp_series(obs, eph, positions_ecef, sigma_phase_m: float = 0.005, slip_thr
 MA_ORDER = 2
 
 
-def slope_variance_ma(x, e, idx, order: int) -> float:
-    """Variance of a least-squares slope Σxy/Σx² whose errors are a moving average of ``order``: the
-    truncated-kernel (uniform weights) sandwich Σ_i Σ_{|idx_i − idx_j| ≤ order} x_i e_i x_j e_j / (Σx²)²
-    (Hansen–Hodrick), ``x`` the regressor, ``e`` the residuals, ``idx`` (increasing integers) the epochs:
-    only pairs whose epochs are at most ``order`` apart count (not neighbours in the arrays across a gap);
-    never below the white sandwich Σx²e²/(Σx²)² (the truncated sum is not bound to be positive).
+def slope_variance_ma(x, e, idx, order: int, w=None) -> float:
+    """Variance of a (weighted) least-squares slope Σwxy/Σwx² whose errors are a moving average of
+    ``order``: the truncated-kernel (uniform weights) sandwich Σ_i Σ_{|idx_i − idx_j| ≤ order} w_i x_i e_i
+    w_j x_j e_j / (Σwx²)² (Hansen–Hodrick), ``x`` the regressor, ``e`` the residuals, ``w`` the weights
+    (None: 1), ``idx`` (increasing integers) the epochs: only pairs whose epochs are at most ``order`` apart
+    count (not neighbours in the arrays across a gap); never below the white sandwich Σw²x²e²/(Σwx²)² (the
+    truncated sum is not bound to be positive).
 
     Why not Newey–West's Bartlett weights (1 − l/(L+1)): they shrink the lag-1 and lag-2 autocovariances,
     which are exact here, not estimation noise to damp; with a regressor that alternates in sign from epoch
@@ -247,17 +248,32 @@ def slope_variance_ma(x, e, idx, order: int) -> float:
     noise differenced twice) add (1 + 4/3 + 1/3 = 8/3 times the white variance at most) and the shrunk sum
     left the σ of :func:`imu_time_offset` 1.24× small over 120 simulated walks (issue 40, session 17)."""
     x, e, idx = np.asarray(x, float), np.asarray(e, float), np.asarray(idx, np.int64)
-    xe = x * e
+    w = np.ones_like(x) if w is None else np.asarray(w, float)
+    xe = w * x * e
     white = float(np.sum(xe * xe))
     var = white
     for lag in range(1, order + 1):
         i = np.flatnonzero(np.isin(idx + lag, idx))
         var += 2.0 * float(np.sum(xe[i] * xe[np.searchsorted(idx, idx[i] + lag)]))
-    return max(var, white) / max(float(np.sum(x * x)), 1e-30) ** 2
+    return max(var, white) / max(float(np.sum(w * x * x)), 1e-30) ** 2
+
+
+def _norm_weights(a, vel_cov, k, delta):
+    """Weights (n,) of the TDCP specific-force norms at the epochs ``k`` (:func:`imu_time_offset`): 1 without
+    ``vel_cov``, else 1/(uᵀ(C_k + C_{k−1})u/Δ²) with u = a/‖a‖ (0 where the covariance is not finite or
+    not positive), scaled to a mean of 1 (the σ does not depend on the scale)."""
+    if vel_cov is None:
+        return np.ones(len(k))
+    C = np.asarray(vel_cov, float)
+    u = a / np.linalg.norm(a, axis=1)[:, None]
+    var = np.einsum("ki,kij,kj->k", u, C[k] + C[k - 1], u) / delta ** 2
+    good = np.isfinite(var) & (var > 0)
+    w = np.where(good, 1.0 / np.where(good, var, 1.0), 0.0)
+    return w / w[good].mean() if good.any() else w
 
 
 def imu_time_offset(imu, t_epoch, vel_mean, gravity_m_s2: float, max_lag_s: float = 0.2,
-                    step_s: float = 0.001, min_epochs: int = 40):
+                    step_s: float = 0.001, min_epochs: int = 40, vel_cov=None):
     """The IMU-GNSS time offset d [s] to add to the IMU stamps, from the specific force's **norm**, which
     the IMU and the carrier phase both give without an attitude (a walker's steps: ±2–3 m/s² at 2 Hz).
 
@@ -273,6 +289,15 @@ def imu_time_offset(imu, t_epoch, vel_mean, gravity_m_s2: float, max_lag_s: floa
     accelerometer's scale, β its bias along the force); d̂ is the least residual, refined by a parabola
     through its neighbours; its σ the linearised slope's (x = α ∂s/∂d) with the residuals' correlation of
     the second difference counted (:func:`slope_variance_ma`, order :data:`MA_ORDER`).
+
+    **Weights** (``vel_cov`` (K, 3, 3), the TDCP velocities' covariance, e.g. :func:`tdcp_series`'s
+    ``vel_cov_enu``; None: all epochs alike): each a_k weighs 1/(uᵀ(C_k + C_{k−1})u/Δ²), u the force's
+    direction — the variance of s_k the least squares of the two intervals state (the cross-covariance of
+    their shared phase epoch is left out: it is the MA part the σ counts). An interval solved from a few
+    satellites (a clock jump that fails the slip test on most of them at once: 5 of 17 left) has an
+    acceleration σ of ~1 m/s² against 0.2 m/s² (the simulated pedestrian): unweighted, those few epochs made
+    the residuals' kurtosis 118 and one epoch up to 65 % of the sandwich, whose σ then scattered from
+    seed to seed (the variance's CV 0.66) and fell 1.14× short (issue 40, session 18).
     Returns (d̂, σ_d, n epochs) or None (fewer than ``min_epochs`` usable epochs, or the least residual on
     the grid's edge)."""
     t_e = np.asarray(t_epoch, float)
@@ -282,12 +307,13 @@ def imu_time_offset(imu, t_epoch, vel_mean, gravity_m_s2: float, max_lag_s: floa
     ok = (np.isfinite(v[k]).all(axis=1) & np.isfinite(v[k - 1]).all(axis=1)
           & (np.abs(dt_i[k] - dt_i[k - 1]) < 1e-3 * dt_i[k]))
     k = k[ok]
-    if k.size < min_epochs:
-        return None
     delta = dt_i[k]
     a = (v[k] - v[k - 1]) / delta[:, None]
     a[:, 2] += gravity_m_s2
     s_g = np.linalg.norm(a, axis=1) - gravity_m_s2
+    w = _norm_weights(a, vel_cov, k, delta)
+    if np.count_nonzero(w > 0) < min_epochs:
+        return None
     t_imu = np.concatenate([[imu.t0], imu.time])
     dth = getattr(imu, "dtheta", None)
     th = np.vstack([np.zeros(3), np.cumsum(np.zeros_like(imu.dv) if dth is None else dth, axis=0)])
@@ -312,17 +338,18 @@ def imu_time_offset(imu, t_epoch, vel_mean, gravity_m_s2: float, max_lag_s: floa
         return np.linalg.norm(f, axis=1) - gravity_m_s2
 
     lags = np.arange(-max_lag_s, max_lag_s + 0.5 * step_s, step_s)
-    inside = np.isfinite(s_imu(-max_lag_s)) & np.isfinite(s_imu(max_lag_s))
+    inside = np.isfinite(s_imu(-max_lag_s)) & np.isfinite(s_imu(max_lag_s)) & (w > 0)
     if inside.sum() < min_epochs:
         return None
-    y = s_g[inside]
+    y, wi = s_g[inside], w[inside]
+    sw = np.sqrt(wi)
     rss = np.full(lags.size, np.inf)
     fits = []
     for j, d in enumerate(lags):
         x = s_imu(d)[inside]
         A = np.column_stack([x, np.ones_like(x)])
-        c, res, *_ = np.linalg.lstsq(A, y, rcond=None)
-        rss[j] = float(res[0]) if res.size else float(np.sum((y - A @ c) ** 2))
+        c, *_ = np.linalg.lstsq(A * sw[:, None], y * sw, rcond=None)
+        rss[j] = float(np.sum(wi * (y - A @ c) ** 2))
         fits.append(c)
     j = int(np.argmin(rss))
     if j == 0 or j == lags.size - 1:
@@ -333,5 +360,5 @@ def imu_time_offset(imu, t_epoch, vel_mean, gravity_m_s2: float, max_lag_s: floa
     alpha, beta = fits[j]
     x = alpha * (s_imu(lags[j] + step_s)[inside] - s_imu(lags[j] - step_s)[inside]) / (2.0 * step_s)
     e = y - alpha * s_imu(lags[j])[inside] - beta
-    sigma = float(np.sqrt(slope_variance_ma(x, e, k[inside], MA_ORDER)))
+    sigma = float(np.sqrt(slope_variance_ma(x, e, k[inside], MA_ORDER, wi)))
     return float(d_hat), sigma, int(y.size)

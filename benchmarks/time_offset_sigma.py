@@ -3,15 +3,17 @@
 
 Over ``--seeds`` simulated pedestrians (:mod:`aidnav.sim.pedestrian`: consumer IMU, GPS + Galileo at 4 Hz
 with an L1 phase of σ 5 mm; the TDCP velocities of 5+ satellites from the SPP positions, as ``aidnav tight``
-takes them, each epoch weighted by their covariance as ``aidnav tight`` does; ``--weights none``: all
-alike, session 17's fit) with the IMU's stamps on time and 25 ms late: the normalised error
-z = (d̂ − d_true)/σ. Targets: SD(z) inside the two-sided 95 % χ² band of the seed count (≈ 1; the 99 %
-band printed too), 3σ coverage ≥ 99 %. Prints per lateness the SD and mean of z, the coverage, the RMS of
-the error and of σ, the scatter of σ² from seed to seed (its coefficient of variation: the true σ is
-nearly the same for every seed, one walk and one sky), and the CPU time.
+takes them, each epoch weighted by their covariance — ``imu_time_offset``'s ``vel_cov``, which ``aidnav
+tight`` does not pass (docs/results.md, issue 40 session 18: it moves the walk); ``--weights none``: all
+alike, session 17's fit and ``aidnav tight``'s) with the IMU's stamps on time and 25 ms late: the
+normalised error z = (d̂ − d_true)/σ. Targets: SD(z) inside the two-sided 95 % χ² band of the seed count
+(≈ 1; the 99 % band printed too), 3σ coverage ≥ 99 %. Prints per lateness the SD and mean of z, the
+coverage, the RMS of the error and of σ, the scatter of σ² from seed to seed (its coefficient of
+variation: the true σ is nearly the same for every seed, one walk and one sky), and the CPU time.
 
 Run: ``python benchmarks/time_offset_sigma.py --seeds 120`` (≈ 1.5 CPU-s a seed). ``--walk``: instead,
-the shared walk's estimate as ``aidnav tight`` (no configuration, forward) states it in its events.
+the shared walk's estimate, caught at ``aidnav tight``'s call (no configuration, forward), with the
+TDCP covariance of that run passed in (``cov``) or not (``none``).
 """
 
 from __future__ import annotations
@@ -74,20 +76,24 @@ def main(argv=None):
 
 
 def walk(weights: str) -> int:
-    """The walk's d̂ ± σ as ``aidnav tight`` (no configuration, forward) computes it, caught at the call
-    (``--weights none``: ``vel_cov`` dropped, session 17's fit)."""
+    """The walk's d̂ ± σ at ``aidnav tight``'s call (no configuration, forward), with ``weights`` "cov" the
+    covariance of the TDCP velocities that run computed passed as ``vel_cov``."""
     from galileo_walk_tight import walk_run  # lazy: the walk's reader, only with --walk
 
     import aidnav.estimators.tdcp as tdcp  # lazy: wrapped only here
     from aidnav.filters.tight import TightConfig  # lazy: only with --walk
 
-    fit, got = tdcp.imu_time_offset, []
+    fit, series, got, tds = tdcp.imu_time_offset, tdcp.tdcp_series, [], []
 
     def caught(*p, vel_cov=None, **k):
-        got.append(fit(*p, vel_cov=vel_cov if weights == "cov" else None, **k))
+        got.append(fit(*p, vel_cov=tds[-1]["vel_cov_enu"] if weights == "cov" else None, **k))
         return got[-1]
 
-    tdcp.imu_time_offset = caught
+    def kept(*p, **k):
+        tds.append(series(*p, **k))
+        return tds[-1]
+
+    tdcp.imu_time_offset, tdcp.tdcp_series = caught, kept
     c0 = time.process_time()
     walk_run(TightConfig(), "auto", False)
     d, sd, n = got[0]

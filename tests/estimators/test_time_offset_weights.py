@@ -1,6 +1,6 @@
-"""Issue 40, session 18: the IMU-GNSS time offset (:func:`aidnav.estimators.tdcp.imu_time_offset`) with each
-epoch weighted by the TDCP velocities' covariance — a few intervals solved from a few satellites must not
-spoil the estimate nor its σ."""
+"""Issue 40, session 18: the IMU-GNSS time offset (:func:`aidnav.estimators.tdcp.imu_time_offset`) with the
+epochs the TDCP velocities' covariance states noisier than the median down-weighted (``vel_cov``) — a few
+intervals solved from a few satellites must not spoil the estimate nor its σ."""
 
 from __future__ import annotations
 
@@ -76,8 +76,8 @@ def test_imu_time_offset_weighted_by_the_tdcp_covariance_is_honest_and_not_spoil
 
 
 def test_imu_time_offset_equal_weights_change_nothing():
-    """A covariance that is the same at every epoch weighs every epoch alike: the estimate and σ of the
-    unweighted fit (the weights are scaled to a mean of 1; the σ does not depend on their scale)."""
+    """A covariance that is the same at every epoch (at any scale) weighs every epoch alike: the estimate and
+    σ of the unweighted fit (every weight min(1, median/itself) = 1)."""
     imu, z = _bounce_imu(40.0)
     t_e = np.arange(1.0, 39.0, DT)
     vel, _ = _draw(3, t_e, z, 0.0099)

@@ -258,18 +258,25 @@ def slope_variance_ma(x, e, idx, order: int, w=None) -> float:
     return max(var, white) / max(float(np.sum(w * x * x)), 1e-30) ** 2
 
 
+#: the variance ratio (to the median epoch's) above which :func:`imu_time_offset` down-weighs an epoch (1:
+#: every epoch above the median; 9, a σ 3× the typical one, left SD z 1.14 on the simulated pedestrian)
+NORM_WEIGHT_RATIO = 1.0
+
+
 def _norm_weights(a, vel_cov, k, delta):
     """Weights (n,) of the TDCP specific-force norms at the epochs ``k`` (:func:`imu_time_offset`): 1 without
-    ``vel_cov``, else 1/(uᵀ(C_k + C_{k−1})u/Δ²) with u = a/‖a‖ (0 where the covariance is not finite or
-    not positive), scaled to a mean of 1 (the σ does not depend on the scale)."""
+    ``vel_cov``, else min(1, r·median V / V_k) with V_k = uᵀ(C_k + C_{k−1})u/Δ², u = a/‖a‖,
+    r = :data:`NORM_WEIGHT_RATIO` (0 where V is not finite or not positive)."""
     if vel_cov is None:
         return np.ones(len(k))
     C = np.asarray(vel_cov, float)
     u = a / np.linalg.norm(a, axis=1)[:, None]
     var = np.einsum("ki,kij,kj->k", u, C[k] + C[k - 1], u) / delta ** 2
     good = np.isfinite(var) & (var > 0)
-    w = np.where(good, 1.0 / np.where(good, var, 1.0), 0.0)
-    return w / w[good].mean() if good.any() else w
+    if not good.any():
+        return np.zeros(len(k))
+    ref = NORM_WEIGHT_RATIO * np.median(var[good])
+    return np.where(good, np.minimum(1.0, ref / np.where(good, var, 1.0)), 0.0)
 
 
 def imu_time_offset(imu, t_epoch, vel_mean, gravity_m_s2: float, max_lag_s: float = 0.2,
@@ -291,14 +298,18 @@ def imu_time_offset(imu, t_epoch, vel_mean, gravity_m_s2: float, max_lag_s: floa
     the second difference counted (:func:`slope_variance_ma`, order :data:`MA_ORDER`).
 
     **Weights** (``vel_cov`` (K, 3, 3), the TDCP velocities' covariance, e.g. :func:`tdcp_series`'s
-    ``vel_cov_enu``; None: all epochs alike): each a_k weighs 1/(uᵀ(C_k + C_{k−1})u/Δ²), u the force's
-    direction — the variance of s_k the least squares of the two intervals state (the cross-covariance of
-    their shared phase epoch is left out: it is the MA part the σ counts). An interval solved from a few
+    ``vel_cov_enu``; None: all epochs alike): with V_k = uᵀ(C_k + C_{k−1})u/Δ² (u the force's direction: the
+    variance of s_k the least squares of the two intervals state; the cross-covariance of their shared
+    phase epoch is left out, it is the MA part the σ counts) each a_k weighs min(1, r·median V / V_k),
+    r = :data:`NORM_WEIGHT_RATIO` — epochs stated noisier than the median are down-weighted, none is
+    up-weighted (on the walk the stated σ spans 0.02–28× the median in variance: the receiver's cpStdev
+    orders the phases' errors but not on this scale, issue 40 session 15). An interval solved from a few
     satellites (on the simulated pedestrian 1.6 % of the intervals keep 4–6 of 17: the slip test fails most
     of them at once, with the phase noise-free too) has a vertical acceleration σ of ~1 m/s² against
     0.2 m/s²: unweighted, those epochs made the residuals' kurtosis 118 and one epoch up to 65 % of the
     sandwich, whose σ then scattered from seed to seed (the variance's CV 0.66) and fell 1.14× short over
-    120 seeds; weighted, kurtosis 3.0, CV 0.22, SD z 1.10 (issue 40, session 18).
+    120 seeds; weighted, CV 0.22, SD z 1.10 (issue 40, session 18; `aidnav tight` does not pass ``vel_cov``:
+    on the walk it moves d̂ from −22 to −37 ms and the smoothed velocity's N ratio from 1.20 to 1.23).
     Returns (d̂, σ_d, n epochs) or None (fewer than ``min_epochs`` usable epochs, or the least residual on
     the grid's edge)."""
     t_e = np.asarray(t_epoch, float)

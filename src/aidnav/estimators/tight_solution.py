@@ -355,8 +355,7 @@ def _tdcp(obs, eph, sp, cfg):
 def _time_offset_from_phase(imu, obs, r, sp, cfg, events):
     """``gnss.time_offset_from_phase``: with TDCP velocities ``r`` and no ``imu.time_offset_s`` in the
     configuration, the IMU-GNSS time offset from the specific force's norm
-    (:func:`aidnav.estimators.tdcp.imu_time_offset`; TDCP velocities of 5+ satellites, weighted by their
-    covariance) as
+    (:func:`aidnav.estimators.tdcp.imu_time_offset`; TDCP velocities of 5+ satellites) as
     ``imu.time_offset_s`` and its σ as
     ``gnss.time_offset_sigma_s`` (unless configured). Returns the configuration to use."""
     from aidnav.estimators.tdcp import imu_time_offset  # lazy: as _tdcp
@@ -371,8 +370,7 @@ def _time_offset_from_phase(imu, obs, r, sp, cfg, events):
     # only TDCP velocities with a redundant satellite (5+): with 4 the least squares has no check of its own
     # errors (no residual, no variance factor) and the vertical, which the norm reads, is the weakest
     vel = np.where((r["n_used"] >= 5)[:, None], r["vel_enu"], np.nan)
-    est = imu_time_offset(imu, obs.time, vel, gravity(np.median(sp["lat"][ok]), np.median(sp["h"][ok])),
-                          vel_cov=r["vel_cov_enu"])  # each epoch weighted by the TDCP covariance
+    est = imu_time_offset(imu, obs.time, vel, gravity(np.median(sp["lat"][ok]), np.median(sp["h"][ok])))
     if est is None:
         events.append("IMU-GNSS time offset: not estimated from the phase (too few TDCP accelerations of 5+ "
                       "satellites, or the fit at the edge of its ±0.2 s grid); the IMU stamps as they are")

@@ -308,7 +308,8 @@ def imu_time_offset(imu, t_epoch, vel_mean, gravity_m_s2: float, max_lag_s: floa
     of them at once, with the phase noise-free too) has a vertical acceleration σ of ~1 m/s² against
     0.2 m/s²: unweighted, those epochs made the residuals' kurtosis 118 and one epoch up to 65 % of the
     sandwich, whose σ then scattered from seed to seed (the variance's CV 0.66) and fell 1.14× short over
-    120 seeds; weighted, CV 0.22, SD z 1.10 (issue 40, session 18; `aidnav tight` does not pass ``vel_cov``:
+    seeds 0–119; weighted, CV 0.22, SD z 1.10 (seeds 120–239: 1.12 either way, the σ still ≈ 10 % small;
+    issue 40, session 18; `aidnav tight` does not pass ``vel_cov``:
     on the walk it moves d̂ from −22 to −37 ms and the smoothed velocity's N ratio from 1.20 to 1.23).
     Returns (d̂, σ_d, n epochs) or None (fewer than ``min_epochs`` usable epochs, or the least residual on
     the grid's edge)."""

@@ -3,9 +3,9 @@
 
 Over ``--seeds`` simulated pedestrians (:mod:`aidnav.sim.pedestrian`: consumer IMU, GPS + Galileo at 4 Hz
 with an L1 phase of σ 5 mm; the TDCP velocities of 5+ satellites from the SPP positions, as ``aidnav tight``
-takes them, each epoch weighted by their covariance — ``imu_time_offset``'s ``vel_cov``, which ``aidnav
-tight`` does not pass (docs/results.md, issue 40 session 18: it moves the walk); ``--weights none``: all
-alike, session 17's fit and ``aidnav tight``'s) with the IMU's stamps on time and 25 ms late: the
+takes them, all epochs alike as ``aidnav tight`` fits them (the default); ``--weights cov``: each epoch
+weighted by their covariance, ``imu_time_offset``'s ``vel_cov``, which ``aidnav tight`` does not pass
+(docs/results.md, issue 40 session 18: it moves the walk)) with the IMU's stamps on time and 25 ms late: the
 normalised error z = (d̂ − d_true)/σ. Targets: SD(z) inside the two-sided 95 % χ² band of the seed count
 (≈ 1; the 99 % band printed too), 3σ coverage ≥ 99 %. Prints per lateness the SD and mean of z, the
 coverage, the RMS of the error and of σ, the scatter of σ² from seed to seed (its coefficient of
@@ -38,8 +38,9 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--seeds", type=int, default=40)
     ap.add_argument("--first-seed", type=int, default=0)
-    ap.add_argument("--weights", choices=("cov", "none"), default="cov",
-                    help="cov: each epoch weighted by the TDCP covariance (as aidnav tight); none: all alike")
+    ap.add_argument("--weights", choices=("none", "cov"), default="none",
+                    help="none: all epochs alike (as aidnav tight fits it); cov: each epoch weighted by the "
+                    "TDCP covariance (imu_time_offset's vel_cov, which aidnav tight does not pass)")
     ap.add_argument("--walk", action="store_true", help="the walk's estimate (aidnav tight's event) only")
     a = ap.parse_args(argv)
     if a.walk:

@@ -258,3 +258,19 @@ def test_a_bad_kernel_mode_is_a_clear_error(tmp_path, value, message):
     p = subprocess.run([sys.executable, "-m", "aidnav", "simulate", "-o", str(tmp_path / "o")], env=env,
                        capture_output=True, text=True)
     assert p.returncode == 2 and message in p.stderr and "Traceback" not in p.stderr
+
+
+def test_kernels_take_numpys_error_model_unless_they_name_another():
+    """:data:`aidnav.jit.ERROR_MODEL`: a float division by zero gives inf / NaN (numpy's model: no divisor
+    test in the filters' loops); a kernel that names ``error_model="python"`` still raises."""
+    from aidnav.jit import njit
+
+    def ratio(a, b):
+        return a / b
+
+    fast = njit(ratio)
+    checked = njit(error_model="python")(ratio)
+    assert fast(1.0, 0.0) == np.inf
+    assert np.isnan(fast(0.0, 0.0))
+    with pytest.raises(ZeroDivisionError):
+        checked(1.0, 0.0)

@@ -1,7 +1,8 @@
 """Where aidnav's kernels come from: numba's JIT, or an ahead-of-time build of the same kernels.
 
 Every kernel in aidnav is written once, as a numba function decorated with :func:`njit` from here
-(numba's own ``njit`` options: ``cache``, ``nogil``, ``inline``, ``fastmath``). What the decorator
+(numba's own ``njit`` options: ``cache``, ``nogil``, ``inline``, ``fastmath``, ``error_model``: numpy's
+unless a kernel names another, :data:`ERROR_MODEL`). What the decorator
 returns depends on the mode this module is in when the kernel's module is imported:
 
 * ``"jit"`` (the default, and always in library use and in the tests): numba's own dispatcher,
@@ -43,6 +44,15 @@ from pathlib import Path
 
 import numpy as np
 
+#: numba's ``error_model`` for every kernel unless it names its own: ``"numpy"`` — a float division by
+#: zero gives ±inf or NaN as numpy's does (the filters' NaN checks then see it), instead of numba's default
+#: ``"python"`` model, which tests every division's divisor and raises ``ZeroDivisionError``. The
+#: test is in the filters' innermost loops: issue 40, session 18 measured +1.7 to +5.7 % on the tight
+#: filter's throughput from it (docs/results.md). Integer division by zero gives 0 under this model:
+#: the filters' integer divisors are constants or guarded (the engine's output stride); a kernel that
+#: needs the check names ``error_model="python"`` (``tests/test_jit.py`` checks both).
+ERROR_MODEL = "numpy"
+
 _mode = "jit"
 _table: dict[str, dict] = {}  # kernel name -> {typekey: compiled function} (aot)
 _records: dict | None = None  # kernel name -> {typekey: numba argument types} (record)
@@ -68,6 +78,7 @@ def njit(*args, depends: str | None = None, **options):
     if args:  # @njit without parentheses
         (fn,) = args
         return njit(depends=depends, **options)(fn)
+    options.setdefault("error_model", ERROR_MODEL)
 
     def decorate(fn):
         if _mode == "jit":

@@ -10,22 +10,10 @@ from scipy.stats import chi2
 
 from aidnav.estimators.tdcp import imu_time_offset, slope_variance_ma
 
+from .test_tdcp import _bounce_imu  # the closed-form bounce (A = 3 cm, f = 1.9 Hz)
+
 D_TRUE = 0.025  # the IMU's stamps are 25 ms late: the offset to add is −25 ms
 DT = 0.25
-
-
-def _bounce_imu(span_s):
-    """The closed-form bounce of tests/estimators/test_tdcp.py (body = ENU, z = A sin 2πft, A = 3 cm,
-    f = 1.9 Hz): the IMU's exact Δv on stamps ``D_TRUE`` late, and the height function."""
-    from types import SimpleNamespace
-
-    g, amp, w = 9.80, 0.03, 2 * np.pi * 1.9
-    t_imu = np.arange(0.0, span_s, 0.005)
-    dv = np.zeros((t_imu.size - 1, 3))
-    vz = amp * w * np.cos(w * t_imu)
-    dv[:, 2] = np.diff(vz) + g * np.diff(t_imu)  # ∫(a + g) over each sample
-    imu = SimpleNamespace(t0=t_imu[0] + D_TRUE, time=t_imu[1:] + D_TRUE, dv=dv)
-    return imu, lambda t: amp * np.sin(w * t)
 
 
 def _draw(seed, t_e, z, bad_sigma_m):
@@ -55,7 +43,7 @@ def test_imu_time_offset_weighted_by_the_tdcp_covariance_is_honest_and_not_spoil
     intervals (they remove ~4 % of the information, each spoiling two accelerations: 1/√0.96 ≈ 1.02).
     Unweighted (``vel_cov`` None) the bad intervals dominate: σ ≈ 3× (measured 6.8 against 2.3 ms) — the
     contrast asserted too, so that the weights cannot silently fall off."""
-    imu, z = _bounce_imu(40.0)
+    imu, z = _bounce_imu(D_TRUE, 40.0)
     t_e = np.arange(1.0, 39.0, DT)
     zs, sig_w, sig_ref, sig_u = [], [], [], []
     for seed in range(48):
@@ -78,7 +66,7 @@ def test_imu_time_offset_weighted_by_the_tdcp_covariance_is_honest_and_not_spoil
 def test_imu_time_offset_equal_weights_change_nothing():
     """A covariance that is the same at every epoch (at any scale) weighs every epoch alike: the estimate and
     σ of the unweighted fit (every weight min(1, median/itself) = 1)."""
-    imu, z = _bounce_imu(40.0)
+    imu, z = _bounce_imu(D_TRUE, 40.0)
     t_e = np.arange(1.0, 39.0, DT)
     vel, _ = _draw(3, t_e, z, 0.0099)
     cov = np.broadcast_to(np.diag([1e-4, 1e-4, 4e-3]), (t_e.size - 1, 3, 3))

@@ -16,7 +16,8 @@ Cases (:data:`CASES`): the default (the IMU-GNSS time offset from the specific f
 ``gnss.time_offset_from_phase``); the IMU's stamps 25 ms late; both without that offset (session 15's
 model: a late IMU reproduces the walk's optimistic velocity σ); without the Doppler rows.
 Targets (issue 40, the walk's velocity σ): 3σ coverage ≥ 95 % per axis, forward and smoothed.
-``--seeds N`` (default 3); ``--cases a,b`` (default every case of :data:`CASES`).
+``--seeds N`` (default 3); ``--cases "a;b"`` (semicolon-separated: a name may hold a comma; default
+every case of :data:`CASES`).
 """
 
 from __future__ import annotations
@@ -73,10 +74,14 @@ def line(name, e, s):
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--seeds", type=int, default=3)
-    ap.add_argument("--cases", default=",".join(CASES))
+    ap.add_argument("--cases", default=";".join(CASES), help="semicolon-separated names of CASES")
     a = ap.parse_args()
     print(f"simulated pedestrian, aidnav tight no configuration; load {os.getloadavg()[0]:.2f}")
-    for case in a.cases.split(","):
+    cases = [c.strip() for c in a.cases.split(";") if c.strip()]
+    unknown = [c for c in cases if c not in CASES]
+    if unknown:
+        ap.error(f"unknown case(s) {unknown}; known: {'; '.join(CASES)}")
+    for case in cases:
         pooled = {False: [], True: []}
         for seed in range(a.seeds):
             run = simulate_pedestrian(seed)

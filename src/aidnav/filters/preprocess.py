@@ -182,6 +182,10 @@ class StaticDetector:
 GAP_TILT, GAP_HEADING, GAP_VEL, GAP_POS = range(4)
 
 
+#: an IMU interval longer than this many times the log's median interval is a gap (:func:`imu_gaps`)
+GAP_FACTOR = 5.0
+
+
 @njit(cache=True)
 def surely_no_gap(t, t0, factor):
     """True where :func:`imu_gaps` can find no gap in the sample times ``t`` (from ``t0``) without their
@@ -203,7 +207,7 @@ def surely_no_gap(t, t0, factor):
     return c <= (n - 1) // 2
 
 
-def imu_gaps(imu, factor: float = 5.0, med: float | None = None, empty=None):
+def imu_gaps(imu, factor: float = GAP_FACTOR, med: float | None = None, empty=None):
     """The sample intervals of ``imu`` (Δt_k = t_k − t_{k−1}, t_{−1} = ``imu.t0``), the nominal interval
     (``med``, default their median) and the indices of the samples after a gap (Δt > ``factor`` × nominal):
     what :func:`bridge_gaps` decides from the sample times alone. ``empty``: an allocator ``(shape) ->
@@ -224,8 +228,8 @@ def imu_gaps(imu, factor: float = 5.0, med: float | None = None, empty=None):
     return dt, med, np.flatnonzero(dt > factor * med)
 
 
-def bridge_gaps(imu, events: list, factor: float = 5.0, window_s: float = 1.0, med: float | None = None,
-                start: int = 0, bounds=None, empty=None):
+def bridge_gaps(imu, events: list, factor: float = GAP_FACTOR, window_s: float = 1.0,
+                med: float | None = None, start: int = 0, bounds=None, empty=None):
     """Increments ready for the kernel, with IMU time gaps (interval > ``factor`` × median) bridged.
 
     A sample after a gap either already spans the gap (e.g. rates × Δt from a reader: |Δv|/Δt ≈ g)

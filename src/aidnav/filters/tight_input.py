@@ -43,7 +43,7 @@ from aidnav.units import DEG
 from . import measurements as ms
 from .engine import Imu, Records
 from .measurements import epoch as ep
-from .preprocess import bridge_gaps, imu_gaps, surely_no_gap
+from .preprocess import GAP_FACTOR, bridge_gaps, imu_gaps, surely_no_gap
 
 __all__ = ["Arena", "arena_bytes", "epoch_outputs", "epoch_records", "epoch_rows", "imu_input", "imu_times",
            "rejected_per_satellite", "rotation_variance", "timing_variance"]
@@ -309,7 +309,7 @@ def imu_input(imu, cfg, t_imu, k0: int, static, events: list, rec_t=None, arena:
     empty = None if arena is None else arena.empty
     dth_in, dv_in = imu.dtheta, imu.dv
     # bridge_gaps' rule (its (N, 4) gap variances not used here): the median only where a gap is possible
-    if not surely_no_gap(np.asarray(imu.time, float), float(imu.t0), 5.0):
+    if not surely_no_gap(np.asarray(imu.time, float), float(imu.t0), GAP_FACTOR):
         _, med, gaps = imu_gaps(imu, empty=empty)
         if len(gaps):
             dth_in, dv_in = bridge_gaps(imu, events, med=med, empty=empty)[:2]  # (as before the engine)
